@@ -1,0 +1,85 @@
+"""The blackbox interface: how the physical world advances by one step δ.
+
+The engine calls a blackbox once per DOREACH INVOKE, for all agents at once
+(physics couples them).  A blackbox is any object with:
+
+* ``name``: a short string shown in every verdict;
+* ``uses_time``: True if outcomes depend on absolute time (``t0`` or
+  ``time``).  When False (all shipped blackboxes), the explorer may leave the
+  clock out of state identity (time abstraction);
+* ``init_env(world, n_agents)``: the blackbox's own initial state (hashable,
+  e.g. a tuple of velocities; ``None`` when it keeps none);
+* ``step(world, motions, env, time, delta)``: a non-empty list of
+  :class:`Outcome`.  One outcome is a deterministic controller; several model
+  uncertainty and ``explore`` follows them all.
+
+Positions are ``(x, y, z)`` float tuples.  The engine rounds returned
+positions to ``world.resolution``.  Obstacles are tuples of polygons, each a
+tuple of ``(x, y)`` points; a blackbox must treat both the obstacles passed to
+``doReach`` (``Motion.obstacles``) and the world's own static obstacles
+(``world.obstacles``) as solid.
+
+Writing your own::
+
+    from pccl.blackboxes.base import Outcome
+
+    class Teleport:
+        name = "teleport"
+        uses_time = False
+
+        def init_env(self, world, n_agents):
+            return None
+
+        def step(self, world, motions, env, time, delta):
+            pos = tuple(m.target if m.target is not None else m.position
+                        for m in motions)
+            done = tuple(m.target is not None for m in motions)
+            return [Outcome(pos, done, (False,) * len(motions), None)]
+
+    BLACKBOX = Teleport()      # pccl run prog.pccl --blackbox mymodule:BLACKBOX
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Hashable, Optional, Protocol, Sequence
+
+Position = tuple  # (x, y, z) floats
+Polygon = tuple   # ((x, y), ...)
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One agent's input to a step.
+
+    ``target`` is None before the agent's first doReach: its controller holds
+    it in place and both flags stay false.  ``active`` is False for agents
+    that have exited or are stuck (their robot still occupies space; its
+    controller still runs toward the last target).
+    """
+    position: Position
+    target: Optional[Position]
+    obstacles: tuple
+    t0: Optional[float]
+    done: bool
+    fail: bool
+    active: bool = True
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One possible result of a step, for all agents (same order as motions)."""
+    positions: tuple
+    done: tuple
+    fail: tuple
+    env: Hashable = None
+
+
+class Blackbox(Protocol):
+    name: str
+    uses_time: bool
+
+    def init_env(self, world, n_agents: int) -> Hashable: ...
+
+    def step(self, world, motions: Sequence[Motion], env: Hashable,
+             time: float, delta: float) -> list[Outcome]: ...

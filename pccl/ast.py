@@ -1,0 +1,298 @@
+"""PCCL abstract syntax: frozen dataclasses that carry their source span.
+
+Every node has a ``span`` (line, column, end line, end column, all 1-based,
+end column exclusive) so that every message can point at the source.  Spans do
+not take part in equality or hashing, but every *statement* also carries a
+unique ``sid`` (statement occurrence id, assigned by the parser in source
+order) so that two textually equal statements at different places are
+different items of an agent's pending computation ``k`` (spec section 5).
+
+The parser (``pccl.parser``) builds these; the static checker
+(``pccl.checker``) reads them and fills in nothing: it only reports errors.
+The compiler (``pccl.compile``) turns them into closures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional, Union
+
+
+@dataclass(frozen=True)
+class Span:
+    line: int
+    column: int
+    end_line: int
+    end_column: int
+
+    @staticmethod
+    def unknown() -> "Span":
+        return Span(0, 0, 0, 0)
+
+
+def _span() -> Span:
+    return field(default_factory=Span.unknown, compare=False, repr=False)
+
+
+# --------------------------------------------------------------------------
+# Types
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TypeRef:
+    """A written type.
+
+    ``name`` is one of ``int``, ``bool``, ``float``, ``ItemPosition``,
+    ``ObstacleList``, ``List`` or the name of a declared enum.  Aliases are
+    normalised by the parser: ``boolean`` -> ``bool``, ``double`` -> ``float``.
+    ``elem`` is the element type of ``List<T>``, else None.
+    """
+    name: str
+    elem: Optional["TypeRef"] = None
+    span: Span = _span()
+
+    def __str__(self) -> str:
+        return f"List<{self.elem}>" if self.name == "List" else self.name
+
+
+# --------------------------------------------------------------------------
+# Expressions
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class IntLit:
+    value: int
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class FloatLit:
+    value: float
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class BoolLit:
+    value: bool
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class ListLit:
+    items: tuple["Expr", ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Name:
+    """A variable, enum member, or (in properties) ``time``/``N``/a bound id."""
+    name: str
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Index:
+    """``base[index]``: array element, or agent j's component of an allread
+    variable (``x[j]``), or in properties agent i's local (``v[i]``)."""
+    base: "Expr"
+    index: "Expr"
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Field:
+    """``base.name``: ``p.x``, ``p.y``, ``p.z``."""
+    base: "Expr"
+    name: str
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Call:
+    """``name(args)``: a built-in or uninterpreted function."""
+    name: str
+    args: tuple["Expr", ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Unary:
+    """``op`` is ``-`` or ``!``."""
+    op: str
+    operand: "Expr"
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Binary:
+    """``op`` is one of ``|| && == != < <= > >= + - * / %`` and, in
+    properties only, ``->``."""
+    op: str
+    left: "Expr"
+    right: "Expr"
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Quant:
+    """Properties only: ``forall i: body`` / ``exists i: body`` over agent ids."""
+    kind: str  # "forall" | "exists"
+    var: str
+    body: "Expr"
+    span: Span = _span()
+
+
+Expr = Union[IntLit, FloatLit, BoolLit, ListLit, Name, Index, Field, Call,
+             Unary, Binary, Quant]
+
+
+# --------------------------------------------------------------------------
+# Statements (each has a unique sid)
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Assign:
+    """``target = value`` where target is a Name or an Index chain."""
+    sid: int
+    target: Expr
+    value: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class If:
+    """``if (c1): b1 else if (c2): b2 ... else: e``.
+
+    ``branches`` holds (condition, body) pairs in order; ``orelse`` the else
+    body (empty tuple when absent).  The whole chain is one statement.
+    """
+    sid: int
+    branches: tuple[tuple[Expr, tuple["Stmt", ...]], ...]
+    orelse: tuple["Stmt", ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class While:
+    sid: int
+    cond: Expr
+    body: tuple["Stmt", ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Atomic:
+    sid: int
+    body: tuple["Stmt", ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class CallStmt:
+    """A call used as a statement: ``doReach(t, o)``, ``exit()``,
+    ``assert(e)``, ``add(xs, v)``, ``remove(xs, v)`` (or any other name,
+    which the checker rejects)."""
+    sid: int
+    name: str
+    args: tuple[Expr, ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Skip:
+    sid: int
+    span: Span = _span()
+
+
+Stmt = Union[Assign, If, While, Atomic, CallStmt, Skip]
+
+
+# --------------------------------------------------------------------------
+# Declarations and program
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class VarDecl:
+    """``T name = init;`` or ``T name[size];``.
+
+    ``section`` is ``allwrite``, ``allread`` or ``loc`` (aliases MW, SW,
+    local, Loc are normalised by the parser).
+    """
+    section: str
+    type: TypeRef
+    name: str
+    size: Optional[Expr]
+    init: Optional[Expr]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class EnumDecl:
+    """``enum Stage { PICK, GO, DONE };`` in any declaration section."""
+    section: str
+    name: str
+    members: tuple[str, ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Event:
+    name: str
+    guard: Expr
+    body: tuple[Stmt, ...]
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Invariant:
+    """``name: expr;`` (or unnamed ``expr;``) in the ``invariant:`` section."""
+    name: Optional[str]
+    expr: Expr
+    span: Span = _span()
+
+
+@dataclass(frozen=True)
+class Program:
+    name: Optional[str]                 # from ``Agent::Name``
+    decls: tuple[Union[VarDecl, EnumDecl], ...]
+    init: tuple[Stmt, ...]
+    events: tuple[Event, ...]
+    invariants: tuple[Invariant, ...]
+    filename: str = field(default="<input>", compare=False)
+    source: str = field(default="", compare=False, repr=False)
+    n_statements: int = field(default=0, compare=False)  # sids are 0..n-1
+
+
+def walk_stmts(stmts):
+    """Yield every statement in ``stmts`` and its nested blocks, in order."""
+    for s in stmts:
+        yield s
+        if isinstance(s, If):
+            for _, body in s.branches:
+                yield from walk_stmts(body)
+            yield from walk_stmts(s.orelse)
+        elif isinstance(s, (While, Atomic)):
+            yield from walk_stmts(s.body)
+
+
+def walk_expr(e):
+    """Yield ``e`` and every sub-expression."""
+    yield e
+    if isinstance(e, ListLit):
+        for x in e.items:
+            yield from walk_expr(x)
+    elif isinstance(e, Index):
+        yield from walk_expr(e.base)
+        yield from walk_expr(e.index)
+    elif isinstance(e, Field):
+        yield from walk_expr(e.base)
+    elif isinstance(e, Call):
+        for x in e.args:
+            yield from walk_expr(x)
+    elif isinstance(e, Unary):
+        yield from walk_expr(e.operand)
+    elif isinstance(e, Binary):
+        yield from walk_expr(e.left)
+        yield from walk_expr(e.right)
+    elif isinstance(e, Quant):
+        yield from walk_expr(e.body)

@@ -1,0 +1,84 @@
+"""User-facing errors: one message, file:line:column, the source line and a caret.
+
+Every problem with the user's input (syntax, types, world files, options)
+is raised as a :class:`PcclError`; the CLI prints ``err.render()`` to stderr
+and exits with status 2.  Nothing else should reach the user as a traceback.
+
+Format (pylox style)::
+
+    programs/bad.pccl:12:5: error: undeclared variable 'foo'
+       12 |     foo = 3;
+          |     ^^^
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .ast import Span
+
+
+class PcclError(Exception):
+    """An error in the user's input, with an optional source location."""
+
+    exit_status = 2
+
+    def __init__(self, message: str, *, filename: Optional[str] = None,
+                 source: Optional[str] = None, span: Optional[Span] = None,
+                 line: Optional[int] = None, column: Optional[int] = None,
+                 end_column: Optional[int] = None):
+        super().__init__(message)
+        self.message = message
+        self.filename = filename
+        self.source = source
+        if span is not None and span.line > 0:
+            line = span.line if line is None else line
+            column = span.column if column is None else column
+            if end_column is None and span.end_line == span.line:
+                end_column = span.end_column
+        self.line = line
+        self.column = column
+        self.end_column = end_column
+
+    def render(self) -> str:
+        return render_message(self.message, filename=self.filename,
+                              source=self.source, line=self.line,
+                              column=self.column, end_column=self.end_column)
+
+    def __str__(self) -> str:
+        return self.render()
+
+
+def render_message(message: str, *, filename: Optional[str], source: Optional[str],
+                   line: Optional[int], column: Optional[int],
+                   end_column: Optional[int] = None, kind: str = "error") -> str:
+    where = filename or "<input>"
+    if line:
+        where += f":{line}"
+        if column:
+            where += f":{column}"
+    out = [f"{where}: {kind}: {message}"]
+    if source is not None and line:
+        lines = source.splitlines()
+        if 1 <= line <= len(lines):
+            text = lines[line - 1].expandtabs(1).rstrip("\n")
+            gutter = f"{line:>5} | "
+            out.append(gutter + text)
+            if column:
+                col = max(1, column)
+                width = 1
+                if end_column and end_column > col:
+                    width = end_column - col
+                width = max(1, min(width, max(1, len(text) - col + 1)))
+                out.append(" " * (len(gutter) - 2) + "| " + " " * (col - 1) + "^" * width)
+    return "\n".join(out)
+
+
+class PcclRuntimeError(Exception):
+    """A runtime error inside a PCCL program (division by zero, undefined
+    read, remove of an absent element, ...).  The engine turns it into a
+    *stuck agent* (a result), never into a crash of the tool."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
