@@ -1,0 +1,52 @@
+"""``instant``: every moving agent reaches its target at the next step.
+
+Rules, per agent (planar: the target's x and y are reached, the agent's own
+z is carried through unchanged):
+
+* no target yet (``target is None``): stays, done = fail = False;
+* ``fail`` already set for the current target: stays, fail stays True;
+* ``done`` already set: stays, done stays True;
+* target inside an obstacle or on its boundary (the agent's
+  ``Motion.obstacles`` plus ``world.obstacles``): stays, fail = True;
+* otherwise: jumps to the target, done = True.
+
+Exactly one outcome; no env state.
+"""
+
+from __future__ import annotations
+
+from ._geometry import obstacles_of
+from .base import Outcome
+
+
+class Instant:
+    name = "instant"
+    uses_time = False
+
+    def init_env(self, world, n_agents):
+        return None
+
+    def step(self, world, motions, env, time, delta):
+        positions, done, fail = [], [], []
+        wobs = world.obstacles
+        for m in motions:
+            p, t = m.position, m.target
+            if t is None or m.fail or m.done:
+                positions.append(p)
+                done.append(t is not None and m.done and not m.fail)
+                fail.append(t is not None and m.fail)
+                continue
+            obs = obstacles_of(wobs, m.obstacles)
+            if obs.contains_point(float(t[0]), float(t[1])):
+                positions.append(p)
+                done.append(False)
+                fail.append(True)
+            else:
+                positions.append((float(t[0]), float(t[1]), float(p[2]) if len(p) > 2 else 0.0))
+                done.append(True)
+                fail.append(False)
+        return [Outcome(tuple(positions), tuple(done), tuple(fail), None)]
+
+
+INSTANT = Instant()
+BLACKBOX = INSTANT

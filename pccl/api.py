@@ -1,0 +1,160 @@
+"""The Python API: load, run and explore PCCL programs.
+
+    >>> from pccl.api import explore
+    >>> r = explore("programs/fischer.pccl", invariants=["count(inCs) <= 1"])
+    >>> r.status, r.verdict
+    ('violation', "violation of invariant 'count(inCs) <= 1' ...")
+    >>> [step["rule"] for step in r.trace][:3]
+
+``program`` may be a path, source text (with ``source=True``) or an
+:class:`~pccl.ast.Program`; ``world`` a path or a :class:`~pccl.world.World`;
+``blackbox`` a registry name, ``module:attribute`` or a blackbox object.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+from dataclasses import dataclass, field
+from typing import Any, Optional, Union
+
+from . import ast as A
+from . import display as D
+from .engine import Model
+from .explorer import Explorer, SearchResult, Stats
+from .runner import RunResult, run as _run
+
+
+def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
+    from .parser import parse_file, parse_program
+    if isinstance(program, A.Program):
+        return program
+    if source:
+        return parse_program(str(program), "<input>")
+    return parse_file(os.fspath(program))
+
+
+def load_world_arg(world):
+    from .world import World, load_world
+    if world is None or isinstance(world, World):
+        return world
+    return load_world(os.fspath(world))
+
+
+def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = None,
+               seed: Optional[int] = None, rng: Optional[random.Random] = None, **options) -> Model:
+    """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
+    sampled from the generator instead of branching."""
+    prog = load_program(program)
+    w = load_world_arg(world)
+    if rng is None and seed is not None:
+        rng = random.Random(seed)
+    if rng is not None and "rand_policy" not in options:
+        options["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
+    return Model(prog, world=w, blackbox=blackbox, n_agents=agents, **options)
+
+
+# ---------------------------------------------------------------------------
+# explore
+# ---------------------------------------------------------------------------
+
+@dataclass
+class ExploreResult:
+    status: str                       # violation | exhaustive | bounded | interrupted
+    verdict: str                      # the one-line verdict
+    blackbox: str
+    exit_status: int
+    stats: Stats
+    bounds: list = field(default_factory=list)
+    violation: Optional[dict] = None  # the first violation
+    violations: list = field(default_factory=list)  # every distinct violation (with --all)
+    trace: list = field(default_factory=list)       # steps of the first counterexample
+    final_state: Optional[dict] = None
+    collision_probability: float = 0.0
+    model: Any = None
+    search: Optional[SearchResult] = None
+
+    @property
+    def exhaustive(self) -> bool:
+        return self.status == "exhaustive"
+
+
+def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
+            deadlock: bool = True, find_all: bool = False, exact: bool = False,
+            progress=None, invariants=(), **model_options) -> ExploreResult:
+    model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+                       invariants=tuple(invariants), **model_options)
+    return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
+                         find_all=find_all, exact=exact, progress=progress)
+
+
+def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
+                  find_all=False, exact=False, progress=None) -> ExploreResult:
+    ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
+                  find_all=find_all, exact=exact, progress=progress)
+    sr = ex.run()
+    bb = model.blackbox.name
+    labels = []
+    for b in sr.bounds_hit:
+        if b == "--depth":
+            labels.append(f"--depth {depth}")
+        elif b == "--max-states":
+            labels.append(f"--max-states {max_states}")
+        elif b == "--max-time":
+            labels.append(f"--max-time {model.max_time}")
+        else:
+            labels.append(b)
+    violations = []
+    for f in sr.found:
+        violations.append(violation_data(model, f))
+    if sr.status == "violation":
+        v = sr.found[0].violation
+        verdict = f"violation: {v.message}"
+        if len(sr.found) > 1:
+            verdict += f" (and {len(sr.found) - 1} more distinct violation(s))"
+        code = 1
+    elif sr.status == "exhaustive":
+        verdict = "no violation — exhaustive"
+        code = 0
+    elif sr.status == "bounded":
+        verdict = "no violation within bounds — stopped by " + ", ".join(labels)
+        code = 0
+    else:
+        verdict = "interrupted — no violation found in the states explored so far (not exhaustive)"
+        code = 130
+    verdict += f" [blackbox {bb}]"
+    first = violations[0] if violations else None
+    return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
+                         first["trace"] if first else [], first["state"] if first else None,
+                         sr.collision_probability, model, sr)
+
+
+def violation_data(model, found) -> dict:
+    v = found.violation
+    steps = []
+    tr = found.trace or []
+    for n in range(1, len(tr)):
+        label, after = tr[n]
+        steps.append(D.step_json(model, n, label, tr[n - 1][1], after))
+    last = tr[-1][1] if tr else None
+    return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
+            "line": v.span.line if v.span else None,
+            "column": v.span.column if v.span else None,
+            "depth": found.depth, "trace": steps,
+            "state": D.state_json(model, last) if last is not None else None,
+            "_raw_trace": tr}
+
+
+# ---------------------------------------------------------------------------
+# run
+# ---------------------------------------------------------------------------
+
+def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
+        max_steps: int = 100_000, record_trace: bool = False, max_time=100,
+        **model_options) -> RunResult:
+    rng = random.Random(seed)
+    model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
+                       max_time=max_time, abstract_time=False, **model_options)
+    res = _run(model, seed=seed, max_steps=max_steps, record_trace=record_trace, rng=rng)
+    res.model = model
+    return res

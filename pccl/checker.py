@@ -1,0 +1,799 @@
+"""The static checker: names, types and the rules of spec sections 2 and 5.
+
+``check_program`` walks a parsed :class:`pccl.ast.Program` and either returns
+its symbol table (:class:`ProgramInfo`) or raises the first problem, in source
+order, as a :class:`PcclError` whose span points at the offending node.
+``check_property`` does the same for a property expression (the program's
+``invariant:`` section, ``--invariant EXPR``) against a checked program.
+
+Type rules (where the spec is silent, the choice is written here):
+
+* Types: ``int bool float ItemPosition ObstacleList List<T>``, enums, arrays
+  ``T[n]`` (n a constant), and ``any``: the type of an uninterpreted function's
+  value (``getInput()``), which fits every slot.
+* An int widens to float (also inside lists: ``List<int>`` fits
+  ``List<float>``); a float never narrows to int.  ``[]`` fits every
+  ``List<T>`` and ``ObstacleList``.
+* ``+ - * /``: numbers; int op int is int, otherwise float.  ``%``: ints.
+  Arithmetic on an ``any`` value is refused (its static type, hence the
+  meaning of ``/``, is unknown): store it in a typed variable first.
+* ``< <= > >=``: numbers; ``== !=``: two values of which one fits the other's
+  type (enums only with the same enum); ``&& || !``: bool.
+* Arrays are not values: an array is always indexed (``a[i]``), never read,
+  assigned or compared whole.  An array initialiser gives every element the
+  same value: ``bool flags[3] = false;``.
+* Allread variables: in a program, a scalar ``x`` is this agent's component
+  and ``x[j]`` agent j's; for an allread *array* ``x[k]`` is this agent's
+  element k and ``x[j][k]`` agent j's element k.  Further indexes index lists.
+  A program writes only its own component.
+* Properties: every per-agent variable (local or allread, and the flags
+  ``doReach_done``/``doReach_fail``) takes the agent index first: ``v[i]``,
+  ``v[i][k]`` for arrays.
+* Shared (allwrite) initialisers are evaluated once, outside any agent: they
+  may not use per-agent variables, the flags, ``getAgentIndex()`` or
+  ``getPosition()``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Optional
+
+from . import ast
+from .ast import Span
+from .builtins import BUILTINS, READONLY_FLAGS, Builtin, uninterpreted
+from .errors import PcclError
+
+
+# --------------------------------------------------------------------------
+# Types
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Ty:
+    """A PCCL type.  ``kind`` is one of int, bool, float, pos, obstacles,
+    list (``elem`` set), enum (``enum`` set), array (``elem`` and ``size``
+    set), any."""
+    kind: str
+    elem: Optional["Ty"] = None
+    enum: Optional[str] = None
+    size: Optional[int] = None
+
+    def __str__(self) -> str:
+        if self.kind == "list":
+            return f"List<{self.elem}>"
+        if self.kind == "enum":
+            return str(self.enum)
+        if self.kind == "array":
+            return f"{self.elem}[{self.size}]"
+        return _KIND_NAMES.get(self.kind, self.kind)
+
+    @property
+    def is_number(self) -> bool:
+        return self.kind in ("int", "float")
+
+
+_KIND_NAMES = {"pos": "ItemPosition", "obstacles": "ObstacleList"}
+
+INT = Ty("int")
+BOOL = Ty("bool")
+FLOAT = Ty("float")
+POS = Ty("pos")
+OBSTACLES = Ty("obstacles")
+ANY = Ty("any")
+
+
+def list_of(elem: Ty) -> Ty:
+    return Ty("list", elem=elem)
+
+
+def array_of(elem: Ty, size: int) -> Ty:
+    return Ty("array", elem=elem, size=size)
+
+
+def enum_ty(name: str) -> Ty:
+    return Ty("enum", enum=name)
+
+
+_DESCRIPTORS = {"int": INT, "bool": BOOL, "float": FLOAT, "pos": POS,
+                "obstacles": OBSTACLES, "any": ANY}
+
+_TYPE_NAMES = {"int": INT, "bool": BOOL, "boolean": BOOL, "float": FLOAT,
+               "double": FLOAT, "ItemPosition": POS, "ObstacleList": OBSTACLES}
+_BUILTIN_TYPE_NAMES = frozenset(_TYPE_NAMES) | {"List"}
+
+
+def assignable(dst: Ty, src: Ty) -> bool:
+    """Does a value of type ``src`` fit a slot of type ``dst``?"""
+    if dst.kind == "any" or src.kind == "any":
+        return True
+    if dst == src:
+        return True
+    if dst.kind == "float" and src.kind == "int":
+        return True
+    if dst.kind == "list" and src.kind == "list":
+        return assignable(dst.elem, src.elem)
+    if dst.kind == "obstacles" and src.kind == "list" and src.elem.kind == "any":
+        return True                       # [] as "no obstacles"
+    return False
+
+
+def compatible(a: Ty, b: Ty) -> bool:
+    """May ``a == b`` be asked?"""
+    return assignable(a, b) or assignable(b, a)
+
+
+def join(a: Ty, b: Ty) -> Optional[Ty]:
+    """The type of a list literal holding an ``a`` and a ``b``, or None."""
+    if a.kind == "any":
+        return b
+    if b.kind == "any" or a == b:
+        return a
+    if a.is_number and b.is_number:
+        return FLOAT
+    if a.kind == "list" and b.kind == "list":
+        e = join(a.elem, b.elem)
+        return None if e is None else list_of(e)
+    return None
+
+
+# --------------------------------------------------------------------------
+# The symbol table
+# --------------------------------------------------------------------------
+
+SECTIONS = ("allwrite", "allread", "loc")
+
+
+@dataclass(frozen=True)
+class VarInfo:
+    name: str
+    section: str                 # allwrite | allread | loc
+    type: Ty                     # declared type; Ty("array", ...) for arrays
+    decl: ast.VarDecl = field(compare=False, repr=False)
+
+    @property
+    def is_array(self) -> bool:
+        return self.type.kind == "array"
+
+    @property
+    def size(self) -> Optional[int]:
+        return self.type.size if self.is_array else None
+
+    @property
+    def value_type(self) -> Ty:
+        """The type of one element (arrays) or of the variable."""
+        return self.type.elem if self.is_array else self.type
+
+    @property
+    def per_agent(self) -> bool:
+        return self.section != "allwrite"
+
+
+@dataclass
+class ProgramInfo:
+    """What the checker learnt: variables, enums, events, functions."""
+    name: Optional[str]
+    filename: str
+    source: str
+    variables: dict[str, VarInfo] = field(default_factory=dict)   # in declaration order
+    enums: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    members: dict[str, tuple[str, int]] = field(default_factory=dict)  # member -> (enum, index)
+    events: tuple[str, ...] = ()
+    functions: frozenset[str] = frozenset()   # extra uninterpreted functions
+
+    def type_of(self, name: str) -> Ty:
+        """Type of a variable (an array type for arrays), an enum member or a
+        controller flag.  KeyError for anything else."""
+        if name in self.variables:
+            return self.variables[name].type
+        if name in self.members:
+            return enum_ty(self.members[name][0])
+        if name in READONLY_FLAGS:
+            return _DESCRIPTORS[READONLY_FLAGS[name]]
+        raise KeyError(name)
+
+    def section_of(self, name: str) -> str:
+        return self.variables[name].section
+
+    def vars_in(self, section: str) -> list[VarInfo]:
+        return [v for v in self.variables.values() if v.section == section]
+
+    def function(self, name: str) -> Optional[Builtin]:
+        """The built-in or uninterpreted function called ``name``, or None."""
+        if name in BUILTINS:
+            return BUILTINS[name]
+        if name in self.functions:
+            return uninterpreted(name)
+        return None
+
+    def expr_type(self, expr: ast.Expr, *, in_property: bool = False,
+                  bound: frozenset[str] = frozenset()) -> Ty:
+        """The type of an expression of a checked program (or property, with
+        the quantified agent ids ``bound`` in scope).  Raises PcclError if the
+        expression does not check."""
+        c = _Checker(self, "property" if in_property else "program")
+        c.bound = {b: 1 for b in bound}
+        return c.value(expr)
+
+
+# --------------------------------------------------------------------------
+# Entry points
+# --------------------------------------------------------------------------
+
+def check_program(program: ast.Program, *,
+                  functions: frozenset[str] = frozenset()) -> ProgramInfo:
+    info = ProgramInfo(name=program.name, filename=program.filename,
+                       source=program.source, functions=frozenset(functions))
+    _Checker(info, "program").program(program)
+    return info
+
+
+def check_property(expr: ast.Expr, info: ProgramInfo, *, filename: str,
+                   source: str) -> None:
+    c = _Checker(info, "property", filename=filename, source=source)
+    c.property(expr)
+
+
+# --------------------------------------------------------------------------
+# The checker
+# --------------------------------------------------------------------------
+
+_AGENT_FUNCTIONS = ("getAgentIndex", "getPosition")
+_PROPERTY_NAMES = ("time", "N")
+_PROGRAM_ONLY_HINTS = {
+    "getAgentIndex": "quantify over agent ids instead, forall i: …",
+    "getPosition": "write pos[i] for agent i's position",
+    "rand": "a property is evaluated on a state, not sampled",
+}
+
+
+class _Checker:
+    def __init__(self, info: ProgramInfo, mode: str, *,
+                 filename: Optional[str] = None, source: Optional[str] = None):
+        self.info = info
+        self.mode = mode                          # program | property
+        self.filename = info.filename if filename is None else filename
+        self.source = info.source if source is None else source
+        self.lines = self.source.splitlines()
+        self.bound: dict[str, int] = {}           # property: quantified ids
+        # declaration pass state
+        self.first_decl: dict[str, ast.VarDecl] = {}
+        self.init_of: Optional[VarInfo] = None     # variable being initialised
+
+    # ---- reporting -------------------------------------------------------
+
+    def fail(self, message: str, span: Optional[Span]):
+        raise PcclError(message, filename=self.filename, source=self.source,
+                        span=span)
+
+    def text(self, node, default: str) -> str:
+        """The source text of a one-line node, else ``default``."""
+        s = getattr(node, "span", None)
+        if s is None or s.line < 1 or s.line != s.end_line or s.line > len(self.lines):
+            return default
+        t = self.lines[s.line - 1][s.column - 1:s.end_column - 1].strip()
+        return t or default
+
+    def find_word(self, span: Span, word: str, start: Optional[int] = None) -> Span:
+        """The span of ``word`` on the first line of ``span`` (from column
+        ``start``); the whole span when it cannot be found."""
+        if span.line < 1 or span.line > len(self.lines):
+            return span
+        line = self.lines[span.line - 1]
+        col = (start if start else span.column) - 1
+        m = re.compile(r"(?<![\w])" + re.escape(word) + r"(?![\w])").search(line, max(col, 0))
+        if not m:
+            return span
+        return Span(span.line, m.start() + 1, span.line, m.end() + 1)
+
+    def name_span(self, node) -> Span:
+        """The span of a call's function name (calls start with the name)."""
+        s = node.span
+        if s.line < 1:
+            return s
+        return Span(s.line, s.column, s.line, s.column + len(node.name))
+
+    # ---- program ---------------------------------------------------------
+
+    def program(self, p: ast.Program) -> None:
+        info = self.info
+        # Enums are constants visible everywhere: collect them first so that a
+        # type or a member may be used above its enum's declaration.
+        for d in p.decls:
+            if isinstance(d, ast.EnumDecl):
+                if d.name not in info.enums and d.name not in _BUILTIN_TYPE_NAMES:
+                    info.enums[d.name] = d.members
+                for k, m in enumerate(d.members):
+                    info.members.setdefault(m, (d.name, k))
+            else:
+                self.first_decl.setdefault(d.name, d)
+        declared: dict[str, tuple[str, int]] = {}     # name -> (what, line)
+
+        def claim(name: str, what: str, span: Span, where: Span) -> None:
+            if name in READONLY_FLAGS:
+                self.fail(f"'{name}' is a read-only flag of the controller; "
+                          f"it cannot be declared", where)
+            if name in declared:
+                prev, line = declared[name]
+                if prev == what:
+                    self.fail(f"duplicate {what} '{name}' (first declared at line {line})",
+                              where)
+                self.fail(f"'{name}' is already declared as {_article(prev)} "
+                          f"at line {line}", where)
+            declared[name] = (what, span.line)
+
+        for d in p.decls:
+            if isinstance(d, ast.EnumDecl):
+                at = self.find_word(d.span, d.name)
+                if d.name in _BUILTIN_TYPE_NAMES:
+                    self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
+                claim(d.name, "enum", d.span, at)
+                col = at.end_column if at is not d.span else None
+                seen: set[str] = set()
+                for m in d.members:
+                    ms = self.find_word(d.span, m, col)
+                    if ms is not d.span:
+                        col = ms.end_column
+                    if m in seen:
+                        self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
+                    seen.add(m)
+                    claim(m, "enum member", d.span, ms)
+                continue
+            start = d.type.span.end_column if (d.type.span.line == d.span.line
+                                                and d.type.span.line > 0) else None
+            at = self.find_word(d.span, d.name, start)
+            claim(d.name, "variable", d.span, at)
+            ty = self.declared_type(d.type, d.span)
+            if d.size is not None:
+                n = self.const_int(d.size)
+                if n < 1:
+                    self.fail(f"array size must be at least 1, got {n}", d.size.span)
+                ty = array_of(ty, n)
+            v = VarInfo(d.name, d.section, ty, d)
+            if d.init is not None:
+                self.init_of = v
+                self.bound = {}
+                t = self.value(d.init)
+                if not assignable(v.value_type, t):
+                    self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
+                              f"with {t}", d.init.span)
+                self.init_of = None
+            info.variables.setdefault(d.name, v)
+        self.first_decl = {}
+        self.stmts(p.init)
+        seen_events: dict[str, int] = {}
+        for ev in p.events:
+            if ev.name in seen_events:
+                self.fail(f"duplicate event '{ev.name}' (first declared at line "
+                          f"{seen_events[ev.name]})", self.find_word(ev.span, ev.name))
+            seen_events[ev.name] = ev.span.line
+            self.condition(ev.guard, "pre")
+            self.stmts(ev.body)
+        info.events = tuple(seen_events)
+        seen_invariants: dict[str, int] = {}
+        for inv in p.invariants:
+            if inv.name is not None:
+                if inv.name in seen_invariants:
+                    self.fail(f"duplicate invariant '{inv.name}' (first declared at "
+                              f"line {seen_invariants[inv.name]})",
+                              self.find_word(inv.span, inv.name))
+                seen_invariants[inv.name] = inv.span.line
+            _Checker(info, "property").property(inv.expr)
+
+    def declared_type(self, t: ast.TypeRef, where: Span) -> Ty:
+        span = t.span if t.span.line > 0 else where
+        if t.name in _TYPE_NAMES:
+            return _TYPE_NAMES[t.name]
+        if t.name == "List":
+            if t.elem is None:
+                self.fail("List needs an element type: List<T>", span)
+            return list_of(self.declared_type(t.elem, where))
+        if t.name in self.info.enums:
+            return enum_ty(t.name)
+        self.fail(f"unknown type '{t.name}'", span)
+
+    def const_int(self, e: ast.Expr) -> int:
+        """An array size: an int literal or arithmetic on int literals."""
+        if isinstance(e, ast.IntLit):
+            return e.value
+        if isinstance(e, ast.Unary) and e.op == "-":
+            return -self.const_int(e.operand)
+        if isinstance(e, ast.Binary) and e.op in ("+", "-", "*", "/", "%"):
+            a, b = self.const_int(e.left), self.const_int(e.right)
+            if e.op == "+":
+                return a + b
+            if e.op == "-":
+                return a - b
+            if e.op == "*":
+                return a * b
+            if b == 0:
+                self.fail("division by zero in array size", e.span)
+            q = abs(a) // abs(b)
+            q = q if (a >= 0) == (b >= 0) else -q
+            return q if e.op == "/" else a - b * q
+        self.fail("array size must be a constant int expression", e.span)
+
+    # ---- statements ------------------------------------------------------
+
+    def stmts(self, body) -> None:
+        for s in body:
+            self.stmt(s)
+
+    def stmt(self, s) -> None:
+        if isinstance(s, ast.Assign):
+            t = self.lvalue(s.target)
+            v = self.value(s.value)
+            if not assignable(t, v):
+                self.fail(f"cannot assign {v} to '{self.text(s.target, 'the target')}' "
+                          f"of type {t}", s.value.span)
+        elif isinstance(s, ast.If):
+            for cond, body in s.branches:
+                self.condition(cond, "if")
+                self.stmts(body)
+            self.stmts(s.orelse)
+        elif isinstance(s, ast.While):
+            self.condition(s.cond, "while")
+            self.stmts(s.body)
+        elif isinstance(s, ast.Atomic):
+            self.stmts(s.body)
+        elif isinstance(s, ast.CallStmt):
+            b = self.info.function(s.name)
+            if b is None:
+                self.fail(f"unknown function '{s.name}'", self.name_span(s))
+            if b.kind == "property":
+                self.fail(f"'{s.name}' is only available in properties", self.name_span(s))
+            if not b.is_statement:
+                self.fail(f"'{s.name}' returns a value; it is not a statement",
+                          self.name_span(s))
+            self.args(b, s)
+        elif isinstance(s, ast.Skip):
+            pass
+        else:  # pragma: no cover - the parser builds only the above
+            self.fail(f"unexpected statement {type(s).__name__}", getattr(s, "span", None))
+
+    def condition(self, e: ast.Expr, what: str) -> None:
+        t = self.value(e)
+        if t.kind not in ("bool", "any"):
+            self.fail(f"condition of '{what}' must be bool, got {t}", e.span)
+
+    def lvalue(self, target: ast.Expr) -> Ty:
+        """Check that ``target`` may be written by this agent; its type."""
+        if isinstance(target, ast.Field):
+            self.fail(f"cannot assign to field '.{target.name}': assign a whole "
+                      f"ItemPosition instead", target.span)
+        chain = []
+        root = target
+        while isinstance(root, ast.Index):
+            chain.append(root)
+            root = root.base
+        chain.reverse()
+        if not isinstance(root, ast.Name):
+            self.fail("cannot assign to this expression: the target must be a "
+                      "variable or an element of one", target.span)
+        name = root.name
+        var = self.info.variables.get(name)
+        if var is None:
+            if name in READONLY_FLAGS:
+                self.fail(f"'{name}' is read-only: set by the controller", root.span)
+            if name in self.info.members:
+                self.fail(f"cannot assign to enum member '{name}'", root.span)
+            if self.info.function(name) is not None:
+                self.fail(f"cannot assign to function '{name}'", root.span)
+            self.undeclared(root)
+        if var.section == "allread":
+            agent_index = len(chain) >= (2 if var.is_array else 1)
+            if agent_index:
+                j = chain[0].index
+                own = f"{name}[…] = …" if var.is_array else f"{name} = …"
+                self.fail(f"cannot write agent {self.text(j, 'j')}'s component of allread "
+                          f"variable '{name}': an agent writes only its own component, "
+                          f"`{own}`", target.span)
+        if not chain and var.is_array:
+            self.fail(f"cannot assign to array '{name}' as a whole: assign its "
+                      f"elements, {name}[i] = …", target.span)
+        return self.value(target)
+
+    def args(self, b: Builtin, call) -> Ty:
+        """Check a call's arguments against the table; its result type."""
+        n = len(call.args)
+        if n not in b.arities:
+            if b.arities == (0,):
+                self.fail(f"'{b.name}' takes no arguments, got {n}", call.span)
+            plural = "argument" if b.arities == (1,) else "arguments"
+            self.fail(f"'{b.name}' takes {b.arity_text()} {plural}, got {n}", call.span)
+        elem = ANY
+        for k, (a, p) in enumerate(zip(call.args, b.params), start=1):
+            what = f"argument {k} of '{b.name}'"
+            if p == "list-var":
+                if not isinstance(a, (ast.Name, ast.Index)):
+                    self.value(a)
+                    self.fail(f"{what} must be a List variable (it is rewritten in "
+                              f"place), not an expression", a.span)
+                t = self.lvalue(a)
+                if t.kind != "list" and t.kind != "any":
+                    self.fail(f"{what} must be a List variable, got {t}", a.span)
+                elem = t.elem if t.kind == "list" else ANY
+                continue
+            t = self.value(a)
+            if p == "list":
+                if t.kind not in ("list", "any"):
+                    self.fail(f"{what} must be a List, got {t}", a.span)
+                elem = t.elem if t.kind == "list" else ANY
+            elif p == "elem":
+                if not assignable(elem, t):
+                    self.fail(f"{what} must be {elem} (the list's element type), "
+                              f"got {t}", a.span)
+            elif p == "float":
+                if not (t.is_number or t.kind == "any"):
+                    self.fail(f"{what} must be a number, got {t}", a.span)
+            elif p == "bool" and b.name == "assert":
+                if t.kind not in ("bool", "any"):
+                    self.fail(f"condition of 'assert' must be bool, got {t}", a.span)
+            else:
+                want = _DESCRIPTORS[p]
+                if not assignable(want, t):
+                    self.fail(f"{what} must be {want}, got {t}", a.span)
+        if b.result is None:
+            return ANY
+        return elem if b.result == "elem" else _DESCRIPTORS[b.result]
+
+    # ---- expressions -----------------------------------------------------
+
+    def value(self, e: ast.Expr) -> Ty:
+        """The type of ``e`` used as a value (arrays must be indexed)."""
+        t = self.expr(e)
+        if t.kind == "array":
+            name = self.text(e, "the array")
+            self.fail(f"array '{name}' must be indexed: write {name}[i]", e.span)
+        return t
+
+    def expr(self, e: ast.Expr) -> Ty:
+        if isinstance(e, ast.IntLit):
+            return INT
+        if isinstance(e, ast.FloatLit):
+            return FLOAT
+        if isinstance(e, ast.BoolLit):
+            return BOOL
+        if isinstance(e, ast.ListLit):
+            t = ANY
+            for k, x in enumerate(e.items):
+                u = self.value(x)
+                j = join(t, u)
+                if j is None:
+                    self.fail(f"list elements disagree: {u} after {t}", x.span)
+                t = j
+            return list_of(t)
+        if isinstance(e, ast.Name):
+            return self.name(e)
+        if isinstance(e, ast.Index):
+            return self.index(e)
+        if isinstance(e, ast.Field):
+            t = self.value(e.base)
+            if t.kind not in ("pos", "any"):
+                self.fail(f"field '.{e.name}' needs an ItemPosition, got {t}", e.span)
+            if e.name not in ("x", "y", "z"):
+                self.fail(f"ItemPosition has no field '.{e.name}' (only .x, .y, .z)",
+                          e.span)
+            return FLOAT
+        if isinstance(e, ast.Call):
+            return self.call(e)
+        if isinstance(e, ast.Unary):
+            t = self.value(e.operand)
+            if e.op == "!":
+                if t.kind not in ("bool", "any"):
+                    self.fail(f"operand of '!' must be bool, got {t}", e.operand.span)
+                return BOOL
+            self.arith_operand(e.op, t, e.operand)
+            return t
+        if isinstance(e, ast.Binary):
+            return self.binary(e)
+        if isinstance(e, ast.Quant):
+            if self.mode != "property":
+                self.fail(f"'{e.kind}' is only allowed in properties", e.span)
+            saved = dict(self.bound)
+            self.bound[e.var] = 1
+            t = self.value(e.body)
+            if t.kind not in ("bool", "any"):
+                self.fail(f"the body of '{e.kind}' must be bool, got {t}", e.body.span)
+            self.bound = saved
+            return BOOL
+        self.fail(f"unexpected expression {type(e).__name__}",  # pragma: no cover
+                  getattr(e, "span", None))
+
+    def arith_operand(self, op: str, t: Ty, node) -> None:
+        if t.kind == "any":
+            self.fail(f"operand of '{op}' has no static type (a value from the "
+                      f"world file): store it in a typed variable first", node.span)
+        if op == "%":
+            if t.kind != "int":
+                self.fail(f"operands of '%' must be int, got {t}", node.span)
+        elif not t.is_number:
+            self.fail(f"operands of '{op}' must be numbers, got {t}", node.span)
+
+    def binary(self, e: ast.Binary) -> Ty:
+        op = e.op
+        if op == "->" and self.mode != "property":
+            self.fail("'->' is only allowed in properties", e.span)
+        a = self.value(e.left)
+        b = self.value(e.right)
+        if op in ("||", "&&", "->"):
+            for t, n in ((a, e.left), (b, e.right)):
+                if t.kind not in ("bool", "any"):
+                    self.fail(f"operands of '{op}' must be bool, got {t}", n.span)
+            return BOOL
+        if op in ("==", "!="):
+            if not compatible(a, b):
+                self.fail(f"cannot compare {a} with {b} using '{op}'", e.span)
+            return BOOL
+        if op in ("<", "<=", ">", ">="):
+            for t, n in ((a, e.left), (b, e.right)):
+                if not (t.is_number or t.kind == "any"):
+                    self.fail(f"operands of '{op}' must be numbers, got {t}", n.span)
+            return BOOL
+        if op in ("+", "-", "*", "/", "%"):
+            self.arith_operand(op, a, e.left)
+            self.arith_operand(op, b, e.right)
+            return INT if a.kind == b.kind == "int" else FLOAT
+        self.fail(f"unknown operator '{op}'", e.span)  # pragma: no cover
+
+    def undeclared(self, n: ast.Name):
+        if self.info.function(n.name) is not None:
+            self.fail(f"'{n.name}' is a function: call it, {n.name}()", n.span)
+        if self.mode == "program" and n.name == "time":
+            self.fail("undeclared variable 'time' (a program cannot read the clock)",
+                      n.span)
+        self.fail(f"undeclared variable '{n.name}'", n.span)
+
+    def per_agent_in_property(self, n: ast.Name):
+        self.fail(f"'{n.name}' is per-agent: write {n.name}[i]", n.span)
+
+    def ambiguous(self, n: ast.Name):
+        if n.name in self.info.variables:
+            self.fail(f"'{n.name}' is ambiguous in a property: the program declares a "
+                      f"variable '{n.name}'; rename it", n.span)
+
+    def name(self, n: ast.Name) -> Ty:
+        name = n.name
+        if self.mode == "property":
+            if name in self.bound:
+                return INT
+            if name in _PROPERTY_NAMES:
+                self.ambiguous(n)
+                return FLOAT if name == "time" else INT
+            if name == "pos":
+                self.ambiguous(n)
+                self.per_agent_in_property(n)
+        var = self.info.variables.get(name)
+        if self.init_of is not None:
+            var = self.visible_in_init(n)
+        if var is not None:
+            if self.mode == "property" and var.per_agent:
+                self.per_agent_in_property(n)
+            return var.type
+        if name in READONLY_FLAGS:
+            if self.mode == "property":
+                self.per_agent_in_property(n)
+            if self.init_of is not None and self.init_of.section == "allwrite":
+                self.fail(f"'{name}' is per-agent: a shared (allwrite) initialiser "
+                          f"cannot use it", n.span)
+            return BOOL
+        if name in self.info.members:
+            return enum_ty(self.info.members[name][0])
+        self.undeclared(n)
+
+    def visible_in_init(self, n: ast.Name) -> Optional[VarInfo]:
+        """The variable ``n`` names, as seen from an initialiser."""
+        d = self.first_decl.get(n.name)
+        if d is None:
+            return None
+        if self.init_of.section == "allwrite" and d.section != "allwrite":
+            self.fail(f"shared (allwrite) variable '{self.init_of.name}' cannot be "
+                      f"initialised from per-agent ({d.section}) variable '{n.name}'",
+                      n.span)
+        var = self.info.variables.get(n.name)
+        if var is None or var.decl is not d:
+            self.fail(f"'{n.name}' is not declared yet: an initialiser can use only "
+                      f"variables declared above it", n.span)
+        return var
+
+    def index(self, e: ast.Index) -> Ty:
+        chain = []
+        root = e
+        while isinstance(root, ast.Index):
+            chain.append(root)
+            root = root.base
+        chain.reverse()
+        t = None
+        if isinstance(root, ast.Name) and root.name not in self.bound:
+            t = self.agent_root(root, chain)
+        if t is None:
+            t = self.expr(root)
+        else:
+            chain = chain[1:]                  # the agent index is consumed
+        for node in chain:
+            if t.kind not in ("array", "list", "any"):
+                self.fail(f"cannot index a value of type {t}", node.span)
+            self.index_value(node.index)
+            t = ANY if t.kind == "any" else t.elem
+        return t
+
+    def index_value(self, ix: ast.Expr, what: str = "index") -> None:
+        u = self.value(ix)
+        if u.kind not in ("int", "any"):
+            self.fail(f"{what} must be int, got {u}", ix.span)
+
+    def agent_root(self, root: ast.Name, chain) -> Optional[Ty]:
+        """``x[j]…`` where j picks an agent: check j and return the type of
+        agent j's component, or None when the first index is not an agent's."""
+        name = root.name
+        var = self.info.variables.get(name)
+        if self.mode == "property":
+            if name == "pos":
+                self.ambiguous(root)
+                t = POS
+            elif var is not None:
+                if not var.per_agent:
+                    return None
+                t = var.type
+            elif name in READONLY_FLAGS:
+                t = BOOL
+            else:
+                return None
+        else:
+            if var is None or var.section != "allread":
+                return None
+            if self.init_of is not None:
+                var = self.visible_in_init(root)
+            if var.is_array and len(chain) < 2:
+                return None                    # x[k]: this agent's element k
+            t = var.type
+        self.index_value(chain[0].index, "agent index")
+        return t
+
+    def call(self, e: ast.Call) -> Ty:
+        b = self.info.function(e.name)
+        if b is None:
+            self.fail(f"unknown function '{e.name}'", self.name_span(e))
+        if b.is_statement:
+            self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
+        if self.mode == "property":
+            if not b.in_properties:
+                hint = _PROGRAM_ONLY_HINTS.get(e.name)
+                if b.kind == "uninterpreted":
+                    hint = "its value belongs to the world, not to the state"
+                self.fail(f"'{e.name}' cannot be used in a property: {hint}",
+                          self.name_span(e))
+            if b.kind == "property":
+                return self.count(e, b)
+        elif b.kind == "property":
+            self.fail(f"'{e.name}' is only available in properties", self.name_span(e))
+        if (self.init_of is not None and self.init_of.section == "allwrite"
+                and e.name in _AGENT_FUNCTIONS):
+            self.fail(f"'{e.name}' needs an agent: a shared (allwrite) initialiser "
+                      f"cannot call it", self.name_span(e))
+        return self.args(b, e)
+
+    def count(self, e: ast.Call, b: Builtin) -> Ty:
+        if len(e.args) != 1:
+            self.fail(f"'count' takes 1 argument, got {len(e.args)}", e.span)
+        a = e.args[0]
+        var = self.info.variables.get(a.name) if isinstance(a, ast.Name) else None
+        ok = (isinstance(a, ast.Name) and a.name not in self.bound
+              and ((var is not None and var.per_agent and var.type == BOOL)
+                   or (var is None and a.name in READONLY_FLAGS)))
+        if not ok:
+            self.fail("'count' takes the name of a bool local or allread variable, "
+                      "count(v)", a.span)
+        return INT
+
+    # ---- properties ------------------------------------------------------
+
+    def property(self, e: ast.Expr) -> None:
+        t = self.value(e)
+        if t.kind not in ("bool", "any"):
+            self.fail(f"a property must be bool, got {t}", e.span)
+
+
+def _article(what: str) -> str:
+    return ("an " if what[0] in "aeiou" else "a ") + what

@@ -1,0 +1,302 @@
+"""The ``pccl`` command line: run, check and explore PCCL programs."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+import click
+
+from . import display as D
+from .errors import PcclError
+
+BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
+                 "for your own [default: straight]")
+
+
+class RateType(click.ParamType):
+    name = "AGENT=RATE"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        try:
+            a, r = value.split("=")
+            return int(a), int(r)
+        except ValueError:
+            self.fail(f"{value!r} is not AGENT=RATE (for example 1=2)", param, ctx)
+
+
+def common_options(f):
+    opts = [
+        click.option("--agents", "-n", type=click.IntRange(min=1), default=None,
+                     help="number of agents (overrides the world's count) [default: world's, else 2]"),
+        click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
+                     help="world file (TOML): start positions, obstacles, function values"),
+        click.option("--blackbox", "-b", default="straight", show_default=False, help=BLACKBOX_HELP),
+        click.option("--delta", type=click.FloatRange(min=0, min_open=True), default=1.0,
+                     show_default=True, help="time step δ"),
+        click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
+                     help="event-block executions per agent per time step"),
+        click.option("--rate", "rates", type=RateType(), multiple=True,
+                     help="per-agent rate ρ, e.g. --rate 1=2 (repeatable)"),
+        click.option("--events", type=click.Choice(["any", "first"]), default="any",
+                     show_default=True,
+                     help="any enabled event may run, or only the first in source order"),
+        click.option("--collisions", is_flag=True,
+                     help="report robots overlapping each other or an obstacle"),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def _delta(d):
+    return int(d) if float(d).is_integer() else d
+
+
+def _model_options(delta, n0, rates, events, collisions):
+    return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
+                collisions=collisions)
+
+
+def _fail(err: PcclError):
+    click.echo(err.render(), err=True)
+    sys.exit(2)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(package_name="pccl")
+def main():
+    """pccl: run and model-check PCCL programs for teams of robots.
+
+    \b
+      pccl check PROGRAM            parse and type-check only
+      pccl run PROGRAM              one seeded execution against a physics model
+      pccl explore PROGRAM          every interleaving, breadth-first, with
+                                    shortest counterexamples
+
+    Exit status: 0 no problem, 1 a violation (stuck agent, failed assertion,
+    invariant, deadlock), 2 bad input.
+    """
+
+
+@main.command()
+@click.argument("program", type=click.Path(dir_okay=False))
+@click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
+              help="world file whose uninterpreted functions the program may use")
+def check(program, world):
+    """Parse and statically check PROGRAM; print nothing else on success."""
+    from .api import load_program, load_world_arg
+    from .checker import check_program
+    try:
+        prog = load_program(program)
+        w = load_world_arg(world)
+        names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
+        check_program(prog, functions=names)
+    except PcclError as e:
+        _fail(e)
+    click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
+
+
+@main.command()
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--seed", type=int, default=0, show_default=True, help="random seed: same seed, same run")
+@click.option("--max-time", type=click.FloatRange(min=0), default=100, show_default=True,
+              help="stop when global time would pass this")
+@click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
+              help="most transitions in one time step before the run is stopped as looping")
+@click.option("--trace", is_flag=True, help="print every transition")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="draw the arena and trajectories to this PNG (needs matplotlib)")
+def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, seed,
+        max_time, max_steps, trace, fmt, plot):
+    """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
+    from .api import run as api_run
+    try:
+        res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
+                      max_steps=max_steps, record_trace=trace or plot is not None,
+                      max_time=_delta(max_time),
+                      **_model_options(delta, n0, rates, events, collisions))
+    except PcclError as e:
+        _fail(e)
+    m = res.model
+    if fmt == "json":
+        out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
+               "result": res.status, "message": res.message, "exit_status": res.exit_status,
+               "steps": res.steps,
+               "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
+                           for t, s in res.summary],
+               "final": D.state_json(m, res.final)}
+        if trace:
+            out["trace"] = [D.step_json(m, n + 1, lab, a, b) for n, (lab, a, b) in enumerate(res.trace)]
+        click.echo(json.dumps(out, indent=2, default=str))
+    else:
+        click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
+                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}, seed {seed}")
+        if trace:
+            click.echo("trace:")
+            for n, (lab, a, b) in enumerate(res.trace):
+                click.echo(D.format_step(m, n + 1, lab, a, b))
+        click.echo("time steps:")
+        prev = None
+        for t, s in res.summary:
+            click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
+            prev = s
+        click.echo(f"result: {res.status} — {res.message} "
+                   f"(t={D.fmt_time(res.final[0])}, {res.steps} transitions)")
+        for v in res.violations:
+            if v.span is not None:
+                click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
+                           f"{D.source_line(m, v.span)}")
+        click.echo("final configuration:")
+        click.echo(D.format_state(m, res.final))
+    if plot:
+        _plot_run(m, res, plot)
+    sys.exit(res.exit_status)
+
+
+def _step_summary(m, prev, s) -> str:
+    parts = []
+    for i, ag in enumerate(s[4]):
+        st = D.status_text(m, ag[3])
+        parts.append(f"a{i} {D.fmt_pos(ag[6])}" + ("" if st == "running" else f" {st}"))
+    if prev is not None:
+        ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
+        if ch:
+            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch[:8]) + (" …" if len(ch) > 8 else ""))
+    return "  ".join(parts)
+
+
+def _plot_run(m, res, path):
+    try:
+        from .plot import plot_run
+    except ImportError as e:  # matplotlib missing
+        click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
+        sys.exit(2)
+    plot_run(m, res, path)
+    click.echo(f"plot written to {path}")
+
+
+@main.command()
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--depth", type=click.IntRange(min=0), default=None,
+              help="explore at most this many transitions from an initial state")
+@click.option("--max-time", type=click.FloatRange(min=0), default=None,
+              help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
+@click.option("--max-states", type=click.IntRange(min=1), default=None,
+              help="stop after this many distinct states")
+@click.option("--abstract-time/--no-abstract-time", default=None,
+              help="leave the clock out of state identity [default: on when sound and no --max-time]")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
+@click.option("--no-deadlock", is_flag=True, help="do not report deadlocks")
+@click.option("--all", "find_all", is_flag=True,
+              help="keep exploring and report each distinct violation once")
+@click.option("--exact", is_flag=True,
+              help="store full states instead of 64-bit fingerprints (more memory, no hash collisions)")
+@click.option("--format", "fmt", type=click.Choice(["text", "json", "k"]), default="text",
+              show_default=True)
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
+@click.option("--progress/--no-progress", default=None,
+              help="progress line on stderr [default: when stderr is a terminal]")
+def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, depth,
+            max_time, max_states, abstract_time, invariants, no_deadlock, find_all, exact, fmt,
+            plot, progress):
+    """Explore every interleaving of PROGRAM breadth-first and report the first
+    violation with a shortest counterexample."""
+    from .api import explore_model, make_model
+    try:
+        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+                           max_time=None if max_time is None else _delta(max_time),
+                           abstract_time=abstract_time, invariants=tuple(invariants),
+                           **_model_options(delta, n0, rates, events, collisions))
+    except PcclError as e:
+        _fail(e)
+    show = sys.stderr.isatty() if progress is None else progress
+    reporter = _progress_printer() if show else None
+    res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
+                        find_all=find_all, exact=exact, progress=reporter)
+    if show:
+        click.echo("\r\033[K", err=True, nl=False)
+    if fmt == "json":
+        click.echo(json.dumps(_explore_json(program, res), indent=2, default=str))
+    else:
+        _print_explore_text(program, res, k_style=(fmt == "k"))
+    if plot and res.violations:
+        try:
+            from .plot import plot_trace
+        except ImportError as e:
+            click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
+            sys.exit(2)
+        plot_trace(model, res.violations[0]["_raw_trace"], plot,
+                   title=res.violations[0]["message"])
+        click.echo(f"plot written to {plot}")
+    sys.exit(res.exit_status)
+
+
+def _progress_printer():
+    def report(p):
+        sps = p["states"] / p["seconds"] if p["seconds"] > 0 else 0
+        click.echo(f"\r\033[Kstates {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
+                   f"{sps:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB", err=True, nl=False)
+    return report
+
+
+def _stats_lines(res) -> list:
+    s = res.stats
+    lines = [f"  initial states   {s.initial_states:,}",
+             f"  states           {s.states:,}",
+             f"  transitions      {s.transitions:,}",
+             f"  max depth        {s.max_depth}",
+             f"  seconds          {s.seconds:.2f}",
+             f"  states/second    {s.states_per_second:,.0f}",
+             f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
+    if res.collision_probability:
+        lines.append(f"  fingerprints     64-bit; collision probability ≤ {res.collision_probability:.1e}")
+    return lines
+
+
+def _print_explore_text(program, res, *, k_style=False):
+    m = res.model
+    click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
+               f"δ={D.fmt_time(m.delta)}, n0={m.n0}, events {m.events_policy}, "
+               f"time abstraction {'on' if m.abstract_time else 'off'}")
+    click.echo(res.verdict)
+    for v in res.violations:
+        click.echo("")
+        click.echo(f"{v['message']}")
+        if v["line"]:
+            click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
+        tr = v["_raw_trace"]
+        click.echo(f"counterexample ({len(tr) - 1} steps):")
+        for n in range(1, len(tr)):
+            click.echo(D.format_step(m, n, tr[n][0], tr[n - 1][1], tr[n][1]))
+        click.echo("violating state:")
+        if k_style:
+            click.echo(D.format_state_k(m, tr[-1][1]))
+        else:
+            click.echo(D.format_state(m, tr[-1][1]))
+    click.echo("statistics:")
+    for ln in _stats_lines(res):
+        click.echo(ln)
+
+
+def _explore_json(program, res) -> dict:
+    m = res.model
+    return {"program": program, "blackbox": res.blackbox, "agents": m.N,
+            "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
+            "bounds": res.bounds, "time_abstraction": m.abstract_time,
+            "statistics": res.stats.as_dict(),
+            "collision_probability": res.collision_probability,
+            "violations": [{k: v for k, v in viol.items() if not k.startswith("_")}
+                           for viol in res.violations]}
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

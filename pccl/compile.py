@@ -1,0 +1,524 @@
+"""Compile a checked PCCL program into fast Python closures.
+
+Expressions are translated once into Python source and ``exec``'d into plain
+functions (no tree walking per evaluation).  Agent expressions have the
+signature ``f(i, ag, sh, ags)``: agent id, the agent's tuple, the shared
+variable tuple and the tuple of all agents.  Property expressions have the
+signature ``f(st)`` over a whole configuration.
+
+Configuration layout (see :mod:`pccl.engine`)::
+
+    state = (time, phase, lockQueue, shared, agents, env)
+    agent = (pc, counter, lockState, status, locals, allread, position, reach)
+    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+from . import ast as A
+from . import values as V
+from .errors import PcclError
+
+# agent tuple slots
+PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
+# state tuple slots
+TIME, PHASE, LQ, SH, AGS, ENV = range(6)
+
+STATEMENT_FUNCS = {"doReach", "exit", "assert", "add", "remove"}
+UNINTERPRETED_DEFAULT = ("getInput", "getObs")
+
+
+@dataclass(frozen=True)
+class VType:
+    """A value type, for coercion and display."""
+    kind: str                        # int bool float pos obstacles list enum array any
+    elem: Optional["VType"] = None
+    members: Optional[tuple] = None  # enum member names
+    size: Optional[int] = None       # arrays
+    name: Optional[str] = None       # enum name
+
+    def __str__(self) -> str:
+        if self.kind == "list":
+            return f"List<{self.elem}>"
+        if self.kind == "array":
+            return f"{self.elem}[{self.size}]"
+        if self.kind == "enum":
+            return self.name or "enum"
+        return {"pos": "ItemPosition", "obstacles": "ObstacleList"}.get(self.kind, self.kind)
+
+
+@dataclass
+class VarSlot:
+    name: str
+    section: str          # allwrite | allread | loc
+    slot: int
+    ty: VType
+    decl: A.VarDecl
+    may_undef: bool
+
+
+@dataclass
+class Layout:
+    shared: list = field(default_factory=list)     # VarSlot, allwrite
+    allread: list = field(default_factory=list)
+    local: list = field(default_factory=list)
+    vars: dict = field(default_factory=dict)       # name -> VarSlot
+    enums: dict = field(default_factory=dict)      # enum name -> VType
+    members: dict = field(default_factory=dict)    # member -> (VType, index)
+
+
+def _const_int(e: A.Expr, program: A.Program) -> int:
+    if isinstance(e, A.IntLit):
+        return e.value
+    if isinstance(e, A.Unary) and e.op == "-":
+        return -_const_int(e.operand, program)
+    if isinstance(e, A.Binary) and e.op in "+-*/%":
+        a, b = _const_int(e.left, program), _const_int(e.right, program)
+        try:
+            return {"+": a + b, "-": a - b, "*": a * b,
+                    "/": V.div(a, b) if b else None, "%": V.mod(a, b) if b else None}[e.op]
+        except Exception:  # pragma: no cover - checker rejects
+            pass
+    raise PcclError("array size must be a constant integer expression",
+                    filename=program.filename, source=program.source, span=e.span)
+
+
+def build_layout(program: A.Program) -> Layout:
+    lay = Layout()
+    for d in program.decls:
+        if isinstance(d, A.EnumDecl):
+            t = VType("enum", members=tuple(d.members), name=d.name)
+            lay.enums[d.name] = t
+            for k, m in enumerate(d.members):
+                lay.members[m] = (t, k)
+
+    def vtype(tr: A.TypeRef) -> VType:
+        n = tr.name
+        if n == "List":
+            return VType("list", elem=vtype(tr.elem) if tr.elem else VType("any"))
+        if n in ("int", "bool", "float"):
+            return VType(n)
+        if n == "ItemPosition":
+            return VType("pos")
+        if n == "ObstacleList":
+            return VType("obstacles")
+        if n in lay.enums:
+            return lay.enums[n]
+        raise PcclError(f"unknown type '{n}'", filename=program.filename,
+                        source=program.source, span=tr.span)
+
+    for d in program.decls:
+        if isinstance(d, A.EnumDecl):
+            continue
+        t = vtype(d.type)
+        if d.size is not None:
+            t = VType("array", elem=t, size=_const_int(d.size, program))
+        group = {"allwrite": lay.shared, "allread": lay.allread, "loc": lay.local}[d.section]
+        vs = VarSlot(d.name, d.section, len(group), t, d, may_undef=True)
+        group.append(vs)
+        lay.vars[d.name] = vs
+    # a variable can be undefined only if it lacks an initialiser or is an array
+    # (array elements are checked on indexing anyway)
+    for vs in lay.vars.values():
+        vs.may_undef = vs.decl.init is None
+    return lay
+
+
+def coerce(value, ty: VType):
+    """Turn a raw world/registered value into a PCCL value of type ``ty``."""
+    if value is V.UNDEF or ty.kind == "any":
+        return value
+    k = ty.kind
+    if k == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"expected an int, got {value!r}")
+        return value
+    if k == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ValueError(f"expected a number, got {value!r}")
+        return float(value)
+    if k == "bool":
+        if not isinstance(value, bool):
+            raise ValueError(f"expected a bool, got {value!r}")
+        return value
+    if k == "enum":
+        if isinstance(value, str) and value in ty.members:
+            return ty.members.index(value)
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(ty.members):
+            return value
+        raise ValueError(f"expected one of {', '.join(ty.members)}, got {value!r}")
+    if k == "pos":
+        if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
+                and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
+            return V.pos(*value)
+        raise ValueError(f"expected a position [x, y] or [x, y, z], got {value!r}")
+    if k == "obstacles":
+        if not isinstance(value, (tuple, list)):
+            raise ValueError(f"expected a list of polygons, got {value!r}")
+        polys = []
+        for poly in value:
+            if not isinstance(poly, (tuple, list)) or len(poly) < 3:
+                raise ValueError(f"expected a polygon (at least 3 points), got {poly!r}")
+            pts = []
+            for p in poly:
+                if not (isinstance(p, (tuple, list)) and len(p) >= 2
+                        and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)):
+                    raise ValueError(f"expected a point [x, y], got {p!r}")
+                pts.append((float(p[0]), float(p[1])))
+            polys.append(tuple(pts))
+        return tuple(polys)
+    if k in ("list", "array"):
+        if not isinstance(value, (tuple, list)):
+            raise ValueError(f"expected a list, got {value!r}")
+        out = tuple(coerce(x, ty.elem) for x in value)
+        if k == "array" and len(out) != ty.size:
+            raise ValueError(f"expected {ty.size} elements, got {len(out)}")
+        return out
+    return value
+
+
+class Oracle:
+    """Supplies ``rand(n)`` outcomes.
+
+    * enumeration mode (explore): :meth:`outcomes` re-runs a computation
+      once per combination of choices (depth-first over choice points);
+    * policy mode (run, tests): ``policy(n, agent, span) -> int`` decides.
+    """
+
+    def __init__(self, policy: Optional[Callable] = None):
+        self.policy = policy
+        self.prefix: list = []
+        self.trail: list = []
+        self.agent = None
+        self.span = None
+
+    def rand(self, n, span=None):
+        if type(n) is not int:
+            raise V.PcclRuntimeError(f"rand({n!r}): bound is not an integer")
+        if n < 0:
+            raise V.PcclRuntimeError(f"rand({n}): bound is negative")
+        if self.policy is not None:
+            v = self.policy(n, self.agent, span)
+            if type(v) is not int or not 0 <= v <= n:
+                raise ValueError(f"rand hook returned {v!r}, outside 0..{n}")
+            return v
+        k = len(self.trail)
+        v = self.prefix[k] if k < len(self.prefix) else 0
+        self.trail.append((v, n))
+        return v
+
+    def outcomes(self, fn, *args):
+        """All results of ``fn(*args)`` over every combination of rand values."""
+        if self.policy is not None:
+            return [fn(*args)]
+        results = []
+        self.prefix = []
+        while True:
+            self.trail = []
+            results.append(fn(*args))
+            trail = self.trail
+            while trail and trail[-1][0] >= trail[-1][1]:
+                trail.pop()
+            if not trail:
+                break
+            self.prefix = [c for c, _ in trail[:-1]] + [trail[-1][0] + 1]
+        self.trail = []
+        self.prefix = []
+        return results
+
+
+def has_rand(node) -> bool:
+    if isinstance(node, (tuple, list)):
+        return any(has_rand(x) for x in node)
+    if isinstance(node, A.If):
+        return any(has_rand(c) for c, _ in node.branches)
+    if isinstance(node, A.While):
+        return has_rand(node.cond)
+    if isinstance(node, A.Assign):
+        return has_rand(node.target) or has_rand(node.value)
+    if isinstance(node, A.CallStmt):
+        return any(has_rand(a) for a in node.args)
+    if isinstance(node, (A.Atomic, A.Skip)):
+        return False
+    if node is None:
+        return False
+    return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
+
+
+class Compiler:
+    """Generates Python source for expressions and statements of one program."""
+
+    def __init__(self, program: A.Program, layout: Layout, n_agents: int,
+                 functions: dict, oracle: Oracle):
+        self.program = program
+        self.lay = layout
+        self.N = n_agents
+        self.functions = functions          # uninterpreted name -> raw value
+        self.oracle = oracle
+        self.G: dict[str, Any] = {
+            "_d": V.d, "_ix": V.ix, "_arc": V.agent_component, "_alo": V.agent_local,
+            "_apos": V.agent_pos, "_div": V.div, "_mod": V.mod, "_pos": V.pos,
+            "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
+            "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
+        }
+        self._nconst = 0
+
+    # -- helpers -----------------------------------------------------------
+    def error(self, msg, node):
+        raise PcclError(msg, filename=self.program.filename,
+                        source=self.program.source, span=getattr(node, "span", None))
+
+    def const(self, value) -> str:
+        name = f"_k{self._nconst}"
+        self._nconst += 1
+        self.G[name] = value
+        return name
+
+    def make(self, params: str, body: str, name: str = "_f"):
+        src = f"def {name}({params}):\n" + body
+        ns: dict = {}
+        exec(compile(src, f"<pccl:{name}>", "exec"), self.G, ns)
+        return ns[name]
+
+    def make_expr(self, e: A.Expr, *, prop: bool = False, bound=()):
+        src = self.expr(e, prop=prop, bound=bound)
+        if prop:
+            return self.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
+        return self.make("i, ag, sh, ags", f"    return {src}\n")
+
+    def uninterpreted_value(self, name, node, ty: Optional[VType] = None):
+        raw = self.functions.get(name, ())
+        if callable(raw):
+            raw = raw()
+        if ty is None:
+            return raw
+        try:
+            return coerce(raw, ty)
+        except ValueError as exc:
+            self.error(f"value of {name}() does not fit {ty}: {exc}", node)
+
+    # -- expressions ---------------------------------------------------------
+    def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[VType] = None) -> str:
+        ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
+        if isinstance(e, A.BoolLit):
+            return "True" if e.value else "False"
+        if isinstance(e, A.IntLit):
+            return repr(e.value)
+        if isinstance(e, A.FloatLit):
+            return repr(float(e.value))
+        if isinstance(e, A.ListLit):
+            if not e.items:
+                return "()"
+            return "(" + ", ".join(ex(x) for x in e.items) + ",)"
+        if isinstance(e, A.Name):
+            return self.name(e, prop, bound)
+        if isinstance(e, A.Field):
+            k = {"x": 0, "y": 1, "z": 2}.get(e.name)
+            if k is None:
+                self.error(f"unknown field '{e.name}'", e)
+            return f"{ex(e.base)}[{k}]"
+        if isinstance(e, A.Index):
+            return self.index(e, prop, bound)
+        if isinstance(e, A.Unary):
+            if e.op == "!":
+                return f"(not {ex(e.operand)})"
+            return f"(-{ex(e.operand)})"
+        if isinstance(e, A.Binary):
+            a, b = ex(e.left), ex(e.right)
+            op = e.op
+            if op == "&&":
+                return f"({a} and {b})"
+            if op == "||":
+                return f"({a} or {b})"
+            if op == "->":
+                return f"((not {a}) or {b})"
+            if op == "/":
+                return f"_div({a}, {b})"
+            if op == "%":
+                return f"_mod({a}, {b})"
+            return f"({a} {op} {b})"
+        if isinstance(e, A.Quant):
+            fn = "all" if e.kind == "forall" else "any"
+            body = self.expr(e.body, prop=prop, bound=bound + (e.var,))
+            return f"{fn}({body} for {self.bvar(e.var)} in range({self.N}))"
+        if isinstance(e, A.Call):
+            return self.call(e, prop, bound, want)
+        self.error("unsupported expression", e)  # pragma: no cover
+
+    @staticmethod
+    def bvar(name: str) -> str:
+        return f"_q_{name}"
+
+    def name(self, e: A.Name, prop: bool, bound) -> str:
+        n = e.name
+        if prop:
+            if n in bound:
+                return self.bvar(n)
+            if n == "time":
+                return "st[0]"
+            if n == "N":
+                return repr(self.N)
+        vs = self.lay.vars.get(n)
+        if vs is not None:
+            if vs.section == "allwrite":
+                ref = f"sh[{vs.slot}]"
+            elif prop:
+                self.error(f"'{n}' is per-agent: write {n}[i]", e)
+            elif vs.section == "allread":
+                ref = f"ag[5][{vs.slot}]"
+            else:
+                ref = f"ag[4][{vs.slot}]"
+            if vs.may_undef and vs.ty.kind != "array":
+                return f"_d({ref}, {n!r})"
+            return ref
+        if n in self.lay.members:
+            return repr(self.lay.members[n][1])
+        if not prop and n == "doReach_done":
+            return "ag[7][3]"
+        if not prop and n == "doReach_fail":
+            return "ag[7][4]"
+        self.error(f"undeclared variable '{n}'", e)
+
+    def index(self, e: A.Index, prop: bool, bound) -> str:
+        ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
+        base = e.base
+        if isinstance(base, A.Name):
+            vs = self.lay.vars.get(base.name)
+            if prop and base.name == "pos" and vs is None:
+                return f"_apos(ags, {ex(e.index)})"
+            if vs is not None and vs.section == "allread":
+                return f"_arc(ags, {ex(e.index)}, {vs.slot}, {base.name!r})"
+            if prop and vs is not None and vs.section == "loc":
+                return f"_alo(ags, {ex(e.index)}, {vs.slot}, {base.name!r})"
+        return f"_ix({ex(base)}, {ex(e.index)})"
+
+    def call(self, e: A.Call, prop: bool, bound, want) -> str:
+        ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
+        n, args = e.name, e.args
+        if prop and n == "count":
+            a = args[0]
+            vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
+            if vs is None or vs.section == "allwrite":
+                self.error("count(v) needs a per-agent boolean variable", e)
+            slot = 4 if vs.section == "loc" else 5
+            return f"sum(1 for _a in ags if _a[{slot}][{vs.slot}] is True)"
+        if n == "getAgentIndex":
+            return "i"
+        if n == "getNumAgents":
+            return repr(self.N)
+        if n == "rand":
+            return f"_R({ex(args[0])}, {self.const(e.span)})"
+        if n == "getPosition":
+            return "ag[6]"
+        if n == "ItemPosition":
+            return "_pos(" + ", ".join(ex(a) for a in args) + ")"
+        if n == "dist":
+            return f"_dist({ex(args[0])}, {ex(args[1])})"
+        if n == "head":
+            return f"_head({ex(args[0])})"
+        if n == "isEmpty":
+            return f"(len(_cl({ex(args[0])})) == 0)"
+        if n == "size":
+            return f"len(_cl({ex(args[0])}))"
+        if n == "contains":
+            return f"({ex(args[1])} in _cl({ex(args[0])}))"
+        if n in STATEMENT_FUNCS:
+            self.error(f"'{n}' is a statement, not a value", e)
+        if n in self.functions or n in UNINTERPRETED_DEFAULT:
+            return self.const(self.uninterpreted_value(n, e, want))
+        self.error(f"unknown function '{n}'", e)
+
+    # -- assignment targets -----------------------------------------------------
+    def target(self, t: A.Expr):
+        """Return (VarSlot, [index source, ...]) for an assignment target."""
+        path = []
+        while isinstance(t, A.Index):
+            path.append(self.expr(t.index))
+            t = t.base
+        if not isinstance(t, A.Name):
+            self.error("cannot assign to this expression", t)
+        vs = self.lay.vars.get(t.name)
+        if vs is None:
+            if t.name in ("doReach_done", "doReach_fail"):
+                self.error(f"'{t.name}' is read-only: set by the controller", t)
+            self.error(f"undeclared variable '{t.name}'", t)
+        path.reverse()
+        if vs.section == "allread" and path:
+            self.error(f"cannot write another agent's component of allread variable '{vs.name}'", t)
+        return vs, path
+
+    def elem_type(self, vs: VarSlot, depth: int) -> VType:
+        ty = vs.ty
+        for _ in range(depth):
+            ty = ty.elem if ty.elem is not None else VType("any")
+        return ty
+
+    def write_code(self, vs: VarSlot, path: list, value_src: str, indent="    ") -> str:
+        """Code that writes ``value_src`` into the target and builds ``ag2``/``sh2``."""
+        lines = []
+        ty = self.elem_type(vs, len(path))
+        v = value_src
+        if ty.kind == "float":
+            v = f"float({v})"
+        lines.append(f"v = {v}")
+        j = vs.slot
+        if vs.section == "allwrite":
+            cont = "sh"
+        elif vs.section == "allread":
+            cont = "ag[5]"
+        else:
+            cont = "ag[4]"
+        if path:
+            lines.append(f"v = _set_in({cont}[{j}], ({', '.join(path)},), v)")
+        new = f"{cont}[:{j}] + (v,) + {cont}[{j + 1}:]"
+        if vs.section == "allwrite":
+            lines.append(f"sh2 = {new}")
+            lines.append("ag2 = ag")
+        elif vs.section == "allread":
+            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], ag[4], {new}, ag[6], ag[7])")
+        else:
+            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], {new}, ag[5], ag[6], ag[7])")
+        return "".join(indent + ln + "\n" for ln in lines)
+
+    def read_target(self, vs: VarSlot, path: list) -> str:
+        if vs.section == "allwrite":
+            ref = f"sh[{vs.slot}]"
+        elif vs.section == "allread":
+            ref = f"ag[5][{vs.slot}]"
+        else:
+            ref = f"ag[4][{vs.slot}]"
+        for p in path:
+            ref = f"_ix({ref}, {p})"
+        return ref
+
+    # -- statements ------------------------------------------------------------------
+    def effect(self, s: A.Stmt):
+        """A function ``f(i, ag, sh, ags) -> (ag2, sh2)`` for a simple statement
+        (assignment, add, remove, skip), ``ag2`` without the pc update."""
+        if isinstance(s, A.Assign):
+            vs, path = self.target(s.target)
+            want = self.elem_type(vs, len(path))
+            val = self.expr(s.value, want=want)
+            body = self.write_code(vs, path, val)
+            return self.make("i, ag, sh, ags", body + "    return ag2, sh2\n", f"_s{s.sid}")
+        if isinstance(s, A.CallStmt) and s.name in ("add", "remove"):
+            vs, path = self.target(s.args[0])
+            fn = "list_add" if s.name == "add" else "list_remove"
+            self.G["_" + fn] = getattr(V, fn)
+            val = f"_{fn}({self.read_target(vs, path)}, {self.expr(s.args[1])})"
+            body = self.write_code(vs, path, val)
+            return self.make("i, ag, sh, ags", body + "    return ag2, sh2\n", f"_s{s.sid}")
+        if isinstance(s, A.Skip):
+            return self.make("i, ag, sh, ags", "    return ag, sh\n", f"_s{s.sid}")
+        self.error("not a simple statement", s)  # pragma: no cover
+
+    def if_chooser(self, s: A.If):
+        """``f(i, ag, sh, ags) -> branch index`` (len(branches) = else)."""
+        body = ""
+        for k, (c, _) in enumerate(s.branches):
+            body += f"    if {self.expr(c)}:\n        return {k}\n"
+        body += f"    return {len(s.branches)}\n"
+        return self.make("i, ag, sh, ags", body, f"_if{s.sid}")

@@ -1,0 +1,254 @@
+"""Rendering of configurations, transitions and traces (text, JSON, K style).
+
+Display code is kept apart from the states themselves (pyk style): a state is
+plain tuples; everything here reads it through the model's layout.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .compile import VType
+from .semantics.rules import DISCRETE, EXITED, IDLE, LOCK, REQUEST, RUNNING
+from .values import UNDEF, format_number, format_value, to_json
+
+LOCK_NAMES = {IDLE: "idle", REQUEST: "request", LOCK: "lock"}
+
+
+def fmt_time(t) -> str:
+    return format_number(t) if isinstance(t, float) else str(t)
+
+
+def fmt_pos(p) -> str:
+    return format_value(p)
+
+
+def status_text(model, code) -> str:
+    if code == RUNNING:
+        return "running"
+    if code == EXITED:
+        return "exited"
+    kind, reason, where = model.stuck_reasons[code]
+    span = model.span_of(where)
+    loc = f" at line {span.line}" if span else ""
+    if kind == "assert":
+        return f"stuck(assertion failed{loc})"
+    return f"stuck({reason}{loc})"
+
+
+def status_json(model, code):
+    if code == RUNNING:
+        return {"status": "running"}
+    if code == EXITED:
+        return {"status": "exited"}
+    kind, reason, where = model.stuck_reasons[code]
+    span = model.span_of(where)
+    return {"status": "stuck", "kind": kind, "reason": reason,
+            "line": span.line if span else None, "column": span.column if span else None}
+
+
+def agent_vars(model, st, i) -> list:
+    """[(name, VType, value)] for agent i's allread and local variables."""
+    ag = st[4][i]
+    lay = model.layout
+    out = [(v.name, v.ty, ag[5][v.slot]) for v in lay.allread]
+    out += [(v.name, v.ty, ag[4][v.slot]) for v in lay.local]
+    return out
+
+
+def shared_vars(model, st) -> list:
+    return [(v.name, v.ty, st[3][v.slot]) for v in model.layout.shared]
+
+
+def source_line(model, span) -> str:
+    if span is None or span.line <= 0:
+        return ""
+    lines = model.program.source.splitlines()
+    if span.line <= len(lines):
+        return lines[span.line - 1].strip()
+    return ""
+
+
+# ---------------------------------------------------------------------------
+# transitions
+# ---------------------------------------------------------------------------
+
+def label_info(model, label, before=None) -> dict:
+    """Decode a transition label into rule, agent, event, source line."""
+    rule, agent, detail = label
+    info = {"rule": rule, "agent": agent, "event": None, "line": None, "source": None}
+    sid = None
+    if rule == "EVENT SELECT" and detail is not None:
+        ev = model.program.events[detail]
+        info["rule"] = "EVENT SELECT"
+        info["event"] = ev.name
+        info["line"] = ev.span.line
+        info["source"] = source_line(model, ev.guard.span)
+    elif rule in ("STATEMENT", "EXIT", "DOREACH UPDATE", "LOCK REQUEST", "ATOMIC WAIT",
+                  "ATOMIC EXECUTION") and detail is not None:
+        sid = detail
+    elif rule == "DOREACH INVOKE":
+        info["outcome"] = detail
+    if sid is not None:
+        span = model.stmt_span(sid)
+        info["line"] = span.line if span else None
+        info["source"] = source_line(model, span)
+        e = model.stmt_event.get(sid)
+        info["event"] = model.program.events[e].name if e is not None else "Init"
+    if agent is not None and info["event"] is None and before is not None and rule not in ("IDLE",):
+        info["event"] = current_event(model, before[4][agent])
+    return info
+
+
+def current_event(model, ag) -> Optional[str]:
+    """The event an agent is in the middle of, from the statements in its k."""
+    k = model.ctl.ks[ag[0]]
+    for item in k:
+        sid = item if item >= 0 else (-3 - item if item <= -3 else None)
+        if sid is not None:
+            e = model.stmt_event.get(sid)
+            return model.program.events[e].name if e is not None else "Init"
+    return None
+
+
+def diff(model, a, b) -> list:
+    """[(cell, old, new)] for what changed between two configurations."""
+    out = []
+    if a[0] != b[0]:
+        out.append(("time", fmt_time(a[0]), fmt_time(b[0])))
+    if a[1] != b[1]:
+        out.append(("transitionState", _phase(a[1]), _phase(b[1])))
+    if a[2] != b[2]:
+        out.append(("lockQueue", _lq(a[2]), _lq(b[2])))
+    for (n, ty, va), (_, _, vb) in zip(shared_vars(model, a), shared_vars(model, b)):
+        if va != vb:
+            out.append((n, format_value(va, ty), format_value(vb, ty)))
+    for i, (ga, gb) in enumerate(zip(a[4], b[4])):
+        if ga is gb:
+            continue
+        for (n, ty, va), (_, _, vb) in zip(agent_vars(model, a, i), agent_vars(model, b, i)):
+            if va != vb:
+                out.append((f"{n}[{i}]", format_value(va, ty), format_value(vb, ty)))
+        if ga[6] != gb[6]:
+            out.append((f"pos[{i}]", fmt_pos(ga[6]), fmt_pos(gb[6])))
+        if ga[2] != gb[2]:
+            out.append((f"lockState[{i}]", LOCK_NAMES[ga[2]], LOCK_NAMES[gb[2]]))
+        if ga[3] != gb[3]:
+            out.append((f"status[{i}]", status_text(model, ga[3]), status_text(model, gb[3])))
+        ra, rb = ga[7], gb[7]
+        if ra[0] != rb[0]:
+            out.append((f"target[{i}]", _opt_pos(ra[0]), _opt_pos(rb[0])))
+        if ra[3] != rb[3]:
+            out.append((f"doReach_done[{i}]", format_value(ra[3]), format_value(rb[3])))
+        if ra[4] != rb[4]:
+            out.append((f"doReach_fail[{i}]", format_value(ra[4]), format_value(rb[4])))
+    return out
+
+
+def _opt_pos(p):
+    return "none" if p is None else fmt_pos(p)
+
+
+def _phase(p):
+    return "discrete" if p == DISCRETE else "dynamic"
+
+
+def _lq(q):
+    return "[" + ", ".join(str(x) for x in q) + "]"
+
+
+def format_step(model, n, label, before, after, *, show_diff=True) -> str:
+    info = label_info(model, label, before)
+    who = f"agent {info['agent']}" if info["agent"] is not None else "system"
+    parts = [f"{n:>4}. t={fmt_time(before[0])}", f"{who:<8}", f"{info['rule']:<16}"]
+    if info["event"]:
+        parts.append(f"[{info['event']}]")
+    if info["line"]:
+        parts.append(f"line {info['line']}: {info['source']}")
+    text = "  ".join(parts)
+    if show_diff:
+        ch = diff(model, before, after)
+        ch = [c for c in ch if c[0] not in ("transitionState",)]
+        if ch:
+            text += "\n" + " " * 8 + ", ".join(f"{c} {o} -> {nw}" for c, o, nw in ch)
+    return text
+
+
+def step_json(model, n, label, before, after) -> dict:
+    info = label_info(model, label, before)
+    return {"step": n, "time": before[0], "agent": info["agent"], "rule": info["rule"],
+            "event": info["event"], "line": info["line"], "source": info["source"],
+            "changes": [{"cell": c, "old": o, "new": nw} for c, o, nw in diff(model, before, after)]}
+
+
+# ---------------------------------------------------------------------------
+# configurations
+# ---------------------------------------------------------------------------
+
+def format_state(model, st, *, indent="  ") -> str:
+    lines = [f"{indent}time {fmt_time(st[0])}, {_phase(st[1])}, lockQueue {_lq(st[2])}"]
+    sv = shared_vars(model, st)
+    if sv:
+        lines.append(indent + "shared: " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in sv))
+    for i, ag in enumerate(st[4]):
+        head = (f"{indent}agent {i}: {status_text(model, ag[3])}, {model.describe_k(ag[0])}, "
+                f"counter {ag[1]}, lock {LOCK_NAMES[ag[2]]}, pos {fmt_pos(ag[6])}")
+        r = ag[7]
+        if r[0] is not None:
+            head += f", target {fmt_pos(r[0])}, done {format_value(r[3])}, fail {format_value(r[4])}"
+        lines.append(head)
+        av = agent_vars(model, st, i)
+        if av:
+            lines.append(indent + "  " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in av))
+    return "\n".join(lines)
+
+
+def state_json(model, st) -> dict:
+    agents = []
+    for i, ag in enumerate(st[4]):
+        r = ag[7]
+        d = {"id": i, **status_json(model, ag[3]), "counter": ag[1],
+             "lockState": LOCK_NAMES[ag[2]], "position": list(ag[6]),
+             "k": model.describe_k(ag[0]),
+             "reach": {"target": None if r[0] is None else list(r[0]), "t0": r[2],
+                       "doReach_done": r[3], "doReach_fail": r[4]},
+             "variables": {n: to_json(v, t) for n, t, v in agent_vars(model, st, i)}}
+        agents.append(d)
+    return {"time": st[0], "transitionState": _phase(st[1]), "lockQueue": list(st[2]),
+            "shared": {n: to_json(v, t) for n, t, v in shared_vars(model, st)},
+            "agents": agents}
+
+
+def format_state_k(model, st) -> str:
+    """The configuration as the paper's Section 5 prints it: per-agent memory
+    maps (variable |-> address), gMemory, MMap (address |-> value), time.
+    Under sequential consistency shared variables have one address, which
+    every agent's memory map points to."""
+    lay = model.layout
+    gmem = {v.name: k for k, v in enumerate(lay.shared)}
+    addr = len(lay.shared)
+    mmap = {gmem[n]: (v, t) for n, t, v in shared_vars(model, st)}
+    out = []
+    for i, ag in enumerate(st[4]):
+        mem = dict(gmem)
+        for n, t, v in agent_vars(model, st, i):
+            mem[n] = addr
+            mmap[addr] = (v, t)
+            addr += 1
+        out.append("<agent> ... <memory> " + " ".join(f"{n} |-> {a}" for n, a in mem.items())
+                   + f"\n</memory> <id> {i} </id> <counter> {ag[1]} </counter> "
+                   f"<lockState> {LOCK_NAMES[ag[2]]} </lockState> <position> {fmt_pos(ag[6])} </position>"
+                   f" <status> {status_text(model, ag[3])} </status>\n</agent>")
+    out.append("<gMemory> " + " ".join(f"{n} |-> {a}" for n, a in gmem.items()) + " </gMemory>")
+    out.append("<MMap> " + " ".join(f"{a} |-> {_kval(v, t)}" for a, (v, t) in sorted(mmap.items()))
+               + "\n</MMap>")
+    out.append(f"<lockQueue> {' '.join(map(str, st[2])) or '.List'} </lockQueue>")
+    out.append(f"<transitionState> {_phase(st[1])} </transitionState>")
+    out.append(f"<time> {fmt_time(st[0])} </time>")
+    return "\n".join(out)
+
+
+def _kval(v, t):
+    if v is UNDEF:
+        return "undef"
+    return format_value(v, t)

@@ -1,0 +1,556 @@
+"""The PCCL engine: configurations and the model interface the explorer uses.
+
+A :class:`Model` offers, stateright-style,
+
+* :meth:`Model.init_states` — one initial configuration per combination of
+  ``rand`` outcomes in declarations and ``Init``;
+* :meth:`Model.successors` — the enabled transitions of a configuration,
+  each ``(label, successor)`` with ``label = (RULE NAME, agent, detail)``;
+* :meth:`Model.key` — state identity (time left out under time abstraction);
+* :meth:`Model.violations` / :meth:`Model.terminal_kind` — the properties.
+
+Configurations are nested tuples (compact, immutable, hashable)::
+
+    state = (time, phase, lockQueue, shared, agents, env)
+    agent = (pc, counter, lockState, status, locals, allread, position, reach)
+    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+
+``pc`` interns the agent's pending computation ``k`` (a tuple of statement
+occurrence ids and markers, spec §5) as a small integer; :class:`Control`
+maps it back and decodes its head once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+from . import ast as A
+from .compile import (AGS, Compiler, Layout, Oracle, STATEMENT_FUNCS, build_layout,
+                      coerce, has_rand)
+from .errors import PcclError, PcclRuntimeError
+from .values import UNDEF
+from .semantics import rules as R
+from .semantics.rules import (AGENT_RULES, DISCRETE, DYNAMIC, EXITED, IDLE, RUNNING,
+                              K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
+                              K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
+
+END, AEND = -1, -2
+
+
+def acq(sid: int) -> int:
+    return -3 - sid
+
+
+@dataclass(frozen=True)
+class Violation:
+    kind: str                 # invariant | assert | stuck | deadlock | collision
+    name: str                 # property name / short description
+    message: str
+    agent: Optional[int] = None
+    span: Optional[A.Span] = None
+
+    @property
+    def identity(self):
+        """Distinct violations for ``--all``: property and source location."""
+        loc = (self.span.line, self.span.column) if self.span else None
+        return (self.kind, self.name, loc)
+
+
+@dataclass
+class Property:
+    name: str
+    text: str
+    fn: Callable
+    span: Optional[A.Span]
+    uses_time: bool
+
+
+class Control:
+    """Interns k cells as integers and decodes their head once."""
+
+    def __init__(self, model: "Model"):
+        self.m = model
+        self.ks: list = []
+        self.ids: dict = {}
+        self.infos: list = []
+        self.empty_pc = self.intern(())
+        self.idle_pc = self.intern((END,))
+        self.event_pcs = [self.intern(tuple(s.sid for s in ev.body) + (END,))
+                          for ev in model.program.events]
+
+    def intern(self, k: tuple) -> int:
+        pc = self.ids.get(k)
+        if pc is None:
+            pc = len(self.ks)
+            self.ids[k] = pc
+            self.ks.append(k)
+            self.infos.append(None)
+        return pc
+
+    def info(self, pc: int):
+        inf = self.infos[pc]
+        if inf is None:
+            inf = self.infos[pc] = self._decode(self.ks[pc])
+        return inf
+
+    def _decode(self, k: tuple):
+        if not k:
+            return (K_EMPTY,)
+        head, rest = k[0], k[1:]
+        it = self.intern
+        if head == END:
+            return (K_END,)
+        if head == AEND:
+            return (K_AEND, it(rest))
+        if head <= -3:
+            sid = -3 - head
+            body = tuple(s.sid for s in self.m.stmts[sid].body)
+            return (K_ACQ, it(body + rest), sid)
+        s = self.m.stmts[head]
+        c = self.m.code[head]
+        if isinstance(s, A.If):
+            pcs = tuple(it(tuple(x.sid for x in body) + rest) for _, body in s.branches)
+            pcs += (it(tuple(x.sid for x in s.orelse) + rest),)
+            return (K_IF, c, pcs, head, has_rand(s))
+        if isinstance(s, A.While):
+            return (K_WHILE, c, it(tuple(x.sid for x in s.body) + k), it(rest), head, has_rand(s))
+        if isinstance(s, A.Atomic):
+            return (K_ATOMIC, it((acq(head), AEND) + rest),
+                    it(tuple(x.sid for x in s.body) + rest), head)
+        if isinstance(s, A.CallStmt) and s.name == "doReach":
+            return (K_DOREACH, c, it(rest), head, has_rand(s))
+        if isinstance(s, A.CallStmt) and s.name == "exit":
+            return (K_EXIT, head)
+        if isinstance(s, A.CallStmt) and s.name == "assert":
+            return (K_ASSERT, c, it(rest), head, has_rand(s))
+        return (K_SIMPLE, c, it(rest), head, has_rand(s))
+
+
+class Model:
+    """A PCCL program, its world and its blackbox, as a transition system."""
+
+    def __init__(self, program: A.Program, *, world=None, blackbox=None,
+                 n_agents: Optional[int] = None, delta=1, n0: int = 1,
+                 rates: Optional[dict] = None, events: str = "any",
+                 max_time=None, abstract_time: Optional[bool] = None,
+                 invariants=(), functions: Optional[dict] = None,
+                 rand_policy: Optional[Callable] = None, collisions: bool = False,
+                 check_program: bool = True):
+        from .world import default_world
+        from .blackboxes import load_blackbox
+
+        self.program = program
+        self.world = world if world is not None else default_world()
+        if blackbox is None or isinstance(blackbox, str):
+            blackbox = load_blackbox(blackbox or "straight")
+        self.blackbox = blackbox
+        if n_agents is None:
+            n_agents = self.world.n_agents or 2
+        if n_agents < 1:
+            raise PcclError(f"the number of agents must be at least 1, got {n_agents}")
+        self.N = n_agents
+        if not (isinstance(delta, (int, float)) and delta > 0):
+            raise PcclError(f"delta must be positive, got {delta}")
+        if not (isinstance(n0, int) and n0 >= 1):
+            raise PcclError(f"n0 must be a positive integer, got {n0}")
+        self.delta = delta
+        self.n0 = n0
+        self.rho = [1] * n_agents
+        for a, r in (rates or {}).items():
+            if not (isinstance(a, int) and 0 <= a < n_agents):
+                raise PcclError(f"--rate: agent {a} does not exist (agents are 0..{n_agents - 1})")
+            if not (isinstance(r, int) and r >= 1):
+                raise PcclError(f"--rate: rate of agent {a} must be a positive integer, got {r}")
+            self.rho[a] = r
+        if events not in ("any", "first"):
+            raise PcclError(f"--events must be 'any' or 'first', got {events!r}")
+        self.first_only = events == "first"
+        self.events_policy = events
+        self.max_time = max_time
+        self.collisions = collisions
+
+        funcs = dict(self.world.functions_dict()) if hasattr(self.world, "functions_dict") else {}
+        if "getObs" not in funcs:
+            funcs["getObs"] = tuple(self.world.obstacles)
+        funcs.setdefault("getInput", ())
+        funcs.update(functions or {})
+        self.functions = funcs
+
+        if check_program:
+            from .checker import check_program as _check
+            self.info = _check(program, functions=frozenset(funcs))
+        else:
+            self.info = None
+
+        self.layout: Layout = build_layout(program)
+        self.oracle = Oracle(rand_policy)
+        self.comp = Compiler(program, self.layout, n_agents, funcs, self.oracle)
+        self.stmts: dict[int, A.Stmt] = {}
+        self.stmt_event: dict[int, Optional[int]] = {}
+        for s in A.walk_stmts(program.init):
+            self.stmts[s.sid] = s
+            self.stmt_event[s.sid] = None
+        for k, ev in enumerate(program.events):
+            for s in A.walk_stmts(ev.body):
+                self.stmts[s.sid] = s
+                self.stmt_event[s.sid] = k
+        self.code = {sid: self._compile_stmt(s) for sid, s in self.stmts.items()}
+        self.guards = [self.comp.make_expr(ev.guard) for ev in program.events]
+        self.guards_rand = any(has_rand(ev.guard) for ev in program.events)
+        self.ctl = Control(self)
+        self.stuck_reasons: list = [None, None]
+        self._stuck_ids: dict = {}
+
+        # properties
+        self.properties: list[Property] = []
+        for inv in program.invariants:
+            self.add_property(inv.expr, name=inv.name, text=_src_text(program.source, inv.expr.span),
+                              span=inv.span, filename=program.filename, source=program.source)
+        for k, inv in enumerate(invariants):
+            self.add_invariant_text(inv, index=k)
+
+        uses_time = any(p.uses_time for p in self.properties) or getattr(blackbox, "uses_time", False)
+        sound = not uses_time and max_time is None
+        if abstract_time is None:
+            abstract_time = sound
+        elif abstract_time and uses_time:
+            raise PcclError("time abstraction is unsound here: a property or the blackbox "
+                            "reads the clock; drop --abstract-time")
+        self.abstract_time = bool(abstract_time)
+        self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
+        self._env_cache: dict = {}
+        self._collision_cache: dict = {}
+
+    # -- compilation ------------------------------------------------------------
+    def _compile_stmt(self, s: A.Stmt):
+        c = self.comp
+        if isinstance(s, A.If):
+            return c.if_chooser(s)
+        if isinstance(s, A.While):
+            return c.make_expr(s.cond)
+        if isinstance(s, A.Atomic):
+            return None
+        if isinstance(s, A.CallStmt):
+            if s.name == "doReach":
+                if len(s.args) != 2:
+                    c.error("'doReach' takes 2 arguments", s)
+                from .compile import VType
+                t = c.expr(s.args[0], want=VType("pos"))
+                o = c.expr(s.args[1], want=VType("obstacles"))
+                return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
+            if s.name == "exit":
+                return None
+            if s.name == "assert":
+                return c.make_expr(s.args[0])
+            if s.name in ("add", "remove"):
+                return c.effect(s)
+            c.error(f"unknown statement '{s.name}'", s)
+        return c.effect(s)
+
+    def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
+        if self.info is not None:
+            from .checker import check_property
+            check_property(expr, self.info, filename=filename, source=source)
+        comp = self.comp
+        saved = (comp.program)
+        try:
+            comp.program = A.Program(None, (), (), (), (), filename=filename, source=source)
+            fn = comp.make_expr(expr, prop=True)
+        finally:
+            comp.program = saved
+        uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
+        self.properties.append(Property(name or text, text, fn, span, uses_time))
+
+    def add_invariant_text(self, text: str, index: int = 0):
+        from .parser import parse_property
+        fname = f"--invariant #{index + 1}"
+        expr = parse_property(text, filename=fname)
+        self.add_property(expr, name=text, text=text, span=None, filename=fname, source=text)
+
+    # -- events ---------------------------------------------------------------------
+    def enabled_events(self, i, ag, sh, ags):
+        out = []
+        for e, g in enumerate(self.guards):
+            try:
+                ok = g(i, ag, sh, ags)
+            except R._RUNTIME_ERRORS as exc:
+                err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
+                err.where = ("guard", e)
+                raise err from None
+            if ok:
+                out.append(e)
+                if self.first_only:
+                    break
+        return out
+
+    # -- stuck reasons -----------------------------------------------------------------
+    def stuck_code(self, kind, reason, where):
+        key = (kind, reason, where)
+        code = self._stuck_ids.get(key)
+        if code is None:
+            code = len(self.stuck_reasons)
+            self._stuck_ids[key] = code
+            self.stuck_reasons.append(key)
+        return code
+
+    def span_of(self, where) -> Optional[A.Span]:
+        if isinstance(where, int):
+            return self.stmts[where].span
+        if isinstance(where, tuple) and where and where[0] == "guard":
+            return self.program.events[where[1]].guard.span
+        if isinstance(where, tuple) and where and where[0] == "decl":
+            return where[1]
+        return None
+
+    # -- initial states -------------------------------------------------------------------
+    def init_states(self) -> list:
+        lay, N = self.layout, self.N
+        starts = self.world.start_positions(N)
+        blank_reach = (None, (), None, False, False)
+        agents = tuple(
+            (self.ctl.empty_pc, 0, IDLE, RUNNING,
+             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local),
+             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread),
+             tuple(starts[i]), blank_reach)
+            for i in range(N))
+        shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
+        env0 = self.blackbox.init_env(self.world, N)
+        states = [(0, DISCRETE, (), shared0, agents, env0)]
+        # shared initialisers, evaluated once (in agent 0's context)
+        for vs in lay.shared:
+            if vs.decl.init is not None:
+                states = self._init_decl(states, 0, vs)
+        for i in range(N):
+            for vs in lay.allread + lay.local:
+                if vs.decl.init is not None:
+                    states = self._init_decl(states, i, vs)
+            if self.program.init:
+                states = self._run_init(states, i)
+        seen, out = set(), []
+        for st in states:
+            if st not in seen:
+                seen.add(st)
+                out.append(st)
+        return out
+
+    def _init_decl(self, states, i, vs):
+        comp = self.comp
+        fn = getattr(vs, "_initfn", None)
+        if fn is None:
+            src = comp.expr(vs.decl.init, want=vs.ty)
+            fn = vs._initfn = comp.make("i, ag, sh, ags", f"    return {src}\n", f"_init_{vs.name}")
+        rnd = has_rand(vs.decl.init)
+        out = []
+        for st in states:
+            ag = st[4][i]
+            if ag[3] != RUNNING:
+                out.append(st)
+                continue
+            self.oracle.agent = i
+            for res in R._outcomes(self, fn, rnd, i, ag, st[3], st[4]):
+                if isinstance(res, R._Err):
+                    out.append(R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span)))
+                    continue
+                try:
+                    v = coerce(res, vs.ty) if vs.ty.kind in ("float", "pos") else res
+                except ValueError as exc:
+                    out.append(R._stuck(self, st, i, ag, str(exc), ("decl", vs.decl.span)))
+                    continue
+                j = vs.slot
+                if vs.section == "allwrite":
+                    sh = st[3]
+                    out.append((st[0], st[1], st[2], sh[:j] + (v,) + sh[j + 1:], st[4], st[5]))
+                else:
+                    k = 4 if vs.section == "loc" else 5
+                    cell = ag[k][:j] + (v,) + ag[k][j + 1:]
+                    ag2 = ag[:k] + (cell,) + ag[k + 1:]
+                    out.append(R._put(st, i, ag2))
+        self.oracle.agent = None
+        return out
+
+    def _run_init(self, states, i, limit=100_000):
+        """Run agent i's Init block to completion in each state (not interleaved)."""
+        init_pc = self.ctl.intern(tuple(s.sid for s in self.program.init))
+        work = [R._put(st, i, R._with_pc(st[4][i], init_pc)) if st[4][i][3] == RUNNING else st
+                for st in states]
+        done = []
+        steps = 0
+        self.oracle.agent = i
+        while work:
+            st = work.pop(0)
+            ag = st[4][i]
+            if ag[3] != RUNNING or ag[0] == self.ctl.empty_pc:
+                done.append(st)
+                continue
+            steps += 1
+            if steps > limit:
+                done.append(R._stuck(self, st, i, ag, f"Init does not finish within {limit} steps",
+                                     ("decl", self.program.init[0].span)))
+                continue
+            info = self.ctl.info(ag[0])
+            out: list = []
+            for rule in AGENT_RULES[info[0]]:
+                rule(self, st, i, ag, info, out)
+            # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
+            work[0:0] = [s for _, s in out]
+        self.oracle.agent = None
+        return done
+
+    # -- transitions ------------------------------------------------------------------
+    def successors(self, st) -> list:
+        out: list = []
+        if st[1] == DISCRETE:
+            infos = self.ctl.infos
+            for i, ag in enumerate(st[4]):
+                if ag[3] != RUNNING:
+                    continue
+                info = infos[ag[0]]
+                if info is None:
+                    info = self.ctl.info(ag[0])
+                for rule in AGENT_RULES[info[0]]:
+                    rule(self, st, i, ag, info, out)
+            R.time_advance(self, st, out)
+        else:
+            R.doreach_invoke(self, st, out)
+        return out
+
+    def key(self, st):
+        return st[1:] if self.abstract_time else st
+
+    def environment_step(self, st):
+        """The blackbox's outcomes for DOREACH INVOKE: [(positions, done, fail, env)]."""
+        ags = st[4]
+        bb = self.blackbox
+        ckey = (tuple((ag[6], ag[7], ag[3] == RUNNING) for ag in ags), st[5],
+                st[0] if getattr(bb, "uses_time", False) else None)
+        hit = self._env_cache.get(ckey)
+        if hit is not None:
+            return hit
+        if all(ag[7][0] is None for ag in ags) and st[5] is None and bb.name in _STILL_SAFE:
+            res = [(tuple(ag[6] for ag in ags), (False,) * len(ags), (False,) * len(ags), None)]
+        else:
+            from .blackboxes.base import Motion
+            motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
+                                   ag[3] == RUNNING) for ag in ags)
+            outcomes = bb.step(self.world, motions, st[5], st[0], self.delta)
+            if not outcomes:
+                raise PcclError(f"blackbox '{bb.name}' returned no outcome")
+            res = []
+            seen = set()
+            for o in outcomes:
+                r = (tuple(self.round_pos(p) for p in o.positions), tuple(bool(x) for x in o.done),
+                     tuple(bool(x) for x in o.fail), o.env)
+                if r not in seen:
+                    seen.add(r)
+                    res.append(r)
+        if len(self._env_cache) > 200_000:
+            self._env_cache.clear()
+        self._env_cache[ckey] = res
+        return res
+
+    def round_pos(self, p):
+        res = self.world.resolution
+        if not res:
+            return tuple(float(c) for c in p)
+        out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
+        return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
+
+    # -- properties ------------------------------------------------------------------------
+    def violations(self, st) -> list:
+        out = []
+        for i, ag in enumerate(st[4]):
+            s = ag[3]
+            if s >= 2:
+                kind, reason, where = self.stuck_reasons[s]
+                span = self.span_of(where)
+                if kind == "assert":
+                    out.append(Violation("assert", "assertion", f"agent {i}: assertion failed", i, span))
+                else:
+                    out.append(Violation("stuck", "stuck agent", f"agent {i} stuck: {reason}", i, span))
+        for p in self.properties:
+            try:
+                ok = p.fn(st)
+            except R._RUNTIME_ERRORS as exc:
+                out.append(Violation("invariant", p.name,
+                                     f"invariant '{p.name}' could not be evaluated: "
+                                     f"{getattr(exc, 'reason', None) or R._describe(exc)}",
+                                     None, p.span))
+                continue
+            if not ok:
+                out.append(Violation("invariant", p.name, f"invariant '{p.name}' violated",
+                                     None, p.span))
+        if self.collisions:
+            out.extend(self.collision_violations(st))
+        return out
+
+    def collision_violations(self, st) -> list:
+        from .collide import collisions
+        poss = tuple(ag[6] for ag in st[4])
+        hit = self._collision_cache.get(poss)
+        if hit is None:
+            hit = collisions(self.world, poss)
+            if len(self._collision_cache) > 100_000:
+                self._collision_cache.clear()
+            self._collision_cache[poss] = hit
+        return [Violation("collision", "collision", msg, None, None) for msg in hit]
+
+    def terminal_kind(self, st) -> str:
+        """For a state with no successor: final, bounded (only --max-time
+        stopped time) or deadlock."""
+        if all(ag[3] == EXITED for ag in st[4]):
+            return "final"
+        if self.max_time is not None and R.time_advance_enabled(self, st):
+            return "bounded"
+        return "deadlock"
+
+    def deadlock_violation(self, st) -> Violation:
+        waiting = []
+        for i, ag in enumerate(st[4]):
+            if ag[3] == RUNNING:
+                waiting.append(f"agent {i} ({self.describe_k(ag[0])}, counter {ag[1]})")
+        msg = "deadlock: no rule applies and not every agent has exited"
+        if waiting:
+            msg += "; " + "; ".join(waiting)
+        return Violation("deadlock", "deadlock", msg, None, None)
+
+    def describe_k(self, pc) -> str:
+        """A short description of an agent's pending computation."""
+        k = self.ctl.ks[pc]
+        if not k:
+            return "at the top of the event block"
+        h = k[0]
+        if h == END:
+            return "at endEventBlock"
+        if h == AEND:
+            return "at atomicEnd"
+        if h <= -3:
+            s = self.stmts[-3 - h]
+            return f"waiting for the lock at line {s.span.line}"
+        s = self.stmts[h]
+        return f"at line {s.span.line}"
+
+    def is_final(self, st) -> bool:
+        return all(ag[3] == EXITED for ag in st[4])
+
+    # -- descriptions -------------------------------------------------------------------------
+    def event_name(self, e) -> str:
+        return self.program.events[e].name
+
+    def stmt_span(self, sid) -> Optional[A.Span]:
+        s = self.stmts.get(sid)
+        return s.span if s is not None else None
+
+
+_STILL_SAFE = {"instant", "straight", "nondet"}
+
+
+def _src_text(source: str, span: A.Span) -> str:
+    if not source or span is None or span.line <= 0:
+        return ""
+    lines = source.splitlines()
+    if span.line == span.end_line and span.line <= len(lines):
+        return lines[span.line - 1][span.column - 1:span.end_column - 1].strip()
+    if span.line <= len(lines):
+        return lines[span.line - 1][span.column - 1:].strip()
+    return ""

@@ -1,0 +1,199 @@
+"""Runtime values of PCCL and the helpers that generated code calls.
+
+Values are plain hashable Python data so that states stay compact:
+
+=============  ==========================================
+int            ``int``
+bool           ``bool``
+float          ``float``
+enum           ``int`` (member index; display uses the type)
+ItemPosition   ``(x, y, z)`` tuple of floats
+List<T>        tuple
+array T[n]     tuple of length n
+ObstacleList   tuple of polygons, each a tuple of (x, y)
+undefined      :data:`UNDEF`
+=============  ==========================================
+"""
+
+from __future__ import annotations
+
+import math
+
+from .errors import PcclRuntimeError
+
+
+class _Undef:
+    """The value of a declared but never assigned variable."""
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "undefined"
+
+    def __hash__(self) -> int:          # stable across runs
+        return 0x5EED_0DEF
+
+    def __eq__(self, other) -> bool:
+        return other is self
+
+    def __reduce__(self):
+        return "UNDEF"
+
+
+UNDEF = _Undef()
+
+
+def d(value, name):
+    """Read check: a variable that may still be undefined."""
+    if value is UNDEF:
+        raise PcclRuntimeError(f"read of undefined variable '{name}'")
+    return value
+
+
+def ix(container, index):
+    """``a[i]`` on arrays and lists, with bounds and definedness checks."""
+    if container is UNDEF:
+        raise PcclRuntimeError("index into an undefined value")
+    if type(index) is not int and not isinstance(index, int):
+        raise PcclRuntimeError(f"index {index!r} is not an integer")
+    if index < 0 or index >= len(container):
+        raise PcclRuntimeError(f"index {index} out of range 0..{len(container) - 1}")
+    v = container[index]
+    if v is UNDEF:
+        raise PcclRuntimeError(f"read of undefined element [{index}]")
+    return v
+
+
+def agent_component(agents, j, slot, name):
+    """``x[j]`` for an allread variable x: agent j's component."""
+    if type(j) is not int:
+        raise PcclRuntimeError(f"agent index {j!r} is not an integer")
+    if j < 0 or j >= len(agents):
+        raise PcclRuntimeError(f"agent index {j} out of range 0..{len(agents) - 1} in '{name}[{j}]'")
+    v = agents[j][5][slot]
+    if v is UNDEF:
+        raise PcclRuntimeError(f"read of undefined variable '{name}[{j}]'")
+    return v
+
+
+def agent_local(agents, j, slot, name):
+    """Properties: ``v[j]`` for agent j's local variable v."""
+    if type(j) is not int:
+        raise PcclRuntimeError(f"agent index {j!r} is not an integer")
+    if j < 0 or j >= len(agents):
+        raise PcclRuntimeError(f"agent index {j} out of range 0..{len(agents) - 1} in '{name}[{j}]'")
+    v = agents[j][4][slot]
+    if v is UNDEF:
+        raise PcclRuntimeError(f"read of undefined variable '{name}[{j}]'")
+    return v
+
+
+def agent_pos(agents, j):
+    if type(j) is not int or j < 0 or j >= len(agents):
+        raise PcclRuntimeError(f"agent index {j!r} out of range in 'pos[{j}]'")
+    return agents[j][6]
+
+
+def div(a, b):
+    """``/``: integer division truncates toward zero; float division otherwise."""
+    if b == 0:
+        raise PcclRuntimeError("division by zero")
+    if type(a) is int and type(b) is int:
+        q = abs(a) // abs(b)
+        return q if (a >= 0) == (b >= 0) else -q
+    return a / b
+
+
+def mod(a, b):
+    """``%``: remainder of truncating division (sign follows the dividend)."""
+    if b == 0:
+        raise PcclRuntimeError("modulo by zero")
+    if type(a) is int and type(b) is int:
+        r = abs(a) % abs(b)
+        return r if a >= 0 else -r
+    return math.fmod(a, b)
+
+
+def pos(x, y, z=0.0):
+    return (float(x), float(y), float(z))
+
+
+def dist(p, q):
+    return math.sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+
+
+def head(xs):
+    if xs is UNDEF:
+        raise PcclRuntimeError("head of an undefined list")
+    if not xs:
+        raise PcclRuntimeError("head of an empty list")
+    return xs[0]
+
+
+def chk_list(xs):
+    if xs is UNDEF:
+        raise PcclRuntimeError("use of an undefined list")
+    return xs
+
+
+def list_add(xs, v):
+    return chk_list(xs) + (v,)
+
+
+def list_remove(xs, v):
+    xs = chk_list(xs)
+    for k, x in enumerate(xs):
+        if x == v:
+            return xs[:k] + xs[k + 1:]
+    raise PcclRuntimeError(f"remove of an element not in the list: {format_value(v)}")
+
+
+def set_in(container, path, value):
+    """Functional update ``container[path[0]][path[1]]... = value``."""
+    if container is UNDEF:
+        raise PcclRuntimeError("index into an undefined value")
+    k = path[0]
+    if type(k) is not int or k < 0 or k >= len(container):
+        raise PcclRuntimeError(f"index {k!r} out of range 0..{len(container) - 1}")
+    if len(path) > 1:
+        value = set_in(container[k], path[1:], value)
+    return container[:k] + (value,) + container[k + 1:]
+
+
+def format_number(v) -> str:
+    if isinstance(v, float):
+        if v == int(v) and abs(v) < 1e15:
+            return f"{v:.1f}"
+        return f"{v:.6g}"
+    return str(v)
+
+
+def format_value(v, ty=None) -> str:
+    """Human-readable value; ``ty`` is a TypeRef-like object (optional),
+    used for enum member names (``ty.members``)."""
+    if v is UNDEF:
+        return "undefined"
+    if v is True:
+        return "true"
+    if v is False:
+        return "false"
+    members = getattr(ty, "members", None)
+    if members is not None and isinstance(v, int):
+        return members[v] if 0 <= v < len(members) else str(v)
+    if isinstance(v, tuple):
+        if len(v) == 3 and all(isinstance(c, float) for c in v):
+            return "(" + ", ".join(format_number(c) for c in v) + ")"
+        elem = getattr(ty, "elem", None)
+        return "[" + ", ".join(format_value(x, elem) for x in v) + "]"
+    return format_number(v)
+
+
+def to_json(v, ty=None):
+    if v is UNDEF:
+        return None
+    members = getattr(ty, "members", None)
+    if members is not None and isinstance(v, int) and not isinstance(v, bool):
+        return members[v] if 0 <= v < len(members) else v
+    if isinstance(v, tuple):
+        elem = getattr(ty, "elem", None)
+        return [to_json(x, elem) for x in v]
+    return v

@@ -1,0 +1,515 @@
+"""Worlds: where the robots are, what the uninterpreted functions return,
+and which obstacles are solid (spec section 6).
+
+A world is read from a TOML file given with ``--world FILE``.  Every key is
+optional; unknown keys are errors.  Layout::
+
+    # top level
+    agents = 2                  # number of agents (integer >= 1)
+    resolution = 0.01           # positions are compared/rounded to this (> 0)
+    radius = 0.25               # robot disc radius (> 0)
+    mass = 1.0                  # robot mass, pymunk only (> 0)
+    speed = 1.0                 # robot speed, distance per time unit (> 0)
+    tolerance = 0.05            # pymunk: done when this close to the target
+                                #   (> 0; default 5 * resolution)
+    no_progress_time = 3.0      # pymunk: fail after this long without
+                                #   progress toward the target (> 0)
+    arena = [[0, 0], [10, 10]]  # [[xmin, ymin], [xmax, ymax]]: bounds used to
+                                #   lay out agents without a start (not solid)
+    start = [[0, 0], [2, 0, 1]] # start positions [x, y] or [x, y, z]; fewer
+                                #   than agents is fine (the rest are laid out
+                                #   automatically), more is fine (extra unused)
+
+    [functions]                 # uninterpreted zero-argument functions
+    getInput = [[1, 1], [4, 0]] # any name; arrays become tuples, numbers,
+    getObs = [[[2, 2], [3, 2], [3, 3]]]   # booleans and strings are kept
+
+    [[obstacles]]               # one table per solid obstacle
+    polygon = [[2, 2], [3, 2], [3, 3]]    # >= 3 points, a valid polygon
+
+Defaults: ``getInput`` is an empty list when not given, ``getObs`` is the
+world's obstacle polygons (so a program that passes ``getObs()`` to
+``doReach`` avoids exactly the world's obstacles).  ``getObs`` given
+explicitly must be a list of polygons (each >= 3 ``[x, y]`` points).
+
+Automatic start positions (:meth:`World.start_positions`): agents without a
+given start are placed deterministically, spaced ``3 * radius`` apart (rounded
+up to the resolution), never within ``3 * radius`` of another start and never
+within ``1.5 * radius`` of an obstacle.  With an ``arena`` they fill a grid
+inside it row by row from the bottom-left corner (keeping ``1.5 * radius``
+from its edges); without one they go on the line ``y = 0`` from ``x = 0``
+toward ``+x``.
+
+Every problem in a world file raises :class:`~pccl.errors.PcclError` with
+the file name, its text and the line/column of the offending key or value.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from .errors import PcclError
+
+Point3 = tuple  # (x, y, z)
+Polygon = tuple  # ((x, y), ...)
+
+TOP_KEYS = ("agents", "resolution", "radius", "mass", "speed", "tolerance",
+            "no_progress_time", "arena", "start", "functions", "obstacles")
+OBSTACLE_KEYS = ("polygon",)
+
+DEFAULT_RESOLUTION = 0.01
+DEFAULT_NO_PROGRESS_TIME = 3.0
+TOLERANCE_FACTOR = 5.0  # default tolerance = TOLERANCE_FACTOR * resolution
+
+
+@dataclass(frozen=True)
+class World:
+    """An immutable, hashable world description (blackboxes cache on it)."""
+    n_agents: Optional[int] = None
+    starts: tuple = ()
+    resolution: float = DEFAULT_RESOLUTION
+    arena: Optional[tuple] = None
+    radius: float = 0.25
+    mass: float = 1.0
+    speed: float = 1.0
+    tolerance: Optional[float] = None          # None -> 5 * resolution
+    no_progress_time: float = DEFAULT_NO_PROGRESS_TIME
+    obstacles: tuple = ()
+    functions: tuple = ()
+    filename: Optional[str] = field(default=None, compare=False)
+
+    def __post_init__(self):
+        if self.tolerance is None:
+            object.__setattr__(self, "tolerance",
+                               TOLERANCE_FACTOR * self.resolution)
+
+    def functions_dict(self) -> dict:
+        """Uninterpreted function name -> value (lists are tuples)."""
+        return dict(self.functions)
+
+    # ------------------------------------------------------------------
+    def start_positions(self, n: int) -> tuple:
+        """``n`` start positions ``(x, y, z)``: the given starts first, the
+        rest laid out automatically (see the module docstring)."""
+        given = [tuple(float(c) for c in s) for s in self.starts[:n]]
+        out = list(given)
+        if len(out) >= n:
+            return tuple(out)
+        r = self.radius
+        spacing = _snap_up(3.0 * r, self.resolution)
+        margin = _snap_up(1.5 * r, self.resolution)
+        clear_obs = 1.5 * r
+        geoms = _obstacle_geoms(self.obstacles)
+
+        def free(x: float, y: float) -> bool:
+            for p in out:
+                if math.hypot(p[0] - x, p[1] - y) < spacing - 1e-9:
+                    return False
+            if geoms:
+                import shapely
+                pt = shapely.Point(x, y)
+                for g in geoms:
+                    if g.distance(pt) < clear_obs:
+                        return False
+            return True
+
+        for x, y in self._candidates(spacing, margin):
+            if free(x, y):
+                out.append((x, y, 0.0))
+                if len(out) == n:
+                    return tuple(out)
+        raise PcclError(
+            f"cannot place {n} agents: the arena has room for only "
+            f"{len(out)} (robots are laid out {spacing:g} apart)",
+            filename=self.filename)
+
+    def _candidates(self, spacing: float, margin: float):
+        res = self.resolution
+        if self.arena is None:
+            i = 0
+            while True:
+                yield (_snap(i * spacing, res), 0.0)
+                i += 1
+        (xmin, ymin), (xmax, ymax) = self.arena
+        y = ymin + margin
+        while y <= ymax - margin + 1e-9:
+            x = xmin + margin
+            while x <= xmax - margin + 1e-9:
+                yield (_snap(x, res), _snap(y, res))
+                x += spacing
+            y += spacing
+
+
+def default_world() -> World:
+    """The world without a file: agents on a line, empty functions."""
+    return World(functions=(("getInput", ()), ("getObs", ())))
+
+
+# ----------------------------------------------------------------------
+# Loading
+# ----------------------------------------------------------------------
+
+def load_world(path) -> World:
+    """Read and check a TOML world file (layout in the module docstring)."""
+    filename = str(path)
+    try:
+        with open(path, "rb") as fh:
+            raw = fh.read()
+    except FileNotFoundError:
+        raise PcclError(f"world file not found: {filename}",
+                        filename=filename) from None
+    except IsADirectoryError:
+        raise PcclError(f"world file is a directory: {filename}",
+                        filename=filename) from None
+    except OSError as e:
+        raise PcclError(f"cannot read world file: {e.strerror or e}",
+                        filename=filename) from None
+    try:
+        source = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise PcclError(f"world file is not valid UTF-8 ({e.reason})",
+                        filename=filename) from None
+    return parse_world(source, filename)
+
+
+def parse_world(source: str, filename: Optional[str] = None) -> World:
+    """Like :func:`load_world`, from the file's text."""
+    try:
+        data = tomllib.loads(source)
+    except tomllib.TOMLDecodeError as e:
+        msg, line, col = _toml_error_location(e, source)
+        raise PcclError(f"invalid TOML: {msg}", filename=filename,
+                        source=source, line=line, column=col) from None
+    return _Checker(source, filename).world(data)
+
+
+_TOML_LOC = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
+_TOML_END = re.compile(r"\s*\(at end of document\)\s*$")
+
+
+def _toml_error_location(e: Exception, source: str):
+    msg = str(e)
+    line = getattr(e, "lineno", None)
+    col = getattr(e, "colno", None)
+    m = _TOML_LOC.search(msg)
+    if m:
+        line, col = int(m.group(1)), int(m.group(2))
+        msg = msg[:m.start()]
+    else:
+        m = _TOML_END.search(msg)
+        if m:
+            msg = msg[:m.start()] + " at end of file"
+            lines = source.splitlines()
+            line = max(1, len(lines))
+            col = len(lines[-1]) + 1 if lines else 1
+    msg = getattr(e, "msg", None) or msg
+    return msg, line, col
+
+
+def _type_name(v: Any) -> str:
+    if isinstance(v, bool):
+        return "boolean"
+    if isinstance(v, int):
+        return "integer"
+    if isinstance(v, float):
+        return "float"
+    if isinstance(v, str):
+        return "string"
+    if isinstance(v, list):
+        return "array"
+    if isinstance(v, dict):
+        return "table"
+    return "date/time"
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+class _Checker:
+    """Checks the decoded TOML and locates errors in the source text."""
+
+    def __init__(self, source: str, filename: Optional[str]):
+        self.source = source
+        self.filename = filename
+        self.lines = source.splitlines()
+
+    # -- locating ------------------------------------------------------
+    def _find(self, table: Optional[str], key: str, index: int = 0):
+        """(line, key column, key end column, value column) of ``key`` in
+        ``[table]`` (or the ``index``-th ``[[table]]``; None = top level)."""
+        current: Optional[str] = None
+        count = -1
+        key_re = re.compile(r"^(\s*)([\"']?)" + re.escape(key) + r"\2\s*=\s*")
+        for no, text in self._logical_lines():
+            hdr = re.match(r"^\s*\[\[\s*([^\]]+?)\s*\]\]", text)
+            if hdr:
+                current = hdr.group(1).strip("\"'")
+                count = count + 1 if current == table else count
+                continue
+            hdr = re.match(r"^\s*\[\s*([^\]]+?)\s*\]", text)
+            if hdr:
+                current = hdr.group(1).strip("\"'")
+                continue
+            if current != table or (table == "obstacles" and count != index):
+                continue
+            m = key_re.match(text)
+            if m:
+                col = len(m.group(1)) + 1
+                end = col + len(key) + 2 * len(m.group(2))
+                return no, col, end, m.end() + 1
+        if table is not None:
+            # the table header itself, e.g. a [[obstacles]] without polygon
+            count = -1
+            for no, text in self._logical_lines():
+                hdr = re.match(r"^(\s*)(\[\[?)\s*([^\]]+?)\s*\]", text)
+                if hdr and hdr.group(3).strip("\"'") == table:
+                    count += 1
+                    if hdr.group(2) == "[" or count == index:
+                        col = len(hdr.group(1)) + 1
+                        return no, col, len(text.rstrip()) + 1, None
+        return None
+
+    def _logical_lines(self):
+        """(line number, text) of the lines that start a key or a header,
+        skipping the continuation lines of multi-line arrays and strings."""
+        depth = 0
+        in_ml = None  # open multi-line string delimiter
+        for no, text in enumerate(self.lines, start=1):
+            starts_here = depth == 0 and in_ml is None
+            i = 0
+            quote = None
+            while i < len(text):
+                if in_ml:
+                    j = text.find(in_ml, i)
+                    if j < 0:
+                        break
+                    in_ml, i = None, j + 3
+                    continue
+                ch = text[i]
+                if quote:
+                    if ch == "\\" and quote == '"':
+                        i += 2
+                        continue
+                    if ch == quote:
+                        quote = None
+                elif text.startswith('"""', i) or text.startswith("'''", i):
+                    in_ml, i = text[i:i + 3], i + 3
+                    continue
+                elif ch in "\"'":
+                    quote = ch
+                elif ch == "#":
+                    break
+                elif ch in "[{" and not (starts_here and depth == 0
+                                          and text[:i].strip() == ""):
+                    depth += 1
+                elif ch in "]}" and depth > 0:
+                    depth -= 1
+                i += 1
+            if starts_here:
+                yield no, text
+
+    def error(self, message: str, table: Optional[str] = None,
+              key: Optional[str] = None, index: int = 0, at_value=True):
+        line = column = end = None
+        if key is not None:
+            found = self._find(table, key, index)
+            if found:
+                line, kcol, kend, vcol = found
+                if at_value and vcol is not None:
+                    column = vcol
+                    end = self._value_end(line, vcol)
+                else:
+                    column, end = kcol, kend
+        raise PcclError(message, filename=self.filename, source=self.source,
+                        line=line, column=column, end_column=end)
+
+    def _value_end(self, line: int, col: int) -> int:
+        text = self.lines[line - 1]
+        rest = text[col - 1:]
+        # cut a trailing comment outside strings
+        quote = None
+        for i, ch in enumerate(rest):
+            if quote:
+                if ch == quote:
+                    quote = None
+            elif ch in "\"'":
+                quote = ch
+            elif ch == "#":
+                rest = rest[:i]
+                break
+        return col + len(rest.rstrip())
+
+    # -- checking ------------------------------------------------------
+    def world(self, data: dict) -> World:
+        for key in data:
+            if key not in TOP_KEYS:
+                self.error(f"unknown key '{key}' in world file; allowed keys: "
+                           + ", ".join(sorted(TOP_KEYS)),
+                           key=key, at_value=False)
+        kw: dict = {}
+        if "agents" in data:
+            v = data["agents"]
+            if not isinstance(v, int) or isinstance(v, bool):
+                self.error(f"'agents' must be an integer, got {_type_name(v)}",
+                           key="agents")
+            if v < 1:
+                self.error(f"'agents' must be at least 1, got {v}", key="agents")
+            kw["n_agents"] = v
+        for key in ("resolution", "radius", "mass", "speed", "tolerance",
+                    "no_progress_time"):
+            if key in data:
+                kw[key] = self.positive(data[key], key)
+        if "arena" in data:
+            kw["arena"] = self.arena(data["arena"])
+        if "start" in data:
+            kw["starts"] = self.starts(data["start"])
+        obstacles = self.obstacles(data.get("obstacles", []))
+        kw["obstacles"] = obstacles
+        functions = self.functions(data.get("functions", {}))
+        functions.setdefault("getInput", ())
+        functions.setdefault("getObs", obstacles)
+        kw["functions"] = tuple(sorted(functions.items()))
+        return World(filename=self.filename, **kw)
+
+    def positive(self, v: Any, key: str) -> float:
+        if not _is_number(v):
+            self.error(f"'{key}' must be a number, got {_type_name(v)}", key=key)
+        if not math.isfinite(v):
+            self.error(f"'{key}' must be a finite number, got {v}", key=key)
+        if v <= 0:
+            self.error(f"'{key}' must be positive, got {v}", key=key)
+        return float(v)
+
+    def point(self, v: Any, dims=(2,)) -> Optional[tuple]:
+        if not isinstance(v, list) or len(v) not in dims:
+            return None
+        if not all(_is_number(c) and math.isfinite(c) for c in v):
+            return None
+        return tuple(float(c) for c in v)
+
+    def arena(self, v: Any) -> tuple:
+        shape = "'arena' must be [[xmin, ymin], [xmax, ymax]]"
+        if not isinstance(v, list) or len(v) != 2:
+            self.error(shape, key="arena")
+        lo, hi = self.point(v[0]), self.point(v[1])
+        if lo is None or hi is None:
+            self.error(shape + " (numbers)", key="arena")
+        if not (lo[0] < hi[0] and lo[1] < hi[1]):
+            self.error(shape + " with xmin < xmax and ymin < ymax", key="arena")
+        return (lo, hi)
+
+    def starts(self, v: Any) -> tuple:
+        if not isinstance(v, list):
+            self.error("'start' must be an array of positions [x, y] or "
+                       f"[x, y, z], got {_type_name(v)}", key="start")
+        out = []
+        for i, p in enumerate(v):
+            q = self.point(p, dims=(2, 3))
+            if q is None:
+                self.error(f"'start' entry {i + 1} must be [x, y] or [x, y, z] "
+                           "(numbers)", key="start")
+            out.append(q if len(q) == 3 else (q[0], q[1], 0.0))
+        return tuple(out)
+
+    def polygon(self, v: Any, what: str, table: Optional[str], key: str,
+                index: int = 0) -> tuple:
+        if not isinstance(v, list):
+            self.error(f"{what} must be an array of points [[x, y], ...], got "
+                       f"{_type_name(v)}", table, key, index)
+        if len(v) < 3:
+            self.error(f"{what} needs at least 3 points, got {len(v)}",
+                       table, key, index)
+        pts = []
+        for i, p in enumerate(v):
+            q = self.point(p, dims=(2, 3))
+            if q is None:
+                self.error(f"{what}: point {i + 1} must be [x, y] (numbers)",
+                           table, key, index)
+            pts.append((q[0], q[1]))
+        import shapely
+        poly = shapely.Polygon(pts)
+        if not poly.is_valid:
+            reason = shapely.is_valid_reason(poly)
+            m = re.match(r"([A-Za-z -]+)\[([-\d.e]+) ([-\d.e]+)\]", reason)
+            if m:
+                reason = f"{m.group(1).lower()} at ({m.group(2)}, {m.group(3)})"
+            self.error(f"{what} is not a valid polygon ({reason})",
+                       table, key, index)
+        if poly.area <= 0:
+            self.error(f"{what} has zero area", table, key, index)
+        return tuple(pts)
+
+    def obstacles(self, v: Any) -> tuple:
+        if not isinstance(v, list) or not all(isinstance(t, dict) for t in v):
+            self.error("'obstacles' must be an array of tables: write each "
+                       "obstacle as [[obstacles]] with polygon = [[x, y], ...]",
+                       key="obstacles")
+        out = []
+        for i, table in enumerate(v):
+            for key in table:
+                if key not in OBSTACLE_KEYS:
+                    self.error(f"unknown key '{key}' in obstacle {i + 1}; "
+                               "allowed keys: " + ", ".join(OBSTACLE_KEYS),
+                               "obstacles", key, i, at_value=False)
+            if "polygon" not in table:
+                self.error(f"obstacle {i + 1} has no 'polygon'",
+                           "obstacles", "polygon", i)
+            out.append(self.polygon(table["polygon"],
+                                    f"obstacle {i + 1}: 'polygon'",
+                                    "obstacles", "polygon", i))
+        return tuple(out)
+
+    def functions(self, v: Any) -> dict:
+        if not isinstance(v, dict):
+            self.error("'functions' must be a table: write [functions] and "
+                       "then name = value lines", key="functions")
+        out = {}
+        for name, value in v.items():
+            if not _IDENT.match(name):
+                self.error(f"function name '{name}' is not an identifier",
+                           "functions", name, at_value=False)
+            if name == "getObs":
+                if not isinstance(value, list):
+                    self.error("'getObs' must be an array of polygons, got "
+                               f"{_type_name(value)}", "functions", name)
+                for i, poly in enumerate(value):
+                    self.polygon(poly, f"'getObs' polygon {i + 1}",
+                                 "functions", name)
+            out[name] = self.value(value, name)
+        return out
+
+    def value(self, v: Any, name: str):
+        if isinstance(v, list):
+            return tuple(self.value(x, name) for x in v)
+        if isinstance(v, (bool, int, float, str)):
+            return v
+        self.error(f"function '{name}': unsupported value of type "
+                   f"{_type_name(v)} (use numbers, booleans, strings and arrays)",
+                   "functions", name)
+
+
+# ----------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------
+
+def _snap(x: float, res: float) -> float:
+    return round(round(x / res) * res, 12)
+
+
+def _snap_up(x: float, res: float) -> float:
+    return round(math.ceil(x / res - 1e-9) * res, 12)
+
+
+def _obstacle_geoms(obstacles: tuple) -> list:
+    if not obstacles:
+        return []
+    import shapely
+    return [shapely.Polygon([(p[0], p[1]) for p in poly]) for poly in obstacles]
