@@ -24,8 +24,9 @@ Controller (per agent, at every sub-step)
   within ``max(r / 2, 2 * speed * dt)`` of the current one.
 * Desired velocity: toward the current waypoint at ``speed``; toward the
   final target at ``min(speed, GAIN * distance)`` (GAIN = 6 per time unit).
-  Agents with no target, a failed or unreachable target, hold still
-  (desired velocity 0, so they can be pushed and brake afterwards).
+  A done robot keeps driving to its target (it holds station there).
+  Agents with no target, or whose doReach failed, hold still (desired
+  velocity 0: they can be pushed, and brake afterwards).
 * The velocity moves toward the desired one by at most ``ACCEL * speed * dt``
   per sub-step (ACCEL = 10 per time unit): robots have momentum, which is
   why velocities are part of the env.
@@ -37,15 +38,23 @@ Flags
   step it is snapped exactly onto the target and its velocity zeroed.  done
   is sticky until the next doReach (a done robot keeps holding its target).
 * fail: immediately (robot held still) if the target lies inside or on an
-  obstacle; otherwise when the remaining path length (the planned path's
-  length, recomputed from the new position) has not decreased by more than
-  ``world.resolution`` during steps totalling ``world.no_progress_time``.
-  fail is sticky until the next doReach; a failed robot holds still.
+  obstacle.  Otherwise a step *makes progress* if the remaining path length
+  (the planned path's length, from the position at the start of the step
+  vs. from the end position rounded to ``world.resolution``) went down by
+  more than ``world.resolution``.  A step without progress adds δ to the
+  agent's stall time, a step with progress resets it to 0; fail is raised
+  when the stall time reaches ``world.no_progress_time`` (with δ = 1 and the
+  default 3.0: the third step in a row without progress).  The path length,
+  not the straight distance, is measured so that a detour around an
+  obstacle counts as progress.  fail is sticky until the next doReach; a
+  failed robot holds still.
 * no target yet: both flags False.
 
 Env: ``(velocities, stalls)``: per agent ``(vx, vy)`` rounded to
 ``world.resolution`` (fed back as the initial body velocities of the next
-step) and the time spent without progress (rounded to 1e-6).  Positions are
+step) and the stall time (rounded to 1e-6; 0 for agents that are not
+driving toward an unreached target).  Contacts: collision slop
+``SLOP * r``, collision bias ``BIAS``, ``SOLVER_ITERATIONS`` iterations.  Positions are
 returned unrounded (the engine rounds them); z is carried through unchanged.
 """
 
@@ -63,6 +72,7 @@ GAIN = 6.0       # 1 / time unit: proportional approach to the final target
 ACCEL = 10.0     # speeds per time unit: maximum acceleration
 SOLVER_ITERATIONS = 20
 SLOP = 0.01      # allowed contact overlap, in radii
+BIAS = 1e-6      # overlap left after one time unit (chipmunk's default 0.9**60)
 
 
 def _round(x: float, res: float) -> float:
@@ -136,6 +146,7 @@ class PymunkBlackbox:
         space.gravity = (0.0, 0.0)
         space.iterations = SOLVER_ITERATIONS
         space.collision_slop = SLOP * r
+        space.collision_bias = BIAS
         if obs is not EMPTY:
             convex, segments = obs.pymunk_parts()
             sb = space.static_body
@@ -172,10 +183,11 @@ class PymunkBlackbox:
         reached = [False] * n
 
         # --- simulate ----------------------------------------------------
+        pos = [body.position for body in bodies]
         for _ in range(substeps):
             for i in range(n):
                 body = bodies[i]
-                px, py = body.position
+                px, py = pos[i]
                 wx = wy = None
                 if mode[i]:
                     legs = paths[i]
@@ -206,9 +218,10 @@ class PymunkBlackbox:
                 # other or into obstacles
                 body.force = (ex * force_k, ey * force_k)
             space.step(dt)
+            pos = [body.position for body in bodies]
             for i in range(n):
                 if mode[i] == 1 and not reached[i]:
-                    px, py = bodies[i].position
+                    px, py = pos[i]
                     tx, ty = targets[i]
                     if math.hypot(tx - px, ty - py) <= tol:
                         reached[i] = True

@@ -41,11 +41,35 @@ def load_world_arg(world):
     return load_world(os.fspath(world))
 
 
+def apply_overrides(prog: A.Program, overrides) -> A.Program:
+    """Replace the initialisers of shared variables: ``{"k": "2"}`` (TLC-style
+    constants).  Values are PCCL expressions."""
+    import dataclasses
+    from .errors import PcclError
+    from .parser import parse_property
+    if not overrides:
+        return prog
+    overrides = dict(overrides)
+    decls = []
+    for d in prog.decls:
+        if isinstance(d, A.VarDecl) and d.name in overrides:
+            text = overrides.pop(d.name)
+            expr = parse_property(str(text), filename=f"--set {d.name}")
+            d = dataclasses.replace(d, init=expr)
+        decls.append(d)
+    if overrides:
+        names = ", ".join(sorted(overrides))
+        raise PcclError(f"--set: no variable named {names} in {prog.filename}")
+    return dataclasses.replace(prog, decls=tuple(decls))
+
+
 def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = None,
-               seed: Optional[int] = None, rng: Optional[random.Random] = None, **options) -> Model:
+               seed: Optional[int] = None, rng: Optional[random.Random] = None,
+               overrides=None, **options) -> Model:
     """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
-    sampled from the generator instead of branching."""
-    prog = load_program(program)
+    sampled from the generator instead of branching.  ``overrides`` maps
+    variable names to PCCL expressions replacing their initialisers."""
+    prog = apply_overrides(load_program(program), overrides)
     w = load_world_arg(world)
     if rng is None and seed is not None:
         rng = random.Random(seed)

@@ -485,7 +485,7 @@ class _Checker:
             agent_index = len(chain) >= (2 if var.is_array else 1)
             if agent_index:
                 j = chain[0].index
-                own = f"{name}[…] = …" if var.is_array else f"{name} = …"
+                own = f"{name}[k] = …" if var.is_array else f"{name} = …"
                 self.fail(f"cannot write agent {self.text(j, 'j')}'s component of allread "
                           f"variable '{name}': an agent writes only its own component, "
                           f"`{own}`", target.span)
@@ -584,7 +584,7 @@ class _Checker:
                 if t.kind not in ("bool", "any"):
                     self.fail(f"operand of '!' must be bool, got {t}", e.operand.span)
                 return BOOL
-            self.arith_operand(e.op, t, e.operand)
+            self.arith_operand(e.op, t, e.operand, "operand")
             return t
         if isinstance(e, ast.Binary):
             return self.binary(e)
@@ -601,15 +601,16 @@ class _Checker:
         self.fail(f"unexpected expression {type(e).__name__}",  # pragma: no cover
                   getattr(e, "span", None))
 
-    def arith_operand(self, op: str, t: Ty, node) -> None:
+    def arith_operand(self, op: str, t: Ty, node, operands: str = "operands") -> None:
         if t.kind == "any":
             self.fail(f"operand of '{op}' has no static type (a value from the "
                       f"world file): store it in a typed variable first", node.span)
         if op == "%":
             if t.kind != "int":
-                self.fail(f"operands of '%' must be int, got {t}", node.span)
+                self.fail(f"{operands} of '%' must be int, got {t}", node.span)
         elif not t.is_number:
-            self.fail(f"operands of '{op}' must be numbers, got {t}", node.span)
+            numbers = "a number" if operands == "operand" else "numbers"
+            self.fail(f"{operands} of '{op}' must be {numbers}, got {t}", node.span)
 
     def binary(self, e: ast.Binary) -> Ty:
         op = e.op

@@ -28,6 +28,18 @@ class RateType(click.ParamType):
             self.fail(f"{value!r} is not AGENT=RATE (for example 1=2)", param, ctx)
 
 
+class SetType(click.ParamType):
+    name = "NAME=EXPR"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        name, sep, expr = value.partition("=")
+        if not sep or not name.strip() or not expr.strip():
+            self.fail(f"{value!r} is not NAME=EXPR (for example k=2)", param, ctx)
+        return name.strip(), expr.strip()
+
+
 def common_options(f):
     opts = [
         click.option("--agents", "-n", type=click.IntRange(min=1), default=None,
@@ -46,6 +58,8 @@ def common_options(f):
                      help="any enabled event may run, or only the first in source order"),
         click.option("--collisions", is_flag=True,
                      help="report robots overlapping each other or an obstacle"),
+        click.option("--set", "overrides", type=SetType(), multiple=True,
+                     help="override a variable's initialiser, e.g. --set k=2 (repeatable)"),
     ]
     for o in reversed(opts):
         f = o(f)
@@ -56,9 +70,9 @@ def _delta(d):
     return int(d) if float(d).is_integer() else d
 
 
-def _model_options(delta, n0, rates, events, collisions):
+def _model_options(delta, n0, rates, events, collisions, overrides):
     return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
-                collisions=collisions)
+                collisions=collisions, overrides=dict(overrides))
 
 
 def _fail(err: PcclError):
@@ -112,7 +126,7 @@ def check(program, world):
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
-def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, seed,
+def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
         max_time, max_steps, trace, fmt, plot):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
@@ -120,7 +134,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
                       max_steps=max_steps, record_trace=trace or plot is not None,
                       max_time=_delta(max_time),
-                      **_model_options(delta, n0, rates, events, collisions))
+                      **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
         _fail(e)
     m = res.model
@@ -205,7 +219,7 @@ def _plot_run(m, res, path):
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
               help="progress line on stderr [default: when stderr is a terminal]")
-def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, depth,
+def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, abstract_time, invariants, no_deadlock, find_all, exact, fmt,
             plot, progress):
     """Explore every interleaving of PROGRAM breadth-first and report the first
@@ -215,7 +229,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
-                           **_model_options(delta, n0, rates, events, collisions))
+                           **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
         _fail(e)
     show = sys.stderr.isatty() if progress is None else progress

@@ -46,6 +46,7 @@ the file name, its text and the line/column of the offending key or value.
 
 from __future__ import annotations
 
+import bisect
 import math
 import re
 import tomllib
@@ -95,7 +96,8 @@ class World:
     def start_positions(self, n: int) -> tuple:
         """``n`` start positions ``(x, y, z)``: the given starts first, the
         rest laid out automatically (see the module docstring)."""
-        given = [tuple(float(c) for c in s) for s in self.starts[:n]]
+        given = [tuple(float(c) for c in s[:3]) + (0.0,) * (3 - len(s[:3]))
+                 for s in self.starts[:n]]
         out = list(given)
         if len(out) >= n:
             return tuple(out)
@@ -265,16 +267,18 @@ class _Checker:
                 col = len(m.group(1)) + 1
                 end = col + len(key) + 2 * len(m.group(2))
                 return no, col, end, m.end() + 1
-        if table is not None:
-            # the table header itself, e.g. a [[obstacles]] without polygon
+        # a table header: [[obstacles]] without polygon, [foo] unknown, ...
+        names = [key] if table is None else [f"{table}.{key}", table]
+        for name in names:
             count = -1
             for no, text in self._logical_lines():
                 hdr = re.match(r"^(\s*)(\[\[?)\s*([^\]]+?)\s*\]", text)
-                if hdr and hdr.group(3).strip("\"'") == table:
+                if hdr and hdr.group(3).replace(" ", "").strip("\"'") == name:
                     count += 1
-                    if hdr.group(2) == "[" or count == index:
+                    if name != table or hdr.group(2) == "[" or count == index:
                         col = len(hdr.group(1)) + 1
-                        return no, col, len(text.rstrip()) + 1, None
+                        end = len(text.split("#")[0].rstrip()) + 1
+                        return no, col, end, None
         return None
 
     def _logical_lines(self):
@@ -317,7 +321,10 @@ class _Checker:
                 yield no, text
 
     def error(self, message: str, table: Optional[str] = None,
-              key: Optional[str] = None, index: int = 0, at_value=True):
+              key: Optional[str] = None, index: int = 0, at_value=True,
+              path: tuple = ()):
+        """Raise a PcclError at ``key`` (its value when ``at_value``; the
+        element at ``path``, a tuple of array indexes, inside the value)."""
         line = column = end = None
         if key is not None:
             found = self._find(table, key, index)
@@ -326,10 +333,93 @@ class _Checker:
                 if at_value and vcol is not None:
                     column = vcol
                     end = self._value_end(line, vcol)
+                    if path:
+                        elem = self._element(line, vcol, path)
+                        if elem:
+                            line, column, end = elem
                 else:
                     column, end = kcol, kend
         raise PcclError(message, filename=self.filename, source=self.source,
                         line=line, column=column, end_column=end)
+
+    def _element(self, line: int, col: int, path: tuple):
+        """(line, column, end column) of the array element at ``path`` inside
+        the value starting at ``line``:``col``, or None."""
+        starts = [0]
+        for t in self.lines:
+            starts.append(starts[-1] + len(t) + 1)
+        # work on the lines as rendered (splitlines() drops \r)
+        text = "\n".join(self.lines) + "\n"
+        pos = starts[line - 1] + col - 1
+        n = len(text)
+
+        def skip_blank(i):
+            while i < n:
+                if text[i] in " \t\r\n":
+                    i += 1
+                elif text[i] == "#":
+                    while i < n and text[i] != "\n":
+                        i += 1
+                else:
+                    break
+            return i
+
+        def skip_value(i):
+            if i >= n:
+                return i
+            if text[i] in "\"'":
+                q = text[i]
+                i += 1
+                while i < n and text[i] != q and text[i] != "\n":
+                    i += 2 if (text[i] == "\\" and q == '"') else 1
+                return i + 1
+            if text[i] in "[{":
+                depth = 0
+                while i < n:
+                    ch = text[i]
+                    if ch in "\"'":
+                        i = skip_value(i)
+                        continue
+                    if ch == "#":
+                        i = skip_blank(i)
+                        continue
+                    if ch in "[{":
+                        depth += 1
+                    elif ch in "]}":
+                        depth -= 1
+                        if depth == 0:
+                            return i + 1
+                    i += 1
+                return i
+            while i < n and text[i] not in ",]}\n#":
+                i += 1
+            while i > 0 and text[i - 1] in " \t":
+                i -= 1
+            return i
+
+        for idx in path:
+            if pos >= n or text[pos] != "[":
+                return None
+            pos += 1
+            count = 0
+            while True:
+                pos = skip_blank(pos)
+                if pos >= n or text[pos] == "]":
+                    return None
+                if count == idx:
+                    break
+                pos = skip_blank(skip_value(pos))
+                if pos < n and text[pos] == ",":
+                    pos += 1
+                    count += 1
+                else:
+                    return None
+        end = skip_value(pos)
+        ln = bisect.bisect_right(starts, pos)
+        c = pos - starts[ln - 1] + 1
+        eln = bisect.bisect_right(starts, max(pos, end - 1))
+        ec = end - starts[ln - 1] + 1 if eln == ln else len(self.lines[ln - 1]) + 1
+        return ln, c, ec
 
     def _value_end(self, line: int, col: int) -> int:
         text = self.lines[line - 1]
@@ -415,24 +505,24 @@ class _Checker:
             q = self.point(p, dims=(2, 3))
             if q is None:
                 self.error(f"'start' entry {i + 1} must be [x, y] or [x, y, z] "
-                           "(numbers)", key="start")
+                           "(numbers)", key="start", path=(i,))
             out.append(q if len(q) == 3 else (q[0], q[1], 0.0))
         return tuple(out)
 
     def polygon(self, v: Any, what: str, table: Optional[str], key: str,
-                index: int = 0) -> tuple:
+                index: int = 0, path: tuple = ()) -> tuple:
         if not isinstance(v, list):
             self.error(f"{what} must be an array of points [[x, y], ...], got "
-                       f"{_type_name(v)}", table, key, index)
+                       f"{_type_name(v)}", table, key, index, path=path)
         if len(v) < 3:
             self.error(f"{what} needs at least 3 points, got {len(v)}",
-                       table, key, index)
+                       table, key, index, path=path)
         pts = []
         for i, p in enumerate(v):
             q = self.point(p, dims=(2, 3))
             if q is None:
                 self.error(f"{what}: point {i + 1} must be [x, y] (numbers)",
-                           table, key, index)
+                           table, key, index, path=path + (i,))
             pts.append((q[0], q[1]))
         import shapely
         poly = shapely.Polygon(pts)
@@ -442,9 +532,9 @@ class _Checker:
             if m:
                 reason = f"{m.group(1).lower()} at ({m.group(2)}, {m.group(3)})"
             self.error(f"{what} is not a valid polygon ({reason})",
-                       table, key, index)
+                       table, key, index, path=path)
         if poly.area <= 0:
-            self.error(f"{what} has zero area", table, key, index)
+            self.error(f"{what} has zero area", table, key, index, path=path)
         return tuple(pts)
 
     def obstacles(self, v: Any) -> tuple:
@@ -482,7 +572,7 @@ class _Checker:
                                f"{_type_name(value)}", "functions", name)
                 for i, poly in enumerate(value):
                     self.polygon(poly, f"'getObs' polygon {i + 1}",
-                                 "functions", name)
+                                 "functions", name, path=(i,))
             out[name] = self.value(value, name)
         return out
 
