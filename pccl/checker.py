@@ -44,6 +44,7 @@ from . import ast
 from .ast import Span
 from .builtins import BUILTINS, READONLY_FLAGS, Builtin, uninterpreted
 from .errors import PcclError
+from .values import div, mod
 
 
 # --------------------------------------------------------------------------
@@ -209,12 +210,14 @@ class ProgramInfo:
 
     def expr_type(self, expr: ast.Expr, *, in_property: bool = False,
                   bound: frozenset[str] = frozenset()) -> Ty:
-        """The type of an expression of a checked program (or property, with
-        the quantified agent ids ``bound`` in scope).  Raises PcclError if the
-        expression does not check."""
+        """The type of an expression of this program (or of a property, with
+        the quantified agent ids ``bound`` in scope): for the compiler, which
+        needs e.g. to know whether ``/`` divides ints.  An array variable
+        gives its array type.  Raises PcclError if the expression does not
+        check (meant for expressions that already passed the checker)."""
         c = _Checker(self, "property" if in_property else "program")
         c.bound = {b: 1 for b in bound}
-        return c.value(expr)
+        return c.expr(expr)
 
 
 # --------------------------------------------------------------------------
@@ -317,10 +320,10 @@ class _Checker:
             if name in declared:
                 prev, line = declared[name]
                 if prev == what:
-                    self.fail(f"duplicate {what} '{name}' (first declared at line {line})",
-                              where)
-                self.fail(f"'{name}' is already declared as {_article(prev)} "
-                          f"at line {line}", where)
+                    self.fail(f"duplicate {what} '{name}'{_first_at(line)}", where)
+                at_line = f" at line {line}" if line > 0 else ""
+                self.fail(f"'{name}' is already declared as {_article(prev)}{at_line}",
+                          where)
             declared[name] = (what, span.line)
 
         for d in p.decls:
@@ -353,7 +356,6 @@ class _Checker:
             v = VarInfo(d.name, d.section, ty, d)
             if d.init is not None:
                 self.init_of = v
-                self.bound = {}
                 t = self.value(d.init)
                 if not assignable(v.value_type, t):
                     self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
@@ -365,8 +367,8 @@ class _Checker:
         seen_events: dict[str, int] = {}
         for ev in p.events:
             if ev.name in seen_events:
-                self.fail(f"duplicate event '{ev.name}' (first declared at line "
-                          f"{seen_events[ev.name]})", self.find_word(ev.span, ev.name))
+                self.fail(f"duplicate event '{ev.name}'{_first_at(seen_events[ev.name])}",
+                          self.find_word(ev.span, ev.name))
             seen_events[ev.name] = ev.span.line
             self.condition(ev.guard, "pre")
             self.stmts(ev.body)
@@ -375,8 +377,8 @@ class _Checker:
         for inv in p.invariants:
             if inv.name is not None:
                 if inv.name in seen_invariants:
-                    self.fail(f"duplicate invariant '{inv.name}' (first declared at "
-                              f"line {seen_invariants[inv.name]})",
+                    self.fail(f"duplicate invariant '{inv.name}'"
+                              f"{_first_at(seen_invariants[inv.name])}",
                               self.find_word(inv.span, inv.name))
                 seen_invariants[inv.name] = inv.span.line
             _Checker(info, "property").property(inv.expr)
@@ -409,9 +411,7 @@ class _Checker:
                 return a * b
             if b == 0:
                 self.fail("division by zero in array size", e.span)
-            q = abs(a) // abs(b)
-            q = q if (a >= 0) == (b >= 0) else -q
-            return q if e.op == "/" else a - b * q
+            return div(a, b) if e.op == "/" else mod(a, b)
         self.fail("array size must be a constant int expression", e.span)
 
     # ---- statements ------------------------------------------------------
@@ -665,9 +665,10 @@ class _Checker:
             if name == "pos":
                 self.ambiguous(n)
                 self.per_agent_in_property(n)
-        var = self.info.variables.get(name)
         if self.init_of is not None:
             var = self.visible_in_init(n)
+        else:
+            var = self.info.variables.get(name)
         if var is not None:
             if self.mode == "property" and var.per_agent:
                 self.per_agent_in_property(n)
@@ -798,3 +799,7 @@ class _Checker:
 
 def _article(what: str) -> str:
     return ("an " if what[0] in "aeiou" else "a ") + what
+
+
+def _first_at(line: int) -> str:
+    return f" (first declared at line {line})" if line > 0 else ""

@@ -6,6 +6,7 @@ Every error message is pinned by a golden test of the full rendered text:
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import replace
 from pathlib import Path
 
@@ -49,9 +50,18 @@ def prop_error(text: str, info: ProgramInfo) -> str:
 # The shipped programs
 # --------------------------------------------------------------------------
 
+def _world_functions() -> frozenset[str]:
+    """Names of the uninterpreted functions the shipped world files define."""
+    names = set()
+    for w in PROGRAMS.glob("*.toml"):
+        names |= set(tomllib.loads(w.read_text()).get("functions", {}))
+    return frozenset(names)
+
+
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
 def test_shipped_programs_check_clean(path):
-    info = check_program(parse_program(path.read_text(), str(path)))
+    info = check_program(parse_program(path.read_text(), str(path)),
+                         functions=_world_functions())
     assert info.variables
 
 
@@ -396,6 +406,16 @@ def test_list_without_element_type():
 t.pccl:2:3: error: List needs an element type: List<T>
     2 |   List xs;
       |   ^^^^"""
+
+
+def test_trees_without_spans_report_without_location():
+    decls = (ast.VarDecl("loc", ast.TypeRef("int"), "c", None, None),
+             ast.VarDecl("loc", ast.TypeRef("int"), "c", None, None))
+    prog = ast.Program(None, decls, (), (), (), filename="built")
+    assert _render(prog) == "built: error: duplicate variable 'c'"
+    prog = ast.Program(None, decls[:1], (ast.CallStmt(0, "moveTo", ()),), (), (),
+                       filename="built")
+    assert _render(prog) == "built: error: unknown function 'moveTo'"
 
 
 # --------------------------------------------------------------------------
@@ -1708,6 +1728,42 @@ t.pccl:2:3: error: cannot assign to function 'rand'
       |   ^^^^
 """,
         id='assign_builtin_function'),
+    pytest.param(
+        """\
+loc:
+  bool inCs = false;
+
+Init:
+  count(inCs);
+""",
+        """\
+t.pccl:5:3: error: 'count' is only available in properties
+    5 |   count(inCs);
+      |   ^^^^^
+""",
+        id='count_as_statement'),
+    pytest.param(
+        """\
+Init:
+  total = 1;
+""",
+        """\
+t.pccl:2:3: error: undeclared variable 'total'
+    2 |   total = 1;
+      |   ^^^^^
+""",
+        id='assign_undeclared'),
+    pytest.param(
+        """\
+loc:
+  int a[-(-2) + 7 / 2 * -1 + 7 % 4 - 3];
+""",
+        """\
+t.pccl:2:9: error: array size must be at least 1, got -1
+    2 |   int a[-(-2) + 7 / 2 * -1 + 7 % 4 - 3];
+      |         ^^^^^^^^^^^^^^^^^^^^^^^^^^^^^^
+""",
+        id='array_size_expression_not_positive'),
 ]
 
 PROPERTY_ERRORS = [

@@ -1,0 +1,402 @@
+"""Pictures of the physical world (``--plot FILE`` in ``run`` and ``explore``).
+
+:func:`plot_run` draws one execution (a :class:`~pccl.runner.RunResult`),
+:func:`plot_trace` a counterexample (``[(label or None, state)]`` from an
+initial state, as the explorer rebuilds it).  Both draw, in world
+coordinates with equal aspect:
+
+* the arena (``world.arena``, a dashed grey box; without one the view is a
+  box around everything drawn, with a margin);
+* the world's obstacles, filled grey polygons numbered as in ``--collisions``
+  messages (from 1);
+* destinations: the initial value of every shared ``List<ItemPosition>``
+  variable (gold stars), and every target an agent was sent to by
+  ``doReach`` (crosses in the agent's colour);
+* each agent's trajectory: its positions after every environment step
+  (DOREACH INVOKE), one colour per agent, with small time labels (a robot
+  parked for several steps gets one ``t=a–b`` label; labels are thinned when
+  there are many); its footprint, a disc of ``world.radius``, dashed at the
+  start and filled at the end, with the agent's number;
+* the verdict: for a counterexample, or a run that ended badly, the title's
+  second line is the message in red and red rings mark the agents involved
+  at the last state (the colliding agents and obstacle, the stuck agent, the
+  agents still running in a deadlock; every agent for an invariant).
+
+The figure is 8 x 6 inches at 100 dpi (an 800 x 600 PNG).  The format
+follows the file's extension when matplotlib supports it (``.svg``, ``.pdf``
+…), PNG otherwise.  Only matplotlib's object API and the Agg canvas are
+used: importing this module does not change the pyplot backend of a
+program that embeds pccl.  Importing it raises ImportError when matplotlib
+is missing (the CLI turns that into a one-line message).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import textwrap
+from typing import Optional
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Polygon as PolygonPatch, Rectangle
+
+FIGSIZE = (8.0, 6.0)
+DPI = 100
+MAX_TIME_LABELS = 12          # per agent
+MAX_LEGEND_AGENTS = 10
+
+RUNNING, EXITED = 0, 1
+
+
+# ---------------------------------------------------------------------------
+# public API
+# ---------------------------------------------------------------------------
+
+def plot_run(model, run_result, path) -> None:
+    """Draw one execution: the positions after every environment step
+    (``run_result.summary``), the targets seen in ``run_result.trace`` (when
+    recorded) and the final state, to ``path``."""
+    summary = list(getattr(run_result, "summary", None) or [])
+    final = getattr(run_result, "final", None)
+    states = [s for _, s in summary]
+    if final is not None and (not states or states[-1] is not final):
+        states.append(final)
+    if not states:
+        raise ValueError("plot_run: the run result has no state to draw")
+    frames = _frames_from_states(states)
+    scan = [s for _, _, s in (getattr(run_result, "trace", None) or [])] or states
+    status = getattr(run_result, "status", "")
+    message = getattr(run_result, "message", "")
+    bad = status not in ("final", "bounded", "")
+    last = states[-1]
+    ring = None
+    if bad:
+        ring = _culprits(model, last, getattr(run_result, "violations", None) or [],
+                         looping=getattr(run_result, "looping_agent", None),
+                         deadlock=status == "deadlock")
+    head = f"{_program_name(model)} — run, blackbox {model.blackbox.name}: {status}"
+    sub = message if bad else (message or None)
+    _draw(model, states[0], frames, scan, last, path, head, sub, bad, ring)
+
+
+def plot_trace(model, trace, path, title: Optional[str] = None) -> None:
+    """Draw a counterexample ``trace`` (``[(label or None, state)]`` from an
+    initial state) to ``path``; ``title`` (the violation message) is shown in
+    red and the agents involved at the last state are ringed in red."""
+    if not trace:
+        raise ValueError("plot_trace: empty trace")
+    states = [s for _, s in trace]
+    frames = _frames_from_trace(trace)
+    last = states[-1]
+    ring = _culprits(model, last, _violations(model, last), looping=None,
+                     deadlock=_is_deadlock(model, last))
+    head = f"{_program_name(model)} — counterexample, blackbox {model.blackbox.name}"
+    _draw(model, states[0], frames, states, last, path, head, title, True, ring)
+
+
+# ---------------------------------------------------------------------------
+# collecting what to draw
+# ---------------------------------------------------------------------------
+
+def _xy(p):
+    return (float(p[0]), float(p[1]))
+
+
+def _frame(st):
+    return (st[0], tuple(_xy(ag[6]) for ag in st[4]), tuple(ag[3] for ag in st[4]))
+
+
+def _frames_from_states(states) -> list:
+    """[(time, positions, statuses)], one per state, consecutive duplicates
+    (same time and positions) merged."""
+    out = []
+    for st in states:
+        f = _frame(st)
+        if out and out[-1][0] == f[0] and out[-1][1] == f[1]:
+            out[-1] = f
+        else:
+            out.append(f)
+    return out
+
+
+def _frames_from_trace(trace) -> list:
+    """The initial state, the state after every DOREACH INVOKE, and the last
+    state (its statuses count: exited/stuck at the violation)."""
+    picked = [trace[0][1]]
+    for label, st in trace[1:]:
+        if label is not None and label[0] == "DOREACH INVOKE":
+            picked.append(st)
+    if picked[-1] is not trace[-1][1]:
+        picked.append(trace[-1][1])
+    return _frames_from_states(picked)
+
+
+def _destinations(model, st) -> list:
+    """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
+    out = []
+    for v in getattr(model.layout, "shared", ()):
+        ty = v.ty
+        if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
+            continue
+        val = st[3][v.slot]
+        if not isinstance(val, tuple):
+            continue
+        pts = [_xy(p) for p in val if isinstance(p, tuple) and len(p) >= 2]
+        if pts:
+            out.append((v.name, pts))
+    return out
+
+
+def _targets(states, n) -> list:
+    """Per agent, the distinct doReach targets in order of first appearance."""
+    seen = [dict() for _ in range(n)]
+    for st in states:
+        for i, ag in enumerate(st[4]):
+            t = ag[7][0]
+            if t is not None:
+                seen[i].setdefault(_xy(t), None)
+    return [list(s) for s in seen]
+
+
+def _violations(model, st) -> list:
+    try:
+        return list(model.violations(st))
+    except Exception:  # a drawing must not fail on a property that cannot be evaluated
+        return []
+
+
+def _is_deadlock(model, st) -> bool:
+    try:
+        return not model.successors(st) and model.terminal_kind(st) == "deadlock"
+    except Exception:
+        return False
+
+
+def _culprits(model, st, violations, *, looping, deadlock) -> dict:
+    """{'agents': sorted ids, 'obstacles': 1-based ids, 'all': bool}."""
+    agents, obstacles = set(), set()
+    for v in violations:
+        kind = getattr(v, "kind", None)
+        if kind == "collision":
+            from .collide import contacts
+            for c in contacts(model.world, tuple(ag[6] for ag in st[4])):
+                agents.add(c.i)
+                if c.j is not None:
+                    agents.add(c.j)
+                if c.obstacle is not None:
+                    obstacles.add(c.obstacle)
+        elif getattr(v, "agent", None) is not None:
+            agents.add(v.agent)
+    if looping is not None:
+        agents.add(looping)
+    if not agents and deadlock:
+        agents = {i for i, ag in enumerate(st[4]) if ag[3] != EXITED}
+    everyone = not agents
+    if everyone:
+        agents = set(range(len(st[4])))
+    return {"agents": sorted(agents), "obstacles": sorted(obstacles), "all": everyone}
+
+
+def _program_name(model) -> str:
+    fn = getattr(model.program, "filename", None)
+    return os.path.basename(fn) if fn else "program"
+
+
+# ---------------------------------------------------------------------------
+# drawing
+# ---------------------------------------------------------------------------
+
+def _colours(n):
+    from matplotlib import colormaps
+    if n <= 10:
+        cmap = colormaps["tab10"]
+        return [cmap(i) for i in range(n)]
+    cmap = colormaps["turbo"]
+    return [cmap(0.05 + 0.9 * i / max(1, n - 1)) for i in range(n)]
+
+
+def _fmt_t(t) -> str:
+    if isinstance(t, float):
+        if t.is_integer():
+            return str(int(t))
+        return f"{t:.3f}".rstrip("0").rstrip(".")
+    return str(t)
+
+
+def _runs(frames, i) -> list:
+    """Agent i's positions with the times it was there: [(xy, t_first, t_last)]."""
+    out = []
+    for t, pos, _ in frames:
+        p = pos[i]
+        if out and out[-1][0] == p:
+            out[-1][2] = t
+        else:
+            out.append([p, t, t])
+    return out
+
+
+def _thin(runs: list, limit: int) -> list:
+    if len(runs) <= limit:
+        return runs
+    k = math.ceil((len(runs) - 1) / (limit - 1))
+    keep = runs[::k]
+    if keep[-1] is not runs[-1]:
+        keep.append(runs[-1])
+    return keep
+
+
+def _status_word(code) -> str:
+    return "running" if code == RUNNING else "exited" if code == EXITED else "stuck"
+
+
+def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> None:
+    world = model.world
+    n = len(st0[4])
+    r = float(world.radius)
+    colours = _colours(n)
+    fig = Figure(figsize=FIGSIZE, dpi=DPI)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
+    ax.set_axisbelow(True)
+    ax.set_xlabel("x", fontsize=8)
+    ax.set_ylabel("y", fontsize=8)
+    ax.tick_params(labelsize=7)
+
+    xs: list = []
+    ys: list = []
+    handles: list = []
+
+    def extend(pts, pad=0.0):
+        for x, y in pts:
+            xs.extend((x - pad, x + pad))
+            ys.extend((y - pad, y + pad))
+
+    # arena
+    if world.arena is not None:
+        (x0, y0), (x1, y1) = world.arena
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="#888888",
+                               linestyle="--", linewidth=1.0, zorder=1))
+        extend([(x0, y0), (x1, y1)])
+        handles.append(Line2D([], [], color="#888888", linestyle="--", label="arena"))
+
+    # obstacles
+    bad_obs = set(ring["obstacles"]) if ring else set()
+    if world.obstacles:
+        for k, poly in enumerate(world.obstacles, start=1):
+            pts = [_xy(p) for p in poly]
+            hit = k in bad_obs
+            ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#9e9e9e", alpha=0.85,
+                                      edgecolor="red" if hit else "#505050",
+                                      linewidth=2.5 if hit else 1.0, zorder=2))
+            cx = sum(p[0] for p in pts) / len(pts)
+            cy = sum(p[1] for p in pts) / len(pts)
+            ax.text(cx, cy, str(k), ha="center", va="center", fontsize=7, color="white",
+                    zorder=3, fontweight="bold")
+            extend(pts)
+        handles.append(Patch(facecolor="#9e9e9e", edgecolor="#505050", label="obstacle"))
+
+    # destinations (shared List<ItemPosition> variables, initial value)
+    dests = _destinations(model, st0)
+    if dests:
+        names = ", ".join(name for name, _ in dests)
+        allpts = [p for _, pts in dests for p in pts]
+        ax.plot([p[0] for p in allpts], [p[1] for p in allpts], linestyle="none", marker="*",
+                markersize=14, markerfacecolor="gold", markeredgecolor="#7a5c00",
+                markeredgewidth=0.8, zorder=4)
+        extend(allpts)
+        handles.append(Line2D([], [], linestyle="none", marker="*", markersize=11,
+                              markerfacecolor="gold", markeredgecolor="#7a5c00",
+                              label=f"destinations ({names})"))
+
+    # doReach targets
+    targets = _targets(scan_states, n)
+    if any(targets):
+        for i, ts in enumerate(targets):
+            if ts:
+                ax.plot([p[0] for p in ts], [p[1] for p in ts], linestyle="none", marker="x",
+                        markersize=9, markeredgewidth=2.0, color=colours[i], zorder=6)
+                extend(ts)
+        handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
+                              markeredgewidth=2.0, color="#333333", label="doReach targets"))
+
+    # trajectories
+    final_status = frames[-1][2]
+    offsets = [(5, 5), (5, -11), (-22, 5), (-22, -11)]
+    for i in range(n):
+        c = colours[i]
+        pts = [f[1][i] for f in frames]
+        extend(pts, pad=r)
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], color=c, linewidth=1.6,
+                marker="o", markersize=2.5, zorder=5, alpha=0.9)
+        start, end = pts[0], pts[-1]
+        ax.add_patch(Circle(start, r, fill=False, edgecolor=c, linestyle="--",
+                            linewidth=1.2, zorder=5))
+        ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
+                            zorder=7))
+        ax.text(end[0], end[1], str(i), ha="center", va="center", fontsize=7,
+                fontweight="bold", color="black", zorder=8)
+        dx, dy = offsets[i % len(offsets)]
+        for p, ta, tb in _thin(_runs(frames, i), MAX_TIME_LABELS):
+            text = f"t={_fmt_t(ta)}" if ta == tb else f"t={_fmt_t(ta)}–{_fmt_t(tb)}"
+            ax.annotate(text, p, xytext=(dx, dy), textcoords="offset points", fontsize=6,
+                        color=c, zorder=9)
+        if i < MAX_LEGEND_AGENTS:
+            handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
+                                  label=f"agent {i} ({_status_word(final_status[i])})"))
+    if n > MAX_LEGEND_AGENTS:
+        handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
+    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                          markerfacecolor="none", markeredgecolor="#555555",
+                          label="footprint at start (dashed)"))
+    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                          markerfacecolor="#bbbbbb", markeredgecolor="#555555",
+                          label="footprint at end"))
+
+    # the violating moment
+    if bad and ring:
+        pos = [_xy(ag[6]) for ag in last[4]]
+        style = "--" if ring["all"] else "-"
+        for i in ring["agents"]:
+            if i < len(pos):
+                ax.add_patch(Circle(pos[i], 1.6 * r, fill=False, edgecolor="red",
+                                    linewidth=2.2, linestyle=style, zorder=10))
+        handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
+                              markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
+                              label=f"violation at t={_fmt_t(last[0])}"))
+
+    # view
+    if not xs:
+        xs, ys = [0.0], [0.0]
+    xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
+    span = max(xmax - xmin, ymax - ymin, 4 * r, 1e-6)
+    m = 0.06 * span + 0.5 * r
+    if world.arena is not None:
+        m = max(0.03 * span, 0.25 * r)
+    ax.set_xlim(xmin - m, xmax + m)
+    ax.set_ylim(ymin - m, ymax + m)
+
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
+              frameon=True, borderaxespad=0.0)
+    fig.text(0.5, 0.955, head, ha="center", va="center", fontsize=10, fontweight="bold")
+    if sub:
+        wrapped = textwrap.shorten(sub, width=220, placeholder=" …")
+        wrapped = "\n".join(textwrap.wrap(wrapped, width=110)[:2])
+        fig.text(0.5, 0.91, wrapped, ha="center", va="center", fontsize=8,
+                 color="red" if bad else "#333333")
+    _save(fig, path)
+
+
+def _save(fig, path) -> None:
+    from .errors import PcclError
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower().lstrip(".")
+    fmt = ext if ext in fig.canvas.get_supported_filetypes() else "png"
+    try:
+        fig.savefig(path, format=fmt, dpi=DPI)
+    except OSError as e:
+        raise PcclError(f"cannot write plot to {path}: {e.strerror or e}") from None
