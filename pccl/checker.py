@@ -143,9 +143,6 @@ def join(a: Ty, b: Ty) -> Optional[Ty]:
 # The symbol table
 # --------------------------------------------------------------------------
 
-SECTIONS = ("allwrite", "allread", "loc")
-
-
 @dataclass(frozen=True)
 class VarInfo:
     name: str
@@ -557,7 +554,7 @@ class _Checker:
             return BOOL
         if isinstance(e, ast.ListLit):
             t = ANY
-            for k, x in enumerate(e.items):
+            for x in e.items:
                 u = self.value(x)
                 j = join(t, u)
                 if j is None:
@@ -767,7 +764,7 @@ class _Checker:
                 self.fail(f"'{e.name}' cannot be used in a property: {hint}",
                           self.name_span(e))
             if b.kind == "property":
-                return self.count(e, b)
+                return self.count(e)
         elif b.kind == "property":
             self.fail(f"'{e.name}' is only available in properties", self.name_span(e))
         if (self.init_of is not None and self.init_of.section == "allwrite"
@@ -776,7 +773,7 @@ class _Checker:
                       f"cannot call it", self.name_span(e))
         return self.args(b, e)
 
-    def count(self, e: ast.Call, b: Builtin) -> Ty:
+    def count(self, e: ast.Call) -> Ty:
         if len(e.args) != 1:
             self.fail(f"'count' takes 1 argument, got {len(e.args)}", e.span)
         a = e.args[0]

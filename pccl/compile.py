@@ -70,23 +70,9 @@ class Layout:
     members: dict = field(default_factory=dict)    # member -> (VType, index)
 
 
-def _const_int(e: A.Expr, program: A.Program) -> int:
-    if isinstance(e, A.IntLit):
-        return e.value
-    if isinstance(e, A.Unary) and e.op == "-":
-        return -_const_int(e.operand, program)
-    if isinstance(e, A.Binary) and e.op in "+-*/%":
-        a, b = _const_int(e.left, program), _const_int(e.right, program)
-        try:
-            return {"+": a + b, "-": a - b, "*": a * b,
-                    "/": V.div(a, b) if b else None, "%": V.mod(a, b) if b else None}[e.op]
-        except Exception:  # pragma: no cover - checker rejects
-            pass
-    raise PcclError("array size must be a constant integer expression",
-                    filename=program.filename, source=program.source, span=e.span)
-
-
-def build_layout(program: A.Program) -> Layout:
+def build_layout(program: A.Program, info) -> Layout:
+    """Slots for every variable; ``info`` is the checker's ProgramInfo (array
+    sizes come from it)."""
     lay = Layout()
     for d in program.decls:
         if isinstance(d, A.EnumDecl):
@@ -115,7 +101,7 @@ def build_layout(program: A.Program) -> Layout:
             continue
         t = vtype(d.type)
         if d.size is not None:
-            t = VType("array", elem=t, size=_const_int(d.size, program))
+            t = VType("array", elem=t, size=info.variables[d.name].size)
         group = {"allwrite": lay.shared, "allread": lay.allread, "loc": lay.local}[d.section]
         vs = VarSlot(d.name, d.section, len(group), t, d, may_undef=True)
         group.append(vs)
@@ -260,7 +246,7 @@ class Compiler:
         self.oracle = oracle
         self.G: dict[str, Any] = {
             "_d": V.d, "_ix": V.ix, "_arc": V.agent_component, "_alo": V.agent_local,
-            "_apos": V.agent_pos, "_div": V.div, "_mod": V.mod, "_pos": V.pos,
+            "_apos": V.agent_pos, "_apos_reach": V.agent_reach, "_div": V.div, "_mod": V.mod, "_pos": V.pos,
             "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
         }
@@ -383,23 +369,53 @@ class Compiler:
         self.error(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
+        """Index chains.  Per-agent variables (spec §2, checker rules): an
+        allread scalar ``x[j]`` is agent j's component; for an allread array
+        ``x[k]`` is this agent's element k and ``x[j][k]`` agent j's element k.
+        In properties every per-agent name takes the agent index first
+        (``v[i]``, ``v[i][k]``, ``pos[i]``, ``doReach_done[i]``)."""
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
-        base = e.base
-        if isinstance(base, A.Name):
-            vs = self.lay.vars.get(base.name)
-            if prop and base.name == "pos" and vs is None:
-                return f"_apos(ags, {ex(e.index)})"
-            if vs is not None and vs.section == "allread":
-                return f"_arc(ags, {ex(e.index)}, {vs.slot}, {base.name!r})"
-            if prop and vs is not None and vs.section == "loc":
-                return f"_alo(ags, {ex(e.index)}, {vs.slot}, {base.name!r})"
-        return f"_ix({ex(base)}, {ex(e.index)})"
+        idx = []
+        root = e
+        while isinstance(root, A.Index):
+            idx.append(root.index)
+            root = root.base
+        idx.reverse()
+        if isinstance(root, A.Name) and root.name not in bound:
+            n = root.name
+            vs = self.lay.vars.get(n)
+            if prop and vs is None and n in ("pos", "doReach_done", "doReach_fail"):
+                j = ex(idx[0])
+                ref = (f"_apos(ags, {j})" if n == "pos"
+                       else f"_apos_reach(ags, {j})[{3 if n == 'doReach_done' else 4}]")
+                return self._index_rest(ref, idx[1:], ex)
+            if vs is not None and vs.section != "allwrite":
+                if prop:
+                    fn = "_arc" if vs.section == "allread" else "_alo"
+                    ref = f"{fn}(ags, {ex(idx[0])}, {vs.slot}, {n!r})"
+                    return self._index_rest(ref, idx[1:], ex)
+                if vs.section == "allread":
+                    if vs.ty.kind == "array" and len(idx) == 1:
+                        return f"_ix(ag[5][{vs.slot}], {ex(idx[0])})"
+                    ref = f"_arc(ags, {ex(idx[0])}, {vs.slot}, {n!r})"
+                    return self._index_rest(ref, idx[1:], ex)
+        return f"_ix({ex(e.base)}, {ex(e.index)})"
+
+    @staticmethod
+    def _index_rest(ref, rest, ex) -> str:
+        for k in rest:
+            ref = f"_ix({ref}, {ex(k)})"
+        return ref
 
     def call(self, e: A.Call, prop: bool, bound, want) -> str:
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         n, args = e.name, e.args
         if prop and n == "count":
             a = args[0]
+            if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
+                    and a.name not in self.lay.vars:
+                k = 3 if a.name == "doReach_done" else 4
+                return f"sum(1 for _a in ags if _a[7][{k}] is True)"
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
             if vs is None or vs.section == "allwrite":
                 self.error("count(v) needs a per-agent boolean variable", e)
@@ -446,7 +462,7 @@ class Compiler:
                 self.error(f"'{t.name}' is read-only: set by the controller", t)
             self.error(f"undeclared variable '{t.name}'", t)
         path.reverse()
-        if vs.section == "allread" and path:
+        if vs.section == "allread" and path and vs.ty.kind != "array":
             self.error(f"cannot write another agent's component of allread variable '{vs.name}'", t)
         return vs, path
 

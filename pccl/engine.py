@@ -135,8 +135,7 @@ class Model:
                  rates: Optional[dict] = None, events: str = "any",
                  max_time=None, abstract_time: Optional[bool] = None,
                  invariants=(), functions: Optional[dict] = None,
-                 rand_policy: Optional[Callable] = None, collisions: bool = False,
-                 check_program: bool = True):
+                 rand_policy: Optional[Callable] = None, collisions: bool = False):
         from .world import default_world
         from .blackboxes import load_blackbox
 
@@ -177,13 +176,9 @@ class Model:
         funcs.update(functions or {})
         self.functions = funcs
 
-        if check_program:
-            from .checker import check_program as _check
-            self.info = _check(program, functions=frozenset(funcs))
-        else:
-            self.info = None
-
-        self.layout: Layout = build_layout(program)
+        from .checker import check_program as _check
+        self.info = _check(program, functions=frozenset(funcs))
+        self.layout: Layout = build_layout(program, self.info)
         self.oracle = Oracle(rand_policy)
         self.comp = Compiler(program, self.layout, n_agents, funcs, self.oracle)
         self.stmts: dict[int, A.Stmt] = {}
@@ -249,9 +244,8 @@ class Model:
         return c.effect(s)
 
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
-        if self.info is not None:
-            from .checker import check_property
-            check_property(expr, self.info, filename=filename, source=source)
+        from .checker import check_property
+        check_property(expr, self.info, filename=filename, source=source)
         comp = self.comp
         saved = (comp.program)
         try:
@@ -353,7 +347,9 @@ class Model:
                     out.append(R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span)))
                     continue
                 try:
-                    v = coerce(res, vs.ty) if vs.ty.kind in ("float", "pos") else res
+                    if vs.ty.kind == "array" and not isinstance(res, tuple):
+                        res = (res,) * vs.ty.size     # `bool f[3] = false;` fills
+                    v = coerce(res, vs.ty) if vs.ty.kind in ("float", "pos", "array") else res
                 except ValueError as exc:
                     out.append(R._stuck(self, st, i, ag, str(exc), ("decl", vs.decl.span)))
                     continue

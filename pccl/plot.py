@@ -247,6 +247,21 @@ def _thin(runs: list, limit: int) -> list:
     return keep
 
 
+def _groups(points, tol) -> list:
+    """Indexes of ``points`` grouped by proximity (within ``tol`` of the
+    group's first point), in order."""
+    groups: list = []
+    for k, (x, y) in enumerate(points):
+        for g in groups:
+            gx, gy = points[g[0]]
+            if math.hypot(x - gx, y - gy) <= tol:
+                g.append(k)
+                break
+        else:
+            groups.append([k])
+    return groups
+
+
 def _status_word(code) -> str:
     return "running" if code == RUNNING else "exited" if code == EXITED else "stuck"
 
@@ -260,7 +275,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     FigureCanvasAgg(fig)
     fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
     ax = fig.add_subplot(1, 1, 1)
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")
     ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
     ax.set_axisbelow(True)
     ax.set_xlabel("x", fontsize=8)
@@ -327,6 +342,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     # trajectories
     final_status = frames[-1][2]
     offsets = [(5, 5), (5, -11), (-22, 5), (-22, -11)]
+    ends: list = []
     for i in range(n):
         c = colours[i]
         pts = [f[1][i] for f in frames]
@@ -338,8 +354,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
                             linewidth=1.2, zorder=5))
         ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
                             zorder=7))
-        ax.text(end[0], end[1], str(i), ha="center", va="center", fontsize=7,
-                fontweight="bold", color="black", zorder=8)
+        ends.append(end)
         dx, dy = offsets[i % len(offsets)]
         for p, ta, tb in _thin(_runs(frames, i), MAX_TIME_LABELS):
             text = f"t={_fmt_t(ta)}" if ta == tb else f"t={_fmt_t(ta)}–{_fmt_t(tb)}"
@@ -348,6 +363,11 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         if i < MAX_LEGEND_AGENTS:
             handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
                                   label=f"agent {i} ({_status_word(final_status[i])})"))
+    # agent numbers on the end footprints; robots ending on top of each other share one label
+    for group in _groups(ends, 0.3 * r):
+        x, y = ends[group[0]]
+        ax.text(x, y, ",".join(map(str, group)), ha="center", va="center", fontsize=7,
+                fontweight="bold", color="black", zorder=8)
     if n > MAX_LEGEND_AGENTS:
         handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
     handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
@@ -377,8 +397,19 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     m = 0.06 * span + 0.5 * r
     if world.arena is not None:
         m = max(0.03 * span, 0.25 * r)
-    ax.set_xlim(xmin - m, xmax + m)
-    ax.set_ylim(ymin - m, ymax + m)
+    xmin, xmax, ymin, ymax = xmin - m, xmax + m, ymin - m, ymax + m
+    # grow the view to the axes' shape, so that equal aspect fills the box
+    box = ax.get_position(original=True)
+    want = (box.width * FIGSIZE[0]) / (box.height * FIGSIZE[1])
+    w, h = xmax - xmin, ymax - ymin
+    if w / h < want:
+        grow = (want * h - w) / 2
+        xmin, xmax = xmin - grow, xmax + grow
+    else:
+        grow = (w / want - h) / 2
+        ymin, ymax = ymin - grow, ymax + grow
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
 
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
               frameon=True, borderaxespad=0.0)

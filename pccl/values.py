@@ -93,6 +93,12 @@ def agent_pos(agents, j):
     return agents[j][6]
 
 
+def agent_reach(agents, j):
+    if type(j) is not int or j < 0 or j >= len(agents):
+        raise PcclRuntimeError(f"agent index {j!r} out of range")
+    return agents[j][7]
+
+
 def div(a, b):
     """``/``: integer division truncates toward zero; float division otherwise."""
     if b == 0:

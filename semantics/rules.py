@@ -47,15 +47,19 @@ def _with_pc(ag, pc):
 
 def _outcomes(m, fn, has_rand, *args):
     """Evaluate ``fn(*args)``; with rand, every outcome (explore) or the
-    policy's (run).  Runtime errors become ``('error', reason)`` results."""
+    policy's (run).  Runtime errors become :class:`_Err` results."""
+    if not has_rand:
+        try:
+            return [fn(*args)]
+        except _RUNTIME_ERRORS as exc:
+            return [_Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))]
+
     def guarded(*a):
         try:
             return fn(*a)
         except _RUNTIME_ERRORS as exc:
             return _Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))
-    if has_rand:
-        return m.oracle.outcomes(guarded, *args)
-    return [guarded(*args)]
+    return m.oracle.outcomes(guarded, *args)
 
 
 class _Err:

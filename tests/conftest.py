@@ -1,0 +1,175 @@
+"""Shared helpers for the engine test-suite (test_rules, test_engine,
+test_properties, test_acceptance, test_cli, test_fuzz).
+
+Configurations are the engine's plain tuples (see ``semantics/rules.py``)::
+
+    state = (time, phase, lockQueue, shared, agents, env)
+    agent = (pc, counter, lockState, status, locals, allread, position, reach)
+    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+
+The helpers below build a model from a small program text, then edit such
+tuples by name, so that tests can hand-build the configuration a rule needs.
+Nothing here reads /work/shared: the programs used live in the repository.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pccl.api import make_model
+from pccl.engine import AEND, END, acq
+from pccl.parser import parse_program
+
+ROOT = Path(__file__).resolve().parent.parent
+PROGRAMS = ROOT / "programs"
+TEST_PROGRAMS = Path(__file__).resolve().parent / "programs"
+
+FISCHER = str(PROGRAMS / "fischer.pccl")
+RACE = str(PROGRAMS / "race.pccl")
+RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
+RACE_WORLD = str(PROGRAMS / "race.toml")
+
+# agent tuple slots / state tuple slots
+PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
+TIME, PHASE, LQ, SH, AGS, ENV = range(6)
+DISCRETE, DYNAMIC = 0, 1
+IDLE, REQUEST, LOCK = 0, 1, 2
+RUNNING, EXITED = 0, 1
+
+__all__ = [
+    "ROOT", "PROGRAMS", "TEST_PROGRAMS", "FISCHER", "RACE", "RACE_NONATOMIC", "RACE_WORLD",
+    "END", "AEND", "acq", "model_of", "sid", "sids", "k_pc", "k_of", "set_agent", "set_state",
+    "var", "shared", "succ", "labels", "only", "agent_rules",
+]
+
+
+def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):
+    """A Model of the program text ``src`` (dedented), instant blackbox by default."""
+    prog = parse_program(textwrap.dedent(src).lstrip("\n"), filename)
+    return make_model(prog, blackbox=blackbox, agents=agents, **kw)
+
+
+def sid(m, text: str, nth: int = 0) -> int:
+    """The sid of the ``nth`` statement whose source line (stripped) starts with ``text``."""
+    lines = m.program.source.splitlines()
+    hits = sorted((s.span.line, s.span.column, k) for k, s in m.stmts.items()
+                  if lines[s.span.line - 1].strip().startswith(text))
+    assert len(hits) > nth, f"no statement starting with {text!r}"
+    return hits[nth][2]
+
+
+def sids(m, *texts) -> tuple:
+    return tuple(sid(m, t) for t in texts)
+
+
+def k_pc(m, *items) -> int:
+    """Intern a k cell (statement sids and END / AEND / acq(sid) markers)."""
+    return m.ctl.intern(tuple(items))
+
+
+def k_of(m, ag) -> tuple:
+    """The k cell (tuple) of an agent tuple."""
+    return m.ctl.ks[ag[PC]]
+
+
+def _slot(m, name):
+    vs = m.layout.vars[name]
+    return vs
+
+
+def set_agent(m, st, i, *, pc=None, counter=None, lock=None, status=None, pos=None,
+              reach=None, **values):
+    """A copy of ``st`` with agent i's cells (and named variables) replaced."""
+    ag = list(st[AGS][i])
+    if pc is not None:
+        ag[PC] = pc
+    if counter is not None:
+        ag[CNT] = counter
+    if lock is not None:
+        ag[LCK] = lock
+    if status is not None:
+        ag[STATUS] = status
+    if pos is not None:
+        ag[POS] = pos
+    if reach is not None:
+        ag[REACH] = reach
+    loc, ar = list(ag[LOC]), list(ag[AR])
+    for name, v in values.items():
+        vs = _slot(m, name)
+        if vs.section == "loc":
+            loc[vs.slot] = v
+        elif vs.section == "allread":
+            ar[vs.slot] = v
+        else:  # pragma: no cover - test misuse
+            raise KeyError(f"{name} is shared: use set_state")
+    ag[LOC], ag[AR] = tuple(loc), tuple(ar)
+    ags = st[AGS]
+    return st[:AGS] + (ags[:i] + (tuple(ag),) + ags[i + 1:],) + st[AGS + 1:]
+
+
+def set_state(m, st, *, time=None, phase=None, lq=None, env=None, **values):
+    """A copy of ``st`` with global cells (and named shared variables) replaced."""
+    s = list(st)
+    if time is not None:
+        s[TIME] = time
+    if phase is not None:
+        s[PHASE] = phase
+    if lq is not None:
+        s[LQ] = tuple(lq)
+    if env is not None:
+        s[ENV] = env
+    sh = list(s[SH])
+    for name, v in values.items():
+        vs = _slot(m, name)
+        assert vs.section == "allwrite", name
+        sh[vs.slot] = v
+    s[SH] = tuple(sh)
+    return tuple(s)
+
+
+def var(m, st, i, name):
+    """Agent i's value of a local or allread variable."""
+    vs = m.layout.vars[name]
+    if vs.section == "loc":
+        return st[AGS][i][LOC][vs.slot]
+    if vs.section == "allread":
+        return st[AGS][i][AR][vs.slot]
+    return st[SH][vs.slot]
+
+
+def shared(m, st, name):
+    vs = m.layout.vars[name]
+    assert vs.section == "allwrite"
+    return st[SH][vs.slot]
+
+
+def succ(m, st, rule=None, agent="any"):
+    """Successors of ``st``, optionally only those of ``rule`` (and ``agent``)."""
+    return [(l, s) for l, s in m.successors(st)
+            if (rule is None or l[0] == rule) and (agent == "any" or l[1] == agent)]
+
+
+def labels(m, st, agent="any"):
+    return [l for l, _ in m.successors(st) if agent == "any" or l[1] == agent]
+
+
+def agent_rules(m, st, i):
+    """The rule names enabled for agent i."""
+    return sorted({l[0] for l, _ in m.successors(st) if l[1] == i})
+
+
+def only(m, st, rule, agent="any"):
+    """The one successor of ``rule`` (fails unless exactly one)."""
+    out = succ(m, st, rule, agent)
+    assert len(out) == 1, f"expected exactly one {rule} for agent {agent}, got {[l for l, _ in out]}"
+    return out[0]
+
+
+@pytest.fixture
+def chdir_root(monkeypatch):
+    """Run with the repository root as the working directory (for relative paths)."""
+    monkeypatch.chdir(ROOT)
+    return ROOT
