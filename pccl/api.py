@@ -65,11 +65,11 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
 
 def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = None,
                seed: Optional[int] = None, rng: Optional[random.Random] = None,
-               overrides=None, **options) -> Model:
+               overrides=None, source: bool = False, **options) -> Model:
     """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
     sampled from the generator instead of branching.  ``overrides`` maps
     variable names to PCCL expressions replacing their initialisers."""
-    prog = apply_overrides(load_program(program), overrides)
+    prog = apply_overrides(load_program(program, source=source), overrides)
     w = load_world_arg(world)
     if rng is None and seed is not None:
         rng = random.Random(seed)

@@ -96,7 +96,7 @@ def main():
     """
 
 
-@main.command()
+@main.command(short_help="Parse and type-check a program.")
 @click.argument("program", type=click.Path(dir_okay=False))
 @click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
               help="world file whose uninterpreted functions the program may use")
@@ -114,7 +114,7 @@ def check(program, world):
     click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
 
 
-@main.command()
+@main.command(short_help="Execute a program once (seeded).")
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--seed", type=int, default=0, show_default=True, help="random seed: same seed, same run")
@@ -181,7 +181,7 @@ def _step_summary(m, prev, s) -> str:
     if prev is not None:
         ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
         if ch:
-            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch[:8]) + (" …" if len(ch) > 8 else ""))
+            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
     return "  ".join(parts)
 
 
@@ -195,7 +195,7 @@ def _plot_run(m, res, path):
     click.echo(f"plot written to {path}")
 
 
-@main.command()
+@main.command(short_help="Explore every interleaving; shortest counterexamples.")
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--depth", type=click.IntRange(min=0), default=None,

@@ -194,7 +194,7 @@ class Explorer:
                 level_idx = nxt_idx
                 if level:
                     depth += 1
-                stats.max_depth = max(stats.max_depth, depth if level else depth)
+                    stats.max_depth = depth
             stats.frontier = len(level)
         except KeyboardInterrupt:
             res.status = "interrupted"

@@ -1,0 +1,297 @@
+"""The ``pccl`` command line: help, check, run and explore, their output
+formats and exit statuses (0 ok, 1 violation, 2 bad input)."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+from pccl.cli import main
+
+from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS
+
+LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
+SMALL = ["--set", "k=1", "--set", "cstime=0"]
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
+    # no command may crash: only SystemExit (exit status) is allowed
+    assert res.exception is None or isinstance(res.exception, SystemExit), \
+        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
+    assert "Traceback" not in res.output
+    return res
+
+
+def assert_user_error(res, where=None):
+    assert res.exit_code == 2, res.output
+    err = res.stderr
+    assert ": error: " in err
+    if where is not None:
+        assert err.startswith(where + ": error: "), err
+    assert res.stdout == ""
+
+
+# ---------------------------------------------------------------------------
+# help
+# ---------------------------------------------------------------------------
+
+def test_help():
+    res = cli("--help")
+    assert res.exit_code == 0
+    for word in ("check", "run", "explore", "Exit status"):
+        assert word in res.stdout
+
+
+def test_run_help():
+    res = cli("run", "--help")
+    assert res.exit_code == 0
+    for opt in ("--seed", "--max-steps", "--max-time", "--trace", "--format", "--blackbox",
+                "--world", "--agents", "--rate", "--events", "--n0", "--delta"):
+        assert opt in res.stdout, opt
+
+
+def test_explore_help():
+    res = cli("explore", "--help")
+    assert res.exit_code == 0
+    for opt in ("--depth", "--max-states", "--max-time", "--invariant", "--no-deadlock", "--all",
+                "--format", "--abstract-time", "--blackbox", "--events", "--set"):
+        assert opt in res.stdout, opt
+
+
+def test_console_script_and_module_entry_point():
+    out = subprocess.run([sys.executable, "-m", "pccl.cli", "check", RACE],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "ok" in out.stdout
+
+
+# ---------------------------------------------------------------------------
+# check
+# ---------------------------------------------------------------------------
+
+def test_check_ok():
+    for prog in (FISCHER, RACE, RACE_NONATOMIC):
+        res = cli("check", prog)
+        assert res.exit_code == 0 and res.stdout.startswith(prog) and "ok" in res.stdout
+
+
+def test_check_type_error_has_location_and_caret(tmp_path):
+    p = tmp_path / "bad.pccl"
+    p.write_text("E():\n  pre(true);\n  eff:\n    x = 1;\n")
+    res = cli("check", p)
+    assert_user_error(res, f"{p}:4:5")
+    lines = res.stderr.splitlines()
+    assert "x = 1;" in lines[1]
+    caret = lines[2]
+    assert caret.rstrip().endswith("^")
+    # the caret sits under the x
+    assert caret.index("^") == lines[1].index("x = 1")
+
+
+def test_check_syntax_error(tmp_path):
+    p = tmp_path / "syn.pccl"
+    p.write_text("loc:\n  int x = 0;\nE():\n  pre(x > );\n  eff:\n    skip;\n")
+    res = cli("check", p)
+    assert_user_error(res)
+    assert re.match(rf"{re.escape(str(p))}:4:\d+: error: ", res.stderr)
+    assert "^" in res.stderr
+
+
+def test_check_missing_file(tmp_path):
+    res = cli("check", tmp_path / "nope.pccl")
+    assert_user_error(res)
+
+
+def test_check_bad_world(tmp_path):
+    w = tmp_path / "w.toml"
+    w.write_text("agents = 2\nresolution = -1\n")
+    res = cli("check", RACE, "--world", w)
+    assert_user_error(res)
+    assert str(w) in res.stderr
+
+
+# ---------------------------------------------------------------------------
+# run
+# ---------------------------------------------------------------------------
+
+def test_run_text():
+    res = cli("run", RACE, "--world", RACE_WORLD)
+    assert res.exit_code == 0
+    out = res.stdout
+    assert "blackbox straight" in out and "seed 0" in out
+    assert "result: final" in out
+    assert "time steps:" in out and "final configuration:" in out
+    assert "exited" in out
+
+
+def test_run_json():
+    res = cli("run", RACE, "--world", RACE_WORLD, "--format", "json", "--seed", "4")
+    assert res.exit_code == 0
+    data = json.loads(res.stdout)
+    assert data["result"] == "final" and data["exit_status"] == 0 and data["seed"] == 4
+    final = data["final"]
+    assert final["shared"]["dests"] == []
+    assert [a["status"] for a in final["agents"]] == ["exited", "exited"]
+    assert data["summary"][0]["time"] == 0
+
+
+def test_run_json_trace():
+    res = cli("run", RACE, "--world", RACE_WORLD, "--format", "json", "--trace")
+    data = json.loads(res.stdout)
+    assert data["trace"] and data["trace"][0]["step"] == 1
+    assert {"rule", "agent", "time", "changes"} <= set(data["trace"][0])
+
+
+def test_run_trace_prints_rule_names():
+    res = cli("run", RACE, "--world", RACE_WORLD, "--trace")
+    assert res.exit_code == 0
+    for rule in ("EVENT SELECT", "STATEMENT", "DOREACH UPDATE", "COUNTER ADVANCE",
+                 "LOCK REQUEST", "ATOMIC EXECUTION", "LOCK RELEASE", "TIME ADVANCE",
+                 "DOREACH INVOKE", "EXIT"):
+        assert rule in res.stdout, rule
+    assert re.search(r"^\s+1\. t=0\s+agent \d", res.stdout, re.M)
+
+
+def test_run_stuck_agent_exit_1_with_source_line():
+    for seed in range(30):
+        res = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD, "--blackbox", "instant",
+                  "--seed", seed)
+        if res.exit_code == 1:
+            break
+    assert res.exit_code == 1
+    assert "result: violation" in res.stdout and "remove" in res.stdout
+    assert re.search(rf"at {re.escape(RACE_NONATOMIC)}:35:\d+: remove\(dests, currentDest\);",
+                     res.stdout)
+
+
+def test_run_max_steps():
+    res = cli("run", LOOP, "--blackbox", "instant", "--max-steps", "200")
+    assert res.exit_code == 1
+    assert "max-steps" in res.stdout and "agent 1" in res.stdout
+
+
+def test_run_same_seed_same_output():
+    a = cli("run", FISCHER, "--seed", "5", "--max-time", "12", "--trace")
+    b = cli("run", FISCHER, "--seed", "5", "--max-time", "12", "--trace")
+    assert a.exit_code == b.exit_code == 0
+    assert a.stdout == b.stdout
+
+
+@pytest.mark.parametrize("args", [
+    ["--blackbox", "nosuch"], ["--rate", "7=2"], ["--rate", "x"], ["--set", "nosuch=1"],
+    ["--world", "/nonexistent/w.toml"], ["--agents", "0"], ["--events", "all"],
+])
+def test_run_bad_options_exit_2(args):
+    res = cli("run", RACE, *args)
+    assert res.exit_code == 2
+
+
+# ---------------------------------------------------------------------------
+# explore
+# ---------------------------------------------------------------------------
+
+def test_explore_exit_0():
+    res = cli("explore", RACE, "--world", RACE_WORLD)
+    assert res.exit_code == 0
+    assert "no violation — exhaustive [blackbox straight]" in res.stdout
+    for word in ("states", "transitions", "max depth", "seconds", "states/second"):
+        assert word in res.stdout
+
+
+def test_explore_exit_1_with_counterexample():
+    res = cli("explore", FISCHER, *SMALL, "--invariant", "count(inCs) <= 1")
+    assert res.exit_code == 1
+    out = res.stdout
+    assert "violation: invariant 'count(inCs) <= 1' violated" in out
+    assert "counterexample (" in out and "violating state:" in out
+    assert re.search(r"^\s+1\. t=0\s+agent \d\s+EVENT SELECT\s+\[Start\]", out, re.M)
+
+
+def test_explore_bound_named():
+    res = cli("explore", RACE, "--world", RACE_WORLD, "--depth", "12")
+    assert res.exit_code == 0 and "--depth 12" in res.stdout
+    res = cli("explore", RACE, "--world", RACE_WORLD, "--max-states", "50")
+    assert res.exit_code == 0 and "--max-states 50" in res.stdout
+    res = cli("explore", FISCHER, *SMALL, "--max-time", "4")
+    assert res.exit_code == 0 and "--max-time 4" in res.stdout
+    assert "time abstraction off" in res.stdout
+
+
+@pytest.mark.parametrize("args", [
+    [FISCHER, "--invariant", "count(inCS) <= 1"],
+    [FISCHER, "--invariant", "count(inCs) <="],
+    [RACE, "--blackbox", "nosuch"],
+    [RACE, "--world", "/nonexistent/w.toml"],
+    ["/nonexistent/p.pccl"],
+    [RACE, "--set", "dests=[1,"],
+])
+def test_explore_exit_2(args):
+    res = cli("explore", *args)
+    assert res.exit_code == 2
+    assert "Error" in res.stderr or ": error: " in res.stderr
+
+
+def test_explore_property_typo_rendered_with_caret():
+    res = cli("explore", FISCHER, "--invariant", "count(inCS) <= 1")
+    assert_user_error(res)
+    lines = res.stderr.splitlines()
+    assert re.match(r".*:1:7: error: ", lines[0])
+    assert "count(inCS) <= 1" in lines[1]
+    assert lines[2].index("^") == lines[1].index("inCS")
+
+
+def test_explore_json():
+    res = cli("explore", FISCHER, *SMALL, "--invariant", "count(inCs) <= 1", "--format", "json")
+    assert res.exit_code == 1
+    data = json.loads(res.stdout)
+    assert data["status"] == "violation" and data["exit_status"] == 1
+    assert data["blackbox"] == "straight" and data["agents"] == 2
+    (v,) = data["violations"]
+    assert v["kind"] == "invariant" and v["trace"] and v["state"]
+    assert all(a["variables"]["inCs"] for a in v["state"]["agents"])
+    assert {"states", "transitions", "max_depth"} <= set(data["statistics"])
+    ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "--format", "json").stdout)
+    assert ok["status"] == "exhaustive" and ok["violations"] == [] and ok["exit_status"] == 0
+
+
+def test_explore_k_format():
+    res = cli("explore", FISCHER, *SMALL, "--invariant", "count(inCs) <= 1", "--format", "k")
+    assert res.exit_code == 1
+    out = res.stdout
+    for tok in ("<gMemory>", "</gMemory>", "<MMap>", "</MMap>", "|->", "<time>", "<agent>",
+                "<memory>"):
+        assert tok in out, tok
+    assert re.search(r"<gMemory> reqid \|-> \d+ k \|-> \d+ d \|-> \d+ </gMemory>", out)
+    assert re.search(r"<time> \d+ </time>", out)
+
+
+def test_explore_all_and_no_deadlock():
+    prog = str(TEST_PROGRAMS / "eng_assert.pccl")
+    a = cli("explore", prog, "--blackbox", "instant", "--all")
+    assert a.exit_code == 1 and "deadlock" in a.stdout and "assertion failed" in a.stdout
+    b = cli("explore", prog, "--blackbox", "instant", "--all", "--no-deadlock")
+    assert b.exit_code == 1 and "deadlock" not in b.stdout
+
+
+TIMING = re.compile(r"^\s*(seconds|states/second|peak memory)\b")
+
+
+def strip_timing(text):
+    return [ln for ln in text.splitlines() if not TIMING.match(ln)]
+
+
+@pytest.mark.parametrize("args", [
+    [FISCHER, *SMALL, "--invariant", "count(inCs) <= 1"],
+    [RACE_NONATOMIC, "--world", RACE_WORLD, "--blackbox", "nondet", "--all"],
+    [RACE, "--world", RACE_WORLD, "--depth", "20"],
+])
+def test_explore_output_is_deterministic(args):
+    a, b = cli("explore", *args), cli("explore", *args)
+    assert a.exit_code == b.exit_code
+    assert strip_timing(a.stdout) == strip_timing(b.stdout)
+    assert len(strip_timing(a.stdout)) < len(a.stdout.splitlines())     # timing lines exist
