@@ -194,6 +194,7 @@ def doreach_update(m, st, i, ag, info, out):
             out.append((("DOREACH UPDATE", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
             continue
         target, obstacles = res
+        target = m.round_pos(target)      # positions are compared at the world's resolution
         t0 = st[0] if m.record_t0 else None
         ag2 = (nxt, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], (target, obstacles, t0, False, False))
         out.append((("DOREACH UPDATE", i, sid), _put(st, i, ag2)))

@@ -704,6 +704,17 @@ class ReferenceModel:
     # the environment
     # ------------------------------------------------------------------
     def doreach_invoke(self, st: State) -> list:
+        """DOREACH INVOKE with the oracle's own blackboxes (no obstacles).
+
+        instant: an agent with a target is at it after the step, done.
+        nondet:  each *moving* agent either arrives (done) or stays (flags
+                 false); every combination is one outcome.  The spec does not
+                 define "moving"; here an agent is moving when it has a
+                 target, is not done, and is not already at the target
+                 (x, y compared after rounding to the resolution; an agent at
+                 its target is done).  Agents without a target stay, flags
+                 false.  Exited and stuck agents are treated like the others.
+        """
         per_agent = []
         for a in st.agents:
             if a.target is None:

@@ -386,3 +386,136 @@ def test_program_invariant_section_is_checked(tmp_path):
     res = explore(str(p), overrides=SMALL)
     assert res.status == "violation" and res.violation["name"] == "mutex"
     assert res.violation["line"] == len(src.splitlines())
+
+
+# ---------------------------------------------------------------------------
+# the explorer against a plain breadth-first search over the model
+# ---------------------------------------------------------------------------
+
+def plain_bfs(m, max_depth=None):
+    """(number of states, transitions, {depth of first violating state by kind})."""
+    level = []
+    seen = set()
+    for s in m.init_states():
+        if m.key(s) not in seen:
+            seen.add(m.key(s))
+            level.append(s)
+    first, depth, transitions = {}, 0, 0
+    while level:
+        nxt = []
+        for s in level:
+            for v in m.violations(s):
+                first.setdefault(v.kind, depth)
+            if max_depth is not None and depth >= max_depth:
+                continue
+            out = m.successors(s)
+            transitions += len(out)
+            for _, s2 in out:
+                k = m.key(s2)
+                if k not in seen:
+                    seen.add(k)
+                    nxt.append(s2)
+        level, depth = nxt, depth + 1
+    return len(seen), transitions, first
+
+
+@pytest.mark.parametrize("program, kw", [
+    (RACE, dict(world=RACE_WORLD, agents=3)),
+    (RACE_NONATOMIC, dict(world=RACE_WORLD, blackbox="straight")),
+    (FISCHER, dict(overrides=SMALL)),
+    (str(TEST_PROGRAMS / "eng_lock.pccl"), dict(blackbox="instant")),
+])
+def test_explorer_counts_match_plain_bfs(program, kw):
+    res = explore(program, **kw)
+    assert res.status == "exhaustive"
+    n, t, first = plain_bfs(make_model(program, **kw))
+    assert first == {}
+    assert (res.stats.states, res.stats.transitions) == (n, t)
+
+
+@pytest.mark.parametrize("program, kw", [
+    (RACE_NONATOMIC, dict(world=RACE_WORLD, blackbox="nondet", agents=3)),
+    (RACE_NONATOMIC, dict(world=RACE_WORLD, blackbox="instant")),
+    (FISCHER, dict(overrides=SMALL, invariants=[MUTEX])),
+])
+def test_counterexample_is_shortest(program, kw):
+    res = explore(program, **kw)
+    assert res.status == "violation"
+    _, _, first = plain_bfs(make_model(program, **kw), max_depth=res.violation["depth"])
+    assert first[res.violation["kind"]] == res.violation["depth"] == len(res.trace)
+
+
+def test_collisions_checked_when_asked():
+    res = explore(RACE, world=RACE_WORLD, blackbox="instant", collisions=True)
+    assert res.status == "violation" and res.violation["kind"] == "collision"
+    pos = [a["position"] for a in res.final_state["agents"]]
+    assert pos[0][:2] == pos[1][:2] == [4.0, 0.0]
+    off = explore(RACE, world=RACE_WORLD, blackbox="instant", find_all=True, deadlock=False)
+    assert off.violations and all(v["kind"] != "collision" for v in off.violations)
+
+
+def test_properties_over_allread_variables():
+    prog = str(TEST_PROGRAMS / "eng_flags.pccl")
+    ok = explore(prog, blackbox="instant",
+                 invariants=["count(up) <= N", "forall i: up[i] -> n[i] > 0",
+                             "exists i: !up[i] || n[i] >= 1"])
+    assert ok.status == "exhaustive", ok.verdict
+    bad = explore(prog, blackbox="instant", invariants=["count(up) <= 1"])
+    assert bad.status == "violation" and len(bad.trace) == bad.violation["depth"]
+    st = bad.final_state["agents"]
+    assert [a["variables"]["up"] for a in st] == [True, True]
+
+
+ABS_MAXTIME = str(TEST_PROGRAMS / "eng_abs_maxtime.pccl")
+
+
+def test_max_time_violation_found_without_abstraction():
+    res = explore(ABS_MAXTIME, agents=1, blackbox="instant", max_time=3)
+    assert res.model.abstract_time is False
+    assert res.status == "violation" and res.violation["kind"] == "assert"
+    assert res.final_state["time"] == 3
+
+
+@pytest.mark.xfail(strict=True, reason="abstract_time=True is accepted together with max_time, "
+                   "which is unsound: TIME ADVANCE reads the clock (time + δ <= max_time), so "
+                   "merging states that differ only in time drops the earlier copy and misses "
+                   "violations within the bound (verdict 'no violation within bounds')")
+def test_forced_time_abstraction_with_max_time_is_refused_or_sound():
+    try:
+        res = explore(ABS_MAXTIME, agents=1, blackbox="instant", max_time=3, abstract_time=True)
+    except PcclError:
+        return
+    assert res.status == "violation", res.verdict
+
+
+# ---------------------------------------------------------------------------
+# counterexample steps (spec §5: numbered steps with time, agent, rule,
+# event, source line and the variables changed)
+# ---------------------------------------------------------------------------
+
+def test_counterexample_steps_have_the_promised_fields():
+    res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
+    for n, s in enumerate(res.trace, 1):
+        assert s["step"] == n
+        assert {"time", "agent", "rule", "event", "line", "source", "changes"} <= set(s)
+        if s["rule"] in ("TIME ADVANCE", "DOREACH INVOKE"):
+            assert s["agent"] is None
+        else:
+            assert s["agent"] in (0, 1)
+        if s["rule"] in ("STATEMENT", "DOREACH UPDATE", "EXIT", "LOCK REQUEST"):
+            assert s["line"] and s["source"] and s["event"] in ("PickDest", "Remove")
+    stmt_lines = Path(RACE_NONATOMIC).read_text().splitlines()
+    for s in res.trace:
+        if s["rule"] == "STATEMENT":
+            assert stmt_lines[s["line"] - 1].strip() == s["source"]
+
+
+@pytest.mark.xfail(strict=True, reason="EVENT SELECT steps print the event header's line "
+                   "(display.label_info: line = ev.span.line) next to the guard's source text "
+                   "(source_line(ev.guard.span)): 'line 19: pre(Pick);' but pre(Pick) is on line 20")
+def test_counterexample_line_and_source_agree():
+    res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
+    lines = Path(RACE_NONATOMIC).read_text().splitlines()
+    for s in res.trace:
+        if s["line"]:
+            assert lines[s["line"] - 1].strip() == s["source"], s

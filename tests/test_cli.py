@@ -295,3 +295,23 @@ def test_explore_output_is_deterministic(args):
     assert a.exit_code == b.exit_code
     assert strip_timing(a.stdout) == strip_timing(b.stdout)
     assert len(strip_timing(a.stdout)) < len(a.stdout.splitlines())     # timing lines exist
+
+
+def test_explore_stuck_agent_names_source_location():
+    res = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "--blackbox", "nondet")
+    assert res.exit_code == 1
+    assert "[blackbox nondet]" in res.stdout
+    assert re.search(rf"^  at {re.escape(RACE_NONATOMIC)}:35:\d+$", res.stdout, re.M)
+    assert "stuck(remove of an element not in the list" in res.stdout
+
+
+def test_explore_run_json_stuck_status():
+    for seed in range(30):
+        res = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD, "--blackbox", "instant",
+                  "--seed", seed, "--format", "json")
+        if res.exit_code == 1:
+            break
+    data = json.loads(res.stdout)
+    assert data["result"] == "violation" and data["exit_status"] == 1
+    stuck = [a for a in data["final"]["agents"] if a["status"] == "stuck"]
+    assert len(stuck) == 1 and stuck[0]["line"] == 35 and "remove" in stuck[0]["reason"]

@@ -194,7 +194,14 @@ def test_unfixed_swap_is_clean_without_collision_checking():
     assert r.status == "exhaustive" and r.exit_status == 0
 
 
-@pytest.mark.parametrize("blackbox", ["straight", "instant", "nondet"])
+def test_unfixed_swap_collides_under_nondet_but_not_instant():
+    r = explore(COLLIDE, world=WORLD, blackbox="nondet", collisions=True)
+    assert r.status == "violation" and r.violation["kind"] == "collision"
+    r = explore(COLLIDE, world=WORLD, blackbox="instant", collisions=True)
+    assert r.status == "exhaustive"      # both jump to their goals in one step
+
+
+@pytest.mark.parametrize("blackbox", ["straight", "instant", "nondet", "pymunk"])
 def test_fixed_swap_is_collision_free(blackbox):
     r = explore(FIXED, world=WORLD, blackbox=blackbox, collisions=True)
     assert r.status == "exhaustive", r.verdict

@@ -862,3 +862,85 @@ def test_same_error_same_stuck_code():
     s1 = only(mm, a, "STATEMENT", 0)[1][AGS][0][STATUS]
     s2 = only(mm, b, "STATEMENT", 1)[1][AGS][1][STATUS]
     assert s1 == s2 >= 2
+
+
+# ---------------------------------------------------------------------------
+# state identity of k (spec §5)
+# ---------------------------------------------------------------------------
+
+TWO_SKIPS = """
+loc:
+  bool f = true;
+A():
+  pre(f);
+  eff:
+    skip;
+B():
+  pre(f);
+  eff:
+    skip;
+"""
+
+
+def test_equal_statements_at_different_lines_are_different_items():
+    mm = model_of(TWO_SKIPS)
+    (st,) = mm.init_states()
+    (la, sa), (lb, sb) = succ(mm, st, "EVENT SELECT", 0)
+    assert la[2] == 0 and lb[2] == 1
+    assert sa != sb and k_of(mm, sa[AGS][0]) != k_of(mm, sb[AGS][0])
+    # after the skip, both wait at endEventBlock, which carries no event name
+    ((_, ea),) = succ(mm, sa, agent=0)
+    ((_, eb),) = succ(mm, sb, agent=0)
+    assert k_of(mm, ea[AGS][0]) == (END,)
+    assert ea == eb
+    # ... and IDLE leads to the same configuration too
+    idle = set_agent(mm, st, 0, f=False)
+    (_, si), = succ(mm, idle, "IDLE", 0)
+    assert si == set_agent(mm, ea, 0, f=False)
+
+
+def test_init_block_runs_before_time_zero_uninterleaved():
+    mm = model_of("""
+        allwrite:
+          int s = 0;
+        loc:
+          int w = rand(1);
+          int mine = -1;
+          ObstacleList obs = getObs();
+        Init:
+          doReach(getPosition(), obs);
+          atomic:
+            s = s + 1;
+            mine = s;
+        E():
+          pre(true);
+          eff:
+            skip;
+        """, abstract_time=False)
+    inits = mm.init_states()
+    assert len(inits) == 4                       # w: 2 x 2
+    for st in inits:
+        assert st[0] == 0 and st[1] == DISCRETE and st[2] == ()
+        assert var(mm, st, 0, "s") == 2          # shared initialiser once, then each Init
+        # agents run their Init in id order
+        assert (var(mm, st, 0, "mine"), var(mm, st, 1, "mine")) == (1, 2)
+        for i in (0, 1):
+            ag = st[AGS][i]
+            assert k_of(mm, ag) == () and ag[LCK] == IDLE and ag[CNT] == 0
+            assert ag[REACH][0] == ag[POS] and ag[REACH][2] == 0
+
+
+def test_runtime_error_in_declaration_gets_agent_stuck_in_initial_state():
+    mm = model_of("""
+        loc:
+          int z = 0;
+          int q = 1 / z;
+        E():
+          pre(true);
+          eff:
+            skip;
+        """)
+    (st,) = mm.init_states()
+    vs = mm.violations(st)
+    assert [(v.kind, v.agent) for v in vs] == [("stuck", 0), ("stuck", 1)]
+    assert all(v.span.line == 3 and "division by zero" in v.message for v in vs)
