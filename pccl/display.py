@@ -82,7 +82,7 @@ def label_info(model, label, before=None) -> dict:
         ev = model.program.events[detail]
         info["rule"] = "EVENT SELECT"
         info["event"] = ev.name
-        info["line"] = ev.span.line
+        info["line"] = ev.guard.span.line
         info["source"] = source_line(model, ev.guard.span)
     elif rule in ("STATEMENT", "EXIT", "DOREACH UPDATE", "LOCK REQUEST", "ATOMIC WAIT",
                   "ATOMIC EXECUTION") and detail is not None:

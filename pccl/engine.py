@@ -212,6 +212,9 @@ class Model:
         elif abstract_time and uses_time:
             raise PcclError("time abstraction is unsound here: a property or the blackbox "
                             "reads the clock; drop --abstract-time")
+        elif abstract_time and max_time is not None:
+            raise PcclError("time abstraction cannot be combined with --max-time: the bound "
+                            "reads the clock; drop --abstract-time")
         self.abstract_time = bool(abstract_time)
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
@@ -306,7 +309,7 @@ class Model:
             (self.ctl.empty_pc, 0, IDLE, RUNNING,
              tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local),
              tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread),
-             tuple(starts[i]), blank_reach)
+             self.round_pos(starts[i]), blank_reach)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
         env0 = self.blackbox.init_env(self.world, N)
@@ -404,6 +407,7 @@ class Model:
                 info = infos[ag[0]]
                 if info is None:
                     info = self.ctl.info(ag[0])
+                self.oracle.agent = i
                 for rule in AGENT_RULES[info[0]]:
                     rule(self, st, i, ag, info, out)
             R.time_advance(self, st, out)

@@ -79,7 +79,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 looping = _looping_agent(model, st, per_agent)
                 return finish("max-steps",
                               f"agent {looping} runs more than {max_steps} transitions without "
-                              f"letting time advance (at {model.describe_k(st[4][looping][0])}); "
+                              f"letting time advance ({model.describe_k(st[4][looping][0])}); "
                               f"raise --max-steps if this is intended",
                               1, looping_agent=looping)
         st = nxt

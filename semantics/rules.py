@@ -332,8 +332,12 @@ def time_advance(m, st, out):
     """
     if not time_advance_enabled(m, st):
         return
+    # (time_advance_enabled ignores --max-time; terminal_kind uses it to tell
+    # a bounded state from a deadlock)
     t = st[0] + m.delta
-    if m.max_time is not None and t > m.max_time:
+    if type(t) is float:
+        t = round(t, 9)        # 0.1 + 0.2 is 0.3 on the PCCL clock
+    if m.max_time is not None and t > m.max_time + 1e-9:
         return
     out.append((("TIME ADVANCE", None, None), (t, DYNAMIC, st[2], st[3], st[4], st[5])))
 

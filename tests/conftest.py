@@ -39,12 +39,6 @@ DISCRETE, DYNAMIC = 0, 1
 IDLE, REQUEST, LOCK = 0, 1, 2
 RUNNING, EXITED = 0, 1
 
-__all__ = [
-    "ROOT", "PROGRAMS", "TEST_PROGRAMS", "FISCHER", "RACE", "RACE_NONATOMIC", "RACE_WORLD",
-    "END", "AEND", "acq", "model_of", "sid", "sids", "k_pc", "k_of", "set_agent", "set_state",
-    "var", "shared", "succ", "labels", "only", "agent_rules",
-]
-
 
 def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):
     """A Model of the program text ``src`` (dedented), instant blackbox by default."""

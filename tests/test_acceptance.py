@@ -114,37 +114,49 @@ def test_fischer_mutex_holds_with_large_d():
 # Race (paper §2.1, §5.2)
 # ---------------------------------------------------------------------------
 
-RACE_OK = "no agent gets stuck under any shipped blackbox (spec §8)"
-HEAD_RACE = ("race.pccl is not race-free at statement granularity: an agent passes "
-             "`if (isEmpty(dests))` in PickDest, another agent removes the last destination, "
-             "then `currentDest = head(dests)` (line 24) gets the first stuck on "
-             "'head of an empty list'")
+RACE_SAFE = str(Path(RACE).with_name("race_safe.pccl"))
 
 
 @pytest.mark.parametrize("agents", [2, 3])
-@pytest.mark.parametrize("blackbox", [
-    pytest.param("instant", marks=pytest.mark.xfail(strict=True, reason=HEAD_RACE)),
-    "straight",
-    pytest.param("nondet", marks=pytest.mark.xfail(strict=True, reason=HEAD_RACE)),
-])
-def test_race_no_violation_exhaustive(blackbox, agents):
-    res = explore(RACE, world=RACE_WORLD, blackbox=blackbox, agents=agents)
+def test_race_no_violation_exhaustive_straight(agents):
+    res = explore(RACE, world=RACE_WORLD, blackbox="straight", agents=agents)
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
-    assert res.verdict.startswith("no violation") and f"[blackbox {blackbox}]" in res.verdict
+    assert res.verdict == "no violation — exhaustive [blackbox straight]"
     assert res.model.N == agents
+
+
+@pytest.mark.parametrize("agents", [2, 3])
+@pytest.mark.parametrize("blackbox", ["instant", "nondet"])
+def test_race_head_race_under_instant_and_nondet(blackbox, agents):
+    """docs/decisions.md, "The Race program has a second race": PickDest
+    tests isEmpty(dests) and takes head(dests) in two transitions."""
+    res = explore(RACE, world=RACE_WORLD, blackbox=blackbox, agents=agents)
+    assert res.status == "violation" and res.exit_status == 1
+    v = res.violation
+    assert v["kind"] == "stuck" and "head of an empty list" in v["message"]
+    assert v["line"] == line_of(RACE, "currentDest = head(dests);")
 
 
 @pytest.mark.parametrize("blackbox", ["instant", "nondet"])
 def test_race_failure_is_only_the_head_race(blackbox):
-    """What the xfails above hit: with every violation collected, the only
-    problem in race.pccl is `head` of an emptied list, never `remove`."""
+    """With every violation collected, the only problem in race.pccl is
+    `head` of an emptied list, never `remove`."""
     res = explore(RACE, world=RACE_WORLD, blackbox=blackbox, find_all=True, deadlock=False)
     head_line = line_of(RACE, "currentDest = head(dests);")
     assert res.violations
     for v in res.violations:
         assert v["kind"] == "stuck" and "head of an empty list" in v["message"]
         assert v["line"] == head_line
+
+
+@pytest.mark.parametrize("blackbox, agents", [("instant", 2), ("straight", 2), ("nondet", 2),
+                                              ("straight", 3)])
+def test_race_safe_no_violation_exhaustive(blackbox, agents):
+    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox=blackbox, agents=agents)
+    assert res.violations == [], res.verdict
+    assert res.status == "exhaustive" and res.exit_status == 0
+    assert f"[blackbox {blackbox}]" in res.verdict
 
 
 @pytest.mark.parametrize("agents", [2, 3])
@@ -476,10 +488,6 @@ def test_max_time_violation_found_without_abstraction():
     assert res.final_state["time"] == 3
 
 
-@pytest.mark.xfail(strict=True, reason="abstract_time=True is accepted together with max_time, "
-                   "which is unsound: TIME ADVANCE reads the clock (time + δ <= max_time), so "
-                   "merging states that differ only in time drops the earlier copy and misses "
-                   "violations within the bound (verdict 'no violation within bounds')")
 def test_forced_time_abstraction_with_max_time_is_refused_or_sound():
     try:
         res = explore(ABS_MAXTIME, agents=1, blackbox="instant", max_time=3, abstract_time=True)
@@ -510,9 +518,6 @@ def test_counterexample_steps_have_the_promised_fields():
             assert stmt_lines[s["line"] - 1].strip() == s["source"]
 
 
-@pytest.mark.xfail(strict=True, reason="EVENT SELECT steps print the event header's line "
-                   "(display.label_info: line = ev.span.line) next to the guard's source text "
-                   "(source_line(ev.guard.span)): 'line 19: pre(Pick);' but pre(Pick) is on line 20")
 def test_counterexample_line_and_source_agree():
     res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
     lines = Path(RACE_NONATOMIC).read_text().splitlines()

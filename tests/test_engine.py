@@ -239,9 +239,6 @@ def test_max_steps_stops_looping_agent():
     assert var(res.model, res.final, 1, "n") > 100
 
 
-@pytest.mark.xfail(strict=True, reason="runner message doubles 'at': "
-                   "'(at at line 14)' — runner.py formats '(at {describe_k})' and "
-                   "describe_k already starts with 'at'")
 def test_max_steps_message_reads_well():
     res = run(LOOP, blackbox="instant", max_steps=300)
     assert "at at" not in res.message
@@ -363,7 +360,7 @@ def test_every_reachable_terminal_state_of_race_is_final():
     assert terminals >= 1
 
 
-def test_deadlock_violation_names_waiting_agents(chdir_root):
+def test_deadlock_violation_names_waiting_agents():
     m = make_model(ASSERT_PROG, blackbox="instant")
     (st,) = m.init_states()
     # agent 1 stuck with budget left blocks time; agent 0 has done its step
@@ -389,9 +386,6 @@ def test_model_is_a_model():
     assert isinstance(make_model(RACE), Model)
 
 
-@pytest.mark.xfail(strict=True, reason="float time drifts: time is accumulated as time + δ "
-                   "(semantics/rules.py time_advance), so with δ = 0.1 the third step gives "
-                   "0.30000000000000004 > 0.3 and TIME ADVANCE is refused at --max-time 0.3")
 def test_fractional_delta_reaches_max_time():
     res = run(RACE, world=RACE_WORLD, delta=0.1, max_time=0.3)
     assert res.status == "bounded"
@@ -412,10 +406,6 @@ start = [[0.003, 0], [2, 1.0049]]
 """
 
 
-@pytest.mark.xfail(strict=True, reason="start positions are not rounded to the world's "
-                   "resolution (Model.init_states copies world.start_positions as is) while "
-                   "DOREACH INVOKE rounds every position: a robot that never moves jumps from "
-                   "(0.003, 0) to (0, 0) at the first environment step")
 def test_stationary_agent_keeps_its_position(tmp_path):
     w = tmp_path / "w.toml"
     w.write_text(OFF_GRID_WORLD)

@@ -715,8 +715,6 @@ def test_rand_policy_is_told_the_agent_in_declarations():
     assert calls == [(2, 0), (2, 1)]
 
 
-@pytest.mark.xfail(strict=True, reason="Model.successors never sets oracle.agent: rand_policy "
-                   "receives agent=None for rand() in event effects")
 def test_rand_policy_is_told_the_agent_in_effects():
     calls = []
     mm = model_of(RAND_PROG, rand_policy=lambda n, agent, span: calls.append((n, agent)) or 0)
