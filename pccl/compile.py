@@ -245,8 +245,8 @@ class Compiler:
         self.functions = functions          # uninterpreted name -> raw value
         self.oracle = oracle
         self.G: dict[str, Any] = {
-            "_d": V.d, "_ix": V.ix, "_arc": V.agent_component, "_alo": V.agent_local,
-            "_apos": V.agent_pos, "_apos_reach": V.agent_reach, "_div": V.div, "_mod": V.mod, "_pos": V.pos,
+            "_d": V.d, "_ix": V.ix, "_av": V.agent_var, "_ag": V.agent,
+            "_div": V.div, "_mod": V.mod, "_pos": V.pos,
             "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
         }
@@ -386,18 +386,18 @@ class Compiler:
             vs = self.lay.vars.get(n)
             if prop and vs is None and n in ("pos", "doReach_done", "doReach_fail"):
                 j = ex(idx[0])
-                ref = (f"_apos(ags, {j})" if n == "pos"
-                       else f"_apos_reach(ags, {j})[{3 if n == 'doReach_done' else 4}]")
+                cell = {"pos": "[6]", "doReach_done": "[7][3]", "doReach_fail": "[7][4]"}[n]
+                ref = f"_ag(ags, {j}, {n + '[…]'!r}){cell}"
                 return self._index_rest(ref, idx[1:], ex)
             if vs is not None and vs.section != "allwrite":
                 if prop:
-                    fn = "_arc" if vs.section == "allread" else "_alo"
-                    ref = f"{fn}(ags, {ex(idx[0])}, {vs.slot}, {n!r})"
+                    cell = 5 if vs.section == "allread" else 4
+                    ref = f"_av(ags, {ex(idx[0])}, {cell}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
                 if vs.section == "allread":
                     if vs.ty.kind == "array" and len(idx) == 1:
                         return f"_ix(ag[5][{vs.slot}], {ex(idx[0])})"
-                    ref = f"_arc(ags, {ex(idx[0])}, {vs.slot}, {n!r})"
+                    ref = f"_av(ags, {ex(idx[0])}, 5, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
         return f"_ix({ex(e.base)}, {ex(e.index)})"
 

@@ -430,4 +430,4 @@ def _save(fig, path) -> None:
     try:
         fig.savefig(path, format=fmt, dpi=DPI)
     except OSError as e:
-        raise PcclError(f"cannot write plot to {path}: {e.strerror or e}") from None
+        raise PcclError(f"cannot write plot: {e.strerror or e}", filename=path) from None

@@ -63,40 +63,20 @@ def ix(container, index):
     return v
 
 
-def agent_component(agents, j, slot, name):
-    """``x[j]`` for an allread variable x: agent j's component."""
-    if type(j) is not int:
-        raise PcclRuntimeError(f"agent index {j!r} is not an integer")
-    if j < 0 or j >= len(agents):
-        raise PcclRuntimeError(f"agent index {j} out of range 0..{len(agents) - 1} in '{name}[{j}]'")
-    v = agents[j][5][slot]
+def agent(agents, j, what):
+    """Agent j's cell, for ``x[j]``/``v[j]``/``pos[j]``: j must be an agent id."""
+    if type(j) is not int or j < 0 or j >= len(agents):
+        raise PcclRuntimeError(f"agent index {j!r} out of range 0..{len(agents) - 1} in '{what}'")
+    return agents[j]
+
+
+def agent_var(agents, j, cell, slot, name):
+    """Agent j's value of a per-agent variable: ``cell`` 5 for allread
+    components (``x[j]``), 4 for locals (``v[j]`` in properties)."""
+    v = agent(agents, j, f"{name}[{j}]")[cell][slot]
     if v is UNDEF:
         raise PcclRuntimeError(f"read of undefined variable '{name}[{j}]'")
     return v
-
-
-def agent_local(agents, j, slot, name):
-    """Properties: ``v[j]`` for agent j's local variable v."""
-    if type(j) is not int:
-        raise PcclRuntimeError(f"agent index {j!r} is not an integer")
-    if j < 0 or j >= len(agents):
-        raise PcclRuntimeError(f"agent index {j} out of range 0..{len(agents) - 1} in '{name}[{j}]'")
-    v = agents[j][4][slot]
-    if v is UNDEF:
-        raise PcclRuntimeError(f"read of undefined variable '{name}[{j}]'")
-    return v
-
-
-def agent_pos(agents, j):
-    if type(j) is not int or j < 0 or j >= len(agents):
-        raise PcclRuntimeError(f"agent index {j!r} out of range in 'pos[{j}]'")
-    return agents[j][6]
-
-
-def agent_reach(agents, j):
-    if type(j) is not int or j < 0 or j >= len(agents):
-        raise PcclRuntimeError(f"agent index {j!r} out of range")
-    return agents[j][7]
 
 
 def div(a, b):

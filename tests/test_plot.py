@@ -187,7 +187,7 @@ def test_plot_to_unwritable_path_is_a_pccl_error(tmp_path):
     from pccl.errors import PcclError
     from pccl.plot import plot_run
     res = run(str(FIXED), world=str(COLLIDE_WORLD))
-    with pytest.raises(PcclError, match="cannot write plot"):
+    with pytest.raises(PcclError, match="cannot write plot: No such file"):
         plot_run(res.model, res, tmp_path / "no" / "such" / "dir" / "x.png")
 
 
