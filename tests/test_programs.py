@@ -116,15 +116,14 @@ def test_leader_missing_last_agent_is_caught():
     assert res.status == "violation" and res.exit_status == 1
 
 
-def test_leader_bug_cli_exit_status():
+def test_leader_bug_cli_exit_status(tmp_path):
     text = LEADER.read_text().replace("while (j < getNumAgents()):",
                                       "while (j < getNumAgents() - 1):", 1)
-    runner = CliRunner()
-    with runner.isolated_filesystem():
-        Path("bug.pccl").write_text(text)
-        out = runner.invoke(cli, ["explore", "bug.pccl", "-b", "nondet",
-                                  "--invariant", "forall i: forall j: (stage[i] == DONE && "
-                                  "stage[j] == DONE) -> best[i] == best[j]"])
+    bug = tmp_path / "bug.pccl"
+    bug.write_text(text)
+    out = CliRunner().invoke(cli, ["explore", str(bug), "-b", "nondet",
+                                   "--invariant", "forall i: forall j: (stage[i] == DONE && "
+                                   "stage[j] == DONE) -> best[i] == best[j]"])
     assert out.exit_code == 1, out.output
     assert "violation" in out.output
 
