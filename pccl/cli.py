@@ -169,7 +169,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
     if plot:
-        _plot_run(m, res, plot)
+        _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(res.exit_status)
 
 
@@ -185,14 +185,22 @@ def _step_summary(m, prev, s) -> str:
     return "  ".join(parts)
 
 
-def _plot_run(m, res, path):
+def _plot_module():
+    import importlib
     try:
-        from .plot import plot_run
+        plot = importlib.import_module(".plot", __package__)
     except ImportError as e:  # matplotlib missing
         click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
         sys.exit(2)
-    plot_run(m, res, path)
-    click.echo(f"plot written to {path}")
+    return plot
+
+
+def _plot_run(m, res, path, *, quiet=False):
+    try:
+        _plot_module().plot_run(m, res, path)
+    except PcclError as e:
+        _fail(e)
+    click.echo(f"plot written to {path}", err=quiet)
 
 
 @main.command(short_help="Explore every interleaving; shortest counterexamples.")
@@ -244,13 +252,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _print_explore_text(program, res, k_style=(fmt == "k"))
     if plot and res.violations:
         try:
-            from .plot import plot_trace
-        except ImportError as e:
-            click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
-            sys.exit(2)
-        plot_trace(model, res.violations[0]["_raw_trace"], plot,
-                   title=res.violations[0]["message"])
-        click.echo(f"plot written to {plot}")
+            _plot_module().plot_trace(model, res.violations[0]["_raw_trace"], plot,
+                                      title=res.violations[0]["message"])
+        except PcclError as e:
+            _fail(e)
+        click.echo(f"plot written to {plot}", err=(fmt == "json"))
+    elif plot:
+        click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     sys.exit(res.exit_status)
 
 
@@ -272,7 +280,7 @@ def _stats_lines(res) -> list:
              f"  states/second    {s.states_per_second:,.0f}",
              f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
     if res.collision_probability:
-        lines.append(f"  fingerprints     64-bit; collision probability ≤ {res.collision_probability:.1e}")
+        lines.append(f"  fingerprints     64-bit; hash-collision probability ≤ {res.collision_probability:.1e}")
     return lines
 
 

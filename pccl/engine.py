@@ -485,15 +485,19 @@ class Model:
         return out
 
     def collision_violations(self, st) -> list:
-        from .collide import collisions
-        poss = tuple(ag[6] for ag in st[4])
+        poss = tuple([ag[6] for ag in st[4]])
         hit = self._collision_cache.get(poss)
         if hit is None:
-            hit = collisions(self.world, poss)
+            from .collide import contacts
+            hit = [Violation("collision",
+                             f"collision of agents {c.i} and {c.j}" if c.j is not None
+                             else f"collision of agent {c.i} with obstacle {c.obstacle}",
+                             c.message, c.i, None)
+                   for c in contacts(self.world, poss)]
             if len(self._collision_cache) > 100_000:
                 self._collision_cache.clear()
             self._collision_cache[poss] = hit
-        return [Violation("collision", "collision", msg, None, None) for msg in hit]
+        return hit
 
     def terminal_kind(self, st) -> str:
         """For a state with no successor: final, bounded (only --max-time
