@@ -781,6 +781,9 @@ class _Checker:
         ok = (isinstance(a, ast.Name) and a.name not in self.bound
               and ((var is not None and var.per_agent and var.type == BOOL)
                    or (var is None and a.name in READONLY_FLAGS)))
+        if (not ok and isinstance(a, ast.Name) and var is None and a.name not in self.bound
+                and a.name not in READONLY_FLAGS and a.name not in self.info.members):
+            self.fail(f"undeclared variable '{a.name}'", a.span)
         if not ok:
             self.fail("'count' takes the name of a bool local or allread variable, "
                       "count(v)", a.span)

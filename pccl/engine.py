@@ -28,6 +28,7 @@ from typing import Any, Callable, Optional
 from . import ast as A
 from .compile import (AGS, Compiler, Layout, Oracle, STATEMENT_FUNCS, build_layout,
                       coerce, has_rand)
+from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .values import UNDEF
 from .semantics import rules as R
@@ -249,13 +250,7 @@ class Model:
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
         from .checker import check_property
         check_property(expr, self.info, filename=filename, source=source)
-        comp = self.comp
-        saved = (comp.program)
-        try:
-            comp.program = A.Program(None, (), (), (), (), filename=filename, source=source)
-            fn = comp.make_expr(expr, prop=True)
-        finally:
-            comp.program = saved
+        fn = self.comp.make_expr(expr, prop=True)   # the checker has vetted it
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
         self.properties.append(Property(name or text, text, fn, span, uses_time))
 
@@ -427,23 +422,19 @@ class Model:
         hit = self._env_cache.get(ckey)
         if hit is not None:
             return hit
-        if all(ag[7][0] is None for ag in ags) and st[5] is None and bb.name in _STILL_SAFE:
-            res = [(tuple(ag[6] for ag in ags), (False,) * len(ags), (False,) * len(ags), None)]
-        else:
-            from .blackboxes.base import Motion
-            motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
-                                   ag[3] == RUNNING) for ag in ags)
-            outcomes = bb.step(self.world, motions, st[5], st[0], self.delta)
-            if not outcomes:
-                raise PcclError(f"blackbox '{bb.name}' returned no outcome")
-            res = []
-            seen = set()
-            for o in outcomes:
-                r = (tuple(self.round_pos(p) for p in o.positions), tuple(bool(x) for x in o.done),
-                     tuple(bool(x) for x in o.fail), o.env)
-                if r not in seen:
-                    seen.add(r)
-                    res.append(r)
+        motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
+                               ag[3] == RUNNING) for ag in ags)
+        outcomes = bb.step(self.world, motions, st[5], st[0], self.delta)
+        if not outcomes:
+            raise PcclError(f"blackbox '{bb.name}' returned no outcome")
+        res = []
+        seen = set()
+        for o in outcomes:
+            r = (tuple(self.round_pos(p) for p in o.positions), tuple(bool(x) for x in o.done),
+                 tuple(bool(x) for x in o.fail), o.env)
+            if r not in seen:
+                seen.add(r)
+                res.append(r)
         if len(self._env_cache) > 200_000:
             self._env_cache.clear()
         self._env_cache[ckey] = res
@@ -544,9 +535,6 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
-
-
-_STILL_SAFE = {"instant", "straight", "nondet"}
 
 
 def _src_text(source: str, span: A.Span) -> str:

@@ -1832,6 +1832,14 @@ PROPERTY_ERRORS = [
 """,
         id='property_count_int'),
     pytest.param(
+        'count(inCS) <= 1',
+        """\
+--invariant:1:7: error: undeclared variable 'inCS'
+    1 | count(inCS) <= 1
+      |       ^^^^
+""",
+        id='property_count_typo'),
+    pytest.param(
         'count(reqid) == 0',
         """\
 --invariant:1:7: error: 'count' takes the name of a bool local or allread variable, count(v)
