@@ -28,8 +28,8 @@ CASES = [
     ("race_nonatomic, nondet, 3 agents",
      dict(program="programs/race_nonatomic.pccl", world="programs/race.toml",
           blackbox="nondet", agents=3)),
-    ("race, nondet, 3 agents, exhaustive",
-     dict(program="programs/race.pccl", world="programs/race.toml",
+    ("race_safe, nondet, 3 agents, exhaustive",
+     dict(program="programs/race_safe.pccl", world="programs/race.toml",
           blackbox="nondet", agents=3)),
 ]
 FULL = [

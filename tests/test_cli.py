@@ -315,3 +315,20 @@ def test_explore_run_json_stuck_status():
     assert data["result"] == "violation" and data["exit_status"] == 1
     stuck = [a for a in data["final"]["agents"] if a["status"] == "stuck"]
     assert len(stuck) == 1 and stuck[0]["line"] == 35 and "remove" in stuck[0]["reason"]
+
+
+def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict():
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER),
+         "--set", "k=6", "--no-progress"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, (out, err)
+    assert "interrupted" in out and "not exhaustive" in out
+    assert "states/second" in out
+    assert "Traceback" not in err
