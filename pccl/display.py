@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .compile import VType
 from .semantics.rules import DISCRETE, EXITED, IDLE, LOCK, REQUEST, RUNNING
 from .values import UNDEF, format_number, format_value, to_json
 

@@ -23,16 +23,16 @@ maps it back and decodes its head once.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Callable, Optional
 
 from . import ast as A
-from .compile import (AGS, Compiler, Layout, Oracle, STATEMENT_FUNCS, build_layout,
+from .compile import (Compiler, Layout, Oracle, build_layout,
                       coerce, has_rand)
 from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .values import UNDEF
 from .semantics import rules as R
-from .semantics.rules import (AGENT_RULES, DISCRETE, DYNAMIC, EXITED, IDLE, RUNNING,
+from .semantics.rules import (AGENT_RULES, DISCRETE, EXITED, IDLE, RUNNING,
                               K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
                               K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
 

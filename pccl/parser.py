@@ -650,7 +650,7 @@ def _parse(source: str, filename: str, start: str):
         raise _token_error(e, text, source, filename, property_mode) from None
     except UnexpectedCharacters as e:
         raise _char_error(e, text, source, filename) from None
-    except UnexpectedEOF as e:  # not produced by the LALR parser, but be safe
+    except UnexpectedEOF:  # not produced by the LALR parser, but be safe
         line, column = _eof_position(source)
         raise PcclError("unexpected end of file", filename=filename, source=source,
                         line=line, column=column) from None

@@ -20,7 +20,6 @@ from pathlib import Path
 import pytest
 
 from pccl.api import make_model
-from pccl.engine import AEND, END, acq
 from pccl.parser import parse_program
 
 ROOT = Path(__file__).resolve().parent.parent

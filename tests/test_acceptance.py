@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from pccl.api import explore, explore_model, make_model
+from pccl.api import explore, make_model
 from pccl.errors import PcclError
 
-from conftest import (AGS, FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS, var)
+from conftest import (FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS, var)
 
 ASSERT_PROG = str(TEST_PROGRAMS / "eng_assert.pccl")
 MUTEX = "count(inCs) <= 1"

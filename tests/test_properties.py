@@ -27,7 +27,7 @@ from hypothesis import strategies as hs
 
 from pccl.api import make_model, run
 
-from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, FISCHER, LCK, LOC, LOCK, PC, RACE,
+from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, FISCHER, LCK, LOCK, PC, RACE,
                       RACE_NONATOMIC, RACE_WORLD, REQUEST, STATUS, TEST_PROGRAMS)
 
 LOCK_PROG = str(TEST_PROGRAMS / "eng_lock.pccl")
