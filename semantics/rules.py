@@ -52,13 +52,13 @@ def _outcomes(m, fn, has_rand, *args):
         try:
             return [fn(*args)]
         except _RUNTIME_ERRORS as exc:
-            return [_Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))]
+            return [_Err.of(exc)]
 
     def guarded(*a):
         try:
             return fn(*a)
         except _RUNTIME_ERRORS as exc:
-            return _Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))
+            return _Err.of(exc)
     return m.oracle.outcomes(guarded, *args)
 
 
@@ -68,6 +68,10 @@ class _Err:
     def __init__(self, reason, where=None):
         self.reason = reason
         self.where = where
+
+    @staticmethod
+    def of(exc) -> "_Err":
+        return _Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))
 
 
 def _describe(exc):
