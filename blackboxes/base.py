@@ -75,6 +75,16 @@ class Outcome:
     env: Hashable = None
 
 
+def settled(m: Motion):
+    """``None`` if the controller moves this agent this step; otherwise the
+    ``(done, fail)`` flags of an agent that holds its position: one with no
+    target (both false), or whose doReach already succeeded or failed (the
+    flags stay set until the next doReach resets them)."""
+    if m.target is not None and not (m.fail or m.done):
+        return None
+    return (m.target is not None and m.done and not m.fail, m.target is not None and m.fail)
+
+
 class Blackbox(Protocol):
     name: str
     uses_time: bool

@@ -16,7 +16,7 @@ Exactly one outcome; no env state.
 from __future__ import annotations
 
 from ._geometry import obstacles_of
-from .base import Outcome
+from .base import Outcome, settled
 
 
 class Instant:
@@ -31,10 +31,11 @@ class Instant:
         wobs = world.obstacles
         for m in motions:
             p, t = m.position, m.target
-            if t is None or m.fail or m.done:
+            held = settled(m)
+            if held is not None:
                 positions.append(p)
-                done.append(t is not None and m.done and not m.fail)
-                fail.append(t is not None and m.fail)
+                done.append(held[0])
+                fail.append(held[1])
                 continue
             obs = obstacles_of(wobs, m.obstacles)
             if obs.contains_point(float(t[0]), float(t[1])):

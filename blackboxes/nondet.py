@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 
 from ._geometry import obstacles_of
-from .base import Outcome
+from .base import Outcome, settled
 
 
 class Nondet:
@@ -41,9 +41,10 @@ class Nondet:
         for i, m in enumerate(motions):
             p, t = m.position, m.target
             base_pos.append(p)
-            if t is None or m.fail or m.done:
-                base_done.append(t is not None and m.done and not m.fail)
-                base_fail.append(t is not None and m.fail)
+            held = settled(m)
+            if held is not None:
+                base_done.append(held[0])
+                base_fail.append(held[1])
                 continue
             if obstacles_of(wobs, m.obstacles).contains_point(float(t[0]), float(t[1])):
                 base_done.append(False)

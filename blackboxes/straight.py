@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 
 from ._geometry import EMPTY, obstacles_of
-from .base import Outcome
+from .base import Outcome, settled
 
 EPS = 1e-9
 
@@ -43,10 +43,11 @@ class Straight:
         positions, done, fail = [], [], []
         for m in motions:
             p, t = m.position, m.target
-            if t is None or m.fail or m.done:
+            held = settled(m)
+            if held is not None:
                 positions.append(p)
-                done.append(t is not None and m.done and not m.fail)
-                fail.append(t is not None and m.fail)
+                done.append(held[0])
+                fail.append(held[1])
                 continue
             x, y = p[0], p[1]
             tx, ty = t[0], t[1]
