@@ -275,6 +275,17 @@ def walk_stmts(stmts):
             yield from walk_stmts(s.body)
 
 
+def index_chain(e):
+    """Unwind ``a[i][j]`` into ``(a, (Index a[i], Index a[i][j]))``: the root
+    expression and the Index nodes from the innermost out (source order)."""
+    chain = []
+    while isinstance(e, Index):
+        chain.append(e)
+        e = e.base
+    chain.reverse()
+    return e, tuple(chain)
+
+
 def walk_expr(e):
     """Yield ``e`` and every sub-expression."""
     yield e

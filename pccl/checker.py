@@ -459,12 +459,7 @@ class _Checker:
         if isinstance(target, ast.Field):
             self.fail(f"cannot assign to field '.{target.name}': assign a whole "
                       f"ItemPosition instead", target.span)
-        chain = []
-        root = target
-        while isinstance(root, ast.Index):
-            chain.append(root)
-            root = root.base
-        chain.reverse()
+        root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             self.fail("cannot assign to this expression: the target must be a "
                       "variable or an element of one", target.span)
@@ -697,12 +692,7 @@ class _Checker:
         return var
 
     def index(self, e: ast.Index) -> Ty:
-        chain = []
-        root = e
-        while isinstance(root, ast.Index):
-            chain.append(root)
-            root = root.base
-        chain.reverse()
+        root, chain = ast.index_chain(e)
         t = None
         if isinstance(root, ast.Name) and root.name not in self.bound:
             t = self.agent_root(root, chain)

@@ -375,12 +375,8 @@ class Compiler:
         In properties every per-agent name takes the agent index first
         (``v[i]``, ``v[i][k]``, ``pos[i]``, ``doReach_done[i]``)."""
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
-        idx = []
-        root = e
-        while isinstance(root, A.Index):
-            idx.append(root.index)
-            root = root.base
-        idx.reverse()
+        root, chain = A.index_chain(e)
+        idx = [ix.index for ix in chain]
         if isinstance(root, A.Name) and root.name not in bound:
             n = root.name
             vs = self.lay.vars.get(n)
@@ -450,10 +446,8 @@ class Compiler:
     # -- assignment targets -----------------------------------------------------
     def target(self, t: A.Expr):
         """Return (VarSlot, [index source, ...]) for an assignment target."""
-        path = []
-        while isinstance(t, A.Index):
-            path.append(self.expr(t.index))
-            t = t.base
+        t, chain = A.index_chain(t)
+        path = [self.expr(ix.index) for ix in chain]
         if not isinstance(t, A.Name):
             self.error("cannot assign to this expression", t)
         vs = self.lay.vars.get(t.name)
@@ -461,7 +455,6 @@ class Compiler:
             if t.name in ("doReach_done", "doReach_fail"):
                 self.error(f"'{t.name}' is read-only: set by the controller", t)
             self.error(f"undeclared variable '{t.name}'", t)
-        path.reverse()
         if vs.section == "allread" and path and vs.ty.kind != "array":
             self.error(f"cannot write another agent's component of allread variable '{vs.name}'", t)
         return vs, path
