@@ -525,13 +525,6 @@ class Model:
         s = self.stmts[h]
         return f"at line {s.span.line}"
 
-    def is_final(self, st) -> bool:
-        return all(ag[3] == EXITED for ag in st[4])
-
-    # -- descriptions -------------------------------------------------------------------------
-    def event_name(self, e) -> str:
-        return self.program.events[e].name
-
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None

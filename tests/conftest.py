@@ -32,11 +32,10 @@ RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
 # agent tuple slots / state tuple slots
-PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
-TIME, PHASE, LQ, SH, AGS, ENV = range(6)
-DISCRETE, DYNAMIC = 0, 1
-IDLE, REQUEST, LOCK = 0, 1, 2
-RUNNING, EXITED = 0, 1
+from pccl.compile import (AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, POS,  # noqa: F401,E402
+                          REACH, SH, STATUS, TIME)
+from pccl.semantics.rules import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK,  # noqa: F401,E402
+                                  REQUEST, RUNNING)
 
 
 def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):
