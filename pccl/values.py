@@ -22,24 +22,11 @@ import math
 from .errors import PcclRuntimeError
 
 
-class _Undef:
-    """The value of a declared but never assigned variable."""
-    __slots__ = ()
-
-    def __repr__(self) -> str:
-        return "undefined"
-
-    def __hash__(self) -> int:          # stable across runs
-        return 0x5EED_0DEF
-
-    def __eq__(self, other) -> bool:
-        return other is self
-
-    def __reduce__(self):
-        return "UNDEF"
-
-
-UNDEF = _Undef()
+#: The value of a declared but never assigned variable.  It is Python's
+#: ``Ellipsis`` singleton: no PCCL expression produces it, ``is`` tests are
+#: cheap, and unlike a private class it has a canonical byte encoding
+#: (``marshal``), which state fingerprints need (see :mod:`pccl.fingerprint`).
+UNDEF = Ellipsis
 
 
 def d(value, name):
