@@ -21,7 +21,7 @@ from typing import Any, Optional, Union
 from . import ast as A
 from . import display as D
 from .engine import Model
-from .explorer import Explorer, SearchResult, Stats
+from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from .runner import RunResult, run as _run
 
 
@@ -97,6 +97,7 @@ class ExploreResult:
     collision_probability: float = 0.0
     model: Any = None
     search: Optional[SearchResult] = None
+    counterexamples: list = field(default_factory=list)  # [Counterexample], as violations
 
     @property
     def exhaustive(self) -> bool:
@@ -118,24 +119,14 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=find_all, exact=exact, progress=progress)
     sr = ex.run()
     bb = model.blackbox.name
-    labels = []
-    for b in sr.bounds_hit:
-        if b == "--depth":
-            labels.append(f"--depth {depth}")
-        elif b == "--max-states":
-            labels.append(f"--max-states {max_states}")
-        elif b == "--max-time":
-            labels.append(f"--max-time {model.max_time}")
-        else:
-            labels.append(b)
-    violations = []
-    for f in sr.found:
-        violations.append(violation_data(model, f))
+    labels = [bound_label(b, model, depth=depth, max_states=max_states) for b in sr.bounds_hit]
+    violations = [violation_data(model, f) for f in sr.found]
+    n = len(sr.found)
     if sr.status == "violation":
         v = sr.found[0].violation
         verdict = f"violation: {v.message}"
-        if len(sr.found) > 1:
-            verdict += f" (and {len(sr.found) - 1} more distinct violation(s))"
+        if n > 1:
+            verdict += f" (and {n - 1} more distinct violation(s))"
         code = 1
     elif sr.status == "exhaustive":
         verdict = "no violation — exhaustive"
@@ -143,6 +134,10 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     elif sr.status == "bounded":
         verdict = "no violation within bounds — stopped by " + ", ".join(labels)
         code = 0
+    elif n:
+        verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
+                   f"so far (not exhaustive); first: {sr.found[0].violation.message}")
+        code = 1
     else:
         verdict = "interrupted — no violation found in the states explored so far (not exhaustive)"
         code = 130
@@ -150,23 +145,31 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     first = violations[0] if violations else None
     return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
                          first["trace"] if first else [], first["state"] if first else None,
-                         sr.collision_probability, model, sr)
+                         sr.collision_probability, model, sr, list(sr.found))
 
 
-def violation_data(model, found) -> dict:
+def bound_label(bound: Bound, model, *, depth=None, max_states=None) -> str:
+    """How ``pccl explore`` spells a bound that cut the search."""
+    if bound is Bound.DEPTH:
+        return f"--depth {depth}"
+    if bound is Bound.MAX_STATES:
+        return f"--max-states {max_states}"
+    if bound is Bound.MODEL:
+        return f"--max-time {model.max_time}"
+    return str(bound)
+
+
+def violation_data(model, found: Counterexample) -> dict:
+    """A counterexample as JSON-ready data (its trace rendered step by step)."""
     v = found.violation
-    steps = []
-    tr = found.trace or []
-    for n in range(1, len(tr)):
-        label, after = tr[n]
-        steps.append(D.step_json(model, n, label, tr[n - 1][1], after))
-    last = tr[-1][1] if tr else None
+    tr: Trace = found.trace
     return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
             "line": v.span.line if v.span else None,
             "column": v.span.column if v.span else None,
-            "depth": found.depth, "trace": steps,
-            "state": D.state_json(model, last) if last is not None else None,
-            "_raw_trace": tr}
+            "depth": found.depth,
+            "trace": tr.to_json(lambda st: D.step_json(model, st.number, st.label,
+                                                       st.before, st.after)),
+            "state": D.state_json(model, tr.last)}
 
 
 # ---------------------------------------------------------------------------

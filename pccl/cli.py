@@ -219,7 +219,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--all", "find_all", is_flag=True,
               help="keep exploring and report each distinct violation once")
 @click.option("--exact", is_flag=True,
-              help="store full states instead of 64-bit fingerprints (more memory, no hash collisions)")
+              help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
 @click.option("--format", "fmt", type=click.Choice(["text", "json", "k"]), default="text",
               show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
@@ -251,7 +251,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _print_explore_text(program, res, k_style=(fmt == "k"))
     if plot and res.violations:
         try:
-            _plot_module().plot_trace(model, res.violations[0]["_raw_trace"], plot,
+            _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
                                       title=res.violations[0]["message"])
         except PcclError as e:
             _fail(e)
@@ -278,8 +278,11 @@ def _stats_lines(res) -> list:
              f"  seconds          {s.seconds:.2f}",
              f"  states/second    {s.states_per_second:,.0f}",
              f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
-    if res.collision_probability:
-        lines.append(f"  fingerprints     64-bit; hash-collision probability ≤ {res.collision_probability:.1e}")
+    if res.search is not None and res.search.exact:
+        lines.append("  state identity   exact (canonical encodings; no collision possible)")
+    else:
+        lines.append(f"  fingerprints     128-bit xxh3 of a canonical encoding; "
+                     f"collision probability ≤ {res.collision_probability:.1e}")
     return lines
 
 
@@ -289,20 +292,20 @@ def _print_explore_text(program, res, *, k_style=False):
                f"δ={D.fmt_time(m.delta)}, n0={m.n0}, events {m.events_policy}, "
                f"time abstraction {'on' if m.abstract_time else 'off'}")
     click.echo(res.verdict)
-    for v in res.violations:
+    for v, cx in zip(res.violations, res.counterexamples):
         click.echo("")
         click.echo(f"{v['message']}")
         if v["line"]:
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
-        tr = v["_raw_trace"]
-        click.echo(f"counterexample ({len(tr) - 1} steps):")
-        for n in range(1, len(tr)):
-            click.echo(D.format_step(m, n, tr[n][0], tr[n - 1][1], tr[n][1]))
+        tr = cx.trace
+        click.echo(f"counterexample ({len(tr)} steps):")
+        for st in tr.steps:
+            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("violating state:")
         if k_style:
-            click.echo(D.format_state_k(m, tr[-1][1]))
+            click.echo(D.format_state_k(m, tr.last))
         else:
-            click.echo(D.format_state(m, tr[-1][1]))
+            click.echo(D.format_state(m, tr.last))
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
@@ -315,8 +318,8 @@ def _explore_json(program, res) -> dict:
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
             "statistics": res.stats.as_dict(),
             "collision_probability": res.collision_probability,
-            "violations": [{k: v for k, v in viol.items() if not k.startswith("_")}
-                           for viol in res.violations]}
+            "fingerprints": "exact" if res.search.exact else "xxh3_128",
+            "violations": res.violations}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,30 +1,119 @@
 """Breadth-first state-space exploration with shortest counterexamples.
 
-The checker knows nothing of PCCL.  It explores any *model* offering
-(stateright's split between model and checker):
+The checker knows nothing of PCCL.  It explores any :class:`Model` (the
+split between model and checker is stateright's), breadth-first from all
+initial states, so the first counterexample found for a property is a
+shortest one.
 
-* ``init_states() -> list[state]``
-* ``successors(state) -> list[(label, state)]``
-* ``key(state) -> hashable``            (state identity)
-* ``violations(state) -> list[violation]``  (each with ``.identity``)
-* ``terminal_kind(state) -> "final" | "bounded" | "deadlock"``
+State identity
+    Each state's :meth:`Model.key` is encoded canonically and hashed to a
+    128-bit fingerprint (:mod:`pccl.fingerprint`).  ``exact=True`` stores the
+    canonical encodings themselves instead (no collision possible; more
+    memory; for tests and small models).
 
-Visited states are kept as 64-bit fingerprints (``hash(key)``) in a set,
-with two parallel arrays (fingerprint, parent index) from which a
-counterexample is rebuilt by replaying from the initial state, as TLC and
-stateright do.  Only the frontier holds full states.  ``exact=True`` keeps
-full keys instead (no hash compaction; for tests and small models).
+Visited storage (:class:`FingerprintTable`)
+    Fingerprints and parent links live in numpy arrays indexed by state
+    number (16 + 4 bytes per state), with an open-addressing index of
+    ``uint32`` state numbers over them (4 bytes per slot, at most half
+    full).  Successors are admitted a batch at a time with vectorised
+    lookups, so the visited set holds no Python object per state.  Only the
+    current and next BFS levels hold full states.
+
+Counterexamples
+    A violating state's chain of parent links is turned back into states by
+    *replaying* the model from an initial state, choosing at each step the
+    successor whose fingerprint has the recorded state number (as TLC and
+    stateright do).  This is why the model must be deterministic: a replay
+    that cannot find the recorded successor raises :class:`ReplayError`
+    saying which step diverged.
 """
 
 from __future__ import annotations
 
+import enum
 import gc
 import resource
 import time as _time
-from array import array
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import (Any, Callable, Hashable, Iterable, Iterator, Optional, Protocol,
+                    Sequence, runtime_checkable)
 
+import numpy as np
+
+from .fingerprint import collision_bound, encode, fingerprint
+
+__all__ = ["Model", "ViolationLike", "Bound", "Stats", "Step", "Trace", "Counterexample",
+           "SearchResult", "Explorer", "ReplayError", "FingerprintTable", "ExactTable"]
+
+
+# ---------------------------------------------------------------------------
+# The contract between a model and the checker
+# ---------------------------------------------------------------------------
+
+@runtime_checkable
+class ViolationLike(Protocol):
+    """What the checker needs of a violation: an identity, so that ``--all``
+    reports each distinct violation (property and location) once."""
+
+    @property
+    def identity(self) -> Hashable: ...
+
+
+@runtime_checkable
+class Model(Protocol):
+    """A transition system the explorer can search.
+
+    **Determinism contract.**  Every method is a pure function of its
+    arguments: called twice on equal states, :meth:`successors` returns the
+    same labelled successors *in the same order*, :meth:`init_states` the
+    same states in the same order, :meth:`key` equal keys.  The explorer
+    relies on it twice: to identify states (equal keys are one state) and to
+    rebuild a counterexample by replaying from the initial state.  A model
+    that breaks it (consults a clock, a global random generator, mutable
+    caches that change results) makes the verdict meaningless and the replay
+    fail with :class:`ReplayError`.
+
+    **Keys.**  :meth:`key` returns the part of a state that identifies it
+    (a model may leave out what cannot influence the future or the
+    properties, e.g. an abstracted clock).  It must be built from ints,
+    floats, bools, ``None``, ``Ellipsis``, strings, bytes and tuples (see
+    :mod:`pccl.fingerprint`), and two keys must be equal exactly when the
+    states are indistinguishable to the model and its properties.
+    """
+
+    def init_states(self) -> Iterable[Any]:
+        """The initial states (duplicates allowed; the explorer merges them)."""
+
+    def successors(self, state) -> Sequence[tuple[Any, Any]]:
+        """The enabled transitions of ``state`` as ``(label, successor)``."""
+
+    def key(self, state) -> Hashable:
+        """State identity, canonically encodable."""
+
+    def violations(self, state) -> Sequence[ViolationLike]:
+        """The properties ``state`` violates (empty when it satisfies all)."""
+
+    def terminal_kind(self, state) -> str:
+        """For a state without successors: ``"final"``, ``"bounded"`` (the
+        model's own horizon stopped it; see :attr:`Bound.MODEL`) or
+        ``"deadlock"``."""
+
+    def deadlock_violation(self, state) -> Optional[ViolationLike]:
+        """The violation to report for a deadlocked state (or ``None``)."""
+
+
+class Bound(enum.Enum):
+    """What cut a search short.  The explorer never spells CLI flags; the
+    front ends render these (``pccl explore`` as ``--depth 10`` etc.)."""
+
+    DEPTH = "depth"              # states at the depth limit were not expanded
+    MAX_STATES = "max_states"    # the state budget was used up
+    MODEL = "model"              # the model's own horizon (PCCL: --max-time)
+
+
+# ---------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------
 
 @dataclass
 class Stats:
@@ -48,35 +137,243 @@ class Stats:
                 "peak_memory_bytes": self.peak_memory}
 
 
+@dataclass(frozen=True)
+class Step:
+    """One transition of a trace: the model's label and the states around it."""
+    number: int                   # 1-based
+    label: Any
+    before: Any
+    after: Any
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A path of the model: an initial state and the labelled steps from it.
+
+    Iterating yields ``(label, state)`` pairs starting with
+    ``(None, initial)``; :attr:`steps` gives :class:`Step` objects;
+    ``len(trace)`` is the number of steps.
+    """
+    states: tuple
+    labels: tuple                 # len(labels) == len(states) - 1
+
+    @property
+    def initial(self):
+        return self.states[0]
+
+    @property
+    def last(self):
+        return self.states[-1]
+
+    @property
+    def steps(self) -> list:
+        s = self.states
+        return [Step(n + 1, lab, s[n], s[n + 1]) for n, lab in enumerate(self.labels)]
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def __iter__(self) -> Iterator[tuple]:
+        yield (None, self.states[0])
+        yield from zip(self.labels, self.states[1:])
+
+    def to_json(self, step_json: Callable[[Step], dict]) -> list:
+        """The steps as JSON-ready dicts; ``step_json`` renders one step (the
+        model's display, which the checker does not know)."""
+        return [step_json(st) for st in self.steps]
+
+
 @dataclass
-class Found:
-    """A violation and the shortest path that reaches it."""
+class Counterexample:
+    """A violation and a shortest path that reaches it."""
     violation: Any
-    index: int                     # state index in the search
+    index: int                     # state number in the search
     depth: int
-    trace: Optional[list] = None   # [(label or None, state)], filled by rebuild
+    trace: Optional[Trace] = None  # filled by the replay
 
 
 @dataclass
 class SearchResult:
     status: str                    # violation | exhaustive | bounded | interrupted
-    found: list = field(default_factory=list)     # [Found]
-    bounds_hit: list = field(default_factory=list)  # e.g. ["--depth 10", "--max-time 5"]
+    found: list = field(default_factory=list)       # [Counterexample]
+    bounds_hit: list = field(default_factory=list)  # [Bound]
     stats: Stats = field(default_factory=Stats)
-    collision_probability: float = 0.0
+    collision_probability: float = 0.0              # 0 when exact
+    exact: bool = False
+
+
+class ReplayError(RuntimeError):
+    """A counterexample could not be rebuilt: the model is not deterministic."""
 
 
 def peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
+# ---------------------------------------------------------------------------
+# Visited storage
+# ---------------------------------------------------------------------------
+
+_EMPTY = np.uint32(0xFFFF_FFFF)
+_MAX_STATES = 0xFFFF_FFFE
+
+
+class FingerprintTable:
+    """The visited set as arrays: 128-bit fingerprints and parent links by
+    state number, plus an open-addressing index (linear probing, load at
+    most 1/2) of ``uint32`` state numbers keyed by the fingerprint's low
+    64 bits.
+
+    Growth uses ``ndarray.resize`` (``realloc``, which the C library does
+    with ``mremap`` for large blocks: no copy, no double peak); the index is
+    rebuilt from the fingerprint array after it is freed.
+    """
+
+    key_of = staticmethod(fingerprint)
+
+    def __init__(self, capacity: int = 1 << 12):
+        self.n = 0
+        self.fps = np.empty((capacity, 2), dtype=np.uint64)
+        self.parents = np.empty(capacity, dtype=np.uint32)
+        self._new_index(1 << 13)
+        self._batch = None
+
+    # -- index --------------------------------------------------------------
+    def _new_index(self, size: int) -> None:
+        self.slots = None
+        self.slots = np.full(size, _EMPTY, dtype=np.uint32)
+        self.mask = np.uint64(size - 1)
+
+    def _place(self, idx: np.ndarray) -> None:
+        """Index state numbers ``idx`` (distinct, absent fingerprints)."""
+        slots, mask = self.slots, self.mask
+        pos = (self.fps[idx, 1] & mask).astype(np.int64)
+        m = int(mask)
+        while idx.size:
+            free = slots[pos] == _EMPTY
+            if free.any():
+                slots[pos[free]] = idx[free]          # among equal slots one write wins
+                won = free & (slots[pos] == idx)
+                keep = ~won
+                idx, pos = idx[keep], pos[keep]
+            pos = (pos + 1) & m
+
+    def lookup(self, q: np.ndarray) -> np.ndarray:
+        """State numbers of the fingerprints ``q`` (shape (k, 2)); -1 where absent."""
+        slots, fps, m = self.slots, self.fps, int(self.mask)
+        out = np.full(len(q), -1, dtype=np.int64)
+        act = np.arange(len(q))
+        pos = (q[:, 1] & self.mask).astype(np.int64)
+        while act.size:
+            e = slots[pos]
+            occupied = e != _EMPTY
+            act, pos, e = act[occupied], pos[occupied], e[occupied]
+            hit = (fps[e, 1] == q[act, 1]) & (fps[e, 0] == q[act, 0])
+            out[act[hit]] = e[hit]
+            miss = ~hit
+            act, pos = act[miss], (pos[miss] + 1) & m
+        return out
+
+    # -- batches ------------------------------------------------------------
+    def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
+        """Of the batch ``keys`` (fingerprints), the positions ``first``
+        (first occurrences, ascending) whose state is not yet visited."""
+        q = np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2)[first]
+        new = self.lookup(q) < 0
+        self._batch = (q[new], first[new])
+        return first[new]
+
+    def add(self, count: int, parents: np.ndarray) -> None:
+        """Admit the first ``count`` of the last :meth:`new_positions`, with
+        their parents' state numbers."""
+        q = self._batch[0][:count]
+        self._batch = None
+        n, k = self.n, len(q)
+        if n + k > _MAX_STATES:
+            raise MemoryError("more than 2**32 - 2 states")
+        if n + k > len(self.parents):
+            cap = max(n + k, len(self.parents) * 2)
+            self.fps.resize((cap, 2), refcheck=False)
+            self.parents.resize(cap, refcheck=False)
+        self.fps[n:n + k] = q
+        self.parents[n:n + k] = parents
+        self.n = n + k
+        if 2 * self.n > len(self.slots):
+            size = len(self.slots)
+            while 2 * self.n > size:
+                size *= 2
+            self._new_index(size)
+            step = 1 << 18          # re-index in slices: bounded temporaries
+            for a in range(0, self.n, step):
+                self._place(np.arange(a, min(self.n, a + step), dtype=np.uint32))
+        else:
+            self._place(np.arange(n, n + k, dtype=np.uint32))
+
+    def index_of(self, key: bytes) -> int:
+        return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
+
+    def parent(self, idx: int) -> int:
+        p = int(self.parents[idx])
+        return -1 if p == 0xFFFF_FFFF else p
+
+
+class ExactTable:
+    """The visited set as a dict of canonical encodings (``--exact``)."""
+
+    key_of = staticmethod(encode)
+
+    def __init__(self):
+        self.n = 0
+        self.ids: dict = {}
+        self.parents: list = []
+        self._batch = None
+
+    def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
+        ids = self.ids
+        new = np.array([p for p in first.tolist() if keys[p] not in ids], dtype=np.int64)
+        self._batch = [keys[p] for p in new.tolist()]
+        return new
+
+    def add(self, count: int, parents: np.ndarray) -> None:
+        ids = self.ids
+        for key in self._batch[:count]:
+            ids[key] = len(ids)
+        self._batch = None
+        self.parents.extend(parents.tolist())
+        self.n = len(ids)
+
+    def index_of(self, key: bytes) -> int:
+        return self.ids.get(key, -1)
+
+    def parent(self, idx: int) -> int:
+        p = self.parents[idx]
+        return -1 if p == 0xFFFF_FFFF else p
+
+
+# ---------------------------------------------------------------------------
+# The search
+# ---------------------------------------------------------------------------
+
+_NO_PARENT = 0xFFFF_FFFF
+
+
 class Explorer:
-    def __init__(self, model, *, max_depth: Optional[int] = None,
+    """Breadth-first search of a :class:`Model`.
+
+    Options: ``max_depth`` (do not expand states at this depth),
+    ``max_states`` (admit at most this many states), ``deadlock`` (report
+    states without successors that are not final), ``find_all`` (keep going
+    and report each distinct violation once), ``exact`` (store canonical
+    encodings instead of fingerprints), ``progress`` (called about every
+    ``progress_interval`` seconds with a dict of figures), ``batch``
+    (successors admitted per vectorised step).
+    """
+
+    def __init__(self, model: Model, *, max_depth: Optional[int] = None,
                  max_states: Optional[int] = None, deadlock: bool = True,
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
-                 progress_interval: float = 0.5,
-                 bounded_time_label: str = "--max-time"):
+                 progress_interval: float = 0.5, batch: int = 1 << 15):
         self.model = model
         self.max_depth = max_depth
         self.max_states = max_states
@@ -85,7 +382,8 @@ class Explorer:
         self.exact = exact
         self.progress = progress
         self.progress_interval = progress_interval
-        self.bounded_time_label = bounded_time_label
+        self.batch = batch
+        self.table = None
 
     # ------------------------------------------------------------------
     def run(self) -> SearchResult:
@@ -105,55 +403,115 @@ class Explorer:
         key = m.key
         succ_fn = m.successors
         viol_fn = m.violations
-        exact = self.exact
+        table = self.table = ExactTable() if self.exact else FingerprintTable()
+        key_of = table.key_of
         t_start = _time.perf_counter()
         stats = Stats()
-        res = SearchResult("exhaustive", stats=stats)
-        seen: set = set()
-        fps = [] if exact else array("q")
-        parents = array("q")
+        res = SearchResult("exhaustive", stats=stats, exact=self.exact)
         reported: set = set()
         bounds: set = set()
         max_depth = self.max_depth
-        max_states = self.max_states
+        budget = self.max_states if self.max_states is not None else _MAX_STATES
         found = res.found
+        find_all = self.find_all
+        batch = self.batch
 
-        def record(viols, idx, depth):
+        # The pending batch: candidate keys and states, and per expanded
+        # parent its state number and successor count.
+        ck: list = []
+        cs: list = []
+        par_idx: list = []
+        par_n: list = []
+        nxt: list = []          # the next level's states, in admission order
+        nxt_idx: list = []      # ... and their state numbers
+        depth = 0
+        stop = False
+
+        def record(viols, idx, d) -> bool:
             for v in viols:
                 ident = v.identity
                 if ident in reported:
                     continue
                 reported.add(ident)
-                found.append(Found(v, idx, depth))
-                if not self.find_all:
+                found.append(Counterexample(v, idx, d))
+                if not find_all:
                     return True
             return False
 
-        stop = False
-        level: list = []      # states of the current depth
-        level_idx: list = []
-        try:
-            for s in m.init_states():
-                fp = key(s) if exact else hash(key(s))
-                if fp in seen:
-                    continue
-                seen.add(fp)
-                idx = len(parents)
-                fps.append(fp)
-                parents.append(-1)
-                level.append(s)
-                level_idx.append(idx)
-                v = viol_fn(s)
-                if v and record(v, idx, 0):
-                    stop = True
+        def flush(d) -> bool:
+            """Admit the pending batch (successors at depth ``d``); True to stop."""
+            nonlocal budget
+            if not ck:
+                return False
+            n = len(ck)
+            # first occurrence of each key, in batch order (C-level dict build)
+            first = np.fromiter(dict(zip(reversed(ck), range(n - 1, -1, -1))).values(),
+                                dtype=np.int64)
+            first.sort()
+            new = table.new_positions(ck, first).tolist()
+            base = table.n
+            cut = len(new)
+            halt = False
+            if cut > budget:
+                cut = budget
+                bounds.add(Bound.MAX_STATES)
+                halt = True
+            for j in range(cut):
+                s2 = cs[new[j]]
+                v = viol_fn(s2)
+                if v and record(v, base + j, d):
+                    cut = j + 1
+                    halt = True
                     break
-            stats.initial_states = len(level)
-            depth = 0
+            owners = np.repeat(np.arange(len(par_n)), par_n)
+            if cut:
+                kept = np.asarray(new[:cut], dtype=np.int64)
+                pidx = np.asarray(par_idx, dtype=np.int64)
+                table.add(cut, pidx[owners[kept]])
+                nxt.extend([cs[p] for p in new[:cut]])
+                nxt_idx.extend(range(base, base + cut))
+            budget -= cut
+            if halt and cut:
+                # count transitions as if the search had stopped right after
+                # expanding the parent of the last admitted state
+                last_parent = int(owners[new[cut - 1]])
+                stats.transitions += sum(par_n[:last_parent + 1])
+            else:
+                stats.transitions += n
+            ck.clear(); cs.clear(); par_idx.clear(); par_n.clear()
+            return halt
+
+        try:
+            # -- initial states: a batch of successors of nobody
+            for s in m.init_states():
+                ck.append(key_of(key(s)))
+                cs.append(s)
+                if len(ck) >= batch:
+                    par_idx.append(_NO_PARENT); par_n.append(len(ck))
+                    stop = flush(0)
+                    stats.transitions = 0
+                    if stop:
+                        break
+            if not stop and ck:
+                par_idx.append(_NO_PARENT); par_n.append(len(ck))
+                stop = flush(0)
+            stats.transitions = 0
+            stats.initial_states = table.n
+            level, level_idx = nxt, nxt_idx
+            nxt, nxt_idx = [], []
             next_report = _time.perf_counter() + self.progress_interval
-            count = 0
+
+            def report(left):
+                nonlocal next_report
+                if self.progress is None:
+                    return
+                now = _time.perf_counter()
+                if now >= next_report:
+                    next_report = now + self.progress_interval
+                    self.progress({"states": table.n, "frontier": left + len(nxt),
+                                   "depth": depth, "seconds": now - t_start,
+                                   "memory": peak_rss_bytes()})
             while level and not stop:
-                nxt: list = []
-                nxt_idx: list = []
                 at_bound = max_depth is not None and depth >= max_depth
                 for pos in range(len(level)):
                     s = level[pos]
@@ -161,62 +519,48 @@ class Explorer:
                     if not succ:
                         kind = m.terminal_kind(s)
                         if kind == "bounded":
-                            bounds.add(self.bounded_time_label)
+                            bounds.add(Bound.MODEL)
                         elif kind == "deadlock" and self.deadlock:
-                            v = m.deadlock_violation(s) if hasattr(m, "deadlock_violation") else None
+                            # the pending successors of earlier states come first
+                            if flush(depth + 1):
+                                stop = True
+                                break
+                            v = m.deadlock_violation(s)
                             if v is not None and record([v], level_idx[pos], depth):
                                 stop = True
                                 break
                         continue
                     if at_bound:
-                        bounds.add("--depth")
+                        bounds.add(Bound.DEPTH)
                         continue
-                    stats.transitions += len(succ)
-                    pidx = level_idx[pos]
+                    par_idx.append(level_idx[pos])
+                    par_n.append(len(succ))
                     for _label, s2 in succ:
-                        fp = key(s2) if exact else hash(key(s2))
-                        if fp in seen:
-                            continue
-                        seen.add(fp)
-                        idx = len(parents)
-                        fps.append(fp)
-                        parents.append(pidx)
-                        nxt.append(s2)
-                        nxt_idx.append(idx)
-                        v = viol_fn(s2)
-                        if v and record(v, idx, depth + 1):
+                        ck.append(key_of(key(s2)))
+                        cs.append(s2)
+                    if len(ck) >= batch:
+                        if flush(depth + 1):
                             stop = True
                             break
-                    if stop:
-                        break
-                    if max_states is not None and len(parents) >= max_states:
-                        bounds.add("--max-states")
-                        stop = True
-                        break
-                    count += 1
-                    if self.progress is not None and (count & 255) == 0:
-                        now = _time.perf_counter()
-                        if now >= next_report:
-                            next_report = now + self.progress_interval
-                            self.progress({"states": len(parents), "frontier": len(level) - pos + len(nxt),
-                                           "depth": depth, "seconds": now - t_start,
-                                           "memory": peak_rss_bytes()})
-                level[:] = []
+                        report(len(level) - pos)
+                if not stop and flush(depth + 1):
+                    stop = True
+                report(0)
                 level = nxt
                 level_idx = nxt_idx
+                nxt, nxt_idx = [], []
                 if level:
                     depth += 1
                     stats.max_depth = depth
             stats.frontier = len(level)
         except KeyboardInterrupt:
             res.status = "interrupted"
-        stats.states = len(parents)
+        stats.states = table.n
         stats.seconds = _time.perf_counter() - t_start
         stats.peak_memory = peak_rss_bytes()
-        if not exact:
-            n = stats.states
-            res.collision_probability = min(1.0, n * n / 2.0 ** 65)
-        res.bounds_hit = sorted(bounds)
+        if not self.exact:
+            res.collision_probability = collision_bound(stats.states)
+        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
         if res.status != "interrupted":
             if found:
                 res.status = "violation"
@@ -225,34 +569,43 @@ class Explorer:
             else:
                 res.status = "exhaustive"
         for f in found:
-            f.trace = self.rebuild(fps, parents, f.index)
+            f.trace = self.replay(f.index)
         return res
 
     # ------------------------------------------------------------------
-    def rebuild(self, fps, parents, idx) -> list:
-        """Replay from the initial state along the fingerprints of the path."""
-        m = self.model
-        key = m.key
+    def replay(self, idx: int) -> Trace:
+        """Rebuild the path to state number ``idx`` by replaying the model
+        from an initial state along the recorded state numbers."""
+        m, table = self.model, self.table
+        key, key_of = m.key, table.key_of
         chain = []
         while idx != -1:
-            chain.append(fps[idx])
-            idx = parents[idx]
+            chain.append(idx)
+            idx = table.parent(idx)
         chain.reverse()
-        fpof = (lambda s: key(s)) if self.exact else (lambda s: hash(key(s)))
         state = None
         for s in m.init_states():
-            if fpof(s) == chain[0]:
+            if table.index_of(key_of(key(s))) == chain[0]:
                 state = s
                 break
-        if state is None:  # pragma: no cover - would mean a non-deterministic model
-            raise RuntimeError("counterexample replay failed: initial state not found")
-        trace = [(None, state)]
-        for fp in chain[1:]:
-            for label, s2 in m.successors(state):
-                if fpof(s2) == fp:
+        if state is None:
+            raise ReplayError(
+                f"counterexample replay diverged at its initial state: no initial state of the "
+                f"model has the recorded identity (state #{chain[0]}); the model must be "
+                f"deterministic (init_states() must return the same states on every call)")
+        states, labels = [state], []
+        for step, want in enumerate(chain[1:], 1):
+            succ = m.successors(state)
+            for label, s2 in succ:
+                if table.index_of(key_of(key(s2))) == want:
                     state = s2
-                    trace.append((label, s2))
+                    states.append(s2)
+                    labels.append(label)
                     break
-            else:  # pragma: no cover
-                raise RuntimeError("counterexample replay failed: successor not found")
-        return trace
+            else:
+                raise ReplayError(
+                    f"counterexample replay diverged at step {step} of {len(chain) - 1}: none "
+                    f"of the {len(succ)} successors of the state reached after step {step - 1} "
+                    f"is the recorded state #{want}; the model must be deterministic "
+                    f"(successors() of equal states must be equal, in the same order)")
+        return Trace(tuple(states), tuple(labels))

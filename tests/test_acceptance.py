@@ -46,7 +46,7 @@ def check_fischer_violation(res):
     assert res.violation["kind"] == "invariant" and res.violation["name"] == MUTEX
     assert "count(inCs) <= 1" in res.verdict and "straight" in res.verdict
     assert both_in_cs_at_end(res)
-    raw = res.violations[0]["_raw_trace"]
+    raw = list(res.counterexamples[0].trace)
     m = res.model
     end = raw[-1][1]
     assert var(m, end, 0, "inCs") is True and var(m, end, 1, "inCs") is True

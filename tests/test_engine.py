@@ -169,7 +169,7 @@ def test_fischer_paper_shortest_schedule_by_search():
     assert m.abstract_time is False
     res = explore_model(m)
     assert res.status == "violation" and res.exit_status == 1
-    raw = res.violations[0]["_raw_trace"]
+    raw = list(res.counterexamples[0].trace)
     end = raw[-1][1]
     assert end[0] == 11 and both_in_cs(m, end) and shared(m, end, "reqid") == 0
     hist = [s for _, s in raw]

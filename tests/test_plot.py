@@ -150,7 +150,7 @@ def test_plot_trace_api_and_title(tmp_path):
     from pccl.api import explore
     from pccl.plot import plot_trace
     r = explore(str(COLLIDE), world=str(COLLIDE_WORLD), collisions=True)
-    raw = r.violation["_raw_trace"]
+    raw = list(r.counterexamples[0].trace)
     assert raw[0][0] is None
     out = tmp_path / "t.png"
     plot_trace(r.model, raw, out, title=r.violation["message"])
