@@ -1,12 +1,20 @@
 """Exploration benchmarks: states, transitions, seconds, states/s, memory.
 
-    python benchmarks/run.py            # the fixed cases
-    python benchmarks/run.py --full     # also the paper's Fischer (k=10) exhaustively
+    python benchmarks/run.py                   # the fixed cases, old code against new
+    python benchmarks/run.py --full            # also the paper's Fischer (k=10) exhaustively
+    python benchmarks/run.py --baseline REV    # compare against another git revision
+    python benchmarks/run.py --no-baseline     # this checkout only
 
 Each case runs in its own process so that peak memory is the case's own.
-"bytes/state" is (peak RSS - RSS before the search) / visited states: the
-whole cost of the search (visited fingerprints, parent links, frontier),
+"B/state" is (peak RSS - RSS before the search) / visited states: the whole
+cost of the search (visited fingerprints, parent links, index, frontier),
 not just the table.
+
+Old against new: cases marked ``compare`` also run on the code of
+``--baseline`` (default: the last commit before sound fingerprints), checked
+out with ``git archive`` into a temporary directory and imported from there.
+The two versions alternate (``--repeat`` runs each) and the table shows the
+median, so that load on a shared machine hits both alike.
 """
 
 from __future__ import annotations
@@ -14,31 +22,43 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
+import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
+#: The last commit with hash()-based fingerprints and a Python-set visited table.
+BASELINE = "e58fcde"
+
+# (name, spec, compare with the baseline)
 CASES = [
     ("fischer k=2 d=2, exhaustive",
-     dict(program="programs/fischer.pccl", overrides={"k": "2", "d": "2"})),
+     dict(program="programs/fischer.pccl", overrides={"k": "2", "d": "2"}), True),
+    ("fischer k=4 d=2, exhaustive",
+     dict(program="programs/fischer.pccl", overrides={"k": "4", "d": "2"}), False),
     ("fischer k=10 d=2 (paper), first violation",
-     dict(program="programs/fischer.pccl", invariants=["count(inCs) <= 1"])),
+     dict(program="programs/fischer.pccl", invariants=["count(inCs) <= 1"]), False),
     ("race_nonatomic, nondet, 3 agents",
      dict(program="programs/race_nonatomic.pccl", world="programs/race.toml",
-          blackbox="nondet", agents=3)),
+          blackbox="nondet", agents=3), False),
     ("race_safe, nondet, 3 agents, exhaustive",
      dict(program="programs/race_safe.pccl", world="programs/race.toml",
-          blackbox="nondet", agents=3)),
+          blackbox="nondet", agents=3), False),
 ]
 FULL = [
     ("fischer k=10 d=2 (paper), exhaustive",
-     dict(program="programs/fischer.pccl")),
+     dict(program="programs/fischer.pccl"), False),
 ]
 
 CHILD = r"""
-import json, resource, sys, time
+import json, os, resource, sys, time
+code = os.environ.get("PCCL_BENCH_CODE")
+if code:   # import that tree, not the (editable) install
+    sys.path.insert(0, code)
+    sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in type(f).__module__]
 from pccl.api import make_model, explore_model
 spec = json.loads(sys.argv[1])
 m = make_model(spec.pop("program"), world=spec.pop("world", None),
@@ -52,35 +72,78 @@ s = r.stats
 print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
                   "seconds": s.seconds, "sps": s.states_per_second, "peak": peak,
                   "bytes_per_state": (peak - rss0) / max(1, s.states),
-                  "depth": s.max_depth}))
+                  "depth": s.max_depth, "code": __import__("pccl").__file__}))
 """
 
 
-def run_case(spec: dict) -> dict:
-    out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec)], cwd=ROOT,
+def checkout(rev: str, into: str) -> str:
+    """The package tree of ``rev``, importable from the returned directory
+    (``pccl.semantics`` and ``pccl.blackboxes`` linked in as the install does)."""
+    archive = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
+    for sub in ("semantics", "blackboxes"):
+        link = os.path.join(into, "pccl", sub)
+        if not os.path.exists(link):
+            os.symlink(os.path.join(into, sub), link)
+    return into
+
+
+def run_case(spec: dict, code_dir: str | None = None) -> dict:
+    env = dict(os.environ)
+    if code_dir is not None:
+        env["PCCL_BENCH_CODE"] = code_dir
+    out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec)], cwd=ROOT, env=env,
                          capture_output=True, text=True, check=True)
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    want = code_dir or ROOT
+    assert os.path.realpath(r["code"]).startswith(os.path.realpath(want)), (r["code"], want)
+    return r
+
+
+def median_run(runs: list) -> dict:
+    """The run with the median time (its own figures, not a mix)."""
+    runs = sorted(runs, key=lambda r: r["seconds"])
+    return runs[len(runs) // 2]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="include the long exhaustive k=10 case")
     ap.add_argument("--json", action="store_true", help="print JSON lines")
+    ap.add_argument("--baseline", default=BASELINE, metavar="REV",
+                    help=f"git revision to compare against [default: {BASELINE}]")
+    ap.add_argument("--no-baseline", action="store_true", help="run this checkout only")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="alternating runs per version for compared cases [default: 3]")
+    ap.add_argument("--only", metavar="TEXT", help="run the cases whose name contains TEXT")
     args = ap.parse_args()
     cases = CASES + (FULL if args.full else [])
-    hdr = f"{'case':<44} {'result':<11} {'states':>11} {'transitions':>12} {'seconds':>8} " \
-          f"{'states/s':>9} {'peak MiB':>9} {'B/state':>8}"
+    if args.only:
+        cases = [c for c in cases if args.only in c[0]]
+    hdr = f"{'case':<44} {'code':<8} {'result':<11} {'states':>11} {'transitions':>12} " \
+          f"{'seconds':>8} {'states/s':>9} {'peak MiB':>9} {'B/state':>8}"
     if not args.json:
         print(hdr)
         print("-" * len(hdr))
-    for name, spec in cases:
-        r = run_case(spec)
-        if args.json:
-            print(json.dumps({"case": name, **r}))
-            continue
-        print(f"{name:<44} {r['status']:<11} {r['states']:>11,} {r['transitions']:>12,} "
-              f"{r['seconds']:>8.2f} {r['sps']:>9,.0f} {r['peak'] / 2**20:>9,.0f} "
-              f"{r['bytes_per_state']:>8.0f}", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
+        for name, spec, compare in cases:
+            versions = [("new", None)]
+            if compare and old_dir is not None:
+                versions = [(f"old {args.baseline}"[:8], old_dir), ("new", None)]
+            runs: dict = {v: [] for v, _ in versions}
+            for _ in range(args.repeat if len(versions) > 1 else 1):
+                for v, d in versions:
+                    runs[v].append(run_case(dict(spec), d))
+            for v, _ in versions:
+                r = median_run(runs[v])
+                if args.json:
+                    print(json.dumps({"case": name, "version": v,
+                                      "all_seconds": [x["seconds"] for x in runs[v]], **r}))
+                    continue
+                print(f"{name:<44} {v:<8} {r['status']:<11} {r['states']:>11,} "
+                      f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['sps']:>9,.0f} "
+                      f"{r['peak'] / 2**20:>9,.0f} {r['bytes_per_state']:>8.0f}", flush=True)
 
 
 if __name__ == "__main__":

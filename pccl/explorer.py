@@ -32,13 +32,21 @@ from __future__ import annotations
 
 import enum
 import gc
+import itertools
+import marshal
+import mmap
+import operator
+import os
 import resource
+import sys
 import time as _time
 from dataclasses import dataclass, field
 from typing import (Any, Callable, Hashable, Iterable, Iterator, Optional, Protocol,
                     Sequence, runtime_checkable)
 
 import numpy as np
+
+import xxhash
 
 from .fingerprint import collision_bound, encode, fingerprint
 
@@ -218,23 +226,55 @@ _EMPTY = np.uint32(0xFFFF_FFFF)
 _MAX_STATES = 0xFFFF_FFFE
 
 
+def _physical_memory() -> int:
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 1 << 34
+
+
+def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
+    """An array over a reserved, lazily committed anonymous mapping: only the
+    pages written count towards memory, and it never has to grow by copying.
+    ``None`` where the platform cannot do that."""
+    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    try:
+        flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(
+            mmap, "MAP_NORESERVE", 0x4000 if sys.platform.startswith("linux") else 0)
+        buf = mmap.mmap(-1, nbytes, flags=flags)
+    except (OSError, ValueError, AttributeError, TypeError):
+        return None
+    return np.frombuffer(buf, dtype=dtype).reshape(shape)
+
+
 class FingerprintTable:
     """The visited set as arrays: 128-bit fingerprints and parent links by
     state number, plus an open-addressing index (linear probing, load at
     most 1/2) of ``uint32`` state numbers keyed by the fingerprint's low
     64 bits.
 
-    Growth uses ``ndarray.resize`` (``realloc``, which the C library does
-    with ``mremap`` for large blocks: no copy, no double peak); the index is
-    rebuilt from the fingerprint array after it is freed.
+    The two per-state arrays are reserved up front for as many states as
+    the machine's memory could hold (virtual address space only: pages are
+    committed as they are written), so they never grow by copying; where
+    that is not available they grow by doubling.  The index is rebuilt from
+    the fingerprint array when it passes half full, after the old one is
+    freed.
     """
 
     key_of = staticmethod(fingerprint)
 
-    def __init__(self, capacity: int = 1 << 12):
+    def __init__(self, capacity: Optional[int] = None):
         self.n = 0
-        self.fps = np.empty((capacity, 2), dtype=np.uint64)
-        self.parents = np.empty(capacity, dtype=np.uint32)
+        if capacity is None:
+            capacity = min(_MAX_STATES, _physical_memory() // 20)
+            fps, parents = _reserve((capacity, 2), np.uint64), _reserve((capacity,), np.uint32)
+            if fps is None or parents is None:
+                fps, parents = None, None
+                capacity = 1 << 12
+        else:
+            fps = parents = None
+        self.fps = fps if fps is not None else np.empty((capacity, 2), dtype=np.uint64)
+        self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
         self._batch = None
 
@@ -293,6 +333,8 @@ class FingerprintTable:
             raise MemoryError("more than 2**32 - 2 states")
         if n + k > len(self.parents):
             cap = max(n + k, len(self.parents) * 2)
+            if self.fps.base is not None:
+                raise MemoryError(f"more states than the reserved {len(self.parents):,}")
             self.fps.resize((cap, 2), refcheck=False)
             self.parents.resize(cap, refcheck=False)
         self.fps[n:n + k] = q
@@ -403,8 +445,10 @@ class Explorer:
         key = m.key
         succ_fn = m.successors
         viol_fn = m.violations
-        table = self.table = ExactTable() if self.exact else FingerprintTable()
+        exact = self.exact
+        table = self.table = ExactTable() if exact else FingerprintTable()
         key_of = table.key_of
+        dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         t_start = _time.perf_counter()
         stats = Stats()
         res = SearchResult("exhaustive", stats=stats, exact=self.exact)
@@ -416,10 +460,19 @@ class Explorer:
         find_all = self.find_all
         batch = self.batch
 
-        # The pending batch: candidate keys and states, and per expanded
-        # parent its state number and successor count.
+        # The pending batch: candidate (label, state) pairs and their keys, and
+        # per expanded parent its state number and successor count.  Keys are
+        # computed with map() chains: no Python bytecode per transition.
         ck: list = []
         cs: list = []
+        second = operator.itemgetter(1)
+        twos = itertools.repeat(2)
+        if exact:
+            def keys_of(pairs):
+                return map(dumps, map(key, map(second, pairs)), twos)
+        else:
+            def keys_of(pairs):
+                return map(xxh, map(dumps, map(key, map(second, pairs)), twos))
         par_idx: list = []
         par_n: list = []
         nxt: list = []          # the next level's states, in admission order
@@ -457,7 +510,7 @@ class Explorer:
                 bounds.add(Bound.MAX_STATES)
                 halt = True
             for j in range(cut):
-                s2 = cs[new[j]]
+                s2 = cs[new[j]][1]
                 v = viol_fn(s2)
                 if v and record(v, base + j, d):
                     cut = j + 1
@@ -468,7 +521,7 @@ class Explorer:
                 kept = np.asarray(new[:cut], dtype=np.int64)
                 pidx = np.asarray(par_idx, dtype=np.int64)
                 table.add(cut, pidx[owners[kept]])
-                nxt.extend([cs[p] for p in new[:cut]])
+                nxt.extend([cs[p][1] for p in new[:cut]])
                 nxt_idx.extend(range(base, base + cut))
             budget -= cut
             if halt and cut:
@@ -485,7 +538,7 @@ class Explorer:
             # -- initial states: a batch of successors of nobody
             for s in m.init_states():
                 ck.append(key_of(key(s)))
-                cs.append(s)
+                cs.append((None, s))
                 if len(ck) >= batch:
                     par_idx.append(_NO_PARENT); par_n.append(len(ck))
                     stop = flush(0)
@@ -535,9 +588,8 @@ class Explorer:
                         continue
                     par_idx.append(level_idx[pos])
                     par_n.append(len(succ))
-                    for _label, s2 in succ:
-                        ck.append(key_of(key(s2)))
-                        cs.append(s2)
+                    cs.extend(succ)
+                    ck.extend(keys_of(succ))
                     if len(ck) >= batch:
                         if flush(depth + 1):
                             stop = True
