@@ -178,7 +178,9 @@ def format_value(v, ty=None) -> str:
     if members is not None and isinstance(v, int):
         return members[v] if 0 <= v < len(members) else str(v)
     if isinstance(v, tuple):
-        if len(v) == 3 and all(isinstance(c, float) for c in v):
+        # three floats are a position unless the type says list (List<float>)
+        if (len(v) == 3 and getattr(ty, "kind", None) not in ("list", "array")
+                and all(isinstance(c, float) for c in v)):
             return "(" + ", ".join(format_number(c) for c in v) + ")"
         elem = getattr(ty, "elem", None)
         return "[" + ", ".join(format_value(x, elem) for x in v) + "]"
