@@ -488,7 +488,8 @@ class Compiler:
         k = want.kind
         if k == "any":
             return self.expr(e)
-        if isinstance(e, A.Call) and e.name not in BUILTINS:
+        if isinstance(e, A.Call) and (e.name not in BUILTINS
+                                      or BUILTINS[e.name].kind == "uninterpreted"):
             return self.expr(e, want=want)          # uninterpreted: coerced at load time
         if isinstance(e, A.ListLit) and k == "list":
             if not e.items:
