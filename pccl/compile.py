@@ -497,8 +497,10 @@ class Compiler:
             return "(" + ", ".join(self.value(x, want.elem) for x in e.items) + ",)"
         src = self.expr(e, want=want)
         st = self.static_type(e)
-        if st is None:
-            return src
+        if st is None:                              # no checker info: convert blindly
+            if k == "float":
+                return f"_fin(float({src}))"
+            return src if k not in ("list", "pos") else f"_canon({src}, {self.const(want)})"
         if st.kind == "any":
             return f"_canon({src}, {self.const(want)})"
         if k == "float":
