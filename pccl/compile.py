@@ -15,11 +15,13 @@ Configuration layout (see :mod:`pccl.engine`)::
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
 from . import ast as A
 from . import values as V
+from .builtins import BUILTINS
 from .errors import PcclError
 
 # agent tuple slots
@@ -125,7 +127,13 @@ def coerce(value, ty: VType):
     if k == "float":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValueError(f"expected a number, got {value!r}")
-        return float(value)
+        try:
+            value = float(value) + 0.0
+        except OverflowError:
+            raise ValueError(f"expected a float, got {value!r}: too large") from None
+        if value - value:
+            raise ValueError(f"expected a finite number, got {value!r}")
+        return value
     if k == "bool":
         if not isinstance(value, bool):
             raise ValueError(f"expected a bool, got {value!r}")
@@ -139,7 +147,7 @@ def coerce(value, ty: VType):
     if k == "pos":
         if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
                 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
-            return V.pos(*value)
+            return tuple(coerce(c, _FLOAT) for c in value) + (0.0,) * (3 - len(value))
         raise ValueError(f"expected a position [x, y] or [x, y, z], got {value!r}")
     if k == "obstacles":
         if not isinstance(value, (tuple, list)):
@@ -153,7 +161,7 @@ def coerce(value, ty: VType):
                 if not (isinstance(p, (tuple, list)) and len(p) >= 2
                         and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)):
                     raise ValueError(f"expected a point [x, y], got {p!r}")
-                pts.append((float(p[0]), float(p[1])))
+                pts.append((coerce(p[0], _FLOAT), coerce(p[1], _FLOAT)))
             polys.append(tuple(pts))
         return tuple(polys)
     if k in ("list", "array"):
@@ -164,6 +172,30 @@ def coerce(value, ty: VType):
             raise ValueError(f"expected {ty.size} elements, got {len(out)}")
         return out
     return value
+
+
+_FLOAT = VType("float")
+
+
+def canon(value, ty: VType):
+    """:func:`coerce` at run time, for a value of no static type (``any``:
+    ``getInput()[k]``) or a list that needs widening; a value that does not
+    fit gets the agent stuck."""
+    try:
+        return coerce(value, ty)
+    except ValueError as exc:
+        raise V.PcclRuntimeError(str(exc)) from None
+
+
+def widens(src, dst: VType) -> bool:
+    """Does storing a value of static type ``src`` (a checker ``Ty``) into a
+    ``dst`` slot need a conversion beyond the top level (``List<int>`` into
+    ``List<float>``, at any depth)?"""
+    if src.kind == "int" and dst.kind == "float":
+        return True
+    if src.kind == "list" and dst.kind == "list":
+        return widens(src.elem, dst.elem)
+    return False
 
 
 class Oracle:
@@ -238,8 +270,9 @@ class Compiler:
     """Generates Python source for expressions and statements of one program."""
 
     def __init__(self, program: A.Program, layout: Layout, n_agents: int,
-                 functions: dict, oracle: Oracle):
+                 functions: dict, oracle: Oracle, info=None):
         self.program = program
+        self.info = info                    # the checker's ProgramInfo: static types
         self.lay = layout
         self.N = n_agents
         self.functions = functions          # uninterpreted name -> raw value
@@ -249,6 +282,7 @@ class Compiler:
             "_div": V.div, "_mod": V.mod, "_pos": V.pos,
             "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
+            "_fin": V.fin, "_canon": canon,
         }
         self._nconst = 0
 
@@ -294,6 +328,8 @@ class Compiler:
         if isinstance(e, A.IntLit):
             return repr(e.value)
         if isinstance(e, A.FloatLit):
+            if not math.isfinite(e.value):
+                self.error(f"float literal out of range: {e.value}", e)
             return repr(float(e.value))
         if isinstance(e, A.ListLit):
             if not e.items:
@@ -443,6 +479,49 @@ class Compiler:
             return self.const(self.uninterpreted_value(n, e, want))
         self.error(f"unknown function '{n}'", e)
 
+    # -- canonical values: every write path goes through value() ---------------
+    def value(self, e: A.Expr, want: VType) -> str:
+        """Source for ``e`` as the canonical value of a ``want`` slot (one
+        representation per PCCL value; docs/decisions.md, "Canonical values").
+        Conversions are inserted only where the static type needs them: an
+        int expression stored in an int slot costs nothing."""
+        k = want.kind
+        if k == "any":
+            return self.expr(e)
+        if isinstance(e, A.Call) and (e.name not in BUILTINS
+                                      or BUILTINS[e.name].kind == "uninterpreted"):
+            return self.expr(e, want=want)          # uninterpreted: coerced at load time
+        if isinstance(e, A.ListLit) and k == "list":
+            if not e.items:
+                return "()"
+            return "(" + ", ".join(self.value(x, want.elem) for x in e.items) + ",)"
+        src = self.expr(e, want=want)
+        st = self.static_type(e)
+        if st is None:                              # no checker info: convert blindly
+            if k == "float":
+                return f"_fin(float({src}))"
+            return src if k not in ("list", "pos") else f"_canon({src}, {self.const(want)})"
+        if st.kind == "any":
+            return f"_canon({src}, {self.const(want)})"
+        if k == "float":
+            if st.kind == "int":
+                return f"float({src})"
+            # a float read from the state is canonical; a computed one may be
+            # inf, nan or -0.0
+            if not isinstance(e, (A.Name, A.Index, A.Field, A.FloatLit)) and not (
+                    isinstance(e, A.Call) and e.name == "head"):
+                return f"_fin({src})"
+            return src
+        if k == "list" and widens(st, want):
+            return f"_canon({src}, {self.const(want)})"
+        return src
+
+    def static_type(self, e: A.Expr):
+        """The checker's type of a program expression (None without ``info``)."""
+        if self.info is None:
+            return None
+        return self.info.expr_type(e)
+
     # -- assignment targets -----------------------------------------------------
     def target(self, t: A.Expr):
         """Return (VarSlot, [index source, ...]) for an assignment target."""
@@ -467,12 +546,7 @@ class Compiler:
 
     def write_code(self, vs: VarSlot, path: list, value_src: str, indent="    ") -> str:
         """Code that writes ``value_src`` into the target and builds ``ag2``/``sh2``."""
-        lines = []
-        ty = self.elem_type(vs, len(path))
-        v = value_src
-        if ty.kind == "float":
-            v = f"float({v})"
-        lines.append(f"v = {v}")
+        lines = [f"v = {value_src}"]
         j = vs.slot
         if vs.section == "allwrite":
             cont = "sh"
@@ -509,15 +583,17 @@ class Compiler:
         (assignment, add, remove, skip), ``ag2`` without the pc update."""
         if isinstance(s, A.Assign):
             vs, path = self.target(s.target)
-            want = self.elem_type(vs, len(path))
-            val = self.expr(s.value, want=want)
+            val = self.value(s.value, self.elem_type(vs, len(path)))
             body = self.write_code(vs, path, val)
             return self.make("i, ag, sh, ags", body + "    return ag2, sh2\n", f"_s{s.sid}")
         if isinstance(s, A.CallStmt) and s.name in ("add", "remove"):
             vs, path = self.target(s.args[0])
             fn = "list_add" if s.name == "add" else "list_remove"
             self.G["_" + fn] = getattr(V, fn)
-            val = f"_{fn}({self.read_target(vs, path)}, {self.expr(s.args[1])})"
+            elem = self.elem_type(vs, len(path) + 1)
+            x = (self.value(s.args[1], elem) if s.name == "add"
+                 else self.expr(s.args[1], want=elem))
+            val = f"_{fn}({self.read_target(vs, path)}, {x})"
             body = self.write_code(vs, path, val)
             return self.make("i, ag, sh, ags", body + "    return ag2, sh2\n", f"_s{s.sid}")
         if isinstance(s, A.Skip):

@@ -27,8 +27,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional
 
 from . import ast as A
-from .compile import (Compiler, Layout, Oracle, build_layout,
-                      coerce, has_rand)
+from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .values import UNDEF
@@ -182,7 +181,7 @@ class Model:
         self.info = _check(program, functions=frozenset(funcs))
         self.layout: Layout = build_layout(program, self.info)
         self.oracle = Oracle(rand_policy)
-        self.comp = Compiler(program, self.layout, n_agents, funcs, self.oracle)
+        self.comp = Compiler(program, self.layout, n_agents, funcs, self.oracle, self.info)
         self.stmts: dict[int, A.Stmt] = {}
         self.stmt_event: dict[int, Optional[int]] = {}
         for s in A.walk_stmts(program.init):
@@ -237,8 +236,8 @@ class Model:
                 if len(s.args) != 2:
                     c.error("'doReach' takes 2 arguments", s)
                 from .compile import VType
-                t = c.expr(s.args[0], want=VType("pos"))
-                o = c.expr(s.args[1], want=VType("obstacles"))
+                t = c.value(s.args[0], VType("pos"))
+                o = c.value(s.args[1], VType("obstacles"))
                 return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
             if s.name == "exit":
                 return None
@@ -332,7 +331,9 @@ class Model:
         comp = self.comp
         fn = getattr(vs, "_initfn", None)
         if fn is None:
-            src = comp.expr(vs.decl.init, want=vs.ty)
+            # an array initialiser is one element's value, filling the array
+            want = vs.ty.elem if vs.ty.kind == "array" else vs.ty
+            src = comp.value(vs.decl.init, want)
             fn = vs._initfn = comp.make("i, ag, sh, ags", f"    return {src}\n", f"_init_{vs.name}")
         rnd = has_rand(vs.decl.init)
         out = []
@@ -346,13 +347,8 @@ class Model:
                 if isinstance(res, R._Err):
                     out.append(R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span)))
                     continue
-                try:
-                    if vs.ty.kind == "array" and not isinstance(res, tuple):
-                        res = (res,) * vs.ty.size     # `bool f[3] = false;` fills
-                    v = coerce(res, vs.ty) if vs.ty.kind in ("float", "pos", "array") else res
-                except ValueError as exc:
-                    out.append(R._stuck(self, st, i, ag, str(exc), ("decl", vs.decl.span)))
-                    continue
+                # the value is canonical (Compiler.value); `bool f[3] = false;` fills
+                v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
                 j = vs.slot
                 if vs.section == "allwrite":
                     sh = st[3]
@@ -448,7 +444,8 @@ class Model:
     def round_pos(self, p):
         res = self.world.resolution
         if not res:
-            return tuple(float(c) for c in p)
+            out = tuple(float(c) + 0.0 for c in p)
+            return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
         out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
         return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
 

@@ -13,6 +13,13 @@ array T[n]     tuple of length n
 ObstacleList   tuple of polygons, each a tuple of (x, y)
 undefined      :data:`UNDEF`
 =============  ==========================================
+
+Every stored value is *canonical*: one representation per PCCL value (state
+identity hashes the representation, so ``1``, ``1.0`` and ``True`` are three
+different states).  A float slot holds a finite ``float`` that is never
+``-0.0``; an int slot an ``int`` (never a ``bool``); lists and positions
+likewise, at every depth.  The compiler converts at the write paths (see
+``Compiler.value``); :func:`fin` and :func:`pos` are the runtime checks.
 """
 
 from __future__ import annotations
@@ -86,8 +93,24 @@ def mod(a, b):
     return math.fmod(a, b)
 
 
+def fin(v):
+    """A computed float about to be stored: finite (else the agent is stuck),
+    and ``-0.0`` normalised to ``0.0`` (``-0.0 + 0.0 == +0.0``)."""
+    if v - v:                     # nan for inf and nan, 0.0 otherwise
+        raise PcclRuntimeError("float result is not a number (NaN)" if v != v
+                               else f"float overflow: the result is {v}")
+    return v + 0.0
+
+
 def pos(x, y, z=0.0):
-    return (float(x), float(y), float(z))
+    """``ItemPosition(x, y[, z])``: canonical floats, finite."""
+    x = float(x) + 0.0
+    y = float(y) + 0.0
+    z = float(z) + 0.0
+    if x - x or y - y or z - z:
+        raise PcclRuntimeError(f"ItemPosition({format_number(x)}, {format_number(y)}, "
+                               f"{format_number(z)}): coordinate is not finite")
+    return (x, y, z)
 
 
 def dist(p, q):
@@ -134,6 +157,8 @@ def set_in(container, path, value):
 
 def format_number(v) -> str:
     if isinstance(v, float):
+        if not math.isfinite(v):
+            return str(v)
         if v == int(v) and abs(v) < 1e15:
             return f"{v:.1f}"
         return f"{v:.6g}"
@@ -153,7 +178,9 @@ def format_value(v, ty=None) -> str:
     if members is not None and isinstance(v, int):
         return members[v] if 0 <= v < len(members) else str(v)
     if isinstance(v, tuple):
-        if len(v) == 3 and all(isinstance(c, float) for c in v):
+        # three floats are a position unless the type says list (List<float>)
+        if (len(v) == 3 and getattr(ty, "kind", None) not in ("list", "array")
+                and all(isinstance(c, float) for c in v)):
             return "(" + ", ".join(format_number(c) for c in v) + ")"
         elem = getattr(ty, "elem", None)
         return "[" + ", ".join(format_value(x, elem) for x in v) + "]"
