@@ -51,7 +51,8 @@ def common_options(f):
         click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
                      help="event-block executions per agent per time step"),
         click.option("--rate", "rates", type=RateType(), multiple=True,
-                     help="per-agent rate ρ, e.g. --rate 1=2 (repeatable)"),
+                     help="per-agent rate ρ, 1..n0: each event block of agent A costs ρ of the "
+                          "n0 per time step, e.g. --n0 2 --rate 1=2 (repeatable)"),
         click.option("--events", type=click.Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
@@ -139,6 +140,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     m = res.model
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
+               "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
                "result": res.status, "message": res.message, "exit_status": res.exit_status,
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
@@ -149,7 +151,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}, seed {seed}")
+                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
         if trace:
             click.echo("trace:")
             for n, (lab, a, b) in enumerate(res.trace):
@@ -170,6 +172,12 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(res.exit_status)
+
+
+def _rates_text(m) -> str:
+    """The agents whose rate ρ is not 1, for the header line ("" when none)."""
+    odd = [f"{i}={r}" for i, r in enumerate(m.rho) if r != 1]
+    return f", rates {' '.join(odd)}" if odd else ""
 
 
 def _step_summary(m, prev, s) -> str:
@@ -286,7 +294,7 @@ def _stats_lines(res) -> list:
 def _print_explore_text(program, res, *, k_style=False):
     m = res.model
     click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-               f"δ={D.fmt_time(m.delta)}, n0={m.n0}, events {m.events_policy}, "
+               f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
                f"time abstraction {'on' if m.abstract_time else 'off'}")
     click.echo(res.verdict)
     for v in res.violations:
@@ -311,6 +319,7 @@ def _print_explore_text(program, res, *, k_style=False):
 def _explore_json(program, res) -> dict:
     m = res.model
     return {"program": program, "blackbox": res.blackbox, "agents": m.N,
+            "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
             "statistics": res.stats.as_dict(),

@@ -162,6 +162,12 @@ class Model:
                 raise PcclError(f"--rate: agent {a} does not exist (agents are 0..{n_agents - 1})")
             if not (isinstance(r, int) and r >= 1):
                 raise PcclError(f"--rate: rate of agent {a} must be a positive integer, got {r}")
+            if r > n0:
+                # counter + ρ ≤ n0 never holds: the agent would never run an event
+                # and a search would "explore clean" without it
+                raise PcclError(f"--rate: rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
+                                f"would never run an event (it runs while counter + rate ≤ n0); "
+                                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
             self.rho[a] = r
         if events not in ("any", "first"):
             raise PcclError(f"--events must be 'any' or 'first', got {events!r}")

@@ -1,0 +1,74 @@
+"""Bad input gets one clear message and exit status 2, never a traceback;
+exit statuses are honest (0 holds, 1 violation, 2 bad input)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from pccl.cli import main
+from pccl.errors import PcclError
+
+from conftest import FISCHER, RACE, RACE_WORLD
+
+SMALL = ["--set", "k=1", "--set", "cstime=0"]
+
+
+def cli(*args, **kw):
+    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True, **kw)
+    assert res.exception is None or isinstance(res.exception, SystemExit), \
+        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
+    assert "Traceback" not in res.output
+    return res
+
+
+def user_error(res, *phrases, where=None):
+    """Exit 2, one ': error: ' message on stderr containing every phrase."""
+    assert res.exit_code == 2, (res.exit_code, res.output)
+    err = res.stderr
+    assert "Traceback" not in err
+    assert err.count(": error: ") == 1, err
+    if where is not None:
+        assert err.startswith(where + ": error: "), err
+    for p in phrases:
+        assert p in err, (p, err)
+    return err
+
+
+# ---------------------------------------------------------------------------
+# 2. a rate above n0 freezes an agent
+# ---------------------------------------------------------------------------
+
+def test_rate_above_n0_is_rejected():
+    res = cli("explore", FISCHER, "--rate", "1=2", "--invariant", "count(inCs) <= 1")
+    user_error(res, "rate 2 of agent 1 is above n0 = 1", "never run an event", "--n0 2")
+    assert res.stdout == ""
+
+
+def test_rate_above_n0_rejected_by_api():
+    from pccl.api import make_model
+    with pytest.raises(PcclError, match="above n0"):
+        make_model(FISCHER, rates={1: 2})
+
+
+def test_rates_in_header_and_json():
+    res = cli("explore", FISCHER, *SMALL, "--n0", "2", "--rate", "1=2", "--max-states", "200")
+    assert res.exit_code in (0, 1)
+    header = res.stdout.splitlines()[0]
+    assert "n0=2, rates 1=2," in header, header
+    res = cli("explore", FISCHER, *SMALL, "--n0", "2", "--rate", "1=2", "--max-states", "200",
+              "--format", "json")
+    data = json.loads(res.stdout)
+    assert data["n0"] == 2 and data["rates"] == [1, 2]
+    res = cli("run", FISCHER, *SMALL, "--n0", "2", "--rate", "1=2", "--max-time", "3")
+    assert "n0=2, rates 1=2," in res.stdout.splitlines()[0]
+    res = cli("run", FISCHER, *SMALL, "--n0", "2", "--rate", "1=2", "--max-time", "3",
+              "--format", "json")
+    assert json.loads(res.stdout)["rates"] == [1, 2]
+
+
+def test_help_rate_example_is_valid():
+    res = cli("explore", "--help")
+    assert "--n0 2 --rate 1=2" in res.stdout
