@@ -743,7 +743,12 @@ class _Checker:
     def call(self, e: ast.Call) -> Ty:
         b = self.info.function(e.name)
         if b is None:
-            self.fail(f"unknown function '{e.name}'", self.name_span(e))
+            hint = ""
+            if self.mode == "program" and not e.args:
+                # a zero-argument call the world could define (uninterpreted)
+                hint = (f": not a built-in; a function the world provides needs --world FILE "
+                        f"defining {e.name} under [functions]")
+            self.fail(f"unknown function '{e.name}'{hint}", self.name_span(e))
         if b.is_statement:
             self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
         if self.mode == "property":

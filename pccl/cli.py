@@ -249,8 +249,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _fail(e)
     show = sys.stderr.isatty() if progress is None else progress
     reporter = _progress_printer() if show else None
-    res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
-                        find_all=find_all, exact=exact, progress=reporter)
+    try:
+        res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
+                            find_all=find_all, exact=exact, progress=reporter)
+    except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
+        if show:
+            click.echo("\r\033[K", err=True, nl=False)
+        _fail(e)
     if show:
         click.echo("\r\033[K", err=True, nl=False)
     if fmt == "json":

@@ -284,7 +284,11 @@ class Compiler:
         try:
             return coerce(raw, ty)
         except ValueError as exc:
-            self.error(f"value of {name}() does not fit {ty}: {exc}", node)
+            hint = ""
+            if raw == ():
+                hint = (f" ({name}() is the empty list unless the world gives it a value: "
+                        f"needs --world FILE with {name} under [functions])")
+            self.error(f"value of {name}() does not fit {ty}: {exc}{hint}", node)
 
     # -- expressions ---------------------------------------------------------
     def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[VType] = None) -> str:

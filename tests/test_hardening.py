@@ -72,3 +72,105 @@ def test_rates_in_header_and_json():
 def test_help_rate_example_is_valid():
     res = cli("explore", "--help")
     assert "--n0 2 --rate 1=2" in res.stdout
+
+
+# ---------------------------------------------------------------------------
+# 6. errors found while exploring or running are one message, exit 2
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("cmd", ["explore", "run"])
+def test_uninterpreted_function_without_world_value(cmd):
+    res = cli(cmd, FISCHER, "--set", "k=getInput()", "--max-time", "3")
+    user_error(res, "value of getInput() does not fit int", "needs --world")
+
+
+@pytest.mark.parametrize("cmd", ["explore", "run"])
+def test_arena_too_small_for_the_agents(cmd, tmp_path):
+    w = tmp_path / "small.toml"
+    w.write_text("arena = [[0, 0], [1, 1]]\n")
+    res = cli(cmd, FISCHER, "--world", w, "--max-time", "3")
+    user_error(res, "cannot place 2 agents", where=str(w))
+
+
+def test_check_says_a_world_function_needs_world(tmp_path):
+    p = tmp_path / "g.pccl"
+    p.write_text("loc:\n  int c = getCount();\n")
+    res = cli("check", p)
+    err = user_error(res, "unknown function 'getCount'", "needs --world", where=f"{p}:2:11")
+    assert "getCount under [functions]" in err
+
+
+BLACKBOXES = '''
+from pccl.blackboxes.base import Outcome
+
+class Base:
+    name = "mine"
+    uses_time = False
+    def init_env(self, world, n):
+        return None
+
+class Empty(Base):
+    def step(self, world, motions, env, time, delta):
+        return []
+
+class Nothing(Base):
+    def step(self, world, motions, env, time, delta):
+        return None
+
+class Raises(Base):
+    def step(self, world, motions, env, time, delta):
+        raise ZeroDivisionError("boom")
+
+class Short(Base):
+    def step(self, world, motions, env, time, delta):
+        return [Outcome(((0.0, 0.0, 0.0),), (True,), (False,), None)]
+
+class NotOutcome(Base):
+    def step(self, world, motions, env, time, delta):
+        return [(1, 2)]
+
+class BadPos(Base):
+    def step(self, world, motions, env, time, delta):
+        return [Outcome(tuple("xy" for m in motions), (True,) * len(motions),
+                        (False,) * len(motions), None)]
+
+class Unhashable(Base):
+    def step(self, world, motions, env, time, delta):
+        return [Outcome(tuple(m.position for m in motions), (True,) * len(motions),
+                        (False,) * len(motions), [1])]
+
+class BadInit(Base):
+    def init_env(self, world, n):
+        raise KeyError("no env")
+    def step(self, world, motions, env, time, delta):
+        return []
+
+EMPTY, NOTHING, RAISES, SHORT = Empty(), Nothing(), Raises(), Short()
+NOT_OUTCOME, BAD_POS, UNHASHABLE, BAD_INIT = NotOutcome(), BadPos(), Unhashable(), BadInit()
+NOT_A_BLACKBOX = 42
+'''
+
+@pytest.fixture
+def user_bb(tmp_path):
+    path = tmp_path / "hard_bb.py"
+    path.write_text(BLACKBOXES)
+    prog = tmp_path / "mover.pccl"
+    prog.write_text("""\
+loc:
+  bool sent = false;
+  ObstacleList obs = getObs();
+
+Go():
+  pre(!sent);
+  eff:
+    doReach(ItemPosition(3, 3), obs);
+    sent = true;
+""")
+    return path, prog
+
+
+@pytest.mark.parametrize("cmd", ["explore", "run"])
+def test_blackbox_returning_nothing(cmd, user_bb):
+    path, prog = user_bb
+    res = cli(cmd, prog, "--blackbox", f"{path}:EMPTY")
+    user_error(res, "blackbox 'mine'", "no outcome")
