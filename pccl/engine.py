@@ -22,6 +22,7 @@ maps it back and decodes its head once.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable, Optional
 
@@ -142,8 +143,12 @@ class Model:
 
         self.program = program
         self.world = world if world is not None else default_world()
-        if blackbox is None or isinstance(blackbox, str):
-            blackbox = load_blackbox(blackbox or "straight")
+        if blackbox is None:
+            blackbox = load_blackbox("straight")
+        elif isinstance(blackbox, str):          # '' is an error, not the default
+            blackbox = load_blackbox(blackbox)
+        else:
+            _check_blackbox_object(blackbox)
         self.blackbox = blackbox
         if n_agents is None:
             n_agents = self.world.n_agents or 2
@@ -313,7 +318,8 @@ class Model:
              self.round_pos(starts[i]), blank_reach)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
-        env0 = self.blackbox.init_env(self.world, N)
+        env0 = self._call_blackbox(0, "init_env", self.world, N)
+        _check_env(self, env0, 0)
         states = [(0, DISCRETE, (), shared0, agents, env0)]
         # shared initialisers, evaluated once (in agent 0's context)
         for vs in lay.shared:
@@ -430,14 +436,18 @@ class Model:
             return hit
         motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
                                ag[3] == RUNNING) for ag in ags)
-        outcomes = bb.step(self.world, motions, st[5], st[0], self.delta)
+        outcomes = self._call_blackbox(st[0], "step", self.world, motions, st[5], st[0],
+                                       self.delta)
+        if isinstance(outcomes, (str, bytes)) or not hasattr(outcomes, "__iter__"):
+            self.blackbox_error(st[0], f"step() must return a list of Outcome, got "
+                                       f"{_type_of(outcomes)}")
+        outcomes = list(outcomes)
         if not outcomes:
-            raise PcclError(f"blackbox '{bb.name}' returned no outcome")
+            self.blackbox_error(st[0], "step() returned no outcome (it must return at least one)")
         res = []
         seen = set()
-        for o in outcomes:
-            r = (tuple(self.round_pos(p) for p in o.positions), tuple(bool(x) for x in o.done),
-                 tuple(bool(x) for x in o.fail), o.env)
+        for n, o in enumerate(outcomes):
+            r = self._check_outcome(st[0], n + 1, o)
             if r not in seen:
                 seen.add(r)
                 res.append(r)
@@ -445,6 +455,44 @@ class Model:
             self._env_cache.clear()
         self._env_cache[ckey] = res
         return res
+
+    # -- blackbox calls: user code, so every failure names the blackbox ------------------
+    def blackbox_error(self, time, what):
+        name = getattr(self.blackbox, "name", type(self.blackbox).__name__)
+        raise PcclError(f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}")
+
+    def _call_blackbox(self, time, method, *args):
+        try:
+            return getattr(self.blackbox, method)(*args)
+        except (PcclError, KeyboardInterrupt):
+            raise
+        except Exception as e:
+            self.blackbox_error(time, f"{method}() raised {type(e).__name__}: {e}")
+
+    def _check_outcome(self, time, n, o):
+        """One outcome as the engine's tuple, or a PcclError saying what is wrong."""
+        N = self.N
+        missing = [a for a in ("positions", "done", "fail", "env") if not hasattr(o, a)]
+        if missing:
+            self.blackbox_error(time, f"outcome {n} is {_type_of(o)}, not an Outcome "
+                                      f"(missing {', '.join(missing)})")
+        for what in ("positions", "done", "fail"):
+            v = getattr(o, what)
+            if not isinstance(v, (tuple, list)) or len(v) != N:
+                got = f"{len(v)} entries" if isinstance(v, (tuple, list)) else _type_of(v)
+                self.blackbox_error(time, f"outcome {n}: '{what}' must have one entry per agent "
+                                          f"({N}), got {got}")
+        poss = []
+        for i, p in enumerate(o.positions):
+            if (not isinstance(p, (tuple, list)) or len(p) not in (2, 3)
+                    or not all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                               and math.isfinite(c) for c in p)):
+                self.blackbox_error(time, f"outcome {n}: position of agent {i} must be "
+                                          f"(x, y, z) finite numbers, got {p!r:.80}")
+            poss.append(self.round_pos(p))
+        _check_env(self, o.env, time, n)
+        return (tuple(poss), tuple(bool(x) for x in o.done),
+                tuple(bool(x) for x in o.fail), o.env)
 
     def round_pos(self, p):
         res = self.world.resolution
@@ -534,6 +582,35 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
+
+
+def _fmt_time(t) -> str:
+    return f"{t:g}" if isinstance(t, float) else str(t)
+
+
+def _type_of(v) -> str:
+    return "None" if v is None else type(v).__name__
+
+
+def _check_env(model, env, time, n=None):
+    try:
+        hash(env)
+    except TypeError:
+        where = "init_env() returned" if n is None else f"outcome {n}: env is"
+        model.blackbox_error(time, f"{where} an unhashable {_type_of(env)} (the env is part "
+                                   f"of the state: use tuples, not lists or dicts)")
+
+
+_BLACKBOX_ATTRS = ("name", "uses_time", "init_env", "step")
+
+
+def _check_blackbox_object(bb):
+    missing = [a for a in _BLACKBOX_ATTRS if not hasattr(bb, a)]
+    if missing:
+        raise PcclError(f"blackbox {bb!r:.60} is not a blackbox (missing {', '.join(missing)}; "
+                        "see pccl.blackboxes.base)")
+    if not callable(bb.step) or not callable(bb.init_env):
+        raise PcclError(f"blackbox '{bb.name}': step and init_env must be methods")
 
 
 def _src_text(source: str, span: A.Span) -> str:

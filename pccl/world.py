@@ -566,6 +566,11 @@ class _Checker:
             if not _IDENT.match(name):
                 self.error(f"function name '{name}' is not an identifier",
                            "functions", name, at_value=False)
+            from .builtins import BUILTINS, UNINTERPRETED
+            if name in BUILTINS and name not in UNINTERPRETED:
+                self.error(f"function '{name}' shadows the built-in {name}(); "
+                           "give the world's function another name",
+                           "functions", name, at_value=False)
             if name == "getObs":
                 if not isinstance(value, list):
                     self.error("'getObs' must be an array of polygons, got "

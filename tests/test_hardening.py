@@ -174,3 +174,48 @@ def test_blackbox_returning_nothing(cmd, user_bb):
     path, prog = user_bb
     res = cli(cmd, prog, "--blackbox", f"{path}:EMPTY")
     user_error(res, "blackbox 'mine'", "no outcome")
+
+
+# ---------------------------------------------------------------------------
+# 8. user blackboxes: failures name the blackbox and the time
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("attr, phrase", [
+    ("NOTHING", "step() must return a list of Outcome, got None"),
+    ("RAISES", "step() raised ZeroDivisionError: boom"),
+    ("SHORT", "'positions' must have one entry per agent (2), got 1 entries"),
+    ("NOT_OUTCOME", "outcome 1 is tuple, not an Outcome"),
+    ("BAD_POS", "position of agent 0 must be (x, y, z) finite numbers"),
+    ("UNHASHABLE", "env is an unhashable list"),
+    ("BAD_INIT", "init_env() raised KeyError"),
+])
+@pytest.mark.parametrize("cmd", ["explore", "run"])
+def test_failing_user_blackbox(cmd, attr, phrase, user_bb):
+    path, prog = user_bb
+    res = cli(cmd, prog, "--blackbox", f"{path}:{attr}")
+    when = "0" if attr == "BAD_INIT" else "1"     # the time step() is given
+    user_error(res, f"blackbox 'mine' failed at time {when}: ", phrase)
+
+
+def test_not_a_blackbox(user_bb):
+    path, prog = user_bb
+    res = cli("explore", prog, "--blackbox", f"{path}:NOT_A_BLACKBOX")
+    user_error(res, "NOT_A_BLACKBOX is not a blackbox")
+
+
+def test_blackbox_object_checked_by_api():
+    from pccl.api import make_model
+    with pytest.raises(PcclError, match="is not a blackbox"):
+        make_model(FISCHER, blackbox=object())
+
+
+def test_empty_blackbox_name_is_an_error():
+    res = cli("explore", FISCHER, *SMALL, "--blackbox", "")
+    user_error(res, "empty blackbox name")
+
+
+def test_world_function_shadowing_a_builtin(tmp_path):
+    w = tmp_path / "w.toml"
+    w.write_text("[functions]\ncount = 3\n")
+    res = cli("explore", RACE, "--world", w)
+    user_error(res, "function 'count' shadows the built-in count()", where=f"{w}:2:1")
