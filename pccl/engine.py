@@ -498,7 +498,12 @@ class Model:
         res = self.world.resolution
         if not res:
             return tuple(float(c) for c in p)
-        out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
+        try:
+            out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
+        except (OverflowError, ValueError):     # inf, nan, or c / res beyond the float range
+            raise PcclError(f"position ({', '.join(f'{float(c):g}' for c in p)}) cannot be "
+                            f"rounded to the resolution {res:g}: coordinates must be finite "
+                            f"and far from the float limit") from None
         return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
 
     # -- properties ------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextvars
 import dataclasses
+import math
 import os
 import re
 from typing import Iterator, Optional
@@ -142,6 +143,10 @@ def _join(start: ast.Span, end: ast.Span) -> ast.Span:
     return ast.Span(start.line, start.column, end.end_line, end.end_column)
 
 
+#: Longest integer literal: Python's limit on converting digits to int and back.
+MAX_INT_DIGITS = 4300
+
+
 class _Syntax(Exception):
     """A syntax problem found while building the AST (turned into PcclError)."""
 
@@ -171,11 +176,19 @@ class _ToAst(Transformer):
 
     def int_lit(self, meta, children):
         (tok,) = children
+        digits = len(str(tok).lstrip("0"))
+        if digits > MAX_INT_DIGITS:
+            raise _Syntax(f"integer literal too long ({digits} digits; at most "
+                          f"{MAX_INT_DIGITS})", _tspan(tok))
         return ast.IntLit(int(tok), _tspan(tok))
 
     def float_lit(self, meta, children):
         (tok,) = children
-        return ast.FloatLit(float(tok), _tspan(tok))
+        value = float(tok)
+        if not math.isfinite(value):
+            raise _Syntax(f"float literal {tok} is out of range (a float is at most about "
+                          f"1.8e308)", _tspan(tok))
+        return ast.FloatLit(value, _tspan(tok))
 
     def true_lit(self, meta, children):
         return ast.BoolLit(True, _tspan(children[0]))

@@ -219,3 +219,78 @@ def test_world_function_shadowing_a_builtin(tmp_path):
     w.write_text("[functions]\ncount = 3\n")
     res = cli("explore", RACE, "--world", w)
     user_error(res, "function 'count' shadows the built-in count()", where=f"{w}:2:1")
+
+
+# ---------------------------------------------------------------------------
+# 7. infinite floats, over-long integers, coordinates near the float limit
+# ---------------------------------------------------------------------------
+
+BIG = "9" * 5000
+
+
+def test_infinite_float_literal_in_program(tmp_path):
+    p = tmp_path / "inf.pccl"
+    p.write_text("loc:\n  float x = 1e999;\n")
+    user_error(cli("check", p), "float literal 1e999 is out of range", where=f"{p}:2:13")
+
+
+def test_infinite_float_literal_in_invariant():
+    res = cli("explore", FISCHER, *SMALL, "--invariant", "1e999 > 0.0")
+    user_error(res, "float literal 1e999 is out of range", where="--invariant #1:1:1")
+
+
+def test_long_integer_literal_in_program(tmp_path):
+    p = tmp_path / "big.pccl"
+    p.write_text(f"loc:\n  int x = {BIG};\n")
+    user_error(cli("check", p), "integer literal too long (5000 digits; at most 4300)",
+               where=f"{p}:2:11")
+
+
+@pytest.mark.parametrize("opt", [["--set", f"k={BIG}"],
+                                 ["--invariant", f"count(inCs) <= {BIG}"]])
+def test_long_integer_literal_in_options(opt):
+    res = cli("explore", FISCHER, *opt, "--max-states", "10")
+    user_error(res, "integer literal too long")
+
+
+def test_long_integer_in_world(tmp_path):
+    w = tmp_path / "w.toml"
+    w.write_text(f"agents = {BIG}\n")
+    user_error(cli("run", RACE, "--world", w), "integer too long", where=f"{w}:1:10")
+
+
+def test_non_finite_world_function_value(tmp_path):
+    w = tmp_path / "w.toml"
+    w.write_text("[functions]\ngetInput = nan\n")
+    user_error(cli("run", RACE, "--world", w), "values must be finite", where=f"{w}:2:12")
+
+
+def test_start_position_near_the_float_limit(tmp_path):
+    w = tmp_path / "w.toml"
+    w.write_text("start = [[1e308, 0]]\n")
+    for cmd in ("run", "explore"):
+        user_error(cli(cmd, RACE, "--world", w), "coordinates must be within",
+                   where=f"{w}:1:10")
+
+
+def test_huge_and_infinite_values_are_displayed(tmp_path):
+    p = tmp_path / "grow.pccl"
+    p.write_text("loc:\n  int x = 10;\n  float y = 1e300;\n"
+                 "Go():\n  pre(true);\n  eff:\n    x = x * x;\n    y = y * 1e300;\n")
+    res = cli("run", p, "--max-time", "16")
+    assert res.exit_code == 0, res.output
+    assert "x = <integer of about 131,073 digits>" in res.stdout
+    assert "y = inf" in res.stdout
+    res = cli("run", p, "--max-time", "16", "--format", "json")
+    assert res.exit_code == 0, res.output
+    variables = json.loads(res.stdout)["final"]["agents"][0]["variables"]
+    assert variables["x"] == "<integer of about 131,073 digits>" and variables["y"] == "inf"
+
+
+@pytest.mark.parametrize("cmd", ["explore", "run"])
+def test_target_near_the_float_limit(cmd, tmp_path):
+    p = tmp_path / "far.pccl"
+    p.write_text("loc:\n  bool sent = false;\n\nGo():\n  pre(!sent);\n  eff:\n"
+                 "    doReach(ItemPosition(1e308, 0), []);\n    sent = true;\n")
+    res = cli(cmd, p, "--blackbox", "instant")
+    user_error(res, "cannot be rounded to the resolution")
