@@ -49,6 +49,11 @@ class PcclError(Exception):
         return self.render()
 
 
+class ArgumentError(PcclError, ValueError):
+    """A bad argument to a function of the Python API (:mod:`pccl.api`):
+    its ``filename`` is the function, e.g. ``pccl.api.explore``."""
+
+
 def render_message(message: str, *, filename: Optional[str], source: Optional[str],
                    line: Optional[int], column: Optional[int],
                    end_column: Optional[int] = None, kind: str = "error") -> str:

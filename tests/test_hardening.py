@@ -294,3 +294,73 @@ def test_target_near_the_float_limit(cmd, tmp_path):
                  "    doReach(ItemPosition(1e308, 0), []);\n    sent = true;\n")
     res = cli(cmd, p, "--blackbox", "instant")
     user_error(res, "cannot be rounded to the resolution")
+
+
+# ---------------------------------------------------------------------------
+# 9. the Python API checks its arguments
+# ---------------------------------------------------------------------------
+
+from pccl import api  # noqa: E402
+from pccl.errors import ArgumentError  # noqa: E402
+
+
+@pytest.mark.parametrize("func, kw, phrase", [
+    ("explore", dict(max_states=0), "max_states must be an integer >= 1, got 0"),
+    ("explore", dict(max_states="10"), "max_states must be an integer or None, got '10'"),
+    ("explore", dict(depth=-1), "depth must be an integer >= 0, got -1"),
+    ("explore", dict(max_time=float("nan")), "max_time must be a finite number, got nan"),
+    ("explore", dict(max_time=-1), "max_time must be >= 0, got -1"),
+    ("explore", dict(invariants="count(inCs) <= 1"), "invariants must be a list of strings"),
+    ("explore", dict(invariants=[3]), "invariants must contain strings, got 3"),
+    ("explore", dict(delta=float("inf")), "delta must be a finite number"),
+    ("explore", dict(delta="1"), "delta must be a number"),
+    ("explore", dict(n0=1.5), "n0 must be an integer"),
+    ("explore", dict(rates=[(1, 2)]), "rates must map agent indexes to rates"),
+    ("explore", dict(rates={"1": 2}), "rates: an agent index must be an integer"),
+    ("explore", dict(agents=True), "agents must be an integer or None, got True"),
+    ("explore", dict(agents=0), "agents must be an integer >= 1, got 0"),
+    ("explore", dict(overrides={"k": 2.5j}), "the value of k must be a PCCL expression"),
+    ("explore", dict(overrides="k=2"), "overrides must map variable names"),
+    ("explore", dict(progress=3), "progress must be callable or None"),
+    ("explore", dict(deadlock="no"), "deadlock must be True or False"),
+    ("explore", dict(max_sates=3), "unknown option max_sates"),
+    ("explore", dict(world=3), "world must be a path, a World or None, got 3"),
+    ("explore", dict(blackbox=3), "blackbox must be a name"),
+    ("run", dict(seed="x"), "seed must be an integer, got 'x'"),
+    ("run", dict(max_steps=0), "max_steps must be an integer >= 1, got 0"),
+    ("run", dict(max_time=float("nan")), "max_time must be a finite number, got nan"),
+    ("run", dict(abstract_time=True), "abstract_time is not an option of run"),
+    ("make_model", dict(agents="2"), "agents must be an integer or None, got '2'"),
+    ("make_model", dict(events="all"), "events must be 'any' or 'first', got 'all'"),
+    ("make_model", dict(rng=3), "rng must be a random.Random or None"),
+    ("make_model", dict(collisions="yes"), "collisions must be True or False"),
+])
+def test_api_arguments_are_checked(func, kw, phrase):
+    with pytest.raises(ArgumentError) as info:
+        getattr(api, func)(FISCHER, **kw)
+    err = info.value
+    assert isinstance(err, PcclError) and isinstance(err, ValueError)
+    assert phrase in err.message, err.message
+    assert err.render().startswith(f"pccl.api.{func}: error: ")
+
+
+def test_api_program_argument_checked():
+    with pytest.raises(ArgumentError, match="program must be a path"):
+        api.explore(42)
+    with pytest.raises(ArgumentError, match="program must be a path"):
+        api.check(None)
+
+
+def test_api_explore_model_checks_its_arguments():
+    with pytest.raises(ArgumentError, match="model must be a Model"):
+        api.explore_model(FISCHER)
+    m = api.make_model(FISCHER, overrides={"k": "1", "cstime": "0"})
+    with pytest.raises(ArgumentError, match="max_states must be an integer >= 1, got 0"):
+        api.explore_model(m, max_states=0)
+
+
+def test_api_check():
+    info = api.check(RACE, world=RACE_WORLD)
+    assert "getInput" in info.functions or info.variables
+    with pytest.raises(PcclError, match="unknown function 'getCount'"):
+        api.check("loc:\n  int c = getCount();\n", source=True)
