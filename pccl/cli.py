@@ -80,7 +80,41 @@ def _fail(err: PcclError):
     sys.exit(2)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
+                    "named), 1 a violation, 2 bad input (the program, the world, an option), "
+                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+
+_signal = {"term": False}
+
+
+def _on_sigterm(signum, frame):
+    # stop like Ctrl-C (explore prints the statistics so far), exit 143
+    _signal["term"] = True
+    raise KeyboardInterrupt
+
+
+def _interrupted_status(code: int) -> int:
+    return 143 if code == 130 and _signal["term"] else code
+
+
+class _Main(click.Group):
+    """Ctrl-C and SIGTERM outside a search exit 130 and 143, not click's
+    "Aborted!" with status 1 (which means a violation)."""
+
+    def invoke(self, ctx):
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGTERM, _on_sigterm)
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            click.echo("pccl: interrupted", err=True)
+            sys.exit(_interrupted_status(130))
+
+
+@click.group(cls=_Main, epilog=EXIT_STATUS_HELP,
+             context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(package_name="pccl")
 def main():
     """pccl: run and model-check PCCL programs for teams of robots.
@@ -91,8 +125,8 @@ def main():
       pccl explore PROGRAM          every interleaving, breadth-first, with
                                     shortest counterexamples
 
-    Exit status: 0 no problem, 1 a violation (stuck agent, failed assertion,
-    invariant, deadlock), 2 bad input.
+    A violation is a stuck agent, a failed assertion or invariant, a deadlock
+    or (with --collisions) a collision.
     """
 
 
@@ -114,7 +148,7 @@ def check(program, world):
     click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
 
 
-@main.command(short_help="Execute a program once (seeded).")
+@main.command(short_help="Execute a program once (seeded).", epilog=EXIT_STATUS_HELP)
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--seed", type=int, default=0, show_default=True, help="random seed: same seed, same run")
@@ -130,6 +164,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         max_time, max_steps, trace, fmt, plot):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
+    if plot:
+        _check_plot_output(plot)
     try:
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
                       max_steps=max_steps, record_trace=trace or plot is not None,
@@ -202,15 +238,45 @@ def _plot_module():
     return plot
 
 
+def _check_plot_output(path):
+    """Before any work: --plot needs matplotlib and a writable path, so that
+    a failure to write it never replaces the verdict's exit status."""
+    _plot_module()
+    try:
+        check_writable(path, "--plot")
+    except PcclError as e:
+        _fail(e)
+
+
+def check_writable(path, option):
+    """Raise a PcclError unless ``path`` can be created or overwritten."""
+    import os
+    full = os.path.abspath(os.fspath(path))
+    parent = os.path.dirname(full)
+    problem = None
+    if os.path.isdir(full):
+        problem = "it is a directory"
+    elif not os.path.isdir(parent):
+        problem = f"directory {os.path.dirname(os.fspath(path)) or parent} does not exist"
+    elif os.path.exists(full) and not os.access(full, os.W_OK):
+        problem = "the file is not writable"
+    elif not os.path.exists(full) and not os.access(parent, os.W_OK | os.X_OK):
+        problem = f"directory {os.path.dirname(os.fspath(path)) or '.'} is not writable"
+    if problem:
+        raise PcclError(f"cannot write {path}: {problem}", filename=option)
+
+
 def _plot_run(m, res, path, *, quiet=False):
     try:
         _plot_module().plot_run(m, res, path)
-    except PcclError as e:
-        _fail(e)
+    except PcclError as e:      # the run's verdict stands: report, keep its exit status
+        click.echo(e.render(), err=True)
+        return
     click.echo(f"plot written to {path}", err=quiet)
 
 
-@main.command(short_help="Explore every interleaving; shortest counterexamples.")
+@main.command(short_help="Explore every interleaving; shortest counterexamples.",
+              epilog=EXIT_STATUS_HELP)
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--depth", type=click.IntRange(min=0), default=None,
@@ -240,6 +306,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
+    if plot:
+        _check_plot_output(plot)
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
@@ -266,12 +334,12 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         try:
             _plot_module().plot_trace(model, res.violations[0]["_raw_trace"], plot,
                                       title=res.violations[0]["message"])
-        except PcclError as e:
-            _fail(e)
-        click.echo(f"plot written to {plot}", err=(fmt == "json"))
+            click.echo(f"plot written to {plot}", err=(fmt == "json"))
+        except PcclError as e:  # the violation stands: report, keep exit status 1
+            click.echo(e.render(), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
-    sys.exit(res.exit_status)
+    sys.exit(_interrupted_status(res.exit_status))
 
 
 def _progress_printer():

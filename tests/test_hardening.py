@@ -364,3 +364,82 @@ def test_api_check():
     assert "getInput" in info.functions or info.variables
     with pytest.raises(PcclError, match="unknown function 'getCount'"):
         api.check("loc:\n  int c = getCount();\n", source=True)
+
+
+# ---------------------------------------------------------------------------
+# 13. exit statuses are documented and honest
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("cmd", [[], ["run"], ["explore"]])
+def test_exit_statuses_in_help(cmd):
+    out = " ".join(cli(*cmd, "--help").stdout.split())
+    for phrase in ("0 the properties hold", "1 a violation", "2 bad input",
+                   "130 interrupted (Ctrl-C)", "143 terminated (SIGTERM)"):
+        assert phrase in out, (phrase, out)
+
+
+def test_exit_statuses_in_readme():
+    from conftest import ROOT
+    text = (ROOT / "README.md").read_text()
+    assert "## Exit codes" in text
+    section = text.split("## Exit codes", 1)[1].split("\n## ", 1)[0]
+    for code in ("| 0 |", "| 1 |", "| 2 |", "| 130 |", "| 143 |"):
+        assert code in section, code
+
+
+@pytest.mark.parametrize("cmd", ["run", "explore"])
+@pytest.mark.parametrize("where", ["missing-dir", "parent-is-a-file"])
+def test_unwritable_plot_path_is_rejected_before_the_search(cmd, where, tmp_path, monkeypatch):
+    import pccl.api
+    calls = []
+    monkeypatch.setattr(pccl.api, "explore_model", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(pccl.api, "run", lambda *a, **k: calls.append(1))
+    (tmp_path / "file").write_text("")
+    path = tmp_path / ("no" if where == "missing-dir" else "file") / "x.png"
+    res = cli(cmd, FISCHER, *SMALL, "--plot", path)
+    user_error(res, f"cannot write {path}: ", where="--plot")
+    assert calls == [], "the search must not start"
+
+
+def test_plot_failure_keeps_the_violation_status(tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib")
+    import pccl.plot
+
+    def fail(*a, **k):
+        raise PcclError("cannot write plot: disk full", filename=str(tmp_path / "x.png"))
+    monkeypatch.setattr(pccl.plot, "plot_trace", fail)
+    monkeypatch.setattr(pccl.plot, "plot_run", fail)
+    res = cli("explore", FISCHER, *SMALL, "--invariant", "count(inCs) <= 1",
+              "--plot", tmp_path / "x.png")
+    assert res.exit_code == 1, res.output
+    assert "violation:" in res.stdout and "disk full" in res.stderr
+    res = cli("run", FISCHER, *SMALL, "--max-time", "3",
+              "--plot", tmp_path / "x.png")
+    assert res.exit_code == 0 and "disk full" in res.stderr
+
+
+def test_ctrl_c_during_run_exits_130(monkeypatch):
+    import pccl.api
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(pccl.api, "run", interrupted)
+    res = cli("run", FISCHER)
+    assert res.exit_code == 130 and "interrupted" in res.stderr
+    assert "Aborted" not in res.output
+
+
+@pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_signals_stop_explore_with_their_status(sig, code):
+    import signal
+    import subprocess
+    import sys
+    import time
+    p = subprocess.Popen([sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--no-progress"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(3)
+    p.send_signal(getattr(signal, sig))
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == code, (out, err)
+    assert "interrupted" in out and "statistics:" in out
+    assert "Traceback" not in out + err
