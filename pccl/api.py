@@ -61,7 +61,7 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
         decls.append(d)
     if overrides:
         names = ", ".join(sorted(overrides))
-        raise PcclError(f"--set: no variable named {names} in {prog.filename}")
+        raise PcclError(f"no variable named {names} in {prog.filename}", filename="--set")
     return dataclasses.replace(prog, decls=tuple(decls))
 
 

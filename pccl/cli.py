@@ -27,6 +27,17 @@ class RateType(click.ParamType):
             self.fail(f"{value!r} is not AGENT=RATE (for example 1=2)", param, ctx)
 
 
+class FiniteFloat(click.FloatRange):
+    """A float range that also refuses nan and inf (click lets them through)."""
+
+    def convert(self, value, param, ctx):
+        import math
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return rv
+
+
 class SetType(click.ParamType):
     name = "NAME=EXPR"
 
@@ -46,7 +57,7 @@ def common_options(f):
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
         click.option("--blackbox", "-b", default="straight", show_default=False, help=BLACKBOX_HELP),
-        click.option("--delta", type=click.FloatRange(min=0, min_open=True), default=1.0,
+        click.option("--delta", type=FiniteFloat(min=0, min_open=True), default=1.0,
                      show_default=True, help="time step δ"),
         click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
                      help="event-block executions per agent per time step"),
@@ -152,7 +163,7 @@ def check(program, world):
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--seed", type=int, default=0, show_default=True, help="random seed: same seed, same run")
-@click.option("--max-time", type=click.FloatRange(min=0), default=100, show_default=True,
+@click.option("--max-time", type=FiniteFloat(min=0), default=100, show_default=True,
               help="stop when global time would pass this")
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
@@ -281,7 +292,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @common_options
 @click.option("--depth", type=click.IntRange(min=0), default=None,
               help="explore at most this many transitions from an initial state")
-@click.option("--max-time", type=click.FloatRange(min=0), default=None,
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
               help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
 @click.option("--max-states", type=click.IntRange(min=1), default=None,
               help="stop after this many distinct states")

@@ -143,39 +143,48 @@ class Model:
 
         self.program = program
         self.world = world if world is not None else default_world()
-        if blackbox is None:
-            blackbox = load_blackbox("straight")
-        elif isinstance(blackbox, str):          # '' is an error, not the default
-            blackbox = load_blackbox(blackbox)
-        else:
-            _check_blackbox_object(blackbox)
+        try:
+            if blackbox is None:
+                blackbox = load_blackbox("straight")
+            elif isinstance(blackbox, str):          # '' is an error, not the default
+                blackbox = load_blackbox(blackbox)
+            else:
+                _check_blackbox_object(blackbox)
+        except PcclError as e:
+            if e.filename is None:
+                e.filename = "--blackbox"
+            raise
         self.blackbox = blackbox
         if n_agents is None:
             n_agents = self.world.n_agents or 2
         if n_agents < 1:
-            raise PcclError(f"the number of agents must be at least 1, got {n_agents}")
+            raise PcclError(f"the number of agents must be at least 1, got {n_agents}",
+                            filename="--agents")
         self.N = n_agents
         if not (isinstance(delta, (int, float)) and delta > 0):
-            raise PcclError(f"delta must be positive, got {delta}")
+            raise PcclError(f"δ must be positive, got {delta}", filename="--delta")
         if not (isinstance(n0, int) and n0 >= 1):
-            raise PcclError(f"n0 must be a positive integer, got {n0}")
+            raise PcclError(f"n0 must be a positive integer, got {n0}", filename="--n0")
         self.delta = delta
         self.n0 = n0
         self.rho = [1] * n_agents
         for a, r in (rates or {}).items():
             if not (isinstance(a, int) and 0 <= a < n_agents):
-                raise PcclError(f"--rate: agent {a} does not exist (agents are 0..{n_agents - 1})")
+                raise PcclError(f"agent {a} does not exist (agents are 0..{n_agents - 1})",
+                                filename="--rate")
             if not (isinstance(r, int) and r >= 1):
-                raise PcclError(f"--rate: rate of agent {a} must be a positive integer, got {r}")
+                raise PcclError(f"rate of agent {a} must be a positive integer, got {r}",
+                                filename="--rate")
             if r > n0:
                 # counter + ρ ≤ n0 never holds: the agent would never run an event
                 # and a search would "explore clean" without it
-                raise PcclError(f"--rate: rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
+                raise PcclError(f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
                                 f"would never run an event (it runs while counter + rate ≤ n0); "
-                                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
+                                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})",
+                                filename="--rate")
             self.rho[a] = r
         if events not in ("any", "first"):
-            raise PcclError(f"--events must be 'any' or 'first', got {events!r}")
+            raise PcclError(f"must be 'any' or 'first', got {events!r}", filename="--events")
         self.first_only = events == "first"
         self.events_policy = events
         self.max_time = max_time
@@ -223,10 +232,10 @@ class Model:
             abstract_time = sound
         elif abstract_time and uses_time:
             raise PcclError("time abstraction is unsound here: a property or the blackbox "
-                            "reads the clock; drop --abstract-time")
+                            "reads the clock; drop --abstract-time", filename="--abstract-time")
         elif abstract_time and max_time is not None:
             raise PcclError("time abstraction cannot be combined with --max-time: the bound "
-                            "reads the clock; drop --abstract-time")
+                            "reads the clock; drop --abstract-time", filename="--abstract-time")
         self.abstract_time = bool(abstract_time)
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
@@ -459,7 +468,8 @@ class Model:
     # -- blackbox calls: user code, so every failure names the blackbox ------------------
     def blackbox_error(self, time, what):
         name = getattr(self.blackbox, "name", type(self.blackbox).__name__)
-        raise PcclError(f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}")
+        raise PcclError(f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}",
+                        filename="--blackbox")
 
     def _call_blackbox(self, time, method, *args):
         try:

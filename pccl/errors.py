@@ -28,6 +28,8 @@ class PcclError(Exception):
                  line: Optional[int] = None, column: Optional[int] = None,
                  end_column: Optional[int] = None):
         super().__init__(message)
+        if span is not None and getattr(span, "origin", None) is not None:
+            filename, source = span.origin   # an option's text, not the program's
         self.message = message
         self.filename = filename
         self.source = source

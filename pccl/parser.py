@@ -129,18 +129,24 @@ _TYPE_ALIASES = {"boolean": "bool", "double": "float"}
 _NO_SID = -1
 
 
+# (filename, source) while a property (an option's text) is transformed:
+# its spans carry it, so errors point into the option, not the program.
+_ORIGIN: contextvars.ContextVar[Optional[tuple]] = contextvars.ContextVar(
+    "pccl_span_origin", default=None)
+
+
 def _tspan(tok: Token) -> ast.Span:
-    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column)
+    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column, _ORIGIN.get())
 
 
 def _mspan(meta) -> ast.Span:
     if getattr(meta, "empty", True):
         return ast.Span.unknown()
-    return ast.Span(meta.line, meta.column, meta.end_line, meta.end_column)
+    return ast.Span(meta.line, meta.column, meta.end_line, meta.end_column, _ORIGIN.get())
 
 
 def _join(start: ast.Span, end: ast.Span) -> ast.Span:
-    return ast.Span(start.line, start.column, end.end_line, end.end_column)
+    return ast.Span(start.line, start.column, end.end_line, end.end_column, start.origin)
 
 
 #: Longest integer literal: Python's limit on converting digits to int and back.
@@ -658,7 +664,11 @@ def _parse(source: str, filename: str, start: str):
             tree = lark.parse(text, start=start)
         finally:
             _PROPERTY_MODE.reset(reset)
-        result = _TRANSFORMER.transform(tree)
+        origin = _ORIGIN.set((filename, source) if property_mode else None)
+        try:
+            result = _TRANSFORMER.transform(tree)
+        finally:
+            _ORIGIN.reset(origin)
     except UnexpectedToken as e:
         raise _token_error(e, text, source, filename, property_mode) from None
     except UnexpectedCharacters as e:

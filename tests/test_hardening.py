@@ -443,3 +443,47 @@ def test_signals_stop_explore_with_their_status(sig, code):
     assert p.returncode == code, (out, err)
     assert "interrupted" in out and "statistics:" in out
     assert "Traceback" not in out + err
+
+
+# ---------------------------------------------------------------------------
+# 14. errors in option values point into the option
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("value, phrase, col, width", [
+    ("1.5", "cannot initialise 'k' of type int with float", 1, 3),
+    ("  true", "cannot initialise 'k' of type int with bool", 1, 4),
+    ("1 + nosuch", "undeclared variable 'nosuch'", 5, 6),
+    ("getInput()", "value of getInput() does not fit int", 1, 10),
+    ("foo()", "unknown function 'foo'", 1, 3),
+])
+def test_set_errors_point_into_the_option(value, phrase, col, width):
+    res = cli("explore", FISCHER, "--set", f"k={value}", "--max-states", "10")
+    err = user_error(res, phrase, where=f"--set k:1:{col}")
+    lines = err.splitlines()
+    assert lines[1].endswith("| " + value.strip()), lines
+    assert lines[2].endswith("| " + " " * (col - 1) + "^" * width), lines
+    assert "fischer.pccl" not in err
+
+
+@pytest.mark.parametrize("args, where, phrase", [
+    (["--rate", "7=2"], "--rate", "agent 7 does not exist (agents are 0..1)"),
+    (["--set", "nosuch=1"], "--set", "no variable named nosuch"),
+    (["--blackbox", "nosuch"], "--blackbox", "unknown blackbox 'nosuch'"),
+    (["--invariant", "time < 3", "--abstract-time"], "--abstract-time",
+     "time abstraction is unsound"),
+    (["--max-time", "3", "--abstract-time"], "--abstract-time", "cannot be combined"),
+])
+def test_option_errors_are_named_by_the_option(args, where, phrase):
+    res = cli("explore", FISCHER, *args)
+    err = user_error(res, phrase, where=where)
+    assert "<input>" not in err
+
+
+@pytest.mark.parametrize("cmd, opt, value", [
+    ("explore", "--max-time", "nan"), ("run", "--max-time", "nan"),
+    ("explore", "--delta", "inf"), ("run", "--delta", "nan"),
+])
+def test_non_finite_numbers_in_options(cmd, opt, value):
+    res = cli(cmd, FISCHER, opt, value)
+    assert res.exit_code == 2, res.output
+    assert f"Invalid value for '{opt}': '{value}' is not a finite number" in res.stderr
