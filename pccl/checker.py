@@ -168,6 +168,11 @@ class VarInfo:
         return self.section != "allwrite"
 
 
+#: Deepest expression nesting accepted: compiled expressions must stay within
+#: Python's own limits (about 200 nested parentheses).
+MAX_NESTING = 100
+
+
 @dataclass
 class ProgramInfo:
     """What the checker learnt: variables, enums, events, functions."""
@@ -550,6 +555,16 @@ class _Checker:
         return t
 
     def expr(self, e: ast.Expr) -> Ty:
+        depth = self.__dict__.get("_depth", 0)
+        if depth >= MAX_NESTING:
+            self.fail(f"expression nested too deeply (more than {MAX_NESTING} levels)", e.span)
+        self._depth = depth + 1
+        try:
+            return self._expr(e)
+        finally:
+            self._depth = depth
+
+    def _expr(self, e: ast.Expr) -> Ty:
         if isinstance(e, ast.IntLit):
             return INT
         if isinstance(e, ast.FloatLit):

@@ -266,7 +266,13 @@ class Compiler:
     def make(self, params: str, body: str, name: str = "_f"):
         src = f"def {name}({params}):\n" + body
         ns: dict = {}
-        exec(compile(src, f"<pccl:{name}>", "exec"), self.G, ns)
+        try:
+            code = compile(src, f"<pccl:{name}>", "exec")
+        except (SyntaxError, RecursionError, MemoryError):
+            # Python's own limits (nested parentheses, recursion) on deep expressions
+            raise PcclError("an expression is nested too deeply to compile (Python allows "
+                            "about 200 levels)", filename=self.program.filename) from None
+        exec(code, self.G, ns)
         return ns[name]
 
     def make_expr(self, e: A.Expr, *, prop: bool = False, bound=()):

@@ -39,6 +39,9 @@ from .semantics.rules import (AGENT_RULES, DISCRETE, EXITED, IDLE, RUNNING,
 
 END, AEND = -1, -2
 
+#: Most agents a model may have (each is a tuple in every state).
+MAX_AGENTS = 10_000
+
 
 def acq(sid: int) -> int:
     return -3 - sid
@@ -160,6 +163,9 @@ class Model:
         if n_agents < 1:
             raise PcclError(f"the number of agents must be at least 1, got {n_agents}",
                             filename="--agents")
+        if n_agents > MAX_AGENTS:
+            raise PcclError(f"the number of agents must be at most {MAX_AGENTS:,}, got "
+                            f"{n_agents:,}", filename="--agents")
         self.N = n_agents
         if not (isinstance(delta, (int, float)) and delta > 0):
             raise PcclError(f"δ must be positive, got {delta}", filename="--delta")

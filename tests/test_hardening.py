@@ -487,3 +487,26 @@ def test_non_finite_numbers_in_options(cmd, opt, value):
     res = cli(cmd, FISCHER, opt, value)
     assert res.exit_code == 2, res.output
     assert f"Invalid value for '{opt}': '{value}' is not a finite number" in res.stderr
+
+
+# ---------------------------------------------------------------------------
+# limits found on the way: deep expressions, absurd agent counts
+# ---------------------------------------------------------------------------
+
+def test_deeply_nested_expression_in_program(tmp_path):
+    p = tmp_path / "deep.pccl"
+    p.write_text("loc:\n  int x = " + "-" * 300 + "1;\n")
+    user_error(cli("run", p), "expression nested too deeply (more than 100 levels)",
+               where=f"{p}:2:111")
+
+
+def test_deeply_nested_expression_in_options():
+    res = cli("explore", FISCHER, "--set", "k=" + "-" * 300 + "1")
+    user_error(res, "expression nested too deeply", where="--set k:1:101")
+    res = cli("explore", FISCHER, "--invariant", "!" * 300 + "true")
+    user_error(res, "expression nested too deeply", where="--invariant #1:1:101")
+
+
+def test_absurd_agent_count():
+    res = cli("explore", FISCHER, "--agents", "100000000000")
+    user_error(res, "the number of agents must be at most 10,000", where="--agents")
