@@ -22,9 +22,14 @@ class RateType(click.ParamType):
             return value
         try:
             a, r = value.split("=")
-            return int(a), int(r)
+            a, r = int(a), int(r)
         except ValueError:
             self.fail(f"{value!r} is not AGENT=RATE (for example 1=2)", param, ctx)
+        if a < 0:
+            self.fail(f"{value!r}: agents are numbered from 0", param, ctx)
+        if r < 1:
+            self.fail(f"{value!r}: a rate is a positive integer", param, ctx)
+        return a, r
 
 
 class FiniteFloat(click.FloatRange):
@@ -82,6 +87,12 @@ def _delta(d):
 
 
 def _model_options(delta, n0, rates, events, collisions, overrides):
+    for opt, pairs, what in (("--rate", rates, "agent"), ("--set", overrides, "variable")):
+        names = [k for k, _ in pairs]
+        twice = sorted({str(k) for k in names if names.count(k) > 1})
+        if twice:
+            raise click.BadParameter(f"{what} {', '.join(twice)} given more than once",
+                                     param_hint=f"'{opt}'")
     return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
                 collisions=collisions, overrides=dict(overrides))
 

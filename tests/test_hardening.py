@@ -510,3 +510,15 @@ def test_deeply_nested_expression_in_options():
 def test_absurd_agent_count():
     res = cli("explore", FISCHER, "--agents", "100000000000")
     user_error(res, "the number of agents must be at most 10,000", where="--agents")
+
+
+@pytest.mark.parametrize("args, phrase", [
+    (["--rate=-1=1"], "'-1=1': agents are numbered from 0"),
+    (["--rate", "1=0"], "'1=0': a rate is a positive integer"),
+    (["--set", "k=2", "--set", "k=3"], "variable k given more than once"),
+    (["--rate", "1=1", "--rate", "1=1"], "agent 1 given more than once"),
+])
+def test_option_values_checked_by_the_option_parser(args, phrase):
+    res = cli("explore", FISCHER, *args, "--max-states", "10")
+    assert res.exit_code == 2, res.output
+    assert phrase in res.stderr and "pccl.api" not in res.stderr
