@@ -126,13 +126,17 @@ class _Main(click.Group):
     def invoke(self, ctx):
         import signal
         import threading
+        previous = None
         if threading.current_thread() is threading.main_thread():
-            signal.signal(signal.SIGTERM, _on_sigterm)
+            previous = signal.signal(signal.SIGTERM, _on_sigterm)
         try:
             return super().invoke(ctx)
         except KeyboardInterrupt:
             click.echo("pccl: interrupted", err=True)
             sys.exit(_interrupted_status(130))
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
 
 
 @click.group(cls=_Main, epilog=EXIT_STATUS_HELP,
