@@ -84,6 +84,9 @@ def load_blackbox(spec: str):
         raise PcclError(f"bad blackbox '{spec}': {attr} is not a blackbox "
                         f"(missing {', '.join(missing)}; see "
                         "pccl.blackboxes.base)")
+    if not isinstance(obj.name, str) or not obj.name:
+        raise PcclError(f"bad blackbox '{spec}': {attr}.name must be a non-empty "
+                        f"string, got {obj.name!r:.60}")
     if not callable(obj.step) or not callable(obj.init_env):
         raise PcclError(f"bad blackbox '{spec}': {attr}.step and "
                         f"{attr}.init_env must be methods")

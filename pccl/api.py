@@ -22,6 +22,8 @@ from . import ast as A
 from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
+from . import validate as V
+from .errors import ArgumentError
 from .runner import RunResult, run as _run
 
 
@@ -59,7 +61,7 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
         decls.append(d)
     if overrides:
         names = ", ".join(sorted(overrides))
-        raise PcclError(f"--set: no variable named {names} in {prog.filename}")
+        raise PcclError(f"no variable named {names} in {prog.filename}", filename="--set")
     return dataclasses.replace(prog, decls=tuple(decls))
 
 
@@ -69,6 +71,11 @@ def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = No
     """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
     sampled from the generator instead of branching.  ``overrides`` maps
     variable names to PCCL expressions replacing their initialisers."""
+    V.model_args("make_model", program, world_=world, blackbox_=blackbox, agents=agents,
+                 seed=seed, overrides_=overrides, source=source, options=options)
+    if rng is not None and not isinstance(rng, random.Random):
+        raise ArgumentError(f"rng must be a random.Random or None, got {type(rng).__name__}",
+                            filename="pccl.api.make_model")
     prog = apply_overrides(load_program(program, source=source), overrides)
     w = load_world_arg(world)
     if rng is None and seed is not None:
@@ -107,6 +114,10 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), **model_options) -> ExploreResult:
+    V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
+                options={**model_options, "invariants": invariants})
+    V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
+                  find_all=find_all, exact=exact, progress=progress)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                        invariants=tuple(invariants), **model_options)
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
@@ -115,6 +126,11 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
 
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None) -> ExploreResult:
+    if not isinstance(model, Model):
+        raise ArgumentError(f"model must be a Model (from make_model), got "
+                            f"{type(model).__name__}", filename="pccl.api.explore_model")
+    V.search_args("explore_model", depth=depth, max_states=max_states, deadlock=deadlock,
+                  find_all=find_all, exact=exact, progress=progress)
     ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress)
     sr = ex.run()
@@ -179,9 +195,33 @@ def violation_data(model, found: Counterexample) -> dict:
 def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
         max_steps: int = 100_000, record_trace: bool = False, max_time=100,
         **model_options) -> RunResult:
+    V.integer("run", "seed", seed)
+    V.call_args("run", program, world_=world, blackbox_=blackbox, agents=agents, seed=seed,
+                options={**model_options, "max_time": max_time})
+    if "abstract_time" in model_options:
+        raise ArgumentError("abstract_time is not an option of run (a run keeps the clock)",
+                            filename="pccl.api.run")
+    V.integer("run", "max_steps", max_steps, minimum=1)
+    V.boolean("run", "record_trace", record_trace)
     rng = random.Random(seed)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
                        max_time=max_time, abstract_time=False, **model_options)
     res = _run(model, seed=seed, max_steps=max_steps, record_trace=record_trace, rng=rng)
     res.model = model
     return res
+
+
+# ---------------------------------------------------------------------------
+# check
+# ---------------------------------------------------------------------------
+
+def check(program, *, world=None, source: bool = False):
+    """Parse and statically check ``program`` (``pccl check``); the names of
+    ``world``'s functions may be called.  Returns the checker's ProgramInfo."""
+    from .checker import check_program
+    V.program("check", program, source)
+    V.world("check", world)
+    prog = load_program(program, source=source)
+    w = load_world_arg(world)
+    names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
+    return check_program(prog, functions=names)

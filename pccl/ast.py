@@ -24,6 +24,9 @@ class Span:
     column: int
     end_line: int
     end_column: int
+    #: (filename, source) of text that is not the program's own, such as an
+    #: option's value (``--set k=...``); errors at this span point there.
+    origin: Optional[tuple] = field(default=None, compare=False, repr=False)
 
     @staticmethod
     def unknown() -> "Span":

@@ -168,6 +168,11 @@ class VarInfo:
         return self.section != "allwrite"
 
 
+#: Deepest expression nesting accepted: compiled expressions must stay within
+#: Python's own limits (about 200 nested parentheses).
+MAX_NESTING = 100
+
+
 @dataclass
 class ProgramInfo:
     """What the checker learnt: variables, enums, events, functions."""
@@ -270,29 +275,38 @@ class _Checker:
     def text(self, node, default: str) -> str:
         """The source text of a one-line node, else ``default``."""
         s = getattr(node, "span", None)
-        if s is None or s.line < 1 or s.line != s.end_line or s.line > len(self.lines):
+        lines = self.lines_of(s)
+        if s is None or s.line < 1 or s.line != s.end_line or s.line > len(lines):
             return default
-        t = self.lines[s.line - 1][s.column - 1:s.end_column - 1].strip()
+        t = lines[s.line - 1][s.column - 1:s.end_column - 1].strip()
         return t or default
 
     def find_word(self, span: Span, word: str, start: Optional[int] = None) -> Span:
         """The span of ``word`` on the first line of ``span`` (from column
         ``start``); the whole span when it cannot be found."""
-        if span.line < 1 or span.line > len(self.lines):
+        lines = self.lines_of(span)
+        if span.line < 1 or span.line > len(lines):
             return span
-        line = self.lines[span.line - 1]
+        line = lines[span.line - 1]
         col = (start if start else span.column) - 1
         m = re.compile(r"(?<![\w])" + re.escape(word) + r"(?![\w])").search(line, max(col, 0))
         if not m:
             return span
-        return Span(span.line, m.start() + 1, span.line, m.end() + 1)
+        return Span(span.line, m.start() + 1, span.line, m.end() + 1, span.origin)
 
     def name_span(self, node) -> Span:
         """The span of a call's function name (calls start with the name)."""
         s = node.span
         if s.line < 1:
             return s
-        return Span(s.line, s.column, s.line, s.column + len(node.name))
+        return Span(s.line, s.column, s.line, s.column + len(node.name), s.origin)
+
+    def lines_of(self, span) -> list:
+        """The lines ``span`` refers to: the program's, or an option's text."""
+        origin = getattr(span, "origin", None)
+        if origin is not None and origin[1] is not None:
+            return origin[1].splitlines()
+        return self.lines
 
     # ---- program ---------------------------------------------------------
 
@@ -541,6 +555,16 @@ class _Checker:
         return t
 
     def expr(self, e: ast.Expr) -> Ty:
+        depth = self.__dict__.get("_depth", 0)
+        if depth >= MAX_NESTING:
+            self.fail(f"expression nested too deeply (more than {MAX_NESTING} levels)", e.span)
+        self._depth = depth + 1
+        try:
+            return self._expr(e)
+        finally:
+            self._depth = depth
+
+    def _expr(self, e: ast.Expr) -> Ty:
         if isinstance(e, ast.IntLit):
             return INT
         if isinstance(e, ast.FloatLit):
@@ -743,7 +767,12 @@ class _Checker:
     def call(self, e: ast.Call) -> Ty:
         b = self.info.function(e.name)
         if b is None:
-            self.fail(f"unknown function '{e.name}'", self.name_span(e))
+            hint = ""
+            if self.mode == "program" and not e.args:
+                # a zero-argument call the world could define (uninterpreted)
+                hint = (f": not a built-in; a function the world provides needs --world FILE "
+                        f"defining {e.name} under [functions]")
+            self.fail(f"unknown function '{e.name}'{hint}", self.name_span(e))
         if b.is_statement:
             self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
         if self.mode == "property":

@@ -22,9 +22,25 @@ class RateType(click.ParamType):
             return value
         try:
             a, r = value.split("=")
-            return int(a), int(r)
+            a, r = int(a), int(r)
         except ValueError:
             self.fail(f"{value!r} is not AGENT=RATE (for example 1=2)", param, ctx)
+        if a < 0:
+            self.fail(f"{value!r}: agents are numbered from 0", param, ctx)
+        if r < 1:
+            self.fail(f"{value!r}: a rate is a positive integer", param, ctx)
+        return a, r
+
+
+class FiniteFloat(click.FloatRange):
+    """A float range that also refuses nan and inf (click lets them through)."""
+
+    def convert(self, value, param, ctx):
+        import math
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return rv
 
 
 class SetType(click.ParamType):
@@ -46,12 +62,13 @@ def common_options(f):
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
         click.option("--blackbox", "-b", default="straight", show_default=False, help=BLACKBOX_HELP),
-        click.option("--delta", type=click.FloatRange(min=0, min_open=True), default=1.0,
+        click.option("--delta", type=FiniteFloat(min=0, min_open=True), default=1.0,
                      show_default=True, help="time step δ"),
         click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
                      help="event-block executions per agent per time step"),
         click.option("--rate", "rates", type=RateType(), multiple=True,
-                     help="per-agent rate ρ, e.g. --rate 1=2 (repeatable)"),
+                     help="per-agent rate ρ, 1..n0: each event block of agent A costs ρ of the "
+                          "n0 per time step, e.g. --n0 2 --rate 1=2 (repeatable)"),
         click.option("--events", type=click.Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
@@ -70,6 +87,12 @@ def _delta(d):
 
 
 def _model_options(delta, n0, rates, events, collisions, overrides):
+    for opt, pairs, what in (("--rate", rates, "agent"), ("--set", overrides, "variable")):
+        names = [k for k, _ in pairs]
+        twice = sorted({str(k) for k in names if names.count(k) > 1})
+        if twice:
+            raise click.BadParameter(f"{what} {', '.join(twice)} given more than once",
+                                     param_hint=f"'{opt}'")
     return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
                 collisions=collisions, overrides=dict(overrides))
 
@@ -79,7 +102,45 @@ def _fail(err: PcclError):
     sys.exit(2)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
+                    "named), 1 a violation, 2 bad input (the program, the world, an option), "
+                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+
+_signal = {"term": False}
+
+
+def _on_sigterm(signum, frame):
+    # stop like Ctrl-C (explore prints the statistics so far), exit 143
+    _signal["term"] = True
+    raise KeyboardInterrupt
+
+
+def _interrupted_status(code: int) -> int:
+    return 143 if code == 130 and _signal["term"] else code
+
+
+class _Main(click.Group):
+    """Ctrl-C and SIGTERM outside a search exit 130 and 143, not click's
+    "Aborted!" with status 1 (which means a violation)."""
+
+    def invoke(self, ctx):
+        import signal
+        import threading
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGTERM, _on_sigterm)
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            click.echo("pccl: interrupted", err=True)
+            sys.exit(_interrupted_status(130))
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
+
+
+@click.group(cls=_Main, epilog=EXIT_STATUS_HELP,
+             context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(package_name="pccl")
 def main():
     """pccl: run and model-check PCCL programs for teams of robots.
@@ -90,8 +151,8 @@ def main():
       pccl explore PROGRAM          every interleaving, breadth-first, with
                                     shortest counterexamples
 
-    Exit status: 0 no problem, 1 a violation (stuck agent, failed assertion,
-    invariant, deadlock), 2 bad input.
+    A violation is a stuck agent, a failed assertion or invariant, a deadlock
+    or (with --collisions) a collision.
     """
 
 
@@ -113,11 +174,11 @@ def check(program, world):
     click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
 
 
-@main.command(short_help="Execute a program once (seeded).")
+@main.command(short_help="Execute a program once (seeded).", epilog=EXIT_STATUS_HELP)
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--seed", type=int, default=0, show_default=True, help="random seed: same seed, same run")
-@click.option("--max-time", type=click.FloatRange(min=0), default=100, show_default=True,
+@click.option("--max-time", type=FiniteFloat(min=0), default=100, show_default=True,
               help="stop when global time would pass this")
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
@@ -129,6 +190,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         max_time, max_steps, trace, fmt, plot):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
+    if plot:
+        _check_plot_output(plot)
     try:
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
                       max_steps=max_steps, record_trace=trace or plot is not None,
@@ -139,6 +202,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     m = res.model
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
+               "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
                "result": res.status, "message": res.message, "exit_status": res.exit_status,
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
@@ -149,7 +213,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}, seed {seed}")
+                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
         if trace:
             click.echo("trace:")
             for n, (lab, a, b) in enumerate(res.trace):
@@ -170,6 +234,12 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(res.exit_status)
+
+
+def _rates_text(m) -> str:
+    """The agents whose rate ρ is not 1, for the header line ("" when none)."""
+    odd = [f"{i}={r}" for i, r in enumerate(m.rho) if r != 1]
+    return f", rates {' '.join(odd)}" if odd else ""
 
 
 def _step_summary(m, prev, s) -> str:
@@ -194,20 +264,50 @@ def _plot_module():
     return plot
 
 
+def _check_plot_output(path):
+    """Before any work: --plot needs matplotlib and a writable path, so that
+    a failure to write it never replaces the verdict's exit status."""
+    _plot_module()
+    try:
+        check_writable(path, "--plot")
+    except PcclError as e:
+        _fail(e)
+
+
+def check_writable(path, option):
+    """Raise a PcclError unless ``path`` can be created or overwritten."""
+    import os
+    full = os.path.abspath(os.fspath(path))
+    parent = os.path.dirname(full)
+    problem = None
+    if os.path.isdir(full):
+        problem = "it is a directory"
+    elif not os.path.isdir(parent):
+        problem = f"directory {os.path.dirname(os.fspath(path)) or parent} does not exist"
+    elif os.path.exists(full) and not os.access(full, os.W_OK):
+        problem = "the file is not writable"
+    elif not os.path.exists(full) and not os.access(parent, os.W_OK | os.X_OK):
+        problem = f"directory {os.path.dirname(os.fspath(path)) or '.'} is not writable"
+    if problem:
+        raise PcclError(f"cannot write {path}: {problem}", filename=option)
+
+
 def _plot_run(m, res, path, *, quiet=False):
     try:
         _plot_module().plot_run(m, res, path)
-    except PcclError as e:
-        _fail(e)
+    except PcclError as e:      # the run's verdict stands: report, keep its exit status
+        click.echo(e.render(), err=True)
+        return
     click.echo(f"plot written to {path}", err=quiet)
 
 
-@main.command(short_help="Explore every interleaving; shortest counterexamples.")
+@main.command(short_help="Explore every interleaving; shortest counterexamples.",
+              epilog=EXIT_STATUS_HELP)
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options
 @click.option("--depth", type=click.IntRange(min=0), default=None,
               help="explore at most this many transitions from an initial state")
-@click.option("--max-time", type=click.FloatRange(min=0), default=None,
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
               help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
 @click.option("--max-states", type=click.IntRange(min=1), default=None,
               help="stop after this many distinct states")
@@ -232,6 +332,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
+    if plot:
+        _check_plot_output(plot)
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
@@ -241,8 +343,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _fail(e)
     show = sys.stderr.isatty() if progress is None else progress
     reporter = _progress_printer() if show else None
-    res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
-                        find_all=find_all, exact=exact, progress=reporter)
+    try:
+        res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
+                            find_all=find_all, exact=exact, progress=reporter)
+    except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
+        if show:
+            click.echo("\r\033[K", err=True, nl=False)
+        _fail(e)
     if show:
         click.echo("\r\033[K", err=True, nl=False)
     if fmt == "json":
@@ -253,12 +360,12 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         try:
             _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
                                       title=res.violations[0]["message"])
-        except PcclError as e:
-            _fail(e)
-        click.echo(f"plot written to {plot}", err=(fmt == "json"))
+            click.echo(f"plot written to {plot}", err=(fmt == "json"))
+        except PcclError as e:  # the violation stands: report, keep exit status 1
+            click.echo(e.render(), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
-    sys.exit(res.exit_status)
+    sys.exit(_interrupted_status(res.exit_status))
 
 
 def _progress_printer():
@@ -289,7 +396,7 @@ def _stats_lines(res) -> list:
 def _print_explore_text(program, res, *, k_style=False):
     m = res.model
     click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-               f"δ={D.fmt_time(m.delta)}, n0={m.n0}, events {m.events_policy}, "
+               f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
                f"time abstraction {'on' if m.abstract_time else 'off'}")
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
@@ -314,6 +421,7 @@ def _print_explore_text(program, res, *, k_style=False):
 def _explore_json(program, res) -> dict:
     m = res.model
     return {"program": program, "blackbox": res.blackbox, "agents": m.N,
+            "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
             "statistics": res.stats.as_dict(),

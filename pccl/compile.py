@@ -300,7 +300,13 @@ class Compiler:
     def make(self, params: str, body: str, name: str = "_f"):
         src = f"def {name}({params}):\n" + body
         ns: dict = {}
-        exec(compile(src, f"<pccl:{name}>", "exec"), self.G, ns)
+        try:
+            code = compile(src, f"<pccl:{name}>", "exec")
+        except (SyntaxError, RecursionError, MemoryError):
+            # Python's own limits (nested parentheses, recursion) on deep expressions
+            raise PcclError("an expression is nested too deeply to compile (Python allows "
+                            "about 200 levels)", filename=self.program.filename) from None
+        exec(code, self.G, ns)
         return ns[name]
 
     def make_expr(self, e: A.Expr, *, prop: bool = False, bound=()):
@@ -318,7 +324,11 @@ class Compiler:
         try:
             return coerce(raw, ty)
         except ValueError as exc:
-            self.error(f"value of {name}() does not fit {ty}: {exc}", node)
+            hint = ""
+            if raw == ():
+                hint = (f" ({name}() is the empty list unless the world gives it a value: "
+                        f"needs --world FILE with {name} under [functions])")
+            self.error(f"value of {name}() does not fit {ty}: {exc}{hint}", node)
 
     # -- expressions ---------------------------------------------------------
     def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[VType] = None) -> str:

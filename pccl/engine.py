@@ -22,6 +22,7 @@ maps it back and decodes its head once.
 
 from __future__ import annotations
 
+import math
 import operator
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -37,6 +38,9 @@ from .semantics.rules import (AGENT_RULES, DISCRETE, EXITED, IDLE, RUNNING,
                               K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
 
 END, AEND = -1, -2
+
+#: Most agents a model may have (each is a tuple in every state).
+MAX_AGENTS = 10_000
 
 
 def acq(sid: int) -> int:
@@ -142,29 +146,51 @@ class Model:
 
         self.program = program
         self.world = world if world is not None else default_world()
-        if blackbox is None or isinstance(blackbox, str):
-            blackbox = load_blackbox(blackbox or "straight")
+        try:
+            if blackbox is None:
+                blackbox = load_blackbox("straight")
+            elif isinstance(blackbox, str):          # '' is an error, not the default
+                blackbox = load_blackbox(blackbox)
+            else:
+                _check_blackbox_object(blackbox)
+        except PcclError as e:
+            if e.filename is None:
+                e.filename = "--blackbox"
+            raise
         self.blackbox = blackbox
         if n_agents is None:
             n_agents = self.world.n_agents or 2
         if n_agents < 1:
-            raise PcclError(f"the number of agents must be at least 1, got {n_agents}")
+            raise PcclError(f"the number of agents must be at least 1, got {n_agents}",
+                            filename="--agents")
+        if n_agents > MAX_AGENTS:
+            raise PcclError(f"the number of agents must be at most {MAX_AGENTS:,}, got "
+                            f"{n_agents:,}", filename="--agents")
         self.N = n_agents
         if not (isinstance(delta, (int, float)) and delta > 0):
-            raise PcclError(f"delta must be positive, got {delta}")
+            raise PcclError(f"δ must be positive, got {delta}", filename="--delta")
         if not (isinstance(n0, int) and n0 >= 1):
-            raise PcclError(f"n0 must be a positive integer, got {n0}")
+            raise PcclError(f"n0 must be a positive integer, got {n0}", filename="--n0")
         self.delta = delta
         self.n0 = n0
         self.rho = [1] * n_agents
         for a, r in (rates or {}).items():
             if not (isinstance(a, int) and 0 <= a < n_agents):
-                raise PcclError(f"--rate: agent {a} does not exist (agents are 0..{n_agents - 1})")
+                raise PcclError(f"agent {a} does not exist (agents are 0..{n_agents - 1})",
+                                filename="--rate")
             if not (isinstance(r, int) and r >= 1):
-                raise PcclError(f"--rate: rate of agent {a} must be a positive integer, got {r}")
+                raise PcclError(f"rate of agent {a} must be a positive integer, got {r}",
+                                filename="--rate")
+            if r > n0:
+                # counter + ρ ≤ n0 never holds: the agent would never run an event
+                # and a search would "explore clean" without it
+                raise PcclError(f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
+                                f"would never run an event (it runs while counter + rate ≤ n0); "
+                                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})",
+                                filename="--rate")
             self.rho[a] = r
         if events not in ("any", "first"):
-            raise PcclError(f"--events must be 'any' or 'first', got {events!r}")
+            raise PcclError(f"must be 'any' or 'first', got {events!r}", filename="--events")
         self.first_only = events == "first"
         self.events_policy = events
         self.max_time = max_time
@@ -212,10 +238,10 @@ class Model:
             abstract_time = sound
         elif abstract_time and uses_time:
             raise PcclError("time abstraction is unsound here: a property or the blackbox "
-                            "reads the clock; drop --abstract-time")
+                            "reads the clock; drop --abstract-time", filename="--abstract-time")
         elif abstract_time and max_time is not None:
             raise PcclError("time abstraction cannot be combined with --max-time: the bound "
-                            "reads the clock; drop --abstract-time")
+                            "reads the clock; drop --abstract-time", filename="--abstract-time")
         self.abstract_time = bool(abstract_time)
         self.key = operator.itemgetter(slice(1, None) if self.abstract_time else slice(None))
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
@@ -308,7 +334,8 @@ class Model:
              self.round_pos(starts[i]), blank_reach)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
-        env0 = self.blackbox.init_env(self.world, N)
+        env0 = self._call_blackbox(0, "init_env", self.world, N)
+        _check_env(self, env0, 0)
         states = [(0, DISCRETE, (), shared0, agents, env0)]
         # shared initialisers, evaluated once (in agent 0's context)
         for vs in lay.shared:
@@ -425,14 +452,18 @@ class Model:
             return hit
         motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
                                ag[3] == RUNNING) for ag in ags)
-        outcomes = bb.step(self.world, motions, st[5], st[0], self.delta)
+        outcomes = self._call_blackbox(st[0], "step", self.world, motions, st[5], st[0],
+                                       self.delta)
+        if isinstance(outcomes, (str, bytes)) or not hasattr(outcomes, "__iter__"):
+            self.blackbox_error(st[0], f"step() must return a list of Outcome, got "
+                                       f"{_type_of(outcomes)}")
+        outcomes = list(outcomes)
         if not outcomes:
-            raise PcclError(f"blackbox '{bb.name}' returned no outcome")
+            self.blackbox_error(st[0], "step() returned no outcome (it must return at least one)")
         res = []
         seen = set()
-        for o in outcomes:
-            r = (tuple(self.round_pos(p) for p in o.positions), tuple(bool(x) for x in o.done),
-                 tuple(bool(x) for x in o.fail), o.env)
+        for n, o in enumerate(outcomes):
+            r = self._check_outcome(st[0], n + 1, o)
             if r not in seen:
                 seen.add(r)
                 res.append(r)
@@ -441,12 +472,56 @@ class Model:
         self._env_cache[ckey] = res
         return res
 
+    # -- blackbox calls: user code, so every failure names the blackbox ------------------
+    def blackbox_error(self, time, what):
+        name = getattr(self.blackbox, "name", type(self.blackbox).__name__)
+        raise PcclError(f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}",
+                        filename="--blackbox")
+
+    def _call_blackbox(self, time, method, *args):
+        try:
+            return getattr(self.blackbox, method)(*args)
+        except (PcclError, KeyboardInterrupt):
+            raise
+        except Exception as e:
+            self.blackbox_error(time, f"{method}() raised {type(e).__name__}: {e}")
+
+    def _check_outcome(self, time, n, o):
+        """One outcome as the engine's tuple, or a PcclError saying what is wrong."""
+        N = self.N
+        missing = [a for a in ("positions", "done", "fail", "env") if not hasattr(o, a)]
+        if missing:
+            self.blackbox_error(time, f"outcome {n} is {_type_of(o)}, not an Outcome "
+                                      f"(missing {', '.join(missing)})")
+        for what in ("positions", "done", "fail"):
+            v = getattr(o, what)
+            if not isinstance(v, (tuple, list)) or len(v) != N:
+                got = f"{len(v)} entries" if isinstance(v, (tuple, list)) else _type_of(v)
+                self.blackbox_error(time, f"outcome {n}: '{what}' must have one entry per agent "
+                                          f"({N}), got {got}")
+        poss = []
+        for i, p in enumerate(o.positions):
+            if (not isinstance(p, (tuple, list)) or len(p) not in (2, 3)
+                    or not all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                               and math.isfinite(c) for c in p)):
+                self.blackbox_error(time, f"outcome {n}: position of agent {i} must be "
+                                          f"(x, y, z) finite numbers, got {p!r:.80}")
+            poss.append(self.round_pos(p))
+        _check_env(self, o.env, time, n)
+        return (tuple(poss), tuple(bool(x) for x in o.done),
+                tuple(bool(x) for x in o.fail), o.env)
+
     def round_pos(self, p):
         res = self.world.resolution
         if not res:
             out = tuple(float(c) + 0.0 for c in p)
             return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
-        out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
+        try:
+            out = tuple(round(round(float(c) / res) * res, 9) + 0.0 for c in p)
+        except (OverflowError, ValueError):     # inf, nan, or c / res beyond the float range
+            raise PcclError(f"position ({', '.join(f'{float(c):g}' for c in p)}) cannot be "
+                            f"rounded to the resolution {res:g}: coordinates must be finite "
+                            f"and far from the float limit") from None
         return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
 
     # -- properties ------------------------------------------------------------------------
@@ -530,6 +605,35 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
+
+
+def _fmt_time(t) -> str:
+    return f"{t:g}" if isinstance(t, float) else str(t)
+
+
+def _type_of(v) -> str:
+    return "None" if v is None else type(v).__name__
+
+
+def _check_env(model, env, time, n=None):
+    try:
+        hash(env)
+    except TypeError:
+        where = "init_env() returned" if n is None else f"outcome {n}: env is"
+        model.blackbox_error(time, f"{where} an unhashable {_type_of(env)} (the env is part "
+                                   f"of the state: use tuples, not lists or dicts)")
+
+
+_BLACKBOX_ATTRS = ("name", "uses_time", "init_env", "step")
+
+
+def _check_blackbox_object(bb):
+    missing = [a for a in _BLACKBOX_ATTRS if not hasattr(bb, a)]
+    if missing:
+        raise PcclError(f"blackbox {bb!r:.60} is not a blackbox (missing {', '.join(missing)}; "
+                        "see pccl.blackboxes.base)")
+    if not callable(bb.step) or not callable(bb.init_env):
+        raise PcclError(f"blackbox '{bb.name}': step and init_env must be methods")
 
 
 def _src_text(source: str, span: A.Span) -> str:

@@ -28,6 +28,8 @@ class PcclError(Exception):
                  line: Optional[int] = None, column: Optional[int] = None,
                  end_column: Optional[int] = None):
         super().__init__(message)
+        if span is not None and getattr(span, "origin", None) is not None:
+            filename, source = span.origin   # an option's text, not the program's
         self.message = message
         self.filename = filename
         self.source = source
@@ -47,6 +49,11 @@ class PcclError(Exception):
 
     def __str__(self) -> str:
         return self.render()
+
+
+class ArgumentError(PcclError, ValueError):
+    """A bad argument to a function of the Python API (:mod:`pccl.api`):
+    its ``filename`` is the function, e.g. ``pccl.api.explore``."""
 
 
 def render_message(message: str, *, filename: Optional[str], source: Optional[str],

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextvars
 import dataclasses
+import math
 import os
 import re
 from typing import Iterator, Optional
@@ -128,18 +129,28 @@ _TYPE_ALIASES = {"boolean": "bool", "double": "float"}
 _NO_SID = -1
 
 
+# (filename, source) while a property (an option's text) is transformed:
+# its spans carry it, so errors point into the option, not the program.
+_ORIGIN: contextvars.ContextVar[Optional[tuple]] = contextvars.ContextVar(
+    "pccl_span_origin", default=None)
+
+
 def _tspan(tok: Token) -> ast.Span:
-    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column)
+    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column, _ORIGIN.get())
 
 
 def _mspan(meta) -> ast.Span:
     if getattr(meta, "empty", True):
         return ast.Span.unknown()
-    return ast.Span(meta.line, meta.column, meta.end_line, meta.end_column)
+    return ast.Span(meta.line, meta.column, meta.end_line, meta.end_column, _ORIGIN.get())
 
 
 def _join(start: ast.Span, end: ast.Span) -> ast.Span:
-    return ast.Span(start.line, start.column, end.end_line, end.end_column)
+    return ast.Span(start.line, start.column, end.end_line, end.end_column, start.origin)
+
+
+#: Longest integer literal: Python's limit on converting digits to int and back.
+MAX_INT_DIGITS = 4300
 
 
 class _Syntax(Exception):
@@ -171,11 +182,19 @@ class _ToAst(Transformer):
 
     def int_lit(self, meta, children):
         (tok,) = children
+        digits = len(str(tok).lstrip("0"))
+        if digits > MAX_INT_DIGITS:
+            raise _Syntax(f"integer literal too long ({digits} digits; at most "
+                          f"{MAX_INT_DIGITS})", _tspan(tok))
         return ast.IntLit(int(tok), _tspan(tok))
 
     def float_lit(self, meta, children):
         (tok,) = children
-        return ast.FloatLit(float(tok), _tspan(tok))
+        value = float(tok)
+        if not math.isfinite(value):
+            raise _Syntax(f"float literal {tok} is out of range (a float is at most about "
+                          f"1.8e308)", _tspan(tok))
+        return ast.FloatLit(value, _tspan(tok))
 
     def true_lit(self, meta, children):
         return ast.BoolLit(True, _tspan(children[0]))
@@ -645,7 +664,11 @@ def _parse(source: str, filename: str, start: str):
             tree = lark.parse(text, start=start)
         finally:
             _PROPERTY_MODE.reset(reset)
-        result = _TRANSFORMER.transform(tree)
+        origin = _ORIGIN.set((filename, source) if property_mode else None)
+        try:
+            result = _TRANSFORMER.transform(tree)
+        finally:
+            _ORIGIN.reset(origin)
     except UnexpectedToken as e:
         raise _token_error(e, text, source, filename, property_mode) from None
     except UnexpectedCharacters as e:

@@ -158,11 +158,23 @@ def set_in(container, path, value):
 def format_number(v) -> str:
     if isinstance(v, float):
         if not math.isfinite(v):
-            return str(v)
+            return str(v)                       # inf, -inf, nan
         if v == int(v) and abs(v) < 1e15:
             return f"{v:.1f}"
         return f"{v:.6g}"
+    if isinstance(v, int) and not isinstance(v, bool):
+        return _int_text(v)
     return str(v)
+
+
+def _int_text(v: int) -> str:
+    """``str(v)``, or a short description of an int too long to print
+    (Python refuses to convert ints of more than 4,300 digits)."""
+    try:
+        return str(v)
+    except ValueError:
+        digits = int(abs(v).bit_length() * 0.30103) + 1
+        return f"{'-' if v < 0 else ''}<integer of about {digits:,} digits>"
 
 
 def format_value(v, ty=None) -> str:
@@ -196,4 +208,8 @@ def to_json(v, ty=None):
     if isinstance(v, tuple):
         elem = getattr(ty, "elem", None)
         return [to_json(x, elem) for x in v]
+    if isinstance(v, float) and not math.isfinite(v):
+        return str(v)                           # JSON has no inf or nan
+    if isinstance(v, int) and not isinstance(v, bool) and v.bit_length() > 14_000:
+        return _int_text(v)                     # json.dumps cannot print it
     return v

@@ -62,6 +62,11 @@ TOP_KEYS = ("agents", "resolution", "radius", "mass", "speed", "tolerance",
             "no_progress_time", "arena", "start", "functions", "obstacles")
 OBSTACLE_KEYS = ("polygon",)
 
+#: Largest coordinate accepted in a world file: far from the float limit, so
+#: that rounding to the resolution and moving by speed * δ stay finite.
+MAX_COORD = 1e12
+MAX_INT_DIGITS = 4300
+
 DEFAULT_RESOLUTION = 0.01
 DEFAULT_NO_PROGRESS_TIME = 3.0
 TOLERANCE_FACTOR = 5.0  # default tolerance = TOLERANCE_FACTOR * resolution
@@ -186,6 +191,16 @@ def parse_world(source: str, filename: Optional[str] = None) -> World:
         msg, line, col = _toml_error_location(e, source)
         raise PcclError(f"invalid TOML: {msg}", filename=filename,
                         source=source, line=line, column=col) from None
+    except ValueError:      # an integer of more than 4,300 digits
+        line = col = end = None
+        m = re.search(r"\d{%d,}" % (MAX_INT_DIGITS + 1), source)
+        if m:
+            line = source.count("\n", 0, m.start()) + 1
+            col = m.start() - (source.rfind("\n", 0, m.start()) + 1) + 1
+            end = col + len(m.group())
+        raise PcclError(f"integer too long (at most {MAX_INT_DIGITS} digits)",
+                        filename=filename, source=source, line=line, column=col,
+                        end_column=end) from None
     return _Checker(source, filename).world(data)
 
 
@@ -485,6 +500,13 @@ class _Checker:
             return None
         return tuple(float(c) for c in v)
 
+    def in_range(self, q: tuple, what: str, table, key, index=0, path=()) -> None:
+        """Coordinates must stay far from the float limit: positions are
+        rounded to the resolution and moved by speed * δ."""
+        if any(abs(c) > MAX_COORD for c in q):
+            self.error(f"{what}: coordinates must be within ±{MAX_COORD:g}, got "
+                       f"{', '.join(f'{c:g}' for c in q)}", table, key, index, path=path)
+
     def arena(self, v: Any) -> tuple:
         shape = "'arena' must be [[xmin, ymin], [xmax, ymax]]"
         if not isinstance(v, list) or len(v) != 2:
@@ -492,6 +514,7 @@ class _Checker:
         lo, hi = self.point(v[0]), self.point(v[1])
         if lo is None or hi is None:
             self.error(shape + " (numbers)", key="arena")
+        self.in_range(lo + hi, "'arena'", None, "arena")
         if not (lo[0] < hi[0] and lo[1] < hi[1]):
             self.error(shape + " with xmin < xmax and ymin < ymax", key="arena")
         return (lo, hi)
@@ -506,6 +529,7 @@ class _Checker:
             if q is None:
                 self.error(f"'start' entry {i + 1} must be [x, y] or [x, y, z] "
                            "(numbers)", key="start", path=(i,))
+            self.in_range(q, f"'start' entry {i + 1}", None, "start", path=(i,))
             out.append(q if len(q) == 3 else (q[0], q[1], 0.0))
         return tuple(out)
 
@@ -523,6 +547,7 @@ class _Checker:
             if q is None:
                 self.error(f"{what}: point {i + 1} must be [x, y] (numbers)",
                            table, key, index, path=path + (i,))
+            self.in_range(q, f"{what}: point {i + 1}", table, key, index, path=path + (i,))
             pts.append((q[0], q[1]))
         import shapely
         poly = shapely.Polygon(pts)
@@ -566,6 +591,11 @@ class _Checker:
             if not _IDENT.match(name):
                 self.error(f"function name '{name}' is not an identifier",
                            "functions", name, at_value=False)
+            from .builtins import BUILTINS, UNINTERPRETED
+            if name in BUILTINS and name not in UNINTERPRETED:
+                self.error(f"function '{name}' shadows the built-in {name}(); "
+                           "give the world's function another name",
+                           "functions", name, at_value=False)
             if name == "getObs":
                 if not isinstance(value, list):
                     self.error("'getObs' must be an array of polygons, got "
@@ -579,6 +609,9 @@ class _Checker:
     def value(self, v: Any, name: str):
         if isinstance(v, list):
             return tuple(self.value(x, name) for x in v)
+        if isinstance(v, float) and not math.isfinite(v):
+            self.error(f"function '{name}': values must be finite numbers, got {v}",
+                       "functions", name)
         if isinstance(v, (bool, int, float, str)):
             return v
         self.error(f"function '{name}': unsupported value of type "

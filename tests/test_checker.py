@@ -889,7 +889,7 @@ loc:
   int c = getCount();
 """,
         """\
-t.pccl:2:11: error: unknown function 'getCount'
+t.pccl:2:11: error: unknown function 'getCount': not a built-in; a function the world provides needs --world FILE defining getCount under [functions]
     2 |   int c = getCount();
       |           ^^^^^^^^
 """,
@@ -1042,7 +1042,7 @@ allwrite:
   List<ItemPosition> targets = getTargets();
 """,
         """\
-t.pccl:2:32: error: unknown function 'getTargets'
+t.pccl:2:32: error: unknown function 'getTargets': not a built-in; a function the world provides needs --world FILE defining getTargets under [functions]
     2 |   List<ItemPosition> targets = getTargets();
       |                                ^^^^^^^^^^
 """,

@@ -385,13 +385,11 @@ def test_counter_advance_with_rate():
     assert labels(mm, s1b, agent=1) == []
 
 
-def test_rate_larger_than_n0_never_runs_events():
-    mm = model_of(PROG, n0=1, rates={1: 2})
-    (st,) = mm.init_states()
-    assert labels(mm, st, agent=1) == []
-    st = set_agent(mm, st, 0, counter=1)
-    # agent 1 (counter 0 + 2 > 1) does not block the clock
-    assert [l[0] for l in labels(mm, st)] == ["TIME ADVANCE"]
+def test_rate_larger_than_n0_is_rejected():
+    # counter 0 + 2 > n0 = 1: agent 1 could never run an event, and a search
+    # would "explore clean" without it
+    with pytest.raises(PcclError, match="above n0"):
+        model_of(PROG, n0=1, rates={1: 2})
 
 
 def test_bad_rates_are_rejected():
