@@ -113,29 +113,48 @@ class ExploreResult:
 
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
-            progress=None, invariants=(), **model_options) -> ExploreResult:
+            progress=None, invariants=(), max_memory="default",
+            **model_options) -> ExploreResult:
     V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
                 options={**model_options, "invariants": invariants})
     V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress)
+                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                        invariants=tuple(invariants), **model_options)
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
-                         find_all=find_all, exact=exact, progress=progress)
+                         find_all=find_all, exact=exact, progress=progress,
+                         max_memory=max_memory)
+
+
+#: Fraction of the machine's physical memory a search may use by default
+#: (``max_memory="default"``): enough to leave the rest of the machine alive.
+DEFAULT_MEMORY_FRACTION = 0.8
+
+
+def default_max_memory() -> int:
+    from .explorer import physical_memory
+    return int(physical_memory() * DEFAULT_MEMORY_FRACTION)
 
 
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
-                  find_all=False, exact=False, progress=None) -> ExploreResult:
+                  find_all=False, exact=False, progress=None,
+                  max_memory="default") -> ExploreResult:
+    """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
+    which the search stops with the bound ``--max-memory`` (``"default"``:
+    80 % of physical memory; ``None``: no limit)."""
     if not isinstance(model, Model):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
     V.search_args("explore_model", depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress)
+                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
+    if max_memory == "default":
+        max_memory = default_max_memory()
     ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress)
+                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     sr = ex.run()
     bb = model.blackbox.name
-    labels = [bound_label(b, model, depth=depth, max_states=max_states) for b in sr.bounds_hit]
+    labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
+              for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]
     n = len(sr.found)
     if sr.status == "violation":
@@ -164,7 +183,7 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                          sr.collision_probability, model, sr, list(sr.found))
 
 
-def bound_label(bound: Bound, model, *, depth=None, max_states=None) -> str:
+def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:
     """How ``pccl explore`` spells a bound that cut the search."""
     if bound is Bound.DEPTH:
         return f"--depth {depth}"
@@ -172,7 +191,31 @@ def bound_label(bound: Bound, model, *, depth=None, max_states=None) -> str:
         return f"--max-states {max_states}"
     if bound is Bound.MODEL:
         return f"--max-time {model.max_time}"
+    if bound is Bound.MAX_MEMORY:
+        return f"--max-memory {format_size(max_memory)}"
     return str(bound)
+
+
+def format_size(n: int) -> str:
+    """Bytes as ``--max-memory`` accepts them back (``1.5G``, ``300M``)."""
+    for unit, size in (("G", 2**30), ("M", 2**20), ("K", 2**10)):
+        if n >= size:
+            v = n / size
+            return f"{v:.1f}{unit}".replace(".0" + unit, unit)
+    return str(n)
+
+
+def parse_size(text: str) -> int:
+    """``--max-memory`` values: bytes, or a number with K, M, G, T (powers of
+    1024; an optional trailing ``B``/``iB``)."""
+    import re
+    m = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
+    if not m:
+        raise ValueError(f"expected a size such as 800M or 4G, got {text!r}")
+    v = float(m.group(1)) * 1024 ** " KMGT".index((m.group(2) or " ").upper())
+    if v < 1 or v != v or v > 2**62:
+        raise ValueError(f"size out of range: {text!r}")
+    return int(v)
 
 
 def violation_data(model, found: Counterexample) -> dict:

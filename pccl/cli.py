@@ -311,6 +311,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
 @click.option("--max-states", type=click.IntRange(min=1), default=None,
               help="stop after this many distinct states")
+@click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
+              help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
+                   "[default: 80% of physical memory]")
 @click.option("--abstract-time/--no-abstract-time", default=None,
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
@@ -327,8 +330,8 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--progress/--no-progress", default=None,
               help="progress line on stderr [default: when stderr is a terminal]")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, abstract_time, invariants, no_deadlock, find_all, exact, fmt,
-            plot, progress):
+            max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
+            exact, fmt, plot, progress):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
@@ -345,7 +348,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     reporter = _progress_printer() if show else None
     try:
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
-                            find_all=find_all, exact=exact, progress=reporter)
+                            find_all=find_all, exact=exact, progress=reporter,
+                            max_memory="default" if max_memory is None else max_memory)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if show:
             click.echo("\r\033[K", err=True, nl=False)
@@ -366,6 +370,16 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     sys.exit(_interrupted_status(res.exit_status))
+
+
+def _size(value):
+    if value is None:
+        return None
+    from .api import parse_size
+    try:
+        return parse_size(value)
+    except ValueError as e:
+        raise click.BadParameter(str(e)) from None
 
 
 def _progress_printer():

@@ -117,6 +117,7 @@ class Bound(enum.Enum):
     DEPTH = "depth"              # states at the depth limit were not expanded
     MAX_STATES = "max_states"    # the state budget was used up
     MODEL = "model"              # the model's own horizon (PCCL: --max-time)
+    MAX_MEMORY = "max_memory"    # the process reached its memory budget
 
 
 # ---------------------------------------------------------------------------
@@ -226,7 +227,7 @@ _EMPTY = np.uint32(0xFFFF_FFFF)
 _MAX_STATES = 0xFFFF_FFFE
 
 
-def _physical_memory() -> int:
+def physical_memory() -> int:
     try:
         return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
@@ -266,7 +267,7 @@ class FingerprintTable:
     def __init__(self, capacity: Optional[int] = None):
         self.n = 0
         if capacity is None:
-            capacity = min(_MAX_STATES, _physical_memory() // 20)
+            capacity = min(_MAX_STATES, physical_memory() // 20)
             fps, parents = _reserve((capacity, 2), np.uint64), _reserve((capacity,), np.uint32)
             if fps is None or parents is None:
                 fps, parents = None, None
@@ -406,7 +407,9 @@ class Explorer:
     ``max_states`` (admit at most this many states), ``deadlock`` (report
     states without successors that are not final), ``find_all`` (keep going
     and report each distinct violation once), ``exact`` (store canonical
-    encodings instead of fingerprints), ``progress`` (called about every
+    encodings instead of fingerprints), ``max_memory`` (stop, as a bound,
+    once the process's peak resident memory passes this many bytes; checked
+    after every admitted batch), ``progress`` (called about every
     ``progress_interval`` seconds with a dict of figures), ``batch``
     (successors admitted per vectorised step).
     """
@@ -415,8 +418,10 @@ class Explorer:
                  max_states: Optional[int] = None, deadlock: bool = True,
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
-                 progress_interval: float = 0.5, batch: int = 1 << 15):
+                 progress_interval: float = 0.5, batch: int = 1 << 15,
+                 max_memory: Optional[int] = None):
         self.model = model
+        self.max_memory = max_memory
         self.max_depth = max_depth
         self.max_states = max_states
         self.deadlock = deadlock
@@ -459,6 +464,7 @@ class Explorer:
         found = res.found
         find_all = self.find_all
         batch = self.batch
+        max_memory = self.max_memory
 
         # The pending batch: candidate (label, state) pairs and their keys, and
         # per expanded parent its state number and successor count.  Keys are
@@ -531,6 +537,9 @@ class Explorer:
                 stats.transitions += sum(par_n[:last_parent + 1])
             else:
                 stats.transitions += n
+            if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
+                bounds.add(Bound.MAX_MEMORY)
+                halt = True
             ck.clear(); cs.clear(); par_idx.clear(); par_n.clear()
             return halt
 

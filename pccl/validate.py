@@ -180,7 +180,10 @@ def call_args(func, program_, *, world_, blackbox_, agents, seed=None, options):
                overrides_=overrides_, source=source, options=options)
 
 
-def search_args(func, *, depth, max_states, deadlock, find_all, exact, progress):
+def search_args(func, *, depth, max_states, deadlock, find_all, exact, progress,
+                max_memory="default"):
+    if max_memory != "default":
+        integer(func, "max_memory", max_memory, minimum=1, optional=True)
     integer(func, "depth", depth, minimum=0, optional=True)
     integer(func, "max_states", max_states, minimum=1, optional=True)
     boolean(func, "deadlock", deadlock)

@@ -1,0 +1,229 @@
+"""The explorer's contract, independent of PCCL: the Model protocol, the
+visited table, bounds, traces, replay failures, batching."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from pccl.api import explore, explore_model, make_model, parse_size, format_size
+from pccl.explorer import (Bound, ExactTable, Explorer, FingerprintTable, Model,
+                           ReplayError, Trace)
+from pccl.fingerprint import fingerprint
+
+
+@dataclass(frozen=True)
+class V:
+    name: str
+
+    @property
+    def identity(self):
+        return self.name
+
+
+class Grid:
+    """A toy model: (x, y) on a w×h grid, steps right or up; ``bad`` cells
+    violate the invariant.  Not PCCL: the explorer must not care."""
+
+    def __init__(self, w=6, h=5, bad=()):
+        self.w, self.h, self.bad = w, h, set(bad)
+
+    def init_states(self):
+        return [(0, 0), (0, 0)]                 # duplicates are merged
+
+    def successors(self, s):
+        x, y = s
+        out = []
+        if x + 1 < self.w:
+            out.append((("right",), (x + 1, y)))
+        if y + 1 < self.h:
+            out.append((("up",), (x, y + 1)))
+        return out
+
+    def key(self, s):
+        return s
+
+    def violations(self, s):
+        return [V(f"bad {s}")] if s in self.bad else []
+
+    def terminal_kind(self, s):
+        return "final"
+
+    def deadlock_violation(self, s):
+        return None
+
+
+def test_a_toy_model_satisfies_the_protocol_and_is_explored():
+    g = Grid()
+    assert isinstance(g, Model)
+    r = Explorer(g).run()
+    assert r.status == "exhaustive"
+    assert r.stats.states == 30 and r.stats.initial_states == 1
+    assert r.stats.transitions == 2 * 30 - 6 - 5
+    assert r.stats.max_depth == 9
+
+
+def test_shortest_counterexample_and_trace_type():
+    r = Explorer(Grid(bad={(2, 3)})).run()
+    assert r.status == "violation"
+    cx = r.found[0]
+    tr = cx.trace
+    assert isinstance(tr, Trace) and len(tr) == cx.depth == 5
+    assert tr.initial == (0, 0) and tr.last == (2, 3)
+    pairs = list(tr)
+    assert pairs[0] == (None, (0, 0)) and len(pairs) == 6
+    steps = tr.steps
+    assert [s.number for s in steps] == [1, 2, 3, 4, 5]
+    assert all(s.after == pairs[n + 1][1] for n, s in enumerate(steps))
+    assert tr.to_json(lambda s: {"n": s.number, "to": list(s.after)})[-1] == {"n": 5, "to": [2, 3]}
+
+
+def test_find_all_reports_each_distinct_violation_once():
+    r = Explorer(Grid(bad={(1, 1), (3, 0), (5, 4)}), find_all=True).run()
+    assert sorted(f.violation.name for f in r.found) == ["bad (1, 1)", "bad (3, 0)", "bad (5, 4)"]
+    assert [f.depth for f in r.found] == sorted(f.depth for f in r.found)
+    assert r.stats.states == 30
+
+
+def test_bounds_are_an_enum():
+    r = Explorer(Grid(), max_depth=3).run()
+    assert r.status == "bounded" and r.bounds_hit == [Bound.DEPTH]
+    r = Explorer(Grid(), max_states=7).run()
+    assert r.status == "bounded" and r.bounds_hit == [Bound.MAX_STATES]
+    assert r.stats.states == 7                 # admitted exactly, not "about"
+    r = Explorer(Grid(), max_states=30).run()
+    assert r.status == "exhaustive"            # the budget was enough
+
+
+class Flaky(Grid):
+    """Breaks the determinism contract: after ``limit`` calls, states have no
+    successors any more."""
+
+    def __init__(self, limit):
+        super().__init__(bad={(3, 3)})
+        self.calls, self.limit = 0, limit
+
+    def successors(self, s):
+        self.calls += 1
+        return super().successors(s) if self.calls <= self.limit else []
+
+
+def test_replay_failure_explains_itself():
+    honest = Flaky(10**9)
+    Explorer(honest).run()          # how many calls the search itself makes
+    search_calls = honest.calls - 6  # the replay of the 6-step trace made the rest
+    with pytest.raises(ReplayError, match=r"diverged at step 1 of 6.*deterministic"):
+        Explorer(Flaky(search_calls)).run()
+
+
+@pytest.mark.parametrize("batch", [1, 7, 1000])
+def test_batch_size_does_not_change_anything(batch):
+    prog = "programs/race_nonatomic.pccl"
+    m = make_model(prog, world="programs/race.toml", blackbox="nondet", agents=2)
+    a = Explorer(m, batch=batch, find_all=True).run()
+    b = Explorer(m, find_all=True).run()
+    assert (a.status, a.stats.states, a.stats.transitions, a.stats.max_depth) == \
+        (b.status, b.stats.states, b.stats.transitions, b.stats.max_depth)
+    assert [f.index for f in a.found] == [f.index for f in b.found]
+    assert [f.trace.labels for f in a.found] == [f.trace.labels for f in b.found]
+
+
+def test_first_violation_statistics_do_not_depend_on_batching():
+    m = make_model("programs/fischer.pccl", overrides={"k": "1"},
+                   invariants=("count(inCs) <= 1",))
+    a = Explorer(m, batch=50).run()
+    b = Explorer(m).run()
+    assert a.status == b.status == "violation"
+    assert (a.stats.states, a.stats.transitions) == (b.stats.states, b.stats.transitions)
+    assert a.found[0].trace.labels == b.found[0].trace.labels
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.binary(min_size=1, max_size=6), min_size=1, max_size=400),
+       st.integers(min_value=1, max_value=50))
+def test_fingerprint_table_agrees_with_a_python_dict(keys, chunk):
+    """Admission in chunks (with duplicates inside and across chunks, and
+    index rebuilds as the table grows) numbers states like a dict would."""
+    table, ref = FingerprintTable(capacity=4), {}
+    exact = ExactTable()
+    for a in range(0, len(keys), chunk):
+        part = [fingerprint(k) for k in keys[a:a + chunk]]
+        first = np.fromiter(dict(zip(reversed(part), range(len(part) - 1, -1, -1))).values(),
+                            dtype=np.int64)
+        first.sort()
+        new = table.new_positions(part, first)
+        new_x = exact.new_positions(part, first)
+        assert new.tolist() == new_x.tolist()
+        table.add(len(new), np.zeros(len(new), dtype=np.int64))
+        exact.add(len(new), np.zeros(len(new), dtype=np.int64))
+        for p in new.tolist():
+            ref[part[p]] = len(ref)
+    assert table.n == len(ref) == exact.n
+    for k, idx in ref.items():
+        assert table.index_of(k) == idx == exact.index_of(k)
+    assert table.index_of(fingerprint(b"never seen" * 3)) == -1
+
+
+def test_the_table_costs_about_24_bytes_per_state():
+    t = FingerprintTable()
+    assert t.fps.base is not None     # reserved mapping: no growth copies on Linux
+    n = 200_000
+    keys = [fingerprint(i) for i in range(n)]
+    first = np.arange(n, dtype=np.int64)
+    t.new_positions(keys, first)
+    t.add(n, np.zeros(n, dtype=np.int64))
+    # 16 B fingerprint + 4 B parent per state, 4 B per index slot at most half full
+    assert t.slots.nbytes <= 4 * 4 * n and t.slots.dtype == np.uint32
+    assert t.fps.itemsize * 2 + t.parents.itemsize == 20
+
+
+def test_max_memory_is_an_honest_bound():
+    r = explore("programs/fischer.pccl", overrides={"k": "2"}, max_memory=1)
+    assert r.status == "bounded" and r.exit_status == 0
+    assert r.search.bounds_hit == [Bound.MAX_MEMORY]
+    assert r.bounds == ["--max-memory 1"]
+    assert "stopped by --max-memory" in r.verdict and r.stats.states > 0
+
+
+def test_sizes_round_trip():
+    assert parse_size("800M") == 800 * 2**20 and parse_size("4G") == 4 * 2**30
+    assert parse_size("1.5GiB") == int(1.5 * 2**30) and parse_size("123") == 123
+    assert parse_size(format_size(parse_size("3G"))) == 3 * 2**30
+    for bad in ("", "x", "-1G", "4Q"):
+        with pytest.raises(ValueError):
+            parse_size(bad)
+
+
+def test_interrupted_after_violations_reports_them_and_exits_1():
+    m = make_model("programs/fischer.pccl", overrides={"k": "1"},
+                   invariants=("count(inCs) <= 1",))
+    real, calls = m.successors, [0]
+
+    def successors(s):       # one Ctrl-C, after the first violation (~125k states)
+        calls[0] += 1
+        if calls[0] == 150_000:
+            raise KeyboardInterrupt
+        return real(s)
+
+    m.successors = successors
+    r = explore_model(m, find_all=True)
+    assert r.status == "interrupted" and r.exit_status == 1
+    assert r.violations and "interrupted" in r.verdict and "not exhaustive" in r.verdict
+
+
+def test_interrupted_without_violations_exits_130():
+    m = make_model("programs/fischer.pccl", overrides={"k": "2"})
+    real, calls = m.successors, [0]
+
+    def successors(s):
+        calls[0] += 1
+        if calls[0] > 5_000:
+            raise KeyboardInterrupt
+        return real(s)
+
+    m.successors = successors
+    r = explore_model(m)
+    assert r.status == "interrupted" and r.exit_status == 130 and not r.violations
