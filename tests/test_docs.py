@@ -19,7 +19,8 @@ tested"):
   ``"collision_probability"``) (with their separators ``,`` and ``.``) are replaced by one ``N`` per number.  A line that is exactly
   ``...`` in the expected output matches any number of lines (zero or more).
 * A fenced block ```` ```python ```` containing ``>>>`` prompts is run with
-  :mod:`doctest` (option ELLIPSIS), from the repository root.
+  :mod:`doctest` (option ELLIPSIS), from the repository root; the blocks of
+  one document run in order and share their names, like one session.
 * A fenced block whose info string has ``file=PATH`` (```` ```pccl
   file=docs/examples/patrol.pccl ````) shows that file: its text must equal
   the file's.
@@ -246,15 +247,23 @@ def test_console_block(block: Block):
     assert not failures, f"{block.id}:\n" + "\n\n".join(failures)
 
 
-@pytest.mark.parametrize("block", DOCTESTS, ids=lambda b: b.id)
-def test_python_block(block: Block, monkeypatch):
+DOCTEST_FILES = sorted({b.path for b in DOCTESTS})
+
+
+@pytest.mark.parametrize("path", DOCTEST_FILES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_python_blocks(path: Path, monkeypatch):
+    """The doctest blocks of one document run in order, sharing their names
+    (like one interpreter session)."""
     monkeypatch.chdir(ROOT)
-    text = "\n".join(block.body) + "\n"
-    test = doctest.DocTestParser().get_doctest(text, {}, block.id, str(block.path),
-                                              block.line)
+    globs: dict = {}
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
     report: list[str] = []
-    runner.run(test, out=report.append)
+    for block in (b for b in DOCTESTS if b.path == path):
+        text = "\n".join(block.body) + "\n"
+        test = doctest.DocTestParser().get_doctest(text, globs, block.id, str(block.path),
+                                                  block.line)
+        runner.run(test, out=report.append, clear_globs=False)
+        globs.update(test.globs)          # get_doctest copied them
     assert runner.failures == 0, "".join(report)
 
 
