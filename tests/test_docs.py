@@ -296,6 +296,36 @@ def test_no_reference_outside_the_repository():
     assert not bad, "references outside the repository: " + ", ".join(bad)
 
 
+def _slug(heading: str) -> str:
+    """GitHub's anchor for a heading."""
+    h = re.sub(r"[`*_]", "", heading.strip().lower())
+    return re.sub(r"[^\w\- ]", "", h).replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    text = re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.M | re.S)
+    return {_slug(m.group(1)) for m in re.finditer(r"^#+ (.*)$", text, flags=re.M)}
+
+
+def test_relative_links_resolve():
+    """Every relative link in the documents names an existing file, and an
+    anchor (#...) names a heading of that file."""
+    bad = []
+    for p in DOC_FILES:
+        text = re.sub(r"^```.*?^```", "", p.read_text(encoding="utf-8"), flags=re.M | re.S)
+        for m in re.finditer(r"\]\(([^)\s]+)\)", text):
+            target = m.group(1)
+            if re.match(r"[a-z]+:", target):
+                continue                              # http:, https:, mailto:
+            file, _, anchor = target.partition("#")
+            dest = (p.parent / file).resolve() if file else p
+            if not dest.exists():
+                bad.append(f"{p.relative_to(ROOT)}: {target} (no such file)")
+            elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest):
+                bad.append(f"{p.relative_to(ROOT)}: {target} (no such heading)")
+    assert not bad, "broken links:\n" + "\n".join(bad)
+
+
 # ---- the harness itself ----------------------------------------------------
 
 def test_wildcard_and_normalisation():
