@@ -32,7 +32,8 @@ tested"):
 Regenerating: ``PCCL_REGEN_DOCS=1 python -m pytest tests/test_docs.py``
 rewrites, in place, the expected output of every console block that no
 longer matches and every ``file=`` listing that differs from its file.  A
-block that still matches is left alone.  In a block with ``...`` lines the
+block that still matches is left alone, and so is every line of a rewritten
+block that still matches (masked figures do not churn).  In a block with ``...`` lines the
 elisions are kept: the lines before the first ``...`` are replaced by as many
 first lines of the new output, the lines after the last by as many last
 lines, and lines between two ``...`` by the lines of the new output they
@@ -195,6 +196,17 @@ def regenerate(expected: list[str], actual: list[str]) -> list[str]:
     return out + tail
 
 
+def keep_unchanged(old: list[str], new: list[str]) -> list[str]:
+    """``new``, but where a line equals an ``old`` one after normalisation,
+    the old line: regenerating does not churn the masked figures."""
+    sm = difflib.SequenceMatcher(None, normalise(old), normalise(new), autojunk=False)
+    out = list(new)
+    for tag, i1, i2, j1, j2 in sm.get_opcodes():
+        if tag == "equal":
+            out[j1:j2] = old[i1:i2]
+    return out
+
+
 def diff(expected: list[str], actual: list[str]) -> str:
     return "\n".join(difflib.unified_diff(normalise(expected), normalise(actual),
                                           "expected", "actual", lineterm=""))
@@ -240,7 +252,8 @@ def test_console_block(block: Block):
         if not ok:
             failures.append(f"$ {cmd}\n{diff(expected, actual)}")
         cmd_lines = ("$ " + cmd.replace("\n", "\\\n")).split("\n")
-        new_body += cmd_lines + (expected if ok else regenerate(expected, actual))
+        new_body += cmd_lines + (expected if ok else
+                                  keep_unchanged(expected, regenerate(expected, actual)))
     if REGEN and failures:
         rewrite(block, new_body)
         failures = []
