@@ -403,6 +403,15 @@ class Compiler:
             ref = f"_ix({ref}, {ex(k)})"
         return ref
 
+    def _count(self, cell: str) -> str:
+        """``count(v)``: how many agents have ``ags[j]<cell> is True``.  The
+        number of agents is fixed, so the sum is unrolled (no generator per
+        evaluation); ``0 +`` keeps the result an int for a single agent."""
+        if self.N > 64:
+            return f"sum(1 for _a in ags if _a{cell} is True)"
+        terms = " + ".join(f"(ags[{j}]{cell} is True)" for j in range(self.N))
+        return f"({terms})" if self.N > 1 else f"(0 + {terms})"
+
     def call(self, e: A.Call, prop: bool, bound, want) -> str:
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         n, args = e.name, e.args
@@ -411,12 +420,12 @@ class Compiler:
             if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
                     and a.name not in self.lay.vars:
                 k = 3 if a.name == "doReach_done" else 4
-                return f"sum(1 for _a in ags if _a[7][{k}] is True)"
+                return self._count(f"[7][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
             if vs is None or vs.section == "allwrite":
                 self.error("count(v) needs a per-agent boolean variable", e)
             slot = 4 if vs.section == "loc" else 5
-            return f"sum(1 for _a in ags if _a[{slot}][{vs.slot}] is True)"
+            return self._count(f"[{slot}][{vs.slot}]")
         if n == "getAgentIndex":
             return "i"
         if n == "getNumAgents":
