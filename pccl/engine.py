@@ -65,6 +65,7 @@ class Property:
     fn: Callable
     span: Optional[A.Span]
     uses_time: bool
+    src: str = ""             # the compiled Python expression (over st, sh, ags)
 
 
 class Control:
@@ -200,6 +201,7 @@ class Model:
 
         # properties
         self.properties: list[Property] = []
+        self._compile_violations()
         for inv in program.invariants:
             self.add_property(inv.expr, name=inv.name, text=_src_text(program.source, inv.expr.span),
                               span=inv.span, filename=program.filename, source=program.source)
@@ -250,9 +252,33 @@ class Model:
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
         from .checker import check_property
         check_property(expr, self.info, filename=filename, source=source)
-        fn = self.comp.make_expr(expr, prop=True)   # the checker has vetted it
+        src = self.comp.expr(expr, prop=True)       # the checker has vetted it
+        fn = self.comp.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
-        self.properties.append(Property(name or text, text, fn, span, uses_time))
+        self.properties.append(Property(name or text, text, fn, span, uses_time, src))
+        self._compile_violations()
+
+    def _compile_violations(self):
+        """Install, as the instance's ``violations``, a compiled fast path:
+        if no agent is stuck and every property holds (the common case) it
+        returns ``[]`` at once; otherwise it defers to :meth:`Model.violations`
+        (the properties are pure, so evaluating them again is harmless).
+        Not used with collision checking, which always takes the full path."""
+        if self.collisions or self.N > 64:
+            self.__dict__.pop("violations", None)
+            return
+        ok = " and ".join(f"ags[{j}][3] < 2" for j in range(self.N))
+        body = f"    ags = st[4]\n    if {ok}:\n"
+        if self.properties:
+            conj = " and ".join(f"({p.src})" for p in self.properties)
+            body += ("        sh = st[3]\n        try:\n"
+                     f"            if {conj}:\n                return []\n"
+                     "        except Exception:\n            pass\n")
+        else:
+            body += "        return []\n"
+        body += "    return _full(st)\n"
+        self.comp.G["_full"] = Model.violations.__get__(self)
+        self.violations = self.comp.make("st", body, "_violations")
 
     def add_invariant_text(self, text: str, index: int = 0):
         from .parser import parse_property
@@ -449,6 +475,9 @@ class Model:
 
     # -- properties ------------------------------------------------------------------------
     def violations(self, st) -> list:
+        """Every violation in ``st``: stuck agents, then properties, then
+        collisions.  (Instances shadow this with the fast path compiled by
+        :meth:`_compile_violations`, which falls back to it.)"""
         out = []
         for i, ag in enumerate(st[4]):
             s = ag[3]
