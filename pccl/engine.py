@@ -426,16 +426,30 @@ class Model:
         out: list = []
         if st[1] == DISCRETE:
             infos = self.ctl.infos
-            for i, ag in enumerate(st[4]):
-                if ag[3] != RUNNING:
-                    continue
-                info = infos[ag[0]]
-                if info is None:
-                    info = self.ctl.info(ag[0])
-                self.oracle.agent = i
-                for rule in AGENT_RULES[info[0]]:
-                    rule(self, st, i, ag, info, out)
-            R.time_advance(self, st, out)
+            oracle = self.oracle
+            rho, n0 = self.rho, self.n0
+            # TIME ADVANCE's guard (R.time_advance_enabled) gathered on the
+            # way: some agent running, none that has not exited with
+            # counter + rho(i) <= n0
+            running = blocked = False
+            i = 0
+            for ag in st[4]:
+                s = ag[3]
+                if s == RUNNING:
+                    running = True
+                    if ag[1] + rho[i] <= n0:
+                        blocked = True
+                    info = infos[ag[0]]
+                    if info is None:
+                        info = self.ctl.info(ag[0])
+                    oracle.agent = i
+                    for rule in AGENT_RULES[info[0]]:
+                        rule(self, st, i, ag, info, out)
+                elif s != EXITED and ag[1] + rho[i] <= n0:
+                    blocked = True
+                i += 1
+            if running and not blocked:
+                R.time_advance(self, st, out, True)
         else:
             R.doreach_invoke(self, st, out)
         return out

@@ -321,7 +321,7 @@ def time_advance_enabled(m, st):
     return running
 
 
-def time_advance(m, st, out):
+def time_advance(m, st, out, enabled=None):
     """TIME ADVANCE.
 
     Paper §4.4: "given that the current global time is T, if all the counter
@@ -333,8 +333,11 @@ def time_advance(m, st, out):
 
     Spec: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.
+
+    ``enabled``, if given, is :func:`time_advance_enabled` already computed
+    by the caller (``Model.successors`` gathers it while visiting the agents).
     """
-    if not time_advance_enabled(m, st):
+    if not (time_advance_enabled(m, st) if enabled is None else enabled):
         return
     # (time_advance_enabled ignores --max-time; terminal_kind uses it to tell
     # a bounded state from a deadlock)
