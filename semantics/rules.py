@@ -128,45 +128,39 @@ def statement(m, st, i, ag, info, out):
     error sets status stuck(reason, location) instead.
     """
     kind = info[0]
+    if kind == K_ATOMIC:
+        if ag[2] == LOCK:
+            # A nested atomic inside a held lock just runs its body.
+            _, _req, nested_pc, sid = info
+            out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
+        return
+    # K_SIMPLE, K_IF, K_WHILE, K_ASSERT: info = (kind, fn, ..., sid, has_rand)
+    fn, sid, rnd = info[1], info[-2], info[-1]
     sh, ags = st[3], st[4]
-    if kind == K_SIMPLE:
-        _, fn, nxt, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                ag2, sh2 = res
-                ag2 = (nxt, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
-                out.append((("STATEMENT", i, sid), _put(st, i, ag2, sh2)))
-    elif kind == K_IF:
-        _, fn, pcs, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, pcs[res]))))
-    elif kind == K_WHILE:
-        _, fn, body_pc, exit_pc, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                out.append((("STATEMENT", i, sid),
-                            _put(st, i, _with_pc(ag, body_pc if res else exit_pc))))
-    elif kind == K_ASSERT:
-        _, fn, nxt, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            elif res:
-                out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nxt))))
-            else:
-                out.append((("STATEMENT", i, sid),
-                            _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
-    elif kind == K_ATOMIC and ag[2] == LOCK:
-        # A nested atomic inside a held lock just runs its body.
-        _, _req, nested_pc, sid = info
-        out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
+    if rnd:
+        results = _outcomes(m, fn, True, i, ag, sh, ags)
+    else:
+        # the common case, without _outcomes' wrapper
+        try:
+            results = (fn(i, ag, sh, ags),)
+        except _RUNTIME_ERRORS as exc:
+            results = (_Err.of(exc),)
+    label = ("STATEMENT", i, sid)
+    for res in results:
+        if isinstance(res, _Err):
+            out.append((label, _stuck(m, st, i, ag, res.reason, sid)))
+        elif kind == K_SIMPLE:
+            ag2, sh2 = res
+            ag2 = (info[2], ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
+            out.append((label, _put(st, i, ag2, sh2)))
+        elif kind == K_IF:
+            out.append((label, _put(st, i, _with_pc(ag, info[2][res]))))
+        elif kind == K_WHILE:
+            out.append((label, _put(st, i, _with_pc(ag, info[2] if res else info[3]))))
+        elif res:    # K_ASSERT
+            out.append((label, _put(st, i, _with_pc(ag, info[2]))))
+        else:
+            out.append((label, _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
 
 
 def exit_rule(m, st, i, ag, info, out):
