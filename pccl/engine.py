@@ -196,6 +196,7 @@ class Model:
         self.code = {sid: self._compile_stmt(s) for sid, s in self.stmts.items()}
         self.guards = [self.comp.make_expr(ev.guard) for ev in program.events]
         self.guards_rand = any(has_rand(ev.guard) for ev in program.events)
+        self._compile_enabled_events()
         self.ctl = Control(self)
         self.stuck_reasons: list = [None, None]
         self._stuck_ids: dict = {}
@@ -292,19 +293,34 @@ class Model:
 
     # -- events ---------------------------------------------------------------------
     def enabled_events(self, i, ag, sh, ags):
+        """The events whose guard holds, in source order (only the first with
+        ``--events first``).  (Instances shadow this with the equivalent
+        function compiled by :meth:`_compile_enabled_events`.)"""
         out = []
         for e, g in enumerate(self.guards):
             try:
                 ok = g(i, ag, sh, ags)
             except R._RUNTIME_ERRORS as exc:
-                err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
-                err.where = ("guard", e)
-                raise err from None
+                raise _guard_error(exc, e) from None
             if ok:
                 out.append(e)
                 if self.first_only:
                     break
         return out
+
+    def _compile_enabled_events(self):
+        """:meth:`enabled_events` as one generated function: every guard
+        inline, one call per EVENT SELECT instead of one per guard."""
+        comp = self.comp
+        comp.G["_guard_error"] = _guard_error
+        comp.G["_RTE"] = R._RUNTIME_ERRORS
+        body = "    out = []\n"
+        for e, ev in enumerate(self.program.events):
+            hit = f"return [{e}]" if self.first_only else f"out.append({e})"
+            body += (f"    try:\n        if {comp.expr(ev.guard)}:\n            {hit}\n"
+                     f"    except _RTE as exc:\n        raise _guard_error(exc, {e}) from None\n")
+        body += "    return out\n"
+        self.enabled_events = comp.make("i, ag, sh, ags", body, "_enabled_events")
 
     # -- stuck reasons -----------------------------------------------------------------
     def stuck_code(self, kind, reason, where):
@@ -577,6 +593,13 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
+
+
+def _guard_error(exc, e) -> PcclRuntimeError:
+    """A runtime error in event e's guard, located there."""
+    err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
+    err.where = ("guard", e)
+    return err
 
 
 def _src_text(source: str, span: A.Span) -> str:

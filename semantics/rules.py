@@ -106,7 +106,15 @@ def event_select(m, st, i, ag, info, out):
     if ag[1] + m.rho[i] > m.n0:
         return
     sh, ags = st[3], st[4]
-    for res in _outcomes(m, m.enabled_events, m.guards_rand, i, ag, sh, ags):
+    if m.guards_rand:
+        results = _outcomes(m, m.enabled_events, True, i, ag, sh, ags)
+    else:
+        # the common case, without _outcomes' wrapper
+        try:
+            results = (m.enabled_events(i, ag, sh, ags),)
+        except _RUNTIME_ERRORS as exc:
+            results = (_Err.of(exc),)
+    for res in results:
         if isinstance(res, _Err):
             out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
             continue
