@@ -36,9 +36,16 @@ _RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
 
 
 def _put(st, i, ag2, sh2=None):
+    """``st`` with agent i's cell replaced by ``ag2`` (and shared by ``sh2``)."""
     ags = st[4]
-    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2,
-            ags[:i] + (ag2,) + ags[i + 1:], st[5])
+    if len(ags) == 2:
+        # the usual team: build the pair directly (4x cheaper than slicing)
+        ags = (ag2, ags[1]) if i == 0 else (ags[0], ag2)
+    else:
+        ags = list(ags)      # 2x cheaper than ags[:i] + (ag2,) + ags[i + 1:]
+        ags[i] = ag2
+        ags = tuple(ags)
+    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2, ags, st[5])
 
 
 def _with_pc(ag, pc):
