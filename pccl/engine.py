@@ -33,8 +33,8 @@ from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .values import UNDEF
 from .semantics import rules as R
-from .semantics.rules import (AGENT_RULES, DISCRETE, EXITED, IDLE, RUNNING,
-                              K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
+from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
+                              RUNNING, K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
                               K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
 
 END, AEND = -1, -2
@@ -453,13 +453,16 @@ class Model:
                 s = ag[3]
                 if s == RUNNING:
                     running = True
-                    if ag[1] + rho[i] <= n0:
-                        blocked = True
                     info = infos[ag[0]]
                     if info is None:
                         info = self.ctl.info(ag[0])
+                    if ag[1] + rho[i] <= n0:
+                        blocked = True
+                        rules = AGENT_RULES[info[0]]
+                    else:
+                        rules = AGENT_RULES_SPENT[info[0]]
                     oracle.agent = i
-                    for rule in AGENT_RULES[info[0]]:
+                    for rule in rules:
                         rule(self, st, i, ag, info, out)
                 elif s != EXITED and ag[1] + rho[i] <= n0:
                     blocked = True

@@ -400,3 +400,11 @@ AGENT_RULES = {
     K_DOREACH: (doreach_update,),
     K_EXIT: (exit_rule,),
 }
+
+# The same, for an agent whose counter is spent (counter + ρ(i) > n0): EVENT
+# SELECT, COUNTER ADVANCE and ATOMIC WAIT need a counter step and cannot
+# apply, so Model.successors does not call them.
+AGENT_RULES_SPENT = {
+    kind: tuple(r for r in rules if r not in (event_select, counter_advance, atomic_wait))
+    for kind, rules in AGENT_RULES.items()
+}
