@@ -38,9 +38,13 @@ _RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
 def _put(st, i, ag2, sh2=None):
     """``st`` with agent i's cell replaced by ``ag2`` (and shared by ``sh2``)."""
     ags = st[4]
-    if len(ags) == 2:
-        # the usual team: build the pair directly (4x cheaper than slicing)
+    n = len(ags)
+    # small teams: build the tuple directly (3-4x cheaper than slicing)
+    if n == 2:
         ags = (ag2, ags[1]) if i == 0 else (ags[0], ag2)
+    elif n == 3:
+        ags = ((ag2, ags[1], ags[2]) if i == 0 else (ags[0], ag2, ags[2]) if i == 1
+               else (ags[0], ags[1], ag2))
     else:
         ags = list(ags)      # 2x cheaper than ags[:i] + (ag2,) + ags[i + 1:]
         ags[i] = ag2
