@@ -251,6 +251,7 @@ class Compiler:
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
         }
         self._nconst = 0
+        self._qval: dict = {}               # quantified variable -> agent index (unrolled)
 
     # -- helpers -----------------------------------------------------------
     def error(self, msg, node):
@@ -327,12 +328,36 @@ class Compiler:
                 return f"_mod({a}, {b})"
             return f"({a} {op} {b})"
         if isinstance(e, A.Quant):
-            fn = "all" if e.kind == "forall" else "any"
-            body = self.expr(e.body, prop=prop, bound=bound + (e.var,))
-            return f"{fn}({body} for {self.bvar(e.var)} in range({self.N}))"
+            return self.quant(e, prop, bound)
         if isinstance(e, A.Call):
             return self.call(e, prop, bound, want)
         self.error("unsupported expression", e)  # pragma: no cover
+
+    def quant(self, e: A.Quant, prop: bool, bound) -> str:
+        """``forall``/``exists`` over the agents.  The number of agents is
+        fixed, so the quantifier is unrolled into an ``and``/``or`` chain
+        with the agent index as a literal (no generator per evaluation), in
+        the same order and with the same short-circuit as ``all``/``any``;
+        large expansions keep the generator."""
+        fn = "all" if e.kind == "forall" else "any"
+        bound = bound + (e.var,)
+        saved = self._qval.pop(e.var, None)
+        try:
+            if self.N <= 16:
+                terms = []
+                for q in range(self.N):
+                    self._qval[e.var] = repr(q)
+                    terms.append(self.expr(e.body, prop=prop, bound=bound))
+                del self._qval[e.var]
+                if sum(map(len, terms)) <= 20_000:
+                    op = " and " if fn == "all" else " or "
+                    return f"(True if ({op.join(terms)}) else False)"
+            body = self.expr(e.body, prop=prop, bound=bound)
+            return f"{fn}({body} for {self.bvar(e.var)} in range({self.N}))"
+        finally:
+            self._qval.pop(e.var, None)
+            if saved is not None:
+                self._qval[e.var] = saved
 
     @staticmethod
     def bvar(name: str) -> str:
@@ -342,7 +367,7 @@ class Compiler:
         n = e.name
         if prop:
             if n in bound:
-                return self.bvar(n)
+                return self._qval.get(n) or self.bvar(n)
             if n == "time":
                 return "st[0]"
             if n == "N":
