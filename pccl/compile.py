@@ -285,6 +285,7 @@ class Compiler:
             "_fin": V.fin, "_canon": canon,
         }
         self._nconst = 0
+        self._qval: dict = {}               # quantified variable -> agent index (unrolled)
 
     # -- helpers -----------------------------------------------------------
     def error(self, msg, node):
@@ -373,12 +374,36 @@ class Compiler:
                 return f"_mod({a}, {b})"
             return f"({a} {op} {b})"
         if isinstance(e, A.Quant):
-            fn = "all" if e.kind == "forall" else "any"
-            body = self.expr(e.body, prop=prop, bound=bound + (e.var,))
-            return f"{fn}({body} for {self.bvar(e.var)} in range({self.N}))"
+            return self.quant(e, prop, bound)
         if isinstance(e, A.Call):
             return self.call(e, prop, bound, want)
         self.error("unsupported expression", e)  # pragma: no cover
+
+    def quant(self, e: A.Quant, prop: bool, bound) -> str:
+        """``forall``/``exists`` over the agents.  The number of agents is
+        fixed, so the quantifier is unrolled into an ``and``/``or`` chain
+        with the agent index as a literal (no generator per evaluation), in
+        the same order and with the same short-circuit as ``all``/``any``;
+        large expansions keep the generator."""
+        fn = "all" if e.kind == "forall" else "any"
+        bound = bound + (e.var,)
+        saved = self._qval.pop(e.var, None)
+        try:
+            if self.N <= 16:
+                terms = []
+                for q in range(self.N):
+                    self._qval[e.var] = repr(q)
+                    terms.append(self.expr(e.body, prop=prop, bound=bound))
+                del self._qval[e.var]
+                if sum(map(len, terms)) <= 20_000:
+                    op = " and " if fn == "all" else " or "
+                    return f"(True if ({op.join(terms)}) else False)"
+            body = self.expr(e.body, prop=prop, bound=bound)
+            return f"{fn}({body} for {self.bvar(e.var)} in range({self.N}))"
+        finally:
+            self._qval.pop(e.var, None)
+            if saved is not None:
+                self._qval[e.var] = saved
 
     @staticmethod
     def bvar(name: str) -> str:
@@ -388,7 +413,7 @@ class Compiler:
         n = e.name
         if prop:
             if n in bound:
-                return self.bvar(n)
+                return self._qval.get(n) or self.bvar(n)
             if n == "time":
                 return "st[0]"
             if n == "N":
@@ -449,6 +474,15 @@ class Compiler:
             ref = f"_ix({ref}, {ex(k)})"
         return ref
 
+    def _count(self, cell: str) -> str:
+        """``count(v)``: how many agents have ``ags[j]<cell> is True``.  The
+        number of agents is fixed, so the sum is unrolled (no generator per
+        evaluation); ``0 +`` keeps the result an int for a single agent."""
+        if self.N > 64:
+            return f"sum(1 for _a in ags if _a{cell} is True)"
+        terms = " + ".join(f"(ags[{j}]{cell} is True)" for j in range(self.N))
+        return f"({terms})" if self.N > 1 else f"(0 + {terms})"
+
     def call(self, e: A.Call, prop: bool, bound, want) -> str:
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         n, args = e.name, e.args
@@ -457,12 +491,12 @@ class Compiler:
             if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
                     and a.name not in self.lay.vars:
                 k = 3 if a.name == "doReach_done" else 4
-                return f"sum(1 for _a in ags if _a[7][{k}] is True)"
+                return self._count(f"[7][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
             if vs is None or vs.section == "allwrite":
                 self.error("count(v) needs a per-agent boolean variable", e)
             slot = 4 if vs.section == "loc" else 5
-            return f"sum(1 for _a in ags if _a[{slot}][{vs.slot}] is True)"
+            return self._count(f"[{slot}][{vs.slot}]")
         if n == "getAgentIndex":
             return "i"
         if n == "getNumAgents":

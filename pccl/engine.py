@@ -31,10 +31,11 @@ from . import ast as A
 from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
+from .fingerprint import check_canonical
 from .values import UNDEF
 from .semantics import rules as R
-from .semantics.rules import (AGENT_RULES, DISCRETE, EXITED, IDLE, RUNNING,
-                              K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
+from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
+                              RUNNING, K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
                               K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
 
 END, AEND = -1, -2
@@ -69,6 +70,7 @@ class Property:
     fn: Callable
     span: Optional[A.Span]
     uses_time: bool
+    src: str = ""             # the compiled Python expression (over st, sh, ags)
 
 
 class Control:
@@ -220,12 +222,14 @@ class Model:
         self.code = {sid: self._compile_stmt(s) for sid, s in self.stmts.items()}
         self.guards = [self.comp.make_expr(ev.guard) for ev in program.events]
         self.guards_rand = any(has_rand(ev.guard) for ev in program.events)
+        self._compile_enabled_events()
         self.ctl = Control(self)
         self.stuck_reasons: list = [None, None]
         self._stuck_ids: dict = {}
 
         # properties
         self.properties: list[Property] = []
+        self._compile_violations()
         for inv in program.invariants:
             self.add_property(inv.expr, name=inv.name, text=_src_text(program.source, inv.expr.span),
                               span=inv.span, filename=program.filename, source=program.source)
@@ -277,9 +281,33 @@ class Model:
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
         from .checker import check_property
         check_property(expr, self.info, filename=filename, source=source)
-        fn = self.comp.make_expr(expr, prop=True)   # the checker has vetted it
+        src = self.comp.expr(expr, prop=True)       # the checker has vetted it
+        fn = self.comp.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
-        self.properties.append(Property(name or text, text, fn, span, uses_time))
+        self.properties.append(Property(name or text, text, fn, span, uses_time, src))
+        self._compile_violations()
+
+    def _compile_violations(self):
+        """Install, as the instance's ``violations``, a compiled fast path:
+        if no agent is stuck and every property holds (the common case) it
+        returns ``[]`` at once; otherwise it defers to :meth:`Model.violations`
+        (the properties are pure, so evaluating them again is harmless).
+        Not used with collision checking, which always takes the full path."""
+        if self.collisions or self.N > 64:
+            self.__dict__.pop("violations", None)
+            return
+        ok = " and ".join(f"ags[{j}][3] < 2" for j in range(self.N))
+        body = f"    ags = st[4]\n    if {ok}:\n"
+        if self.properties:
+            conj = " and ".join(f"({p.src})" for p in self.properties)
+            body += ("        sh = st[3]\n        try:\n"
+                     f"            if {conj}:\n                return []\n"
+                     "        except Exception:\n            pass\n")
+        else:
+            body += "        return []\n"
+        body += "    return _full(st)\n"
+        self.comp.G["_full"] = Model.violations.__get__(self)
+        self.violations = self.comp.make("st", body, "_violations")
 
     def add_invariant_text(self, text: str, index: int = 0):
         from .parser import parse_property
@@ -289,19 +317,34 @@ class Model:
 
     # -- events ---------------------------------------------------------------------
     def enabled_events(self, i, ag, sh, ags):
+        """The events whose guard holds, in source order (only the first with
+        ``--events first``).  (Instances shadow this with the equivalent
+        function compiled by :meth:`_compile_enabled_events`.)"""
         out = []
         for e, g in enumerate(self.guards):
             try:
                 ok = g(i, ag, sh, ags)
             except R._RUNTIME_ERRORS as exc:
-                err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
-                err.where = ("guard", e)
-                raise err from None
+                raise _guard_error(exc, e) from None
             if ok:
                 out.append(e)
                 if self.first_only:
                     break
         return out
+
+    def _compile_enabled_events(self):
+        """:meth:`enabled_events` as one generated function: every guard
+        inline, one call per EVENT SELECT instead of one per guard."""
+        comp = self.comp
+        comp.G["_guard_error"] = _guard_error
+        comp.G["_RTE"] = R._RUNTIME_ERRORS
+        body = "    out = []\n"
+        for e, ev in enumerate(self.program.events):
+            hit = f"return [{e}]" if self.first_only else f"out.append({e})"
+            body += (f"    try:\n        if {comp.expr(ev.guard)}:\n            {hit}\n"
+                     f"    except _RTE as exc:\n        raise _guard_error(exc, {e}) from None\n")
+        body += "    return out\n"
+        self.enabled_events = comp.make("i, ag, sh, ags", body, "_enabled_events")
 
     # -- stuck reasons -----------------------------------------------------------------
     def stuck_code(self, kind, reason, where):
@@ -421,16 +464,33 @@ class Model:
         out: list = []
         if st[1] == DISCRETE:
             infos = self.ctl.infos
-            for i, ag in enumerate(st[4]):
-                if ag[3] != RUNNING:
-                    continue
-                info = infos[ag[0]]
-                if info is None:
-                    info = self.ctl.info(ag[0])
-                self.oracle.agent = i
-                for rule in AGENT_RULES[info[0]]:
-                    rule(self, st, i, ag, info, out)
-            R.time_advance(self, st, out)
+            oracle = self.oracle
+            rho, n0 = self.rho, self.n0
+            # TIME ADVANCE's guard (R.time_advance_enabled) gathered on the
+            # way: some agent running, none that has not exited with
+            # counter + rho(i) <= n0
+            running = blocked = False
+            i = 0
+            for ag in st[4]:
+                s = ag[3]
+                if s == RUNNING:
+                    running = True
+                    info = infos[ag[0]]
+                    if info is None:
+                        info = self.ctl.info(ag[0])
+                    if ag[1] + rho[i] <= n0:
+                        blocked = True
+                        rules = AGENT_RULES[info[0]]
+                    else:
+                        rules = AGENT_RULES_SPENT[info[0]]
+                    oracle.agent = i
+                    for rule in rules:
+                        rule(self, st, i, ag, info, out)
+                elif s != EXITED and ag[1] + rho[i] <= n0:
+                    blocked = True
+                i += 1
+            if running and not blocked:
+                R.time_advance(self, st, out, True)
         else:
             R.doreach_invoke(self, st, out)
         return out
@@ -526,6 +586,9 @@ class Model:
 
     # -- properties ------------------------------------------------------------------------
     def violations(self, st) -> list:
+        """Every violation in ``st``: stuck agents, then properties, then
+        collisions.  (Instances shadow this with the fast path compiled by
+        :meth:`_compile_violations`, which falls back to it.)"""
         out = []
         for i, ag in enumerate(st[4]):
             s = ag[3]
@@ -617,11 +680,12 @@ def _type_of(v) -> str:
 
 def _check_env(model, env, time, n=None):
     try:
-        hash(env)
-    except TypeError:
-        where = "init_env() returned" if n is None else f"outcome {n}: env is"
-        model.blackbox_error(time, f"{where} an unhashable {_type_of(env)} (the env is part "
-                                   f"of the state: use tuples, not lists or dicts)")
+        check_canonical(env, "env")
+    except TypeError as exc:
+        where = "init_env() returned" if n is None else f"outcome {n}:"
+        model.blackbox_error(time, f"{where} {exc} (the env is part of the state, which "
+                                   f"must have one canonical encoding: use tuples, not lists, "
+                                   f"sets or dicts)")
 
 
 _BLACKBOX_ATTRS = ("name", "uses_time", "init_env", "step")
@@ -634,6 +698,13 @@ def _check_blackbox_object(bb):
                         "see pccl.blackboxes.base)")
     if not callable(bb.step) or not callable(bb.init_env):
         raise PcclError(f"blackbox '{bb.name}': step and init_env must be methods")
+
+
+def _guard_error(exc, e) -> PcclRuntimeError:
+    """A runtime error in event e's guard, located there."""
+    err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
+    err.where = ("guard", e)
+    return err
 
 
 def _src_text(source: str, span: A.Span) -> str:

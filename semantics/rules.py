@@ -36,9 +36,20 @@ _RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
 
 
 def _put(st, i, ag2, sh2=None):
+    """``st`` with agent i's cell replaced by ``ag2`` (and shared by ``sh2``)."""
     ags = st[4]
-    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2,
-            ags[:i] + (ag2,) + ags[i + 1:], st[5])
+    n = len(ags)
+    # small teams: build the tuple directly (3-4x cheaper than slicing)
+    if n == 2:
+        ags = (ag2, ags[1]) if i == 0 else (ags[0], ag2)
+    elif n == 3:
+        ags = ((ag2, ags[1], ags[2]) if i == 0 else (ags[0], ag2, ags[2]) if i == 1
+               else (ags[0], ags[1], ag2))
+    else:
+        ags = list(ags)      # 2x cheaper than ags[:i] + (ag2,) + ags[i + 1:]
+        ags[i] = ag2
+        ags = tuple(ags)
+    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2, ags, st[5])
 
 
 def _with_pc(ag, pc):
@@ -106,7 +117,15 @@ def event_select(m, st, i, ag, info, out):
     if ag[1] + m.rho[i] > m.n0:
         return
     sh, ags = st[3], st[4]
-    for res in _outcomes(m, m.enabled_events, m.guards_rand, i, ag, sh, ags):
+    if m.guards_rand:
+        results = _outcomes(m, m.enabled_events, True, i, ag, sh, ags)
+    else:
+        # the common case, without _outcomes' wrapper
+        try:
+            results = (m.enabled_events(i, ag, sh, ags),)
+        except _RUNTIME_ERRORS as exc:
+            results = (_Err.of(exc),)
+    for res in results:
         if isinstance(res, _Err):
             out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
             continue
@@ -128,45 +147,39 @@ def statement(m, st, i, ag, info, out):
     error sets status stuck(reason, location) instead.
     """
     kind = info[0]
+    if kind == K_ATOMIC:
+        if ag[2] == LOCK:
+            # A nested atomic inside a held lock just runs its body.
+            _, _req, nested_pc, sid = info
+            out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
+        return
+    # K_SIMPLE, K_IF, K_WHILE, K_ASSERT: info = (kind, fn, ..., sid, has_rand)
+    fn, sid, rnd = info[1], info[-2], info[-1]
     sh, ags = st[3], st[4]
-    if kind == K_SIMPLE:
-        _, fn, nxt, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                ag2, sh2 = res
-                ag2 = (nxt, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
-                out.append((("STATEMENT", i, sid), _put(st, i, ag2, sh2)))
-    elif kind == K_IF:
-        _, fn, pcs, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, pcs[res]))))
-    elif kind == K_WHILE:
-        _, fn, body_pc, exit_pc, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            else:
-                out.append((("STATEMENT", i, sid),
-                            _put(st, i, _with_pc(ag, body_pc if res else exit_pc))))
-    elif kind == K_ASSERT:
-        _, fn, nxt, sid, rnd = info
-        for res in _outcomes(m, fn, rnd, i, ag, sh, ags):
-            if isinstance(res, _Err):
-                out.append((("STATEMENT", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
-            elif res:
-                out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nxt))))
-            else:
-                out.append((("STATEMENT", i, sid),
-                            _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
-    elif kind == K_ATOMIC and ag[2] == LOCK:
-        # A nested atomic inside a held lock just runs its body.
-        _, _req, nested_pc, sid = info
-        out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
+    if rnd:
+        results = _outcomes(m, fn, True, i, ag, sh, ags)
+    else:
+        # the common case, without _outcomes' wrapper
+        try:
+            results = (fn(i, ag, sh, ags),)
+        except _RUNTIME_ERRORS as exc:
+            results = (_Err.of(exc),)
+    label = ("STATEMENT", i, sid)
+    for res in results:
+        if isinstance(res, _Err):
+            out.append((label, _stuck(m, st, i, ag, res.reason, sid)))
+        elif kind == K_SIMPLE:
+            ag2, sh2 = res
+            ag2 = (info[2], ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
+            out.append((label, _put(st, i, ag2, sh2)))
+        elif kind == K_IF:
+            out.append((label, _put(st, i, _with_pc(ag, info[2][res]))))
+        elif kind == K_WHILE:
+            out.append((label, _put(st, i, _with_pc(ag, info[2] if res else info[3]))))
+        elif res:    # K_ASSERT
+            out.append((label, _put(st, i, _with_pc(ag, info[2]))))
+        else:
+            out.append((label, _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
 
 
 def exit_rule(m, st, i, ag, info, out):
@@ -321,7 +334,7 @@ def time_advance_enabled(m, st):
     return running
 
 
-def time_advance(m, st, out):
+def time_advance(m, st, out, enabled=None):
     """TIME ADVANCE.
 
     Paper §4.4: "given that the current global time is T, if all the counter
@@ -333,8 +346,11 @@ def time_advance(m, st, out):
 
     Spec: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.
+
+    ``enabled``, if given, is :func:`time_advance_enabled` already computed
+    by the caller (``Model.successors`` gathers it while visiting the agents).
     """
-    if not time_advance_enabled(m, st):
+    if not (time_advance_enabled(m, st) if enabled is None else enabled):
         return
     # (time_advance_enabled ignores --max-time; terminal_kind uses it to tell
     # a bounded state from a deadlock)
@@ -387,4 +403,12 @@ AGENT_RULES = {
     K_ATOMIC: (lock_request, statement),
     K_DOREACH: (doreach_update,),
     K_EXIT: (exit_rule,),
+}
+
+# The same, for an agent whose counter is spent (counter + ρ(i) > n0): EVENT
+# SELECT, COUNTER ADVANCE and ATOMIC WAIT need a counter step and cannot
+# apply, so Model.successors does not call them.
+AGENT_RULES_SPENT = {
+    kind: tuple(r for r in rules if r not in (event_select, counter_advance, atomic_wait))
+    for kind, rules in AGENT_RULES.items()
 }

@@ -186,7 +186,7 @@ def test_blackbox_returning_nothing(cmd, user_bb):
     ("SHORT", "'positions' must have one entry per agent (2), got 1 entries"),
     ("NOT_OUTCOME", "outcome 1 is tuple, not an Outcome"),
     ("BAD_POS", "position of agent 0 must be (x, y, z) finite numbers"),
-    ("UNHASHABLE", "env is an unhashable list"),
+    ("UNHASHABLE", "env holds a list"),
     ("BAD_INIT", "init_env() raised KeyError"),
 ])
 @pytest.mark.parametrize("cmd", ["explore", "run"])
