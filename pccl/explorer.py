@@ -515,10 +515,10 @@ class Explorer:
                 cut = budget
                 bounds.add(Bound.MAX_STATES)
                 halt = True
-            for j in range(cut):
-                s2 = cs[new[j]][1]
-                v = viol_fn(s2)
-                if v and record(v, base + j, d):
+            states = [cs[p][1] for p in new[:cut]]
+            viols = list(map(viol_fn, states))          # no bytecode per state
+            for j in itertools.compress(range(cut), viols):
+                if record(viols[j], base + j, d):
                     cut = j + 1
                     halt = True
                     break
@@ -527,7 +527,7 @@ class Explorer:
                 kept = np.asarray(new[:cut], dtype=np.int64)
                 pidx = np.asarray(par_idx, dtype=np.int64)
                 table.add(cut, pidx[owners[kept]])
-                nxt.extend([cs[p][1] for p in new[:cut]])
+                nxt.extend(states[:cut] if cut < len(states) else states)
                 nxt_idx.extend(range(base, base + cut))
             budget -= cut
             if halt and cut:
