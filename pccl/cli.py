@@ -82,6 +82,15 @@ def common_options(f):
     return f
 
 
+def view_options(f):
+    f = click.option("--full", is_flag=True,
+                     help="with --view steps: also show the steps that change nothing")(f)
+    f = click.option("--view", type=click.Choice(["steps", "swimlane"]), default=None,
+                     help="how to show the trace: steps (from the initial state, branches "
+                          "named, empty steps folded) or swimlane (one column per agent)")(f)
+    return f
+
+
 def _delta(d):
     return int(d) if float(d).is_integer() else d
 
@@ -186,20 +195,32 @@ def check(program, world):
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
+@click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
+              help="write the run as a trace file (JSON, docs/trace-format.md) for pccl replay")
+@view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, trace, fmt, plot):
+        max_time, max_steps, trace, fmt, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
+    from . import traces as T
     if plot:
         _check_plot_output(plot)
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
+    record = bool(trace or plot or trace_out or fmt == "json" or view)
     try:
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
-                      max_steps=max_steps, record_trace=trace or plot is not None,
+                      max_steps=max_steps, record_trace=record,
                       max_time=_delta(max_time),
                       **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
         _fail(e)
     m = res.model
+    doc = None
+    if record:
+        cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
+                       overrides=dict(overrides), seed=seed, max_steps=max_steps)
+        doc = T.run_document(res, cfg)
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
@@ -208,13 +229,15 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
                            for t, s in res.summary],
                "final": D.state_json(m, res.final)}
-        if trace:
-            out["trace"] = [D.step_json(m, n + 1, lab, a, b) for n, (lab, a, b) in enumerate(res.trace)]
+        out["trace"] = doc
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                    f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
-        if trace:
+        if view:
+            from . import views
+            click.echo(views.render(view, m, _run_path(res), full=full))
+        elif trace:
             click.echo("trace:")
             for n, (lab, a, b) in enumerate(res.trace):
                 click.echo(D.format_step(m, n + 1, lab, a, b))
@@ -231,9 +254,35 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                            f"{D.source_line(m, v.span)}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
+    if trace_out:
+        _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(res.exit_status)
+
+
+def _run_path(res):
+    """A run's path as (states, labels)."""
+    if res.trace:
+        return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
+    return [res.final], []
+
+
+def _check_output(path, option):
+    try:
+        check_writable(path, option)
+    except PcclError as e:
+        _fail(e)
+
+
+def _write_trace(doc, path, *, quiet=False):
+    from . import traces as T
+    try:
+        T.write(doc, path)
+    except PcclError as e:      # the verdict stands: report, keep its exit status
+        click.echo(e.render(), err=True)
+        return
+    click.echo(f"trace written to {path}", err=quiet)
 
 
 def _rates_text(m) -> str:
@@ -329,14 +378,23 @@ def _plot_run(m, res, path, *, quiet=False):
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
               help="progress line on stderr [default: when stderr is a terminal]")
+@click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
+              help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
+@view_options
+@click.option("--coverage", is_flag=True,
+              help="report how often each event's guard held and it fired, and statements "
+                   "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress):
+            exact, fmt, plot, progress, trace_out, view, full, coverage):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
+    from . import traces as T
     if plot:
         _check_plot_output(plot)
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
@@ -356,10 +414,17 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _fail(e)
     if show:
         click.echo("\r\033[K", err=True, nl=False)
+    cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                   overrides=dict(overrides), invariants=invariants, deadlock=not no_deadlock)
+    doc = T.explore_document(res, cfg)
     if fmt == "json":
-        click.echo(json.dumps(_explore_json(program, res), indent=2, default=str))
+        out = _explore_json(program, res)
+        out["trace"] = doc
+        click.echo(json.dumps(out, indent=2, default=str))
     else:
-        _print_explore_text(program, res, k_style=(fmt == "k"))
+        _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
+    if trace_out:
+        _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot and res.violations:
         try:
             _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
@@ -407,7 +472,7 @@ def _stats_lines(res) -> list:
     return lines
 
 
-def _print_explore_text(program, res, *, k_style=False):
+def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     m = res.model
     click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
@@ -420,8 +485,12 @@ def _print_explore_text(program, res, *, k_style=False):
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
         tr = cx.trace
         click.echo(f"counterexample ({len(tr)} steps):")
-        for st in tr.steps:
-            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+        if view:
+            from . import views
+            click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
+        else:
+            for st in tr.steps:
+                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("violating state:")
         if k_style:
             click.echo(D.format_state_k(m, tr.last))
