@@ -437,6 +437,47 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     sys.exit(_interrupted_status(res.exit_status))
 
 
+@main.command(short_help="Re-execute a trace file; report the first divergence.",
+              epilog="Exit status: 0 a clean run reproduced, 1 a violation reproduced, 2 the "
+                     "trace diverges (or bad input).")
+@click.argument("trace_file", metavar="FILE", type=click.Path(dir_okay=False))
+@view_options
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="draw the replayed trajectories to this PNG (needs matplotlib)")
+def replay(trace_file, view, full, plot):
+    """Re-execute the trace FILE (written by --trace-out) through the interpreter:
+    rebuild the model from the recorded configuration, start from the recorded
+    initial state and check that every recorded step is enabled and makes the
+    recorded changes."""
+    from .replay import replay as do_replay
+    if plot:
+        _check_plot_output(plot)
+    try:
+        res = do_replay(trace_file)
+    except PcclError as e:
+        _fail(e)
+    cfg = res.doc["config"]
+    m = res.model
+    click.echo(f"pccl replay {trace_file}: {cfg['command']} of {cfg['program']['path']}, "
+               f"{m.N} agents, blackbox {m.blackbox.name}, δ={D.fmt_time(m.delta)}, "
+               f"n0={m.n0}{_rates_text(m)}" + (f", seed {cfg['seed']}" if "seed" in cfg else ""))
+    for w in res.warnings:
+        click.echo(w)
+    if view and res.states:
+        from . import views
+        click.echo(views.render(view, m, (res.states, res.labels), full=full))
+    click.echo(f"replayed {len(res.labels)} of {res.steps_total} steps")
+    click.echo(res.message)
+    if plot and res.states:
+        try:
+            _plot_module().plot_trace(m, [(None, res.states[0])] + list(zip(res.labels, res.states[1:])),
+                                      plot, title=res.message)
+            click.echo(f"plot written to {plot}")
+        except PcclError as e:
+            click.echo(e.render(), err=True)
+    sys.exit(res.exit_status)
+
+
 def _size(value):
     if value is None:
         return None
