@@ -407,7 +407,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
                             find_all=find_all, exact=exact, progress=reporter,
-                            max_memory="default" if max_memory is None else max_memory)
+                            max_memory="default" if max_memory is None else max_memory,
+                            coverage=coverage)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if show:
             click.echo("\r\033[K", err=True, nl=False)
@@ -420,6 +421,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     if fmt == "json":
         out = _explore_json(program, res)
         out["trace"] = doc
+        if res.coverage is not None:
+            out["coverage"] = res.coverage.as_dict()
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
@@ -540,6 +543,9 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
+    if res.coverage is not None:
+        for ln in res.coverage.lines():
+            click.echo(ln)
 
 
 def _explore_json(program, res) -> dict:
