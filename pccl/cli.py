@@ -481,6 +481,55 @@ def replay(trace_file, view, full, plot):
     sys.exit(res.exit_status)
 
 
+@main.command(short_help="Write the reachable state graph (DOT or JSON).", epilog=EXIT_STATUS_HELP)
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--output", "-o", type=click.Path(dir_okay=False), required=True,
+              help="FILE.dot (or .gv) for Graphviz, FILE.json for the data")
+@click.option("--max-states", type=click.IntRange(min=1), default=10_000, show_default=True,
+              help="stop adding states after this many")
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
+              help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="a state property; violating states are marked (repeatable)")
+@click.option("--no-deadlock", is_flag=True, help="do not mark deadlocks as violations")
+def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+          output, max_states, max_time, invariants, no_deadlock):
+    """Write the reachable state graph of PROGRAM, breadth-first up to --max-states
+    states: states as nodes (violating ones in red), transitions as edges labelled
+    with agent, rule, line and changes, one colour per agent."""
+    import os
+    from .api import make_model
+    from . import graph as G
+    from . import traces as T
+    ext = os.path.splitext(output)[1].lower()
+    if ext not in (".dot", ".gv", ".json"):
+        _fail(PcclError(f"cannot tell the format of {output}: use a .dot, .gv or .json file",
+                        filename="--output"))
+    _check_output(output, "--output")
+    try:
+        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+                           max_time=None if max_time is None else _delta(max_time),
+                           invariants=tuple(invariants),
+                           **_model_options(delta, n0, rates, events, collisions, overrides))
+        g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
+        if ext == ".json":
+            cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                           overrides=dict(overrides), invariants=invariants,
+                           deadlock=not no_deadlock)
+            text = G.dumps(G.to_json(model, g, cfg, max_states))
+        else:
+            text = G.to_dot(model, g, name=os.path.basename(program))
+        G.write(text, output)
+    except PcclError as e:
+        _fail(e)
+    bad = len(g.violations)
+    click.echo(f"pccl graph {program}: {len(g.states):,} states, {len(g.edges):,} transitions, "
+               f"{bad} violating" + (f" (truncated at --max-states {max_states})" if g.truncated
+                                     else " (complete)") + f"; written to {output}")
+    sys.exit(1 if bad else 0)
+
+
 def _size(value):
     if value is None:
         return None
