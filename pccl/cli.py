@@ -55,9 +55,9 @@ class SetType(click.ParamType):
         return name.strip(), expr.strip()
 
 
-def common_options(f):
+def common_options(f, *, agents_flags=("--agents", "-n")):
     opts = [
-        click.option("--agents", "-n", type=click.IntRange(min=1), default=None,
+        click.option(*agents_flags, "agents", type=click.IntRange(min=1), default=None,
                      help="number of agents (overrides the world's count) [default: world's, else 2]"),
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
@@ -80,6 +80,11 @@ def common_options(f):
     for o in reversed(opts):
         f = o(f)
     return f
+
+
+def common_options_without_n(f):
+    """The common options, with -n left free (simulate's -n is the number of runs)."""
+    return common_options(f, agents_flags=("--agents",))
 
 
 def view_options(f):
@@ -528,6 +533,77 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
                f"{bad} violating" + (f" (truncated at --max-states {max_states})" if g.truncated
                                      else " (complete)") + f"; written to {output}")
     sys.exit(1 if bad else 0)
+
+
+@main.command(short_help="Many seeded runs: outcome counts, times, reproducing seeds.",
+              epilog="Exit status: 0 no run had a violation, 1 some run had one (or was stopped "
+                     "by --max-steps), 2 bad input.")
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options_without_n
+@click.option("--runs", "-n", "runs", type=click.IntRange(min=1), default=100, show_default=True,
+              help="number of runs (seeds SEED, SEED+1, ...)")
+@click.option("--seed", type=int, default=0, show_default=True, help="seed of the first run")
+@click.option("--max-time", type=FiniteFloat(min=0), default=100, show_default=True,
+              help="stop a run when global time would pass this")
+@click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
+              help="most transitions in one time step before a run is stopped as looping")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+             runs, seed, max_time, max_steps, fmt):
+    """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...) and count
+    the outcomes: final, bounded, deadlock, max-steps and each violation, with the
+    first seed of each and the pccl run command that reproduces it."""
+    import random
+    from .api import make_model
+    from . import simulate as S
+    rng = random.Random(seed)
+    opts = _model_options(delta, n0, rates, events, collisions, overrides)
+    try:
+        model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
+                           max_time=_delta(max_time), abstract_time=False, **opts)
+        outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps)
+    except PcclError as e:
+        _fail(e)
+
+    def command(s):
+        return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
+                             delta=_delta(delta), n0=n0, rates=rates, events=events,
+                             collisions=collisions, overrides=overrides,
+                             max_time=_delta(max_time), max_steps=max_steps)
+    bad = any(o.key[0] not in ("final", "bounded") for o in outcomes.values())
+    if fmt == "json":
+        click.echo(json.dumps({
+            "program": program, "runs": runs, "first_seed": seed, "agents": model.N,
+            "blackbox": model.blackbox.name,
+            "outcomes": [{"outcome": o.label, "count": len(o.seeds), "first_seed": o.first_seed,
+                          "seeds": o.seeds[:100], "example": o.example,
+                          "times": {"min": min(o.times), "median": statistics_median(o.times),
+                                    "max": max(o.times)},
+                          "command": command(o.first_seed)} for o in outcomes.values()],
+            "exit_status": 1 if bad else 0}, indent=2, default=str))
+        sys.exit(1 if bad else 0)
+    click.echo(f"pccl simulate {program}: {runs} runs (seeds {seed}–{seed + runs - 1}), "
+               f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
+               f"n0={model.n0}{_rates_text(model)}")
+    click.echo("outcomes:")
+    for o in sorted(outcomes.values(), key=lambda o: -len(o.seeds)):
+        n = len(o.seeds)
+        click.echo(f"  {o.label}: {n} run{'s' if n != 1 else ''} ({100 * n / runs:.1f}%), "
+                   f"{S.time_summary(o.times)}")
+        if o.key[0] not in ("final", "bounded"):
+            click.echo(f"    e.g. {o.example}")
+        click.echo(f"    first seed {o.first_seed}: {command(o.first_seed)}")
+    done = [t for o in outcomes.values() if o.key[0] == "final" for t in o.times]
+    if done:
+        click.echo(f"completion time ({len(done)} runs in which every agent exited):")
+        for ln in S.histogram(done):
+            click.echo(ln)
+    sys.exit(1 if bad else 0)
+
+
+def statistics_median(xs):
+    import statistics
+    return statistics.median(xs)
 
 
 def _size(value):
