@@ -164,6 +164,9 @@ def main():
       pccl run PROGRAM              one seeded execution against a physics model
       pccl explore PROGRAM          every interleaving, breadth-first, with
                                     shortest counterexamples
+      pccl replay FILE              re-execute a trace file (--trace-out)
+      pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
+      pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock
     or (with --collisions) a collision.
