@@ -105,6 +105,7 @@ class ExploreResult:
     model: Any = None
     search: Optional[SearchResult] = None
     counterexamples: list = field(default_factory=list)  # [Counterexample], as violations
+    coverage: Any = None              # a CoverageReport, with coverage=True
 
     @property
     def exhaustive(self) -> bool:
@@ -113,7 +114,7 @@ class ExploreResult:
 
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
-            progress=None, invariants=(), max_memory="default",
+            progress=None, invariants=(), max_memory="default", coverage: bool = False,
             **model_options) -> ExploreResult:
     V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
                 options={**model_options, "invariants": invariants})
@@ -123,7 +124,7 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
                        invariants=tuple(invariants), **model_options)
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
-                         max_memory=max_memory)
+                         max_memory=max_memory, coverage=coverage)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -138,7 +139,7 @@ def default_max_memory() -> int:
 
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None,
-                  max_memory="default") -> ExploreResult:
+                  max_memory="default", coverage: bool = False) -> ExploreResult:
     """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
     which the search stops with the bound ``--max-memory`` (``"default"``:
     80 % of physical memory; ``None``: no limit)."""
@@ -149,7 +150,12 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     if max_memory == "default":
         max_memory = default_max_memory()
-    ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
+    V.boolean("explore_model", "coverage", coverage)
+    cov = None
+    if coverage:
+        from .coverage import CoverageModel
+        cov = CoverageModel(model)
+    ex = Explorer(cov or model, max_depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     sr = ex.run()
     bb = model.blackbox.name
@@ -180,7 +186,8 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     first = violations[0] if violations else None
     return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
                          first["trace"] if first else [], first["state"] if first else None,
-                         sr.collision_probability, model, sr, list(sr.found))
+                         sr.collision_probability, model, sr, list(sr.found),
+                         cov.report() if cov is not None else None)
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

@@ -55,9 +55,9 @@ class SetType(click.ParamType):
         return name.strip(), expr.strip()
 
 
-def common_options(f):
+def common_options(f, *, agents_flags=("--agents", "-n")):
     opts = [
-        click.option("--agents", "-n", type=click.IntRange(min=1), default=None,
+        click.option(*agents_flags, "agents", type=click.IntRange(min=1), default=None,
                      help="number of agents (overrides the world's count) [default: world's, else 2]"),
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
@@ -79,6 +79,20 @@ def common_options(f):
     ]
     for o in reversed(opts):
         f = o(f)
+    return f
+
+
+def common_options_without_n(f):
+    """The common options, with -n left free (simulate's -n is the number of runs)."""
+    return common_options(f, agents_flags=("--agents",))
+
+
+def view_options(f):
+    f = click.option("--full", is_flag=True,
+                     help="with --view steps: also show the steps that change nothing")(f)
+    f = click.option("--view", type=click.Choice(["steps", "swimlane"]), default=None,
+                     help="how to show the trace: steps (from the initial state, branches "
+                          "named, empty steps folded) or swimlane (one column per agent)")(f)
     return f
 
 
@@ -150,6 +164,9 @@ def main():
       pccl run PROGRAM              one seeded execution against a physics model
       pccl explore PROGRAM          every interleaving, breadth-first, with
                                     shortest counterexamples
+      pccl replay FILE              re-execute a trace file (--trace-out)
+      pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
+      pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock
     or (with --collisions) a collision.
@@ -186,20 +203,32 @@ def check(program, world):
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
+@click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
+              help="write the run as a trace file (JSON, docs/trace-format.md) for pccl replay")
+@view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, trace, fmt, plot):
+        max_time, max_steps, trace, fmt, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
+    from . import traces as T
     if plot:
         _check_plot_output(plot)
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
+    record = bool(trace or plot or trace_out or fmt == "json" or view)
     try:
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
-                      max_steps=max_steps, record_trace=trace or plot is not None,
+                      max_steps=max_steps, record_trace=record,
                       max_time=_delta(max_time),
                       **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
         _fail(e)
     m = res.model
+    doc = None
+    if record:
+        cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
+                       overrides=dict(overrides), seed=seed, max_steps=max_steps)
+        doc = T.run_document(res, cfg)
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
@@ -208,13 +237,15 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
                            for t, s in res.summary],
                "final": D.state_json(m, res.final)}
-        if trace:
-            out["trace"] = [D.step_json(m, n + 1, lab, a, b) for n, (lab, a, b) in enumerate(res.trace)]
+        out["trace"] = doc
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                    f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
-        if trace:
+        if view:
+            from . import views
+            click.echo(views.render(view, m, _run_path(res), full=full))
+        elif trace:
             click.echo("trace:")
             for n, (lab, a, b) in enumerate(res.trace):
                 click.echo(D.format_step(m, n + 1, lab, a, b))
@@ -231,9 +262,35 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                            f"{D.source_line(m, v.span)}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
+    if trace_out:
+        _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(res.exit_status)
+
+
+def _run_path(res):
+    """A run's path as (states, labels)."""
+    if res.trace:
+        return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
+    return [res.final], []
+
+
+def _check_output(path, option):
+    try:
+        check_writable(path, option)
+    except PcclError as e:
+        _fail(e)
+
+
+def _write_trace(doc, path, *, quiet=False):
+    from . import traces as T
+    try:
+        T.write(doc, path)
+    except PcclError as e:      # the verdict stands: report, keep its exit status
+        click.echo(e.render(), err=True)
+        return
+    click.echo(f"trace written to {path}", err=quiet)
 
 
 def _rates_text(m) -> str:
@@ -329,14 +386,23 @@ def _plot_run(m, res, path, *, quiet=False):
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
               help="progress line on stderr [default: when stderr is a terminal]")
+@click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
+              help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
+@view_options
+@click.option("--coverage", is_flag=True,
+              help="report how often each event's guard held and it fired, and statements "
+                   "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress):
+            exact, fmt, plot, progress, trace_out, view, full, coverage):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
+    from . import traces as T
     if plot:
         _check_plot_output(plot)
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
@@ -349,17 +415,27 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
                             find_all=find_all, exact=exact, progress=reporter,
-                            max_memory="default" if max_memory is None else max_memory)
+                            max_memory="default" if max_memory is None else max_memory,
+                            coverage=coverage)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if show:
             click.echo("\r\033[K", err=True, nl=False)
         _fail(e)
     if show:
         click.echo("\r\033[K", err=True, nl=False)
+    cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                   overrides=dict(overrides), invariants=invariants, deadlock=not no_deadlock)
+    doc = T.explore_document(res, cfg)
     if fmt == "json":
-        click.echo(json.dumps(_explore_json(program, res), indent=2, default=str))
+        out = _explore_json(program, res)
+        out["trace"] = doc
+        if res.coverage is not None:
+            out["coverage"] = res.coverage.as_dict()
+        click.echo(json.dumps(out, indent=2, default=str))
     else:
-        _print_explore_text(program, res, k_style=(fmt == "k"))
+        _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
+    if trace_out:
+        _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot and res.violations:
         try:
             _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
@@ -370,6 +446,167 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     sys.exit(_interrupted_status(res.exit_status))
+
+
+@main.command(short_help="Re-execute a trace file; report the first divergence.",
+              epilog="Exit status: 0 a clean run reproduced, 1 a violation reproduced, 2 the "
+                     "trace diverges (or bad input).")
+@click.argument("trace_file", metavar="FILE", type=click.Path(dir_okay=False))
+@view_options
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="draw the replayed trajectories to this PNG (needs matplotlib)")
+def replay(trace_file, view, full, plot):
+    """Re-execute the trace FILE (written by --trace-out) through the interpreter:
+    rebuild the model from the recorded configuration, start from the recorded
+    initial state and check that every recorded step is enabled and makes the
+    recorded changes."""
+    from .replay import replay as do_replay
+    if plot:
+        _check_plot_output(plot)
+    try:
+        res = do_replay(trace_file)
+    except PcclError as e:
+        _fail(e)
+    cfg = res.doc["config"]
+    m = res.model
+    click.echo(f"pccl replay {trace_file}: {cfg['command']} of {cfg['program']['path']}, "
+               f"{m.N} agents, blackbox {m.blackbox.name}, δ={D.fmt_time(m.delta)}, "
+               f"n0={m.n0}{_rates_text(m)}" + (f", seed {cfg['seed']}" if "seed" in cfg else ""))
+    for w in res.warnings:
+        click.echo(w)
+    if view and res.states:
+        from . import views
+        click.echo(views.render(view, m, (res.states, res.labels), full=full))
+    click.echo(f"replayed {len(res.labels)} of {res.steps_total} steps")
+    click.echo(res.message)
+    if plot and res.states:
+        try:
+            _plot_module().plot_trace(m, [(None, res.states[0])] + list(zip(res.labels, res.states[1:])),
+                                      plot, title=res.message)
+            click.echo(f"plot written to {plot}")
+        except PcclError as e:
+            click.echo(e.render(), err=True)
+    sys.exit(res.exit_status)
+
+
+@main.command(short_help="Write the reachable state graph (DOT or JSON).", epilog=EXIT_STATUS_HELP)
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--output", "-o", type=click.Path(dir_okay=False), required=True,
+              help="FILE.dot (or .gv) for Graphviz, FILE.json for the data")
+@click.option("--max-states", type=click.IntRange(min=1), default=10_000, show_default=True,
+              help="stop adding states after this many")
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
+              help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="a state property; violating states are marked (repeatable)")
+@click.option("--no-deadlock", is_flag=True, help="do not mark deadlocks as violations")
+def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+          output, max_states, max_time, invariants, no_deadlock):
+    """Write the reachable state graph of PROGRAM, breadth-first up to --max-states
+    states: states as nodes (violating ones in red), transitions as edges labelled
+    with agent, rule, line and changes, one colour per agent."""
+    import os
+    from .api import make_model
+    from . import graph as G
+    from . import traces as T
+    ext = os.path.splitext(output)[1].lower()
+    if ext not in (".dot", ".gv", ".json"):
+        _fail(PcclError(f"cannot tell the format of {output}: use a .dot, .gv or .json file",
+                        filename="--output"))
+    _check_output(output, "--output")
+    try:
+        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+                           max_time=None if max_time is None else _delta(max_time),
+                           invariants=tuple(invariants),
+                           **_model_options(delta, n0, rates, events, collisions, overrides))
+        g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
+        if ext == ".json":
+            cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                           overrides=dict(overrides), invariants=invariants,
+                           deadlock=not no_deadlock)
+            text = G.dumps(G.to_json(model, g, cfg, max_states))
+        else:
+            text = G.to_dot(model, g, name=os.path.basename(program))
+        G.write(text, output)
+    except PcclError as e:
+        _fail(e)
+    bad = len(g.violations)
+    click.echo(f"pccl graph {program}: {len(g.states):,} states, {len(g.edges):,} transitions, "
+               f"{bad} violating" + (f" (truncated at --max-states {max_states})" if g.truncated
+                                     else " (complete)") + f"; written to {output}")
+    sys.exit(1 if bad else 0)
+
+
+@main.command(short_help="Many seeded runs: outcome counts, times, reproducing seeds.",
+              epilog="Exit status: 0 no run had a violation, 1 some run had one (or was stopped "
+                     "by --max-steps), 2 bad input.")
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options_without_n
+@click.option("--runs", "-n", "runs", type=click.IntRange(min=1), default=100, show_default=True,
+              help="number of runs (seeds SEED, SEED+1, ...)")
+@click.option("--seed", type=int, default=0, show_default=True, help="seed of the first run")
+@click.option("--max-time", type=FiniteFloat(min=0), default=100, show_default=True,
+              help="stop a run when global time would pass this")
+@click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
+              help="most transitions in one time step before a run is stopped as looping")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+             runs, seed, max_time, max_steps, fmt):
+    """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...) and count
+    the outcomes: final, bounded, deadlock, max-steps and each violation, with the
+    first seed of each and the pccl run command that reproduces it."""
+    import random
+    from .api import make_model
+    from . import simulate as S
+    rng = random.Random(seed)
+    opts = _model_options(delta, n0, rates, events, collisions, overrides)
+    try:
+        model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
+                           max_time=_delta(max_time), abstract_time=False, **opts)
+        outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps)
+    except PcclError as e:
+        _fail(e)
+
+    def command(s):
+        return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
+                             delta=_delta(delta), n0=n0, rates=rates, events=events,
+                             collisions=collisions, overrides=overrides,
+                             max_time=_delta(max_time), max_steps=max_steps)
+    bad = any(o.key[0] not in ("final", "bounded") for o in outcomes.values())
+    if fmt == "json":
+        click.echo(json.dumps({
+            "program": program, "runs": runs, "first_seed": seed, "agents": model.N,
+            "blackbox": model.blackbox.name,
+            "outcomes": [{"outcome": o.label, "count": len(o.seeds), "first_seed": o.first_seed,
+                          "seeds": o.seeds[:100], "example": o.example,
+                          "times": {"min": min(o.times), "median": statistics_median(o.times),
+                                    "max": max(o.times)},
+                          "command": command(o.first_seed)} for o in outcomes.values()],
+            "exit_status": 1 if bad else 0}, indent=2, default=str))
+        sys.exit(1 if bad else 0)
+    click.echo(f"pccl simulate {program}: {runs} runs (seeds {seed}–{seed + runs - 1}), "
+               f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
+               f"n0={model.n0}{_rates_text(model)}")
+    click.echo("outcomes:")
+    for o in sorted(outcomes.values(), key=lambda o: -len(o.seeds)):
+        n = len(o.seeds)
+        click.echo(f"  {o.label}: {n} run{'s' if n != 1 else ''} ({100 * n / runs:.1f}%), "
+                   f"{S.time_summary(o.times)}")
+        if o.key[0] not in ("final", "bounded"):
+            click.echo(f"    e.g. {o.example}")
+        click.echo(f"    first seed {o.first_seed}: {command(o.first_seed)}")
+    done = [t for o in outcomes.values() if o.key[0] == "final" for t in o.times]
+    if done:
+        click.echo(f"completion time ({len(done)} runs in which every agent exited):")
+        for ln in S.histogram(done):
+            click.echo(ln)
+    sys.exit(1 if bad else 0)
+
+
+def statistics_median(xs):
+    import statistics
+    return statistics.median(xs)
 
 
 def _size(value):
@@ -407,7 +644,7 @@ def _stats_lines(res) -> list:
     return lines
 
 
-def _print_explore_text(program, res, *, k_style=False):
+def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     m = res.model
     click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
@@ -420,8 +657,12 @@ def _print_explore_text(program, res, *, k_style=False):
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
         tr = cx.trace
         click.echo(f"counterexample ({len(tr)} steps):")
-        for st in tr.steps:
-            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+        if view:
+            from . import views
+            click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
+        else:
+            for st in tr.steps:
+                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("violating state:")
         if k_style:
             click.echo(D.format_state_k(m, tr.last))
@@ -430,6 +671,9 @@ def _print_explore_text(program, res, *, k_style=False):
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
+    if res.coverage is not None:
+        for ln in res.coverage.lines():
+            click.echo(ln)
 
 
 def _explore_json(program, res) -> dict:

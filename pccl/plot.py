@@ -17,10 +17,18 @@ coordinates with equal aspect:
   parked for several steps gets one ``t=a–b`` label; labels are thinned when
   there are many); its footprint, a disc of ``world.radius``, dashed at the
   start and filled at the end, with the agent's number;
+* failed ``doReach`` calls: a red X where an agent's ``doReach_fail``
+  became true, labelled "doReach failed (i)";
 * the verdict: for a counterexample, or a run that ended badly, the title's
   second line is the message in red and red rings mark the agents involved
   at the last state (the colliding agents and obstacle, the stuck agent, the
   agents still running in a deadlock; every agent for an invariant).
+
+A program without motion (no ``doReach`` statement) draws a *timeline*
+instead of discs that never move (:func:`_draw_timeline`): one lane per
+agent, a bar per event block coloured by event (grey for IDLE, hatched for
+ATOMIC WAIT), a bar at an agent's exit, and the violating moment marked in
+red on the agents involved.
 
 The figure is 8 x 6 inches at 100 dpi (an 800 x 600 PNG).  The format
 follows the file's extension when matplotlib supports it (``.svg``, ``.pdf``
@@ -48,6 +56,7 @@ MAX_TIME_LABELS = 12          # per agent
 MAX_LEGEND_AGENTS = 10
 
 RUNNING, EXITED = 0, 1
+WAIT = "\0wait"              # an ATOMIC WAIT in the timeline
 
 
 # ---------------------------------------------------------------------------
@@ -78,6 +87,12 @@ def plot_run(model, run_result, path) -> None:
                          deadlock=status == "deadlock")
     head = f"{_program_name(model)} — run, blackbox {model.blackbox.name}: {status}"
     sub = message if bad else (message or None)
+    steps = getattr(run_result, "trace", None) or []
+    if not has_motion(model) and steps:
+        path_ = [(None, steps[0][1])] + [(lab, b) for lab, _, b in steps]
+        _draw_timeline(model, path_, path, head.replace(f", blackbox {model.blackbox.name}", ""),
+                       sub, bad, ring)
+        return
     _draw(model, states[0], frames, scan, last, path, head, sub, bad, ring)
 
 
@@ -92,8 +107,19 @@ def plot_trace(model, trace, path, title: Optional[str] = None) -> None:
     last = states[-1]
     ring = _culprits(model, last, _violations(model, last), looping=None,
                      deadlock=_is_deadlock(model, last))
+    if not has_motion(model):
+        _draw_timeline(model, trace, path, f"{_program_name(model)} — counterexample", title,
+                       True, ring)
+        return
     head = f"{_program_name(model)} — counterexample, blackbox {model.blackbox.name}"
     _draw(model, states[0], frames, states, last, path, head, title, True, ring)
+
+
+def has_motion(model) -> bool:
+    """Whether the program can move a robot (has a ``doReach`` statement)."""
+    from . import ast as A
+    return any(isinstance(s, A.CallStmt) and s.name == "doReach"
+               for s in getattr(model, "stmts", {}).values())
 
 
 # ---------------------------------------------------------------------------
@@ -158,6 +184,18 @@ def _targets(states, n) -> list:
             if t is not None:
                 seen[i].setdefault(_xy(t), None)
     return [list(s) for s in seen]
+
+
+def _failures(states, n) -> list:
+    """[(agent, xy)]: where each agent's doReach_fail turned true (each time)."""
+    out, prev = [], [False] * n
+    for st in states:
+        for i, ag in enumerate(st[4]):
+            f = bool(ag[7][4])
+            if f and not prev[i]:
+                out.append((i, _xy(ag[6])))
+            prev[i] = f
+    return out
 
 
 def _violations(model, st) -> list:
@@ -339,6 +377,19 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
                               markeredgewidth=2.0, color="#333333", label="doReach targets"))
 
+    # failed doReach: where each agent's doReach_fail became true
+    fails = _failures(scan_states, n)
+    if fails:
+        for i, p in fails:
+            ax.plot([p[0]], [p[1]], linestyle="none", marker="X", markersize=13,
+                    markerfacecolor="red", markeredgecolor="black", markeredgewidth=0.8, zorder=11)
+            ax.annotate(f"doReach failed ({i})", p, xytext=(6, -12), textcoords="offset points",
+                        fontsize=6, color="red", zorder=11)
+            extend([p])
+        handles.append(Line2D([], [], linestyle="none", marker="X", markersize=9,
+                              markerfacecolor="red", markeredgecolor="black",
+                              label="doReach failed"))
+
     # trajectories
     final_status = frames[-1][2]
     offsets = [(5, 5), (5, -11), (-22, 5), (-22, -11)]
@@ -414,6 +465,95 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
               frameon=True, borderaxespad=0.0)
     fig.text(0.5, 0.955, head, ha="center", va="center", fontsize=10, fontweight="bold")
+    if sub:
+        wrapped = textwrap.shorten(sub, width=220, placeholder=" …")
+        wrapped = "\n".join(textwrap.wrap(wrapped, width=110)[:2])
+        fig.text(0.5, 0.91, wrapped, ha="center", va="center", fontsize=8,
+                 color="red" if bad else "#333333")
+    _save(fig, path)
+
+
+def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
+    """For programs without motion: one lane per agent, the events each agent
+    ran over time (a bar per event block, coloured by event), exits and stuck
+    agents marked, and the violating moment."""
+    from matplotlib import colormaps
+    states = [s for _, s in trace]
+    n = len(states[0][4])
+    delta = float(model.delta)
+    events = [ev.name for ev in model.program.events]
+    cmap = colormaps["tab20"]
+    ecol = {name: cmap(k % 20) for k, name in enumerate(events)}
+    fig = Figure(figsize=FIGSIZE, dpi=DPI)
+    FigureCanvasAgg(fig)
+    fig.subplots_adjust(left=0.1, right=0.73, bottom=0.1, top=0.87)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.grid(True, axis="x", color="#e6e6e6", linewidth=0.6, zorder=0)
+    ax.set_axisbelow(True)
+    ax.set_xlabel("time", fontsize=8)
+    ax.tick_params(labelsize=7)
+    # event blocks: EVENT SELECT at time t opens a block of agent i; within one
+    # time step an agent may run several (n0 > 1): they share the step's width
+    blocks: dict = {}
+    for label, st in trace[1:]:
+        if label is None:
+            continue
+        rule, i = label[0], label[1]
+        if rule == "EVENT SELECT" and label[2] is not None:
+            blocks.setdefault((i, float(st[0])), []).append(events[label[2]])
+        elif rule == "IDLE":
+            blocks.setdefault((i, float(st[0])), []).append(None)
+        elif rule == "ATOMIC WAIT":
+            blocks.setdefault((i, float(st[0])), []).append(WAIT)
+    used = set()
+    for (i, t), names in blocks.items():
+        w = delta / len(names)
+        for k, name in enumerate(names):
+            x = t + k * w
+            if name is None or name is WAIT:
+                ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors="#eeeeee",
+                               edgecolors="#bbbbbb", linewidth=0.5, zorder=2,
+                               hatch="///" if name is WAIT else None)
+                continue
+            used.add(name)
+            ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors=ecol[name],
+                           edgecolors="#333333", linewidth=0.5, zorder=2)
+            if w >= delta * 0.5 and len(blocks) <= 60:
+                ax.text(x + w * 0.46, i, name, ha="center", va="center", fontsize=6, zorder=3)
+    # exits and stuck agents
+    last = states[-1]
+    t_end = float(last[0])
+    for i, ag in enumerate(last[4]):
+        if ag[3] == EXITED:
+            t_exit = next((float(st[0]) for st in states if st[4][i][3] == EXITED), t_end)
+            ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
+        elif ag[3] != RUNNING:
+            ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
+    handles = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e) for e in events if e in used]
+    if any(None in v for v in blocks.values()):
+        handles.append(Patch(facecolor="#eeeeee", edgecolor="#bbbbbb", label="idle"))
+    if any(WAIT in v for v in blocks.values()):
+        handles.append(Patch(facecolor="#eeeeee", edgecolor="#bbbbbb", hatch="///",
+                             label="waits for the lock"))
+    handles.append(Line2D([], [], linestyle="none", marker="|", markersize=12, color="black",
+                          label="exit"))
+    if bad and ring:
+        for i in ring["agents"]:
+            ax.plot([t_end + delta * 0.5], [i], linestyle="none", marker="o", markersize=16,
+                    markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
+                    zorder=6)
+        ax.axvline(t_end + delta * 0.5, color="red", linestyle=":", linewidth=1.2, zorder=1)
+        handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
+                              markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
+                              label=f"violation at t={_fmt_t(last[0])}"))
+    ax.set_yticks(range(n))
+    ax.set_yticklabels([f"agent {i}" for i in range(n)], fontsize=7)
+    ax.set_ylim(n - 0.4, -0.6)
+    ax.set_xlim(float(states[0][0]) - 0.1 * delta, t_end + 1.2 * delta)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
+              frameon=True, borderaxespad=0.0, title="events", title_fontsize=7)
+    fig.text(0.5, 0.955, head + " (timeline: no robot moves)", ha="center", va="center",
+             fontsize=10, fontweight="bold")
     if sub:
         wrapped = textwrap.shorten(sub, width=220, placeholder=" …")
         wrapped = "\n".join(textwrap.wrap(wrapped, width=110)[:2])

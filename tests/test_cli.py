@@ -143,8 +143,9 @@ def test_run_json():
 def test_run_json_trace():
     res = cli("run", RACE, "--world", RACE_WORLD, "--format", "json", "--trace")
     data = json.loads(res.stdout)
-    assert data["trace"] and data["trace"][0]["step"] == 1
-    assert {"rule", "agent", "time", "changes"} <= set(data["trace"][0])
+    steps = data["trace"]["steps"]      # the trace document (docs/trace-format.md)
+    assert steps and steps[0]["index"] == 1
+    assert {"rule", "agent", "time", "changes"} <= set(steps[0])
 
 
 def test_run_trace_prints_rule_names():
