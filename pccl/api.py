@@ -115,7 +115,7 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            **model_options) -> ExploreResult:
+            workers=1, **model_options) -> ExploreResult:
     V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
                 options={**model_options, "invariants": invariants})
     V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
@@ -124,7 +124,7 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
                        invariants=tuple(invariants), **model_options)
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
-                         max_memory=max_memory, coverage=coverage)
+                         max_memory=max_memory, coverage=coverage, workers=workers)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -139,10 +139,13 @@ def default_max_memory() -> int:
 
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None,
-                  max_memory="default", coverage: bool = False) -> ExploreResult:
+                  max_memory="default", coverage: bool = False,
+                  workers=1) -> ExploreResult:
     """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
     which the search stops with the bound ``--max-memory`` (``"default"``:
-    80 % of physical memory; ``None``: no limit)."""
+    80 % of physical memory; ``None``: no limit).  ``workers``: processes
+    (an int >= 1, or ``"auto"`` for the usable cores); results are identical
+    for every number of workers."""
     if not isinstance(model, Model):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
@@ -155,8 +158,22 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if coverage:
         from .coverage import CoverageModel
         cov = CoverageModel(model)
-    ex = Explorer(cov or model, max_depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
+    if workers == "auto":
+        from .parallel import available_workers
+        workers = available_workers()
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {workers!r}",
+                            filename="pccl.api.explore_model")
+    if workers > 1 and (exact or coverage):
+        raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
+                            f"use workers=1", filename="pccl.api.explore_model")
+    opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
+                exact=exact, progress=progress, max_memory=max_memory)
+    if workers > 1:
+        from .parallel import ParallelExplorer
+        ex = ParallelExplorer(model, workers=workers, **opts)
+    else:
+        ex = Explorer(cov or model, **opts)
     sr = ex.run()
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)

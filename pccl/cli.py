@@ -368,6 +368,10 @@ def _plot_run(m, res, path, *, quiet=False):
               help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
 @click.option("--max-states", type=click.IntRange(min=1), default=None,
               help="stop after this many distinct states")
+@click.option("--workers", metavar="N|auto", default="1", show_default=True,
+              callback=lambda c, p, v: _workers(v),
+              help="search with N processes (auto: one per usable core); results are "
+                   "identical for every N")
 @click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
@@ -394,7 +398,7 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress, trace_out, view, full, coverage):
+            exact, fmt, plot, progress, trace_out, view, full, coverage, workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
@@ -416,6 +420,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
                             find_all=find_all, exact=exact, progress=reporter,
                             max_memory="default" if max_memory is None else max_memory,
+                            workers=workers,
                             coverage=coverage)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if show:
@@ -607,6 +612,19 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
 def statistics_median(xs):
     import statistics
     return statistics.median(xs)
+
+
+def _workers(value):
+    if value == "auto":
+        from .parallel import available_workers
+        return available_workers()
+    try:
+        n = int(value)
+    except ValueError:
+        raise click.BadParameter(f"expected a number of processes or 'auto', got {value!r}") from None
+    if not 1 <= n <= 256:
+        raise click.BadParameter(f"expected 1 to 256 processes, got {n}")
+    return n
 
 
 def _size(value):

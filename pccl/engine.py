@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import math
 import operator
+
+import xxhash
 from dataclasses import dataclass
 from typing import Callable, Optional
 
@@ -85,6 +87,18 @@ class Control:
         self.idle_pc = self.intern((END,))
         self.event_pcs = [self.intern(tuple(s.sid for s in ev.body) + (END,))
                           for ev in model.program.events]
+
+    def close(self) -> None:
+        """Intern every k cell reachable from the event bodies and Init, in a
+        fixed order, so that pc numbers do not depend on the order in which
+        a search meets them (worker processes of a parallel search must
+        agree on them)."""
+        if self.m.program.init:
+            self.intern(tuple(s.sid for s in self.m.program.init))
+        pc = 0
+        while pc < len(self.ks):
+            self.info(pc)
+            pc += 1
 
     def intern(self, k: tuple) -> int:
         pc = self.ids.get(k)
@@ -224,8 +238,7 @@ class Model:
         self.guards_rand = any(has_rand(ev.guard) for ev in program.events)
         self._compile_enabled_events()
         self.ctl = Control(self)
-        self.stuck_reasons: list = [None, None]
-        self._stuck_ids: dict = {}
+        self.stuck_reasons: dict = {}     # status code -> (kind, reason, where)
 
         # properties
         self.properties: list[Property] = []
@@ -348,12 +361,16 @@ class Model:
 
     # -- stuck reasons -----------------------------------------------------------------
     def stuck_code(self, kind, reason, where):
+        """The status of an agent stuck for ``reason``: a function of the
+        reason's content (2 + 62 bits of its xxh3 hash), not of the order in
+        which a search meets reasons, so that every process of a parallel
+        search gives a stuck agent the same status.  Two different reasons
+        share a code with probability 2**-62 per pair."""
         key = (kind, reason, where)
-        code = self._stuck_ids.get(key)
-        if code is None:
-            code = len(self.stuck_reasons)
-            self._stuck_ids[key] = code
-            self.stuck_reasons.append(key)
+        code = 2 + (xxhash.xxh3_64_intdigest(repr(key).encode()) >> 2)
+        known = self.stuck_reasons.setdefault(code, key)
+        if known != key:     # pragma: no cover - a 62-bit collision
+            raise PcclError(f"internal: stuck reasons {known!r} and {key!r} share a code")
         return code
 
     def span_of(self, where) -> Optional[A.Span]:
@@ -364,6 +381,11 @@ class Model:
         if isinstance(where, tuple) and where and where[0] == "decl":
             return where[1]
         return None
+
+    def prepare(self) -> None:
+        """Build every lazily interned table now (see :meth:`Control.close`):
+        after this, equal configurations are equal tuples in every process."""
+        self.ctl.close()
 
     # -- initial states -------------------------------------------------------------------
     def init_states(self) -> list:

@@ -109,6 +109,11 @@ class Model(Protocol):
     def deadlock_violation(self, state) -> Optional[ViolationLike]:
         """The violation to report for a deadlocked state (or ``None``)."""
 
+    # Optional: ``prepare()``, called by the parallel search before it forks
+    # its workers.  A model that builds tables lazily which its states refer
+    # to (PCCL interns k cells as small ints) must build them there, so that
+    # every process numbers them alike.
+
 
 class Bound(enum.Enum):
     """What cut a search short.  The explorer never spells CLI flags; the
@@ -352,6 +357,12 @@ class FingerprintTable:
         else:
             self._place(np.arange(n, n + k, dtype=np.uint32))
 
+    def insert(self, q: np.ndarray, values: np.ndarray) -> None:
+        """Admit fingerprints ``q`` (distinct, absent) with ``values`` stored
+        in the parent slot (the parallel search stores global state numbers)."""
+        self._batch = (q, None)
+        self.add(len(q), values)
+
     def index_of(self, key: bytes) -> int:
         return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
 
@@ -481,6 +492,7 @@ class Explorer:
                 return map(xxh, map(dumps, map(key, map(second, pairs)), twos))
         par_idx: list = []
         par_n: list = []
+        flags: dict = {}        # Bound -> first state number that met it, since the last flush
         nxt: list = []          # the next level's states, in admission order
         nxt_idx: list = []      # ... and their state numbers
         depth = 0
@@ -501,6 +513,8 @@ class Explorer:
             """Admit the pending batch (successors at depth ``d``); True to stop."""
             nonlocal budget
             if not ck:
+                bounds.update(flags)
+                flags.clear()
                 return False
             n = len(ck)
             # first occurrence of each key, in batch order (C-level dict build)
@@ -511,16 +525,19 @@ class Explorer:
             base = table.n
             cut = len(new)
             halt = False
+            stop_at = None      # batch position of the candidate the search stops at
             if cut > budget:
                 cut = budget
                 bounds.add(Bound.MAX_STATES)
                 halt = True
+                stop_at = new[budget]       # the first state that does not fit
             states = [cs[p][1] for p in new[:cut]]
             viols = list(map(viol_fn, states))          # no bytecode per state
             for j in itertools.compress(range(cut), viols):
                 if record(viols[j], base + j, d):
                     cut = j + 1
                     halt = True
+                    stop_at = new[j]
                     break
             owners = np.repeat(np.arange(len(par_n)), par_n)
             if cut:
@@ -530,13 +547,16 @@ class Explorer:
                 nxt.extend(states[:cut] if cut < len(states) else states)
                 nxt_idx.extend(range(base, base + cut))
             budget -= cut
-            if halt and cut:
-                # count transitions as if the search had stopped right after
-                # expanding the parent of the last admitted state
-                last_parent = int(owners[new[cut - 1]])
-                stats.transitions += sum(par_n[:last_parent + 1])
+            if stop_at is not None:
+                # the search stops right after expanding the parent of the
+                # candidate it stops at (as if parents were expanded one by one)
+                stop_parent = int(owners[stop_at])
+                stats.transitions += sum(par_n[:stop_parent + 1])
+                bounds.update(b for b, g in flags.items() if g <= par_idx[stop_parent])
             else:
                 stats.transitions += n
+                bounds.update(flags)
+            flags.clear()
             if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
                 bounds.add(Bound.MAX_MEMORY)
                 halt = True
@@ -581,7 +601,7 @@ class Explorer:
                     if not succ:
                         kind = m.terminal_kind(s)
                         if kind == "bounded":
-                            bounds.add(Bound.MODEL)
+                            flags.setdefault(Bound.MODEL, level_idx[pos])
                         elif kind == "deadlock" and self.deadlock:
                             # the pending successors of earlier states come first
                             if flush(depth + 1):
@@ -593,7 +613,7 @@ class Explorer:
                                 break
                         continue
                     if at_bound:
-                        bounds.add(Bound.DEPTH)
+                        flags.setdefault(Bound.DEPTH, level_idx[pos])
                         continue
                     par_idx.append(level_idx[pos])
                     par_n.append(len(succ))
