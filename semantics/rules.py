@@ -24,7 +24,7 @@ from pccl.errors import PcclRuntimeError
 DISCRETE, DYNAMIC = 0, 1
 # lock states
 IDLE, REQUEST, LOCK = 0, 1, 2
-# agent status (>= 2: stuck, an index into Model.stuck_reasons)
+# agent status (>= 2: stuck, a key of Model.stuck_reasons)
 RUNNING, EXITED = 0, 1
 
 # k-cell head kinds (Control.info(pc)[0])
