@@ -11,7 +11,8 @@ from . import display as D
 from .errors import PcclError
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
-                 "for your own [default: straight]")
+                 "for your own [default: straight; explore: nondet for a program that calls "
+                 "doReach, so that every timing is explored]")
 
 
 class RateType(click.ParamType):
@@ -61,7 +62,7 @@ def common_options(f):
                      help="number of agents (overrides the world's count) [default: world's, else 2]"),
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
-        click.option("--blackbox", "-b", default="straight", show_default=False, help=BLACKBOX_HELP),
+        click.option("--blackbox", "-b", default=None, show_default=False, help=BLACKBOX_HELP),
         click.option("--delta", type=FiniteFloat(min=0, min_open=True), default=1.0,
                      show_default=True, help="time step δ"),
         click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
@@ -331,14 +332,17 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             plot, progress):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
-    from .api import explore_model, make_model
+    from .api import explore_blackbox, explore_model, load_program, make_model
     if plot:
         _check_plot_output(plot)
     try:
-        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+        prog = load_program(program)
+        blackbox, reason = explore_blackbox(prog, blackbox)
+        model = make_model(prog, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
                            **_model_options(delta, n0, rates, events, collisions, overrides))
+        model.blackbox_reason = reason
     except PcclError as e:
         _fail(e)
     show = sys.stderr.isatty() if progress is None else progress
@@ -393,11 +397,19 @@ def _stats_lines(res) -> list:
     return lines
 
 
+def _explore_header(program, m) -> str:
+    """The first line of ``pccl explore``: program, agents, blackbox (and why
+    it was chosen, when by default), options."""
+    reason = getattr(m, "blackbox_reason", None)
+    why = f" ({reason})" if reason else ""
+    return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
+            f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
+            f"time abstraction {'on' if m.abstract_time else 'off'}")
+
+
 def _print_explore_text(program, res, *, k_style=False):
     m = res.model
-    click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-               f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
-               f"time abstraction {'on' if m.abstract_time else 'off'}")
+    click.echo(_explore_header(program, m))
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
         click.echo("")

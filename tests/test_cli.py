@@ -196,7 +196,7 @@ def test_run_bad_options_exit_2(args):
 # ---------------------------------------------------------------------------
 
 def test_explore_exit_0():
-    res = cli("explore", RACE, "--world", RACE_WORLD)
+    res = cli("explore", RACE, "--world", RACE_WORLD, "-b", "straight")
     assert res.exit_code == 0
     assert "no violation — exhaustive [blackbox straight]" in res.stdout
     for word in ("states", "transitions", "max depth", "seconds", "states/second"):
@@ -255,7 +255,8 @@ def test_explore_json():
     assert v["kind"] == "invariant" and v["trace"] and v["state"]
     assert all(a["variables"]["inCs"] for a in v["state"]["agents"])
     assert {"states", "transitions", "max_depth"} <= set(data["statistics"])
-    ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "--format", "json").stdout)
+    ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "-b", "straight",
+                        "--format", "json").stdout)
     assert ok["status"] == "exhaustive" and ok["violations"] == [] and ok["exit_status"] == 0
 
 
@@ -303,6 +304,32 @@ def test_explore_stuck_agent_names_source_location():
     assert "[blackbox nondet]" in res.stdout
     assert re.search(rf"^  at {re.escape(RACE_NONATOMIC)}:35:\d+$", res.stdout, re.M)
     assert "stuck(remove of an element not in the list" in res.stdout
+
+
+def test_explore_defaults_to_nondet_for_a_program_that_moves():
+    """README promises every interleaving and timing: without --blackbox the
+    paper's buggy race_nonatomic.pccl must not explore clean."""
+    res = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD)
+    assert res.exit_code == 1, res.output
+    header = res.stdout.splitlines()[0]
+    assert "blackbox nondet (default for programs that move)" in header
+    assert "stuck" in res.stdout and "[blackbox nondet]" in res.stdout
+
+
+def test_explore_explicit_deterministic_blackbox_notes_fixed_timing():
+    res = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "-b", "straight")
+    assert res.exit_code == 0, res.output
+    assert "blackbox straight," in res.stdout.splitlines()[0]      # chosen, no reason given
+    assert ("no violation — exhaustive [blackbox straight] (travel times fixed by straight; "
+            "-b nondet explores every timing)") in res.stdout
+    # a program that does not move: no note, and the run default stays
+    res = cli("explore", FISCHER, *SMALL)
+    assert "blackbox straight," in res.stdout and "travel times" not in res.stdout
+
+
+def test_run_keeps_straight_default_for_a_program_that_moves():
+    res = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD)
+    assert "blackbox straight," in res.stdout.splitlines()[0]
 
 
 def test_explore_run_json_stuck_status():
