@@ -171,14 +171,20 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
 
 
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
-                  find_all=False, exact=False, progress=None) -> ExploreResult:
+                  find_all=False, exact=False, progress=None,
+                  progress_interval: float = 0.5) -> ExploreResult:
+    """Explore ``model``; ``progress`` (if given) is called about every
+    ``progress_interval`` seconds with a dict: states, frontier, depth,
+    seconds, memory (bytes)."""
     if not isinstance(model, Model):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
     V.search_args("explore_model", depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress)
+    V.number("explore_model", "progress_interval", progress_interval, positive=True)
     ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress)
+                  find_all=find_all, exact=exact, progress=progress,
+                  progress_interval=progress_interval)
     sr = ex.run()
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states) for b in sr.bounds_hit]

@@ -326,10 +326,15 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
-              help="progress line on stderr [default: when stderr is a terminal]")
+              help="progress on stderr: a live line on a terminal, else a timestamped line "
+                   "every --progress-interval seconds [default: live on a terminal; otherwise "
+                   "plain lines once the search has run that long]")
+@click.option("--progress-interval", type=FiniteFloat(min=0, min_open=True), default=10.0,
+              show_default=True, metavar="SECONDS",
+              help="seconds between plain progress lines (when stderr is not a terminal)")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, abstract_time, invariants, no_deadlock, find_all, exact, fmt,
-            plot, progress):
+            plot, progress, progress_interval):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_blackbox, explore_model, load_program, make_model
@@ -345,17 +350,18 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model.blackbox_reason = reason
     except PcclError as e:
         _fail(e)
-    show = sys.stderr.isatty() if progress is None else progress
-    reporter = _progress_printer() if show else None
+    reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
     try:
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
-                            find_all=find_all, exact=exact, progress=reporter)
+                            find_all=find_all, exact=exact, progress=reporter,
+                            progress_interval=min(0.5, progress_interval))
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
-        if show:
-            click.echo("\r\033[K", err=True, nl=False)
+        if reporter is not None:
+            reporter.close()    # erase the live display before the message
         _fail(e)
-    if show:
-        click.echo("\r\033[K", err=True, nl=False)
+    finally:
+        if reporter is not None:
+            reporter.close()
     if fmt == "json":
         click.echo(json.dumps(_explore_json(program, res), indent=2, default=str))
     else:
@@ -372,12 +378,110 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     sys.exit(_interrupted_status(res.exit_status))
 
 
-def _progress_printer():
-    def report(p):
-        sps = p["states"] / p["seconds"] if p["seconds"] > 0 else 0
-        click.echo(f"\r\033[Kstates {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
-                   f"{sps:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB", err=True, nl=False)
-    return report
+def _progress_printer(header: str, progress, interval: float, *, stream=None, tty=None):
+    """The progress reporter for ``pccl explore`` (None for --no-progress).
+
+    On a terminal: a live display on stderr (rich), the header line first and
+    under it states, frontier, depth, rate, memory and elapsed time; it is
+    erased when the search ends (the report repeats the header).  Otherwise
+    (a file, a pipe, CI, nohup): plain timestamped lines every ``interval``
+    seconds, never a carriage return; with --progress the header and the
+    lines start at once, by default only once the search has run
+    ``interval`` seconds."""
+    stream = sys.stderr if stream is None else stream
+    if tty is None:
+        tty = stream.isatty()
+    if progress is False:
+        return None
+    if tty:
+        return _LiveProgress(header, stream)
+    return _PlainProgress(header, stream, interval, start_after=0 if progress else interval)
+
+
+def _progress_figures(p, rate) -> str:
+    return (f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
+            f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
+
+
+class _Rate:
+    """States per second since the previous report (the average at first)."""
+
+    def __init__(self):
+        self.last = None
+
+    def __call__(self, p) -> float:
+        states, secs = p["states"], p["seconds"]
+        if self.last is None or secs <= self.last[1]:
+            rate = states / secs if secs > 0 else 0.0
+        else:
+            rate = (states - self.last[0]) / (secs - self.last[1])
+        self.last = (states, secs)
+        return rate
+
+
+class _LiveProgress:
+    def __init__(self, header, stream):
+        from rich.console import Console
+        from rich.live import Live
+        from rich.text import Text
+        self._text = Text
+        self.header = header
+        self.console = Console(file=stream, force_terminal=True, highlight=False,
+                               soft_wrap=False)
+        self.rate = _Rate()
+        self.live = Live(self._render("exploring ..."), console=self.console, transient=True,
+                         auto_refresh=False, redirect_stdout=False, redirect_stderr=False)
+        self.live.start(refresh=True)
+
+    def _render(self, line):
+        from rich.console import Group
+        return Group(self._text(self.header, overflow="ellipsis", no_wrap=True),
+                     self._text(line, style="bold", overflow="ellipsis", no_wrap=True))
+
+    def __call__(self, p):
+        elapsed = _hms(p["seconds"])
+        self.live.update(self._render(f"{elapsed}  {_progress_figures(p, self.rate(p))}"),
+                         refresh=True)
+
+    def close(self):
+        self.live.stop()
+
+
+class _PlainProgress:
+    def __init__(self, header, stream, interval, start_after):
+        self.header, self.stream = header, stream
+        self.interval, self.start_after = interval, start_after
+        self.next_line = start_after
+        self.started = False
+        self.rate = _Rate()
+        if start_after <= 0:
+            self._start()
+
+    def _echo(self, text):
+        import datetime
+        now = datetime.datetime.now().strftime("%Y-%m-%d %H:%M:%S")
+        self.stream.write(f"{now}  {text}\n")
+        self.stream.flush()
+
+    def _start(self):
+        self.started = True
+        self._echo(self.header)
+
+    def __call__(self, p):
+        if p["seconds"] < self.next_line:
+            return
+        if not self.started:
+            self._start()
+        self.next_line = p["seconds"] + self.interval
+        self._echo(_progress_figures(p, self.rate(p)))
+
+    def close(self):
+        pass
+
+
+def _hms(seconds: float) -> str:
+    s = int(seconds)
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
 
 
 def _stats_lines(res) -> list:

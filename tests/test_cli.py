@@ -332,6 +332,50 @@ def test_run_keeps_straight_default_for_a_program_that_moves():
     assert "blackbox straight," in res.stdout.splitlines()[0]
 
 
+PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  frontier [\d,]+  "
+                        r"depth \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
+
+
+def test_explore_progress_not_a_terminal_plain_timestamped_lines():
+    """stderr is not a terminal (CliRunner, like CI or nohup): timestamped
+    lines, the header first, no carriage return and no escape code."""
+    res = cli("explore", FISCHER, "--max-states", "60000", "--progress-interval", "0.05")
+    err = res.stderr
+    assert "\r" not in err and "\x1b" not in err
+    lines = err.splitlines()
+    assert len(lines) >= 2, err
+    assert re.match(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  pccl explore ", lines[0])
+    assert lines[0].split("  ", 1)[1] == res.stdout.splitlines()[0]   # the report's header
+    assert all(PLAIN_LINE.match(ln) for ln in lines[1:]), err
+
+
+def test_explore_progress_defaults_off_a_terminal_until_the_search_is_long():
+    res = cli("explore", FISCHER, *SMALL)                  # far shorter than 10 s
+    assert res.stderr == ""
+    res = cli("explore", FISCHER, *SMALL, "--progress")    # asked for: the header at once
+    assert re.match(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  pccl explore ", res.stderr)
+    res = cli("explore", FISCHER, "--max-states", "60000", "--progress-interval", "0.05",
+              "--no-progress")
+    assert res.stderr == ""
+
+
+def test_explore_progress_on_a_terminal_is_a_live_display():
+    import io
+    from pccl.cli import _progress_printer
+    out = io.StringIO()
+    show = _progress_printer("pccl explore x.pccl: 2 agents, blackbox nondet", None, 10.0,
+                             stream=out, tty=True)
+    show({"states": 1000, "frontier": 10, "depth": 3, "seconds": 0.5, "memory": 2**27})
+    show({"states": 4000, "frontier": 20, "depth": 4, "seconds": 1.5, "memory": 2**27})
+    show.close()
+    text = out.getvalue()
+    assert "\x1b[" in text                                   # redrawn in place
+    head = text.index("pccl explore x.pccl: 2 agents, blackbox nondet")
+    line = text.index("0:00:01  states 4,000  frontier 20  depth 4  3,000 states/s  mem 128 MiB")
+    assert head < line
+    assert text.endswith("\x1b[2K")                          # erased: the report follows
+
+
 def test_explore_run_json_stuck_status():
     for seed in range(30):
         res = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD, "--blackbox", "instant",
