@@ -44,6 +44,20 @@ class FiniteFloat(click.FloatRange):
         return rv
 
 
+class Choice(click.Choice):
+    """click.Choice that also says which choice a misspelt value is closest to."""
+
+    def convert(self, value, param, ctx):
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            import difflib
+            close = difflib.get_close_matches(str(value).lower(), list(self.choices), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            self.fail(f"{value!r} is not one of {', '.join(map(repr, self.choices))}{hint}",
+                      param, ctx)
+
+
 class SetType(click.ParamType):
     name = "NAME=EXPR"
 
@@ -70,7 +84,7 @@ def common_options(f):
         click.option("--rate", "rates", type=RateType(), multiple=True,
                      help="per-agent rate ρ, 1..n0: each event block of agent A costs ρ of the "
                           "n0 per time step, e.g. --n0 2 --rate 1=2 (repeatable)"),
-        click.option("--events", type=click.Choice(["any", "first"]), default="any",
+        click.option("--events", type=Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
         click.option("--collisions", is_flag=True,
@@ -184,7 +198,7 @@ def check(program, world):
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
 @click.option("--trace", is_flag=True, help="print every transition")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
@@ -321,7 +335,7 @@ def _plot_run(m, res, path, *, quiet=False):
               help="keep exploring and report each distinct violation once")
 @click.option("--exact", is_flag=True,
               help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
-@click.option("--format", "fmt", type=click.Choice(["text", "json", "k"]), default="text",
+@click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")

@@ -332,6 +332,26 @@ def test_run_keeps_straight_default_for_a_program_that_moves():
     assert "blackbox straight," in res.stdout.splitlines()[0]
 
 
+def test_did_you_mean_for_options_choices_and_blackboxes():
+    res = cli("explore", RACE, "--events", "anny")
+    assert res.exit_code == 2 and "(did you mean 'any'?)" in res.stderr
+    res = cli("run", RACE, "--format", "jsn")
+    assert res.exit_code == 2 and "(did you mean 'json'?)" in res.stderr
+    res = cli("explore", RACE, "--blackbox", "nondett")
+    assert res.exit_code == 2 and "did you mean 'nondet'?" in res.stderr
+    res = cli("explore", RACE, "--event", "any")                 # click's own suggestion
+    assert res.exit_code == 2 and "'--events'" in res.stderr
+    res = cli("explore", FISCHER, "--invariant", "cnt(inCs) <= 1")
+    assert res.exit_code == 2 and "unknown function 'cnt' (did you mean 'count'?)" in res.stderr
+
+
+def test_check_names_the_world_for_a_world_function():
+    from conftest import PROGRAMS
+    res = cli("check", str(PROGRAMS / "collide_fixed.pccl"))
+    assert res.exit_code == 2
+    assert "unknown function 'detour'" in res.stderr and "needs --world FILE" in res.stderr
+
+
 PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  frontier [\d,]+  "
                         r"depth \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
 
