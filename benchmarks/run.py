@@ -54,20 +54,26 @@ FULL = [
 ]
 
 CHILD = r"""
-import json, os, resource, sys, time
+import json, os, sys, time
 code = os.environ.get("PCCL_BENCH_CODE")
 if code:   # import that tree, not the (editable) install
     sys.path.insert(0, code)
     sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in type(f).__module__]
 from pccl.api import make_model, explore_model
+try:
+    from pccl.memory import peak_rss_bytes
+except ImportError:   # an older tree: Linux units
+    import resource
+    def peak_rss_bytes():
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 spec = json.loads(sys.argv[1])
 m = make_model(spec.pop("program"), world=spec.pop("world", None),
                blackbox=spec.pop("blackbox", None), agents=spec.pop("agents", None),
                overrides=spec.pop("overrides", None),
                invariants=tuple(spec.pop("invariants", ())))
-rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+rss0 = peak_rss_bytes()
 r = explore_model(m)
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+peak = peak_rss_bytes()
 s = r.stats
 print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
                   "seconds": s.seconds, "sps": s.states_per_second, "peak": peak,

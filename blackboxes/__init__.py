@@ -55,6 +55,9 @@ def load_blackbox(spec: str):
     spec = spec.strip()
     if ":" not in spec:
         bb = BLACKBOXES.get(spec) or BLACKBOXES.get(spec.lower())
+        if bb is PYMUNK:
+            from .pymunk_bb import require
+            require()                 # an optional extra: say how to install it
         if bb is not None:
             return bb
         close = difflib.get_close_matches(spec.lower(), list(BLACKBOXES), n=1)

@@ -62,10 +62,29 @@ from __future__ import annotations
 
 import math
 
-import pymunk
+from pccl.errors import PcclError
 
 from ._geometry import EMPTY, obstacles_of
 from .base import Outcome
+
+#: What ``--blackbox pymunk`` says when pymunk is not installed (an extra).
+MISSING = "the pymunk blackbox needs pymunk: pip install 'pccl[physics]'"
+
+
+def available() -> bool:
+    """Whether pymunk can be imported (without importing it)."""
+    import importlib.util
+    return importlib.util.find_spec("pymunk") is not None
+
+
+def require():
+    """The pymunk module, imported on first use (it is the optional extra
+    ``pccl[physics]``); a PcclError saying how to install it if missing."""
+    try:
+        import pymunk
+    except ImportError:
+        raise PcclError(MISSING, filename="--blackbox") from None
+    return pymunk
 
 MIN_SUBSTEPS = 20
 GAIN = 6.0       # 1 / time unit: proportional approach to the final target
@@ -84,6 +103,7 @@ class PymunkBlackbox:
     uses_time = False
 
     def init_env(self, world, n_agents):
+        require()
         return (((0.0, 0.0),) * n_agents, (0.0,) * n_agents)
 
     # ------------------------------------------------------------------
@@ -142,6 +162,7 @@ class PymunkBlackbox:
                             (vels, stalls))]
 
         # --- build the space ---------------------------------------------
+        pymunk = require()
         space = pymunk.Space()
         space.gravity = (0.0, 0.0)
         space.iterations = SOLVER_ITERATIONS

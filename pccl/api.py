@@ -89,6 +89,47 @@ def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = No
 # explore
 # ---------------------------------------------------------------------------
 
+#: The blackbox ``explore`` uses for a program that calls doReach when none is
+#: given: every travel time, so no timing bug hides behind a fixed schedule.
+EXPLORE_MOVING_DEFAULT = "nondet"
+#: Why it was chosen, as the header of ``pccl explore`` says it.
+MOVING_DEFAULT_REASON = "default for programs that move"
+#: Shipped blackboxes with exactly one outcome per step (fixed travel times).
+DETERMINISTIC_BLACKBOXES = frozenset({"instant", "straight", "pymunk"})
+
+
+def program_moves(prog: A.Program) -> bool:
+    """Whether ``prog`` calls doReach anywhere (Init or an event)."""
+    stmts = list(A.walk_stmts(prog.init))
+    for ev in prog.events:
+        stmts.extend(A.walk_stmts(ev.body))
+    return any(isinstance(s, A.CallStmt) and s.name == "doReach" for s in stmts)
+
+
+def explore_blackbox(prog: A.Program, blackbox=None):
+    """The blackbox ``explore`` uses for ``prog`` and why: ``(blackbox, reason)``.
+    An explicit ``blackbox`` is kept (reason None); without one a program
+    that moves gets ``nondet`` (every timing), others the run default."""
+    if blackbox is not None:
+        return blackbox, None
+    if program_moves(prog):
+        return EXPLORE_MOVING_DEFAULT, MOVING_DEFAULT_REASON
+    return None, None
+
+
+def fixed_timing_note(model) -> Optional[str]:
+    """For a program that moves explored with a deterministic blackbox: the
+    note that travel times were fixed (None otherwise)."""
+    bb = model.blackbox
+    det = getattr(bb, "deterministic", None)
+    if det is None:
+        from .blackboxes import BLACKBOXES
+        name = getattr(bb, "name", None)
+        det = name in DETERMINISTIC_BLACKBOXES and BLACKBOXES.get(name) is bb
+    if not det or not program_moves(model.program):
+        return None
+    return f"travel times fixed by {bb.name}; -b {EXPLORE_MOVING_DEFAULT} explores every timing"
+
 @dataclass
 class ExploreResult:
     status: str                       # violation | exhaustive | bounded | interrupted
@@ -120,8 +161,13 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
                 options={**model_options, "invariants": invariants})
     V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
+    reason = None
+    if blackbox is None:
+        program = load_program(program, source=model_options.pop("source", False))
+        blackbox, reason = explore_blackbox(program)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                        invariants=tuple(invariants), **model_options)
+    model.blackbox_reason = reason
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
                          max_memory=max_memory, coverage=coverage, workers=workers)
@@ -140,17 +186,20 @@ def default_max_memory() -> int:
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None,
                   max_memory="default", coverage: bool = False,
-                  workers=1) -> ExploreResult:
+                  workers=1, progress_interval: float = 0.5) -> ExploreResult:
     """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
     which the search stops with the bound ``--max-memory`` (``"default"``:
     80 % of physical memory; ``None``: no limit).  ``workers``: processes
     (an int >= 1, or ``"auto"`` for the usable cores); results are identical
-    for every number of workers."""
+    for every number of workers.  ``progress`` (if given) is called about
+    every ``progress_interval`` seconds with a dict: states, frontier,
+    depth, seconds, memory (bytes)."""
     if not isinstance(model, Model):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
     V.search_args("explore_model", depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
+    V.number("explore_model", "progress_interval", progress_interval, positive=True)
     if max_memory == "default":
         max_memory = default_max_memory()
     V.boolean("explore_model", "coverage", coverage)
@@ -168,7 +217,8 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1", filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
-                exact=exact, progress=progress, max_memory=max_memory)
+                exact=exact, progress=progress, max_memory=max_memory,
+                progress_interval=progress_interval)
     if workers > 1:
         from .parallel import ParallelExplorer
         ex = ParallelExplorer(model, workers=workers, **opts)
@@ -200,6 +250,9 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
         verdict = "interrupted — no violation found in the states explored so far (not exhaustive)"
         code = 130
     verdict += f" [blackbox {bb}]"
+    note = fixed_timing_note(model) if not violations else None
+    if note:
+        verdict += f" ({note})"
     first = violations[0] if violations else None
     return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
                          first["trace"] if first else [], first["state"] if first else None,

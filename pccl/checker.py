@@ -36,6 +36,7 @@ Type rules (where the spec is silent, the choice is written here):
 
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import dataclass, field
 from typing import Optional
@@ -451,7 +452,9 @@ class _Checker:
         elif isinstance(s, ast.CallStmt):
             b = self.info.function(s.name)
             if b is None:
-                self.fail(f"unknown function '{s.name}'", self.name_span(s))
+                self.fail(f"unknown function '{s.name}'"
+                          f"{self.suggest_function(s.name, statement=True)}",
+                          self.name_span(s))
             if b.kind == "property":
                 self.fail(f"'{s.name}' is only available in properties", self.name_span(s))
             if not b.is_statement:
@@ -486,7 +489,8 @@ class _Checker:
                 self.fail(f"cannot assign to enum member '{name}'", root.span)
             if self.info.function(name) is not None:
                 self.fail(f"cannot assign to function '{name}'", root.span)
-            self.undeclared(root)
+            self.fail(f"undeclared variable '{name}'"
+                      f"{did_you_mean(name, self.info.variables)}", root.span)
         if var.section == "allread":
             agent_index = len(chain) >= (2 if var.is_array else 1)
             if agent_index:
@@ -660,7 +664,27 @@ class _Checker:
         if self.mode == "program" and n.name == "time":
             self.fail("undeclared variable 'time' (a program cannot read the clock)",
                       n.span)
-        self.fail(f"undeclared variable '{n.name}'", n.span)
+        self.fail(f"undeclared variable '{n.name}'{self.suggest_name(n.name)}", n.span)
+
+    def suggest_name(self, name: str) -> str:
+        """" (did you mean 'x'?)" for a readable name close to ``name``, else ""."""
+        names = [*self.info.variables, *self.first_decl, *READONLY_FLAGS, *self.info.members]
+        if self.mode == "property":
+            names += [*self.bound, *_PROPERTY_NAMES, "pos"]
+        return did_you_mean(name, names)
+
+    def suggest_function(self, name: str, *, statement: bool = False) -> str:
+        """" (did you mean 'f'?)" for a function callable here close to ``name``."""
+        funcs = {n: BUILTINS[n] for n in BUILTINS}
+        funcs.update({n: uninterpreted(n) for n in self.info.functions})
+        if statement:
+            names = [n for n, b in funcs.items() if b.is_statement]
+        elif self.mode == "property":
+            names = [n for n, b in funcs.items() if b.in_properties]
+        else:
+            names = [n for n, b in funcs.items()
+                     if not b.is_statement and b.kind != "property"]
+        return did_you_mean(name, names)
 
     def per_agent_in_property(self, n: ast.Name):
         self.fail(f"'{n.name}' is per-agent: write {n.name}[i]", n.span)
@@ -767,8 +791,8 @@ class _Checker:
     def call(self, e: ast.Call) -> Ty:
         b = self.info.function(e.name)
         if b is None:
-            hint = ""
-            if self.mode == "program" and not e.args:
+            hint = self.suggest_function(e.name)
+            if not hint and self.mode == "program" and not e.args:
                 # a zero-argument call the world could define (uninterpreted)
                 hint = (f": not a built-in; a function the world provides needs --world FILE "
                         f"defining {e.name} under [functions]")
@@ -802,7 +826,7 @@ class _Checker:
                    or (var is None and a.name in READONLY_FLAGS)))
         if (not ok and isinstance(a, ast.Name) and var is None and a.name not in self.bound
                 and a.name not in READONLY_FLAGS and a.name not in self.info.members):
-            self.fail(f"undeclared variable '{a.name}'", a.span)
+            self.fail(f"undeclared variable '{a.name}'{self.suggest_name(a.name)}", a.span)
         if not ok:
             self.fail("'count' takes the name of a bool local or allread variable, "
                       "count(v)", a.span)
@@ -814,6 +838,15 @@ class _Checker:
         t = self.value(e)
         if t.kind not in ("bool", "any"):
             self.fail(f"a property must be bool, got {t}", e.span)
+
+
+def did_you_mean(name: str, candidates) -> str:
+    """" (did you mean 'x'?)" for the candidate closest to ``name`` (a
+    difference of case first), or "" when none is close."""
+    candidates = sorted(set(candidates) - {name})
+    same = [c for c in candidates if c.lower() == name.lower()]
+    close = same or difflib.get_close_matches(name, candidates, n=1, cutoff=0.75)
+    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def _article(what: str) -> str:

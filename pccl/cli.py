@@ -11,7 +11,8 @@ from . import display as D
 from .errors import PcclError
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
-                 "for your own [default: straight]")
+                 "for your own [default: straight; explore: nondet for a program that calls "
+                 "doReach, so that every timing is explored]")
 
 
 class RateType(click.ParamType):
@@ -43,6 +44,20 @@ class FiniteFloat(click.FloatRange):
         return rv
 
 
+class Choice(click.Choice):
+    """click.Choice that also says which choice a misspelt value is closest to."""
+
+    def convert(self, value, param, ctx):
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter:
+            import difflib
+            close = difflib.get_close_matches(str(value).lower(), list(self.choices), n=1)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            self.fail(f"{value!r} is not one of {', '.join(map(repr, self.choices))}{hint}",
+                      param, ctx)
+
+
 class SetType(click.ParamType):
     name = "NAME=EXPR"
 
@@ -61,7 +76,7 @@ def common_options(f, *, agents_flags=("--agents", "-n")):
                      help="number of agents (overrides the world's count) [default: world's, else 2]"),
         click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
                      help="world file (TOML): start positions, obstacles, function values"),
-        click.option("--blackbox", "-b", default="straight", show_default=False, help=BLACKBOX_HELP),
+        click.option("--blackbox", "-b", default=None, show_default=False, help=BLACKBOX_HELP),
         click.option("--delta", type=FiniteFloat(min=0, min_open=True), default=1.0,
                      show_default=True, help="time step δ"),
         click.option("--n0", type=click.IntRange(min=1), default=1, show_default=True,
@@ -69,7 +84,7 @@ def common_options(f, *, agents_flags=("--agents", "-n")):
         click.option("--rate", "rates", type=RateType(), multiple=True,
                      help="per-agent rate ρ, 1..n0: each event block of agent A costs ρ of the "
                           "n0 per time step, e.g. --n0 2 --rate 1=2 (repeatable)"),
-        click.option("--events", type=click.Choice(["any", "first"]), default="any",
+        click.option("--events", type=Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
         click.option("--collisions", is_flag=True,
@@ -200,7 +215,7 @@ def check(program, world):
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
 @click.option("--trace", is_flag=True, help="print every transition")
-@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
@@ -384,12 +399,17 @@ def _plot_run(m, res, path, *, quiet=False):
               help="keep exploring and report each distinct violation once")
 @click.option("--exact", is_flag=True,
               help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
-@click.option("--format", "fmt", type=click.Choice(["text", "json", "k"]), default="text",
+@click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
-              help="progress line on stderr [default: when stderr is a terminal]")
+              help="progress on stderr: a live line on a terminal, else a timestamped line "
+                   "every --progress-interval seconds [default: live on a terminal; otherwise "
+                   "plain lines once the search has run that long]")
+@click.option("--progress-interval", type=FiniteFloat(min=0, min_open=True), default=10.0,
+              show_default=True, metavar="SECONDS",
+              help="seconds between plain progress lines (when stderr is not a terminal)")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
 @view_options
@@ -398,36 +418,40 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress, trace_out, view, full, coverage, workers):
+            exact, fmt, plot, progress, progress_interval, trace_out, view, full, coverage,
+            workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
-    from .api import explore_model, make_model
+    from .api import explore_blackbox, explore_model, load_program, make_model
     from . import traces as T
     if plot:
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
     try:
-        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
+        prog = load_program(program)
+        blackbox, reason = explore_blackbox(prog, blackbox)
+        model = make_model(prog, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
                            **_model_options(delta, n0, rates, events, collisions, overrides))
+        model.blackbox_reason = reason
     except PcclError as e:
         _fail(e)
-    show = sys.stderr.isatty() if progress is None else progress
-    reporter = _progress_printer() if show else None
+    reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
     try:
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
                             find_all=find_all, exact=exact, progress=reporter,
                             max_memory="default" if max_memory is None else max_memory,
-                            workers=workers,
-                            coverage=coverage)
+                            workers=workers, coverage=coverage,
+                            progress_interval=min(0.5, progress_interval))
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
-        if show:
-            click.echo("\r\033[K", err=True, nl=False)
+        if reporter is not None:
+            reporter.close()    # erase the live display before the message
         _fail(e)
-    if show:
-        click.echo("\r\033[K", err=True, nl=False)
+    finally:
+        if reporter is not None:
+            reporter.close()
     cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
                    overrides=dict(overrides), invariants=invariants, deadlock=not no_deadlock)
     doc = T.explore_document(res, cfg)
@@ -637,12 +661,110 @@ def _size(value):
         raise click.BadParameter(str(e)) from None
 
 
-def _progress_printer():
-    def report(p):
-        sps = p["states"] / p["seconds"] if p["seconds"] > 0 else 0
-        click.echo(f"\r\033[Kstates {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
-                   f"{sps:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB", err=True, nl=False)
-    return report
+def _progress_printer(header: str, progress, interval: float, *, stream=None, tty=None):
+    """The progress reporter for ``pccl explore`` (None for --no-progress).
+
+    On a terminal: a live display on stderr (rich), the header line first and
+    under it states, frontier, depth, rate, memory and elapsed time; it is
+    erased when the search ends (the report repeats the header).  Otherwise
+    (a file, a pipe, CI, nohup): plain timestamped lines every ``interval``
+    seconds, never a carriage return; with --progress the header and the
+    lines start at once, by default only once the search has run
+    ``interval`` seconds."""
+    stream = sys.stderr if stream is None else stream
+    if tty is None:
+        tty = stream.isatty()
+    if progress is False:
+        return None
+    if tty:
+        return _LiveProgress(header, stream)
+    return _PlainProgress(header, stream, interval, start_after=0 if progress else interval)
+
+
+def _progress_figures(p, rate) -> str:
+    return (f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
+            f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
+
+
+class _Rate:
+    """States per second since the previous report (the average at first)."""
+
+    def __init__(self):
+        self.last = None
+
+    def __call__(self, p) -> float:
+        states, secs = p["states"], p["seconds"]
+        if self.last is None or secs <= self.last[1]:
+            rate = states / secs if secs > 0 else 0.0
+        else:
+            rate = (states - self.last[0]) / (secs - self.last[1])
+        self.last = (states, secs)
+        return rate
+
+
+class _LiveProgress:
+    def __init__(self, header, stream):
+        from rich.console import Console
+        from rich.live import Live
+        from rich.text import Text
+        self._text = Text
+        self.header = header
+        self.console = Console(file=stream, force_terminal=True, highlight=False,
+                               soft_wrap=False)
+        self.rate = _Rate()
+        self.live = Live(self._render("exploring ..."), console=self.console, transient=True,
+                         auto_refresh=False, redirect_stdout=False, redirect_stderr=False)
+        self.live.start(refresh=True)
+
+    def _render(self, line):
+        from rich.console import Group
+        return Group(self._text(self.header, overflow="ellipsis", no_wrap=True),
+                     self._text(line, style="bold", overflow="ellipsis", no_wrap=True))
+
+    def __call__(self, p):
+        elapsed = _hms(p["seconds"])
+        self.live.update(self._render(f"{elapsed}  {_progress_figures(p, self.rate(p))}"),
+                         refresh=True)
+
+    def close(self):
+        self.live.stop()
+
+
+class _PlainProgress:
+    def __init__(self, header, stream, interval, start_after):
+        self.header, self.stream = header, stream
+        self.interval, self.start_after = interval, start_after
+        self.next_line = start_after
+        self.started = False
+        self.rate = _Rate()
+        if start_after <= 0:
+            self._start()
+
+    def _echo(self, text):
+        import datetime
+        now = datetime.datetime.now().strftime("%Y-%m-%d %H:%M:%S")
+        self.stream.write(f"{now}  {text}\n")
+        self.stream.flush()
+
+    def _start(self):
+        self.started = True
+        self._echo(self.header)
+
+    def __call__(self, p):
+        if p["seconds"] < self.next_line:
+            return
+        if not self.started:
+            self._start()
+        self.next_line = p["seconds"] + self.interval
+        self._echo(_progress_figures(p, self.rate(p)))
+
+    def close(self):
+        pass
+
+
+def _hms(seconds: float) -> str:
+    s = int(seconds)
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}"
 
 
 def _stats_lines(res) -> list:
@@ -662,11 +784,19 @@ def _stats_lines(res) -> list:
     return lines
 
 
+def _explore_header(program, m) -> str:
+    """The first line of ``pccl explore``: program, agents, blackbox (and why
+    it was chosen, when by default), options."""
+    reason = getattr(m, "blackbox_reason", None)
+    why = f" ({reason})" if reason else ""
+    return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
+            f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
+            f"time abstraction {'on' if m.abstract_time else 'off'}")
+
+
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     m = res.model
-    click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-               f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
-               f"time abstraction {'on' if m.abstract_time else 'off'}")
+    click.echo(_explore_header(program, m))
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
         click.echo("")

@@ -37,7 +37,6 @@ import marshal
 import mmap
 import operator
 import os
-import resource
 import sys
 import time as _time
 from dataclasses import dataclass, field
@@ -221,7 +220,8 @@ class ReplayError(RuntimeError):
 
 
 def peak_rss_bytes() -> int:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    from .memory import peak_rss_bytes as peak   # portable: units per platform, psutil fallback
+    return peak()
 
 
 # ---------------------------------------------------------------------------

@@ -36,7 +36,6 @@ import operator
 import os
 import signal
 import time as _time
-from typing import Optional
 
 import numpy as np
 import xxhash

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextvars
 import dataclasses
+import difflib
 import math
 import os
 import re
@@ -449,6 +450,21 @@ _NAMES = {
 _HEADER_ORDER = ["AGENT_HDR", "ALLWRITE_HDR", "ALLREAD_HDR", "LOC_HDR",
                  "INIT_HDR", "INVARIANT_HDR"]
 
+_SECTIONS = ("allwrite", "allread", "loc", "Init", "invariant")
+_SECTION_ALIASES = {"mw": "allwrite", "sw": "allread", "local": "loc", "init": "Init",
+                    "invariants": "invariant"}
+_SECTION_ORDER = ("sections come in the order Agent::Name, allwrite:, allread:, loc:, "
+                  "Init:, the events Name():, invariant: (each optional)")
+
+
+def _close_section(word: str) -> Optional[str]:
+    """The section header ``word`` most likely misspells, e.g. 'allread:'."""
+    names = {n.lower(): n for n in _SECTIONS}
+    names.update(_SECTION_ALIASES)
+    close = difflib.get_close_matches(word.lower(), list(names), n=1, cutoff=0.6)
+    return f"{names[close[0]]}:" if close else None
+
+
 _BINOPS = {"ARROW", "OROR", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
            "PLUS", "MINUS", "STAR", "SLASH", "PERCENT"}
 _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
@@ -603,7 +619,17 @@ def _token_error(exc: UnexpectedToken, text: str, source: str, filename: str,
         message += " (did you mean '=='?)"
     event = _event_name(exc)
     if expected == {"LPAR"} and event is not None:
+        close = _close_section(event) if ttype == "COLON" else None
+        if close:
+            # 'Name:' at the top level, close to a section header: misspelt
+            return PcclError(f"unknown section '{event}:' (did you mean '{close}'?); "
+                             f"{_SECTION_ORDER}",
+                             filename=filename, source=source, line=line,
+                             column=column - len(event) if column else column,
+                             end_column=end_column)
         message += f" after event name '{event}'"
+    if ttype in _HEADER_ORDER and ttype not in expected and ttype != "AGENT_HDR":
+        message += f"; {_SECTION_ORDER}"
     return PcclError(message, filename=filename, source=source, line=line,
                      column=column, end_column=end_column)
 

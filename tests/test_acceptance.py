@@ -122,8 +122,18 @@ def test_race_no_violation_exhaustive_straight(agents):
     res = explore(RACE, world=RACE_WORLD, blackbox="straight", agents=agents)
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
-    assert res.verdict == "no violation — exhaustive [blackbox straight]"
+    assert res.verdict == ("no violation — exhaustive [blackbox straight] (travel times fixed "
+                           "by straight; -b nondet explores every timing)")
     assert res.model.N == agents
+
+
+def test_api_explore_defaults_to_nondet_for_a_program_that_moves():
+    res = explore(RACE_NONATOMIC, world=RACE_WORLD)
+    assert res.blackbox == "nondet" and res.status == "violation"
+    assert res.model.blackbox_reason == "default for programs that move"
+    res = explore(FISCHER, overrides=SMALL, depth=3)       # no doReach: the run default
+    assert res.blackbox == "straight" and res.model.blackbox_reason is None
+    assert "travel times" not in res.verdict
 
 
 @pytest.mark.parametrize("agents", [2, 3])
@@ -157,6 +167,15 @@ def test_race_safe_no_violation_exhaustive(blackbox, agents):
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
     assert f"[blackbox {blackbox}]" in res.verdict
+
+
+def test_api_explore_defaults_to_nondet_for_a_program_that_moves():
+    res = explore(RACE_NONATOMIC, world=RACE_WORLD)
+    assert res.blackbox == "nondet" and res.status == "violation"
+    assert res.model.blackbox_reason == "default for programs that move"
+    res = explore(FISCHER, overrides=SMALL, depth=3)       # no doReach: the run default
+    assert res.blackbox == "straight" and res.model.blackbox_reason is None
+    assert "travel times" not in res.verdict
 
 
 @pytest.mark.parametrize("agents", [2, 3])
@@ -363,15 +382,16 @@ def test_property_language_on_fischer(prop, holds):
     ("isEmpty(dests) -> forall i: !Pick[i] || size(dests) == 0", True),
 ])
 def test_property_language_on_race(prop, holds):
-    res = explore(RACE, world=RACE_WORLD, invariants=[prop])
+    res = explore(RACE, world=RACE_WORLD, blackbox="straight", invariants=[prop])
     assert res.status == ("exhaustive" if holds else "violation"), res.verdict
 
 
 def test_property_time_and_pos():
-    res = explore(RACE, world=RACE_WORLD, invariants=["time <= 5"])
+    res = explore(RACE, world=RACE_WORLD, blackbox="straight", invariants=["time <= 5"])
     assert res.model.abstract_time is False
     assert res.status == "violation" and res.final_state["time"] == 6
-    res = explore(RACE, world=RACE_WORLD, invariants=["time >= 4 -> pos[0].x > 0"])
+    res = explore(RACE, world=RACE_WORLD, blackbox="straight",
+                  invariants=["time >= 4 -> pos[0].x > 0"])
     assert res.status == "exhaustive"
 
 
@@ -432,7 +452,7 @@ def plain_bfs(m, max_depth=None):
 
 
 @pytest.mark.parametrize("program, kw", [
-    (RACE, dict(world=RACE_WORLD, agents=3)),
+    (RACE, dict(world=RACE_WORLD, blackbox="straight", agents=3)),
     (RACE_NONATOMIC, dict(world=RACE_WORLD, blackbox="straight")),
     (FISCHER, dict(overrides=SMALL)),
     (str(TEST_PROGRAMS / "eng_lock.pccl"), dict(blackbox="instant")),

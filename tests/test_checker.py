@@ -542,6 +542,72 @@ t.pccl:7:9: error: undeclared variable 'cc'
         id='undeclared_variable'),
     pytest.param(
         """\
+allwrite:
+  List<int> dests = [1];
+loc:
+  int currentDest;
+
+Pick():
+  pre(!isempty(dests));
+  eff:
+    currentDest = head(dests);
+""",
+        """\
+t.pccl:7:8: error: unknown function 'isempty' (did you mean 'isEmpty'?)
+    7 |   pre(!isempty(dests));
+      |        ^^^^^^^
+""",
+        id='unknown_function_did_you_mean'),
+    pytest.param(
+        """\
+loc:
+  int currentDest;
+
+Pick():
+  pre(true);
+  eff:
+    currentDest = currentDst + 1;
+""",
+        """\
+t.pccl:7:19: error: undeclared variable 'currentDst' (did you mean 'currentDest'?)
+    7 |     currentDest = currentDst + 1;
+      |                   ^^^^^^^^^^
+""",
+        id='undeclared_variable_did_you_mean'),
+    pytest.param(
+        """\
+allwrite:
+  List<int> dests = [1];
+
+Pick():
+  pre(true);
+  eff:
+    remov(dests, 1);
+""",
+        """\
+t.pccl:7:5: error: unknown function 'remov' (did you mean 'remove'?)
+    7 |     remov(dests, 1);
+      |     ^^^^^
+""",
+        id='unknown_statement_did_you_mean'),
+    pytest.param(
+        """\
+loc:
+  int count;
+
+Pick():
+  pre(true);
+  eff:
+    cont = 1;
+""",
+        """\
+t.pccl:7:5: error: undeclared variable 'cont' (did you mean 'count'?)
+    7 |     cont = 1;
+      |     ^^^^
+""",
+        id='assign_undeclared_did_you_mean'),
+    pytest.param(
+        """\
 loc:
   int c = 0;
 
@@ -1834,7 +1900,7 @@ PROPERTY_ERRORS = [
     pytest.param(
         'count(inCS) <= 1',
         """\
---invariant:1:7: error: undeclared variable 'inCS'
+--invariant:1:7: error: undeclared variable 'inCS' (did you mean 'inCs'?)
     1 | count(inCS) <= 1
       |       ^^^^
 """,
@@ -1914,7 +1980,7 @@ PROPERTY_ERRORS = [
     pytest.param(
         'forall i: done[i]',
         """\
---invariant:1:11: error: undeclared variable 'done'
+--invariant:1:11: error: undeclared variable 'done' (did you mean 'DONE'?)
     1 | forall i: done[i]
       |           ^^^^
 """,

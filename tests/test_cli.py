@@ -197,7 +197,7 @@ def test_run_bad_options_exit_2(args):
 # ---------------------------------------------------------------------------
 
 def test_explore_exit_0():
-    res = cli("explore", RACE, "--world", RACE_WORLD)
+    res = cli("explore", RACE, "--world", RACE_WORLD, "-b", "straight")
     assert res.exit_code == 0
     assert "no violation — exhaustive [blackbox straight]" in res.stdout
     for word in ("states", "transitions", "max depth", "seconds", "states/second"):
@@ -256,7 +256,8 @@ def test_explore_json():
     assert v["kind"] == "invariant" and v["trace"] and v["state"]
     assert all(a["variables"]["inCs"] for a in v["state"]["agents"])
     assert {"states", "transitions", "max_depth"} <= set(data["statistics"])
-    ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "--format", "json").stdout)
+    ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "-b", "straight",
+                        "--format", "json").stdout)
     assert ok["status"] == "exhaustive" and ok["violations"] == [] and ok["exit_status"] == 0
 
 
@@ -304,6 +305,96 @@ def test_explore_stuck_agent_names_source_location():
     assert "[blackbox nondet]" in res.stdout
     assert re.search(rf"^  at {re.escape(RACE_NONATOMIC)}:35:\d+$", res.stdout, re.M)
     assert "stuck(remove of an element not in the list" in res.stdout
+
+
+def test_explore_defaults_to_nondet_for_a_program_that_moves():
+    """README promises every interleaving and timing: without --blackbox the
+    paper's buggy race_nonatomic.pccl must not explore clean."""
+    res = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD)
+    assert res.exit_code == 1, res.output
+    header = res.stdout.splitlines()[0]
+    assert "blackbox nondet (default for programs that move)" in header
+    assert "stuck" in res.stdout and "[blackbox nondet]" in res.stdout
+
+
+def test_explore_explicit_deterministic_blackbox_notes_fixed_timing():
+    res = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "-b", "straight")
+    assert res.exit_code == 0, res.output
+    assert "blackbox straight," in res.stdout.splitlines()[0]      # chosen, no reason given
+    assert ("no violation — exhaustive [blackbox straight] (travel times fixed by straight; "
+            "-b nondet explores every timing)") in res.stdout
+    # a program that does not move: no note, and the run default stays
+    res = cli("explore", FISCHER, *SMALL)
+    assert "blackbox straight," in res.stdout and "travel times" not in res.stdout
+
+
+def test_run_keeps_straight_default_for_a_program_that_moves():
+    res = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD)
+    assert "blackbox straight," in res.stdout.splitlines()[0]
+
+
+def test_did_you_mean_for_options_choices_and_blackboxes():
+    res = cli("explore", RACE, "--events", "anny")
+    assert res.exit_code == 2 and "(did you mean 'any'?)" in res.stderr
+    res = cli("run", RACE, "--format", "jsn")
+    assert res.exit_code == 2 and "(did you mean 'json'?)" in res.stderr
+    res = cli("explore", RACE, "--blackbox", "nondett")
+    assert res.exit_code == 2 and "did you mean 'nondet'?" in res.stderr
+    res = cli("explore", RACE, "--event", "any")                 # click's own suggestion
+    assert res.exit_code == 2 and "'--events'" in res.stderr
+    res = cli("explore", FISCHER, "--invariant", "cnt(inCs) <= 1")
+    assert res.exit_code == 2 and "unknown function 'cnt' (did you mean 'count'?)" in res.stderr
+
+
+def test_check_names_the_world_for_a_world_function():
+    from conftest import PROGRAMS
+    res = cli("check", str(PROGRAMS / "collide_fixed.pccl"))
+    assert res.exit_code == 2
+    assert "unknown function 'detour'" in res.stderr and "needs --world FILE" in res.stderr
+
+
+PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  frontier [\d,]+  "
+                        r"depth \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
+
+
+def test_explore_progress_not_a_terminal_plain_timestamped_lines():
+    """stderr is not a terminal (CliRunner, like CI or nohup): timestamped
+    lines, the header first, no carriage return and no escape code."""
+    res = cli("explore", FISCHER, "--max-states", "60000", "--progress-interval", "0.05")
+    err = res.stderr
+    assert "\r" not in err and "\x1b" not in err
+    lines = err.splitlines()
+    assert len(lines) >= 2, err
+    assert re.match(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  pccl explore ", lines[0])
+    assert lines[0].split("  ", 1)[1] == res.stdout.splitlines()[0]   # the report's header
+    assert all(PLAIN_LINE.match(ln) for ln in lines[1:]), err
+
+
+def test_explore_progress_defaults_off_a_terminal_until_the_search_is_long():
+    res = cli("explore", FISCHER, *SMALL)                  # far shorter than 10 s
+    assert res.stderr == ""
+    res = cli("explore", FISCHER, *SMALL, "--progress")    # asked for: the header at once
+    assert re.match(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  pccl explore ", res.stderr)
+    res = cli("explore", FISCHER, "--max-states", "60000", "--progress-interval", "0.05",
+              "--no-progress")
+    assert res.stderr == ""
+
+
+def test_explore_progress_on_a_terminal_is_a_live_display():
+    import io
+    from pccl.cli import _progress_printer
+    out = io.StringIO()
+    show = _progress_printer("pccl explore x.pccl: 2 agents, blackbox nondet", None, 10.0,
+                             stream=out, tty=True)
+    show({"states": 1000, "frontier": 10, "depth": 3, "seconds": 0.5, "memory": 2**27})
+    show({"states": 4000, "frontier": 20, "depth": 4, "seconds": 1.5, "memory": 2**27})
+    show.close()
+    text = out.getvalue()
+    assert "\x1b[" in text                                   # redrawn in place
+    head = text.index("pccl explore x.pccl: 2 agents, blackbox nondet")
+    line = text.index("0:00:01  states 4,000  frontier 20  depth 4  3,000 states/s  mem 128 MiB")
+    assert head < line
+    assert text.endswith("\x1b[2K")                          # erased: the report follows
 
 
 def test_explore_run_json_stuck_status():

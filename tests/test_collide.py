@@ -179,7 +179,7 @@ def test_fast_enough_for_exploration():
 # ----------------------------------------------------------------------
 
 def test_unfixed_swap_collides_under_straight():
-    r = explore(COLLIDE, world=WORLD, collisions=True)
+    r = explore(COLLIDE, world=WORLD, blackbox="straight", collisions=True)
     assert r.status == "violation" and r.exit_status == 1
     assert r.violation["kind"] == "collision"
     assert r.violation["message"] == ("collision: agent 0 at (2, 0) and agent 1 at (2, 0) overlap "
@@ -233,7 +233,8 @@ def test_world_file_is_valid_and_starts_apart():
 # ----------------------------------------------------------------------
 
 def test_cli_explore_unfixed_reports_collision_with_trace():
-    res = cli("explore", COLLIDE, "--world", WORLD, "--collisions", "--no-progress")
+    res = cli("explore", COLLIDE, "--world", WORLD, "-b", "straight", "--collisions",
+              "--no-progress")
     assert res.exit_code == 1, res.output
     out = res.output
     assert "violation: collision: agent 0 at (2, 0) and agent 1 at (2, 0) overlap" in out
@@ -244,7 +245,9 @@ def test_cli_explore_unfixed_reports_collision_with_trace():
 def test_cli_explore_fixed_is_exhaustive():
     res = cli("explore", FIXED, "--world", WORLD, "--collisions", "--no-progress")
     assert res.exit_code == 0, res.output
-    assert "no violation — exhaustive [blackbox straight]" in res.output
+    # by default explore tries every travel time (nondet) on a program that moves
+    assert "blackbox nondet (default for programs that move)" in res.output
+    assert "no violation — exhaustive [blackbox nondet]" in res.output
 
 
 def test_cli_run_unfixed_reports_collision():

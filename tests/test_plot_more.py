@@ -50,12 +50,12 @@ def wall(tmp_path):
 
 def test_failed_doreach_is_marked(tmp_path, wall):
     WALL, WALL_WORLD = wall
-    r = explore(str(WALL), world=str(WALL_WORLD))
+    r = explore(str(WALL), world=str(WALL_WORLD), blackbox="straight")
     assert r.status == "violation"
     states = list(r.counterexamples[0].trace.states)
     assert P._failures(states, 1) == [(0, (0.0, 0.0))]
     out = tmp_path / "w.png"
-    res = cli("explore", WALL, "--world", WALL_WORLD, "--plot", out)
+    res = cli("explore", WALL, "--world", WALL_WORLD, "-b", "straight", "--plot", out)
     assert res.exit_code == 1
     with_marker = count(pixels(out), RED_X)
     out2 = tmp_path / "w2.png"

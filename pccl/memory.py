@@ -1,0 +1,57 @@
+"""Memory figures of this process, portably.
+
+``peak_rss_bytes()`` is the peak resident set size (what ``pccl explore``
+reports as peak memory).  On Linux and macOS it comes from
+``getrusage(RUSAGE_SELF).ru_maxrss``, the kernel's true peak, whose unit is
+KiB on Linux (and the BSDs) but bytes on macOS; psutil has no peak on Linux.
+Where the ``resource`` module does not exist (Windows) it comes from psutil:
+``peak_wset`` (the peak working set) where psutil has it, else the current
+RSS.  ``rss_bytes()`` is the current resident set size (psutil).
+"""
+
+from __future__ import annotations
+
+import sys
+
+try:
+    import resource as _resource
+except ImportError:  # pragma: no cover - Windows
+    _resource = None
+
+__all__ = ["peak_rss_bytes", "rss_bytes"]
+
+
+def _maxrss_bytes(resource_module, platform: str = sys.platform) -> int:
+    unit = 1 if platform in ("darwin", "ios") else 1024
+    return int(resource_module.getrusage(resource_module.RUSAGE_SELF).ru_maxrss) * unit
+
+
+def _psutil_peak() -> int:
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - psutil is a dependency
+        return 0
+    try:
+        info = psutil.Process().memory_info()
+    except Exception:  # pragma: no cover - a platform psutil cannot read
+        return 0
+    return int(getattr(info, "peak_wset", 0) or info.rss)
+
+
+def peak_rss_bytes() -> int:
+    """The peak resident set size of this process in bytes (0 if unknown)."""
+    if _resource is not None:
+        try:
+            return _maxrss_bytes(_resource)
+        except (OSError, ValueError, AttributeError):  # pragma: no cover
+            pass
+    return _psutil_peak()
+
+
+def rss_bytes() -> int:
+    """The current resident set size of this process in bytes (0 if unknown)."""
+    try:
+        import psutil
+        return int(psutil.Process().memory_info().rss)
+    except Exception:  # pragma: no cover - psutil missing or unreadable
+        return peak_rss_bytes()
