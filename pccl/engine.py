@@ -388,33 +388,67 @@ class Model:
         self.oracle.agent = None
         return out
 
-    def _run_init(self, states, i, limit=100_000):
-        """Run agent i's Init block to completion in each state (not interleaved)."""
-        init_pc = self.ctl.intern(tuple(s.sid for s in self.program.init))
-        work = [R._put(st, i, R._with_pc(st[4][i], init_pc)) if st[4][i][3] == RUNNING else st
-                for st in states]
-        done = []
-        steps = 0
-        self.oracle.agent = i
-        while work:
-            st = work.pop(0)
-            ag = st[4][i]
-            if ag[3] != RUNNING or ag[0] == self.ctl.empty_pc:
-                done.append(st)
-                continue
-            steps += 1
-            if steps > limit:
-                done.append(R._stuck(self, st, i, ag, f"Init does not finish within {limit} steps",
-                                     ("decl", self.program.init[0].span)))
-                continue
-            info = self.ctl.info(ag[0])
-            out: list = []
-            for rule in AGENT_RULES[info[0]]:
-                rule(self, st, i, ag, info, out)
-            # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
-            work[0:0] = [s for _, s in out]
-        self.oracle.agent = None
-        return done
+    #: Most steps of one path through an agent's Init block.
+    INIT_LIMIT = 100_000
+
+    def _run_init(self, states, i):
+        return [s2 for st in states for s2 in self._init_paths(st, i)]
+
+    def _init_paths(self, st, i) -> list:
+        """Run agent i's Init block to completion from ``st`` (not
+        interleaved): the states in which it ends, in depth-first order.
+
+        Every ``rand`` outcome is a branch; branches that reach equal states
+        merge (a state is expanded again only when reached in fewer steps).
+        The step limit is per path: a path longer than :attr:`INIT_LIMIT`
+        steps, or one that returns to a state on itself (a loop that never
+        ends), leaves the agent stuck."""
+        ag = st[4][i]
+        if ag[3] != RUNNING:
+            return [st]
+        limit = self.INIT_LIMIT
+        empty = self.ctl.empty_pc
+        where = ("decl", self.program.init[0].span)
+        start = R._put(st, i, R._with_pc(ag, self.ctl.intern(tuple(x.sid for x in self.program.init))))
+        done: dict = {}
+        best: dict = {}
+        on_path: set = set()
+        stack: list = []
+        oracle = self.oracle
+
+        def enter(s, d):
+            a = s[4][i]
+            if a[3] != RUNNING or a[0] == empty:
+                done[s] = None
+            elif s in on_path:
+                done[R._stuck(self, s, i, a, "Init does not finish (it can loop forever)",
+                              where)] = None
+            elif d >= limit:
+                done[R._stuck(self, s, i, a, f"Init does not finish within {limit:,} steps",
+                              where)] = None
+            elif best.get(s, limit) > d:
+                best[s] = d
+                on_path.add(s)
+                out: list = []
+                oracle.agent = i
+                for rule in AGENT_RULES[self.ctl.info(a[0])[0]]:
+                    rule(self, s, i, a, self.ctl.info(a[0]), out)
+                # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
+                stack.append((s, d, iter(out)))
+
+        try:
+            enter(start, 0)
+            while stack:
+                s, d, it = stack[-1]
+                nxt = next(it, None)
+                if nxt is None:
+                    stack.pop()
+                    on_path.discard(s)
+                else:
+                    enter(nxt[1], d + 1)
+        finally:
+            oracle.agent = None
+        return list(done)
 
     # -- transitions ------------------------------------------------------------------
     def successors(self, st) -> list:
