@@ -228,6 +228,28 @@ class Oracle:
         self.trail.append((v, n))
         return v
 
+    def iter_outcomes(self, fn, *args):
+        """Like :meth:`outcomes`, lazily: one result at a time, the
+        enumeration's own position kept locally, so that the consumer may use
+        the oracle (for other computations) between two results."""
+        if self.policy is not None:
+            yield fn(*args)
+            return
+        prefix: list = []
+        while True:
+            self.prefix, self.trail = prefix, []
+            try:
+                r = fn(*args)
+                trail = self.trail
+            finally:
+                self.prefix, self.trail = [], []
+            while trail and trail[-1][0] >= trail[-1][1]:
+                trail.pop()
+            yield r
+            if not trail:
+                return
+            prefix = [c for c, _ in trail[:-1]] + [trail[-1][0] + 1]
+
     def outcomes(self, fn, *args):
         """All results of ``fn(*args)`` over every combination of rand values."""
         if self.policy is not None:

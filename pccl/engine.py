@@ -3,7 +3,7 @@
 A :class:`Model` offers, stateright-style,
 
 * :meth:`Model.init_states` — one initial configuration per combination of
-  ``rand`` outcomes in declarations and ``Init``;
+  ``rand`` outcomes in declarations and ``Init``, generated lazily;
 * :meth:`Model.successors` — the enabled transitions of a configuration,
   each ``(label, successor)`` with ``label = (RULE NAME, agent, detail)``;
 * :meth:`Model.key` — state identity (time left out under time abstraction);
@@ -323,38 +323,65 @@ class Model:
         return None
 
     # -- initial states -------------------------------------------------------------------
-    def init_states(self) -> list:
+    #: Initial states remembered to drop duplicates early; beyond this many
+    #: the explorer merges them (it admits initial states by identity).
+    INIT_DEDUP = 1 << 16
+
+    def init_states(self):
+        """The initial configurations, one per combination of ``rand``
+        outcomes in declarations and ``Init``, generated lazily (depth-first,
+        in increasing outcome order): the product of the agents' outcomes is
+        never built, so a consumer can stop after as many as it admits."""
         lay, N = self.layout, self.N
         starts = self.world.start_positions(N)
         blank_reach = (None, (), None, False, False)
+        loc0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local)
+        ar0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread)
         agents = tuple(
-            (self.ctl.empty_pc, 0, IDLE, RUNNING,
-             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local),
-             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread),
-             self.round_pos(starts[i]), blank_reach)
+            (self.ctl.empty_pc, 0, IDLE, RUNNING, loc0, ar0, self.round_pos(starts[i]), blank_reach)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
         env0 = self._call_blackbox(0, "init_env", self.world, N)
         _check_env(self, env0, 0)
-        states = [(0, DISCRETE, (), shared0, agents, env0)]
-        # shared initialisers, evaluated once (in agent 0's context)
-        for vs in lay.shared:
-            if vs.decl.init is not None:
-                states = self._init_decl(states, 0, vs)
+        # the stages: shared initialisers once (in agent 0's context), then per
+        # agent its declarations and its Init block
+        stages = [(0, vs) for vs in lay.shared if vs.decl.init is not None]
+        per_agent = [vs for vs in lay.allread + lay.local if vs.decl.init is not None]
+        has_init = bool(self.program.init)
         for i in range(N):
-            for vs in lay.allread + lay.local:
-                if vs.decl.init is not None:
-                    states = self._init_decl(states, i, vs)
-            if self.program.init:
-                states = self._run_init(states, i)
-        seen, out = set(), []
-        for st in states:
-            if st not in seen:
-                seen.add(st)
-                out.append(st)
-        return out
+            stages.extend((i, vs) for vs in per_agent)
+            if has_init:
+                stages.append((i, None))
+        n = len(stages)
+        seen: set = set()
+        cap = self.INIT_DEDUP
+        # depth-first over the stages with an explicit stack (no recursion:
+        # 10,000 agents make 10,000s of stages)
+        its = [iter(((0, DISCRETE, (), shared0, agents, env0),))]
+        while its:
+            st = next(its[-1], None)
+            if st is None:
+                its.pop()
+                continue
+            k = len(its) - 1
+            if k == n:
+                if st in seen:
+                    continue
+                if len(seen) < cap:
+                    seen.add(st)
+                yield st
+                continue
+            i, vs = stages[k]
+            its.append(self._decl_outcomes(st, i, vs) if vs is not None
+                       else iter(self._init_paths(st, i)))
 
-    def _init_decl(self, states, i, vs):
+    def _decl_outcomes(self, st, i, vs):
+        """The states after agent i's declaration ``vs`` is initialised in
+        ``st``: one per ``rand`` outcome, lazily."""
+        ag = st[4][i]
+        if ag[3] != RUNNING:
+            yield st
+            return
         comp = self.comp
         fn = getattr(vs, "_initfn", None)
         if fn is None:
@@ -362,37 +389,35 @@ class Model:
             want = vs.ty.elem if vs.ty.kind == "array" else vs.ty
             src = comp.value(vs.decl.init, want)
             fn = vs._initfn = comp.make("i, ag, sh, ags", f"    return {src}\n", f"_init_{vs.name}")
-        rnd = has_rand(vs.decl.init)
-        out = []
-        for st in states:
-            ag = st[4][i]
-            if ag[3] != RUNNING:
-                out.append(st)
+        oracle = self.oracle
+
+        def guarded(*a):
+            oracle.agent = i
+            try:
+                return fn(*a)
+            except R._RUNTIME_ERRORS as exc:
+                return R._Err.of(exc)
+            finally:
+                oracle.agent = None
+        results = (oracle.iter_outcomes(guarded, i, ag, st[3], st[4]) if has_rand(vs.decl.init)
+                   else (guarded(i, ag, st[3], st[4]),))
+        j = vs.slot
+        for res in results:
+            if isinstance(res, R._Err):
+                yield R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span))
                 continue
-            self.oracle.agent = i
-            for res in R._outcomes(self, fn, rnd, i, ag, st[3], st[4]):
-                if isinstance(res, R._Err):
-                    out.append(R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span)))
-                    continue
-                # the value is canonical (Compiler.value); `bool f[3] = false;` fills
-                v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
-                j = vs.slot
-                if vs.section == "allwrite":
-                    sh = st[3]
-                    out.append((st[0], st[1], st[2], sh[:j] + (v,) + sh[j + 1:], st[4], st[5]))
-                else:
-                    k = 4 if vs.section == "loc" else 5
-                    cell = ag[k][:j] + (v,) + ag[k][j + 1:]
-                    ag2 = ag[:k] + (cell,) + ag[k + 1:]
-                    out.append(R._put(st, i, ag2))
-        self.oracle.agent = None
-        return out
+            # the value is canonical (Compiler.value); `bool f[3] = false;` fills
+            v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
+            if vs.section == "allwrite":
+                sh = st[3]
+                yield (st[0], st[1], st[2], sh[:j] + (v,) + sh[j + 1:], st[4], st[5])
+            else:
+                c = 4 if vs.section == "loc" else 5
+                cell = ag[c][:j] + (v,) + ag[c][j + 1:]
+                yield R._put(st, i, ag[:c] + (cell,) + ag[c + 1:])
 
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
-
-    def _run_init(self, states, i):
-        return [s2 for st in states for s2 in self._init_paths(st, i)]
 
     def _init_paths(self, st, i) -> list:
         """Run agent i's Init block to completion from ``st`` (not

@@ -10,6 +10,7 @@ transitions (an event that never ends, such as ``while (true)``).
 
 from __future__ import annotations
 
+import itertools
 import random
 from collections import Counter
 from dataclasses import dataclass, field
@@ -35,7 +36,10 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     ``rand_policy`` if rand should be sampled (see :func:`pccl.api.make_model`);
     otherwise all rand outcomes are successors and one is picked at random."""
     rng = rng or random.Random(seed)
-    inits = model.init_states()
+    gen = iter(model.init_states())
+    inits = list(itertools.islice(gen, 2))
+    if len(inits) > 1:          # no rand policy: every outcome is an initial state
+        inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
     trace, summary = [], [(st[0], st)]
     steps = 0

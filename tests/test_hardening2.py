@@ -65,3 +65,33 @@ def test_init_that_loops_forever_is_stuck_quickly():
     (st,) = m.init_states()
     (v, *_) = m.violations(st)
     assert v.kind == "stuck" and "Init does not finish" in v.message
+
+
+# ---------------------------------------------------------------------------
+# 10. initial states are generated lazily: --max-states bounds memory
+# ---------------------------------------------------------------------------
+
+HUGE_RAND = "loc:\n  int x = rand(100000000);\n\nGo():\n  pre(true);\n  eff:\n    exit();\n"
+
+
+def test_initial_states_are_generated_lazily():
+    import itertools
+    import time
+    m = model_of(HUGE_RAND)
+    t = time.perf_counter()
+    first = list(itertools.islice(m.init_states(), 5))
+    assert time.perf_counter() - t < 5
+    assert [s[4][1][4][0] for s in first] == [0, 1, 2, 3, 4]     # agent 0 has x = 0
+
+
+def test_max_states_bounds_a_huge_rand_declaration(tmp_path):
+    res = cli("explore", write(tmp_path, HUGE_RAND), "--max-states", "10")
+    assert res.exit_code == 0, res.output
+    assert "stopped by --max-states 10" in res.stdout
+
+
+def test_fischer_with_50_agents_is_bounded_by_max_states():
+    from pccl.api import explore
+    r = explore(FISCHER, agents=50, max_states=2000)
+    assert r.status == "bounded" and r.stats.states == 2000
+    assert r.stats.peak_memory < 2**30
