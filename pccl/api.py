@@ -133,7 +133,11 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=find_all, exact=exact, progress=progress)
     ex = Explorer(model, max_depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress)
-    sr = ex.run()
+    saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
+    try:
+        sr = ex.run()
+    finally:
+        model.lock_deadlocks = saved
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states) for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]

@@ -247,6 +247,9 @@ class Model:
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
         self._collision_cache: dict = {}
+        #: report agents waiting for a lock held by an exited agent (off with
+        #: --no-deadlock)
+        self.lock_deadlocks = True
 
     # -- compilation ------------------------------------------------------------
     def _compile_stmt(self, s: A.Stmt):
@@ -609,7 +612,31 @@ class Model:
                                      None, p.span))
         if self.collisions:
             out.extend(self.collision_violations(st))
+        lq = st[2]
+        if lq and self.lock_deadlocks and st[4][lq[0]][3] == EXITED:
+            v = self.lock_violation(st)
+            if v is not None:
+                out.append(v)
         return out
+
+    def lock_violation(self, st) -> Optional[Violation]:
+        """The lock is held by an agent that has exited (``exit()`` inside
+        ``atomic`` keeps the lock) and a running agent waits for it: that
+        agent can never progress, although time may advance forever."""
+        lq, ags = st[2], st[4]
+        holder = lq[0]
+        waiting = [j for j in lq[1:] if ags[j][3] == RUNNING]
+        if not waiting:
+            return None
+        w = waiting[0]
+        k = self.ctl.ks[ags[w][0]]
+        span = self.stmts[-3 - k[0]].span if k and k[0] <= -3 else None
+        where = f" (atomic at line {span.line})" if span is not None else ""
+        others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
+                  if len(waiting) > 1 else "")
+        msg = (f"deadlock: agent {w} waits forever for the lock{where}: agent {holder} holds "
+               f"it and has exited, so it never releases it{others}")
+        return Violation("deadlock", "lock held by an exited agent", msg, w, span)
 
     def collision_violations(self, st) -> list:
         poss = tuple([ag[6] for ag in st[4]])

@@ -95,3 +95,53 @@ def test_fischer_with_50_agents_is_bounded_by_max_states():
     r = explore(FISCHER, agents=50, max_states=2000)
     assert r.status == "bounded" and r.stats.states == 2000
     assert r.stats.peak_memory < 2**30
+
+
+# ---------------------------------------------------------------------------
+# 3. waiting for a lock held by an exited agent is a deadlock
+# ---------------------------------------------------------------------------
+
+EXIT_IN_ATOMIC = """\
+allwrite:
+  int x = 0;
+
+loc:
+  bool done = false;
+
+Go():
+  pre(!done);
+  eff:
+    if (getAgentIndex() == 0):
+      atomic:
+        x = 1;
+        exit();
+    else:
+      atomic:
+        x = 2;
+      done = true;
+"""
+
+
+def test_waiting_for_a_lock_held_by_an_exited_agent_is_a_deadlock(tmp_path):
+    p = write(tmp_path, EXIT_IN_ATOMIC)
+    res = cli("explore", p, "--format", "json")
+    assert res.exit_code == 1, res.output
+    data = json.loads(res.stdout)
+    (v,) = data["violations"]
+    assert v["kind"] == "deadlock" and v["line"] == 15
+    assert "agent 1 waits forever for the lock" in v["message"]
+    assert "agent 0 holds it and has exited" in v["message"]
+    # --no-deadlock turns it off like the other deadlocks
+    assert cli("explore", p, "--no-deadlock").exit_code == 0
+
+
+def test_run_stops_at_a_lock_held_by_an_exited_agent(tmp_path):
+    res = cli("run", write(tmp_path, EXIT_IN_ATOMIC), "--seed", "1")
+    assert res.exit_code == 1, res.output
+    assert "waits forever for the lock" in res.stdout
+
+
+def test_exit_in_atomic_without_waiters_is_no_violation():
+    m = model_of(EXIT_IN_ATOMIC.replace("      atomic:\n        x = 2;\n", "      x = 2;\n"))
+    from pccl.api import explore_model
+    assert explore_model(m).status == "exhaustive"
