@@ -83,7 +83,8 @@ def common_options(f):
 
 
 def _delta(d):
-    return int(d) if float(d).is_integer() else d
+    # 2.0 is 2; a huge integral float stays a float (its int would print 300 digits)
+    return int(d) if float(d).is_integer() and abs(d) < 2 ** 53 else d
 
 
 def _model_options(delta, n0, rates, events, collisions, overrides):

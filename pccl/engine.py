@@ -22,6 +22,7 @@ maps it back and decodes its head once.
 
 from __future__ import annotations
 
+import decimal
 import math
 import operator
 from dataclasses import dataclass
@@ -167,8 +168,13 @@ class Model:
             raise PcclError(f"the number of agents must be at most {MAX_AGENTS:,}, got "
                             f"{n_agents:,}", filename="--agents")
         self.N = n_agents
-        if not (isinstance(delta, (int, float)) and delta > 0):
-            raise PcclError(f"δ must be positive, got {delta}", filename="--delta")
+        if not (isinstance(delta, (int, float)) and not isinstance(delta, bool) and delta > 0
+                and math.isfinite(delta)):
+            raise PcclError(f"δ must be a positive finite number, got {delta}", filename="--delta")
+        if max_time is not None and not (isinstance(max_time, (int, float))
+                                         and not isinstance(max_time, bool)
+                                         and math.isfinite(max_time) and max_time >= 0):
+            raise PcclError(f"must be a finite number >= 0, got {max_time}", filename="--max-time")
         if not (isinstance(n0, int) and n0 >= 1):
             raise PcclError(f"n0 must be a positive integer, got {n0}", filename="--n0")
         self.delta = delta
@@ -195,6 +201,14 @@ class Model:
         self.events_policy = events
         self.max_time = max_time
         self.collisions = collisions
+        # The clock: time is n·δ for an integer n, computed exactly in decimal
+        # from δ as written (0.1 is 1/10), then rounded once to a float; so
+        # no δ is too small to advance it and 0.1 + 0.2 is 0.3.
+        self._delta_dec = _decimal(delta)
+        self.max_ticks = (None if max_time is None
+                          else int((_decimal(max_time) / self._delta_dec).to_integral_value(
+                              rounding=decimal.ROUND_FLOOR)))
+        self._next_time: dict = {}
 
         funcs = dict(self.world.functions_dict()) if hasattr(self.world, "functions_dict") else {}
         if "getObs" not in funcs:
@@ -497,6 +511,35 @@ class Model:
             R.doreach_invoke(self, st, out)
         return out
 
+    def next_time(self, t):
+        """The clock after TIME ADVANCE from ``t`` = n·δ: (n + 1)·δ, exactly
+        as a decimal and rounded once to a float (an int when δ is an int);
+        None if that is beyond ``--max-time``."""
+        try:
+            return self._next_time[t]
+        except KeyError:
+            pass
+        d = self.delta
+        if type(d) is int and type(t) is int:
+            n = t // d
+            nxt = t + d
+        else:
+            with decimal.localcontext(_EXACT):
+                n = int((_decimal(t) / self._delta_dec).to_integral_value())
+                nxt = float(self._delta_dec * (n + 1))
+            if self.max_ticks is not None and n + 1 > self.max_ticks:
+                pass                                    # beyond the bound anyway
+            elif not nxt > t or not math.isfinite(nxt):
+                raise PcclError(f"the clock cannot advance from {_fmt_time(t)} by δ = {d:g}: "
+                                f"time {_fmt_time(t)} + δ is not representable as a float",
+                                filename="--delta")
+        if self.max_ticks is not None and n + 1 > self.max_ticks:
+            nxt = None
+        if len(self._next_time) >= 1 << 20:
+            self._next_time.clear()
+        self._next_time[t] = nxt
+        return nxt
+
     def key(self, st):
         """State identity: the configuration, without the clock under time
         abstraction.  (Replaced per instance by an equivalent C-level
@@ -691,6 +734,14 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
+
+
+_EXACT = decimal.Context(prec=60)
+
+
+def _decimal(x) -> decimal.Decimal:
+    """``x`` as the decimal it was written as (0.1 is 1/10, not the binary float)."""
+    return decimal.Decimal(x) if isinstance(x, int) else decimal.Decimal(repr(float(x)))
 
 
 def _fmt_time(t) -> str:

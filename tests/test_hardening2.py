@@ -145,3 +145,66 @@ def test_exit_in_atomic_without_waiters_is_no_violation():
     m = model_of(EXIT_IN_ATOMIC.replace("      atomic:\n        x = 2;\n", "      x = 2;\n"))
     from pccl.api import explore_model
     assert explore_model(m).status == "exhaustive"
+
+
+# ---------------------------------------------------------------------------
+# 5. the clock holds exact multiples of δ: no δ freezes it
+# ---------------------------------------------------------------------------
+
+TICK = "loc:\n  int c = 0;\n\nGo():\n  pre(true);\n  eff:\n    c = 1;\n"
+
+
+def test_tiny_delta_advances_the_clock(tmp_path):
+    p = write(tmp_path, TICK)
+    res = cli("explore", p, "--delta", "1e-12", "--max-time", "5e-12",
+              "--invariant", "time < 3e-12")
+    assert res.exit_code == 1, res.output
+    assert "invariant 'time < 3e-12' violated" in res.stdout
+    res = cli("explore", p, "--delta", "1e-12", "--max-time", "5e-12",
+              "--invariant", "time <= 5e-12")
+    assert res.exit_code == 0 and "stopped by --max-time" in res.stdout, res.stdout
+
+
+def test_tiny_delta_run_ends(tmp_path):
+    import subprocess
+    import sys
+    p = write(tmp_path, TICK)
+    out = subprocess.run([sys.executable, "-m", "pccl.cli", "run", str(p), "--delta", "1e-12",
+                          "--max-time", "5e-12", "--format", "json"],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["final"]["time"] == 5e-12
+
+
+def test_decimal_delta_is_exact():
+    m = model_of(TICK, delta=0.1, max_time=0.3, abstract_time=False)
+    t, seen = 0, []
+    while t is not None:
+        seen.append(t)
+        t = m.next_time(t)
+    assert seen == [0, 0.1, 0.2, 0.3]
+
+
+@pytest.mark.parametrize("args", [["explore", "--max-time", "nan"], ["explore", "--delta", "inf"],
+                                  ["run", "--max-time", "inf"], ["run", "--delta", "nan"]])
+def test_non_finite_time_options(args, tmp_path):
+    res = cli(args[0], write(tmp_path, TICK), *args[1:])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+
+
+@pytest.mark.parametrize("kw", [{"delta": float("inf")}, {"delta": float("nan")},
+                                {"max_time": float("nan")}, {"max_time": float("inf")}])
+def test_model_refuses_non_finite_time(kw):
+    from pccl.engine import Model
+    from pccl.parser import parse_program
+    with pytest.raises(PcclError):
+        Model(parse_program(TICK), **kw)
+
+
+def test_clock_beyond_float_range_is_an_error(tmp_path):
+    p = write(tmp_path, TICK)
+    res = cli("run", p, "--delta", "1e308", "--max-time", "1.7e308")
+    assert res.exit_code == 0 and "stopped at --max-time" in res.stdout, res.output
+    res = cli("explore", p, "--delta", "1e308", "--no-abstract-time")
+    assert res.exit_code == 2, res.output
+    assert "--delta: error: the clock cannot advance from 1e+308" in res.stderr
