@@ -172,6 +172,10 @@ class VarInfo:
 #: Python's own limits (about 200 nested parentheses).
 MAX_NESTING = 100
 
+#: Levels a left-associative chain of operators counts for at most (the
+#: compiler emits a long chain flat, see Compiler.chain).
+CHAIN_LEVELS = 8
+
 
 @dataclass
 class ProgramInfo:
@@ -629,10 +633,35 @@ class _Checker:
             self.fail(f"{operands} of '{op}' must be {numbers}, got {t}", node.span)
 
     def binary(self, e: ast.Binary) -> Ty:
+        """A left-associative chain ``a + b - c …`` (the left spine of Binary
+        nodes) is checked iteratively from its innermost operand, and counts
+        as at most :data:`CHAIN_LEVELS` levels of nesting: a flat sum of 3,000
+        terms is not nested.  Its right operands are one level deeper."""
+        spine = [e]
+        x = e.left
+        while isinstance(x, ast.Binary) and x.op != "->":
+            spine.append(x)
+            x = x.left
+        depth = self._depth
+        extra = min(len(spine), CHAIN_LEVELS) - 1
+        if extra:
+            if depth + extra > MAX_NESTING:
+                self.fail(f"expression nested too deeply (more than {MAX_NESTING} levels)",
+                          spine[MAX_NESTING - depth + 1].span)
+            self._depth = depth + extra
+        try:
+            a = self.value(x)
+            for node in reversed(spine):
+                a = self.binary_node(node, a)
+            return a
+        finally:
+            self._depth = depth
+
+    def binary_node(self, e: ast.Binary, a: Ty) -> Ty:
+        """The type of ``e`` whose left operand has type ``a``."""
         op = e.op
         if op == "->" and self.mode != "property":
             self.fail("'->' is only allowed in properties", e.span)
-        a = self.value(e.left)
         b = self.value(e.right)
         if op in ("||", "&&", "->"):
             for t, n in ((a, e.left), (b, e.right)):

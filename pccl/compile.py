@@ -381,19 +381,7 @@ class Compiler:
                 return f"(not {ex(e.operand)})"
             return f"(-{ex(e.operand)})"
         if isinstance(e, A.Binary):
-            a, b = ex(e.left), ex(e.right)
-            op = e.op
-            if op == "&&":
-                return f"({a} and {b})"
-            if op == "||":
-                return f"({a} or {b})"
-            if op == "->":
-                return f"((not {a}) or {b})"
-            if op == "/":
-                return f"_div({a}, {b})"
-            if op == "%":
-                return f"_mod({a}, {b})"
-            return f"({a} {op} {b})"
+            return self.chain(e, ex)
         if isinstance(e, A.Quant):
             fn = "all" if e.kind == "forall" else "any"
             body = self.expr(e.body, prop=prop, bound=bound + (e.var,))
@@ -401,6 +389,48 @@ class Compiler:
         if isinstance(e, A.Call):
             return self.call(e, prop, bound, want)
         self.error("unsupported expression", e)  # pragma: no cover
+
+    #: Left-associative chains longer than this are compiled flat.
+    CHAIN_FLAT = 8
+
+    def chain(self, e: A.Binary, ex) -> str:
+        """A Binary node and the chain of Binary nodes on its left spine
+        (``a + b - c …``), without recursion along the spine.  A short chain
+        is the nested expression ``((a + b) - c)``; a long one, which Python
+        could not compile (200 nested parentheses, and its compiler's
+        recursion limit on a 3,000-deep tree), is a tuple of steps through a
+        local, evaluated left to right with the same short-circuits:
+        ``(_c := a, _c := (_c + b), _c := (_c - c), …)[-1]``."""
+        spine = [e]
+        x = e.left
+        while isinstance(x, A.Binary):
+            spine.append(x)
+            x = x.left
+        acc = ex(x)
+        if len(spine) <= self.CHAIN_FLAT:
+            for node in reversed(spine):
+                acc = self._binop(node.op, acc, ex(node.right))
+            return acc
+        var = f"_c{self._nconst}"
+        self._nconst += 1
+        steps = [f"{var} := {acc}"]
+        steps.extend(f"{var} := {self._binop(node.op, var, ex(node.right))}"
+                     for node in reversed(spine))
+        return "(" + ", ".join(f"({s})" for s in steps) + ")[-1]"
+
+    @staticmethod
+    def _binop(op, a, b) -> str:
+        if op == "&&":
+            return f"({a} and {b})"
+        if op == "||":
+            return f"({a} or {b})"
+        if op == "->":
+            return f"((not {a}) or {b})"
+        if op == "/":
+            return f"_div({a}, {b})"
+        if op == "%":
+            return f"_mod({a}, {b})"
+        return f"({a} {op} {b})"
 
     @staticmethod
     def bvar(name: str) -> str:

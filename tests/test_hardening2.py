@@ -208,3 +208,58 @@ def test_clock_beyond_float_range_is_an_error(tmp_path):
     res = cli("explore", p, "--delta", "1e308", "--no-abstract-time")
     assert res.exit_code == 2, res.output
     assert "--delta: error: the clock cannot advance from 1e+308" in res.stderr
+
+
+# ---------------------------------------------------------------------------
+# 15. a flat chain of operators is not nesting; deep nesting is located
+# ---------------------------------------------------------------------------
+
+def chain_program(expr, ty="int"):
+    return (f"loc:\n  {ty} x = {expr};\n  {ty} y = {expr};\n\nGo():\n  pre({'x' if ty == 'bool' else 'true'});\n"
+            f"  eff:\n    y = {expr};\n    exit();\n")
+
+
+@pytest.mark.parametrize("expr, ty, value", [
+    (" + ".join(["1"] * 3000), "int", 3000),
+    (" - ".join(["1"] * 3000), "int", 2 - 3000),
+    (" + ".join(["2 * 3 - 4 / 2 % 3"] * 2000), "int", 2000 * 4),
+    (" && ".join(["true"] * 3000), "bool", True),
+    ("false && 1 / 0 == 0 && " + " && ".join(["true"] * 20), "bool", False),
+    (" + ".join(["0.1"] * 3000), "float", None),
+])
+def test_long_flat_chains_work(tmp_path, expr, ty, value):
+    from pccl.api import make_model
+    p = write(tmp_path, chain_program(expr, ty))
+    m = make_model(str(p))
+    (st,) = m.init_states()
+    x = st[4][0][4][0]
+    if value is None:                       # left to right, as Python would
+        value = 0.1
+        for _ in range(2999):
+            value = value + 0.1
+    assert x == value
+    res = cli("explore", p)
+    assert res.exit_code == 0, res.output
+
+
+def test_long_chain_in_an_invariant():
+    res = cli("explore", FISCHER, "--set", "k=1", "--set", "cstime=0", "--max-states", "100",
+              "--invariant", " + ".join(["0"] * 3000) + " == 0")
+    assert res.exit_code == 0, res.output
+
+
+def test_deep_nesting_is_located(tmp_path):
+    p = write(tmp_path, "loc:\n  int x = " + "1 + (" * 150 + "1" + ")" * 150 + ";\n")
+    res = cli("check", p)
+    assert res.exit_code == 2
+    assert res.stderr.startswith(f"{p}:2:506: error: expression nested too deeply"), res.stderr
+    assert "^" in res.stderr
+
+
+def test_deep_blocks_are_located(tmp_path):
+    body = "".join("  " * (k + 2) + "if (true):\n" for k in range(150))
+    src = "loc:\n  int x = 0;\n\nGo():\n  pre(true);\n  eff:\n" + body + "  " * 152 + "x = 1;\n"
+    p = write(tmp_path, src)
+    res = cli("check", p)
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith(f"{p}:107:205: error: blocks nested too deeply"), res.stderr
