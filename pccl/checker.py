@@ -172,6 +172,9 @@ class VarInfo:
 #: Python's own limits (about 200 nested parentheses).
 MAX_NESTING = 100
 
+#: Most elements of an array (a state holds every element; a write copies them).
+MAX_ARRAY = 1_000_000
+
 #: Levels a left-associative chain of operators counts for at most (the
 #: compiler emits a long chain flat, see Compiler.chain).
 CHAIN_LEVELS = 8
@@ -264,11 +267,19 @@ class _Checker:
         self.mode = mode                          # program | property
         self.filename = info.filename if filename is None else filename
         self.source = info.source if source is None else source
-        self.lines = self.source.splitlines()
         self.bound: dict[str, int] = {}           # property: quantified ids
         # declaration pass state
         self.first_decl: dict[str, ast.VarDecl] = {}
         self.init_of: Optional[VarInfo] = None     # variable being initialised
+
+    @property
+    def lines(self) -> list:
+        """The program's lines, split once when first needed (a checker is
+        made per compiled expression: splitting eagerly was quadratic)."""
+        lines = self.__dict__.get("_lines")
+        if lines is None:
+            lines = self._lines = self.source.splitlines()
+        return lines
 
     # ---- reporting -------------------------------------------------------
 
@@ -364,9 +375,17 @@ class _Checker:
             claim(d.name, "variable", d.span, at)
             ty = self.declared_type(d.type, d.span)
             if d.size is not None:
-                n = self.const_int(d.size)
+                try:
+                    n = self.const_int(d.size)
+                except RecursionError:
+                    self.fail("array size expression is nested too deeply", d.size.span)
                 if n < 1:
                     self.fail(f"array size must be at least 1, got {n}", d.size.span)
+                if n > MAX_ARRAY:
+                    self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
+                              f"{n if n < 10 ** 30 else 'a number of %d digits' % len(str(n))}"
+                              f" (every state holds every element, and a write copies them)",
+                              d.size.span)
                 ty = array_of(ty, n)
             v = VarInfo(d.name, d.section, ty, d)
             if d.init is not None:

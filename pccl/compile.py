@@ -288,6 +288,18 @@ def has_rand(node) -> bool:
     return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
 
 
+def _may_grow(e: A.Expr) -> bool:
+    """Whether an int expression can grow a value without bound when stored
+    back repeatedly: a product, or a sum or difference of two non-literals
+    (``x = x + 1`` needs 10**4300 steps to overflow, ``x = x + x`` does not)."""
+    for x in A.walk_expr(e):
+        if isinstance(x, A.Binary) and (x.op == "*" or (
+                x.op in ("+", "-") and not isinstance(x.left, A.IntLit)
+                and not isinstance(x.right, A.IntLit))):
+            return True
+    return False
+
+
 class Compiler:
     """Generates Python source for expressions and statements of one program."""
 
@@ -304,7 +316,7 @@ class Compiler:
             "_div": V.div, "_mod": V.mod, "_pos": V.pos,
             "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
-            "_fin": V.fin, "_canon": canon,
+            "_fin": V.fin, "_canon": canon, "_ib": V.ib,
         }
         self._nconst = 0
 
@@ -576,6 +588,8 @@ class Compiler:
             return src
         if k == "list" and widens(st, want):
             return f"_canon({src}, {self.const(want)})"
+        if k == "int" and st.kind == "int" and _may_grow(e):
+            return f"_ib({src})"
         return src
 
     def static_type(self, e: A.Expr):

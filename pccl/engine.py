@@ -73,64 +73,107 @@ class Property:
 
 
 class Control:
-    """Interns k cells as integers and decodes their head once."""
+    """Interns k cells as integers and decodes their head once.
+
+    A k cell is a cons list: pc ``p`` stands for ``(head, rest_pc)`` (or the
+    empty k), hash-consed so that equal k cells get equal pcs.  Interning a
+    statement list in front of a continuation costs one entry per
+    statement, so an effect of n statements costs O(n) memory, not the
+    O(n²) of storing every suffix as a tuple."""
 
     def __init__(self, model: "Model"):
         self.m = model
-        self.ks: list = []
+        self.cells: list = []
         self.ids: dict = {}
         self.infos: list = []
-        self.empty_pc = self.intern(())
-        self.idle_pc = self.intern((END,))
-        self.event_pcs = [self.intern(tuple(s.sid for s in ev.body) + (END,))
+        self.ks = _KView(self)
+        self.empty_pc = self._cell(())
+        self.idle_pc = self.cons(END, self.empty_pc)
+        self.event_pcs = [self.seq(tuple(s.sid for s in ev.body), self.idle_pc)
                           for ev in model.program.events]
 
-    def intern(self, k: tuple) -> int:
-        pc = self.ids.get(k)
+    def _cell(self, cell) -> int:
+        pc = self.ids.get(cell)
         if pc is None:
-            pc = len(self.ks)
-            self.ids[k] = pc
-            self.ks.append(k)
+            pc = len(self.cells)
+            self.ids[cell] = pc
+            self.cells.append(cell)
             self.infos.append(None)
         return pc
+
+    def cons(self, head: int, rest: int) -> int:
+        """The pc of ``head ~> k(rest)``."""
+        return self._cell((head, rest))
+
+    def seq(self, items, rest: int) -> int:
+        """The pc of ``items ~> k(rest)``."""
+        pc = rest
+        for x in reversed(items):
+            pc = self._cell((x, pc))
+        return pc
+
+    def intern(self, k: tuple) -> int:
+        """The pc of the k cell given as a tuple."""
+        return self.seq(k, self.empty_pc)
+
+    def iter_k(self, pc: int):
+        """The items of k(pc), head first."""
+        cell = self.cells[pc]
+        while cell:
+            yield cell[0]
+            cell = self.cells[cell[1]]
 
     def info(self, pc: int):
         inf = self.infos[pc]
         if inf is None:
-            inf = self.infos[pc] = self._decode(self.ks[pc])
+            inf = self.infos[pc] = self._decode(pc)
         return inf
 
-    def _decode(self, k: tuple):
-        if not k:
+    def _decode(self, pc: int):
+        cell = self.cells[pc]
+        if not cell:
             return (K_EMPTY,)
-        head, rest = k[0], k[1:]
-        it = self.intern
+        head, rest = cell
+        seq = self.seq
         if head == END:
             return (K_END,)
         if head == AEND:
-            return (K_AEND, it(rest))
+            return (K_AEND, rest)
         if head <= -3:
             sid = -3 - head
             body = tuple(s.sid for s in self.m.stmts[sid].body)
-            return (K_ACQ, it(body + rest), sid)
+            return (K_ACQ, seq(body, rest), sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
         if isinstance(s, A.If):
-            pcs = tuple(it(tuple(x.sid for x in body) + rest) for _, body in s.branches)
-            pcs += (it(tuple(x.sid for x in s.orelse) + rest),)
+            pcs = tuple(seq(tuple(x.sid for x in body), rest) for _, body in s.branches)
+            pcs += (seq(tuple(x.sid for x in s.orelse), rest),)
             return (K_IF, c, pcs, head, has_rand(s))
         if isinstance(s, A.While):
-            return (K_WHILE, c, it(tuple(x.sid for x in s.body) + k), it(rest), head, has_rand(s))
+            return (K_WHILE, c, seq(tuple(x.sid for x in s.body), pc), rest, head, has_rand(s))
         if isinstance(s, A.Atomic):
-            return (K_ATOMIC, it((acq(head), AEND) + rest),
-                    it(tuple(x.sid for x in s.body) + rest), head)
+            return (K_ATOMIC, seq((acq(head), AEND), rest),
+                    seq(tuple(x.sid for x in s.body), rest), head)
         if isinstance(s, A.CallStmt) and s.name == "doReach":
-            return (K_DOREACH, c, it(rest), head, has_rand(s))
+            return (K_DOREACH, c, rest, head, has_rand(s))
         if isinstance(s, A.CallStmt) and s.name == "exit":
             return (K_EXIT, head)
         if isinstance(s, A.CallStmt) and s.name == "assert":
-            return (K_ASSERT, c, it(rest), head, has_rand(s))
-        return (K_SIMPLE, c, it(rest), head, has_rand(s))
+            return (K_ASSERT, c, rest, head, has_rand(s))
+        return (K_SIMPLE, c, rest, head, has_rand(s))
+
+
+class _KView:
+    """``ctl.ks[pc]``: the k cell of ``pc`` as a tuple (built on demand)."""
+
+    def __init__(self, ctl: Control):
+        self.ctl = ctl
+
+    def __getitem__(self, pc: int) -> tuple:
+        return tuple(self.ctl.iter_k(pc))
+
+    def __len__(self) -> int:
+        return len(self.ctl.cells)
 
 
 class Model:
@@ -340,8 +383,9 @@ class Model:
         return None
 
     # -- initial states -------------------------------------------------------------------
-    #: Initial states remembered to drop duplicates early; beyond this many
-    #: the explorer merges them (it admits initial states by identity).
+    #: Initial states remembered to drop duplicates early (fewer with many
+    #: agents); beyond that the explorer merges them (it admits initial
+    #: states by identity).
     INIT_DEDUP = 1 << 16
 
     def init_states(self):
@@ -371,33 +415,65 @@ class Model:
                 stages.append((i, None))
         n = len(stages)
         seen: set = set()
-        cap = self.INIT_DEDUP
-        # depth-first over the stages with an explicit stack (no recursion:
-        # 10,000 agents make 10,000s of stages)
-        its = [iter(((0, DISCRETE, (), shared0, agents, env0),))]
-        while its:
-            st = next(its[-1], None)
-            if st is None:
-                its.pop()
-                continue
-            k = len(its) - 1
-            if k == n:
-                if st in seen:
-                    continue
-                if len(seen) < cap:
-                    seen.add(st)
-                yield st
-                continue
-            i, vs = stages[k]
-            its.append(self._decl_outcomes(st, i, vs) if vs is not None
-                       else iter(self._init_paths(st, i)))
+        cap = min(self.INIT_DEDUP, max(16, (1 << 22) // N))   # states of N agents each
+        if not n:
+            yield (0, DISCRETE, (), shared0, agents, env0)
+            return
+        # Depth-first over the stages with an explicit stack (no recursion:
+        # 10,000 agents make 10,000s of stages).  The path's configuration is
+        # kept as a mutable list of agent cells plus (lockQueue, shared): a
+        # level of the stack remembers only its own agent's input cell, not a
+        # whole configuration (with 10,000 agents, one configuration per
+        # level was gigabytes), and a full tuple is built only per yield and
+        # per Init block.  A stage of agent i changes only cell i, shared and
+        # lockQueue; popping the first stage of agent i restores its blank
+        # cell, so later agents are blank whenever an earlier stage resumes.
+        cells = list(agents)
+        first = [k == 0 or stages[k - 1][0] != stages[k][0] for k in range(n)]
+        stack: list = []
 
-    def _decl_outcomes(self, st, i, vs):
-        """The states after agent i's declaration ``vs`` is initialised in
-        ``st``: one per ``rand`` outcome, lazily."""
-        ag = st[4][i]
-        if ag[3] != RUNNING:
+        def push(k, lq, sh):
+            i, vs = stages[k]
+            if first[k]:
+                cells[i] = agents[i]
+            ag = cells[i]
+            if vs is None:
+                it = self._init_outcomes(i, ag, lq, sh, cells, env0)
+            else:
+                it = self._decl_outcomes(i, vs, ag, lq, sh, cells)
+            stack.append((it, i, first[k]))
+
+        push(0, (), shared0)
+        while stack:
+            it, i, fst = stack[-1]
+            r = next(it, None)
+            if r is None:
+                stack.pop()
+                if fst:
+                    cells[i] = agents[i]
+                continue
+            lq, sh, cells[i] = r
+            if len(stack) < n:
+                push(len(stack), lq, sh)
+                continue
+            st = (0, DISCRETE, lq, sh, tuple(cells), env0)
+            if st in seen:
+                continue
+            if len(seen) < cap:
+                seen.add(st)
             yield st
+
+    def _init_outcomes(self, i, ag, lq, sh, cells, env0):
+        """Stage: agent i's Init block; yields (lockQueue, shared, cell i)."""
+        cells[i] = ag
+        for s in self._init_paths((0, DISCRETE, lq, sh, tuple(cells), env0), i):
+            yield s[2], s[3], s[4][i]
+
+    def _decl_outcomes(self, i, vs, ag, lq, sh, cells):
+        """Stage: agent i's declaration ``vs`` initialised; yields
+        (lockQueue, shared, cell i), one per ``rand`` outcome, lazily."""
+        if ag[3] != RUNNING:
+            yield lq, sh, ag
             return
         comp = self.comp
         fn = getattr(vs, "_initfn", None)
@@ -410,28 +486,29 @@ class Model:
 
         def guarded(*a):
             oracle.agent = i
+            cells[i] = ag            # the path may have moved on since the last outcome
             try:
                 return fn(*a)
             except R._RUNTIME_ERRORS as exc:
                 return R._Err.of(exc)
             finally:
                 oracle.agent = None
-        results = (oracle.iter_outcomes(guarded, i, ag, st[3], st[4]) if has_rand(vs.decl.init)
-                   else (guarded(i, ag, st[3], st[4]),))
+        results = (oracle.iter_outcomes(guarded, i, ag, sh, cells) if has_rand(vs.decl.init)
+                   else (guarded(i, ag, sh, cells),))
         j = vs.slot
         for res in results:
             if isinstance(res, R._Err):
-                yield R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span))
+                code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
+                yield lq, sh, ag[:3] + (code,) + ag[4:]
                 continue
             # the value is canonical (Compiler.value); `bool f[3] = false;` fills
             v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
             if vs.section == "allwrite":
-                sh = st[3]
-                yield (st[0], st[1], st[2], sh[:j] + (v,) + sh[j + 1:], st[4], st[5])
+                yield lq, sh[:j] + (v,) + sh[j + 1:], ag
             else:
                 c = 4 if vs.section == "loc" else 5
                 cell = ag[c][:j] + (v,) + ag[c][j + 1:]
-                yield R._put(st, i, ag[:c] + (cell,) + ag[c + 1:])
+                yield lq, sh, ag[:c] + (cell,) + ag[c + 1:]
 
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
@@ -672,7 +749,7 @@ class Model:
         if not waiting:
             return None
         w = waiting[0]
-        k = self.ctl.ks[ags[w][0]]
+        k = self.ctl.cells[ags[w][0]]
         span = self.stmts[-3 - k[0]].span if k and k[0] <= -3 else None
         where = f" (atomic at line {span.line})" if span is not None else ""
         others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
@@ -717,10 +794,10 @@ class Model:
 
     def describe_k(self, pc) -> str:
         """A short description of an agent's pending computation."""
-        k = self.ctl.ks[pc]
-        if not k:
+        cell = self.ctl.cells[pc]
+        if not cell:
             return "at the top of the event block"
-        h = k[0]
+        h = cell[0]
         if h == END:
             return "at endEventBlock"
         if h == AEND:

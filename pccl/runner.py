@@ -93,7 +93,7 @@ def _looping_agent(model, st, per_agent: Counter) -> int:
     """The agent that keeps time from advancing: mid-event with the most steps."""
     best, best_n = None, -1
     for i, ag in enumerate(st[4]):
-        mid = model.ctl.ks[ag[0]] != ()
+        mid = ag[0] != model.ctl.empty_pc
         n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
         if ag[3] == 0 and n > best_n:
             best, best_n = i, n

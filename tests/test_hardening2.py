@@ -263,3 +263,50 @@ def test_deep_blocks_are_located(tmp_path):
     res = cli("check", p)
     assert res.exit_code == 2, res.output
     assert res.stderr.startswith(f"{p}:107:205: error: blocks nested too deeply"), res.stderr
+
+
+# ---------------------------------------------------------------------------
+# 11. size limits: arrays, agents, long effects, growing integers
+# ---------------------------------------------------------------------------
+
+def test_huge_array_is_a_located_error(tmp_path):
+    p = write(tmp_path, "loc:\n  int a[100000000] = 0;\n")
+    res = cli("check", p)
+    assert res.exit_code == 2
+    assert res.stderr.startswith(f"{p}:2:9: error: array size must be at most 1,000,000"), \
+        res.stderr
+
+
+def test_world_with_too_many_agents_is_located(tmp_path):
+    w = write(tmp_path, "agents = 100000000\n", "w.toml")
+    res = cli("explore", FISCHER, "--world", w)
+    assert res.exit_code == 2
+    assert res.stderr.startswith(f"{w}:1:10: error: 'agents' must be at most 10,000"), res.stderr
+
+
+def test_growing_integer_gets_the_agent_stuck(tmp_path):
+    p = write(tmp_path, "loc:\n  int x = 2;\n\nGrow():\n  pre(true);\n  eff:\n    x = x * x;\n")
+    res = cli("run", p, "--max-time", "20")
+    assert res.exit_code == 1, res.stdout
+    assert "stuck: integer overflow: the result has more than 4,300 digits" in res.stdout
+    res = cli("explore", p, "--format", "json")
+    assert res.exit_code == 1
+    (v,) = json.loads(res.stdout)["violations"]
+    assert v["kind"] == "stuck" and v["line"] == 7
+
+
+def test_long_effect_costs_linear_memory():
+    import tracemalloc
+    from pccl.api import explore_model
+    n = 4000
+    src = ("loc:\n  int x = 0;\n\nGo():\n  pre(x == 0);\n  eff:\n" + "    x = x + 1;\n" * n
+           + "    exit();\n")
+    tracemalloc.start()
+    try:
+        m = model_of(src, agents=1)
+        r = explore_model(m)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert r.status == "exhaustive" and r.stats.states == n + 3
+    assert peak < 40 * 2**20, peak          # the k cells of every suffix were 64 MB
