@@ -128,6 +128,7 @@ class _Main(click.Group):
         import signal
         import threading
         previous = None
+        _signal["term"] = False
         if threading.current_thread() is threading.main_thread():
             previous = signal.signal(signal.SIGTERM, _on_sigterm)
         try:
@@ -204,7 +205,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "result": res.status, "message": res.message, "exit_status": res.exit_status,
+               "result": res.status, "message": res.message,
+               "exit_status": _interrupted_status(res.exit_status),
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
                            for t, s in res.summary],
@@ -234,7 +236,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(D.format_state(m, res.final))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
-    sys.exit(res.exit_status)
+    sys.exit(_interrupted_status(res.exit_status))
 
 
 def _rates_text(m) -> str:

@@ -49,44 +49,47 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     def finish(status, message, code, **kw):
         return RunResult(status, message, code, st, steps, trace, summary, **kw)
 
-    while True:
-        v = model.violations(st)
-        if v:
-            return finish("violation", "; ".join(x.message for x in v), 1, violations=v)
-        succ = model.successors(st)
-        if not succ:
-            kind = model.terminal_kind(st)
-            if kind == "final":
-                return finish("final", "every agent exited", 0)
-            if kind == "bounded":
-                return finish("bounded", f"stopped at --max-time {model.max_time}", 0)
-            dv = model.deadlock_violation(st)
-            return finish("deadlock", dv.message, 1, violations=[dv])
-        label, nxt = succ[0] if len(succ) == 1 else succ[rng.randrange(len(succ))]
-        if record_trace:
-            trace.append((label, st, nxt))
-        if on_step is not None:
-            on_step(label, st, nxt)
-        steps += 1
-        rule, agent = label[0], label[1]
-        if rule == "TIME ADVANCE":
-            since_time = 0
-            per_agent.clear()
-        elif rule == "DOREACH INVOKE":
-            summary.append((nxt[0], nxt))
-        else:
-            since_time += 1
-            if agent is not None:
-                per_agent[agent] += 1
-            if since_time > max_steps:
-                st = nxt
-                looping = _looping_agent(model, st, per_agent)
-                return finish("max-steps",
-                              f"agent {looping} runs more than {max_steps} transitions without "
-                              f"letting time advance ({model.describe_k(st[4][looping][0])}); "
-                              f"raise --max-steps if this is intended",
-                              1, looping_agent=looping)
-        st = nxt
+    try:
+        while True:
+            v = model.violations(st)
+            if v:
+                return finish("violation", "; ".join(x.message for x in v), 1, violations=v)
+            succ = model.successors(st)
+            if not succ:
+                kind = model.terminal_kind(st)
+                if kind == "final":
+                    return finish("final", "every agent exited", 0)
+                if kind == "bounded":
+                    return finish("bounded", f"stopped at --max-time {model.max_time}", 0)
+                dv = model.deadlock_violation(st)
+                return finish("deadlock", dv.message, 1, violations=[dv])
+            label, nxt = succ[0] if len(succ) == 1 else succ[rng.randrange(len(succ))]
+            if record_trace:
+                trace.append((label, st, nxt))
+            if on_step is not None:
+                on_step(label, st, nxt)
+            steps += 1
+            rule, agent = label[0], label[1]
+            if rule == "TIME ADVANCE":
+                since_time = 0
+                per_agent.clear()
+            elif rule == "DOREACH INVOKE":
+                summary.append((nxt[0], nxt))
+            else:
+                since_time += 1
+                if agent is not None:
+                    per_agent[agent] += 1
+                if since_time > max_steps:
+                    st = nxt
+                    looping = _looping_agent(model, st, per_agent)
+                    return finish("max-steps",
+                                  f"agent {looping} runs more than {max_steps} transitions without "
+                                  f"letting time advance ({model.describe_k(st[4][looping][0])}); "
+                                  f"raise --max-steps if this is intended",
+                                  1, looping_agent=looping)
+            st = nxt
+    except KeyboardInterrupt:   # Ctrl-C or SIGTERM: the run so far, status 130
+        return finish("interrupted", f"interrupted after {steps} transitions", 130)
 
 
 def _looping_agent(model, st, per_agent: Counter) -> int:

@@ -310,3 +310,34 @@ def test_long_effect_costs_linear_memory():
         tracemalloc.stop()
     assert r.status == "exhaustive" and r.stats.states == n + 3
     assert peak < 40 * 2**20, peak          # the k cells of every suffix were 64 MB
+
+
+# ---------------------------------------------------------------------------
+# 12. signals at any moment: run and initial-state generation too
+# ---------------------------------------------------------------------------
+
+def _signalled(args, sig, delay=3):
+    import signal
+    import subprocess
+    import sys
+    import time
+    p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    p.send_signal(getattr(signal, sig))
+    out, err = p.communicate(timeout=60)
+    assert "Traceback" not in out + err
+    return p.returncode, out, err
+
+
+@pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_signals_stop_run_with_the_run_so_far(sig, code, tmp_path):
+    rc, out, err = _signalled(["run", write(tmp_path, TICK), "--max-time", "100000000"], sig)
+    assert rc == code, (out, err)
+    assert "result: interrupted — interrupted after" in out and "final configuration:" in out
+
+
+def test_signal_during_initial_states(tmp_path):
+    rc, out, err = _signalled(["explore", write(tmp_path, HUGE_RAND), "--no-progress"], "SIGTERM")
+    assert rc == 143, (out, err)
+    assert "interrupted" in out and "statistics:" in out
