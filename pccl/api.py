@@ -224,7 +224,11 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
         ex = ParallelExplorer(model, workers=workers, **opts)
     else:
         ex = Explorer(cov or model, **opts)
-    sr = ex.run()
+    saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
+    try:
+        sr = ex.run()
+    finally:
+        model.lock_deadlocks = saved
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
               for b in sr.bounds_hit]

@@ -290,23 +290,25 @@ def index_chain(e):
 
 
 def walk_expr(e):
-    """Yield ``e`` and every sub-expression."""
-    yield e
-    if isinstance(e, ListLit):
-        for x in e.items:
-            yield from walk_expr(x)
-    elif isinstance(e, Index):
-        yield from walk_expr(e.base)
-        yield from walk_expr(e.index)
-    elif isinstance(e, Field):
-        yield from walk_expr(e.base)
-    elif isinstance(e, Call):
-        for x in e.args:
-            yield from walk_expr(x)
-    elif isinstance(e, Unary):
-        yield from walk_expr(e.operand)
-    elif isinstance(e, Binary):
-        yield from walk_expr(e.left)
-        yield from walk_expr(e.right)
-    elif isinstance(e, Quant):
-        yield from walk_expr(e.body)
+    """Yield ``e`` and every sub-expression, in pre-order (iteratively: a
+    chain of 3,000 operators is 3,000 levels deep)."""
+    stack = [e]
+    while stack:
+        e = stack.pop()
+        yield e
+        if isinstance(e, ListLit):
+            stack.extend(reversed(e.items))
+        elif isinstance(e, Index):
+            stack.append(e.index)
+            stack.append(e.base)
+        elif isinstance(e, Field):
+            stack.append(e.base)
+        elif isinstance(e, Call):
+            stack.extend(reversed(e.args))
+        elif isinstance(e, Unary):
+            stack.append(e.operand)
+        elif isinstance(e, Binary):
+            stack.append(e.right)
+            stack.append(e.left)
+        elif isinstance(e, Quant):
+            stack.append(e.body)

@@ -173,6 +173,13 @@ class VarInfo:
 #: Python's own limits (about 200 nested parentheses).
 MAX_NESTING = 100
 
+#: Most elements of an array (a state holds every element; a write copies them).
+MAX_ARRAY = 1_000_000
+
+#: Levels a left-associative chain of operators counts for at most (the
+#: compiler emits a long chain flat, see Compiler.chain).
+CHAIN_LEVELS = 8
+
 
 @dataclass
 class ProgramInfo:
@@ -261,11 +268,19 @@ class _Checker:
         self.mode = mode                          # program | property
         self.filename = info.filename if filename is None else filename
         self.source = info.source if source is None else source
-        self.lines = self.source.splitlines()
         self.bound: dict[str, int] = {}           # property: quantified ids
         # declaration pass state
         self.first_decl: dict[str, ast.VarDecl] = {}
         self.init_of: Optional[VarInfo] = None     # variable being initialised
+
+    @property
+    def lines(self) -> list:
+        """The program's lines, split once when first needed (a checker is
+        made per compiled expression: splitting eagerly was quadratic)."""
+        lines = self.__dict__.get("_lines")
+        if lines is None:
+            lines = self._lines = self.source.splitlines()
+        return lines
 
     # ---- reporting -------------------------------------------------------
 
@@ -361,9 +376,17 @@ class _Checker:
             claim(d.name, "variable", d.span, at)
             ty = self.declared_type(d.type, d.span)
             if d.size is not None:
-                n = self.const_int(d.size)
+                try:
+                    n = self.const_int(d.size)
+                except RecursionError:
+                    self.fail("array size expression is nested too deeply", d.size.span)
                 if n < 1:
                     self.fail(f"array size must be at least 1, got {n}", d.size.span)
+                if n > MAX_ARRAY:
+                    self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
+                              f"{n if n < 10 ** 30 else 'a number of %d digits' % len(str(n))}"
+                              f" (every state holds every element, and a write copies them)",
+                              d.size.span)
                 ty = array_of(ty, n)
             v = VarInfo(d.name, d.section, ty, d)
             if d.init is not None:
@@ -633,10 +656,35 @@ class _Checker:
             self.fail(f"{operands} of '{op}' must be {numbers}, got {t}", node.span)
 
     def binary(self, e: ast.Binary) -> Ty:
+        """A left-associative chain ``a + b - c …`` (the left spine of Binary
+        nodes) is checked iteratively from its innermost operand, and counts
+        as at most :data:`CHAIN_LEVELS` levels of nesting: a flat sum of 3,000
+        terms is not nested.  Its right operands are one level deeper."""
+        spine = [e]
+        x = e.left
+        while isinstance(x, ast.Binary) and x.op != "->":
+            spine.append(x)
+            x = x.left
+        depth = self._depth
+        extra = min(len(spine), CHAIN_LEVELS) - 1
+        if extra:
+            if depth + extra > MAX_NESTING:
+                self.fail(f"expression nested too deeply (more than {MAX_NESTING} levels)",
+                          spine[MAX_NESTING - depth + 1].span)
+            self._depth = depth + extra
+        try:
+            a = self.value(x)
+            for node in reversed(spine):
+                a = self.binary_node(node, a)
+            return a
+        finally:
+            self._depth = depth
+
+    def binary_node(self, e: ast.Binary, a: Ty) -> Ty:
+        """The type of ``e`` whose left operand has type ``a``."""
         op = e.op
         if op == "->" and self.mode != "property":
             self.fail("'->' is only allowed in properties", e.span)
-        a = self.value(e.left)
         b = self.value(e.right)
         if op in ("||", "&&", "->"):
             for t, n in ((a, e.left), (b, e.right)):

@@ -112,7 +112,8 @@ def view_options(f):
 
 
 def _delta(d):
-    return int(d) if float(d).is_integer() else d
+    # 2.0 is 2; a huge integral float stays a float (its int would print 300 digits)
+    return int(d) if float(d).is_integer() and abs(d) < 2 ** 53 else d
 
 
 def _model_options(delta, n0, rates, events, collisions, overrides):
@@ -156,6 +157,7 @@ class _Main(click.Group):
         import signal
         import threading
         previous = None
+        _signal["term"] = False
         if threading.current_thread() is threading.main_thread():
             previous = signal.signal(signal.SIGTERM, _on_sigterm)
         try:
@@ -247,7 +249,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "result": res.status, "message": res.message, "exit_status": res.exit_status,
+               "result": res.status, "message": res.message,
+               "exit_status": _interrupted_status(res.exit_status),
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
                            for t, s in res.summary],
@@ -281,7 +284,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
-    sys.exit(res.exit_status)
+    sys.exit(_interrupted_status(res.exit_status))
 
 
 def _run_path(res):

@@ -228,6 +228,28 @@ class Oracle:
         self.trail.append((v, n))
         return v
 
+    def iter_outcomes(self, fn, *args):
+        """Like :meth:`outcomes`, lazily: one result at a time, the
+        enumeration's own position kept locally, so that the consumer may use
+        the oracle (for other computations) between two results."""
+        if self.policy is not None:
+            yield fn(*args)
+            return
+        prefix: list = []
+        while True:
+            self.prefix, self.trail = prefix, []
+            try:
+                r = fn(*args)
+                trail = self.trail
+            finally:
+                self.prefix, self.trail = [], []
+            while trail and trail[-1][0] >= trail[-1][1]:
+                trail.pop()
+            yield r
+            if not trail:
+                return
+            prefix = [c for c, _ in trail[:-1]] + [trail[-1][0] + 1]
+
     def outcomes(self, fn, *args):
         """All results of ``fn(*args)`` over every combination of rand values."""
         if self.policy is not None:
@@ -266,6 +288,18 @@ def has_rand(node) -> bool:
     return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
 
 
+def _may_grow(e: A.Expr) -> bool:
+    """Whether an int expression can grow a value without bound when stored
+    back repeatedly: a product, or a sum or difference of two non-literals
+    (``x = x + 1`` needs 10**4300 steps to overflow, ``x = x + x`` does not)."""
+    for x in A.walk_expr(e):
+        if isinstance(x, A.Binary) and (x.op == "*" or (
+                x.op in ("+", "-") and not isinstance(x.left, A.IntLit)
+                and not isinstance(x.right, A.IntLit))):
+            return True
+    return False
+
+
 class Compiler:
     """Generates Python source for expressions and statements of one program."""
 
@@ -282,7 +316,7 @@ class Compiler:
             "_div": V.div, "_mod": V.mod, "_pos": V.pos,
             "_dist": V.dist, "_head": V.head, "_cl": V.chk_list, "_set_in": V.set_in,
             "_R": oracle.rand, "_E": V.PcclRuntimeError, "UNDEF": V.UNDEF,
-            "_fin": V.fin, "_canon": canon,
+            "_fin": V.fin, "_canon": canon, "_ib": V.ib,
         }
         self._nconst = 0
         self._qval: dict = {}               # quantified variable -> agent index (unrolled)
@@ -360,19 +394,7 @@ class Compiler:
                 return f"(not {ex(e.operand)})"
             return f"(-{ex(e.operand)})"
         if isinstance(e, A.Binary):
-            a, b = ex(e.left), ex(e.right)
-            op = e.op
-            if op == "&&":
-                return f"({a} and {b})"
-            if op == "||":
-                return f"({a} or {b})"
-            if op == "->":
-                return f"((not {a}) or {b})"
-            if op == "/":
-                return f"_div({a}, {b})"
-            if op == "%":
-                return f"_mod({a}, {b})"
-            return f"({a} {op} {b})"
+            return self.chain(e, ex)
         if isinstance(e, A.Quant):
             return self.quant(e, prop, bound)
         if isinstance(e, A.Call):
@@ -404,6 +426,48 @@ class Compiler:
             self._qval.pop(e.var, None)
             if saved is not None:
                 self._qval[e.var] = saved
+
+    #: Left-associative chains longer than this are compiled flat.
+    CHAIN_FLAT = 8
+
+    def chain(self, e: A.Binary, ex) -> str:
+        """A Binary node and the chain of Binary nodes on its left spine
+        (``a + b - c …``), without recursion along the spine.  A short chain
+        is the nested expression ``((a + b) - c)``; a long one, which Python
+        could not compile (200 nested parentheses, and its compiler's
+        recursion limit on a 3,000-deep tree), is a tuple of steps through a
+        local, evaluated left to right with the same short-circuits:
+        ``(_c := a, _c := (_c + b), _c := (_c - c), …)[-1]``."""
+        spine = [e]
+        x = e.left
+        while isinstance(x, A.Binary):
+            spine.append(x)
+            x = x.left
+        acc = ex(x)
+        if len(spine) <= self.CHAIN_FLAT:
+            for node in reversed(spine):
+                acc = self._binop(node.op, acc, ex(node.right))
+            return acc
+        var = f"_c{self._nconst}"
+        self._nconst += 1
+        steps = [f"{var} := {acc}"]
+        steps.extend(f"{var} := {self._binop(node.op, var, ex(node.right))}"
+                     for node in reversed(spine))
+        return "(" + ", ".join(f"({s})" for s in steps) + ")[-1]"
+
+    @staticmethod
+    def _binop(op, a, b) -> str:
+        if op == "&&":
+            return f"({a} and {b})"
+        if op == "||":
+            return f"({a} or {b})"
+        if op == "->":
+            return f"((not {a}) or {b})"
+        if op == "/":
+            return f"_div({a}, {b})"
+        if op == "%":
+            return f"_mod({a}, {b})"
+        return f"({a} {op} {b})"
 
     @staticmethod
     def bvar(name: str) -> str:
@@ -558,6 +622,8 @@ class Compiler:
             return src
         if k == "list" and widens(st, want):
             return f"_canon({src}, {self.const(want)})"
+        if k == "int" and st.kind == "int" and _may_grow(e):
+            return f"_ib({src})"
         return src
 
     def static_type(self, e: A.Expr):

@@ -101,8 +101,7 @@ def label_info(model, label, before=None) -> dict:
 
 def current_event(model, ag) -> Optional[str]:
     """The event an agent is in the middle of, from the statements in its k."""
-    k = model.ctl.ks[ag[0]]
-    for item in k:
+    for item in model.ctl.iter_k(ag[0]):
         sid = item if item >= 0 else (-3 - item if item <= -3 else None)
         if sid is not None:
             e = model.stmt_event.get(sid)

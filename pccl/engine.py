@@ -3,7 +3,7 @@
 A :class:`Model` offers, stateright-style,
 
 * :meth:`Model.init_states` — one initial configuration per combination of
-  ``rand`` outcomes in declarations and ``Init``;
+  ``rand`` outcomes in declarations and ``Init``, generated lazily;
 * :meth:`Model.successors` — the enabled transitions of a configuration,
   each ``(label, successor)`` with ``label = (RULE NAME, agent, detail)``;
 * :meth:`Model.key` — state identity (time left out under time abstraction);
@@ -22,6 +22,7 @@ maps it back and decodes its head once.
 
 from __future__ import annotations
 
+import decimal
 import math
 import operator
 
@@ -76,16 +77,23 @@ class Property:
 
 
 class Control:
-    """Interns k cells as integers and decodes their head once."""
+    """Interns k cells as integers and decodes their head once.
+
+    A k cell is a cons list: pc ``p`` stands for ``(head, rest_pc)`` (or the
+    empty k), hash-consed so that equal k cells get equal pcs.  Interning a
+    statement list in front of a continuation costs one entry per
+    statement, so an effect of n statements costs O(n) memory, not the
+    O(n²) of storing every suffix as a tuple."""
 
     def __init__(self, model: "Model"):
         self.m = model
-        self.ks: list = []
+        self.cells: list = []
         self.ids: dict = {}
         self.infos: list = []
-        self.empty_pc = self.intern(())
-        self.idle_pc = self.intern((END,))
-        self.event_pcs = [self.intern(tuple(s.sid for s in ev.body) + (END,))
+        self.ks = _KView(self)
+        self.empty_pc = self._cell(())
+        self.idle_pc = self.cons(END, self.empty_pc)
+        self.event_pcs = [self.seq(tuple(s.sid for s in ev.body), self.idle_pc)
                           for ev in model.program.events]
 
     def close(self) -> None:
@@ -96,56 +104,92 @@ class Control:
         if self.m.program.init:
             self.intern(tuple(s.sid for s in self.m.program.init))
         pc = 0
-        while pc < len(self.ks):
+        while pc < len(self.cells):
             self.info(pc)
             pc += 1
 
-    def intern(self, k: tuple) -> int:
-        pc = self.ids.get(k)
+    def _cell(self, cell) -> int:
+        pc = self.ids.get(cell)
         if pc is None:
-            pc = len(self.ks)
-            self.ids[k] = pc
-            self.ks.append(k)
+            pc = len(self.cells)
+            self.ids[cell] = pc
+            self.cells.append(cell)
             self.infos.append(None)
         return pc
+
+    def cons(self, head: int, rest: int) -> int:
+        """The pc of ``head ~> k(rest)``."""
+        return self._cell((head, rest))
+
+    def seq(self, items, rest: int) -> int:
+        """The pc of ``items ~> k(rest)``."""
+        pc = rest
+        for x in reversed(items):
+            pc = self._cell((x, pc))
+        return pc
+
+    def intern(self, k: tuple) -> int:
+        """The pc of the k cell given as a tuple."""
+        return self.seq(k, self.empty_pc)
+
+    def iter_k(self, pc: int):
+        """The items of k(pc), head first."""
+        cell = self.cells[pc]
+        while cell:
+            yield cell[0]
+            cell = self.cells[cell[1]]
 
     def info(self, pc: int):
         inf = self.infos[pc]
         if inf is None:
-            inf = self.infos[pc] = self._decode(self.ks[pc])
+            inf = self.infos[pc] = self._decode(pc)
         return inf
 
-    def _decode(self, k: tuple):
-        if not k:
+    def _decode(self, pc: int):
+        cell = self.cells[pc]
+        if not cell:
             return (K_EMPTY,)
-        head, rest = k[0], k[1:]
-        it = self.intern
+        head, rest = cell
+        seq = self.seq
         if head == END:
             return (K_END,)
         if head == AEND:
-            return (K_AEND, it(rest))
+            return (K_AEND, rest)
         if head <= -3:
             sid = -3 - head
             body = tuple(s.sid for s in self.m.stmts[sid].body)
-            return (K_ACQ, it(body + rest), sid)
+            return (K_ACQ, seq(body, rest), sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
         if isinstance(s, A.If):
-            pcs = tuple(it(tuple(x.sid for x in body) + rest) for _, body in s.branches)
-            pcs += (it(tuple(x.sid for x in s.orelse) + rest),)
+            pcs = tuple(seq(tuple(x.sid for x in body), rest) for _, body in s.branches)
+            pcs += (seq(tuple(x.sid for x in s.orelse), rest),)
             return (K_IF, c, pcs, head, has_rand(s))
         if isinstance(s, A.While):
-            return (K_WHILE, c, it(tuple(x.sid for x in s.body) + k), it(rest), head, has_rand(s))
+            return (K_WHILE, c, seq(tuple(x.sid for x in s.body), pc), rest, head, has_rand(s))
         if isinstance(s, A.Atomic):
-            return (K_ATOMIC, it((acq(head), AEND) + rest),
-                    it(tuple(x.sid for x in s.body) + rest), head)
+            return (K_ATOMIC, seq((acq(head), AEND), rest),
+                    seq(tuple(x.sid for x in s.body), rest), head)
         if isinstance(s, A.CallStmt) and s.name == "doReach":
-            return (K_DOREACH, c, it(rest), head, has_rand(s))
+            return (K_DOREACH, c, rest, head, has_rand(s))
         if isinstance(s, A.CallStmt) and s.name == "exit":
             return (K_EXIT, head)
         if isinstance(s, A.CallStmt) and s.name == "assert":
-            return (K_ASSERT, c, it(rest), head, has_rand(s))
-        return (K_SIMPLE, c, it(rest), head, has_rand(s))
+            return (K_ASSERT, c, rest, head, has_rand(s))
+        return (K_SIMPLE, c, rest, head, has_rand(s))
+
+
+class _KView:
+    """``ctl.ks[pc]``: the k cell of ``pc`` as a tuple (built on demand)."""
+
+    def __init__(self, ctl: Control):
+        self.ctl = ctl
+
+    def __getitem__(self, pc: int) -> tuple:
+        return tuple(self.ctl.iter_k(pc))
+
+    def __len__(self) -> int:
+        return len(self.ctl.cells)
 
 
 class Model:
@@ -183,8 +227,13 @@ class Model:
             raise PcclError(f"the number of agents must be at most {MAX_AGENTS:,}, got "
                             f"{n_agents:,}", filename="--agents")
         self.N = n_agents
-        if not (isinstance(delta, (int, float)) and delta > 0):
-            raise PcclError(f"δ must be positive, got {delta}", filename="--delta")
+        if not (isinstance(delta, (int, float)) and not isinstance(delta, bool) and delta > 0
+                and math.isfinite(delta)):
+            raise PcclError(f"δ must be a positive finite number, got {delta}", filename="--delta")
+        if max_time is not None and not (isinstance(max_time, (int, float))
+                                         and not isinstance(max_time, bool)
+                                         and math.isfinite(max_time) and max_time >= 0):
+            raise PcclError(f"must be a finite number >= 0, got {max_time}", filename="--max-time")
         if not (isinstance(n0, int) and n0 >= 1):
             raise PcclError(f"n0 must be a positive integer, got {n0}", filename="--n0")
         self.delta = delta
@@ -211,6 +260,14 @@ class Model:
         self.events_policy = events
         self.max_time = max_time
         self.collisions = collisions
+        # The clock: time is n·δ for an integer n, computed exactly in decimal
+        # from δ as written (0.1 is 1/10), then rounded once to a float; so
+        # no δ is too small to advance it and 0.1 + 0.2 is 0.3.
+        self._delta_dec = _decimal(delta)
+        self.max_ticks = (None if max_time is None
+                          else int((_decimal(max_time) / self._delta_dec).to_integral_value(
+                              rounding=decimal.ROUND_FLOOR)))
+        self._next_time: dict = {}
 
         funcs = dict(self.world.functions_dict()) if hasattr(self.world, "functions_dict") else {}
         if "getObs" not in funcs:
@@ -264,6 +321,9 @@ class Model:
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
         self._collision_cache: dict = {}
+        #: report agents waiting for a lock held by an exited agent (off with
+        #: --no-deadlock)
+        self.lock_deadlocks = True
 
     # -- compilation ------------------------------------------------------------
     def _compile_stmt(self, s: A.Stmt):
@@ -310,6 +370,8 @@ class Model:
             self.__dict__.pop("violations", None)
             return
         ok = " and ".join(f"ags[{j}][3] < 2" for j in range(self.N))
+        # ... and the lock is free or its holder has not exited (EXITED == 1)
+        ok += " and (not st[2] or ags[st[2][0]][3] != 1)"
         body = f"    ags = st[4]\n    if {ok}:\n"
         if self.properties:
             conj = " and ".join(f"({p.src})" for p in self.properties)
@@ -388,38 +450,98 @@ class Model:
         self.ctl.close()
 
     # -- initial states -------------------------------------------------------------------
-    def init_states(self) -> list:
+    #: Initial states remembered to drop duplicates early (fewer with many
+    #: agents); beyond that the explorer merges them (it admits initial
+    #: states by identity).
+    INIT_DEDUP = 1 << 16
+
+    def init_states(self):
+        """The initial configurations, one per combination of ``rand``
+        outcomes in declarations and ``Init``, generated lazily (depth-first,
+        in increasing outcome order): the product of the agents' outcomes is
+        never built, so a consumer can stop after as many as it admits."""
         lay, N = self.layout, self.N
         starts = self.world.start_positions(N)
         blank_reach = (None, (), None, False, False)
+        loc0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local)
+        ar0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread)
         agents = tuple(
-            (self.ctl.empty_pc, 0, IDLE, RUNNING,
-             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local),
-             tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread),
-             self.round_pos(starts[i]), blank_reach)
+            (self.ctl.empty_pc, 0, IDLE, RUNNING, loc0, ar0, self.round_pos(starts[i]), blank_reach)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
         env0 = self._call_blackbox(0, "init_env", self.world, N)
         _check_env(self, env0, 0)
-        states = [(0, DISCRETE, (), shared0, agents, env0)]
-        # shared initialisers, evaluated once (in agent 0's context)
-        for vs in lay.shared:
-            if vs.decl.init is not None:
-                states = self._init_decl(states, 0, vs)
+        # the stages: shared initialisers once (in agent 0's context), then per
+        # agent its declarations and its Init block
+        stages = [(0, vs) for vs in lay.shared if vs.decl.init is not None]
+        per_agent = [vs for vs in lay.allread + lay.local if vs.decl.init is not None]
+        has_init = bool(self.program.init)
         for i in range(N):
-            for vs in lay.allread + lay.local:
-                if vs.decl.init is not None:
-                    states = self._init_decl(states, i, vs)
-            if self.program.init:
-                states = self._run_init(states, i)
-        seen, out = set(), []
-        for st in states:
-            if st not in seen:
-                seen.add(st)
-                out.append(st)
-        return out
+            stages.extend((i, vs) for vs in per_agent)
+            if has_init:
+                stages.append((i, None))
+        n = len(stages)
+        seen: set = set()
+        cap = min(self.INIT_DEDUP, max(16, (1 << 22) // N))   # states of N agents each
+        if not n:
+            yield (0, DISCRETE, (), shared0, agents, env0)
+            return
+        # Depth-first over the stages with an explicit stack (no recursion:
+        # 10,000 agents make 10,000s of stages).  The path's configuration is
+        # kept as a mutable list of agent cells plus (lockQueue, shared): a
+        # level of the stack remembers only its own agent's input cell, not a
+        # whole configuration (with 10,000 agents, one configuration per
+        # level was gigabytes), and a full tuple is built only per yield and
+        # per Init block.  A stage of agent i changes only cell i, shared and
+        # lockQueue; popping the first stage of agent i restores its blank
+        # cell, so later agents are blank whenever an earlier stage resumes.
+        cells = list(agents)
+        first = [k == 0 or stages[k - 1][0] != stages[k][0] for k in range(n)]
+        stack: list = []
 
-    def _init_decl(self, states, i, vs):
+        def push(k, lq, sh):
+            i, vs = stages[k]
+            if first[k]:
+                cells[i] = agents[i]
+            ag = cells[i]
+            if vs is None:
+                it = self._init_outcomes(i, ag, lq, sh, cells, env0)
+            else:
+                it = self._decl_outcomes(i, vs, ag, lq, sh, cells)
+            stack.append((it, i, first[k]))
+
+        push(0, (), shared0)
+        while stack:
+            it, i, fst = stack[-1]
+            r = next(it, None)
+            if r is None:
+                stack.pop()
+                if fst:
+                    cells[i] = agents[i]
+                continue
+            lq, sh, cells[i] = r
+            if len(stack) < n:
+                push(len(stack), lq, sh)
+                continue
+            st = (0, DISCRETE, lq, sh, tuple(cells), env0)
+            if st in seen:
+                continue
+            if len(seen) < cap:
+                seen.add(st)
+            yield st
+
+    def _init_outcomes(self, i, ag, lq, sh, cells, env0):
+        """Stage: agent i's Init block; yields (lockQueue, shared, cell i)."""
+        cells[i] = ag
+        for s in self._init_paths((0, DISCRETE, lq, sh, tuple(cells), env0), i):
+            yield s[2], s[3], s[4][i]
+
+    def _decl_outcomes(self, i, vs, ag, lq, sh, cells):
+        """Stage: agent i's declaration ``vs`` initialised; yields
+        (lockQueue, shared, cell i), one per ``rand`` outcome, lazily."""
+        if ag[3] != RUNNING:
+            yield lq, sh, ag
+            return
         comp = self.comp
         fn = getattr(vs, "_initfn", None)
         if fn is None:
@@ -427,59 +549,92 @@ class Model:
             want = vs.ty.elem if vs.ty.kind == "array" else vs.ty
             src = comp.value(vs.decl.init, want)
             fn = vs._initfn = comp.make("i, ag, sh, ags", f"    return {src}\n", f"_init_{vs.name}")
-        rnd = has_rand(vs.decl.init)
-        out = []
-        for st in states:
-            ag = st[4][i]
-            if ag[3] != RUNNING:
-                out.append(st)
-                continue
-            self.oracle.agent = i
-            for res in R._outcomes(self, fn, rnd, i, ag, st[3], st[4]):
-                if isinstance(res, R._Err):
-                    out.append(R._stuck(self, st, i, ag, res.reason, ("decl", vs.decl.span)))
-                    continue
-                # the value is canonical (Compiler.value); `bool f[3] = false;` fills
-                v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
-                j = vs.slot
-                if vs.section == "allwrite":
-                    sh = st[3]
-                    out.append((st[0], st[1], st[2], sh[:j] + (v,) + sh[j + 1:], st[4], st[5]))
-                else:
-                    k = 4 if vs.section == "loc" else 5
-                    cell = ag[k][:j] + (v,) + ag[k][j + 1:]
-                    ag2 = ag[:k] + (cell,) + ag[k + 1:]
-                    out.append(R._put(st, i, ag2))
-        self.oracle.agent = None
-        return out
+        oracle = self.oracle
 
-    def _run_init(self, states, i, limit=100_000):
-        """Run agent i's Init block to completion in each state (not interleaved)."""
-        init_pc = self.ctl.intern(tuple(s.sid for s in self.program.init))
-        work = [R._put(st, i, R._with_pc(st[4][i], init_pc)) if st[4][i][3] == RUNNING else st
-                for st in states]
-        done = []
-        steps = 0
-        self.oracle.agent = i
-        while work:
-            st = work.pop(0)
-            ag = st[4][i]
-            if ag[3] != RUNNING or ag[0] == self.ctl.empty_pc:
-                done.append(st)
+        def guarded(*a):
+            oracle.agent = i
+            cells[i] = ag            # the path may have moved on since the last outcome
+            try:
+                return fn(*a)
+            except R._RUNTIME_ERRORS as exc:
+                return R._Err.of(exc)
+            finally:
+                oracle.agent = None
+        results = (oracle.iter_outcomes(guarded, i, ag, sh, cells) if has_rand(vs.decl.init)
+                   else (guarded(i, ag, sh, cells),))
+        j = vs.slot
+        for res in results:
+            if isinstance(res, R._Err):
+                code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
+                yield lq, sh, ag[:3] + (code,) + ag[4:]
                 continue
-            steps += 1
-            if steps > limit:
-                done.append(R._stuck(self, st, i, ag, f"Init does not finish within {limit} steps",
-                                     ("decl", self.program.init[0].span)))
-                continue
-            info = self.ctl.info(ag[0])
-            out: list = []
-            for rule in AGENT_RULES[info[0]]:
-                rule(self, st, i, ag, info, out)
-            # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
-            work[0:0] = [s for _, s in out]
-        self.oracle.agent = None
-        return done
+            # the value is canonical (Compiler.value); `bool f[3] = false;` fills
+            v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
+            if vs.section == "allwrite":
+                yield lq, sh[:j] + (v,) + sh[j + 1:], ag
+            else:
+                c = 4 if vs.section == "loc" else 5
+                cell = ag[c][:j] + (v,) + ag[c][j + 1:]
+                yield lq, sh, ag[:c] + (cell,) + ag[c + 1:]
+
+    #: Most steps of one path through an agent's Init block.
+    INIT_LIMIT = 100_000
+
+    def _init_paths(self, st, i) -> list:
+        """Run agent i's Init block to completion from ``st`` (not
+        interleaved): the states in which it ends, in depth-first order.
+
+        Every ``rand`` outcome is a branch; branches that reach equal states
+        merge (a state is expanded again only when reached in fewer steps).
+        The step limit is per path: a path longer than :attr:`INIT_LIMIT`
+        steps, or one that returns to a state on itself (a loop that never
+        ends), leaves the agent stuck."""
+        ag = st[4][i]
+        if ag[3] != RUNNING:
+            return [st]
+        limit = self.INIT_LIMIT
+        empty = self.ctl.empty_pc
+        where = ("decl", self.program.init[0].span)
+        start = R._put(st, i, R._with_pc(ag, self.ctl.intern(tuple(x.sid for x in self.program.init))))
+        done: dict = {}
+        best: dict = {}
+        on_path: set = set()
+        stack: list = []
+        oracle = self.oracle
+
+        def enter(s, d):
+            a = s[4][i]
+            if a[3] != RUNNING or a[0] == empty:
+                done[s] = None
+            elif s in on_path:
+                done[R._stuck(self, s, i, a, "Init does not finish (it can loop forever)",
+                              where)] = None
+            elif d >= limit:
+                done[R._stuck(self, s, i, a, f"Init does not finish within {limit:,} steps",
+                              where)] = None
+            elif best.get(s, limit) > d:
+                best[s] = d
+                on_path.add(s)
+                out: list = []
+                oracle.agent = i
+                for rule in AGENT_RULES[self.ctl.info(a[0])[0]]:
+                    rule(self, s, i, a, self.ctl.info(a[0]), out)
+                # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
+                stack.append((s, d, iter(out)))
+
+        try:
+            enter(start, 0)
+            while stack:
+                s, d, it = stack[-1]
+                nxt = next(it, None)
+                if nxt is None:
+                    stack.pop()
+                    on_path.discard(s)
+                else:
+                    enter(nxt[1], d + 1)
+        finally:
+            oracle.agent = None
+        return list(done)
 
     # -- transitions ------------------------------------------------------------------
     def successors(self, st) -> list:
@@ -516,6 +671,35 @@ class Model:
         else:
             R.doreach_invoke(self, st, out)
         return out
+
+    def next_time(self, t):
+        """The clock after TIME ADVANCE from ``t`` = n·δ: (n + 1)·δ, exactly
+        as a decimal and rounded once to a float (an int when δ is an int);
+        None if that is beyond ``--max-time``."""
+        try:
+            return self._next_time[t]
+        except KeyError:
+            pass
+        d = self.delta
+        if type(d) is int and type(t) is int:
+            n = t // d
+            nxt = t + d
+        else:
+            with decimal.localcontext(_EXACT):
+                n = int((_decimal(t) / self._delta_dec).to_integral_value())
+                nxt = float(self._delta_dec * (n + 1))
+            if self.max_ticks is not None and n + 1 > self.max_ticks:
+                pass                                    # beyond the bound anyway
+            elif not nxt > t or not math.isfinite(nxt):
+                raise PcclError(f"the clock cannot advance from {_fmt_time(t)} by δ = {d:g}: "
+                                f"time {_fmt_time(t)} + δ is not representable as a float",
+                                filename="--delta")
+        if self.max_ticks is not None and n + 1 > self.max_ticks:
+            nxt = None
+        if len(self._next_time) >= 1 << 20:
+            self._next_time.clear()
+        self._next_time[t] = nxt
+        return nxt
 
     def key(self, st):
         """State identity: the configuration, without the clock under time
@@ -635,7 +819,31 @@ class Model:
                                      None, p.span))
         if self.collisions:
             out.extend(self.collision_violations(st))
+        lq = st[2]
+        if lq and self.lock_deadlocks and st[4][lq[0]][3] == EXITED:
+            v = self.lock_violation(st)
+            if v is not None:
+                out.append(v)
         return out
+
+    def lock_violation(self, st) -> Optional[Violation]:
+        """The lock is held by an agent that has exited (``exit()`` inside
+        ``atomic`` keeps the lock) and a running agent waits for it: that
+        agent can never progress, although time may advance forever."""
+        lq, ags = st[2], st[4]
+        holder = lq[0]
+        waiting = [j for j in lq[1:] if ags[j][3] == RUNNING]
+        if not waiting:
+            return None
+        w = waiting[0]
+        k = self.ctl.cells[ags[w][0]]
+        span = self.stmts[-3 - k[0]].span if k and k[0] <= -3 else None
+        where = f" (atomic at line {span.line})" if span is not None else ""
+        others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
+                  if len(waiting) > 1 else "")
+        msg = (f"deadlock: agent {w} waits forever for the lock{where}: agent {holder} holds "
+               f"it and has exited, so it never releases it{others}")
+        return Violation("deadlock", "lock held by an exited agent", msg, w, span)
 
     def collision_violations(self, st) -> list:
         poss = tuple([ag[6] for ag in st[4]])
@@ -673,10 +881,10 @@ class Model:
 
     def describe_k(self, pc) -> str:
         """A short description of an agent's pending computation."""
-        k = self.ctl.ks[pc]
-        if not k:
+        cell = self.ctl.cells[pc]
+        if not cell:
             return "at the top of the event block"
-        h = k[0]
+        h = cell[0]
         if h == END:
             return "at endEventBlock"
         if h == AEND:
@@ -690,6 +898,14 @@ class Model:
     def stmt_span(self, sid) -> Optional[A.Span]:
         s = self.stmts.get(sid)
         return s.span if s is not None else None
+
+
+_EXACT = decimal.Context(prec=60)
+
+
+def _decimal(x) -> decimal.Decimal:
+    """``x`` as the decimal it was written as (0.1 is 1/10, not the binary float)."""
+    return decimal.Decimal(x) if isinstance(x, int) else decimal.Decimal(repr(float(x)))
 
 
 def _fmt_time(t) -> str:

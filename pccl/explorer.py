@@ -568,7 +568,7 @@ class Explorer:
             for s in m.init_states():
                 ck.append(key_of(key(s)))
                 cs.append((None, s))
-                if len(ck) >= batch:
+                if len(ck) >= batch or len(ck) > budget:     # never build far beyond the budget
                     par_idx.append(_NO_PARENT); par_n.append(len(ck))
                     stop = flush(0)
                     stats.transitions = 0

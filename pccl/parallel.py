@@ -354,7 +354,7 @@ class ParallelExplorer(Explorer):
             # -- initial states: numbered here in chunks, handed out round-robin
             it = iter(m.init_states())
             while not stop:
-                chunk = list(itertools.islice(it, self.batch))
+                chunk = list(itertools.islice(it, min(self.batch, budget - total + 1)))
                 if not chunk:
                     break
                 fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),

@@ -24,7 +24,7 @@ import os
 import re
 from typing import Iterator, Optional
 
-from lark import Lark, Token, Transformer, Tree, v_args
+from lark import Discard, Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (LarkError, UnexpectedCharacters, UnexpectedEOF,
                              UnexpectedInput, UnexpectedToken, VisitError)
 from lark.indenter import DedentError, Indenter
@@ -368,6 +368,30 @@ class _ToAst(Transformer):
         return ast.Program(name, tuple(decls), init, tuple(events), invariants)
 
 
+def _transform_iteratively(self, tree):
+    """Transformer.transform without recursion: a chain of 3,000 operators
+    is a tree 3,000 levels deep, beyond Python's recursion limit."""
+    stack = [(tree, iter(tree.children), [])]
+    while True:
+        node, it, acc = stack[-1]
+        for c in it:
+            if isinstance(c, Tree):
+                stack.append((c, iter(c.children), []))
+                break
+            res = self._call_userfunc_token(c) if isinstance(c, Token) and self.__visit_tokens__ \
+                else c
+            if res is not Discard:
+                acc.append(res)
+        else:
+            stack.pop()
+            res = self._call_userfunc(node, acc)
+            if not stack:
+                return None if res is Discard else res
+            if res is not Discard:
+                stack[-1][2].append(res)
+
+
+_ToAst.transform = _transform_iteratively
 _TRANSFORMER = _ToAst()
 
 
@@ -375,9 +399,14 @@ _TRANSFORMER = _ToAst()
 # Statement numbering and program-only checks
 # --------------------------------------------------------------------------
 
+#: Deepest block nesting accepted (if/while/atomic inside each other).
+MAX_BLOCK_NESTING = 100
+
+
 class _Numberer:
     def __init__(self):
         self.next = 0
+        self.depth = 0
 
     def stmts(self, stmts: tuple) -> tuple:
         return tuple(self.stmt(s) for s in stmts)
@@ -385,11 +414,19 @@ class _Numberer:
     def stmt(self, s):
         sid = self.next
         self.next += 1
-        if isinstance(s, ast.If):
-            branches = tuple((c, self.stmts(b)) for c, b in s.branches)
-            return dataclasses.replace(s, sid=sid, branches=branches, orelse=self.stmts(s.orelse))
-        if isinstance(s, (ast.While, ast.Atomic)):
-            return dataclasses.replace(s, sid=sid, body=self.stmts(s.body))
+        if isinstance(s, (ast.If, ast.While, ast.Atomic)):
+            if self.depth >= MAX_BLOCK_NESTING:
+                raise _Syntax(f"blocks nested too deeply (more than {MAX_BLOCK_NESTING} "
+                              f"levels)", s.span)
+            self.depth += 1
+            try:
+                if isinstance(s, ast.If):
+                    branches = tuple((c, self.stmts(b)) for c, b in s.branches)
+                    return dataclasses.replace(s, sid=sid, branches=branches,
+                                               orelse=self.stmts(s.orelse))
+                return dataclasses.replace(s, sid=sid, body=self.stmts(s.body))
+            finally:
+                self.depth -= 1
         return dataclasses.replace(s, sid=sid)
 
 

@@ -136,9 +136,10 @@ def replay(path) -> ReplayResult:
                        f"counterexample ({(doc.get('result') or {}).get('message')})")
         return res
     want0 = T.normal(doc["initial"])
-    inits = m.init_states()
+    inits = []
     state = None
-    for s in inits:
+    for s in m.init_states():      # a generator: stop at the recorded state
+        inits.append(s)
         if T.normal(T.state_typed(m, s)) == want0:
             state = s
             break

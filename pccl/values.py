@@ -93,6 +93,22 @@ def mod(a, b):
     return math.fmod(a, b)
 
 
+#: Integers stored in a state stay below this magnitude (10**4300, the
+#: longest integer literal): a value that keeps growing (``x = x * x``) gets
+#: the agent stuck instead of eating time and memory without bound.
+INT_LIMIT_DIGITS = 4300
+INT_LIMIT = 10 ** INT_LIMIT_DIGITS
+
+
+def ib(v):
+    """A computed int about to be stored: within ±10**4300, else the agent
+    is stuck."""
+    if -INT_LIMIT < v < INT_LIMIT:
+        return v
+    raise PcclRuntimeError(f"integer overflow: the result has more than "
+                           f"{INT_LIMIT_DIGITS:,} digits (about {int(v.bit_length() * 0.30103):,})")
+
+
 def fin(v):
     """A computed float about to be stored: finite (else the agent is stuck),
     and ``-0.0`` normalised to ``0.0`` (``-0.0 + 0.0 == +0.0``)."""

@@ -467,6 +467,9 @@ class _Checker:
                            key="agents")
             if v < 1:
                 self.error(f"'agents' must be at least 1, got {v}", key="agents")
+            from .engine import MAX_AGENTS
+            if v > MAX_AGENTS:
+                self.error(f"'agents' must be at most {MAX_AGENTS:,}, got {v:,}", key="agents")
             kw["n_agents"] = v
         for key in ("resolution", "radius", "mass", "speed", "tolerance",
                     "no_progress_time"):

@@ -345,7 +345,8 @@ def time_advance(m, st, out, enabled=None):
         requires n0 ==Int findMin(CM) and n0 ==Int findMax(CM)
 
     Spec: at least one agent running; every agent that has not exited has
-    counter + ρ(i) > n0; and time + δ ≤ --max-time.
+    counter + ρ(i) > n0; and time + δ ≤ --max-time.  The clock holds exact
+    multiples n·δ (see :meth:`pccl.engine.Model.next_time`).
 
     ``enabled``, if given, is :func:`time_advance_enabled` already computed
     by the caller (``Model.successors`` gathers it while visiting the agents).
@@ -354,10 +355,8 @@ def time_advance(m, st, out, enabled=None):
         return
     # (time_advance_enabled ignores --max-time; terminal_kind uses it to tell
     # a bounded state from a deadlock)
-    t = st[0] + m.delta
-    if type(t) is float:
-        t = round(t, 9)        # 0.1 + 0.2 is 0.3 on the PCCL clock
-    if m.max_time is not None and t > m.max_time + 1e-9:
+    t = m.next_time(st[0])     # exact multiples of δ; None beyond --max-time
+    if t is None:
         return
     out.append((("TIME ADVANCE", None, None), (t, DYNAMIC, st[2], st[3], st[4], st[5])))
 

@@ -307,7 +307,7 @@ def test_run_summary_one_entry_per_time_step():
 
 def test_init_states_deterministic_and_distinct():
     m = make_model(FISCHER, overrides={"k": "2"})
-    a, b = m.init_states(), m.init_states()
+    a, b = list(m.init_states()), list(m.init_states())
     assert a == b
     assert len(a) == len(set(a)) == 3 * 3 * 6 * 6
 

@@ -854,9 +854,12 @@ def test_indented_first_line_rejected():
 
 
 def test_too_deeply_nested():
-    src = "E():\n  pre(x);\n  eff:\n    x = " + "-" * 5000 + "1\n"
-    with pytest.raises(PcclError, match="nested too deeply"):
-        parse_program(src)
+    # the parser builds any depth (iteratively); the checker refuses it, located
+    from pccl.checker import check_program
+    src = "loc:\n  int x = 0;\n\nE():\n  pre(true);\n  eff:\n    x = " + "-" * 5000 + "1\n"
+    with pytest.raises(PcclError, match="nested too deeply") as info:
+        check_program(parse_program(src, "t.pccl"))
+    assert (info.value.line, info.value.column) == (7, 109)
 
 
 def test_error_carries_location_fields():

@@ -167,7 +167,7 @@ def test_plot_trace_of_only_the_initial_state(tmp_path):
     from pccl.plot import plot_trace
     m = make_model(str(FISCHER))
     out = tmp_path / "init.png"
-    plot_trace(m, [(None, m.init_states()[0])], out, title="initial state")
+    plot_trace(m, [(None, next(iter(m.init_states())))], out, title="initial state")
     read_png(out)
 
 
