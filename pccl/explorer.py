@@ -429,7 +429,7 @@ class Explorer:
                  max_states: Optional[int] = None, deadlock: bool = True,
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
-                 progress_interval: float = 0.5, batch: int = 1 << 15,
+                 progress_interval: float = 0.5, batch: int = 2048,
                  max_memory: Optional[int] = None):
         self.model = model
         self.max_memory = max_memory
@@ -463,7 +463,6 @@ class Explorer:
         viol_fn = m.violations
         exact = self.exact
         table = self.table = ExactTable() if exact else FingerprintTable()
-        key_of = table.key_of
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         t_start = _time.perf_counter()
         stats = Stats()
@@ -477,19 +476,19 @@ class Explorer:
         batch = self.batch
         max_memory = self.max_memory
 
-        # The pending batch: candidate (label, state) pairs and their keys, and
-        # per expanded parent its state number and successor count.  Keys are
-        # computed with map() chains: no Python bytecode per transition.
-        ck: list = []
+        # The pending batch: candidate states, and per expanded
+        # parent its state number and successor count.  Their keys are
+        # computed at admission with one map() chain: no Python bytecode per
+        # transition.
         cs: list = []
         second = operator.itemgetter(1)
         twos = itertools.repeat(2)
         if exact:
-            def keys_of(pairs):
-                return map(dumps, map(key, map(second, pairs)), twos)
+            def keys_of(states):
+                return map(dumps, map(key, states), twos)
         else:
-            def keys_of(pairs):
-                return map(xxh, map(dumps, map(key, map(second, pairs)), twos))
+            def keys_of(states):
+                return map(xxh, map(dumps, map(key, states), twos))
         par_idx: list = []
         par_n: list = []
         flags: dict = {}        # Bound -> first state number that met it, since the last flush
@@ -512,10 +511,11 @@ class Explorer:
         def flush(d) -> bool:
             """Admit the pending batch (successors at depth ``d``); True to stop."""
             nonlocal budget
-            if not ck:
+            if not cs:
                 bounds.update(flags)
                 flags.clear()
                 return False
+            ck = list(keys_of(cs))        # one map() chain for the whole batch
             n = len(ck)
             # first occurrence of each key, in batch order (C-level dict build)
             first = np.fromiter(dict(zip(reversed(ck), range(n - 1, -1, -1))).values(),
@@ -531,7 +531,7 @@ class Explorer:
                 bounds.add(Bound.MAX_STATES)
                 halt = True
                 stop_at = new[budget]       # the first state that does not fit
-            states = [cs[p][1] for p in new[:cut]]
+            states = [cs[p] for p in new[:cut]]
             viols = list(map(viol_fn, states))          # no bytecode per state
             for j in itertools.compress(range(cut), viols):
                 if record(viols[j], base + j, d):
@@ -560,22 +560,21 @@ class Explorer:
             if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
                 bounds.add(Bound.MAX_MEMORY)
                 halt = True
-            ck.clear(); cs.clear(); par_idx.clear(); par_n.clear()
+            cs.clear(); par_idx.clear(); par_n.clear()
             return halt
 
         try:
             # -- initial states: a batch of successors of nobody
             for s in m.init_states():
-                ck.append(key_of(key(s)))
-                cs.append((None, s))
-                if len(ck) >= batch or len(ck) > budget:     # never build far beyond the budget
-                    par_idx.append(_NO_PARENT); par_n.append(len(ck))
+                cs.append(s)
+                if len(cs) >= batch or len(cs) > budget:     # never build far beyond the budget
+                    par_idx.append(_NO_PARENT); par_n.append(len(cs))
                     stop = flush(0)
                     stats.transitions = 0
                     if stop:
                         break
-            if not stop and ck:
-                par_idx.append(_NO_PARENT); par_n.append(len(ck))
+            if not stop and cs:
+                par_idx.append(_NO_PARENT); par_n.append(len(cs))
                 stop = flush(0)
             stats.transitions = 0
             stats.initial_states = table.n
@@ -617,9 +616,8 @@ class Explorer:
                         continue
                     par_idx.append(level_idx[pos])
                     par_n.append(len(succ))
-                    cs.extend(succ)
-                    ck.extend(keys_of(succ))
-                    if len(ck) >= batch:
+                    cs.extend(map(second, succ))     # labels are dropped now
+                    if len(cs) >= batch:
                         if flush(depth + 1):
                             stop = True
                             break
