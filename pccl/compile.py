@@ -198,6 +198,11 @@ def widens(src, dst: VType) -> bool:
     return False
 
 
+#: The most outcomes of ``rand`` one transition may have in explore (they are
+#: built at once): beyond it the agent is stuck with a clear reason.
+MAX_OUTCOMES = 1_000_000
+
+
 class Oracle:
     """Supplies ``rand(n)`` outcomes.
 
@@ -212,6 +217,8 @@ class Oracle:
         self.trail: list = []
         self.agent = None
         self.span = None
+        self.eager = False      # inside outcomes(): the whole product is built
+        self.size = 1           # outcomes of the current evaluation so far
 
     def rand(self, n, span=None):
         if type(n) is not int:
@@ -223,6 +230,13 @@ class Oracle:
             if type(v) is not int or not 0 <= v <= n:
                 raise ValueError(f"rand hook returned {v!r}, outside 0..{n}")
             return v
+        if self.eager:
+            size = self.size * (n + 1)
+            if size > MAX_OUTCOMES:
+                raise V.PcclRuntimeError(
+                    f"rand({n}): this transition would have {size:,} outcomes; explore "
+                    f"enumerates at most {MAX_OUTCOMES:,} per transition (use a smaller range)")
+            self.size = size
         k = len(self.trail)
         v = self.prefix[k] if k < len(self.prefix) else 0
         self.trail.append((v, n))
@@ -256,15 +270,22 @@ class Oracle:
             return [fn(*args)]
         results = []
         self.prefix = []
+        self.eager = True
         while True:
             self.trail = []
-            results.append(fn(*args))
+            self.size = 1
+            try:
+                results.append(fn(*args))
+            except BaseException:
+                self.eager = False
+                raise
             trail = self.trail
             while trail and trail[-1][0] >= trail[-1][1]:
                 trail.pop()
             if not trail:
                 break
             self.prefix = [c for c, _ in trail[:-1]] + [trail[-1][0] + 1]
+        self.eager = False
         self.trail = []
         self.prefix = []
         return results
