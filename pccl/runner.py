@@ -43,6 +43,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
     trace, summary = [], [(st[0], st)]
     steps = 0
+    n_env, stride = 0, 1
     since_time = 0
     per_agent: Counter = Counter()
 
@@ -74,7 +75,12 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 since_time = 0
                 per_agent.clear()
             elif rule == "DOREACH INVOKE":
-                summary.append((nxt[0], nxt))
+                n_env += 1
+                if n_env % stride == 0:
+                    summary.append((nxt[0], nxt))
+                    if len(summary) > SUMMARY_LIMIT:    # bounded memory on long runs:
+                        summary[1:] = summary[2::2]     # keep every other one, and
+                        stride *= 2                     # record half as often from now on
             else:
                 since_time += 1
                 if agent is not None:
@@ -90,6 +96,11 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
             st = nxt
     except KeyboardInterrupt:   # Ctrl-C or SIGTERM: the run so far, status 130
         return finish("interrupted", f"interrupted after {steps} transitions", 130)
+
+
+#: The most time steps a run's summary keeps; a longer run's summary is
+#: thinned evenly (every 2nd, 4th, ... time step), so memory stays bounded.
+SUMMARY_LIMIT = 100_000
 
 
 def _looping_agent(model, st, per_agent: Counter) -> int:

@@ -357,3 +357,18 @@ def test_rand_with_too_many_outcomes_in_a_statement_is_a_clear_stuck_agent(tmp_p
     small.write_text("loc:\n  int x = 0;\n\nGo():\n  pre(x == 0);\n  eff:\n    x = rand(3) + 1;\n")
     r = explore(str(small), agents=1)
     assert r.status == "exhaustive" and not r.violations
+
+
+def test_long_run_summary_is_bounded(monkeypatch, tmp_path):
+    """A run of many time steps keeps an evenly thinned summary, not one
+    state per time step."""
+    from pccl import runner
+    from pccl.api import run
+    monkeypatch.setattr(runner, "SUMMARY_LIMIT", 50)
+    p = tmp_path / "tick.pccl"
+    p.write_text("loc:\n  int x = 0;\n\nTick():\n  pre(true);\n  eff:\n    x = 1 - x;\n")
+    r = run(str(p), agents=1, max_time=1000)
+    assert r.status == "bounded"
+    assert 25 <= len(r.summary) <= 51
+    times = [t for t, _ in r.summary]
+    assert times == sorted(times) and times[0] == 0
