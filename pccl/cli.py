@@ -318,6 +318,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
+@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
+              help="state-space reductions: auto (every sound one), none, or a "
+                   "comma-separated list of merge, symmetry")
 @click.option("--no-deadlock", is_flag=True, help="do not report deadlocks")
 @click.option("--all", "find_all", is_flag=True,
               help="keep exploring and report each distinct violation once")
@@ -330,8 +333,8 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--progress/--no-progress", default=None,
               help="progress line on stderr [default: when stderr is a terminal]")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress):
+            max_time, max_states, max_memory, abstract_time, invariants, reduce, no_deadlock,
+            find_all, exact, fmt, plot, progress):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_model, make_model
@@ -341,7 +344,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
-                           **_model_options(delta, n0, rates, events, collisions, overrides))
+                           reduce=reduce, **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
         _fail(e)
     show = sys.stderr.isatty() if progress is None else progress
@@ -411,7 +414,8 @@ def _print_explore_text(program, res, *, k_style=False):
     m = res.model
     click.echo(f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
-               f"time abstraction {'on' if m.abstract_time else 'off'}")
+               f"time abstraction {'on' if m.abstract_time else 'off'}, "
+               f"reductions {m.reduction.describe()}")
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
         click.echo("")
@@ -419,7 +423,8 @@ def _print_explore_text(program, res, *, k_style=False):
         if v["line"]:
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
         tr = cx.trace
-        click.echo(f"counterexample ({len(tr)} steps):")
+        note = ", shortest under the reductions" if m.reduction.on else ""
+        click.echo(f"counterexample ({len(tr)} steps{note}):")
         for st in tr.steps:
             click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("violating state:")
@@ -438,6 +443,7 @@ def _explore_json(program, res) -> dict:
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
+            "reductions": m.reduction.as_dict(),
             "statistics": res.stats.as_dict(),
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
