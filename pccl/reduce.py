@@ -164,6 +164,7 @@ class _IdInfo:
         for s in self.stmts:
             if isinstance(s, A.Assign) and isinstance(s.target, A.Name):
                 defs.setdefault(s.target.name, []).append(s.value)
+        self.defs = defs
         self.bound: set = set()
         cand = {n for n, vs in self.lay.vars.items()
                 if vs.ty.kind == "int" and n in defs}
@@ -346,7 +347,12 @@ def symmetry_problem(m) -> tuple:
     slots = ([vs.slot for vs in lay.local if vs.name in info.ids],
              [vs.slot for vs in lay.allread if vs.name in info.ids],
              [vs.slot for vs in lay.shared if vs.name in info.ids])
-    return None, slots
+    # per-agent id variables that only ever hold the agent's own id (or a
+    # sentinel) need no renaming: the fast canonical form applies
+    self_only = all(all(_sentinel(e) or (isinstance(e, A.Call) and e.name == "getAgentIndex")
+                        for e in info.defs.get(vs.name, ()))
+                    for vs in lay.local + lay.allread if vs.name in info.ids)
+    return None, slots + (self_only,)
 
 
 def plan(m, reduce) -> tuple:
@@ -363,10 +369,10 @@ def plan(m, reduce) -> tuple:
         why, slots = symmetry_problem(m)
         if why is None:
             on.append("symmetry")
-        elif want is not None:
+        elif want is not None and m.N >= 2:
             raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
                             filename="--reduce")
-        elif m.N >= 2:
+        elif m.N >= 2 or want is not None:
             p.off["symmetry"] = why
     p.on = tuple(on)
     return p, slots
@@ -430,32 +436,46 @@ class Merger:
     def _chain(self, lab, idx0, s, i, res):
         m = self.m
         rho, n0 = m.rho[i], m.n0
-        ag = s[4][i]
-        seen = {(ag[0], ag[1], ag[4])}
+        ok, ctl = self.ok, m.ctl
+        infos = ctl.infos
+        statement, counter_advance = R.statement, R.counter_advance
+        oracle = m.oracle
         stack = [(s, ())]
-        emitted = []
+        seen = None
         while stack:
             s, ch = stack.pop()
-            ag = s[4][i]
-            if (len(ch) >= MERGE_LIMIT or ag[3] != RUNNING or ag[1] + rho > n0
-                    or not self.pc_ok(ag[0])):
-                emitted.append((s, ch))
-                continue
-            micro = self.micro(s, i, ag)
-            if not micro:
-                emitted.append((s, ch))
-                continue
-            push = []
-            for c, (_, s3) in enumerate(micro):
-                a3 = s3[4][i]
-                ident = (a3[0], a3[1], a3[4])
-                if ident in seen:
-                    emitted.append((s3, ch + (c,)))     # a local loop: stop here
-                else:
+            while True:
+                ag = s[4][i]
+                pc = ag[0]
+                r = ok.get(pc)
+                if r is None:
+                    r = self.pc_ok(pc)
+                n = len(ch)
+                if not r or ag[3] != RUNNING or ag[1] + rho > n0 or n >= MERGE_LIMIT:
+                    break
+                if n >= 32:
+                    # a long chain may be a local loop: stop where it revisits
+                    ident = (pc, ag[1], ag[4])
+                    if seen is None:
+                        seen = set()
+                    elif ident in seen:
+                        break
                     seen.add(ident)
-                    push.append((s3, ch + (c,)))
-            stack.extend(reversed(push))
-        for s, ch in emitted:
+                info = infos[pc]
+                if info is None:
+                    info = ctl.info(pc)
+                out: list = []
+                oracle.agent = i
+                if info[0] == K_END:
+                    counter_advance(m, s, i, ag, info, out)
+                else:
+                    statement(m, s, i, ag, info, out)
+                if not out:
+                    break
+                for c in range(len(out) - 1, 0, -1):      # rand: branches
+                    stack.append((out[c][1], ch + (c,)))
+                s = out[0][1]
+                ch = ch + (0,)
             res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
 
     def expand(self, before, label) -> list:
@@ -511,8 +531,10 @@ def expand_trace(m, trace, violation=None):
 def make_symmetric_key(m, slots):
     """A key function returning a canonical representative of the state's
     orbit under permutations of agent ids."""
-    loc_s, ar_s, sh_s = slots
+    loc_s, ar_s, sh_s, self_only = slots
     dumps = marshal.dumps
+    if self_only:
+        return _self_only_key(m, loc_s, ar_s, sh_s)
     abstract = m.abstract_time
     N = m.N
     has_ids = bool(loc_s or ar_s or sh_s)
@@ -587,5 +609,78 @@ def make_symmetric_key(m, slots):
             if bestb is None or b < bestb:
                 best, bestb = k, b
         return best
+
+    return key
+
+
+#: Stands for "this agent's own id" in a canonical cell: a float, so it
+#: sorts among ints and encodes differently from every int.
+SELF = float("-inf")
+
+
+def _self_only_key(m, loc_s, ar_s, sh_s):
+    """The canonical key when per-agent id variables hold only the agent's
+    own id or a sentinel: such a value is replaced by :data:`SELF` (its
+    renamed value is the cell's place, so nothing is lost); agents are
+    sorted by (masked cell, which shared id variables name it, its place in
+    the lock queue).  Agents that tie are identical in the key whatever
+    their order, so no tie needs breaking."""
+    dumps = marshal.dumps
+    abstract = m.abstract_time
+    N = m.N
+
+    l1 = loc_s[0] if len(loc_s) == 1 else None
+    s1 = sh_s[0] if len(sh_s) == 1 else None
+
+    def key(st):
+        ags = st[4]
+        lq = st[2]
+        sh = st[3]
+        items = []
+        j = 0
+        for a in ags:
+            loc = a[4]
+            if l1 is not None:
+                if loc[l1] == j:
+                    loc = loc[:l1] + (SELF,) + loc[l1 + 1:]
+            elif loc_s:
+                loc = list(loc)
+                for k in loc_s:
+                    if loc[k] == j:
+                        loc[k] = SELF
+                loc = tuple(loc)
+            ar = a[5]
+            if ar_s:
+                ar = list(ar)
+                for k in ar_s:
+                    if ar[k] == j:
+                        ar[k] = SELF
+                ar = tuple(ar)
+            items.append(((a[0], a[1], a[2], a[3], loc, ar),
+                          (sh[s1] == j,) if s1 is not None else
+                          tuple([sh[k] == j for k in sh_s]) if sh_s else (),
+                          lq.index(j) if j in lq else -1, j))
+            j += 1
+        try:
+            items.sort()
+        except TypeError:          # undefined (Ellipsis) against a number
+            items.sort(key=lambda t: dumps(t[:3], 2))
+        if lq or sh_s:
+            r = [0] * N
+            for new, t in enumerate(items):
+                r[t[3]] = new
+            if lq:
+                lq = tuple([r[x] for x in lq])
+            if sh_s:
+                sh = list(sh)
+                for k in sh_s:
+                    x = sh[k]
+                    if type(x) is int and x >= 0:
+                        sh[k] = r[x]
+                sh = tuple(sh)
+        cells = tuple([t[0] for t in items])
+        if abstract:
+            return (st[1], lq, sh, cells, st[5])
+        return (st[0], st[1], lq, sh, cells, st[5])
 
     return key

@@ -104,7 +104,7 @@ def test_random_programs_keep_the_verdict(prog, agents, blackbox):
     kw = dict(source=True, agents=agents, blackbox=blackbox, invariants=invariants,
               find_all=True)
     base = explore(text, reduce="none", max_states=4000, **kw)
-    if base.status == "bounded":
+    if base.bounds:          # not exhaustive: nothing to compare against
         return
     sym = "symmetry" in make_model(text, source=True, agents=agents, blackbox=blackbox,
                                    invariants=tuple(invariants), reduce="auto").reduction.on
