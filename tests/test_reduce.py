@@ -162,7 +162,7 @@ def test_runtime_error_inside_a_chain_is_the_stuck_state():
     res = explore(STUCK_IN_CHAIN, source=True, blackbox="instant", reduce="merge", find_all=True)
     assert verdict(res) == verdict(base)
     assert res.violations[0]["kind"] == "stuck"
-    assert res.violations[0]["line"] == 12
+    assert res.violations[0]["line"] == 13
     assert res.trace[-1]["source"] == "y = 3 / x;"
     check_counterexamples(res)
     assert res.stats.states < base.stats.states
