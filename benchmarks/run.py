@@ -4,6 +4,8 @@
     python benchmarks/run.py --full            # also the paper's Fischer (k=10) exhaustively
     python benchmarks/run.py --baseline REV    # compare against another git revision
     python benchmarks/run.py --no-baseline     # this checkout only
+    python benchmarks/run.py --reduce          # reductions: auto and none side by side
+    python benchmarks/run.py --reduce --full   # also the long ones (k=10 none, 3 agents k=2)
 
 Each case runs in its own process so that peak memory is the case's own.
 "B/state" is (peak RSS - RSS before the search) / visited states: the whole
@@ -53,6 +55,27 @@ FULL = [
      dict(program="programs/fischer.pccl"), False),
 ]
 
+# Reductions (docs/reductions.md): (name, spec, reductions to run); the
+# reductions alternate --repeat times and the table shows each one's median.
+REDUCE_CASES = [
+    ("fischer k=2 d=2", dict(program="programs/fischer.pccl",
+                             overrides={"k": "2", "d": "2"}), ("auto", "none")),
+    ("fischer k=10 (paper), exhaustive", dict(program="programs/fischer.pccl"), ("auto",)),
+    ("fischer 3 agents k=0", dict(program="programs/fischer.pccl", agents=3,
+                                  overrides={"k": "0"}), ("auto", "none")),
+    ("race_safe nondet 3 agents", dict(program="programs/race_safe.pccl",
+                                       world="programs/race.toml", blackbox="nondet",
+                                       agents=3), ("auto", "none")),
+    ("race_safe nondet 4 agents", dict(program="programs/race_safe.pccl",
+                                       world="programs/race.toml", blackbox="nondet",
+                                       agents=4), ("auto",)),
+]
+REDUCE_FULL = [
+    ("fischer k=10 (paper), exhaustive", dict(program="programs/fischer.pccl"), ("none",)),
+    ("fischer 3 agents k=2 d=2", dict(program="programs/fischer.pccl", agents=3,
+                                      overrides={"k": "2", "d": "2"}), ("auto",)),
+]
+
 CHILD = r"""
 import json, os, sys, time
 code = os.environ.get("PCCL_BENCH_CODE")
@@ -70,7 +93,8 @@ spec = json.loads(sys.argv[1])
 m = make_model(spec.pop("program"), world=spec.pop("world", None),
                blackbox=spec.pop("blackbox", None), agents=spec.pop("agents", None),
                overrides=spec.pop("overrides", None),
-               invariants=tuple(spec.pop("invariants", ())))
+               invariants=tuple(spec.pop("invariants", ())),
+               **({"reduce": spec.pop("reduce")} if "reduce" in spec else {}))
 rss0 = peak_rss_bytes()
 r = explore_model(m)
 peak = peak_rss_bytes()
@@ -122,7 +146,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3,
                     help="alternating runs per version for compared cases [default: 3]")
     ap.add_argument("--only", metavar="TEXT", help="run the cases whose name contains TEXT")
+    ap.add_argument("--reduce", action="store_true",
+                    help="the reduction cases: --reduce auto and none side by side")
     args = ap.parse_args()
+    if args.reduce:
+        return reduce_main(args)
     cases = CASES + (FULL if args.full else [])
     if args.only:
         cases = [c for c in cases if args.only in c[0]]
@@ -150,6 +178,31 @@ def main() -> None:
                 print(f"{name:<44} {v:<8} {r['status']:<11} {r['states']:>11,} "
                       f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['sps']:>9,.0f} "
                       f"{r['peak'] / 2**20:>9,.0f} {r['bytes_per_state']:>8.0f}", flush=True)
+
+
+def reduce_main(args) -> None:
+    cases = REDUCE_CASES + (REDUCE_FULL if args.full else [])
+    if args.only:
+        cases = [c for c in cases if args.only in c[0]]
+    hdr = f"{'case':<36} {'reduce':<6} {'result':<11} {'states':>11} {'transitions':>12} " \
+          f"{'seconds':>8} {'states/s':>9} {'peak MiB':>9}"
+    if not args.json:
+        print(hdr)
+        print("-" * len(hdr))
+    for name, spec, reds in cases:
+        runs: dict = {r: [] for r in reds}
+        for _ in range(args.repeat if len(reds) > 1 else 1):
+            for red in reds:
+                runs[red].append(run_case({**spec, "reduce": red}))
+        for red in reds:
+            r = median_run(runs[red])
+            if args.json:
+                print(json.dumps({"case": name, "reduce": red,
+                                  "all_seconds": [x["seconds"] for x in runs[red]], **r}))
+                continue
+            print(f"{name:<36} {red:<6} {r['status']:<11} {r['states']:>11,} "
+                  f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['sps']:>9,.0f} "
+                  f"{r['peak'] / 2**20:>9,.0f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -156,9 +156,12 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            workers=1, **model_options) -> ExploreResult:
+            workers=1, reduce="none", **model_options) -> ExploreResult:
+    """Explore ``program`` breadth-first.  ``reduce``: ``"auto"`` (every
+    reduction sound for this program, blackbox and properties), ``"none"``,
+    or a list such as ``["merge"]`` (docs/reductions.md)."""
     V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
-                options={**model_options, "invariants": invariants})
+                options={**model_options, "invariants": invariants, "reduce": reduce})
     V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     reason = None
@@ -166,7 +169,7 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
         program = load_program(program, source=model_options.pop("source", False))
         blackbox, reason = explore_blackbox(program)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents,
-                       invariants=tuple(invariants), **model_options)
+                       invariants=tuple(invariants), reduce=reduce, **model_options)
     model.blackbox_reason = reason
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
@@ -229,6 +232,10 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
         sr = ex.run()
     finally:
         model.lock_deadlocks = saved
+    if getattr(model, "merger", None) is not None:
+        from .reduce import expand_trace
+        for f in sr.found:
+            f.trace = expand_trace(model, f.trace, f.violation)
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
               for b in sr.bounds_hit]
@@ -303,10 +310,15 @@ def violation_data(model, found: Counterexample) -> dict:
     """A counterexample as JSON-ready data (its trace rendered step by step)."""
     v = found.violation
     tr: Trace = found.trace
+    reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
+    if reduced and any(len(lab) > 3 for lab in tr.labels):
+        from .reduce import expand_trace
+        tr = expand_trace(model, tr, v)
     return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
             "line": v.span.line if v.span else None,
             "column": v.span.column if v.span else None,
             "depth": found.depth,
+            "shortest": "under the reductions" if reduced else "yes",
             "trace": tr.to_json(lambda st: D.step_json(model, st.number, st.label,
                                                        st.before, st.after)),
             "state": D.state_json(model, tr.last)}

@@ -397,6 +397,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
+@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="none", show_default=True,
+              help="state-space reductions: auto (every sound one), none, or a "
+                   "comma-separated list of merge, symmetry")
 @click.option("--no-deadlock", is_flag=True, help="do not report deadlocks")
 @click.option("--all", "find_all", is_flag=True,
               help="keep exploring and report each distinct violation once")
@@ -420,9 +423,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, max_memory, abstract_time, invariants, no_deadlock, find_all,
-            exact, fmt, plot, progress, progress_interval, trace_out, view, full, coverage,
-            workers):
+            max_time, max_states, max_memory, abstract_time, invariants, reduce, no_deadlock,
+            find_all, exact, fmt, plot, progress, progress_interval, trace_out, view, full,
+            coverage, workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_blackbox, explore_model, load_program, make_model
@@ -437,6 +440,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = make_model(prog, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
+                           reduce=reduce,
                            **_model_options(delta, n0, rates, events, collisions, overrides))
         model.blackbox_reason = reason
     except PcclError as e:
@@ -794,7 +798,8 @@ def _explore_header(program, m) -> str:
     why = f" ({reason})" if reason else ""
     return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
             f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
-            f"time abstraction {'on' if m.abstract_time else 'off'}")
+            f"time abstraction {'on' if m.abstract_time else 'off'}, "
+            f"reductions {m.reduction.describe()}")
 
 
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
@@ -807,7 +812,8 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         if v["line"]:
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
         tr = cx.trace
-        click.echo(f"counterexample ({len(tr)} steps):")
+        note = ", shortest under the reductions" if m.reduction.on else ""
+        click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
             from . import views
             click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
@@ -833,6 +839,7 @@ def _explore_json(program, res) -> dict:
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
+            "reductions": m.reduction.as_dict(),
             "statistics": res.stats.as_dict(),
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",

@@ -74,7 +74,7 @@ def source_line(model, span) -> str:
 
 def label_info(model, label, before=None) -> dict:
     """Decode a transition label into rule, agent, event, source line."""
-    rule, agent, detail = label
+    rule, agent, detail = label[:3]
     info = {"rule": rule, "agent": agent, "event": None, "line": None, "source": None}
     sid = None
     if rule == "EVENT SELECT" and detail is not None:

@@ -74,6 +74,7 @@ class Property:
     span: Optional[A.Span]
     uses_time: bool
     src: str = ""             # the compiled Python expression (over st, sh, ags)
+    expr: Optional[A.Expr] = None
 
 
 class Control:
@@ -200,7 +201,8 @@ class Model:
                  rates: Optional[dict] = None, events: str = "any",
                  max_time=None, abstract_time: Optional[bool] = None,
                  invariants=(), functions: Optional[dict] = None,
-                 rand_policy: Optional[Callable] = None, collisions: bool = False):
+                 rand_policy: Optional[Callable] = None, collisions: bool = False,
+                 reduce="none"):
         from .world import default_world
         from .blackboxes import load_blackbox
 
@@ -317,13 +319,49 @@ class Model:
             raise PcclError("time abstraction cannot be combined with --max-time: the bound "
                             "reads the clock; drop --abstract-time", filename="--abstract-time")
         self.abstract_time = bool(abstract_time)
-        self.key = operator.itemgetter(slice(1, None) if self.abstract_time else slice(None))
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
         self._collision_cache: dict = {}
         #: report agents waiting for a lock held by an exited agent (off with
         #: --no-deadlock)
         self.lock_deadlocks = True
+        self.set_reduce(reduce)
+
+    # -- reductions (pccl/reduce.py) -------------------------------------------------
+    @property
+    def property_exprs(self) -> list:
+        return [p.expr for p in self.properties if p.expr is not None]
+
+    def set_reduce(self, reduce="auto"):
+        """Turn on the reductions ``reduce`` asks for (``auto``: every sound
+        one; ``none``; a list of names): installs per instance a merged
+        ``successors`` and/or a canonical ``key``.  :attr:`reduction` says
+        which are on and why the others are off."""
+        from . import reduce as RD
+        for attr in ("successors", "key", "merger"):
+            self.__dict__.pop(attr, None)
+        self.key = operator.itemgetter(slice(1, None) if self.abstract_time else slice(None))
+        plan, slots = RD.plan(self, reduce)
+        self.reduction = plan
+        if "merge" in plan.on:
+            self.merger = RD.Merger(self)
+            self.successors = self.merger.successors
+        if "symmetry" in plan.on:
+            self.key = RD.make_symmetric_key(self, slots)
+
+    @property
+    def reduced(self) -> bool:
+        return bool(self.reduction.on)
+
+    def expand(self, before, label) -> list:
+        """The unreduced steps ``[(label, state), ...]`` of a transition."""
+        merger = self.__dict__.get("merger")
+        if merger is None:
+            for lab, s in Model.successors(self, before):
+                if lab == label:
+                    return [(lab, s)]
+            raise ValueError(f"label {label!r} is not enabled")
+        return merger.expand(before, label)
 
     # -- compilation ------------------------------------------------------------
     def _compile_stmt(self, s: A.Stmt):
@@ -357,8 +395,10 @@ class Model:
         src = self.comp.expr(expr, prop=True)       # the checker has vetted it
         fn = self.comp.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
-        self.properties.append(Property(name or text, text, fn, span, uses_time, src))
+        self.properties.append(Property(name or text, text, fn, span, uses_time, src, expr))
         self._compile_violations()
+        if hasattr(self, "reduction"):
+            self.set_reduce(self.reduction.requested)
 
     def _compile_violations(self):
         """Install, as the instance's ``violations``, a compiled fast path:

@@ -18,7 +18,7 @@ from .errors import ArgumentError
 
 #: The keyword options make_model passes on to the Model.
 MODEL_OPTIONS = ("delta", "n0", "rates", "events", "max_time", "abstract_time",
-                 "invariants", "functions", "rand_policy", "collisions")
+                 "invariants", "functions", "rand_policy", "collisions", "reduce")
 
 
 def _fail(func: str, message: str):
@@ -150,6 +150,18 @@ def model_options(func, options: dict):
         boolean(func, "abstract_time", options["abstract_time"], optional=True)
     if "collisions" in options:
         boolean(func, "collisions", options["collisions"])
+    if "reduce" in options:
+        r = options["reduce"]
+        if not (isinstance(r, str) or (isinstance(r, (list, tuple))
+                                       and all(isinstance(x, str) for x in r))):
+            _fail(func, f"reduce must be 'auto', 'none' or a list of reduction names, "
+                        f"got {_show(r)}")
+        from .reduce import parse_request
+        from .errors import PcclError
+        try:
+            parse_request(r)
+        except PcclError as e:
+            _fail(func, e.message if hasattr(e, "message") else str(e))
     if "invariants" in options:
         texts(func, "invariants", options["invariants"])
     if "rand_policy" in options:

@@ -9,10 +9,18 @@ from pathlib import Path
 
 import pytest
 
-from pccl.api import explore, make_model
+from pccl.api import explore as _explore, make_model
 from pccl.errors import PcclError
 
 from conftest import (FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS, var)
+
+
+def explore(*args, **kw):
+    """The unreduced search (reduce='none'): this file pins its counts and
+    shortest counterexamples; tests/test_reduce.py covers the reductions."""
+    kw.setdefault("reduce", "none")
+    return _explore(*args, **kw)
+
 
 ASSERT_PROG = str(TEST_PROGRAMS / "eng_assert.pccl")
 MUTEX = "count(inCs) <= 1"

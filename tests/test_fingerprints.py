@@ -33,10 +33,18 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 
 from pccl import display as D
-from pccl.api import explore, make_model, run
+from pccl.api import explore as _explore, make_model, run
 from pccl.values import UNDEF
 
 from conftest import PROGRAMS, ROOT, SH, TEST_PROGRAMS
+
+
+def explore(*args, **kw):
+    """The unreduced search (reduce='none'): this file pins its counts and
+    shortest counterexamples; tests/test_reduce.py covers the reductions."""
+    kw.setdefault("reduce", "none")
+    return _explore(*args, **kw)
+
 
 MUTEX = "count(inCs) <= 1"
 M61 = 2**61 - 1                  # hash(M61) == hash(0) == 0

@@ -27,12 +27,20 @@ from pathlib import Path
 import pytest
 
 from pccl import ast as A
-from pccl.api import explore, make_model
+from pccl.api import explore as _explore, make_model
 from pccl.explorer import Explorer
 from pccl.parser import parse_file
 from pccl.world import World
 
 from reference import ReferenceModel, bfs, shortest_violation
+
+
+def explore(*args, **kw):
+    """The unreduced search (reduce='none'): this file pins its counts and
+    shortest counterexamples; tests/test_reduce.py covers the reductions."""
+    kw.setdefault("reduce", "none")
+    return _explore(*args, **kw)
+
 
 HERE = Path(__file__).resolve().parent
 REF_PROGRAMS = HERE / "programs"

@@ -1,0 +1,686 @@
+"""State-space reductions behind the explorer's ``Model`` protocol.
+
+Two reductions, each either a different ``successors`` or a different ``key``
+(docs/reductions.md has the soundness arguments):
+
+``merge``
+    statement merging (SPIN's statement merging, Lipton reduction): after a
+    transition of agent i, the statements that follow and touch only i's own
+    ``loc:`` variables that no property reads (and i's COUNTER ADVANCE) run in
+    the same transition.  :meth:`Merger.successors` wraps the unreduced
+    successors; a merged transition's label is ``(rule, i, detail, idx0,
+    choices)`` and :meth:`Merger.expand` re-executes it step by step.
+
+``symmetry``
+    agents are interchangeable: :func:`make_symmetric_key` returns a
+    canonical representative of a state's orbit under permutations of the
+    agent ids (cells sorted, id-valued data renamed).  Successors are still
+    computed from the actual state, so replay yields real states.
+
+:func:`plan` decides which reductions are sound for a model and why the
+others are off.
+"""
+
+from __future__ import annotations
+
+import itertools
+import marshal
+from dataclasses import dataclass, field
+from typing import Optional
+
+from . import ast as A
+from .errors import PcclError
+from .semantics import rules as R
+from .semantics.rules import DISCRETE, RUNNING, K_END, K_IF, K_SIMPLE, K_WHILE
+
+#: The reductions, in the order they are reported.
+ALL = ("merge", "symmetry")
+
+#: At most this many statements run in one merged transition.
+MERGE_LIMIT = 1000
+
+#: Built-in expressions that read nothing but their arguments (and the
+#: agent's own id); getPosition reads the position, which the environment
+#: writes.
+PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition", "dist",
+                        "head", "isEmpty", "size", "contains"})
+
+#: Blackboxes known to treat agents alike and to keep an agent without a
+#: target where it is.
+SYMMETRIC_BLACKBOXES = frozenset({"instant", "straight", "nondet"})
+
+
+@dataclass
+class Plan:
+    """Which reductions are on, and why the others are off."""
+    on: tuple = ()
+    off: dict = field(default_factory=dict)      # name -> reason
+    requested: str = "auto"
+
+    def describe(self) -> str:
+        """``merge+symmetry`` / ``none``, then ``; X off: reason``."""
+        text = "+".join(self.on) if self.on else "none"
+        for name, why in self.off.items():
+            text += f"; {name} off: {why}"
+        return text
+
+    def as_dict(self) -> dict:
+        return {"requested": self.requested, "on": list(self.on), "off": dict(self.off)}
+
+
+def parse_request(reduce) -> tuple:
+    """``"auto"`` -> None (every sound one), ``"none"`` -> (), a list or
+    ``"merge,symmetry"`` -> that tuple; unknown names are errors."""
+    if reduce is None or reduce == "auto":
+        return None
+    if reduce == "none":
+        return ()
+    if isinstance(reduce, str):
+        names = [x.strip() for x in reduce.split(",") if x.strip()]
+    else:
+        names = list(reduce)
+    bad = [n for n in names if n not in ALL]
+    if bad or not names:
+        raise PcclError(f"unknown reduction {', '.join(map(repr, bad)) or repr(reduce)}; "
+                        f"use auto, none or a comma-separated list of {', '.join(ALL)}",
+                        filename="--reduce")
+    return tuple(n for n in ALL if n in names)
+
+
+# ---------------------------------------------------------------------------
+# static information
+# ---------------------------------------------------------------------------
+
+def _stmt_exprs(s) -> list:
+    """The expressions a statement evaluates in its own transition."""
+    if isinstance(s, A.Assign):
+        return [s.target, s.value]
+    if isinstance(s, A.If):
+        return [c for c, _ in s.branches]
+    if isinstance(s, A.While):
+        return [s.cond]
+    if isinstance(s, A.CallStmt):
+        return list(s.args)
+    return []
+
+
+def property_names(m) -> set:
+    names = set()
+    for p in m.property_exprs:
+        for e in A.walk_expr(p):
+            if isinstance(e, A.Name):
+                names.add(e.name)
+    return names
+
+
+def mergeable_sids(m) -> set:
+    """Statements that touch only the agent's own invisible ``loc:`` variables."""
+    lay = m.layout
+    visible = property_names(m)
+    funcs = set(m.functions)
+    ok = set()
+    for sid, s in m.stmts.items():
+        if not isinstance(s, (A.Assign, A.If, A.While, A.Skip, A.CallStmt)):
+            continue
+        if isinstance(s, A.CallStmt) and s.name not in ("add", "remove"):
+            continue
+        good = True
+        for x in _stmt_exprs(s):
+            for e in A.walk_expr(x):
+                if isinstance(e, A.Name):
+                    vs = lay.vars.get(e.name)
+                    if vs is None:
+                        if e.name not in lay.members:
+                            good = False
+                    elif vs.section != "loc" or e.name in visible:
+                        good = False
+                elif isinstance(e, A.Call):
+                    if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                        good = False
+                elif isinstance(e, A.Quant):
+                    good = False
+                if not good:
+                    break
+            if not good:
+                break
+        if good:
+            ok.add(sid)
+    return ok
+
+
+class _IdInfo:
+    """Scalarset-style inference of the variables that hold agent ids."""
+
+    def __init__(self, m):
+        self.m = m
+        self.lay = m.layout
+        self.reason: Optional[str] = None
+        prog = m.program
+        defs: dict = {}
+        for d in prog.decls:
+            if isinstance(d, A.VarDecl) and d.init is not None:
+                defs.setdefault(d.name, []).append(d.init)
+        self.stmts = list(m.stmts.values())
+        for s in self.stmts:
+            if isinstance(s, A.Assign) and isinstance(s.target, A.Name):
+                defs.setdefault(s.target.name, []).append(s.value)
+        self.defs = defs
+        self.bound: set = set()
+        cand = {n for n, vs in self.lay.vars.items()
+                if vs.ty.kind == "int" and n in defs}
+        while True:
+            self.ids = cand
+            keep = {n for n in cand
+                    if all(self.is_id(e) or _sentinel(e) for e in defs[n])
+                    and any(self.is_id(e) for e in defs[n])}
+            if keep == cand:
+                break
+            cand = keep
+
+    def is_id(self, e) -> bool:
+        if isinstance(e, A.Call):
+            return e.name == "getAgentIndex" and not e.args
+        if isinstance(e, A.Name):
+            return e.name in self.ids or e.name in self.bound
+        return False
+
+    def bad(self, why):
+        if self.reason is None:
+            self.reason = why
+
+    def visit(self, e, ok: bool, where: str, prop: bool = False):
+        if self.reason is not None:
+            return
+        if self.is_id(e):
+            if not ok:
+                self.bad(f"an agent id ({_show(e)}) is used other than in ==, != or as an "
+                         f"agent index {where}")
+            return
+        if isinstance(e, A.Quant):
+            self.bound.add(e.var)
+            self.visit(e.body, False, where, prop)
+            return
+        if isinstance(e, A.Binary) and e.op in ("==", "!="):
+            li, ri = self.is_id(e.left), self.is_id(e.right)
+            if li or ri:
+                if (li or _sentinel(e.left)) and (ri or _sentinel(e.right)):
+                    return
+            self.visit(e.left, False, where, prop)
+            self.visit(e.right, False, where, prop)
+            return
+        if isinstance(e, A.Index):
+            if self._agent_indexed(e.base, prop):
+                if not self.is_id(e.index):
+                    self.bad(f"{_show(e)} names agent {_show(e.index)} {where}")
+                    return
+                return
+            self.visit(e.base, False, where, prop)
+            self.visit(e.index, False, where, prop)
+            return
+        if isinstance(e, A.Call) and prop and e.name == "count":
+            return
+        for c in _children(e):
+            self.visit(c, False, where, prop)
+
+    def _agent_indexed(self, base, prop) -> bool:
+        if not isinstance(base, A.Name):
+            return False
+        vs = self.lay.vars.get(base.name)
+        if prop:
+            return (vs is not None and vs.section in ("loc", "allread")) or \
+                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail"))
+        return vs is not None and vs.section == "allread"
+
+    def check(self) -> Optional[str]:
+        m = self.m
+        for d in m.program.decls:
+            if isinstance(d, A.VarDecl) and d.init is not None:
+                self.visit(d.init, d.name in self.ids, f"at line {d.span.line}")
+        for s in self.stmts:
+            where = f"at line {s.span.line}"
+            if isinstance(s, A.Assign):
+                t = s.target
+                if isinstance(t, A.Name):
+                    self.visit(s.value, t.name in self.ids, where)
+                else:
+                    self.visit(t, False, where)
+                    self.visit(s.value, False, where)
+            else:
+                for x in _stmt_exprs(s):
+                    self.visit(x, False, where)
+        for ev in m.program.events:
+            self.visit(ev.guard, False, f"in the guard of {ev.name} (line {ev.guard.span.line})")
+        for p in m.properties:
+            self.bound = set()
+            self.visit(p.expr, False, f"in property `{p.text}`", prop=True)
+        self.bound = set()
+        return self.reason
+
+
+def _children(e):
+    if isinstance(e, A.ListLit):
+        return e.items
+    if isinstance(e, A.Index):
+        return (e.base, e.index)
+    if isinstance(e, A.Field):
+        return (e.base,)
+    if isinstance(e, A.Call):
+        return e.args
+    if isinstance(e, A.Unary):
+        return (e.operand,)
+    if isinstance(e, A.Binary):
+        return (e.left, e.right)
+    if isinstance(e, A.Quant):
+        return (e.body,)
+    return ()
+
+
+def _sentinel(e) -> bool:
+    """A negative integer constant (``-1``): never an agent id."""
+    if isinstance(e, A.IntLit):
+        return e.value < 0
+    return (isinstance(e, A.Unary) and e.op == "-" and isinstance(e.operand, A.IntLit)
+            and e.operand.value > 0)
+
+
+def _show(e) -> str:
+    if isinstance(e, A.Name):
+        return e.name
+    if isinstance(e, A.IntLit):
+        return str(e.value)
+    if isinstance(e, A.Call):
+        return f"{e.name}({', '.join(_show(a) for a in e.args)})"
+    if isinstance(e, A.Index):
+        return f"{_show(e.base)}[{_show(e.index)}]"
+    if isinstance(e, A.Unary):
+        return f"{e.op}{_show(e.operand)}"
+    if isinstance(e, A.Binary):
+        return f"{_show(e.left)} {e.op} {_show(e.right)}"
+    return "…"
+
+
+def positions_read(m) -> Optional[str]:
+    """Why positions (and the doReach cell) matter, or None."""
+    if m.collisions:
+        return "--collisions"
+    for s in m.stmts.values():
+        if isinstance(s, A.CallStmt) and s.name == "doReach":
+            return f"doReach at line {s.span.line}"
+    exprs = [d.init for d in m.program.decls if isinstance(d, A.VarDecl) and d.init is not None]
+    exprs += [x for s in m.stmts.values() for x in _stmt_exprs(s)]
+    exprs += [ev.guard for ev in m.program.events]
+    for x in exprs:
+        for e in A.walk_expr(x):
+            if isinstance(e, A.Call) and e.name == "getPosition":
+                return f"getPosition() at line {e.span.line}"
+            if isinstance(e, A.Name) and e.name in ("doReach_done", "doReach_fail"):
+                return f"{e.name} at line {e.span.line}"
+    for p in m.properties:
+        for e in A.walk_expr(p.expr):
+            if isinstance(e, A.Name) and e.name in ("pos", "doReach_done", "doReach_fail"):
+                return f"{e.name} in property `{p.text}`"
+    return None
+
+
+def symmetry_problem(m) -> tuple:
+    """(reason symmetry is unsound or None, id slots)."""
+    if m.N < 2:
+        return "one agent", None
+    if len(set(m.rho)) > 1:
+        return "agents have different rates", None
+    bb = getattr(m.blackbox, "name", None)
+    from .blackboxes import load_blackbox
+    try:
+        builtin = bb in SYMMETRIC_BLACKBOXES and load_blackbox(bb) is m.blackbox
+    except PcclError:
+        builtin = False
+    if not builtin:
+        return f"blackbox {bb} may treat agents differently", None
+    why = positions_read(m)
+    if why:
+        return f"positions are read ({why})", None
+    info = _IdInfo(m)
+    why = info.check()
+    if why:
+        return why, None
+    lay = m.layout
+    slots = ([vs.slot for vs in lay.local if vs.name in info.ids],
+             [vs.slot for vs in lay.allread if vs.name in info.ids],
+             [vs.slot for vs in lay.shared if vs.name in info.ids])
+    # per-agent id variables that only ever hold the agent's own id (or a
+    # sentinel) need no renaming: the fast canonical form applies
+    self_only = all(all(_sentinel(e) or (isinstance(e, A.Call) and e.name == "getAgentIndex")
+                        for e in info.defs.get(vs.name, ()))
+                    for vs in lay.local + lay.allread if vs.name in info.ids)
+    return None, slots + (self_only,)
+
+
+def plan(m, reduce) -> tuple:
+    """(Plan, symmetry slots)."""
+    want = parse_request(reduce)
+    p = Plan(requested=reduce if isinstance(reduce, str) else ",".join(reduce))
+    on = []
+    slots = None
+    if m.oracle.policy is not None:          # run mode: no reduction
+        return Plan(requested="none"), None
+    if want is None or "merge" in want:
+        on.append("merge")
+    if want is None or "symmetry" in want:
+        why, slots = symmetry_problem(m)
+        if why is None:
+            on.append("symmetry")
+        elif want is not None and m.N >= 2:
+            raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
+                            filename="--reduce")
+        elif m.N >= 2 or want is not None:
+            p.off["symmetry"] = why
+    p.on = tuple(on)
+    return p, slots
+
+
+# ---------------------------------------------------------------------------
+# statement merging
+# ---------------------------------------------------------------------------
+
+class Merger:
+    """The merged successor relation of a model, and its expansion."""
+
+    def __init__(self, m):
+        self.m = m
+        sids = mergeable_sids(m)
+        self.sids = sids
+        self.ok: dict = {}
+        plain = type(m).successors
+        self.plain = lambda st: plain(m, st)
+
+    def pc_ok(self, pc) -> bool:
+        r = self.ok.get(pc)
+        if r is None:
+            info = self.m.ctl.info(pc)
+            k = info[0]
+            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info[-2] in self.sids)
+            self.ok[pc] = r
+        return r
+
+    def micro(self, st, i, ag) -> list:
+        m = self.m
+        info = m.ctl.info(ag[0])
+        out: list = []
+        m.oracle.agent = i
+        for rule in R.AGENT_RULES[info[0]]:
+            rule(m, st, i, ag, info, out)
+        return out
+
+    def successors(self, st) -> list:
+        out = self.plain(st)
+        if st[1] != DISCRETE:
+            return out
+        m = self.m
+        rho, n0 = m.rho, m.n0
+        ok = self.ok
+        res: list = []
+        for idx0, (lab, s2) in enumerate(out):
+            i = lab[1]
+            if i is not None:
+                ag = s2[4][i]
+                if ag[3] == RUNNING and ag[1] + rho[i] <= n0:
+                    r = ok.get(ag[0])
+                    if r is None:
+                        r = self.pc_ok(ag[0])
+                    if r:
+                        self._chain(lab, idx0, s2, i, res)
+                        continue
+            res.append((lab, s2))
+        return res
+
+    def _chain(self, lab, idx0, s, i, res):
+        m = self.m
+        rho, n0 = m.rho[i], m.n0
+        ok, ctl = self.ok, m.ctl
+        infos = ctl.infos
+        statement, counter_advance = R.statement, R.counter_advance
+        oracle = m.oracle
+        stack = [(s, ())]
+        seen = None
+        while stack:
+            s, ch = stack.pop()
+            while True:
+                ag = s[4][i]
+                pc = ag[0]
+                r = ok.get(pc)
+                if r is None:
+                    r = self.pc_ok(pc)
+                n = len(ch)
+                if not r or ag[3] != RUNNING or ag[1] + rho > n0 or n >= MERGE_LIMIT:
+                    break
+                if n >= 32:
+                    # a long chain may be a local loop: stop where it revisits
+                    ident = (pc, ag[1], ag[4])
+                    if seen is None:
+                        seen = set()
+                    elif ident in seen:
+                        break
+                    seen.add(ident)
+                info = infos[pc]
+                if info is None:
+                    info = ctl.info(pc)
+                out: list = []
+                oracle.agent = i
+                if info[0] == K_END:
+                    counter_advance(m, s, i, ag, info, out)
+                else:
+                    statement(m, s, i, ag, info, out)
+                if not out:
+                    break
+                for c in range(len(out) - 1, 0, -1):      # rand: branches
+                    stack.append((out[c][1], ch + (c,)))
+                s = out[0][1]
+                ch = ch + (0,)
+            res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
+
+    def expand(self, before, label) -> list:
+        """``[(micro_label, state), ...]``: the unreduced steps of a merged
+        transition (one step for an unmerged label)."""
+        if len(label) <= 3:
+            for lab, s in self.plain(before):
+                if lab == label:
+                    return [(lab, s)]
+            raise ValueError(f"label {label!r} is not enabled")
+        idx0, ch = label[3], label[4]
+        lab, s = self.plain(before)[idx0]
+        steps = [(lab, s)]
+        i = lab[1]
+        for c in ch:
+            lab, s = self.micro(s, i, s[4][i])[c]
+            steps.append((lab, s))
+        return steps
+
+
+def expand_trace(m, trace, violation=None):
+    """The trace with every merged transition replaced by its steps; with
+    ``violation`` (not a deadlock), cut at the first state that has it (a
+    merged transition may run invisible steps after the violating one)."""
+    from .explorer import Trace
+    merger = getattr(m, "merger", None)
+    if merger is None or trace is None:
+        return trace
+    states, labels = [trace.states[0]], []
+    for st in trace.steps:
+        if len(st.label) > 3:
+            steps = merger.expand(st.before, st.label)
+            assert steps[-1][1] == st.after, "a merged transition did not re-execute"
+            for lab, s in steps:
+                labels.append(lab)
+                states.append(s)
+        else:
+            labels.append(st.label)
+            states.append(st.after)
+    if violation is not None and getattr(violation, "kind", None) != "deadlock":
+        want = violation.identity
+        for n, s in enumerate(states):
+            if any(v.identity == want for v in type(m).violations(m, s)):
+                states, labels = states[:n + 1], labels[:n]
+                break
+    return Trace(tuple(states), tuple(labels))
+
+
+# ---------------------------------------------------------------------------
+# symmetry
+# ---------------------------------------------------------------------------
+
+def make_symmetric_key(m, slots):
+    """A key function returning a canonical representative of the state's
+    orbit under permutations of agent ids."""
+    loc_s, ar_s, sh_s, self_only = slots
+    dumps = marshal.dumps
+    if self_only:
+        return _self_only_key(m, loc_s, ar_s, sh_s)
+    abstract = m.abstract_time
+    N = m.N
+    has_ids = bool(loc_s or ar_s or sh_s)
+
+    def mask(vals, idx, j):
+        v = list(vals)
+        other = False
+        for k in idx:
+            x = v[k]
+            if type(x) is int and x >= 0:
+                if x == j:
+                    v[k] = "s"
+                else:
+                    v[k] = "o"
+                    other = True
+        return tuple(v), other
+
+    def ren(vals, idx, r):
+        v = list(vals)
+        for k in idx:
+            x = v[k]
+            if type(x) is int and x >= 0:
+                v[k] = r[x]
+        return tuple(v)
+
+    def build(st, order):
+        r = [0] * N
+        for new, old in enumerate(order):
+            r[old] = new
+        ags = st[4]
+        if has_ids:
+            cells = tuple((a[0], a[1], a[2], a[3],
+                           ren(a[4], loc_s, r) if loc_s else a[4],
+                           ren(a[5], ar_s, r) if ar_s else a[5])
+                          for a in (ags[o] for o in order))
+            sh = ren(st[3], sh_s, r) if sh_s else st[3]
+        else:
+            cells = tuple(ags[o][:6] for o in order)
+            sh = st[3]
+        lq = tuple(r[x] for x in st[2])
+        if abstract:
+            return (st[1], lq, sh, cells, st[5])
+        return (st[0], st[1], lq, sh, cells, st[5])
+
+    def key(st):
+        ags = st[4]
+        lq = st[2]
+        sh = st[3]
+        sk = []
+        any_other = False
+        for j, a in enumerate(ags):
+            if has_ids:
+                lv, o1 = mask(a[4], loc_s, j) if loc_s else (a[4], False)
+                av, o2 = mask(a[5], ar_s, j) if ar_s else (a[5], False)
+                any_other = any_other or o1 or o2
+                refs = tuple(sh[k] == j for k in sh_s)
+            else:
+                lv, av, refs = a[4], a[5], ()
+            sk.append(dumps(((a[0], a[1], a[2], a[3], lv, av), refs,
+                             lq.index(j) if j in lq else -1), 2))
+        order = sorted(range(N), key=sk.__getitem__)
+        if not any_other:
+            return build(st, order)
+        # agents referring to others: ties must be tried in every order
+        groups = [list(g) for _, g in itertools.groupby(order, key=sk.__getitem__)]
+        if all(len(g) == 1 for g in groups):
+            return build(st, order)
+        best = bestb = None
+        for combo in itertools.product(*(itertools.permutations(g) for g in groups)):
+            k = build(st, [x for g in combo for x in g])
+            b = dumps(k, 2)
+            if bestb is None or b < bestb:
+                best, bestb = k, b
+        return best
+
+    return key
+
+
+#: Stands for "this agent's own id" in a canonical cell: a float, so it
+#: sorts among ints and encodes differently from every int.
+SELF = float("-inf")
+
+
+def _self_only_key(m, loc_s, ar_s, sh_s):
+    """The canonical key when per-agent id variables hold only the agent's
+    own id or a sentinel: such a value is replaced by :data:`SELF` (its
+    renamed value is the cell's place, so nothing is lost); agents are
+    sorted by (masked cell, which shared id variables name it, its place in
+    the lock queue).  Agents that tie are identical in the key whatever
+    their order, so no tie needs breaking."""
+    dumps = marshal.dumps
+    abstract = m.abstract_time
+    N = m.N
+
+    l1 = loc_s[0] if len(loc_s) == 1 else None
+    s1 = sh_s[0] if len(sh_s) == 1 else None
+
+    def key(st):
+        ags = st[4]
+        lq = st[2]
+        sh = st[3]
+        items = []
+        j = 0
+        for a in ags:
+            loc = a[4]
+            if l1 is not None:
+                if loc[l1] == j:
+                    loc = loc[:l1] + (SELF,) + loc[l1 + 1:]
+            elif loc_s:
+                loc = list(loc)
+                for k in loc_s:
+                    if loc[k] == j:
+                        loc[k] = SELF
+                loc = tuple(loc)
+            ar = a[5]
+            if ar_s:
+                ar = list(ar)
+                for k in ar_s:
+                    if ar[k] == j:
+                        ar[k] = SELF
+                ar = tuple(ar)
+            items.append(((a[0], a[1], a[2], a[3], loc, ar),
+                          (sh[s1] == j,) if s1 is not None else
+                          tuple([sh[k] == j for k in sh_s]) if sh_s else (),
+                          lq.index(j) if j in lq else -1, j))
+            j += 1
+        try:
+            items.sort()
+        except TypeError:          # undefined (Ellipsis) against a number
+            items.sort(key=lambda t: dumps(t[:3], 2))
+        if lq or sh_s:
+            r = [0] * N
+            for new, t in enumerate(items):
+                r[t[3]] = new
+            if lq:
+                lq = tuple([r[x] for x in lq])
+            if sh_s:
+                sh = list(sh)
+                for k in sh_s:
+                    x = sh[k]
+                    if type(x) is int and x >= 0:
+                        sh[k] = r[x]
+                sh = tuple(sh)
+        cells = tuple([t[0] for t in items])
+        if abstract:
+            return (st[1], lq, sh, cells, st[5])
+        return (st[0], st[1], lq, sh, cells, st[5])
+
+    return key
