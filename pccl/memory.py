@@ -2,7 +2,9 @@
 
 ``peak_rss_bytes()`` is the peak resident set size (what ``pccl explore``
 reports as peak memory).  On Linux and macOS it comes from
-``getrusage(RUSAGE_SELF).ru_maxrss``, the kernel's true peak, whose unit is
+``getrusage(RUSAGE_SELF).ru_maxrss`` (on Linux ``VmHWM`` from
+``/proc/self/status`` first: ``ru_maxrss`` survives ``exec``, so a process
+started by a large one would report its parent's peak), whose unit is
 KiB on Linux (and the BSDs) but bytes on macOS; psutil has no peak on Linux.
 Where the ``resource`` module does not exist (Windows) it comes from psutil:
 ``peak_wset`` (the peak working set) where psutil has it, else the current
@@ -38,8 +40,26 @@ def _psutil_peak() -> int:
     return int(getattr(info, "peak_wset", 0) or info.rss)
 
 
+def _vmhwm_bytes() -> int:
+    """Linux: the peak RSS of this process's current address space
+    (``VmHWM``).  Unlike ``ru_maxrss`` it starts afresh at ``exec``: a
+    process started by a large parent does not inherit the parent's peak."""
+    try:
+        with open("/proc/self/status", "rb") as f:
+            for line in f:
+                if line.startswith(b"VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0
+
+
 def peak_rss_bytes() -> int:
     """The peak resident set size of this process in bytes (0 if unknown)."""
+    if sys.platform.startswith("linux"):
+        hwm = _vmhwm_bytes()
+        if hwm:
+            return hwm
     if _resource is not None:
         try:
             return _maxrss_bytes(_resource)
