@@ -429,7 +429,7 @@ class Explorer:
                  max_states: Optional[int] = None, deadlock: bool = True,
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
-                 progress_interval: float = 0.5, batch: int = 2048,
+                 progress_interval: float = 0.5, batch: int = 4096,
                  max_memory: Optional[int] = None):
         self.model = model
         self.max_memory = max_memory
