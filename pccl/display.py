@@ -99,6 +99,19 @@ def label_info(model, label, before=None) -> dict:
     return info
 
 
+
+def short_label(model, label, before, system: str = "system") -> str:
+    """A transition in a few words: who (``a0``, or ``system``), the rule,
+    and the event it selects or the source line it runs."""
+    info = label_info(model, label, before)
+    who = f"a{info['agent']}" if info["agent"] is not None else system
+    s = f"{who} {info['rule']}"
+    if label[0] == "EVENT SELECT" and info["event"]:
+        s += f" {info['event']}"
+    elif info["line"]:
+        s += f" L{info['line']}"
+    return s
+
 def current_event(model, ag) -> Optional[str]:
     """The event an agent is in the middle of, from the statements in its k."""
     for item in model.ctl.iter_k(ag[0]):

@@ -82,13 +82,7 @@ def build(model, *, max_states: int = 10_000, deadlock: bool = True) -> Graph:
 
 
 def _edge_text(model, label, a, b) -> str:
-    info = D.label_info(model, label, a)
-    who = f"a{info['agent']}" if info["agent"] is not None else "sys"
-    head = f"{who} {info['rule']}"
-    if label[0] == "EVENT SELECT" and info["event"]:
-        head += f" {info['event']}"
-    elif info["line"]:
-        head += f" L{info['line']}"
+    head = D.short_label(model, label, a, system="sys")
     br = T.branch_taken(model, label, a, b)
     if br:
         head += " " + T.branch_text(br).split(" (line")[0]

@@ -53,7 +53,7 @@ def steps(model, states, labels, *, full=False, width=None) -> str:
             return
         first, last = folded[0][0], folded[-1][0]
         num = f"{first:>4}." if first == last else f"{first:>4}–{last}."
-        what = ", ".join(_short(model, lab, a) for _, lab, a, _ in folded)
+        what = ", ".join(D.short_label(model, lab, a) for _, lab, a, _ in folded)
         line = f"{num} no change: {what}"
         out.append(line if len(line) <= w else line[:w - 1] + "…")
         folded.clear()
@@ -74,15 +74,6 @@ def steps(model, states, labels, *, full=False, width=None) -> str:
     return "\n".join(out)
 
 
-def _short(model, lab, before) -> str:
-    info = D.label_info(model, lab, before)
-    who = f"a{info['agent']}" if info["agent"] is not None else "system"
-    s = f"{who} {info['rule']}"
-    if lab[0] == "EVENT SELECT" and info["event"]:
-        s += f" {info['event']}"
-    elif info["line"]:
-        s += f" L{info['line']}"
-    return s
 
 
 # ---------------------------------------------------------------------------
