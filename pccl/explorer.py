@@ -472,7 +472,6 @@ class Explorer:
         max_depth = self.max_depth
         budget = self.max_states if self.max_states is not None else _MAX_STATES
         found = res.found
-        find_all = self.find_all
         batch = self.batch
         max_memory = self.max_memory
 
@@ -497,16 +496,7 @@ class Explorer:
         depth = 0
         stop = False
 
-        def record(viols, idx, d) -> bool:
-            for v in viols:
-                ident = v.identity
-                if ident in reported:
-                    continue
-                reported.add(ident)
-                found.append(Counterexample(v, idx, d))
-                if not find_all:
-                    return True
-            return False
+        record = self._recorder(found, reported)
 
         def flush(d) -> bool:
             """Admit the pending batch (successors at depth ``d``); True to stop."""
@@ -650,6 +640,24 @@ class Explorer:
         for f in found:
             f.trace = self.replay(f.index)
         return res
+
+    def _recorder(self, found: list, reported: set):
+        """``record(violations, state number, depth) -> stop?``: appends each
+        violation not reported before (by identity) to ``found``; True at the
+        first one unless ``find_all``."""
+        find_all = self.find_all
+
+        def record(viols, idx, d) -> bool:
+            for v in viols:
+                ident = v.identity
+                if ident in reported:
+                    continue
+                reported.add(ident)
+                found.append(Counterexample(v, idx, d))
+                if not find_all:
+                    return True
+            return False
+        return record
 
     # ------------------------------------------------------------------
     def replay(self, idx: int) -> Trace:

@@ -40,7 +40,7 @@ import time as _time
 import numpy as np
 import xxhash
 
-from .explorer import (Bound, Counterexample, Explorer, FingerprintTable, SearchResult,
+from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
 
@@ -318,7 +318,6 @@ class ParallelExplorer(Explorer):
         stats = Stats()
         res = SearchResult("exhaustive", stats=stats)
         found, reported, bounds = res.found, set(), set()
-        find_all = self.find_all
         budget = self.max_states if self.max_states is not None else _MAX_STATES
         cap = min(_MAX_STATES, budget + 1)
         self.parents = _reserve((cap,), np.uint32)
@@ -328,15 +327,7 @@ class ParallelExplorer(Explorer):
         total = 0
         peak_workers = [0] * n
 
-        def record(viols, idx, d) -> bool:
-            for v in viols:
-                if v.identity in reported:
-                    continue
-                reported.add(v.identity)
-                found.append(Counterexample(v, idx, d))
-                if not find_all:
-                    return True
-            return False
+        record = self._recorder(found, reported)
 
         def put_parents(base, values):
             nonlocal total
