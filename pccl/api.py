@@ -156,7 +156,7 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            workers=1, reduce="none", **model_options) -> ExploreResult:
+            workers=1, ray=None, reduce="none", **model_options) -> ExploreResult:
     """Explore ``program`` breadth-first.  ``reduce``: ``"auto"`` (every
     reduction sound for this program, blackbox and properties), ``"none"``,
     or a list such as ``["merge"]`` (docs/reductions.md)."""
@@ -173,7 +173,7 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
     model.blackbox_reason = reason
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
-                         max_memory=max_memory, coverage=coverage, workers=workers)
+                         max_memory=max_memory, coverage=coverage, workers=workers, ray=ray)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -189,12 +189,16 @@ def default_max_memory() -> int:
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None,
                   max_memory="default", coverage: bool = False,
-                  workers=1, progress_interval: float = 0.5) -> ExploreResult:
+                  workers=1, ray=None, progress_interval: float = 0.5) -> ExploreResult:
     """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
     which the search stops with the bound ``--max-memory`` (``"default"``:
     80 % of physical memory; ``None``: no limit).  ``workers``: processes
     (an int >= 1, or ``"auto"`` for the usable cores); results are identical
-    for every number of workers.  ``progress`` (if given) is called about
+    for every number of workers.  ``ray``: ``None`` (processes on this
+    machine), ``"local"`` (start a Ray instance here) or a Ray address
+    (``"auto"``, ``"HOST:PORT"``): one Ray actor per worker, ``workers``
+    of them (``"auto"``: the cluster's CPUs); needs ``pip install
+    'pccl[ray]'``.  ``progress`` (if given) is called about
     every ``progress_interval`` seconds with a dict: states, frontier,
     depth, seconds, memory (bytes)."""
     if not isinstance(model, Model):
@@ -210,19 +214,27 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if coverage:
         from .coverage import CoverageModel
         cov = CoverageModel(model)
+    if ray is not None and (not isinstance(ray, str) or not ray.strip()):
+        raise ArgumentError(f"ray must be None, 'local' or a Ray address such as "
+                            f"'HOST:PORT', got {ray!r}", filename="pccl.api.explore_model")
     if workers == "auto":
         from .parallel import available_workers
-        workers = available_workers()
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        workers = None if ray is not None else available_workers()
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool)
+                                or workers < 1):
         raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {workers!r}",
                             filename="pccl.api.explore_model")
-    if workers > 1 and (exact or coverage):
+    if (ray is not None or workers > 1) and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
-                            f"use workers=1", filename="pccl.api.explore_model")
+                            f"use workers=1 without ray", filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
-    if workers > 1:
+    if ray is not None:
+        from .parallel import ParallelExplorer, import_ray
+        import_ray()            # the install hint before anything else
+        ex = ParallelExplorer(model, workers=workers, ray=ray, **opts)
+    elif workers > 1:
         from .parallel import ParallelExplorer
         ex = ParallelExplorer(model, workers=workers, **opts)
     else:

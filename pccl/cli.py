@@ -386,10 +386,15 @@ def _plot_run(m, res, path, *, quiet=False):
               help="global time bound (TIME ADVANCE fires only while time + δ ≤ T)")
 @click.option("--max-states", type=click.IntRange(min=1), default=None,
               help="stop after this many distinct states")
-@click.option("--workers", metavar="N|auto", default="1", show_default=True,
+@click.option("--workers", metavar="N|auto", default=None,
               callback=lambda c, p, v: _workers(v),
               help="search with N processes (auto: one per usable core); results are "
-                   "identical for every N")
+                   "identical for every N [default: 1; with --ray: auto, one actor per "
+                   "CPU of the Ray cluster]")
+@click.option("--ray", "ray", metavar="ADDRESS|local", default=None,
+              help="run the workers as Ray actors: on the cluster at ADDRESS (HOST:PORT, "
+                   "auto), or on a Ray instance started on this machine (local); needs "
+                   "pip install 'pccl[ray]'")
 @click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
@@ -425,7 +430,7 @@ def _plot_run(m, res, path, *, quiet=False):
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, reduce, no_deadlock,
             find_all, exact, fmt, plot, progress, progress_interval, trace_out, view, full,
-            coverage, workers):
+            coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_blackbox, explore_model, load_program, make_model
@@ -434,6 +439,12 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
+    if ray is not None:
+        from .parallel import import_ray
+        try:
+            import_ray()
+        except PcclError as e:
+            _fail(e)
     try:
         prog = load_program(program)
         blackbox, reason = explore_blackbox(prog, blackbox)
@@ -450,7 +461,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
                             find_all=find_all, exact=exact, progress=reporter,
                             max_memory="default" if max_memory is None else max_memory,
-                            workers=workers, coverage=coverage,
+                            workers=_ray_workers(workers, ray), ray=ray, coverage=coverage,
                             progress_interval=min(0.5, progress_interval))
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if reporter is not None:
@@ -645,10 +656,23 @@ def statistics_median(xs):
     return statistics.median(xs)
 
 
+def _ray_workers(workers, ray):
+    """--workers as given; unset: 1, or with --ray one actor per cluster CPU."""
+    if ray is None:
+        if workers == "auto":
+            from .parallel import available_workers
+            return available_workers()
+        return 1 if workers is None else workers
+    if workers is None or workers == "auto":
+        return "auto"
+    return workers
+
+
 def _workers(value):
+    if value is None:
+        return None
     if value == "auto":
-        from .parallel import available_workers
-        return available_workers()
+        return value            # resolved by _ray_workers: local cores, or the Ray cluster's
     try:
         n = int(value)
     except ValueError:

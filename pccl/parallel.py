@@ -1,4 +1,5 @@
-"""Parallel breadth-first search: ``--workers N`` processes on one machine.
+"""Parallel breadth-first search: ``--workers N`` processes on one machine,
+or ``--ray ADDRESS`` actors on a Ray cluster.
 
 The design (TLC's and PReach's, adapted to CPython processes):
 
@@ -19,11 +20,31 @@ The design (TLC's and PReach's, adapted to CPython processes):
   ordered by the same keys, so states, transitions, depth, verdict and the
   very counterexample equal those of ``workers=1``.
 
-Per level the coordinator exchanges four messages with every worker
-(expand, decide, check, commit).  Transport is :mod:`multiprocessing`
-pipes between forked processes; the coordinator holds the global parent
-links (4 bytes per state) and replays counterexamples, asking owners for
-state numbers.
+Per level the coordinator makes two rounds with every worker:
+
+1. ``step``: *commit* the previous level (owners record the numbers of the
+   states they own; generators keep the states they won as their level),
+   then *expand* it: successors, their fingerprints, deduplicated locally
+   (and, for the fingerprints a worker owns itself, filtered against its
+   own table), grouped by owner, and the keys of the candidates that
+   violate a property (checked once per distinct fingerprint: equal keys
+   have equal violations).
+2. ``decide``: owners answer which candidates are new (smallest key first).
+
+The coordinator then numbers the new states, orders the stop events and
+sends each worker its share of the decision with the next ``step``.
+
+The partitioning code (:class:`_Worker`, the coordinator loop) is
+engine-neutral; a *transport* moves the two rounds:
+
+* :class:`_Pipes` (``--workers N``): worker 0 runs inside the coordinator
+  process, workers 1..N-1 are forked processes behind
+  :mod:`multiprocessing` pipes.
+* :class:`_RayTransport` (``--ray``): one Ray actor per partition; the
+  arguments and replies of a round travel through Ray's object store.
+
+The coordinator holds the global parent links (4 bytes per state) and
+replays counterexamples, asking owners for state numbers.
 """
 
 from __future__ import annotations
@@ -36,18 +57,23 @@ import operator
 import os
 import signal
 import time as _time
+from typing import Optional
 
 import numpy as np
 import xxhash
 
+from .errors import ArgumentError, PcclError
 from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
 
-__all__ = ["ParallelExplorer", "available_workers"]
+__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING"]
 
 _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
+
+#: The message when ``--ray`` is asked for without Ray installed.
+RAY_MISSING = "--ray needs Ray, an optional extra: pip install 'pccl[ray]'"
 
 
 def available_workers() -> int:
@@ -60,33 +86,48 @@ def available_workers() -> int:
 
 def _owner_split(fps: np.ndarray, keys: np.ndarray, n: int) -> list:
     """Candidates grouped by owning worker: [(fps, keys)] * n."""
+    if n == 1:
+        return [(fps, keys)]
     owner = (fps[:, 1] % np.uint64(n)).astype(np.int64) if len(fps) else np.zeros(0, np.int64)
     return [(fps[owner == w], keys[owner == w]) for w in range(n)]
 
 
 # ---------------------------------------------------------------------------
-# The worker process
+# A worker: one partition of the visited set, and the states it generated
 # ---------------------------------------------------------------------------
 
 class _Worker:
+    """Engine-neutral: the transports call these methods in a process of
+    their own (or, for worker 0 of :class:`_Pipes`, in the coordinator's)."""
+
     def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool):
         self.m, self.wid, self.n = model, wid, n
         self.deadlock, self.find_all = deadlock, find_all
         self.table = FingerprintTable()
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
-        self.cand: list = []           # candidate (label, state) pairs of the level
+        self.cand: list = []           # candidate successors of the level
         self.cand_keys = None          # their keys (ascending)
         self.pending = None            # owner side: (fps, keys) of new states
-        self.won = None                # generator side: (ranks, states)
         key = model.key
-        second, twos = operator.itemgetter(1), itertools.repeat(2)
+        twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
-        self.keys_of = lambda pairs: map(xxh, map(dumps, map(key, map(second, pairs)), twos))
+        self.keys_of = lambda states: map(xxh, map(dumps, map(key, states), twos))
+
+    def ready(self) -> int:
+        """Called once by :class:`_RayTransport` in the actor's process."""
+        gc.disable()            # as in the one-process search: states are acyclic
+        return self.wid
 
     def expand(self, at_bound: bool):
+        """Successors of my share of the level.  Returns the candidates
+        grouped by owner (first occurrences only, my own already-visited
+        ones dropped), per expanded parent its number and successor count,
+        deadlocks ``[(number, violation)]``, the first numbers that met the
+        depth and model bounds, the violating candidates ``[(key,
+        violations)]`` and my peak memory."""
         m, succ_fn = self.m, self.m.successors
-        ck: list = []
+        second = operator.itemgetter(1)
         cs: list = []
         par_idx: list = []
         par_n: list = []
@@ -108,75 +149,96 @@ class _Worker:
                 continue
             par_idx.append(g)
             par_n.append(len(succ))
-            cs.extend(succ)
-            ck.extend(self.keys_of(succ))
+            cs.extend(map(second, succ))
         self.level = []
-        total = len(ck)
+        total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
+        viol: list = []
         if total:
+            ck = list(self.keys_of(cs))
             starts = np.repeat(np.cumsum(pn) - pn, pn)
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
             fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+            # first occurrence of each fingerprint (the smallest key: keys ascend)
+            first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
+                                dtype=np.int64, count=-1)
+            first.sort()
+            f, k = fps[first], keys[first]
+            if self.n > 1:
+                mine = (f[:, 1] % np.uint64(self.n)) == np.uint64(self.wid)
+            else:
+                mine = np.ones(len(k), dtype=bool)
+            seen = np.zeros(len(k), dtype=bool)
+            if mine.any() and self.table.n:
+                seen[mine] = self.table.lookup(f[mine]) >= 0
+            keep = ~seen
+            first, f, k = first[keep], f[keep], k[keep]
+            viol_fn = self.m.violations
+            vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
+            if any(vs):
+                kl = k.tolist()
+                viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
         else:
             keys = np.zeros(0, np.uint64)
-            fps = np.zeros((0, 2), np.uint64)
+            f, k = np.zeros((0, 2), np.uint64), keys
         self.cand, self.cand_keys = cs, keys
-        return (_owner_split(fps, keys, self.n), pi, pn, dead, depth_min, model_min)
+        return (_owner_split(f, k, self.n), pi, pn, dead, depth_min, model_min, viol,
+                peak_rss_bytes())
 
-    def decide(self, parts):
+    def decide(self, parts, distinct: bool = True):
         """Owner side: of the candidates sent to me, the new ones (smallest
-        key per fingerprint); their keys go back to the coordinator."""
-        fps = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 2), np.uint64)
-        keys = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0, np.uint64)
-        if len(keys):
+        key per fingerprint); their keys go back to the coordinator.
+        ``distinct``: each part's fingerprints are distinct (so are those of
+        :meth:`expand`; initial states may repeat)."""
+        parts = [p for p in parts if len(p[1])]
+        if not parts:
+            self.pending = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
+            return self.pending[1]
+        if len(parts) == 1 and distinct:
+            f, k = parts[0]         # one generator: already distinct
+        else:
+            fps = np.concatenate([p[0] for p in parts])
+            keys = np.concatenate([p[1] for p in parts])
             order = np.lexsort((keys, fps[:, 1], fps[:, 0]))
             f, k = fps[order], keys[order]
             first = np.ones(len(k), dtype=bool)
             first[1:] = (f[1:] != f[:-1]).any(axis=1)
             f, k = f[first], k[first]
+        if self.table.n:
             new = self.table.lookup(f) < 0
             f, k = f[new], k[new]
-        else:
-            f, k = fps, keys
         self.pending = (f, k)
         return k
 
-    def check(self, keys, ranks, limit):
-        """Generator side: violations of the new states I generated (those
-        with rank < ``limit``), in rank order; all of them with --all, else
-        the first."""
-        pos = np.searchsorted(self.cand_keys, keys).tolist()
-        cs = self.cand
-        states = [cs[p][1] for p in pos]
-        self.cand, self.cand_keys = [], None
-        ranks = ranks.tolist()
-        self.won = (ranks, states)
-        out = []
-        viol_fn = self.m.violations
-        for r, s in zip(ranks, states):
-            if r >= limit:
-                break
-            v = viol_fn(s)
-            if v:
-                out.append((r, v))
-                if not self.find_all:
-                    break
-        return out
-
-    def commit(self, base: int, cut: int, owner_ranks):
-        if self.won is not None:
-            ranks, states = self.won
-            self.won = None
-            self.level = [s for r, s in zip(ranks, states) if r < cut]
-            self.level_idx = [base + r for r in ranks if r < cut]
-        f, k = self.pending
-        self.pending = None
-        keep = owner_ranks < cut
-        if keep.any():
-            self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
+    def commit(self, decision):
+        """Record the coordinator's decision on the last level: ``(base,
+        cut, owner_ranks, won_keys, won_ranks)`` -- the first new state's
+        number, how many new states are admitted, the ranks of the keys my
+        :meth:`decide` returned, and the keys (ascending) and ranks of the
+        admitted states I generated."""
+        if decision is None:
+            return peak_rss_bytes()
+        base, cut, owner_ranks, won_keys, won_ranks = decision
+        if self.cand_keys is not None:
+            pos = np.searchsorted(self.cand_keys, won_keys).tolist()
+            cs = self.cand
+            self.level = [cs[p] for p in pos]
+            self.level_idx = (won_ranks + base).tolist()
+            self.cand, self.cand_keys = [], None
+        if self.pending is not None:
+            f, _ = self.pending
+            self.pending = None
+            keep = owner_ranks < cut
+            if keep.any():
+                self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
         return peak_rss_bytes()
+
+    def step(self, decision, at_bound: bool):
+        """One round: commit the last level, expand the next."""
+        self.commit(decision)
+        return self.expand(at_bound)
 
     def adopt(self, idx, states):
         self.level_idx.extend(idx)
@@ -186,6 +248,10 @@ class _Worker:
         local = self.table.index_of(fp)
         return -1 if local < 0 else int(self.table.parents[local])
 
+
+# ---------------------------------------------------------------------------
+# Transports: how the rounds reach the workers
+# ---------------------------------------------------------------------------
 
 def _serve(conn, model, wid, n, deadlock, find_all):
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # the coordinator handles Ctrl-C
@@ -199,9 +265,167 @@ def _serve(conn, model, wid, n, deadlock, find_all):
         if cmd == "stop":
             return
         try:
-            conn.send(("ok", getattr(w, cmd)(*args)))
+            reply = ("ok", getattr(w, cmd)(*args))
         except BaseException as exc:         # report, do not hang the coordinator
-            conn.send(("error", exc))
+            reply = ("error", exc)
+        try:
+            conn.send(reply)
+        except (OSError, BrokenPipeError):
+            return
+
+
+class _Pipes:
+    """Worker 0 in this process; workers 1..n-1 forked, behind pipes.  A
+    round sends to the forked workers first, runs worker 0 meanwhile, then
+    collects the replies."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.conns: list = []
+        self.procs: list = []
+        self.outstanding = [0] * n
+        self.local: Optional[_Worker] = None
+
+    def start(self, model, deadlock: bool, find_all: bool) -> None:
+        ctx = multiprocessing.get_context("fork")
+        for w in range(1, self.n):
+            a, b = ctx.Pipe()
+            p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all),
+                            daemon=True)
+            p.start()
+            b.close()
+            self.conns.append(a)
+            self.procs.append(p)
+        self.local = _Worker(model, 0, self.n, deadlock, find_all)
+
+    def stop(self) -> None:
+        for c in self.conns:
+            try:
+                c.send(("stop", ()))
+            except (OSError, BrokenPipeError):
+                pass
+            c.close()
+        for p in self.procs:
+            p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join()
+        self.conns, self.procs, self.local = [], [], None
+
+    def _result(self, w):
+        status, value = self.conns[w - 1].recv()
+        self.outstanding[w] -= 1
+        if status == "error":
+            raise value
+        return value
+
+    def all(self, cmd: str, per_worker: list) -> list:
+        for w in range(1, self.n):
+            self.conns[w - 1].send((cmd, per_worker[w]))
+            self.outstanding[w] += 1
+        mine = getattr(self.local, cmd)(*per_worker[0])
+        return [mine] + [self._result(w) for w in range(1, self.n)]
+
+    def call(self, w: int, cmd: str, *args):
+        if w == 0:
+            return getattr(self.local, cmd)(*args)
+        self.conns[w - 1].send((cmd, args))
+        self.outstanding[w] += 1
+        return self._result(w)
+
+    def drain(self) -> None:
+        """After an interrupt: collect the replies still on their way."""
+        for w in range(1, self.n):
+            while self.outstanding[w] > 0:
+                try:
+                    self._result(w)
+                except Exception:
+                    pass
+
+
+def import_ray():
+    """The ``ray`` module, or a :class:`PcclError` saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise ArgumentError(RAY_MISSING, filename="pccl --ray") from None
+    return ray
+
+
+class _RayTransport:
+    """One Ray actor per partition.  ``address``: ``"local"`` starts a Ray
+    instance on this machine (stopped again after the search); anything
+    else is passed to ``ray.init(address=...)`` (``"auto"``, ``HOST:PORT``,
+    ``ray://HOST:PORT``).  If this process is already connected to Ray
+    (``ray.is_initialized()``), that connection is used and left open."""
+
+    def __init__(self, n: Optional[int], address: str):
+        self.n, self.address = n, address
+        self.actors: list = []
+        self.owned = False
+        self.ray = import_ray()
+
+    @staticmethod
+    def connect(ray, address: str, cpus: int) -> bool:
+        """Connect to Ray; True when this call started (and must stop) it."""
+        import logging
+        if ray.is_initialized():
+            return False
+        quiet = dict(include_dashboard=False, logging_level=logging.WARNING,
+                     log_to_driver=False, configure_logging=True)
+        try:
+            if address == "local":
+                ray.init(num_cpus=cpus, **quiet)
+            else:
+                ray.init(address=address, **quiet)
+        except Exception as exc:
+            raise ArgumentError(f"--ray {address}: cannot start or reach Ray: {exc}",
+                                filename="pccl --ray") from None
+        return True
+
+    def start(self, model, deadlock: bool, find_all: bool) -> None:
+        ray = self.ray
+        self.owned = self.connect(ray, self.address, self.n or available_workers())
+        cpus = ray.cluster_resources().get("CPU", 0)
+        if self.n is None:          # workers="auto": one per CPU of the cluster
+            self.n = max(1, int(cpus))
+        per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
+        actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_Worker)
+        ref = ray.put(model)
+        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all) for w in range(self.n)]
+        self._get([a.ready.remote() for a in self.actors])
+
+    def _get(self, refs):
+        ray = self.ray
+        try:
+            return ray.get(refs)
+        except ray.exceptions.RayTaskError as exc:
+            cause = getattr(exc, "cause", None)
+            if isinstance(cause, (PcclError, MemoryError)):
+                raise cause from None
+            raise
+
+    def all(self, cmd: str, per_worker: list) -> list:
+        return self._get([getattr(a, cmd).remote(*args)
+                          for a, args in zip(self.actors, per_worker)])
+
+    def call(self, w: int, cmd: str, *args):
+        return self._get(getattr(self.actors[w], cmd).remote(*args))
+
+    def drain(self) -> None:
+        pass            # the actors are killed by stop()
+
+    def stop(self) -> None:
+        ray = self.ray
+        for a in self.actors:
+            try:
+                ray.kill(a)
+            except Exception:
+                pass
+        self.actors = []
+        if self.owned:
+            ray.shutdown()
+            self.owned = False
 
 
 # ---------------------------------------------------------------------------
@@ -218,7 +442,7 @@ class _RemoteTable:
 
     def index_of(self, fp: bytes) -> int:
         lo = int(np.frombuffer(fp, dtype=np.uint64)[1])
-        return self.c._call(lo % self.c.workers, "index_of", fp)
+        return self.c.transport.call(lo % self.c.workers, "index_of", fp)
 
     def parent(self, idx: int) -> int:
         p = int(self.c.parents[idx])
@@ -226,7 +450,12 @@ class _RemoteTable:
 
 
 class ParallelExplorer(Explorer):
-    """:class:`Explorer` over ``workers`` processes (fork start method).
+    """:class:`Explorer` over ``workers`` partitions.
+
+    ``ray=None``: processes on this machine (fork start method; worker 0
+    runs in the calling process).  ``ray="local"`` or an address: one Ray
+    actor per partition (needs ``pip install 'pccl[ray]'``; ``workers=None``:
+    one per CPU of the cluster).
 
     Same options and results as :class:`Explorer` (``exact`` is not
     supported: canonical encodings would have to travel instead of
@@ -234,67 +463,14 @@ class ParallelExplorer(Explorer):
     resident memory, checked once per level.
     """
 
-    def __init__(self, model, *, workers: int = 2, **options):
+    def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
+                 **options):
         if options.get("exact"):
             raise ValueError("exact state storage runs in one process (workers=1)")
         super().__init__(model, **options)
         self.workers = workers
-        self.conns: list = []
-        self.procs: list = []
-        self.outstanding: list = [0] * workers
-
-    # -- transport --------------------------------------------------------
-    def _start(self):
-        ctx = multiprocessing.get_context("fork")
-        for w in range(self.workers):
-            a, b = ctx.Pipe()
-            p = ctx.Process(target=_serve, args=(b, self.model, w, self.workers, self.deadlock,
-                                                 self.find_all), daemon=True)
-            p.start()
-            b.close()
-            self.conns.append(a)
-            self.procs.append(p)
-
-    def _stop(self):
-        for c in self.conns:
-            try:
-                c.send(("stop", ()))
-            except (OSError, BrokenPipeError):
-                pass
-        for p in self.procs:
-            p.join(timeout=5)
-            if p.is_alive():
-                p.kill()
-        self.conns, self.procs = [], []
-
-    def _send(self, w, cmd, args):
-        self.conns[w].send((cmd, args))
-        self.outstanding[w] += 1
-
-    def _result(self, w):
-        status, value = self.conns[w].recv()
-        self.outstanding[w] -= 1
-        if status == "error":
-            raise value
-        return value
-
-    def _call(self, w, cmd, *args):
-        self._send(w, cmd, args)
-        return self._result(w)
-
-    def _all(self, cmd, per_worker):
-        for w, args in enumerate(per_worker):
-            self._send(w, cmd, args)
-        return [self._result(w) for w in range(self.workers)]
-
-    def _drain(self):
-        """After an interrupt: collect the replies still on their way."""
-        for w in range(self.workers):
-            while self.outstanding[w] > 0:
-                try:
-                    self._result(w)
-                except Exception:
-                    pass
+        self.ray = ray
+        self.transport = _RayTransport(workers, ray) if ray is not None else _Pipes(workers)
 
     # -- the search ---------------------------------------------------------
     def run(self) -> SearchResult:
@@ -303,16 +479,17 @@ class ParallelExplorer(Explorer):
             prepare()       # lazily built tables that states refer to, before the fork
         enabled = gc.isenabled()
         gc.disable()
-        self._start()
         try:
+            self.transport.start(self.model, self.deadlock, self.find_all)
+            self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
             return self._run()
         finally:
-            self._stop()
+            self.transport.stop()
             if enabled:
                 gc.enable()
 
     def _run(self) -> SearchResult:
-        m, n = self.model, self.workers
+        m, n, T = self.model, self.workers, self.transport
         key = m.key
         t_start = _time.perf_counter()
         stats = Stats()
@@ -326,6 +503,8 @@ class ParallelExplorer(Explorer):
         self.table = _RemoteTable(self)
         total = 0
         peak_workers = [0] * n
+        empty_u64 = np.zeros(0, np.uint64)
+        empty_i64 = np.zeros(0, np.int64)
 
         record = self._recorder(found, reported)
 
@@ -339,8 +518,13 @@ class ParallelExplorer(Explorer):
             self.parents[base:need] = values
             total = need
 
+        def note_peaks(peaks):
+            for w, p in enumerate(peaks):
+                peak_workers[w] = max(peak_workers[w], p)
+
         stop = False
         depth = 0
+        decisions = None        # per worker: the decision on the last level, sent with the next step
         try:
             # -- initial states: numbered here in chunks, handed out round-robin
             it = iter(m.init_states())
@@ -351,7 +535,7 @@ class ParallelExplorer(Explorer):
                 fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
                                     dtype=np.uint64).reshape(-1, 2)
                 keys = np.arange(len(chunk), dtype=np.uint64)
-                new_keys = self._all("decide", [([p],) for p in _owner_split(fps, keys, n)])
+                new_keys = T.all("decide", [([p], False) for p in _owner_split(fps, keys, n)])
                 order = np.sort(np.concatenate(new_keys))
                 base = total
                 cut = len(order)
@@ -364,14 +548,17 @@ class ParallelExplorer(Explorer):
                     if v and record(v, base + r, 0):
                         cut, stop = r + 1, True
                         break
-                rank_of = {int(k): r for r, k in enumerate(order.tolist())}
-                owner_ranks = [np.array([rank_of[int(k)] for k in nk.tolist()], dtype=np.int64)
-                               for nk in new_keys]
-                peaks = self._all("commit", [(base, cut, orr) for orr in owner_ranks])
-                peak_workers = [max(a, b) for a, b in zip(peak_workers, peaks)]
+                ranks = np.searchsorted(order, np.concatenate(new_keys)) if len(order) \
+                    else empty_i64
+                owner_ranks, a = [], 0
+                for nk in new_keys:
+                    owner_ranks.append(ranks[a:a + len(nk)])
+                    a += len(nk)
+                note_peaks(T.all("commit", [((base, cut, orr, empty_u64, empty_i64),)
+                                            for orr in owner_ranks]))
                 for w in range(n):
                     idx = [g for g in range(base, base + cut) if g % n == w]
-                    self._call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
+                    T.call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
                 put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
             cut = total
             stats.initial_states = total
@@ -381,10 +568,13 @@ class ParallelExplorer(Explorer):
             next_report = _time.perf_counter() + self.progress_interval
             while level_size and not stop:
                 at_bound = self.max_depth is not None and depth >= self.max_depth
-                replies = self._all("expand", [(at_bound,)] * n)
+                replies = T.all("step", [(decisions[w] if decisions else None, at_bound)
+                                         for w in range(n)])
+                decisions = None
+                note_peaks([r[7] for r in replies])
                 # route the candidates to their owners
                 per_owner = [[r[0][w] for r in replies] for w in range(n)]
-                new_keys = self._all("decide", [(parts,) for parts in per_owner])
+                new_keys = T.all("decide", [(parts,) for parts in per_owner])
                 allk = np.concatenate(new_keys)
                 order = np.argsort(allk, kind="stable")
                 sorted_keys = allk[order]
@@ -399,21 +589,15 @@ class ParallelExplorer(Explorer):
                 for r in replies:
                     for g, v in r[3]:
                         events.append((g << _SHIFT, 0, (g, v)))
+                    for k, v in r[6]:        # violating candidates: those that are new
+                        pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
+                        if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
+                            events.append((k, 1, (pos, v)))
                 limit = len(sorted_keys)
                 budget_key = None
                 if limit > budget - total:
                     limit = budget - total
                     budget_key = int(sorted_keys[limit])
-                # generators check violations of the states they won
-                gen = holder[(sorted_keys >> np.uint64(_SHIFT)).astype(np.int64) - level_base] \
-                    if len(sorted_keys) else np.zeros(0, np.int64)
-                per_gen = []
-                for w in range(n):
-                    sel = np.nonzero(gen == w)[0]
-                    per_gen.append((sorted_keys[sel], sel, limit))
-                for vs in self._all("check", per_gen):
-                    for r, v in vs:
-                        events.append((int(sorted_keys[r]), 1, (r, v)))
                 events.sort(key=lambda e: (e[0], e[1]))
                 stop_key = None
                 cut = limit
@@ -449,17 +633,22 @@ class ParallelExplorer(Explorer):
                         if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
                             bounds.add(b)
                 base = total
-                peaks = self._all("commit", [(base, cut, orr) for orr in owner_ranks])
-                peak_workers = [max(a, b) for a, b in zip(peak_workers, peaks)]
+                # who generated each admitted state: its parent's holder
+                gen = holder[(sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
+                             - level_base] if cut else empty_i64
+                decisions = []
+                for w in range(n):
+                    sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
+                    decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
                 put_parents(base, (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.uint32))
-                holder = gen[:cut]
+                holder = gen
                 level_base, level_size = base, cut
                 if cut:
                     depth += 1
                     stats.max_depth = depth
                 stats.frontier = cut
                 if self.max_memory is not None and not stop and \
-                        peak_rss_bytes() + sum(peak_workers) > self.max_memory:
+                        self._memory(peak_workers) > self.max_memory:
                     bounds.add(Bound.MAX_MEMORY)
                     stop = True
                 if self.progress is not None:
@@ -468,13 +657,21 @@ class ParallelExplorer(Explorer):
                         next_report = now + self.progress_interval
                         self.progress({"states": total, "frontier": cut, "depth": depth,
                                        "seconds": now - t_start,
-                                       "memory": peak_rss_bytes() + sum(peak_workers)})
+                                       "memory": self._memory(peak_workers)})
+            if decisions:       # the last level's decision: owners record its states
+                note_peaks(T.all("commit", [(d,) for d in decisions]))
+                decisions = None
         except KeyboardInterrupt:
             res.status = "interrupted"
-            self._drain()
+            T.drain()
+            if decisions and found:     # the owners must know the states to replay
+                try:
+                    T.all("commit", [(d,) for d in decisions])
+                except Exception:
+                    found.clear()
         stats.states = total
         stats.seconds = _time.perf_counter() - t_start
-        stats.peak_memory = peak_rss_bytes() + sum(peak_workers)
+        stats.peak_memory = self._memory(peak_workers)
         res.collision_probability = collision_bound(stats.states)
         res.bounds_hit = sorted(bounds, key=lambda b: b.value)
         if res.status != "interrupted":
@@ -482,3 +679,10 @@ class ParallelExplorer(Explorer):
         for f in found:
             f.trace = self.replay(f.index)
         return res
+
+    def _memory(self, peak_workers) -> int:
+        """Peak memory summed over the processes: with pipes worker 0 is
+        this process; with Ray every worker is an actor of its own."""
+        if self.ray is None:
+            return peak_rss_bytes() + sum(peak_workers[1:])
+        return peak_rss_bytes() + sum(peak_workers)

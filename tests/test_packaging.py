@@ -63,6 +63,9 @@ def test_packaging_metadata_makes_pymunk_an_extra():
     assert "pymunk" not in deps and "psutil" in deps and "rich" in deps
     assert meta["optional-dependencies"]["physics"] == ["pymunk>=6.6"]
     assert any(d.startswith("pymunk") for d in meta["optional-dependencies"]["test"])
+    assert meta["optional-dependencies"]["ray"] == ["ray>=2.9"]
+    assert "ray>=2.9" in meta["optional-dependencies"]["test"]     # so CI runs the Ray tests
+    assert not any(d.startswith("ray") for d in meta["dependencies"])
 
 
 # ---------------------------------------------------------------------------
@@ -127,3 +130,7 @@ def test_clean_install_without_extras_explores(tmp_path):
                           "-b", "pymunk"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
     assert "pip install 'pccl[physics]'" in res.stderr
+    res = subprocess.run([str(bindir / "pccl"), "explore", FISCHER, "--ray", "local"],
+                         capture_output=True, text=True, timeout=120, cwd=str(tmp_path))
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    assert "pip install 'pccl[ray]'" in res.stderr

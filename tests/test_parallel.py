@@ -84,3 +84,84 @@ def test_cli_workers_option():
     bad = subprocess.run(base + ["--workers", "zero"], capture_output=True, text=True)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert available_workers() >= 1
+
+
+# ---------------------------------------------------------------------------
+# The Ray backend (``--ray``): the same partitioned search, actors as workers
+# ---------------------------------------------------------------------------
+
+def _ray():
+    try:
+        import ray
+    except ImportError:
+        pytest.skip("ray is not installed (pip install 'pccl[ray]')")
+    return ray
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """One local Ray instance for the module (start-up costs seconds); the
+    explorer uses an existing connection and leaves it open."""
+    ray = _ray()
+    import logging
+    ray.init(num_cpus=2, include_dashboard=False, logging_level=logging.WARNING,
+             log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+# Few cases (each run creates its actors): the partitioning code is the one
+# the pipe tests above cover for every program; these check the transport.
+RAY_CASES = [("fischer-violation", 2), ("race-nonatomic-stuck", 3), ("fischer-max-states", 2)]
+
+
+@pytest.mark.slow
+def test_ray_actors_give_the_one_process_results(local_ray):
+    for name, w in RAY_CASES:
+        program, opts = CASES[name]
+        one = signature(explore(program, **opts))
+        assert signature(explore(program, ray="auto", workers=w, **opts)) == one, \
+            f"{name}: ray with {w} actors"
+    assert local_ray.is_initialized()        # a connection it did not open stays open
+
+
+@pytest.mark.slow
+def test_cli_ray_local_starts_and_stops_ray():
+    _ray()
+    base = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=1",
+            "--invariant", MUTEX, "--no-progress", "--format", "json"]
+    one = subprocess.run(base, capture_output=True, text=True)
+    ray = subprocess.run(base + ["--ray", "local", "--workers", "2"], capture_output=True,
+                         text=True, timeout=300)
+    assert one.returncode == ray.returncode == 1, ray.stderr
+    import json
+    a, b = json.loads(one.stdout), json.loads(ray.stdout)
+    for k in ("states", "transitions", "max_depth"):
+        assert a["statistics"][k] == b["statistics"][k]
+    assert a["violations"] == b["violations"]
+
+
+def test_ray_missing_says_how_to_install():
+    """Without the extra, --ray exits 2 with the install command (ray made
+    unimportable in the child)."""
+    code = ("import sys; sys.modules['ray'] = None; sys.argv = ['pccl'] + sys.argv[1:]; "
+            "from pccl.cli import main; main()")
+    r = subprocess.run([sys.executable, "-c", code, "explore", FISCHER, "--ray", "local"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "pip install 'pccl[ray]'" in r.stderr and "Traceback" not in r.stderr
+    code_api = ("import sys; sys.modules['ray'] = None\n"
+                "from pccl.api import explore\n"
+                "from pccl.errors import PcclError\n"
+                "try:\n    explore('programs/fischer.pccl', ray='local')\n"
+                "except PcclError as e:\n    print(e)\n")
+    r = subprocess.run([sys.executable, "-c", code_api], capture_output=True, text=True)
+    assert "pip install 'pccl[ray]'" in r.stdout, r.stderr
+
+
+def test_bad_ray_argument_is_named():
+    from pccl.errors import ArgumentError
+    with pytest.raises(ArgumentError, match="ray must be"):
+        explore(FISCHER, overrides={"k": "0"}, ray=3)
+    with pytest.raises(ArgumentError, match="one process"):
+        explore(FISCHER, overrides={"k": "0"}, exact=True, ray="local")

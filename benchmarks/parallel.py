@@ -1,0 +1,155 @@
+"""Parallel search benchmark: 1 worker against 2, old code against new.
+
+    python benchmarks/parallel.py                    # fischer k=2 and k=4, exhaustive
+    python benchmarks/parallel.py --full             # also the paper's k=10 exhaustive
+    python benchmarks/parallel.py --ray              # also --ray local (2 actors)
+    python benchmarks/parallel.py --baseline REV     # the "old" code [default: 905a05b]
+    python benchmarks/parallel.py --repeat 5 --only k=2
+
+Every run is a fresh process.  The configurations of a case alternate
+(``--repeat`` rounds) so that load on a shared machine hits them alike; the
+speedup is computed within each round (1-worker seconds / 2-worker seconds
+of the same round) and the table shows the median and the range.
+
+Columns: ``search s`` is the search's own time (``stats.seconds``: no
+program loading, no Ray start-up), ``process s`` the whole process's wall
+time, ``CPU s`` the user + system time of the process and of the worker
+processes it forked and waited for (Ray's actors are not its children: for
+``ray`` rows it is the driver's alone).  Results (states, transitions,
+depth, status) are checked to be identical across configurations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+from run import checkout  # noqa: E402  (the git-archive checkout of another revision)
+
+#: main before the two-round protocol, the inline worker and --ray.
+BASELINE = "905a05b"
+
+CASES = [
+    ("fischer k=2 d=2, exhaustive", dict(program="programs/fischer.pccl",
+                                         overrides={"k": "2", "d": "2"})),
+    ("fischer k=4 d=2, exhaustive", dict(program="programs/fischer.pccl",
+                                         overrides={"k": "4", "d": "2"})),
+]
+FULL = [
+    ("fischer k=10 d=2 (paper), exhaustive", dict(program="programs/fischer.pccl")),
+]
+
+CHILD = r"""
+import json, os, sys, time
+code = os.environ.get("PCCL_BENCH_CODE")
+if code:   # import that tree, not the (editable) install
+    sys.path.insert(0, code)
+    sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in type(f).__module__]
+from pccl.api import make_model, explore_model
+spec = json.loads(sys.argv[1])
+workers, ray = spec.pop("workers"), spec.pop("ray", None)
+m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None))
+r = explore_model(m, workers=workers, max_memory=None, **({"ray": ray} if ray else {}))
+s = r.stats
+print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
+                  "depth": s.max_depth, "seconds": s.seconds, "peak": s.peak_memory,
+                  "code": __import__("pccl").__file__}))
+"""
+
+
+def run_one(spec: dict, workers: int, code_dir=None, ray=None) -> dict:
+    env = dict(os.environ)
+    if code_dir is not None:
+        env["PCCL_BENCH_CODE"] = code_dir
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", CHILD,
+                          json.dumps({**spec, "workers": workers, "ray": ray})],
+                         cwd=ROOT, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if out.returncode != 0:
+        sys.exit(f"benchmark child failed:\n{out.stderr}")
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    want = code_dir or ROOT
+    assert os.path.realpath(r["code"]).startswith(os.path.realpath(want)), (r["code"], want)
+    r["process"] = wall
+    r["cpu"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return r
+
+
+def fmt_range(xs, spec=".2f"):
+    return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--full", action="store_true", help="include the paper's k=10 exhaustive")
+    ap.add_argument("--ray", action="store_true", help="also --ray local with 2 actors")
+    ap.add_argument("--baseline", default=BASELINE, metavar="REV",
+                    help=f"git revision of the old code [default: {BASELINE}]")
+    ap.add_argument("--no-baseline", action="store_true", help="this checkout only")
+    ap.add_argument("--repeat", type=int, default=3, help="rounds [default: 3]")
+    ap.add_argument("--only", metavar="TEXT", help="the cases whose name contains TEXT")
+    ap.add_argument("--json", action="store_true", help="print JSON lines")
+    args = ap.parse_args()
+    cases = CASES + (FULL if args.full else [])
+    if args.only:
+        cases = [c for c in cases if args.only in c[0]]
+    print(f"machine: {os.cpu_count()} CPUs, load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())} at the start", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
+        configs = [("1 worker", 1, None, None), ("2 workers", 2, None, None)]
+        if old_dir is not None:
+            configs.append((f"2 workers old {args.baseline}", 2, old_dir, None))
+        if args.ray:
+            configs.append(("ray local, 2 actors", 2, None, "local"))
+        hdr = f"{'case':<30} {'configuration':<28} {'search s':>19} {'process s':>19} " \
+              f"{'CPU s':>19} {'speedup vs 1':>19}"
+        if not args.json:
+            print(hdr)
+            print("-" * len(hdr), flush=True)
+        for name, spec in cases:
+            runs: dict = {c[0]: [] for c in configs}
+            for _ in range(args.repeat):
+                for label, w, code, ray in configs:
+                    runs[label].append(run_one(dict(spec), w, code, ray))
+            ref = runs["1 worker"]
+            sig = {(r["status"], r["states"], r["transitions"], r["depth"]) for rs in runs.values()
+                   for r in rs}
+            assert len(sig) == 1, f"results differ between configurations: {sig}"
+            for label, *_ in configs:
+                rs = runs[label]
+                speed = [a["seconds"] / b["seconds"] for a, b in zip(ref, rs)]
+                if args.json:
+                    print(json.dumps({"case": name, "configuration": label,
+                                      "seconds": [r["seconds"] for r in rs],
+                                      "process": [r["process"] for r in rs],
+                                      "cpu": [r["cpu"] for r in rs], "speedup": speed,
+                                      "states": rs[0]["states"],
+                                      "peak": [r["peak"] for r in rs]}))
+                    continue
+                print(f"{name:<30} {label:<28} {fmt_range([r['seconds'] for r in rs]):>19} "
+                      f"{fmt_range([r['process'] for r in rs]):>19} "
+                      f"{fmt_range([r['cpu'] for r in rs]):>19} "
+                      f"{fmt_range(speed):>19}", flush=True)
+            if not args.json:
+                r = ref[0]
+                print(f"{'':<30} ({r['status']}, {r['states']:,} states, "
+                      f"{r['transitions']:,} transitions, depth {r['depth']})", flush=True)
+    print(f"load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()
