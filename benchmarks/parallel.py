@@ -5,6 +5,7 @@
     python benchmarks/parallel.py --ray              # also --ray local (2 actors)
     python benchmarks/parallel.py --baseline REV     # the "old" code [default: 905a05b]
     python benchmarks/parallel.py --repeat 5 --only k=2
+    python benchmarks/parallel.py --round-trip       # one synchronisation round, alone
 
 Every run is a fresh process.  The configurations of a case alternate
 (``--repeat`` rounds) so that load on a shared machine hits them alike; the
@@ -88,6 +89,37 @@ def run_one(spec: dict, workers: int, code_dir=None, ray=None) -> dict:
     return r
 
 
+def round_trip(rounds: int = 300) -> None:
+    """The cost of one round with an empty method: through pipes (2
+    workers, one forked) and through a local Ray instance (2 actors)."""
+    sys.path.insert(0, ROOT)
+    from pccl.api import make_model
+    from pccl import parallel as P
+    m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "0"})
+    m.prepare()
+    transports = [("pipes, 2 workers", lambda: P._Pipes(2))]
+    try:
+        import ray  # noqa: F401
+        transports.append(("ray local, 2 actors", lambda: P._RayTransport(2, "local")))
+    except ImportError:
+        print("ray is not installed: pipes only")
+    for name, make in transports:
+        t = make()
+        t.start(m, True, False)
+        try:
+            xs = []
+            for _ in range(rounds):
+                t0 = time.perf_counter()
+                t.all("ready", [()] * 2)
+                xs.append(time.perf_counter() - t0)
+        finally:
+            t.stop()
+        xs.sort()
+        print(f"{name:<22} one round: median {1e3 * statistics.median(xs):.3f} ms, "
+              f"10th-90th percentile {1e3 * xs[len(xs) // 10]:.3f}-"
+              f"{1e3 * xs[len(xs) * 9 // 10]:.3f} ms ({rounds} rounds)", flush=True)
+
+
 def fmt_range(xs, spec=".2f"):
     return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
 
@@ -102,12 +134,16 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="rounds [default: 3]")
     ap.add_argument("--only", metavar="TEXT", help="the cases whose name contains TEXT")
     ap.add_argument("--json", action="store_true", help="print JSON lines")
+    ap.add_argument("--round-trip", action="store_true",
+                    help="only measure one synchronisation round (pipes, Ray)")
     args = ap.parse_args()
+    print(f"machine: {os.cpu_count()} CPUs, load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())} at the start", flush=True)
+    if args.round_trip:
+        return round_trip()
     cases = CASES + (FULL if args.full else [])
     if args.only:
         cases = [c for c in cases if args.only in c[0]]
-    print(f"machine: {os.cpu_count()} CPUs, load average "
-          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())} at the start", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
         configs = [("1 worker", 1, None, None), ("2 workers", 2, None, None)]

@@ -41,7 +41,10 @@ engine-neutral; a *transport* moves the two rounds:
   process, workers 1..N-1 are forked processes behind
   :mod:`multiprocessing` pipes.
 * :class:`_RayTransport` (``--ray``): one Ray actor per partition; the
-  arguments and replies of a round travel through Ray's object store.
+  arguments and replies of a round travel through Ray's object store, and
+  the candidates go from their generator to their owner as object
+  references (actor to actor; the coordinator fetches only the small part
+  of each reply).
 
 The coordinator holds the global parent links (4 bytes per state) and
 replays counterexamples, asking owners for state numbers.
@@ -62,7 +65,7 @@ from typing import Optional
 import numpy as np
 import xxhash
 
-from .errors import ArgumentError, PcclError
+from .errors import ArgumentError
 from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
@@ -187,11 +190,17 @@ class _Worker:
         return (_owner_split(f, k, self.n), pi, pn, dead, depth_min, model_min, viol,
                 peak_rss_bytes())
 
-    def decide(self, parts, distinct: bool = True):
-        """Owner side: of the candidates sent to me, the new ones (smallest
-        key per fingerprint); their keys go back to the coordinator.
-        ``distinct``: each part's fingerprints are distinct (so are those of
-        :meth:`expand`; initial states may repeat)."""
+    def decide(self, *parts):
+        """Owner side: of the candidates sent to me (one ``(fps, keys)`` part
+        per generator), the new ones (smallest key per fingerprint); their
+        keys go back to the coordinator."""
+        return self._decide(parts, True)
+
+    def decide_initial(self, part):
+        """:meth:`decide` for a chunk of initial states (which may repeat)."""
+        return self._decide([part], False)
+
+    def _decide(self, parts, distinct: bool):
         parts = [p for p in parts if len(p[1])]
         if not parts:
             self.pending = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
@@ -236,9 +245,13 @@ class _Worker:
         return peak_rss_bytes()
 
     def step(self, decision, at_bound: bool):
-        """One round: commit the last level, expand the next."""
+        """One round: commit the last level, expand the next.  Returns the
+        candidates for each owner, then the rest of :meth:`expand`'s reply,
+        as ``n + 1`` values (so that Ray can hand each part to its owner
+        without the coordinator fetching it)."""
         self.commit(decision)
-        return self.expand(at_bound)
+        r = self.expand(at_bound)
+        return (*r[0], r[1:])
 
     def adopt(self, idx, states):
         self.level_idx.extend(idx)
@@ -326,6 +339,11 @@ class _Pipes:
         mine = getattr(self.local, cmd)(*per_worker[0])
         return [mine] + [self._result(w) for w in range(1, self.n)]
 
+    def step(self, per_worker: list):
+        """The *step* round: (parts[generator][owner], rest of each reply)."""
+        replies = self.all("step", per_worker)
+        return [r[:self.n] for r in replies], [r[self.n] for r in replies]
+
     def call(self, w: int, cmd: str, *args):
         if w == 0:
             return getattr(self.local, cmd)(*args)
@@ -401,13 +419,23 @@ class _RayTransport:
             return ray.get(refs)
         except ray.exceptions.RayTaskError as exc:
             cause = getattr(exc, "cause", None)
-            if isinstance(cause, (PcclError, MemoryError)):
+            if isinstance(cause, Exception):    # as the pipes transport: the worker's own error
                 raise cause from None
             raise
 
     def all(self, cmd: str, per_worker: list) -> list:
         return self._get([getattr(a, cmd).remote(*args)
                           for a, args in zip(self.actors, per_worker)])
+
+    def step(self, per_worker: list):
+        """The *step* round.  Only the small part of each reply comes to the
+        coordinator; the candidates stay in the object store as references,
+        which the *decide* round passes to their owners (Ray moves them
+        actor to actor)."""
+        n = self.n
+        refs = [a.step.options(num_returns=n + 1).remote(*args)
+                for a, args in zip(self.actors, per_worker)]
+        return [r[:n] for r in refs], self._get([r[n] for r in refs])
 
     def call(self, w: int, cmd: str, *args):
         return self._get(getattr(self.actors[w], cmd).remote(*args))
@@ -535,7 +563,7 @@ class ParallelExplorer(Explorer):
                 fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
                                     dtype=np.uint64).reshape(-1, 2)
                 keys = np.arange(len(chunk), dtype=np.uint64)
-                new_keys = T.all("decide", [([p], False) for p in _owner_split(fps, keys, n)])
+                new_keys = T.all("decide_initial", [(p,) for p in _owner_split(fps, keys, n)])
                 order = np.sort(np.concatenate(new_keys))
                 base = total
                 cut = len(order)
@@ -568,13 +596,16 @@ class ParallelExplorer(Explorer):
             next_report = _time.perf_counter() + self.progress_interval
             while level_size and not stop:
                 at_bound = self.max_depth is not None and depth >= self.max_depth
-                replies = T.all("step", [(decisions[w] if decisions else None, at_bound)
+                parts, replies = T.step([(decisions[w] if decisions else None, at_bound)
                                          for w in range(n)])
                 decisions = None
-                note_peaks([r[7] for r in replies])
+                # replies[w]: (parent numbers, successor counts, deadlocks, first
+                # number at the depth bound, ... at the model bound, violating
+                # candidates, peak memory)
+                note_peaks([r[6] for r in replies])
                 # route the candidates to their owners
-                per_owner = [[r[0][w] for r in replies] for w in range(n)]
-                new_keys = T.all("decide", [(parts,) for parts in per_owner])
+                new_keys = T.all("decide", [tuple(parts[g][o] for g in range(n))
+                                            for o in range(n)])
                 allk = np.concatenate(new_keys)
                 order = np.argsort(allk, kind="stable")
                 sorted_keys = allk[order]
@@ -587,9 +618,9 @@ class ParallelExplorer(Explorer):
                 # the stop events, in the serial search's order (by key)
                 events = []                  # (key, kind, payload)
                 for r in replies:
-                    for g, v in r[3]:
+                    for g, v in r[2]:
                         events.append((g << _SHIFT, 0, (g, v)))
-                    for k, v in r[6]:        # violating candidates: those that are new
+                    for k, v in r[5]:        # violating candidates: those that are new
                         pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
                         if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
                             events.append((k, 1, (pos, v)))
@@ -620,8 +651,8 @@ class ParallelExplorer(Explorer):
                     stop_key = budget_key
                     bounds.add(Bound.MAX_STATES)
                 # transitions: parents expanded up to the stop
-                pis = np.concatenate([r[1] for r in replies])
-                pns = np.concatenate([r[2] for r in replies])
+                pis = np.concatenate([r[0] for r in replies])
+                pns = np.concatenate([r[1] for r in replies])
                 if stop_key is None:
                     stats.transitions += int(pns.sum())
                 else:
@@ -629,7 +660,7 @@ class ParallelExplorer(Explorer):
                     stop = True
                 # bounds met before the stop
                 for r in replies:
-                    for b, g in ((Bound.DEPTH, r[4]), (Bound.MODEL, r[5])):
+                    for b, g in ((Bound.DEPTH, r[3]), (Bound.MODEL, r[4])):
                         if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
                             bounds.add(b)
                 base = total

@@ -31,6 +31,8 @@ CASES = {
     "fischer-max-states": (FISCHER, dict(overrides={"k": "1", "d": "1"}, max_states=3000)),
     "fischer-depth": (FISCHER, dict(overrides={"k": "1", "d": "1"}, depth=15)),
     "fischer-max-time": (FISCHER, dict(overrides={"k": "0", "d": "1"}, max_time=2)),
+    "fischer-reduce-auto": (FISCHER, dict(overrides={"k": "1"}, invariants=[MUTEX],
+                                          reduce="auto")),
     "race-nonatomic-stuck": ("programs/race_nonatomic.pccl",
                              dict(world=RACE_WORLD, blackbox="nondet", agents=3)),
     "race-nonatomic-all": ("programs/race_nonatomic.pccl",
