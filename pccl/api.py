@@ -374,7 +374,7 @@ def run(program, **options) -> RunResult:
 
 def check(program, *, world=None, source: bool = False):
     """Parse and statically check ``program`` (``pccl check``); the names of
-    ``world``'s functions may be called.  Returns the checker's ProgramInfo."""
+    ``world``'s functions may be called.  Returns the :class:`~pccl.checker.CheckedProgram`."""
     from .checker import check_program
     V.program("check", program, source)
     V.world("check", world)

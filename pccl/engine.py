@@ -35,6 +35,7 @@ from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .fingerprint import check_canonical
+from .types import OBSTACLES, POS
 from .values import UNDEF
 from .semantics import rules as R
 from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
@@ -374,19 +375,16 @@ class Model:
             return None
         if isinstance(s, A.CallStmt):
             if s.name == "doReach":
-                if len(s.args) != 2:
-                    c.error("'doReach' takes 2 arguments", s)
-                from .compile import VType
-                t = c.value(s.args[0], VType("pos"))
-                o = c.value(s.args[1], VType("obstacles"))
+                assert len(s.args) == 2, "the checker counts arguments"
+                t = c.value(s.args[0], POS)
+                o = c.value(s.args[1], OBSTACLES)
                 return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
             if s.name == "exit":
                 return None
             if s.name == "assert":
                 return c.make_expr(s.args[0])
-            if s.name in ("add", "remove"):
-                return c.effect(s)
-            c.error(f"unknown statement '{s.name}'", s)
+            assert s.name in ("add", "remove"), f"the checker knows no statement {s.name!r}"
+            return c.effect(s)
         return c.effect(s)
 
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
