@@ -409,13 +409,14 @@ def test_explore_run_json_stuck_status():
     assert len(stuck) == 1 and stuck[0]["line"] == 35 and "remove" in stuck[0]["reason"]
 
 
-def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict():
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers):
     import signal
     import time
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER),
-         "--set", "k=6", "--no-progress"],
+         "--set", "k=6", "--no-progress", "--workers", workers],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(3)
     proc.send_signal(signal.SIGINT)
