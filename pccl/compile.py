@@ -6,11 +6,9 @@ signature ``f(i, ag, sh, ags)``: agent id, the agent's tuple, the shared
 variable tuple and the tuple of all agents.  Property expressions have the
 signature ``f(st)`` over a whole configuration.
 
-Configuration layout (see :mod:`pccl.engine`)::
-
-    state = (time, phase, lockQueue, shared, agents, env)
-    agent = (pc, counter, lockState, status, locals, allread, position, reach)
-    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+The configuration's layout is :mod:`pccl.layout`'s; the generated code
+indexes cells with its constants interpolated as numbers (``f"ag[{AR}]"``
+becomes a literal subscript), so naming them costs nothing at run time.
 """
 
 from __future__ import annotations
@@ -23,11 +21,15 @@ from . import ast as A
 from . import values as V
 from .builtins import BUILTINS
 from .errors import PcclError
+from .layout import AGS, AR, DONE, FAIL, LOC, N_AGENT_CELLS, POS, REACH, SH, TIME
 
-# agent tuple slots
-PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
-# state tuple slots
-TIME, PHASE, LQ, SH, AGS, ENV = range(6)
+
+def _rebuild(var: str, index: int, new: str) -> str:
+    """Source of the agent tuple ``var`` with cell ``index`` replaced by ``new``:
+    a tuple display with numeric subscripts (the fastest rebuild)."""
+    cells = [new if k == index else f"{var}[{k}]" for k in range(N_AGENT_CELLS)]
+    return "(" + ", ".join(cells) + ")"
+
 
 STATEMENT_FUNCS = {"doReach", "exit", "assert", "add", "remove"}
 UNINTERPRETED_DEFAULT = ("getInput", "getObs")
@@ -368,7 +370,7 @@ class Compiler:
     def make_expr(self, e: A.Expr, *, prop: bool = False, bound=()):
         src = self.expr(e, prop=prop, bound=bound)
         if prop:
-            return self.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
+            return self.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
         return self.make("i, ag, sh, ags", f"    return {src}\n")
 
     def uninterpreted_value(self, name, node, ty: Optional[VType] = None):
@@ -500,7 +502,7 @@ class Compiler:
             if n in bound:
                 return self._qval.get(n) or self.bvar(n)
             if n == "time":
-                return "st[0]"
+                return f"st[{TIME}]"
             if n == "N":
                 return repr(self.N)
         vs = self.lay.vars.get(n)
@@ -510,18 +512,18 @@ class Compiler:
             elif prop:
                 self.error(f"'{n}' is per-agent: write {n}[i]", e)
             elif vs.section == "allread":
-                ref = f"ag[5][{vs.slot}]"
+                ref = f"ag[{AR}][{vs.slot}]"
             else:
-                ref = f"ag[4][{vs.slot}]"
+                ref = f"ag[{LOC}][{vs.slot}]"
             if vs.may_undef and vs.ty.kind != "array":
                 return f"_d({ref}, {n!r})"
             return ref
         if n in self.lay.members:
             return repr(self.lay.members[n][1])
         if not prop and n == "doReach_done":
-            return "ag[7][3]"
+            return f"ag[{REACH}][{DONE}]"
         if not prop and n == "doReach_fail":
-            return "ag[7][4]"
+            return f"ag[{REACH}][{FAIL}]"
         self.error(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
@@ -538,18 +540,19 @@ class Compiler:
             vs = self.lay.vars.get(n)
             if prop and vs is None and n in ("pos", "doReach_done", "doReach_fail"):
                 j = ex(idx[0])
-                cell = {"pos": "[6]", "doReach_done": "[7][3]", "doReach_fail": "[7][4]"}[n]
+                cell = {"pos": f"[{POS}]", "doReach_done": f"[{REACH}][{DONE}]",
+                        "doReach_fail": f"[{REACH}][{FAIL}]"}[n]
                 ref = f"_ag(ags, {j}, {n + '[…]'!r}){cell}"
                 return self._index_rest(ref, idx[1:], ex)
             if vs is not None and vs.section != "allwrite":
                 if prop:
-                    cell = 5 if vs.section == "allread" else 4
+                    cell = AR if vs.section == "allread" else LOC
                     ref = f"_av(ags, {ex(idx[0])}, {cell}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
                 if vs.section == "allread":
                     if vs.ty.kind == "array" and len(idx) == 1:
-                        return f"_ix(ag[5][{vs.slot}], {ex(idx[0])})"
-                    ref = f"_av(ags, {ex(idx[0])}, 5, {vs.slot}, {n!r})"
+                        return f"_ix(ag[{AR}][{vs.slot}], {ex(idx[0])})"
+                    ref = f"_av(ags, {ex(idx[0])}, {AR}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
         return f"_ix({ex(e.base)}, {ex(e.index)})"
 
@@ -575,12 +578,12 @@ class Compiler:
             a = args[0]
             if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
                     and a.name not in self.lay.vars:
-                k = 3 if a.name == "doReach_done" else 4
-                return self._count(f"[7][{k}]")
+                k = DONE if a.name == "doReach_done" else FAIL
+                return self._count(f"[{REACH}][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
             if vs is None or vs.section == "allwrite":
                 self.error("count(v) needs a per-agent boolean variable", e)
-            slot = 4 if vs.section == "loc" else 5
+            slot = LOC if vs.section == "loc" else AR
             return self._count(f"[{slot}][{vs.slot}]")
         if n == "getAgentIndex":
             return "i"
@@ -589,7 +592,7 @@ class Compiler:
         if n == "rand":
             return f"_R({ex(args[0])}, {self.const(e.span)})"
         if n == "getPosition":
-            return "ag[6]"
+            return f"ag[{POS}]"
         if n == "ItemPosition":
             return "_pos(" + ", ".join(ex(a) for a in args) + ")"
         if n == "dist":
@@ -682,9 +685,9 @@ class Compiler:
         if vs.section == "allwrite":
             cont = "sh"
         elif vs.section == "allread":
-            cont = "ag[5]"
+            cont = f"ag[{AR}]"
         else:
-            cont = "ag[4]"
+            cont = f"ag[{LOC}]"
         if path:
             lines.append(f"v = _set_in({cont}[{j}], ({', '.join(path)},), v)")
         new = f"{cont}[:{j}] + (v,) + {cont}[{j + 1}:]"
@@ -692,18 +695,18 @@ class Compiler:
             lines.append(f"sh2 = {new}")
             lines.append("ag2 = ag")
         elif vs.section == "allread":
-            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], ag[4], {new}, ag[6], ag[7])")
+            lines.append(f"sh2 = sh; ag2 = {_rebuild('ag', AR, new)}")
         else:
-            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], {new}, ag[5], ag[6], ag[7])")
+            lines.append(f"sh2 = sh; ag2 = {_rebuild('ag', LOC, new)}")
         return "".join(indent + ln + "\n" for ln in lines)
 
     def read_target(self, vs: VarSlot, path: list) -> str:
         if vs.section == "allwrite":
             ref = f"sh[{vs.slot}]"
         elif vs.section == "allread":
-            ref = f"ag[5][{vs.slot}]"
+            ref = f"ag[{AR}][{vs.slot}]"
         else:
-            ref = f"ag[4][{vs.slot}]"
+            ref = f"ag[{LOC}][{vs.slot}]"
         for p in path:
             ref = f"_ix({ref}, {p})"
         return ref

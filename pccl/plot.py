@@ -50,12 +50,13 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Polygon as PolygonPatch, Rectangle
 
+from .layout import AGS, EXITED, FAIL, POS, REACH, RUNNING, SH, STATUS, TARGET, TIME
+
 FIGSIZE = (8.0, 6.0)
 DPI = 100
 MAX_TIME_LABELS = 12          # per agent
 MAX_LEGEND_AGENTS = 10
 
-RUNNING, EXITED = 0, 1
 WAIT = "\0wait"              # an ATOMIC WAIT in the timeline
 
 
@@ -131,7 +132,7 @@ def _xy(p):
 
 
 def _frame(st):
-    return (st[0], tuple(_xy(ag[6]) for ag in st[4]), tuple(ag[3] for ag in st[4]))
+    return (st[TIME], tuple(_xy(ag[POS]) for ag in st[AGS]), tuple(ag[STATUS] for ag in st[AGS]))
 
 
 def _frames_from_states(states) -> list:
@@ -166,7 +167,7 @@ def _destinations(model, st) -> list:
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
             continue
-        val = st[3][v.slot]
+        val = st[SH][v.slot]
         if not isinstance(val, tuple):
             continue
         pts = [_xy(p) for p in val if isinstance(p, tuple) and len(p) >= 2]
@@ -179,8 +180,8 @@ def _targets(states, n) -> list:
     """Per agent, the distinct doReach targets in order of first appearance."""
     seen = [dict() for _ in range(n)]
     for st in states:
-        for i, ag in enumerate(st[4]):
-            t = ag[7][0]
+        for i, ag in enumerate(st[AGS]):
+            t = ag[REACH][TARGET]
             if t is not None:
                 seen[i].setdefault(_xy(t), None)
     return [list(s) for s in seen]
@@ -190,10 +191,10 @@ def _failures(states, n) -> list:
     """[(agent, xy)]: where each agent's doReach_fail turned true (each time)."""
     out, prev = [], [False] * n
     for st in states:
-        for i, ag in enumerate(st[4]):
-            f = bool(ag[7][4])
+        for i, ag in enumerate(st[AGS]):
+            f = bool(ag[REACH][FAIL])
             if f and not prev[i]:
-                out.append((i, _xy(ag[6])))
+                out.append((i, _xy(ag[POS])))
             prev[i] = f
     return out
 
@@ -219,7 +220,7 @@ def _culprits(model, st, violations, *, looping, deadlock) -> dict:
         kind = getattr(v, "kind", None)
         if kind == "collision":
             from .collide import contacts
-            for c in contacts(model.world, tuple(ag[6] for ag in st[4])):
+            for c in contacts(model.world, tuple(ag[POS] for ag in st[AGS])):
                 agents.add(c.i)
                 if c.j is not None:
                     agents.add(c.j)
@@ -230,10 +231,10 @@ def _culprits(model, st, violations, *, looping, deadlock) -> dict:
     if looping is not None:
         agents.add(looping)
     if not agents and deadlock:
-        agents = {i for i, ag in enumerate(st[4]) if ag[3] != EXITED}
+        agents = {i for i, ag in enumerate(st[AGS]) if ag[STATUS] != EXITED}
     everyone = not agents
     if everyone:
-        agents = set(range(len(st[4])))
+        agents = set(range(len(st[AGS])))
     return {"agents": sorted(agents), "obstacles": sorted(obstacles), "all": everyone}
 
 
@@ -306,7 +307,7 @@ def _status_word(code) -> str:
 
 def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> None:
     world = model.world
-    n = len(st0[4])
+    n = len(st0[AGS])
     r = float(world.radius)
     colours = _colours(n)
     fig = Figure(figsize=FIGSIZE, dpi=DPI)
@@ -430,7 +431,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
 
     # the violating moment
     if bad and ring:
-        pos = [_xy(ag[6]) for ag in last[4]]
+        pos = [_xy(ag[POS]) for ag in last[AGS]]
         style = "--" if ring["all"] else "-"
         for i in ring["agents"]:
             if i < len(pos):
@@ -438,7 +439,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
                                     linewidth=2.2, linestyle=style, zorder=10))
         handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
                               markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
-                              label=f"violation at t={_fmt_t(last[0])}"))
+                              label=f"violation at t={_fmt_t(last[TIME])}"))
 
     # view
     if not xs:
@@ -479,7 +480,7 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
     agents marked, and the violating moment."""
     from matplotlib import colormaps
     states = [s for _, s in trace]
-    n = len(states[0][4])
+    n = len(states[0][AGS])
     delta = float(model.delta)
     events = [ev.name for ev in model.program.events]
     cmap = colormaps["tab20"]
@@ -500,11 +501,11 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
             continue
         rule, i = label[0], label[1]
         if rule == "EVENT SELECT" and label[2] is not None:
-            blocks.setdefault((i, float(st[0])), []).append(events[label[2]])
+            blocks.setdefault((i, float(st[TIME])), []).append(events[label[2]])
         elif rule == "IDLE":
-            blocks.setdefault((i, float(st[0])), []).append(None)
+            blocks.setdefault((i, float(st[TIME])), []).append(None)
         elif rule == "ATOMIC WAIT":
-            blocks.setdefault((i, float(st[0])), []).append(WAIT)
+            blocks.setdefault((i, float(st[TIME])), []).append(WAIT)
     used = set()
     for (i, t), names in blocks.items():
         w = delta / len(names)
@@ -522,12 +523,12 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
                 ax.text(x + w * 0.46, i, name, ha="center", va="center", fontsize=6, zorder=3)
     # exits and stuck agents
     last = states[-1]
-    t_end = float(last[0])
-    for i, ag in enumerate(last[4]):
-        if ag[3] == EXITED:
-            t_exit = next((float(st[0]) for st in states if st[4][i][3] == EXITED), t_end)
+    t_end = float(last[TIME])
+    for i, ag in enumerate(last[AGS]):
+        if ag[STATUS] == EXITED:
+            t_exit = next((float(st[TIME]) for st in states if st[AGS][i][STATUS] == EXITED), t_end)
             ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
-        elif ag[3] != RUNNING:
+        elif ag[STATUS] != RUNNING:
             ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
     handles = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e) for e in events if e in used]
     if any(None in v for v in blocks.values()):
@@ -545,11 +546,11 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
         ax.axvline(t_end + delta * 0.5, color="red", linestyle=":", linewidth=1.2, zorder=1)
         handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
                               markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
-                              label=f"violation at t={_fmt_t(last[0])}"))
+                              label=f"violation at t={_fmt_t(last[TIME])}"))
     ax.set_yticks(range(n))
     ax.set_yticklabels([f"agent {i}" for i in range(n)], fontsize=7)
     ax.set_ylim(n - 0.4, -0.6)
-    ax.set_xlim(float(states[0][0]) - 0.1 * delta, t_end + 1.2 * delta)
+    ax.set_xlim(float(states[0][TIME]) - 0.1 * delta, t_end + 1.2 * delta)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
               frameon=True, borderaxespad=0.0, title="events", title_fontsize=7)
     fig.text(0.5, 0.955, head + " (timeline: no robot moves)", ha="center", va="center",

@@ -20,12 +20,14 @@ from __future__ import annotations
 
 from pccl.errors import PcclRuntimeError
 
-# phases
-DISCRETE, DYNAMIC = 0, 1
-# lock states
-IDLE, REQUEST, LOCK = 0, 1, 2
-# agent status (>= 2: stuck, a key of Model.stuck_reasons)
-RUNNING, EXITED = 0, 1
+# the configuration's layout and cell values (pccl.layout); the rule bodies
+# below index cells by number, the layout module's constants as literals
+# (named constants cost 1.5-3 % here, the hottest code of a search):
+#   state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
+#   agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
+#   reach = (target 0, obstacles 1, t0 2, doReach_done 3, doReach_fail 4)
+from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING,  # noqa: F401
+                         put_agent, with_pc, with_status)
 
 # k-cell head kinds (Control.info(pc)[0])
 K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
@@ -33,27 +35,6 @@ K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
 
 _RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
                    TypeError, IndexError, ValueError)
-
-
-def _put(st, i, ag2, sh2=None):
-    """``st`` with agent i's cell replaced by ``ag2`` (and shared by ``sh2``)."""
-    ags = st[4]
-    n = len(ags)
-    # small teams: build the tuple directly (3-4x cheaper than slicing)
-    if n == 2:
-        ags = (ag2, ags[1]) if i == 0 else (ags[0], ag2)
-    elif n == 3:
-        ags = ((ag2, ags[1], ags[2]) if i == 0 else (ags[0], ag2, ags[2]) if i == 1
-               else (ags[0], ags[1], ag2))
-    else:
-        ags = list(ags)      # 2x cheaper than ags[:i] + (ag2,) + ags[i + 1:]
-        ags[i] = ag2
-        ags = tuple(ags)
-    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2, ags, st[5])
-
-
-def _with_pc(ag, pc):
-    return (pc, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
 
 
 def _outcomes(m, fn, has_rand, *args):
@@ -94,7 +75,7 @@ def _describe(exc):
 def _stuck(m, st, i, ag, reason, where, kind="error"):
     """The successor in which agent i is stuck(reason, location)."""
     code = m.stuck_code(kind, reason, where)
-    return _put(st, i, (ag[0], ag[1], ag[2], code, ag[4], ag[5], ag[6], ag[7]))
+    return put_agent(st, i, with_status(ag, code))
 
 
 # ---------------------------------------------------------------------------
@@ -130,12 +111,12 @@ def event_select(m, st, i, ag, info, out):
             out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
             continue
         if not res:
-            out.append((("IDLE", i, None), _put(st, i, _with_pc(ag, m.ctl.idle_pc))))
+            out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
             continue
         if m.first_only:
             res = res[:1]
         for e in res:
-            out.append((("EVENT SELECT", i, e), _put(st, i, _with_pc(ag, m.ctl.event_pcs[e]))))
+            out.append((("EVENT SELECT", i, e), put_agent(st, i, with_pc(ag, m.ctl.event_pcs[e]))))
 
 
 def statement(m, st, i, ag, info, out):
@@ -151,7 +132,7 @@ def statement(m, st, i, ag, info, out):
         if ag[2] == LOCK:
             # A nested atomic inside a held lock just runs its body.
             _, _req, nested_pc, sid = info
-            out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
+            out.append((("STATEMENT", i, sid), put_agent(st, i, with_pc(ag, nested_pc))))
         return
     # K_SIMPLE, K_IF, K_WHILE, K_ASSERT: info = (kind, fn, ..., sid, has_rand)
     fn, sid, rnd = info[1], info[-2], info[-1]
@@ -171,13 +152,13 @@ def statement(m, st, i, ag, info, out):
         elif kind == K_SIMPLE:
             ag2, sh2 = res
             ag2 = (info[2], ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
-            out.append((label, _put(st, i, ag2, sh2)))
+            out.append((label, put_agent(st, i, ag2, sh2)))
         elif kind == K_IF:
-            out.append((label, _put(st, i, _with_pc(ag, info[2][res]))))
+            out.append((label, put_agent(st, i, with_pc(ag, info[2][res]))))
         elif kind == K_WHILE:
-            out.append((label, _put(st, i, _with_pc(ag, info[2] if res else info[3]))))
+            out.append((label, put_agent(st, i, with_pc(ag, info[2] if res else info[3]))))
         elif res:    # K_ASSERT
-            out.append((label, _put(st, i, _with_pc(ag, info[2]))))
+            out.append((label, put_agent(st, i, with_pc(ag, info[2]))))
         else:
             out.append((label, _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
 
@@ -190,7 +171,7 @@ def exit_rule(m, st, i, ag, info, out):
     """
     sid = info[1]
     ag2 = (m.ctl.empty_pc, ag[1], ag[2], EXITED, ag[4], ag[5], ag[6], ag[7])
-    out.append((("EXIT", i, sid), _put(st, i, ag2)))
+    out.append((("EXIT", i, sid), put_agent(st, i, ag2)))
 
 
 def doreach_update(m, st, i, ag, info, out):
@@ -214,7 +195,7 @@ def doreach_update(m, st, i, ag, info, out):
         target = m.round_pos(target)      # positions are compared at the world's resolution
         t0 = st[0] if m.record_t0 else None
         ag2 = (nxt, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], (target, obstacles, t0, False, False))
-        out.append((("DOREACH UPDATE", i, sid), _put(st, i, ag2)))
+        out.append((("DOREACH UPDATE", i, sid), put_agent(st, i, ag2)))
 
 
 def counter_advance(m, st, i, ag, info, out):
@@ -235,7 +216,7 @@ def counter_advance(m, st, i, ag, info, out):
     if c > m.n0:
         return
     ag2 = (m.ctl.empty_pc, c, ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("COUNTER ADVANCE", i, None), _put(st, i, ag2)))
+    out.append((("COUNTER ADVANCE", i, None), put_agent(st, i, ag2)))
 
 
 def lock_request(m, st, i, ag, info, out):
@@ -253,7 +234,7 @@ def lock_request(m, st, i, ag, info, out):
         return
     req_pc, sid = info[1], info[3]
     ag2 = (req_pc, ag[1], REQUEST, ag[3], ag[4], ag[5], ag[6], ag[7])
-    st2 = _put(st, i, ag2)
+    st2 = put_agent(st, i, ag2)
     st2 = (st2[0], st2[1], st2[2] + (i,), st2[3], st2[4], st2[5])
     out.append((("LOCK REQUEST", i, sid), st2))
 
@@ -275,7 +256,7 @@ def atomic_wait(m, st, i, ag, info, out):
     if c > m.n0:
         return
     ag2 = (ag[0], c, ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("ATOMIC WAIT", i, info[2]), _put(st, i, ag2)))
+    out.append((("ATOMIC WAIT", i, info[2]), put_agent(st, i, ag2)))
 
 
 def atomic_execution(m, st, i, ag, info, out):
@@ -291,7 +272,7 @@ def atomic_execution(m, st, i, ag, info, out):
     if ag[2] != REQUEST or not lq or lq[0] != i:
         return
     ag2 = (info[1], ag[1], LOCK, ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("ATOMIC EXECUTION", i, info[2]), _put(st, i, ag2)))
+    out.append((("ATOMIC EXECUTION", i, info[2]), put_agent(st, i, ag2)))
 
 
 def lock_release(m, st, i, ag, info, out):
@@ -307,7 +288,7 @@ def lock_release(m, st, i, ag, info, out):
         return
     lq = st[2]
     ag2 = (info[1], ag[1], IDLE, ag[3], ag[4], ag[5], ag[6], ag[7])
-    st2 = _put(st, i, ag2)
+    st2 = put_agent(st, i, ag2)
     lq2 = tuple(x for x in lq if x != i)
     out.append((("LOCK RELEASE", i, None), (st2[0], st2[1], lq2, st2[3], st2[4], st2[5])))
 
