@@ -40,8 +40,8 @@ from .layout import (AGS, AR, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LOC
                      put_agent, with_cell, with_pc, with_status, without_time)
 from .values import UNDEF
 from .semantics import rules as R
-from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, K_AEND, K_ACQ, K_ASSERT, K_ATOMIC,
-                              K_DOREACH, K_EMPTY, K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
+from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
+                              K_EXIT, K_IF, K_SIMPLE, K_WHILE, KHead)
 
 END, AEND = -1, -2
 
@@ -142,44 +142,46 @@ class Control:
             yield cell[0]
             cell = self.cells[cell[1]]
 
-    def info(self, pc: int):
+    def info(self, pc: int) -> KHead:
+        """The decoded head of k(pc), built once."""
         inf = self.infos[pc]
         if inf is None:
             inf = self.infos[pc] = self._decode(pc)
         return inf
 
-    def _decode(self, pc: int):
+    def _decode(self, pc: int) -> KHead:
         cell = self.cells[pc]
         if not cell:
-            return (K_EMPTY,)
+            return KHead(K_EMPTY)
         head, rest = cell
         seq = self.seq
         if head == END:
-            return (K_END,)
+            return KHead(K_END)
         if head == AEND:
-            return (K_AEND, rest)
+            return KHead(K_AEND, next_pc=rest)
         if head <= -3:
             sid = -3 - head
             body = tuple(s.sid for s in self.m.stmts[sid].body)
-            return (K_ACQ, seq(body, rest), sid)
+            return KHead(K_ACQ, body_pc=seq(body, rest), sid=sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
         if isinstance(s, A.If):
             pcs = tuple(seq(tuple(x.sid for x in body), rest) for _, body in s.branches)
             pcs += (seq(tuple(x.sid for x in s.orelse), rest),)
-            return (K_IF, c, pcs, head, has_rand(s))
+            return KHead(K_IF, fn=c, branch_pcs=pcs, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.While):
-            return (K_WHILE, c, seq(tuple(x.sid for x in s.body), pc), rest, head, has_rand(s))
+            return KHead(K_WHILE, fn=c, body_pc=seq(tuple(x.sid for x in s.body), pc),
+                         next_pc=rest, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.Atomic):
-            return (K_ATOMIC, seq((acq(head), AEND), rest),
-                    seq(tuple(x.sid for x in s.body), rest), head)
+            return KHead(K_ATOMIC, request_pc=seq((acq(head), AEND), rest),
+                         body_pc=seq(tuple(x.sid for x in s.body), rest), sid=head)
         if isinstance(s, A.CallStmt) and s.name == "doReach":
-            return (K_DOREACH, c, rest, head, has_rand(s))
+            return KHead(K_DOREACH, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.CallStmt) and s.name == "exit":
-            return (K_EXIT, head)
+            return KHead(K_EXIT, sid=head)
         if isinstance(s, A.CallStmt) and s.name == "assert":
-            return (K_ASSERT, c, rest, head, has_rand(s))
-        return (K_SIMPLE, c, rest, head, has_rand(s))
+            return KHead(K_ASSERT, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
+        return KHead(K_SIMPLE, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
 
 
 class _KView:
@@ -659,8 +661,9 @@ class Model:
                 on_path.add(s)
                 out: list = []
                 oracle.agent = i
-                for rule in AGENT_RULES[self.ctl.info(a[PC])[0]]:
-                    rule(self, s, i, a, self.ctl.info(a[PC]), out)
+                head = self.ctl.info(a[PC])
+                for rule in head.rules:
+                    rule(self, s, i, a, head, out)
                 # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
                 stack.append((s, d, iter(out)))
 
@@ -699,9 +702,9 @@ class Model:
                         info = self.ctl.info(ag[PC])
                     if ag[CNT] + rho[i] <= n0:
                         blocked = True
-                        rules = AGENT_RULES[info[0]]
+                        rules = info.rules
                     else:
-                        rules = AGENT_RULES_SPENT[info[0]]
+                        rules = info.rules_spent
                     oracle.agent = i
                     for rule in rules:
                         rule(self, st, i, ag, info, out)

@@ -399,8 +399,8 @@ class Merger:
         r = self.ok.get(pc)
         if r is None:
             info = self.m.ctl.info(pc)
-            k = info[0]
-            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info[-2] in self.sids)
+            k = info.kind
+            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info.sid in self.sids)
             self.ok[pc] = r
         return r
 
@@ -409,7 +409,7 @@ class Merger:
         info = m.ctl.info(ag[PC])
         out: list = []
         m.oracle.agent = i
-        for rule in R.AGENT_RULES[info[0]]:
+        for rule in info.rules:
             rule(m, st, i, ag, info, out)
         return out
 
@@ -468,7 +468,7 @@ class Merger:
                     info = ctl.info(pc)
                 out: list = []
                 oracle.agent = i
-                if info[0] == K_END:
+                if info.kind == K_END:
                     counter_advance(m, s, i, ag, info, out)
                 else:
                     statement(m, s, i, ag, info, out)

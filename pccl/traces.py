@@ -169,9 +169,9 @@ def branch_taken(model, label, before, after) -> Optional[dict]:
     if ag2[STATUS] != ag[STATUS]:
         return None
     info = model.ctl.info(ag[PC])
-    if info[0] == K_IF:
-        pcs = info[2]
-        stmt = model.stmts[info[3]]
+    if info.kind == K_IF:
+        pcs = info.branch_pcs
+        stmt = model.stmts[info.sid]
         try:
             k = pcs.index(ag2[PC])
         except ValueError:
@@ -189,8 +189,8 @@ def branch_taken(model, label, before, after) -> Optional[dict]:
             span = stmt.orelse[0].span if stmt.orelse else None
         return {"kind": "if", "index": k, "taken": taken,
                 "line": span.line if span else None}
-    if info[0] == K_WHILE:
-        body = ag2[PC] == info[2]
+    if info.kind == K_WHILE:
+        body = ag2[PC] == info.body_pc
         return {"kind": "while", "index": 0 if body else 1, "taken": "body" if body else "exit",
                 "line": None}
     return None
