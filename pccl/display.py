@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Optional
 
 from .layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC,
-                    PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, T0, TARGET, TIME)
+                     PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, T0, TARGET, TIME,
+                     acquire_sid, is_acquire)
 from .values import UNDEF, format_number, format_value, to_json
 
 LOCK_NAMES = {IDLE: "idle", REQUEST: "request", LOCK: "lock"}
@@ -117,7 +118,7 @@ def short_label(model, label, before, system: str = "system") -> str:
 def current_event(model, ag) -> Optional[str]:
     """The event an agent is in the middle of, from the statements in its k."""
     for item in model.ctl.iter_k(ag[PC]):
-        sid = item if item >= 0 else (-3 - item if item <= -3 else None)
+        sid = item if item >= 0 else (acquire_sid(item) if is_acquire(item) else None)
         if sid is not None:
             e = model.stmt_event.get(sid)
             return model.program.events[e].name if e is not None else "Init"
@@ -147,7 +148,8 @@ def diff(model, a, b) -> list:
         if ga[LCK] != gb[LCK]:
             out.append((f"lockState[{i}]", LOCK_NAMES[ga[LCK]], LOCK_NAMES[gb[LCK]]))
         if ga[STATUS] != gb[STATUS]:
-            out.append((f"status[{i}]", status_text(model, ga[STATUS]), status_text(model, gb[STATUS])))
+            out.append((f"status[{i}]", status_text(model, ga[STATUS]),
+                        status_text(model, gb[STATUS])))
         ra, rb = ga[REACH], gb[REACH]
         if ra[TARGET] != rb[TARGET]:
             out.append((f"target[{i}]", _opt_pos(ra[TARGET]), _opt_pos(rb[TARGET])))
@@ -208,7 +210,8 @@ def format_state(model, st, *, indent="  ") -> str:
                 f"counter {ag[CNT]}, lock {LOCK_NAMES[ag[LCK]]}, pos {fmt_pos(ag[POS])}")
         r = ag[REACH]
         if r[TARGET] is not None:
-            head += f", target {fmt_pos(r[TARGET])}, done {format_value(r[DONE])}, fail {format_value(r[FAIL])}"
+            head += (f", target {fmt_pos(r[TARGET])}, done {format_value(r[DONE])}, "
+                     f"fail {format_value(r[FAIL])}")
         lines.append(head)
         av = agent_vars(model, st, i)
         if av:
@@ -250,7 +253,8 @@ def format_state_k(model, st) -> str:
             addr += 1
         out.append("<agent> ... <memory> " + " ".join(f"{n} |-> {a}" for n, a in mem.items())
                    + f"\n</memory> <id> {i} </id> <counter> {ag[CNT]} </counter> "
-                   f"<lockState> {LOCK_NAMES[ag[LCK]]} </lockState> <position> {fmt_pos(ag[POS])} </position>"
+                   f"<lockState> {LOCK_NAMES[ag[LCK]]} </lockState> "
+                   f"<position> {fmt_pos(ag[POS])} </position>"
                    f" <status> {status_text(model, ag[STATUS])} </status>\n</agent>")
     out.append("<gMemory> " + " ".join(f"{n} |-> {a}" for n, a in gmem.items()) + " </gMemory>")
     out.append("<MMap> " + " ".join(f"{a} |-> {_kval(v, t)}" for a, (v, t) in sorted(mmap.items()))

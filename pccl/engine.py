@@ -35,22 +35,17 @@ from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .fingerprint import check_canonical
-from .layout import (AGS, AR, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LOC, LQ, PC, PHASE,
-                     POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, make_agent, make_state,
-                     put_agent, with_cell, with_pc, with_status, without_time)
+from .layout import (AEND, AGS, AR, BLANK_REACH, CNT, DISCRETE, END, ENV, EXITED, IDLE, LOC, LQ,
+                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acq, acquire_sid,
+                     is_acquire, make_agent, make_state, put_agent, with_cell, with_pc,
+                     with_status, without_time)
 from .values import UNDEF
 from .semantics import rules as R
 from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
                               K_EXIT, K_IF, K_SIMPLE, K_WHILE, KHead)
 
-END, AEND = -1, -2
-
 #: Most agents a model may have (each is a tuple in every state).
 MAX_AGENTS = 10_000
-
-
-def acq(sid: int) -> int:
-    return -3 - sid
 
 
 @dataclass(frozen=True)
@@ -159,8 +154,8 @@ class Control:
             return KHead(K_END)
         if head == AEND:
             return KHead(K_AEND, next_pc=rest)
-        if head <= -3:
-            sid = -3 - head
+        if is_acquire(head):
+            sid = acquire_sid(head)
             body = tuple(s.sid for s in self.m.stmts[sid].body)
             return KHead(K_ACQ, body_pc=seq(body, rest), sid=sid)
         s = self.m.stmts[head]
@@ -639,7 +634,8 @@ class Model:
         limit = self.INIT_LIMIT
         empty = self.ctl.empty_pc
         where = ("decl", self.program.init[0].span)
-        start = put_agent(st, i, with_pc(ag, self.ctl.intern(tuple(x.sid for x in self.program.init))))
+        init_pc = self.ctl.intern(tuple(x.sid for x in self.program.init))
+        start = put_agent(st, i, with_pc(ag, init_pc))
         done: dict = {}
         best: dict = {}
         on_path: set = set()
@@ -882,7 +878,7 @@ class Model:
             return None
         w = waiting[0]
         k = self.ctl.cells[ags[w][PC]]
-        span = self.stmts[-3 - k[0]].span if k and k[0] <= -3 else None
+        span = self.stmts[acquire_sid(k[0])].span if k and is_acquire(k[0]) else None
         where = f" (atomic at line {span.line})" if span is not None else ""
         others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
                   if len(waiting) > 1 else "")
@@ -934,8 +930,8 @@ class Model:
             return "at endEventBlock"
         if h == AEND:
             return "at atomicEnd"
-        if h <= -3:
-            s = self.stmts[-3 - h]
+        if is_acquire(h):
+            s = self.stmts[acquire_sid(h)]
             return f"waiting for the lock at line {s.span.line}"
         s = self.stmts[h]
         return f"at line {s.span.line}"

@@ -49,6 +49,26 @@ IDLE, REQUEST, LOCK = 0, 1, 2
 # status: RUNNING, EXITED, or stuck: a code >= STUCK, a key of Model.stuck_reasons
 RUNNING, EXITED, STUCK = 0, 1, 2
 
+# k items (the cons cells behind a pc, Model.ctl): a statement id (>= 0),
+# endEventBlock, atomicEnd, or "acquire the lock of atomic statement sid"
+END, AEND = -1, -2
+
+
+def acq(sid: int) -> int:
+    """The k item "acquire the lock of atomic statement ``sid``"."""
+    return -3 - sid
+
+
+def is_acquire(item: int) -> bool:
+    """Whether a k item is an :func:`acq` marker."""
+    return item <= -3
+
+
+def acquire_sid(item: int) -> int:
+    """The atomic statement of an :func:`acq` marker."""
+    return -3 - item
+
+
 #: The reach cell of an agent that has not called doReach.
 BLANK_REACH = (None, (), None, False, False)
 

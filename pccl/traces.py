@@ -23,7 +23,7 @@ from typing import Optional
 
 from . import display as D
 from .layout import (AGS, CNT, DONE, ENV, FAIL, LCK, LQ, PC, PHASE, POS, REACH, SH, STATUS,
-                    TARGET, TIME)
+                     TARGET, TIME)
 from .semantics.rules import K_IF, K_WHILE
 from .values import to_json
 
