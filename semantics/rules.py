@@ -464,8 +464,8 @@ def lock_release(m, st, i, ag, head, out):
 # ---------------------------------------------------------------------------
 
 def time_advance_enabled(m, st):
-    """TIME ADVANCE's guard without the ``--max-time`` bound (None if disabled
-    for another reason, else True)."""
+    """TIME ADVANCE's guard without the ``--max-time`` bound: True if every
+    agent that has not exited has spent its counter and one is running."""
     if st[1] != DISCRETE:
         return False
     n0, rho = m.n0, m.rho
