@@ -178,6 +178,8 @@ def event_select(m, st, i, ag, head, out):
     k := its effect ~> endEventBlock (label ``EVENT Name``); if none holds,
     k := endEventBlock (label ``IDLE``).  ``--events first`` keeps only the
     first enabled event in source order.
+
+    Changes k (or, on a runtime error in a guard, status).
     """
     if ag[1] + m.rho[i] > m.n0:
         return
@@ -335,6 +337,8 @@ def exit_rule(m, st, i, ag, head, out):
 
     Spec §4: ``exit()``: status exited, k empty.  Exited agents never block
     time.
+
+    Changes k and status.
     """
     ag2 = (m.ctl.empty_pc, ag[1], ag[2], EXITED, ag[4], ag[5], ag[6], ag[7])
     out.append((("EXIT", i, head.sid), put_agent(st, i, ag2)))
@@ -351,6 +355,8 @@ def doreach_update(m, st, i, ag, head, out):
     function sets the values of target, obstacle, and current time."
 
         ⟨⟨doReach(T,O) ⇒ · ~> resetFlags(i) ~> setTargetObs(T,O,T0,i) ...⟩k ⟨i⟩id ...⟩agent ⟨T0⟩time
+
+    Changes k and reach (target, obstacles, t0, both flags).
     """
     sid = head.sid
     for res in _outcomes(m, head.fn, head.has_rand, i, ag, st[3], st[4]):
@@ -378,6 +384,8 @@ def counter_advance(m, st, i, ag, head, out):
         requires N <Int n0
 
     With the rate map ρ: counter += ρ(i), enabled while counter + ρ(i) ≤ n0.
+
+    Changes k and counter.
     """
     c = ag[1] + m.rho[i]
     if c > m.n0:
@@ -396,6 +404,8 @@ def lock_request(m, st, i, ag, head, out):
     of the lock queue."
 
         ⟨⟨atomic: Ss ~> ·⇒atomicEnd ...⟩k ⟨i⟩id ⟨idle ⇒ request⟩lockState ...⟩agent ⟨... ·⇒i⟩lockQueue
+
+    Changes k, lockState and lockQueue.
     """
     if ag[2] != IDLE:
         return
@@ -414,6 +424,8 @@ def atomic_wait(m, st, i, ag, head, out):
 
         ⟨... ⟨i1⟩id ⟨request⟩lockState ⟨N ⇒ N +Int 1⟩counter ...⟩agent ⟨i2 ...⟩lockQueue
         requires i1 =/=Int i2 and N <Int n0
+
+    Changes counter.
     """
     lq = st[2]
     if ag[2] != REQUEST or (lq and lq[0] == i):
@@ -433,6 +445,8 @@ def atomic_execution(m, st, i, ag, head, out):
     block.  The counter does not increase in this rewrite."
 
         ⟨⟨atomic: Ss ⇒ Ss ...⟩k ⟨i⟩id ⟨request ⇒ lock⟩lockState ...⟩agent ⟨i ...⟩lockQueue
+
+    Changes k and lockState.
     """
     lq = st[2]
     if ag[2] != REQUEST or not lq or lq[0] != i:
@@ -449,6 +463,8 @@ def lock_release(m, st, i, ag, head, out):
     own lockState to idle.  The rest of the event continues to execute."
 
         ⟨⟨atomicEnd ⇒ · ...⟩k ⟨i⟩id ⟨lock ⇒ idle⟩lockState ...⟩agent ⟨i ⇒ · ...⟩lockQueue
+
+    Changes k, lockState and lockQueue.
     """
     if ag[2] != LOCK:
         return
@@ -497,6 +513,8 @@ def time_advance(m, st, out, enabled=None):
 
     ``enabled``, if given, is :func:`time_advance_enabled` already computed
     by the caller (``Model.successors`` gathers it while visiting the agents).
+
+    Changes time and transitionState.
     """
     if not (time_advance_enabled(m, st) if enabled is None else enabled):
         return
@@ -523,6 +541,9 @@ def doreach_invoke(m, st, out):
     Spec: the blackbox advances the world by δ for all agents at once; each
     outcome it returns is one successor: positions, flags and env updated,
     every counter := 0, transitionState := discrete.
+
+    Changes every agent's counter, position and reach flags, env and
+    transitionState.
     """
     if st[1] != DYNAMIC:
         return

@@ -153,3 +153,13 @@ def test_shipped_programs_decode():
         for pc in range(len(m.ctl.cells)):
             head = m.ctl.info(pc)
             assert head.rules and repr(head).startswith("KHead(K_")
+
+
+def test_every_rule_says_which_cells_it_changes():
+    """As K's rules mention only the cells they rewrite, every rule's docstring
+    names its rule and the cells it changes."""
+    rules = {r for rs in R.AGENT_RULES.values() for r in rs} | {R.time_advance, R.doreach_invoke}
+    for rule in rules:
+        doc = rule.__doc__ or ""
+        assert re.match(r"[A-Z][A-Z ]+[ .(]", doc), rule.__name__
+        assert re.search(r"^\s*Changes ", doc, re.M), rule.__name__
