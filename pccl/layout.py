@@ -184,7 +184,7 @@ class State(NamedTuple):
 
 def agent_view(ag) -> Agent:
     """A named view of one agent cell."""
-    return Agent(*ag[:7], Reach(*ag[7]))
+    return Agent(ag[0], ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], Reach(*ag[7]))
 
 
 def view(st) -> State:
