@@ -39,6 +39,8 @@ from .layout import (AEND, AGS, AR, BLANK_REACH, CNT, DISCRETE, END, ENV, EXITED
                      PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acq, acquire_sid,
                      is_acquire, make_agent, make_state, put_agent, with_cell, with_pc,
                      with_status, without_time)
+# (the types of doReach's arguments; POS above is the agent's position cell)
+from .types import OBSTACLES as OBSTACLES_TY, POS as POS_TY
 from .values import UNDEF
 from .semantics import rules as R
 from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
@@ -373,19 +375,16 @@ class Model:
             return None
         if isinstance(s, A.CallStmt):
             if s.name == "doReach":
-                if len(s.args) != 2:
-                    c.error("'doReach' takes 2 arguments", s)
-                from .compile import VType
-                t = c.value(s.args[0], VType("pos"))
-                o = c.value(s.args[1], VType("obstacles"))
+                assert len(s.args) == 2, "the checker counts arguments"
+                t = c.value(s.args[0], POS_TY)
+                o = c.value(s.args[1], OBSTACLES_TY)
                 return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
             if s.name == "exit":
                 return None
             if s.name == "assert":
                 return c.make_expr(s.args[0])
-            if s.name in ("add", "remove"):
-                return c.effect(s)
-            c.error(f"unknown statement '{s.name}'", s)
+            assert s.name in ("add", "remove"), f"the checker knows no statement {s.name!r}"
+            return c.effect(s)
         return c.effect(s)
 
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
