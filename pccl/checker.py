@@ -39,7 +39,7 @@ from __future__ import annotations
 import difflib
 import re
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import NoReturn, Optional
 
 from . import ast
 from .ast import Span
@@ -284,7 +284,7 @@ class _Checker:
 
     # ---- reporting -------------------------------------------------------
 
-    def fail(self, message: str, span: Optional[Span]):
+    def fail(self, message: str, span: Optional[Span]) -> NoReturn:
         raise PcclError(message, filename=self.filename, source=self.source,
                         span=span)
 
@@ -384,7 +384,7 @@ class _Checker:
                     self.fail(f"array size must be at least 1, got {n}", d.size.span)
                 if n > MAX_ARRAY:
                     self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
-                              f"{n if n < 10 ** 30 else 'a number of %d digits' % len(str(n))}"
+                              f"{n if n < 10 ** 30 else f'a number of {len(str(n))} digits'}"
                               f" (every state holds every element, and a write copies them)",
                               d.size.span)
                 ty = array_of(ty, n)

@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any, NoReturn, Optional
+from collections.abc import Callable
 
 from . import ast as A
 from . import values as V
@@ -343,7 +344,7 @@ class Compiler:
         self._qval: dict = {}               # quantified variable -> agent index (unrolled)
 
     # -- helpers -----------------------------------------------------------
-    def error(self, msg, node):
+    def error(self, msg: str, node) -> NoReturn:
         raise PcclError(msg, filename=self.program.filename,
                         source=self.program.source, span=getattr(node, "span", None))
 

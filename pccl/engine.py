@@ -28,7 +28,8 @@ import operator
 
 import xxhash
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Optional
+from collections.abc import Callable
 
 from . import ast as A
 from .compile import Compiler, Layout, Oracle, build_layout, has_rand

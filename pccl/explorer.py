@@ -40,8 +40,8 @@ import os
 import sys
 import time as _time
 from dataclasses import dataclass, field
-from typing import (Any, Callable, Hashable, Iterable, Iterator, Optional, Protocol,
-                    Sequence, runtime_checkable)
+from typing import (Any, Optional, Protocol, runtime_checkable)
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -550,7 +550,9 @@ class Explorer:
             if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
                 bounds.add(Bound.MAX_MEMORY)
                 halt = True
-            cs.clear(); par_idx.clear(); par_n.clear()
+            cs.clear()
+            par_idx.clear()
+            par_n.clear()
             return halt
 
         try:
@@ -558,13 +560,15 @@ class Explorer:
             for s in m.init_states():
                 cs.append(s)
                 if len(cs) >= batch or len(cs) > budget:     # never build far beyond the budget
-                    par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                    par_idx.append(_NO_PARENT)
+                    par_n.append(len(cs))
                     stop = flush(0)
                     stats.transitions = 0
                     if stop:
                         break
             if not stop and cs:
-                par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                par_idx.append(_NO_PARENT)
+                par_n.append(len(cs))
                 stop = flush(0)
             stats.transitions = 0
             stats.initial_states = table.n

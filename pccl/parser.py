@@ -22,7 +22,8 @@ import difflib
 import math
 import os
 import re
-from typing import Iterator, Optional
+from typing import Optional
+from collections.abc import Iterator
 
 from lark import Discard, Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (LarkError, UnexpectedCharacters, UnexpectedEOF,

@@ -22,7 +22,7 @@ import os
 from typing import Optional
 
 from . import display as D
-from .semantics.rules import DISCRETE, EXITED, K_IF, K_WHILE, RUNNING
+from .semantics.rules import K_IF, K_WHILE
 from .values import to_json
 
 FORMAT = "pccl-trace"

@@ -51,7 +51,7 @@ import math
 import re
 import tomllib
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, NoReturn, Optional
 
 from .errors import PcclError
 
@@ -193,7 +193,7 @@ def parse_world(source: str, filename: Optional[str] = None) -> World:
                         source=source, line=line, column=col) from None
     except ValueError:      # an integer of more than 4,300 digits
         line = col = end = None
-        m = re.search(r"\d{%d,}" % (MAX_INT_DIGITS + 1), source)
+        m = re.search(rf"\d{{{MAX_INT_DIGITS + 1},}}", source)
         if m:
             line = source.count("\n", 0, m.start()) + 1
             col = m.start() - (source.rfind("\n", 0, m.start()) + 1) + 1
@@ -337,7 +337,7 @@ class _Checker:
 
     def error(self, message: str, table: Optional[str] = None,
               key: Optional[str] = None, index: int = 0, at_value=True,
-              path: tuple = ()):
+              path: tuple = ()) -> NoReturn:
         """Raise a PcclError at ``key`` (its value when ``at_value``; the
         element at ``path``, a tuple of array indexes, inside the value)."""
         line = column = end = None
