@@ -224,7 +224,7 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                 progress_interval=progress_interval)
     if workers > 1:
         from .parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=workers, **opts)
+        ex: Any = ParallelExplorer(model, workers=workers, **opts)
     else:
         ex = Explorer(cov or model, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
@@ -309,7 +309,8 @@ def parse_size(text: str) -> int:
 def violation_data(model, found: Counterexample) -> dict:
     """A counterexample as JSON-ready data (its trace rendered step by step)."""
     v = found.violation
-    tr: Trace = found.trace
+    tr: Optional[Trace] = found.trace
+    assert tr is not None, "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace

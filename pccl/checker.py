@@ -75,6 +75,12 @@ class Ty:
     def is_number(self) -> bool:
         return self.kind in ("int", "float")
 
+    @property
+    def item(self) -> "Ty":
+        """The element type of a list or an array (which always has one)."""
+        assert self.elem is not None, self.kind
+        return self.elem
+
 
 _KIND_NAMES = {"pos": "ItemPosition", "obstacles": "ObstacleList"}
 
@@ -115,8 +121,8 @@ def assignable(dst: Ty, src: Ty) -> bool:
     if dst.kind == "float" and src.kind == "int":
         return True
     if dst.kind == "list" and src.kind == "list":
-        return assignable(dst.elem, src.elem)
-    if dst.kind == "obstacles" and src.kind == "list" and src.elem.kind == "any":
+        return assignable(dst.item, src.item)
+    if dst.kind == "obstacles" and src.kind == "list" and src.item.kind == "any":
         return True                       # [] as "no obstacles"
     return False
 
@@ -135,7 +141,7 @@ def join(a: Ty, b: Ty) -> Optional[Ty]:
     if a.is_number and b.is_number:
         return FLOAT
     if a.kind == "list" and b.kind == "list":
-        e = join(a.elem, b.elem)
+        e = join(a.item, b.item)
         return None if e is None else list_of(e)
     return None
 
@@ -162,7 +168,7 @@ class VarInfo:
     @property
     def value_type(self) -> Ty:
         """The type of one element (arrays) or of the variable."""
-        return self.type.elem if self.is_array else self.type
+        return self.type.item if self.is_array else self.type
 
     @property
     def per_agent(self) -> bool:
@@ -546,13 +552,13 @@ class _Checker:
                 t = self.lvalue(a)
                 if t.kind != "list" and t.kind != "any":
                     self.fail(f"{what} must be a List variable, got {t}", a.span)
-                elem = t.elem if t.kind == "list" else ANY
+                elem = t.item if t.kind == "list" else ANY
                 continue
             t = self.value(a)
             if p == "list":
                 if t.kind not in ("list", "any"):
                     self.fail(f"{what} must be a List, got {t}", a.span)
-                elem = t.elem if t.kind == "list" else ANY
+                elem = t.item if t.kind == "list" else ANY
             elif p == "elem":
                 if not assignable(elem, t):
                     self.fail(f"{what} must be {elem} (the list's element type), "
@@ -706,7 +712,7 @@ class _Checker:
             return INT if a.kind == b.kind == "int" else FLOAT
         self.fail(f"unknown operator '{op}'", e.span)  # pragma: no cover
 
-    def undeclared(self, n: ast.Name):
+    def undeclared(self, n: ast.Name) -> NoReturn:
         if self.info.function(n.name) is not None:
             self.fail(f"'{n.name}' is a function: call it, {n.name}()", n.span)
         if self.mode == "program" and n.name == "time":
@@ -777,6 +783,7 @@ class _Checker:
         d = self.first_decl.get(n.name)
         if d is None:
             return None
+        assert self.init_of is not None, "only called inside an initialiser"
         if self.init_of.section == "allwrite" and d.section != "allwrite":
             self.fail(f"shared (allwrite) variable '{self.init_of.name}' cannot be "
                       f"initialised from per-agent ({d.section}) variable '{n.name}'",
@@ -800,7 +807,7 @@ class _Checker:
             if t.kind not in ("array", "list", "any"):
                 self.fail(f"cannot index a value of type {t}", node.span)
             self.index_value(node.index)
-            t = ANY if t.kind == "any" else t.elem
+            t = ANY if t.kind == "any" else t.item
         return t
 
     def index_value(self, ix: ast.Expr, what: str = "index") -> None:
@@ -830,6 +837,7 @@ class _Checker:
                 return None
             if self.init_of is not None:
                 var = self.visible_in_init(root)
+                assert var is not None, name          # declared: found above
             if var.is_array and len(chain) < 2:
                 return None                    # x[k]: this agent's element k
             t = var.type
@@ -849,10 +857,10 @@ class _Checker:
             self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
         if self.mode == "property":
             if not b.in_properties:
-                hint = _PROGRAM_ONLY_HINTS.get(e.name)
+                why = _PROGRAM_ONLY_HINTS.get(e.name)
                 if b.kind == "uninterpreted":
-                    hint = "its value belongs to the world, not to the state"
-                self.fail(f"'{e.name}' cannot be used in a property: {hint}",
+                    why = "its value belongs to the world, not to the state"
+                self.fail(f"'{e.name}' cannot be used in a property: {why}",
                           self.name_span(e))
             if b.kind == "property":
                 return self.count(e)

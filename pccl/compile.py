@@ -52,6 +52,12 @@ class VType:
             return self.name or "enum"
         return {"pos": "ItemPosition", "obstacles": "ObstacleList"}.get(self.kind, self.kind)
 
+    @property
+    def item(self) -> "VType":
+        """The element type of a list or an array (which always has one)."""
+        assert self.elem is not None, self.kind
+        return self.elem
+
 
 @dataclass
 class VarSlot:
@@ -140,11 +146,12 @@ def coerce(value, ty: VType):
             raise ValueError(f"expected a bool, got {value!r}")
         return value
     if k == "enum":
-        if isinstance(value, str) and value in ty.members:
-            return ty.members.index(value)
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(ty.members):
+        members = ty.members or ()
+        if isinstance(value, str) and value in members:
+            return members.index(value)
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(members):
             return value
-        raise ValueError(f"expected one of {', '.join(ty.members)}, got {value!r}")
+        raise ValueError(f"expected one of {', '.join(members)}, got {value!r}")
     if k == "pos":
         if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
                 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
@@ -168,7 +175,7 @@ def coerce(value, ty: VType):
     if k in ("list", "array"):
         if not isinstance(value, (tuple, list)):
             raise ValueError(f"expected a list, got {value!r}")
-        out = tuple(coerce(x, ty.elem) for x in value)
+        out = tuple(coerce(x, ty.item) for x in value)
         if k == "array" and len(out) != ty.size:
             raise ValueError(f"expected {ty.size} elements, got {len(out)}")
         return out
@@ -195,7 +202,7 @@ def widens(src, dst: VType) -> bool:
     if src.kind == "int" and dst.kind == "float":
         return True
     if src.kind == "list" and dst.kind == "list":
-        return widens(src.elem, dst.elem)
+        return widens(src.elem, dst.item)
     return False
 
 
@@ -216,7 +223,7 @@ class Oracle:
         self.policy = policy
         self.prefix: list = []
         self.trail: list = []
-        self.agent = None
+        self.agent: Optional[int] = None
         self.span = None
         self.eager = False      # inside outcomes(): the whole product is built
         self.size = 1           # outcomes of the current evaluation so far
@@ -544,8 +551,8 @@ class Compiler:
                 return self._index_rest(ref, idx[1:], ex)
             if vs is not None and vs.section != "allwrite":
                 if prop:
-                    cell = 5 if vs.section == "allread" else 4
-                    ref = f"_av(ags, {ex(idx[0])}, {cell}, {vs.slot}, {n!r})"
+                    part = 5 if vs.section == "allread" else 4
+                    ref = f"_av(ags, {ex(idx[0])}, {part}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
                 if vs.section == "allread":
                     if vs.ty.kind == "array" and len(idx) == 1:
@@ -624,7 +631,7 @@ class Compiler:
         if isinstance(e, A.ListLit) and k == "list":
             if not e.items:
                 return "()"
-            return "(" + ", ".join(self.value(x, want.elem) for x in e.items) + ",)"
+            return "(" + ", ".join(self.value(x, want.item) for x in e.items) + ",)"
         src = self.expr(e, want=want)
         st = self.static_type(e)
         if st is None:                              # no checker info: convert blindly

@@ -159,7 +159,9 @@ class Control:
             return (K_AEND, rest)
         if head <= -3:
             sid = -3 - head
-            body = tuple(s.sid for s in self.m.stmts[sid].body)
+            atomic = self.m.stmts[sid]
+            assert isinstance(atomic, A.Atomic), atomic      # acq(sid) heads an atomic block
+            body = tuple(s.sid for s in atomic.body)
             return (K_ACQ, seq(body, rest), sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
@@ -208,6 +210,8 @@ class Model:
         from .blackboxes import load_blackbox
 
         self.program = program
+        #: why the search picked its blackbox (set by the API and the CLI)
+        self.blackbox_reason: Optional[str] = None
         self.world = world if world is not None else default_world()
         try:
             if blackbox is None:

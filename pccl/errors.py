@@ -29,7 +29,7 @@ class PcclError(Exception):
                  end_column: Optional[int] = None):
         super().__init__(message)
         if span is not None and getattr(span, "origin", None) is not None:
-            filename, source = span.origin   # an option's text, not the program's
+            filename, source = span.origin   # type: ignore[misc] # an option's text, not the program's
         self.message = message
         self.filename = filename
         self.source = source
@@ -85,6 +85,9 @@ class PcclRuntimeError(Exception):
     """A runtime error inside a PCCL program (division by zero, undefined
     read, remove of an absent element, ...).  The engine turns it into a
     *stuck agent* (a result), never into a crash of the tool."""
+
+    #: where the engine caught it, e.g. ("guard", event), when not at a statement
+    where: Optional[tuple] = None
 
     def __init__(self, reason: str):
         super().__init__(reason)

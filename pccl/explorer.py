@@ -282,11 +282,11 @@ class FingerprintTable:
         self.fps = fps if fps is not None else np.empty((capacity, 2), dtype=np.uint64)
         self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
-        self._batch = None
+        self._batch: Any = None         # (fingerprints, positions) of the last batch
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
-        self.slots = None
+        self.slots: Any = None
         self.slots = np.full(size, _EMPTY, dtype=np.uint32)
         self.mask = np.uint64(size - 1)
 
@@ -441,7 +441,7 @@ class Explorer:
         self.progress = progress
         self.progress_interval = progress_interval
         self.batch = batch
-        self.table = None
+        self.table: Any = None
 
     # ------------------------------------------------------------------
     def run(self) -> SearchResult:

@@ -77,7 +77,7 @@ class _PcclIndenter(Indenter):
                 self.indent_level.pop()
                 yield Token.new_borrow_pos(self.DEDENT_type, indent_str, token)
             if indent != self.indent_level[-1]:
-                raise _IndentError(token.end_line, token.end_column)
+                raise _IndentError(token.end_line or 0, token.end_column or 0)
 
     def _process(self, stream):
         token = None
@@ -138,7 +138,8 @@ _ORIGIN: contextvars.ContextVar[Optional[tuple]] = contextvars.ContextVar(
 
 
 def _tspan(tok: Token) -> ast.Span:
-    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column, _ORIGIN.get())
+    return ast.Span(tok.line or 0, tok.column or 0, tok.end_line or 0, tok.end_column or 0,
+                    _ORIGIN.get())
 
 
 def _mspan(meta) -> ast.Span:
@@ -392,7 +393,7 @@ def _transform_iteratively(self, tree):
                 stack[-1][2].append(res)
 
 
-_ToAst.transform = _transform_iteratively
+_ToAst.transform = _transform_iteratively  # type: ignore[method-assign]
 _TRANSFORMER = _ToAst()
 
 
@@ -673,7 +674,8 @@ def _token_error(exc: UnexpectedToken, text: str, source: str, filename: str,
 
 
 def _char_error(exc: UnexpectedCharacters, text: str, source: str, filename: str) -> PcclError:
-    ch = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else ""
+    pos = exc.pos_in_stream
+    ch = text[pos] if pos is not None and 0 <= pos < len(text) else ""
     msg = f"unexpected character {_show_char(ch)}" if ch else "unexpected character"
     hints = {"&": "'&&'", "|": "'||'"}
     if ch in hints:
@@ -757,11 +759,11 @@ def _parse(source: str, filename: str, start: str):
         raise PcclError("program is nested too deeply", filename=filename,
                         source=source) from None
     except (DedentError, UnexpectedInput, LarkError) as e:  # pragma: no cover - defensive
-        line = getattr(e, "line", None)
-        column = getattr(e, "column", None)
+        e_line = getattr(e, "line", None)
+        e_col = getattr(e, "column", None)
         raise PcclError(f"syntax error: {e}".splitlines()[0], filename=filename,
-                        source=source, line=line if isinstance(line, int) and line > 0 else None,
-                        column=column if isinstance(column, int) and column > 0 else None) from None
+                        source=source, line=e_line if isinstance(e_line, int) and e_line > 0 else None,
+                        column=e_col if isinstance(e_col, int) and e_col > 0 else None) from None
     return result
 
 

@@ -137,7 +137,7 @@ def _frame(st):
 def _frames_from_states(states) -> list:
     """[(time, positions, statuses)], one per state, consecutive duplicates
     (same time and positions) merged."""
-    out = []
+    out: list = []
     for st in states:
         f = _frame(st)
         if out and out[-1][0] == f[0] and out[-1][1] == f[1]:
@@ -161,7 +161,7 @@ def _frames_from_trace(trace) -> list:
 
 def _destinations(model, st) -> list:
     """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
-    out = []
+    out: list = []
     for v in getattr(model.layout, "shared", ()):
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
@@ -177,7 +177,7 @@ def _destinations(model, st) -> list:
 
 def _targets(states, n) -> list:
     """Per agent, the distinct doReach targets in order of first appearance."""
-    seen = [dict() for _ in range(n)]
+    seen: list[dict] = [{} for _ in range(n)]
     for st in states:
         for i, ag in enumerate(st[4]):
             t = ag[7][0]
@@ -265,7 +265,7 @@ def _fmt_t(t) -> str:
 
 def _runs(frames, i) -> list:
     """Agent i's positions with the times it was there: [(xy, t_first, t_last)]."""
-    out = []
+    out: list = []
     for t, pos, _ in frames:
         p = pos[i]
         if out and out[-1][0] == p:
@@ -529,7 +529,8 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
             ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
         elif ag[3] != RUNNING:
             ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
-    handles = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e) for e in events if e in used]
+    handles: list = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e)
+                     for e in events if e in used]
     if any(None in v for v in blocks.values()):
         handles.append(Patch(facecolor="#eeeeee", edgecolor="#bbbbbb", label="idle"))
     if any(WAIT in v for v in blocks.values()):

@@ -14,7 +14,7 @@ import itertools
 import random
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 
 @dataclass
@@ -28,6 +28,8 @@ class RunResult:
     summary: list = field(default_factory=list)   # [(time, state)] after each environment step
     violations: list = field(default_factory=list)
     looping_agent: Optional[int] = None
+    #: the Model that ran (set by pccl.api.run, for the CLI's displays)
+    model: Any = field(default=None, repr=False, compare=False)
 
 
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
@@ -41,7 +43,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     if len(inits) > 1:          # no rand policy: every outcome is an initial state
         inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
-    trace, summary = [], [(st[0], st)]
+    trace: list = []
+    summary = [(st[0], st)]
     steps = 0
     n_env, stride = 0, 1
     since_time = 0
@@ -111,4 +114,4 @@ def _looping_agent(model, st, per_agent: Counter) -> int:
         n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
         if ag[3] == 0 and n > best_n:
             best, best_n = i, n
-    return best if best is not None else max(per_agent, key=per_agent.get)
+    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])
