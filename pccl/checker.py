@@ -37,7 +37,6 @@ Type rules (where the spec is silent, the choice is written here):
 from __future__ import annotations
 
 import difflib
-import re
 from dataclasses import dataclass, field
 from typing import NoReturn, Optional
 
@@ -303,18 +302,11 @@ class _Checker:
         t = lines[s.line - 1][s.column - 1:s.end_column - 1].strip()
         return t or default
 
-    def find_word(self, span: Span, word: str, start: Optional[int] = None) -> Span:
-        """The span of ``word`` on the first line of ``span`` (from column
-        ``start``); the whole span when it cannot be found."""
-        lines = self.lines_of(span)
-        if span.line < 1 or span.line > len(lines):
-            return span
-        line = lines[span.line - 1]
-        col = (start if start else span.column) - 1
-        m = re.compile(r"(?<![\w])" + re.escape(word) + r"(?![\w])").search(line, max(col, 0))
-        if not m:
-            return span
-        return Span(span.line, m.start() + 1, span.line, m.end() + 1, span.origin)
+    @staticmethod
+    def declared_at(name_span: Span, whole: Span) -> Span:
+        """Where a declared name is written (the parser records it); the
+        whole declaration for an AST built without positions."""
+        return name_span if name_span.line > 0 else whole
 
     def name_span(self, node) -> Span:
         """The span of a call's function name (calls start with the name)."""
@@ -361,25 +353,20 @@ class _Checker:
 
         for d in p.decls:
             if isinstance(d, ast.EnumDecl):
-                at = self.find_word(d.span, d.name)
+                at = self.declared_at(d.name_span, d.span)
                 if d.name in _BUILTIN_TYPE_NAMES:
                     self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
                 claim(d.name, "enum", d.span, at)
-                col = at.end_column if at is not d.span else None
                 seen: set[str] = set()
-                for m in d.members:
-                    ms = self.find_word(d.span, m, col)
-                    if ms is not d.span:
-                        col = ms.end_column
+                for k, m in enumerate(d.members):
+                    ms = (self.declared_at(d.member_spans[k], d.span)
+                          if k < len(d.member_spans) else d.span)
                     if m in seen:
                         self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
                     seen.add(m)
                     claim(m, "enum member", d.span, ms)
                 continue
-            start = d.type.span.end_column if (d.type.span.line == d.span.line
-                                                and d.type.span.line > 0) else None
-            at = self.find_word(d.span, d.name, start)
-            claim(d.name, "variable", d.span, at)
+            claim(d.name, "variable", d.span, self.declared_at(d.name_span, d.span))
             ty = self.declared_type(d.type, d.span)
             if d.size is not None:
                 try:
@@ -409,7 +396,7 @@ class _Checker:
         for ev in p.events:
             if ev.name in seen_events:
                 self.fail(f"duplicate event '{ev.name}'{_first_at(seen_events[ev.name])}",
-                          self.find_word(ev.span, ev.name))
+                          self.declared_at(ev.name_span, ev.span))
             seen_events[ev.name] = ev.span.line
             self.condition(ev.guard, "pre")
             self.stmts(ev.body)
@@ -420,7 +407,7 @@ class _Checker:
                 if inv.name in seen_invariants:
                     self.fail(f"duplicate invariant '{inv.name}'"
                               f"{_first_at(seen_invariants[inv.name])}",
-                              self.find_word(inv.span, inv.name))
+                              self.declared_at(inv.name_span, inv.span))
                 seen_invariants[inv.name] = inv.span.line
             _Checker(info, "property").property(inv.expr)
 

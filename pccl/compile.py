@@ -300,21 +300,15 @@ class Oracle:
 
 
 def has_rand(node) -> bool:
-    if isinstance(node, (tuple, list)):
-        return any(has_rand(x) for x in node)
-    if isinstance(node, A.If):
-        return any(has_rand(c) for c, _ in node.branches)
-    if isinstance(node, A.While):
-        return has_rand(node.cond)
-    if isinstance(node, A.Assign):
-        return has_rand(node.target) or has_rand(node.value)
-    if isinstance(node, A.CallStmt):
-        return any(has_rand(a) for a in node.args)
-    if isinstance(node, (A.Atomic, A.Skip)):
-        return False
+    """Does evaluating ``node`` draw a ``rand()``?  ``node`` is an expression,
+    a statement (its own expressions: an if's conditions, not its branches),
+    a tuple of them, or None."""
     if node is None:
         return False
-    return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
+    if isinstance(node, (tuple, list)):
+        return any(has_rand(x) for x in node)
+    exprs = A.own_exprs(node) if isinstance(node, A.STMT_TYPES) else (node,)
+    return any(isinstance(x, A.Call) and x.name == "rand" for e in exprs for x in A.walk(e))
 
 
 def _may_grow(e: A.Expr) -> bool:

@@ -257,7 +257,8 @@ class _ToAst(Transformer):
         typ, tok = children[0], children[1]
         opts = dict(children[2:])
         # section is filled in by the enclosing section
-        return ast.VarDecl("", typ, str(tok), opts.get("size"), opts.get("init"), _mspan(meta))
+        return ast.VarDecl("", typ, str(tok), opts.get("size"), opts.get("init"), _mspan(meta),
+                           name_span=_tspan(tok))
 
     def enumdecl(self, meta, children):
         name = children[1]
@@ -267,7 +268,8 @@ class _ToAst(Transformer):
             if str(t) in seen:
                 raise _Syntax(f"duplicate member '{t}' in enum '{name}'", _tspan(t))
             seen.add(str(t))
-        return ast.EnumDecl("", str(name), tuple(members), _mspan(meta))
+        return ast.EnumDecl("", str(name), tuple(members), _mspan(meta), name_span=_tspan(name),
+                            member_spans=tuple(_tspan(t) for t in children[2:]))
 
     def _section(self, children):
         section = _SECTION[children[0].type]
@@ -337,11 +339,12 @@ class _ToAst(Transformer):
     def event(self, meta, children):
         name, guard, (eff_tok, body) = children
         end = body[-1].span if body else _tspan(eff_tok)
-        return ast.Event(str(name), guard, body, _join(_tspan(name), end))
+        return ast.Event(str(name), guard, body, _join(_tspan(name), end), name_span=_tspan(name))
 
     def invariant(self, meta, children):
         if len(children) == 2:
-            return ast.Invariant(str(children[0]), children[1], _mspan(meta))
+            return ast.Invariant(str(children[0]), children[1], _mspan(meta),
+                                 name_span=_tspan(children[0]))
         return ast.Invariant(None, children[0], _mspan(meta))
 
     def invariant_sec(self, meta, children):
@@ -414,6 +417,7 @@ class _Numberer:
         return tuple(self.stmt(s) for s in stmts)
 
     def stmt(self, s):
+        """``s`` with its sid and its blocks' sids, numbered in pre-order."""
         sid = self.next
         self.next += 1
         if isinstance(s, (ast.If, ast.While, ast.Atomic)):
@@ -422,42 +426,16 @@ class _Numberer:
                               f"levels)", s.span)
             self.depth += 1
             try:
-                if isinstance(s, ast.If):
-                    branches = tuple((c, self.stmts(b)) for c, b in s.branches)
-                    return dataclasses.replace(s, sid=sid, branches=branches,
-                                               orelse=self.stmts(s.orelse))
-                return dataclasses.replace(s, sid=sid, body=self.stmts(s.body))
+                s = ast.with_blocks(s, self.stmts)
             finally:
                 self.depth -= 1
         return dataclasses.replace(s, sid=sid)
 
 
-def _program_exprs(prog: ast.Program):
-    for d in prog.decls:
-        if isinstance(d, ast.VarDecl):
-            if d.size is not None:
-                yield d.size
-            if d.init is not None:
-                yield d.init
-    for ev in prog.events:
-        yield ev.guard
-    for body in [prog.init] + [ev.body for ev in prog.events]:
-        for s in ast.walk_stmts(body):
-            if isinstance(s, ast.Assign):
-                yield s.target
-                yield s.value
-            elif isinstance(s, ast.CallStmt):
-                yield from s.args
-            elif isinstance(s, ast.If):
-                for c, _ in s.branches:
-                    yield c
-            elif isinstance(s, ast.While):
-                yield s.cond
-
-
 def _check_no_property_syntax(prog: ast.Program) -> None:
-    for e in _program_exprs(prog):
-        for sub in ast.walk_expr(e):
+    """Quantifiers and ``->`` belong to properties and invariants only."""
+    for node in (*prog.decls, *prog.init, *prog.events):
+        for sub in ast.walk(node):
             if isinstance(sub, ast.Quant):
                 raise _Syntax(f"'{sub.kind}' is only allowed in properties and invariants", sub.span)
             if isinstance(sub, ast.Binary) and sub.op == "->":

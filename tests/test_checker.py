@@ -387,9 +387,23 @@ t.pccl:5:7: error: 'forall' is only allowed in properties
       |       ^^^^^^^^^^^"""
 
 
+def test_a_clash_points_at_the_name_on_a_continuation_line():
+    # the member is written two lines below the enum keyword: the name's own
+    # span (from the parser), not a search of the declaration's first line
+    src = "loc:\n  int GO = 0\n  enum Stage {\n    PICK,\n    GO }\nInit:\n  skip\n"
+    assert _render(parse_program(src, filename="t.pccl")) == """\
+t.pccl:5:5: error: 'GO' is already declared as a variable at line 2
+    5 |     GO }
+      |     ^^"""
+
+
 def test_duplicate_member_in_one_enum():
     src = "loc:\n  enum Stage { GO, GO };\n"
-    prog = ast.Program(None, (ast.EnumDecl("loc", "Stage", ("GO", "GO"), span=Span(2, 3, 2, 24)),),
+    # built by hand (the parser rejects it first); spans as the parser gives them
+    decl = ast.EnumDecl("loc", "Stage", ("GO", "GO"), span=Span(2, 3, 2, 24),
+                        name_span=Span(2, 8, 2, 13),
+                        member_spans=(Span(2, 16, 2, 18), Span(2, 20, 2, 22)))
+    prog = ast.Program(None, (decl,),
                        (), (), (), filename="t.pccl", source=src)
     assert _render(prog) == """\
 t.pccl:2:20: error: duplicate member 'GO' in enum 'Stage'
