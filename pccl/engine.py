@@ -37,15 +37,13 @@ from .blackboxes.base import Motion
 from .errors import PcclError, PcclRuntimeError
 from .fingerprint import check_canonical
 from .values import UNDEF
+from .world import MAX_AGENTS  # the Model checks it too
 from .semantics import rules as R
 from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
                               RUNNING, K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
                               K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
 
 END, AEND = -1, -2
-
-#: Most agents a model may have (each is a tuple in every state).
-MAX_AGENTS = 10_000
 
 
 def acq(sid: int) -> int:

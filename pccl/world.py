@@ -65,6 +65,8 @@ OBSTACLE_KEYS = ("polygon",)
 #: Largest coordinate accepted in a world file: far from the float limit, so
 #: that rounding to the resolution and moving by speed * δ stay finite.
 MAX_COORD = 1e12
+#: Most agents a model may have (each is a tuple in every state).
+MAX_AGENTS = 10_000
 MAX_INT_DIGITS = 4300
 
 DEFAULT_RESOLUTION = 0.01
@@ -258,7 +260,6 @@ class WorldChecker:
                            key="agents")
             if v < 1:
                 self.error(f"'agents' must be at least 1, got {v}", key="agents")
-            from .engine import MAX_AGENTS
             if v > MAX_AGENTS:
                 self.error(f"'agents' must be at most {MAX_AGENTS:,}, got {v:,}", key="agents")
             kw["n_agents"] = v
