@@ -1,4 +1,4 @@
-"""``pymunk``: 2-D rigid-body physics for disc robots (spec section 6).
+"""``pymunk``: 2-D rigid-body physics for disc robots (docs/blackboxes.md).
 
 Model
 -----

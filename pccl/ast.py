@@ -5,7 +5,8 @@ end column exclusive) so that every message can point at the source.  Spans do
 not take part in equality or hashing, but every *statement* also carries a
 unique ``sid`` (statement occurrence id, assigned by the parser in source
 order) so that two textually equal statements at different places are
-different items of an agent's pending computation ``k`` (spec section 5).
+different items of an agent's pending computation ``k`` (docs/language.md
+§11, "The configuration").
 
 The parser (``pccl.parser``) builds these; the static checker
 (``pccl.checker``) reads them and fills in nothing: it only reports errors.

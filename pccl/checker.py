@@ -1,4 +1,4 @@
-"""The static checker: names, types and the rules of spec sections 2 and 5.
+"""The static checker: names, types and the rules of docs/language.md §4-§10.
 
 ``check_program`` walks a parsed :class:`pccl.ast.Program` and either returns
 its symbol table (:class:`ProgramInfo`) or raises the first problem, in source
@@ -6,7 +6,7 @@ order, as a :class:`PcclError` whose span points at the offending node.
 ``check_property`` does the same for a property expression (the program's
 ``invariant:`` section, ``--invariant EXPR``) against a checked program.
 
-Type rules (where the spec is silent, the choice is written here):
+Type rules (where docs/language.md is silent, the choice is written here):
 
 * Types: ``int bool float ItemPosition ObstacleList List<T>``, enums, arrays
   ``T[n]`` (n a constant), and ``any``: the type of an uninterpreted function's

@@ -527,7 +527,7 @@ class Compiler:
         self.error(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
-        """Index chains.  Per-agent variables (spec §2, checker rules): an
+        """Index chains.  Per-agent variables (docs/language.md §4): an
         allread scalar ``x[j]`` is agent j's component; for an allread array
         ``x[k]`` is this agent's element k and ``x[j][k]`` agent j's element k.
         In properties every per-agent name takes the agent index first

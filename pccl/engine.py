@@ -16,7 +16,7 @@ Configurations are nested tuples (compact, immutable, hashable)::
     reach = (target, obstacles, t0, doReach_done, doReach_fail)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
-occurrence ids and markers, spec §5) as a small integer; :class:`Control`
+occurrence ids and markers, docs/language.md §11) as a small integer; :class:`Control`
 maps it back and decodes its head once.
 """
 

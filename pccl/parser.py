@@ -2,9 +2,9 @@
 
 Public functions:
 
-* :func:`parse_program` -- a whole PCCL program (spec section 2);
+* :func:`parse_program` -- a whole PCCL program (docs/language.md §2-§9);
 * :func:`parse_file` -- the same, read from a UTF-8 file;
-* :func:`parse_property` -- one property expression (spec section 5).
+* :func:`parse_property` -- one property expression (docs/language.md §10).
 
 Every syntax problem is raised as :class:`pccl.errors.PcclError` with the
 file name, the source and the line/column of the offending token; no lark
@@ -790,7 +790,7 @@ def parse_file(path) -> ast.Program:
 
 
 def parse_property(source: str, filename: str = "<property>") -> ast.Expr:
-    """Parse one property expression (spec section 5): ordinary expressions
+    """Parse one property expression (docs/language.md §10): ordinary expressions
     plus ``a -> b``, ``forall i: e`` and ``exists i: e``.  Newlines are white
     space here; one trailing ``;`` is allowed."""
     return _parse(source, filename, "property")

@@ -1,5 +1,5 @@
 """Worlds: where the robots are, what the uninterpreted functions return,
-and which obstacles are solid (spec section 6).
+and which obstacles are solid (docs/worlds.md).
 
 A world is read from a TOML file given with ``--world FILE``.  Every key is
 optional; unknown keys are errors.  Layout::

@@ -1,4 +1,5 @@
-"""The rewrite rules of PCCL, one function per rule of the paper (spec §4).
+"""The rewrite rules of PCCL, one function per rule of the paper
+(docs/language.md §11, "The rules").
 
 Each agent rule has the signature ``rule(m, st, i, ag, info, out)``: ``m`` is
 the :class:`pccl.engine.Model`, ``st`` the configuration, ``i`` the agent id,
@@ -109,7 +110,7 @@ def event_select(m, st, i, ag, info, out):
     of that event, Es is the list of events following that; this event block
     rewrites to S.  If C evaluates to false, this block rewrites to Es."
 
-    Spec: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
+    Rule: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
     k := its effect ~> endEventBlock (label ``EVENT Name``); if none holds,
     k := endEventBlock (label ``IDLE``).  ``--events first`` keeps only the
     first enabled event in source order.
@@ -141,7 +142,7 @@ def event_select(m, st, i, ag, info, out):
 def statement(m, st, i, ag, info, out):
     """STATEMENT.
 
-    Spec §4: the head of k is a statement — assignment, ``if``, ``while``
+    Rule: the head of k is a statement — assignment, ``if``, ``while``
     (one test per transition), list mutator, ``assert``, ``skip`` — executed
     in one transition, its expressions evaluated atomically.  A runtime
     error sets status stuck(reason, location) instead.
@@ -185,7 +186,7 @@ def statement(m, st, i, ag, info, out):
 def exit_rule(m, st, i, ag, info, out):
     """EXIT.
 
-    Spec §4: ``exit()``: status exited, k empty.  Exited agents never block
+    Rule: ``exit()``: status exited, k empty.  Exited agents never block
     time.
     """
     sid = info[1]
@@ -317,8 +318,8 @@ def lock_release(m, st, i, ag, info, out):
 # ---------------------------------------------------------------------------
 
 def time_advance_enabled(m, st):
-    """TIME ADVANCE's guard without the ``--max-time`` bound (None if disabled
-    for another reason, else True)."""
+    """TIME ADVANCE's guard without the ``--max-time`` bound: True when time
+    may advance, False when it may not (whatever the bound)."""
     if st[1] != DISCRETE:
         return False
     n0, rho = m.n0, m.rho
@@ -344,7 +345,7 @@ def time_advance(m, st, out, enabled=None):
         ⟨CM⟩counterMap ⟨T ⇒ T +Int δ⟩time ⟨discrete ⇒ dynamic⟩transitionState
         requires n0 ==Int findMin(CM) and n0 ==Int findMax(CM)
 
-    Spec: at least one agent running; every agent that has not exited has
+    Rule: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.  The clock holds exact
     multiples n·δ (see :meth:`pccl.engine.Model.next_time`).
 
@@ -373,7 +374,7 @@ def doreach_invoke(m, st, out):
         ⟨⟨i⟩id ⟨N ⇒ 0⟩counter ⟨P ⇒ P1⟩position ...⟩agent ⟨... i ↦ N ⇒ i ↦ 0 ...⟩counterMap ⟨dynamic⟩transitionState
         requires N ==Int n0 and P1 = doReachBB(P, T, O, T0, δ, i)
 
-    Spec: the blackbox advances the world by δ for all agents at once; each
+    Rule: the blackbox advances the world by δ for all agents at once; each
     outcome it returns is one successor: positions, flags and env updated,
     every counter := 0, transitionState := discrete.
     """
