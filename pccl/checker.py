@@ -325,10 +325,26 @@ class _Checker:
     # ---- program ---------------------------------------------------------
 
     def program(self, p: ast.Program) -> None:
-        info = self.info
-        # Enums are constants visible everywhere: collect them first so that a
-        # type or a member may be used above its enum's declaration.
+        """Check a whole program, in source order: declarations, Init, the
+        events, the invariants."""
+        self.collect_enums(p.decls)
+        self.declared: dict[str, tuple[str, int]] = {}     # name -> (what, line)
         for d in p.decls:
+            if isinstance(d, ast.EnumDecl):
+                self.enum_decl(d)
+            else:
+                self.var_decl(d)
+        self.first_decl = {}
+        self.stmts(p.init)
+        self.events(p.events)
+        self.invariants(p.invariants)
+
+    def collect_enums(self, decls) -> None:
+        """Enums are constants visible everywhere: collect them first so that
+        a type or a member may be used above its enum's declaration (and note
+        each variable's first declaration, for initialisers)."""
+        info = self.info
+        for d in decls:
             if isinstance(d, ast.EnumDecl):
                 if d.name not in info.enums and d.name not in _BUILTIN_TYPE_NAMES:
                     info.enums[d.name] = d.members
@@ -336,80 +352,87 @@ class _Checker:
                     info.members.setdefault(m, (d.name, k))
             else:
                 self.first_decl.setdefault(d.name, d)
-        declared: dict[str, tuple[str, int]] = {}     # name -> (what, line)
 
-        def claim(name: str, what: str, span: Span, where: Span) -> None:
-            if name in READONLY_FLAGS:
-                self.fail(f"'{name}' is a read-only flag of the controller; "
-                          f"it cannot be declared", where)
-            if name in declared:
-                prev, line = declared[name]
-                if prev == what:
-                    self.fail(f"duplicate {what} '{name}'{_first_at(line)}", where)
-                at_line = f" at line {line}" if line > 0 else ""
-                self.fail(f"'{name}' is already declared as {_article(prev)}{at_line}",
-                          where)
-            declared[name] = (what, span.line)
+    def claim(self, name: str, what: str, span: Span, where: Span) -> None:
+        """Declare ``name`` as a ``what`` (variable, enum, enum member): one
+        name, one meaning; flags cannot be declared."""
+        if name in READONLY_FLAGS:
+            self.fail(f"'{name}' is a read-only flag of the controller; "
+                      f"it cannot be declared", where)
+        if name in self.declared:
+            prev, line = self.declared[name]
+            if prev == what:
+                self.fail(f"duplicate {what} '{name}'{_first_at(line)}", where)
+            at_line = f" at line {line}" if line > 0 else ""
+            self.fail(f"'{name}' is already declared as {_article(prev)}{at_line}",
+                      where)
+        self.declared[name] = (what, span.line)
 
-        for d in p.decls:
-            if isinstance(d, ast.EnumDecl):
-                at = self.declared_at(d.name_span, d.span)
-                if d.name in _BUILTIN_TYPE_NAMES:
-                    self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
-                claim(d.name, "enum", d.span, at)
-                seen: set[str] = set()
-                for k, m in enumerate(d.members):
-                    ms = (self.declared_at(d.member_spans[k], d.span)
-                          if k < len(d.member_spans) else d.span)
-                    if m in seen:
-                        self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
-                    seen.add(m)
-                    claim(m, "enum member", d.span, ms)
-                continue
-            claim(d.name, "variable", d.span, self.declared_at(d.name_span, d.span))
-            ty = self.declared_type(d.type, d.span)
-            if d.size is not None:
-                try:
-                    n = self.const_int(d.size)
-                except RecursionError:
-                    self.fail("array size expression is nested too deeply", d.size.span)
-                if n < 1:
-                    self.fail(f"array size must be at least 1, got {n}", d.size.span)
-                if n > MAX_ARRAY:
-                    self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
-                              f"{n if n < 10 ** 30 else f'a number of {len(str(n))} digits'}"
-                              f" (every state holds every element, and a write copies them)",
-                              d.size.span)
-                ty = array_of(ty, n)
-            v = VarInfo(d.name, d.section, ty, d)
-            if d.init is not None:
-                self.init_of = v
-                t = self.value(d.init)
-                if not assignable(v.value_type, t):
-                    self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
-                              f"with {t}", d.init.span)
-                self.init_of = None
-            info.variables.setdefault(d.name, v)
-        self.first_decl = {}
-        self.stmts(p.init)
-        seen_events: dict[str, int] = {}
-        for ev in p.events:
-            if ev.name in seen_events:
-                self.fail(f"duplicate event '{ev.name}'{_first_at(seen_events[ev.name])}",
+    def enum_decl(self, d: ast.EnumDecl) -> None:
+        at = self.declared_at(d.name_span, d.span)
+        if d.name in _BUILTIN_TYPE_NAMES:
+            self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
+        self.claim(d.name, "enum", d.span, at)
+        seen: set[str] = set()
+        for k, m in enumerate(d.members):
+            ms = (self.declared_at(d.member_spans[k], d.span)
+                  if k < len(d.member_spans) else d.span)
+            if m in seen:
+                self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
+            seen.add(m)
+            self.claim(m, "enum member", d.span, ms)
+
+    def var_decl(self, d: ast.VarDecl) -> None:
+        """A variable: its name, type, array size and initialiser."""
+        self.claim(d.name, "variable", d.span, self.declared_at(d.name_span, d.span))
+        ty = self.declared_type(d.type, d.span)
+        if d.size is not None:
+            ty = array_of(ty, self.array_size(d.size))
+        v = VarInfo(d.name, d.section, ty, d)
+        if d.init is not None:
+            self.init_of = v
+            t = self.value(d.init)
+            if not assignable(v.value_type, t):
+                self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
+                          f"with {t}", d.init.span)
+            self.init_of = None
+        self.info.variables.setdefault(d.name, v)
+
+    def array_size(self, size: ast.Expr) -> int:
+        """A constant array size in 1..MAX_ARRAY."""
+        try:
+            n = self.const_int(size)
+        except RecursionError:
+            self.fail("array size expression is nested too deeply", size.span)
+        if n < 1:
+            self.fail(f"array size must be at least 1, got {n}", size.span)
+        if n > MAX_ARRAY:
+            self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
+                      f"{n if n < 10 ** 30 else f'a number of {len(str(n))} digits'}"
+                      f" (every state holds every element, and a write copies them)",
+                      size.span)
+        return n
+
+    def events(self, events) -> None:
+        seen: dict[str, int] = {}
+        for ev in events:
+            if ev.name in seen:
+                self.fail(f"duplicate event '{ev.name}'{_first_at(seen[ev.name])}",
                           self.declared_at(ev.name_span, ev.span))
-            seen_events[ev.name] = ev.span.line
+            seen[ev.name] = ev.span.line
             self.condition(ev.guard, "pre")
             self.stmts(ev.body)
-        info.events = tuple(seen_events)
-        seen_invariants: dict[str, int] = {}
-        for inv in p.invariants:
+        self.info.events = tuple(seen)
+
+    def invariants(self, invariants) -> None:
+        seen: dict[str, int] = {}
+        for inv in invariants:
             if inv.name is not None:
-                if inv.name in seen_invariants:
-                    self.fail(f"duplicate invariant '{inv.name}'"
-                              f"{_first_at(seen_invariants[inv.name])}",
+                if inv.name in seen:
+                    self.fail(f"duplicate invariant '{inv.name}'{_first_at(seen[inv.name])}",
                               self.declared_at(inv.name_span, inv.span))
-                seen_invariants[inv.name] = inv.span.line
-            _Checker(info, "property").property(inv.expr)
+                seen[inv.name] = inv.span.line
+            _Checker(self.info, "property").property(inv.expr)
 
     def declared_type(self, t: ast.TypeRef, where: Span) -> Ty:
         span = t.span if t.span.line > 0 else where
