@@ -115,3 +115,15 @@ def test_blackboxes_import_only_blackboxes_and_errors():
 
 def test_nothing_imports_the_command_line():
     assert [m for m in GRAPH if "pccl.cli" in GRAPH[m]] == []
+
+
+def test_the_source_tree_has_the_installed_layout():
+    """pccl/semantics and pccl/blackboxes link to the directories that
+    pyproject.toml's package-dir maps them from: mypy, which does not read
+    that mapping, and a plain checkout then see pccl.semantics.rules."""
+    import tomllib
+    mapping = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    for pkg, d in mapping.items():
+        if pkg != "pccl":
+            link = ROOT / pkg.replace(".", "/")
+            assert link.is_symlink() and link.resolve() == (ROOT / d).resolve(), pkg
