@@ -56,6 +56,18 @@ class ArgumentError(PcclError, ValueError):
     its ``filename`` is the function, e.g. ``pccl.api.explore``."""
 
 
+#: Options whose flag is not ``--`` + the name with ``-`` for ``_`` (the
+#: options are :mod:`pccl.options`; the spelling lives here, with the error
+#: that renders it, so that this module imports nothing above it).
+FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
+         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all"}
+
+
+def flag(name: str) -> str:
+    """The command-line flag of the option ``name``."""
+    return FLAGS.get(name, "--" + name.replace("_", "-"))
+
+
 class OptionError(PcclError):
     """A bad value of an option, found where its meaning is known (the model:
     an agent's rate above n0, a δ the clock cannot add).  ``option`` is the
@@ -65,7 +77,6 @@ class OptionError(PcclError):
     was called (``pccl.api.explore: error: rates: ...``)."""
 
     def __init__(self, option: str, message: str):
-        from .options import flag
         super().__init__(message, filename=flag(option))
         self.option = option
 

@@ -25,11 +25,7 @@ from typing import Any, Optional, Union
 from collections.abc import Callable, Mapping
 
 from . import validate as V
-from .errors import ArgumentError
-
-#: Fields whose flag is not ``--`` + the field name with ``-`` for ``_``.
-FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
-         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all"}
+from .errors import FLAGS, ArgumentError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -41,11 +37,6 @@ PRESENTATION = {
     "explore": frozenset({"fmt", "plot", "progress", "progress_interval", "trace_out", "view",
                           "full"}),
 }
-
-
-def flag(name: str) -> str:
-    """The command-line flag of the option ``name``."""
-    return FLAGS.get(name, "--" + name.replace("_", "-"))
 
 
 @dataclass(frozen=True)
