@@ -8,9 +8,15 @@ order) so that two textually equal statements at different places are
 different items of an agent's pending computation ``k`` (docs/language.md
 §11, "The configuration").
 
+Declarations (variables, enums and their members, events, named invariants)
+also carry the span of the declared name itself (``name_span``), so that a
+message about a name points at the name.
+
 The parser (``pccl.parser``) builds these; the static checker
 (``pccl.checker``) reads them and fills in nothing: it only reports errors.
-The compiler (``pccl.compile``) turns them into closures.
+The compiler (``pccl.compile``) turns them into closures.  Traversals use
+:func:`children` (the one function that knows each node's sub-nodes) through
+:func:`walk`, :func:`walk_stmts` and :func:`walk_expr`.
 """
 
 from __future__ import annotations

@@ -81,8 +81,8 @@ def test_no_import_cycles():
 #: modules that know nothing of PCCL: the search and its bookkeeping
 GENERIC = {"pccl.explorer", "pccl.parallel", "pccl.fingerprint", "pccl.memory"}
 #: the front end: source text to a checked AST
-FRONT = {"pccl.ast", "pccl.parser", "pccl.checker", "pccl.errors", "pccl.values",
-         "pccl.builtins"}
+FRONT = {"pccl.ast", "pccl.parser", "pccl.checker", "pccl.types", "pccl.errors",
+         "pccl.values", "pccl.builtins"}
 #: what the front end must not know
 BACK = {"pccl.compile", "pccl.engine", "pccl.explorer", "pccl.parallel", "pccl.reduce",
         "pccl.semantics.rules", "pccl.blackboxes", "pccl.api", "pccl.cli", "pccl.display"}
