@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any, NoReturn, Optional
+from collections.abc import Callable
 
 from . import ast as A
 from . import values as V
@@ -31,7 +32,6 @@ def _rebuild(var: str, index: int, new: str) -> str:
     a tuple display with numeric subscripts (the fastest rebuild)."""
     cells = [new if k == index else f"{var}[{k}]" for k in range(N_AGENT_CELLS)]
     return "(" + ", ".join(cells) + ")"
-
 
 
 
@@ -99,11 +99,12 @@ def coerce(value, ty: Ty):
             raise ValueError(f"expected a bool, got {value!r}")
         return value
     if k == "enum":
-        if isinstance(value, str) and value in ty.members:
-            return ty.members.index(value)
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(ty.members):
+        members = ty.members or ()
+        if isinstance(value, str) and value in members:
+            return members.index(value)
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(members):
             return value
-        raise ValueError(f"expected one of {', '.join(ty.members)}, got {value!r}")
+        raise ValueError(f"expected one of {', '.join(members)}, got {value!r}")
     if k == "pos":
         if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
                 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
@@ -127,7 +128,7 @@ def coerce(value, ty: Ty):
     if k in ("list", "array"):
         if not isinstance(value, (tuple, list)):
             raise ValueError(f"expected a list, got {value!r}")
-        out = tuple(coerce(x, ty.elem) for x in value)
+        out = tuple(coerce(x, ty.item) for x in value)
         if k == "array" and len(out) != ty.size:
             raise ValueError(f"expected {ty.size} elements, got {len(out)}")
         return out
@@ -154,7 +155,7 @@ def widens(src: Ty, dst: Ty) -> bool:
     if src.kind == "int" and dst.kind == "float":
         return True
     if src.kind == "list" and dst.kind == "list":
-        return widens(src.elem, dst.elem)
+        return widens(src.item, dst.item)
     return False
 
 
@@ -175,7 +176,7 @@ class Oracle:
         self.policy = policy
         self.prefix: list = []
         self.trail: list = []
-        self.agent = None
+        self.agent: Optional[int] = None
         self.span = None
         self.eager = False      # inside outcomes(): the whole product is built
         self.size = 1           # outcomes of the current evaluation so far
@@ -252,21 +253,15 @@ class Oracle:
 
 
 def has_rand(node) -> bool:
-    if isinstance(node, (tuple, list)):
-        return any(has_rand(x) for x in node)
-    if isinstance(node, A.If):
-        return any(has_rand(c) for c, _ in node.branches)
-    if isinstance(node, A.While):
-        return has_rand(node.cond)
-    if isinstance(node, A.Assign):
-        return has_rand(node.target) or has_rand(node.value)
-    if isinstance(node, A.CallStmt):
-        return any(has_rand(a) for a in node.args)
-    if isinstance(node, (A.Atomic, A.Skip)):
-        return False
+    """Does evaluating ``node`` draw a ``rand()``?  ``node`` is an expression,
+    a statement (its own expressions: an if's conditions, not its branches),
+    a tuple of them, or None."""
     if node is None:
         return False
-    return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
+    if isinstance(node, (tuple, list)):
+        return any(has_rand(x) for x in node)
+    exprs = A.own_exprs(node) if isinstance(node, A.STMT_TYPES) else (node,)
+    return any(isinstance(x, A.Call) and x.name == "rand" for e in exprs for x in A.walk(e))
 
 
 def _may_grow(e: A.Expr) -> bool:
@@ -303,11 +298,11 @@ class Compiler:
         self._qval: dict = {}               # quantified variable -> agent index (unrolled)
 
     # -- helpers -----------------------------------------------------------
-    def error(self, msg, node):
+    def error(self, msg: str, node) -> NoReturn:
         raise PcclError(msg, filename=self.program.filename,
                         source=self.program.source, span=getattr(node, "span", None))
 
-    def impossible(self, msg, node):
+    def impossible(self, msg, node) -> NoReturn:
         """A case the checker has ruled out (an AssertionError if it ever fires)."""
         raise AssertionError(f"the checker should have rejected this: {msg}")
 
@@ -489,7 +484,7 @@ class Compiler:
         self.impossible(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
-        """Index chains.  Per-agent variables (spec §2, checker rules): an
+        """Index chains.  Per-agent variables (docs/language.md §4): an
         allread scalar ``x[j]`` is agent j's component; for an allread array
         ``x[k]`` is this agent's element k and ``x[j][k]`` agent j's element k.
         In properties every per-agent name takes the agent index first
@@ -508,8 +503,8 @@ class Compiler:
                 return self._index_rest(ref, idx[1:], ex)
             if vs is not None and vs.section != "allwrite":
                 if prop:
-                    cell = AR if vs.section == "allread" else LOC
-                    ref = f"_av(ags, {ex(idx[0])}, {cell}, {vs.slot}, {n!r})"
+                    part = AR if vs.section == "allread" else LOC
+                    ref = f"_av(ags, {ex(idx[0])}, {part}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
                 if vs.section == "allread":
                     if vs.ty.kind == "array" and len(idx) == 1:
@@ -586,7 +581,7 @@ class Compiler:
         if isinstance(e, A.ListLit) and k == "list":
             if not e.items:
                 return "()"
-            return "(" + ", ".join(self.value(x, want.elem) for x in e.items) + ",)"
+            return "(" + ", ".join(self.value(x, want.item) for x in e.items) + ",)"
         src = self.expr(e, want=want)
         st = self.static_type(e)
         if st is None:                              # no checker info: convert blindly

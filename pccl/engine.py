@@ -16,7 +16,7 @@ Configurations are nested tuples (compact, immutable, hashable)::
     reach = (target, obstacles, t0, doReach_done, doReach_fail)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
-occurrence ids and markers, spec §5) as a small integer; :class:`Control`
+occurrence ids and markers, docs/language.md §11) as a small integer; :class:`Control`
 maps it back and decodes its head once.
 """
 
@@ -28,7 +28,8 @@ import operator
 
 import xxhash
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Optional
+from collections.abc import Callable
 
 from . import ast as A
 from .compile import Compiler, Layout, Oracle, build_layout, has_rand
@@ -42,12 +43,10 @@ from .layout import (AEND, AGS, AR, BLANK_REACH, CNT, DISCRETE, END, ENV, EXITED
 # (the types of doReach's arguments; POS above is the agent's position cell)
 from .types import OBSTACLES as OBSTACLES_TY, POS as POS_TY
 from .values import UNDEF
+from .world import MAX_AGENTS  # the Model checks it too
 from .semantics import rules as R
 from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
                               K_EXIT, K_IF, K_SIMPLE, K_WHILE, KHead)
-
-#: Most agents a model may have (each is a tuple in every state).
-MAX_AGENTS = 10_000
 
 
 @dataclass(frozen=True)
@@ -158,7 +157,9 @@ class Control:
             return KHead(K_AEND, next_pc=rest)
         if is_acquire(head):
             sid = acquire_sid(head)
-            body = tuple(s.sid for s in self.m.stmts[sid].body)
+            atomic = self.m.stmts[sid]
+            assert isinstance(atomic, A.Atomic), atomic      # acq(sid) heads an atomic block
+            body = tuple(s.sid for s in atomic.body)
             return KHead(K_ACQ, body_pc=seq(body, rest), sid=sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
@@ -208,6 +209,8 @@ class Model:
         from .blackboxes import load_blackbox
 
         self.program = program
+        #: why the search picked its blackbox (set by the API and the CLI)
+        self.blackbox_reason: Optional[str] = None
         self.world = world if world is not None else default_world()
         try:
             if blackbox is None:

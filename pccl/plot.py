@@ -138,7 +138,7 @@ def _frame(st):
 def _frames_from_states(states) -> list:
     """[(time, positions, statuses)], one per state, consecutive duplicates
     (same time and positions) merged."""
-    out = []
+    out: list = []
     for st in states:
         f = _frame(st)
         if out and out[-1][0] == f[0] and out[-1][1] == f[1]:
@@ -162,7 +162,7 @@ def _frames_from_trace(trace) -> list:
 
 def _destinations(model, st) -> list:
     """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
-    out = []
+    out: list = []
     for v in getattr(model.layout, "shared", ()):
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
@@ -178,7 +178,7 @@ def _destinations(model, st) -> list:
 
 def _targets(states, n) -> list:
     """Per agent, the distinct doReach targets in order of first appearance."""
-    seen = [dict() for _ in range(n)]
+    seen: list[dict] = [{} for _ in range(n)]
     for st in states:
         for i, ag in enumerate(st[AGS]):
             t = ag[REACH][TARGET]
@@ -266,7 +266,7 @@ def _fmt_t(t) -> str:
 
 def _runs(frames, i) -> list:
     """Agent i's positions with the times it was there: [(xy, t_first, t_last)]."""
-    out = []
+    out: list = []
     for t, pos, _ in frames:
         p = pos[i]
         if out and out[-1][0] == p:
@@ -305,38 +305,60 @@ def _status_word(code) -> str:
     return "running" if code == RUNNING else "exited" if code == EXITED else "stuck"
 
 
+class _Canvas:
+    """The axes of a trajectory plot, the points the view must show and the
+    legend entries, filled in layer by layer."""
+
+    def __init__(self, fig):
+        fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
+        ax = self.ax = fig.add_subplot(1, 1, 1)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
+        ax.set_axisbelow(True)
+        ax.set_xlabel("x", fontsize=8)
+        ax.set_ylabel("y", fontsize=8)
+        ax.tick_params(labelsize=7)
+        self.xs: list = []
+        self.ys: list = []
+        self.handles: list = []
+
+    def extend(self, pts, pad=0.0):
+        for x, y in pts:
+            self.xs.extend((x - pad, x + pad))
+            self.ys.extend((y - pad, y + pad))
+
+
 def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> None:
+    """The trajectory plot: arena, obstacles, destinations, doReach targets
+    and failures, each agent's path, the violating moment; then the view and
+    the titles."""
     world = model.world
     n = len(st0[AGS])
     r = float(world.radius)
     colours = _colours(n)
     fig = Figure(figsize=FIGSIZE, dpi=DPI)
     FigureCanvasAgg(fig)
-    fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
-    ax = fig.add_subplot(1, 1, 1)
-    ax.set_aspect("equal", adjustable="box")
-    ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
-    ax.set_axisbelow(True)
-    ax.set_xlabel("x", fontsize=8)
-    ax.set_ylabel("y", fontsize=8)
-    ax.tick_params(labelsize=7)
+    cv = _Canvas(fig)
+    _draw_world(cv, world, ring)
+    _draw_marks(cv, model, st0, scan_states, n, colours)
+    _draw_trajectories(cv, frames, n, r, colours)
+    if bad and ring:
+        _draw_violation(cv, last, ring, r)
+    _fit_view(cv, world, r)
+    _draw_titles(fig, cv, head, sub, bad)
+    _save(fig, path)
 
-    xs: list = []
-    ys: list = []
-    handles: list = []
 
-    def extend(pts, pad=0.0):
-        for x, y in pts:
-            xs.extend((x - pad, x + pad))
-            ys.extend((y - pad, y + pad))
-
+def _draw_world(cv: _Canvas, world, ring) -> None:
+    """The arena (dashed, not solid) and the numbered obstacles (those of
+    a collision outlined in red)."""
     # arena
     if world.arena is not None:
         (x0, y0), (x1, y1) = world.arena
-        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="#888888",
-                               linestyle="--", linewidth=1.0, zorder=1))
-        extend([(x0, y0), (x1, y1)])
-        handles.append(Line2D([], [], color="#888888", linestyle="--", label="arena"))
+        cv.ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="#888888",
+                                  linestyle="--", linewidth=1.0, zorder=1))
+        cv.extend([(x0, y0), (x1, y1)])
+        cv.handles.append(Line2D([], [], color="#888888", linestyle="--", label="arena"))
 
     # obstacles
     bad_obs = set(ring["obstacles"]) if ring else set()
@@ -344,53 +366,61 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         for k, poly in enumerate(world.obstacles, start=1):
             pts = [_xy(p) for p in poly]
             hit = k in bad_obs
-            ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#9e9e9e", alpha=0.85,
-                                      edgecolor="red" if hit else "#505050",
-                                      linewidth=2.5 if hit else 1.0, zorder=2))
+            cv.ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#9e9e9e", alpha=0.85,
+                                         edgecolor="red" if hit else "#505050",
+                                         linewidth=2.5 if hit else 1.0, zorder=2))
             cx = sum(p[0] for p in pts) / len(pts)
             cy = sum(p[1] for p in pts) / len(pts)
-            ax.text(cx, cy, str(k), ha="center", va="center", fontsize=7, color="white",
-                    zorder=3, fontweight="bold")
-            extend(pts)
-        handles.append(Patch(facecolor="#9e9e9e", edgecolor="#505050", label="obstacle"))
+            cv.ax.text(cx, cy, str(k), ha="center", va="center", fontsize=7, color="white",
+                       zorder=3, fontweight="bold")
+            cv.extend(pts)
+        cv.handles.append(Patch(facecolor="#9e9e9e", edgecolor="#505050", label="obstacle"))
 
+
+def _draw_marks(cv: _Canvas, model, st0, scan_states, n, colours) -> None:
+    """Destinations (shared List<ItemPosition> variables), each agent's
+    doReach targets, and where a doReach failed."""
     # destinations (shared List<ItemPosition> variables, initial value)
     dests = _destinations(model, st0)
     if dests:
         names = ", ".join(name for name, _ in dests)
         allpts = [p for _, pts in dests for p in pts]
-        ax.plot([p[0] for p in allpts], [p[1] for p in allpts], linestyle="none", marker="*",
-                markersize=14, markerfacecolor="gold", markeredgecolor="#7a5c00",
-                markeredgewidth=0.8, zorder=4)
-        extend(allpts)
-        handles.append(Line2D([], [], linestyle="none", marker="*", markersize=11,
-                              markerfacecolor="gold", markeredgecolor="#7a5c00",
-                              label=f"destinations ({names})"))
+        cv.ax.plot([p[0] for p in allpts], [p[1] for p in allpts], linestyle="none", marker="*",
+                   markersize=14, markerfacecolor="gold", markeredgecolor="#7a5c00",
+                   markeredgewidth=0.8, zorder=4)
+        cv.extend(allpts)
+        cv.handles.append(Line2D([], [], linestyle="none", marker="*", markersize=11,
+                                 markerfacecolor="gold", markeredgecolor="#7a5c00",
+                                 label=f"destinations ({names})"))
 
     # doReach targets
     targets = _targets(scan_states, n)
     if any(targets):
         for i, ts in enumerate(targets):
             if ts:
-                ax.plot([p[0] for p in ts], [p[1] for p in ts], linestyle="none", marker="x",
-                        markersize=9, markeredgewidth=2.0, color=colours[i], zorder=6)
-                extend(ts)
-        handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
-                              markeredgewidth=2.0, color="#333333", label="doReach targets"))
+                cv.ax.plot([p[0] for p in ts], [p[1] for p in ts], linestyle="none", marker="x",
+                           markersize=9, markeredgewidth=2.0, color=colours[i], zorder=6)
+                cv.extend(ts)
+        cv.handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
+                                 markeredgewidth=2.0, color="#333333", label="doReach targets"))
 
     # failed doReach: where each agent's doReach_fail became true
     fails = _failures(scan_states, n)
     if fails:
         for i, p in fails:
-            ax.plot([p[0]], [p[1]], linestyle="none", marker="X", markersize=13,
-                    markerfacecolor="red", markeredgecolor="black", markeredgewidth=0.8, zorder=11)
-            ax.annotate(f"doReach failed ({i})", p, xytext=(6, -12), textcoords="offset points",
-                        fontsize=6, color="red", zorder=11)
-            extend([p])
-        handles.append(Line2D([], [], linestyle="none", marker="X", markersize=9,
-                              markerfacecolor="red", markeredgecolor="black",
-                              label="doReach failed"))
+            cv.ax.plot([p[0]], [p[1]], linestyle="none", marker="X", markersize=13,
+                       markerfacecolor="red", markeredgecolor="black", markeredgewidth=0.8, zorder=11)
+            cv.ax.annotate(f"doReach failed ({i})", p, xytext=(6, -12), textcoords="offset points",
+                           fontsize=6, color="red", zorder=11)
+            cv.extend([p])
+        cv.handles.append(Line2D([], [], linestyle="none", marker="X", markersize=9,
+                                 markerfacecolor="red", markeredgecolor="black",
+                                 label="doReach failed"))
 
+
+def _draw_trajectories(cv: _Canvas, frames, n, r, colours) -> None:
+    """Each agent's path with time labels, its footprint at start (dashed)
+    and at the end (filled, numbered)."""
     # trajectories
     final_status = frames[-1][2]
     offsets = [(5, 5), (5, -11), (-22, 5), (-22, -11)]
@@ -398,50 +428,54 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     for i in range(n):
         c = colours[i]
         pts = [f[1][i] for f in frames]
-        extend(pts, pad=r)
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], color=c, linewidth=1.6,
-                marker="o", markersize=2.5, zorder=5, alpha=0.9)
+        cv.extend(pts, pad=r)
+        cv.ax.plot([p[0] for p in pts], [p[1] for p in pts], color=c, linewidth=1.6,
+                   marker="o", markersize=2.5, zorder=5, alpha=0.9)
         start, end = pts[0], pts[-1]
-        ax.add_patch(Circle(start, r, fill=False, edgecolor=c, linestyle="--",
-                            linewidth=1.2, zorder=5))
-        ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
-                            zorder=7))
+        cv.ax.add_patch(Circle(start, r, fill=False, edgecolor=c, linestyle="--",
+                               linewidth=1.2, zorder=5))
+        cv.ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
+                               zorder=7))
         ends.append(end)
         dx, dy = offsets[i % len(offsets)]
         for p, ta, tb in _thin(_runs(frames, i), MAX_TIME_LABELS):
             text = f"t={_fmt_t(ta)}" if ta == tb else f"t={_fmt_t(ta)}–{_fmt_t(tb)}"
-            ax.annotate(text, p, xytext=(dx, dy), textcoords="offset points", fontsize=6,
-                        color=c, zorder=9)
+            cv.ax.annotate(text, p, xytext=(dx, dy), textcoords="offset points", fontsize=6,
+                           color=c, zorder=9)
         if i < MAX_LEGEND_AGENTS:
-            handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
-                                  label=f"agent {i} ({_status_word(final_status[i])})"))
+            cv.handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
+                                     label=f"agent {i} ({_status_word(final_status[i])})"))
     # agent numbers on the end footprints; robots ending on top of each other share one label
     for group in _groups(ends, 0.3 * r):
         x, y = ends[group[0]]
-        ax.text(x, y, ",".join(map(str, group)), ha="center", va="center", fontsize=7,
-                fontweight="bold", color="black", zorder=8)
+        cv.ax.text(x, y, ",".join(map(str, group)), ha="center", va="center", fontsize=7,
+                   fontweight="bold", color="black", zorder=8)
     if n > MAX_LEGEND_AGENTS:
-        handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
-    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
-                          markerfacecolor="none", markeredgecolor="#555555",
-                          label="footprint at start (dashed)"))
-    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
-                          markerfacecolor="#bbbbbb", markeredgecolor="#555555",
-                          label="footprint at end"))
+        cv.handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                             markerfacecolor="none", markeredgecolor="#555555",
+                             label="footprint at start (dashed)"))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                             markerfacecolor="#bbbbbb", markeredgecolor="#555555",
+                             label="footprint at end"))
 
-    # the violating moment
-    if bad and ring:
-        pos = [_xy(ag[POS]) for ag in last[AGS]]
-        style = "--" if ring["all"] else "-"
-        for i in ring["agents"]:
-            if i < len(pos):
-                ax.add_patch(Circle(pos[i], 1.6 * r, fill=False, edgecolor="red",
-                                    linewidth=2.2, linestyle=style, zorder=10))
-        handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
-                              markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
-                              label=f"violation at t={_fmt_t(last[TIME])}"))
 
-    # view
+def _draw_violation(cv: _Canvas, last, ring, r) -> None:
+    """Red rings around the agents of the violation, where they are at it."""
+    pos = [_xy(ag[POS]) for ag in last[AGS]]
+    style = "--" if ring["all"] else "-"
+    for i in ring["agents"]:
+        if i < len(pos):
+            cv.ax.add_patch(Circle(pos[i], 1.6 * r, fill=False, edgecolor="red",
+                                   linewidth=2.2, linestyle=style, zorder=10))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
+                             markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
+                             label=f"violation at t={_fmt_t(last[TIME])}"))
+
+
+def _fit_view(cv: _Canvas, world, r) -> None:
+    """Limits that show every point drawn, grown to the axes' shape."""
+    xs, ys = cv.xs, cv.ys
     if not xs:
         xs, ys = [0.0], [0.0]
     xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
@@ -451,7 +485,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         m = max(0.03 * span, 0.25 * r)
     xmin, xmax, ymin, ymax = xmin - m, xmax + m, ymin - m, ymax + m
     # grow the view to the axes' shape, so that equal aspect fills the box
-    box = ax.get_position(original=True)
+    box = cv.ax.get_position(original=True)
     want = (box.width * FIGSIZE[0]) / (box.height * FIGSIZE[1])
     w, h = xmax - xmin, ymax - ymin
     if w / h < want:
@@ -460,18 +494,21 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     else:
         grow = (w / want - h) / 2
         ymin, ymax = ymin - grow, ymax + grow
-    ax.set_xlim(xmin, xmax)
-    ax.set_ylim(ymin, ymax)
+    cv.ax.set_xlim(xmin, xmax)
+    cv.ax.set_ylim(ymin, ymax)
 
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
-              frameon=True, borderaxespad=0.0)
+
+def _draw_titles(fig, cv: _Canvas, head, sub, bad) -> None:
+    """The legend right of the axes, the title and the subtitle (red for a
+    violation)."""
+    cv.ax.legend(handles=cv.handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
+                 frameon=True, borderaxespad=0.0)
     fig.text(0.5, 0.955, head, ha="center", va="center", fontsize=10, fontweight="bold")
     if sub:
         wrapped = textwrap.shorten(sub, width=220, placeholder=" …")
         wrapped = "\n".join(textwrap.wrap(wrapped, width=110)[:2])
         fig.text(0.5, 0.91, wrapped, ha="center", va="center", fontsize=8,
                  color="red" if bad else "#333333")
-    _save(fig, path)
 
 
 def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
@@ -530,7 +567,8 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
             ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
         elif ag[STATUS] != RUNNING:
             ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
-    handles = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e) for e in events if e in used]
+    handles: list = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e)
+                     for e in events if e in used]
     if any(None in v for v in blocks.values()):
         handles.append(Patch(facecolor="#eeeeee", edgecolor="#bbbbbb", label="idle"))
     if any(WAIT in v for v in blocks.values()):

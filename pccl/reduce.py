@@ -70,7 +70,7 @@ class Plan:
         return {"requested": self.requested, "on": list(self.on), "off": dict(self.off)}
 
 
-def parse_request(reduce) -> tuple:
+def parse_request(reduce) -> Optional[tuple]:
     """``"auto"`` -> None (every sound one), ``"none"`` -> (), a list or
     ``"merge,symmetry"`` -> that tuple; unknown names are errors."""
     if reduce is None or reduce == "auto":

@@ -54,7 +54,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     if len(inits) > 1:          # no rand policy: every outcome is an initial state
         inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
-    trace, summary = [], [(st[TIME], st)]
+    trace: list = []
+    summary = [(st[TIME], st)]
     steps = 0
     n_env, stride = 0, 1
     since_time = 0
@@ -124,4 +125,4 @@ def _looping_agent(model, st, per_agent: Counter) -> int:
         n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
         if ag[STATUS] == RUNNING and n > best_n:
             best, best_n = i, n
-    return best if best is not None else max(per_agent, key=per_agent.get)
+    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])

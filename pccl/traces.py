@@ -154,7 +154,8 @@ def changes(model, a, b) -> list:
 
 def cell_name(cell: dict) -> str:
     """``waitTime[0]``, ``reqid``, ``pos[1]``, ``time``: as the text views print cells."""
-    name = cell.get("var") or {"position": "pos"}.get(cell.get("cell"), cell.get("cell"))
+    c = str(cell.get("cell"))
+    name = cell.get("var") or {"position": "pos"}.get(c, c)
     return f"{name}[{cell['agent']}]" if "agent" in cell else name
 
 

@@ -1,4 +1,5 @@
-"""The rewrite rules of PCCL, one function per rule of the paper (spec §4).
+"""The rewrite rules of PCCL, one function per rule of the paper
+(docs/language.md §11, "The rules").
 
 Each agent rule has the signature ``rule(m, st, i, ag, head, out)``: ``m`` is
 the model, read only through :class:`RuleContext`; ``st`` the configuration,
@@ -28,7 +29,8 @@ with tuple displays; everywhere else, code reads cells by name.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Optional, Protocol, Sequence
+from typing import Any, Optional, Protocol
+from collections.abc import Callable, Sequence
 
 from pccl.errors import PcclRuntimeError
 from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING,  # noqa: F401
@@ -174,7 +176,7 @@ def event_select(m, st, i, ag, head, out):
     of that event, Es is the list of events following that; this event block
     rewrites to S.  If C evaluates to false, this block rewrites to Es."
 
-    Spec: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
+    Rule: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
     k := its effect ~> endEventBlock (label ``EVENT Name``); if none holds,
     k := endEventBlock (label ``IDLE``).  ``--events first`` keeps only the
     first enabled event in source order.
@@ -335,7 +337,7 @@ def statement(m, st, i, ag, head, out):
 def exit_rule(m, st, i, ag, head, out):
     """EXIT.
 
-    Spec §4: ``exit()``: status exited, k empty.  Exited agents never block
+    Rule: ``exit()``: status exited, k empty.  Exited agents never block
     time.
 
     Changes k and status.
@@ -480,8 +482,8 @@ def lock_release(m, st, i, ag, head, out):
 # ---------------------------------------------------------------------------
 
 def time_advance_enabled(m, st):
-    """TIME ADVANCE's guard without the ``--max-time`` bound: True if every
-    agent that has not exited has spent its counter and one is running."""
+    """TIME ADVANCE's guard without the ``--max-time`` bound: True when time
+    may advance, False when it may not (whatever the bound)."""
     if st[1] != DISCRETE:
         return False
     n0, rho = m.n0, m.rho
@@ -507,7 +509,7 @@ def time_advance(m, st, out, enabled=None):
         ⟨CM⟩counterMap ⟨T ⇒ T +Int δ⟩time ⟨discrete ⇒ dynamic⟩transitionState
         requires n0 ==Int findMin(CM) and n0 ==Int findMax(CM)
 
-    Spec: at least one agent running; every agent that has not exited has
+    Rule: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.  The clock holds exact
     multiples n·δ (see :meth:`pccl.engine.Model.next_time`).
 
@@ -538,7 +540,7 @@ def doreach_invoke(m, st, out):
         ⟨⟨i⟩id ⟨N ⇒ 0⟩counter ⟨P ⇒ P1⟩position ...⟩agent ⟨... i ↦ N ⇒ i ↦ 0 ...⟩counterMap ⟨dynamic⟩transitionState
         requires N ==Int n0 and P1 = doReachBB(P, T, O, T0, δ, i)
 
-    Spec: the blackbox advances the world by δ for all agents at once; each
+    Rule: the blackbox advances the world by δ for all agents at once; each
     outcome it returns is one successor: positions, flags and env updated,
     every counter := 0, transitionState := discrete.
 

@@ -1,4 +1,4 @@
-"""One test per rewrite rule (spec §4): enabled on a hand-built configuration
+"""One test per rewrite rule (docs/language.md §11): enabled on a hand-built configuration
 with exactly the expected successor, and disabled when its condition fails.
 
 Configurations are built from a tiny program's initial state by editing the
@@ -86,7 +86,7 @@ def event_k(m, e):
 
 
 def test_initial_configuration(m, st0):
-    # spec §4 Initialisation: time 0, counters 0, discrete, empty queue, k empty
+    # language.md §11, Initialisation: time 0, counters 0, discrete, empty queue, k empty
     assert st0[TIME] == 0 and st0[PHASE] == DISCRETE and st0[LQ] == ()
     for i, ag in enumerate(st0[AGS]):
         assert k_of(m, ag) == ()
@@ -651,7 +651,7 @@ def test_doreach_invoke_disabled_in_discrete_phase_and_agents_wait_in_dynamic(m,
 
 
 def test_doreach_invoke_moves_exited_agents_too(m, st0):
-    # an exited robot's controller still runs toward its last target (spec §6)
+    # an exited robot's controller still runs toward its last target (docs/blackboxes.md)
     tgt = (1.0, 2.0, 0.0)
     st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False), status=EXITED)
     st = set_state(m, set_agent(m, st, 1, counter=1), time=1, phase=DYNAMIC)
@@ -862,7 +862,7 @@ def test_same_error_same_stuck_code():
 
 
 # ---------------------------------------------------------------------------
-# state identity of k (spec §5)
+# state identity of k (docs/language.md §11)
 # ---------------------------------------------------------------------------
 
 TWO_SKIPS = """
