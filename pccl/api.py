@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
 from . import ast as A
-from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
@@ -251,10 +250,14 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if coverage:
         from .coverage import CoverageModel
         cov = CoverageModel(model)
+    nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
     if workers == "auto":
         from .parallel import available_workers
-        workers = None if ray is not None else available_workers()
-    if (ray is not None or workers > 1) and (exact or coverage):
+        nworkers = None if ray is not None else available_workers()
+    else:
+        assert isinstance(workers, int), workers        # validated by ExploreOptions
+        nworkers = workers
+    if (ray is not None or (nworkers is not None and nworkers > 1)) and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1 without ray", filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
@@ -263,10 +266,10 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if ray is not None:
         from .parallel import ParallelExplorer, import_ray
         import_ray()            # the install hint before anything else
-        ex = ParallelExplorer(model, workers=workers, ray=ray, **opts)
-    elif workers > 1:
+        ex: Any = ParallelExplorer(model, workers=nworkers, ray=ray, **opts)
+    elif nworkers is not None and nworkers > 1:
         from .parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=workers, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, **opts)
     else:
         ex = Explorer(cov or model, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
@@ -353,7 +356,8 @@ def violation_data(model, found: Counterexample) -> Finding:
     """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
     rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
-    tr: Trace = found.trace
+    tr: Optional[Trace] = found.trace
+    assert tr is not None, "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace

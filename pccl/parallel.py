@@ -60,7 +60,7 @@ import operator
 import os
 import signal
 import time as _time
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 import xxhash
@@ -110,8 +110,8 @@ class _Worker:
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
         self.cand: list = []           # candidate successors of the level
-        self.cand_keys = None          # their keys (ascending)
-        self.pending = None            # owner side: (fps, keys) of new states
+        self.cand_keys: Any = None     # their keys (ascending)
+        self.pending: Any = None       # owner side: (fps, keys) of new states
         key = model.key
         twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
@@ -378,7 +378,8 @@ class _RayTransport:
     (``ray.is_initialized()``), that connection is used and left open."""
 
     def __init__(self, n: Optional[int], address: str):
-        self.n, self.address = n, address
+        self.n: Any = n                # None until start(): one per CPU of the cluster
+        self.address = address
         self.actors: list = []
         self.owned = False
         self.ray = import_ray()
@@ -496,9 +497,14 @@ class ParallelExplorer(Explorer):
         if options.get("exact"):
             raise ValueError("exact state storage runs in one process (workers=1)")
         super().__init__(model, **options)
-        self.workers = workers
+        self.workers: Any = workers    # an int once the transport has started
         self.ray = ray
-        self.transport = _RayTransport(workers, ray) if ray is not None else _Pipes(workers)
+        self.transport: Any
+        if ray is not None:
+            self.transport = _RayTransport(workers, ray)
+        else:
+            assert workers is not None, "workers=None (one per cluster CPU) needs ray"
+            self.transport = _Pipes(workers)
 
     # -- the search ---------------------------------------------------------
     def run(self) -> SearchResult:
@@ -517,15 +523,17 @@ class ParallelExplorer(Explorer):
                 gc.enable()
 
     def _run(self) -> SearchResult:
-        m, n, T = self.model, self.workers, self.transport
+        m, T = self.model, self.transport
+        n: int = self.workers
         key = m.key
         t_start = _time.perf_counter()
         stats = Stats()
         res = SearchResult("exhaustive", stats=stats)
-        found, reported, bounds = res.found, set(), set()
+        found, bounds = res.found, set()
+        reported: set = set()
         budget = self.max_states if self.max_states is not None else _MAX_STATES
         cap = min(_MAX_STATES, budget + 1)
-        self.parents = _reserve((cap,), np.uint32)
+        self.parents: Any = _reserve((cap,), np.uint32)
         if self.parents is None:
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)
@@ -552,7 +560,7 @@ class ParallelExplorer(Explorer):
 
         stop = False
         depth = 0
-        decisions = None        # per worker: the decision on the last level, sent with the next step
+        decisions: Any = None   # per worker: the decision on the last level, sent with the next step
         try:
             # -- initial states: numbered here in chunks, handed out round-robin
             it = iter(m.init_states())
