@@ -210,6 +210,16 @@ def default_max_memory() -> int:
     return int(physical_memory() * DEFAULT_MEMORY_FRACTION)
 
 
+def require_ray():
+    """The ``ray`` module for ``ray=``/``--ray``, or an :class:`ArgumentError`
+    saying ``pip install 'pccl[ray]'``."""
+    from .parallel import RayUnavailable, import_ray
+    try:
+        return import_ray()
+    except RayUnavailable as e:
+        raise ArgumentError(str(e), filename="pccl --ray") from None
+
+
 def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                   **search) -> ExploreResult:
     """Explore ``model``.  The search options are those of
@@ -264,8 +274,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
     if ray is not None:
-        from .parallel import ParallelExplorer, import_ray
-        import_ray()            # the install hint before anything else
+        from .parallel import ParallelExplorer
+        require_ray()           # the install hint before anything else
         ex: Any = ParallelExplorer(model, workers=nworkers, ray=ray, **opts)
     elif nworkers is not None and nworkers > 1:
         from .parallel import ParallelExplorer
@@ -275,6 +285,11 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
+    except RuntimeError as e:
+        from .parallel import RayUnavailable
+        if isinstance(e, RayUnavailable):       # Ray could not be started or reached
+            raise ArgumentError(str(e), filename="pccl --ray") from None
+        raise
     finally:
         model.lock_deadlocks = saved
     if getattr(model, "merger", None) is not None:

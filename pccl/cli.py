@@ -456,9 +456,9 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     if trace_out:
         _check_output(trace_out, "--trace-out")
     if ray is not None:
-        from .parallel import import_ray
+        from .api import require_ray
         try:
-            import_ray()
+            require_ray()
         except PcclError as e:
             _fail(e)
     _check_repeats(rates, overrides)

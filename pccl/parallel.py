@@ -65,12 +65,11 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
-from .errors import ArgumentError
 from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
 
-__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING"]
+__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "import_ray"]
 
 _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
@@ -361,12 +360,17 @@ class _Pipes:
                     pass
 
 
+class RayUnavailable(RuntimeError):
+    """Ray is not installed, or cannot be started or reached (the front
+    ends turn this into their own error message)."""
+
+
 def import_ray():
-    """The ``ray`` module, or a :class:`PcclError` saying how to install it."""
+    """The ``ray`` module, or :class:`RayUnavailable` saying how to install it."""
     try:
         import ray
     except ImportError:
-        raise ArgumentError(RAY_MISSING, filename="pccl --ray") from None
+        raise RayUnavailable(RAY_MISSING) from None
     return ray
 
 
@@ -398,8 +402,7 @@ class _RayTransport:
             else:
                 ray.init(address=address, **quiet)
         except Exception as exc:
-            raise ArgumentError(f"--ray {address}: cannot start or reach Ray: {exc}",
-                                filename="pccl --ray") from None
+            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}") from None
         return True
 
     def start(self, model, deadlock: bool, find_all: bool) -> None:
