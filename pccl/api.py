@@ -147,6 +147,12 @@ class ExploreResult:
     search: Optional[SearchResult] = None
     counterexamples: list = field(default_factory=list)  # [Counterexample], as violations
     coverage: Any = None              # a CoverageReport, with coverage=True
+    #: reachable P: [{"name", "text", "trace", "state"}] of the properties with a witness
+    witnesses: list = field(default_factory=list)
+    #: temporal properties (spec section 9) that hold, and what was not checked
+    holds: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    timelock: bool = False            # whether the time-lock check ran
 
     @property
     def exhaustive(self) -> bool:
@@ -156,12 +162,18 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            workers=1, reduce="none", **model_options) -> ExploreResult:
+            workers=1, reduce="none", properties=(), timelock: bool = True,
+            fastest: bool = False, **model_options) -> ExploreResult:
     """Explore ``program`` breadth-first.  ``reduce``: ``"auto"`` (every
     reduction sound for this program, blackbox and properties), ``"none"``,
-    or a list such as ``["merge"]`` (docs/reductions.md)."""
+    or a list such as ``["merge"]`` (docs/reductions.md).  ``properties``:
+    property forms of spec section 9 (``"eventually P"``, ``"P ~> Q"``,
+    ``"P ~> Q within T"``, ``"reachable P"`` or a plain invariant);
+    ``timelock``: report time-locks (docs/temporal.md); ``fastest``: the
+    counterexample that reaches its violation at the smallest global time."""
     V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
-                options={**model_options, "invariants": invariants, "reduce": reduce})
+                options={**model_options, "invariants": invariants, "reduce": reduce,
+                         "properties": properties})
     V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
                   find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
     reason = None
@@ -169,11 +181,13 @@ def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_
         program = load_program(program, source=model_options.pop("source", False))
         blackbox, reason = explore_blackbox(program)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents,
-                       invariants=tuple(invariants), reduce=reduce, **model_options)
+                       invariants=tuple(invariants), reduce=reduce,
+                       properties=tuple(properties), **model_options)
     model.blackbox_reason = reason
     return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
                          find_all=find_all, exact=exact, progress=progress,
-                         max_memory=max_memory, coverage=coverage, workers=workers)
+                         max_memory=max_memory, coverage=coverage, workers=workers,
+                         timelock=timelock, fastest=fastest)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -189,7 +203,8 @@ def default_max_memory() -> int:
 def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
                   find_all=False, exact=False, progress=None,
                   max_memory="default", coverage: bool = False,
-                  workers=1, progress_interval: float = 0.5) -> ExploreResult:
+                  workers=1, progress_interval: float = 0.5, timelock: bool = True,
+                  fastest: bool = False) -> ExploreResult:
     """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
     which the search stops with the bound ``--max-memory`` (``"default"``:
     80 % of physical memory; ``None``: no limit).  ``workers``: processes
@@ -206,6 +221,8 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if max_memory == "default":
         max_memory = default_max_memory()
     V.boolean("explore_model", "coverage", coverage)
+    V.boolean("explore_model", "timelock", timelock)
+    V.boolean("explore_model", "fastest", fastest)
     cov = None
     if coverage:
         from .coverage import CoverageModel
@@ -219,14 +236,24 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if workers > 1 and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1", filename="pccl.api.explore_model")
+    if workers > 1 and (model.temporal or fastest):
+        what = "fastest=True" if fastest else "a temporal property"
+        raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
+                            filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
+    from . import liveness as L
+    timelock = timelock and workers == 1
+    rec = L.make_recorder(model, timelock) if workers == 1 else None
     if workers > 1:
         from .parallel import ParallelExplorer
         ex = ParallelExplorer(model, workers=workers, **opts)
+    elif fastest:
+        from .fastest import FastestExplorer
+        ex = FastestExplorer(cov or model, recorder=rec, **opts)
     else:
-        ex = Explorer(cov or model, **opts)
+        ex = Explorer(cov or model, recorder=rec, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -236,6 +263,13 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
         from .reduce import expand_trace
         for f in sr.found:
             f.trace = expand_trace(model, f.trace, f.violation)
+    lv = None
+    if rec is not None:
+        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all)
+        L.attach_traces(model, ex, lv)
+        if lv.found and sr.status != "interrupted":
+            sr.found.extend(lv.found)
+            sr.status = "violation"
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
               for b in sr.bounds_hit]
@@ -265,10 +299,19 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
+    witnesses = []
+    if lv is not None:
+        for p, cx in lv.witnesses:
+            witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
+                              "trace": cx.trace.to_json(lambda st: D.step_json(
+                                  model, st.number, st.label, st.before, st.after)),
+                              "state": D.state_json(model, cx.trace.last), "_trace": cx.trace})
     return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
                          first["trace"] if first else [], first["state"] if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
-                         cov.report() if cov is not None else None)
+                         cov.report() if cov is not None else None, witnesses,
+                         list(lv.holds) if lv else [], list(lv.notes) if lv else [],
+                         timelock)
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:
@@ -311,17 +354,22 @@ def violation_data(model, found: Counterexample) -> dict:
     v = found.violation
     tr: Trace = found.trace
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
-    if reduced and any(len(lab) > 3 for lab in tr.labels):
+    if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace
         tr = expand_trace(model, tr, v)
-    return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
-            "line": v.span.line if v.span else None,
-            "column": v.span.column if v.span else None,
-            "depth": found.depth,
-            "shortest": "under the reductions" if reduced else "yes",
-            "trace": tr.to_json(lambda st: D.step_json(model, st.number, st.label,
-                                                       st.before, st.after)),
-            "state": D.state_json(model, tr.last)}
+    out = {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
+           "line": v.span.line if v.span else None,
+           "column": v.span.column if v.span else None,
+           "depth": found.depth,
+           "shortest": "under the reductions" if reduced else "yes",
+           "trace": [] if tr is None else tr.to_json(
+               lambda st: D.step_json(model, st.number, st.label, st.before, st.after)),
+           "state": None if tr is None else D.state_json(model, tr.last)}
+    if found.cycle_start is not None:
+        out["cycle_start"] = found.cycle_start     # steps after this one repeat forever
+    if getattr(found, "time", None) is not None:
+        out["time"] = found.time
+    return out
 
 
 # ---------------------------------------------------------------------------
@@ -330,7 +378,10 @@ def violation_data(model, found: Counterexample) -> dict:
 
 def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
         max_steps: int = 100_000, record_trace: bool = False, max_time=100,
-        **model_options) -> RunResult:
+        stall_steps: int = 20, **model_options) -> RunResult:
+    """One seeded execution (``pccl run``).  ``stall_steps``: stop (status
+    ``stalled``, exit status 1) when no variable, position or flag changed for
+    this many time steps while an agent still runs; 0 turns that off."""
     V.integer("run", "seed", seed)
     V.call_args("run", program, world_=world, blackbox_=blackbox, agents=agents, seed=seed,
                 options={**model_options, "max_time": max_time})
@@ -338,11 +389,13 @@ def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
         raise ArgumentError("abstract_time is not an option of run (a run keeps the clock)",
                             filename="pccl.api.run")
     V.integer("run", "max_steps", max_steps, minimum=1)
+    V.integer("run", "stall_steps", stall_steps, minimum=0)
     V.boolean("run", "record_trace", record_trace)
     rng = random.Random(seed)
     model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
                        max_time=max_time, abstract_time=False, **model_options)
-    res = _run(model, seed=seed, max_steps=max_steps, record_trace=record_trace, rng=rng)
+    res = _run(model, seed=seed, max_steps=max_steps, record_trace=record_trace, rng=rng,
+               stall_steps=stall_steps)
     res.model = model
     return res
 

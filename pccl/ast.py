@@ -145,8 +145,20 @@ class Quant:
     span: Span = _span()
 
 
+@dataclass(frozen=True)
+class Temporal:
+    """Properties only, at the top (under ``forall`` at most; spec section 9):
+    ``eventually p``, ``reachable p``, ``p ~> q`` and ``p ~> q within bound``.
+    ``kind`` is ``"eventually"``, ``"reachable"`` or ``"leadsto"``."""
+    kind: str
+    p: "Expr"
+    q: Optional["Expr"] = None
+    bound: Optional["Expr"] = None
+    span: Span = _span()
+
+
 Expr = Union[IntLit, FloatLit, BoolLit, ListLit, Name, Index, Field, Call,
-             Unary, Binary, Quant]
+             Unary, Binary, Quant, Temporal]
 
 
 # --------------------------------------------------------------------------
@@ -312,3 +324,5 @@ def walk_expr(e):
             stack.append(e.left)
         elif isinstance(e, Quant):
             stack.append(e.body)
+        elif isinstance(e, Temporal):
+            stack.extend(x for x in (e.bound, e.q, e.p) if x is not None)

@@ -216,6 +216,9 @@ def check(program, world):
               help="stop when global time would pass this")
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
+@click.option("--stall-steps", type=click.IntRange(min=0), default=20, show_default=True,
+              help="stop, as stalled (exit 1), when no variable, position or flag has changed "
+                   "for this many time steps while agents still run (0: never)")
 @click.option("--trace", is_flag=True, help="print every transition")
 @click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
@@ -224,7 +227,7 @@ def check(program, world):
               help="write the run as a trace file (JSON, docs/trace-format.md) for pccl replay")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, trace, fmt, plot, trace_out, view, full):
+        max_time, max_steps, stall_steps, trace, fmt, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import run as api_run
     from . import traces as T
@@ -235,7 +238,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     record = bool(trace or plot or trace_out or fmt == "json" or view)
     try:
         res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
-                      max_steps=max_steps, record_trace=record,
+                      max_steps=max_steps, record_trace=record, stall_steps=stall_steps,
                       max_time=_delta(max_time),
                       **_model_options(delta, n0, rates, events, collisions, overrides))
     except PcclError as e:
@@ -397,6 +400,16 @@ def _plot_run(m, res, path, *, quiet=False):
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
+@click.option("--property", "properties", multiple=True, metavar="FORM",
+              help="a property of any form: P, 'eventually P', 'P ~> Q', 'P ~> Q within T', "
+                   "'reachable P'; 'forall i:' in front makes one per agent, e.g. "
+                   "'forall i: want[i] ~> has[i]' (repeatable; docs/temporal.md)")
+@click.option("--no-timelock", is_flag=True,
+              help="do not report time-locks (states from which time can never advance again "
+                   "while an agent has not exited)")
+@click.option("--fastest", is_flag=True,
+              help="report the counterexample that reaches its violation at the smallest "
+                   "global time (ties: fewest transitions) instead of the shortest")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="none", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
                    "comma-separated list of merge, symmetry")
@@ -423,9 +436,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, max_memory, abstract_time, invariants, reduce, no_deadlock,
-            find_all, exact, fmt, plot, progress, progress_interval, trace_out, view, full,
-            coverage, workers):
+            max_time, max_states, max_memory, abstract_time, invariants, properties, no_timelock,
+            fastest, reduce, no_deadlock, find_all, exact, fmt, plot, progress,
+            progress_interval, trace_out, view, full, coverage, workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import explore_blackbox, explore_model, load_program, make_model
@@ -440,9 +453,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = make_model(prog, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
                            abstract_time=abstract_time, invariants=tuple(invariants),
-                           reduce=reduce,
+                           reduce=reduce, properties=tuple(properties),
                            **_model_options(delta, n0, rates, events, collisions, overrides))
         model.blackbox_reason = reason
+        if workers != 1 and (model.temporal or fastest):
+            raise PcclError(("--fastest" if fastest else "a temporal property") +
+                            " needs the state graph of one process: use --workers 1",
+                            filename="--workers")
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
@@ -451,7 +468,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
                             find_all=find_all, exact=exact, progress=reporter,
                             max_memory="default" if max_memory is None else max_memory,
                             workers=workers, coverage=coverage,
-                            progress_interval=min(0.5, progress_interval))
+                            progress_interval=min(0.5, progress_interval),
+                            timelock=not no_timelock, fastest=fastest)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if reporter is not None:
             reporter.close()    # erase the live display before the message
@@ -812,25 +830,57 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         if v["line"]:
             click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
         tr = cx.trace
+        if tr is None:          # reachable P: unreachable has no path to show
+            continue
         note = ", shortest under the reductions" if m.reduction.on else ""
-        click.echo(f"counterexample ({len(tr)} steps{note}):")
+        if res.search is not None and getattr(res.search, "fastest", False):
+            note += f", fastest: violation at t={D.fmt_time(tr.last[0])}"
+        loop = cx.cycle_start
+        if loop is not None:
+            click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
+                       f"{_steps(len(tr) - loop)} repeated forever{note}):")
+        else:
+            click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
             from . import views
             click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
         else:
             for st in tr.steps:
+                if loop is not None and st.number == loop + 1:
+                    click.echo("  -- cycle: the steps below repeat forever --")
                 click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
-        click.echo("violating state:")
+            if loop is not None:
+                click.echo(f"  -- back to the state after step {loop} --")
+        click.echo("state at the end of the cycle (= its start):" if loop is not None
+                   else "violating state:")
         if k_style:
             click.echo(D.format_state_k(m, tr.last))
         else:
             click.echo(D.format_state(m, tr.last))
+    for w in res.witnesses:
+        click.echo("")
+        click.echo(f"reachable: `{w['text']}` is reached; witness ({len(w['_trace'])} steps):")
+        for st in w["_trace"].steps:
+            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+        click.echo("witness state:")
+        click.echo(D.format_state(m, w["_trace"].last))
+    if res.holds or res.notes:
+        click.echo("")
+        for name in res.holds:
+            if not any(w["name"] == name for w in res.witnesses):
+                click.echo(f"holds: {name}")
+        for note in res.notes:
+            click.echo(f"note: {note}")
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
     if res.coverage is not None:
         for ln in res.coverage.lines():
             click.echo(ln)
+
+
+def _steps(n: int) -> str:
+    return f"{n} step" + ("" if n == 1 else "s")
 
 
 def _explore_json(program, res) -> dict:
@@ -843,7 +893,10 @@ def _explore_json(program, res) -> dict:
             "statistics": res.stats.as_dict(),
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
-            "violations": res.violations}
+            "violations": res.violations,
+            "witnesses": [{k: v for k, v in w.items() if k != "_trace"}
+                          for w in res.witnesses],
+            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock}
 
 
 if __name__ == "__main__":  # pragma: no cover
