@@ -265,8 +265,14 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
             f.trace = expand_trace(model, f.trace, f.violation)
     lv = None
     if rec is not None:
+        import time as _time
+        from .explorer import peak_rss_bytes
+        t0 = _time.perf_counter()
         lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all)
         L.attach_traces(model, ex, lv)
+        # the figures include the analysis of the graph
+        sr.stats.seconds += _time.perf_counter() - t0
+        sr.stats.peak_memory = peak_rss_bytes()
         if lv.found and sr.status != "interrupted":
             sr.found.extend(lv.found)
             sr.status = "violation"

@@ -133,10 +133,16 @@ LOCAL_LOOP = src("""
 
 
 def test_zero_time_local_loop_is_explored_not_lost():
-    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none")
-    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto")
+    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none", timelock=False)
+    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto", timelock=False)
     assert base.status == res.status == "exhaustive"
     assert "merge" in res.model.reduction.on
+    # the loop never lets time advance: a time-lock, with and without merging
+    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none")
+    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto")
+    assert [v["kind"] for v in base.violations] == [v["kind"] for v in res.violations] \
+        == ["timelock"]
+    assert res.counterexamples[0].cycle_start is not None
 
 
 STUCK_IN_CHAIN = src("""
