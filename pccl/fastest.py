@@ -82,34 +82,35 @@ class FastestExplorer(Explorer):
                 heapq.heappush(heap, k)
             b.append((s, idx))
 
-        def admit(states, parents) -> list:
-            """Admit the new ones among ``states``; their state numbers (-1
-            for those already visited or beyond the budget)."""
+        def admit(states, parent):
+            """Admit the new ones among ``states`` (successors of the state
+            numbered ``parent``); their state numbers (-1 for those already
+            visited or beyond the budget), and their keys."""
             nonlocal budget
             keys = [key_of(s) for s in states]
-            out = []
-            for s, k, par in zip(states, keys, parents):
-                if budget <= 0 or table.index_of(k) >= 0:
-                    out.append(-1)
-                    if budget <= 0 and table.index_of(k) < 0:
-                        bounds.add(Bound.MAX_STATES)
-                    continue
-                first = np.arange(1, dtype=np.int64)
-                new = table.new_positions([k], first)
-                if len(new):
-                    table.add(1, np.asarray([par], dtype=np.int64))
-                    budget -= 1
-                    out.append(table.n - 1)
-                    if rec is not None:
-                        rec.states([s])
-                else:
-                    out.append(-1)
+            n = len(keys)
+            first = np.fromiter(dict(zip(reversed(keys), range(n - 1, -1, -1))).values(),
+                                dtype=np.int64, count=-1)
+            first.sort()
+            new = table.new_positions(keys, first).tolist()
+            cnt = min(len(new), budget)
+            if cnt < len(new):
+                bounds.add(Bound.MAX_STATES)
+            out = [-1] * n
+            if cnt:
+                base = table.n
+                table.add(cnt, np.full(cnt, parent, dtype=np.int64))
+                budget -= cnt
+                for r, p in enumerate(new[:cnt]):
+                    out[p] = base + r
+                if rec is not None:
+                    rec.states([states[p] for p in new[:cnt]])
             return out, keys
 
         stop = False
         try:
             inits = list(m.init_states())
-            idxs, _ = admit(inits, [_NO_PARENT] * len(inits))
+            idxs, _ = admit(inits, _NO_PARENT)
             for s, i in zip(inits, idxs):
                 if i >= 0:
                     push((0, 0), s, i)
@@ -140,7 +141,7 @@ class FastestExplorer(Explorer):
                         continue
                     stats.transitions += len(succ)
                     states = [s2 for _, s2 in succ]
-                    new, keys = admit(states, [idx] * len(states))
+                    new, keys = admit(states, idx)
                     if rec is not None:
                         dst = table.lookup_keys(keys)
                         rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)

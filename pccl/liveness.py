@@ -57,10 +57,18 @@ _CHUNK = 1 << 16
 
 
 class _Grow:
-    """A growable 1-D numpy array (amortised doubling)."""
+    """A growable 1-D numpy array.  Like the explorer's visited table it
+    lives in a reserved, lazily committed mapping (only the pages written
+    count, and it never grows by copying); where that is not available it
+    grows by doubling."""
 
-    def __init__(self, dtype, cap: int = _CHUNK):
-        self.a = np.empty(cap, dtype=dtype)
+    def __init__(self, dtype, cap: Optional[int] = None):
+        from .explorer import _reserve, physical_memory
+        a = None
+        if cap is None:
+            cap = max(_CHUNK, physical_memory() // np.dtype(dtype).itemsize)
+            a = _reserve((cap,), dtype)
+        self.a = a if a is not None else np.empty(_CHUNK, dtype=dtype)
         self.n = 0
 
     def extend(self, x: np.ndarray) -> None:
@@ -75,6 +83,10 @@ class _Grow:
 
     def view(self) -> np.ndarray:
         return self.a[:self.n]
+
+    def release(self) -> None:
+        self.a = np.empty(0, dtype=self.a.dtype)
+        self.n = 0
 
 
 def _pending_mask(st) -> int:
@@ -135,7 +147,16 @@ class GraphRecorder:
 
     # -- the graph ---------------------------------------------------------------
     def freeze(self, n: int) -> "Graph":
-        return Graph(n, self.src.view(), self.dst.view(), self.dyn.view()[:n].astype(bool),
+        """The graph in CSR form; the recorded source array is released."""
+        src, dst = self.src.view(), self.dst.view()
+        fptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
+        # the breadth-first search records edges by source already (it expands
+        # states in state-number order): then dst is the CSR array as it is
+        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
+            dst = dst[np.argsort(src, kind="stable")]
+        self.src.release()
+        return Graph(n, fptr, dst, self.dyn.view()[:n].astype(bool),
                      None if self.bits is None else self.bits.view()[:n],
                      None if self.pend is None else self.pend.view()[:n])
 
@@ -150,14 +171,17 @@ def _holds(fn, st) -> bool:
 class Graph:
     """The recorded graph in CSR form (forward, and reversed on demand)."""
 
-    def __init__(self, n, src, dst, dyn, bits, pend):
+    def __init__(self, n, fptr, fdst, dyn, bits, pend):
         self.n = n
-        order = np.argsort(src, kind="stable")
-        self.fdst = dst[order]
-        self.fptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(src, minlength=n), out=self.fptr[1:])
-        self._src, self._dst = src, dst
-        self._rev = None
+        self.fptr, self.fdst = fptr, fdst
+        # reversed CSR: sources grouped by target (argsort: 8 bytes per
+        # transition while it runs)
+        order = np.argsort(self.fdst, kind="stable")
+        srcs = np.repeat(np.arange(n, dtype=np.uint32), np.diff(self.fptr))
+        self.rsrc = srcs[order]
+        del order, srcs
+        self.rptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(self.fdst, minlength=n), out=self.rptr[1:])
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
@@ -167,13 +191,7 @@ class Graph:
         return ((self.bits >> np.uint64(b)) & np.uint64(1)).astype(bool)
 
     def rev(self):
-        if self._rev is None:
-            order = np.argsort(self._dst, kind="stable")
-            rsrc = self._src[order]
-            rptr = np.zeros(self.n + 1, dtype=np.int64)
-            np.cumsum(np.bincount(self._dst, minlength=self.n), out=rptr[1:])
-            self._rev = (rptr, rsrc)
-        return self._rev
+        return self.rptr, self.rsrc
 
     def succ(self, v: int) -> np.ndarray:
         return self.fdst[self.fptr[v]:self.fptr[v + 1]]

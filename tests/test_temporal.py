@@ -416,6 +416,17 @@ def test_fastest_finds_the_earlier_violation():
     assert "fastest: violation at t=0" in res.output
 
 
+def test_fastest_agrees_on_small_programs():
+    for prog, kw in ((RING, dict(agents=3)), (SPIN_LEAVE, {}), (RDV, dict(world=RDV_OPEN))):
+        a = explore(prog, **kw)
+        b = explore(prog, fastest=True, **kw)
+        assert (a.status, a.stats.states, a.stats.transitions) == \
+            (b.status, b.stats.states, b.stats.transitions)
+    # the time-lock check works on the graph the fastest search records
+    assert explore(SPIN, fastest=True).violations[0]["kind"] == "timelock"
+
+
+@pytest.mark.slow
 def test_fastest_agrees_on_verdicts_and_counts():
     for args in (dict(overrides={"k": "0"}), dict(overrides={"k": "0"},
                                                   invariants=["count(inCs) <= 1"])):
@@ -429,6 +440,7 @@ def test_fastest_agrees_on_verdicts_and_counts():
             assert b.counterexamples[0].trace.last[0] <= a.counterexamples[0].trace.last[0]
 
 
+@pytest.mark.slow
 def test_fastest_among_equal_times_is_shortest():
     r = explore(FISCHER, overrides={"k": "0"}, invariants=["count(inCs) <= 1"], fastest=True)
     tr = r.counterexamples[0].trace
