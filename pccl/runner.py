@@ -16,7 +16,7 @@ import itertools
 import random
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 
 @dataclass
@@ -34,6 +34,18 @@ class RunResult:
     #: agent what it waits on
     stalled_since: Optional[float] = None
     waiting: list = field(default_factory=list)
+
+    model: Any = None
+
+    @property
+    def final_state(self):
+        """The last configuration as a named view (:class:`~pccl.results.StateView`:
+        ``res.final_state.agents[0].variables["inCs"]``), as ``pccl run`` prints it;
+        ``final`` is the raw configuration."""
+        from .results import StateView
+        if self.model is None:
+            raise ValueError("this RunResult has no model (pccl.api.run sets it)")
+        return StateView.of(self.model, self.final)
 
 
 def _signature(st) -> tuple:

@@ -271,7 +271,7 @@ def test_walled_rendezvous_fails_eventually_all_exit_with_a_lasso():
     r = explore(RDV, world=RDV_WALL, blackbox="straight", properties=[ALL_EXIT])
     assert r.exit_status == 1
     v = r.violations[0]
-    assert v["kind"] == "liveness" and "cycle_start" in v
+    assert v["kind"] == "liveness" and v.cycle_start is not None
     m = r.model
     assert lasso_ok(m, r, lambda s: not all(ag[3] == EXITED for ag in s[4]))
     # robot 0's doReach failed on the wall
@@ -327,7 +327,7 @@ def test_token_keeper_violates_leads_to_with_a_lasso():
     r = explore(KEEP, agents=3, properties=["forall i: want[i] ~> has[i]"])
     assert r.exit_status == 1
     v = r.violations[0]
-    assert v["kind"] == "liveness" and "cycle_start" in v
+    assert v["kind"] == "liveness" and v.cycle_start is not None
     i = int(v["name"].rsplit("=", 1)[1].rstrip("]"))
     assert i != 0
     m = r.model
