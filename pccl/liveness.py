@@ -404,6 +404,9 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
     depth_only = rec.complete and sr.status == "bounded" and all(
         b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
     if sr.status == "violation" or sr.status == "interrupted":
+        if rec.props:
+            out.notes.append("temporal properties not checked: the search stopped at "
+                             + ("a violation" if sr.status == "violation" else "an interrupt"))
         return out
     g = rec.freeze(n)
     n_init = sr.stats.initial_states
