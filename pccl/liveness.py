@@ -147,16 +147,16 @@ class GraphRecorder:
 
     # -- the graph ---------------------------------------------------------------
     def freeze(self, n: int) -> "Graph":
-        """The graph in CSR form; the recorded source array is released."""
+        """The graph in CSR form (no copy when the edges came by source, as
+        the breadth-first search records them)."""
         src, dst = self.src.view(), self.dst.view()
+        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
+            order = np.argsort(src, kind="stable")
+            src, dst = src[order], dst[order]
+            del order
         fptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
-        # the breadth-first search records edges by source already (it expands
-        # states in state-number order): then dst is the CSR array as it is
-        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
-            dst = dst[np.argsort(src, kind="stable")]
-        self.src.release()
-        return Graph(n, fptr, dst, self.dyn.view()[:n].astype(bool),
+        return Graph(n, fptr, dst, src, self.dyn.view()[:n].astype(bool),
                      None if self.bits is None else self.bits.view()[:n],
                      None if self.pend is None else self.pend.view()[:n])
 
@@ -171,17 +171,11 @@ def _holds(fn, st) -> bool:
 class Graph:
     """The recorded graph in CSR form (forward, and reversed on demand)."""
 
-    def __init__(self, n, fptr, fdst, dyn, bits, pend):
+    def __init__(self, n, fptr, fdst, esrc, dyn, bits, pend):
         self.n = n
         self.fptr, self.fdst = fptr, fdst
-        # reversed CSR: sources grouped by target (argsort: 8 bytes per
-        # transition while it runs)
-        order = np.argsort(self.fdst, kind="stable")
-        srcs = np.repeat(np.arange(n, dtype=np.uint32), np.diff(self.fptr))
-        self.rsrc = srcs[order]
-        del order, srcs
-        self.rptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(self.fdst, minlength=n), out=self.rptr[1:])
+        self.esrc = esrc                  # the source of each edge, aligned with fdst
+        self._rev = None
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
@@ -191,7 +185,32 @@ class Graph:
         return ((self.bits >> np.uint64(b)) & np.uint64(1)).astype(bool)
 
     def rev(self):
-        return self.rptr, self.rsrc
+        """The reversed CSR arrays, built on first use (an argsort: 8 bytes
+        per transition while it runs, 4 kept)."""
+        if self._rev is None:
+            order = np.argsort(self.fdst, kind="stable")
+            rsrc = self.esrc[order]
+            del order
+            rptr = np.zeros(self.n + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.fdst, minlength=self.n), out=rptr[1:])
+            self._rev = (rptr, rsrc)
+        return self._rev
+
+    def can_reach(self, goal: np.ndarray, rounds: int = 64) -> np.ndarray:
+        """The states from which some state of ``goal`` can be reached.  A few
+        vectorised relaxation rounds over the edge arrays (no reversed graph:
+        about 3 bytes per transition while it runs) settle it when every
+        state is close to the goal, as within a time step; otherwise the
+        rest is a backward search over the reversed graph."""
+        can = goal.copy()
+        src, dst = self.esrc, self.fdst
+        for _ in range(rounds):
+            hit = can[dst]
+            hit &= ~can[src]
+            if not hit.any():
+                return can
+            can[src[hit]] = True
+        return self.reach(np.flatnonzero(can), backward=True)
 
     def succ(self, v: int) -> np.ndarray:
         return self.fdst[self.fptr[v]:self.fptr[v + 1]]
@@ -501,7 +520,7 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
     # -- time-lock -------------------------------------------------------------------
     if timelock and (complete or depth_only):
         escape = g.dyn | g.terminal
-        can = g.reach(np.flatnonzero(escape), backward=True)
+        can = g.can_reach(escape)
         locked = ~can
         if locked.any():
             s = int(np.flatnonzero(locked)[0])

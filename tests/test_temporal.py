@@ -454,3 +454,33 @@ def test_fastest_among_equal_times_is_shortest():
 def test_workers_refuse_temporal():
     res = cli("explore", RING, "--workers", "2", "--property", "eventually has[0]")
     assert res.exit_code == 2 and "--workers" in res.stderr
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_graph_reachability_agrees_with_a_plain_search(seed):
+    """Graph.can_reach (relaxation rounds, then the reversed graph) and
+    Graph.reach agree with a dict-based backward search on random graphs."""
+    import numpy as np
+    from pccl.liveness import Graph
+    rng = np.random.default_rng(seed)
+    n, e = 200, 400
+    src = np.sort(rng.integers(0, n, e)).astype(np.uint32)
+    dst = rng.integers(0, n, e).astype(np.uint32)
+    fptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
+    g = Graph(n, fptr, dst, src, np.zeros(n, bool), None, None)
+    goal = rng.random(n) < 0.05
+    preds: dict = {}
+    for a, b in zip(src.tolist(), dst.tolist()):
+        preds.setdefault(b, []).append(a)
+    want = set(np.flatnonzero(goal).tolist())
+    todo = list(want)
+    while todo:
+        v = todo.pop()
+        for u in preds.get(v, ()):
+            if u not in want:
+                want.add(u)
+                todo.append(u)
+    for rounds in (1, 3, 1000):
+        assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
+    assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want
