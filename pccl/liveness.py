@@ -154,9 +154,7 @@ class GraphRecorder:
             order = np.argsort(src, kind="stable")
             src, dst = src[order], dst[order]
             del order
-        fptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
-        return Graph(n, fptr, dst, src, self.dyn.view()[:n].astype(bool),
+        return Graph(n, None, dst, src, self.dyn.view()[:n].astype(bool),
                      None if self.bits is None else self.bits.view()[:n],
                      None if self.pend is None else self.pend.view()[:n])
 
@@ -173,13 +171,24 @@ class Graph:
 
     def __init__(self, n, fptr, fdst, esrc, dyn, bits, pend):
         self.n = n
-        self.fptr, self.fdst = fptr, fdst
+        self._fptr, self.fdst = fptr, fdst
         self.esrc = esrc                  # the source of each edge, aligned with fdst
         self._rev = None
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
-        self.terminal = (self.fptr[1:] - self.fptr[:-1]) == 0
+        self.terminal = np.ones(n, dtype=bool)
+        self.terminal[esrc] = False
+
+    @property
+    def fptr(self) -> np.ndarray:
+        """Forward CSR offsets (8 bytes per state), built on first use: the
+        time-lock check alone does not need them."""
+        if self._fptr is None:
+            fptr = np.zeros(self.n + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.esrc, minlength=self.n), out=fptr[1:])
+            self._fptr = fptr
+        return self._fptr
 
     def bit(self, b: int) -> np.ndarray:
         return ((self.bits >> np.uint64(b)) & np.uint64(1)).astype(bool)
