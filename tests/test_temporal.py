@@ -484,3 +484,78 @@ def test_graph_reachability_agrees_with_a_plain_search(seed):
     for rounds in (1, 3, 1000):
         assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
     assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want
+
+
+# ---------------------------------------------------------------------------
+# pccl run: stalled teams
+# ---------------------------------------------------------------------------
+
+def test_run_stops_a_stalled_team():
+    from pccl.api import run
+    r = run(RDV, world=RDV_WALL, blackbox="straight")
+    assert r.status == "stalled" and r.exit_status == 1
+    assert r.stalled_since == 1
+    assert r.final[0] == 1 + 20            # 20 unchanged time steps after t = 1
+    assert [i for i, _ in r.waiting] == [0, 1]
+    assert "`id == 0 && started && doReach_done` (Arrive, line 18)" in r.waiting[0][1]
+    assert r.message.startswith("stalled since t = 1: ")
+    # nothing changed in the state between t = 1 and the end, but the clock
+    from pccl.runner import _signature
+    sigs = {_signature(s) for t, s in r.summary if t >= 1}
+    assert len(sigs) == 1
+
+
+def test_run_stall_steps_option():
+    from pccl.api import run
+    from pccl.errors import ArgumentError
+    r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=5)
+    assert r.status == "stalled" and r.final[0] == 6
+    r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=0, max_time=30)
+    assert r.status == "bounded" and r.exit_status == 0
+    with pytest.raises(ArgumentError, match="stall_steps"):
+        run(RDV, stall_steps=-1)
+    res = cli("run", RDV, "--world", RDV_WALL, "--stall-steps", "3")
+    assert res.exit_code == 1
+    assert "result: stalled — stalled since t = 1: no variable, position or flag changed " \
+           "for 3 time steps" in res.output
+
+
+def test_run_of_a_moving_or_finishing_team_is_not_stalled():
+    from pccl.api import run
+    assert run(RDV, world=RDV_OPEN, blackbox="straight").status == "final"
+    # the token keeps going round: variables change every time step
+    r = run(RING, agents=3, max_time=60)
+    assert r.status == "bounded" and r.exit_status == 0
+
+
+# ---------------------------------------------------------------------------
+# reductions
+# ---------------------------------------------------------------------------
+
+def test_liveness_turns_symmetry_off_and_says_why():
+    m = make_model(SPIN, reduce="auto")
+    assert "symmetry" in m.reduction.on
+    m = make_model(SPIN, reduce="auto", properties=["eventually !b"])
+    assert "symmetry" not in m.reduction.on
+    assert "liveness property `eventually !b` needs real cycles" in m.reduction.describe()
+    res = cli("explore", SPIN, "--reduce", "auto", "--property", "eventually !b",
+              "--no-timelock")
+    # every run of tl_spin stays in time 0: no run counts, so it holds (vacuously);
+    # the time-lock check is what reports such a program
+    assert res.exit_code == 0
+    assert "symmetry off: liveness property `eventually !b` needs real cycles" in res.output
+    assert "holds: eventually !b" in res.output
+
+
+def test_verdicts_agree_with_and_without_reductions():
+    cases = [(SPIN, {}, []), (SPIN_LEAVE, {}, []),
+             (RING, dict(agents=3), ["forall i: want[i] ~> has[i]", "want[1] ~> has[1] within 3"]),
+             (KEEP, dict(agents=3), ["forall i: want[i] ~> has[i]"]),
+             (RDV, dict(world=RDV_WALL, blackbox="straight"), [ALL_EXIT])]
+    for prog, kw, props in cases:
+        a = explore(prog, reduce="none", properties=props, find_all=True, **kw)
+        b = explore(prog, reduce="auto", properties=props, find_all=True, **kw)
+        assert a.status == b.status
+        assert {(v["kind"], v["name"]) for v in a.violations} == \
+            {(v["kind"], v["name"]) for v in b.violations}
+        assert sorted(a.holds) == sorted(b.holds)
