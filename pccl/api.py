@@ -23,7 +23,7 @@ from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
-from .errors import ArgumentError
+from .errors import ArgumentError, OptionError
 from .options import ExploreOptions, ModelOptions, RunOptions
 from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
@@ -54,7 +54,6 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
     """Replace the initialisers of shared variables: ``{"k": "2"}`` (TLC-style
     constants).  Values are PCCL expressions."""
     import dataclasses
-    from .errors import PcclError
     from .parser import parse_property
     if not overrides:
         return prog
@@ -68,7 +67,7 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
         decls.append(d)
     if overrides:
         names = ", ".join(sorted(overrides))
-        raise PcclError(f"no variable named {names} in {prog.filename}", filename="--set")
+        raise OptionError("overrides", f"no variable named {names} in {prog.filename}")
     return dataclasses.replace(prog, decls=tuple(decls))
 
 
@@ -89,7 +88,16 @@ def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Rand
     opts = ModelOptions.from_api("make_model", options)
     if rng is None and seed is not None:
         rng = random.Random(seed)
-    return build_model(program, opts, rng=rng)
+    return _api_model("make_model", program, opts, rng=rng)
+
+
+def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
+    """:func:`build_model` for the API: a bad option value the model finds is
+    an :class:`ArgumentError` of ``func`` that names the keyword."""
+    try:
+        return build_model(program, opts, **kw)
+    except OptionError as e:
+        raise e.for_api(func) from None
 
 
 def build_model(program, opts: ModelOptions, *, rng: Optional[random.Random] = None,
@@ -197,7 +205,7 @@ def explore(program, **options) -> ExploreResult:
     or a list such as ``["merge"]`` (docs/reductions.md)."""
     V.program("explore", program, options.get("source", False))
     opts = ExploreOptions.from_api("explore", options)
-    return explore_model(build_model(program, opts, explore=True), options=opts)
+    return explore_model(_api_model("explore", program, opts, explore=True), options=opts)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -405,7 +413,7 @@ def run(program, **options) -> RunResult:
     V.program("run", program, options.get("source", False))
     opts = RunOptions.from_api("run", options)
     rng = random.Random(opts.seed)
-    model = build_model(program, opts, rng=rng)
+    model = _api_model("run", program, opts, rng=rng)
     res = _run(model, seed=opts.seed, max_steps=opts.max_steps,
                record_trace=opts.record_trace, rng=rng, stall_steps=opts.stall_steps)
     res.model = model
@@ -418,7 +426,7 @@ def run(program, **options) -> RunResult:
 
 def check(program, *, world=None, source: bool = False):
     """Parse and statically check ``program`` (``pccl check``); the names of
-    ``world``'s functions may be called.  Returns the checker's ProgramInfo."""
+    ``world``'s functions may be called.  Returns the :class:`~pccl.checker.CheckedProgram`."""
     from .checker import check_program
     V.program("check", program, source)
     V.world("check", world)

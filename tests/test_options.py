@@ -167,3 +167,21 @@ def test_bounds_are_the_enum_and_labels_the_flags():
     assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["--max-states 50"]
     out = cli("explore", FISCHER, "--max-states", "50", "--format", "json")
     assert json.loads(out.output)["bounds"] == r.bound_labels
+
+
+@pytest.mark.parametrize("kw, flag, keyword", [
+    (dict(rates={1: 5}), ["--rate", "1=5"], "rates"),
+    (dict(overrides={"zz": "1"}), ["--set", "zz=1"], "overrides"),
+    (dict(agents=20_000), ["--agents", "20000"], "agents"),
+])
+def test_model_option_errors_name_the_keyword_in_the_api_and_the_flag_in_the_cli(kw, flag,
+                                                                                   keyword):
+    with pytest.raises(ArgumentError) as e:
+        api.explore(FISCHER, **kw)
+    api_text = str(e.value)
+    assert api_text.startswith(f"pccl.api.explore: error: {keyword}: ")
+    out = cli("explore", FISCHER, *flag)
+    assert out.exit_code == 2
+    assert out.stderr.startswith(f"{flag[0]}: error: ")
+    # the same message after the prefix
+    assert out.stderr.strip().split(": error: ", 1)[1] == api_text.split(f"{keyword}: ", 1)[1]
