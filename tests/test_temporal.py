@@ -559,3 +559,20 @@ def test_verdicts_agree_with_and_without_reductions():
         assert {(v["kind"], v["name"]) for v in a.violations} == \
             {(v["kind"], v["name"]) for v in b.violations}
         assert sorted(a.holds) == sorted(b.holds)
+
+
+def test_lasso_trace_file_validates_and_replays(tmp_path):
+    import json
+    import jsonschema
+    from conftest import ROOT
+    out = tmp_path / "lasso.json"
+    res = cli("explore", RDV, "--world", RDV_WALL, "-b", "straight", "--property", ALL_EXIT,
+              "--trace-out", out)
+    assert res.exit_code == 1
+    doc = json.loads(out.read_text())
+    jsonschema.validate(doc, json.loads((ROOT / "docs" / "trace-format.schema.json").read_text()))
+    assert doc["result"]["cycle_start"] == 8 and len(doc["steps"]) == 14
+    assert doc["result"]["violation"]["kind"] == "liveness"
+    rep = cli("replay", out)
+    assert rep.exit_code == 1
+    assert "every step of the recorded liveness counterexample" in rep.output
