@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
 from . import ast as A
-from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
@@ -257,6 +256,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if workers == "auto":
         from .parallel import available_workers
         workers = available_workers()
+    assert isinstance(workers, int), workers           # validated by ExploreOptions
     if workers > 1 and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1", filename="pccl.api.explore_model")
@@ -272,7 +272,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     rec = L.make_recorder(model, timelock) if workers == 1 else None
     if workers > 1:
         from .parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=workers, **opts)
+        ex: Any = ParallelExplorer(model, workers=workers, **opts)
     elif fastest:
         from .fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, **opts)
@@ -385,7 +385,8 @@ def violation_data(model, found: Counterexample) -> Finding:
     """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
     rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
-    tr: Trace = found.trace
+    tr: Optional[Trace] = found.trace
+    assert tr is not None, "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace

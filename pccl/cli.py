@@ -10,6 +10,7 @@ import click
 
 from . import display as D
 from .errors import PcclError
+from .layout import AGS, POS, STATUS, TIME
 from .options import ExploreOptions, RunOptions
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
@@ -273,7 +274,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                "result": res.status, "message": res.message,
                "exit_status": _interrupted_status(res.exit_status),
                "steps": res.steps,
-               "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
+               "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
                            for t, s in res.summary],
                "final": D.state_json(m, res.final)}
         out["trace"] = doc
@@ -294,7 +295,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
             prev = s
         click.echo(f"result: {res.status} — {res.message} "
-                   f"(t={D.fmt_time(res.final[0])}, {res.steps} transitions)")
+                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions)")
         for v in res.violations:
             if v.span is not None:
                 click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
@@ -340,9 +341,9 @@ def _rates_text(m) -> str:
 
 def _step_summary(m, prev, s) -> str:
     parts = []
-    for i, ag in enumerate(s[4]):
-        st = D.status_text(m, ag[3])
-        parts.append(f"a{i} {D.fmt_pos(ag[6])}" + ("" if st == "running" else f" {st}"))
+    for i, ag in enumerate(s[AGS]):
+        st = D.status_text(m, ag[STATUS])
+        parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
     if prev is not None:
         ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
         if ch:

@@ -40,8 +40,8 @@ import os
 import sys
 import time as _time
 from dataclasses import dataclass, field
-from typing import (Any, Callable, Hashable, Iterable, Iterator, Optional, Protocol,
-                    Sequence, runtime_checkable)
+from typing import (Any, Optional, Protocol, runtime_checkable)
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -286,11 +286,11 @@ class FingerprintTable:
         self.fps = fps if fps is not None else np.empty((capacity, 2), dtype=np.uint64)
         self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
-        self._batch = None
+        self._batch: Any = None         # (fingerprints, positions) of the last batch
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
-        self.slots = None
+        self.slots: Any = None
         self.slots = np.full(size, _EMPTY, dtype=np.uint32)
         self.mask = np.uint64(size - 1)
 
@@ -457,7 +457,7 @@ class Explorer:
         self.progress = progress
         self.progress_interval = progress_interval
         self.batch = batch
-        self.table = None
+        self.table: Any = None
 
     # ------------------------------------------------------------------
     def run(self) -> SearchResult:
@@ -572,7 +572,9 @@ class Explorer:
             if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
                 bounds.add(Bound.MAX_MEMORY)
                 halt = True
-            cs.clear(); par_idx.clear(); par_n.clear()
+            cs.clear()
+            par_idx.clear()
+            par_n.clear()
             return halt
 
         try:
@@ -580,13 +582,15 @@ class Explorer:
             for s in m.init_states():
                 cs.append(s)
                 if len(cs) >= batch or len(cs) > budget:     # never build far beyond the budget
-                    par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                    par_idx.append(_NO_PARENT)
+                    par_n.append(len(cs))
                     stop = flush(0)
                     stats.transitions = 0
                     if stop:
                         break
             if not stop and cs:
-                par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                par_idx.append(_NO_PARENT)
+                par_n.append(len(cs))
                 stop = flush(0)
             stats.transitions = 0
             stats.initial_states = table.n

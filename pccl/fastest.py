@@ -49,7 +49,7 @@ class FastestExplorer(Explorer):
         finally:
             if enabled:
                 gc.enable()
-        res.fastest = True
+        res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
         return res
 
     def _run_fastest(self) -> SearchResult:
@@ -62,8 +62,8 @@ class FastestExplorer(Explorer):
             def key_of(s):
                 return marshal.dumps(key(s), 2)
         else:
-            def key_of(s, _d=marshal.dumps, _h=xxhash.xxh3_128_digest):
-                return _h(_d(key(s), 2))
+            def key_of(s):
+                return xxhash.xxh3_128_digest(marshal.dumps(key(s), 2))
         rec = self.recorder
         stats = Stats()
         res = SearchResult("exhaustive", stats=stats, exact=exact)

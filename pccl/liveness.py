@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import operator
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -367,7 +367,7 @@ class Graph:
             p = self.path(w, goal, inside)
             if p and (best is None or len(p) < len(best)):
                 best = p
-        out.extend(best)
+        out.extend(best or [])
         return out
 
 
@@ -533,7 +533,7 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
         locked = ~can
         if locked.any():
             s = int(np.flatnonzero(locked)[0])
-            comp, nontrivial = g.sccs(g.reach([s], locked) .nonzero()[0], locked)
+            comp, nontrivial = g.sccs(g.reach(np.asarray([s]), locked).nonzero()[0], locked)
             in_cycle = np.zeros(n, dtype=bool)
             ok = comp >= 0
             in_cycle[ok] = nontrivial[comp[ok]]
@@ -604,6 +604,7 @@ def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):
     n = g.n
     best = np.full(n, -2, dtype=np.int64)
     init = np.arange(n_init, dtype=np.int64)
+    ids: Any
     c0 = np.where(pmask[init] & ~qmask[init], 0, -1)
     node_state = [init]
     node_clock = [c0]

@@ -21,15 +21,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Optional, Union
+from typing import Any, Optional, Union
+from collections.abc import Callable, Mapping
 
 from . import validate as V
-from .errors import ArgumentError
-
-#: Fields whose flag is not ``--`` + the field name with ``-`` for ``_``.
-FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
-         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
-         "properties": "--property", "timelock": "--no-timelock"}
+from .errors import FLAGS, ArgumentError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -41,11 +37,6 @@ PRESENTATION = {
     "explore": frozenset({"fmt", "plot", "progress", "progress_interval", "trace_out", "view",
                           "full"}),
 }
-
-
-def flag(name: str) -> str:
-    """The command-line flag of the option ``name``."""
-    return FLAGS.get(name, "--" + name.replace("_", "-"))
 
 
 @dataclass(frozen=True)
@@ -115,7 +106,7 @@ class CommonOptions:
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         """The keyword arguments of :class:`pccl.engine.Model` (besides the
         program, world, blackbox and team size)."""
-        kw = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
+        kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
                   invariants=tuple(self.invariants), collisions=self.collisions)
         if with_max_time:
             kw["max_time"] = self.max_time

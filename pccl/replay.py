@@ -112,7 +112,7 @@ def _changes_text(chs: list) -> str:
                      for c in chs)
 
 
-def _state_difference(a: dict, b: dict, prefix="") -> str:
+def _state_difference(a, b, prefix: str = "") -> str:
     """The first place where two typed states differ (for messages)."""
     if isinstance(a, dict) and isinstance(b, dict):
         for k in list(a) + [k for k in b if k not in a]:
@@ -214,9 +214,9 @@ def replay(path) -> ReplayResult:
             res.message = f"reproduced: {match[0].message} (after {len(steps)} steps)"
         else:
             res.status, res.exit_status, res.diverged_at = "diverged", 2, len(steps)
-            got = "; ".join(v.message for v in viols) or "no violation"
+            seen = "; ".join(v.message for v in viols) or "no violation"
             res.message = (f"diverged at the end: every step reproduced, but the recorded "
-                           f"violation ({recorded['message']}) is not: {got}")
+                           f"violation ({recorded['message']}) is not: {seen}")
         return res
     if viols:
         res.status, res.exit_status, res.diverged_at = "diverged", 2, len(steps)

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Mapping, Optional
+from typing import Any, Optional
+from collections.abc import Mapping
 
 from . import display as D
 
@@ -73,7 +74,7 @@ class AgentView(_Keyed):
     doReach_fail: Any
     variables: Mapping[str, Any]
     stuck: Optional[Stuck] = None
-    _json: dict = field(default=None, repr=False, compare=False)  # type: ignore[assignment]
+    _json: dict = field(default_factory=dict, repr=False, compare=False)
 
     def to_json(self) -> dict:
         return self._json
@@ -89,7 +90,7 @@ class StateView(_Keyed):
     lock_queue: tuple
     shared: Mapping[str, Any]
     agents: tuple
-    _json: dict = field(default=None, repr=False, compare=False)  # type: ignore[assignment]
+    _json: dict = field(default_factory=dict, repr=False, compare=False)
     _text: str = field(default="", repr=False, compare=False)
 
     @classmethod

@@ -18,6 +18,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from .layout import AGS, PC, RUNNING, STATUS, TIME
+
 
 @dataclass
 class RunResult:
@@ -105,7 +107,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     if len(inits) > 1:          # no rand policy: every outcome is an initial state
         inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
-    trace, summary = [], [(st[0], st)]
+    trace: list = []
+    summary = [(st[TIME], st)]
     steps = 0
     n_env, stride = 0, 1
     since_time = 0
@@ -157,7 +160,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                                   1, stalled_since=since, waiting=waits)
                 n_env += 1
                 if n_env % stride == 0:
-                    summary.append((nxt[0], nxt))
+                    summary.append((nxt[TIME], nxt))
                     if len(summary) > SUMMARY_LIMIT:    # bounded memory on long runs:
                         summary[1:] = summary[2::2]     # keep every other one, and
                         stride *= 2                     # record half as often from now on
@@ -170,7 +173,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     looping = _looping_agent(model, st, per_agent)
                     return finish("max-steps",
                                   f"agent {looping} runs more than {max_steps} transitions without "
-                                  f"letting time advance ({model.describe_k(st[4][looping][0])}); "
+                                  f"letting time advance ({model.describe_k(st[AGS][looping][PC])}); "
                                   f"raise --max-steps if this is intended",
                                   1, looping_agent=looping)
             st = nxt
@@ -186,9 +189,9 @@ SUMMARY_LIMIT = 100_000
 def _looping_agent(model, st, per_agent: Counter) -> int:
     """The agent that keeps time from advancing: mid-event with the most steps."""
     best, best_n = None, -1
-    for i, ag in enumerate(st[4]):
-        mid = ag[0] != model.ctl.empty_pc
+    for i, ag in enumerate(st[AGS]):
+        mid = ag[PC] != model.ctl.empty_pc
         n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
-        if ag[3] == 0 and n > best_n:
+        if ag[STATUS] == RUNNING and n > best_n:
             best, best_n = i, n
-    return best if best is not None else max(per_agent, key=per_agent.get)
+    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])

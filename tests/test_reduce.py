@@ -28,6 +28,7 @@ from pccl.engine import Model
 from pccl.errors import PcclError
 
 from conftest import PROGRAMS, ROOT
+from pccl.layout import AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, SH, STATUS, TIME
 from test_fingerprints import PINNED, SHIPPED, SLOW, TESTPROGS, programs
 
 MUTEX = "count(inCs) <= 1"
@@ -332,7 +333,7 @@ def test_agents_holding_other_agents_ids_are_canonical():
     import itertools
     for st in list(explore(OTHER_REF, source=True, blackbox="instant", agents=3,
                            reduce="none").model.init_states()):
-        ags = st[4]
+        ags = st[AGS]
         for perm in itertools.permutations(range(3)):
             r = {old: new for new, old in enumerate(perm)}
 
@@ -341,10 +342,10 @@ def test_agents_holding_other_agents_ids_are_canonical():
             cells = []
             for old in perm:
                 a = ags[old]
-                loc = (rn(a[4][0]), rn(a[4][1]), a[4][2])
-                cells.append((a[0], a[1], a[2], a[3], loc) + a[5:])
-            sh = (rn(st[3][0]),)
-            st2 = (st[0], st[1], tuple(r[x] for x in st[2]), sh, tuple(cells), st[5])
+                loc = (rn(a[LOC][0]), rn(a[LOC][1]), a[LOC][2])
+                cells.append((a[PC], a[CNT], a[LCK], a[STATUS], loc) + a[AR:])
+            sh = (rn(st[SH][0]),)
+            st2 = (st[TIME], st[PHASE], tuple(r[x] for x in st[LQ]), sh, tuple(cells), st[ENV])
             assert m.key(st2) == m.key(st)
     base = explore(OTHER_REF, source=True, blackbox="instant", agents=3, reduce="none",
                    find_all=True)
