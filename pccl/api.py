@@ -385,8 +385,10 @@ def violation_data(model, found: Counterexample) -> Finding:
     """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
     rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
+    # every counterexample carries its trace, but "unreachable" (a failed
+    # reachable P: there is no path to show)
     tr: Optional[Trace] = found.trace
-    assert tr is not None, "a counterexample carries its trace"
+    assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace

@@ -375,7 +375,7 @@ def test_zero_time_spin_is_a_time_lock():
     assert r.exit_status == 1
     v = r.violations[0]
     assert v["kind"] == "timelock"
-    assert "agent 0 (lines 10, 11)" in v["message"]
+    assert "agent 0 (lines 12, 13)" in v["message"]
     cx = r.counterexamples[0]
     tr = cx.trace
     assert r.model.key(tr.states[cx.cycle_start]) == r.model.key(tr.last)
