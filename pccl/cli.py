@@ -845,7 +845,7 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
             continue
         note = ", shortest under the reductions" if m.reduction.on else ""
         if res.search is not None and getattr(res.search, "fastest", False):
-            note += f", fastest: violation at t={D.fmt_time(tr.last[0])}"
+            note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
         loop = cx.cycle_start
         if loop is not None:
             click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "

@@ -506,7 +506,7 @@ class Model:
 
             def pred(e):
                 src = self.comp.expr(e, prop=True)
-                return self.comp.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
+                return self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
             kind = t.kind
             ticks = bound = None
             if t.bound is not None:

@@ -53,7 +53,7 @@ class FastestExplorer(Explorer):
         return res
 
     def _run_fastest(self) -> SearchResult:
-        from .semantics.rules import DISCRETE
+        from .layout import DISCRETE, PHASE
         m = self.model
         key = m.key
         exact = self.exact
@@ -147,7 +147,7 @@ class FastestExplorer(Explorer):
                         rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)
                     for s2, i2 in zip(states, new):
                         if i2 >= 0:
-                            push((ticks + (s2[1] != DISCRETE), depth + 1), s2, i2)
+                            push((ticks + (s2[PHASE] != DISCRETE), depth + 1), s2, i2)
                 if (self.max_memory is not None and not stop
                         and peak_rss_bytes() > self.max_memory):
                     bounds.add(Bound.MAX_MEMORY)

@@ -50,6 +50,7 @@ from typing import Any, Optional
 import numpy as np
 
 from .explorer import Counterexample
+from .layout import AGS, DISCRETE, DONE, FAIL, PHASE, POS, REACH, TARGET
 
 __all__ = ["GraphRecorder", "analyse", "LivenessResult"]
 
@@ -92,10 +93,11 @@ class _Grow:
 def _pending_mask(st) -> int:
     """Agents whose doReach is under way (nondet may still let them arrive)."""
     m = 0
-    for i, ag in enumerate(st[4]):
-        r = ag[7]
-        t = r[0]
-        if t is not None and not r[3] and not r[4] and (ag[6][0] != t[0] or ag[6][1] != t[1]):
+    for i, ag in enumerate(st[AGS]):
+        reach = ag[REACH]
+        t, pos = reach[TARGET], ag[POS]
+        if (t is not None and not reach[DONE] and not reach[FAIL]
+                and (pos[0] != t[0] or pos[1] != t[1])):
             m |= 1 << i
     return m
 
@@ -119,8 +121,7 @@ class GraphRecorder:
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list) -> None:
         """The states just admitted, in state-number order."""
-        from .semantics.rules import DISCRETE
-        self.dyn.extend(np.fromiter((s[1] != DISCRETE for s in states), dtype=np.uint8,
+        self.dyn.extend(np.fromiter((s[PHASE] != DISCRETE for s in states), dtype=np.uint8,
                                     count=len(states)))
         if self.bits is not None:
             vals = np.zeros(len(states), dtype=np.uint64)

@@ -18,7 +18,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from .layout import AGS, PC, RUNNING, STATUS, TIME
+from .layout import (AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
+                     TARGET, TIME)
 
 
 @dataclass
@@ -53,20 +54,20 @@ class RunResult:
 def _signature(st) -> tuple:
     """What a stall compares: variables, positions, doReach targets and flags,
     statuses and the lock queue (not the clock, counters or pending code)."""
-    return (st[2], st[3], tuple((ag[3], ag[4], ag[5], ag[6], ag[7][0], ag[7][3], ag[7][4])
-                                for ag in st[4]))
+    return (st[LQ], st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[POS], ag[REACH][TARGET],
+                                   ag[REACH][DONE], ag[REACH][FAIL]) for ag in st[AGS]))
 
 
 def waiting_on(model, st) -> list:
     """Per running agent, what it waits on: ``[(agent, text)]``."""
     from .display import source_line
     out = []
-    sh, ags = st[3], st[4]
+    sh, ags = st[SH], st[AGS]
     for i, ag in enumerate(ags):
-        if ag[3] != 0:
+        if ag[STATUS] != RUNNING:
             continue
-        if ag[0] != model.ctl.empty_pc and model.ctl.cells[ag[0]][0] != -1:
-            out.append((i, model.describe_k(ag[0])))
+        if ag[PC] != model.ctl.empty_pc and model.ctl.cells[ag[PC]][0] != END:
+            out.append((i, model.describe_k(ag[PC])))
             continue
         try:
             enabled = model.enabled_events(i, ag, sh, ags)
@@ -113,7 +114,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     n_env, stride = 0, 1
     since_time = 0
     per_agent: Counter = Counter()
-    last_sig, still, since = _signature(st), 0, st[0]
+    last_sig, still, since = _signature(st), 0, st[TIME]
 
     def finish(status, message, code, **kw):
         return RunResult(status, message, code, st, steps, trace, summary, **kw)
@@ -147,10 +148,10 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 if sig == last_sig:
                     still += 1
                 else:
-                    last_sig, still, since = sig, 0, nxt[0]
-                if stall_steps and still >= stall_steps and any(ag[3] == 0 for ag in nxt[4]):
+                    last_sig, still, since = sig, 0, nxt[TIME]
+                if stall_steps and still >= stall_steps and any(ag[STATUS] == RUNNING for ag in nxt[AGS]):
                     st = nxt
-                    summary.append((nxt[0], nxt))
+                    summary.append((nxt[TIME], nxt))
                     from .display import fmt_time
                     waits = waiting_on(model, st)
                     return finish("stalled",

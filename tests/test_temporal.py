@@ -15,7 +15,7 @@ from click.testing import CliRunner
 from pccl.api import explore, make_model
 from pccl.cli import main
 from pccl.errors import PcclError
-from pccl.semantics.rules import DISCRETE, EXITED
+from pccl.layout import AGS, DISCRETE, EXITED, FAIL, LOC, PHASE, REACH, STATUS, TIME
 
 from conftest import FISCHER, TEST_PROGRAMS
 
@@ -75,7 +75,7 @@ def ref_leadsto_fails(model, start, q) -> bool:
     textbook fixpoint: Z = nu Z. notQ & EX E[notQ U (Z & dyn)]."""
     init, states, succ = ref_graph(model)
     notq = {k for k, s in states.items() if not q(s)}
-    dyn = {k for k, s in states.items() if s[1] != DISCRETE}
+    dyn = {k for k, s in states.items() if s[PHASE] != DISCRETE}
     terminal = {k for k in states if not succ[k]}
 
     def eu(target):          # E[notQ U target], target inside notQ
@@ -118,7 +118,7 @@ def ref_within_fails(model, p, q, ticks) -> bool:
         k, c = node
         for k2 in succ[k]:
             s2 = states[k2]
-            c2 = c + 1 if (c >= 0 and s2[1] != DISCRETE) else c
+            c2 = c + 1 if (c >= 0 and s2[PHASE] != DISCRETE) else c
             if c2 > ticks:
                 return True
             if q(s2):
@@ -138,7 +138,7 @@ def lasso_ok(model, res, stays_false):
     loop = cx.cycle_start
     assert loop is not None and 0 <= loop < len(tr)
     assert model.key(tr.states[loop]) == model.key(tr.last)
-    assert any(s[1] != DISCRETE for s in tr.states[loop + 1:])
+    assert any(s[PHASE] != DISCRETE for s in tr.states[loop + 1:])
     return all(stays_false(s) for s in tr.states[loop:])
 
 
@@ -230,7 +230,7 @@ def test_status_predicates():
     assert r.exit_status == 0, r.verdict
     assert len(r.witnesses) == 2
     last = r.witnesses[0]["_trace"].last
-    assert all(ag[3] == EXITED for ag in last[4])
+    assert all(ag[STATUS] == EXITED for ag in last[AGS])
     assert m.temporal[0].p(last)
 
 
@@ -243,7 +243,7 @@ def test_reachable_on_fischer_gives_a_witness_and_unreachable_fails():
     assert r.exit_status == 0 and r.status == "exhaustive"
     (w,) = r.witnesses
     tr = w["_trace"]
-    assert sum(v is True for v in (tr.last[4][i][4][r.model.layout.vars["inCs"].slot]
+    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.layout.vars["inCs"].slot]
                                    for i in range(2))) == 1
     # shortest: no state on the path before the last satisfies it
     p = r.model.temporal[0].p
@@ -273,9 +273,9 @@ def test_walled_rendezvous_fails_eventually_all_exit_with_a_lasso():
     v = r.violations[0]
     assert v["kind"] == "liveness" and v.cycle_start is not None
     m = r.model
-    assert lasso_ok(m, r, lambda s: not all(ag[3] == EXITED for ag in s[4]))
+    assert lasso_ok(m, r, lambda s: not all(ag[STATUS] == EXITED for ag in s[AGS]))
     # robot 0's doReach failed on the wall
-    assert r.counterexamples[0].trace.last[4][0][7][4] is True
+    assert r.counterexamples[0].trace.last[AGS][0][REACH][FAIL] is True
     assert ref_leadsto_fails(make_model(RDV, world=RDV_WALL, blackbox="straight",
                                         properties=[ALL_EXIT]),
                              None, m.temporal[0].p)
@@ -349,7 +349,7 @@ def test_within_agrees_with_reference(bound):
     assert (r.exit_status == 1) == ref_within_fails(m, p.p, p.q, p.ticks), r.verdict
     if r.exit_status == 1:
         tr = r.counterexamples[0].trace
-        assert tr.last[0] - tr.states[r.counterexamples[0].p_at][0] > bound
+        assert tr.last[TIME] - tr.states[r.counterexamples[0].p_at][TIME] > bound
 
 
 def test_within_has_a_threshold():
@@ -379,7 +379,7 @@ def test_zero_time_spin_is_a_time_lock():
     cx = r.counterexamples[0]
     tr = cx.trace
     assert r.model.key(tr.states[cx.cycle_start]) == r.model.key(tr.last)
-    assert all(s[1] == DISCRETE and s[0] == 0 for s in tr.states)
+    assert all(s[PHASE] == DISCRETE and s[TIME] == 0 for s in tr.states)
 
 
 def test_spin_that_can_be_left_is_no_time_lock():
@@ -410,7 +410,7 @@ def test_fastest_finds_the_earlier_violation():
     fast = explore(FAST, agents=1, fastest=True)
     assert bfs.exit_status == fast.exit_status == 1
     tb, tf = bfs.counterexamples[0].trace, fast.counterexamples[0].trace
-    assert tb.last[0] == 2 and tf.last[0] == 0
+    assert tb.last[TIME] == 2 and tf.last[TIME] == 0
     assert len(tb) < len(tf)
     res = cli("explore", FAST, "-n", "1", "--fastest")
     assert "fastest: violation at t=0" in res.output
@@ -437,17 +437,17 @@ def test_fastest_agrees_on_verdicts_and_counts():
             assert a.stats.states == b.stats.states
             assert a.stats.transitions == b.stats.transitions
         else:
-            assert b.counterexamples[0].trace.last[0] <= a.counterexamples[0].trace.last[0]
+            assert b.counterexamples[0].trace.last[TIME] <= a.counterexamples[0].trace.last[TIME]
 
 
 @pytest.mark.slow
 def test_fastest_among_equal_times_is_shortest():
     r = explore(FISCHER, overrides={"k": "0"}, invariants=["count(inCs) <= 1"], fastest=True)
     tr = r.counterexamples[0].trace
-    assert tr.last[0] == 10
+    assert tr.last[TIME] == 10
     # BFS finds 130 steps at time 10 too: fastest cannot be longer at the same time
     b = explore(FISCHER, overrides={"k": "0"}, invariants=["count(inCs) <= 1"])
-    assert b.counterexamples[0].trace.last[0] == 10
+    assert b.counterexamples[0].trace.last[TIME] == 10
     assert len(tr) == len(b.counterexamples[0].trace)
 
 
@@ -495,7 +495,7 @@ def test_run_stops_a_stalled_team():
     r = run(RDV, world=RDV_WALL, blackbox="straight")
     assert r.status == "stalled" and r.exit_status == 1
     assert r.stalled_since == 1
-    assert r.final[0] == 1 + 20            # 20 unchanged time steps after t = 1
+    assert r.final[TIME] == 1 + 20            # 20 unchanged time steps after t = 1
     assert [i for i, _ in r.waiting] == [0, 1]
     assert "`id == 0 && started && doReach_done` (Arrive, line 18)" in r.waiting[0][1]
     assert r.message.startswith("stalled since t = 1: ")
@@ -509,7 +509,7 @@ def test_run_stall_steps_option():
     from pccl.api import run
     from pccl.errors import ArgumentError
     r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=5)
-    assert r.status == "stalled" and r.final[0] == 6
+    assert r.status == "stalled" and r.final[TIME] == 6
     r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=0, max_time=30)
     assert r.status == "bounded" and r.exit_status == 0
     with pytest.raises(ArgumentError, match="stall_steps"):
