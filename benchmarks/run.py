@@ -6,6 +6,7 @@
     python benchmarks/run.py --no-baseline     # this checkout only
     python benchmarks/run.py --reduce          # reductions: auto and none side by side
     python benchmarks/run.py --reduce --full   # also the long ones (k=10 none, 3 agents k=2)
+    python benchmarks/run.py --no-timelock     # the new code without the time-lock check
 
 Each case runs in its own process so that peak memory is the case's own.
 "B/state" is (peak RSS - RSS before the search) / visited states: the whole
@@ -95,7 +96,7 @@ m = make_model(spec.pop("program"), world=spec.pop("world", None),
                invariants=tuple(spec.pop("invariants", ())),
                **({"reduce": spec.pop("reduce")} if "reduce" in spec else {}))
 rss0 = peak_rss_bytes()
-r = explore_model(m)
+r = explore_model(m, **spec.pop("explore", {}))
 peak = peak_rss_bytes()
 s = r.stats
 print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
@@ -147,6 +148,9 @@ def main() -> None:
     ap.add_argument("--only", metavar="TEXT", help="run the cases whose name contains TEXT")
     ap.add_argument("--reduce", action="store_true",
                     help="the reduction cases: --reduce auto and none side by side")
+    ap.add_argument("--no-timelock", action="store_true",
+                    help="run this checkout without the time-lock check (timelock=False); "
+                         "the baseline runs as it is")
     args = ap.parse_args()
     if args.reduce:
         return reduce_main(args)
@@ -167,7 +171,10 @@ def main() -> None:
             runs: dict = {v: [] for v, _ in versions}
             for _ in range(args.repeat if len(versions) > 1 else 1):
                 for v, d in versions:
-                    runs[v].append(run_case(dict(spec), d))
+                    sp = dict(spec)
+                    if args.no_timelock and d is None:
+                        sp["explore"] = {"timelock": False}
+                    runs[v].append(run_case(sp, d))
             for v, _ in versions:
                 r = median_run(runs[v])
                 if args.json:

@@ -152,8 +152,20 @@ class Quant:
     span: Span = _span()
 
 
+@dataclass(frozen=True)
+class Temporal:
+    """Properties only, at the top (under ``forall`` at most; spec section 9):
+    ``eventually p``, ``reachable p``, ``p ~> q`` and ``p ~> q within bound``.
+    ``kind`` is ``"eventually"``, ``"reachable"`` or ``"leadsto"``."""
+    kind: str
+    p: "Expr"
+    q: Optional["Expr"] = None
+    bound: Optional["Expr"] = None
+    span: Span = _span()
+
+
 Expr = Union[IntLit, FloatLit, BoolLit, ListLit, Name, Index, Field, Call,
-             Unary, Binary, Quant]
+             Unary, Binary, Quant, Temporal]
 
 
 # --------------------------------------------------------------------------
@@ -306,6 +318,8 @@ def children(node) -> tuple:
         return (node.left, node.right)
     if isinstance(node, Quant):
         return (node.body,)
+    if isinstance(node, Temporal):
+        return tuple(x for x in (node.p, node.q, node.bound) if x is not None)
     if isinstance(node, Assign):
         return (node.target, node.value)
     if isinstance(node, If):

@@ -185,6 +185,9 @@ def check_property(expr: ast.Expr, info: CheckedProgram, *, filename: str,
 
 _AGENT_FUNCTIONS = ("getAgentIndex", "getPosition")
 _PROPERTY_NAMES = ("time", "N")
+#: Status predicates of properties (spec section 9): ``exited[i]``,
+#: ``stuck[i]``, ``running[i]``; a program variable of the same name wins.
+STATUS_PREDICATES = ("exited", "stuck", "running")
 _PROGRAM_ONLY_HINTS = {
     "getAgentIndex": "quantify over agent ids instead, forall i: …",
     "getPosition": "write pos[i] for agent i's position",
@@ -573,6 +576,10 @@ class _Checker:
             return t
         if isinstance(e, ast.Binary):
             return self.binary(e)
+        if isinstance(e, ast.Temporal):
+            word = "~>" if e.kind == "leadsto" else e.kind
+            self.fail(f"'{word}' must stand at the top of a property (under 'forall' at "
+                      f"most): it is not a value", e.span)
         if isinstance(e, ast.Quant):
             if self.mode != "property":
                 self.fail(f"'{e.kind}' is only allowed in properties", e.span)
@@ -660,7 +667,7 @@ class _Checker:
         """" (did you mean 'x'?)" for a readable name close to ``name``, else ""."""
         names = [*self.info.variables, *self.first_decl, *READONLY_FLAGS, *self.info.members]
         if self.mode == "property":
-            names += [*self.bound, *_PROPERTY_NAMES, "pos"]
+            names += [*self.bound, *_PROPERTY_NAMES, "pos", *STATUS_PREDICATES]
         return did_you_mean(name, names)
 
     def suggest_function(self, name: str, *, statement: bool = False) -> str:
@@ -694,6 +701,8 @@ class _Checker:
                 return FLOAT if name == "time" else INT
             if name == "pos":
                 self.ambiguous(n)
+                self.per_agent_in_property(n)
+            if name in STATUS_PREDICATES and name not in self.info.variables:
                 self.per_agent_in_property(n)
         if self.init_of is not None:
             var = self.visible_in_init(n)
@@ -764,7 +773,7 @@ class _Checker:
                 if not var.per_agent:
                     return None
                 t = var.type
-            elif name in READONLY_FLAGS:
+            elif name in READONLY_FLAGS or name in STATUS_PREDICATES:
                 t = BOOL
             else:
                 return None
@@ -815,7 +824,8 @@ class _Checker:
         var = self.info.variables.get(a.name) if isinstance(a, ast.Name) else None
         ok = (isinstance(a, ast.Name) and a.name not in self.bound
               and ((var is not None and var.per_agent and var.type == BOOL)
-                   or (var is None and a.name in READONLY_FLAGS)))
+                   or (var is None and (a.name in READONLY_FLAGS
+                                        or a.name in STATUS_PREDICATES))))
         if (not ok and isinstance(a, ast.Name) and var is None and a.name not in self.bound
                 and a.name not in READONLY_FLAGS and a.name not in self.info.members):
             self.fail(f"undeclared variable '{a.name}'{self.suggest_name(a.name)}", a.span)
@@ -827,9 +837,45 @@ class _Checker:
     # ---- properties ------------------------------------------------------
 
     def property(self, e: ast.Expr) -> None:
+        """A property: a bool state expression, or one of the temporal forms
+        of spec section 9 at the top, under ``forall`` quantifiers at most
+        (``forall i: want[i] ~> has[i]`` is one property per agent)."""
+        top, saved = e, dict(self.bound)
+        while isinstance(top, ast.Quant) and isinstance(_under_quants(top.body), ast.Temporal):
+            if top.kind != "forall":
+                self.fail(f"only 'forall' may quantify a temporal property ('{top.kind}' "
+                          f"would need a branching-time check)", top.span)
+            self.bound[top.var] = 1
+            top = top.body
+        if isinstance(top, ast.Temporal):
+            for x in (top.p, top.q):
+                if x is not None:
+                    t = self.value(x)
+                    if t.kind not in ("bool", "any"):
+                        self.fail(f"a property must be bool, got {t}", x.span)
+            if top.bound is not None:
+                self.time_bound(top.bound)
+            self.bound = saved
+            return
         t = self.value(e)
         if t.kind not in ("bool", "any"):
             self.fail(f"a property must be bool, got {t}", e.span)
+
+    def time_bound(self, b: ast.Expr) -> None:
+        """The T of ``P ~> Q within T``: a constant number >= 0."""
+        for x in ast.walk_expr(b):
+            if not isinstance(x, (ast.IntLit, ast.FloatLit, ast.Unary, ast.Binary)):
+                self.fail("the bound of 'within' must be a constant number of time units, "
+                          "e.g. 'within 3'", b.span)
+        t = self.value(b)
+        if not t.is_number:
+            self.fail(f"the bound of 'within' must be a number, got {t}", b.span)
+
+
+def _under_quants(e):
+    while isinstance(e, ast.Quant):
+        e = e.body
+    return e
 
 
 def did_you_mean(name: str, candidates) -> str:

@@ -252,6 +252,11 @@ class Oracle:
         return results
 
 
+#: Status predicates of properties (spec section 9) as tests of an agent's
+#: status cell: RUNNING is 0, EXITED 1, stuck >= 2 (semantics/rules.py).
+_STATUS_TEST = {"running": "== 0", "exited": "== 1", "stuck": ">= 2"}
+
+
 def has_rand(node) -> bool:
     """Does evaluating ``node`` draw a ``rand()``?  ``node`` is an expression,
     a statement (its own expressions: an if's conditions, not its branches),
@@ -495,6 +500,8 @@ class Compiler:
         if isinstance(root, A.Name) and root.name not in bound:
             n = root.name
             vs = self.lay.vars.get(n)
+            if prop and vs is None and n in _STATUS_TEST:
+                return f"(_ag(ags, {ex(idx[0])}, {n + '[…]'!r})[3] {_STATUS_TEST[n]})"
             if prop and vs is None and n in ("pos", "doReach_done", "doReach_fail"):
                 j = ex(idx[0])
                 cell = {"pos": f"[{POS}]", "doReach_done": f"[{REACH}][{DONE}]",
@@ -538,6 +545,12 @@ class Compiler:
                 k = DONE if a.name == "doReach_done" else FAIL
                 return self._count(f"[{REACH}][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
+            if vs is None and isinstance(a, A.Name) and a.name in _STATUS_TEST:
+                test = _STATUS_TEST[a.name]
+                if self.N > 64:
+                    return f"sum(1 for _a in ags if _a[3] {test})"
+                terms = " + ".join(f"(ags[{j}][3] {test})" for j in range(self.N))
+                return f"(0 + {terms})"
             if vs is None or vs.section == "allwrite":
                 self.impossible("count(v) needs a per-agent boolean variable", e)
             slot = LOC if vs.section == "loc" else AR

@@ -28,7 +28,7 @@ import operator
 
 import xxhash
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Optional
 from collections.abc import Callable
 
 from . import ast as A
@@ -73,6 +73,29 @@ class Property:
     uses_time: bool
     src: str = ""             # the compiled Python expression (over st, sh, ags)
     expr: Optional[A.Expr] = None
+
+
+@dataclass
+class TemporalProperty:
+    """One temporal property of spec section 9 (one instance per agent of a
+    ``forall``-quantified one): ``kind`` is ``eventually``, ``leadsto``,
+    ``within`` (``P ~> Q within T``) or ``reachable``.  ``p``/``q`` are
+    compiled state predicates ``fn(st) -> bool``; ``ticks`` is T as a whole
+    number of time steps δ (``within`` only)."""
+    kind: str
+    name: str
+    text: str
+    p: Callable
+    q: Optional[Callable]
+    span: Optional[A.Span]
+    expr: A.Expr              # the instance's Temporal node (reductions read it)
+    uses_time: bool = False
+    ticks: Optional[int] = None
+    bound: Optional[float] = None
+
+    @property
+    def liveness(self) -> bool:
+        return self.kind in ("eventually", "leadsto")
 
 
 class Control:
@@ -204,7 +227,7 @@ class Model:
                  max_time=None, abstract_time: Optional[bool] = None,
                  invariants=(), functions: Optional[dict] = None,
                  rand_policy: Optional[Callable] = None, collisions: bool = False,
-                 reduce="none"):
+                 reduce="none", properties=()):
         from .world import default_world
         from .blackboxes import load_blackbox
 
@@ -303,14 +326,25 @@ class Model:
 
         # properties
         self.properties: list[Property] = []
+        #: the temporal properties (spec section 9), see pccl/liveness.py
+        self.temporal: list[TemporalProperty] = []
         self._compile_violations()
         for inv in program.invariants:
-            self.add_property(inv.expr, name=inv.name, text=_src_text(program.source, inv.expr.span),
+            text = _src_text(program.source, inv.expr.span)
+            if _is_temporal(inv.expr):
+                self.add_temporal(inv.expr, name=inv.name or text, text=text, span=inv.span,
+                                  filename=program.filename, source=program.source)
+                continue
+            self.add_property(inv.expr, name=inv.name, text=text,
                               span=inv.span, filename=program.filename, source=program.source)
         for k, inv in enumerate(invariants):
             self.add_invariant_text(inv, index=k)
+        for k, text in enumerate(properties):
+            self.add_property_text(text, index=k)
 
-        uses_time = any(p.uses_time for p in self.properties) or getattr(blackbox, "uses_time", False)
+        uses_time = (any(p.uses_time for p in self.properties)
+                     or any(p.uses_time for p in self.temporal)
+                     or getattr(blackbox, "uses_time", False))
         sound = not uses_time and max_time is None
         if abstract_time is None:
             abstract_time = sound
@@ -334,7 +368,8 @@ class Model:
     # -- reductions (pccl/reduce.py) -------------------------------------------------
     @property
     def property_exprs(self) -> list:
-        return [p.expr for p in self.properties if p.expr is not None]
+        return ([p.expr for p in self.properties if p.expr is not None]
+                + [p.expr for p in self.temporal])
 
     def set_reduce(self, reduce="auto"):
         """Turn on the reductions ``reduce`` asks for (``auto``: every sound
@@ -429,7 +464,71 @@ class Model:
         from .parser import parse_property
         fname = f"--invariant #{index + 1}"
         expr = parse_property(text, filename=fname)
+        if _is_temporal(expr):
+            t = _top_temporal(expr)
+            raise PcclError("--invariant takes a state property; a temporal property "
+                            "(eventually, ~>, within, reachable) goes with --property",
+                            filename=fname, source=text, span=t.span)
         self.add_property(expr, name=text, text=text, span=None, filename=fname, source=text)
+
+    def add_property_text(self, text: str, index: int = 0):
+        """``--property FORM``: any form of spec section 9."""
+        from .parser import parse_property
+        if not isinstance(text, str):
+            raise PcclError(f"a property must be text, got {type(text).__name__}",
+                            filename="--property")
+        fname = f"--property #{index + 1}"
+        expr = parse_property(text, filename=fname)
+        if _is_temporal(expr):
+            self.add_temporal(expr, name=text.strip(), text=text.strip(), span=None,
+                              filename=fname, source=text)
+        else:
+            self.add_property(expr, name=text, text=text, span=None, filename=fname,
+                              source=text)
+
+    def add_temporal(self, expr: A.Expr, *, name, text, span, filename, source):
+        """Check and compile a temporal property; a ``forall``-quantified one
+        becomes one instance per agent (``name [i=0]``, …)."""
+        from .checker import check_property
+        check_property(expr, self.info, filename=filename, source=source)
+        qvars = []
+        top = expr
+        while isinstance(top, A.Quant):
+            qvars.append(top.var)
+            top = top.body
+        combos: list[tuple] = [()]
+        for _ in qvars:
+            combos = [c + (k,) for c in combos for k in range(self.N)]
+        for combo in combos:
+            env: dict[str, int] = dict(zip(qvars, combo))
+            t: Any = _subst(top, env) if env else top
+            suffix = (" [" + ", ".join(f"{v}={k}" for v, k in env.items()) + "]") if env else ""
+
+            def pred(e):
+                src = self.comp.expr(e, prop=True)
+                return self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
+            kind = t.kind
+            ticks = bound = None
+            if t.bound is not None:
+                kind = "within"
+                try:
+                    bound = eval(self.comp.expr(t.bound, prop=True), dict(self.comp.G))
+                except Exception as exc:
+                    raise PcclError(f"the bound of 'within' cannot be evaluated: {exc}",
+                                    filename=filename, source=source,
+                                    span=t.bound.span) from None
+                if not (isinstance(bound, (int, float)) and math.isfinite(bound) and bound >= 0):
+                    raise PcclError(f"the bound of 'within' must be a finite number >= 0, "
+                                    f"got {bound}", filename=filename, source=source,
+                                    span=t.bound.span)
+                ticks = int((_decimal(bound) / self._delta_dec).to_integral_value(
+                    rounding=decimal.ROUND_FLOOR))
+            uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(t))
+            self.temporal.append(TemporalProperty(
+                kind, name + suffix, text, pred(t.p), pred(t.q) if t.q is not None else None,
+                span, t, uses_time, ticks, bound))
+        if hasattr(self, "reduction"):
+            self.set_reduce(self.reduction.requested)
 
     # -- events ---------------------------------------------------------------------
     def enabled_events(self, i, ag, sh, ags):
@@ -943,6 +1042,43 @@ class Model:
 
 
 _EXACT = decimal.Context(prec=60)
+
+
+def _top_temporal(e):
+    while isinstance(e, A.Quant):
+        e = e.body
+    return e
+
+
+def _is_temporal(e) -> bool:
+    """Whether a property is one of the temporal forms (under ``forall`` at most)."""
+    return isinstance(_top_temporal(e), A.Temporal)
+
+
+def _subst(e, env: dict) -> Any:
+    """``e`` with the bound names of ``env`` replaced by agent ids (int
+    literals); an inner quantifier over the same name shadows it."""
+    import dataclasses
+    if isinstance(e, A.Name) and e.name in env:
+        return A.IntLit(env[e.name], e.span)
+    if isinstance(e, A.Quant) and e.var in env:
+        env = {k: v for k, v in env.items() if k != e.var}
+        if not env:
+            return e
+    if not dataclasses.is_dataclass(e) or isinstance(e, A.Span):
+        return e
+    changes = {}
+    for f in dataclasses.fields(e):
+        v = getattr(e, f.name)
+        if isinstance(v, tuple):
+            nv = tuple(_subst(x, env) for x in v)
+        elif dataclasses.is_dataclass(v) and not isinstance(v, A.Span):
+            nv = _subst(v, env)
+        else:
+            continue
+        if nv is not v:
+            changes[f.name] = nv
+    return dataclasses.replace(e, **changes) if changes else e  # type: ignore[type-var]
 
 
 def _decimal(x) -> decimal.Decimal:

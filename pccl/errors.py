@@ -60,7 +60,8 @@ class ArgumentError(PcclError, ValueError):
 #: options are :mod:`pccl.options`; the spelling lives here, with the error
 #: that renders it, so that this module imports nothing above it).
 FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
-         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all"}
+         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
+         "properties": "--property", "timelock": "--no-timelock"}
 
 
 def flag(name: str) -> str:

@@ -53,6 +53,8 @@ class CommonOptions:
     collisions: bool = False
     overrides: Mapping[str, str] = field(default_factory=dict)
     invariants: tuple = ()
+    #: property forms of spec section 9 (docs/temporal.md)
+    properties: tuple = ()
     max_time: Optional[Union[int, float]] = None
     functions: Optional[Mapping[str, Any]] = None
     rand_policy: Optional[Callable] = None
@@ -81,8 +83,9 @@ class CommonOptions:
         for k in ("rates", "overrides"):
             if k in kw:
                 kw[k] = dict(kw[k])
-        if "invariants" in kw:
-            kw["invariants"] = tuple(kw["invariants"])
+        for k in ("invariants", "properties"):
+            if k in kw:
+                kw[k] = tuple(kw[k])
         for k in ("delta", "max_time"):
             if kw.get(k) is not None:
                 kw[k] = integral(kw[k])
@@ -106,7 +109,8 @@ class CommonOptions:
         """The keyword arguments of :class:`pccl.engine.Model` (besides the
         program, world, blackbox and team size)."""
         kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
-                  invariants=tuple(self.invariants), collisions=self.collisions)
+                  invariants=tuple(self.invariants), collisions=self.collisions,
+                  properties=tuple(self.properties))
         if with_max_time:
             kw["max_time"] = self.max_time
         if self.functions is not None:
@@ -144,6 +148,8 @@ class ExploreOptions(ModelOptions):
     coverage: bool = False
     progress_interval: float = 0.5
     progress: Optional[Callable] = None
+    timelock: bool = True                   # report time-locks (docs/temporal.md)
+    fastest: bool = False                   # order the search on global time
 
     @classmethod
     def from_cli(cls, params: Mapping[str, Any]):
@@ -161,6 +167,8 @@ class ExploreOptions(ModelOptions):
                       progress=self.progress, max_memory=self.max_memory)
         V.number(func, "progress_interval", self.progress_interval, positive=True)
         V.boolean(func, "coverage", self.coverage)
+        V.boolean(func, "timelock", self.timelock)
+        V.boolean(func, "fastest", self.fastest)
         w = self.workers
         if w != "auto" and (not isinstance(w, int) or isinstance(w, bool) or w < 1):
             raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {w!r}",
@@ -172,6 +180,10 @@ class ExploreOptions(ModelOptions):
         if (r is not None or (w != 1 and w != "auto")) and (self.exact or self.coverage):
             raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
                                 f"process: use workers=1 without ray",
+                                filename=f"pccl.api.{func}")
+        if (r is not None or w != 1) and (self.properties or self.fastest):
+            what = "fastest=True" if self.fastest else "properties"
+            raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
                                 filename=f"pccl.api.{func}")
 
 
@@ -188,6 +200,7 @@ class RunOptions(CommonOptions):
     seed: int = 0
     max_steps: int = 100_000
     record_trace: bool = False
+    stall_steps: int = 20                   # 0: no stall detection
 
     @classmethod
     def from_api(cls, func: str, kwargs: Mapping[str, Any]):
@@ -201,6 +214,7 @@ class RunOptions(CommonOptions):
         V.integer(func, "seed", self.seed)
         super().check(func)
         V.integer(func, "max_steps", self.max_steps, minimum=1)
+        V.integer(func, "stall_steps", self.stall_steps, minimum=0)
         V.boolean(func, "record_trace", self.record_trace)
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:

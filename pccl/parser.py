@@ -231,6 +231,17 @@ class _ToAst(Transformer):
         kind, var, body = children
         return ast.Quant(str(kind), str(var), body, _mspan(meta))
 
+    def leadsto(self, meta, children):
+        p, q = children[0], children[2]
+        bound = children[4] if len(children) > 3 else None
+        return ast.Temporal("leadsto", p, q, bound, _mspan(meta))
+
+    def eventually(self, meta, children):
+        return ast.Temporal("eventually", children[1], None, None, _mspan(meta))
+
+    def reachable(self, meta, children):
+        return ast.Temporal("reachable", children[1], None, None, _mspan(meta))
+
     def property(self, meta, children):
         return children[0]
 
@@ -440,6 +451,10 @@ def _check_no_property_syntax(prog: ast.Program) -> None:
                 raise _Syntax(f"'{sub.kind}' is only allowed in properties and invariants", sub.span)
             if isinstance(sub, ast.Binary) and sub.op == "->":
                 raise _Syntax("'->' is only allowed in properties and invariants", sub.span)
+            if isinstance(sub, ast.Temporal):
+                word = "~>" if sub.kind == "leadsto" else sub.kind
+                raise _Syntax(f"'{word}' is only allowed in properties and invariants",
+                              sub.span)
 
 
 # --------------------------------------------------------------------------
@@ -450,14 +465,15 @@ _NAMES = {
     "SEMICOLON": "';'", "COLON": "':'", "COMMA": "','", "DOT": "'.'",
     "LPAR": "'('", "RPAR": "')'", "LSQB": "'['", "RSQB": "']'",
     "LBRACE": "'{'", "RBRACE": "'}'", "EQUAL": "'='",
-    "ARROW": "'->'", "OROR": "'||'", "ANDAND": "'&&'", "BANG": "'!'",
+    "ARROW": "'->'", "LEADSTO": "'~>'", "OROR": "'||'", "ANDAND": "'&&'", "BANG": "'!'",
     "EQ": "'=='", "NE": "'!='", "LT": "'<'", "LE": "'<='", "GT": "'>'", "GE": "'>='",
     "PLUS": "'+'", "MINUS": "'-'", "STAR": "'*'", "SLASH": "'/'", "PERCENT": "'%'",
     "IDENT": "an identifier", "INT": "a number", "FLOAT": "a number",
     "TRUE": "'true'", "FALSE": "'false'",
     "IF": "'if'", "ELSE": "'else'", "WHILE": "'while'", "ATOMIC": "'atomic'",
     "SKIP": "'skip'", "ENUM": "'enum'", "PRE": "'pre'", "EFF": "'eff'",
-    "FORALL": "'forall'", "EXISTS": "'exists'",
+    "FORALL": "'forall'", "EXISTS": "'exists'", "EVENTUALLY": "'eventually'",
+    "REACHABLE": "'reachable'", "WITHIN": "'within'",
     "AGENT_HDR": "'Agent::'", "ALLWRITE_HDR": "'allwrite:'", "ALLREAD_HDR": "'allread:'",
     "LOC_HDR": "'loc:'", "INIT_HDR": "'Init:'", "INVARIANT_HDR": "'invariant:'",
     "_NL": "end of line", "_INDENT": "an indented block", "_DEDENT": "end of block",
@@ -482,13 +498,13 @@ def _close_section(word: str) -> Optional[str]:
     return f"{names[close[0]]}:" if close else None
 
 
-_BINOPS = {"ARROW", "OROR", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
+_BINOPS = {"ARROW", "LEADSTO", "WITHIN", "OROR", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
            "PLUS", "MINUS", "STAR", "SLASH", "PERCENT"}
 _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
 _POSTFIX = {"LSQB", "DOT", "LPAR"}
 _STMT_START = {"IF", "WHILE", "ATOMIC", "SKIP", "IDENT"}
 _EXPR_START = {"IDENT", "INT", "FLOAT", "TRUE", "FALSE", "LPAR", "LSQB",
-               "MINUS", "BANG", "FORALL", "EXISTS"}
+               "MINUS", "BANG", "FORALL", "EXISTS", "EVENTUALLY", "REACHABLE"}
 _TOP_LEVEL = {"INIT_HDR", "INVARIANT_HDR", "ALLWRITE_HDR", "ALLREAD_HDR", "LOC_HDR"}
 
 # Tokens on the parser's value stack that tell what kind of line we are in.

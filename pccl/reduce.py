@@ -230,7 +230,8 @@ class _IdInfo:
         vs = self.lay.vars.get(base.name)
         if prop:
             return (vs is not None and vs.section in ("loc", "allread")) or \
-                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail"))
+                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail",
+                                              "exited", "stuck", "running"))
         return vs is not None and vs.section == "allread"
 
     def check(self) -> Optional[str]:
@@ -252,7 +253,7 @@ class _IdInfo:
                     self.visit(x, False, where)
         for ev in m.program.events:
             self.visit(ev.guard, False, f"in the guard of {ev.name} (line {ev.guard.span.line})")
-        for p in m.properties:
+        for p in list(m.properties) + list(getattr(m, "temporal", ())):
             self.bound = set()
             self.visit(p.expr, False, f"in property `{p.text}`", prop=True)
         self.bound = set()
@@ -274,6 +275,8 @@ def _children(e):
         return (e.left, e.right)
     if isinstance(e, A.Quant):
         return (e.body,)
+    if isinstance(e, A.Temporal):
+        return tuple(x for x in (e.p, e.q, e.bound) if x is not None)
     return ()
 
 
@@ -317,7 +320,7 @@ def positions_read(m) -> Optional[str]:
                 return f"getPosition() at line {e.span.line}"
             if isinstance(e, A.Name) and e.name in ("doReach_done", "doReach_fail"):
                 return f"{e.name} at line {e.span.line}"
-    for p in m.properties:
+    for p in list(m.properties) + list(getattr(m, "temporal", ())):
         for e in A.walk_expr(p.expr):
             if isinstance(e, A.Name) and e.name in ("pos", "doReach_done", "doReach_fail"):
                 return f"{e.name} in property `{p.text}`"
@@ -369,6 +372,11 @@ def plan(m, reduce) -> tuple:
         on.append("merge")
     if want is None or "symmetry" in want:
         why, slots = symmetry_problem(m)
+        live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
+        if why is None and live:
+            # a cycle of the quotient is a real run only up to a permutation of
+            # the agents: a lasso would not return to its own entry state
+            why = f"liveness property `{live[0]}` needs real cycles for its lassos"
         if why is None:
             on.append("symmetry")
         elif want is not None and m.N >= 2:

@@ -125,6 +125,10 @@ def _state_difference(a, b, prefix: str = "") -> str:
     return f"{prefix}: recorded {json.dumps(a)}, replayed {json.dumps(b)}"
 
 
+#: Violation kinds of temporal properties (pccl/liveness.py).
+_TEMPORAL_KINDS = ("liveness", "timelock", "response", "unreachable")
+
+
 def replay(path) -> ReplayResult:
     doc = load(path)
     warnings: list = []
@@ -194,6 +198,15 @@ def replay(path) -> ReplayResult:
             and m.terminal_kind(state) == "deadlock":
         viols = [m.deadlock_violation(state)]
     recorded = result.get("violation")
+    if recorded and recorded.get("kind") in _TEMPORAL_KINDS:
+        # a lasso or a bounded-response path: the steps are what can be
+        # re-executed; the verdict is over the whole state graph
+        res.status, res.exit_status = "violation", 1
+        res.message = (f"reproduced: every step of the recorded {recorded['kind']} "
+                       f"counterexample ({recorded['message']}) re-executes "
+                       f"(after {len(steps)} steps; the temporal verdict itself is "
+                       f"decided by explore)")
+        return res
     if recorded:
         match = [v for v in viols if v.kind == recorded["kind"] and v.message == recorded["message"]]
         if match:

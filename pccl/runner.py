@@ -4,8 +4,10 @@ Transitions are chosen among the enabled ones with a seeded generator, and
 ``rand`` is sampled from the same generator, so the same seed gives the same
 run.  The run ends when every agent has exited, in a terminal state, at
 ``--max-time``, at the first violation (stuck agent, failed assertion,
-invariant, collision), or when one time step takes more than ``--max-steps``
-transitions (an event that never ends, such as ``while (true)``).
+invariant, collision), when one time step takes more than ``--max-steps``
+transitions (an event that never ends, such as ``while (true)``), or when the
+team has stalled: no variable, position or flag changed for ``stall_steps``
+time steps while some agent still runs (``--stall-steps``).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from .layout import AGS, PC, RUNNING, STATUS, TIME
+from .layout import (AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
+                     TARGET, TIME)
 
 
 @dataclass
@@ -30,6 +33,13 @@ class RunResult:
     summary: list = field(default_factory=list)   # [(time, state)] after each environment step
     violations: list = field(default_factory=list)
     looping_agent: Optional[int] = None
+    #: a stalled run: the time since which nothing changed, and per running
+    #: agent what it waits on
+    stalled_since: Optional[float] = None
+    waiting: list = field(default_factory=list)
+    #: what this run says about each temporal property (PropertyOutcome)
+    properties: list = field(default_factory=list)
+
     model: Any = None
 
     @property
@@ -43,11 +53,164 @@ class RunResult:
         return StateView.of(self.model, self.final)
 
 
+@dataclass
+class PropertyOutcome:
+    """What one run says about a temporal property: ``outcome`` is
+    ``holds`` (decided on this run), ``violated``, ``witnessed`` (a
+    ``reachable P`` reached), ``not reached`` or ``undecided`` (the run was
+    cut before it could tell); ``detail`` says when and why."""
+    name: str
+    kind: str
+    outcome: str
+    detail: str
+
+
+class _Monitor:
+    """Checks the temporal properties of ``model.temporal`` on one run.
+
+    A run is one path: ``P ~> Q within T`` is violated as soon as T time
+    units pass after an unanswered P; ``eventually P`` and ``P ~> Q`` are
+    decided only when the run ends for good (every agent exited, a deadlock,
+    a stall); a run cut by --max-time or --max-steps leaves them undecided
+    (``pccl explore`` decides them over every run).  A runtime error in P or
+    Q counts as false, as in explore."""
+
+    def __init__(self, props):
+        self.props = list(props)
+        self.seen = [None] * len(self.props)        # eventually/reachable: (step, time) of P
+        self.pending = [None] * len(self.props)     # ~>: (step, time) of the oldest open P
+        self.violated: list = [None] * len(self.props)  # within: the message, once violated
+
+    @staticmethod
+    def _holds(fn, st) -> bool:
+        try:
+            return bool(fn(st))
+        except Exception:       # noqa: BLE001 - a runtime error in a property is "false"
+            return False
+
+    def observe(self, st, step: int):
+        """Update on state ``st`` (reached after ``step`` transitions); a
+        violated ``within`` property as ``(property, message)``, else None."""
+        t = st[TIME]
+        for k, p in enumerate(self.props):
+            if p.kind in ("eventually", "reachable"):
+                if self.seen[k] is None and self._holds(p.p, st):
+                    self.seen[k] = (step, t)
+                continue
+            if self.pending[k] is not None and self._holds(p.q, st):
+                self.pending[k] = None
+            elif self.pending[k] is None and self._holds(p.p, st) and not self._holds(p.q, st):
+                self.pending[k] = (step, t)
+            if p.kind == "within" and self.pending[k] is not None \
+                    and t - self.pending[k][1] > p.bound:
+                self.violated[k] = (f"the premise held at t = {_t(self.pending[k][1])} "
+                                    f"and the response did not follow within {_t(p.bound)} "
+                                    f"time units (t = {_t(t)})")
+                return p, (f"{p.name}: the premise held at t = {_t(self.pending[k][1])} "
+                           f"(after {self.pending[k][0]} transitions) and the response did not "
+                           f"follow within {_t(p.bound)} time units (t = {_t(t)})")
+        return None
+
+    def outcomes(self, ended: bool, why: str) -> list:
+        """Per property, what the run says; ``ended``: the run cannot go on
+        (so eventually/leads-to are decided), ``why`` names how it ended."""
+        out = []
+        for k, p in enumerate(self.props):
+            if self.violated[k] is not None:
+                out.append(PropertyOutcome(p.name, p.kind, "violated", self.violated[k]))
+            elif p.kind == "reachable":
+                if self.seen[k] is not None:
+                    out.append(PropertyOutcome(p.name, p.kind, "witnessed",
+                                               f"reached after {self.seen[k][0]} transitions, "
+                                               f"t = {_t(self.seen[k][1])}"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "not reached",
+                                               f"not in this run ({why}); pccl explore decides"))
+            elif p.kind == "eventually":
+                if self.seen[k] is not None:
+                    out.append(PropertyOutcome(p.name, p.kind, "holds",
+                                               f"held after {self.seen[k][0]} transitions, "
+                                               f"t = {_t(self.seen[k][1])}"))
+                elif ended:
+                    out.append(PropertyOutcome(p.name, p.kind, "violated",
+                                               f"never held, and the run ended ({why})"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "undecided",
+                                               f"has not held yet; the run was cut ({why})"))
+            else:
+                pend = self.pending[k]
+                if pend is None:
+                    out.append(PropertyOutcome(p.name, p.kind, "holds" if ended else "undecided",
+                                               "every premise was answered" + (
+                                                   "" if ended else f" so far ({why})")))
+                elif ended:
+                    out.append(PropertyOutcome(p.name, p.kind, "violated",
+                                               f"the premise held at t = {_t(pend[1])} (after "
+                                               f"{pend[0]} transitions) and the response never "
+                                               f"followed; the run ended ({why})"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "undecided",
+                                               f"the premise of t = {_t(pend[1])} is not answered "
+                                               f"yet; the run was cut ({why})"))
+        return out
+
+
+def _t(x) -> str:
+    from .display import fmt_time
+    return fmt_time(x)
+
+
+def _signature(st) -> tuple:
+    """What a stall compares: variables, positions, doReach targets and flags,
+    statuses and the lock queue (not the clock, counters or pending code)."""
+    return (st[LQ], st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[POS], ag[REACH][TARGET],
+                                   ag[REACH][DONE], ag[REACH][FAIL]) for ag in st[AGS]))
+
+
+def waiting_on(model, st) -> list:
+    """Per running agent, what it waits on: ``[(agent, text)]``."""
+    from .display import source_line
+    out = []
+    sh, ags = st[SH], st[AGS]
+    for i, ag in enumerate(ags):
+        if ag[STATUS] != RUNNING:
+            continue
+        if ag[PC] != model.ctl.empty_pc and model.ctl.cells[ag[PC]][0] != END:
+            out.append((i, model.describe_k(ag[PC])))
+            continue
+        try:
+            enabled = model.enabled_events(i, ag, sh, ags)
+        except Exception:            # a guard error is reported by the run itself
+            enabled = []
+        evs = model.program.events
+        if enabled:
+            names = ", ".join(evs[e].name for e in enabled)
+            out.append((i, f"runs {names} but changes nothing"))
+        elif evs:
+            guards = "; ".join(f"`{_guard_text(source_line(model, ev.guard.span))}` "
+                               f"({ev.name}, line {ev.guard.span.line})" for ev in evs)
+            out.append((i, f"waits for one of: {guards}"))
+        else:
+            out.append((i, "has no event"))
+    return out
+
+
+def _guard_text(src) -> str:
+    """``pre(c);`` as ``c``."""
+    t = (src or "").strip().rstrip(";").strip()
+    for pre in ("pre(", "Pre("):
+        if t.startswith(pre) and t.endswith(")"):
+            return t[len(pre):-1].strip()
+    return t
+
+
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
-        rng: Optional[random.Random] = None, on_step=None) -> RunResult:
+        rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20) -> RunResult:
     """Execute ``model`` once.  ``model`` must have been built with a
     ``rand_policy`` if rand should be sampled (see :func:`pccl.api.make_model`);
-    otherwise all rand outcomes are successors and one is picked at random."""
+    otherwise all rand outcomes are successors and one is picked at random.
+    ``stall_steps``: stop when nothing changed for this many time steps
+    while an agent still runs (0: never)."""
     rng = rng or random.Random(seed)
     gen = iter(model.init_states())
     inits = list(itertools.islice(gen, 2))
@@ -60,15 +223,37 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     n_env, stride = 0, 1
     since_time = 0
     per_agent: Counter = Counter()
+    last_sig, still, since = _signature(st), 0, st[TIME]
+
+    temporal = getattr(model, "temporal", None)
+    mon = _Monitor(temporal) if temporal else None
 
     def finish(status, message, code, **kw):
-        return RunResult(status, message, code, st, steps, trace, summary, **kw)
+        res = RunResult(status, message, code, st, steps, trace, summary, **kw)
+        if mon is not None:
+            res.properties = mon.outcomes(status in ("final", "deadlock", "stalled"),
+                                          "every agent exited" if status == "final" else status)
+            bad = [o for o in res.properties if o.outcome == "violated"]
+            if bad and code == 0:
+                from .engine import Violation
+                res.status, res.exit_status = "violation", 1
+                res.message = "; ".join(f"{o.name}: {o.detail}" for o in bad)
+                res.violations = [Violation(o.kind, o.name, f"{o.name}: {o.detail}")
+                                  for o in bad]
+        return res
 
     try:
         while True:
             v = model.violations(st)
             if v:
                 return finish("violation", "; ".join(x.message for x in v), 1, violations=v)
+            if mon is not None:
+                hit = mon.observe(st, steps)
+                if hit is not None:
+                    from .engine import Violation
+                    p, msg = hit
+                    return finish("violation", msg, 1,
+                                  violations=[Violation(p.kind, p.name, msg, None, p.span)])
             succ = model.successors(st)
             if not succ:
                 kind = model.terminal_kind(st)
@@ -89,6 +274,21 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 since_time = 0
                 per_agent.clear()
             elif rule == "DOREACH INVOKE":
+                sig = _signature(nxt)
+                if sig == last_sig:
+                    still += 1
+                else:
+                    last_sig, still, since = sig, 0, nxt[TIME]
+                if stall_steps and still >= stall_steps and any(ag[STATUS] == RUNNING for ag in nxt[AGS]):
+                    st = nxt
+                    summary.append((nxt[TIME], nxt))
+                    from .display import fmt_time
+                    waits = waiting_on(model, st)
+                    return finish("stalled",
+                                  f"stalled since t = {fmt_time(since)}: no variable, position "
+                                  f"or flag changed for {still} time steps while agents still run; "
+                                  + "; ".join(f"agent {i} {w}" for i, w in waits),
+                                  1, stalled_since=since, waiting=waits)
                 n_env += 1
                 if n_env % stride == 0:
                     summary.append((nxt[TIME], nxt))

@@ -256,8 +256,14 @@ def explore_document(res, cfg: dict) -> dict:
     if res.counterexamples:
         cx = res.counterexamples[0]
         tr = cx.trace
-        return document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                        violation=cx.violation, message=res.verdict)
+        if tr is None:          # reachable P found unreachable: no path
+            return document(m, cfg, [], [], status=res.status, violation=cx.violation,
+                            message=res.verdict)
+        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
+                       violation=cx.violation, message=res.verdict)
+        if cx.cycle_start is not None:
+            doc["result"]["cycle_start"] = cx.cycle_start
+        return doc
     return document(m, cfg, [], [], status=res.status, message=res.verdict)
 
 

@@ -341,7 +341,8 @@ def _signalled(args, sig, delay=3):
 
 @pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
 def test_signals_stop_run_with_the_run_so_far(sig, code, tmp_path):
-    rc, out, err = _signalled(["run", write(tmp_path, TICK), "--max-time", "100000000"], sig)
+    rc, out, err = _signalled(["run", write(tmp_path, TICK), "--max-time", "100000000",
+                               "--stall-steps", "0"], sig)
     assert rc == code, (out, err)
     assert "result: interrupted — interrupted after" in out and "final configuration:" in out
 
