@@ -494,7 +494,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     opts = ExploreOptions.from_cli(click.get_current_context().params)
     try:
         model = build_model(program, opts, explore=True)
-        if workers != 1 and (model.temporal or fastest):
+        if (opts.workers != 1 or opts.ray is not None) and (model.temporal or fastest):
             raise PcclError(("--fastest" if fastest else "a temporal property") +
                             " needs the state graph of one process: use --workers 1",
                             filename="--workers")
