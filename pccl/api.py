@@ -287,6 +287,10 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
     from . import liveness as L
+    skipped = []
+    if timelock and not one and model.ctl is not None:
+        skipped.append("time-lock check not run: it needs the state graph of one process "
+                       "(workers=1, no ray); a time-locked program passes here and fails there")
     timelock = timelock and one
     rec = L.make_recorder(model, timelock) if one else None
     if ray is not None:
@@ -370,7 +374,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                          first.state if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
                          cov.report() if cov is not None else None, witnesses,
-                         list(lv.holds) if lv else [], list(lv.notes) if lv else [],
+                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped,
                          timelock, labels)
 
 

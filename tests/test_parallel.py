@@ -167,3 +167,14 @@ def test_bad_ray_argument_is_named():
         explore(FISCHER, overrides={"k": "0"}, ray=3)
     with pytest.raises(ArgumentError, match="one process"):
         explore(FISCHER, overrides={"k": "0"}, exact=True, ray="local")
+
+
+def test_several_workers_say_the_time_lock_check_did_not_run():
+    from pccl.api import explore
+    from conftest import TEST_PROGRAMS
+    spin = str(TEST_PROGRAMS / "tl_spin.pccl")
+    one = explore(spin)
+    assert one.status == "violation" and one.violation.kind == "timelock"
+    two = explore(spin, workers=2)
+    assert any("time-lock check not run" in n for n in two.notes)
+    assert not any("time-lock" in n for n in one.notes)
