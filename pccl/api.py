@@ -69,7 +69,9 @@ def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = No
                seed: Optional[int] = None, rng: Optional[random.Random] = None,
                overrides=None, source: bool = False, **options) -> Model:
     """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
-    sampled from the generator instead of branching.  ``overrides`` maps
+    sampled from the generator instead of branching.  ``reduce`` (default
+    ``"auto"``; ``Model`` itself defaults to ``"none"``, the bare rules) picks
+    the state-space reductions (docs/reductions.md).  ``overrides`` maps
     variable names to PCCL expressions replacing their initialisers."""
     V.model_args("make_model", program, world_=world, blackbox_=blackbox, agents=agents,
                  seed=seed, overrides_=overrides, source=source, options=options)
@@ -82,6 +84,7 @@ def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = No
         rng = random.Random(seed)
     if rng is not None and "rand_policy" not in options:
         options["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
+    options.setdefault("reduce", "auto")     # run mode (rand sampled) never reduces
     return Model(prog, world=w, blackbox=blackbox, n_agents=agents, **options)
 
 
@@ -156,7 +159,7 @@ class ExploreResult:
 def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
             deadlock: bool = True, find_all: bool = False, exact: bool = False,
             progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            workers=1, reduce="none", **model_options) -> ExploreResult:
+            workers=1, reduce="auto", **model_options) -> ExploreResult:
     """Explore ``program`` breadth-first.  ``reduce``: ``"auto"`` (every
     reduction sound for this program, blackbox and properties), ``"none"``,
     or a list such as ``["merge"]`` (docs/reductions.md)."""
@@ -208,6 +211,8 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     V.boolean("explore_model", "coverage", coverage)
     cov = None
     if coverage:
+        if "coverage" not in getattr(model, "reduce_uses", ()):
+            model.set_reduce(model.reduction.requested, uses=("coverage",))
         from .coverage import CoverageModel
         cov = CoverageModel(model)
     if workers == "auto":

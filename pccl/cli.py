@@ -397,7 +397,7 @@ def _plot_run(m, res, path, *, quiet=False):
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
-@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="none", show_default=True,
+@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
                    "comma-separated list of merge, symmetry")
 @click.option("--no-deadlock", is_flag=True, help="do not report deadlocks")
@@ -442,6 +442,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
                            abstract_time=abstract_time, invariants=tuple(invariants),
                            reduce=reduce,
                            **_model_options(delta, n0, rates, events, collisions, overrides))
+        if coverage:
+            model.set_reduce(reduce, uses=("coverage",))
         model.blackbox_reason = reason
     except PcclError as e:
         _fail(e)
@@ -554,7 +556,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
-                           invariants=tuple(invariants),
+                           invariants=tuple(invariants), reduce="none",
                            **_model_options(delta, n0, rates, events, collisions, overrides))
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
         if ext == ".json":
@@ -776,9 +778,12 @@ def _hms(seconds: float) -> str:
 
 def _stats_lines(res) -> list:
     s = res.stats
-    lines = [f"  initial states   {s.initial_states:,}",
-             f"  states           {s.states:,}",
-             f"  transitions      {s.transitions:,}",
+    on = res.model.reduction.on if res.model is not None else ()
+    # counts of the reduced graph are not those of the rules (section 5)
+    red = f" (reduced: {'+'.join(on)})" if on else ""
+    lines = [f"  initial states   {s.initial_states:,}{red}",
+             f"  states           {s.states:,}{red}",
+             f"  transitions      {s.transitions:,}{red}",
              f"  max depth        {s.max_depth}",
              f"  seconds          {s.seconds:.2f}",
              f"  states/second    {s.states_per_second:,.0f}",
@@ -840,7 +845,7 @@ def _explore_json(program, res) -> dict:
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bounds, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(),
-            "statistics": res.stats.as_dict(),
+            "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
             "violations": res.violations}

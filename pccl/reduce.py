@@ -60,8 +60,11 @@ class Plan:
     def describe(self) -> str:
         """``merge+symmetry`` / ``none``, then ``; X off: reason``."""
         text = "+".join(self.on) if self.on else "none"
+        by_reason: dict = {}
         for name, why in self.off.items():
-            text += f"; {name} off: {why}"
+            by_reason.setdefault(why, []).append(name)
+        for why, names in by_reason.items():
+            text += f"; {', '.join(names)} off: {why}"
         return text
 
     def as_dict(self) -> dict:
@@ -232,6 +235,12 @@ class _IdInfo:
         return vs is not None and vs.section == "allread"
 
     def check(self) -> Optional[str]:
+        try:
+            return self._check()
+        except RecursionError:
+            return "an expression is too deeply nested for the agent-id analysis"
+
+    def _check(self) -> Optional[str]:
         m = self.m
         for d in m.program.decls:
             if isinstance(d, A.VarDecl) and d.init is not None:
@@ -355,17 +364,46 @@ def symmetry_problem(m) -> tuple:
     return None, slots + (self_only,)
 
 
-def plan(m, reduce) -> tuple:
-    """(Plan, symmetry slots)."""
+#: Uses of a search that some reductions cannot serve: use -> {reduction:
+#: reason}.  A use is named by the caller of :func:`plan` (``--coverage``;
+#: a property kind such as ``"liveness"`` can be added here with the
+#: reductions that are unsound for it).
+USE_LIMITS: dict = {
+    "coverage": {name: "--coverage counts the unreduced transitions" for name in ALL},
+}
+
+
+def use_limits(uses) -> dict:
+    """{reduction: reason} of the reductions that ``uses`` rule out (the
+    first reason given wins)."""
+    out: dict = {}
+    for u in uses or ():
+        for name, why in USE_LIMITS.get(u, {}).items():
+            out.setdefault(name, why)
+    return out
+
+
+def plan(m, reduce, uses=()) -> tuple:
+    """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
+    sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
+    the others are off.  Asking explicitly for one that is not sound is an
+    error."""
     want = parse_request(reduce)
     p = Plan(requested=reduce if isinstance(reduce, str) else ",".join(reduce))
     on = []
     slots = None
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
-    if want is None or "merge" in want:
+    limits = use_limits(uses)
+    for name in (want if want is not None else ()):
+        if name in limits:
+            raise PcclError(f"{name} reduction cannot be used here: {limits[name]}; "
+                            f"drop it from --reduce", filename="--reduce")
+    if want is None:
+        p.off.update({n: why for n, why in limits.items() if n in ALL})
+    if "merge" not in limits and (want is None or "merge" in want):
         on.append("merge")
-    if want is None or "symmetry" in want:
+    if "symmetry" not in limits and (want is None or "symmetry" in want):
         why, slots = symmetry_problem(m)
         if why is None:
             on.append("symmetry")
