@@ -342,13 +342,17 @@ class Model:
         from . import reduce as RD
         if uses is not None:
             self.reduce_uses = tuple(uses)
-        for attr in ("successors", "key", "merger"):
+        for attr in ("successors", "key", "merger", "por"):
             self.__dict__.pop(attr, None)
         self.key = operator.itemgetter(slice(1, None) if self.abstract_time else slice(None))
         plan, slots = RD.plan(self, reduce, getattr(self, "reduce_uses", ()))
         self.reduction = plan
+        base = None
+        if "por" in plan.on:
+            self.por = RD.Por(self)
+            self.successors = base = self.por.successors
         if "merge" in plan.on:
-            self.merger = RD.Merger(self)
+            self.merger = RD.Merger(self, base)
             self.successors = self.merger.successors
         if "symmetry" in plan.on:
             self.key = RD.make_symmetric_key(self, slots)

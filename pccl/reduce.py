@@ -31,10 +31,10 @@ from typing import Optional
 from . import ast as A
 from .errors import PcclError
 from .semantics import rules as R
-from .semantics.rules import DISCRETE, RUNNING, K_END, K_IF, K_SIMPLE, K_WHILE
+from .semantics.rules import DISCRETE, RUNNING, K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
 
 #: The reductions, in the order they are reported.
-ALL = ("merge", "symmetry")
+ALL = ("merge", "symmetry", "por")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
@@ -412,6 +412,11 @@ def plan(m, reduce, uses=()) -> tuple:
                             filename="--reduce")
         elif m.N >= 2 or want is not None:
             p.off["symmetry"] = why
+    if "por" not in limits and (want is None or "por" in want):
+        if m.N >= 2:
+            on.append("por")
+        elif want is not None:
+            p.off["por"] = "one agent"
     p.on = tuple(on)
     return p, slots
 
@@ -421,15 +426,19 @@ def plan(m, reduce, uses=()) -> tuple:
 # ---------------------------------------------------------------------------
 
 class Merger:
-    """The merged successor relation of a model, and its expansion."""
+    """The merged successor relation of a model, and its expansion.
+    ``base``: the successor function chains start from (the rules', or the
+    partial-order reduced one)."""
 
-    def __init__(self, m):
+    def __init__(self, m, base=None):
         self.m = m
         sids = mergeable_sids(m)
         self.sids = sids
         self.ok: dict = {}
-        plain = type(m).successors
-        self.plain = lambda st: plain(m, st)
+        if base is None:
+            plain = type(m).successors
+            base = lambda st: plain(m, st)        # noqa: E731
+        self.plain = base
 
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)
@@ -560,6 +569,107 @@ def expand_trace(m, trace, violation=None):
                 states, labels = states[:n + 1], labels[:n]
                 break
     return Trace(tuple(states), tuple(labels))
+
+
+# ---------------------------------------------------------------------------
+# partial-order reduction
+# ---------------------------------------------------------------------------
+
+def _loop_sids(m) -> set:
+    """Statements that are a ``while`` or inside one: the only ones an agent
+    can execute twice in one event execution."""
+    out = set()
+    for s in m.stmts.values():
+        if isinstance(s, A.While):
+            out.update(x.sid for x in A.walk_stmts([s]))
+    return out
+
+
+def local_guards(m) -> bool:
+    """Whether every event guard reads only the agent's own ``loc:``
+    variables (any of them: reading a property's variable is invisible),
+    enum members and pure calls: then EVENT SELECT and IDLE touch only the
+    agent's own k cell."""
+    lay = m.layout
+    funcs = set(m.functions)
+    for ev in m.program.events:
+        for e in A.walk_expr(ev.guard):
+            if isinstance(e, A.Name):
+                vs = lay.vars.get(e.name)
+                if vs is None:
+                    if e.name not in lay.members:
+                        return False
+                elif vs.section != "loc":
+                    return False
+            elif isinstance(e, A.Call):
+                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                    return False
+            elif isinstance(e, A.Quant):
+                return False
+    return True
+
+
+class Por:
+    """Partial-order reduction with ample sets (docs/reductions.md).
+
+    In a DISCRETE state, the first agent i (by index) that is running, has
+    an execution left (counter + ρ(i) ≤ n0, so TIME ADVANCE is disabled
+    until i itself advances its counter) and whose next step is *local* --
+    EVENT SELECT / IDLE when every guard reads only the agent's own
+    variables, COUNTER ADVANCE, or a statement of :func:`mergeable_sids`
+    outside every ``while`` -- gets ample set = all of i's enabled
+    transitions, provided each keeps i running (a runtime error is visible).
+    Otherwise the state is fully expanded.  Local steps of i read and write
+    only i's k cell, counter and invisible locals, which no other agent's
+    rule reads (C1) and no property reads (C2); each one is a step of i's
+    progress inside the current time step (an event body without loops is
+    run once per execution, the counter only grows until TIME ADVANCE), and
+    the states where TIME ADVANCE is enabled (every agent spent) are fully
+    expanded, so every cycle of the reduced graph passes a fully expanded
+    state (C3, whatever the search order)."""
+
+    def __init__(self, m):
+        self.m = m
+        self.sids = mergeable_sids(m) - _loop_sids(m)
+        self.guards = local_guards(m)
+        self.ok: dict = {}
+        plain = type(m).successors
+        self.plain = lambda st: plain(m, st)
+
+    def pc_ok(self, pc) -> bool:
+        r = self.ok.get(pc)
+        if r is None:
+            info = self.m.ctl.info(pc)
+            k = info[0]
+            r = (k == K_END or (k == K_EMPTY and self.guards)
+                 or (k in (K_SIMPLE, K_IF) and info[-2] in self.sids))
+            self.ok[pc] = r
+        return r
+
+    def successors(self, st) -> list:
+        if st[1] == DISCRETE:
+            m = self.m
+            rho, n0, ok = m.rho, m.n0, self.ok
+            ctl = m.ctl
+            i = 0
+            for ag in st[4]:
+                if ag[3] == RUNNING and ag[1] + rho[i] <= n0:
+                    pc = ag[0]
+                    r = ok.get(pc)
+                    if r is None:
+                        r = self.pc_ok(pc)
+                    if r:
+                        info = ctl.infos[pc]
+                        if info is None:
+                            info = ctl.info(pc)
+                        out: list = []
+                        m.oracle.agent = i
+                        for rule in R.AGENT_RULES[info[0]]:
+                            rule(m, st, i, ag, info, out)
+                        if out and all(s2[4][i][3] == RUNNING for _, s2 in out):
+                            return out
+                i += 1
+        return self.plain(st)
 
 
 # ---------------------------------------------------------------------------
