@@ -23,8 +23,14 @@ from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
-from .errors import ArgumentError
+from .errors import ArgumentError, OptionError
+from .options import ExploreOptions, ModelOptions, RunOptions
+from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
+
+#: The options of :func:`explore_model` (the search's, not the model's).
+SEARCH_OPTIONS = ("depth", "max_states", "max_memory", "deadlock", "find_all", "exact",
+                  "workers", "coverage", "progress_interval", "progress")
 
 
 def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
@@ -47,7 +53,6 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
     """Replace the initialisers of shared variables: ``{"k": "2"}`` (TLC-style
     constants).  Values are PCCL expressions."""
     import dataclasses
-    from .errors import PcclError
     from .parser import parse_property
     if not overrides:
         return prog
@@ -61,31 +66,53 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
         decls.append(d)
     if overrides:
         names = ", ".join(sorted(overrides))
-        raise PcclError(f"no variable named {names} in {prog.filename}", filename="--set")
+        raise OptionError("overrides", f"no variable named {names} in {prog.filename}")
     return dataclasses.replace(prog, decls=tuple(decls))
 
 
-def make_model(program, *, world=None, blackbox=None, agents: Optional[int] = None,
-               seed: Optional[int] = None, rng: Optional[random.Random] = None,
-               overrides=None, source: bool = False, **options) -> Model:
-    """Build a :class:`Model`.  With ``seed`` or ``rng`` (run mode), rand is
-    sampled from the generator instead of branching.  ``reduce`` (default
-    ``"auto"``; ``Model`` itself defaults to ``"none"``, the bare rules) picks
-    the state-space reductions (docs/reductions.md).  ``overrides`` maps
-    variable names to PCCL expressions replacing their initialisers."""
-    V.model_args("make_model", program, world_=world, blackbox_=blackbox, agents=agents,
-                 seed=seed, overrides_=overrides, source=source, options=options)
+def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Random] = None,
+               **options) -> Model:
+    """Build a :class:`Model`.  ``options`` are those of
+    :class:`~pccl.options.ModelOptions` (world, blackbox, agents, delta, n0,
+    rates, events, collisions, overrides, invariants, max_time,
+    abstract_time, reduce, functions, rand_policy, source).  With ``seed`` or
+    ``rng`` (run mode), rand is sampled from the generator instead of
+    branching.  ``overrides`` maps variable names to PCCL expressions
+    replacing their initialisers."""
+    V.program("make_model", program, options.get("source", False))
+    V.integer("make_model", "seed", seed, optional=True)
     if rng is not None and not isinstance(rng, random.Random):
         raise ArgumentError(f"rng must be a random.Random or None, got {type(rng).__name__}",
                             filename="pccl.api.make_model")
-    prog = apply_overrides(load_program(program, source=source), overrides)
-    w = load_world_arg(world)
+    opts = ModelOptions.from_api("make_model", options)
     if rng is None and seed is not None:
         rng = random.Random(seed)
-    if rng is not None and "rand_policy" not in options:
-        options["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
-    options.setdefault("reduce", "auto")     # run mode (rand sampled) never reduces
-    return Model(prog, world=w, blackbox=blackbox, n_agents=agents, **options)
+    return _api_model("make_model", program, opts, rng=rng)
+
+
+def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
+    """:func:`build_model` for the API: a bad option value the model finds is
+    an :class:`ArgumentError` of ``func`` that names the keyword."""
+    try:
+        return build_model(program, opts, **kw)
+    except OptionError as e:
+        raise e.for_api(func) from None
+
+
+def build_model(program, opts: ModelOptions, *, rng: Optional[random.Random] = None,
+                explore: bool = False) -> Model:
+    """The model ``opts`` describe (already checked).  ``explore``: choose the
+    blackbox as ``pccl explore`` does when none is given (:func:`explore_blackbox`)."""
+    prog = apply_overrides(load_program(program, source=opts.source), opts.overrides)
+    blackbox, reason = (explore_blackbox(prog, opts.blackbox) if explore
+                        else (opts.blackbox, None))
+    kw = opts.model_kwargs()
+    if rng is not None and "rand_policy" not in kw:
+        kw["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
+    model = Model(prog, world=load_world_arg(opts.world), blackbox=blackbox,
+                  n_agents=opts.agents, **kw)
+    model.blackbox_reason = reason
+    return model
 
 
 # ---------------------------------------------------------------------------
@@ -135,48 +162,43 @@ def fixed_timing_note(model) -> Optional[str]:
 
 @dataclass
 class ExploreResult:
+    """What :func:`explore` found.  ``violation``/``violations`` are
+    :class:`~pccl.results.Finding` objects (each with its ``trace`` of
+    :class:`~pccl.results.StepView` and its violating ``state``, a
+    :class:`~pccl.results.StateView`); ``bounds`` are the
+    :class:`~pccl.explorer.Bound` members that cut the search and
+    ``bound_labels`` how the CLI spells them (``--max-states 100``)."""
     status: str                       # violation | exhaustive | bounded | interrupted
     verdict: str                      # the one-line verdict
     blackbox: str
     exit_status: int
     stats: Stats
-    bounds: list = field(default_factory=list)
-    violation: Optional[dict] = None  # the first violation
-    violations: list = field(default_factory=list)  # every distinct violation (with --all)
-    trace: list = field(default_factory=list)       # steps of the first counterexample
-    final_state: Optional[dict] = None
+    bounds: list = field(default_factory=list)        # [Bound]
+    violation: Optional[Finding] = None               # the first violation
+    violations: list = field(default_factory=list)    # every distinct violation (with find_all)
+    trace: tuple = ()                                 # steps of the first counterexample
+    final_state: Optional[StateView] = None           # its violating state
     collision_probability: float = 0.0
     model: Any = None
     search: Optional[SearchResult] = None
     counterexamples: list = field(default_factory=list)  # [Counterexample], as violations
     coverage: Any = None              # a CoverageReport, with coverage=True
+    bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
 
     @property
     def exhaustive(self) -> bool:
         return self.status == "exhaustive"
 
 
-def explore(program, *, world=None, blackbox=None, agents=None, depth=None, max_states=None,
-            deadlock: bool = True, find_all: bool = False, exact: bool = False,
-            progress=None, invariants=(), max_memory="default", coverage: bool = False,
-            workers=1, reduce="auto", **model_options) -> ExploreResult:
-    """Explore ``program`` breadth-first.  ``reduce``: ``"auto"`` (every
+def explore(program, **options) -> ExploreResult:
+    """Explore ``program`` breadth-first.  ``options`` are the fields of
+    :class:`~pccl.options.ExploreOptions`, spelt like ``pccl explore``'s
+    flags (``max_states`` is ``--max-states``).  ``reduce``: ``"auto"`` (every
     reduction sound for this program, blackbox and properties), ``"none"``,
     or a list such as ``["merge"]`` (docs/reductions.md)."""
-    V.call_args("explore", program, world_=world, blackbox_=blackbox, agents=agents,
-                options={**model_options, "invariants": invariants, "reduce": reduce})
-    V.search_args("explore", depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
-    reason = None
-    if blackbox is None:
-        program = load_program(program, source=model_options.pop("source", False))
-        blackbox, reason = explore_blackbox(program)
-    model = make_model(program, world=world, blackbox=blackbox, agents=agents,
-                       invariants=tuple(invariants), reduce=reduce, **model_options)
-    model.blackbox_reason = reason
-    return explore_model(model, depth=depth, max_states=max_states, deadlock=deadlock,
-                         find_all=find_all, exact=exact, progress=progress,
-                         max_memory=max_memory, coverage=coverage, workers=workers)
+    V.program("explore", program, options.get("source", False))
+    opts = ExploreOptions.from_api("explore", options)
+    return explore_model(_api_model("explore", program, opts, explore=True), options=opts)
 
 
 #: Fraction of the machine's physical memory a search may use by default
@@ -189,26 +211,37 @@ def default_max_memory() -> int:
     return int(physical_memory() * DEFAULT_MEMORY_FRACTION)
 
 
-def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
-                  find_all=False, exact=False, progress=None,
-                  max_memory="default", coverage: bool = False,
-                  workers=1, progress_interval: float = 0.5) -> ExploreResult:
-    """Explore ``model``.  ``max_memory``: bytes of peak resident memory at
-    which the search stops with the bound ``--max-memory`` (``"default"``:
-    80 % of physical memory; ``None``: no limit).  ``workers``: processes
-    (an int >= 1, or ``"auto"`` for the usable cores); results are identical
-    for every number of workers.  ``progress`` (if given) is called about
-    every ``progress_interval`` seconds with a dict: states, frontier,
-    depth, seconds, memory (bytes)."""
+def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
+                  **search) -> ExploreResult:
+    """Explore ``model``.  The search options are those of
+    :class:`~pccl.options.ExploreOptions` (given as ``options=`` or as
+    keywords): ``max_memory`` is bytes of peak resident memory at which the
+    search stops with the bound ``--max-memory`` (``"default"``: 80 % of
+    physical memory; ``None``: no limit); ``workers`` processes (an int >= 1,
+    or ``"auto"`` for the usable cores), with results identical for every
+    number of workers; ``progress`` (if given) is called about every
+    ``progress_interval`` seconds with a dict: states, frontier, depth,
+    seconds, memory (bytes)."""
     if not isinstance(model, Model):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
-    V.search_args("explore_model", depth=depth, max_states=max_states, deadlock=deadlock,
-                  find_all=find_all, exact=exact, progress=progress, max_memory=max_memory)
-    V.number("explore_model", "progress_interval", progress_interval, positive=True)
+    if options is None:
+        unknown = sorted(set(search) - set(SEARCH_OPTIONS))
+        if unknown:
+            raise ArgumentError(f"unknown option{'s' if len(unknown) > 1 else ''} "
+                                f"{', '.join(unknown)}; options are {', '.join(SEARCH_OPTIONS)}",
+                                filename="pccl.api.explore_model")
+        options = ExploreOptions(**search)
+        options.check("explore_model")
+    elif search:
+        raise ArgumentError("give the search options either as options= or as keywords",
+                            filename="pccl.api.explore_model")
+    o = options
+    depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
+    find_all, exact, progress, coverage = o.find_all, o.exact, o.progress, o.coverage
+    max_memory, workers, progress_interval = o.max_memory, o.workers, o.progress_interval
     if max_memory == "default":
         max_memory = default_max_memory()
-    V.boolean("explore_model", "coverage", coverage)
     cov = None
     if coverage:
         if "coverage" not in getattr(model, "reduce_uses", ()):
@@ -218,9 +251,6 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if workers == "auto":
         from .parallel import available_workers
         workers = available_workers()
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
-        raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {workers!r}",
-                            filename="pccl.api.explore_model")
     if workers > 1 and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1", filename="pccl.api.explore_model")
@@ -270,10 +300,11 @@ def explore_model(model: Model, *, depth=None, max_states=None, deadlock=True,
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
-    return ExploreResult(sr.status, verdict, bb, code, sr.stats, labels, first, violations,
-                         first["trace"] if first else [], first["state"] if first else None,
+    return ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
+                         violations, first.trace if first else (),
+                         first.state if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
-                         cov.report() if cov is not None else None)
+                         cov.report() if cov is not None else None, labels)
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:
@@ -311,43 +342,38 @@ def parse_size(text: str) -> int:
     return int(v)
 
 
-def violation_data(model, found: Counterexample) -> dict:
-    """A counterexample as JSON-ready data (its trace rendered step by step)."""
+def violation_data(model, found: Counterexample) -> Finding:
+    """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
+    rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
     tr: Trace = found.trace
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace
         tr = expand_trace(model, tr, v)
-    return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
-            "line": v.span.line if v.span else None,
-            "column": v.span.column if v.span else None,
-            "depth": found.depth,
-            "shortest": "under the reductions" if reduced else "yes",
-            "trace": tr.to_json(lambda st: D.step_json(model, st.number, st.label,
-                                                       st.before, st.after)),
-            "state": D.state_json(model, tr.last)}
+    steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
+                  for st in tr.steps)
+    return Finding(v.kind, v.name, v.message, v.agent,
+                   v.span.line if v.span else None, v.span.column if v.span else None,
+                   found.depth, "under the reductions" if reduced else "yes",
+                   steps, StateView.of(model, tr.last))
 
 
 # ---------------------------------------------------------------------------
 # run
 # ---------------------------------------------------------------------------
 
-def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
-        max_steps: int = 100_000, record_trace: bool = False, max_time=100,
-        **model_options) -> RunResult:
-    V.integer("run", "seed", seed)
-    V.call_args("run", program, world_=world, blackbox_=blackbox, agents=agents, seed=seed,
-                options={**model_options, "max_time": max_time})
-    if "abstract_time" in model_options:
-        raise ArgumentError("abstract_time is not an option of run (a run keeps the clock)",
-                            filename="pccl.api.run")
-    V.integer("run", "max_steps", max_steps, minimum=1)
-    V.boolean("run", "record_trace", record_trace)
-    rng = random.Random(seed)
-    model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
-                       max_time=max_time, abstract_time=False, **model_options)
-    res = _run(model, seed=seed, max_steps=max_steps, record_trace=record_trace, rng=rng)
+def run(program, **options) -> RunResult:
+    """Execute ``program`` once.  ``options`` are the fields of
+    :class:`~pccl.options.RunOptions`, spelt like ``pccl run``'s flags
+    (``seed``, ``max_steps``, ``max_time``, ``invariants``, ...) plus
+    ``record_trace``."""
+    V.program("run", program, options.get("source", False))
+    opts = RunOptions.from_api("run", options)
+    rng = random.Random(opts.seed)
+    model = _api_model("run", program, opts, rng=rng)
+    res = _run(model, seed=opts.seed, max_steps=opts.max_steps,
+               record_trace=opts.record_trace, rng=rng)
     res.model = model
     return res
 
@@ -358,7 +384,7 @@ def run(program, *, world=None, blackbox=None, agents=None, seed: int = 0,
 
 def check(program, *, world=None, source: bool = False):
     """Parse and statically check ``program`` (``pccl check``); the names of
-    ``world``'s functions may be called.  Returns the checker's ProgramInfo."""
+    ``world``'s functions may be called.  Returns the :class:`~pccl.checker.CheckedProgram`."""
     from .checker import check_program
     V.program("check", program, source)
     V.world("check", world)

@@ -1,7 +1,7 @@
 """The static checker: names, types and the rules of spec sections 2 and 5.
 
 ``check_program`` walks a parsed :class:`pccl.ast.Program` and either returns
-its symbol table (:class:`ProgramInfo`) or raises the first problem, in source
+a :class:`CheckedProgram` (names, resolved types, enums, functions) or raises the first problem, in source
 order, as a :class:`PcclError` whose span points at the offending node.
 ``check_property`` does the same for a property expression (the program's
 ``invariant:`` section, ``--invariant EXPR``) against a checked program.
@@ -45,6 +45,8 @@ from . import ast
 from .ast import Span
 from .builtins import BUILTINS, READONLY_FLAGS, Builtin, uninterpreted
 from .errors import PcclError
+from .types import (ANY, BOOL, BUILTIN_TYPE_NAMES, DESCRIPTORS, FLOAT, INT, OBSTACLES, POS,
+                    TYPE_NAMES, Ty, array_of, assignable, compatible, join, list_of)
 from .values import div, mod
 
 
@@ -52,92 +54,10 @@ from .values import div, mod
 # Types
 # --------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class Ty:
-    """A PCCL type.  ``kind`` is one of int, bool, float, pos, obstacles,
-    list (``elem`` set), enum (``enum`` set), array (``elem`` and ``size``
-    set), any."""
-    kind: str
-    elem: Optional["Ty"] = None
-    enum: Optional[str] = None
-    size: Optional[int] = None
-
-    def __str__(self) -> str:
-        if self.kind == "list":
-            return f"List<{self.elem}>"
-        if self.kind == "enum":
-            return str(self.enum)
-        if self.kind == "array":
-            return f"{self.elem}[{self.size}]"
-        return _KIND_NAMES.get(self.kind, self.kind)
-
-    @property
-    def is_number(self) -> bool:
-        return self.kind in ("int", "float")
-
-
-_KIND_NAMES = {"pos": "ItemPosition", "obstacles": "ObstacleList"}
-
-INT = Ty("int")
-BOOL = Ty("bool")
-FLOAT = Ty("float")
-POS = Ty("pos")
-OBSTACLES = Ty("obstacles")
-ANY = Ty("any")
-
-
-def list_of(elem: Ty) -> Ty:
-    return Ty("list", elem=elem)
-
-
-def array_of(elem: Ty, size: int) -> Ty:
-    return Ty("array", elem=elem, size=size)
-
-
-def enum_ty(name: str) -> Ty:
-    return Ty("enum", enum=name)
-
-
-_DESCRIPTORS = {"int": INT, "bool": BOOL, "float": FLOAT, "pos": POS,
-                "obstacles": OBSTACLES, "any": ANY}
-
-_TYPE_NAMES = {"int": INT, "bool": BOOL, "boolean": BOOL, "float": FLOAT,
-               "double": FLOAT, "ItemPosition": POS, "ObstacleList": OBSTACLES}
-_BUILTIN_TYPE_NAMES = frozenset(_TYPE_NAMES) | {"List"}
-
-
-def assignable(dst: Ty, src: Ty) -> bool:
-    """Does a value of type ``src`` fit a slot of type ``dst``?"""
-    if dst.kind == "any" or src.kind == "any":
-        return True
-    if dst == src:
-        return True
-    if dst.kind == "float" and src.kind == "int":
-        return True
-    if dst.kind == "list" and src.kind == "list":
-        return assignable(dst.elem, src.elem)
-    if dst.kind == "obstacles" and src.kind == "list" and src.elem.kind == "any":
-        return True                       # [] as "no obstacles"
-    return False
-
-
-def compatible(a: Ty, b: Ty) -> bool:
-    """May ``a == b`` be asked?"""
-    return assignable(a, b) or assignable(b, a)
-
-
-def join(a: Ty, b: Ty) -> Optional[Ty]:
-    """The type of a list literal holding an ``a`` and a ``b``, or None."""
-    if a.kind == "any":
-        return b
-    if b.kind == "any" or a == b:
-        return a
-    if a.is_number and b.is_number:
-        return FLOAT
-    if a.kind == "list" and b.kind == "list":
-        e = join(a.elem, b.elem)
-        return None if e is None else list_of(e)
-    return None
+# The types live in pccl/types.py (shared with the compiler and the display).
+_DESCRIPTORS = DESCRIPTORS
+_TYPE_NAMES = TYPE_NAMES
+_BUILTIN_TYPE_NAMES = BUILTIN_TYPE_NAMES
 
 
 # --------------------------------------------------------------------------
@@ -182,8 +102,12 @@ CHAIN_LEVELS = 8
 
 
 @dataclass
-class ProgramInfo:
-    """What the checker learnt: variables, enums, events, functions."""
+class CheckedProgram:
+    """What the checker learnt, and all the compiler needs to know about
+    names: variables with their section and resolved :class:`Ty` (in
+    declaration order), enums and their members, events, and the functions
+    that may be called (the built-ins of :mod:`pccl.builtins` and a world's
+    uninterpreted ones)."""
     name: Optional[str]
     filename: str
     source: str
@@ -199,10 +123,14 @@ class ProgramInfo:
         if name in self.variables:
             return self.variables[name].type
         if name in self.members:
-            return enum_ty(self.members[name][0])
+            return self.enum_type(self.members[name][0])
         if name in READONLY_FLAGS:
             return _DESCRIPTORS[READONLY_FLAGS[name]]
         raise KeyError(name)
+
+    def enum_type(self, name: str) -> Ty:
+        """The type of the enum called ``name`` (with its members)."""
+        return Ty("enum", enum=name, members=tuple(self.enums[name]))
 
     def section_of(self, name: str) -> str:
         return self.variables[name].section
@@ -230,19 +158,23 @@ class ProgramInfo:
         return c.expr(expr)
 
 
+#: The name this class had before it was the compiler's input.
+ProgramInfo = CheckedProgram
+
+
 # --------------------------------------------------------------------------
 # Entry points
 # --------------------------------------------------------------------------
 
 def check_program(program: ast.Program, *,
-                  functions: frozenset[str] = frozenset()) -> ProgramInfo:
-    info = ProgramInfo(name=program.name, filename=program.filename,
+                  functions: frozenset[str] = frozenset()) -> CheckedProgram:
+    info = CheckedProgram(name=program.name, filename=program.filename,
                        source=program.source, functions=frozenset(functions))
     _Checker(info, "program").program(program)
     return info
 
 
-def check_property(expr: ast.Expr, info: ProgramInfo, *, filename: str,
+def check_property(expr: ast.Expr, info: CheckedProgram, *, filename: str,
                    source: str) -> None:
     c = _Checker(info, "property", filename=filename, source=source)
     c.property(expr)
@@ -262,7 +194,7 @@ _PROGRAM_ONLY_HINTS = {
 
 
 class _Checker:
-    def __init__(self, info: ProgramInfo, mode: str, *,
+    def __init__(self, info: CheckedProgram, mode: str, *,
                  filename: Optional[str] = None, source: Optional[str] = None):
         self.info = info
         self.mode = mode                          # program | property
@@ -427,7 +359,7 @@ class _Checker:
                 self.fail("List needs an element type: List<T>", span)
             return list_of(self.declared_type(t.elem, where))
         if t.name in self.info.enums:
-            return enum_ty(t.name)
+            return self.info.enum_type(t.name)
         self.fail(f"unknown type '{t.name}'", span)
 
     def const_int(self, e: ast.Expr) -> int:
@@ -769,7 +701,7 @@ class _Checker:
                           f"cannot use it", n.span)
             return BOOL
         if name in self.info.members:
-            return enum_ty(self.info.members[name][0])
+            return self.info.enum_type(self.info.members[name][0])
         self.undeclared(n)
 
     def visible_in_init(self, n: ast.Name) -> Optional[VarInfo]:

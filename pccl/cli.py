@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import random
 import sys
 
 import click
 
 from . import display as D
 from .errors import PcclError
+from .options import ExploreOptions, RunOptions
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
                  "for your own [default: straight; explore: nondet for a program that calls "
@@ -116,13 +118,18 @@ def _delta(d):
     return int(d) if float(d).is_integer() and abs(d) < 2 ** 53 else d
 
 
-def _model_options(delta, n0, rates, events, collisions, overrides):
+def _check_repeats(rates, overrides):
+    """A repeated --rate for one agent or --set for one variable is a mistake."""
     for opt, pairs, what in (("--rate", rates, "agent"), ("--set", overrides, "variable")):
         names = [k for k, _ in pairs]
         twice = sorted({str(k) for k in names if names.count(k) > 1})
         if twice:
             raise click.BadParameter(f"{what} {', '.join(twice)} given more than once",
                                      param_hint=f"'{opt}'")
+
+
+def _model_options(delta, n0, rates, events, collisions, overrides):
+    _check_repeats(rates, overrides)
     return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
                 collisions=collisions, overrides=dict(overrides))
 
@@ -222,29 +229,36 @@ def check(program, world):
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the run as a trace file (JSON, docs/trace-format.md) for pccl replay")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="a state property checked after every transition; the run stops at "
+                   "the first state that violates it (repeatable)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, trace, fmt, plot, trace_out, view, full):
+        max_time, max_steps, invariants, trace, fmt, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
-    from .api import run as api_run
+    from .api import build_model
+    from .runner import run as run_model
     from . import traces as T
     if plot:
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
     record = bool(trace or plot or trace_out or fmt == "json" or view)
+    _check_repeats(rates, overrides)
+    opts = RunOptions.from_cli(click.get_current_context().params).replace(record_trace=record)
     try:
-        res = api_run(program, world=world, blackbox=blackbox, agents=agents, seed=seed,
-                      max_steps=max_steps, record_trace=record,
-                      max_time=_delta(max_time),
-                      **_model_options(delta, n0, rates, events, collisions, overrides))
+        rng = random.Random(seed)
+        model = build_model(program, opts, rng=rng)
+        res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng)
+        res.model = model
     except PcclError as e:
         _fail(e)
     m = res.model
     doc = None
     if record:
         cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
-                       overrides=dict(overrides), seed=seed, max_steps=max_steps)
+                       overrides=dict(overrides), invariants=invariants, seed=seed,
+                       max_steps=max_steps)
         doc = T.run_document(res, cfg)
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
@@ -399,8 +413,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
-                   "comma-separated list of merge, symmetry")
-@click.option("--no-deadlock", is_flag=True, help="do not report deadlocks")
+                   "comma-separated list of merge, symmetry, por")
+@click.option("--no-deadlock", "deadlock", flag_value=False, default=True,
+              help="do not report deadlocks")
 @click.option("--all", "find_all", is_flag=True,
               help="keep exploring and report each distinct violation once")
 @click.option("--exact", is_flag=True,
@@ -423,37 +438,29 @@ def _plot_run(m, res, path, *, quiet=False):
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, max_memory, abstract_time, invariants, reduce, no_deadlock,
+            max_time, max_states, max_memory, abstract_time, invariants, reduce, deadlock,
             find_all, exact, fmt, plot, progress, progress_interval, trace_out, view, full,
             coverage, workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
-    from .api import explore_blackbox, explore_model, load_program, make_model
+    from .api import build_model, explore_model
     from . import traces as T
     if plot:
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
+    _check_repeats(rates, overrides)
+    opts = ExploreOptions.from_cli(click.get_current_context().params)
     try:
-        prog = load_program(program)
-        blackbox, reason = explore_blackbox(prog, blackbox)
-        model = make_model(prog, world=world, blackbox=blackbox, agents=agents,
-                           max_time=None if max_time is None else _delta(max_time),
-                           abstract_time=abstract_time, invariants=tuple(invariants),
-                           reduce=reduce,
-                           **_model_options(delta, n0, rates, events, collisions, overrides))
+        model = build_model(program, opts, explore=True)
         if coverage:
-            model.set_reduce(reduce, uses=("coverage",))
-        model.blackbox_reason = reason
+            model.set_reduce(opts.reduce, uses=("coverage",))
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
     try:
-        res = explore_model(model, depth=depth, max_states=max_states, deadlock=not no_deadlock,
-                            find_all=find_all, exact=exact, progress=reporter,
-                            max_memory="default" if max_memory is None else max_memory,
-                            workers=workers, coverage=coverage,
-                            progress_interval=min(0.5, progress_interval))
+        res = explore_model(model, options=opts.replace(
+            progress=reporter, progress_interval=min(0.5, progress_interval)))
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if reporter is not None:
             reporter.close()    # erase the live display before the message
@@ -462,7 +469,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         if reporter is not None:
             reporter.close()
     cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
-                   overrides=dict(overrides), invariants=invariants, deadlock=not no_deadlock)
+                   overrides=dict(overrides), invariants=invariants, deadlock=deadlock)
     doc = T.explore_document(res, cfg)
     if fmt == "json":
         out = _explore_json(program, res)
@@ -477,7 +484,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     if plot and res.violations:
         try:
             _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
-                                      title=res.violations[0]["message"])
+                                      title=res.violations[0].message)
             click.echo(f"plot written to {plot}", err=(fmt == "json"))
         except PcclError as e:  # the violation stands: report, keep exit status 1
             click.echo(e.render(), err=True)
@@ -813,9 +820,9 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
         click.echo("")
-        click.echo(f"{v['message']}")
-        if v["line"]:
-            click.echo(f"  at {m.program.filename}:{v['line']}:{v['column']}")
+        click.echo(v.message)
+        if v.line:
+            click.echo(f"  at {m.program.filename}:{v.line}:{v.column}")
         tr = cx.trace
         note = ", shortest under the reductions" if m.reduction.on else ""
         click.echo(f"counterexample ({len(tr)} steps{note}):")
@@ -843,12 +850,12 @@ def _explore_json(program, res) -> dict:
     return {"program": program, "blackbox": res.blackbox, "agents": m.N,
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
-            "bounds": res.bounds, "time_abstraction": m.abstract_time,
+            "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(),
             "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
-            "violations": res.violations}
+            "violations": [v.to_json() for v in res.violations]}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,35 +21,16 @@ from typing import Any, Callable, Optional
 
 from . import ast as A
 from . import values as V
-from .builtins import BUILTINS
+from .builtins import BUILTINS, STATEMENTS, UNINTERPRETED
+from .checker import CheckedProgram
 from .errors import PcclError
+from .types import ANY, FLOAT, Ty
 
 # agent tuple slots
 PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
 # state tuple slots
 TIME, PHASE, LQ, SH, AGS, ENV = range(6)
 
-STATEMENT_FUNCS = {"doReach", "exit", "assert", "add", "remove"}
-UNINTERPRETED_DEFAULT = ("getInput", "getObs")
-
-
-@dataclass(frozen=True)
-class VType:
-    """A value type, for coercion and display."""
-    kind: str                        # int bool float pos obstacles list enum array any
-    elem: Optional["VType"] = None
-    members: Optional[tuple] = None  # enum member names
-    size: Optional[int] = None       # arrays
-    name: Optional[str] = None       # enum name
-
-    def __str__(self) -> str:
-        if self.kind == "list":
-            return f"List<{self.elem}>"
-        if self.kind == "array":
-            return f"{self.elem}[{self.size}]"
-        if self.kind == "enum":
-            return self.name or "enum"
-        return {"pos": "ItemPosition", "obstacles": "ObstacleList"}.get(self.kind, self.kind)
 
 
 @dataclass
@@ -57,7 +38,7 @@ class VarSlot:
     name: str
     section: str          # allwrite | allread | loc
     slot: int
-    ty: VType
+    ty: Ty
     decl: A.VarDecl
     may_undef: bool
 
@@ -68,54 +49,31 @@ class Layout:
     allread: list = field(default_factory=list)
     local: list = field(default_factory=list)
     vars: dict = field(default_factory=dict)       # name -> VarSlot
-    enums: dict = field(default_factory=dict)      # enum name -> VType
-    members: dict = field(default_factory=dict)    # member -> (VType, index)
+    enums: dict = field(default_factory=dict)      # enum name -> Ty
+    members: dict = field(default_factory=dict)    # member -> (Ty, index)
 
 
-def build_layout(program: A.Program, info) -> Layout:
-    """Slots for every variable; ``info`` is the checker's ProgramInfo (array
-    sizes come from it)."""
+def build_layout(program: A.Program, info: CheckedProgram) -> Layout:
+    """Slots for every variable, in declaration order per section; the types
+    are the checker's (``info``), resolved once."""
     lay = Layout()
-    for d in program.decls:
-        if isinstance(d, A.EnumDecl):
-            t = VType("enum", members=tuple(d.members), name=d.name)
-            lay.enums[d.name] = t
-            for k, m in enumerate(d.members):
-                lay.members[m] = (t, k)
-
-    def vtype(tr: A.TypeRef) -> VType:
-        n = tr.name
-        if n == "List":
-            return VType("list", elem=vtype(tr.elem) if tr.elem else VType("any"))
-        if n in ("int", "bool", "float"):
-            return VType(n)
-        if n == "ItemPosition":
-            return VType("pos")
-        if n == "ObstacleList":
-            return VType("obstacles")
-        if n in lay.enums:
-            return lay.enums[n]
-        raise PcclError(f"unknown type '{n}'", filename=program.filename,
-                        source=program.source, span=tr.span)
-
-    for d in program.decls:
-        if isinstance(d, A.EnumDecl):
-            continue
-        t = vtype(d.type)
-        if d.size is not None:
-            t = VType("array", elem=t, size=info.variables[d.name].size)
-        group = {"allwrite": lay.shared, "allread": lay.allread, "loc": lay.local}[d.section]
-        vs = VarSlot(d.name, d.section, len(group), t, d, may_undef=True)
+    for name in info.enums:
+        t = info.enum_type(name)
+        lay.enums[name] = t
+        for k, m in enumerate(t.members or ()):
+            lay.members.setdefault(m, (t, k))
+    groups = {"allwrite": lay.shared, "allread": lay.allread, "loc": lay.local}
+    for v in info.variables.values():
+        group = groups[v.section]
+        # a variable can be undefined only if it lacks an initialiser
+        vs = VarSlot(v.name, v.section, len(group), v.type, v.decl,
+                     may_undef=v.decl.init is None)
         group.append(vs)
-        lay.vars[d.name] = vs
-    # a variable can be undefined only if it lacks an initialiser or is an array
-    # (array elements are checked on indexing anyway)
-    for vs in lay.vars.values():
-        vs.may_undef = vs.decl.init is None
+        lay.vars[v.name] = vs
     return lay
 
 
-def coerce(value, ty: VType):
+def coerce(value, ty: Ty):
     """Turn a raw world/registered value into a PCCL value of type ``ty``."""
     if value is V.UNDEF or ty.kind == "any":
         return value
@@ -174,10 +132,10 @@ def coerce(value, ty: VType):
     return value
 
 
-_FLOAT = VType("float")
+_FLOAT = FLOAT
 
 
-def canon(value, ty: VType):
+def canon(value, ty: Ty):
     """:func:`coerce` at run time, for a value of no static type (``any``:
     ``getInput()[k]``) or a list that needs widening; a value that does not
     fit gets the agent stuck."""
@@ -187,8 +145,8 @@ def canon(value, ty: VType):
         raise V.PcclRuntimeError(str(exc)) from None
 
 
-def widens(src, dst: VType) -> bool:
-    """Does storing a value of static type ``src`` (a checker ``Ty``) into a
+def widens(src: Ty, dst: Ty) -> bool:
+    """Does storing a value of static type ``src`` into a
     ``dst`` slot need a conversion beyond the top level (``List<int>`` into
     ``List<float>``, at any depth)?"""
     if src.kind == "int" and dst.kind == "float":
@@ -327,7 +285,7 @@ class Compiler:
     def __init__(self, program: A.Program, layout: Layout, n_agents: int,
                  functions: dict, oracle: Oracle, info=None):
         self.program = program
-        self.info = info                    # the checker's ProgramInfo: static types
+        self.info = info                    # the CheckedProgram: static types
         self.lay = layout
         self.N = n_agents
         self.functions = functions          # uninterpreted name -> raw value
@@ -346,6 +304,10 @@ class Compiler:
     def error(self, msg, node):
         raise PcclError(msg, filename=self.program.filename,
                         source=self.program.source, span=getattr(node, "span", None))
+
+    def impossible(self, msg, node):
+        """A case the checker has ruled out (an AssertionError if it ever fires)."""
+        raise AssertionError(f"the checker should have rejected this: {msg}")
 
     def const(self, value) -> str:
         name = f"_k{self._nconst}"
@@ -371,7 +333,7 @@ class Compiler:
             return self.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
         return self.make("i, ag, sh, ags", f"    return {src}\n")
 
-    def uninterpreted_value(self, name, node, ty: Optional[VType] = None):
+    def uninterpreted_value(self, name, node, ty: Optional[Ty] = None):
         raw = self.functions.get(name, ())
         if callable(raw):
             raw = raw()
@@ -387,7 +349,7 @@ class Compiler:
             self.error(f"value of {name}() does not fit {ty}: {exc}{hint}", node)
 
     # -- expressions ---------------------------------------------------------
-    def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[VType] = None) -> str:
+    def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[Ty] = None) -> str:
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         if isinstance(e, A.BoolLit):
             return "True" if e.value else "False"
@@ -395,7 +357,7 @@ class Compiler:
             return repr(e.value)
         if isinstance(e, A.FloatLit):
             if not math.isfinite(e.value):
-                self.error(f"float literal out of range: {e.value}", e)
+                self.impossible(f"float literal out of range: {e.value}", e)
             return repr(float(e.value))
         if isinstance(e, A.ListLit):
             if not e.items:
@@ -406,7 +368,7 @@ class Compiler:
         if isinstance(e, A.Field):
             k = {"x": 0, "y": 1, "z": 2}.get(e.name)
             if k is None:
-                self.error(f"unknown field '{e.name}'", e)
+                self.impossible(f"unknown field '{e.name}'", e)
             return f"{ex(e.base)}[{k}]"
         if isinstance(e, A.Index):
             return self.index(e, prop, bound)
@@ -508,7 +470,7 @@ class Compiler:
             if vs.section == "allwrite":
                 ref = f"sh[{vs.slot}]"
             elif prop:
-                self.error(f"'{n}' is per-agent: write {n}[i]", e)
+                self.impossible(f"'{n}' is per-agent: write {n}[i]", e)
             elif vs.section == "allread":
                 ref = f"ag[5][{vs.slot}]"
             else:
@@ -522,7 +484,7 @@ class Compiler:
             return "ag[7][3]"
         if not prop and n == "doReach_fail":
             return "ag[7][4]"
-        self.error(f"undeclared variable '{n}'", e)
+        self.impossible(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
         """Index chains.  Per-agent variables (spec §2, checker rules): an
@@ -579,7 +541,7 @@ class Compiler:
                 return self._count(f"[7][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
             if vs is None or vs.section == "allwrite":
-                self.error("count(v) needs a per-agent boolean variable", e)
+                self.impossible("count(v) needs a per-agent boolean variable", e)
             slot = 4 if vs.section == "loc" else 5
             return self._count(f"[{slot}][{vs.slot}]")
         if n == "getAgentIndex":
@@ -602,14 +564,12 @@ class Compiler:
             return f"len(_cl({ex(args[0])}))"
         if n == "contains":
             return f"({ex(args[1])} in _cl({ex(args[0])}))"
-        if n in STATEMENT_FUNCS:
-            self.error(f"'{n}' is a statement, not a value", e)
-        if n in self.functions or n in UNINTERPRETED_DEFAULT:
-            return self.const(self.uninterpreted_value(n, e, want))
-        self.error(f"unknown function '{n}'", e)
+        assert n not in STATEMENTS, f"the checker lets no statement {n!r} be a value"
+        assert n in self.functions or n in UNINTERPRETED, f"the checker knows no function {n!r}"
+        return self.const(self.uninterpreted_value(n, e, want))
 
     # -- canonical values: every write path goes through value() ---------------
-    def value(self, e: A.Expr, want: VType) -> str:
+    def value(self, e: A.Expr, want: Ty) -> str:
         """Source for ``e`` as the canonical value of a ``want`` slot (one
         representation per PCCL value; docs/decisions.md, "Canonical values").
         Conversions are inserted only where the static type needs them: an
@@ -658,21 +618,17 @@ class Compiler:
         """Return (VarSlot, [index source, ...]) for an assignment target."""
         t, chain = A.index_chain(t)
         path = [self.expr(ix.index) for ix in chain]
-        if not isinstance(t, A.Name):
-            self.error("cannot assign to this expression", t)
+        assert isinstance(t, A.Name), "the checker allows only variables as targets"
         vs = self.lay.vars.get(t.name)
-        if vs is None:
-            if t.name in ("doReach_done", "doReach_fail"):
-                self.error(f"'{t.name}' is read-only: set by the controller", t)
-            self.error(f"undeclared variable '{t.name}'", t)
-        if vs.section == "allread" and path and vs.ty.kind != "array":
-            self.error(f"cannot write another agent's component of allread variable '{vs.name}'", t)
+        assert vs is not None, f"the checker knows no variable {t.name!r} (or it is read-only)"
+        assert not (vs.section == "allread" and path and vs.ty.kind != "array"), \
+            "the checker forbids writing another agent's allread component"
         return vs, path
 
-    def elem_type(self, vs: VarSlot, depth: int) -> VType:
+    def elem_type(self, vs: VarSlot, depth: int) -> Ty:
         ty = vs.ty
         for _ in range(depth):
-            ty = ty.elem if ty.elem is not None else VType("any")
+            ty = ty.elem if ty.elem is not None else ANY
         return ty
 
     def write_code(self, vs: VarSlot, path: list, value_src: str, indent="    ") -> str:

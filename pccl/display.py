@@ -47,7 +47,7 @@ def status_json(model, code):
 
 
 def agent_vars(model, st, i) -> list:
-    """[(name, VType, value)] for agent i's allread and local variables."""
+    """[(name, Ty, value)] for agent i's allread and local variables."""
     ag = st[4][i]
     lay = model.layout
     out = [(v.name, v.ty, ag[5][v.slot]) for v in lay.allread]

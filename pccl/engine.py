@@ -33,8 +33,9 @@ from typing import Callable, Optional
 from . import ast as A
 from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
-from .errors import PcclError, PcclRuntimeError
+from .errors import OptionError, PcclError, PcclRuntimeError
 from .fingerprint import check_canonical
+from .types import OBSTACLES, POS
 from .values import UNDEF
 from .semantics import rules as R
 from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
@@ -223,41 +224,39 @@ class Model:
         if n_agents is None:
             n_agents = self.world.n_agents or 2
         if n_agents < 1:
-            raise PcclError(f"the number of agents must be at least 1, got {n_agents}",
-                            filename="--agents")
+            raise OptionError("agents", f"the number of agents must be at least 1, got {n_agents}")
         if n_agents > MAX_AGENTS:
-            raise PcclError(f"the number of agents must be at most {MAX_AGENTS:,}, got "
-                            f"{n_agents:,}", filename="--agents")
+            raise OptionError(
+                "agents", f"the number of agents must be at most {MAX_AGENTS:,}, got "
+                f"{n_agents:,}")
         self.N = n_agents
         if not (isinstance(delta, (int, float)) and not isinstance(delta, bool) and delta > 0
                 and math.isfinite(delta)):
-            raise PcclError(f"δ must be a positive finite number, got {delta}", filename="--delta")
+            raise OptionError("delta", f"δ must be a positive finite number, got {delta}")
         if max_time is not None and not (isinstance(max_time, (int, float))
                                          and not isinstance(max_time, bool)
                                          and math.isfinite(max_time) and max_time >= 0):
-            raise PcclError(f"must be a finite number >= 0, got {max_time}", filename="--max-time")
+            raise OptionError("max_time", f"must be a finite number >= 0, got {max_time}")
         if not (isinstance(n0, int) and n0 >= 1):
-            raise PcclError(f"n0 must be a positive integer, got {n0}", filename="--n0")
+            raise OptionError("n0", f"n0 must be a positive integer, got {n0}")
         self.delta = delta
         self.n0 = n0
         self.rho = [1] * n_agents
         for a, r in (rates or {}).items():
             if not (isinstance(a, int) and 0 <= a < n_agents):
-                raise PcclError(f"agent {a} does not exist (agents are 0..{n_agents - 1})",
-                                filename="--rate")
+                raise OptionError("rates", f"agent {a} does not exist (agents are 0..{n_agents - 1})")
             if not (isinstance(r, int) and r >= 1):
-                raise PcclError(f"rate of agent {a} must be a positive integer, got {r}",
-                                filename="--rate")
+                raise OptionError("rates", f"rate of agent {a} must be a positive integer, got {r}")
             if r > n0:
                 # counter + ρ ≤ n0 never holds: the agent would never run an event
                 # and a search would "explore clean" without it
-                raise PcclError(f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
-                                f"would never run an event (it runs while counter + rate ≤ n0); "
-                                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})",
-                                filename="--rate")
+                raise OptionError(
+                    "rates", f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
+                    f"would never run an event (it runs while counter + rate ≤ n0); "
+                    f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
             self.rho[a] = r
         if events not in ("any", "first"):
-            raise PcclError(f"must be 'any' or 'first', got {events!r}", filename="--events")
+            raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
         self.first_only = events == "first"
         self.events_policy = events
         self.max_time = max_time
@@ -313,11 +312,13 @@ class Model:
         if abstract_time is None:
             abstract_time = sound
         elif abstract_time and uses_time:
-            raise PcclError("time abstraction is unsound here: a property or the blackbox "
-                            "reads the clock; drop --abstract-time", filename="--abstract-time")
+            raise OptionError(
+                "abstract_time", "time abstraction is unsound here: a property or the blackbox "
+                "reads the clock; drop --abstract-time")
         elif abstract_time and max_time is not None:
-            raise PcclError("time abstraction cannot be combined with --max-time: the bound "
-                            "reads the clock; drop --abstract-time", filename="--abstract-time")
+            raise OptionError(
+                "abstract_time", "time abstraction cannot be combined with --max-time: the bound "
+                "reads the clock; drop --abstract-time")
         self.abstract_time = bool(abstract_time)
         self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
         self._env_cache: dict = {}
@@ -382,19 +383,16 @@ class Model:
             return None
         if isinstance(s, A.CallStmt):
             if s.name == "doReach":
-                if len(s.args) != 2:
-                    c.error("'doReach' takes 2 arguments", s)
-                from .compile import VType
-                t = c.value(s.args[0], VType("pos"))
-                o = c.value(s.args[1], VType("obstacles"))
+                assert len(s.args) == 2, "the checker counts arguments"
+                t = c.value(s.args[0], POS)
+                o = c.value(s.args[1], OBSTACLES)
                 return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
             if s.name == "exit":
                 return None
             if s.name == "assert":
                 return c.make_expr(s.args[0])
-            if s.name in ("add", "remove"):
-                return c.effect(s)
-            c.error(f"unknown statement '{s.name}'", s)
+            assert s.name in ("add", "remove"), f"the checker knows no statement {s.name!r}"
+            return c.effect(s)
         return c.effect(s)
 
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
@@ -739,9 +737,9 @@ class Model:
             if self.max_ticks is not None and n + 1 > self.max_ticks:
                 pass                                    # beyond the bound anyway
             elif not nxt > t or not math.isfinite(nxt):
-                raise PcclError(f"the clock cannot advance from {_fmt_time(t)} by δ = {d:g}: "
-                                f"time {_fmt_time(t)} + δ is not representable as a float",
-                                filename="--delta")
+                raise OptionError(
+                    "delta", f"the clock cannot advance from {_fmt_time(t)} by δ = {d:g}: "
+                    f"time {_fmt_time(t)} + δ is not representable as a float")
         if self.max_ticks is not None and n + 1 > self.max_ticks:
             nxt = None
         if len(self._next_time) >= 1 << 20:
@@ -789,8 +787,7 @@ class Model:
     # -- blackbox calls: user code, so every failure names the blackbox ------------------
     def blackbox_error(self, time, what):
         name = getattr(self.blackbox, "name", type(self.blackbox).__name__)
-        raise PcclError(f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}",
-                        filename="--blackbox")
+        raise OptionError("blackbox", f"blackbox '{name}' failed at time {_fmt_time(time)}: {what}")
 
     def _call_blackbox(self, time, method, *args):
         try:

@@ -56,6 +56,23 @@ class ArgumentError(PcclError, ValueError):
     its ``filename`` is the function, e.g. ``pccl.api.explore``."""
 
 
+class OptionError(PcclError):
+    """A bad value of an option, found where its meaning is known (the model:
+    an agent's rate above n0, a δ the clock cannot add).  ``option`` is the
+    option's name as the API spells it (``rates``); the message names no
+    flag.  Rendered as the CLI spells the option (``--rate: error: ...``);
+    the API re-raises it as an :class:`ArgumentError` of the function that
+    was called (``pccl.api.explore: error: rates: ...``)."""
+
+    def __init__(self, option: str, message: str):
+        from .options import flag
+        super().__init__(message, filename=flag(option))
+        self.option = option
+
+    def for_api(self, func: str) -> "ArgumentError":
+        return ArgumentError(f"{self.option}: {self.message}", filename=f"pccl.api.{func}")
+
+
 def render_message(message: str, *, filename: Optional[str], source: Optional[str],
                    line: Optional[int], column: Optional[int],
                    end_column: Optional[int] = None, kind: str = "error") -> str:

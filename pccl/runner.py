@@ -14,7 +14,7 @@ import itertools
 import random
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
 
 
 @dataclass
@@ -28,6 +28,17 @@ class RunResult:
     summary: list = field(default_factory=list)   # [(time, state)] after each environment step
     violations: list = field(default_factory=list)
     looping_agent: Optional[int] = None
+    model: Any = None
+
+    @property
+    def final_state(self):
+        """The last configuration as a named view (:class:`~pccl.results.StateView`:
+        ``res.final_state.agents[0].variables["inCs"]``), as ``pccl run`` prints it;
+        ``final`` is the raw configuration."""
+        from .results import StateView
+        if self.model is None:
+            raise ValueError("this RunResult has no model (pccl.api.run sets it)")
+        return StateView.of(self.model, self.final)
 
 
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,

@@ -9,6 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from pccl.explorer import Bound
+from pccl.results import StepView
+
 from pccl.api import explore as _explore, make_model
 from pccl.errors import PcclError
 
@@ -256,7 +259,8 @@ def test_time_abstraction_makes_fischer_finite():
     assert on.status == "exhaustive" and on.exit_status == 0 and on.bounds == []
     off = explore(FISCHER, abstract_time=False, max_states=40_000, **kw)
     assert off.status == "bounded" and off.exit_status == 0
-    assert off.bounds == ["--max-states 40000"] and "--max-states 40000" in off.verdict
+    assert off.bound_labels == ["--max-states 40000"] and "--max-states 40000" in off.verdict
+    assert off.bounds == [Bound.MAX_STATES]
     assert off.stats.states > on.stats.states
     off2 = explore(FISCHER, abstract_time=False, depth=on.stats.max_depth + 50, **kw)
     assert off2.status == "bounded" and "--depth" in off2.verdict
@@ -276,7 +280,8 @@ def test_traces_show_real_time_under_abstraction():
 def test_depth_bound():
     res = explore(RACE, world=RACE_WORLD, depth=10)
     assert res.status == "bounded" and res.exit_status == 0
-    assert res.bounds == ["--depth 10"] and "--depth 10" in res.verdict
+    assert res.bounds == [Bound.DEPTH]
+    assert res.bound_labels == ["--depth 10"] and "--depth 10" in res.verdict
     assert res.stats.max_depth == 10
     assert "exhaustive" not in res.verdict
 
@@ -290,7 +295,7 @@ def test_depth_zero_explores_initial_states_only():
 def test_max_states_bound():
     res = explore(RACE, world=RACE_WORLD, agents=3, max_states=100)
     assert res.status == "bounded" and res.exit_status == 0
-    assert res.bounds == ["--max-states 100"] and "--max-states 100" in res.verdict
+    assert res.bound_labels == ["--max-states 100"] and "--max-states 100" in res.verdict
     assert 100 <= res.stats.states < 130
 
 
@@ -298,7 +303,8 @@ def test_max_time_bound():
     res = explore(FISCHER, overrides=SMALL, max_time=3, invariants=["time <= 3"])
     assert res.model.abstract_time is False
     assert res.status == "bounded" and res.exit_status == 0
-    assert res.bounds == ["--max-time 3"] and "--max-time 3" in res.verdict
+    assert res.bounds == [Bound.MODEL]
+    assert res.bound_labels == ["--max-time 3"] and "--max-time 3" in res.verdict
     res2 = explore(FISCHER, overrides=SMALL, max_time=3, invariants=["time <= 2"])
     assert res2.status == "violation" and res2.final_state["time"] == 3
 
@@ -315,15 +321,15 @@ def test_violation_within_bounds_still_reported():
 def test_find_all_reports_each_distinct_violation_once():
     res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet", find_all=True)
     assert res.status == "violation" and res.exit_status == 1
-    ids = [(v["kind"], v["name"], v["line"], v["column"]) for v in res.violations]
+    ids = [(v.kind, v.name, v.line, v.column) for v in res.violations]
     assert len(ids) == len(set(ids))
-    assert any(v["kind"] == "stuck" and "remove" in v["message"] for v in res.violations)
+    assert any(v.kind == "stuck" and "remove" in v.message for v in res.violations)
     one = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
-    assert res.violations[0]["message"] == one.violation["message"]
-    assert res.violations[0]["trace"] == one.trace
+    assert res.violations[0].message == one.violation.message
+    assert res.violations[0].trace == one.trace
     # every violation comes with its own shortest trace to a violating state
     for v in res.violations:
-        assert v["depth"] == len(v["trace"])
+        assert v.depth == len(v.trace)
 
 
 def test_find_all_with_several_kinds_and_invariants():
@@ -535,18 +541,19 @@ def test_forced_time_abstraction_with_max_time_is_refused_or_sound():
 def test_counterexample_steps_have_the_promised_fields():
     res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
     for n, s in enumerate(res.trace, 1):
-        assert s["step"] == n
-        assert {"time", "agent", "rule", "event", "line", "source", "changes"} <= set(s)
-        if s["rule"] in ("TIME ADVANCE", "DOREACH INVOKE"):
-            assert s["agent"] is None
+        assert s.step == n
+        assert {"step", "time", "agent", "rule", "event", "line", "source", "changes"} == set(s.to_json())
+        assert isinstance(s, StepView)
+        if s.rule in ("TIME ADVANCE", "DOREACH INVOKE"):
+            assert s.agent is None
         else:
-            assert s["agent"] in (0, 1)
-        if s["rule"] in ("STATEMENT", "DOREACH UPDATE", "EXIT", "LOCK REQUEST"):
-            assert s["line"] and s["source"] and s["event"] in ("PickDest", "Remove")
+            assert s.agent in (0, 1)
+        if s.rule in ("STATEMENT", "DOREACH UPDATE", "EXIT", "LOCK REQUEST"):
+            assert s.line and s.source and s.event in ("PickDest", "Remove")
     stmt_lines = Path(RACE_NONATOMIC).read_text().splitlines()
     for s in res.trace:
-        if s["rule"] == "STATEMENT":
-            assert stmt_lines[s["line"] - 1].strip() == s["source"]
+        if s.rule == "STATEMENT":
+            assert stmt_lines[s.line - 1].strip() == s.source
 
 
 def test_counterexample_line_and_source_agree():

@@ -15,8 +15,8 @@ import pytest
 from pccl import ast
 from pccl.ast import Span
 from pccl.builtins import BUILTINS, READONLY_FLAGS, STATEMENTS, EXPRESSIONS, UNINTERPRETED
-from pccl.checker import (ANY, BOOL, FLOAT, INT, OBSTACLES, POS, ProgramInfo, Ty,
-                          array_of, check_program, check_property, enum_ty, list_of)
+from pccl.checker import CheckedProgram, check_program, check_property
+from pccl.types import ANY, BOOL, FLOAT, INT, OBSTACLES, POS, Ty, array_of, enum_ty, list_of
 from pccl.errors import PcclError
 from pccl.parser import parse_program, parse_property
 
@@ -24,7 +24,7 @@ PROGRAMS = Path(__file__).resolve().parent.parent / "programs"
 SHIPPED = sorted(PROGRAMS.glob("*.pccl"))
 
 
-def check(src: str, **kw) -> ProgramInfo:
+def check(src: str, **kw) -> CheckedProgram:
     return check_program(parse_program(src, "t.pccl"), **kw)
 
 
@@ -35,12 +35,12 @@ def check_error(src: str, **kw) -> str:
     return ei.value.render()
 
 
-def prop(text: str, info: ProgramInfo) -> None:
+def prop(text: str, info: CheckedProgram) -> None:
     check_property(parse_property(text, "--invariant"), info,
                    filename="--invariant", source=text)
 
 
-def prop_error(text: str, info: ProgramInfo) -> str:
+def prop_error(text: str, info: CheckedProgram) -> str:
     with pytest.raises(PcclError) as ei:
         prop(text, info)
     return ei.value.render()

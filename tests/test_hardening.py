@@ -428,11 +428,11 @@ def test_plot_failure_keeps_the_violation_status(tmp_path, monkeypatch):
 
 
 def test_ctrl_c_during_run_exits_130(monkeypatch):
-    import pccl.api
+    import pccl.runner
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
-    monkeypatch.setattr(pccl.api, "run", interrupted)
+    monkeypatch.setattr(pccl.runner, "run", interrupted)
     res = cli("run", FISCHER)
     assert res.exit_code == 130 and "interrupted" in res.stderr
     assert "Aborted" not in res.output

@@ -1,0 +1,222 @@
+"""The options of ``run`` and ``explore``: one object shared by the CLI and the API.
+
+``pccl explore --max-states 100 --set k=2`` and
+``pccl.api.explore(..., max_states=100, overrides={"k": "2"})`` build the same
+:class:`ExploreOptions`; ``pccl run`` and ``pccl.api.run`` the same
+:class:`RunOptions`.  A field is spelt like its command-line flag
+(``max_states`` is ``--max-states``) except where :data:`FLAGS` says
+otherwise, and a test checks that every field is a flag of its command and
+every flag of the command is a field or a presentation option
+(:data:`PRESENTATION`: how the result is shown, not what is computed).
+Fields in :data:`API_ONLY` are hooks a command line cannot express
+(callables, pre-built objects).
+
+Checks run once, in :meth:`~ModelOptions.check`, with messages that name the
+option as the API spells it (``max_states must be an integer >= 1, got 0``);
+the CLI's own parameter types reject the same values earlier with the flag's
+name.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Optional, Union
+
+from . import validate as V
+from .errors import ArgumentError
+
+#: Fields whose flag is not ``--`` + the field name with ``-`` for ``_``.
+FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
+         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all"}
+
+#: Fields a command line cannot express: callables, objects, source text.
+API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
+                      "record_trace"})
+
+#: Command-line parameters that choose how a result is shown, per command.
+PRESENTATION = {
+    "run": frozenset({"trace", "fmt", "plot", "trace_out", "view", "full"}),
+    "explore": frozenset({"fmt", "plot", "progress", "progress_interval", "trace_out", "view",
+                          "full"}),
+}
+
+
+def flag(name: str) -> str:
+    """The command-line flag of the option ``name``."""
+    return FLAGS.get(name, "--" + name.replace("_", "-"))
+
+
+@dataclass(frozen=True)
+class CommonOptions:
+    """What every command's model needs: the program's world, blackbox, team
+    and timing, and the properties checked on it."""
+    agents: Optional[int] = None
+    world: Any = None                       # a path or a World
+    blackbox: Any = None                    # a name, module:attribute, or an object
+    delta: Union[int, float] = 1
+    n0: int = 1
+    rates: Mapping[int, int] = field(default_factory=dict)
+    events: str = "any"
+    collisions: bool = False
+    overrides: Mapping[str, str] = field(default_factory=dict)
+    invariants: tuple = ()
+    max_time: Optional[Union[int, float]] = None
+    functions: Optional[Mapping[str, Any]] = None
+    rand_policy: Optional[Callable] = None
+    source: bool = False
+
+    @classmethod
+    def from_api(cls, func: str, kwargs: Mapping[str, Any]):
+        """Options from keyword arguments of ``pccl.api.FUNC``; an unknown
+        keyword is an error that lists the known ones."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        unknown = sorted(set(kwargs) - set(names))
+        if unknown:
+            raise ArgumentError(
+                f"unknown option{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
+                f"options are {', '.join(names)}", filename=f"pccl.api.{func}")
+        opts = cls(**kwargs)
+        opts.check(func)
+        return opts
+
+    @classmethod
+    def from_cli(cls, params: Mapping[str, Any]):
+        """Options from a click command's parameters (presentation ones are
+        ignored).  Repeated flags arrive as tuples of pairs."""
+        names = {f.name for f in dataclasses.fields(cls)} - API_ONLY
+        kw = {k: v for k, v in params.items() if k in names}
+        for k in ("rates", "overrides"):
+            if k in kw:
+                kw[k] = dict(kw[k])
+        if "invariants" in kw:
+            kw["invariants"] = tuple(kw["invariants"])
+        for k in ("delta", "max_time"):
+            if kw.get(k) is not None:
+                kw[k] = integral(kw[k])
+        return cls(**kw)
+
+    def replace(self, **changes):
+        return dataclasses.replace(self, **changes)
+
+    def check(self, func: str) -> None:
+        """Raise :class:`ArgumentError` naming the first bad option."""
+        V.boolean(func, "source", self.source)
+        V.world(func, self.world)
+        V.blackbox(func, self.blackbox)
+        V.integer(func, "agents", self.agents, minimum=1, optional=True)
+        V.overrides(func, self.overrides)
+        raw = {k: getattr(self, k, None) for k in V.MODEL_OPTIONS}
+        V.model_options(func, {k: v for k, v in raw.items()
+                               if v is not None or k in ("max_time", "abstract_time")})
+
+    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
+        """The keyword arguments of :class:`pccl.engine.Model` (besides the
+        program, world, blackbox and team size)."""
+        kw = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
+                  invariants=tuple(self.invariants), collisions=self.collisions)
+        if with_max_time:
+            kw["max_time"] = self.max_time
+        if self.functions is not None:
+            kw["functions"] = self.functions
+        if self.rand_policy is not None:
+            kw["rand_policy"] = self.rand_policy
+        return kw
+
+
+@dataclass(frozen=True)
+class ModelOptions(CommonOptions):
+    """A model to explore (:func:`pccl.api.make_model`): the common options,
+    time abstraction (None: on when sound) and the reductions."""
+    abstract_time: Optional[bool] = None
+    reduce: Any = "auto"
+
+    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
+        kw = super().model_kwargs(with_max_time=with_max_time)
+        kw.update(abstract_time=self.abstract_time, reduce=self.reduce)
+        return kw
+
+
+@dataclass(frozen=True)
+class ExploreOptions(ModelOptions):
+    """``pccl explore`` / :func:`pccl.api.explore`: the model's options and
+    the search's bounds and modes."""
+    depth: Optional[int] = None
+    max_states: Optional[int] = None
+    max_memory: Any = "default"             # bytes, None (no limit) or "default"
+    deadlock: bool = True
+    find_all: bool = False
+    exact: bool = False
+    workers: Union[int, str] = 1
+    coverage: bool = False
+    progress_interval: float = 0.5
+    progress: Optional[Callable] = None
+
+    @classmethod
+    def from_cli(cls, params: Mapping[str, Any]):
+        opts = super().from_cli(params)
+        if opts.max_memory is None:
+            opts = opts.replace(max_memory="default")
+        return opts
+
+    def check(self, func: str) -> None:
+        super().check(func)
+        V.search_args(func, depth=self.depth, max_states=self.max_states,
+                      deadlock=self.deadlock, find_all=self.find_all, exact=self.exact,
+                      progress=self.progress, max_memory=self.max_memory)
+        V.number(func, "progress_interval", self.progress_interval, positive=True)
+        V.boolean(func, "coverage", self.coverage)
+        w = self.workers
+        if w != "auto" and (not isinstance(w, int) or isinstance(w, bool) or w < 1):
+            raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {w!r}",
+                                filename=f"pccl.api.{func}")
+        if w != 1 and w != "auto" and (self.exact or self.coverage):
+            raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
+                                f"process: use workers=1", filename=f"pccl.api.{func}")
+
+
+#: Model options that a run does not take, and why.
+NOT_FOR_RUN = {"abstract_time": "a run keeps the clock",
+               "reduce": "a run executes the unreduced semantics"}
+
+
+@dataclass(frozen=True)
+class RunOptions(CommonOptions):
+    """``pccl run`` / :func:`pccl.api.run`: the common options, the seed and
+    the limits of one execution."""
+    max_time: Optional[Union[int, float]] = 100
+    seed: int = 0
+    max_steps: int = 100_000
+    record_trace: bool = False
+
+    @classmethod
+    def from_api(cls, func: str, kwargs: Mapping[str, Any]):
+        for name, why in NOT_FOR_RUN.items():
+            if name in kwargs:
+                raise ArgumentError(f"{name} is not an option of run ({why})",
+                                    filename=f"pccl.api.{func}")
+        return super().from_api(func, kwargs)
+
+    def check(self, func: str) -> None:
+        V.integer(func, "seed", self.seed)
+        super().check(func)
+        V.integer(func, "max_steps", self.max_steps, minimum=1)
+        V.boolean(func, "record_trace", self.record_trace)
+
+    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
+        kw = super().model_kwargs(with_max_time=with_max_time)
+        kw["abstract_time"] = False
+        return kw
+
+
+def integral(x):
+    """2.0 is 2 (so that times print as the user wrote them); a huge integral
+    float stays a float (its int would print 300 digits)."""
+    if isinstance(x, float) and x.is_integer() and abs(x) < 2 ** 53:
+        return int(x)
+    return x
+
+
+def cli_fields(cls) -> set:
+    """The fields of ``cls`` that the command line sets (all but API-only)."""
+    return {f.name for f in dataclasses.fields(cls)} - API_ONLY

@@ -1,0 +1,187 @@
+"""One options object for the CLI and the API, and typed API results.
+
+Every option of ``pccl run``/``pccl explore`` is a field of
+:class:`~pccl.options.RunOptions`/:class:`~pccl.options.ExploreOptions` and
+the other way round; the CLI and the API build equal option objects for the
+same request; results are typed views whose text and JSON are what the CLI
+prints."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import click
+import pytest
+from click.testing import CliRunner
+
+import pccl.api as api
+from pccl import options as O
+from pccl.cli import main
+from pccl.errors import ArgumentError
+from pccl.explorer import Bound
+from pccl.results import AgentView, Finding, StateView, StepView
+
+from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD
+
+COMMANDS = {"run": O.RunOptions, "explore": O.ExploreOptions}
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    return res
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_every_cli_option_is_an_api_option_and_back(command):
+    cmd = main.commands[command]
+    params = {p.name for p in cmd.params if not isinstance(p, click.Argument)}
+    params -= O.PRESENTATION[command]
+    assert params == O.cli_fields(COMMANDS[command])
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_every_field_is_spelt_as_its_flag(command):
+    cmd = main.commands[command]
+    by_name = {p.name: p for p in cmd.params}
+    for name in O.cli_fields(COMMANDS[command]):
+        assert O.flag(name) in by_name[name].opts, (name, by_name[name].opts)
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_cli_defaults_are_the_api_defaults(command):
+    cls = COMMANDS[command]
+    ctx = main.commands[command].make_context(command, [FISCHER])
+    opts = cls.from_cli(ctx.params)
+    assert opts == cls()
+
+
+def _captured_explore_options(monkeypatch, *args):
+    seen = {}
+
+    def fake(model, *, options=None, **kw):
+        seen["options"] = options
+        raise SystemExit(0)
+    monkeypatch.setattr(api, "explore_model", fake)
+    cli("explore", FISCHER, *args)
+    return seen["options"]
+
+
+def test_cli_and_api_build_the_same_explore_options(monkeypatch):
+    from_cli = _captured_explore_options(
+        monkeypatch, "--set", "k=1", "--invariant", "count(inCs) <= 1", "--max-states", "500",
+        "--depth", "40", "--no-deadlock", "--all", "--n0", "2", "--rate", "1=2", "--delta", "2",
+        "--reduce", "merge", "--max-memory", "1G", "--events", "first", "--no-abstract-time")
+    from_api = O.ExploreOptions.from_api("explore", dict(
+        overrides={"k": "1"}, invariants=["count(inCs) <= 1"], max_states=500, depth=40,
+        deadlock=False, find_all=True, n0=2, rates={1: 2}, delta=2, reduce="merge",
+        max_memory=2**30, events="first", abstract_time=False))
+    ignore = {"progress", "progress_interval", "invariants"}
+    for f in dataclasses.fields(O.ExploreOptions):
+        if f.name not in ignore:
+            assert getattr(from_cli, f.name) == getattr(from_api, f.name), f.name
+    assert tuple(from_cli.invariants) == tuple(from_api.invariants)
+
+
+def test_unknown_api_option_lists_the_options():
+    with pytest.raises(ArgumentError, match=r"unknown option max_sates; options are .*max_states"):
+        api.explore(FISCHER, max_sates=3)
+    with pytest.raises(ArgumentError, match=r"unknown option depth; options are .*seed"):
+        api.run(FISCHER, depth=3)
+
+
+def test_api_messages_name_the_option_not_the_flag():
+    with pytest.raises(ArgumentError, match=r"pccl\.api\.explore: error: max_states must be"):
+        api.explore(FISCHER, max_states=0)
+    with pytest.raises(ArgumentError, match=r"reduce is not an option of run \(a run executes the unreduced"):
+        api.run(FISCHER, reduce="merge")
+
+
+# ---------------------------------------------------------------------------
+# run --invariant, in both spellings
+# ---------------------------------------------------------------------------
+
+def test_run_invariant_in_cli_and_api_agree():
+    inv = "count(inCs) <= 1"
+    res = api.run(FISCHER, overrides={"k": "1"}, invariants=[inv])
+    assert res.status == "violation" and res.exit_status == 1
+    assert res.violations[0].kind == "invariant"
+    assert sum(a.variables["inCs"] for a in res.final_state.agents) == 2
+    out = cli("run", FISCHER, "--set", "k=1", "--invariant", inv)
+    assert out.exit_code == 1
+    assert f"result: violation — invariant '{inv}' violated" in out.output
+    assert f" {res.steps} transitions)" in out.output
+    clean = api.run(FISCHER, overrides={"k": "1"}, invariants=["count(inCs) <= 2"])
+    assert clean.status != "violation"
+
+
+def test_run_invariant_typo_is_a_user_error():
+    out = cli("run", FISCHER, "--invariant", "count(inCz) <= 1")
+    assert out.exit_code == 2 and "inCz" in out.stderr and "^" in out.stderr
+
+
+# ---------------------------------------------------------------------------
+# typed results
+# ---------------------------------------------------------------------------
+
+def test_explore_result_is_typed_and_matches_the_cli_json():
+    r = api.explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="instant")
+    assert isinstance(r.violation, Finding) and r.violation is r.violations[0]
+    assert all(isinstance(s, StepView) for s in r.trace)
+    assert isinstance(r.final_state, StateView)
+    assert all(isinstance(a, AgentView) for a in r.final_state.agents)
+    stuck = [a for a in r.final_state.agents if a.status == "stuck"]
+    assert stuck and stuck[0].stuck.line == r.violation.line
+    out = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "-b", "instant",
+              "--format", "json")
+    data = json.loads(out.output)
+    assert data["violations"][0] == r.violation.to_json()
+    assert data["violations"][0]["state"]["agents"][0]["variables"] == \
+        dict(r.final_state.agents[0].variables)
+
+
+def test_state_view_text_is_what_the_cli_prints():
+    r = api.explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="instant")
+    out = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "-b", "instant").output
+    block = out.split("violating state:\n", 1)[1].split("\nstatistics:", 1)[0]
+    assert str(r.final_state) == block
+    res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3)
+    out = cli("run", RACE, "--world", RACE_WORLD, "-b", "instant", "--seed", "3").output
+    assert out.rstrip("\n").endswith(str(res.final_state))
+    assert res.final_state.time == res.final[0]
+    assert [a.status for a in res.final_state.agents] == ["exited"] * len(res.final_state.agents)
+    assert res.final_state.shared["dests"] == []
+
+
+def test_views_read_by_json_key_like_the_json():
+    r = api.explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="instant")
+    last = r.trace[-1]
+    assert last["source"] == last.source and last["changes"][0] == last.changes[0].to_json()
+    assert r.violation["message"] == r.violation.message
+
+
+def test_bounds_are_the_enum_and_labels_the_flags():
+    r = api.explore(FISCHER, max_states=50, depth=1000)
+    assert r.status == "bounded"
+    assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["--max-states 50"]
+    out = cli("explore", FISCHER, "--max-states", "50", "--format", "json")
+    assert json.loads(out.output)["bounds"] == r.bound_labels
+
+
+@pytest.mark.parametrize("kw, flag, keyword", [
+    (dict(rates={1: 5}), ["--rate", "1=5"], "rates"),
+    (dict(overrides={"zz": "1"}), ["--set", "zz=1"], "overrides"),
+    (dict(agents=20_000), ["--agents", "20000"], "agents"),
+])
+def test_model_option_errors_name_the_keyword_in_the_api_and_the_flag_in_the_cli(kw, flag,
+                                                                                   keyword):
+    with pytest.raises(ArgumentError) as e:
+        api.explore(FISCHER, **kw)
+    api_text = str(e.value)
+    assert api_text.startswith(f"pccl.api.explore: error: {keyword}: ")
+    out = cli("explore", FISCHER, *flag)
+    assert out.exit_code == 2
+    assert out.stderr.startswith(f"{flag[0]}: error: ")
+    # the same message after the prefix
+    assert out.stderr.strip().split(": error: ", 1)[1] == api_text.split(f"{keyword}: ", 1)[1]
