@@ -6,6 +6,7 @@
     python benchmarks/run.py --no-baseline     # this checkout only
     python benchmarks/run.py --reduce          # reductions: auto and none side by side
     python benchmarks/run.py --reduce --full   # also the long ones (k=10 none, 3 agents k=2)
+    python benchmarks/run.py --no-timelock     # the new code without the time-lock check
 
 The machine may be shared: "seconds" is the search's wall time, "CPU s" the
 process's CPU time during the search (time.process_time), which load on
@@ -28,7 +29,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -73,7 +73,7 @@ REDUCE_CASES = [
                                        agents=3), ("auto", "none")),
     ("race_safe nondet 4 agents", dict(program="programs/race_safe.pccl",
                                        world="programs/race.toml", blackbox="nondet",
-                                       agents=4, max_states=3_000_000), ("auto", "none")),
+                                       agents=4, explore={"max_states": 3_000_000}), ("auto", "none")),
 ]
 REDUCE_FULL = [
     ("fischer k=10 (paper), exhaustive", dict(program="programs/fischer.pccl"), ("none",)),
@@ -102,7 +102,7 @@ m = make_model(spec.pop("program"), world=spec.pop("world", None),
                **({"reduce": spec.pop("reduce")} if "reduce" in spec else {}))
 rss0 = peak_rss_bytes()
 cpu0 = time.process_time()
-r = explore_model(m, max_states=spec.pop("max_states", None))
+r = explore_model(m, **spec.pop("explore", {}))
 cpu = time.process_time() - cpu0
 peak = peak_rss_bytes()
 s = r.stats
@@ -155,6 +155,9 @@ def main() -> None:
     ap.add_argument("--only", metavar="TEXT", help="run the cases whose name contains TEXT")
     ap.add_argument("--reduce", action="store_true",
                     help="the reduction cases: --reduce auto and none side by side")
+    ap.add_argument("--no-timelock", action="store_true",
+                    help="run this checkout without the time-lock check (timelock=False); "
+                         "the baseline runs as it is")
     args = ap.parse_args()
     if args.reduce:
         return reduce_main(args)
@@ -175,7 +178,10 @@ def main() -> None:
             runs: dict = {v: [] for v, _ in versions}
             for _ in range(args.repeat if len(versions) > 1 else 1):
                 for v, d in versions:
-                    runs[v].append(run_case(dict(spec), d))
+                    sp = dict(spec)
+                    if args.no_timelock and d is None:
+                        sp["explore"] = {"timelock": False}
+                    runs[v].append(run_case(sp, d))
             for v, _ in versions:
                 r = median_run(runs[v])
                 if args.json:

@@ -110,6 +110,7 @@ def _import(modname: str, spec: str):
             name = "_pccl_user_blackbox_" + os.path.splitext(
                 os.path.basename(path))[0]
             mspec = importlib.util.spec_from_file_location(name, path)
+            assert mspec is not None and mspec.loader is not None, path   # a .py file
             module = importlib.util.module_from_spec(mspec)
             sys.modules[name] = module
             mspec.loader.exec_module(module)

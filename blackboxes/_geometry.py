@@ -54,7 +54,7 @@ class Obstacles:
         self._points: dict = {}
         self._segments: dict = {}
         self._roadmaps: dict = {}
-        self._pymunk_parts = None
+        self._pymunk_parts: Optional[tuple] = None
 
     # -- queries ---------------------------------------------------------
     def contains_point(self, x: float, y: float) -> bool:
@@ -88,7 +88,7 @@ class Obstacles:
                 hit = bool(shapely.intersects_xy(self.union, x0, y0))
             else:
                 seg = shapely.LineString(((x0, y0), (x1, y1)))
-                hit = bool(self.union.intersects(seg))
+                hit = bool(self.union.intersects(seg))  # type: ignore[union-attr]
             if len(self._segments) >= _RESULT_CACHE_LIMIT:
                 self._segments.clear()
             self._segments[key] = hit
@@ -104,7 +104,8 @@ class Obstacles:
         """(convex vertex lists, segments): the obstacles as pymunk-ready
         convex pieces (non-convex polygons are triangulated)."""
         if self._pymunk_parts is None:
-            convex, segments = [], []
+            convex: list = []
+            segments: list = []
             if self.union is not None:
                 for g in shapely.get_parts(self.union):
                     _pieces(g, convex, segments)
@@ -155,7 +156,7 @@ def obstacles_of(*parts) -> Obstacles:
         key = tuple(tuple(_norm_polygon(p) for p in part) for part in parts)
     obs = _cache.get(key)
     if obs is None:
-        seen = {}
+        seen: dict = {}
         for part in parts:
             for poly in part:
                 seen.setdefault(_norm_polygon(poly), None)
@@ -195,6 +196,7 @@ class Roadmap:
     def __init__(self, obstacles: Obstacles, radius: float):
         self.radius = r = radius
         u = obstacles.union
+        assert u is not None, "a roadmap is built only around obstacles"
         inner = u.buffer(INNER * r, join_style="mitre")
         outer = u.buffer(OUTER * r, join_style="mitre")
         shapely.prepare(inner)
@@ -207,7 +209,7 @@ class Roadmap:
                     verts.setdefault((round(c[0], 9), round(c[1], 9)), None)
         self.verts = list(verts)
         n = len(self.verts)
-        self.adj = [[] for _ in range(n)]
+        self.adj: list[list] = [[] for _ in range(n)]
         for i in range(n):
             a = self.verts[i]
             for j in range(i + 1, n):
@@ -302,9 +304,9 @@ class Roadmap:
         if best_last is None:
             return ((t,), direct)
         legs = [t]
-        i: Optional[int] = best_last
-        while i is not None:
-            legs.append(self.verts[i])
-            i = prev[i]
+        v: Optional[int] = best_last
+        while v is not None:
+            legs.append(self.verts[v])
+            v = prev[v]
         legs.reverse()
         return (tuple(legs), best)

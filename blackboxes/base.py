@@ -42,7 +42,8 @@ Writing your own::
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Hashable, Optional, Protocol, Sequence
+from typing import Optional, Protocol
+from collections.abc import Hashable, Sequence
 
 Position = tuple  # (x, y, z) floats
 Polygon = tuple   # ((x, y), ...)

@@ -1,4 +1,4 @@
-"""``pymunk``: 2-D rigid-body physics for disc robots (spec section 6).
+"""``pymunk``: 2-D rigid-body physics for disc robots (docs/blackboxes.md).
 
 Model
 -----
@@ -61,6 +61,8 @@ returned unrounded (the engine rounds them); z is carried through unchanged.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from enum import IntEnum
 
 from pccl.errors import PcclError
 
@@ -98,6 +100,24 @@ def _round(x: float, res: float) -> float:
     return round(round(x / res) * res, 9) + 0.0
 
 
+class Mode(IntEnum):
+    """What an agent's body does during one step."""
+    HOLD = 0     # no target, or the motion failed: no driving force
+    DRIVE = 1    # drive along the planned path toward the target
+    DONE = 2     # already done: hold the target
+
+
+@dataclass
+class _Plans:
+    """Per-agent plans for one step (lists indexed by agent)."""
+    mode: list
+    done: list
+    fail: list
+    paths: list       # the legs (waypoints) to the target, or None
+    length0: list     # the path length at the start of the step
+    targets: list     # (x, y), or None
+
+
 class PymunkBlackbox:
     name = "pymunk"
     uses_time = False
@@ -108,60 +128,68 @@ class PymunkBlackbox:
 
     # ------------------------------------------------------------------
     def step(self, world, motions, env, time, delta):
-        n = len(motions)
-        vels, stalls = self._unpack(env, n)
-        r = world.radius
-        res = world.resolution
-        speed = world.speed
-        tol = world.tolerance
+        vels, stalls = self._unpack(env, len(motions))
+        obs, roadmap = self._obstacles(world, motions)
+        plans = self._plan(motions, obs, roadmap)
+        if delta <= 0:
+            positions = tuple(tuple(float(c) for c in m.position) for m in motions)
+            return [Outcome(positions, tuple(plans.done), tuple(plans.fail),
+                            (vels, stalls))]
+        space, bodies = self._build_space(world, motions, vels, obs)
+        reached = self._simulate(world, space, bodies, plans, delta)
+        return [self._results(world, motions, bodies, plans, reached, stalls,
+                              roadmap, delta)]
 
+    @staticmethod
+    def _obstacles(world, motions):
+        """The world's obstacles and those the motions name, merged; and
+        their roadmap for the robots' radius (None without obstacles)."""
         parts = [world.obstacles]
         for m in motions:
             if m.obstacles and not any(m.obstacles is q or m.obstacles == q
                                        for q in parts):
                 parts.append(m.obstacles)
         obs = obstacles_of(*parts) if any(parts) else EMPTY
-        roadmap = obs.roadmap(r) if obs is not EMPTY else None
+        roadmap = obs.roadmap(world.radius) if obs is not EMPTY else None
+        return obs, roadmap
 
-        # --- per-agent plans ---------------------------------------------
-        # mode: 0 hold (no target / failed), 1 drive, 2 done (hold target)
-        mode = [0] * n
-        done = [False] * n
-        fail = [False] * n
-        paths = [None] * n
-        length0 = [0.0] * n
-        targets = [None] * n
+    @staticmethod
+    def _plan(motions, obs, roadmap) -> _Plans:
+        """Each agent's mode, flags, path and target."""
+        n = len(motions)
+        plans = _Plans([Mode.HOLD] * n, [False] * n, [False] * n, [None] * n,
+                       [0.0] * n, [None] * n)
         for i, m in enumerate(motions):
             t = m.target
             if t is None:
                 continue
             if m.fail:
-                fail[i] = True
+                plans.fail[i] = True
                 continue
             tx, ty = float(t[0]), float(t[1])
-            targets[i] = (tx, ty)
+            plans.targets[i] = (tx, ty)
             if obs.contains_point(tx, ty):
-                fail[i] = True
+                plans.fail[i] = True
                 continue
             p = (float(m.position[0]), float(m.position[1]))
             if roadmap is not None:
                 legs, L = roadmap.path(p, (tx, ty))
             else:
                 legs, L = ((tx, ty),), math.hypot(tx - p[0], ty - p[1])
-            paths[i] = legs
-            length0[i] = L
+            plans.paths[i] = legs
+            plans.length0[i] = L
             if m.done:
-                done[i] = True
-                mode[i] = 2
+                plans.done[i] = True
+                plans.mode[i] = Mode.DONE
             else:
-                mode[i] = 1
+                plans.mode[i] = Mode.DRIVE
+        return plans
 
-        if delta <= 0:
-            positions = tuple(tuple(float(c) for c in m.position) for m in motions)
-            return [Outcome(positions, tuple(done), tuple(fail),
-                            (vels, stalls))]
-
-        # --- build the space ---------------------------------------------
+    @staticmethod
+    def _build_space(world, motions, vels, obs):
+        """A pymunk space with the obstacles (static, frictionless) and one
+        disc body per agent at its position and velocity."""
+        r = world.radius
         pymunk = require()
         space = pymunk.Space()
         space.gravity = (0.0, 0.0)
@@ -194,7 +222,16 @@ class PymunkBlackbox:
             shape.elasticity = 0.0
             space.add(body, shape)
             bodies.append(body)
+        return space, bodies
 
+    @staticmethod
+    def _simulate(world, space, bodies, plans: _Plans, delta) -> list:
+        """Advance the space by ``delta`` in substeps, steering each driving
+        body along its path; which agents came within tolerance of their
+        target at some substep."""
+        n = len(bodies)
+        r, speed, tol = world.radius, world.speed, world.tolerance
+        mode, paths, targets = plans.mode, plans.paths, plans.targets
         substeps = max(MIN_SUBSTEPS, math.ceil(speed * delta / (r / 4)))
         dt = delta / substeps
         dv_max = ACCEL * speed * dt
@@ -202,8 +239,6 @@ class PymunkBlackbox:
         switch = max(r / 2, 2 * speed * dt)
         leg = [0] * n
         reached = [False] * n
-
-        # --- simulate ----------------------------------------------------
         pos = [body.position for body in bodies]
         for _ in range(substeps):
             for i in range(n):
@@ -241,13 +276,21 @@ class PymunkBlackbox:
             space.step(dt)
             pos = [body.position for body in bodies]
             for i in range(n):
-                if mode[i] == 1 and not reached[i]:
+                if mode[i] == Mode.DRIVE and not reached[i]:
                     px, py = pos[i]
                     tx, ty = targets[i]
                     if math.hypot(tx - px, ty - py) <= tol:
                         reached[i] = True
+        return reached
 
-        # --- results -----------------------------------------------------
+    @staticmethod
+    def _results(world, motions, bodies, plans: _Plans, reached, stalls, roadmap,
+                 delta) -> Outcome:
+        """Positions (snapped to the target when within tolerance), the done
+        and fail flags, and the next environment (velocities, stall times: a
+        driving agent that made no progress for ``no_progress_time`` fails)."""
+        res, tol = world.resolution, world.tolerance
+        mode, done, fail, targets = plans.mode, plans.done, plans.fail, plans.targets
         positions, new_vels, new_stalls = [], [], []
         for i, m in enumerate(motions):
             body = bodies[i]
@@ -262,13 +305,13 @@ class PymunkBlackbox:
                 if math.hypot(tx - px, ty - py) <= tol:
                     done[i] = True
                     px, py, vx, vy = tx, ty, 0.0, 0.0
-                elif mode[i] == 1 and not done[i]:
+                elif mode[i] == Mode.DRIVE and not done[i]:
                     q = (_round(px, res), _round(py, res))
                     if roadmap is not None:
                         L1 = roadmap.path(q, (tx, ty))[1]
                     else:
                         L1 = math.hypot(tx - q[0], ty - q[1])
-                    if length0[i] - L1 > res:
+                    if plans.length0[i] - L1 > res:
                         stall = 0.0
                     else:
                         stall = round(stalls[i] + delta, 6)
@@ -279,7 +322,7 @@ class PymunkBlackbox:
             new_vels.append((_round(vx, res), _round(vy, res)))
             new_stalls.append(stall)
         env_out = (tuple(new_vels), tuple(new_stalls))
-        return [Outcome(tuple(positions), tuple(done), tuple(fail), env_out)]
+        return Outcome(tuple(positions), tuple(done), tuple(fail), env_out)
 
     @staticmethod
     def _unpack(env, n):

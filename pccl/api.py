@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
 from . import ast as A
-from . import display as D
 from .engine import Model
 from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
@@ -30,7 +29,8 @@ from .runner import RunResult, run as _run
 
 #: The options of :func:`explore_model` (the search's, not the model's).
 SEARCH_OPTIONS = ("depth", "max_states", "max_memory", "deadlock", "find_all", "exact",
-                  "workers", "coverage", "progress_interval", "progress")
+                  "workers", "coverage", "progress_interval", "progress", "timelock",
+                  "fastest")
 
 
 def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
@@ -183,6 +183,12 @@ class ExploreResult:
     search: Optional[SearchResult] = None
     counterexamples: list = field(default_factory=list)  # [Counterexample], as violations
     coverage: Any = None              # a CoverageReport, with coverage=True
+    #: reachable P: [{"name", "text", "trace", "state"}] of the properties with a witness
+    witnesses: list = field(default_factory=list)
+    #: temporal properties (spec section 9) that hold, and what was not checked
+    holds: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    timelock: bool = False            # whether the time-lock check ran
     bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
 
     @property
@@ -240,6 +246,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
     find_all, exact, progress, coverage = o.find_all, o.exact, o.progress, o.coverage
     max_memory, workers, progress_interval = o.max_memory, o.workers, o.progress_interval
+    timelock, fastest = o.timelock, o.fastest
     if max_memory == "default":
         max_memory = default_max_memory()
     cov = None
@@ -251,17 +258,28 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if workers == "auto":
         from .parallel import available_workers
         workers = available_workers()
+    assert isinstance(workers, int), workers           # validated by ExploreOptions
     if workers > 1 and (exact or coverage):
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1", filename="pccl.api.explore_model")
+    if workers > 1 and (model.temporal or fastest):
+        what = "fastest=True" if fastest else "a temporal property"
+        raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
+                            filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
+    from . import liveness as L
+    timelock = timelock and workers == 1
+    rec = L.make_recorder(model, timelock) if workers == 1 else None
     if workers > 1:
         from .parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=workers, **opts)
+        ex: Any = ParallelExplorer(model, workers=workers, **opts)
+    elif fastest:
+        from .fastest import FastestExplorer
+        ex = FastestExplorer(cov or model, recorder=rec, **opts)
     else:
-        ex = Explorer(cov or model, **opts)
+        ex = Explorer(cov or model, recorder=rec, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -271,6 +289,19 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         from .reduce import expand_trace
         for f in sr.found:
             f.trace = expand_trace(model, f.trace, f.violation)
+    lv = None
+    if rec is not None:
+        import time as _time
+        from .explorer import peak_rss_bytes
+        t0 = _time.perf_counter()
+        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all)
+        L.attach_traces(model, ex, lv)
+        # the figures include the analysis of the graph
+        sr.stats.seconds += _time.perf_counter() - t0
+        sr.stats.peak_memory = peak_rss_bytes()
+        if lv.found and sr.status != "interrupted":
+            sr.found.extend(lv.found)
+            sr.status = "violation"
     bb = model.blackbox.name
     labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
               for b in sr.bounds_hit]
@@ -300,11 +331,21 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
+    witnesses = []
+    if lv is not None:
+        for p, cx in lv.witnesses:
+            steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
+                          for st in cx.trace.steps)
+            witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
+                              "trace": steps, "state": StateView.of(model, cx.trace.last),
+                              "_trace": cx.trace})
     return ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                          violations, first.trace if first else (),
                          first.state if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
-                         cov.report() if cov is not None else None, labels)
+                         cov.report() if cov is not None else None, witnesses,
+                         list(lv.holds) if lv else [], list(lv.notes) if lv else [],
+                         timelock, labels)
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:
@@ -346,17 +387,21 @@ def violation_data(model, found: Counterexample) -> Finding:
     """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
     rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
-    tr: Trace = found.trace
+    # every counterexample carries its trace, but "unreachable" (a failed
+    # reachable P: there is no path to show)
+    tr: Optional[Trace] = found.trace
+    assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
-    if reduced and any(len(lab) > 3 for lab in tr.labels):
+    if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
         from .reduce import expand_trace
         tr = expand_trace(model, tr, v)
-    steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
-                  for st in tr.steps)
+    steps = () if tr is None else tuple(
+        StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
     return Finding(v.kind, v.name, v.message, v.agent,
                    v.span.line if v.span else None, v.span.column if v.span else None,
                    found.depth, "under the reductions" if reduced else "yes",
-                   steps, StateView.of(model, tr.last))
+                   steps, None if tr is None else StateView.of(model, tr.last),
+                   found.cycle_start)
 
 
 # ---------------------------------------------------------------------------
@@ -366,14 +411,16 @@ def violation_data(model, found: Counterexample) -> Finding:
 def run(program, **options) -> RunResult:
     """Execute ``program`` once.  ``options`` are the fields of
     :class:`~pccl.options.RunOptions`, spelt like ``pccl run``'s flags
-    (``seed``, ``max_steps``, ``max_time``, ``invariants``, ...) plus
-    ``record_trace``."""
+    (``seed``, ``max_steps``, ``max_time``, ``invariants``, ``stall_steps``,
+    ...) plus ``record_trace``.  ``stall_steps``: stop (status ``stalled``,
+    exit status 1) when no variable, position or flag changed for this many
+    time steps while an agent still runs; 0 turns that off."""
     V.program("run", program, options.get("source", False))
     opts = RunOptions.from_api("run", options)
     rng = random.Random(opts.seed)
     model = _api_model("run", program, opts, rng=rng)
     res = _run(model, seed=opts.seed, max_steps=opts.max_steps,
-               record_trace=opts.record_trace, rng=rng)
+               record_trace=opts.record_trace, rng=rng, stall_steps=opts.stall_steps)
     res.model = model
     return res
 

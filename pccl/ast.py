@@ -5,16 +5,23 @@ end column exclusive) so that every message can point at the source.  Spans do
 not take part in equality or hashing, but every *statement* also carries a
 unique ``sid`` (statement occurrence id, assigned by the parser in source
 order) so that two textually equal statements at different places are
-different items of an agent's pending computation ``k`` (spec section 5).
+different items of an agent's pending computation ``k`` (docs/language.md
+§11, "The configuration").
+
+Declarations (variables, enums and their members, events, named invariants)
+also carry the span of the declared name itself (``name_span``), so that a
+message about a name points at the name.
 
 The parser (``pccl.parser``) builds these; the static checker
 (``pccl.checker``) reads them and fills in nothing: it only reports errors.
-The compiler (``pccl.compile``) turns them into closures.
+The compiler (``pccl.compile``) turns them into closures.  Traversals use
+:func:`children` (the one function that knows each node's sub-nodes) through
+:func:`walk`, :func:`walk_stmts` and :func:`walk_expr`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional, Union
 
 
@@ -145,8 +152,20 @@ class Quant:
     span: Span = _span()
 
 
+@dataclass(frozen=True)
+class Temporal:
+    """Properties only, at the top (under ``forall`` at most; spec section 9):
+    ``eventually p``, ``reachable p``, ``p ~> q`` and ``p ~> q within bound``.
+    ``kind`` is ``"eventually"``, ``"reachable"`` or ``"leadsto"``."""
+    kind: str
+    p: "Expr"
+    q: Optional["Expr"] = None
+    bound: Optional["Expr"] = None
+    span: Span = _span()
+
+
 Expr = Union[IntLit, FloatLit, BoolLit, ListLit, Name, Index, Field, Call,
-             Unary, Binary, Quant]
+             Unary, Binary, Quant, Temporal]
 
 
 # --------------------------------------------------------------------------
@@ -227,6 +246,7 @@ class VarDecl:
     size: Optional[Expr]
     init: Optional[Expr]
     span: Span = _span()
+    name_span: Span = _span()        #: where ``name`` is written
 
 
 @dataclass(frozen=True)
@@ -236,6 +256,9 @@ class EnumDecl:
     name: str
     members: tuple[str, ...]
     span: Span = _span()
+    name_span: Span = _span()        #: where ``name`` is written
+    #: where each member is written (parallel to ``members``)
+    member_spans: tuple[Span, ...] = field(default=(), compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -244,6 +267,7 @@ class Event:
     guard: Expr
     body: tuple[Stmt, ...]
     span: Span = _span()
+    name_span: Span = _span()        #: where ``name`` is written
 
 
 @dataclass(frozen=True)
@@ -252,6 +276,7 @@ class Invariant:
     name: Optional[str]
     expr: Expr
     span: Span = _span()
+    name_span: Span = _span()        #: where ``name`` is written (when named)
 
 
 @dataclass(frozen=True)
@@ -266,16 +291,92 @@ class Program:
     n_statements: int = field(default=0, compare=False)  # sids are 0..n-1
 
 
+Node = Union[Expr, Stmt, VarDecl, EnumDecl, Event, Invariant, Program]
+
+#: Statement classes (the nodes with a ``sid``).
+STMT_TYPES = (Assign, If, While, Atomic, CallStmt, Skip)
+
+
+def children(node) -> tuple:
+    """The direct sub-nodes of ``node`` in source order: expressions and
+    statements, never types or spans.  Every traversal of the AST is built
+    on this one function (as pyk's ``map_inner``), so a new node kind is
+    added here and nowhere else."""
+    if isinstance(node, (IntLit, FloatLit, BoolLit, Name, Skip, TypeRef, EnumDecl)):
+        return ()
+    if isinstance(node, ListLit):
+        return node.items
+    if isinstance(node, Index):
+        return (node.base, node.index)
+    if isinstance(node, Field):
+        return (node.base,)
+    if isinstance(node, (Call, CallStmt)):
+        return node.args
+    if isinstance(node, Unary):
+        return (node.operand,)
+    if isinstance(node, Binary):
+        return (node.left, node.right)
+    if isinstance(node, Quant):
+        return (node.body,)
+    if isinstance(node, Temporal):
+        return tuple(x for x in (node.p, node.q, node.bound) if x is not None)
+    if isinstance(node, Assign):
+        return (node.target, node.value)
+    if isinstance(node, If):
+        out: list = []
+        for cond, body in node.branches:
+            out.append(cond)
+            out.extend(body)
+        return (*out, *node.orelse)
+    if isinstance(node, While):
+        return (node.cond, *node.body)
+    if isinstance(node, Atomic):
+        return node.body
+    if isinstance(node, VarDecl):
+        return tuple(e for e in (node.size, node.init) if e is not None)
+    if isinstance(node, Event):
+        return (node.guard, *node.body)
+    if isinstance(node, Invariant):
+        return (node.expr,)
+    if isinstance(node, Program):
+        return (*node.decls, *node.init, *node.events, *node.invariants)
+    raise TypeError(f"not an AST node: {node!r}")
+
+
+def walk(node):
+    """Yield ``node`` and every node below it, in pre-order (source order).
+    Iterative: a chain of 3,000 operators is 3,000 levels deep."""
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        yield n
+        stack.extend(reversed(children(n)))
+
+
 def walk_stmts(stmts):
     """Yield every statement in ``stmts`` and its nested blocks, in order."""
-    for s in stmts:
+    stack = list(reversed(stmts))
+    while stack:
+        s = stack.pop()
         yield s
-        if isinstance(s, If):
-            for _, body in s.branches:
-                yield from walk_stmts(body)
-            yield from walk_stmts(s.orelse)
-        elif isinstance(s, (While, Atomic)):
-            yield from walk_stmts(s.body)
+        stack.extend(c for c in reversed(children(s)) if isinstance(c, STMT_TYPES))
+
+
+def with_blocks(stmt, f):
+    """``stmt`` with each block nested in it (if/else branches, a while's or
+    an atomic's body) replaced by ``f(block)``; other statements unchanged."""
+    if isinstance(stmt, If):
+        return replace(stmt, branches=tuple((c, f(b)) for c, b in stmt.branches),
+                       orelse=f(stmt.orelse))
+    if isinstance(stmt, (While, Atomic)):
+        return replace(stmt, body=f(stmt.body))
+    return stmt
+
+
+def own_exprs(stmt) -> tuple:
+    """The expressions a statement evaluates itself (conditions, operands),
+    not those of the statements nested in its blocks."""
+    return tuple(c for c in children(stmt) if not isinstance(c, STMT_TYPES))
 
 
 def index_chain(e):
@@ -290,25 +391,5 @@ def index_chain(e):
 
 
 def walk_expr(e):
-    """Yield ``e`` and every sub-expression, in pre-order (iteratively: a
-    chain of 3,000 operators is 3,000 levels deep)."""
-    stack = [e]
-    while stack:
-        e = stack.pop()
-        yield e
-        if isinstance(e, ListLit):
-            stack.extend(reversed(e.items))
-        elif isinstance(e, Index):
-            stack.append(e.index)
-            stack.append(e.base)
-        elif isinstance(e, Field):
-            stack.append(e.base)
-        elif isinstance(e, Call):
-            stack.extend(reversed(e.args))
-        elif isinstance(e, Unary):
-            stack.append(e.operand)
-        elif isinstance(e, Binary):
-            stack.append(e.right)
-            stack.append(e.left)
-        elif isinstance(e, Quant):
-            stack.append(e.body)
+    """Yield ``e`` and every sub-expression, in pre-order."""
+    return walk(e)

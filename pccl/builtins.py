@@ -1,4 +1,4 @@
-"""The built-in functions of PCCL (spec section 2), in one table.
+"""The built-in functions of PCCL (docs/language.md §8), in one table.
 
 The static checker (:mod:`pccl.checker`) reads this table to check calls;
 the compiler reads it to know which functions exist and what they return.

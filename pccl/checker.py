@@ -1,4 +1,4 @@
-"""The static checker: names, types and the rules of spec sections 2 and 5.
+"""The static checker: names, types and the rules of docs/language.md §4-§10.
 
 ``check_program`` walks a parsed :class:`pccl.ast.Program` and either returns
 a :class:`CheckedProgram` (names, resolved types, enums, functions) or raises the first problem, in source
@@ -6,7 +6,7 @@ order, as a :class:`PcclError` whose span points at the offending node.
 ``check_property`` does the same for a property expression (the program's
 ``invariant:`` section, ``--invariant EXPR``) against a checked program.
 
-Type rules (where the spec is silent, the choice is written here):
+Type rules (where docs/language.md is silent, the choice is written here):
 
 * Types: ``int bool float ItemPosition ObstacleList List<T>``, enums, arrays
   ``T[n]`` (n a constant), and ``any``: the type of an uninterpreted function's
@@ -37,15 +37,14 @@ Type rules (where the spec is silent, the choice is written here):
 from __future__ import annotations
 
 import difflib
-import re
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import NoReturn, Optional
 
 from . import ast
 from .ast import Span
 from .builtins import BUILTINS, READONLY_FLAGS, Builtin, uninterpreted
 from .errors import PcclError
-from .types import (ANY, BOOL, BUILTIN_TYPE_NAMES, DESCRIPTORS, FLOAT, INT, OBSTACLES, POS,
+from .types import (ANY, BOOL, BUILTIN_TYPE_NAMES, DESCRIPTORS, FLOAT, INT, POS,
                     TYPE_NAMES, Ty, array_of, assignable, compatible, join, list_of)
 from .values import div, mod
 
@@ -82,7 +81,7 @@ class VarInfo:
     @property
     def value_type(self) -> Ty:
         """The type of one element (arrays) or of the variable."""
-        return self.type.elem if self.is_array else self.type
+        return self.type.item if self.is_array else self.type
 
     @property
     def per_agent(self) -> bool:
@@ -186,6 +185,9 @@ def check_property(expr: ast.Expr, info: CheckedProgram, *, filename: str,
 
 _AGENT_FUNCTIONS = ("getAgentIndex", "getPosition")
 _PROPERTY_NAMES = ("time", "N")
+#: Status predicates of properties (spec section 9): ``exited[i]``,
+#: ``stuck[i]``, ``running[i]``; a program variable of the same name wins.
+STATUS_PREDICATES = ("exited", "stuck", "running")
 _PROGRAM_ONLY_HINTS = {
     "getAgentIndex": "quantify over agent ids instead, forall i: …",
     "getPosition": "write pos[i] for agent i's position",
@@ -216,7 +218,7 @@ class _Checker:
 
     # ---- reporting -------------------------------------------------------
 
-    def fail(self, message: str, span: Optional[Span]):
+    def fail(self, message: str, span: Optional[Span]) -> NoReturn:
         raise PcclError(message, filename=self.filename, source=self.source,
                         span=span)
 
@@ -229,18 +231,11 @@ class _Checker:
         t = lines[s.line - 1][s.column - 1:s.end_column - 1].strip()
         return t or default
 
-    def find_word(self, span: Span, word: str, start: Optional[int] = None) -> Span:
-        """The span of ``word`` on the first line of ``span`` (from column
-        ``start``); the whole span when it cannot be found."""
-        lines = self.lines_of(span)
-        if span.line < 1 or span.line > len(lines):
-            return span
-        line = lines[span.line - 1]
-        col = (start if start else span.column) - 1
-        m = re.compile(r"(?<![\w])" + re.escape(word) + r"(?![\w])").search(line, max(col, 0))
-        if not m:
-            return span
-        return Span(span.line, m.start() + 1, span.line, m.end() + 1, span.origin)
+    @staticmethod
+    def declared_at(name_span: Span, whole: Span) -> Span:
+        """Where a declared name is written (the parser records it); the
+        whole declaration for an AST built without positions."""
+        return name_span if name_span.line > 0 else whole
 
     def name_span(self, node) -> Span:
         """The span of a call's function name (calls start with the name)."""
@@ -259,10 +254,26 @@ class _Checker:
     # ---- program ---------------------------------------------------------
 
     def program(self, p: ast.Program) -> None:
-        info = self.info
-        # Enums are constants visible everywhere: collect them first so that a
-        # type or a member may be used above its enum's declaration.
+        """Check a whole program, in source order: declarations, Init, the
+        events, the invariants."""
+        self.collect_enums(p.decls)
+        self.declared: dict[str, tuple[str, int]] = {}     # name -> (what, line)
         for d in p.decls:
+            if isinstance(d, ast.EnumDecl):
+                self.enum_decl(d)
+            else:
+                self.var_decl(d)
+        self.first_decl = {}
+        self.stmts(p.init)
+        self.events(p.events)
+        self.invariants(p.invariants)
+
+    def collect_enums(self, decls) -> None:
+        """Enums are constants visible everywhere: collect them first so that
+        a type or a member may be used above its enum's declaration (and note
+        each variable's first declaration, for initialisers)."""
+        info = self.info
+        for d in decls:
             if isinstance(d, ast.EnumDecl):
                 if d.name not in info.enums and d.name not in _BUILTIN_TYPE_NAMES:
                     info.enums[d.name] = d.members
@@ -270,85 +281,87 @@ class _Checker:
                     info.members.setdefault(m, (d.name, k))
             else:
                 self.first_decl.setdefault(d.name, d)
-        declared: dict[str, tuple[str, int]] = {}     # name -> (what, line)
 
-        def claim(name: str, what: str, span: Span, where: Span) -> None:
-            if name in READONLY_FLAGS:
-                self.fail(f"'{name}' is a read-only flag of the controller; "
-                          f"it cannot be declared", where)
-            if name in declared:
-                prev, line = declared[name]
-                if prev == what:
-                    self.fail(f"duplicate {what} '{name}'{_first_at(line)}", where)
-                at_line = f" at line {line}" if line > 0 else ""
-                self.fail(f"'{name}' is already declared as {_article(prev)}{at_line}",
-                          where)
-            declared[name] = (what, span.line)
+    def claim(self, name: str, what: str, span: Span, where: Span) -> None:
+        """Declare ``name`` as a ``what`` (variable, enum, enum member): one
+        name, one meaning; flags cannot be declared."""
+        if name in READONLY_FLAGS:
+            self.fail(f"'{name}' is a read-only flag of the controller; "
+                      f"it cannot be declared", where)
+        if name in self.declared:
+            prev, line = self.declared[name]
+            if prev == what:
+                self.fail(f"duplicate {what} '{name}'{_first_at(line)}", where)
+            at_line = f" at line {line}" if line > 0 else ""
+            self.fail(f"'{name}' is already declared as {_article(prev)}{at_line}",
+                      where)
+        self.declared[name] = (what, span.line)
 
-        for d in p.decls:
-            if isinstance(d, ast.EnumDecl):
-                at = self.find_word(d.span, d.name)
-                if d.name in _BUILTIN_TYPE_NAMES:
-                    self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
-                claim(d.name, "enum", d.span, at)
-                col = at.end_column if at is not d.span else None
-                seen: set[str] = set()
-                for m in d.members:
-                    ms = self.find_word(d.span, m, col)
-                    if ms is not d.span:
-                        col = ms.end_column
-                    if m in seen:
-                        self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
-                    seen.add(m)
-                    claim(m, "enum member", d.span, ms)
-                continue
-            start = d.type.span.end_column if (d.type.span.line == d.span.line
-                                                and d.type.span.line > 0) else None
-            at = self.find_word(d.span, d.name, start)
-            claim(d.name, "variable", d.span, at)
-            ty = self.declared_type(d.type, d.span)
-            if d.size is not None:
-                try:
-                    n = self.const_int(d.size)
-                except RecursionError:
-                    self.fail("array size expression is nested too deeply", d.size.span)
-                if n < 1:
-                    self.fail(f"array size must be at least 1, got {n}", d.size.span)
-                if n > MAX_ARRAY:
-                    self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
-                              f"{n if n < 10 ** 30 else 'a number of %d digits' % len(str(n))}"
-                              f" (every state holds every element, and a write copies them)",
-                              d.size.span)
-                ty = array_of(ty, n)
-            v = VarInfo(d.name, d.section, ty, d)
-            if d.init is not None:
-                self.init_of = v
-                t = self.value(d.init)
-                if not assignable(v.value_type, t):
-                    self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
-                              f"with {t}", d.init.span)
-                self.init_of = None
-            info.variables.setdefault(d.name, v)
-        self.first_decl = {}
-        self.stmts(p.init)
-        seen_events: dict[str, int] = {}
-        for ev in p.events:
-            if ev.name in seen_events:
-                self.fail(f"duplicate event '{ev.name}'{_first_at(seen_events[ev.name])}",
-                          self.find_word(ev.span, ev.name))
-            seen_events[ev.name] = ev.span.line
+    def enum_decl(self, d: ast.EnumDecl) -> None:
+        at = self.declared_at(d.name_span, d.span)
+        if d.name in _BUILTIN_TYPE_NAMES:
+            self.fail(f"'{d.name}' is a built-in type; it cannot name an enum", at)
+        self.claim(d.name, "enum", d.span, at)
+        seen: set[str] = set()
+        for k, m in enumerate(d.members):
+            ms = (self.declared_at(d.member_spans[k], d.span)
+                  if k < len(d.member_spans) else d.span)
+            if m in seen:
+                self.fail(f"duplicate member '{m}' in enum '{d.name}'", ms)
+            seen.add(m)
+            self.claim(m, "enum member", d.span, ms)
+
+    def var_decl(self, d: ast.VarDecl) -> None:
+        """A variable: its name, type, array size and initialiser."""
+        self.claim(d.name, "variable", d.span, self.declared_at(d.name_span, d.span))
+        ty = self.declared_type(d.type, d.span)
+        if d.size is not None:
+            ty = array_of(ty, self.array_size(d.size))
+        v = VarInfo(d.name, d.section, ty, d)
+        if d.init is not None:
+            self.init_of = v
+            t = self.value(d.init)
+            if not assignable(v.value_type, t):
+                self.fail(f"cannot initialise '{d.name}' of type {v.value_type} "
+                          f"with {t}", d.init.span)
+            self.init_of = None
+        self.info.variables.setdefault(d.name, v)
+
+    def array_size(self, size: ast.Expr) -> int:
+        """A constant array size in 1..MAX_ARRAY."""
+        try:
+            n = self.const_int(size)
+        except RecursionError:
+            self.fail("array size expression is nested too deeply", size.span)
+        if n < 1:
+            self.fail(f"array size must be at least 1, got {n}", size.span)
+        if n > MAX_ARRAY:
+            self.fail(f"array size must be at most {MAX_ARRAY:,}, got "
+                      f"{n if n < 10 ** 30 else f'a number of {len(str(n))} digits'}"
+                      f" (every state holds every element, and a write copies them)",
+                      size.span)
+        return n
+
+    def events(self, events) -> None:
+        seen: dict[str, int] = {}
+        for ev in events:
+            if ev.name in seen:
+                self.fail(f"duplicate event '{ev.name}'{_first_at(seen[ev.name])}",
+                          self.declared_at(ev.name_span, ev.span))
+            seen[ev.name] = ev.span.line
             self.condition(ev.guard, "pre")
             self.stmts(ev.body)
-        info.events = tuple(seen_events)
-        seen_invariants: dict[str, int] = {}
-        for inv in p.invariants:
+        self.info.events = tuple(seen)
+
+    def invariants(self, invariants) -> None:
+        seen: dict[str, int] = {}
+        for inv in invariants:
             if inv.name is not None:
-                if inv.name in seen_invariants:
-                    self.fail(f"duplicate invariant '{inv.name}'"
-                              f"{_first_at(seen_invariants[inv.name])}",
-                              self.find_word(inv.span, inv.name))
-                seen_invariants[inv.name] = inv.span.line
-            _Checker(info, "property").property(inv.expr)
+                if inv.name in seen:
+                    self.fail(f"duplicate invariant '{inv.name}'{_first_at(seen[inv.name])}",
+                              self.declared_at(inv.name_span, inv.span))
+                seen[inv.name] = inv.span.line
+            _Checker(self.info, "property").property(inv.expr)
 
     def declared_type(self, t: ast.TypeRef, where: Span) -> Ty:
         span = t.span if t.span.line > 0 else where
@@ -478,13 +491,13 @@ class _Checker:
                 t = self.lvalue(a)
                 if t.kind != "list" and t.kind != "any":
                     self.fail(f"{what} must be a List variable, got {t}", a.span)
-                elem = t.elem if t.kind == "list" else ANY
+                elem = t.item if t.kind == "list" else ANY
                 continue
             t = self.value(a)
             if p == "list":
                 if t.kind not in ("list", "any"):
                     self.fail(f"{what} must be a List, got {t}", a.span)
-                elem = t.elem if t.kind == "list" else ANY
+                elem = t.item if t.kind == "list" else ANY
             elif p == "elem":
                 if not assignable(elem, t):
                     self.fail(f"{what} must be {elem} (the list's element type), "
@@ -563,6 +576,10 @@ class _Checker:
             return t
         if isinstance(e, ast.Binary):
             return self.binary(e)
+        if isinstance(e, ast.Temporal):
+            word = "~>" if e.kind == "leadsto" else e.kind
+            self.fail(f"'{word}' must stand at the top of a property (under 'forall' at "
+                      f"most): it is not a value", e.span)
         if isinstance(e, ast.Quant):
             if self.mode != "property":
                 self.fail(f"'{e.kind}' is only allowed in properties", e.span)
@@ -638,7 +655,7 @@ class _Checker:
             return INT if a.kind == b.kind == "int" else FLOAT
         self.fail(f"unknown operator '{op}'", e.span)  # pragma: no cover
 
-    def undeclared(self, n: ast.Name):
+    def undeclared(self, n: ast.Name) -> NoReturn:
         if self.info.function(n.name) is not None:
             self.fail(f"'{n.name}' is a function: call it, {n.name}()", n.span)
         if self.mode == "program" and n.name == "time":
@@ -650,7 +667,7 @@ class _Checker:
         """" (did you mean 'x'?)" for a readable name close to ``name``, else ""."""
         names = [*self.info.variables, *self.first_decl, *READONLY_FLAGS, *self.info.members]
         if self.mode == "property":
-            names += [*self.bound, *_PROPERTY_NAMES, "pos"]
+            names += [*self.bound, *_PROPERTY_NAMES, "pos", *STATUS_PREDICATES]
         return did_you_mean(name, names)
 
     def suggest_function(self, name: str, *, statement: bool = False) -> str:
@@ -685,6 +702,8 @@ class _Checker:
             if name == "pos":
                 self.ambiguous(n)
                 self.per_agent_in_property(n)
+            if name in STATUS_PREDICATES and name not in self.info.variables:
+                self.per_agent_in_property(n)
         if self.init_of is not None:
             var = self.visible_in_init(n)
         else:
@@ -709,6 +728,7 @@ class _Checker:
         d = self.first_decl.get(n.name)
         if d is None:
             return None
+        assert self.init_of is not None, "only called inside an initialiser"
         if self.init_of.section == "allwrite" and d.section != "allwrite":
             self.fail(f"shared (allwrite) variable '{self.init_of.name}' cannot be "
                       f"initialised from per-agent ({d.section}) variable '{n.name}'",
@@ -732,7 +752,7 @@ class _Checker:
             if t.kind not in ("array", "list", "any"):
                 self.fail(f"cannot index a value of type {t}", node.span)
             self.index_value(node.index)
-            t = ANY if t.kind == "any" else t.elem
+            t = ANY if t.kind == "any" else t.item
         return t
 
     def index_value(self, ix: ast.Expr, what: str = "index") -> None:
@@ -753,7 +773,7 @@ class _Checker:
                 if not var.per_agent:
                     return None
                 t = var.type
-            elif name in READONLY_FLAGS:
+            elif name in READONLY_FLAGS or name in STATUS_PREDICATES:
                 t = BOOL
             else:
                 return None
@@ -762,6 +782,7 @@ class _Checker:
                 return None
             if self.init_of is not None:
                 var = self.visible_in_init(root)
+                assert var is not None, name          # declared: found above
             if var.is_array and len(chain) < 2:
                 return None                    # x[k]: this agent's element k
             t = var.type
@@ -781,10 +802,10 @@ class _Checker:
             self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
         if self.mode == "property":
             if not b.in_properties:
-                hint = _PROGRAM_ONLY_HINTS.get(e.name)
+                why = _PROGRAM_ONLY_HINTS.get(e.name)
                 if b.kind == "uninterpreted":
-                    hint = "its value belongs to the world, not to the state"
-                self.fail(f"'{e.name}' cannot be used in a property: {hint}",
+                    why = "its value belongs to the world, not to the state"
+                self.fail(f"'{e.name}' cannot be used in a property: {why}",
                           self.name_span(e))
             if b.kind == "property":
                 return self.count(e)
@@ -803,7 +824,8 @@ class _Checker:
         var = self.info.variables.get(a.name) if isinstance(a, ast.Name) else None
         ok = (isinstance(a, ast.Name) and a.name not in self.bound
               and ((var is not None and var.per_agent and var.type == BOOL)
-                   or (var is None and a.name in READONLY_FLAGS)))
+                   or (var is None and (a.name in READONLY_FLAGS
+                                        or a.name in STATUS_PREDICATES))))
         if (not ok and isinstance(a, ast.Name) and var is None and a.name not in self.bound
                 and a.name not in READONLY_FLAGS and a.name not in self.info.members):
             self.fail(f"undeclared variable '{a.name}'{self.suggest_name(a.name)}", a.span)
@@ -815,9 +837,45 @@ class _Checker:
     # ---- properties ------------------------------------------------------
 
     def property(self, e: ast.Expr) -> None:
+        """A property: a bool state expression, or one of the temporal forms
+        of spec section 9 at the top, under ``forall`` quantifiers at most
+        (``forall i: want[i] ~> has[i]`` is one property per agent)."""
+        top, saved = e, dict(self.bound)
+        while isinstance(top, ast.Quant) and isinstance(_under_quants(top.body), ast.Temporal):
+            if top.kind != "forall":
+                self.fail(f"only 'forall' may quantify a temporal property ('{top.kind}' "
+                          f"would need a branching-time check)", top.span)
+            self.bound[top.var] = 1
+            top = top.body
+        if isinstance(top, ast.Temporal):
+            for x in (top.p, top.q):
+                if x is not None:
+                    t = self.value(x)
+                    if t.kind not in ("bool", "any"):
+                        self.fail(f"a property must be bool, got {t}", x.span)
+            if top.bound is not None:
+                self.time_bound(top.bound)
+            self.bound = saved
+            return
         t = self.value(e)
         if t.kind not in ("bool", "any"):
             self.fail(f"a property must be bool, got {t}", e.span)
+
+    def time_bound(self, b: ast.Expr) -> None:
+        """The T of ``P ~> Q within T``: a constant number >= 0."""
+        for x in ast.walk_expr(b):
+            if not isinstance(x, (ast.IntLit, ast.FloatLit, ast.Unary, ast.Binary)):
+                self.fail("the bound of 'within' must be a constant number of time units, "
+                          "e.g. 'within 3'", b.span)
+        t = self.value(b)
+        if not t.is_number:
+            self.fail(f"the bound of 'within' must be a number, got {t}", b.span)
+
+
+def _under_quants(e):
+    while isinstance(e, ast.Quant):
+        e = e.body
+    return e
 
 
 def did_you_mean(name: str, candidates) -> str:

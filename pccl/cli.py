@@ -10,6 +10,7 @@ import click
 
 from . import display as D
 from .errors import PcclError
+from .layout import AGS, POS, STATUS, TIME
 from .options import ExploreOptions, RunOptions
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
@@ -140,7 +141,9 @@ def _fail(err: PcclError):
 
 
 EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
-                    "named), 1 a violation, 2 bad input (the program, the world, an option), "
+                    "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
+                    "counterexample, a time-lock, an unreachable 'reachable P', a stalled "
+                    "run), 2 bad input (the program, the world, an option), "
                     "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 _signal = {"term": False}
@@ -192,8 +195,9 @@ def main():
       pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
 
-    A violation is a stuck agent, a failed assertion or invariant, a deadlock
-    or (with --collisions) a collision.
+    A violation is a stuck agent, a failed assertion or invariant, a deadlock,
+    a time-lock, a failed temporal property (--property: eventually P, P ~> Q,
+    P ~> Q within T, reachable P) or (with --collisions) a collision.
     """
 
 
@@ -223,6 +227,9 @@ def check(program, world):
               help="stop when global time would pass this")
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before the run is stopped as looping")
+@click.option("--stall-steps", type=click.IntRange(min=0), default=20, show_default=True,
+              help="stop, as stalled (exit 1), when no variable, position or flag has changed "
+                   "for this many time steps while agents still run (0: never)")
 @click.option("--trace", is_flag=True, help="print every transition")
 @click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
@@ -234,7 +241,7 @@ def check(program, world):
                    "the first state that violates it (repeatable)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, invariants, trace, fmt, plot, trace_out, view, full):
+        max_time, max_steps, stall_steps, invariants, trace, fmt, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import build_model
     from .runner import run as run_model
@@ -249,7 +256,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     try:
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
-        res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng)
+        res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
+                        stall_steps=stall_steps)
         res.model = model
     except PcclError as e:
         _fail(e)
@@ -266,7 +274,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                "result": res.status, "message": res.message,
                "exit_status": _interrupted_status(res.exit_status),
                "steps": res.steps,
-               "summary": [{"time": t, "positions": [list(ag[6]) for ag in s[4]]}
+               "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
                            for t, s in res.summary],
                "final": D.state_json(m, res.final)}
         out["trace"] = doc
@@ -287,7 +295,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
             prev = s
         click.echo(f"result: {res.status} — {res.message} "
-                   f"(t={D.fmt_time(res.final[0])}, {res.steps} transitions)")
+                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions)")
         for v in res.violations:
             if v.span is not None:
                 click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
@@ -333,9 +341,9 @@ def _rates_text(m) -> str:
 
 def _step_summary(m, prev, s) -> str:
     parts = []
-    for i, ag in enumerate(s[4]):
-        st = D.status_text(m, ag[3])
-        parts.append(f"a{i} {D.fmt_pos(ag[6])}" + ("" if st == "running" else f" {st}"))
+    for i, ag in enumerate(s[AGS]):
+        st = D.status_text(m, ag[STATUS])
+        parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
     if prev is not None:
         ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
         if ch:
@@ -411,6 +419,16 @@ def _plot_run(m, res, path, *, quiet=False):
               help="leave the clock out of state identity [default: on when sound and no --max-time]")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property to check, e.g. 'count(inCs) <= 1' (repeatable)")
+@click.option("--property", "properties", multiple=True, metavar="FORM",
+              help="a property of any form: P, 'eventually P', 'P ~> Q', 'P ~> Q within T', "
+                   "'reachable P'; 'forall i:' in front makes one per agent, e.g. "
+                   "'forall i: want[i] ~> has[i]' (repeatable; docs/temporal.md)")
+@click.option("--no-timelock", "timelock", flag_value=False, default=True,
+              help="do not report time-locks (states from which time can never advance again "
+                   "while an agent has not exited)")
+@click.option("--fastest", is_flag=True,
+              help="report the counterexample that reaches its violation at the smallest "
+                   "global time (ties: fewest transitions) instead of the shortest")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
                    "comma-separated list of merge, symmetry, por")
@@ -438,9 +456,9 @@ def _plot_run(m, res, path, *, quiet=False):
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
-            max_time, max_states, max_memory, abstract_time, invariants, reduce, deadlock,
-            find_all, exact, fmt, plot, progress, progress_interval, trace_out, view, full,
-            coverage, workers):
+            max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
+            fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
+            trace_out, view, full, coverage, workers):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import build_model, explore_model
@@ -455,6 +473,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = build_model(program, opts, explore=True)
         if coverage:
             model.set_reduce(opts.reduce, uses=("coverage",))
+        if workers != 1 and (model.temporal or fastest):
+            raise PcclError(("--fastest" if fastest else "a temporal property") +
+                            " needs the state graph of one process: use --workers 1",
+                            filename="--workers")
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
@@ -824,25 +846,57 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         if v.line:
             click.echo(f"  at {m.program.filename}:{v.line}:{v.column}")
         tr = cx.trace
+        if tr is None:          # reachable P: unreachable has no path to show
+            continue
         note = ", shortest under the reductions" if m.reduction.on else ""
-        click.echo(f"counterexample ({len(tr)} steps{note}):")
+        if res.search is not None and getattr(res.search, "fastest", False):
+            note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
+        loop = cx.cycle_start
+        if loop is not None:
+            click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
+                       f"{_steps(len(tr) - loop)} repeated forever{note}):")
+        else:
+            click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
             from . import views
             click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
         else:
             for st in tr.steps:
+                if loop is not None and st.number == loop + 1:
+                    click.echo("  -- cycle: the steps below repeat forever --")
                 click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
-        click.echo("violating state:")
+            if loop is not None:
+                click.echo(f"  -- back to the state after step {loop} --")
+        click.echo("state at the end of the cycle (= its start):" if loop is not None
+                   else "violating state:")
         if k_style:
             click.echo(D.format_state_k(m, tr.last))
         else:
             click.echo(D.format_state(m, tr.last))
+    for w in res.witnesses:
+        click.echo("")
+        click.echo(f"reachable: `{w['text']}` is reached; witness ({len(w['_trace'])} steps):")
+        for st in w["_trace"].steps:
+            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+        click.echo("witness state:")
+        click.echo(D.format_state(m, w["_trace"].last))
+    if res.holds or res.notes:
+        click.echo("")
+        for name in res.holds:
+            if not any(w["name"] == name for w in res.witnesses):
+                click.echo(f"holds: {name}")
+        for note in res.notes:
+            click.echo(f"note: {note}")
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
     if res.coverage is not None:
         for ln in res.coverage.lines():
             click.echo(ln)
+
+
+def _steps(n: int) -> str:
+    return f"{n} step" + ("" if n == 1 else "s")
 
 
 def _explore_json(program, res) -> dict:
@@ -855,7 +909,11 @@ def _explore_json(program, res) -> dict:
             "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
-            "violations": [v.to_json() for v in res.violations]}
+            "violations": [v.to_json() for v in res.violations],
+            "witnesses": [{"name": w["name"], "text": w["text"], "depth": w["depth"],
+                           "trace": [s.to_json() for s in w["trace"]],
+                           "state": w["state"].to_json()} for w in res.witnesses],
+            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,4 +1,4 @@
-"""Collision checking (``--collisions``, spec section 5).
+"""Collision checking (``--collisions``, docs/blackboxes.md).
 
 A robot's *footprint* is the disc of ``world.radius`` around its position,
 in the plane (x, y; z is ignored: obstacles are vertical prisms and the

@@ -6,30 +6,32 @@ signature ``f(i, ag, sh, ags)``: agent id, the agent's tuple, the shared
 variable tuple and the tuple of all agents.  Property expressions have the
 signature ``f(st)`` over a whole configuration.
 
-Configuration layout (see :mod:`pccl.engine`)::
-
-    state = (time, phase, lockQueue, shared, agents, env)
-    agent = (pc, counter, lockState, status, locals, allread, position, reach)
-    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+The configuration's layout is :mod:`pccl.layout`'s; the generated code
+indexes cells with its constants interpolated as numbers (``f"ag[{AR}]"``
+becomes a literal subscript), so naming them costs nothing at run time.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional
+from typing import Any, NoReturn, Optional
+from collections.abc import Callable
 
 from . import ast as A
 from . import values as V
 from .builtins import BUILTINS, STATEMENTS, UNINTERPRETED
 from .checker import CheckedProgram
 from .errors import PcclError
+from .layout import AGS, AR, DONE, FAIL, LOC, N_AGENT_CELLS, POS, REACH, SH, TIME
 from .types import ANY, FLOAT, Ty
 
-# agent tuple slots
-PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
-# state tuple slots
-TIME, PHASE, LQ, SH, AGS, ENV = range(6)
+
+def _rebuild(var: str, index: int, new: str) -> str:
+    """Source of the agent tuple ``var`` with cell ``index`` replaced by ``new``:
+    a tuple display with numeric subscripts (the fastest rebuild)."""
+    cells = [new if k == index else f"{var}[{k}]" for k in range(N_AGENT_CELLS)]
+    return "(" + ", ".join(cells) + ")"
 
 
 
@@ -97,11 +99,12 @@ def coerce(value, ty: Ty):
             raise ValueError(f"expected a bool, got {value!r}")
         return value
     if k == "enum":
-        if isinstance(value, str) and value in ty.members:
-            return ty.members.index(value)
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(ty.members):
+        members = ty.members or ()
+        if isinstance(value, str) and value in members:
+            return members.index(value)
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(members):
             return value
-        raise ValueError(f"expected one of {', '.join(ty.members)}, got {value!r}")
+        raise ValueError(f"expected one of {', '.join(members)}, got {value!r}")
     if k == "pos":
         if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
                 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
@@ -125,7 +128,7 @@ def coerce(value, ty: Ty):
     if k in ("list", "array"):
         if not isinstance(value, (tuple, list)):
             raise ValueError(f"expected a list, got {value!r}")
-        out = tuple(coerce(x, ty.elem) for x in value)
+        out = tuple(coerce(x, ty.item) for x in value)
         if k == "array" and len(out) != ty.size:
             raise ValueError(f"expected {ty.size} elements, got {len(out)}")
         return out
@@ -152,7 +155,7 @@ def widens(src: Ty, dst: Ty) -> bool:
     if src.kind == "int" and dst.kind == "float":
         return True
     if src.kind == "list" and dst.kind == "list":
-        return widens(src.elem, dst.elem)
+        return widens(src.item, dst.item)
     return False
 
 
@@ -173,7 +176,7 @@ class Oracle:
         self.policy = policy
         self.prefix: list = []
         self.trail: list = []
-        self.agent = None
+        self.agent: Optional[int] = None
         self.span = None
         self.eager = False      # inside outcomes(): the whole product is built
         self.size = 1           # outcomes of the current evaluation so far
@@ -249,22 +252,21 @@ class Oracle:
         return results
 
 
+#: Status predicates of properties (spec section 9) as tests of an agent's
+#: status cell: RUNNING is 0, EXITED 1, stuck >= 2 (semantics/rules.py).
+_STATUS_TEST = {"running": "== 0", "exited": "== 1", "stuck": ">= 2"}
+
+
 def has_rand(node) -> bool:
-    if isinstance(node, (tuple, list)):
-        return any(has_rand(x) for x in node)
-    if isinstance(node, A.If):
-        return any(has_rand(c) for c, _ in node.branches)
-    if isinstance(node, A.While):
-        return has_rand(node.cond)
-    if isinstance(node, A.Assign):
-        return has_rand(node.target) or has_rand(node.value)
-    if isinstance(node, A.CallStmt):
-        return any(has_rand(a) for a in node.args)
-    if isinstance(node, (A.Atomic, A.Skip)):
-        return False
+    """Does evaluating ``node`` draw a ``rand()``?  ``node`` is an expression,
+    a statement (its own expressions: an if's conditions, not its branches),
+    a tuple of them, or None."""
     if node is None:
         return False
-    return any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(node))
+    if isinstance(node, (tuple, list)):
+        return any(has_rand(x) for x in node)
+    exprs = A.own_exprs(node) if isinstance(node, A.STMT_TYPES) else (node,)
+    return any(isinstance(x, A.Call) and x.name == "rand" for e in exprs for x in A.walk(e))
 
 
 def _may_grow(e: A.Expr) -> bool:
@@ -301,11 +303,11 @@ class Compiler:
         self._qval: dict = {}               # quantified variable -> agent index (unrolled)
 
     # -- helpers -----------------------------------------------------------
-    def error(self, msg, node):
+    def error(self, msg: str, node) -> NoReturn:
         raise PcclError(msg, filename=self.program.filename,
                         source=self.program.source, span=getattr(node, "span", None))
 
-    def impossible(self, msg, node):
+    def impossible(self, msg, node) -> NoReturn:
         """A case the checker has ruled out (an AssertionError if it ever fires)."""
         raise AssertionError(f"the checker should have rejected this: {msg}")
 
@@ -330,7 +332,7 @@ class Compiler:
     def make_expr(self, e: A.Expr, *, prop: bool = False, bound=()):
         src = self.expr(e, prop=prop, bound=bound)
         if prop:
-            return self.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
+            return self.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
         return self.make("i, ag, sh, ags", f"    return {src}\n")
 
     def uninterpreted_value(self, name, node, ty: Optional[Ty] = None):
@@ -462,7 +464,7 @@ class Compiler:
             if n in bound:
                 return self._qval.get(n) or self.bvar(n)
             if n == "time":
-                return "st[0]"
+                return f"st[{TIME}]"
             if n == "N":
                 return repr(self.N)
         vs = self.lay.vars.get(n)
@@ -472,22 +474,22 @@ class Compiler:
             elif prop:
                 self.impossible(f"'{n}' is per-agent: write {n}[i]", e)
             elif vs.section == "allread":
-                ref = f"ag[5][{vs.slot}]"
+                ref = f"ag[{AR}][{vs.slot}]"
             else:
-                ref = f"ag[4][{vs.slot}]"
+                ref = f"ag[{LOC}][{vs.slot}]"
             if vs.may_undef and vs.ty.kind != "array":
                 return f"_d({ref}, {n!r})"
             return ref
         if n in self.lay.members:
             return repr(self.lay.members[n][1])
         if not prop and n == "doReach_done":
-            return "ag[7][3]"
+            return f"ag[{REACH}][{DONE}]"
         if not prop and n == "doReach_fail":
-            return "ag[7][4]"
+            return f"ag[{REACH}][{FAIL}]"
         self.impossible(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
-        """Index chains.  Per-agent variables (spec §2, checker rules): an
+        """Index chains.  Per-agent variables (docs/language.md §4): an
         allread scalar ``x[j]`` is agent j's component; for an allread array
         ``x[k]`` is this agent's element k and ``x[j][k]`` agent j's element k.
         In properties every per-agent name takes the agent index first
@@ -498,20 +500,23 @@ class Compiler:
         if isinstance(root, A.Name) and root.name not in bound:
             n = root.name
             vs = self.lay.vars.get(n)
+            if prop and vs is None and n in _STATUS_TEST:
+                return f"(_ag(ags, {ex(idx[0])}, {n + '[…]'!r})[3] {_STATUS_TEST[n]})"
             if prop and vs is None and n in ("pos", "doReach_done", "doReach_fail"):
                 j = ex(idx[0])
-                cell = {"pos": "[6]", "doReach_done": "[7][3]", "doReach_fail": "[7][4]"}[n]
+                cell = {"pos": f"[{POS}]", "doReach_done": f"[{REACH}][{DONE}]",
+                        "doReach_fail": f"[{REACH}][{FAIL}]"}[n]
                 ref = f"_ag(ags, {j}, {n + '[…]'!r}){cell}"
                 return self._index_rest(ref, idx[1:], ex)
             if vs is not None and vs.section != "allwrite":
                 if prop:
-                    cell = 5 if vs.section == "allread" else 4
-                    ref = f"_av(ags, {ex(idx[0])}, {cell}, {vs.slot}, {n!r})"
+                    part = AR if vs.section == "allread" else LOC
+                    ref = f"_av(ags, {ex(idx[0])}, {part}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
                 if vs.section == "allread":
                     if vs.ty.kind == "array" and len(idx) == 1:
-                        return f"_ix(ag[5][{vs.slot}], {ex(idx[0])})"
-                    ref = f"_av(ags, {ex(idx[0])}, 5, {vs.slot}, {n!r})"
+                        return f"_ix(ag[{AR}][{vs.slot}], {ex(idx[0])})"
+                    ref = f"_av(ags, {ex(idx[0])}, {AR}, {vs.slot}, {n!r})"
                     return self._index_rest(ref, idx[1:], ex)
         return f"_ix({ex(e.base)}, {ex(e.index)})"
 
@@ -537,12 +542,18 @@ class Compiler:
             a = args[0]
             if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
                     and a.name not in self.lay.vars:
-                k = 3 if a.name == "doReach_done" else 4
-                return self._count(f"[7][{k}]")
+                k = DONE if a.name == "doReach_done" else FAIL
+                return self._count(f"[{REACH}][{k}]")
             vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
+            if vs is None and isinstance(a, A.Name) and a.name in _STATUS_TEST:
+                test = _STATUS_TEST[a.name]
+                if self.N > 64:
+                    return f"sum(1 for _a in ags if _a[3] {test})"
+                terms = " + ".join(f"(ags[{j}][3] {test})" for j in range(self.N))
+                return f"(0 + {terms})"
             if vs is None or vs.section == "allwrite":
                 self.impossible("count(v) needs a per-agent boolean variable", e)
-            slot = 4 if vs.section == "loc" else 5
+            slot = LOC if vs.section == "loc" else AR
             return self._count(f"[{slot}][{vs.slot}]")
         if n == "getAgentIndex":
             return "i"
@@ -551,7 +562,7 @@ class Compiler:
         if n == "rand":
             return f"_R({ex(args[0])}, {self.const(e.span)})"
         if n == "getPosition":
-            return "ag[6]"
+            return f"ag[{POS}]"
         if n == "ItemPosition":
             return "_pos(" + ", ".join(ex(a) for a in args) + ")"
         if n == "dist":
@@ -583,7 +594,7 @@ class Compiler:
         if isinstance(e, A.ListLit) and k == "list":
             if not e.items:
                 return "()"
-            return "(" + ", ".join(self.value(x, want.elem) for x in e.items) + ",)"
+            return "(" + ", ".join(self.value(x, want.item) for x in e.items) + ",)"
         src = self.expr(e, want=want)
         st = self.static_type(e)
         if st is None:                              # no checker info: convert blindly
@@ -638,9 +649,9 @@ class Compiler:
         if vs.section == "allwrite":
             cont = "sh"
         elif vs.section == "allread":
-            cont = "ag[5]"
+            cont = f"ag[{AR}]"
         else:
-            cont = "ag[4]"
+            cont = f"ag[{LOC}]"
         if path:
             lines.append(f"v = _set_in({cont}[{j}], ({', '.join(path)},), v)")
         new = f"{cont}[:{j}] + (v,) + {cont}[{j + 1}:]"
@@ -648,18 +659,18 @@ class Compiler:
             lines.append(f"sh2 = {new}")
             lines.append("ag2 = ag")
         elif vs.section == "allread":
-            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], ag[4], {new}, ag[6], ag[7])")
+            lines.append(f"sh2 = sh; ag2 = {_rebuild('ag', AR, new)}")
         else:
-            lines.append(f"sh2 = sh; ag2 = (ag[0], ag[1], ag[2], ag[3], {new}, ag[5], ag[6], ag[7])")
+            lines.append(f"sh2 = sh; ag2 = {_rebuild('ag', LOC, new)}")
         return "".join(indent + ln + "\n" for ln in lines)
 
     def read_target(self, vs: VarSlot, path: list) -> str:
         if vs.section == "allwrite":
             ref = f"sh[{vs.slot}]"
         elif vs.section == "allread":
-            ref = f"ag[5][{vs.slot}]"
+            ref = f"ag[{AR}][{vs.slot}]"
         else:
-            ref = f"ag[4][{vs.slot}]"
+            ref = f"ag[{LOC}][{vs.slot}]"
         for p in path:
             ref = f"_ix({ref}, {p})"
         return ref

@@ -15,6 +15,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 from . import display as D
+from .layout import AGS, SH
 
 _STMT_RULES = ("STATEMENT", "EXIT", "DOREACH UPDATE", "LOCK REQUEST", "ATOMIC EXECUTION",
                "ATOMIC WAIT")
@@ -60,7 +61,7 @@ class CoverageModel:
                 self.executed[detail] += 1
         m = self.model
         if selecting and not m.guards_rand:
-            sh, ags = st[3], st[4]
+            sh, ags = st[SH], st[AGS]
             for i in selecting:
                 ag = ags[i]
                 for e, g in enumerate(m.guards):

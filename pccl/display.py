@@ -1,14 +1,17 @@
 """Rendering of configurations, transitions and traces (text, JSON, K style).
 
 Display code is kept apart from the states themselves (pyk style): a state is
-plain tuples; everything here reads it through the model's layout.
+plain tuples; everything here reads its cells through the constants of
+:mod:`pccl.layout` and its variables through the model's slots.
 """
 
 from __future__ import annotations
 
 from typing import Optional
 
-from .semantics.rules import DISCRETE, EXITED, IDLE, LOCK, REQUEST, RUNNING
+from .layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC,
+                     PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, T0, TARGET, TIME,
+                     acquire_sid, is_acquire)
 from .values import UNDEF, format_number, format_value, to_json
 
 LOCK_NAMES = {IDLE: "idle", REQUEST: "request", LOCK: "lock"}
@@ -48,15 +51,15 @@ def status_json(model, code):
 
 def agent_vars(model, st, i) -> list:
     """[(name, Ty, value)] for agent i's allread and local variables."""
-    ag = st[4][i]
+    ag = st[AGS][i]
     lay = model.layout
-    out = [(v.name, v.ty, ag[5][v.slot]) for v in lay.allread]
-    out += [(v.name, v.ty, ag[4][v.slot]) for v in lay.local]
+    out = [(v.name, v.ty, ag[AR][v.slot]) for v in lay.allread]
+    out += [(v.name, v.ty, ag[LOC][v.slot]) for v in lay.local]
     return out
 
 
 def shared_vars(model, st) -> list:
-    return [(v.name, v.ty, st[3][v.slot]) for v in model.layout.shared]
+    return [(v.name, v.ty, st[SH][v.slot]) for v in model.layout.shared]
 
 
 def source_line(model, span) -> str:
@@ -95,7 +98,7 @@ def label_info(model, label, before=None) -> dict:
         e = model.stmt_event.get(sid)
         info["event"] = model.program.events[e].name if e is not None else "Init"
     if agent is not None and info["event"] is None and before is not None and rule not in ("IDLE",):
-        info["event"] = current_event(model, before[4][agent])
+        info["event"] = current_event(model, before[AGS][agent])
     return info
 
 
@@ -114,8 +117,8 @@ def short_label(model, label, before, system: str = "system") -> str:
 
 def current_event(model, ag) -> Optional[str]:
     """The event an agent is in the middle of, from the statements in its k."""
-    for item in model.ctl.iter_k(ag[0]):
-        sid = item if item >= 0 else (-3 - item if item <= -3 else None)
+    for item in model.ctl.iter_k(ag[PC]):
+        sid = item if item >= 0 else (acquire_sid(item) if is_acquire(item) else None)
         if sid is not None:
             e = model.stmt_event.get(sid)
             return model.program.events[e].name if e is not None else "Init"
@@ -125,34 +128,35 @@ def current_event(model, ag) -> Optional[str]:
 def diff(model, a, b) -> list:
     """[(cell, old, new)] for what changed between two configurations."""
     out = []
-    if a[0] != b[0]:
-        out.append(("time", fmt_time(a[0]), fmt_time(b[0])))
-    if a[1] != b[1]:
-        out.append(("transitionState", _phase(a[1]), _phase(b[1])))
-    if a[2] != b[2]:
-        out.append(("lockQueue", _lq(a[2]), _lq(b[2])))
+    if a[TIME] != b[TIME]:
+        out.append(("time", fmt_time(a[TIME]), fmt_time(b[TIME])))
+    if a[PHASE] != b[PHASE]:
+        out.append(("transitionState", _phase(a[PHASE]), _phase(b[PHASE])))
+    if a[LQ] != b[LQ]:
+        out.append(("lockQueue", _lq(a[LQ]), _lq(b[LQ])))
     for (n, ty, va), (_, _, vb) in zip(shared_vars(model, a), shared_vars(model, b)):
         if va != vb:
             out.append((n, format_value(va, ty), format_value(vb, ty)))
-    for i, (ga, gb) in enumerate(zip(a[4], b[4])):
+    for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
         if ga is gb:
             continue
         for (n, ty, va), (_, _, vb) in zip(agent_vars(model, a, i), agent_vars(model, b, i)):
             if va != vb:
                 out.append((f"{n}[{i}]", format_value(va, ty), format_value(vb, ty)))
-        if ga[6] != gb[6]:
-            out.append((f"pos[{i}]", fmt_pos(ga[6]), fmt_pos(gb[6])))
-        if ga[2] != gb[2]:
-            out.append((f"lockState[{i}]", LOCK_NAMES[ga[2]], LOCK_NAMES[gb[2]]))
-        if ga[3] != gb[3]:
-            out.append((f"status[{i}]", status_text(model, ga[3]), status_text(model, gb[3])))
-        ra, rb = ga[7], gb[7]
-        if ra[0] != rb[0]:
-            out.append((f"target[{i}]", _opt_pos(ra[0]), _opt_pos(rb[0])))
-        if ra[3] != rb[3]:
-            out.append((f"doReach_done[{i}]", format_value(ra[3]), format_value(rb[3])))
-        if ra[4] != rb[4]:
-            out.append((f"doReach_fail[{i}]", format_value(ra[4]), format_value(rb[4])))
+        if ga[POS] != gb[POS]:
+            out.append((f"pos[{i}]", fmt_pos(ga[POS]), fmt_pos(gb[POS])))
+        if ga[LCK] != gb[LCK]:
+            out.append((f"lockState[{i}]", LOCK_NAMES[ga[LCK]], LOCK_NAMES[gb[LCK]]))
+        if ga[STATUS] != gb[STATUS]:
+            out.append((f"status[{i}]", status_text(model, ga[STATUS]),
+                        status_text(model, gb[STATUS])))
+        ra, rb = ga[REACH], gb[REACH]
+        if ra[TARGET] != rb[TARGET]:
+            out.append((f"target[{i}]", _opt_pos(ra[TARGET]), _opt_pos(rb[TARGET])))
+        if ra[DONE] != rb[DONE]:
+            out.append((f"doReach_done[{i}]", format_value(ra[DONE]), format_value(rb[DONE])))
+        if ra[FAIL] != rb[FAIL]:
+            out.append((f"doReach_fail[{i}]", format_value(ra[FAIL]), format_value(rb[FAIL])))
     return out
 
 
@@ -171,7 +175,7 @@ def _lq(q):
 def format_step(model, n, label, before, after, *, show_diff=True) -> str:
     info = label_info(model, label, before)
     who = f"agent {info['agent']}" if info["agent"] is not None else "system"
-    parts = [f"{n:>4}. t={fmt_time(before[0])}", f"{who:<8}", f"{info['rule']:<16}"]
+    parts = [f"{n:>4}. t={fmt_time(before[TIME])}", f"{who:<8}", f"{info['rule']:<16}"]
     if info["event"]:
         parts.append(f"[{info['event']}]")
     if info["line"]:
@@ -187,7 +191,7 @@ def format_step(model, n, label, before, after, *, show_diff=True) -> str:
 
 def step_json(model, n, label, before, after) -> dict:
     info = label_info(model, label, before)
-    return {"step": n, "time": before[0], "agent": info["agent"], "rule": info["rule"],
+    return {"step": n, "time": before[TIME], "agent": info["agent"], "rule": info["rule"],
             "event": info["event"], "line": info["line"], "source": info["source"],
             "changes": [{"cell": c, "old": o, "new": nw} for c, o, nw in diff(model, before, after)]}
 
@@ -197,16 +201,17 @@ def step_json(model, n, label, before, after) -> dict:
 # ---------------------------------------------------------------------------
 
 def format_state(model, st, *, indent="  ") -> str:
-    lines = [f"{indent}time {fmt_time(st[0])}, {_phase(st[1])}, lockQueue {_lq(st[2])}"]
+    lines = [f"{indent}time {fmt_time(st[TIME])}, {_phase(st[PHASE])}, lockQueue {_lq(st[LQ])}"]
     sv = shared_vars(model, st)
     if sv:
         lines.append(indent + "shared: " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in sv))
-    for i, ag in enumerate(st[4]):
-        head = (f"{indent}agent {i}: {status_text(model, ag[3])}, {model.describe_k(ag[0])}, "
-                f"counter {ag[1]}, lock {LOCK_NAMES[ag[2]]}, pos {fmt_pos(ag[6])}")
-        r = ag[7]
-        if r[0] is not None:
-            head += f", target {fmt_pos(r[0])}, done {format_value(r[3])}, fail {format_value(r[4])}"
+    for i, ag in enumerate(st[AGS]):
+        head = (f"{indent}agent {i}: {status_text(model, ag[STATUS])}, {model.describe_k(ag[PC])}, "
+                f"counter {ag[CNT]}, lock {LOCK_NAMES[ag[LCK]]}, pos {fmt_pos(ag[POS])}")
+        r = ag[REACH]
+        if r[TARGET] is not None:
+            head += (f", target {fmt_pos(r[TARGET])}, done {format_value(r[DONE])}, "
+                     f"fail {format_value(r[FAIL])}")
         lines.append(head)
         av = agent_vars(model, st, i)
         if av:
@@ -216,16 +221,16 @@ def format_state(model, st, *, indent="  ") -> str:
 
 def state_json(model, st) -> dict:
     agents = []
-    for i, ag in enumerate(st[4]):
-        r = ag[7]
-        d = {"id": i, **status_json(model, ag[3]), "counter": ag[1],
-             "lockState": LOCK_NAMES[ag[2]], "position": list(ag[6]),
-             "k": model.describe_k(ag[0]),
-             "reach": {"target": None if r[0] is None else list(r[0]), "t0": r[2],
-                       "doReach_done": r[3], "doReach_fail": r[4]},
+    for i, ag in enumerate(st[AGS]):
+        r = ag[REACH]
+        d = {"id": i, **status_json(model, ag[STATUS]), "counter": ag[CNT],
+             "lockState": LOCK_NAMES[ag[LCK]], "position": list(ag[POS]),
+             "k": model.describe_k(ag[PC]),
+             "reach": {"target": None if r[TARGET] is None else list(r[TARGET]), "t0": r[T0],
+                       "doReach_done": r[DONE], "doReach_fail": r[FAIL]},
              "variables": {n: to_json(v, t) for n, t, v in agent_vars(model, st, i)}}
         agents.append(d)
-    return {"time": st[0], "transitionState": _phase(st[1]), "lockQueue": list(st[2]),
+    return {"time": st[TIME], "transitionState": _phase(st[PHASE]), "lockQueue": list(st[LQ]),
             "shared": {n: to_json(v, t) for n, t, v in shared_vars(model, st)},
             "agents": agents}
 
@@ -240,22 +245,23 @@ def format_state_k(model, st) -> str:
     addr = len(lay.shared)
     mmap = {gmem[n]: (v, t) for n, t, v in shared_vars(model, st)}
     out = []
-    for i, ag in enumerate(st[4]):
+    for i, ag in enumerate(st[AGS]):
         mem = dict(gmem)
         for n, t, v in agent_vars(model, st, i):
             mem[n] = addr
             mmap[addr] = (v, t)
             addr += 1
         out.append("<agent> ... <memory> " + " ".join(f"{n} |-> {a}" for n, a in mem.items())
-                   + f"\n</memory> <id> {i} </id> <counter> {ag[1]} </counter> "
-                   f"<lockState> {LOCK_NAMES[ag[2]]} </lockState> <position> {fmt_pos(ag[6])} </position>"
-                   f" <status> {status_text(model, ag[3])} </status>\n</agent>")
+                   + f"\n</memory> <id> {i} </id> <counter> {ag[CNT]} </counter> "
+                   f"<lockState> {LOCK_NAMES[ag[LCK]]} </lockState> "
+                   f"<position> {fmt_pos(ag[POS])} </position>"
+                   f" <status> {status_text(model, ag[STATUS])} </status>\n</agent>")
     out.append("<gMemory> " + " ".join(f"{n} |-> {a}" for n, a in gmem.items()) + " </gMemory>")
     out.append("<MMap> " + " ".join(f"{a} |-> {_kval(v, t)}" for a, (v, t) in sorted(mmap.items()))
                + "\n</MMap>")
-    out.append(f"<lockQueue> {' '.join(map(str, st[2])) or '.List'} </lockQueue>")
-    out.append(f"<transitionState> {_phase(st[1])} </transitionState>")
-    out.append(f"<time> {fmt_time(st[0])} </time>")
+    out.append(f"<lockQueue> {' '.join(map(str, st[LQ])) or '.List'} </lockQueue>")
+    out.append(f"<transitionState> {_phase(st[PHASE])} </transitionState>")
+    out.append(f"<time> {fmt_time(st[TIME])} </time>")
     return "\n".join(out)
 
 

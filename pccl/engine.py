@@ -16,7 +16,7 @@ Configurations are nested tuples (compact, immutable, hashable)::
     reach = (target, obstacles, t0, doReach_done, doReach_fail)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
-occurrence ids and markers, spec §5) as a small integer; :class:`Control`
+occurrence ids and markers, docs/language.md §11) as a small integer; :class:`Control`
 maps it back and decodes its head once.
 """
 
@@ -28,28 +28,25 @@ import operator
 
 import xxhash
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Any, Optional
+from collections.abc import Callable
 
 from . import ast as A
 from .compile import Compiler, Layout, Oracle, build_layout, has_rand
 from .blackboxes.base import Motion
 from .errors import OptionError, PcclError, PcclRuntimeError
 from .fingerprint import check_canonical
-from .types import OBSTACLES, POS
+from .layout import (AEND, AGS, AR, BLANK_REACH, CNT, DISCRETE, END, ENV, EXITED, IDLE, LOC, LQ,
+                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acq, acquire_sid,
+                     is_acquire, make_agent, make_state, put_agent, with_cell, with_pc,
+                     with_status, without_time)
+# (the types of doReach's arguments; POS above is the agent's position cell)
+from .types import OBSTACLES as OBSTACLES_TY, POS as POS_TY
 from .values import UNDEF
+from .world import MAX_AGENTS  # the Model checks it too
 from .semantics import rules as R
-from .semantics.rules import (AGENT_RULES, AGENT_RULES_SPENT, DISCRETE, EXITED, IDLE,
-                              RUNNING, K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY,
-                              K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE)
-
-END, AEND = -1, -2
-
-#: Most agents a model may have (each is a tuple in every state).
-MAX_AGENTS = 10_000
-
-
-def acq(sid: int) -> int:
-    return -3 - sid
+from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
+                              K_EXIT, K_IF, K_SIMPLE, K_WHILE, KHead)
 
 
 @dataclass(frozen=True)
@@ -76,6 +73,29 @@ class Property:
     uses_time: bool
     src: str = ""             # the compiled Python expression (over st, sh, ags)
     expr: Optional[A.Expr] = None
+
+
+@dataclass
+class TemporalProperty:
+    """One temporal property of spec section 9 (one instance per agent of a
+    ``forall``-quantified one): ``kind`` is ``eventually``, ``leadsto``,
+    ``within`` (``P ~> Q within T``) or ``reachable``.  ``p``/``q`` are
+    compiled state predicates ``fn(st) -> bool``; ``ticks`` is T as a whole
+    number of time steps δ (``within`` only)."""
+    kind: str
+    name: str
+    text: str
+    p: Callable
+    q: Optional[Callable]
+    span: Optional[A.Span]
+    expr: A.Expr              # the instance's Temporal node (reductions read it)
+    uses_time: bool = False
+    ticks: Optional[int] = None
+    bound: Optional[float] = None
+
+    @property
+    def liveness(self) -> bool:
+        return self.kind in ("eventually", "leadsto")
 
 
 class Control:
@@ -141,44 +161,48 @@ class Control:
             yield cell[0]
             cell = self.cells[cell[1]]
 
-    def info(self, pc: int):
+    def info(self, pc: int) -> KHead:
+        """The decoded head of k(pc), built once."""
         inf = self.infos[pc]
         if inf is None:
             inf = self.infos[pc] = self._decode(pc)
         return inf
 
-    def _decode(self, pc: int):
+    def _decode(self, pc: int) -> KHead:
         cell = self.cells[pc]
         if not cell:
-            return (K_EMPTY,)
+            return KHead(K_EMPTY)
         head, rest = cell
         seq = self.seq
         if head == END:
-            return (K_END,)
+            return KHead(K_END)
         if head == AEND:
-            return (K_AEND, rest)
-        if head <= -3:
-            sid = -3 - head
-            body = tuple(s.sid for s in self.m.stmts[sid].body)
-            return (K_ACQ, seq(body, rest), sid)
+            return KHead(K_AEND, next_pc=rest)
+        if is_acquire(head):
+            sid = acquire_sid(head)
+            atomic = self.m.stmts[sid]
+            assert isinstance(atomic, A.Atomic), atomic      # acq(sid) heads an atomic block
+            body = tuple(s.sid for s in atomic.body)
+            return KHead(K_ACQ, body_pc=seq(body, rest), sid=sid)
         s = self.m.stmts[head]
         c = self.m.code[head]
         if isinstance(s, A.If):
             pcs = tuple(seq(tuple(x.sid for x in body), rest) for _, body in s.branches)
             pcs += (seq(tuple(x.sid for x in s.orelse), rest),)
-            return (K_IF, c, pcs, head, has_rand(s))
+            return KHead(K_IF, fn=c, branch_pcs=pcs, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.While):
-            return (K_WHILE, c, seq(tuple(x.sid for x in s.body), pc), rest, head, has_rand(s))
+            return KHead(K_WHILE, fn=c, body_pc=seq(tuple(x.sid for x in s.body), pc),
+                         next_pc=rest, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.Atomic):
-            return (K_ATOMIC, seq((acq(head), AEND), rest),
-                    seq(tuple(x.sid for x in s.body), rest), head)
+            return KHead(K_ATOMIC, request_pc=seq((acq(head), AEND), rest),
+                         body_pc=seq(tuple(x.sid for x in s.body), rest), sid=head)
         if isinstance(s, A.CallStmt) and s.name == "doReach":
-            return (K_DOREACH, c, rest, head, has_rand(s))
+            return KHead(K_DOREACH, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
         if isinstance(s, A.CallStmt) and s.name == "exit":
-            return (K_EXIT, head)
+            return KHead(K_EXIT, sid=head)
         if isinstance(s, A.CallStmt) and s.name == "assert":
-            return (K_ASSERT, c, rest, head, has_rand(s))
-        return (K_SIMPLE, c, rest, head, has_rand(s))
+            return KHead(K_ASSERT, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
+        return KHead(K_SIMPLE, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
 
 
 class _KView:
@@ -203,11 +227,13 @@ class Model:
                  max_time=None, abstract_time: Optional[bool] = None,
                  invariants=(), functions: Optional[dict] = None,
                  rand_policy: Optional[Callable] = None, collisions: bool = False,
-                 reduce="none"):
+                 reduce="none", properties=()):
         from .world import default_world
         from .blackboxes import load_blackbox
 
         self.program = program
+        #: why the search picked its blackbox (set by the API and the CLI)
+        self.blackbox_reason: Optional[str] = None
         self.world = world if world is not None else default_world()
         try:
             if blackbox is None:
@@ -300,14 +326,25 @@ class Model:
 
         # properties
         self.properties: list[Property] = []
+        #: the temporal properties (spec section 9), see pccl/liveness.py
+        self.temporal: list[TemporalProperty] = []
         self._compile_violations()
         for inv in program.invariants:
-            self.add_property(inv.expr, name=inv.name, text=_src_text(program.source, inv.expr.span),
+            text = _src_text(program.source, inv.expr.span)
+            if _is_temporal(inv.expr):
+                self.add_temporal(inv.expr, name=inv.name or text, text=text, span=inv.span,
+                                  filename=program.filename, source=program.source)
+                continue
+            self.add_property(inv.expr, name=inv.name, text=text,
                               span=inv.span, filename=program.filename, source=program.source)
         for k, inv in enumerate(invariants):
             self.add_invariant_text(inv, index=k)
+        for k, text in enumerate(properties):
+            self.add_property_text(text, index=k)
 
-        uses_time = any(p.uses_time for p in self.properties) or getattr(blackbox, "uses_time", False)
+        uses_time = (any(p.uses_time for p in self.properties)
+                     or any(p.uses_time for p in self.temporal)
+                     or getattr(blackbox, "uses_time", False))
         sound = not uses_time and max_time is None
         if abstract_time is None:
             abstract_time = sound
@@ -331,7 +368,8 @@ class Model:
     # -- reductions (pccl/reduce.py) -------------------------------------------------
     @property
     def property_exprs(self) -> list:
-        return [p.expr for p in self.properties if p.expr is not None]
+        return ([p.expr for p in self.properties if p.expr is not None]
+                + [p.expr for p in self.temporal])
 
     def set_reduce(self, reduce="auto", uses=None):
         """Turn on the reductions ``reduce`` asks for (``auto``: every sound
@@ -345,7 +383,7 @@ class Model:
             self.reduce_uses = tuple(uses)
         for attr in ("successors", "key", "merger", "por"):
             self.__dict__.pop(attr, None)
-        self.key = operator.itemgetter(slice(1, None) if self.abstract_time else slice(None))
+        self.key = operator.itemgetter(slice(PHASE, None) if self.abstract_time else slice(None))
         plan, slots = RD.plan(self, reduce, getattr(self, "reduce_uses", ()))
         self.reduction = plan
         base = None
@@ -384,8 +422,8 @@ class Model:
         if isinstance(s, A.CallStmt):
             if s.name == "doReach":
                 assert len(s.args) == 2, "the checker counts arguments"
-                t = c.value(s.args[0], POS)
-                o = c.value(s.args[1], OBSTACLES)
+                t = c.value(s.args[0], POS_TY)
+                o = c.value(s.args[1], OBSTACLES_TY)
                 return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
             if s.name == "exit":
                 return None
@@ -399,7 +437,7 @@ class Model:
         from .checker import check_property
         check_property(expr, self.info, filename=filename, source=source)
         src = self.comp.expr(expr, prop=True)       # the checker has vetted it
-        fn = self.comp.make("st", f"    sh = st[3]; ags = st[4]\n    return {src}\n")
+        fn = self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
         self.properties.append(Property(name or text, text, fn, span, uses_time, src, expr))
         self._compile_violations()
@@ -415,13 +453,13 @@ class Model:
         if self.collisions or self.N > 64:
             self.__dict__.pop("violations", None)
             return
-        ok = " and ".join(f"ags[{j}][3] < 2" for j in range(self.N))
-        # ... and the lock is free or its holder has not exited (EXITED == 1)
-        ok += " and (not st[2] or ags[st[2][0]][3] != 1)"
-        body = f"    ags = st[4]\n    if {ok}:\n"
+        ok = " and ".join(f"ags[{j}][{STATUS}] < {STUCK}" for j in range(self.N))
+        # ... and the lock is free or its holder has not exited
+        ok += f" and (not st[{LQ}] or ags[st[{LQ}][0]][{STATUS}] != {EXITED})"
+        body = f"    ags = st[{AGS}]\n    if {ok}:\n"
         if self.properties:
             conj = " and ".join(f"({p.src})" for p in self.properties)
-            body += ("        sh = st[3]\n        try:\n"
+            body += (f"        sh = st[{SH}]\n        try:\n"
                      f"            if {conj}:\n                return []\n"
                      "        except Exception:\n            pass\n")
         else:
@@ -434,7 +472,71 @@ class Model:
         from .parser import parse_property
         fname = f"--invariant #{index + 1}"
         expr = parse_property(text, filename=fname)
+        if _is_temporal(expr):
+            t = _top_temporal(expr)
+            raise PcclError("--invariant takes a state property; a temporal property "
+                            "(eventually, ~>, within, reachable) goes with --property",
+                            filename=fname, source=text, span=t.span)
         self.add_property(expr, name=text, text=text, span=None, filename=fname, source=text)
+
+    def add_property_text(self, text: str, index: int = 0):
+        """``--property FORM``: any form of spec section 9."""
+        from .parser import parse_property
+        if not isinstance(text, str):
+            raise PcclError(f"a property must be text, got {type(text).__name__}",
+                            filename="--property")
+        fname = f"--property #{index + 1}"
+        expr = parse_property(text, filename=fname)
+        if _is_temporal(expr):
+            self.add_temporal(expr, name=text.strip(), text=text.strip(), span=None,
+                              filename=fname, source=text)
+        else:
+            self.add_property(expr, name=text, text=text, span=None, filename=fname,
+                              source=text)
+
+    def add_temporal(self, expr: A.Expr, *, name, text, span, filename, source):
+        """Check and compile a temporal property; a ``forall``-quantified one
+        becomes one instance per agent (``name [i=0]``, …)."""
+        from .checker import check_property
+        check_property(expr, self.info, filename=filename, source=source)
+        qvars = []
+        top = expr
+        while isinstance(top, A.Quant):
+            qvars.append(top.var)
+            top = top.body
+        combos: list[tuple] = [()]
+        for _ in qvars:
+            combos = [c + (k,) for c in combos for k in range(self.N)]
+        for combo in combos:
+            env: dict[str, int] = dict(zip(qvars, combo))
+            t: Any = _subst(top, env) if env else top
+            suffix = (" [" + ", ".join(f"{v}={k}" for v, k in env.items()) + "]") if env else ""
+
+            def pred(e):
+                src = self.comp.expr(e, prop=True)
+                return self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
+            kind = t.kind
+            ticks = bound = None
+            if t.bound is not None:
+                kind = "within"
+                try:
+                    bound = eval(self.comp.expr(t.bound, prop=True), dict(self.comp.G))
+                except Exception as exc:
+                    raise PcclError(f"the bound of 'within' cannot be evaluated: {exc}",
+                                    filename=filename, source=source,
+                                    span=t.bound.span) from None
+                if not (isinstance(bound, (int, float)) and math.isfinite(bound) and bound >= 0):
+                    raise PcclError(f"the bound of 'within' must be a finite number >= 0, "
+                                    f"got {bound}", filename=filename, source=source,
+                                    span=t.bound.span)
+                ticks = int((_decimal(bound) / self._delta_dec).to_integral_value(
+                    rounding=decimal.ROUND_FLOOR))
+            uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(t))
+            self.temporal.append(TemporalProperty(
+                kind, name + suffix, text, pred(t.p), pred(t.q) if t.q is not None else None,
+                span, t, uses_time, ticks, bound))
+        if hasattr(self, "reduction"):
+            self.set_reduce(self.reduction.requested)
 
     # -- events ---------------------------------------------------------------------
     def enabled_events(self, i, ag, sh, ags):
@@ -508,11 +610,11 @@ class Model:
         never built, so a consumer can stop after as many as it admits."""
         lay, N = self.layout, self.N
         starts = self.world.start_positions(N)
-        blank_reach = (None, (), None, False, False)
         loc0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local)
         ar0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread)
         agents = tuple(
-            (self.ctl.empty_pc, 0, IDLE, RUNNING, loc0, ar0, self.round_pos(starts[i]), blank_reach)
+            make_agent(self.ctl.empty_pc, 0, IDLE, RUNNING, loc0, ar0, self.round_pos(starts[i]),
+                       BLANK_REACH)
             for i in range(N))
         shared0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.shared)
         env0 = self._call_blackbox(0, "init_env", self.world, N)
@@ -530,7 +632,7 @@ class Model:
         seen: set = set()
         cap = min(self.INIT_DEDUP, max(16, (1 << 22) // N))   # states of N agents each
         if not n:
-            yield (0, DISCRETE, (), shared0, agents, env0)
+            yield make_state(0, DISCRETE, (), shared0, agents, env0)
             return
         # Depth-first over the stages with an explicit stack (no recursion:
         # 10,000 agents make 10,000s of stages).  The path's configuration is
@@ -569,7 +671,7 @@ class Model:
             if len(stack) < n:
                 push(len(stack), lq, sh)
                 continue
-            st = (0, DISCRETE, lq, sh, tuple(cells), env0)
+            st = make_state(0, DISCRETE, lq, sh, tuple(cells), env0)
             if st in seen:
                 continue
             if len(seen) < cap:
@@ -579,13 +681,13 @@ class Model:
     def _init_outcomes(self, i, ag, lq, sh, cells, env0):
         """Stage: agent i's Init block; yields (lockQueue, shared, cell i)."""
         cells[i] = ag
-        for s in self._init_paths((0, DISCRETE, lq, sh, tuple(cells), env0), i):
-            yield s[2], s[3], s[4][i]
+        for s in self._init_paths(make_state(0, DISCRETE, lq, sh, tuple(cells), env0), i):
+            yield s[LQ], s[SH], s[AGS][i]
 
     def _decl_outcomes(self, i, vs, ag, lq, sh, cells):
         """Stage: agent i's declaration ``vs`` initialised; yields
         (lockQueue, shared, cell i), one per ``rand`` outcome, lazily."""
-        if ag[3] != RUNNING:
+        if ag[STATUS] != RUNNING:
             yield lq, sh, ag
             return
         comp = self.comp
@@ -612,16 +714,16 @@ class Model:
         for res in results:
             if isinstance(res, R._Err):
                 code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
-                yield lq, sh, ag[:3] + (code,) + ag[4:]
+                yield lq, sh, with_status(ag, code)
                 continue
             # the value is canonical (Compiler.value); `bool f[3] = false;` fills
             v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
             if vs.section == "allwrite":
                 yield lq, sh[:j] + (v,) + sh[j + 1:], ag
             else:
-                c = 4 if vs.section == "loc" else 5
+                c = LOC if vs.section == "loc" else AR
                 cell = ag[c][:j] + (v,) + ag[c][j + 1:]
-                yield lq, sh, ag[:c] + (cell,) + ag[c + 1:]
+                yield lq, sh, with_cell(ag, c, cell)
 
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
@@ -635,13 +737,14 @@ class Model:
         The step limit is per path: a path longer than :attr:`INIT_LIMIT`
         steps, or one that returns to a state on itself (a loop that never
         ends), leaves the agent stuck."""
-        ag = st[4][i]
-        if ag[3] != RUNNING:
+        ag = st[AGS][i]
+        if ag[STATUS] != RUNNING:
             return [st]
         limit = self.INIT_LIMIT
         empty = self.ctl.empty_pc
         where = ("decl", self.program.init[0].span)
-        start = R._put(st, i, R._with_pc(ag, self.ctl.intern(tuple(x.sid for x in self.program.init))))
+        init_pc = self.ctl.intern(tuple(x.sid for x in self.program.init))
+        start = put_agent(st, i, with_pc(ag, init_pc))
         done: dict = {}
         best: dict = {}
         on_path: set = set()
@@ -649,8 +752,8 @@ class Model:
         oracle = self.oracle
 
         def enter(s, d):
-            a = s[4][i]
-            if a[3] != RUNNING or a[0] == empty:
+            a = s[AGS][i]
+            if a[STATUS] != RUNNING or a[PC] == empty:
                 done[s] = None
             elif s in on_path:
                 done[R._stuck(self, s, i, a, "Init does not finish (it can loop forever)",
@@ -663,8 +766,9 @@ class Model:
                 on_path.add(s)
                 out: list = []
                 oracle.agent = i
-                for rule in AGENT_RULES[self.ctl.info(a[0])[0]]:
-                    rule(self, s, i, a, self.ctl.info(a[0]), out)
+                head = self.ctl.info(a[PC])
+                for rule in head.rules:
+                    rule(self, s, i, a, head, out)
                 # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
                 stack.append((s, d, iter(out)))
 
@@ -685,7 +789,7 @@ class Model:
     # -- transitions ------------------------------------------------------------------
     def successors(self, st) -> list:
         out: list = []
-        if st[1] == DISCRETE:
+        if st[PHASE] == DISCRETE:
             infos = self.ctl.infos
             oracle = self.oracle
             rho, n0 = self.rho, self.n0
@@ -694,22 +798,22 @@ class Model:
             # counter + rho(i) <= n0
             running = blocked = False
             i = 0
-            for ag in st[4]:
-                s = ag[3]
+            for ag in st[AGS]:
+                s = ag[STATUS]
                 if s == RUNNING:
                     running = True
-                    info = infos[ag[0]]
+                    info = infos[ag[PC]]
                     if info is None:
-                        info = self.ctl.info(ag[0])
-                    if ag[1] + rho[i] <= n0:
+                        info = self.ctl.info(ag[PC])
+                    if ag[CNT] + rho[i] <= n0:
                         blocked = True
-                        rules = AGENT_RULES[info[0]]
+                        rules = info.rules
                     else:
-                        rules = AGENT_RULES_SPENT[info[0]]
+                        rules = info.rules_spent
                     oracle.agent = i
                     for rule in rules:
                         rule(self, st, i, ag, info, out)
-                elif s != EXITED and ag[1] + rho[i] <= n0:
+                elif s != EXITED and ag[CNT] + rho[i] <= n0:
                     blocked = True
                 i += 1
             if running and not blocked:
@@ -751,31 +855,31 @@ class Model:
         """State identity: the configuration, without the clock under time
         abstraction.  (Replaced per instance by an equivalent C-level
         ``itemgetter``; the explorer calls it once per transition.)"""
-        return st[1:] if self.abstract_time else st
+        return without_time(st) if self.abstract_time else st
 
     def environment_step(self, st):
         """The blackbox's outcomes for DOREACH INVOKE: [(positions, done, fail, env)]."""
-        ags = st[4]
+        ags = st[AGS]
         bb = self.blackbox
-        ckey = (tuple((ag[6], ag[7], ag[3] == RUNNING) for ag in ags), st[5],
-                st[0] if getattr(bb, "uses_time", False) else None)
+        ckey = (tuple((ag[POS], ag[REACH], ag[STATUS] == RUNNING) for ag in ags), st[ENV],
+                st[TIME] if getattr(bb, "uses_time", False) else None)
         hit = self._env_cache.get(ckey)
         if hit is not None:
             return hit
-        motions = tuple(Motion(ag[6], ag[7][0], ag[7][1], ag[7][2], ag[7][3], ag[7][4],
-                               ag[3] == RUNNING) for ag in ags)
-        outcomes = self._call_blackbox(st[0], "step", self.world, motions, st[5], st[0],
+        # Motion's fields: the position, the reach cells in order, active
+        motions = tuple(Motion(ag[POS], *ag[REACH], ag[STATUS] == RUNNING) for ag in ags)
+        outcomes = self._call_blackbox(st[TIME], "step", self.world, motions, st[ENV], st[TIME],
                                        self.delta)
         if isinstance(outcomes, (str, bytes)) or not hasattr(outcomes, "__iter__"):
-            self.blackbox_error(st[0], f"step() must return a list of Outcome, got "
+            self.blackbox_error(st[TIME], f"step() must return a list of Outcome, got "
                                        f"{_type_of(outcomes)}")
         outcomes = list(outcomes)
         if not outcomes:
-            self.blackbox_error(st[0], "step() returned no outcome (it must return at least one)")
+            self.blackbox_error(st[TIME], "step() returned no outcome (it must return at least one)")
         res = []
         seen = set()
         for n, o in enumerate(outcomes):
-            r = self._check_outcome(st[0], n + 1, o)
+            r = self._check_outcome(st[TIME], n + 1, o)
             if r not in seen:
                 seen.add(r)
                 res.append(r)
@@ -841,9 +945,9 @@ class Model:
         collisions.  (Instances shadow this with the fast path compiled by
         :meth:`_compile_violations`, which falls back to it.)"""
         out = []
-        for i, ag in enumerate(st[4]):
-            s = ag[3]
-            if s >= 2:
+        for i, ag in enumerate(st[AGS]):
+            s = ag[STATUS]
+            if s >= STUCK:
                 kind, reason, where = self.stuck_reasons[s]
                 span = self.span_of(where)
                 if kind == "assert":
@@ -864,8 +968,8 @@ class Model:
                                      None, p.span))
         if self.collisions:
             out.extend(self.collision_violations(st))
-        lq = st[2]
-        if lq and self.lock_deadlocks and st[4][lq[0]][3] == EXITED:
+        lq = st[LQ]
+        if lq and self.lock_deadlocks and st[AGS][lq[0]][STATUS] == EXITED:
             v = self.lock_violation(st)
             if v is not None:
                 out.append(v)
@@ -875,14 +979,14 @@ class Model:
         """The lock is held by an agent that has exited (``exit()`` inside
         ``atomic`` keeps the lock) and a running agent waits for it: that
         agent can never progress, although time may advance forever."""
-        lq, ags = st[2], st[4]
+        lq, ags = st[LQ], st[AGS]
         holder = lq[0]
-        waiting = [j for j in lq[1:] if ags[j][3] == RUNNING]
+        waiting = [j for j in lq[1:] if ags[j][STATUS] == RUNNING]
         if not waiting:
             return None
         w = waiting[0]
-        k = self.ctl.cells[ags[w][0]]
-        span = self.stmts[-3 - k[0]].span if k and k[0] <= -3 else None
+        k = self.ctl.cells[ags[w][PC]]
+        span = self.stmts[acquire_sid(k[0])].span if k and is_acquire(k[0]) else None
         where = f" (atomic at line {span.line})" if span is not None else ""
         others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
                   if len(waiting) > 1 else "")
@@ -891,7 +995,7 @@ class Model:
         return Violation("deadlock", "lock held by an exited agent", msg, w, span)
 
     def collision_violations(self, st) -> list:
-        poss = tuple([ag[6] for ag in st[4]])
+        poss = tuple([ag[POS] for ag in st[AGS]])
         hit = self._collision_cache.get(poss)
         if hit is None:
             from .collide import contacts
@@ -908,7 +1012,7 @@ class Model:
     def terminal_kind(self, st) -> str:
         """For a state with no successor: final, bounded (only --max-time
         stopped time) or deadlock."""
-        if all(ag[3] == EXITED for ag in st[4]):
+        if all(ag[STATUS] == EXITED for ag in st[AGS]):
             return "final"
         if self.max_time is not None and R.time_advance_enabled(self, st):
             return "bounded"
@@ -916,9 +1020,9 @@ class Model:
 
     def deadlock_violation(self, st) -> Violation:
         waiting = []
-        for i, ag in enumerate(st[4]):
-            if ag[3] == RUNNING:
-                waiting.append(f"agent {i} ({self.describe_k(ag[0])}, counter {ag[1]})")
+        for i, ag in enumerate(st[AGS]):
+            if ag[STATUS] == RUNNING:
+                waiting.append(f"agent {i} ({self.describe_k(ag[PC])}, counter {ag[CNT]})")
         msg = "deadlock: no rule applies and not every agent has exited"
         if waiting:
             msg += "; " + "; ".join(waiting)
@@ -934,8 +1038,8 @@ class Model:
             return "at endEventBlock"
         if h == AEND:
             return "at atomicEnd"
-        if h <= -3:
-            s = self.stmts[-3 - h]
+        if is_acquire(h):
+            s = self.stmts[acquire_sid(h)]
             return f"waiting for the lock at line {s.span.line}"
         s = self.stmts[h]
         return f"at line {s.span.line}"
@@ -946,6 +1050,43 @@ class Model:
 
 
 _EXACT = decimal.Context(prec=60)
+
+
+def _top_temporal(e):
+    while isinstance(e, A.Quant):
+        e = e.body
+    return e
+
+
+def _is_temporal(e) -> bool:
+    """Whether a property is one of the temporal forms (under ``forall`` at most)."""
+    return isinstance(_top_temporal(e), A.Temporal)
+
+
+def _subst(e, env: dict) -> Any:
+    """``e`` with the bound names of ``env`` replaced by agent ids (int
+    literals); an inner quantifier over the same name shadows it."""
+    import dataclasses
+    if isinstance(e, A.Name) and e.name in env:
+        return A.IntLit(env[e.name], e.span)
+    if isinstance(e, A.Quant) and e.var in env:
+        env = {k: v for k, v in env.items() if k != e.var}
+        if not env:
+            return e
+    if not dataclasses.is_dataclass(e) or isinstance(e, A.Span):
+        return e
+    changes = {}
+    for f in dataclasses.fields(e):
+        v = getattr(e, f.name)
+        if isinstance(v, tuple):
+            nv = tuple(_subst(x, env) for x in v)
+        elif dataclasses.is_dataclass(v) and not isinstance(v, A.Span):
+            nv = _subst(v, env)
+        else:
+            continue
+        if nv is not v:
+            changes[f.name] = nv
+    return dataclasses.replace(e, **changes) if changes else e  # type: ignore[type-var]
 
 
 def _decimal(x) -> decimal.Decimal:

@@ -29,7 +29,7 @@ class PcclError(Exception):
                  end_column: Optional[int] = None):
         super().__init__(message)
         if span is not None and getattr(span, "origin", None) is not None:
-            filename, source = span.origin   # an option's text, not the program's
+            filename, source = span.origin   # type: ignore[misc] # an option's text, not the program's
         self.message = message
         self.filename = filename
         self.source = source
@@ -56,6 +56,19 @@ class ArgumentError(PcclError, ValueError):
     its ``filename`` is the function, e.g. ``pccl.api.explore``."""
 
 
+#: Options whose flag is not ``--`` + the name with ``-`` for ``_`` (the
+#: options are :mod:`pccl.options`; the spelling lives here, with the error
+#: that renders it, so that this module imports nothing above it).
+FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
+         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
+         "properties": "--property", "timelock": "--no-timelock"}
+
+
+def flag(name: str) -> str:
+    """The command-line flag of the option ``name``."""
+    return FLAGS.get(name, "--" + name.replace("_", "-"))
+
+
 class OptionError(PcclError):
     """A bad value of an option, found where its meaning is known (the model:
     an agent's rate above n0, a δ the clock cannot add).  ``option`` is the
@@ -65,7 +78,6 @@ class OptionError(PcclError):
     was called (``pccl.api.explore: error: rates: ...``)."""
 
     def __init__(self, option: str, message: str):
-        from .options import flag
         super().__init__(message, filename=flag(option))
         self.option = option
 
@@ -102,6 +114,9 @@ class PcclRuntimeError(Exception):
     """A runtime error inside a PCCL program (division by zero, undefined
     read, remove of an absent element, ...).  The engine turns it into a
     *stuck agent* (a result), never into a crash of the tool."""
+
+    #: where the engine caught it, e.g. ("guard", event), when not at a statement
+    where: Optional[tuple] = None
 
     def __init__(self, reason: str):
         super().__init__(reason)

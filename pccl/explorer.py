@@ -40,8 +40,8 @@ import os
 import sys
 import time as _time
 from dataclasses import dataclass, field
-from typing import (Any, Callable, Hashable, Iterable, Iterator, Optional, Protocol,
-                    Sequence, runtime_checkable)
+from typing import (Any, Optional, Protocol, runtime_checkable)
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -203,6 +203,10 @@ class Counterexample:
     index: int                     # state number in the search
     depth: int
     trace: Optional[Trace] = None  # filled by the replay
+    #: a lasso (temporal properties, pccl/liveness.py): the path's state
+    #: numbers, and the step after which the repeated cycle starts
+    chain: Optional[list] = None
+    cycle_start: Optional[int] = None
 
 
 @dataclass
@@ -282,11 +286,11 @@ class FingerprintTable:
         self.fps = fps if fps is not None else np.empty((capacity, 2), dtype=np.uint64)
         self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
-        self._batch = None
+        self._batch: Any = None         # (fingerprints, positions) of the last batch
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
-        self.slots = None
+        self.slots: Any = None
         self.slots = np.full(size, _EMPTY, dtype=np.uint32)
         self.mask = np.uint64(size - 1)
 
@@ -366,6 +370,10 @@ class FingerprintTable:
     def index_of(self, key: bytes) -> int:
         return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
 
+    def lookup_keys(self, keys: list) -> np.ndarray:
+        """State numbers of a batch of fingerprints (-1 where absent)."""
+        return self.lookup(np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2))
+
     def parent(self, idx: int) -> int:
         p = int(self.parents[idx])
         return -1 if p == 0xFFFF_FFFF else p
@@ -399,6 +407,10 @@ class ExactTable:
     def index_of(self, key: bytes) -> int:
         return self.ids.get(key, -1)
 
+    def lookup_keys(self, keys: list) -> np.ndarray:
+        ids = self.ids
+        return np.fromiter((ids.get(k, -1) for k in keys), dtype=np.int64, count=len(keys))
+
     def parent(self, idx: int) -> int:
         p = self.parents[idx]
         return -1 if p == 0xFFFF_FFFF else p
@@ -422,7 +434,10 @@ class Explorer:
     once the process's peak resident memory passes this many bytes; checked
     after every admitted batch), ``progress`` (called about every
     ``progress_interval`` seconds with a dict of figures), ``batch``
-    (successors admitted per vectorised step).
+    (successors admitted per vectorised step), ``recorder`` (an object with
+    ``states(list)`` and ``edges(src, dst)``, told the states admitted and
+    every transition's state numbers: :mod:`pccl.liveness` records the graph
+    with it).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -430,8 +445,9 @@ class Explorer:
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
                  progress_interval: float = 0.5, batch: int = 4096,
-                 max_memory: Optional[int] = None):
+                 max_memory: Optional[int] = None, recorder=None):
         self.model = model
+        self.recorder = recorder
         self.max_memory = max_memory
         self.max_depth = max_depth
         self.max_states = max_states
@@ -441,7 +457,7 @@ class Explorer:
         self.progress = progress
         self.progress_interval = progress_interval
         self.batch = batch
-        self.table = None
+        self.table: Any = None
 
     # ------------------------------------------------------------------
     def run(self) -> SearchResult:
@@ -497,6 +513,7 @@ class Explorer:
         stop = False
 
         record = self._recorder(found, reported)
+        rec = self.recorder
 
         def flush(d) -> bool:
             """Admit the pending batch (successors at depth ``d``); True to stop."""
@@ -536,6 +553,11 @@ class Explorer:
                 table.add(cut, pidx[owners[kept]])
                 nxt.extend(states[:cut] if cut < len(states) else states)
                 nxt_idx.extend(range(base, base + cut))
+                if rec is not None:
+                    rec.states(states[:cut])
+            if rec is not None:
+                src = np.asarray(par_idx, dtype=np.int64)[owners]
+                rec.edges(src[src != _NO_PARENT], table.lookup_keys(ck)[src != _NO_PARENT])
             budget -= cut
             if stop_at is not None:
                 # the search stops right after expanding the parent of the
@@ -550,7 +572,9 @@ class Explorer:
             if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
                 bounds.add(Bound.MAX_MEMORY)
                 halt = True
-            cs.clear(); par_idx.clear(); par_n.clear()
+            cs.clear()
+            par_idx.clear()
+            par_n.clear()
             return halt
 
         try:
@@ -558,13 +582,15 @@ class Explorer:
             for s in m.init_states():
                 cs.append(s)
                 if len(cs) >= batch or len(cs) > budget:     # never build far beyond the budget
-                    par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                    par_idx.append(_NO_PARENT)
+                    par_n.append(len(cs))
                     stop = flush(0)
                     stats.transitions = 0
                     if stop:
                         break
             if not stop and cs:
-                par_idx.append(_NO_PARENT); par_n.append(len(cs))
+                par_idx.append(_NO_PARENT)
+                par_n.append(len(cs))
                 stop = flush(0)
             stats.transitions = 0
             stats.initial_states = table.n
@@ -663,13 +689,19 @@ class Explorer:
     def replay(self, idx: int) -> Trace:
         """Rebuild the path to state number ``idx`` by replaying the model
         from an initial state along the recorded state numbers."""
-        m, table = self.model, self.table
-        key, key_of = m.key, table.key_of
+        table = self.table
         chain = []
         while idx != -1:
             chain.append(idx)
             idx = table.parent(idx)
         chain.reverse()
+        return self.replay_chain(chain)
+
+    def replay_chain(self, chain: list) -> Trace:
+        """Rebuild the path through the state numbers ``chain`` (from an
+        initial state; a lasso may visit a state twice)."""
+        m, table = self.model, self.table
+        key, key_of = m.key, table.key_of
         state = None
         for s in m.init_states():
             if table.index_of(key_of(key(s))) == chain[0]:

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 from . import display as D
 from . import traces as T
+from .layout import AGS, PC, STATUS, TIME
 from .values import format_value
 
 MAX_TIME_CLUSTERS = 50
@@ -92,12 +93,12 @@ def _edge_text(model, label, a, b) -> str:
 
 
 def _node_text(model, n, st, g) -> str:
-    parts = [f"s{n} t={D.fmt_time(st[0])}"]
+    parts = [f"s{n} t={D.fmt_time(st[TIME])}"]
     where = []
-    for i, ag in enumerate(st[4]):
-        desc = model.describe_k(ag[0]).replace("at the top of the event block", "top") \
+    for i, ag in enumerate(st[AGS]):
+        desc = model.describe_k(ag[PC]).replace("at the top of the event block", "top") \
             .replace("at endEventBlock", "end").replace("at line ", "L")
-        st_txt = D.status_text(model, ag[3])
+        st_txt = D.status_text(model, ag[STATUS])
         where.append(f"a{i}:{desc}" + ("" if st_txt == "running" else f" {st_txt.split('(')[0]}"))
     parts.append(" ".join(where))
     sh = ", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.shared_vars(model, st))
@@ -116,7 +117,7 @@ def to_dot(model, g: Graph, *, name="pccl") -> str:
     out = [f"digraph {_q(name)} {{", '  rankdir=TB;',
            '  node [shape=box, fontname="Helvetica", fontsize=9];',
            '  edge [fontname="Helvetica", fontsize=8];']
-    times = sorted({st[0] for st in g.states})
+    times = sorted({st[TIME] for st in g.states})
     clusters = 1 < len(times) <= MAX_TIME_CLUSTERS
 
     def node_line(n, st):
@@ -134,7 +135,7 @@ def to_dot(model, g: Graph, *, name="pccl") -> str:
         for t in times:
             out.append(f"  subgraph cluster_t{len(out)} {{")
             out.append(f"    label={_q('t=' + D.fmt_time(t))}; color=\"#cccccc\";")
-            out += ["  " + node_line(n, st) for n, st in enumerate(g.states) if st[0] == t]
+            out += ["  " + node_line(n, st) for n, st in enumerate(g.states) if st[TIME] == t]
             out.append("  }")
     else:
         out += [node_line(n, st) for n, st in enumerate(g.states)]

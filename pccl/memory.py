@@ -18,7 +18,7 @@ import sys
 try:
     import resource as _resource
 except ImportError:  # pragma: no cover - Windows
-    _resource = None
+    _resource = None  # type: ignore[assignment]
 
 __all__ = ["peak_rss_bytes", "rss_bytes"]
 

@@ -21,14 +21,11 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Optional, Union
+from typing import Any, Optional, Union
+from collections.abc import Callable, Mapping
 
 from . import validate as V
-from .errors import ArgumentError
-
-#: Fields whose flag is not ``--`` + the field name with ``-`` for ``_``.
-FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
-         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all"}
+from .errors import FLAGS, ArgumentError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -40,11 +37,6 @@ PRESENTATION = {
     "explore": frozenset({"fmt", "plot", "progress", "progress_interval", "trace_out", "view",
                           "full"}),
 }
-
-
-def flag(name: str) -> str:
-    """The command-line flag of the option ``name``."""
-    return FLAGS.get(name, "--" + name.replace("_", "-"))
 
 
 @dataclass(frozen=True)
@@ -89,8 +81,9 @@ class CommonOptions:
         for k in ("rates", "overrides"):
             if k in kw:
                 kw[k] = dict(kw[k])
-        if "invariants" in kw:
-            kw["invariants"] = tuple(kw["invariants"])
+        for k in ("invariants", "properties"):
+            if k in kw:
+                kw[k] = tuple(kw[k])
         for k in ("delta", "max_time"):
             if kw.get(k) is not None:
                 kw[k] = integral(kw[k])
@@ -113,7 +106,7 @@ class CommonOptions:
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         """The keyword arguments of :class:`pccl.engine.Model` (besides the
         program, world, blackbox and team size)."""
-        kw = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
+        kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
                   invariants=tuple(self.invariants), collisions=self.collisions)
         if with_max_time:
             kw["max_time"] = self.max_time
@@ -130,10 +123,13 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
+    #: property forms of spec section 9 (docs/temporal.md)
+    properties: tuple = ()
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         kw = super().model_kwargs(with_max_time=with_max_time)
-        kw.update(abstract_time=self.abstract_time, reduce=self.reduce)
+        kw.update(abstract_time=self.abstract_time, reduce=self.reduce,
+                  properties=tuple(self.properties))
         return kw
 
 
@@ -151,6 +147,8 @@ class ExploreOptions(ModelOptions):
     coverage: bool = False
     progress_interval: float = 0.5
     progress: Optional[Callable] = None
+    timelock: bool = True                   # report time-locks (docs/temporal.md)
+    fastest: bool = False                   # order the search on global time
 
     @classmethod
     def from_cli(cls, params: Mapping[str, Any]):
@@ -166,6 +164,8 @@ class ExploreOptions(ModelOptions):
                       progress=self.progress, max_memory=self.max_memory)
         V.number(func, "progress_interval", self.progress_interval, positive=True)
         V.boolean(func, "coverage", self.coverage)
+        V.boolean(func, "timelock", self.timelock)
+        V.boolean(func, "fastest", self.fastest)
         w = self.workers
         if w != "auto" and (not isinstance(w, int) or isinstance(w, bool) or w < 1):
             raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {w!r}",
@@ -173,6 +173,10 @@ class ExploreOptions(ModelOptions):
         if w != 1 and w != "auto" and (self.exact or self.coverage):
             raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
                                 f"process: use workers=1", filename=f"pccl.api.{func}")
+        if w != 1 and (self.properties or self.fastest):
+            what = "fastest=True" if self.fastest else "properties"
+            raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
+                                filename=f"pccl.api.{func}")
 
 
 #: Model options that a run does not take, and why.
@@ -188,6 +192,7 @@ class RunOptions(CommonOptions):
     seed: int = 0
     max_steps: int = 100_000
     record_trace: bool = False
+    stall_steps: int = 20                   # 0: no stall detection
 
     @classmethod
     def from_api(cls, func: str, kwargs: Mapping[str, Any]):
@@ -201,6 +206,7 @@ class RunOptions(CommonOptions):
         V.integer(func, "seed", self.seed)
         super().check(func)
         V.integer(func, "max_steps", self.max_steps, minimum=1)
+        V.integer(func, "stall_steps", self.stall_steps, minimum=0)
         V.boolean(func, "record_trace", self.record_trace)
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:

@@ -36,6 +36,7 @@ import operator
 import os
 import signal
 import time as _time
+from typing import Any
 
 import numpy as np
 import xxhash
@@ -76,9 +77,9 @@ class _Worker:
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
         self.cand: list = []           # candidate (label, state) pairs of the level
-        self.cand_keys = None          # their keys (ascending)
-        self.pending = None            # owner side: (fps, keys) of new states
-        self.won = None                # generator side: (ranks, states)
+        self.cand_keys: Any = None         # their keys (ascending)
+        self.pending: Any = None           # owner side: (fps, keys) of new states
+        self.won: Any = None               # generator side: (ranks, states)
         key = model.key
         second, twos = operator.itemgetter(1), itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
@@ -317,10 +318,11 @@ class ParallelExplorer(Explorer):
         t_start = _time.perf_counter()
         stats = Stats()
         res = SearchResult("exhaustive", stats=stats)
-        found, reported, bounds = res.found, set(), set()
+        found, bounds = res.found, set()
+        reported: set = set()
         budget = self.max_states if self.max_states is not None else _MAX_STATES
         cap = min(_MAX_STATES, budget + 1)
-        self.parents = _reserve((cap,), np.uint32)
+        self.parents: Any = _reserve((cap,), np.uint32)
         if self.parents is None:
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)

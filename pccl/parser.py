@@ -2,9 +2,9 @@
 
 Public functions:
 
-* :func:`parse_program` -- a whole PCCL program (spec section 2);
+* :func:`parse_program` -- a whole PCCL program (docs/language.md §2-§9);
 * :func:`parse_file` -- the same, read from a UTF-8 file;
-* :func:`parse_property` -- one property expression (spec section 5).
+* :func:`parse_property` -- one property expression (docs/language.md §10).
 
 Every syntax problem is raised as :class:`pccl.errors.PcclError` with the
 file name, the source and the line/column of the offending token; no lark
@@ -22,7 +22,8 @@ import difflib
 import math
 import os
 import re
-from typing import Iterator, Optional
+from typing import Optional
+from collections.abc import Iterator
 
 from lark import Discard, Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (LarkError, UnexpectedCharacters, UnexpectedEOF,
@@ -76,7 +77,7 @@ class _PcclIndenter(Indenter):
                 self.indent_level.pop()
                 yield Token.new_borrow_pos(self.DEDENT_type, indent_str, token)
             if indent != self.indent_level[-1]:
-                raise _IndentError(token.end_line, token.end_column)
+                raise _IndentError(token.end_line or 0, token.end_column or 0)
 
     def _process(self, stream):
         token = None
@@ -137,7 +138,8 @@ _ORIGIN: contextvars.ContextVar[Optional[tuple]] = contextvars.ContextVar(
 
 
 def _tspan(tok: Token) -> ast.Span:
-    return ast.Span(tok.line, tok.column, tok.end_line, tok.end_column, _ORIGIN.get())
+    return ast.Span(tok.line or 0, tok.column or 0, tok.end_line or 0, tok.end_column or 0,
+                    _ORIGIN.get())
 
 
 def _mspan(meta) -> ast.Span:
@@ -229,6 +231,17 @@ class _ToAst(Transformer):
         kind, var, body = children
         return ast.Quant(str(kind), str(var), body, _mspan(meta))
 
+    def leadsto(self, meta, children):
+        p, q = children[0], children[2]
+        bound = children[4] if len(children) > 3 else None
+        return ast.Temporal("leadsto", p, q, bound, _mspan(meta))
+
+    def eventually(self, meta, children):
+        return ast.Temporal("eventually", children[1], None, None, _mspan(meta))
+
+    def reachable(self, meta, children):
+        return ast.Temporal("reachable", children[1], None, None, _mspan(meta))
+
     def property(self, meta, children):
         return children[0]
 
@@ -255,7 +268,8 @@ class _ToAst(Transformer):
         typ, tok = children[0], children[1]
         opts = dict(children[2:])
         # section is filled in by the enclosing section
-        return ast.VarDecl("", typ, str(tok), opts.get("size"), opts.get("init"), _mspan(meta))
+        return ast.VarDecl("", typ, str(tok), opts.get("size"), opts.get("init"), _mspan(meta),
+                           name_span=_tspan(tok))
 
     def enumdecl(self, meta, children):
         name = children[1]
@@ -265,7 +279,8 @@ class _ToAst(Transformer):
             if str(t) in seen:
                 raise _Syntax(f"duplicate member '{t}' in enum '{name}'", _tspan(t))
             seen.add(str(t))
-        return ast.EnumDecl("", str(name), tuple(members), _mspan(meta))
+        return ast.EnumDecl("", str(name), tuple(members), _mspan(meta), name_span=_tspan(name),
+                            member_spans=tuple(_tspan(t) for t in children[2:]))
 
     def _section(self, children):
         section = _SECTION[children[0].type]
@@ -335,11 +350,12 @@ class _ToAst(Transformer):
     def event(self, meta, children):
         name, guard, (eff_tok, body) = children
         end = body[-1].span if body else _tspan(eff_tok)
-        return ast.Event(str(name), guard, body, _join(_tspan(name), end))
+        return ast.Event(str(name), guard, body, _join(_tspan(name), end), name_span=_tspan(name))
 
     def invariant(self, meta, children):
         if len(children) == 2:
-            return ast.Invariant(str(children[0]), children[1], _mspan(meta))
+            return ast.Invariant(str(children[0]), children[1], _mspan(meta),
+                                 name_span=_tspan(children[0]))
         return ast.Invariant(None, children[0], _mspan(meta))
 
     def invariant_sec(self, meta, children):
@@ -391,7 +407,7 @@ def _transform_iteratively(self, tree):
                 stack[-1][2].append(res)
 
 
-_ToAst.transform = _transform_iteratively
+_ToAst.transform = _transform_iteratively  # type: ignore[method-assign]
 _TRANSFORMER = _ToAst()
 
 
@@ -412,6 +428,7 @@ class _Numberer:
         return tuple(self.stmt(s) for s in stmts)
 
     def stmt(self, s):
+        """``s`` with its sid and its blocks' sids, numbered in pre-order."""
         sid = self.next
         self.next += 1
         if isinstance(s, (ast.If, ast.While, ast.Atomic)):
@@ -420,46 +437,24 @@ class _Numberer:
                               f"levels)", s.span)
             self.depth += 1
             try:
-                if isinstance(s, ast.If):
-                    branches = tuple((c, self.stmts(b)) for c, b in s.branches)
-                    return dataclasses.replace(s, sid=sid, branches=branches,
-                                               orelse=self.stmts(s.orelse))
-                return dataclasses.replace(s, sid=sid, body=self.stmts(s.body))
+                s = ast.with_blocks(s, self.stmts)
             finally:
                 self.depth -= 1
         return dataclasses.replace(s, sid=sid)
 
 
-def _program_exprs(prog: ast.Program):
-    for d in prog.decls:
-        if isinstance(d, ast.VarDecl):
-            if d.size is not None:
-                yield d.size
-            if d.init is not None:
-                yield d.init
-    for ev in prog.events:
-        yield ev.guard
-    for body in [prog.init] + [ev.body for ev in prog.events]:
-        for s in ast.walk_stmts(body):
-            if isinstance(s, ast.Assign):
-                yield s.target
-                yield s.value
-            elif isinstance(s, ast.CallStmt):
-                yield from s.args
-            elif isinstance(s, ast.If):
-                for c, _ in s.branches:
-                    yield c
-            elif isinstance(s, ast.While):
-                yield s.cond
-
-
 def _check_no_property_syntax(prog: ast.Program) -> None:
-    for e in _program_exprs(prog):
-        for sub in ast.walk_expr(e):
+    """Quantifiers and ``->`` belong to properties and invariants only."""
+    for node in (*prog.decls, *prog.init, *prog.events):
+        for sub in ast.walk(node):
             if isinstance(sub, ast.Quant):
                 raise _Syntax(f"'{sub.kind}' is only allowed in properties and invariants", sub.span)
             if isinstance(sub, ast.Binary) and sub.op == "->":
                 raise _Syntax("'->' is only allowed in properties and invariants", sub.span)
+            if isinstance(sub, ast.Temporal):
+                word = "~>" if sub.kind == "leadsto" else sub.kind
+                raise _Syntax(f"'{word}' is only allowed in properties and invariants",
+                              sub.span)
 
 
 # --------------------------------------------------------------------------
@@ -470,14 +465,15 @@ _NAMES = {
     "SEMICOLON": "';'", "COLON": "':'", "COMMA": "','", "DOT": "'.'",
     "LPAR": "'('", "RPAR": "')'", "LSQB": "'['", "RSQB": "']'",
     "LBRACE": "'{'", "RBRACE": "'}'", "EQUAL": "'='",
-    "ARROW": "'->'", "OROR": "'||'", "ANDAND": "'&&'", "BANG": "'!'",
+    "ARROW": "'->'", "LEADSTO": "'~>'", "OROR": "'||'", "ANDAND": "'&&'", "BANG": "'!'",
     "EQ": "'=='", "NE": "'!='", "LT": "'<'", "LE": "'<='", "GT": "'>'", "GE": "'>='",
     "PLUS": "'+'", "MINUS": "'-'", "STAR": "'*'", "SLASH": "'/'", "PERCENT": "'%'",
     "IDENT": "an identifier", "INT": "a number", "FLOAT": "a number",
     "TRUE": "'true'", "FALSE": "'false'",
     "IF": "'if'", "ELSE": "'else'", "WHILE": "'while'", "ATOMIC": "'atomic'",
     "SKIP": "'skip'", "ENUM": "'enum'", "PRE": "'pre'", "EFF": "'eff'",
-    "FORALL": "'forall'", "EXISTS": "'exists'",
+    "FORALL": "'forall'", "EXISTS": "'exists'", "EVENTUALLY": "'eventually'",
+    "REACHABLE": "'reachable'", "WITHIN": "'within'",
     "AGENT_HDR": "'Agent::'", "ALLWRITE_HDR": "'allwrite:'", "ALLREAD_HDR": "'allread:'",
     "LOC_HDR": "'loc:'", "INIT_HDR": "'Init:'", "INVARIANT_HDR": "'invariant:'",
     "_NL": "end of line", "_INDENT": "an indented block", "_DEDENT": "end of block",
@@ -502,13 +498,13 @@ def _close_section(word: str) -> Optional[str]:
     return f"{names[close[0]]}:" if close else None
 
 
-_BINOPS = {"ARROW", "OROR", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
+_BINOPS = {"ARROW", "LEADSTO", "WITHIN", "OROR", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
            "PLUS", "MINUS", "STAR", "SLASH", "PERCENT"}
 _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
 _POSTFIX = {"LSQB", "DOT", "LPAR"}
 _STMT_START = {"IF", "WHILE", "ATOMIC", "SKIP", "IDENT"}
 _EXPR_START = {"IDENT", "INT", "FLOAT", "TRUE", "FALSE", "LPAR", "LSQB",
-               "MINUS", "BANG", "FORALL", "EXISTS"}
+               "MINUS", "BANG", "FORALL", "EXISTS", "EVENTUALLY", "REACHABLE"}
 _TOP_LEVEL = {"INIT_HDR", "INVARIANT_HDR", "ALLWRITE_HDR", "ALLREAD_HDR", "LOC_HDR"}
 
 # Tokens on the parser's value stack that tell what kind of line we are in.
@@ -672,7 +668,8 @@ def _token_error(exc: UnexpectedToken, text: str, source: str, filename: str,
 
 
 def _char_error(exc: UnexpectedCharacters, text: str, source: str, filename: str) -> PcclError:
-    ch = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else ""
+    pos = exc.pos_in_stream
+    ch = text[pos] if pos is not None and 0 <= pos < len(text) else ""
     msg = f"unexpected character {_show_char(ch)}" if ch else "unexpected character"
     hints = {"&": "'&&'", "|": "'||'"}
     if ch in hints:
@@ -756,11 +753,11 @@ def _parse(source: str, filename: str, start: str):
         raise PcclError("program is nested too deeply", filename=filename,
                         source=source) from None
     except (DedentError, UnexpectedInput, LarkError) as e:  # pragma: no cover - defensive
-        line = getattr(e, "line", None)
-        column = getattr(e, "column", None)
+        e_line = getattr(e, "line", None)
+        e_col = getattr(e, "column", None)
         raise PcclError(f"syntax error: {e}".splitlines()[0], filename=filename,
-                        source=source, line=line if isinstance(line, int) and line > 0 else None,
-                        column=column if isinstance(column, int) and column > 0 else None) from None
+                        source=source, line=e_line if isinstance(e_line, int) and e_line > 0 else None,
+                        column=e_col if isinstance(e_col, int) and e_col > 0 else None) from None
     return result
 
 
@@ -809,7 +806,7 @@ def parse_file(path) -> ast.Program:
 
 
 def parse_property(source: str, filename: str = "<property>") -> ast.Expr:
-    """Parse one property expression (spec section 5): ordinary expressions
+    """Parse one property expression (docs/language.md §10): ordinary expressions
     plus ``a -> b``, ``forall i: e`` and ``exists i: e``.  Newlines are white
     space here; one trailing ``;`` is allowed."""
     return _parse(source, filename, "property")

@@ -50,12 +50,13 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch, Polygon as PolygonPatch, Rectangle
 
+from .layout import AGS, EXITED, FAIL, POS, REACH, RUNNING, SH, STATUS, TARGET, TIME
+
 FIGSIZE = (8.0, 6.0)
 DPI = 100
 MAX_TIME_LABELS = 12          # per agent
 MAX_LEGEND_AGENTS = 10
 
-RUNNING, EXITED = 0, 1
 WAIT = "\0wait"              # an ATOMIC WAIT in the timeline
 
 
@@ -131,13 +132,13 @@ def _xy(p):
 
 
 def _frame(st):
-    return (st[0], tuple(_xy(ag[6]) for ag in st[4]), tuple(ag[3] for ag in st[4]))
+    return (st[TIME], tuple(_xy(ag[POS]) for ag in st[AGS]), tuple(ag[STATUS] for ag in st[AGS]))
 
 
 def _frames_from_states(states) -> list:
     """[(time, positions, statuses)], one per state, consecutive duplicates
     (same time and positions) merged."""
-    out = []
+    out: list = []
     for st in states:
         f = _frame(st)
         if out and out[-1][0] == f[0] and out[-1][1] == f[1]:
@@ -161,12 +162,12 @@ def _frames_from_trace(trace) -> list:
 
 def _destinations(model, st) -> list:
     """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
-    out = []
+    out: list = []
     for v in getattr(model.layout, "shared", ()):
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
             continue
-        val = st[3][v.slot]
+        val = st[SH][v.slot]
         if not isinstance(val, tuple):
             continue
         pts = [_xy(p) for p in val if isinstance(p, tuple) and len(p) >= 2]
@@ -177,10 +178,10 @@ def _destinations(model, st) -> list:
 
 def _targets(states, n) -> list:
     """Per agent, the distinct doReach targets in order of first appearance."""
-    seen = [dict() for _ in range(n)]
+    seen: list[dict] = [{} for _ in range(n)]
     for st in states:
-        for i, ag in enumerate(st[4]):
-            t = ag[7][0]
+        for i, ag in enumerate(st[AGS]):
+            t = ag[REACH][TARGET]
             if t is not None:
                 seen[i].setdefault(_xy(t), None)
     return [list(s) for s in seen]
@@ -190,10 +191,10 @@ def _failures(states, n) -> list:
     """[(agent, xy)]: where each agent's doReach_fail turned true (each time)."""
     out, prev = [], [False] * n
     for st in states:
-        for i, ag in enumerate(st[4]):
-            f = bool(ag[7][4])
+        for i, ag in enumerate(st[AGS]):
+            f = bool(ag[REACH][FAIL])
             if f and not prev[i]:
-                out.append((i, _xy(ag[6])))
+                out.append((i, _xy(ag[POS])))
             prev[i] = f
     return out
 
@@ -219,7 +220,7 @@ def _culprits(model, st, violations, *, looping, deadlock) -> dict:
         kind = getattr(v, "kind", None)
         if kind == "collision":
             from .collide import contacts
-            for c in contacts(model.world, tuple(ag[6] for ag in st[4])):
+            for c in contacts(model.world, tuple(ag[POS] for ag in st[AGS])):
                 agents.add(c.i)
                 if c.j is not None:
                     agents.add(c.j)
@@ -230,10 +231,10 @@ def _culprits(model, st, violations, *, looping, deadlock) -> dict:
     if looping is not None:
         agents.add(looping)
     if not agents and deadlock:
-        agents = {i for i, ag in enumerate(st[4]) if ag[3] != EXITED}
+        agents = {i for i, ag in enumerate(st[AGS]) if ag[STATUS] != EXITED}
     everyone = not agents
     if everyone:
-        agents = set(range(len(st[4])))
+        agents = set(range(len(st[AGS])))
     return {"agents": sorted(agents), "obstacles": sorted(obstacles), "all": everyone}
 
 
@@ -265,7 +266,7 @@ def _fmt_t(t) -> str:
 
 def _runs(frames, i) -> list:
     """Agent i's positions with the times it was there: [(xy, t_first, t_last)]."""
-    out = []
+    out: list = []
     for t, pos, _ in frames:
         p = pos[i]
         if out and out[-1][0] == p:
@@ -304,38 +305,60 @@ def _status_word(code) -> str:
     return "running" if code == RUNNING else "exited" if code == EXITED else "stuck"
 
 
+class _Canvas:
+    """The axes of a trajectory plot, the points the view must show and the
+    legend entries, filled in layer by layer."""
+
+    def __init__(self, fig):
+        fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
+        ax = self.ax = fig.add_subplot(1, 1, 1)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
+        ax.set_axisbelow(True)
+        ax.set_xlabel("x", fontsize=8)
+        ax.set_ylabel("y", fontsize=8)
+        ax.tick_params(labelsize=7)
+        self.xs: list = []
+        self.ys: list = []
+        self.handles: list = []
+
+    def extend(self, pts, pad=0.0):
+        for x, y in pts:
+            self.xs.extend((x - pad, x + pad))
+            self.ys.extend((y - pad, y + pad))
+
+
 def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> None:
+    """The trajectory plot: arena, obstacles, destinations, doReach targets
+    and failures, each agent's path, the violating moment; then the view and
+    the titles."""
     world = model.world
-    n = len(st0[4])
+    n = len(st0[AGS])
     r = float(world.radius)
     colours = _colours(n)
     fig = Figure(figsize=FIGSIZE, dpi=DPI)
     FigureCanvasAgg(fig)
-    fig.subplots_adjust(left=0.07, right=0.73, bottom=0.08, top=0.87)
-    ax = fig.add_subplot(1, 1, 1)
-    ax.set_aspect("equal", adjustable="box")
-    ax.grid(True, color="#e6e6e6", linewidth=0.6, zorder=0)
-    ax.set_axisbelow(True)
-    ax.set_xlabel("x", fontsize=8)
-    ax.set_ylabel("y", fontsize=8)
-    ax.tick_params(labelsize=7)
+    cv = _Canvas(fig)
+    _draw_world(cv, world, ring)
+    _draw_marks(cv, model, st0, scan_states, n, colours)
+    _draw_trajectories(cv, frames, n, r, colours)
+    if bad and ring:
+        _draw_violation(cv, last, ring, r)
+    _fit_view(cv, world, r)
+    _draw_titles(fig, cv, head, sub, bad)
+    _save(fig, path)
 
-    xs: list = []
-    ys: list = []
-    handles: list = []
 
-    def extend(pts, pad=0.0):
-        for x, y in pts:
-            xs.extend((x - pad, x + pad))
-            ys.extend((y - pad, y + pad))
-
+def _draw_world(cv: _Canvas, world, ring) -> None:
+    """The arena (dashed, not solid) and the numbered obstacles (those of
+    a collision outlined in red)."""
     # arena
     if world.arena is not None:
         (x0, y0), (x1, y1) = world.arena
-        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="#888888",
-                               linestyle="--", linewidth=1.0, zorder=1))
-        extend([(x0, y0), (x1, y1)])
-        handles.append(Line2D([], [], color="#888888", linestyle="--", label="arena"))
+        cv.ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, edgecolor="#888888",
+                                  linestyle="--", linewidth=1.0, zorder=1))
+        cv.extend([(x0, y0), (x1, y1)])
+        cv.handles.append(Line2D([], [], color="#888888", linestyle="--", label="arena"))
 
     # obstacles
     bad_obs = set(ring["obstacles"]) if ring else set()
@@ -343,53 +366,61 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         for k, poly in enumerate(world.obstacles, start=1):
             pts = [_xy(p) for p in poly]
             hit = k in bad_obs
-            ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#9e9e9e", alpha=0.85,
-                                      edgecolor="red" if hit else "#505050",
-                                      linewidth=2.5 if hit else 1.0, zorder=2))
+            cv.ax.add_patch(PolygonPatch(pts, closed=True, facecolor="#9e9e9e", alpha=0.85,
+                                         edgecolor="red" if hit else "#505050",
+                                         linewidth=2.5 if hit else 1.0, zorder=2))
             cx = sum(p[0] for p in pts) / len(pts)
             cy = sum(p[1] for p in pts) / len(pts)
-            ax.text(cx, cy, str(k), ha="center", va="center", fontsize=7, color="white",
-                    zorder=3, fontweight="bold")
-            extend(pts)
-        handles.append(Patch(facecolor="#9e9e9e", edgecolor="#505050", label="obstacle"))
+            cv.ax.text(cx, cy, str(k), ha="center", va="center", fontsize=7, color="white",
+                       zorder=3, fontweight="bold")
+            cv.extend(pts)
+        cv.handles.append(Patch(facecolor="#9e9e9e", edgecolor="#505050", label="obstacle"))
 
+
+def _draw_marks(cv: _Canvas, model, st0, scan_states, n, colours) -> None:
+    """Destinations (shared List<ItemPosition> variables), each agent's
+    doReach targets, and where a doReach failed."""
     # destinations (shared List<ItemPosition> variables, initial value)
     dests = _destinations(model, st0)
     if dests:
         names = ", ".join(name for name, _ in dests)
         allpts = [p for _, pts in dests for p in pts]
-        ax.plot([p[0] for p in allpts], [p[1] for p in allpts], linestyle="none", marker="*",
-                markersize=14, markerfacecolor="gold", markeredgecolor="#7a5c00",
-                markeredgewidth=0.8, zorder=4)
-        extend(allpts)
-        handles.append(Line2D([], [], linestyle="none", marker="*", markersize=11,
-                              markerfacecolor="gold", markeredgecolor="#7a5c00",
-                              label=f"destinations ({names})"))
+        cv.ax.plot([p[0] for p in allpts], [p[1] for p in allpts], linestyle="none", marker="*",
+                   markersize=14, markerfacecolor="gold", markeredgecolor="#7a5c00",
+                   markeredgewidth=0.8, zorder=4)
+        cv.extend(allpts)
+        cv.handles.append(Line2D([], [], linestyle="none", marker="*", markersize=11,
+                                 markerfacecolor="gold", markeredgecolor="#7a5c00",
+                                 label=f"destinations ({names})"))
 
     # doReach targets
     targets = _targets(scan_states, n)
     if any(targets):
         for i, ts in enumerate(targets):
             if ts:
-                ax.plot([p[0] for p in ts], [p[1] for p in ts], linestyle="none", marker="x",
-                        markersize=9, markeredgewidth=2.0, color=colours[i], zorder=6)
-                extend(ts)
-        handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
-                              markeredgewidth=2.0, color="#333333", label="doReach targets"))
+                cv.ax.plot([p[0] for p in ts], [p[1] for p in ts], linestyle="none", marker="x",
+                           markersize=9, markeredgewidth=2.0, color=colours[i], zorder=6)
+                cv.extend(ts)
+        cv.handles.append(Line2D([], [], linestyle="none", marker="x", markersize=8,
+                                 markeredgewidth=2.0, color="#333333", label="doReach targets"))
 
     # failed doReach: where each agent's doReach_fail became true
     fails = _failures(scan_states, n)
     if fails:
         for i, p in fails:
-            ax.plot([p[0]], [p[1]], linestyle="none", marker="X", markersize=13,
-                    markerfacecolor="red", markeredgecolor="black", markeredgewidth=0.8, zorder=11)
-            ax.annotate(f"doReach failed ({i})", p, xytext=(6, -12), textcoords="offset points",
-                        fontsize=6, color="red", zorder=11)
-            extend([p])
-        handles.append(Line2D([], [], linestyle="none", marker="X", markersize=9,
-                              markerfacecolor="red", markeredgecolor="black",
-                              label="doReach failed"))
+            cv.ax.plot([p[0]], [p[1]], linestyle="none", marker="X", markersize=13,
+                       markerfacecolor="red", markeredgecolor="black", markeredgewidth=0.8, zorder=11)
+            cv.ax.annotate(f"doReach failed ({i})", p, xytext=(6, -12), textcoords="offset points",
+                           fontsize=6, color="red", zorder=11)
+            cv.extend([p])
+        cv.handles.append(Line2D([], [], linestyle="none", marker="X", markersize=9,
+                                 markerfacecolor="red", markeredgecolor="black",
+                                 label="doReach failed"))
 
+
+def _draw_trajectories(cv: _Canvas, frames, n, r, colours) -> None:
+    """Each agent's path with time labels, its footprint at start (dashed)
+    and at the end (filled, numbered)."""
     # trajectories
     final_status = frames[-1][2]
     offsets = [(5, 5), (5, -11), (-22, 5), (-22, -11)]
@@ -397,50 +428,54 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     for i in range(n):
         c = colours[i]
         pts = [f[1][i] for f in frames]
-        extend(pts, pad=r)
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], color=c, linewidth=1.6,
-                marker="o", markersize=2.5, zorder=5, alpha=0.9)
+        cv.extend(pts, pad=r)
+        cv.ax.plot([p[0] for p in pts], [p[1] for p in pts], color=c, linewidth=1.6,
+                   marker="o", markersize=2.5, zorder=5, alpha=0.9)
         start, end = pts[0], pts[-1]
-        ax.add_patch(Circle(start, r, fill=False, edgecolor=c, linestyle="--",
-                            linewidth=1.2, zorder=5))
-        ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
-                            zorder=7))
+        cv.ax.add_patch(Circle(start, r, fill=False, edgecolor=c, linestyle="--",
+                               linewidth=1.2, zorder=5))
+        cv.ax.add_patch(Circle(end, r, facecolor=c, alpha=0.45, edgecolor=c, linewidth=1.4,
+                               zorder=7))
         ends.append(end)
         dx, dy = offsets[i % len(offsets)]
         for p, ta, tb in _thin(_runs(frames, i), MAX_TIME_LABELS):
             text = f"t={_fmt_t(ta)}" if ta == tb else f"t={_fmt_t(ta)}–{_fmt_t(tb)}"
-            ax.annotate(text, p, xytext=(dx, dy), textcoords="offset points", fontsize=6,
-                        color=c, zorder=9)
+            cv.ax.annotate(text, p, xytext=(dx, dy), textcoords="offset points", fontsize=6,
+                           color=c, zorder=9)
         if i < MAX_LEGEND_AGENTS:
-            handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
-                                  label=f"agent {i} ({_status_word(final_status[i])})"))
+            cv.handles.append(Line2D([], [], color=c, marker="o", markersize=4, linewidth=1.6,
+                                     label=f"agent {i} ({_status_word(final_status[i])})"))
     # agent numbers on the end footprints; robots ending on top of each other share one label
     for group in _groups(ends, 0.3 * r):
         x, y = ends[group[0]]
-        ax.text(x, y, ",".join(map(str, group)), ha="center", va="center", fontsize=7,
-                fontweight="bold", color="black", zorder=8)
+        cv.ax.text(x, y, ",".join(map(str, group)), ha="center", va="center", fontsize=7,
+                   fontweight="bold", color="black", zorder=8)
     if n > MAX_LEGEND_AGENTS:
-        handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
-    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
-                          markerfacecolor="none", markeredgecolor="#555555",
-                          label="footprint at start (dashed)"))
-    handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
-                          markerfacecolor="#bbbbbb", markeredgecolor="#555555",
-                          label="footprint at end"))
+        cv.handles.append(Line2D([], [], color="none", label=f"… {n - MAX_LEGEND_AGENTS} more agents"))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                             markerfacecolor="none", markeredgecolor="#555555",
+                             label="footprint at start (dashed)"))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=10,
+                             markerfacecolor="#bbbbbb", markeredgecolor="#555555",
+                             label="footprint at end"))
 
-    # the violating moment
-    if bad and ring:
-        pos = [_xy(ag[6]) for ag in last[4]]
-        style = "--" if ring["all"] else "-"
-        for i in ring["agents"]:
-            if i < len(pos):
-                ax.add_patch(Circle(pos[i], 1.6 * r, fill=False, edgecolor="red",
-                                    linewidth=2.2, linestyle=style, zorder=10))
-        handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
-                              markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
-                              label=f"violation at t={_fmt_t(last[0])}"))
 
-    # view
+def _draw_violation(cv: _Canvas, last, ring, r) -> None:
+    """Red rings around the agents of the violation, where they are at it."""
+    pos = [_xy(ag[POS]) for ag in last[AGS]]
+    style = "--" if ring["all"] else "-"
+    for i in ring["agents"]:
+        if i < len(pos):
+            cv.ax.add_patch(Circle(pos[i], 1.6 * r, fill=False, edgecolor="red",
+                                   linewidth=2.2, linestyle=style, zorder=10))
+    cv.handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
+                             markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
+                             label=f"violation at t={_fmt_t(last[TIME])}"))
+
+
+def _fit_view(cv: _Canvas, world, r) -> None:
+    """Limits that show every point drawn, grown to the axes' shape."""
+    xs, ys = cv.xs, cv.ys
     if not xs:
         xs, ys = [0.0], [0.0]
     xmin, xmax, ymin, ymax = min(xs), max(xs), min(ys), max(ys)
@@ -450,7 +485,7 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
         m = max(0.03 * span, 0.25 * r)
     xmin, xmax, ymin, ymax = xmin - m, xmax + m, ymin - m, ymax + m
     # grow the view to the axes' shape, so that equal aspect fills the box
-    box = ax.get_position(original=True)
+    box = cv.ax.get_position(original=True)
     want = (box.width * FIGSIZE[0]) / (box.height * FIGSIZE[1])
     w, h = xmax - xmin, ymax - ymin
     if w / h < want:
@@ -459,18 +494,21 @@ def _draw(model, st0, frames, scan_states, last, path, head, sub, bad, ring) -> 
     else:
         grow = (w / want - h) / 2
         ymin, ymax = ymin - grow, ymax + grow
-    ax.set_xlim(xmin, xmax)
-    ax.set_ylim(ymin, ymax)
+    cv.ax.set_xlim(xmin, xmax)
+    cv.ax.set_ylim(ymin, ymax)
 
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
-              frameon=True, borderaxespad=0.0)
+
+def _draw_titles(fig, cv: _Canvas, head, sub, bad) -> None:
+    """The legend right of the axes, the title and the subtitle (red for a
+    violation)."""
+    cv.ax.legend(handles=cv.handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
+                 frameon=True, borderaxespad=0.0)
     fig.text(0.5, 0.955, head, ha="center", va="center", fontsize=10, fontweight="bold")
     if sub:
         wrapped = textwrap.shorten(sub, width=220, placeholder=" …")
         wrapped = "\n".join(textwrap.wrap(wrapped, width=110)[:2])
         fig.text(0.5, 0.91, wrapped, ha="center", va="center", fontsize=8,
                  color="red" if bad else "#333333")
-    _save(fig, path)
 
 
 def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
@@ -479,7 +517,7 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
     agents marked, and the violating moment."""
     from matplotlib import colormaps
     states = [s for _, s in trace]
-    n = len(states[0][4])
+    n = len(states[0][AGS])
     delta = float(model.delta)
     events = [ev.name for ev in model.program.events]
     cmap = colormaps["tab20"]
@@ -500,11 +538,11 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
             continue
         rule, i = label[0], label[1]
         if rule == "EVENT SELECT" and label[2] is not None:
-            blocks.setdefault((i, float(st[0])), []).append(events[label[2]])
+            blocks.setdefault((i, float(st[TIME])), []).append(events[label[2]])
         elif rule == "IDLE":
-            blocks.setdefault((i, float(st[0])), []).append(None)
+            blocks.setdefault((i, float(st[TIME])), []).append(None)
         elif rule == "ATOMIC WAIT":
-            blocks.setdefault((i, float(st[0])), []).append(WAIT)
+            blocks.setdefault((i, float(st[TIME])), []).append(WAIT)
     used = set()
     for (i, t), names in blocks.items():
         w = delta / len(names)
@@ -522,14 +560,15 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
                 ax.text(x + w * 0.46, i, name, ha="center", va="center", fontsize=6, zorder=3)
     # exits and stuck agents
     last = states[-1]
-    t_end = float(last[0])
-    for i, ag in enumerate(last[4]):
-        if ag[3] == EXITED:
-            t_exit = next((float(st[0]) for st in states if st[4][i][3] == EXITED), t_end)
+    t_end = float(last[TIME])
+    for i, ag in enumerate(last[AGS]):
+        if ag[STATUS] == EXITED:
+            t_exit = next((float(st[TIME]) for st in states if st[AGS][i][STATUS] == EXITED), t_end)
             ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
-        elif ag[3] != RUNNING:
+        elif ag[STATUS] != RUNNING:
             ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
-    handles = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e) for e in events if e in used]
+    handles: list = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e)
+                     for e in events if e in used]
     if any(None in v for v in blocks.values()):
         handles.append(Patch(facecolor="#eeeeee", edgecolor="#bbbbbb", label="idle"))
     if any(WAIT in v for v in blocks.values()):
@@ -545,11 +584,11 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
         ax.axvline(t_end + delta * 0.5, color="red", linestyle=":", linewidth=1.2, zorder=1)
         handles.append(Line2D([], [], linestyle="none", marker="o", markersize=12,
                               markerfacecolor="none", markeredgecolor="red", markeredgewidth=2,
-                              label=f"violation at t={_fmt_t(last[0])}"))
+                              label=f"violation at t={_fmt_t(last[TIME])}"))
     ax.set_yticks(range(n))
     ax.set_yticklabels([f"agent {i}" for i in range(n)], fontsize=7)
     ax.set_ylim(n - 0.4, -0.6)
-    ax.set_xlim(float(states[0][0]) - 0.1 * delta, t_end + 1.2 * delta)
+    ax.set_xlim(float(states[0][TIME]) - 0.1 * delta, t_end + 1.2 * delta)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=7,
               frameon=True, borderaxespad=0.0, title="events", title_fontsize=7)
     fig.text(0.5, 0.955, head + " (timeline: no robot moves)", ha="center", va="center",

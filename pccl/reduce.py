@@ -31,7 +31,9 @@ from typing import Optional
 from . import ast as A
 from .errors import PcclError
 from .semantics import rules as R
-from .semantics.rules import DISCRETE, RUNNING, K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
+from .layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, RUNNING, SH,
+                     STATUS, TIME)
+from .semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
 
 #: The reductions, in the order they are reported.
 ALL = ("merge", "symmetry", "por")
@@ -71,7 +73,7 @@ class Plan:
         return {"requested": self.requested, "on": list(self.on), "off": dict(self.off)}
 
 
-def parse_request(reduce) -> tuple:
+def parse_request(reduce) -> Optional[tuple]:
     """``"auto"`` -> None (every sound one), ``"none"`` -> (), a list or
     ``"merge,symmetry"`` -> that tuple; unknown names are errors."""
     if reduce is None or reduce == "auto":
@@ -231,7 +233,8 @@ class _IdInfo:
         vs = self.lay.vars.get(base.name)
         if prop:
             return (vs is not None and vs.section in ("loc", "allread")) or \
-                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail"))
+                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail",
+                                              "exited", "stuck", "running"))
         return vs is not None and vs.section == "allread"
 
     def check(self) -> Optional[str]:
@@ -259,7 +262,7 @@ class _IdInfo:
                     self.visit(x, False, where)
         for ev in m.program.events:
             self.visit(ev.guard, False, f"in the guard of {ev.name} (line {ev.guard.span.line})")
-        for p in m.properties:
+        for p in list(m.properties) + list(getattr(m, "temporal", ())):
             self.bound = set()
             self.visit(p.expr, False, f"in property `{p.text}`", prop=True)
         self.bound = set()
@@ -281,6 +284,8 @@ def _children(e):
         return (e.left, e.right)
     if isinstance(e, A.Quant):
         return (e.body,)
+    if isinstance(e, A.Temporal):
+        return tuple(x for x in (e.p, e.q, e.bound) if x is not None)
     return ()
 
 
@@ -324,7 +329,7 @@ def positions_read(m) -> Optional[str]:
                 return f"getPosition() at line {e.span.line}"
             if isinstance(e, A.Name) and e.name in ("doReach_done", "doReach_fail"):
                 return f"{e.name} at line {e.span.line}"
-    for p in m.properties:
+    for p in list(m.properties) + list(getattr(m, "temporal", ())):
         for e in A.walk_expr(p.expr):
             if isinstance(e, A.Name) and e.name in ("pos", "doReach_done", "doReach_fail"):
                 return f"{e.name} in property `{p.text}`"
@@ -405,6 +410,11 @@ def plan(m, reduce, uses=()) -> tuple:
         on.append("merge")
     if "symmetry" not in limits and (want is None or "symmetry" in want):
         why, slots = symmetry_problem(m)
+        live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
+        if why is None and live:
+            # a cycle of the quotient is a real run only up to a permutation of
+            # the agents: a lasso would not return to its own entry state
+            why = f"liveness property `{live[0]}` needs real cycles for its lassos"
         if why is None:
             on.append("symmetry")
         elif want is not None and m.N >= 2:
@@ -413,7 +423,16 @@ def plan(m, reduce, uses=()) -> tuple:
         elif m.N >= 2 or want is not None:
             p.off["symmetry"] = why
     if "por" not in limits and (want is None or "por" in want):
-        if m.N >= 2:
+        temporal = [t.text for t in getattr(m, "temporal", ())]
+        if temporal:
+            # the ample-set conditions here are proven for state properties
+            # only (docs/reductions.md); paths need a stronger cycle proviso
+            why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
+            if want is not None:
+                raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
+                                filename="--reduce")
+            p.off["por"] = why
+        elif m.N >= 2:
             on.append("por")
         elif want is not None:
             p.off["por"] = "one agent"
@@ -444,23 +463,23 @@ class Merger:
         r = self.ok.get(pc)
         if r is None:
             info = self.m.ctl.info(pc)
-            k = info[0]
-            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info[-2] in self.sids)
+            k = info.kind
+            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info.sid in self.sids)
             self.ok[pc] = r
         return r
 
     def micro(self, st, i, ag) -> list:
         m = self.m
-        info = m.ctl.info(ag[0])
+        info = m.ctl.info(ag[PC])
         out: list = []
         m.oracle.agent = i
-        for rule in R.AGENT_RULES[info[0]]:
+        for rule in info.rules:
             rule(m, st, i, ag, info, out)
         return out
 
     def successors(self, st) -> list:
         out = self.plain(st)
-        if st[1] != DISCRETE:
+        if st[PHASE] != DISCRETE:
             return out
         m = self.m
         rho, n0 = m.rho, m.n0
@@ -469,11 +488,11 @@ class Merger:
         for idx0, (lab, s2) in enumerate(out):
             i = lab[1]
             if i is not None:
-                ag = s2[4][i]
-                if ag[3] == RUNNING and ag[1] + rho[i] <= n0:
-                    r = ok.get(ag[0])
+                ag = s2[AGS][i]
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                    r = ok.get(ag[PC])
                     if r is None:
-                        r = self.pc_ok(ag[0])
+                        r = self.pc_ok(ag[PC])
                     if r:
                         self._chain(lab, idx0, s2, i, res)
                         continue
@@ -492,17 +511,17 @@ class Merger:
         while stack:
             s, ch = stack.pop()
             while True:
-                ag = s[4][i]
-                pc = ag[0]
+                ag = s[AGS][i]
+                pc = ag[PC]
                 r = ok.get(pc)
                 if r is None:
                     r = self.pc_ok(pc)
                 n = len(ch)
-                if not r or ag[3] != RUNNING or ag[1] + rho > n0 or n >= MERGE_LIMIT:
+                if not r or ag[STATUS] != RUNNING or ag[CNT] + rho > n0 or n >= MERGE_LIMIT:
                     break
                 if n >= 32:
                     # a long chain may be a local loop: stop where it revisits
-                    ident = (pc, ag[1], ag[4])
+                    ident = (pc, ag[CNT], ag[LOC])
                     if seen is None:
                         seen = set()
                     elif ident in seen:
@@ -513,7 +532,7 @@ class Merger:
                     info = ctl.info(pc)
                 out: list = []
                 oracle.agent = i
-                if info[0] == K_END:
+                if info.kind == K_END:
                     counter_advance(m, s, i, ag, info, out)
                 else:
                     statement(m, s, i, ag, info, out)
@@ -538,7 +557,7 @@ class Merger:
         steps = [(lab, s)]
         i = lab[1]
         for c in ch:
-            lab, s = self.micro(s, i, s[4][i])[c]
+            lab, s = self.micro(s, i, s[AGS][i])[c]
             steps.append((lab, s))
         return steps
 
@@ -647,14 +666,14 @@ class Por:
         return r
 
     def successors(self, st) -> list:
-        if st[1] == DISCRETE:
+        if st[PHASE] == DISCRETE:
             m = self.m
             rho, n0, ok = m.rho, m.n0, self.ok
             ctl = m.ctl
             i = 0
-            for ag in st[4]:
-                if ag[3] == RUNNING and ag[1] + rho[i] <= n0:
-                    pc = ag[0]
+            for ag in st[AGS]:
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                    pc = ag[PC]
                     r = ok.get(pc)
                     if r is None:
                         r = self.pc_ok(pc)
@@ -666,7 +685,7 @@ class Por:
                         m.oracle.agent = i
                         for rule in R.AGENT_RULES[info[0]]:
                             rule(m, st, i, ag, info, out)
-                        if out and all(s2[4][i][3] == RUNNING for _, s2 in out):
+                        if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
                             return out
                 i += 1
         return self.plain(st)
@@ -712,36 +731,36 @@ def make_symmetric_key(m, slots):
         r = [0] * N
         for new, old in enumerate(order):
             r[old] = new
-        ags = st[4]
+        ags = st[AGS]
         if has_ids:
-            cells = tuple((a[0], a[1], a[2], a[3],
-                           ren(a[4], loc_s, r) if loc_s else a[4],
-                           ren(a[5], ar_s, r) if ar_s else a[5])
+            cells = tuple((a[PC], a[CNT], a[LCK], a[STATUS],
+                           ren(a[LOC], loc_s, r) if loc_s else a[LOC],
+                           ren(a[AR], ar_s, r) if ar_s else a[AR])
                           for a in (ags[o] for o in order))
-            sh = ren(st[3], sh_s, r) if sh_s else st[3]
+            sh = ren(st[SH], sh_s, r) if sh_s else st[SH]
         else:
-            cells = tuple(ags[o][:6] for o in order)
-            sh = st[3]
-        lq = tuple(r[x] for x in st[2])
+            cells = tuple(ags[o][:POS] for o in order)     # the cells before position
+            sh = st[SH]
+        lq = tuple(r[x] for x in st[LQ])
         if abstract:
-            return (st[1], lq, sh, cells, st[5])
-        return (st[0], st[1], lq, sh, cells, st[5])
+            return (st[PHASE], lq, sh, cells, st[ENV])
+        return (st[TIME], st[PHASE], lq, sh, cells, st[ENV])
 
     def key(st):
-        ags = st[4]
-        lq = st[2]
-        sh = st[3]
+        ags = st[AGS]
+        lq = st[LQ]
+        sh = st[SH]
         sk = []
         any_other = False
         for j, a in enumerate(ags):
             if has_ids:
-                lv, o1 = mask(a[4], loc_s, j) if loc_s else (a[4], False)
-                av, o2 = mask(a[5], ar_s, j) if ar_s else (a[5], False)
+                lv, o1 = mask(a[LOC], loc_s, j) if loc_s else (a[LOC], False)
+                av, o2 = mask(a[AR], ar_s, j) if ar_s else (a[AR], False)
                 any_other = any_other or o1 or o2
                 refs = tuple(sh[k] == j for k in sh_s)
             else:
-                lv, av, refs = a[4], a[5], ()
-            sk.append(dumps(((a[0], a[1], a[2], a[3], lv, av), refs,
+                lv, av, refs = a[LOC], a[AR], ()
+            sk.append(dumps(((a[PC], a[CNT], a[LCK], a[STATUS], lv, av), refs,
                              lq.index(j) if j in lq else -1), 2))
         order = sorted(range(N), key=sk.__getitem__)
         if not any_other:
@@ -781,13 +800,13 @@ def _self_only_key(m, loc_s, ar_s, sh_s):
     s1 = sh_s[0] if len(sh_s) == 1 else None
 
     def key(st):
-        ags = st[4]
-        lq = st[2]
-        sh = st[3]
+        ags = st[AGS]
+        lq = st[LQ]
+        sh = st[SH]
         items = []
         j = 0
         for a in ags:
-            loc = a[4]
+            loc = a[LOC]
             if l1 is not None:
                 if loc[l1] == j:
                     loc = loc[:l1] + (SELF,) + loc[l1 + 1:]
@@ -797,14 +816,14 @@ def _self_only_key(m, loc_s, ar_s, sh_s):
                     if loc[k] == j:
                         loc[k] = SELF
                 loc = tuple(loc)
-            ar = a[5]
+            ar = a[AR]
             if ar_s:
                 ar = list(ar)
                 for k in ar_s:
                     if ar[k] == j:
                         ar[k] = SELF
                 ar = tuple(ar)
-            items.append(((a[0], a[1], a[2], a[3], loc, ar),
+            items.append(((a[PC], a[CNT], a[LCK], a[STATUS], loc, ar),
                           (sh[s1] == j,) if s1 is not None else
                           tuple([sh[k] == j for k in sh_s]) if sh_s else (),
                           lq.index(j) if j in lq else -1, j))
@@ -828,7 +847,7 @@ def _self_only_key(m, loc_s, ar_s, sh_s):
                 sh = tuple(sh)
         cells = tuple([t[0] for t in items])
         if abstract:
-            return (st[1], lq, sh, cells, st[5])
-        return (st[0], st[1], lq, sh, cells, st[5])
+            return (st[PHASE], lq, sh, cells, st[ENV])
+        return (st[TIME], st[PHASE], lq, sh, cells, st[ENV])
 
     return key

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Mapping, Optional
+from typing import Any, Optional
+from collections.abc import Mapping
 
 from . import display as D
 
@@ -73,7 +74,7 @@ class AgentView(_Keyed):
     doReach_fail: Any
     variables: Mapping[str, Any]
     stuck: Optional[Stuck] = None
-    _json: dict = field(default=None, repr=False, compare=False)  # type: ignore[assignment]
+    _json: dict = field(default_factory=dict, repr=False, compare=False)
 
     def to_json(self) -> dict:
         return self._json
@@ -89,7 +90,7 @@ class StateView(_Keyed):
     lock_queue: tuple
     shared: Mapping[str, Any]
     agents: tuple
-    _json: dict = field(default=None, repr=False, compare=False)  # type: ignore[assignment]
+    _json: dict = field(default_factory=dict, repr=False, compare=False)
     _text: str = field(default="", repr=False, compare=False)
 
     @classmethod
@@ -163,7 +164,8 @@ class StepView(_Keyed):
 @dataclass(frozen=True)
 class Finding(_Keyed):
     """A violation with its counterexample: the kind (``invariant``,
-    ``stuck``, ``assert``, ``deadlock``, ``collision``, ...), the property's
+    ``stuck``, ``assert``, ``deadlock``, ``collision``, and for temporal
+    properties ``liveness``, ``timelock``, ``response``, ``unreachable``), the property's
     name, the message, the agent and source location where there is one, the
     depth (transitions in the reduced graph), whether the trace is shortest
     (``"yes"`` or ``"under the reductions"``), the steps and the violating
@@ -177,10 +179,16 @@ class Finding(_Keyed):
     depth: int
     shortest: str
     trace: tuple
-    state: StateView
+    state: Optional[StateView]          # None for "unreachable" (no path)
+    #: a lasso (temporal properties): the steps after this many repeat forever
+    cycle_start: Optional[int] = None
 
     def to_json(self) -> dict:
-        return {"kind": self.kind, "name": self.name, "message": self.message,
-                "agent": self.agent, "line": self.line, "column": self.column,
-                "depth": self.depth, "shortest": self.shortest,
-                "trace": [s.to_json() for s in self.trace], "state": self.state.to_json()}
+        out = {"kind": self.kind, "name": self.name, "message": self.message,
+               "agent": self.agent, "line": self.line, "column": self.column,
+               "depth": self.depth, "shortest": self.shortest,
+               "trace": [s.to_json() for s in self.trace],
+               "state": None if self.state is None else self.state.to_json()}
+        if self.cycle_start is not None:
+            out["cycle_start"] = self.cycle_start
+        return out

@@ -4,8 +4,10 @@ Transitions are chosen among the enabled ones with a seeded generator, and
 ``rand`` is sampled from the same generator, so the same seed gives the same
 run.  The run ends when every agent has exited, in a terminal state, at
 ``--max-time``, at the first violation (stuck agent, failed assertion,
-invariant, collision), or when one time step takes more than ``--max-steps``
-transitions (an event that never ends, such as ``while (true)``).
+invariant, collision), when one time step takes more than ``--max-steps``
+transitions (an event that never ends, such as ``while (true)``), or when the
+team has stalled: no variable, position or flag changed for ``stall_steps``
+time steps while some agent still runs (``--stall-steps``).
 """
 
 from __future__ import annotations
@@ -15,6 +17,9 @@ import random
 from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
+
+from .layout import (AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
+                     TARGET, TIME)
 
 
 @dataclass
@@ -28,6 +33,11 @@ class RunResult:
     summary: list = field(default_factory=list)   # [(time, state)] after each environment step
     violations: list = field(default_factory=list)
     looping_agent: Optional[int] = None
+    #: a stalled run: the time since which nothing changed, and per running
+    #: agent what it waits on
+    stalled_since: Optional[float] = None
+    waiting: list = field(default_factory=list)
+
     model: Any = None
 
     @property
@@ -41,22 +51,70 @@ class RunResult:
         return StateView.of(self.model, self.final)
 
 
+def _signature(st) -> tuple:
+    """What a stall compares: variables, positions, doReach targets and flags,
+    statuses and the lock queue (not the clock, counters or pending code)."""
+    return (st[LQ], st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[POS], ag[REACH][TARGET],
+                                   ag[REACH][DONE], ag[REACH][FAIL]) for ag in st[AGS]))
+
+
+def waiting_on(model, st) -> list:
+    """Per running agent, what it waits on: ``[(agent, text)]``."""
+    from .display import source_line
+    out = []
+    sh, ags = st[SH], st[AGS]
+    for i, ag in enumerate(ags):
+        if ag[STATUS] != RUNNING:
+            continue
+        if ag[PC] != model.ctl.empty_pc and model.ctl.cells[ag[PC]][0] != END:
+            out.append((i, model.describe_k(ag[PC])))
+            continue
+        try:
+            enabled = model.enabled_events(i, ag, sh, ags)
+        except Exception:            # a guard error is reported by the run itself
+            enabled = []
+        evs = model.program.events
+        if enabled:
+            names = ", ".join(evs[e].name for e in enabled)
+            out.append((i, f"runs {names} but changes nothing"))
+        elif evs:
+            guards = "; ".join(f"`{_guard_text(source_line(model, ev.guard.span))}` "
+                               f"({ev.name}, line {ev.guard.span.line})" for ev in evs)
+            out.append((i, f"waits for one of: {guards}"))
+        else:
+            out.append((i, "has no event"))
+    return out
+
+
+def _guard_text(src) -> str:
+    """``pre(c);`` as ``c``."""
+    t = (src or "").strip().rstrip(";").strip()
+    for pre in ("pre(", "Pre("):
+        if t.startswith(pre) and t.endswith(")"):
+            return t[len(pre):-1].strip()
+    return t
+
+
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
-        rng: Optional[random.Random] = None, on_step=None) -> RunResult:
+        rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20) -> RunResult:
     """Execute ``model`` once.  ``model`` must have been built with a
     ``rand_policy`` if rand should be sampled (see :func:`pccl.api.make_model`);
-    otherwise all rand outcomes are successors and one is picked at random."""
+    otherwise all rand outcomes are successors and one is picked at random.
+    ``stall_steps``: stop when nothing changed for this many time steps
+    while an agent still runs (0: never)."""
     rng = rng or random.Random(seed)
     gen = iter(model.init_states())
     inits = list(itertools.islice(gen, 2))
     if len(inits) > 1:          # no rand policy: every outcome is an initial state
         inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
-    trace, summary = [], [(st[0], st)]
+    trace: list = []
+    summary = [(st[TIME], st)]
     steps = 0
     n_env, stride = 0, 1
     since_time = 0
     per_agent: Counter = Counter()
+    last_sig, still, since = _signature(st), 0, st[TIME]
 
     def finish(status, message, code, **kw):
         return RunResult(status, message, code, st, steps, trace, summary, **kw)
@@ -86,9 +144,24 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 since_time = 0
                 per_agent.clear()
             elif rule == "DOREACH INVOKE":
+                sig = _signature(nxt)
+                if sig == last_sig:
+                    still += 1
+                else:
+                    last_sig, still, since = sig, 0, nxt[TIME]
+                if stall_steps and still >= stall_steps and any(ag[STATUS] == RUNNING for ag in nxt[AGS]):
+                    st = nxt
+                    summary.append((nxt[TIME], nxt))
+                    from .display import fmt_time
+                    waits = waiting_on(model, st)
+                    return finish("stalled",
+                                  f"stalled since t = {fmt_time(since)}: no variable, position "
+                                  f"or flag changed for {still} time steps while agents still run; "
+                                  + "; ".join(f"agent {i} {w}" for i, w in waits),
+                                  1, stalled_since=since, waiting=waits)
                 n_env += 1
                 if n_env % stride == 0:
-                    summary.append((nxt[0], nxt))
+                    summary.append((nxt[TIME], nxt))
                     if len(summary) > SUMMARY_LIMIT:    # bounded memory on long runs:
                         summary[1:] = summary[2::2]     # keep every other one, and
                         stride *= 2                     # record half as often from now on
@@ -101,7 +174,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     looping = _looping_agent(model, st, per_agent)
                     return finish("max-steps",
                                   f"agent {looping} runs more than {max_steps} transitions without "
-                                  f"letting time advance ({model.describe_k(st[4][looping][0])}); "
+                                  f"letting time advance ({model.describe_k(st[AGS][looping][PC])}); "
                                   f"raise --max-steps if this is intended",
                                   1, looping_agent=looping)
             st = nxt
@@ -117,9 +190,9 @@ SUMMARY_LIMIT = 100_000
 def _looping_agent(model, st, per_agent: Counter) -> int:
     """The agent that keeps time from advancing: mid-event with the most steps."""
     best, best_n = None, -1
-    for i, ag in enumerate(st[4]):
-        mid = ag[0] != model.ctl.empty_pc
+    for i, ag in enumerate(st[AGS]):
+        mid = ag[PC] != model.ctl.empty_pc
         n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
-        if ag[3] == 0 and n > best_n:
+        if ag[STATUS] == RUNNING and n > best_n:
             best, best_n = i, n
-    return best if best is not None else max(per_agent, key=per_agent.get)
+    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])

@@ -14,6 +14,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from . import display as D
+from .layout import TIME
 from .runner import run as _run
 
 
@@ -58,7 +59,7 @@ def simulate(model, rng: random.Random, *, runs: int, seed: int = 0, max_steps: 
         if o is None:
             o = out[key] = Outcome(key, label, example=example)
         o.seeds.append(s)
-        o.times.append(res.final[0])
+        o.times.append(res.final[TIME])
         if on_run is not None:
             on_run(k, res)
     return out

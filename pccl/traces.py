@@ -22,7 +22,9 @@ import os
 from typing import Optional
 
 from . import display as D
-from .semantics.rules import DISCRETE, EXITED, K_IF, K_WHILE, RUNNING
+from .layout import (AGS, CNT, DONE, ENV, FAIL, LCK, LQ, PC, PHASE, POS, REACH, SH, STATUS,
+                     TARGET, TIME)
+from .semantics.rules import K_IF, K_WHILE
 from .values import to_json
 
 FORMAT = "pccl-trace"
@@ -92,18 +94,18 @@ def state_typed(model, st) -> dict:
     """A configuration as typed JSON data (without the pending computation k,
     which ``at`` describes)."""
     agents = []
-    for i, ag in enumerate(st[4]):
-        r = ag[7]
+    for i, ag in enumerate(st[AGS]):
+        r = ag[REACH]
         agents.append({
-            "id": i, "status": _status(model, ag[3]), "at": model.describe_k(ag[0]),
-            "counter": ag[1], "lockState": D.LOCK_NAMES[ag[2]],
-            "position": list(ag[6]),
-            "target": None if r[0] is None else list(r[0]),
-            "doReach_done": r[3], "doReach_fail": r[4],
+            "id": i, "status": _status(model, ag[STATUS]), "at": model.describe_k(ag[PC]),
+            "counter": ag[CNT], "lockState": D.LOCK_NAMES[ag[LCK]],
+            "position": list(ag[POS]),
+            "target": None if r[TARGET] is None else list(r[TARGET]),
+            "doReach_done": r[DONE], "doReach_fail": r[FAIL],
             "variables": {n: to_json(v, t) for n, t, v in D.agent_vars(model, st, i)}})
-    return {"time": st[0], "phase": D._phase(st[1]), "lockQueue": list(st[2]),
+    return {"time": st[TIME], "phase": D._phase(st[PHASE]), "lockQueue": list(st[LQ]),
             "shared": {n: to_json(v, t) for n, t, v in D.shared_vars(model, st)},
-            "agents": agents, "env": to_json(st[5])}
+            "agents": agents, "env": to_json(st[ENV])}
 
 
 def changes(model, a, b) -> list:
@@ -113,46 +115,47 @@ def changes(model, a, b) -> list:
     def add(cell, old, new):
         out.append({"cell": cell, "old": old, "new": new})
 
-    if a[0] != b[0]:
-        add({"cell": "time"}, a[0], b[0])
-    if a[1] != b[1]:
-        add({"cell": "phase"}, D._phase(a[1]), D._phase(b[1]))
-    if a[2] != b[2]:
-        add({"cell": "lockQueue"}, list(a[2]), list(b[2]))
-    if a[3] is not b[3]:
+    if a[TIME] != b[TIME]:
+        add({"cell": "time"}, a[TIME], b[TIME])
+    if a[PHASE] != b[PHASE]:
+        add({"cell": "phase"}, D._phase(a[PHASE]), D._phase(b[PHASE]))
+    if a[LQ] != b[LQ]:
+        add({"cell": "lockQueue"}, list(a[LQ]), list(b[LQ]))
+    if a[SH] is not b[SH]:
         for (n, ty, va), (_, _, vb) in zip(D.shared_vars(model, a), D.shared_vars(model, b)):
             if va != vb:
                 add({"var": n}, to_json(va, ty), to_json(vb, ty))
-    for i, (ga, gb) in enumerate(zip(a[4], b[4])):
+    for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
         if ga is gb:
             continue
         for (n, ty, va), (_, _, vb) in zip(D.agent_vars(model, a, i), D.agent_vars(model, b, i)):
             if va != vb:
                 add({"agent": i, "var": n}, to_json(va, ty), to_json(vb, ty))
-        if ga[1] != gb[1]:
-            add({"agent": i, "cell": "counter"}, ga[1], gb[1])
-        if ga[6] != gb[6]:
-            add({"agent": i, "cell": "position"}, list(ga[6]), list(gb[6]))
-        if ga[2] != gb[2]:
-            add({"agent": i, "cell": "lockState"}, D.LOCK_NAMES[ga[2]], D.LOCK_NAMES[gb[2]])
-        if ga[3] != gb[3]:
-            add({"agent": i, "cell": "status"}, _status(model, ga[3]), _status(model, gb[3]))
-        ra, rb = ga[7], gb[7]
-        if ra[0] != rb[0]:
-            add({"agent": i, "cell": "target"}, None if ra[0] is None else list(ra[0]),
-                None if rb[0] is None else list(rb[0]))
-        if ra[3] != rb[3]:
-            add({"agent": i, "cell": "doReach_done"}, ra[3], rb[3])
-        if ra[4] != rb[4]:
-            add({"agent": i, "cell": "doReach_fail"}, ra[4], rb[4])
-    if a[5] != b[5]:
-        add({"cell": "env"}, to_json(a[5]), to_json(b[5]))
+        if ga[CNT] != gb[CNT]:
+            add({"agent": i, "cell": "counter"}, ga[CNT], gb[CNT])
+        if ga[POS] != gb[POS]:
+            add({"agent": i, "cell": "position"}, list(ga[POS]), list(gb[POS]))
+        if ga[LCK] != gb[LCK]:
+            add({"agent": i, "cell": "lockState"}, D.LOCK_NAMES[ga[LCK]], D.LOCK_NAMES[gb[LCK]])
+        if ga[STATUS] != gb[STATUS]:
+            add({"agent": i, "cell": "status"}, _status(model, ga[STATUS]), _status(model, gb[STATUS]))
+        ra, rb = ga[REACH], gb[REACH]
+        if ra[TARGET] != rb[TARGET]:
+            add({"agent": i, "cell": "target"}, None if ra[TARGET] is None else list(ra[TARGET]),
+                None if rb[TARGET] is None else list(rb[TARGET]))
+        if ra[DONE] != rb[DONE]:
+            add({"agent": i, "cell": "doReach_done"}, ra[DONE], rb[DONE])
+        if ra[FAIL] != rb[FAIL]:
+            add({"agent": i, "cell": "doReach_fail"}, ra[FAIL], rb[FAIL])
+    if a[ENV] != b[ENV]:
+        add({"cell": "env"}, to_json(a[ENV]), to_json(b[ENV]))
     return out
 
 
 def cell_name(cell: dict) -> str:
     """``waitTime[0]``, ``reqid``, ``pos[1]``, ``time``: as the text views print cells."""
-    name = cell.get("var") or {"position": "pos"}.get(cell.get("cell"), cell.get("cell"))
+    c = str(cell.get("cell"))
+    name = cell.get("var") or {"position": "pos"}.get(c, c)
     return f"{name}[{cell['agent']}]" if "agent" in cell else name
 
 
@@ -163,15 +166,15 @@ def branch_taken(model, label, before, after) -> Optional[dict]:
     rule, i, sid = label
     if rule != "STATEMENT" or i is None:
         return None
-    ag, ag2 = before[4][i], after[4][i]
-    if ag2[3] != ag[3]:
+    ag, ag2 = before[AGS][i], after[AGS][i]
+    if ag2[STATUS] != ag[STATUS]:
         return None
-    info = model.ctl.info(ag[0])
-    if info[0] == K_IF:
-        pcs = info[2]
-        stmt = model.stmts[info[3]]
+    info = model.ctl.info(ag[PC])
+    if info.kind == K_IF:
+        pcs = info.branch_pcs
+        stmt = model.stmts[info.sid]
         try:
-            k = pcs.index(ag2[0])
+            k = pcs.index(ag2[PC])
         except ValueError:
             return None
         n = len(stmt.branches)
@@ -187,8 +190,8 @@ def branch_taken(model, label, before, after) -> Optional[dict]:
             span = stmt.orelse[0].span if stmt.orelse else None
         return {"kind": "if", "index": k, "taken": taken,
                 "line": span.line if span else None}
-    if info[0] == K_WHILE:
-        body = ag2[0] == info[2]
+    if info.kind == K_WHILE:
+        body = ag2[PC] == info.body_pc
         return {"kind": "while", "index": 0 if body else 1, "taken": "body" if body else "exit",
                 "line": None}
     return None
@@ -214,7 +217,7 @@ def step_record(model, n, label, before, after) -> dict:
     elif info["line"] is not None and isinstance(detail, int) and rule not in ("DOREACH INVOKE",):
         sp = model.stmt_span(detail)
         column = sp.column if sp else None
-    rec = {"index": n, "time": before[0], "agent": agent, "rule": info["rule"],
+    rec = {"index": n, "time": before[TIME], "agent": agent, "rule": info["rule"],
            "event": info["event"], "line": info["line"], "column": column,
            "source": info["source"] or None,
            "branch": branch_taken(model, label, before, after),
@@ -253,8 +256,14 @@ def explore_document(res, cfg: dict) -> dict:
     if res.counterexamples:
         cx = res.counterexamples[0]
         tr = cx.trace
-        return document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                        violation=cx.violation, message=res.verdict)
+        if tr is None:          # reachable P found unreachable: no path
+            return document(m, cfg, [], [], status=res.status, violation=cx.violation,
+                            message=res.verdict)
+        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
+                       violation=cx.violation, message=res.verdict)
+        if cx.cycle_start is not None:
+            doc["result"]["cycle_start"] = cx.cycle_start
+        return doc
     return document(m, cfg, [], [], status=res.status, message=res.verdict)
 
 

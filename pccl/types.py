@@ -37,6 +37,12 @@ class Ty:
     def is_number(self) -> bool:
         return self.kind in ("int", "float")
 
+    @property
+    def item(self) -> "Ty":
+        """The element type of a list or an array (which always has one)."""
+        assert self.elem is not None, self.kind
+        return self.elem
+
 
 _KIND_NAMES = {"pos": "ItemPosition", "obstacles": "ObstacleList"}
 

@@ -18,7 +18,8 @@ from .errors import ArgumentError
 
 #: The keyword options make_model passes on to the Model.
 MODEL_OPTIONS = ("delta", "n0", "rates", "events", "max_time", "abstract_time",
-                 "invariants", "functions", "rand_policy", "collisions", "reduce")
+                 "invariants", "functions", "rand_policy", "collisions", "reduce",
+                 "properties")
 
 
 def _fail(func: str, message: str):
@@ -164,6 +165,8 @@ def model_options(func, options: dict):
             _fail(func, e.message if hasattr(e, "message") else str(e))
     if "invariants" in options:
         texts(func, "invariants", options["invariants"])
+    if "properties" in options:
+        texts(func, "properties", options["properties"])
     if "rand_policy" in options:
         callable_(func, "rand_policy", options["rand_policy"])
     fs = options.get("functions")

@@ -19,6 +19,7 @@ import textwrap
 
 from . import display as D
 from . import traces as T
+from .layout import AGS, POS, TIME
 from .values import format_value
 
 
@@ -115,15 +116,15 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
     out = row([f"agent {i}" for i in range(N)] + ["shared"])
     # initial state: every agent's variables, shared variables beside
     s0 = states[0]
-    out.append(rule_line(f"initial state, t={D.fmt_time(s0[0])}"))
+    out.append(rule_line(f"initial state, t={D.fmt_time(s0[TIME])}"))
     cells = []
     for i in range(N):
-        ag = s0[4][i]
+        ag = s0[AGS][i]
         vs = ", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.agent_vars(model, s0, i))
-        cells.append(f"pos {D.fmt_pos(ag[6])}" + (f"; {vs}" if vs else ""))
+        cells.append(f"pos {D.fmt_pos(ag[POS])}" + (f"; {vs}" if vs else ""))
     cells.append(", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.shared_vars(model, s0)))
     out += row(cells)
-    out.append(rule_line(f"t={D.fmt_time(s0[0])}"))
+    out.append(rule_line(f"t={D.fmt_time(s0[TIME])}"))
     for n, lab in enumerate(labels):
         a, b = states[n], states[n + 1]
         rule, i, detail = lab
@@ -131,7 +132,7 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
         shared_names = {v.name for v in model.layout.shared}
         shared = [f"{c}={nw}" for c, o, nw in ch if c in shared_names or c == "lockQueue"]
         if rule == "TIME ADVANCE":
-            out.append(rule_line(f"t={D.fmt_time(b[0])}"))
+            out.append(rule_line(f"t={D.fmt_time(b[TIME])}"))
             continue
         if rule == "DOREACH INVOKE":
             cells = []

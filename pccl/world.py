@@ -1,5 +1,5 @@
 """Worlds: where the robots are, what the uninterpreted functions return,
-and which obstacles are solid (spec section 6).
+and which obstacles are solid (docs/worlds.md).
 
 A world is read from a TOML file given with ``--world FILE``.  Every key is
 optional; unknown keys are errors.  Layout::
@@ -46,14 +46,14 @@ the file name, its text and the line/column of the offending key or value.
 
 from __future__ import annotations
 
-import bisect
 import math
 import re
 import tomllib
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, NoReturn, Optional
 
 from .errors import PcclError
+from .tomlpos import TomlSource, decode_error_location, long_integer_location
 
 Point3 = tuple  # (x, y, z)
 Polygon = tuple  # ((x, y), ...)
@@ -65,6 +65,8 @@ OBSTACLE_KEYS = ("polygon",)
 #: Largest coordinate accepted in a world file: far from the float limit, so
 #: that rounding to the resolution and moving by speed * δ stay finite.
 MAX_COORD = 1e12
+#: Most agents a model may have (each is a tuple in every state).
+MAX_AGENTS = 10_000
 MAX_INT_DIGITS = 4300
 
 DEFAULT_RESOLUTION = 0.01
@@ -188,43 +190,15 @@ def parse_world(source: str, filename: Optional[str] = None) -> World:
     try:
         data = tomllib.loads(source)
     except tomllib.TOMLDecodeError as e:
-        msg, line, col = _toml_error_location(e, source)
+        msg, line, col = decode_error_location(e, source)
         raise PcclError(f"invalid TOML: {msg}", filename=filename,
                         source=source, line=line, column=col) from None
     except ValueError:      # an integer of more than 4,300 digits
-        line = col = end = None
-        m = re.search(r"\d{%d,}" % (MAX_INT_DIGITS + 1), source)
-        if m:
-            line = source.count("\n", 0, m.start()) + 1
-            col = m.start() - (source.rfind("\n", 0, m.start()) + 1) + 1
-            end = col + len(m.group())
+        line, col, end = long_integer_location(source, MAX_INT_DIGITS) or (None, None, None)
         raise PcclError(f"integer too long (at most {MAX_INT_DIGITS} digits)",
                         filename=filename, source=source, line=line, column=col,
                         end_column=end) from None
-    return _Checker(source, filename).world(data)
-
-
-_TOML_LOC = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
-_TOML_END = re.compile(r"\s*\(at end of document\)\s*$")
-
-
-def _toml_error_location(e: Exception, source: str):
-    msg = str(e)
-    line = getattr(e, "lineno", None)
-    col = getattr(e, "colno", None)
-    m = _TOML_LOC.search(msg)
-    if m:
-        line, col = int(m.group(1)), int(m.group(2))
-        msg = msg[:m.start()]
-    else:
-        m = _TOML_END.search(msg)
-        if m:
-            msg = msg[:m.start()] + " at end of file"
-            lines = source.splitlines()
-            line = max(1, len(lines))
-            col = len(lines[-1]) + 1 if lines else 1
-    msg = getattr(e, "msg", None) or msg
-    return msg, line, col
+    return WorldChecker(source, filename).world(data)
 
 
 def _type_name(v: Any) -> str:
@@ -250,207 +224,26 @@ def _is_number(v: Any) -> bool:
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
-class _Checker:
-    """Checks the decoded TOML and locates errors in the source text."""
+class WorldChecker:
+    """Checks a decoded world file; each error points at the offending key or
+    value in the text (located by :class:`pccl.tomlpos.TomlSource`)."""
 
     def __init__(self, source: str, filename: Optional[str]):
         self.source = source
         self.filename = filename
-        self.lines = source.splitlines()
-
-    # -- locating ------------------------------------------------------
-    def _find(self, table: Optional[str], key: str, index: int = 0):
-        """(line, key column, key end column, value column) of ``key`` in
-        ``[table]`` (or the ``index``-th ``[[table]]``; None = top level)."""
-        current: Optional[str] = None
-        count = -1
-        key_re = re.compile(r"^(\s*)([\"']?)" + re.escape(key) + r"\2\s*=\s*")
-        for no, text in self._logical_lines():
-            hdr = re.match(r"^\s*\[\[\s*([^\]]+?)\s*\]\]", text)
-            if hdr:
-                current = hdr.group(1).strip("\"'")
-                count = count + 1 if current == table else count
-                continue
-            hdr = re.match(r"^\s*\[\s*([^\]]+?)\s*\]", text)
-            if hdr:
-                current = hdr.group(1).strip("\"'")
-                continue
-            if current != table or (table == "obstacles" and count != index):
-                continue
-            m = key_re.match(text)
-            if m:
-                col = len(m.group(1)) + 1
-                end = col + len(key) + 2 * len(m.group(2))
-                return no, col, end, m.end() + 1
-        # a table header: [[obstacles]] without polygon, [foo] unknown, ...
-        names = [key] if table is None else [f"{table}.{key}", table]
-        for name in names:
-            count = -1
-            for no, text in self._logical_lines():
-                hdr = re.match(r"^(\s*)(\[\[?)\s*([^\]]+?)\s*\]", text)
-                if hdr and hdr.group(3).replace(" ", "").strip("\"'") == name:
-                    count += 1
-                    if name != table or hdr.group(2) == "[" or count == index:
-                        col = len(hdr.group(1)) + 1
-                        end = len(text.split("#")[0].rstrip()) + 1
-                        return no, col, end, None
-        return None
-
-    def _logical_lines(self):
-        """(line number, text) of the lines that start a key or a header,
-        skipping the continuation lines of multi-line arrays and strings."""
-        depth = 0
-        in_ml = None  # open multi-line string delimiter
-        for no, text in enumerate(self.lines, start=1):
-            starts_here = depth == 0 and in_ml is None
-            i = 0
-            quote = None
-            while i < len(text):
-                if in_ml:
-                    j = text.find(in_ml, i)
-                    if j < 0:
-                        break
-                    in_ml, i = None, j + 3
-                    continue
-                ch = text[i]
-                if quote:
-                    if ch == "\\" and quote == '"':
-                        i += 2
-                        continue
-                    if ch == quote:
-                        quote = None
-                elif text.startswith('"""', i) or text.startswith("'''", i):
-                    in_ml, i = text[i:i + 3], i + 3
-                    continue
-                elif ch in "\"'":
-                    quote = ch
-                elif ch == "#":
-                    break
-                elif ch in "[{" and not (starts_here and depth == 0
-                                          and text[:i].strip() == ""):
-                    depth += 1
-                elif ch in "]}" and depth > 0:
-                    depth -= 1
-                i += 1
-            if starts_here:
-                yield no, text
+        self.toml = TomlSource(source)
 
     def error(self, message: str, table: Optional[str] = None,
               key: Optional[str] = None, index: int = 0, at_value=True,
-              path: tuple = ()):
-        """Raise a PcclError at ``key`` (its value when ``at_value``; the
-        element at ``path``, a tuple of array indexes, inside the value)."""
-        line = column = end = None
-        if key is not None:
-            found = self._find(table, key, index)
-            if found:
-                line, kcol, kend, vcol = found
-                if at_value and vcol is not None:
-                    column = vcol
-                    end = self._value_end(line, vcol)
-                    if path:
-                        elem = self._element(line, vcol, path)
-                        if elem:
-                            line, column, end = elem
-                else:
-                    column, end = kcol, kend
+              path: tuple = ()) -> NoReturn:
+        """Raise a PcclError at ``key`` of ``[table]`` (its value when
+        ``at_value``; the element at ``path``, a tuple of array indexes,
+        inside the value)."""
+        where = (self.toml.locate(table, key, index, at_value=at_value, path=path)
+                 if key is not None else None)
+        line, column, end = where if where is not None else (None, None, None)
         raise PcclError(message, filename=self.filename, source=self.source,
                         line=line, column=column, end_column=end)
-
-    def _element(self, line: int, col: int, path: tuple):
-        """(line, column, end column) of the array element at ``path`` inside
-        the value starting at ``line``:``col``, or None."""
-        starts = [0]
-        for t in self.lines:
-            starts.append(starts[-1] + len(t) + 1)
-        # work on the lines as rendered (splitlines() drops \r)
-        text = "\n".join(self.lines) + "\n"
-        pos = starts[line - 1] + col - 1
-        n = len(text)
-
-        def skip_blank(i):
-            while i < n:
-                if text[i] in " \t\r\n":
-                    i += 1
-                elif text[i] == "#":
-                    while i < n and text[i] != "\n":
-                        i += 1
-                else:
-                    break
-            return i
-
-        def skip_value(i):
-            if i >= n:
-                return i
-            if text[i] in "\"'":
-                q = text[i]
-                i += 1
-                while i < n and text[i] != q and text[i] != "\n":
-                    i += 2 if (text[i] == "\\" and q == '"') else 1
-                return i + 1
-            if text[i] in "[{":
-                depth = 0
-                while i < n:
-                    ch = text[i]
-                    if ch in "\"'":
-                        i = skip_value(i)
-                        continue
-                    if ch == "#":
-                        i = skip_blank(i)
-                        continue
-                    if ch in "[{":
-                        depth += 1
-                    elif ch in "]}":
-                        depth -= 1
-                        if depth == 0:
-                            return i + 1
-                    i += 1
-                return i
-            while i < n and text[i] not in ",]}\n#":
-                i += 1
-            while i > 0 and text[i - 1] in " \t":
-                i -= 1
-            return i
-
-        for idx in path:
-            if pos >= n or text[pos] != "[":
-                return None
-            pos += 1
-            count = 0
-            while True:
-                pos = skip_blank(pos)
-                if pos >= n or text[pos] == "]":
-                    return None
-                if count == idx:
-                    break
-                pos = skip_blank(skip_value(pos))
-                if pos < n and text[pos] == ",":
-                    pos += 1
-                    count += 1
-                else:
-                    return None
-        end = skip_value(pos)
-        ln = bisect.bisect_right(starts, pos)
-        c = pos - starts[ln - 1] + 1
-        eln = bisect.bisect_right(starts, max(pos, end - 1))
-        ec = end - starts[ln - 1] + 1 if eln == ln else len(self.lines[ln - 1]) + 1
-        return ln, c, ec
-
-    def _value_end(self, line: int, col: int) -> int:
-        text = self.lines[line - 1]
-        rest = text[col - 1:]
-        # cut a trailing comment outside strings
-        quote = None
-        for i, ch in enumerate(rest):
-            if quote:
-                if ch == quote:
-                    quote = None
-            elif ch in "\"'":
-                quote = ch
-            elif ch == "#":
-                rest = rest[:i]
-                break
-        return col + len(rest.rstrip())
 
     # -- checking ------------------------------------------------------
     def world(self, data: dict) -> World:
@@ -467,7 +260,6 @@ class _Checker:
                            key="agents")
             if v < 1:
                 self.error(f"'agents' must be at least 1, got {v}", key="agents")
-            from .engine import MAX_AGENTS
             if v > MAX_AGENTS:
                 self.error(f"'agents' must be at most {MAX_AGENTS:,}, got {v:,}", key="agents")
             kw["n_agents"] = v

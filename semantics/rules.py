@@ -1,33 +1,42 @@
-"""The rewrite rules of PCCL, one function per rule of the paper (spec §4).
+"""The rewrite rules of PCCL, one function per rule of the paper
+(docs/language.md §11, "The rules").
 
-Each agent rule has the signature ``rule(m, st, i, ag, info, out)``: ``m`` is
-the :class:`pccl.engine.Model`, ``st`` the configuration, ``i`` the agent id,
-``ag`` its agent cell, ``info`` the decoded head of its ``k`` cell (see
+Each agent rule has the signature ``rule(m, st, i, ag, head, out)``: ``m`` is
+the model, read only through :class:`RuleContext`; ``st`` the configuration,
+``i`` the agent id, ``ag`` its agent cell, ``head`` the decoded head of its
+``k`` cell (a :class:`KHead`, built once per pc by
 :class:`pccl.engine.Control`), and ``out`` a list to which the rule appends
 ``(label, successor)`` pairs, one per way it applies.  A rule that does not
 apply appends nothing.  Global rules take ``(m, st, out)``.
 
-Labels are ``(RULE NAME, agent, detail)``; traces print the rule name.
+Labels are ``(RULE NAME, agent, detail)``; traces print the rule name.  The
+paper's STATEMENT rule is one function per kind of statement (as K's
+labelled rules ``[assign]``, ``[if]``, ``[while]``), all labelled
+``STATEMENT``.
 
-Configuration layout::
+A configuration is meaningful only together with the model that made it:
+``pc`` is an interned k cell and a stuck status a key of
+``Model.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
 
-    state = (time, phase, lockQueue, shared, agents, env)
-    agent = (pc, counter, lockState, status, locals, allread, position, reach)
-    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+    state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
+    agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
+    reach = (target 0, obstacles 1, t0 2, doReach_done 3, doReach_fail 4)
+
+This module is the hot kernel of a search: its bodies index cells by these
+numbers (the layout's constants cost 1.5-3 % here) and rebuild agent cells
+with tuple displays; everywhere else, code reads cells by name.
 """
 
 from __future__ import annotations
 
+from typing import Any, Optional, Protocol
+from collections.abc import Callable, Sequence
+
 from pccl.errors import PcclRuntimeError
+from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING,  # noqa: F401
+                         put_agent, with_pc, with_status)
 
-# phases
-DISCRETE, DYNAMIC = 0, 1
-# lock states
-IDLE, REQUEST, LOCK = 0, 1, 2
-# agent status (>= 2: stuck, a key of Model.stuck_reasons)
-RUNNING, EXITED = 0, 1
-
-# k-cell head kinds (Control.info(pc)[0])
+# k-cell head kinds (KHead.kind)
 K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
     K_DOREACH, K_EXIT, K_ASSERT = range(11)
 
@@ -35,25 +44,83 @@ _RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
                    TypeError, IndexError, ValueError)
 
 
-def _put(st, i, ag2, sh2=None):
-    """``st`` with agent i's cell replaced by ``ag2`` (and shared by ``sh2``)."""
-    ags = st[4]
-    n = len(ags)
-    # small teams: build the tuple directly (3-4x cheaper than slicing)
-    if n == 2:
-        ags = (ag2, ags[1]) if i == 0 else (ags[0], ag2)
-    elif n == 3:
-        ags = ((ag2, ags[1], ags[2]) if i == 0 else (ags[0], ag2, ags[2]) if i == 1
-               else (ags[0], ags[1], ag2))
-    else:
-        ags = list(ags)      # 2x cheaper than ags[:i] + (ag2,) + ags[i + 1:]
-        ags[i] = ag2
-        ags = tuple(ags)
-    return (st[0], st[1], st[2], st[3] if sh2 is None else sh2, ags, st[5])
+class KCells(Protocol):
+    """The interned k cells a rule may jump to (:class:`pccl.engine.Control`)."""
+    empty_pc: int              # ·  (the top of the event block)
+    idle_pc: int               # endEventBlock
+    event_pcs: Sequence[int]   # event e's effect ~> endEventBlock
 
 
-def _with_pc(ag, pc):
-    return (pc, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
+class RuleContext(Protocol):
+    """Exactly what a rule may read from the model (:class:`pccl.engine.Model`
+    implements it).  tests/test_layout.py checks that the rules read nothing
+    else."""
+    rho: Sequence[int]         # the rate map ρ: counter increment per agent
+    n0: int                    # event-block executions per time step
+    first_only: bool           # --events first
+    guards_rand: bool          # some guard calls rand()
+    record_t0: bool            # doReach records the time it was called
+    ctl: KCells
+    oracle: Any                # rand outcomes: .outcomes(fn, *args) -> list
+
+    def enabled_events(self, i: int, ag: tuple, sh: tuple, ags: tuple) -> list: ...
+    def stuck_code(self, kind: str, reason: str, where: Any) -> int: ...
+    def round_pos(self, p: Sequence[float]) -> tuple: ...
+    def next_time(self, t: Any) -> Any: ...
+    def environment_step(self, st: tuple) -> list: ...
+
+
+class KHead:
+    """The decoded head of a k cell: what the rules need of ``k(pc)``,
+    built once per pc and cached (:meth:`pccl.engine.Control.info`).
+
+    Each kind sets the fields it has (the others are None):
+
+    ==========  =================================================================
+    kind        fields
+    ==========  =================================================================
+    K_EMPTY     —  (k is empty: the top of the event block)
+    K_END       —  (endEventBlock)
+    K_AEND      ``next_pc`` (atomicEnd ~> k(next_pc))
+    K_ACQ       ``body_pc`` (the atomic body ~> atomicEnd ...), ``sid``
+    K_SIMPLE    ``fn`` (the effect: ``(ag2, sh2)``), ``next_pc``, ``sid``, ``has_rand``
+    K_IF        ``fn`` (the index of the branch taken), ``branch_pcs``, ``sid``, ``has_rand``
+    K_WHILE     ``fn`` (the test), ``body_pc``, ``next_pc``, ``sid``, ``has_rand``
+    K_ASSERT    ``fn`` (the condition), ``next_pc``, ``sid``, ``has_rand``
+    K_ATOMIC    ``request_pc`` (acquire ~> atomicEnd ...), ``body_pc``, ``sid``
+    K_DOREACH   ``fn`` (``(target, obstacles)``), ``next_pc``, ``sid``, ``has_rand``
+    K_EXIT      ``sid``
+    ==========  =================================================================
+
+    ``rules`` and ``rules_spent`` are the agent rules that may apply to the
+    head (:data:`AGENT_RULES`, :data:`AGENT_RULES_SPENT`).
+    """
+    __slots__ = ("kind", "fn", "next_pc", "body_pc", "branch_pcs", "request_pc", "sid",
+                 "has_rand", "rules", "rules_spent")
+
+    def __init__(self, kind: int, *, fn: Optional[Callable] = None, next_pc: Optional[int] = None,
+                 body_pc: Optional[int] = None, branch_pcs: Optional[tuple] = None,
+                 request_pc: Optional[int] = None, sid: Optional[int] = None,
+                 has_rand: bool = False):
+        self.kind = kind
+        self.fn = fn
+        self.next_pc = next_pc
+        self.body_pc = body_pc
+        self.branch_pcs = branch_pcs
+        self.request_pc = request_pc
+        self.sid = sid
+        self.has_rand = has_rand
+        self.rules = AGENT_RULES[kind]
+        self.rules_spent = AGENT_RULES_SPENT[kind]
+
+    def __repr__(self) -> str:
+        fields = ", ".join(f"{f}={getattr(self, f)!r}" for f in self.__slots__[1:8]
+                           if getattr(self, f) is not None)
+        return f"KHead({_KIND_NAMES[self.kind]}{', ' if fields else ''}{fields})"
+
+
+_KIND_NAMES = ("K_EMPTY", "K_END", "K_AEND", "K_ACQ", "K_SIMPLE", "K_IF", "K_WHILE",
+               "K_ATOMIC", "K_DOREACH", "K_EXIT", "K_ASSERT")
 
 
 def _outcomes(m, fn, has_rand, *args):
@@ -94,14 +161,14 @@ def _describe(exc):
 def _stuck(m, st, i, ag, reason, where, kind="error"):
     """The successor in which agent i is stuck(reason, location)."""
     code = m.stuck_code(kind, reason, where)
-    return _put(st, i, (ag[0], ag[1], ag[2], code, ag[4], ag[5], ag[6], ag[7]))
+    return put_agent(st, i, with_status(ag, code))
 
 
 # ---------------------------------------------------------------------------
 # Agent rules
 # ---------------------------------------------------------------------------
 
-def event_select(m, st, i, ag, info, out):
+def event_select(m, st, i, ag, head, out):
     """EVENT SELECT.
 
     Paper §4.4: "given an event block pre(C); eff: S Es where C is a
@@ -109,10 +176,12 @@ def event_select(m, st, i, ag, info, out):
     of that event, Es is the list of events following that; this event block
     rewrites to S.  If C evaluates to false, this block rewrites to Es."
 
-    Spec: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
+    Rule: k empty, counter + ρ(i) ≤ n0.  For each event whose guard holds,
     k := its effect ~> endEventBlock (label ``EVENT Name``); if none holds,
     k := endEventBlock (label ``IDLE``).  ``--events first`` keeps only the
     first enabled event in source order.
+
+    Changes k (or, on a runtime error in a guard, status).
     """
     if ag[1] + m.rho[i] > m.n0:
         return
@@ -130,70 +199,154 @@ def event_select(m, st, i, ag, info, out):
             out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
             continue
         if not res:
-            out.append((("IDLE", i, None), _put(st, i, _with_pc(ag, m.ctl.idle_pc))))
+            out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
             continue
         if m.first_only:
             res = res[:1]
         for e in res:
-            out.append((("EVENT SELECT", i, e), _put(st, i, _with_pc(ag, m.ctl.event_pcs[e]))))
+            out.append((("EVENT SELECT", i, e), put_agent(st, i, with_pc(ag, m.ctl.event_pcs[e]))))
 
 
-def statement(m, st, i, ag, info, out):
-    """STATEMENT.
+def _evaluate(m, fn, i, ag, st):
+    """Every ``rand`` outcome of ``fn(i, ag, sh, ags)`` (a statement with rand)."""
+    return _outcomes(m, fn, True, i, ag, st[3], st[4])
 
-    Spec §4: the head of k is a statement — assignment, ``if``, ``while``
-    (one test per transition), list mutator, ``assert``, ``skip`` — executed
-    in one transition, its expressions evaluated atomically.  A runtime
-    error sets status stuck(reason, location) instead.
+
+def statement_assign(m, st, i, ag, head, out):
+    """STATEMENT (assign): an assignment, list mutator (``add``, ``remove``)
+    or ``skip`` at the head of k runs in one transition, its expressions
+    evaluated atomically; k moves on.  In K (imp-semantics ``[assign]``)::
+
+        ⟨X = V ; ⇒ · ...⟩k ⟨E ⇒ E[X ← V]⟩memory
+
+    Changes k, and the variable's cell (locals, allread or shared).  A runtime
+    error makes the agent stuck(reason, location) instead.
     """
-    kind = info[0]
-    if kind == K_ATOMIC:
-        if ag[2] == LOCK:
-            # A nested atomic inside a held lock just runs its body.
-            _, _req, nested_pc, sid = info
-            out.append((("STATEMENT", i, sid), _put(st, i, _with_pc(ag, nested_pc))))
-        return
-    # K_SIMPLE, K_IF, K_WHILE, K_ASSERT: info = (kind, fn, ..., sid, has_rand)
-    fn, sid, rnd = info[1], info[-2], info[-1]
-    sh, ags = st[3], st[4]
-    if rnd:
-        results = _outcomes(m, fn, True, i, ag, sh, ags)
-    else:
-        # the common case, without _outcomes' wrapper
-        try:
-            results = (fn(i, ag, sh, ags),)
-        except _RUNTIME_ERRORS as exc:
-            results = (_Err.of(exc),)
-    label = ("STATEMENT", i, sid)
-    for res in results:
-        if isinstance(res, _Err):
-            out.append((label, _stuck(m, st, i, ag, res.reason, sid)))
-        elif kind == K_SIMPLE:
-            ag2, sh2 = res
-            ag2 = (info[2], ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
-            out.append((label, _put(st, i, ag2, sh2)))
-        elif kind == K_IF:
-            out.append((label, _put(st, i, _with_pc(ag, info[2][res]))))
-        elif kind == K_WHILE:
-            out.append((label, _put(st, i, _with_pc(ag, info[2] if res else info[3]))))
-        elif res:    # K_ASSERT
-            out.append((label, _put(st, i, _with_pc(ag, info[2]))))
+    try:
+        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
+            else (head.fn(i, ag, st[3], st[4]),)
+    except _RUNTIME_ERRORS as exc:
+        res = (_Err.of(exc),)
+    label = ("STATEMENT", i, head.sid)
+    for r in res:
+        if isinstance(r, _Err):
+            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
         else:
-            out.append((label, _stuck(m, st, i, ag, "assertion failed", sid, kind="assert")))
+            ag2, sh2 = r
+            # with_pc(ag2, head.next_pc), inlined
+            ag2 = (head.next_pc, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
+            out.append((label, put_agent(st, i, ag2, sh2)))
 
 
-def exit_rule(m, st, i, ag, info, out):
+def statement_if(m, st, i, ag, head, out):
+    """STATEMENT (if): the first branch whose condition holds (else the
+    ``else`` branch, possibly empty) replaces the ``if`` at the head of k, in
+    one transition.  In K (``[if-true]``, ``[if-false]``)::
+
+        ⟨if (true) S1 else S2 ⇒ S1 ...⟩k     ⟨if (false) S1 else S2 ⇒ S2 ...⟩k
+
+    Changes k only.
+    """
+    try:
+        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
+            else (head.fn(i, ag, st[3], st[4]),)
+    except _RUNTIME_ERRORS as exc:
+        res = (_Err.of(exc),)
+    label = ("STATEMENT", i, head.sid)
+    for r in res:
+        if isinstance(r, _Err):
+            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        else:
+            out.append((label, put_agent(st, i, with_pc(ag, head.branch_pcs[r]))))
+
+
+def statement_while(m, st, i, ag, head, out):
+    """STATEMENT (while): one test per transition; if it holds, the body
+    followed by the loop again replaces the head of k, else the loop is
+    done.  In K (``[while]`` unrolled one test at a time)::
+
+        ⟨while (B) S ⇒ if (B) { S while (B) S } else {} ...⟩k
+
+    Changes k only.
+    """
+    try:
+        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
+            else (head.fn(i, ag, st[3], st[4]),)
+    except _RUNTIME_ERRORS as exc:
+        res = (_Err.of(exc),)
+    label = ("STATEMENT", i, head.sid)
+    for r in res:
+        if isinstance(r, _Err):
+            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        else:
+            out.append((label, put_agent(st, i, with_pc(ag, head.body_pc if r else head.next_pc))))
+
+
+def statement_assert(m, st, i, ag, head, out):
+    """STATEMENT (assert): ``assert(C)`` with C true is done; with C false
+    the agent is stuck (an assertion violation)::
+
+        ⟨assert(true) ⇒ · ...⟩k        ⟨assert(false) ...⟩k ⟨running ⇒ stuck⟩status
+
+    Changes k, or status.
+    """
+    try:
+        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
+            else (head.fn(i, ag, st[3], st[4]),)
+    except _RUNTIME_ERRORS as exc:
+        res = (_Err.of(exc),)
+    label = ("STATEMENT", i, head.sid)
+    for r in res:
+        if isinstance(r, _Err):
+            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        elif r:
+            out.append((label, put_agent(st, i, with_pc(ag, head.next_pc))))
+        else:
+            out.append((label, _stuck(m, st, i, ag, "assertion failed", head.sid,
+                                      kind="assert")))
+
+
+def statement_nested_atomic(m, st, i, ag, head, out):
+    """STATEMENT (nested atomic): an ``atomic`` block met while the agent
+    holds the lock just runs its body (the lock is not requested again)::
+
+        ⟨atomic: Ss ⇒ Ss ...⟩k ⟨lock⟩lockState
+
+    Changes k only.
+    """
+    if ag[2] == LOCK:
+        out.append((("STATEMENT", i, head.sid), put_agent(st, i, with_pc(ag, head.body_pc))))
+
+
+#: STATEMENT, one function per kind of statement at the head of k.
+STATEMENT_RULES = {
+    K_SIMPLE: statement_assign,
+    K_IF: statement_if,
+    K_WHILE: statement_while,
+    K_ASSERT: statement_assert,
+    K_ATOMIC: statement_nested_atomic,
+}
+
+
+def statement(m, st, i, ag, head, out):
+    """STATEMENT, whatever the kind of statement at the head of k (see
+    :data:`STATEMENT_RULES`): for callers that hold a head of any kind."""
+    STATEMENT_RULES[head.kind](m, st, i, ag, head, out)
+
+
+def exit_rule(m, st, i, ag, head, out):
     """EXIT.
 
-    Spec §4: ``exit()``: status exited, k empty.  Exited agents never block
+    Rule: ``exit()``: status exited, k empty.  Exited agents never block
     time.
+
+    Changes k and status.
     """
-    sid = info[1]
     ag2 = (m.ctl.empty_pc, ag[1], ag[2], EXITED, ag[4], ag[5], ag[6], ag[7])
-    out.append((("EXIT", i, sid), _put(st, i, ag2)))
+    out.append((("EXIT", i, head.sid), put_agent(st, i, ag2)))
 
 
-def doreach_update(m, st, i, ag, info, out):
+def doreach_update(m, st, i, ag, head, out):
     """DOREACH UPDATE.
 
     Paper §4.6: "When a doReach statement is encountered in the program, the
@@ -204,20 +357,23 @@ def doreach_update(m, st, i, ag, info, out):
     function sets the values of target, obstacle, and current time."
 
         ⟨⟨doReach(T,O) ⇒ · ~> resetFlags(i) ~> setTargetObs(T,O,T0,i) ...⟩k ⟨i⟩id ...⟩agent ⟨T0⟩time
+
+    Changes k and reach (target, obstacles, t0, both flags).
     """
-    _, fn, nxt, sid, rnd = info
-    for res in _outcomes(m, fn, rnd, i, ag, st[3], st[4]):
+    sid = head.sid
+    for res in _outcomes(m, head.fn, head.has_rand, i, ag, st[3], st[4]):
         if isinstance(res, _Err):
             out.append((("DOREACH UPDATE", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
             continue
         target, obstacles = res
         target = m.round_pos(target)      # positions are compared at the world's resolution
         t0 = st[0] if m.record_t0 else None
-        ag2 = (nxt, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6], (target, obstacles, t0, False, False))
-        out.append((("DOREACH UPDATE", i, sid), _put(st, i, ag2)))
+        ag2 = (head.next_pc, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6],
+               (target, obstacles, t0, False, False))
+        out.append((("DOREACH UPDATE", i, sid), put_agent(st, i, ag2)))
 
 
-def counter_advance(m, st, i, ag, info, out):
+def counter_advance(m, st, i, ag, head, out):
     """COUNTER ADVANCE.
 
     Paper §4.4: "If an endEventBlock is encountered in its k cell, there is
@@ -230,15 +386,17 @@ def counter_advance(m, st, i, ag, info, out):
         requires N <Int n0
 
     With the rate map ρ: counter += ρ(i), enabled while counter + ρ(i) ≤ n0.
+
+    Changes k and counter.
     """
     c = ag[1] + m.rho[i]
     if c > m.n0:
         return
     ag2 = (m.ctl.empty_pc, c, ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("COUNTER ADVANCE", i, None), _put(st, i, ag2)))
+    out.append((("COUNTER ADVANCE", i, None), put_agent(st, i, ag2)))
 
 
-def lock_request(m, st, i, ag, info, out):
+def lock_request(m, st, i, ag, head, out):
     """LOCK REQUEST.
 
     Paper §4.5: "The lock request transition is enabled when an agent with id
@@ -248,17 +406,18 @@ def lock_request(m, st, i, ag, info, out):
     of the lock queue."
 
         ⟨⟨atomic: Ss ~> ·⇒atomicEnd ...⟩k ⟨i⟩id ⟨idle ⇒ request⟩lockState ...⟩agent ⟨... ·⇒i⟩lockQueue
+
+    Changes k, lockState and lockQueue.
     """
     if ag[2] != IDLE:
         return
-    req_pc, sid = info[1], info[3]
-    ag2 = (req_pc, ag[1], REQUEST, ag[3], ag[4], ag[5], ag[6], ag[7])
-    st2 = _put(st, i, ag2)
+    ag2 = (head.request_pc, ag[1], REQUEST, ag[3], ag[4], ag[5], ag[6], ag[7])
+    st2 = put_agent(st, i, ag2)
     st2 = (st2[0], st2[1], st2[2] + (i,), st2[3], st2[4], st2[5])
-    out.append((("LOCK REQUEST", i, sid), st2))
+    out.append((("LOCK REQUEST", i, head.sid), st2))
 
 
-def atomic_wait(m, st, i, ag, info, out):
+def atomic_wait(m, st, i, ag, head, out):
     """ATOMIC WAIT.
 
     Paper §4.5: "we capture the fact that locks may not be granted
@@ -267,6 +426,8 @@ def atomic_wait(m, st, i, ag, info, out):
 
         ⟨... ⟨i1⟩id ⟨request⟩lockState ⟨N ⇒ N +Int 1⟩counter ...⟩agent ⟨i2 ...⟩lockQueue
         requires i1 =/=Int i2 and N <Int n0
+
+    Changes counter.
     """
     lq = st[2]
     if ag[2] != REQUEST or (lq and lq[0] == i):
@@ -275,10 +436,10 @@ def atomic_wait(m, st, i, ag, info, out):
     if c > m.n0:
         return
     ag2 = (ag[0], c, ag[2], ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("ATOMIC WAIT", i, info[2]), _put(st, i, ag2)))
+    out.append((("ATOMIC WAIT", i, head.sid), put_agent(st, i, ag2)))
 
 
-def atomic_execution(m, st, i, ag, info, out):
+def atomic_execution(m, st, i, ag, head, out):
     """ATOMIC EXECUTION.
 
     Paper §4.5: "The agent aquires the lock when it is at the beginning of
@@ -286,15 +447,17 @@ def atomic_execution(m, st, i, ag, info, out):
     block.  The counter does not increase in this rewrite."
 
         ⟨⟨atomic: Ss ⇒ Ss ...⟩k ⟨i⟩id ⟨request ⇒ lock⟩lockState ...⟩agent ⟨i ...⟩lockQueue
+
+    Changes k and lockState.
     """
     lq = st[2]
     if ag[2] != REQUEST or not lq or lq[0] != i:
         return
-    ag2 = (info[1], ag[1], LOCK, ag[3], ag[4], ag[5], ag[6], ag[7])
-    out.append((("ATOMIC EXECUTION", i, info[2]), _put(st, i, ag2)))
+    ag2 = (head.body_pc, ag[1], LOCK, ag[3], ag[4], ag[5], ag[6], ag[7])
+    out.append((("ATOMIC EXECUTION", i, head.sid), put_agent(st, i, ag2)))
 
 
-def lock_release(m, st, i, ag, info, out):
+def lock_release(m, st, i, ag, head, out):
     """LOCK RELEASE.
 
     Paper §4.5: "Once the atomic block has been executed, the lock must be
@@ -302,12 +465,14 @@ def lock_release(m, st, i, ag, info, out):
     own lockState to idle.  The rest of the event continues to execute."
 
         ⟨⟨atomicEnd ⇒ · ...⟩k ⟨i⟩id ⟨lock ⇒ idle⟩lockState ...⟩agent ⟨i ⇒ · ...⟩lockQueue
+
+    Changes k, lockState and lockQueue.
     """
     if ag[2] != LOCK:
         return
     lq = st[2]
-    ag2 = (info[1], ag[1], IDLE, ag[3], ag[4], ag[5], ag[6], ag[7])
-    st2 = _put(st, i, ag2)
+    ag2 = (head.next_pc, ag[1], IDLE, ag[3], ag[4], ag[5], ag[6], ag[7])
+    st2 = put_agent(st, i, ag2)
     lq2 = tuple(x for x in lq if x != i)
     out.append((("LOCK RELEASE", i, None), (st2[0], st2[1], lq2, st2[3], st2[4], st2[5])))
 
@@ -317,8 +482,8 @@ def lock_release(m, st, i, ag, info, out):
 # ---------------------------------------------------------------------------
 
 def time_advance_enabled(m, st):
-    """TIME ADVANCE's guard without the ``--max-time`` bound (None if disabled
-    for another reason, else True)."""
+    """TIME ADVANCE's guard without the ``--max-time`` bound: True when time
+    may advance, False when it may not (whatever the bound)."""
     if st[1] != DISCRETE:
         return False
     n0, rho = m.n0, m.rho
@@ -344,12 +509,14 @@ def time_advance(m, st, out, enabled=None):
         ⟨CM⟩counterMap ⟨T ⇒ T +Int δ⟩time ⟨discrete ⇒ dynamic⟩transitionState
         requires n0 ==Int findMin(CM) and n0 ==Int findMax(CM)
 
-    Spec: at least one agent running; every agent that has not exited has
+    Rule: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.  The clock holds exact
     multiples n·δ (see :meth:`pccl.engine.Model.next_time`).
 
     ``enabled``, if given, is :func:`time_advance_enabled` already computed
     by the caller (``Model.successors`` gathers it while visiting the agents).
+
+    Changes time and transitionState.
     """
     if not (time_advance_enabled(m, st) if enabled is None else enabled):
         return
@@ -373,9 +540,12 @@ def doreach_invoke(m, st, out):
         ⟨⟨i⟩id ⟨N ⇒ 0⟩counter ⟨P ⇒ P1⟩position ...⟩agent ⟨... i ↦ N ⇒ i ↦ 0 ...⟩counterMap ⟨dynamic⟩transitionState
         requires N ==Int n0 and P1 = doReachBB(P, T, O, T0, δ, i)
 
-    Spec: the blackbox advances the world by δ for all agents at once; each
+    Rule: the blackbox advances the world by δ for all agents at once; each
     outcome it returns is one successor: positions, flags and env updated,
     every counter := 0, transitionState := discrete.
+
+    Changes every agent's counter, position and reach flags, env and
+    transitionState.
     """
     if st[1] != DYNAMIC:
         return
@@ -395,11 +565,11 @@ AGENT_RULES = {
     K_END: (counter_advance,),
     K_AEND: (lock_release,),
     K_ACQ: (atomic_execution, atomic_wait),
-    K_SIMPLE: (statement,),
-    K_IF: (statement,),
-    K_WHILE: (statement,),
-    K_ASSERT: (statement,),
-    K_ATOMIC: (lock_request, statement),
+    K_SIMPLE: (statement_assign,),
+    K_IF: (statement_if,),
+    K_WHILE: (statement_while,),
+    K_ASSERT: (statement_assert,),
+    K_ATOMIC: (lock_request, statement_nested_atomic),
     K_DOREACH: (doreach_update,),
     K_EXIT: (exit_rule,),
 }

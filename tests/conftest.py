@@ -31,11 +31,10 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
-# agent tuple slots / state tuple slots
-from pccl.compile import (AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, POS,  # noqa: F401,E402
-                          REACH, SH, STATUS, TIME)
-from pccl.semantics.rules import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK,  # noqa: F401,E402
-                                  REQUEST, RUNNING)
+# the configuration's cells and values (pccl.layout), for the tests to read states by name
+from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402
+                         IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
+                         RUNNING, SH, STATUS, T0, TARGET, TIME)
 
 
 def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):

@@ -1,13 +1,13 @@
 """An independent reference implementation of the PCCL rewrite rules.
 
 This module is a *test oracle*.  It is written from the product contract
-(spec sections 3, 4 and 5: the configuration, the rules, and "state identity,
+(docs/language.md §10-§12: the configuration, the rules, and "state identity,
 precisely") and deliberately shares nothing with the engine
 (``pccl.engine``, ``pccl.compile``, ``pccl.values``, ``semantics.*``): only
 the AST produced by the shared parser is used.  It is a plain tree-walking
 interpreter over immutable tuples, written for clarity, not speed.
 
-Configuration (spec section 3), as stored here:
+Configuration (docs/language.md §11), as stored here:
 
 * per agent (:class:`Agent`):
   ``k``         the pending computation: a tuple whose items are statement
@@ -708,7 +708,7 @@ class ReferenceModel:
 
         instant: an agent with a target is at it after the step, done.
         nondet:  each *moving* agent either arrives (done) or stays (flags
-                 false); every combination is one outcome.  The spec does not
+                 false); every combination is one outcome.  The language reference does not
                  define "moving"; here an agent is moving when it has a
                  target, is not done, and is not already at the target
                  (x, y compared after rounding to the resolution; an agent at

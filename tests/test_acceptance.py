@@ -1,6 +1,6 @@
 """Acceptance cases of issue 4 (``explore``): the paper's experiments (spec
 §8), bounds and their verdicts, determinism, time abstraction, ``--all``,
-deadlocks and the property language (spec §5)."""
+deadlocks and the property language (docs/language.md §10)."""
 
 from __future__ import annotations
 
@@ -534,7 +534,7 @@ def test_forced_time_abstraction_with_max_time_is_refused_or_sound():
 
 
 # ---------------------------------------------------------------------------
-# counterexample steps (spec §5: numbered steps with time, agent, rule,
+# counterexample steps (docs/language.md §10: numbered steps with time, agent, rule,
 # event, source line and the variables changed)
 # ---------------------------------------------------------------------------
 

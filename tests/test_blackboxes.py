@@ -471,3 +471,26 @@ def test_user_module_with_syntax_error(tmp_path, monkeypatch):
     assert info.value.message.startswith(
         "bad blackbox 'bad_syntax_bb:X': importing 'bad_syntax_bb' failed: "
         "SyntaxError")
+
+
+def test_pymunk_plans_one_mode_per_agent():
+    """The step's plan: no target or a failed motion holds, a done motion
+    holds its target, a target inside an obstacle fails; the rest drive
+    along a path whose first leg avoids the obstacle."""
+    from pccl.blackboxes.pymunk_bb import Mode, PymunkBlackbox
+    w = World(obstacles=(SQUARE,))
+    ms = [Motion((0.0, 0.0, 0.0), None, (), None, False, False),
+          mv((0, 0), (4, 0)),
+          Motion((4.0, 0.0, 0.0), (4.0, 0.0, 0.0), (), 0.0, True, False),
+          mv((0, 0), (2, 0.5)),
+          Motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0), (), 0.0, False, True)]
+    obs, roadmap = PymunkBlackbox._obstacles(w, ms)
+    plans = PymunkBlackbox._plan(ms, obs, roadmap)
+    assert plans.mode == [Mode.HOLD, Mode.DRIVE, Mode.DONE, Mode.HOLD, Mode.HOLD]
+    assert plans.fail == [False, False, False, True, True]
+    assert plans.done == [False, False, True, False, False]
+    legs = plans.paths[1]
+    assert legs[-1] == (4.0, 0.0) and len(legs) > 1            # around the square
+    assert plans.length0[1] > 4.0
+    # Mode HOLD is false, as the simulation's "if mode[i]" reads it
+    assert not Mode.HOLD and Mode.DRIVE and Mode.DONE

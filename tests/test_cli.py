@@ -410,16 +410,27 @@ def test_explore_run_json_stuck_status():
 
 
 def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict():
+    import select
     import signal
     import time
 
+    # Progress lines on stderr are the ready signal: the first one with
+    # figures means the search loop (and its SIGINT handler) is running.
     proc = subprocess.Popen(
         [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER),
-         "--set", "k=6", "--no-progress"],
+         "--set", "k=6", "--progress", "--progress-interval", "0.2"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
+    seen = []
+    deadline = time.monotonic() + 120
+    while not any("frontier" in line for line in seen):
+        assert proc.poll() is None, ("exited before the search started", seen)
+        assert time.monotonic() < deadline, ("no progress line", seen)
+        ready, _, _ = select.select([proc.stderr], [], [], 1.0)
+        if ready:
+            seen.append(proc.stderr.readline())
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
+    err = "".join(seen) + err
     assert proc.returncode == 130, (out, err)
     assert "interrupted" in out and "not exhaustive" in out
     assert "states/second" in out

@@ -15,6 +15,7 @@ from pccl.engine import Model
 
 from conftest import (AGS, DISCRETE, EXITED, FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, STATUS,
                       TEST_PROGRAMS, model_of, shared, var)
+from pccl.layout import PHASE, POS, TIME, with_agents, with_counter, with_pc, with_status
 
 LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
 ASSERT_PROG = str(TEST_PROGRAMS / "eng_assert.pccl")
@@ -38,7 +39,7 @@ def test_run_race_ends_final_with_dests_empty():
     assert shared(m, res.final, "dests") == ()
     assert res.violations == []
     # the destinations were visited: agent 0 ends on the last one it raced for
-    assert res.final[0] > 0
+    assert res.final[TIME] > 0
 
 
 def test_run_race_three_agents_lays_out_missing_start():
@@ -48,7 +49,7 @@ def test_run_race_three_agents_lays_out_missing_start():
     assert m.N == 3 and len(res.final[AGS]) == 3
     assert all(ag[STATUS] == EXITED for ag in res.final[AGS])
     assert shared(m, res.final, "dests") == ()
-    starts = [ag[6] for ag in res.summary[0][1][AGS]]
+    starts = [ag[POS] for ag in res.summary[0][1][AGS]]
     assert starts[0] == (0.0, 0.0, 0.0) and starts[1] == (-5.0, 1.0, 0.0)
     assert starts[2] not in starts[:2]          # laid out automatically, apart
 
@@ -120,7 +121,7 @@ def drive(m, st, choose, until, limit=2000):
 
 def last_discrete_at(hist, t):
     """The last state of time step t (after every agent's event ran)."""
-    return [s for s in hist if s[0] == t and s[1] == DISCRETE][-1]
+    return [s for s in hist if s[TIME] == t and s[PHASE] == DISCRETE][-1]
 
 
 def test_fischer_paper_initial_state(fischer_paper_model):
@@ -139,7 +140,7 @@ def test_fischer_paper_schedule_both_in_cs_at_time_11(fischer_paper_model):
     (st,) = m.init_states()
     prio = {1: 0, 0: 1, None: 2}
     hist = drive(m, st, lambda labs: min(range(len(labs)), key=lambda k: prio[labs[k][1]]),
-                 lambda s: s[0] == 11 and both_in_cs(m, s))
+                 lambda s: s[TIME] == 11 and both_in_cs(m, s))
     end = hist[-1]
     assert end[0] == 11 and both_in_cs(m, end)
     # the paper's MMap at time 11: reqid 0, agent 1 at c3 = 3, agent 0 just entered
@@ -158,7 +159,7 @@ def test_fischer_paper_schedule_both_in_cs_at_time_11(fischer_paper_model):
     # no state before time 11 has both agents in the critical section
     assert not any(both_in_cs(m, s) for s in hist[:-1])
     # the whole run: one event per agent per time step (n0 = 1)
-    assert [s[0] for s in hist].count(11) >= 1 and hist[-1][0] == 11
+    assert [s[TIME] for s in hist].count(11) >= 1 and hist[-1][TIME] == 11
 
 
 def test_fischer_paper_shortest_schedule_by_search():
@@ -235,7 +236,7 @@ def test_max_steps_stops_looping_agent():
     assert res.looping_agent == 1
     assert "agent 1" in res.message
     assert "line 14" in res.message            # the loop's body, `n = n + 1;`
-    assert res.final[0] == 0                     # time never advanced
+    assert res.final[TIME] == 0                     # time never advanced
     assert var(res.model, res.final, 1, "n") > 100
 
 
@@ -256,7 +257,7 @@ def test_max_steps_not_hit_by_ordinary_runs():
 def test_run_bounded_by_max_time():
     res = run(FISCHER, seed=3, max_time=7)
     assert res.status == "bounded" and res.exit_status == 0
-    assert res.final[0] == 7
+    assert res.final[TIME] == 7
 
 
 def test_run_failed_assertion_is_a_violation():
@@ -285,8 +286,8 @@ def test_run_with_rates_runs_event_block_per_rate():
     per = {}
     for l, before, _ in res.trace:
         if l[0] == "EVENT SELECT":
-            per.setdefault((before[0], l[1]), 0)
-            per[(before[0], l[1])] += 1
+            per.setdefault((before[TIME], l[1]), 0)
+            per[(before[TIME], l[1])] += 1
     # time steps 0..5 (the last one runs its events, then --max-time stops time)
     assert sorted(per) == [(t, i) for t in range(6) for i in (0, 1)]
     for t in range(6):
@@ -298,7 +299,7 @@ def test_run_summary_one_entry_per_time_step():
     res = run(RACE, world=RACE_WORLD)
     times = [t for t, _ in res.summary]
     assert times == list(range(len(times)))
-    assert times[-1] == res.final[0]
+    assert times[-1] == res.final[TIME]
 
 
 # ---------------------------------------------------------------------------
@@ -366,9 +367,9 @@ def test_deadlock_violation_names_waiting_agents():
     # agent 1 stuck with budget left blocks time; agent 0 has done its step
     stuck = m.stuck_code("assert", "assertion failed", None)
     ags = list(st[AGS])
-    ags[0] = (m.ctl.empty_pc, 1) + ags[0][2:]
-    ags[1] = ags[1][:3] + (stuck,) + ags[1][4:]
-    st = st[:AGS] + (tuple(ags),) + st[AGS + 1:]
+    ags[0] = with_counter(with_pc(ags[0], m.ctl.empty_pc), 1)
+    ags[1] = with_status(ags[1], stuck)
+    st = with_agents(st, tuple(ags))
     assert m.successors(st) == []
     assert m.terminal_kind(st) == "deadlock"
     v = m.deadlock_violation(st)
@@ -390,13 +391,13 @@ def test_fractional_delta_reaches_max_time():
     res = run(RACE, world=RACE_WORLD, delta=0.1, max_time=0.3)
     assert res.status == "bounded"
     assert len(res.summary) == 4                 # t = 0, 0.1, 0.2, 0.3
-    assert res.final[0] == pytest.approx(0.3)
+    assert res.final[TIME] == pytest.approx(0.3)
 
 
 def test_fractional_delta_advances_time():
     res = run(RACE, world=RACE_WORLD, delta=0.5, max_time=2)
     assert [t for t, _ in res.summary] == [0, 0.5, 1.0, 1.5, 2.0]
-    assert res.status == "bounded" and res.final[0] == 2.0
+    assert res.status == "bounded" and res.final[TIME] == 2.0
 
 
 OFF_GRID_WORLD = """
@@ -411,14 +412,14 @@ def test_stationary_agent_keeps_its_position(tmp_path):
     w.write_text(OFF_GRID_WORLD)
     m = make_model(str(TEST_PROGRAMS / "eng_move1.pccl"), world=str(w), blackbox="instant")
     (st,) = m.init_states()
-    start = st[AGS][0][6]
+    start = st[AGS][0][POS]
     for _ in range(40):
         out = m.successors(st)
         if not out:
             break
         _, st = out[-1]
-        assert st[AGS][0][6] == start, "agent 0 never moves"
-    assert st[AGS][1][6] == (3.0, 3.0, 0.0)
+        assert st[AGS][0][POS] == start, "agent 0 never moves"
+    assert st[AGS][1][POS] == (3.0, 3.0, 0.0)
 
 
 def test_positions_after_environment_step_are_rounded(tmp_path):
@@ -433,4 +434,4 @@ def test_positions_after_environment_step_are_rounded(tmp_path):
         label, st = out[-1]
         if label[0] == "DOREACH INVOKE":
             for ag in st[AGS]:
-                assert ag[6] == m.round_pos(ag[6])
+                assert ag[POS] == m.round_pos(ag[POS])

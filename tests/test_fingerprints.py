@@ -193,6 +193,20 @@ TESTPROGS = [
     ("ref_undef", T("ref_undef.pccl"), dict(blackbox="instant")),
     ("ref_values", T("ref_values.pccl"), dict(blackbox="instant")),
     ("ref_while", T("ref_while.pccl"), dict(blackbox="instant")),
+    # temporal properties (tests/test_temporal.py)
+    ("rdv_meet-wall", T("rdv_meet.pccl"),
+     dict(blackbox="straight", world=T("rdv_wall.toml"),
+          properties=["eventually forall i: exited[i]"])),
+    ("rdv_meet-open-nondet", T("rdv_meet.pccl"),
+     dict(world=T("rdv_open.toml"), blackbox="nondet",
+          properties=["eventually forall i: exited[i]"])),
+    ("token_ring-3", T("token_ring.pccl"),
+     dict(agents=3, properties=["forall i: want[i] ~> has[i]", "want[1] ~> has[1] within 2"])),
+    ("token_keep-3", T("token_keep.pccl"),
+     dict(agents=3, properties=["forall i: want[i] ~> has[i]"])),
+    ("tl_spin", T("tl_spin.pccl"), dict()),
+    ("tl_spin_leave", T("tl_spin_leave.pccl"), dict()),
+    ("fast_slow-2", T("fast_slow.pccl"), dict(agents=2)),
 ]
 
 
@@ -264,6 +278,13 @@ PINNED = {
     "ref_undef": ("violation", 35, 58, 10),
     "ref_values": ("exhaustive", 79, 132, 26),
     "ref_while": ("exhaustive", 783, 1386, 26),
+    "rdv_meet-wall": ("violation", 26, 38, 13),
+    "rdv_meet-open-nondet": ("exhaustive", 36, 53, 14),
+    "token_ring-3": ("violation", 724, 1632, 44),
+    "token_keep-3": ("violation", 593, 1333, 43),
+    "tl_spin": ("violation", 9, 18, 4),
+    "tl_spin_leave": ("exhaustive", 24, 40, 8),
+    "fast_slow-2": ("violation", 761, 1414, 44),
 }
 
 

@@ -13,6 +13,7 @@ from pccl.cli import main
 from pccl.errors import PcclError
 
 from conftest import FISCHER, model_of
+from pccl.layout import AGS, LOC
 
 
 def cli(*args, **kw):
@@ -81,7 +82,7 @@ def test_initial_states_are_generated_lazily():
     t = time.perf_counter()
     first = list(itertools.islice(m.init_states(), 5))
     assert time.perf_counter() - t < 5
-    assert [s[4][1][4][0] for s in first] == [0, 1, 2, 3, 4]     # agent 0 has x = 0
+    assert [s[AGS][1][LOC][0] for s in first] == [0, 1, 2, 3, 4]     # agent 0 has x = 0
 
 
 def test_max_states_bounds_a_huge_rand_declaration(tmp_path):
@@ -240,7 +241,7 @@ def test_long_flat_chains_work(tmp_path, expr, ty, value):
     p = write(tmp_path, chain_program(expr, ty))
     m = make_model(str(p))
     (st,) = m.init_states()
-    x = st[4][0][4][0]
+    x = st[AGS][0][LOC][0]
     if value is None:                       # left to right, as Python would
         value = 0.1
         for _ in range(2999):
@@ -340,7 +341,8 @@ def _signalled(args, sig, delay=3):
 
 @pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
 def test_signals_stop_run_with_the_run_so_far(sig, code, tmp_path):
-    rc, out, err = _signalled(["run", write(tmp_path, TICK), "--max-time", "100000000"], sig)
+    rc, out, err = _signalled(["run", write(tmp_path, TICK), "--max-time", "100000000",
+                               "--stall-steps", "0"], sig)
     assert rc == code, (out, err)
     assert "result: interrupted — interrupted after" in out and "final configuration:" in out
 

@@ -20,6 +20,7 @@ from pccl import options as O
 from pccl.cli import main
 from pccl.errors import ArgumentError
 from pccl.explorer import Bound
+from pccl.layout import TIME
 from pccl.results import AgentView, Finding, StateView, StepView
 
 from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD
@@ -149,7 +150,7 @@ def test_state_view_text_is_what_the_cli_prints():
     res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3)
     out = cli("run", RACE, "--world", RACE_WORLD, "-b", "instant", "--seed", "3").output
     assert out.rstrip("\n").endswith(str(res.final_state))
-    assert res.final_state.time == res.final[0]
+    assert res.final_state.time == res.final[TIME]
     assert [a.status for a in res.final_state.agents] == ["exited"] * len(res.final_state.agents)
     assert res.final_state.shared["dests"] == []
 

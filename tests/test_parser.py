@@ -886,12 +886,33 @@ def _parse_or_error(src: str):
 
 @pytest.mark.parametrize("path", sorted(PROGRAMS.glob("*.pccl")), ids=lambda p: p.name)
 def test_truncations(path):
+    """Prefixes of a shipped program: a bounded number of them, so the test
+    is linear in the program's length (one parse per prefix of every length
+    was quadratic: 3-9 s per program)."""
     src = path.read_text()
-    cuts = set(range(0, len(src) + 1, 3))
-    cuts |= {i for i, c in enumerate(src) if c == "\n"}
-    cuts |= {i + 1 for i, c in enumerate(src) if c == "\n"}
-    outcomes = [_parse_or_error(src[:i]) for i in sorted(cuts)]
-    assert any(isinstance(o, ast.Program) for o in outcomes)
+    full = parse_program(src, "t.pccl")
+    # 1. Cut before a line at column 0 (a section header or an event): what
+    #    precedes is a whole program, the shipped one's first events and decls.
+    offset, events = 0, []
+    for line in src.splitlines(keepends=True):
+        if line[:1].strip() and not line.startswith("//"):
+            prog = _parse_or_error(src[:offset])
+            assert isinstance(prog, ast.Program), prog.render()
+            assert [e.name for e in prog.events] == events
+            assert prog.decls == full.decls[:len(prog.decls)]
+            if line.split("(")[0].isidentifier() and line.rstrip().endswith("():"):
+                events.append(line.split("(")[0])
+        offset += len(line)
+    assert events == [e.name for e in full.events]
+    # 2. Cut anywhere (a fixed sample): a program or one rendered error that
+    #    points inside the prefix (or at its end).
+    rng = random.Random(path.name)
+    outcomes = []
+    for cut in sorted(rng.sample(range(len(src) + 1), 40)):
+        o = _parse_or_error(src[:cut])
+        if isinstance(o, PcclError) and o.line is not None:
+            assert o.line <= src[:cut].count("\n") + 1, (cut, o.render())
+        outcomes.append(o)
     assert any(isinstance(o, PcclError) for o in outcomes)
 
 
@@ -924,3 +945,26 @@ def test_random_mutations(path):
 ])
 def test_garbage(src):
     _parse_or_error(src)
+
+
+@pytest.mark.parametrize("path", sorted(PROGRAMS.glob("*.pccl")), ids=lambda p: p.name)
+def test_declared_names_carry_their_span(path):
+    """Every declared name (variable, enum and its members, event, named
+    invariant) has the span of the name as written: the checker's messages
+    point there without searching the source."""
+    src = path.read_text()
+    lines = src.splitlines()
+    prog = parse_program(src, "t.pccl")
+
+    def text(span: Span) -> str:
+        assert span.line == span.end_line > 0
+        return lines[span.line - 1][span.column - 1:span.end_column - 1]
+
+    named = [(d.name, d.name_span) for d in prog.decls]
+    named += [(m, s) for d in prog.decls if isinstance(d, EnumDecl)
+              for m, s in zip(d.members, d.member_spans, strict=True)]
+    named += [(e.name, e.name_span) for e in prog.events]
+    named += [(i.name, i.name_span) for i in prog.invariants if i.name is not None]
+    assert named
+    for name, span in named:
+        assert text(span) == name

@@ -9,6 +9,7 @@ from shapely.geometry import Point, Polygon
 
 from pccl import api
 from pccl.blackboxes import load_blackbox
+from pccl.layout import AGS, FAIL, POS, REACH, SH
 
 ROOT = Path(__file__).resolve().parent.parent
 PROG = ROOT / "programs"
@@ -33,7 +34,7 @@ def test_swapping_blackboxes_gives_the_papers_two_race_outcomes():
     # and one concrete run of each
     run_clean = api.run(NONATOMIC, world=WORLD, blackbox="straight", seed=0)
     assert run_clean.status == "final"
-    assert run_clean.final[3] == ((),)   # dests empty
+    assert run_clean.final[SH] == ((),)   # dests empty
 
 
 def test_blackbox_object_from_python_api_is_used():
@@ -57,7 +58,7 @@ def test_blackbox_object_from_python_api_is_used():
 
 
 def _positions(res):
-    return [tuple(ag[6] for ag in s[4]) for _, s in res.summary]
+    return [tuple(ag[POS] for ag in s[AGS]) for _, s in res.summary]
 
 
 def test_pymunk_run_is_deterministic():
@@ -90,4 +91,4 @@ def test_pymunk_sends_robots_around_the_obstacles():
     # robot 0's straight line to (4, 0) crosses the first obstacle: under
     # `straight` that doReach fails, under pymunk it gets there
     straight = api.run(RACE, world=OBST, blackbox="straight", seed=0, max_time=10)
-    assert straight.final[4][0][7][4] is True        # doReach_fail
+    assert straight.final[AGS][0][REACH][FAIL] is True        # doReach_fail

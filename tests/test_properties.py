@@ -29,6 +29,7 @@ from pccl.api import make_model as _make_model, run
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, FISCHER, LCK, LOCK, PC, RACE,
                       RACE_NONATOMIC, RACE_WORLD, REQUEST, STATUS, TEST_PROGRAMS)
+from pccl.layout import LQ, PHASE, TIME
 
 LOCK_PROG = str(TEST_PROGRAMS / "eng_lock.pccl")
 
@@ -65,7 +66,7 @@ def inits(name):
 
 
 def check_lock_invariants(m, st):
-    lq = st[2]
+    lq = st[LQ]
     ags = st[AGS]
     assert len(set(lq)) == len(lq), f"id queued twice: {lq}"
     holders = [i for i, ag in enumerate(ags) if ag[LCK] == LOCK]
@@ -84,7 +85,7 @@ def check_state(m, st):
     assert hash(k1) == hash(m.key(st)) and k1 == m.key(st)
     cp = pickle.loads(pickle.dumps(st))
     assert cp == st and hash(cp) == hash(st) and m.key(cp) == k1
-    assert st[1] in (DISCRETE, DYNAMIC)
+    assert st[PHASE] in (DISCRETE, DYNAMIC)
     for i, ag in enumerate(st[AGS]):
         assert 0 <= ag[CNT] <= m.n0, f"agent {i} counter {ag[CNT]} outside 0..{m.n0}"
         assert ag[STATUS] in (0, 1) or ag[STATUS] in m.stuck_reasons
@@ -95,21 +96,21 @@ def check_state(m, st):
 def check_step(m, label, before, after):
     rule, agent, _ = label
     if rule == "TIME ADVANCE":
-        assert after[0] == before[0] + m.delta and before[1] == DISCRETE and after[1] == DYNAMIC
+        assert after[TIME] == before[TIME] + m.delta and before[PHASE] == DISCRETE and after[PHASE] == DYNAMIC
         assert after[2:] == before[2:]
     elif rule == "DOREACH INVOKE":
-        assert before[1] == DYNAMIC and after[1] == DISCRETE and after[0] == before[0]
+        assert before[PHASE] == DYNAMIC and after[PHASE] == DISCRETE and after[TIME] == before[TIME]
         assert after[2:4] == before[2:4]
         for a, b in zip(before[AGS], after[AGS]):
             assert a[:CNT] == b[:CNT] and a[LCK:6] == b[LCK:6] and b[CNT] == 0
     else:
-        assert agent is not None and after[0] == before[0] and after[1] == before[1] == DISCRETE
+        assert agent is not None and after[TIME] == before[TIME] and after[PHASE] == before[PHASE] == DISCRETE
         for j, (a, b) in enumerate(zip(before[AGS], after[AGS])):
             if j != agent:
                 assert a == b, f"{rule} of agent {agent} changed agent {j}"
         assert before[AGS][agent][STATUS] == 0      # only running agents move
         if rule not in ("LOCK REQUEST", "LOCK RELEASE"):
-            assert after[2] == before[2]
+            assert after[LQ] == before[LQ]
         if rule in ("COUNTER ADVANCE", "ATOMIC WAIT"):
             assert after[AGS][agent][CNT] == before[AGS][agent][CNT] + m.rho[agent]
         else:

@@ -30,6 +30,7 @@ from pccl.engine import Model
 from pccl.errors import PcclError
 
 from conftest import PROGRAMS, ROOT
+from pccl.layout import AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, SH, STATUS, TIME
 from test_fingerprints import PINNED, SHIPPED, SLOW, TESTPROGS, programs
 
 MUTEX = "count(inCs) <= 1"
@@ -51,12 +52,21 @@ def check_counterexamples(res):
     m = res.model
     for v, cx in zip(res.violations, res.counterexamples):
         tr = cx.trace
+        if tr is None:              # reachable P found unreachable: no path
+            assert v["kind"] == "unreachable"
+            continue
         assert len(tr) == len(v["trace"])
         for step in tr.steps:
             assert len(step.label) == 3, "an unexpanded merged label in a trace"
             succ = Model.successors(m, step.before)
             assert (step.label, step.after) in succ, f"step {step.number} is not a transition"
         last = tr.last
+        if v["kind"] in ("liveness", "timelock", "response"):
+            # temporal (pccl/liveness.py): a lasso closes its cycle (up to the
+            # reduced identity: a permutation of the agents under symmetry)
+            if cx.cycle_start is not None:
+                assert m.key(tr.states[cx.cycle_start]) == m.key(last)
+            continue
         if v["kind"] == "deadlock":
             assert not Model.successors(m, last) and m.terminal_kind(last) == "deadlock"
         else:
@@ -136,10 +146,16 @@ LOCAL_LOOP = src("""
 
 
 def test_zero_time_local_loop_is_explored_not_lost():
-    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none")
-    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto")
+    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none", timelock=False)
+    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto", timelock=False)
     assert base.status == res.status == "exhaustive"
     assert "merge" in res.model.reduction.on
+    # the loop never lets time advance: a time-lock, with and without merging
+    base = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="none")
+    res = explore(LOCAL_LOOP, source=True, blackbox="instant", reduce="auto")
+    assert [v["kind"] for v in base.violations] == [v["kind"] for v in res.violations] \
+        == ["timelock"]
+    assert res.counterexamples[0].cycle_start is not None
 
 
 STUCK_IN_CHAIN = src("""
@@ -421,7 +437,7 @@ def test_agents_holding_other_agents_ids_are_canonical():
     import itertools
     for st in list(explore(OTHER_REF, source=True, blackbox="instant", agents=3,
                            reduce="none").model.init_states()):
-        ags = st[4]
+        ags = st[AGS]
         for perm in itertools.permutations(range(3)):
             r = {old: new for new, old in enumerate(perm)}
 
@@ -430,10 +446,10 @@ def test_agents_holding_other_agents_ids_are_canonical():
             cells = []
             for old in perm:
                 a = ags[old]
-                loc = (rn(a[4][0]), rn(a[4][1]), a[4][2])
-                cells.append((a[0], a[1], a[2], a[3], loc) + a[5:])
-            sh = (rn(st[3][0]),)
-            st2 = (st[0], st[1], tuple(r[x] for x in st[2]), sh, tuple(cells), st[5])
+                loc = (rn(a[LOC][0]), rn(a[LOC][1]), a[LOC][2])
+                cells.append((a[PC], a[CNT], a[LCK], a[STATUS], loc) + a[AR:])
+            sh = (rn(st[SH][0]),)
+            st2 = (st[TIME], st[PHASE], tuple(r[x] for x in st[LQ]), sh, tuple(cells), st[ENV])
             assert m.key(st2) == m.key(st)
     base = explore(OTHER_REF, source=True, blackbox="instant", agents=3, reduce="none",
                    find_all=True)

@@ -1,7 +1,7 @@
 """The engine's explorer against an independent reference implementation.
 
-``tests/reference.py`` implements the rewrite rules of spec sections 3-5
-directly from the spec text (a tree-walking interpreter sharing only the
+``tests/reference.py`` implements the rewrite rules of docs/language.md §11-§12
+directly from that text (a tree-walking interpreter sharing only the
 parser with the engine).  Here both explore the same programs and must agree
 exactly on
 

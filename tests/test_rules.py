@@ -1,4 +1,4 @@
-"""One test per rewrite rule (spec §4): enabled on a hand-built configuration
+"""One test per rewrite rule (docs/language.md §11): enabled on a hand-built configuration
 with exactly the expected successor, and disabled when its condition fails.
 
 Configurations are built from a tiny program's initial state by editing the
@@ -19,6 +19,7 @@ from pccl.errors import PcclError
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, IDLE, LCK, LOCK, PC, POS, REACH,
                       REQUEST, RUNNING, STATUS, agent_rules, k_of, k_pc, labels, model_of, only,
                       set_agent, set_state, sid, succ, var)
+from pccl.layout import DONE, LQ, PHASE, T0, TARGET, TIME
 
 # Every statement form, each on a line of its own with unique text, so that
 # `sid(m, text)` finds it.
@@ -85,14 +86,14 @@ def event_k(m, e):
 
 
 def test_initial_configuration(m, st0):
-    # spec §4 Initialisation: time 0, counters 0, discrete, empty queue, k empty
-    assert st0[0] == 0 and st0[1] == DISCRETE and st0[2] == ()
+    # language.md §11, Initialisation: time 0, counters 0, discrete, empty queue, k empty
+    assert st0[TIME] == 0 and st0[PHASE] == DISCRETE and st0[LQ] == ()
     for i, ag in enumerate(st0[AGS]):
         assert k_of(m, ag) == ()
         assert ag[CNT] == 0 and ag[LCK] == IDLE and ag[STATUS] == RUNNING
         assert var(m, st0, i, "x") == 0 and var(m, st0, i, "go") is True
         assert var(m, st0, i, "ys") == ()
-        assert ag[REACH][0] is None and ag[REACH][3:] == (False, False)
+        assert ag[REACH][TARGET] is None and ag[REACH][DONE:] == (False, False)
     assert var(m, st0, 0, "s") == 0 and var(m, st0, 0, "xs") == (1, 2)
 
 
@@ -311,7 +312,7 @@ def test_statement_order_within_event_is_sequential(m, st0):
     assert seen[-2:] == ["DOREACH UPDATE", "EXIT"]
     assert st[AGS][0][STATUS] == EXITED
     assert var(m, st, 0, "s") == 3 and var(m, st, 0, "xs") == (2,) and var(m, st, 0, "ys") == (7,)
-    assert st[2] == () and st[AGS][0][LCK] == IDLE
+    assert st[LQ] == () and st[AGS][0][LCK] == IDLE
 
 
 # ---------------------------------------------------------------------------
@@ -418,7 +419,7 @@ def test_lock_request_on_empty_queue(m, st0):
     o = sid(m, "atomic")
     st = at(m, st0, 0, o, END)
     _, after = only(m, st, "LOCK REQUEST", 0)
-    assert after[2] == (0,) and after[AGS][0][LCK] == REQUEST
+    assert after[LQ] == (0,) and after[AGS][0][LCK] == REQUEST
     assert k_of(m, after[AGS][0]) == (acq(o), AEND, END)
     assert after[AGS][0][CNT] == 0
 
@@ -427,7 +428,7 @@ def test_lock_request_disabled_when_lock_held(m, st0):
     o = sid(m, "atomic")
     st = set_state(m, at(m, st0, 0, o, AEND, END, lock=LOCK), lq=(0,))
     assert "LOCK REQUEST" not in agent_rules(m, st, 0)
-    assert all(s[2] == (0,) for _, s in succ(m, st, agent=0))
+    assert all(s[LQ] == (0,) for _, s in succ(m, st, agent=0))
 
 
 def waiting(m, st0, i=0, other_lq=(1, 0), counter=0):
@@ -508,7 +509,7 @@ def test_lock_handover_order_follows_queue(m, st0):
     st = at(m, at(m, st0, 0, o, END), 1, o, END)
     _, st = only(m, st, "LOCK REQUEST", 1)
     _, st = only(m, st, "LOCK REQUEST", 0)
-    assert st[2] == (1, 0)
+    assert st[LQ] == (1, 0)
     assert agent_rules(m, st, 0) == ["ATOMIC WAIT"]
     assert agent_rules(m, st, 1) == ["ATOMIC EXECUTION"]
     _, st = only(m, st, "ATOMIC EXECUTION", 1)
@@ -516,7 +517,7 @@ def test_lock_handover_order_follows_queue(m, st0):
     while k_of(m, st[AGS][1])[0] != AEND:
         ((_, st),) = succ(m, st, agent=1)
     _, st = only(m, st, "LOCK RELEASE", 1)
-    assert st[2] == (0,)
+    assert st[LQ] == (0,)
     assert agent_rules(m, st, 0) == ["ATOMIC EXECUTION"]
 
 
@@ -636,11 +637,11 @@ def test_doreach_invoke_nondet_one_successor_per_outcome():
     st = set_state(mm, st, time=1, phase=DYNAMIC)
     out = mm.successors(st)
     assert [l[0] for l, _ in out] == ["DOREACH INVOKE"] * 4
-    got = {(s[AGS][0][POS], s[AGS][0][REACH][3], s[AGS][1][POS], s[AGS][1][REACH][3]) for _, s in out}
+    got = {(s[AGS][0][POS], s[AGS][0][REACH][DONE], s[AGS][1][POS], s[AGS][1][REACH][DONE]) for _, s in out}
     p0, p1 = st0[AGS][0][POS], st0[AGS][1][POS]
     assert got == {(a, a == t0, b, b == t1) for a, b in itertools.product((p0, t0), (p1, t1))}
     for _, s in out:
-        assert s[1] == DISCRETE and s[0] == 1 and all(ag[CNT] == 0 for ag in s[AGS])
+        assert s[PHASE] == DISCRETE and s[TIME] == 1 and all(ag[CNT] == 0 for ag in s[AGS])
 
 
 def test_doreach_invoke_disabled_in_discrete_phase_and_agents_wait_in_dynamic(m, st0):
@@ -650,7 +651,7 @@ def test_doreach_invoke_disabled_in_discrete_phase_and_agents_wait_in_dynamic(m,
 
 
 def test_doreach_invoke_moves_exited_agents_too(m, st0):
-    # an exited robot's controller still runs toward its last target (spec §6)
+    # an exited robot's controller still runs toward its last target (docs/blackboxes.md)
     tgt = (1.0, 2.0, 0.0)
     st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False), status=EXITED)
     st = set_state(m, set_agent(m, st, 1, counter=1), time=1, phase=DYNAMIC)
@@ -861,7 +862,7 @@ def test_same_error_same_stuck_code():
 
 
 # ---------------------------------------------------------------------------
-# state identity of k (spec §5)
+# state identity of k (docs/language.md §11)
 # ---------------------------------------------------------------------------
 
 TWO_SKIPS = """
@@ -916,14 +917,14 @@ def test_init_block_runs_before_time_zero_uninterleaved():
     inits = list(mm.init_states())
     assert len(inits) == 4                       # w: 2 x 2
     for st in inits:
-        assert st[0] == 0 and st[1] == DISCRETE and st[2] == ()
+        assert st[TIME] == 0 and st[PHASE] == DISCRETE and st[LQ] == ()
         assert var(mm, st, 0, "s") == 2          # shared initialiser once, then each Init
         # agents run their Init in id order
         assert (var(mm, st, 0, "mine"), var(mm, st, 1, "mine")) == (1, 2)
         for i in (0, 1):
             ag = st[AGS][i]
             assert k_of(mm, ag) == () and ag[LCK] == IDLE and ag[CNT] == 0
-            assert ag[REACH][0] == ag[POS] and ag[REACH][2] == 0
+            assert ag[REACH][TARGET] == ag[POS] and ag[REACH][T0] == 0
 
 
 def test_runtime_error_in_declaration_gets_agent_stuck_in_initial_state():

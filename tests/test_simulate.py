@@ -12,6 +12,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 from pccl.cli import main
+from pccl.layout import TIME
 
 ROOT = Path(__file__).resolve().parent.parent
 ARGS = ["simulate", "programs/race_nonatomic.pccl", "--world", "programs/race.toml", "-b", "nondet",
@@ -76,7 +77,7 @@ def test_each_simulated_run_is_the_run_of_its_seed():
                        abstract_time=False)
     got = {}
     simulate(model, rng, runs=60, seed=0,
-             on_run=lambda k, r: got.__setitem__(k, (r.status, r.message, r.final[0], r.steps)))
+             on_run=lambda k, r: got.__setitem__(k, (r.status, r.message, r.final[TIME], r.steps)))
     for k in range(60):
         r = run(prog, world=world, blackbox="nondet", agents=3, seed=k)
-        assert got[k] == (r.status, r.message, r.final[0], r.steps), k
+        assert got[k] == (r.status, r.message, r.final[TIME], r.steps), k

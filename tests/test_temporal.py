@@ -1,0 +1,578 @@
+"""Temporal properties (spec section 9, docs/temporal.md): the property
+forms, liveness with lassos, bounded response, reachability, time-locks and
+--fastest, on small programs of tests/programs/.
+
+Where a verdict can be computed two ways it is: the liveness and
+bounded-response verdicts are compared with a plain reference search
+written here over the model's own successor relation (a dict graph and a
+fixpoint, no numpy, no SCCs)."""
+
+from __future__ import annotations
+
+import pytest
+from click.testing import CliRunner
+
+from pccl.api import explore, make_model
+from pccl.cli import main
+from pccl.errors import PcclError
+from pccl.layout import AGS, DISCRETE, EXITED, FAIL, LOC, PHASE, REACH, STATUS, TIME
+
+from conftest import FISCHER, TEST_PROGRAMS
+
+RDV = str(TEST_PROGRAMS / "rdv_meet.pccl")
+RDV_OPEN = str(TEST_PROGRAMS / "rdv_open.toml")
+RDV_WALL = str(TEST_PROGRAMS / "rdv_wall.toml")
+RING = str(TEST_PROGRAMS / "token_ring.pccl")
+KEEP = str(TEST_PROGRAMS / "token_keep.pccl")
+SPIN = str(TEST_PROGRAMS / "tl_spin.pccl")
+SPIN_LEAVE = str(TEST_PROGRAMS / "tl_spin_leave.pccl")
+FAST = str(TEST_PROGRAMS / "fast_slow.pccl")
+ALL_EXIT = "eventually forall i: exited[i]"
+
+
+def cli(*args):
+    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
+    assert res.exception is None or isinstance(res.exception, SystemExit), \
+        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
+    assert "Traceback" not in res.output
+    return res
+
+
+# ---------------------------------------------------------------------------
+# reference: the graph by plain dicts, verdicts by fixpoints
+# ---------------------------------------------------------------------------
+
+def ref_graph(model):
+    """(initial keys, {key: state}, {key: [successor keys]})."""
+    key = model.key
+    init = []
+    states, succ = {}, {}
+    todo = []
+    for s in model.init_states():
+        k = key(s)
+        if k not in states:
+            states[k] = s
+            init.append(k)
+            todo.append(k)
+    while todo:
+        k = todo.pop()
+        out = []
+        for _, s2 in model.successors(states[k]):
+            k2 = key(s2)
+            out.append(k2)
+            if k2 not in states:
+                states[k2] = s2
+                todo.append(k2)
+        succ[k] = out
+    return init, states, succ
+
+
+def ref_leadsto_fails(model, start, q) -> bool:
+    """Is there a start state (an initial one when ``start`` is None) where Q
+    fails, from which some run keeps Q false: a finite run ending in a
+    terminal state, or an infinite one through dynamic states (TIME ADVANCE)
+    infinitely often?  No fairness among agents' arrivals.  Fair EG by the
+    textbook fixpoint: Z = nu Z. notQ & EX E[notQ U (Z & dyn)]."""
+    init, states, succ = ref_graph(model)
+    notq = {k for k, s in states.items() if not q(s)}
+    dyn = {k for k, s in states.items() if s[PHASE] != DISCRETE}
+    terminal = {k for k in states if not succ[k]}
+
+    def eu(target):          # E[notQ U target], target inside notQ
+        res = set(target)
+        changed = True
+        while changed:
+            changed = False
+            for k in notq - res:
+                if any(k2 in res for k2 in succ[k]):
+                    res.add(k)
+                    changed = True
+        return res
+    z = set(notq)
+    while True:
+        t = eu(z & dyn)
+        znew = {k for k in notq if any(k2 in t for k2 in succ[k])}
+        if znew == z:
+            break
+        z = znew
+    bad = eu(z | (terminal & notq))
+    starts = init if start is None else [k for k, s in states.items() if start(s)]
+    return any(k in bad for k in starts)
+
+
+def ref_within_fails(model, p, q, ticks) -> bool:
+    """A path on which more than ``ticks`` time steps pass after P without Q:
+    search over (state, clock of the oldest unanswered P) without pruning."""
+    init, states, succ = ref_graph(model)
+    seen = set()
+    todo = []
+    for k in init:
+        s = states[k]
+        c = 0 if (p(s) and not q(s)) else -1
+        todo.append((k, c))
+    while todo:
+        node = todo.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        k, c = node
+        for k2 in succ[k]:
+            s2 = states[k2]
+            c2 = c + 1 if (c >= 0 and s2[PHASE] != DISCRETE) else c
+            if c2 > ticks:
+                return True
+            if q(s2):
+                c2 = -1
+            elif c2 == -1 and p(s2):
+                c2 = 0
+            todo.append((k2, c2))
+    return False
+
+
+def lasso_ok(model, res, stays_false):
+    """The counterexample is a real lasso: the cycle returns to its start
+    state, advances time, and ``stays_false`` holds on every state from the
+    start of the check on."""
+    cx = res.counterexamples[0]
+    tr = cx.trace
+    loop = cx.cycle_start
+    assert loop is not None and 0 <= loop < len(tr)
+    assert model.key(tr.states[loop]) == model.key(tr.last)
+    assert any(s[PHASE] != DISCRETE for s in tr.states[loop + 1:])
+    return all(stays_false(s) for s in tr.states[loop:])
+
+
+# ---------------------------------------------------------------------------
+# parsing and checking
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("form, kind", [
+    ("eventually forall i: exited[i]", "eventually"),
+    ("want[0] ~> has[0]", "leadsto"),
+    ("want[0] ~> has[0] within 3", "within"),
+    ("reachable count(has) == 1", "reachable"),
+])
+def test_property_forms_parse(form, kind):
+    m = make_model(RING, properties=[form], agents=2)
+    assert [p.kind for p in m.temporal] == [kind]
+    assert m.properties == []
+
+
+def test_forall_makes_one_instance_per_agent():
+    m = make_model(RING, properties=["forall i: want[i] ~> has[i]"], agents=3)
+    assert [p.name for p in m.temporal] == [f"forall i: want[i] ~> has[i] [i={k}]"
+                                            for k in range(3)]
+
+
+def test_plain_property_is_an_invariant():
+    m = make_model(RING, properties=["count(has) <= 1"], agents=2)
+    assert len(m.properties) == 1 and m.temporal == []
+    r = explore(RING, agents=3, properties=["count(has) <= 1"])
+    assert r.exit_status == 0 and r.status == "exhaustive"
+
+
+def test_invariant_section_takes_temporal_forms(tmp_path):
+    src = open(RING).read() + ("\ninvariant:\n  one: count(has) <= 1;\n"
+                               "  live: forall i: want[i] ~> has[i];\n"
+                               "  goal: reachable has[1];\n")
+    f = tmp_path / "ring.pccl"
+    f.write_text(src)
+    r = explore(str(f), agents=3)
+    assert r.exit_status == 0
+    assert "live [i=2]" in r.holds and "goal" in r.holds
+    assert [w["name"] for w in r.witnesses] == ["goal"]
+
+
+@pytest.mark.parametrize("form, message", [
+    ("eventually exitd[0]", "undeclared variable 'exitd' (did you mean 'exited'?)"),
+    ("exists i: eventually exited[i]", "only 'forall' may quantify a temporal property"),
+    ("(eventually want[0]) && has[0]", "must stand at the top of a property"),
+    ("want[0] ~> has[0] within want[1]", "bound of 'within' must be a constant"),
+    ("want[0] ~> ", "unexpected end of input"),
+    ("count(exited) > 0 ~> stuck", "'stuck' is per-agent: write stuck[i]"),
+])
+def test_property_errors_exit_2_with_caret(form, message):
+    res = cli("explore", RING, "--property", form)
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith("--property #1:1:"), res.stderr
+    assert message in res.stderr
+    assert "^" in res.stderr and res.stdout == ""
+
+
+def test_invariant_option_refuses_temporal_forms():
+    res = cli("explore", RING, "--invariant", "eventually has[0]")
+    assert res.exit_code == 2
+    assert "goes with --property" in res.stderr and "^" in res.stderr
+
+
+def test_temporal_forms_are_not_program_expressions(tmp_path):
+    f = tmp_path / "bad.pccl"
+    f.write_text("loc:\n  bool b = false;\nE():\n  pre(eventually b);\n  eff: b = true;\n")
+    res = cli("check", f)
+    assert res.exit_code == 2
+    assert "'eventually' is only allowed in properties" in res.stderr
+    assert f"{f}:4:7" in res.stderr
+
+
+def test_api_properties_argument_is_validated():
+    from pccl.errors import ArgumentError
+    with pytest.raises(ArgumentError, match="properties"):
+        explore(RING, properties="eventually has[0]")
+    with pytest.raises(ArgumentError, match="timelock"):
+        explore(RING, timelock="yes")
+
+
+def test_status_predicates():
+    m = make_model(SPIN_LEAVE, properties=["reachable count(exited) == 2 && !running[0]"])
+    r = explore(SPIN_LEAVE, properties=["reachable count(exited) == 2 && !running[0]",
+                                        "reachable exited[1] && running[0]",
+                                        "count(stuck) == 0"])
+    assert r.exit_status == 0, r.verdict
+    assert len(r.witnesses) == 2
+    last = r.witnesses[0]["_trace"].last
+    assert all(ag[STATUS] == EXITED for ag in last[AGS])
+    assert m.temporal[0].p(last)
+
+
+# ---------------------------------------------------------------------------
+# reachable
+# ---------------------------------------------------------------------------
+
+def test_reachable_on_fischer_gives_a_witness_and_unreachable_fails():
+    r = explore(FISCHER, overrides={"k": "0"}, properties=["reachable count(inCs) == 1"])
+    assert r.exit_status == 0 and r.status == "exhaustive"
+    (w,) = r.witnesses
+    tr = w["_trace"]
+    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.layout.vars["inCs"].slot]
+                                   for i in range(2))) == 1
+    # shortest: no state on the path before the last satisfies it
+    p = r.model.temporal[0].p
+    assert not any(p(s) for s in tr.states[:-1])
+    r3 = explore(FISCHER, overrides={"k": "0"}, properties=["reachable count(inCs) == 3"])
+    assert r3.exit_status == 1
+    assert r3.violations[0]["kind"] == "unreachable"
+    assert "unreachable" in r3.verdict
+
+
+def test_reachable_cli():
+    res = cli("explore", FISCHER, "--set", "k=0", "--property", "reachable count(inCs) == 1")
+    assert res.exit_code == 0
+    assert "reachable: `reachable count(inCs) == 1` is reached; witness (" in res.output
+    res = cli("explore", FISCHER, "--set", "k=0", "--property", "reachable count(inCs) == 3")
+    assert res.exit_code == 1
+    assert "unreachable: no reachable state satisfies" in res.output
+
+
+# ---------------------------------------------------------------------------
+# eventually
+# ---------------------------------------------------------------------------
+
+def test_walled_rendezvous_fails_eventually_all_exit_with_a_lasso():
+    r = explore(RDV, world=RDV_WALL, blackbox="straight", properties=[ALL_EXIT])
+    assert r.exit_status == 1
+    v = r.violations[0]
+    assert v["kind"] == "liveness" and v.cycle_start is not None
+    m = r.model
+    assert lasso_ok(m, r, lambda s: not all(ag[STATUS] == EXITED for ag in s[AGS]))
+    # robot 0's doReach failed on the wall
+    assert r.counterexamples[0].trace.last[AGS][0][REACH][FAIL] is True
+    assert ref_leadsto_fails(make_model(RDV, world=RDV_WALL, blackbox="straight",
+                                        properties=[ALL_EXIT]),
+                             None, m.temporal[0].p)
+
+
+def test_open_rendezvous_holds():
+    for bb in ("straight", "nondet"):
+        r = explore(RDV, world=RDV_OPEN, blackbox=bb, properties=[ALL_EXIT])
+        assert r.exit_status == 0, r.verdict
+        assert r.holds == [ALL_EXIT]
+    m = make_model(RDV, world=RDV_OPEN, blackbox="straight", properties=[ALL_EXIT])
+    assert not ref_leadsto_fails(m, None, m.temporal[0].p)
+
+
+def test_nondet_fair_arrival():
+    """Under nondet robot 0 may 'stay' forever; fair arrival rules that out."""
+    r = explore(RDV, world=RDV_OPEN, blackbox="nondet", properties=[ALL_EXIT])
+    assert r.exit_status == 0
+    # without the fairness assumption (the reference has none) it would fail
+    m = make_model(RDV, world=RDV_OPEN, blackbox="nondet", properties=[ALL_EXIT])
+    assert ref_leadsto_fails(m, None, m.temporal[0].p)
+
+
+def test_terminal_counterexample(tmp_path):
+    f = tmp_path / "stop.pccl"
+    f.write_text("loc:\n  bool done = false;\nStop():\n  pre(!done);\n  eff:\n    exit();\n")
+    r = explore(str(f), properties=["eventually done[0]"])
+    assert r.exit_status == 1
+    cx = r.counterexamples[0]
+    assert cx.cycle_start is None
+    assert "ends (terminal state)" in r.violations[0]["message"]
+    assert r.model.successors(cx.trace.last) == []
+
+
+# ---------------------------------------------------------------------------
+# leads-to and within
+# ---------------------------------------------------------------------------
+
+def test_token_ring_leads_to_holds():
+    r = explore(RING, agents=3, properties=["forall i: want[i] ~> has[i]"])
+    assert r.exit_status == 0
+    assert len(r.holds) == 3
+    m = make_model(RING, agents=3, properties=["forall i: want[i] ~> has[i]"])
+    for p in m.temporal:
+        assert not ref_leadsto_fails(m, p.p, p.q)
+
+
+def test_token_keeper_violates_leads_to_with_a_lasso():
+    r = explore(KEEP, agents=3, properties=["forall i: want[i] ~> has[i]"])
+    assert r.exit_status == 1
+    v = r.violations[0]
+    assert v["kind"] == "liveness" and v.cycle_start is not None
+    i = int(v["name"].rsplit("=", 1)[1].rstrip("]"))
+    assert i != 0
+    m = r.model
+    inst = m.temporal[i]
+    assert lasso_ok(m, r, lambda s: not inst.q(s))
+    assert any(inst.p(s) for s in r.counterexamples[0].trace.states)
+    ref = make_model(KEEP, agents=3, properties=["forall i: want[i] ~> has[i]"])
+    assert ref_leadsto_fails(ref, inst.p, inst.q)
+    assert not ref_leadsto_fails(ref, ref.temporal[0].p, ref.temporal[0].q)
+
+
+@pytest.mark.parametrize("bound", [0, 1, 2, 3, 4, 5, 6, 7, 8, 9])
+def test_within_agrees_with_reference(bound):
+    prop = f"want[1] ~> has[1] within {bound}"
+    r = explore(RING, agents=3, properties=[prop])
+    m = make_model(RING, agents=3, properties=[prop])
+    p = m.temporal[0]
+    assert p.ticks == bound
+    assert (r.exit_status == 1) == ref_within_fails(m, p.p, p.q, p.ticks), r.verdict
+    if r.exit_status == 1:
+        tr = r.counterexamples[0].trace
+        assert tr.last[TIME] - tr.states[r.counterexamples[0].p_at][TIME] > bound
+
+
+def test_within_has_a_threshold():
+    fails = [explore(RING, agents=3, properties=[f"want[1] ~> has[1] within {t}"]).exit_status
+             for t in range(0, 12)]
+    assert fails[0] == 1 and fails[-1] == 0
+    first_ok = fails.index(0)
+    assert all(x == 0 for x in fails[first_ok:])
+
+
+def test_within_fractional_bound_and_time_abstraction():
+    r = explore(RING, agents=3, properties=["want[1] ~> has[1] within 2.5"])
+    assert r.model.abstract_time          # the monitor clock keeps abstraction sound
+    assert r.model.temporal[0].ticks == 2
+
+
+# ---------------------------------------------------------------------------
+# time-locks
+# ---------------------------------------------------------------------------
+
+def test_zero_time_spin_is_a_time_lock():
+    r = explore(SPIN)
+    assert r.exit_status == 1
+    v = r.violations[0]
+    assert v["kind"] == "timelock"
+    assert "agent 0 (lines 12, 13)" in v["message"]
+    cx = r.counterexamples[0]
+    tr = cx.trace
+    assert r.model.key(tr.states[cx.cycle_start]) == r.model.key(tr.last)
+    assert all(s[PHASE] == DISCRETE and s[TIME] == 0 for s in tr.states)
+
+
+def test_spin_that_can_be_left_is_no_time_lock():
+    r = explore(SPIN_LEAVE)
+    assert r.exit_status == 0, r.verdict
+    # it does have zero-time cycles: agent 0's loop before agent 1 moves
+    init, states, succ = ref_graph(r.model)
+    assert any(k in succ[k2] for k in states for k2 in succ[k])
+
+
+def test_no_timelock_option():
+    assert explore(SPIN, timelock=False).exit_status == 0
+    res = cli("explore", SPIN, "--no-timelock")
+    assert res.exit_code == 0
+    res = cli("explore", SPIN)
+    assert res.exit_code == 1
+    assert "-- cycle: the steps below repeat forever --" in res.output
+    assert "counterexample (a lasso: 1 step, then a cycle of 2 steps repeated forever)" \
+        in res.output
+
+
+# ---------------------------------------------------------------------------
+# --fastest
+# ---------------------------------------------------------------------------
+
+def test_fastest_finds_the_earlier_violation():
+    bfs = explore(FAST, agents=1)
+    fast = explore(FAST, agents=1, fastest=True)
+    assert bfs.exit_status == fast.exit_status == 1
+    tb, tf = bfs.counterexamples[0].trace, fast.counterexamples[0].trace
+    assert tb.last[TIME] == 2 and tf.last[TIME] == 0
+    assert len(tb) < len(tf)
+    res = cli("explore", FAST, "-n", "1", "--fastest")
+    assert "fastest: violation at t=0" in res.output
+
+
+def test_fastest_agrees_on_small_programs():
+    for prog, kw in ((RING, dict(agents=3)), (SPIN_LEAVE, {}), (RDV, dict(world=RDV_OPEN))):
+        a = explore(prog, **kw)
+        b = explore(prog, fastest=True, **kw)
+        assert (a.status, a.stats.states, a.stats.transitions) == \
+            (b.status, b.stats.states, b.stats.transitions)
+    # the time-lock check works on the graph the fastest search records
+    assert explore(SPIN, fastest=True).violations[0]["kind"] == "timelock"
+
+
+@pytest.mark.slow
+def test_fastest_agrees_on_verdicts_and_counts():
+    for args in (dict(overrides={"k": "0"}), dict(overrides={"k": "0"},
+                                                  invariants=["count(inCs) <= 1"])):
+        a = explore(FISCHER, **args)
+        b = explore(FISCHER, fastest=True, **args)
+        assert a.status == b.status and a.exit_status == b.exit_status
+        if a.status == "exhaustive":
+            assert a.stats.states == b.stats.states
+            assert a.stats.transitions == b.stats.transitions
+        else:
+            assert b.counterexamples[0].trace.last[TIME] <= a.counterexamples[0].trace.last[TIME]
+
+
+@pytest.mark.slow
+def test_fastest_among_equal_times_is_shortest():
+    r = explore(FISCHER, overrides={"k": "0"}, invariants=["count(inCs) <= 1"], fastest=True)
+    tr = r.counterexamples[0].trace
+    assert tr.last[TIME] == 10
+    # BFS finds 130 steps at time 10 too: fastest cannot be longer at the same time
+    b = explore(FISCHER, overrides={"k": "0"}, invariants=["count(inCs) <= 1"])
+    assert b.counterexamples[0].trace.last[TIME] == 10
+    assert len(tr) == len(b.counterexamples[0].trace)
+
+
+def test_workers_refuse_temporal():
+    res = cli("explore", RING, "--workers", "2", "--property", "eventually has[0]")
+    assert res.exit_code == 2 and "--workers" in res.stderr
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_graph_reachability_agrees_with_a_plain_search(seed):
+    """Graph.can_reach (relaxation rounds, then the reversed graph) and
+    Graph.reach agree with a dict-based backward search on random graphs."""
+    import numpy as np
+    from pccl.liveness import Graph
+    rng = np.random.default_rng(seed)
+    n, e = 200, 400
+    src = np.sort(rng.integers(0, n, e)).astype(np.uint32)
+    dst = rng.integers(0, n, e).astype(np.uint32)
+    fptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
+    g = Graph(n, fptr, dst, src, np.zeros(n, bool), None, None)
+    goal = rng.random(n) < 0.05
+    preds: dict = {}
+    for a, b in zip(src.tolist(), dst.tolist()):
+        preds.setdefault(b, []).append(a)
+    want = set(np.flatnonzero(goal).tolist())
+    todo = list(want)
+    while todo:
+        v = todo.pop()
+        for u in preds.get(v, ()):
+            if u not in want:
+                want.add(u)
+                todo.append(u)
+    for rounds in (1, 3, 1000):
+        assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
+    assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want
+
+
+# ---------------------------------------------------------------------------
+# pccl run: stalled teams
+# ---------------------------------------------------------------------------
+
+def test_run_stops_a_stalled_team():
+    from pccl.api import run
+    r = run(RDV, world=RDV_WALL, blackbox="straight")
+    assert r.status == "stalled" and r.exit_status == 1
+    assert r.stalled_since == 1
+    assert r.final[TIME] == 1 + 20            # 20 unchanged time steps after t = 1
+    assert [i for i, _ in r.waiting] == [0, 1]
+    assert "`id == 0 && started && doReach_done` (Arrive, line 18)" in r.waiting[0][1]
+    assert r.message.startswith("stalled since t = 1: ")
+    # nothing changed in the state between t = 1 and the end, but the clock
+    from pccl.runner import _signature
+    sigs = {_signature(s) for t, s in r.summary if t >= 1}
+    assert len(sigs) == 1
+
+
+def test_run_stall_steps_option():
+    from pccl.api import run
+    from pccl.errors import ArgumentError
+    r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=5)
+    assert r.status == "stalled" and r.final[TIME] == 6
+    r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=0, max_time=30)
+    assert r.status == "bounded" and r.exit_status == 0
+    with pytest.raises(ArgumentError, match="stall_steps"):
+        run(RDV, stall_steps=-1)
+    res = cli("run", RDV, "--world", RDV_WALL, "--stall-steps", "3")
+    assert res.exit_code == 1
+    assert "result: stalled — stalled since t = 1: no variable, position or flag changed " \
+           "for 3 time steps" in res.output
+
+
+def test_run_of_a_moving_or_finishing_team_is_not_stalled():
+    from pccl.api import run
+    assert run(RDV, world=RDV_OPEN, blackbox="straight").status == "final"
+    # the token keeps going round: variables change every time step
+    r = run(RING, agents=3, max_time=60)
+    assert r.status == "bounded" and r.exit_status == 0
+
+
+# ---------------------------------------------------------------------------
+# reductions
+# ---------------------------------------------------------------------------
+
+def test_liveness_turns_symmetry_off_and_says_why():
+    m = make_model(SPIN, reduce="auto")
+    assert "symmetry" in m.reduction.on
+    m = make_model(SPIN, reduce="auto", properties=["eventually !b"])
+    assert "symmetry" not in m.reduction.on
+    assert "liveness property `eventually !b` needs real cycles" in m.reduction.describe()
+    res = cli("explore", SPIN, "--reduce", "auto", "--property", "eventually !b",
+              "--no-timelock")
+    # every run of tl_spin stays in time 0: no run counts, so it holds (vacuously);
+    # the time-lock check is what reports such a program
+    assert res.exit_code == 0
+    assert "symmetry off: liveness property `eventually !b` needs real cycles" in res.output
+    assert "holds: eventually !b" in res.output
+
+
+def test_verdicts_agree_with_and_without_reductions():
+    cases = [(SPIN, {}, []), (SPIN_LEAVE, {}, []),
+             (RING, dict(agents=3), ["forall i: want[i] ~> has[i]", "want[1] ~> has[1] within 3"]),
+             (KEEP, dict(agents=3), ["forall i: want[i] ~> has[i]"]),
+             (RDV, dict(world=RDV_WALL, blackbox="straight"), [ALL_EXIT])]
+    for prog, kw, props in cases:
+        a = explore(prog, reduce="none", properties=props, find_all=True, **kw)
+        b = explore(prog, reduce="auto", properties=props, find_all=True, **kw)
+        assert a.status == b.status
+        assert {(v["kind"], v["name"]) for v in a.violations} == \
+            {(v["kind"], v["name"]) for v in b.violations}
+        assert sorted(a.holds) == sorted(b.holds)
+
+
+def test_lasso_trace_file_validates_and_replays(tmp_path):
+    import json
+    import jsonschema
+    from conftest import ROOT
+    out = tmp_path / "lasso.json"
+    res = cli("explore", RDV, "--world", RDV_WALL, "-b", "straight", "--property", ALL_EXIT,
+              "--trace-out", out)
+    assert res.exit_code == 1
+    doc = json.loads(out.read_text())
+    jsonschema.validate(doc, json.loads((ROOT / "docs" / "trace-format.schema.json").read_text()))
+    assert doc["result"]["cycle_start"] == 8 and len(doc["steps"]) == 14
+    assert doc["result"]["violation"]["kind"] == "liveness"
+    rep = cli("replay", out)
+    assert rep.exit_code == 1
+    assert "every step of the recorded liveness counterexample" in rep.output
