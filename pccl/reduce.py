@@ -659,9 +659,9 @@ class Por:
         r = self.ok.get(pc)
         if r is None:
             info = self.m.ctl.info(pc)
-            k = info[0]
+            k = info.kind
             r = (k == K_END or (k == K_EMPTY and self.guards)
-                 or (k in (K_SIMPLE, K_IF) and info[-2] in self.sids))
+                 or (k in (K_SIMPLE, K_IF) and info.sid in self.sids))
             self.ok[pc] = r
         return r
 
@@ -683,7 +683,7 @@ class Por:
                             info = ctl.info(pc)
                         out: list = []
                         m.oracle.agent = i
-                        for rule in R.AGENT_RULES[info[0]]:
+                        for rule in info.rules:
                             rule(m, st, i, ag, info, out)
                         if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
                             return out
