@@ -239,9 +239,15 @@ def check(program, world):
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property checked after every transition; the run stops at "
                    "the first state that violates it (repeatable)")
+@click.option("--property", "properties", multiple=True, metavar="FORM",
+              help="a property of any form, checked on this run: P; 'P ~> Q within T' "
+                   "(violated when T passes after P without Q); 'eventually P', 'P ~> Q' "
+                   "(decided when the run ends for good, else undecided); 'reachable P' "
+                   "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, stall_steps, invariants, trace, fmt, plot, trace_out, view, full):
+        max_time, max_steps, stall_steps, invariants, properties, trace, fmt, plot, trace_out,
+        view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import build_model
     from .runner import run as run_model
@@ -276,7 +282,9 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
                            for t, s in res.summary],
-               "final": D.state_json(m, res.final)}
+               "final": D.state_json(m, res.final),
+               "properties": [{"name": o.name, "kind": o.kind, "outcome": o.outcome,
+                               "detail": o.detail} for o in res.properties]}
         out["trace"] = doc
         click.echo(json.dumps(out, indent=2, default=str))
     else:
@@ -300,6 +308,10 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             if v.span is not None:
                 click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
                            f"{D.source_line(m, v.span)}")
+        if res.properties:
+            click.echo("properties on this run:")
+            for o in res.properties:
+                click.echo(f"  {o.name}: {o.outcome} — {o.detail}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
     if trace_out:

@@ -53,6 +53,8 @@ class CommonOptions:
     collisions: bool = False
     overrides: Mapping[str, str] = field(default_factory=dict)
     invariants: tuple = ()
+    #: property forms of spec section 9 (docs/temporal.md)
+    properties: tuple = ()
     max_time: Optional[Union[int, float]] = None
     functions: Optional[Mapping[str, Any]] = None
     rand_policy: Optional[Callable] = None
@@ -107,7 +109,8 @@ class CommonOptions:
         """The keyword arguments of :class:`pccl.engine.Model` (besides the
         program, world, blackbox and team size)."""
         kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
-                  invariants=tuple(self.invariants), collisions=self.collisions)
+                  invariants=tuple(self.invariants), collisions=self.collisions,
+                  properties=tuple(self.properties))
         if with_max_time:
             kw["max_time"] = self.max_time
         if self.functions is not None:
@@ -123,13 +126,10 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
-    #: property forms of spec section 9 (docs/temporal.md)
-    properties: tuple = ()
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         kw = super().model_kwargs(with_max_time=with_max_time)
-        kw.update(abstract_time=self.abstract_time, reduce=self.reduce,
-                  properties=tuple(self.properties))
+        kw.update(abstract_time=self.abstract_time, reduce=self.reduce)
         return kw
 
 

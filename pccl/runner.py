@@ -37,6 +37,8 @@ class RunResult:
     #: agent what it waits on
     stalled_since: Optional[float] = None
     waiting: list = field(default_factory=list)
+    #: what this run says about each temporal property (PropertyOutcome)
+    properties: list = field(default_factory=list)
 
     model: Any = None
 
@@ -49,6 +51,113 @@ class RunResult:
         if self.model is None:
             raise ValueError("this RunResult has no model (pccl.api.run sets it)")
         return StateView.of(self.model, self.final)
+
+
+@dataclass
+class PropertyOutcome:
+    """What one run says about a temporal property: ``outcome`` is
+    ``holds`` (decided on this run), ``violated``, ``witnessed`` (a
+    ``reachable P`` reached), ``not reached`` or ``undecided`` (the run was
+    cut before it could tell); ``detail`` says when and why."""
+    name: str
+    kind: str
+    outcome: str
+    detail: str
+
+
+class _Monitor:
+    """Checks the temporal properties of ``model.temporal`` on one run.
+
+    A run is one path: ``P ~> Q within T`` is violated as soon as T time
+    units pass after an unanswered P; ``eventually P`` and ``P ~> Q`` are
+    decided only when the run ends for good (every agent exited, a deadlock,
+    a stall); a run cut by --max-time or --max-steps leaves them undecided
+    (``pccl explore`` decides them over every run).  A runtime error in P or
+    Q counts as false, as in explore."""
+
+    def __init__(self, props):
+        self.props = list(props)
+        self.seen = [None] * len(self.props)        # eventually/reachable: (step, time) of P
+        self.pending = [None] * len(self.props)     # ~>: (step, time) of the oldest open P
+        self.violated: list = [None] * len(self.props)  # within: the message, once violated
+
+    @staticmethod
+    def _holds(fn, st) -> bool:
+        try:
+            return bool(fn(st))
+        except Exception:       # noqa: BLE001 - a runtime error in a property is "false"
+            return False
+
+    def observe(self, st, step: int):
+        """Update on state ``st`` (reached after ``step`` transitions); a
+        violated ``within`` property as ``(property, message)``, else None."""
+        t = st[TIME]
+        for k, p in enumerate(self.props):
+            if p.kind in ("eventually", "reachable"):
+                if self.seen[k] is None and self._holds(p.p, st):
+                    self.seen[k] = (step, t)
+                continue
+            if self.pending[k] is not None and self._holds(p.q, st):
+                self.pending[k] = None
+            elif self.pending[k] is None and self._holds(p.p, st) and not self._holds(p.q, st):
+                self.pending[k] = (step, t)
+            if p.kind == "within" and self.pending[k] is not None \
+                    and t - self.pending[k][1] > p.bound:
+                self.violated[k] = (f"the premise held at t = {_t(self.pending[k][1])} "
+                                    f"and the response did not follow within {_t(p.bound)} "
+                                    f"time units (t = {_t(t)})")
+                return p, (f"{p.name}: the premise held at t = {_t(self.pending[k][1])} "
+                           f"(after {self.pending[k][0]} transitions) and the response did not "
+                           f"follow within {_t(p.bound)} time units (t = {_t(t)})")
+        return None
+
+    def outcomes(self, ended: bool, why: str) -> list:
+        """Per property, what the run says; ``ended``: the run cannot go on
+        (so eventually/leads-to are decided), ``why`` names how it ended."""
+        out = []
+        for k, p in enumerate(self.props):
+            if self.violated[k] is not None:
+                out.append(PropertyOutcome(p.name, p.kind, "violated", self.violated[k]))
+            elif p.kind == "reachable":
+                if self.seen[k] is not None:
+                    out.append(PropertyOutcome(p.name, p.kind, "witnessed",
+                                               f"reached after {self.seen[k][0]} transitions, "
+                                               f"t = {_t(self.seen[k][1])}"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "not reached",
+                                               f"not in this run ({why}); pccl explore decides"))
+            elif p.kind == "eventually":
+                if self.seen[k] is not None:
+                    out.append(PropertyOutcome(p.name, p.kind, "holds",
+                                               f"held after {self.seen[k][0]} transitions, "
+                                               f"t = {_t(self.seen[k][1])}"))
+                elif ended:
+                    out.append(PropertyOutcome(p.name, p.kind, "violated",
+                                               f"never held, and the run ended ({why})"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "undecided",
+                                               f"has not held yet; the run was cut ({why})"))
+            else:
+                pend = self.pending[k]
+                if pend is None:
+                    out.append(PropertyOutcome(p.name, p.kind, "holds" if ended else "undecided",
+                                               "every premise was answered" + (
+                                                   "" if ended else f" so far ({why})")))
+                elif ended:
+                    out.append(PropertyOutcome(p.name, p.kind, "violated",
+                                               f"the premise held at t = {_t(pend[1])} (after "
+                                               f"{pend[0]} transitions) and the response never "
+                                               f"followed; the run ended ({why})"))
+                else:
+                    out.append(PropertyOutcome(p.name, p.kind, "undecided",
+                                               f"the premise of t = {_t(pend[1])} is not answered "
+                                               f"yet; the run was cut ({why})"))
+        return out
+
+
+def _t(x) -> str:
+    from .display import fmt_time
+    return fmt_time(x)
 
 
 def _signature(st) -> tuple:
@@ -116,14 +225,35 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     per_agent: Counter = Counter()
     last_sig, still, since = _signature(st), 0, st[TIME]
 
+    temporal = getattr(model, "temporal", None)
+    mon = _Monitor(temporal) if temporal else None
+
     def finish(status, message, code, **kw):
-        return RunResult(status, message, code, st, steps, trace, summary, **kw)
+        res = RunResult(status, message, code, st, steps, trace, summary, **kw)
+        if mon is not None:
+            res.properties = mon.outcomes(status in ("final", "deadlock", "stalled"),
+                                          "every agent exited" if status == "final" else status)
+            bad = [o for o in res.properties if o.outcome == "violated"]
+            if bad and code == 0:
+                from .engine import Violation
+                res.status, res.exit_status = "violation", 1
+                res.message = "; ".join(f"{o.name}: {o.detail}" for o in bad)
+                res.violations = [Violation(o.kind, o.name, f"{o.name}: {o.detail}")
+                                  for o in bad]
+        return res
 
     try:
         while True:
             v = model.violations(st)
             if v:
                 return finish("violation", "; ".join(x.message for x in v), 1, violations=v)
+            if mon is not None:
+                hit = mon.observe(st, steps)
+                if hit is not None:
+                    from .engine import Violation
+                    p, msg = hit
+                    return finish("violation", msg, 1,
+                                  violations=[Violation(p.kind, p.name, msg, None, p.span)])
             succ = model.successors(st)
             if not succ:
                 kind = model.terminal_kind(st)

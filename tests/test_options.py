@@ -186,3 +186,51 @@ def test_model_option_errors_name_the_keyword_in_the_api_and_the_flag_in_the_cli
     assert out.stderr.startswith(f"{flag[0]}: error: ")
     # the same message after the prefix
     assert out.stderr.strip().split(": error: ", 1)[1] == api_text.split(f"{keyword}: ", 1)[1]
+
+
+# ---------------------------------------------------------------------------
+# run --property: what one run says about a temporal property
+# ---------------------------------------------------------------------------
+
+def _outcomes(res):
+    return {o.name: o.outcome for o in res.properties}
+
+
+def test_run_property_within_is_violated_on_the_run_and_explore_agrees():
+    prop = "inCs[0] ~> !inCs[0] within 3"
+    res = api.run(FISCHER, overrides={"k": "1"}, properties=[prop], max_time=30)
+    assert res.status == "violation" and res.exit_status == 1
+    assert _outcomes(res)[prop] == "violated"
+    assert res.violations[0].kind == "within"
+    # every run is one of explore's runs: explore must find a violation too
+    ex = api.explore(FISCHER, overrides={"k": "1"}, properties=[prop])
+    assert ex.status == "violation" and ex.violation.name == prop
+    out = cli("run", FISCHER, "--set", "k=1", "--property", prop, "--max-time", "30")
+    assert out.exit_code == 1 and f"  {prop}: violated — " in out.output
+
+
+def test_run_property_eventually_decided_when_the_run_ends():
+    done = "eventually forall i: exited[i]"
+    never = "eventually count(exited) == 3"       # two agents
+    res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3, properties=[done])
+    assert res.status == "final" and res.exit_status == 0 and _outcomes(res)[done] == "holds"
+    res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3, properties=[never])
+    assert res.status == "violation" and res.exit_status == 1
+    assert _outcomes(res)[never] == "violated"
+    ex = api.explore(RACE, world=RACE_WORLD, blackbox="instant", properties=[never])
+    assert ex.status == "violation"
+
+
+def test_run_property_cut_run_is_undecided_and_reachable_is_reported():
+    res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3, max_time=1,
+                  properties=["eventually forall i: exited[i]", "reachable count(exited) == 2",
+                              "reachable time == 0"])
+    assert res.status == "bounded" and res.exit_status == 0
+    assert _outcomes(res) == {"eventually forall i: exited[i]": "undecided",
+                              "reachable count(exited) == 2": "not reached",
+                              "reachable time == 0": "witnessed"}
+
+
+def test_run_property_typo_is_a_user_error():
+    out = cli("run", FISCHER, "--property", "eventualy count(inCs) == 1")
+    assert out.exit_code == 2 and "^" in out.stderr
