@@ -597,7 +597,7 @@ def expand_trace(m, trace, violation=None):
 def _loop_sids(m) -> set:
     """Statements that are a ``while`` or inside one: the only ones an agent
     can execute twice in one event execution."""
-    out = set()
+    out: set = set()
     for s in m.stmts.values():
         if isinstance(s, A.While):
             out.update(x.sid for x in A.walk_stmts([s]))
