@@ -266,6 +266,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         max_memory = default_max_memory()
     cov = None
     if coverage:
+        if "coverage" not in getattr(model, "reduce_uses", ()):
+            model.set_reduce(model.reduction.requested, uses=("coverage",))
         from .coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster

@@ -446,9 +446,9 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--fastest", is_flag=True,
               help="report the counterexample that reaches its violation at the smallest "
                    "global time (ties: fewest transitions) instead of the shortest")
-@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="none", show_default=True,
+@click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
-                   "comma-separated list of merge, symmetry")
+                   "comma-separated list of merge, symmetry, por")
 @click.option("--no-deadlock", "deadlock", flag_value=False, default=True,
               help="do not report deadlocks")
 @click.option("--all", "find_all", is_flag=True,
@@ -494,6 +494,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     opts = ExploreOptions.from_cli(click.get_current_context().params)
     try:
         model = build_model(program, opts, explore=True)
+        if coverage:
+            model.set_reduce(opts.reduce, uses=("coverage",))
         if (opts.workers != 1 or opts.ray is not None) and (model.temporal or fastest):
             raise PcclError(("--fastest" if fastest else "a temporal property") +
                             " needs the state graph of one process: use --workers 1",
@@ -606,7 +608,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     try:
         model = make_model(program, world=world, blackbox=blackbox, agents=agents,
                            max_time=None if max_time is None else _delta(max_time),
-                           invariants=tuple(invariants),
+                           invariants=tuple(invariants), reduce="none",
                            **_model_options(delta, n0, rates, events, collisions, overrides))
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
         if ext == ".json":
@@ -829,9 +831,12 @@ def _hms(seconds: float) -> str:
 
 def _stats_lines(res) -> list:
     s = res.stats
-    lines = [f"  initial states   {s.initial_states:,}",
-             f"  states           {s.states:,}",
-             f"  transitions      {s.transitions:,}",
+    on = res.model.reduction.on if res.model is not None else ()
+    # counts of the reduced graph are not those of the rules (section 5)
+    red = f" (reduced: {'+'.join(on)})" if on else ""
+    lines = [f"  initial states   {s.initial_states:,}{red}",
+             f"  states           {s.states:,}{red}",
+             f"  transitions      {s.transitions:,}{red}",
              f"  max depth        {s.max_depth}",
              f"  seconds          {s.seconds:.2f}",
              f"  states/second    {s.states_per_second:,.0f}",
@@ -925,7 +930,7 @@ def _explore_json(program, res) -> dict:
             "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(),
-            "statistics": res.stats.as_dict(),
+            "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
             "violations": [v.to_json() for v in res.violations],

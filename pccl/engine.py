@@ -371,19 +371,27 @@ class Model:
         return ([p.expr for p in self.properties if p.expr is not None]
                 + [p.expr for p in self.temporal])
 
-    def set_reduce(self, reduce="auto"):
+    def set_reduce(self, reduce="auto", uses=None):
         """Turn on the reductions ``reduce`` asks for (``auto``: every sound
         one; ``none``; a list of names): installs per instance a merged
-        ``successors`` and/or a canonical ``key``.  :attr:`reduction` says
-        which are on and why the others are off."""
+        ``successors`` and/or a canonical ``key``.  ``uses`` (kept from the
+        last call when None) names uses of the search that rule some
+        reductions out (``reduce.USE_LIMITS``, e.g. ``("coverage",)``).
+        :attr:`reduction` says which are on and why the others are off."""
         from . import reduce as RD
-        for attr in ("successors", "key", "merger"):
+        if uses is not None:
+            self.reduce_uses = tuple(uses)
+        for attr in ("successors", "key", "merger", "por"):
             self.__dict__.pop(attr, None)
         self.key = operator.itemgetter(slice(PHASE, None) if self.abstract_time else slice(None))
-        plan, slots = RD.plan(self, reduce)
+        plan, slots = RD.plan(self, reduce, getattr(self, "reduce_uses", ()))
         self.reduction = plan
+        base = None
+        if "por" in plan.on:
+            self.por = RD.Por(self)
+            self.successors = base = self.por.successors
         if "merge" in plan.on:
-            self.merger = RD.Merger(self)
+            self.merger = RD.Merger(self, base)
             self.successors = self.merger.successors
         if "symmetry" in plan.on:
             self.key = RD.make_symmetric_key(self, slots)

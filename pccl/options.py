@@ -125,7 +125,7 @@ class ModelOptions(CommonOptions):
     """A model to explore (:func:`pccl.api.make_model`): the common options,
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
-    reduce: Any = "none"
+    reduce: Any = "auto"
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         kw = super().model_kwargs(with_max_time=with_max_time)

@@ -33,10 +33,10 @@ from .errors import PcclError
 from .semantics import rules as R
 from .layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, RUNNING, SH,
                      STATUS, TIME)
-from .semantics.rules import K_END, K_IF, K_SIMPLE, K_WHILE
+from .semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
 
 #: The reductions, in the order they are reported.
-ALL = ("merge", "symmetry")
+ALL = ("merge", "symmetry", "por")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
@@ -62,8 +62,11 @@ class Plan:
     def describe(self) -> str:
         """``merge+symmetry`` / ``none``, then ``; X off: reason``."""
         text = "+".join(self.on) if self.on else "none"
+        by_reason: dict = {}
         for name, why in self.off.items():
-            text += f"; {name} off: {why}"
+            by_reason.setdefault(why, []).append(name)
+        for why, names in by_reason.items():
+            text += f"; {', '.join(names)} off: {why}"
         return text
 
     def as_dict(self) -> dict:
@@ -235,6 +238,12 @@ class _IdInfo:
         return vs is not None and vs.section == "allread"
 
     def check(self) -> Optional[str]:
+        try:
+            return self._check()
+        except RecursionError:
+            return "an expression is too deeply nested for the agent-id analysis"
+
+    def _check(self) -> Optional[str]:
         m = self.m
         for d in m.program.decls:
             if isinstance(d, A.VarDecl) and d.init is not None:
@@ -360,17 +369,46 @@ def symmetry_problem(m) -> tuple:
     return None, slots + (self_only,)
 
 
-def plan(m, reduce) -> tuple:
-    """(Plan, symmetry slots)."""
+#: Uses of a search that some reductions cannot serve: use -> {reduction:
+#: reason}.  A use is named by the caller of :func:`plan` (``--coverage``;
+#: a property kind such as ``"liveness"`` can be added here with the
+#: reductions that are unsound for it).
+USE_LIMITS: dict = {
+    "coverage": {name: "--coverage counts the unreduced transitions" for name in ALL},
+}
+
+
+def use_limits(uses) -> dict:
+    """{reduction: reason} of the reductions that ``uses`` rule out (the
+    first reason given wins)."""
+    out: dict = {}
+    for u in uses or ():
+        for name, why in USE_LIMITS.get(u, {}).items():
+            out.setdefault(name, why)
+    return out
+
+
+def plan(m, reduce, uses=()) -> tuple:
+    """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
+    sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
+    the others are off.  Asking explicitly for one that is not sound is an
+    error."""
     want = parse_request(reduce)
     p = Plan(requested=reduce if isinstance(reduce, str) else ",".join(reduce))
     on = []
     slots = None
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
-    if want is None or "merge" in want:
+    limits = use_limits(uses)
+    for name in (want if want is not None else ()):
+        if name in limits:
+            raise PcclError(f"{name} reduction cannot be used here: {limits[name]}; "
+                            f"drop it from --reduce", filename="--reduce")
+    if want is None:
+        p.off.update({n: why for n, why in limits.items() if n in ALL})
+    if "merge" not in limits and (want is None or "merge" in want):
         on.append("merge")
-    if want is None or "symmetry" in want:
+    if "symmetry" not in limits and (want is None or "symmetry" in want):
         why, slots = symmetry_problem(m)
         live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
         if why is None and live:
@@ -384,6 +422,20 @@ def plan(m, reduce) -> tuple:
                             filename="--reduce")
         elif m.N >= 2 or want is not None:
             p.off["symmetry"] = why
+    if "por" not in limits and (want is None or "por" in want):
+        temporal = [t.text for t in getattr(m, "temporal", ())]
+        if temporal:
+            # the ample-set conditions here are proven for state properties
+            # only (docs/reductions.md); paths need a stronger cycle proviso
+            why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
+            if want is not None:
+                raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
+                                filename="--reduce")
+            p.off["por"] = why
+        elif m.N >= 2:
+            on.append("por")
+        elif want is not None:
+            p.off["por"] = "one agent"
     p.on = tuple(on)
     return p, slots
 
@@ -393,15 +445,19 @@ def plan(m, reduce) -> tuple:
 # ---------------------------------------------------------------------------
 
 class Merger:
-    """The merged successor relation of a model, and its expansion."""
+    """The merged successor relation of a model, and its expansion.
+    ``base``: the successor function chains start from (the rules', or the
+    partial-order reduced one)."""
 
-    def __init__(self, m):
+    def __init__(self, m, base=None):
         self.m = m
         sids = mergeable_sids(m)
         self.sids = sids
         self.ok: dict = {}
-        plain = type(m).successors
-        self.plain = lambda st: plain(m, st)
+        if base is None:
+            plain = type(m).successors
+            base = lambda st: plain(m, st)        # noqa: E731
+        self.plain = base
 
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)
@@ -532,6 +588,107 @@ def expand_trace(m, trace, violation=None):
                 states, labels = states[:n + 1], labels[:n]
                 break
     return Trace(tuple(states), tuple(labels))
+
+
+# ---------------------------------------------------------------------------
+# partial-order reduction
+# ---------------------------------------------------------------------------
+
+def _loop_sids(m) -> set:
+    """Statements that are a ``while`` or inside one: the only ones an agent
+    can execute twice in one event execution."""
+    out: set = set()
+    for s in m.stmts.values():
+        if isinstance(s, A.While):
+            out.update(x.sid for x in A.walk_stmts([s]))
+    return out
+
+
+def local_guards(m) -> bool:
+    """Whether every event guard reads only the agent's own ``loc:``
+    variables (any of them: reading a property's variable is invisible),
+    enum members and pure calls: then EVENT SELECT and IDLE touch only the
+    agent's own k cell."""
+    lay = m.layout
+    funcs = set(m.functions)
+    for ev in m.program.events:
+        for e in A.walk_expr(ev.guard):
+            if isinstance(e, A.Name):
+                vs = lay.vars.get(e.name)
+                if vs is None:
+                    if e.name not in lay.members:
+                        return False
+                elif vs.section != "loc":
+                    return False
+            elif isinstance(e, A.Call):
+                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                    return False
+            elif isinstance(e, A.Quant):
+                return False
+    return True
+
+
+class Por:
+    """Partial-order reduction with ample sets (docs/reductions.md).
+
+    In a DISCRETE state, the first agent i (by index) that is running, has
+    an execution left (counter + ρ(i) ≤ n0, so TIME ADVANCE is disabled
+    until i itself advances its counter) and whose next step is *local* --
+    EVENT SELECT / IDLE when every guard reads only the agent's own
+    variables, COUNTER ADVANCE, or a statement of :func:`mergeable_sids`
+    outside every ``while`` -- gets ample set = all of i's enabled
+    transitions, provided each keeps i running (a runtime error is visible).
+    Otherwise the state is fully expanded.  Local steps of i read and write
+    only i's k cell, counter and invisible locals, which no other agent's
+    rule reads (C1) and no property reads (C2); each one is a step of i's
+    progress inside the current time step (an event body without loops is
+    run once per execution, the counter only grows until TIME ADVANCE), and
+    the states where TIME ADVANCE is enabled (every agent spent) are fully
+    expanded, so every cycle of the reduced graph passes a fully expanded
+    state (C3, whatever the search order)."""
+
+    def __init__(self, m):
+        self.m = m
+        self.sids = mergeable_sids(m) - _loop_sids(m)
+        self.guards = local_guards(m)
+        self.ok: dict = {}
+        plain = type(m).successors
+        self.plain = lambda st: plain(m, st)
+
+    def pc_ok(self, pc) -> bool:
+        r = self.ok.get(pc)
+        if r is None:
+            info = self.m.ctl.info(pc)
+            k = info.kind
+            r = (k == K_END or (k == K_EMPTY and self.guards)
+                 or (k in (K_SIMPLE, K_IF) and info.sid in self.sids))
+            self.ok[pc] = r
+        return r
+
+    def successors(self, st) -> list:
+        if st[PHASE] == DISCRETE:
+            m = self.m
+            rho, n0, ok = m.rho, m.n0, self.ok
+            ctl = m.ctl
+            i = 0
+            for ag in st[AGS]:
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                    pc = ag[PC]
+                    r = ok.get(pc)
+                    if r is None:
+                        r = self.pc_ok(pc)
+                    if r:
+                        info = ctl.infos[pc]
+                        if info is None:
+                            info = ctl.info(pc)
+                        out: list = []
+                        m.oracle.agent = i
+                        for rule in info.rules:
+                            rule(m, st, i, ag, info, out)
+                        if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                            return out
+                i += 1
+        return self.plain(st)
 
 
 # ---------------------------------------------------------------------------

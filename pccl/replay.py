@@ -77,7 +77,8 @@ def model_from_config(cfg: dict, trace_path, warnings: list):
     opts = dict(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
                 collisions=cfg["collisions"], overrides=dict(cfg.get("overrides") or {}),
                 invariants=tuple(cfg.get("invariants") or ()), max_time=cfg.get("max_time"),
-                abstract_time=bool(cfg.get("abstract_time")))
+                abstract_time=bool(cfg.get("abstract_time")),
+                reduce="none")      # a trace records unreduced steps
     if cfg.get("pccl_version") not in (None, T.pccl_version()):
         warnings.append(f"warning: the trace was written by pccl {cfg['pccl_version']}, "
                         f"this is pccl {T.pccl_version()}")

@@ -40,6 +40,7 @@ from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAI
 def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):
     """A Model of the program text ``src`` (dedented), instant blackbox by default."""
     prog = parse_program(textwrap.dedent(src).lstrip("\n"), filename)
+    kw.setdefault("reduce", "none")     # the rules themselves
     return make_model(prog, blackbox=blackbox, agents=agents, **kw)
 
 

@@ -471,10 +471,12 @@ def plain_bfs(m, max_depth=None):
     (FISCHER, dict(overrides=SMALL)),
     (str(TEST_PROGRAMS / "eng_lock.pccl"), dict(blackbox="instant")),
 ])
-def test_explorer_counts_match_plain_bfs(program, kw):
-    res = explore(program, **kw)
+@pytest.mark.parametrize("reduce", ["none", "auto"])
+def test_explorer_counts_match_plain_bfs(program, kw, reduce):
+    # the explorer and a plain BFS over the same (reduced or not) model agree
+    res = explore(program, reduce=reduce, **kw)
     assert res.status == "exhaustive"
-    n, t, first = plain_bfs(make_model(program, **kw))
+    n, t, first = plain_bfs(make_model(program, reduce=reduce, **kw))
     assert first == {}
     assert (res.stats.states, res.stats.transitions) == (n, t)
 
@@ -487,7 +489,8 @@ def test_explorer_counts_match_plain_bfs(program, kw):
 def test_counterexample_is_shortest(program, kw):
     res = explore(program, **kw)
     assert res.status == "violation"
-    _, _, first = plain_bfs(make_model(program, **kw), max_depth=res.violation["depth"])
+    _, _, first = plain_bfs(make_model(program, reduce="none", **kw),
+                            max_depth=res.violation["depth"])
     assert first[res.violation["kind"]] == res.violation["depth"] == len(res.trace)
 
 

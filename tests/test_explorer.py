@@ -199,7 +199,7 @@ def test_sizes_round_trip():
 
 def test_interrupted_after_violations_reports_them_and_exits_1():
     m = make_model("programs/fischer.pccl", overrides={"k": "1"},
-                   invariants=("count(inCs) <= 1",))
+                   invariants=("count(inCs) <= 1",), reduce="none")
     real, calls = m.successors, [0]
 
     def successors(s):       # one Ctrl-C, after the first violation (~125k states)

@@ -25,13 +25,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 
-from pccl.api import make_model, run
+from pccl.api import make_model as _make_model, run
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, FISCHER, LCK, LOCK, PC, RACE,
                       RACE_NONATOMIC, RACE_WORLD, REQUEST, STATUS, TEST_PROGRAMS)
 from pccl.layout import LQ, PHASE, TIME
 
 LOCK_PROG = str(TEST_PROGRAMS / "eng_lock.pccl")
+
+
+def make_model(*args, **kw):
+    """The unreduced model: these properties are of the rules' single steps."""
+    return _make_model(*args, reduce="none", **kw)
 
 MODELS = {
     "fischer": lambda: make_model(FISCHER, overrides={"k": "2"}),

@@ -68,7 +68,7 @@ def set_inits(prog: A.Program, values: dict) -> A.Program:
 
 
 def engine_counts(prog, agents, *, depth=None, **opts):
-    model = make_model(prog, agents=agents, **opts)
+    model = make_model(prog, agents=agents, reduce="none", **opts)
     st = Explorer(model, exact=True, max_depth=depth, deadlock=False,
                   find_all=True).run().stats
     return st.states, st.transitions, st.max_depth

@@ -31,11 +31,26 @@ def record(tmp_path, *args, name="t.json"):
 def test_replay_reproduces_a_counterexample(tmp_path):
     t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--invariant", "count(inCs) <= 1",
                "--set", "k=1")
+    n = len(json.loads(t.read_text())["steps"])
+    assert n >= 130             # the globally shortest (--reduce none) has 130
     res = cli("replay", t)
     assert res.exit_code == 1, res.output
-    assert "replayed 130 of 130 steps" in res.output
+    assert f"replayed {n} of {n} steps" in res.output
     assert "reproduced: invariant 'count(inCs) <= 1' violated" in res.output
     assert "warning" not in res.output
+
+
+def test_a_reduced_counterexample_replays_step_by_step(tmp_path):
+    # under the default reductions the trace file holds the expanded,
+    # unreduced steps: replay re-executes each of them
+    t = record(tmp_path, "explore", LOST, "--reduce", "auto", name="auto.json")
+    n = len(json.loads(t.read_text())["steps"])
+    full = record(tmp_path, "explore", LOST, "--reduce", "none", name="none.json")
+    assert n >= len(json.loads(full.read_text())["steps"])
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert f"replayed {n} of {n} steps" in res.output
+    assert "reproduced: invariant 'noLostUpdate' violated" in res.output
 
 
 def test_replay_reproduces_a_clean_run(tmp_path):
@@ -57,7 +72,7 @@ def test_replay_reproduces_a_stuck_run_with_rand_and_nondet(tmp_path):
 def test_edited_program_warns_and_names_the_diverging_step(tmp_path):
     prog = tmp_path / "lost.pccl"
     shutil.copy(LOST, prog)
-    t = record(tmp_path, "explore", prog)
+    t = record(tmp_path, "explore", prog, "--reduce", "none")
     prog.write_text(prog.read_text().replace("total = mine + 1;", "total = mine + 2;"))
     res = cli("replay", t)
     assert res.exit_code == 2, res.output
@@ -67,7 +82,7 @@ def test_edited_program_warns_and_names_the_diverging_step(tmp_path):
 
 
 def test_tampered_changes_are_named(tmp_path):
-    t = record(tmp_path, "explore", LOST)
+    t = record(tmp_path, "explore", LOST, "--reduce", "none")
     d = json.loads(t.read_text())
     d["steps"][2]["changes"][0]["new"] = 5
     t.write_text(json.dumps(d))
@@ -79,7 +94,7 @@ def test_tampered_changes_are_named(tmp_path):
 def test_shifted_program_reports_a_transition_not_enabled(tmp_path):
     prog = tmp_path / "lost.pccl"
     shutil.copy(LOST, prog)
-    t = record(tmp_path, "explore", prog)
+    t = record(tmp_path, "explore", prog, "--reduce", "none")
     prog.write_text(prog.read_text().replace("    mine = total;", "    skip;\n    mine = total;"))
     res = cli("replay", t)
     assert res.exit_code == 2
@@ -88,7 +103,7 @@ def test_shifted_program_reports_a_transition_not_enabled(tmp_path):
 
 
 def test_tampered_initial_state_diverges_at_the_start(tmp_path):
-    t = record(tmp_path, "explore", LOST)
+    t = record(tmp_path, "explore", LOST, "--reduce", "none")
     d = json.loads(t.read_text())
     d["initial"]["shared"]["total"] = 7
     t.write_text(json.dumps(d))
@@ -109,13 +124,13 @@ def test_replay_accepts_json_output_and_refuses_other_files(tmp_path):
 
 
 def test_replay_plot(tmp_path):
-    t = record(tmp_path, "explore", LOST)
+    t = record(tmp_path, "explore", LOST, "--reduce", "none")
     res = cli("replay", t, "--plot", tmp_path / "p.png")
     assert res.exit_code == 1 and (tmp_path / "p.png").stat().st_size > 0
 
 
 def test_a_step_that_is_not_enabled_lists_the_enabled_ones(tmp_path):
-    t = record(tmp_path, "explore", LOST)
+    t = record(tmp_path, "explore", LOST, "--reduce", "none")
     d = json.loads(t.read_text())
     d["steps"][0]["rule"] = "IDLE"
     t.write_text(json.dumps(d))

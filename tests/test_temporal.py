@@ -239,7 +239,8 @@ def test_status_predicates():
 # ---------------------------------------------------------------------------
 
 def test_reachable_on_fischer_gives_a_witness_and_unreachable_fails():
-    r = explore(FISCHER, overrides={"k": "0"}, properties=["reachable count(inCs) == 1"])
+    r = explore(FISCHER, overrides={"k": "0"}, properties=["reachable count(inCs) == 1"],
+                reduce="none")     # shortest in the rules (reduce: shortest under them)
     assert r.exit_status == 0 and r.status == "exhaustive"
     (w,) = r.witnesses
     tr = w["_trace"]
@@ -394,7 +395,7 @@ def test_no_timelock_option():
     assert explore(SPIN, timelock=False).exit_status == 0
     res = cli("explore", SPIN, "--no-timelock")
     assert res.exit_code == 0
-    res = cli("explore", SPIN)
+    res = cli("explore", SPIN, "--reduce", "none")
     assert res.exit_code == 1
     assert "-- cycle: the steps below repeat forever --" in res.output
     assert "counterexample (a lasso: 1 step, then a cycle of 2 steps repeated forever)" \
@@ -406,8 +407,8 @@ def test_no_timelock_option():
 # ---------------------------------------------------------------------------
 
 def test_fastest_finds_the_earlier_violation():
-    bfs = explore(FAST, agents=1)
-    fast = explore(FAST, agents=1, fastest=True)
+    bfs = explore(FAST, agents=1, reduce="none")
+    fast = explore(FAST, agents=1, fastest=True, reduce="none")
     assert bfs.exit_status == fast.exit_status == 1
     tb, tf = bfs.counterexamples[0].trace, fast.counterexamples[0].trace
     assert tb.last[TIME] == 2 and tf.last[TIME] == 0

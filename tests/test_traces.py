@@ -57,7 +57,10 @@ def test_explore_trace_validates_and_records_configuration(fischer_trace):
     assert c["blackbox"] == "straight" and c["world"] is None and c["pccl_version"]
     assert d["result"]["status"] == "violation"
     assert d["result"]["violation"]["kind"] == "invariant"
-    assert len(d["steps"]) == 130
+    # reduced by default: at least the globally shortest 130 steps (--reduce
+    # none), every one an unreduced step with its own index
+    assert len(d["steps"]) >= 130
+    assert [st["index"] for st in d["steps"]] == list(range(1, len(d["steps"]) + 1))
 
 
 def test_typed_values_and_cell_paths(fischer_trace):

@@ -10,7 +10,8 @@ from pccl.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
-FISCHER = ["explore", str(PROGRAMS / "fischer.pccl"), "--invariant", "count(inCs) <= 1",
+FISCHER = ["explore", str(PROGRAMS / "fischer.pccl"), "--reduce", "none",
+           "--invariant", "count(inCs) <= 1",
            "--set", "k=1"]
 
 
