@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import random
 from dataclasses import dataclass, field
@@ -27,10 +28,10 @@ from .options import ExploreOptions, ModelOptions, RunOptions
 from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
 
-#: The options of :func:`explore_model` (the search's, not the model's).
-SEARCH_OPTIONS = ("depth", "max_states", "max_memory", "deadlock", "find_all", "exact",
-                  "workers", "ray", "coverage", "progress_interval", "progress", "timelock",
-                  "fastest")
+#: The options of :func:`explore_model`: the fields ExploreOptions adds to the
+#: model's (derived, so a new search option cannot be missing here).
+SEARCH_OPTIONS = tuple(f.name for f in dataclasses.fields(ExploreOptions)
+                       if f.name not in {g.name for g in dataclasses.fields(ModelOptions)})
 
 
 def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
@@ -52,7 +53,6 @@ def load_world_arg(world):
 def apply_overrides(prog: A.Program, overrides) -> A.Program:
     """Replace the initialisers of shared variables: ``{"k": "2"}`` (TLC-style
     constants).  Values are PCCL expressions."""
-    import dataclasses
     from .parser import parse_property
     if not overrides:
         return prog
