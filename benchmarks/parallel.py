@@ -3,11 +3,13 @@
     python benchmarks/parallel.py                    # fischer k=2 and k=4, exhaustive
     python benchmarks/parallel.py --full             # also the paper's k=10 exhaustive
     python benchmarks/parallel.py --ray              # also --ray local (2 actors)
-    python benchmarks/parallel.py --baseline REV     # the "old" code [default: 905a05b]
+    python benchmarks/parallel.py --baseline REV     # the "old" code [default: 19a6888]
     python benchmarks/parallel.py --repeat 5 --only k=2
     python benchmarks/parallel.py --round-trip       # one synchronisation round, alone
 
-Every run is a fresh process.  The configurations of a case alternate
+The searches are those of ``pccl explore programs/fischer.pccl --set k=K
+--reduce none --no-timelock --workers N`` (unreduced; the time-lock check,
+which only one worker runs, off).  Every run is a fresh process.  The configurations of a case alternate
 (``--repeat`` rounds) so that load on a shared machine hits them alike; the
 speedup is computed within each round (1-worker seconds / 2-worker seconds
 of the same round) and the table shows the median and the range.
@@ -16,7 +18,9 @@ Columns: ``search s`` is the search's own time (``stats.seconds``: no
 program loading, no Ray start-up), ``process s`` the whole process's wall
 time, ``CPU s`` the user + system time of the process and of the worker
 processes it forked and waited for (Ray's actors are not its children: for
-``ray`` rows it is the driver's alone).  Results (states, transitions,
+``ray`` rows it is the driver's alone), ``CPU/process`` the same per process
+(the first process, which runs worker 0 and the coordinator, then the forked
+workers').  The load average is printed before every round.  Results (states, transitions,
 depth, status) are checked to be identical across configurations.
 """
 
@@ -37,21 +41,23 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 from run import checkout  # noqa: E402  (the git-archive checkout of another revision)
 
-#: main before the two-round protocol, the inline worker and --ray.
-BASELINE = "905a05b"
+#: main before the work on the speed of two workers (par-speed).  (905a05b:
+#: before the two-round protocol, the inline worker and --ray.)
+BASELINE = "19a6888"
 
 CASES = [
     ("fischer k=2 d=2, exhaustive", dict(program="programs/fischer.pccl",
-                                         overrides={"k": "2", "d": "2"})),
+                                         overrides={"k": "2", "d": "2"}, reduce="none")),
     ("fischer k=4 d=2, exhaustive", dict(program="programs/fischer.pccl",
-                                         overrides={"k": "4", "d": "2"})),
+                                         overrides={"k": "4", "d": "2"}, reduce="none")),
 ]
 FULL = [
-    ("fischer k=10 d=2 (paper), exhaustive", dict(program="programs/fischer.pccl")),
+    ("fischer k=10 d=2 (paper), exhaustive", dict(program="programs/fischer.pccl",
+                                                  reduce="none")),
 ]
 
 CHILD = r"""
-import json, os, sys, time
+import json, os, resource, sys, time
 code = os.environ.get("PCCL_BENCH_CODE")
 if code:   # import that tree, not the (editable) install
     sys.path.insert(0, code)
@@ -59,11 +65,16 @@ if code:   # import that tree, not the (editable) install
 from pccl.api import make_model, explore_model
 spec = json.loads(sys.argv[1])
 workers, ray = spec.pop("workers"), spec.pop("ray", None)
-m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None))
-r = explore_model(m, workers=workers, max_memory=None, **({"ray": ray} if ray else {}))
+m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None),
+               reduce=spec.pop("reduce", "none"))
+r = explore_model(m, workers=workers, max_memory=None, timelock=False,
+                  **({"ray": ray} if ray else {}))
 s = r.stats
+me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
 print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
                   "depth": s.max_depth, "seconds": s.seconds, "peak": s.peak_memory,
+                  "cpu_self": me.ru_utime + me.ru_stime,
+                  "cpu_children": kids.ru_utime + kids.ru_stime,
                   "code": __import__("pccl").__file__}))
 """
 
@@ -120,6 +131,14 @@ def round_trip(rounds: int = 300) -> None:
               f"{1e3 * xs[len(xs) * 9 // 10]:.3f} ms ({rounds} rounds)", flush=True)
 
 
+def per_process(rs, ray) -> str:
+    """Median CPU seconds of the first process / of its forked workers."""
+    me = statistics.median(r["cpu_self"] for r in rs)
+    if ray or not any(r["cpu_children"] for r in rs):
+        return f"{me:.1f}"
+    return f"{me:.1f} / {statistics.median(r['cpu_children'] for r in rs):.1f}"
+
+
 def fmt_range(xs, spec=".2f"):
     return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
 
@@ -152,15 +171,21 @@ def main() -> None:
         if args.ray:
             configs.append(("ray local, 2 actors", 2, None, "local"))
         hdr = f"{'case':<30} {'configuration':<28} {'search s':>19} {'process s':>19} " \
-              f"{'CPU s':>19} {'speedup vs 1':>19}"
+              f"{'CPU s':>19} {'CPU/process s':>13} {'speedup vs 1':>19}"
         if not args.json:
             print(hdr)
             print("-" * len(hdr), flush=True)
         for name, spec in cases:
             runs: dict = {c[0]: [] for c in configs}
-            for _ in range(args.repeat):
+            for i in range(args.repeat):
+                load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+                done = []
                 for label, w, code, ray in configs:
-                    runs[label].append(run_one(dict(spec), w, code, ray))
+                    r = run_one(dict(spec), w, code, ray)
+                    runs[label].append(r)
+                    done.append(f"{label} {r['seconds']:.2f} s")
+                if not args.json:
+                    print(f"  round {i + 1}, load {load}: {'; '.join(done)}", flush=True)
             ref = runs["1 worker"]
             sig = {(r["status"], r["states"], r["transitions"], r["depth"]) for rs in runs.values()
                    for r in rs}
@@ -173,12 +198,15 @@ def main() -> None:
                                       "seconds": [r["seconds"] for r in rs],
                                       "process": [r["process"] for r in rs],
                                       "cpu": [r["cpu"] for r in rs], "speedup": speed,
+                                      "cpu_self": [r["cpu_self"] for r in rs],
+                                      "cpu_children": [r["cpu_children"] for r in rs],
                                       "states": rs[0]["states"],
                                       "peak": [r["peak"] for r in rs]}))
                     continue
                 print(f"{name:<30} {label:<28} {fmt_range([r['seconds'] for r in rs]):>19} "
                       f"{fmt_range([r['process'] for r in rs]):>19} "
                       f"{fmt_range([r['cpu'] for r in rs]):>19} "
+                      f"{per_process(rs, ray):>13} "
                       f"{fmt_range(speed):>19}", flush=True)
             if not args.json:
                 r = ref[0]

@@ -111,6 +111,9 @@ class _Worker:
         self.cand: list = []           # candidate successors of the level
         self.cand_keys: Any = None     # their keys (ascending)
         self.pending: Any = None       # owner side: (fps, keys) of new states
+        self.own: Any = None           # my candidates that I own myself (never sent)
+        self.par_idx: Any = None       # the parents I expanded last, their numbers
+        self.par_n: Any = None         # ... and successor counts
         key = model.key
         twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
@@ -186,13 +189,22 @@ class _Worker:
             keys = np.zeros(0, np.uint64)
             f, k = np.zeros((0, 2), np.uint64), keys
         self.cand, self.cand_keys = cs, keys
-        return (_owner_split(f, k, self.n), pi, pn, dead, depth_min, model_min, viol,
+        self.par_idx, self.par_n = pi, pn
+        return (_owner_split(f, k, self.n), total, dead, depth_min, model_min, viol,
                 peak_rss_bytes())
+
+    def transitions_upto(self, parent: int) -> int:
+        """Of the level I expanded last, the successors of the parents
+        numbered ``parent`` or less (where the search stopped)."""
+        return int(self.par_n[self.par_idx <= np.uint64(parent)].sum())
 
     def decide(self, *parts):
         """Owner side: of the candidates sent to me (one ``(fps, keys)`` part
-        per generator), the new ones (smallest key per fingerprint); their
-        keys go back to the coordinator."""
+        per generator; ``None`` for mine, which stayed here), the new ones
+        (smallest key per fingerprint); their keys go back to the
+        coordinator."""
+        parts = tuple(self.own if p is None else p for p in parts)
+        self.own = None
         return self._decide(parts, True)
 
     def decide_initial(self, part):
@@ -204,19 +216,25 @@ class _Worker:
         if not parts:
             self.pending = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
             return self.pending[1]
-        if len(parts) == 1 and distinct:
-            f, k = parts[0]         # one generator: already distinct
+        if len(parts) == 1:
+            f, k = parts[0]
         else:
-            fps = np.concatenate([p[0] for p in parts])
-            keys = np.concatenate([p[1] for p in parts])
-            order = np.lexsort((keys, fps[:, 1], fps[:, 0]))
-            f, k = fps[order], keys[order]
-            first = np.ones(len(k), dtype=bool)
-            first[1:] = (f[1:] != f[:-1]).any(axis=1)
-            f, k = f[first], k[first]
+            f = np.concatenate([p[0] for p in parts])
+            k = np.concatenate([p[1] for p in parts])
         if self.table.n:
             new = self.table.lookup(f) < 0
             f, k = f[new], k[new]
+        if len(parts) > 1 or not distinct:
+            # equal fingerprints from several generators (rare): keep the
+            # smallest key.  Sorting by the low word alone finds them; only
+            # then the full sort.
+            lo = np.sort(f[:, 1])
+            if (lo[1:] == lo[:-1]).any():
+                order = np.lexsort((k, f[:, 1], f[:, 0]))
+                f, k = f[order], k[order]
+                first = np.ones(len(k), dtype=bool)
+                first[1:] = (f[1:] != f[:-1]).any(axis=1)
+                f, k = f[first], k[first]
         self.pending = (f, k)
         return k
 
@@ -250,7 +268,9 @@ class _Worker:
         without the coordinator fetching it)."""
         self.commit(decision)
         r = self.expand(at_bound)
-        return (*r[0], r[1:])
+        parts = list(r[0])
+        self.own, parts[self.wid] = parts[self.wid], None     # mine stay here
+        return (*parts, r[1:])
 
     def adopt(self, idx, states):
         self.level_idx.extend(idx)
@@ -610,10 +630,10 @@ class ParallelExplorer(Explorer):
                 parts, replies = T.step([(decisions[w] if decisions else None, at_bound)
                                          for w in range(n)])
                 decisions = None
-                # replies[w]: (parent numbers, successor counts, deadlocks, first
-                # number at the depth bound, ... at the model bound, violating
-                # candidates, peak memory)
-                note_peaks([r[6] for r in replies])
+                # replies[w]: (successors generated, deadlocks, first number at
+                # the depth bound, ... at the model bound, violating candidates,
+                # peak memory)
+                note_peaks([r[5] for r in replies])
                 # route the candidates to their owners
                 new_keys = T.all("decide", [tuple(parts[g][o] for g in range(n))
                                             for o in range(n)])
@@ -629,9 +649,9 @@ class ParallelExplorer(Explorer):
                 # the stop events, in the serial search's order (by key)
                 events = []                  # (key, kind, payload)
                 for r in replies:
-                    for g, v in r[2]:
+                    for g, v in r[1]:
                         events.append((g << _SHIFT, 0, (g, v)))
-                    for k, v in r[5]:        # violating candidates: those that are new
+                    for k, v in r[4]:        # violating candidates: those that are new
                         pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
                         if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
                             events.append((k, 1, (pos, v)))
@@ -662,16 +682,15 @@ class ParallelExplorer(Explorer):
                     stop_key = budget_key
                     bounds.add(Bound.MAX_STATES)
                 # transitions: parents expanded up to the stop
-                pis = np.concatenate([r[0] for r in replies])
-                pns = np.concatenate([r[1] for r in replies])
                 if stop_key is None:
-                    stats.transitions += int(pns.sum())
+                    stats.transitions += sum(r[0] for r in replies)
                 else:
-                    stats.transitions += int(pns[pis <= np.uint64(stop_key >> _SHIFT)].sum())
+                    stats.transitions += sum(T.all("transitions_upto",
+                                                   [(stop_key >> _SHIFT,)] * n))
                     stop = True
                 # bounds met before the stop
                 for r in replies:
-                    for b, g in ((Bound.DEPTH, r[3]), (Bound.MODEL, r[4])):
+                    for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
                         if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
                             bounds.add(b)
                 base = total
