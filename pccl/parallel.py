@@ -111,6 +111,7 @@ class _Worker:
         self.cand: list = []           # candidate successors of the level
         self.cand_keys: Any = None     # their keys (ascending)
         self.pending: Any = None       # owner side: (fps, keys) of new states
+        self.defer_free = False        # see _discard
         self.own: Any = None           # my candidates that I own myself (never sent)
         self.par_idx: Any = None       # the parents I expanded last, their numbers
         self.par_n: Any = None         # ... and successor counts
@@ -118,6 +119,13 @@ class _Worker:
         twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         self.keys_of = lambda states: map(xxh, map(dumps, map(key, states), twos))
+
+    def _discard(self, states: list) -> None:
+        """States no longer needed: freed now, or (``defer_free``, set by
+        the pipes transport) while this process waits for its next message
+        (:func:`_recv`), off the critical path."""
+        if self.defer_free and states:
+            _LITTER.append(states)
 
     def ready(self) -> int:
         """Called once by :class:`_RayTransport` in the actor's process."""
@@ -155,6 +163,7 @@ class _Worker:
             par_idx.append(g)
             par_n.append(len(succ))
             cs.extend(map(second, succ))
+        self._discard(self.level)
         self.level = []
         total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
@@ -200,34 +209,39 @@ class _Worker:
 
     def decide(self, *parts):
         """Owner side: of the candidates sent to me (one ``(fps, keys)`` part
-        per generator; ``None`` for mine, which stayed here), the new ones
-        (smallest key per fingerprint); their keys go back to the
-        coordinator."""
-        parts = tuple(self.own if p is None else p for p in parts)
-        self.own = None
-        return self._decide(parts, True)
+        per generator; ``None`` for mine, which stayed here and were checked
+        against my table by :meth:`expand`), the new ones (smallest key per
+        fingerprint); their keys go back to the coordinator."""
+        own, self.own = self.own, None
+        others = [p for p in parts if p is not None and len(p[1])]
+        if others:
+            f = np.concatenate([p[0] for p in others]) if len(others) > 1 else others[0][0]
+            k = np.concatenate([p[1] for p in others]) if len(others) > 1 else others[0][1]
+            if self.table.n:
+                new = self.table.lookup(f) < 0
+                f, k = f[new], k[new]
+            if own is not None and len(own[1]):
+                f, k = np.concatenate([own[0], f]), np.concatenate([own[1], k])
+            return self._decided(f, k, False)
+        if own is None:
+            own = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
+        return self._decided(own[0], own[1], True)
 
     def decide_initial(self, part):
         """:meth:`decide` for a chunk of initial states (which may repeat)."""
-        return self._decide([part], False)
-
-    def _decide(self, parts, distinct: bool):
-        parts = [p for p in parts if len(p[1])]
-        if not parts:
-            self.pending = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
-            return self.pending[1]
-        if len(parts) == 1:
-            f, k = parts[0]
-        else:
-            f = np.concatenate([p[0] for p in parts])
-            k = np.concatenate([p[1] for p in parts])
+        f, k = part
         if self.table.n:
             new = self.table.lookup(f) < 0
             f, k = f[new], k[new]
-        if len(parts) > 1 or not distinct:
-            # equal fingerprints from several generators (rare): keep the
-            # smallest key.  Sorting by the low word alone finds them; only
-            # then the full sort.
+        return self._decided(f, k, False)
+
+    def _decided(self, f, k, distinct: bool):
+        """Keep the new candidates ``(f, k)`` (none in my table) until the
+        coordinator's decision; answer their keys.  Unless ``distinct``,
+        equal fingerprints (from several generators: rare) keep the smallest
+        key: sorting by the low word alone finds them, and only then the
+        full sort runs."""
+        if not distinct and len(k) > 1:
             lo = np.sort(f[:, 1])
             if (lo[1:] == lo[:-1]).any():
                 order = np.lexsort((k, f[:, 1], f[:, 0]))
@@ -252,6 +266,8 @@ class _Worker:
             cs = self.cand
             self.level = [cs[p] for p in pos]
             self.level_idx = (won_ranks + base).tolist()
+            self._discard(cs)
+            del cs
             self.cand, self.cand_keys = [], None
         if self.pending is not None:
             f, _ = self.pending
@@ -285,13 +301,46 @@ class _Worker:
 # Transports: how the rounds reach the workers
 # ---------------------------------------------------------------------------
 
+#: Seconds a process polls for a message before it blocks (see :func:`_recv`).
+_SPIN = float(os.environ.get("PCCL_SPIN", "0.05"))
+
+
+#: Lists of states to free while waiting (:meth:`_Worker._discard`).
+_LITTER: list = []
+
+
+def _recv(conn):
+    """``conn.recv()``, first freeing discarded states (a slice at a time,
+    while no message is there: freeing a level's candidates costs about as
+    much as a tenth of expanding it) and polling for up to :data:`_SPIN`
+    seconds.  A process that blocks gives up its core; when its message
+    arrives it waits for the scheduler (on a busy machine, behind other jobs
+    for a time slice; on an idle virtual machine, for the core to wake up),
+    twice per BFS level.  The wait between rounds is short (the other
+    workers' share of a level), so polling through it keeps the core."""
+    poll = conn.poll
+    while _LITTER and not poll(0):
+        states = _LITTER[-1]
+        if states:
+            del states[-2048:]
+        else:
+            _LITTER.pop()
+    if _SPIN > 0 and not poll(0):
+        clock = _time.perf_counter
+        end = clock() + _SPIN
+        while not poll(0) and clock() < end:
+            pass
+    return conn.recv()
+
+
 def _serve(conn, model, wid, n, deadlock, find_all):
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # the coordinator handles Ctrl-C
     gc.disable()
     w = _Worker(model, wid, n, deadlock, find_all)
+    w.defer_free = True
     while True:
         try:
-            cmd, args = conn.recv()
+            cmd, args = _recv(conn)
         except EOFError:
             return
         if cmd == "stop":
@@ -329,6 +378,7 @@ class _Pipes:
             self.conns.append(a)
             self.procs.append(p)
         self.local = _Worker(model, 0, self.n, deadlock, find_all)
+        self.local.defer_free = self.n > 1     # freed while waiting for the others
 
     def stop(self) -> None:
         for c in self.conns:
@@ -343,9 +393,10 @@ class _Pipes:
                 p.kill()
                 p.join()
         self.conns, self.procs, self.local = [], [], None
+        _LITTER.clear()
 
     def _result(self, w):
-        status, value = self.conns[w - 1].recv()
+        status, value = _recv(self.conns[w - 1])
         self.outstanding[w] -= 1
         if status == "error":
             raise value
@@ -358,10 +409,34 @@ class _Pipes:
         mine = getattr(self.local, cmd)(*per_worker[0])
         return [mine] + [self._result(w) for w in range(1, self.n)]
 
-    def step(self, per_worker: list):
-        """The *step* round: (parts[generator][owner], rest of each reply)."""
-        replies = self.all("step", per_worker)
-        return [r[:self.n] for r in replies], [r[self.n] for r in replies]
+    def level(self, per_worker: list):
+        """One level: the *step* round, then the *decide* round, pipelined:
+        an owner's *decide* is sent as soon as the coordinator holds the
+        candidates of every other generator for it (``--workers 2``: right
+        after worker 0's step, so the forked worker decides straight after
+        its step, without waiting for the coordinator to read its reply).
+        Returns (the rest of each step reply, each owner's new keys)."""
+        n = self.n
+        for w in range(1, n):
+            self.conns[w - 1].send(("step", per_worker[w]))
+            self.outstanding[w] += 1
+        parts: list = [None] * n            # parts[g]: generator g's candidates by owner
+        parts[0] = self.local.step(*per_worker[0])
+        sent = [False] * n
+
+        def send_ready():
+            for o in range(1, n):
+                if not sent[o] and all(parts[g] is not None for g in range(n) if g != o):
+                    self.conns[o - 1].send(("decide", tuple(
+                        None if g == o else parts[g][o] for g in range(n))))
+                    self.outstanding[o] += 1
+                    sent[o] = True
+        send_ready()
+        for w in range(1, n):
+            parts[w] = self._result(w)
+            send_ready()
+        mine = self.local.decide(*(parts[g][0] for g in range(n)))
+        return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
 
     def call(self, w: int, cmd: str, *args):
         if w == 0:
@@ -451,15 +526,18 @@ class _RayTransport:
         return self._get([getattr(a, cmd).remote(*args)
                           for a, args in zip(self.actors, per_worker)])
 
-    def step(self, per_worker: list):
-        """The *step* round.  Only the small part of each reply comes to the
-        coordinator; the candidates stay in the object store as references,
-        which the *decide* round passes to their owners (Ray moves them
-        actor to actor)."""
+    def level(self, per_worker: list):
+        """One level: the *step* round, then the *decide* round.  Only the
+        small part of each step reply comes to the coordinator; the
+        candidates stay in the object store as references, which the
+        *decide* calls pass to their owners (Ray moves them actor to actor,
+        and starts an owner's *decide* once its inputs exist)."""
         n = self.n
         refs = [a.step.options(num_returns=n + 1).remote(*args)
                 for a, args in zip(self.actors, per_worker)]
-        return [r[:n] for r in refs], self._get([r[n] for r in refs])
+        decided = [a.decide.remote(*(refs[g][o] for g in range(n)))
+                   for o, a in enumerate(self.actors)]
+        return self._get([r[n] for r in refs]), self._get(decided)
 
     def call(self, w: int, cmd: str, *args):
         return self._get(getattr(self.actors[w], cmd).remote(*args))
@@ -627,16 +705,13 @@ class ParallelExplorer(Explorer):
             next_report = _time.perf_counter() + self.progress_interval
             while level_size and not stop:
                 at_bound = self.max_depth is not None and depth >= self.max_depth
-                parts, replies = T.step([(decisions[w] if decisions else None, at_bound)
-                                         for w in range(n)])
+                replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
+                                             for w in range(n)])
                 decisions = None
                 # replies[w]: (successors generated, deadlocks, first number at
                 # the depth bound, ... at the model bound, violating candidates,
                 # peak memory)
                 note_peaks([r[5] for r in replies])
-                # route the candidates to their owners
-                new_keys = T.all("decide", [tuple(parts[g][o] for g in range(n))
-                                            for o in range(n)])
                 allk = np.concatenate(new_keys)
                 order = np.argsort(allk, kind="stable")
                 sorted_keys = allk[order]
