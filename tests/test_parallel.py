@@ -66,6 +66,44 @@ def test_deadlock_and_stuck_stop_events_in_serial_order():
     assert {f.violation.kind for f in a.found} >= {"stuck", "deadlock"}
 
 
+def _fps(*pairs):
+    import numpy as np
+    return np.array(pairs, dtype=np.uint64).reshape(-1, 2)
+
+
+def test_owner_keeps_the_smallest_key_of_equal_fingerprints():
+    """An owner merging candidates from several generators: equal
+    fingerprints keep the smallest key, whichever generator sent it, and
+    distinct fingerprints that share their low word (which the merge sorts
+    by first) both stay."""
+    import numpy as np
+    from pccl import parallel as P
+    m = make_model(FISCHER, overrides={"k": "0"})
+    w = P._Worker(m, 0, 2, True, False)
+    # mine (kept by the step, never sent): fingerprints A and B
+    w.own = (_fps(1, 10, 2, 20), np.array([5, 9], dtype=np.uint64))
+    # from generator 1: A again with a smaller key, C sharing B's low word, D
+    other = (_fps(1, 10, 3, 20, 4, 40), np.array([3, 7, 8], dtype=np.uint64))
+    keys = w.decide(None, other)
+    got = {tuple(f): int(k) for f, k in zip(w.pending[0].tolist(), w.pending[1].tolist())}
+    assert got == {(1, 10): 3, (2, 20): 9, (3, 20): 7, (4, 40): 8}
+    assert sorted(keys.tolist()) == [3, 7, 8, 9]
+    # once B and D are committed (numbers 0 and 1), a later level's B is old
+    ranks = np.array([got[tuple(f)] for f in w.pending[0].tolist()])
+    w.commit((0, 4, np.argsort(np.argsort(ranks)), np.zeros(0, np.uint64),
+              np.zeros(0, np.int64)))
+    w.own = None
+    assert w.decide(None, (_fps(2, 20, 5, 50), np.array([1, 2], dtype=np.uint64))).tolist() == [2]
+
+
+def test_discarded_states_are_freed():
+    """States the pipes transport frees while waiting do not outlive the search."""
+    from pccl import parallel as P
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    r = ParallelExplorer(m, workers=2).run()
+    assert r.stats.states > 1000 and P._LITTER == []
+
+
 def test_exact_needs_one_process():
     from pccl.errors import PcclError
     with pytest.raises(PcclError, match="one process"):
