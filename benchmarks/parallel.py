@@ -79,8 +79,8 @@ print(json.dumps({"status": r.status, "states": s.states, "transitions": s.trans
 """
 
 
-def run_one(spec: dict, workers: int, code_dir=None, ray=None) -> dict:
-    env = dict(os.environ)
+def run_one(spec: dict, workers: int, code_dir=None, ray=None, extra_env=None) -> dict:
+    env = dict(os.environ, **(extra_env or {}))
     if code_dir is not None:
         env["PCCL_BENCH_CODE"] = code_dir
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -150,6 +150,8 @@ def main() -> None:
     ap.add_argument("--baseline", default=BASELINE, metavar="REV",
                     help=f"git revision of the old code [default: {BASELINE}]")
     ap.add_argument("--no-baseline", action="store_true", help="this checkout only")
+    ap.add_argument("--no-poll", action="store_true",
+                    help="also 2 workers that block at once (PCCL_SPIN=0) instead of polling")
     ap.add_argument("--repeat", type=int, default=3, help="rounds [default: 3]")
     ap.add_argument("--only", metavar="TEXT", help="the cases whose name contains TEXT")
     ap.add_argument("--json", action="store_true", help="print JSON lines")
@@ -165,11 +167,13 @@ def main() -> None:
         cases = [c for c in cases if args.only in c[0]]
     with tempfile.TemporaryDirectory() as tmp:
         old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
-        configs = [("1 worker", 1, None, None), ("2 workers", 2, None, None)]
+        configs = [("1 worker", 1, None, None, None), ("2 workers", 2, None, None, None)]
+        if args.no_poll:
+            configs.append(("2 workers, PCCL_SPIN=0", 2, None, None, {"PCCL_SPIN": "0"}))
         if old_dir is not None:
-            configs.append((f"2 workers old {args.baseline}", 2, old_dir, None))
+            configs.append((f"2 workers old {args.baseline}", 2, old_dir, None, None))
         if args.ray:
-            configs.append(("ray local, 2 actors", 2, None, "local"))
+            configs.append(("ray local, 2 actors", 2, None, "local", None))
         hdr = f"{'case':<30} {'configuration':<28} {'search s':>19} {'process s':>19} " \
               f"{'CPU s':>19} {'CPU/process s':>13} {'speedup vs 1':>19}"
         if not args.json:
@@ -180,8 +184,8 @@ def main() -> None:
             for i in range(args.repeat):
                 load = " ".join(f"{x:.2f}" for x in os.getloadavg())
                 done = []
-                for label, w, code, ray in configs:
-                    r = run_one(dict(spec), w, code, ray)
+                for label, w, code, ray, env in configs:
+                    r = run_one(dict(spec), w, code, ray, env)
                     runs[label].append(r)
                     done.append(f"{label} {r['seconds']:.2f} s")
                 if not args.json:
@@ -190,7 +194,7 @@ def main() -> None:
             sig = {(r["status"], r["states"], r["transitions"], r["depth"]) for rs in runs.values()
                    for r in rs}
             assert len(sig) == 1, f"results differ between configurations: {sig}"
-            for label, *_ in configs:
+            for label, _w, _code, on_ray, _env in configs:
                 rs = runs[label]
                 speed = [a["seconds"] / b["seconds"] for a, b in zip(ref, rs)]
                 if args.json:
@@ -206,7 +210,7 @@ def main() -> None:
                 print(f"{name:<30} {label:<28} {fmt_range([r['seconds'] for r in rs]):>19} "
                       f"{fmt_range([r['process'] for r in rs]):>19} "
                       f"{fmt_range([r['cpu'] for r in rs]):>19} "
-                      f"{per_process(rs, ray):>13} "
+                      f"{per_process(rs, on_ray):>13} "
                       f"{fmt_range(speed):>19}", flush=True)
             if not args.json:
                 r = ref[0]

@@ -28,7 +28,8 @@ Per level the coordinator makes two rounds with every worker:
    (and, for the fingerprints a worker owns itself, filtered against its
    own table), grouped by owner, and the keys of the candidates that
    violate a property (checked once per distinct fingerprint: equal keys
-   have equal violations).
+   have equal violations).  The candidates a worker owns itself stay with
+   it; only the others travel.
 2. ``decide``: owners answer which candidates are new (smallest key first).
 
 The coordinator then numbers the new states, orders the stop events and
@@ -39,7 +40,11 @@ engine-neutral; a *transport* moves the two rounds:
 
 * :class:`_Pipes` (``--workers N``): worker 0 runs inside the coordinator
   process, workers 1..N-1 are forked processes behind
-  :mod:`multiprocessing` pipes.
+  :mod:`multiprocessing` pipes.  The two rounds of a level are pipelined
+  (an owner's ``decide`` goes out as soon as the coordinator holds the
+  other generators' candidates for it: with two workers, right after
+  worker 0's step); a process polls for its next message for a while
+  before it blocks, and frees the states it discarded while it waits.
 * :class:`_RayTransport` (``--ray``): one Ray actor per partition; the
   arguments and replies of a round travel through Ray's object store, and
   the candidates go from their generator to their owner as object
@@ -301,8 +306,17 @@ class _Worker:
 # Transports: how the rounds reach the workers
 # ---------------------------------------------------------------------------
 
-#: Seconds a process polls for a message before it blocks (see :func:`_recv`).
-_SPIN = float(os.environ.get("PCCL_SPIN", "0.05"))
+def _spin_seconds(default: float = 0.05) -> float:
+    """Seconds a process polls for a message before it blocks (see
+    :func:`_recv`): ``PCCL_SPIN`` in the environment (``0``: block at once),
+    else 50 ms."""
+    try:
+        return max(0.0, float(os.environ.get("PCCL_SPIN", default)))
+    except ValueError:
+        return default
+
+
+_SPIN = _spin_seconds()
 
 
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
@@ -416,12 +430,13 @@ class _Pipes:
         after worker 0's step, so the forked worker decides straight after
         its step, without waiting for the coordinator to read its reply).
         Returns (the rest of each step reply, each owner's new keys)."""
-        n = self.n
+        n, local = self.n, self.local
+        assert local is not None, "start() first"
         for w in range(1, n):
             self.conns[w - 1].send(("step", per_worker[w]))
             self.outstanding[w] += 1
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
-        parts[0] = self.local.step(*per_worker[0])
+        parts[0] = local.step(*per_worker[0])
         sent = [False] * n
 
         def send_ready():
@@ -435,7 +450,7 @@ class _Pipes:
         for w in range(1, n):
             parts[w] = self._result(w)
             send_ready()
-        mine = self.local.decide(*(parts[g][0] for g in range(n)))
+        mine = local.decide(*(parts[g][0] for g in range(n)))
         return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
 
     def call(self, w: int, cmd: str, *args):
