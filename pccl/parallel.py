@@ -340,10 +340,10 @@ def _recv(conn):
         else:
             _LITTER.pop()
     if _SPIN > 0 and not poll(0):
-        clock = _time.perf_counter
+        clock, pass_turn = _time.perf_counter, getattr(os, "sched_yield", lambda: None)
         end = clock() + _SPIN
         while not poll(0) and clock() < end:
-            pass
+            pass_turn()     # a process waiting for a core (my partner?) gets this one
     return conn.recv()
 
 
