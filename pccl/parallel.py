@@ -369,6 +369,17 @@ def _serve(conn, model, wid, n, deadlock, find_all):
             return
 
 
+#: A message this small is sent without waiting for the receiver to read
+#: (the socket buffers hold ~200 KB; see :meth:`_Pipes.level`).
+_EARLY = 64 * 1024
+
+
+def _dumps(obj) -> bytes:
+    """What ``Connection.send`` would write."""
+    from multiprocessing.reduction import ForkingPickler
+    return bytes(ForkingPickler.dumps(obj))
+
+
 class _Pipes:
     """Worker 0 in this process; workers 1..n-1 forked, behind pipes.  A
     round sends to the forked workers first, runs worker 0 meanwhile, then
@@ -438,14 +449,22 @@ class _Pipes:
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
         parts[0] = local.step(*per_worker[0])
         sent = [False] * n
+        ready: list = [None] * n            # pickled decide messages not sent yet
 
         def send_ready():
             for o in range(1, n):
-                if not sent[o] and all(parts[g] is not None for g in range(n) if g != o):
-                    self.conns[o - 1].send(("decide", tuple(
+                if sent[o]:
+                    continue
+                if ready[o] is None and all(parts[g] is not None for g in range(n) if g != o):
+                    ready[o] = _dumps(("decide", tuple(
                         None if g == o else parts[g][o] for g in range(n))))
+                # Worker o may itself be writing its (large) step reply: a
+                # message larger than what the socket buffers could block
+                # both writers.  So early only if small, else once o's reply is in.
+                if ready[o] is not None and (len(ready[o]) <= _EARLY or parts[o] is not None):
+                    self.conns[o - 1].send_bytes(ready[o])
                     self.outstanding[o] += 1
-                    sent[o] = True
+                    sent[o], ready[o] = True, None
         send_ready()
         for w in range(1, n):
             parts[w] = self._result(w)

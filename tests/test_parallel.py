@@ -104,6 +104,40 @@ def test_discarded_states_are_freed():
     assert r.stats.states > 1000 and P._LITTER == []
 
 
+LARGE_LEVEL = r"""
+import numpy as np
+from pccl import parallel as P
+from pccl.api import make_model
+m = make_model("programs/fischer.pccl", overrides={"k": "0"})
+m.prepare()
+big = 300_000                   # 7 MB of candidates each way, beyond any socket buffer
+
+def step(self, decision, at_bound):
+    f = np.arange(2 * big, dtype=np.uint64).reshape(-1, 2) * np.uint64(2) + np.uint64(self.wid)
+    k = np.arange(big, dtype=np.uint64)
+    self.own = (f[:0], k[:0])
+    return (*[None if o == self.wid else (f, k) for o in range(self.n)], (big, [], None, None, [], 0))
+
+P._Worker.step = step
+t = P._Pipes(2)
+t.start(m, True, False)
+try:
+    rest, new = t.level([(None, False), (None, False)])
+    print(len(new[0]), len(new[1]), rest[1][0])
+finally:
+    t.stop()
+"""
+
+
+def test_pipes_exchange_large_levels_without_deadlock():
+    """Two workers whose candidates for each other exceed the socket
+    buffers: the pipelined level must not leave both writing at once."""
+    r = subprocess.run([sys.executable, "-c", LARGE_LEVEL], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["300000", "300000", "300000"]
+
+
 def test_exact_needs_one_process():
     from pccl.errors import PcclError
     with pytest.raises(PcclError, match="one process"):
