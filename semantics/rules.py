@@ -40,8 +40,12 @@ from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING
 K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
     K_DOREACH, K_EXIT, K_ASSERT = range(11)
 
-_RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
-                   TypeError, IndexError, ValueError)
+# -- the configuration kernel's public API (the engine uses it too) ------------------
+
+#: The exceptions that a compiled expression or statement may raise at run
+#: time; each gets the agent stuck (:func:`stuck_successor`), never the search.
+RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
+                  TypeError, IndexError, ValueError)
 
 
 class KCells(Protocol):
@@ -125,22 +129,25 @@ _KIND_NAMES = ("K_EMPTY", "K_END", "K_AEND", "K_ACQ", "K_SIMPLE", "K_IF", "K_WHI
 
 def _outcomes(m, fn, has_rand, *args):
     """Evaluate ``fn(*args)``; with rand, every outcome (explore) or the
-    policy's (run).  Runtime errors become :class:`_Err` results."""
+    policy's (run).  Runtime errors become :class:`Err` results."""
     if not has_rand:
         try:
             return [fn(*args)]
-        except _RUNTIME_ERRORS as exc:
-            return [_Err.of(exc)]
+        except RUNTIME_ERRORS as exc:
+            return [Err.of(exc)]
 
     def guarded(*a):
         try:
             return fn(*a)
-        except _RUNTIME_ERRORS as exc:
-            return _Err.of(exc)
+        except RUNTIME_ERRORS as exc:
+            return Err.of(exc)
     return m.oracle.outcomes(guarded, *args)
 
 
-class _Err:
+class Err:
+    """A runtime error as the result of an evaluation: ``reason`` (the
+    message of a stuck agent) and ``where`` (a location, when the error
+    carries one, e.g. a guard)."""
     __slots__ = ("reason", "where")
 
     def __init__(self, reason, where=None):
@@ -148,17 +155,18 @@ class _Err:
         self.where = where
 
     @staticmethod
-    def of(exc) -> "_Err":
-        return _Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))
+    def of(exc) -> "Err":
+        return Err(getattr(exc, "reason", None) or describe_error(exc), getattr(exc, "where", None))
 
 
-def _describe(exc):
+def describe_error(exc) -> str:
+    """The reason of a stuck agent for a Python exception in compiled code."""
     if isinstance(exc, ZeroDivisionError):
         return "division by zero"
     return f"{type(exc).__name__}: {exc}"
 
 
-def _stuck(m, st, i, ag, reason, where, kind="error"):
+def stuck_successor(m, st, i, ag, reason, where, kind="error"):
     """The successor in which agent i is stuck(reason, location)."""
     code = m.stuck_code(kind, reason, where)
     return put_agent(st, i, with_status(ag, code))
@@ -192,11 +200,11 @@ def event_select(m, st, i, ag, head, out):
         # the common case, without _outcomes' wrapper
         try:
             results = (m.enabled_events(i, ag, sh, ags),)
-        except _RUNTIME_ERRORS as exc:
-            results = (_Err.of(exc),)
+        except RUNTIME_ERRORS as exc:
+            results = (Err.of(exc),)
     for res in results:
-        if isinstance(res, _Err):
-            out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
+        if isinstance(res, Err):
+            out.append((("EVENT SELECT", i, None), stuck_successor(m, st, i, ag, res.reason, res.where)))
             continue
         if not res:
             out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
@@ -225,12 +233,12 @@ def statement_assign(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             ag2, sh2 = r
             # with_pc(ag2, head.next_pc), inlined
@@ -250,12 +258,12 @@ def statement_if(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             out.append((label, put_agent(st, i, with_pc(ag, head.branch_pcs[r]))))
 
@@ -272,12 +280,12 @@ def statement_while(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             out.append((label, put_agent(st, i, with_pc(ag, head.body_pc if r else head.next_pc))))
 
@@ -293,16 +301,16 @@ def statement_assert(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         elif r:
             out.append((label, put_agent(st, i, with_pc(ag, head.next_pc))))
         else:
-            out.append((label, _stuck(m, st, i, ag, "assertion failed", head.sid,
+            out.append((label, stuck_successor(m, st, i, ag, "assertion failed", head.sid,
                                       kind="assert")))
 
 
@@ -362,8 +370,8 @@ def doreach_update(m, st, i, ag, head, out):
     """
     sid = head.sid
     for res in _outcomes(m, head.fn, head.has_rand, i, ag, st[3], st[4]):
-        if isinstance(res, _Err):
-            out.append((("DOREACH UPDATE", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
+        if isinstance(res, Err):
+            out.append((("DOREACH UPDATE", i, sid), stuck_successor(m, st, i, ag, res.reason, sid)))
             continue
         target, obstacles = res
         target = m.round_pos(target)      # positions are compared at the world's resolution
