@@ -163,7 +163,7 @@ def _frames_from_trace(trace) -> list:
 def _destinations(model, st) -> list:
     """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
     out: list = []
-    for v in getattr(model.layout, "shared", ()):
+    for v in getattr(model.compiled.layout, "shared", ()):
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
             continue

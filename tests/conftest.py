@@ -47,7 +47,7 @@ def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw)
 def sid(m, text: str, nth: int = 0) -> int:
     """The sid of the ``nth`` statement whose source line (stripped) starts with ``text``."""
     lines = m.program.source.splitlines()
-    hits = sorted((s.span.line, s.span.column, k) for k, s in m.stmts.items()
+    hits = sorted((s.span.line, s.span.column, k) for k, s in m.compiled.stmts.items()
                   if lines[s.span.line - 1].strip().startswith(text))
     assert len(hits) > nth, f"no statement starting with {text!r}"
     return hits[nth][2]
@@ -68,7 +68,7 @@ def k_of(m, ag) -> tuple:
 
 
 def _slot(m, name):
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     return vs
 
 
@@ -124,7 +124,7 @@ def set_state(m, st, *, time=None, phase=None, lq=None, env=None, **values):
 
 def var(m, st, i, name):
     """Agent i's value of a local or allread variable."""
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     if vs.section == "loc":
         return st[AGS][i][LOC][vs.slot]
     if vs.section == "allread":
@@ -133,7 +133,7 @@ def var(m, st, i, name):
 
 
 def shared(m, st, name):
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     assert vs.section == "allwrite"
     return st[SH][vs.slot]
 

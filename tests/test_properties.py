@@ -88,7 +88,7 @@ def check_state(m, st):
     assert st[PHASE] in (DISCRETE, DYNAMIC)
     for i, ag in enumerate(st[AGS]):
         assert 0 <= ag[CNT] <= m.n0, f"agent {i} counter {ag[CNT]} outside 0..{m.n0}"
-        assert ag[STATUS] in (0, 1) or ag[STATUS] in m.stuck_reasons
+        assert ag[STATUS] in (0, 1) or ag[STATUS] in m.compiled.stuck_reasons
         assert 0 <= ag[PC] < len(m.ctl.ks)
     check_lock_invariants(m, st)
 

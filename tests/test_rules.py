@@ -13,7 +13,7 @@ import itertools
 import pytest
 
 from pccl import display as D
-from pccl.engine import AEND, END, acq
+from pccl.layout import AEND, END, acq
 from pccl.errors import PcclError
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, IDLE, LCK, LOCK, PC, POS, REACH,
@@ -269,7 +269,7 @@ def test_statement_assert_false_gets_agent_stuck(m, st0):
     assert set_agent(m, after, 0, status=RUNNING) == st       # nothing else changed
     (v,) = m.violations(after)
     assert v.kind == "assert" and v.agent == 0
-    assert v.span.line == m.stmts[a].span.line
+    assert v.span.line == m.compiled.stmts[a].span.line
     assert succ(m, after, agent=0) == []
 
 

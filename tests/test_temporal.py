@@ -244,7 +244,7 @@ def test_reachable_on_fischer_gives_a_witness_and_unreachable_fails():
     assert r.exit_status == 0 and r.status == "exhaustive"
     (w,) = r.witnesses
     tr = w["_trace"]
-    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.layout.vars["inCs"].slot]
+    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.compiled.layout.vars["inCs"].slot]
                                    for i in range(2))) == 1
     # shortest: no state on the path before the last satisfies it
     p = r.model.temporal[0].p
