@@ -73,3 +73,12 @@ def test_json_graph_and_max_states(tmp_path):
 def test_unknown_extension_is_refused(tmp_path):
     res = cli("graph", LOST, "-o", tmp_path / "g.png")
     assert res.exit_code == 2 and "use a .dot, .gv or .json file" in res.output
+
+
+def test_a_bad_option_names_the_flag(tmp_path):
+    """graph builds its model from the command's options object: a value
+    only the model can judge is reported against the flag (exit 2)."""
+    res = cli("graph", LOST, "-o", tmp_path / "g.dot", "--rate", "7=2")
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("--rate: error: agent 7 does not exist"), res.output
+    assert not (tmp_path / "g.dot").exists()

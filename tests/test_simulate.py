@@ -81,3 +81,13 @@ def test_each_simulated_run_is_the_run_of_its_seed():
     for k in range(60):
         r = run(prog, world=world, blackbox="nondet", agents=3, seed=k)
         assert got[k] == (r.status, r.message, r.final[TIME], r.steps), k
+
+
+def test_a_bad_option_names_the_flag():
+    """simulate builds its model from the options of pccl run: a rate above
+    n0 is reported against --rate, as pccl run reports it."""
+    res = cli("simulate", "programs/fischer.pccl", "-n", "2", "--rate", "1=2")
+    run = cli("run", "programs/fischer.pccl", "--rate", "1=2")
+    assert res.exit_code == run.exit_code == 2
+    assert res.output.strip().startswith("--rate: error: rate 2 of agent 1 is above n0 = 1")
+    assert res.output.strip() == run.output.strip()
