@@ -16,8 +16,12 @@ Configurations are nested tuples (compact, immutable, hashable)::
     reach = (target, obstacles, t0, doReach_done, doReach_fail)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
-occurrence ids and markers, docs/language.md §11) as a small integer; :class:`Control`
-maps it back and decodes its head once.
+occurrence ids and markers, docs/language.md §11) as a small integer; the
+compiled program's :class:`~pccl.compiled.Control` maps it back and decodes
+its head once.  What compiling the program produced (the checker's result,
+the slots, the closures, the guards) is :attr:`Model.compiled`, a
+:class:`~pccl.compiled.CompiledProgram`; the model adds the world, the
+blackbox, the clock, the properties and the transitions.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ Each agent rule has the signature ``rule(m, st, i, ag, head, out)``: ``m`` is
 the model, read only through :class:`RuleContext`; ``st`` the configuration,
 ``i`` the agent id, ``ag`` its agent cell, ``head`` the decoded head of its
 ``k`` cell (a :class:`KHead`, built once per pc by
-:class:`pccl.engine.Control`), and ``out`` a list to which the rule appends
+:class:`pccl.compiled.Control`), and ``out`` a list to which the rule appends
 ``(label, successor)`` pairs, one per way it applies.  A rule that does not
 apply appends nothing.  Global rules take ``(m, st, out)``.
 
@@ -16,7 +16,7 @@ labelled rules ``[assign]``, ``[if]``, ``[while]``), all labelled
 
 A configuration is meaningful only together with the model that made it:
 ``pc`` is an interned k cell and a stuck status a key of
-``Model.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
+``CompiledProgram.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
 
     state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
     agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
@@ -49,7 +49,7 @@ RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
 
 
 class KCells(Protocol):
-    """The interned k cells a rule may jump to (:class:`pccl.engine.Control`)."""
+    """The interned k cells a rule may jump to (:class:`pccl.compiled.Control`)."""
     empty_pc: int              # ·  (the top of the event block)
     idle_pc: int               # endEventBlock
     event_pcs: Sequence[int]   # event e's effect ~> endEventBlock
@@ -76,7 +76,7 @@ class RuleContext(Protocol):
 
 class KHead:
     """The decoded head of a k cell: what the rules need of ``k(pc)``,
-    built once per pc and cached (:meth:`pccl.engine.Control.info`).
+    built once per pc and cached (:meth:`pccl.compiled.Control.info`).
 
     Each kind sets the fields it has (the others are None):
 
