@@ -286,6 +286,7 @@ class Model:
             raise ValueError(f"label {label!r} is not enabled")
         return merger.expand(before, label)
 
+    # -- adding properties (checked and compiled by the compiled program) --------------
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
         self.compiled.check_property(expr, filename=filename, source=source)
         src, fn = self.compiled.state_predicate(expr)
@@ -388,7 +389,7 @@ class Model:
             self.set_reduce(self.reduction.requested)
 
     def prepare(self) -> None:
-        """Build every lazily interned table now (see :meth:`Control.close`):
+        """Build every lazily interned table now (see :meth:`pccl.compiled.Control.close`):
         after this, equal configurations are equal tuples in every process."""
         self.ctl.close()
 
@@ -728,7 +729,7 @@ class Model:
                             f"and far from the float limit") from None
         return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
 
-    # -- properties ------------------------------------------------------------------------
+    # -- checking properties ---------------------------------------------------------------
     def violations(self, st) -> list:
         """Every violation in ``st``: stuck agents, then properties, then
         collisions.  (Instances shadow this with the fast path compiled by
