@@ -287,6 +287,8 @@ class FingerprintTable:
         self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
         self._batch: Any = None         # (fingerprints, positions) of the last batch
+        #: state numbers of the last batch's first occurrences (-1: new)
+        self.found: Any = None
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
@@ -329,7 +331,8 @@ class FingerprintTable:
         """Of the batch ``keys`` (fingerprints), the positions ``first``
         (first occurrences, ascending) whose state is not yet visited."""
         q = np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2)[first]
-        new = self.lookup(q) < 0
+        self.found = found = self.lookup(q)
+        new = found < 0
         self._batch = (q[new], first[new])
         return first[new]
 
@@ -389,10 +392,14 @@ class ExactTable:
         self.ids: dict = {}
         self.parents: list = []
         self._batch = None
+        self.found: Any = None
 
     def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
         ids = self.ids
-        new = np.array([p for p in first.tolist() if keys[p] not in ids], dtype=np.int64)
+        self.found = found = np.fromiter(map(ids.get, [keys[p] for p in first.tolist()],
+                                             itertools.repeat(-1)),
+                                         dtype=np.int64, count=len(first))
+        new = first[found < 0]
         self._batch = [keys[p] for p in new.tolist()]
         return new
 
@@ -534,24 +541,25 @@ class Explorer:
                 self.progress({"states": table.n, "frontier": left + len(adm.nxt),
                                "depth": depth, "seconds": now - t_start,
                                "memory": peak_rss_bytes()})
-        while level and not stop:
-            at_bound = max_depth is not None and depth >= max_depth
-            for pos in range(len(level)):
-                s = level[pos]
-                succ = succ_fn(s)
+
+        def expand_one(succs: list, c0: int, at_bound: bool) -> bool:
+            """The chunk of the level at ``c0`` (its successor lists
+            ``succs``) state by state: terminal states, the depth bound.
+            True to stop."""
+            for j, succ in enumerate(succs):
+                pos = c0 + j
                 if not succ:
+                    s = level[pos]
                     kind = m.terminal_kind(s)
                     if kind == "bounded":
                         flags.setdefault(Bound.MODEL, level_idx[pos])
                     elif kind == "deadlock" and self.deadlock:
                         # the pending successors of earlier states come first
                         if flush(depth + 1):
-                            stop = True
-                            break
+                            return True
                         v = m.deadlock_violation(s)
                         if v is not None and adm.record([v], level_idx[pos], depth):
-                            stop = True
-                            break
+                            return True
                     continue
                 if at_bound:
                     flags.setdefault(Bound.DEPTH, level_idx[pos])
@@ -561,9 +569,34 @@ class Explorer:
                 cs.extend(map(second, succ))     # labels are dropped now
                 if len(cs) >= batch:
                     if flush(depth + 1):
-                        stop = True
-                        break
+                        return True
                     report(len(level) - pos)
+            return False
+
+        chain = itertools.chain.from_iterable
+        chunk = max(1, batch // 4)
+        while level and not stop:
+            at_bound = max_depth is not None and depth >= max_depth
+            for c0 in range(0, len(level), chunk):
+                # a chunk of the level expanded with C-level map()s: no
+                # bytecode per state unless the chunk holds a terminal
+                # state or the depth bound is reached
+                succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                ns = list(map(len, succs))
+                if not at_bound and 0 not in ns:
+                    par_idx.extend(level_idx[c0:c0 + chunk])
+                    par_n.extend(ns)
+                    cs.extend(map(second, chain(succs)))     # labels are dropped now
+                    del succs
+                    if len(cs) >= batch:
+                        if flush(depth + 1):
+                            stop = True
+                            break
+                        report(len(level) - c0 - len(ns))
+                    continue
+                if expand_one(succs, c0, at_bound):
+                    stop = True
+                    break
             if not stop and flush(depth + 1):
                 stop = True
             report(0)
@@ -668,7 +701,6 @@ class _Admission:
         self.ex = ex
         self.table = ex.table
         self.stats = res.stats
-        self.found = res.found
         self.cs: list = []
         self.par_idx: list = []
         self.par_n: list = []
@@ -707,8 +739,8 @@ class _Admission:
         ck = list(self.keys_of(cs))   # one map() chain for the whole batch
         n = len(ck)
         # first occurrence of each key, in batch order (C-level dict build)
-        first = np.fromiter(dict(zip(reversed(ck), range(n - 1, -1, -1))).values(),
-                            dtype=np.int64)
+        first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
+        first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
         first.sort()
         new = table.new_positions(ck, first).tolist()
         base = table.n
@@ -739,8 +771,15 @@ class _Admission:
             if rec is not None:
                 rec.states(states[:cut])
         if rec is not None:
+            # each candidate's state number, from its key's first
+            # occurrence (looked up once, in new_positions): no second
+            # lookup of the batch in the table
+            num = table.found
+            num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
+            dst = num[np.searchsorted(first, np.fromiter(
+                map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
             src = np.asarray(par_idx, dtype=np.int64)[owners]
-            rec.edges(src[src != _NO_PARENT], table.lookup_keys(ck)[src != _NO_PARENT])
+            rec.edges(src[src != _NO_PARENT], dst[src != _NO_PARENT])
         self.budget = budget - cut
         if stop_at is not None:
             # the search stops right after expanding the parent of the
