@@ -194,15 +194,27 @@ def event_select(m, st, i, ag, head, out):
     if ag[1] + m.rho[i] > m.n0:
         return
     sh, ags = st[3], st[4]
-    if m.guards_rand:
-        results = _outcomes(m, m.enabled_events, True, i, ag, sh, ags)
-    else:
-        # the common case, without _outcomes' wrapper
+    if not m.guards_rand:
+        # the common case: one outcome, without _outcomes' wrapper
         try:
-            results = (m.enabled_events(i, ag, sh, ags),)
+            res = m.enabled_events(i, ag, sh, ags)
         except RUNTIME_ERRORS as exc:
-            results = (Err.of(exc),)
-    for res in results:
+            err = Err.of(exc)
+            out.append((("EVENT SELECT", i, None), stuck_successor(m, st, i, ag, err.reason, err.where)))
+            return
+        if not res:
+            out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
+            return
+        if m.first_only:
+            res = res[:1]
+        pcs = m.ctl.event_pcs
+        for e in res:
+            # with_pc(ag, pcs[e]), inlined
+            out.append((("EVENT SELECT", i, e),
+                        put_agent(st, i, (pcs[e], ag[1], ag[2], ag[3], ag[4], ag[5], ag[6],
+                                          ag[7]))))
+        return
+    for res in _outcomes(m, m.enabled_events, True, i, ag, sh, ags):
         if isinstance(res, Err):
             out.append((("EVENT SELECT", i, None), stuck_successor(m, st, i, ag, res.reason, res.where)))
             continue
@@ -230,18 +242,23 @@ def statement_assign(m, st, i, ag, head, out):
     Changes k, and the variable's cell (locals, allread or shared).  A runtime
     error makes the agent stuck(reason, location) instead.
     """
-    try:
-        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
-            else (head.fn(i, ag, st[3], st[4]),)
-    except RUNTIME_ERRORS as exc:
-        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
-    for r in res:
+    if not head.has_rand:       # the common case: one outcome, no wrapper
+        try:
+            ag2, sh2 = head.fn(i, ag, st[3], st[4])
+        except RUNTIME_ERRORS as exc:
+            r = Err.of(exc)
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
+            return
+        # with_pc(ag2, head.next_pc), inlined
+        ag2 = (head.next_pc, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
+        out.append((label, put_agent(st, i, ag2, sh2)))
+        return
+    for r in _evaluate(m, head.fn, i, ag, st):
         if isinstance(r, Err):
             out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             ag2, sh2 = r
-            # with_pc(ag2, head.next_pc), inlined
             ag2 = (head.next_pc, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
             out.append((label, put_agent(st, i, ag2, sh2)))
 
@@ -255,13 +272,19 @@ def statement_if(m, st, i, ag, head, out):
 
     Changes k only.
     """
-    try:
-        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
-            else (head.fn(i, ag, st[3], st[4]),)
-    except RUNTIME_ERRORS as exc:
-        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
-    for r in res:
+    if not head.has_rand:       # the common case: one outcome, no wrapper
+        try:
+            r = head.fn(i, ag, st[3], st[4])
+        except RUNTIME_ERRORS as exc:
+            r = Err.of(exc)
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
+            return
+        # with_pc(ag, head.branch_pcs[r]), inlined
+        out.append((label, put_agent(st, i, (head.branch_pcs[r], ag[1], ag[2], ag[3], ag[4],
+                                             ag[5], ag[6], ag[7]))))
+        return
+    for r in _evaluate(m, head.fn, i, ag, st):
         if isinstance(r, Err):
             out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
@@ -311,7 +334,7 @@ def statement_assert(m, st, i, ag, head, out):
             out.append((label, put_agent(st, i, with_pc(ag, head.next_pc))))
         else:
             out.append((label, stuck_successor(m, st, i, ag, "assertion failed", head.sid,
-                                      kind="assert")))
+                                               kind="assert")))
 
 
 def statement_nested_atomic(m, st, i, ag, head, out):
