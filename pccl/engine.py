@@ -140,6 +140,7 @@ class Model:
         #: report agents waiting for a lock held by an exited agent (off with
         #: --no-deadlock)
         self.lock_deadlocks = True
+        self._compile_successors()
         self.set_reduce(reduce)
 
     # -- construction, step by step -----------------------------------------------------
@@ -259,6 +260,7 @@ class Model:
             self.reduce_uses = tuple(uses)
         for attr in ("successors", "key", "merger", "por"):
             self.__dict__.pop(attr, None)
+        self.successors = self.plain_successors
         self.key = operator.itemgetter(slice(PHASE, None) if self.abstract_time else slice(None))
         plan, slots = RD.plan(self, reduce, getattr(self, "reduce_uses", ()))
         self.reduction = plan
@@ -611,6 +613,49 @@ class Model:
         else:
             R.doreach_invoke(self, st, out)
         return out
+
+    #: teams up to this size get :meth:`successors` unrolled (generated code)
+    UNROLL_AGENTS = 16
+
+    def _compile_successors(self) -> None:
+        """``plain_successors``: :meth:`successors` generated for this team,
+        the loop over agents unrolled and ``counter + ρ(i) ≤ n0`` folded to
+        ``counter ≤ n0 - ρ(i)`` (the same transitions in the same order;
+        tests/test_engine_compiled.py compares them).  Larger teams use the
+        method itself."""
+        if self.N > self.UNROLL_AGENTS:
+            self.plain_successors = self.successors
+            return
+        lines = ["    out = []", f"    if st[{PHASE}] != {DISCRETE}:", "        _dr(_m, st, out)",
+                 "        return out", f"    ags = st[{AGS}]", "    running = blocked = False"]
+        for i in range(self.N):
+            cap = self.n0 - self.rho[i]
+            lines += [
+                f"    ag = ags[{i}]",
+                f"    s = ag[{STATUS}]",
+                f"    if s == {RUNNING}:",
+                "        running = True",
+                f"        info = _infos[ag[{PC}]]",
+                "        if info is None:",
+                f"            info = _info(ag[{PC}])",
+                f"        if ag[{CNT}] <= {cap}:",
+                "            blocked = True",
+                "            rules = info.rules",
+                "        else:",
+                "            rules = info.rules_spent",
+                f"        _oracle.agent = {i}",
+                "        for rule in rules:",
+                f"            rule(_m, st, {i}, ag, info, out)",
+                f"    elif s != {EXITED} and ag[{CNT}] <= {cap}:",
+                "        blocked = True",
+            ]
+        lines += ["    if running and not blocked:", "        _ta(_m, st, out, True)",
+                  "    return out"]
+        g: dict[str, Any] = dict(_m=self, _infos=self.ctl.infos, _info=self.ctl.info, _oracle=self.oracle,
+                 _ta=R.time_advance, _dr=R.doreach_invoke)
+        src = "def _successors(st):\n" + "\n".join(lines) + "\n"
+        exec(compile(src, "<pccl:_successors>", "exec"), g)
+        self.plain_successors = g["_successors"]
 
     def next_time(self, t):
         """The clock after TIME ADVANCE from ``t`` = n·δ: (n + 1)·δ, exactly

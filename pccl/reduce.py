@@ -455,8 +455,7 @@ class Merger:
         self.sids = sids
         self.ok: dict = {}
         if base is None:
-            plain = type(m).successors
-            base = lambda st: plain(m, st)        # noqa: E731
+            base = m.plain_successors
         self.plain = base
 
     def pc_ok(self, pc) -> bool:
@@ -652,8 +651,7 @@ class Por:
         self.sids = mergeable_sids(m) - _loop_sids(m)
         self.guards = local_guards(m)
         self.ok: dict = {}
-        plain = type(m).successors
-        self.plain = lambda st: plain(m, st)
+        self.plain = m.plain_successors
 
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)
