@@ -9,9 +9,10 @@
     python benchmarks/run.py --no-timelock     # the new code without the time-lock check
 
 The cases run the unreduced semantics (``reduce="none"``; the default
-``auto`` is measured by ``--reduce``). A compared case prints three rows:
-the baseline, ``new`` without the time-lock check (the same work as the
-baseline, which had none) and ``new+tl`` with it (the default).
+``auto`` is measured by ``--reduce``). Each case prints ``new``, without
+the time-lock check (the same work as the baseline, which had none), and
+``new+tl``, with it (the default; ``--no-timelock`` leaves this row out);
+a compared case also prints the baseline's row first.
 
 The machine may be shared: "seconds" is the search's wall time, "CPU s" the
 process's CPU time during the search (time.process_time), which load on
@@ -180,17 +181,14 @@ def main() -> None:
             # The cases are the unreduced semantics (issue 8's figures): this
             # checkout runs with reduce="none"; the baseline predates reductions.
             new_spec = {**spec, "reduce": "none"}
-            if args.no_timelock:
-                new_spec["explore"] = {"timelock": False}
-            versions = [("new", None, new_spec)]
+            explore = spec.get("explore", {})
+            versions = [("new", None, {**new_spec, "explore": {**explore, "timelock": False}})]
+            if not args.no_timelock:
+                versions.append(("new+tl", None, {**new_spec, "explore": explore}))
             if compare and old_dir is not None:
-                versions = [(f"old {args.baseline}"[:8], old_dir, dict(spec)),
-                            ("new", None, {**new_spec, "explore": {"timelock": False}}),
-                            ("new+tl", None, {**new_spec, "explore": {}})]
-                if args.no_timelock:
-                    versions.pop()
+                versions.insert(0, (f"old {args.baseline}"[:8], old_dir, dict(spec)))
             runs: dict = {v: [] for v, _, _ in versions}
-            for _ in range(args.repeat if len(versions) > 1 else 1):
+            for _ in range(args.repeat if compare and old_dir is not None else 1):
                 for v, d, sp in versions:
                     runs[v].append(run_case(dict(sp), d))
             for v, _, _ in versions:
