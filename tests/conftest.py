@@ -14,6 +14,7 @@ Nothing here reads /work/shared: the programs used live in the repository.
 
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
@@ -30,6 +31,26 @@ FISCHER = str(PROGRAMS / "fischer.pccl")
 RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
+
+def cli(*args, cwd=None, **kw):
+    """Run ``pccl ARGS`` in-process with click's CliRunner (``kw`` to
+    ``invoke``: ``env``, ``input``...; ``cwd`` to run from a directory).
+    No command may crash: an exception other than ``SystemExit`` is
+    re-raised here with its traceback, and no output holds one."""
+    from click.testing import CliRunner
+    from pccl.cli import main
+    old = os.getcwd()
+    if cwd is not None:
+        os.chdir(cwd)
+    try:
+        res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True, **kw)
+    finally:
+        os.chdir(old)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    assert "Traceback" not in res.output, res.output
+    return res
+
 
 # the configuration's cells and values (pccl.layout), for the tests to read states by name
 from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402

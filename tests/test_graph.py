@@ -10,9 +10,8 @@ from pathlib import Path
 
 import pydot
 import pytest
-from click.testing import CliRunner
 
-from pccl.cli import main
+from conftest import cli
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -21,11 +20,6 @@ LOST = ROOT / "docs" / "examples" / "lost_update.pccl"
 NEVER = ROOT / "docs" / "examples" / "never.pccl"
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def state_nodes(g) -> list:

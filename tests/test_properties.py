@@ -55,12 +55,12 @@ MODELS = {
 }
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model(name):
     return MODELS[name]()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def inits(name):
     return tuple(model(name).init_states())
 
@@ -166,7 +166,7 @@ def test_whole_state_space_keeps_lock_invariants(name):
     while todo:
         s = todo.pop()
         check_lock_invariants(m, s)
-        for label, s2 in m.successors(s):
+        for _label, s2 in m.successors(s):
             k = m.key(s2)
             if k not in seen:
                 seen.add(k)

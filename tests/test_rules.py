@@ -104,7 +104,7 @@ def test_initial_configuration(m, st0):
 def test_event_select_any_offers_every_enabled_event(m, st0):
     out = succ(m, st0, agent=0)
     assert [l for l, _ in out] == [("EVENT SELECT", 0, 0), ("EVENT SELECT", 0, 1)]
-    for (l, s), e in zip(out, (0, 1)):
+    for (_l, s), e in zip(out, (0, 1)):
         assert s == set_agent(m, st0, 0, pc=k_pc(m, *event_k(m, e)))
 
 
