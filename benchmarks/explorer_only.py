@@ -3,6 +3,7 @@ dict filled by one search beforehand, so only the explorer's work (keys,
 fingerprints, visited table, property checks) is timed.
 
     python benchmarks/explorer_only.py [--baseline REV] [--k 1] [--d 1] [--repeat 3]
+                                       [--reduce none]
 
 Prints CPU seconds per run for the explorer of REV (default e58fcde) and
 for this checkout's, alternating, on the same model and the same cached
@@ -42,11 +43,12 @@ def main() -> None:
     ap.add_argument("--k", default="1")
     ap.add_argument("--d", default="1")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--reduce", default="auto", help="the model's reductions (none: unreduced)")
     args = ap.parse_args()
     from pccl.api import make_model
     from pccl.explorer import Explorer
     m = make_model(os.path.join(ROOT, "programs/fischer.pccl"),
-                   overrides={"k": args.k, "d": args.d})
+                   overrides={"k": args.k, "d": args.d}, reduce=args.reduce)
     cache: dict = {}
 
     class Recording:

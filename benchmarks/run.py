@@ -8,6 +8,12 @@
     python benchmarks/run.py --reduce --full   # also the long ones (k=10 none, 3 agents k=2)
     python benchmarks/run.py --no-timelock     # the new code without the time-lock check
 
+The cases run the unreduced semantics (``reduce="none"``; the default
+``auto`` is measured by ``--reduce``). Each case prints ``new``, without
+the time-lock check (the same work as the baseline, which had none), and
+``new+tl``, with it (the default; ``--no-timelock`` leaves this row out);
+a compared case also prints the baseline's row first.
+
 The machine may be shared: "seconds" is the search's wall time, "CPU s" the
 process's CPU time during the search (time.process_time), which load on
 other cores does not inflate; medians are taken by CPU time.
@@ -165,32 +171,37 @@ def main() -> None:
     if args.only:
         cases = [c for c in cases if args.only in c[0]]
     hdr = f"{'case':<44} {'code':<8} {'result':<11} {'states':>11} {'transitions':>12} " \
-          f"{'seconds':>8} {'states/s':>9} {'peak MiB':>9} {'B/state':>8}"
+          f"{'seconds':>8} {'CPU s':>7} {'states/s':>9} {'peak MiB':>9} {'B/state':>8}"
     if not args.json:
         print(hdr)
         print("-" * len(hdr))
     with tempfile.TemporaryDirectory() as tmp:
         old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
         for name, spec, compare in cases:
-            versions = [("new", None)]
+            # The cases are the unreduced semantics (issue 8's figures): this
+            # checkout runs with reduce="none"; the baseline predates reductions.
+            new_spec = {**spec, "reduce": "none"}
+            explore = spec.get("explore", {})
+            versions = [("new", None, {**new_spec, "explore": {**explore, "timelock": False}})]
+            if not args.no_timelock:
+                versions.append(("new+tl", None, {**new_spec, "explore": explore}))
             if compare and old_dir is not None:
-                versions = [(f"old {args.baseline}"[:8], old_dir), ("new", None)]
-            runs: dict = {v: [] for v, _ in versions}
-            for _ in range(args.repeat if len(versions) > 1 else 1):
-                for v, d in versions:
-                    sp = dict(spec)
-                    if args.no_timelock and d is None:
-                        sp["explore"] = {"timelock": False}
-                    runs[v].append(run_case(sp, d))
-            for v, _ in versions:
+                versions.insert(0, (f"old {args.baseline}"[:8], old_dir, dict(spec)))
+            runs: dict = {v: [] for v, _, _ in versions}
+            for _ in range(args.repeat if compare and old_dir is not None else 1):
+                for v, d, sp in versions:
+                    runs[v].append(run_case(dict(sp), d))
+            for v, _, _ in versions:
                 r = median_run(runs[v])
                 if args.json:
                     print(json.dumps({"case": name, "version": v,
-                                      "all_seconds": [x["seconds"] for x in runs[v]], **r}))
+                                      "all_seconds": [x["seconds"] for x in runs[v]],
+                                      "all_cpu": [x["cpu"] for x in runs[v]], **r}))
                     continue
                 print(f"{name:<44} {v:<8} {r['status']:<11} {r['states']:>11,} "
-                      f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['sps']:>9,.0f} "
-                      f"{r['peak'] / 2**20:>9,.0f} {r['bytes_per_state']:>8.0f}", flush=True)
+                      f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['cpu']:>7.2f} "
+                      f"{r['sps']:>9,.0f} {r['peak'] / 2**20:>9,.0f} "
+                      f"{r['bytes_per_state']:>8.0f}", flush=True)
 
 
 def reduce_main(args) -> None:

@@ -45,7 +45,8 @@ from .ast import Span
 from .builtins import BUILTINS, READONLY_FLAGS, Builtin, uninterpreted
 from .errors import PcclError
 from .types import (ANY, BOOL, BUILTIN_TYPE_NAMES, DESCRIPTORS, FLOAT, INT, POS,
-                    TYPE_NAMES, Ty, array_of, assignable, compatible, join, list_of)
+                    TYPE_NAMES, Ty, array_of, assignable, compatible, indexes_agent, join,
+                    list_of)
 from .values import div, mod
 
 
@@ -770,7 +771,7 @@ class _Checker:
                 self.ambiguous(root)
                 t = POS
             elif var is not None:
-                if not var.per_agent:
+                if not indexes_agent(var.section, var.is_array, len(chain), in_property=True):
                     return None
                 t = var.type
             elif name in READONLY_FLAGS or name in STATUS_PREDICATES:
@@ -778,13 +779,12 @@ class _Checker:
             else:
                 return None
         else:
-            if var is None or var.section != "allread":
-                return None
+            if var is None or not indexes_agent(var.section, var.is_array, len(chain),
+                                                in_property=False):
+                return None                    # e.g. x[k]: this agent's element k
             if self.init_of is not None:
                 var = self.visible_in_init(root)
                 assert var is not None, name          # declared: found above
-            if var.is_array and len(chain) < 2:
-                return None                    # x[k]: this agent's element k
             t = var.type
         self.index_value(chain[0].index, "agent index")
         return t

@@ -11,7 +11,7 @@ import click
 from . import display as D
 from .errors import PcclError
 from .layout import AGS, POS, STATUS, TIME
-from .options import ExploreOptions, RunOptions
+from .options import ExploreOptions, ModelOptions, RunOptions
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
                  "for your own [default: straight; explore: nondet for a program that calls "
@@ -127,12 +127,6 @@ def _check_repeats(rates, overrides):
         if twice:
             raise click.BadParameter(f"{what} {', '.join(twice)} given more than once",
                                      param_hint=f"'{opt}'")
-
-
-def _model_options(delta, n0, rates, events, collisions, overrides):
-    _check_repeats(rates, overrides)
-    return dict(delta=_delta(delta), n0=n0, rates=dict(rates), events=events,
-                collisions=collisions, overrides=dict(overrides))
 
 
 def _fail(err: PcclError):
@@ -597,7 +591,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     states: states as nodes (violating ones in red), transitions as edges labelled
     with agent, rule, line and changes, one colour per agent."""
     import os
-    from .api import make_model
+    from .api import build_model
     from . import graph as G
     from . import traces as T
     ext = os.path.splitext(output)[1].lower()
@@ -605,11 +599,11 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
         _fail(PcclError(f"cannot tell the format of {output}: use a .dot, .gv or .json file",
                         filename="--output"))
     _check_output(output, "--output")
+    _check_repeats(rates, overrides)
+    # the graph is the unreduced semantics: every state and transition
+    opts = ModelOptions.from_cli(click.get_current_context().params).replace(reduce="none")
     try:
-        model = make_model(program, world=world, blackbox=blackbox, agents=agents,
-                           max_time=None if max_time is None else _delta(max_time),
-                           invariants=tuple(invariants), reduce="none",
-                           **_model_options(delta, n0, rates, events, collisions, overrides))
+        model = build_model(program, opts)
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
         if ext == ".json":
             cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
@@ -647,13 +641,14 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     the outcomes: final, bounded, deadlock, max-steps and each violation, with the
     first seed of each and the pccl run command that reproduces it."""
     import random
-    from .api import make_model
+    from .api import build_model
     from . import simulate as S
     rng = random.Random(seed)
-    opts = _model_options(delta, n0, rates, events, collisions, overrides)
+    _check_repeats(rates, overrides)
+    # the runs of pccl run, one per seed
+    opts = RunOptions.from_cli(click.get_current_context().params)
     try:
-        model = make_model(program, world=world, blackbox=blackbox, agents=agents, rng=rng,
-                           max_time=_delta(max_time), abstract_time=False, **opts)
+        model = build_model(program, opts, rng=rng)
         outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps)
     except PcclError as e:
         _fail(e)

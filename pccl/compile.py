@@ -24,7 +24,7 @@ from .builtins import BUILTINS, STATEMENTS, UNINTERPRETED
 from .checker import CheckedProgram
 from .errors import PcclError
 from .layout import AGS, AR, DONE, FAIL, LOC, N_AGENT_CELLS, POS, REACH, SH, TIME
-from .types import ANY, FLOAT, Ty
+from .types import ANY, FLOAT, Ty, indexes_agent
 
 
 def _rebuild(var: str, index: int, new: str) -> str:
@@ -489,11 +489,9 @@ class Compiler:
         self.impossible(f"undeclared variable '{n}'", e)
 
     def index(self, e: A.Index, prop: bool, bound) -> str:
-        """Index chains.  Per-agent variables (docs/language.md §4): an
-        allread scalar ``x[j]`` is agent j's component; for an allread array
-        ``x[k]`` is this agent's element k and ``x[j][k]`` agent j's element k.
-        In properties every per-agent name takes the agent index first
-        (``v[i]``, ``v[i][k]``, ``pos[i]``, ``doReach_done[i]``)."""
+        """Index chains.  Whether the first index picks an agent is
+        :func:`pccl.types.indexes_agent`'s rule; in properties ``pos[i]``,
+        ``doReach_done[i]`` and the status tests take the agent index too."""
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         root, chain = A.index_chain(e)
         idx = [ix.index for ix in chain]
@@ -508,16 +506,11 @@ class Compiler:
                         "doReach_fail": f"[{REACH}][{FAIL}]"}[n]
                 ref = f"_ag(ags, {j}, {n + '[…]'!r}){cell}"
                 return self._index_rest(ref, idx[1:], ex)
-            if vs is not None and vs.section != "allwrite":
-                if prop:
-                    part = AR if vs.section == "allread" else LOC
-                    ref = f"_av(ags, {ex(idx[0])}, {part}, {vs.slot}, {n!r})"
-                    return self._index_rest(ref, idx[1:], ex)
-                if vs.section == "allread":
-                    if vs.ty.kind == "array" and len(idx) == 1:
-                        return f"_ix(ag[{AR}][{vs.slot}], {ex(idx[0])})"
-                    ref = f"_av(ags, {ex(idx[0])}, {AR}, {vs.slot}, {n!r})"
-                    return self._index_rest(ref, idx[1:], ex)
+            if vs is not None and indexes_agent(vs.section, vs.ty.kind == "array", len(idx),
+                                                in_property=prop):
+                part = AR if vs.section == "allread" else LOC
+                ref = f"_av(ags, {ex(idx[0])}, {part}, {vs.slot}, {n!r})"
+                return self._index_rest(ref, idx[1:], ex)
         return f"_ix({ex(e.base)}, {ex(e.index)})"
 
     @staticmethod

@@ -64,7 +64,7 @@ class CoverageModel:
             sh, ags = st[SH], st[AGS]
             for i in selecting:
                 ag = ags[i]
-                for e, g in enumerate(m.guards):
+                for e, g in enumerate(m.compiled.guards):
                     try:
                         if g(i, ag, sh, ags):
                             self.held[e] += 1
@@ -81,8 +81,8 @@ class CoverageModel:
             held = self.held.get(e, 0) if not m.guards_rand else fired
             rep.events.append({"event": ev.name, "line": ev.guard.span.line,
                                "guard_held": held, "fired": fired})
-        for sid, s in sorted(m.stmts.items(), key=lambda kv: (kv[1].span.line, kv[1].span.column)):
-            ev = m.stmt_event.get(sid)
+        for sid, s in sorted(m.compiled.stmts.items(), key=lambda kv: (kv[1].span.line, kv[1].span.column)):
+            ev = m.compiled.stmt_event.get(sid)
             if ev is None:           # Init runs before the search, outside it
                 continue
             if not self.executed.get(sid):

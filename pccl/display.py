@@ -30,8 +30,8 @@ def status_text(model, code) -> str:
         return "running"
     if code == EXITED:
         return "exited"
-    kind, reason, where = model.stuck_reasons[code]
-    span = model.span_of(where)
+    kind, reason, where = model.compiled.stuck_reasons[code]
+    span = model.compiled.span_of(where)
     loc = f" at line {span.line}" if span else ""
     if kind == "assert":
         return f"stuck(assertion failed{loc})"
@@ -43,8 +43,8 @@ def status_json(model, code):
         return {"status": "running"}
     if code == EXITED:
         return {"status": "exited"}
-    kind, reason, where = model.stuck_reasons[code]
-    span = model.span_of(where)
+    kind, reason, where = model.compiled.stuck_reasons[code]
+    span = model.compiled.span_of(where)
     return {"status": "stuck", "kind": kind, "reason": reason,
             "line": span.line if span else None, "column": span.column if span else None}
 
@@ -52,14 +52,14 @@ def status_json(model, code):
 def agent_vars(model, st, i) -> list:
     """[(name, Ty, value)] for agent i's allread and local variables."""
     ag = st[AGS][i]
-    lay = model.layout
+    lay = model.compiled.layout
     out = [(v.name, v.ty, ag[AR][v.slot]) for v in lay.allread]
     out += [(v.name, v.ty, ag[LOC][v.slot]) for v in lay.local]
     return out
 
 
 def shared_vars(model, st) -> list:
-    return [(v.name, v.ty, st[SH][v.slot]) for v in model.layout.shared]
+    return [(v.name, v.ty, st[SH][v.slot]) for v in model.compiled.layout.shared]
 
 
 def source_line(model, span) -> str:
@@ -92,10 +92,10 @@ def label_info(model, label, before=None) -> dict:
     elif rule == "DOREACH INVOKE":
         info["outcome"] = detail
     if sid is not None:
-        span = model.stmt_span(sid)
+        span = model.compiled.stmt_span(sid)
         info["line"] = span.line if span else None
         info["source"] = source_line(model, span)
-        e = model.stmt_event.get(sid)
+        e = model.compiled.stmt_event.get(sid)
         info["event"] = model.program.events[e].name if e is not None else "Init"
     if agent is not None and info["event"] is None and before is not None and rule not in ("IDLE",):
         info["event"] = current_event(model, before[AGS][agent])
@@ -120,7 +120,7 @@ def current_event(model, ag) -> Optional[str]:
     for item in model.ctl.iter_k(ag[PC]):
         sid = item if item >= 0 else (acquire_sid(item) if is_acquire(item) else None)
         if sid is not None:
-            e = model.stmt_event.get(sid)
+            e = model.compiled.stmt_event.get(sid)
             return model.program.events[e].name if e is not None else "Init"
     return None
 
@@ -206,7 +206,7 @@ def format_state(model, st, *, indent="  ") -> str:
     if sv:
         lines.append(indent + "shared: " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in sv))
     for i, ag in enumerate(st[AGS]):
-        head = (f"{indent}agent {i}: {status_text(model, ag[STATUS])}, {model.describe_k(ag[PC])}, "
+        head = (f"{indent}agent {i}: {status_text(model, ag[STATUS])}, {model.compiled.describe_k(ag[PC])}, "
                 f"counter {ag[CNT]}, lock {LOCK_NAMES[ag[LCK]]}, pos {fmt_pos(ag[POS])}")
         r = ag[REACH]
         if r[TARGET] is not None:
@@ -225,7 +225,7 @@ def state_json(model, st) -> dict:
         r = ag[REACH]
         d = {"id": i, **status_json(model, ag[STATUS]), "counter": ag[CNT],
              "lockState": LOCK_NAMES[ag[LCK]], "position": list(ag[POS]),
-             "k": model.describe_k(ag[PC]),
+             "k": model.compiled.describe_k(ag[PC]),
              "reach": {"target": None if r[TARGET] is None else list(r[TARGET]), "t0": r[T0],
                        "doReach_done": r[DONE], "doReach_fail": r[FAIL]},
              "variables": {n: to_json(v, t) for n, t, v in agent_vars(model, st, i)}}
@@ -240,7 +240,7 @@ def format_state_k(model, st) -> str:
     maps (variable |-> address), gMemory, MMap (address |-> value), time.
     Under sequential consistency shared variables have one address, which
     every agent's memory map points to."""
-    lay = model.layout
+    lay = model.compiled.layout
     gmem = {v.name: k for k, v in enumerate(lay.shared)}
     addr = len(lay.shared)
     mmap = {gmem[n]: (v, t) for n, t, v in shared_vars(model, st)}

@@ -16,8 +16,12 @@ Configurations are nested tuples (compact, immutable, hashable)::
     reach = (target, obstacles, t0, doReach_done, doReach_fail)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
-occurrence ids and markers, docs/language.md §11) as a small integer; :class:`Control`
-maps it back and decodes its head once.
+occurrence ids and markers, docs/language.md §11) as a small integer; the
+compiled program's :class:`~pccl.compiled.Control` maps it back and decodes
+its head once.  What compiling the program produced (the checker's result,
+the slots, the closures, the guards) is :attr:`Model.compiled`, a
+:class:`~pccl.compiled.CompiledProgram`; the model adds the world, the
+blackbox, the clock, the properties and the transitions.
 """
 
 from __future__ import annotations
@@ -26,27 +30,23 @@ import decimal
 import math
 import operator
 
-import xxhash
 from dataclasses import dataclass
 from typing import Any, Optional
 from collections.abc import Callable
 
 from . import ast as A
-from .compile import Compiler, Layout, Oracle, build_layout, has_rand
+from .compile import has_rand
+from .compiled import CompiledProgram
 from .blackboxes.base import Motion
-from .errors import OptionError, PcclError, PcclRuntimeError
+from .errors import OptionError, PcclError
 from .fingerprint import check_canonical
-from .layout import (AEND, AGS, AR, BLANK_REACH, CNT, DISCRETE, END, ENV, EXITED, IDLE, LOC, LQ,
-                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acq, acquire_sid,
+from .layout import (AGS, AR, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LOC, LQ,
+                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acquire_sid,
                      is_acquire, make_agent, make_state, put_agent, with_cell, with_pc,
                      with_status, without_time)
-# (the types of doReach's arguments; POS above is the agent's position cell)
-from .types import OBSTACLES as OBSTACLES_TY, POS as POS_TY
 from .values import UNDEF
-from .world import MAX_AGENTS  # the Model checks it too
+from .options import check_model_values
 from .semantics import rules as R
-from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END,
-                              K_EXIT, K_IF, K_SIMPLE, K_WHILE, KHead)
 
 
 @dataclass(frozen=True)
@@ -98,128 +98,18 @@ class TemporalProperty:
         return self.kind in ("eventually", "leadsto")
 
 
-class Control:
-    """Interns k cells as integers and decodes their head once.
-
-    A k cell is a cons list: pc ``p`` stands for ``(head, rest_pc)`` (or the
-    empty k), hash-consed so that equal k cells get equal pcs.  Interning a
-    statement list in front of a continuation costs one entry per
-    statement, so an effect of n statements costs O(n) memory, not the
-    O(n²) of storing every suffix as a tuple."""
-
-    def __init__(self, model: "Model"):
-        self.m = model
-        self.cells: list = []
-        self.ids: dict = {}
-        self.infos: list = []
-        self.ks = _KView(self)
-        self.empty_pc = self._cell(())
-        self.idle_pc = self.cons(END, self.empty_pc)
-        self.event_pcs = [self.seq(tuple(s.sid for s in ev.body), self.idle_pc)
-                          for ev in model.program.events]
-
-    def close(self) -> None:
-        """Intern every k cell reachable from the event bodies and Init, in a
-        fixed order, so that pc numbers do not depend on the order in which
-        a search meets them (worker processes of a parallel search must
-        agree on them)."""
-        if self.m.program.init:
-            self.intern(tuple(s.sid for s in self.m.program.init))
-        pc = 0
-        while pc < len(self.cells):
-            self.info(pc)
-            pc += 1
-
-    def _cell(self, cell) -> int:
-        pc = self.ids.get(cell)
-        if pc is None:
-            pc = len(self.cells)
-            self.ids[cell] = pc
-            self.cells.append(cell)
-            self.infos.append(None)
-        return pc
-
-    def cons(self, head: int, rest: int) -> int:
-        """The pc of ``head ~> k(rest)``."""
-        return self._cell((head, rest))
-
-    def seq(self, items, rest: int) -> int:
-        """The pc of ``items ~> k(rest)``."""
-        pc = rest
-        for x in reversed(items):
-            pc = self._cell((x, pc))
-        return pc
-
-    def intern(self, k: tuple) -> int:
-        """The pc of the k cell given as a tuple."""
-        return self.seq(k, self.empty_pc)
-
-    def iter_k(self, pc: int):
-        """The items of k(pc), head first."""
-        cell = self.cells[pc]
-        while cell:
-            yield cell[0]
-            cell = self.cells[cell[1]]
-
-    def info(self, pc: int) -> KHead:
-        """The decoded head of k(pc), built once."""
-        inf = self.infos[pc]
-        if inf is None:
-            inf = self.infos[pc] = self._decode(pc)
-        return inf
-
-    def _decode(self, pc: int) -> KHead:
-        cell = self.cells[pc]
-        if not cell:
-            return KHead(K_EMPTY)
-        head, rest = cell
-        seq = self.seq
-        if head == END:
-            return KHead(K_END)
-        if head == AEND:
-            return KHead(K_AEND, next_pc=rest)
-        if is_acquire(head):
-            sid = acquire_sid(head)
-            atomic = self.m.stmts[sid]
-            assert isinstance(atomic, A.Atomic), atomic      # acq(sid) heads an atomic block
-            body = tuple(s.sid for s in atomic.body)
-            return KHead(K_ACQ, body_pc=seq(body, rest), sid=sid)
-        s = self.m.stmts[head]
-        c = self.m.code[head]
-        if isinstance(s, A.If):
-            pcs = tuple(seq(tuple(x.sid for x in body), rest) for _, body in s.branches)
-            pcs += (seq(tuple(x.sid for x in s.orelse), rest),)
-            return KHead(K_IF, fn=c, branch_pcs=pcs, sid=head, has_rand=has_rand(s))
-        if isinstance(s, A.While):
-            return KHead(K_WHILE, fn=c, body_pc=seq(tuple(x.sid for x in s.body), pc),
-                         next_pc=rest, sid=head, has_rand=has_rand(s))
-        if isinstance(s, A.Atomic):
-            return KHead(K_ATOMIC, request_pc=seq((acq(head), AEND), rest),
-                         body_pc=seq(tuple(x.sid for x in s.body), rest), sid=head)
-        if isinstance(s, A.CallStmt) and s.name == "doReach":
-            return KHead(K_DOREACH, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
-        if isinstance(s, A.CallStmt) and s.name == "exit":
-            return KHead(K_EXIT, sid=head)
-        if isinstance(s, A.CallStmt) and s.name == "assert":
-            return KHead(K_ASSERT, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
-        return KHead(K_SIMPLE, fn=c, next_pc=rest, sid=head, has_rand=has_rand(s))
-
-
-class _KView:
-    """``ctl.ks[pc]``: the k cell of ``pc`` as a tuple (built on demand)."""
-
-    def __init__(self, ctl: Control):
-        self.ctl = ctl
-
-    def __getitem__(self, pc: int) -> tuple:
-        return tuple(self.ctl.iter_k(pc))
-
-    def __len__(self) -> int:
-        return len(self.ctl.cells)
-
-
 class Model:
-    """A PCCL program, its world and its blackbox, as a transition system."""
+    """A PCCL program, its world and its blackbox, as a transition system:
+    what the explorer sees (:meth:`init_states`, :meth:`successors`,
+    :meth:`key`, :meth:`violations`, :meth:`terminal_kind`), the clock
+    (:meth:`next_time`), the environment step and the properties.  What
+    compiling the program produced is :attr:`compiled` (a
+    :class:`~pccl.compiled.CompiledProgram`).
+
+    The model is the rules' :class:`~pccl.semantics.rules.RuleContext`: the
+    members that the compiled program owns (``ctl``, ``oracle``,
+    ``guards_rand``, ``enabled_events``, ``stuck_code``) are bound to it
+    once, as plain attributes, so that a rule reads each with one lookup."""
 
     def __init__(self, program: A.Program, *, world=None, blackbox=None,
                  n_agents: Optional[int] = None, delta=1, n0: int = 1,
@@ -228,12 +118,37 @@ class Model:
                  invariants=(), functions: Optional[dict] = None,
                  rand_policy: Optional[Callable] = None, collisions: bool = False,
                  reduce="none", properties=()):
-        from .world import default_world
-        from .blackboxes import load_blackbox
-
         self.program = program
         #: why the search picked its blackbox (set by the API and the CLI)
         self.blackbox_reason: Optional[str] = None
+        self._set_world(world, blackbox)
+        if n_agents is None:
+            n_agents = self.world.n_agents or 2
+        rho = check_model_values(n_agents, delta=delta, max_time=max_time, n0=n0, rates=rates,
+                                 events=events)
+        self._set_team(n_agents, n0, rho, events)
+        self._set_clock(delta, max_time)
+        self.collisions = collisions
+        self.compiled = CompiledProgram(program, functions=self._functions(functions),
+                                        n_agents=self.N, rand_policy=rand_policy,
+                                        first_only=self.first_only)
+        self._bind_rule_context(self.compiled)
+        self._add_properties(program, invariants, properties)
+        self._set_time_abstraction(abstract_time)
+        self._env_cache: dict = {}
+        self._collision_cache: dict = {}
+        #: report agents waiting for a lock held by an exited agent (off with
+        #: --no-deadlock)
+        self.lock_deadlocks = True
+        self._compile_successors()
+        self.set_reduce(reduce)
+
+    # -- construction, step by step -----------------------------------------------------
+    def _set_world(self, world, blackbox) -> None:
+        """The world (default: the empty one) and the blackbox (a name, or an
+        object with the blackbox protocol; default: ``straight``)."""
+        from .world import default_world
+        from .blackboxes import load_blackbox
         self.world = world if world is not None else default_world()
         try:
             if blackbox is None:
@@ -247,84 +162,49 @@ class Model:
                 e.filename = "--blackbox"
             raise
         self.blackbox = blackbox
-        if n_agents is None:
-            n_agents = self.world.n_agents or 2
-        if n_agents < 1:
-            raise OptionError("agents", f"the number of agents must be at least 1, got {n_agents}")
-        if n_agents > MAX_AGENTS:
-            raise OptionError(
-                "agents", f"the number of agents must be at most {MAX_AGENTS:,}, got "
-                f"{n_agents:,}")
+
+    def _set_team(self, n_agents: int, n0: int, rho: list, events: str) -> None:
+        """The team: its size, n0, the rate map ρ (one rate per agent) and
+        the events policy."""
         self.N = n_agents
-        if not (isinstance(delta, (int, float)) and not isinstance(delta, bool) and delta > 0
-                and math.isfinite(delta)):
-            raise OptionError("delta", f"δ must be a positive finite number, got {delta}")
-        if max_time is not None and not (isinstance(max_time, (int, float))
-                                         and not isinstance(max_time, bool)
-                                         and math.isfinite(max_time) and max_time >= 0):
-            raise OptionError("max_time", f"must be a finite number >= 0, got {max_time}")
-        if not (isinstance(n0, int) and n0 >= 1):
-            raise OptionError("n0", f"n0 must be a positive integer, got {n0}")
-        self.delta = delta
+        self.rho = rho
         self.n0 = n0
-        self.rho = [1] * n_agents
-        for a, r in (rates or {}).items():
-            if not (isinstance(a, int) and 0 <= a < n_agents):
-                raise OptionError("rates", f"agent {a} does not exist (agents are 0..{n_agents - 1})")
-            if not (isinstance(r, int) and r >= 1):
-                raise OptionError("rates", f"rate of agent {a} must be a positive integer, got {r}")
-            if r > n0:
-                # counter + ρ ≤ n0 never holds: the agent would never run an event
-                # and a search would "explore clean" without it
-                raise OptionError(
-                    "rates", f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
-                    f"would never run an event (it runs while counter + rate ≤ n0); "
-                    f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
-            self.rho[a] = r
-        if events not in ("any", "first"):
-            raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
         self.first_only = events == "first"
         self.events_policy = events
+
+    def _set_clock(self, delta, max_time) -> None:
+        """The clock: time is n·δ for an integer n, computed exactly in
+        decimal from δ as written (0.1 is 1/10), then rounded once to a
+        float; so no δ is too small to advance it and 0.1 + 0.2 is 0.3."""
+        self.delta = delta
         self.max_time = max_time
-        self.collisions = collisions
-        # The clock: time is n·δ for an integer n, computed exactly in decimal
-        # from δ as written (0.1 is 1/10), then rounded once to a float; so
-        # no δ is too small to advance it and 0.1 + 0.2 is 0.3.
         self._delta_dec = _decimal(delta)
         self.max_ticks = (None if max_time is None
                           else int((_decimal(max_time) / self._delta_dec).to_integral_value(
                               rounding=decimal.ROUND_FLOOR)))
         self._next_time: dict = {}
 
+    def _functions(self, functions: Optional[dict]) -> dict:
+        """The uninterpreted functions' values: the world's (``getObs`` is
+        its obstacles, ``getInput`` empty unless given), then the caller's."""
         funcs = dict(self.world.functions_dict()) if hasattr(self.world, "functions_dict") else {}
         if "getObs" not in funcs:
             funcs["getObs"] = tuple(self.world.obstacles)
         funcs.setdefault("getInput", ())
         funcs.update(functions or {})
-        self.functions = funcs
+        return funcs
 
-        from .checker import check_program as _check
-        self.info = _check(program, functions=frozenset(funcs))
-        self.layout: Layout = build_layout(program, self.info)
-        self.oracle = Oracle(rand_policy)
-        self.comp = Compiler(program, self.layout, n_agents, funcs, self.oracle, self.info)
-        self.stmts: dict[int, A.Stmt] = {}
-        self.stmt_event: dict[int, Optional[int]] = {}
-        for s in A.walk_stmts(program.init):
-            self.stmts[s.sid] = s
-            self.stmt_event[s.sid] = None
-        for k, ev in enumerate(program.events):
-            for s in A.walk_stmts(ev.body):
-                self.stmts[s.sid] = s
-                self.stmt_event[s.sid] = k
-        self.code = {sid: self._compile_stmt(s) for sid, s in self.stmts.items()}
-        self.guards = [self.comp.make_expr(ev.guard) for ev in program.events]
-        self.guards_rand = any(has_rand(ev.guard) for ev in program.events)
-        self._compile_enabled_events()
-        self.ctl = Control(self)
-        self.stuck_reasons: dict = {}     # status code -> (kind, reason, where)
+    def _bind_rule_context(self, compiled: CompiledProgram) -> None:
+        """The RuleContext members that the compiled program owns."""
+        self.ctl = compiled.ctl
+        self.oracle = compiled.oracle
+        self.guards_rand = compiled.guards_rand
+        self.enabled_events = compiled.enabled_events
+        self.stuck_code = compiled.stuck_code
 
-        # properties
+    def _add_properties(self, program: A.Program, invariants, properties) -> None:
+        """The program's own properties, then ``--invariant`` and
+        ``--property`` texts, checked and compiled."""
         self.properties: list[Property] = []
         #: the temporal properties (spec section 9), see pccl/liveness.py
         self.temporal: list[TemporalProperty] = []
@@ -342,28 +222,25 @@ class Model:
         for k, text in enumerate(properties):
             self.add_property_text(text, index=k)
 
+    def _set_time_abstraction(self, abstract_time: Optional[bool]) -> None:
+        """Time abstraction (leave the clock out of a state's identity): on
+        when sound unless asked (None); an error when asked and unsound."""
+        bb_time = getattr(self.blackbox, "uses_time", False)
         uses_time = (any(p.uses_time for p in self.properties)
-                     or any(p.uses_time for p in self.temporal)
-                     or getattr(blackbox, "uses_time", False))
-        sound = not uses_time and max_time is None
+                     or any(p.uses_time for p in self.temporal) or bb_time)
+        sound = not uses_time and self.max_time is None
         if abstract_time is None:
             abstract_time = sound
         elif abstract_time and uses_time:
             raise OptionError(
                 "abstract_time", "time abstraction is unsound here: a property or the blackbox "
                 "reads the clock; drop --abstract-time")
-        elif abstract_time and max_time is not None:
+        elif abstract_time and self.max_time is not None:
             raise OptionError(
                 "abstract_time", "time abstraction cannot be combined with --max-time: the bound "
                 "reads the clock; drop --abstract-time")
         self.abstract_time = bool(abstract_time)
-        self.record_t0 = not self.abstract_time or getattr(blackbox, "uses_time", False)
-        self._env_cache: dict = {}
-        self._collision_cache: dict = {}
-        #: report agents waiting for a lock held by an exited agent (off with
-        #: --no-deadlock)
-        self.lock_deadlocks = True
-        self.set_reduce(reduce)
+        self.record_t0 = not self.abstract_time or bb_time
 
     # -- reductions (pccl/reduce.py) -------------------------------------------------
     @property
@@ -383,6 +260,7 @@ class Model:
             self.reduce_uses = tuple(uses)
         for attr in ("successors", "key", "merger", "por"):
             self.__dict__.pop(attr, None)
+        self.successors = self.plain_successors
         self.key = operator.itemgetter(slice(PHASE, None) if self.abstract_time else slice(None))
         plan, slots = RD.plan(self, reduce, getattr(self, "reduce_uses", ()))
         self.reduction = plan
@@ -410,34 +288,10 @@ class Model:
             raise ValueError(f"label {label!r} is not enabled")
         return merger.expand(before, label)
 
-    # -- compilation ------------------------------------------------------------
-    def _compile_stmt(self, s: A.Stmt):
-        c = self.comp
-        if isinstance(s, A.If):
-            return c.if_chooser(s)
-        if isinstance(s, A.While):
-            return c.make_expr(s.cond)
-        if isinstance(s, A.Atomic):
-            return None
-        if isinstance(s, A.CallStmt):
-            if s.name == "doReach":
-                assert len(s.args) == 2, "the checker counts arguments"
-                t = c.value(s.args[0], POS_TY)
-                o = c.value(s.args[1], OBSTACLES_TY)
-                return c.make("i, ag, sh, ags", f"    return ({t}, {o})\n", f"_dr{s.sid}")
-            if s.name == "exit":
-                return None
-            if s.name == "assert":
-                return c.make_expr(s.args[0])
-            assert s.name in ("add", "remove"), f"the checker knows no statement {s.name!r}"
-            return c.effect(s)
-        return c.effect(s)
-
+    # -- adding properties (checked and compiled by the compiled program) --------------
     def add_property(self, expr: A.Expr, *, name, text, span, filename, source):
-        from .checker import check_property
-        check_property(expr, self.info, filename=filename, source=source)
-        src = self.comp.expr(expr, prop=True)       # the checker has vetted it
-        fn = self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
+        self.compiled.check_property(expr, filename=filename, source=source)
+        src, fn = self.compiled.state_predicate(expr)
         uses_time = any(isinstance(x, A.Name) and x.name == "time" for x in A.walk_expr(expr))
         self.properties.append(Property(name or text, text, fn, span, uses_time, src, expr))
         self._compile_violations()
@@ -465,8 +319,8 @@ class Model:
         else:
             body += "        return []\n"
         body += "    return _full(st)\n"
-        self.comp.G["_full"] = Model.violations.__get__(self)
-        self.violations = self.comp.make("st", body, "_violations")
+        self.violations = self.compiled.make_function("st", body, "_violations",
+                                                      _full=Model.violations.__get__(self))
 
     def add_invariant_text(self, text: str, index: int = 0):
         from .parser import parse_property
@@ -497,8 +351,7 @@ class Model:
     def add_temporal(self, expr: A.Expr, *, name, text, span, filename, source):
         """Check and compile a temporal property; a ``forall``-quantified one
         becomes one instance per agent (``name [i=0]``, …)."""
-        from .checker import check_property
-        check_property(expr, self.info, filename=filename, source=source)
+        self.compiled.check_property(expr, filename=filename, source=source)
         qvars = []
         top = expr
         while isinstance(top, A.Quant):
@@ -513,14 +366,13 @@ class Model:
             suffix = (" [" + ", ".join(f"{v}={k}" for v, k in env.items()) + "]") if env else ""
 
             def pred(e):
-                src = self.comp.expr(e, prop=True)
-                return self.comp.make("st", f"    sh = st[{SH}]; ags = st[{AGS}]\n    return {src}\n")
+                return self.compiled.state_predicate(e)[1]
             kind = t.kind
             ticks = bound = None
             if t.bound is not None:
                 kind = "within"
                 try:
-                    bound = eval(self.comp.expr(t.bound, prop=True), dict(self.comp.G))
+                    bound = self.compiled.constant(t.bound)
                 except Exception as exc:
                     raise PcclError(f"the bound of 'within' cannot be evaluated: {exc}",
                                     filename=filename, source=source,
@@ -538,62 +390,8 @@ class Model:
         if hasattr(self, "reduction"):
             self.set_reduce(self.reduction.requested)
 
-    # -- events ---------------------------------------------------------------------
-    def enabled_events(self, i, ag, sh, ags):
-        """The events whose guard holds, in source order (only the first with
-        ``--events first``).  (Instances shadow this with the equivalent
-        function compiled by :meth:`_compile_enabled_events`.)"""
-        out = []
-        for e, g in enumerate(self.guards):
-            try:
-                ok = g(i, ag, sh, ags)
-            except R._RUNTIME_ERRORS as exc:
-                raise _guard_error(exc, e) from None
-            if ok:
-                out.append(e)
-                if self.first_only:
-                    break
-        return out
-
-    def _compile_enabled_events(self):
-        """:meth:`enabled_events` as one generated function: every guard
-        inline, one call per EVENT SELECT instead of one per guard."""
-        comp = self.comp
-        comp.G["_guard_error"] = _guard_error
-        comp.G["_RTE"] = R._RUNTIME_ERRORS
-        body = "    out = []\n"
-        for e, ev in enumerate(self.program.events):
-            hit = f"return [{e}]" if self.first_only else f"out.append({e})"
-            body += (f"    try:\n        if {comp.expr(ev.guard)}:\n            {hit}\n"
-                     f"    except _RTE as exc:\n        raise _guard_error(exc, {e}) from None\n")
-        body += "    return out\n"
-        self.enabled_events = comp.make("i, ag, sh, ags", body, "_enabled_events")
-
-    # -- stuck reasons -----------------------------------------------------------------
-    def stuck_code(self, kind, reason, where):
-        """The status of an agent stuck for ``reason``: a function of the
-        reason's content (2 + 62 bits of its xxh3 hash), not of the order in
-        which a search meets reasons, so that every process of a parallel
-        search gives a stuck agent the same status.  Two different reasons
-        share a code with probability 2**-62 per pair."""
-        key = (kind, reason, where)
-        code = 2 + (xxhash.xxh3_64_intdigest(repr(key).encode()) >> 2)
-        known = self.stuck_reasons.setdefault(code, key)
-        if known != key:     # pragma: no cover - a 62-bit collision
-            raise PcclError(f"internal: stuck reasons {known!r} and {key!r} share a code")
-        return code
-
-    def span_of(self, where) -> Optional[A.Span]:
-        if isinstance(where, int):
-            return self.stmts[where].span
-        if isinstance(where, tuple) and where and where[0] == "guard":
-            return self.program.events[where[1]].guard.span
-        if isinstance(where, tuple) and where and where[0] == "decl":
-            return where[1]
-        return None
-
     def prepare(self) -> None:
-        """Build every lazily interned table now (see :meth:`Control.close`):
+        """Build every lazily interned table now (see :meth:`pccl.compiled.Control.close`):
         after this, equal configurations are equal tuples in every process."""
         self.ctl.close()
 
@@ -608,7 +406,7 @@ class Model:
         outcomes in declarations and ``Init``, generated lazily (depth-first,
         in increasing outcome order): the product of the agents' outcomes is
         never built, so a consumer can stop after as many as it admits."""
-        lay, N = self.layout, self.N
+        lay, N = self.compiled.layout, self.N
         starts = self.world.start_positions(N)
         loc0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.local)
         ar0 = tuple(UNDEF if v.ty.kind != "array" else (UNDEF,) * v.ty.size for v in lay.allread)
@@ -690,13 +488,7 @@ class Model:
         if ag[STATUS] != RUNNING:
             yield lq, sh, ag
             return
-        comp = self.comp
-        fn = getattr(vs, "_initfn", None)
-        if fn is None:
-            # an array initialiser is one element's value, filling the array
-            want = vs.ty.elem if vs.ty.kind == "array" else vs.ty
-            src = comp.value(vs.decl.init, want)
-            fn = vs._initfn = comp.make("i, ag, sh, ags", f"    return {src}\n", f"_init_{vs.name}")
+        fn = self.compiled.decl_init(vs)
         oracle = self.oracle
 
         def guarded(*a):
@@ -704,15 +496,15 @@ class Model:
             cells[i] = ag            # the path may have moved on since the last outcome
             try:
                 return fn(*a)
-            except R._RUNTIME_ERRORS as exc:
-                return R._Err.of(exc)
+            except R.RUNTIME_ERRORS as exc:
+                return R.Err.of(exc)
             finally:
                 oracle.agent = None
         results = (oracle.iter_outcomes(guarded, i, ag, sh, cells) if has_rand(vs.decl.init)
                    else (guarded(i, ag, sh, cells),))
         j = vs.slot
         for res in results:
-            if isinstance(res, R._Err):
+            if isinstance(res, R.Err):
                 code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
                 yield lq, sh, with_status(ag, code)
                 continue
@@ -756,10 +548,10 @@ class Model:
             if a[STATUS] != RUNNING or a[PC] == empty:
                 done[s] = None
             elif s in on_path:
-                done[R._stuck(self, s, i, a, "Init does not finish (it can loop forever)",
+                done[R.stuck_successor(self, s, i, a, "Init does not finish (it can loop forever)",
                               where)] = None
             elif d >= limit:
-                done[R._stuck(self, s, i, a, f"Init does not finish within {limit:,} steps",
+                done[R.stuck_successor(self, s, i, a, f"Init does not finish within {limit:,} steps",
                               where)] = None
             elif best.get(s, limit) > d:
                 best[s] = d
@@ -821,6 +613,49 @@ class Model:
         else:
             R.doreach_invoke(self, st, out)
         return out
+
+    #: teams up to this size get :meth:`successors` unrolled (generated code)
+    UNROLL_AGENTS = 16
+
+    def _compile_successors(self) -> None:
+        """``plain_successors``: :meth:`successors` generated for this team,
+        the loop over agents unrolled and ``counter + ρ(i) ≤ n0`` folded to
+        ``counter ≤ n0 - ρ(i)`` (the same transitions in the same order;
+        tests/test_engine_compiled.py compares them).  Larger teams use the
+        method itself."""
+        if self.N > self.UNROLL_AGENTS:
+            self.plain_successors = self.successors
+            return
+        lines = ["    out = []", f"    if st[{PHASE}] != {DISCRETE}:", "        _dr(_m, st, out)",
+                 "        return out", f"    ags = st[{AGS}]", "    running = blocked = False"]
+        for i in range(self.N):
+            cap = self.n0 - self.rho[i]
+            lines += [
+                f"    ag = ags[{i}]",
+                f"    s = ag[{STATUS}]",
+                f"    if s == {RUNNING}:",
+                "        running = True",
+                f"        info = _infos[ag[{PC}]]",
+                "        if info is None:",
+                f"            info = _info(ag[{PC}])",
+                f"        if ag[{CNT}] <= {cap}:",
+                "            blocked = True",
+                "            rules = info.rules",
+                "        else:",
+                "            rules = info.rules_spent",
+                f"        _oracle.agent = {i}",
+                "        for rule in rules:",
+                f"            rule(_m, st, {i}, ag, info, out)",
+                f"    elif s != {EXITED} and ag[{CNT}] <= {cap}:",
+                "        blocked = True",
+            ]
+        lines += ["    if running and not blocked:", "        _ta(_m, st, out, True)",
+                  "    return out"]
+        g: dict[str, Any] = dict(_m=self, _infos=self.ctl.infos, _info=self.ctl.info, _oracle=self.oracle,
+                 _ta=R.time_advance, _dr=R.doreach_invoke)
+        src = "def _successors(st):\n" + "\n".join(lines) + "\n"
+        exec(compile(src, "<pccl:_successors>", "exec"), g)
+        self.plain_successors = g["_successors"]
 
     def next_time(self, t):
         """The clock after TIME ADVANCE from ``t`` = n·δ: (n + 1)·δ, exactly
@@ -939,7 +774,7 @@ class Model:
                             f"and far from the float limit") from None
         return out if len(out) == 3 else out + (0.0,) * (3 - len(out))
 
-    # -- properties ------------------------------------------------------------------------
+    # -- checking properties ---------------------------------------------------------------
     def violations(self, st) -> list:
         """Every violation in ``st``: stuck agents, then properties, then
         collisions.  (Instances shadow this with the fast path compiled by
@@ -948,8 +783,8 @@ class Model:
         for i, ag in enumerate(st[AGS]):
             s = ag[STATUS]
             if s >= STUCK:
-                kind, reason, where = self.stuck_reasons[s]
-                span = self.span_of(where)
+                kind, reason, where = self.compiled.stuck_reasons[s]
+                span = self.compiled.span_of(where)
                 if kind == "assert":
                     out.append(Violation("assert", "assertion", f"agent {i}: assertion failed", i, span))
                 else:
@@ -957,10 +792,10 @@ class Model:
         for p in self.properties:
             try:
                 ok = p.fn(st)
-            except R._RUNTIME_ERRORS as exc:
+            except R.RUNTIME_ERRORS as exc:
                 out.append(Violation("invariant", p.name,
                                      f"invariant '{p.name}' could not be evaluated: "
-                                     f"{getattr(exc, 'reason', None) or R._describe(exc)}",
+                                     f"{getattr(exc, 'reason', None) or R.describe_error(exc)}",
                                      None, p.span))
                 continue
             if not ok:
@@ -986,7 +821,7 @@ class Model:
             return None
         w = waiting[0]
         k = self.ctl.cells[ags[w][PC]]
-        span = self.stmts[acquire_sid(k[0])].span if k and is_acquire(k[0]) else None
+        span = self.compiled.stmts[acquire_sid(k[0])].span if k and is_acquire(k[0]) else None
         where = f" (atomic at line {span.line})" if span is not None else ""
         others = (f"; agents {', '.join(map(str, waiting[1:]))} wait too"
                   if len(waiting) > 1 else "")
@@ -1022,32 +857,11 @@ class Model:
         waiting = []
         for i, ag in enumerate(st[AGS]):
             if ag[STATUS] == RUNNING:
-                waiting.append(f"agent {i} ({self.describe_k(ag[PC])}, counter {ag[CNT]})")
+                waiting.append(f"agent {i} ({self.compiled.describe_k(ag[PC])}, counter {ag[CNT]})")
         msg = "deadlock: no rule applies and not every agent has exited"
         if waiting:
             msg += "; " + "; ".join(waiting)
         return Violation("deadlock", "deadlock", msg, None, None)
-
-    def describe_k(self, pc) -> str:
-        """A short description of an agent's pending computation."""
-        cell = self.ctl.cells[pc]
-        if not cell:
-            return "at the top of the event block"
-        h = cell[0]
-        if h == END:
-            return "at endEventBlock"
-        if h == AEND:
-            return "at atomicEnd"
-        if is_acquire(h):
-            s = self.stmts[acquire_sid(h)]
-            return f"waiting for the lock at line {s.span.line}"
-        s = self.stmts[h]
-        return f"at line {s.span.line}"
-
-    def stmt_span(self, sid) -> Optional[A.Span]:
-        s = self.stmts.get(sid)
-        return s.span if s is not None else None
-
 
 _EXACT = decimal.Context(prec=60)
 
@@ -1122,13 +936,6 @@ def _check_blackbox_object(bb):
                         "see pccl.blackboxes.base)")
     if not callable(bb.step) or not callable(bb.init_env):
         raise PcclError(f"blackbox '{bb.name}': step and init_env must be methods")
-
-
-def _guard_error(exc, e) -> PcclRuntimeError:
-    """A runtime error in event e's guard, located there."""
-    err = PcclRuntimeError(getattr(exc, "reason", None) or R._describe(exc))
-    err.where = ("guard", e)
-    return err
 
 
 def _src_text(source: str, span: A.Span) -> str:

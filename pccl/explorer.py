@@ -287,6 +287,8 @@ class FingerprintTable:
         self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
         self._new_index(1 << 13)
         self._batch: Any = None         # (fingerprints, positions) of the last batch
+        #: state numbers of the last batch's first occurrences (-1: new)
+        self.found: Any = None
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
@@ -329,7 +331,8 @@ class FingerprintTable:
         """Of the batch ``keys`` (fingerprints), the positions ``first``
         (first occurrences, ascending) whose state is not yet visited."""
         q = np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2)[first]
-        new = self.lookup(q) < 0
+        self.found = found = self.lookup(q)
+        new = found < 0
         self._batch = (q[new], first[new])
         return first[new]
 
@@ -389,10 +392,14 @@ class ExactTable:
         self.ids: dict = {}
         self.parents: list = []
         self._batch = None
+        self.found: Any = None
 
     def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
         ids = self.ids
-        new = np.array([p for p in first.tolist() if keys[p] not in ids], dtype=np.int64)
+        self.found = found = np.fromiter(map(ids.get, [keys[p] for p in first.tolist()],
+                                             itertools.repeat(-1)),
+                                         dtype=np.int64, count=len(first))
+        new = first[found < 0]
         self._batch = [keys[p] for p in new.tolist()]
         return new
 
@@ -473,184 +480,136 @@ class Explorer:
                 gc.enable()
 
     def _run(self) -> SearchResult:
-        m = self.model
-        key = m.key
-        succ_fn = m.successors
-        viol_fn = m.violations
-        exact = self.exact
-        table = self.table = ExactTable() if exact else FingerprintTable()
-        dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         t_start = _time.perf_counter()
-        stats = Stats()
-        res = SearchResult("exhaustive", stats=stats, exact=self.exact)
-        reported: set = set()
-        bounds: set = set()
-        max_depth = self.max_depth
-        budget = self.max_states if self.max_states is not None else _MAX_STATES
-        found = res.found
-        batch = self.batch
-        max_memory = self.max_memory
-
-        # The pending batch: candidate states, and per expanded
-        # parent its state number and successor count.  Their keys are
-        # computed at admission with one map() chain: no Python bytecode per
-        # transition.
-        cs: list = []
-        second = operator.itemgetter(1)
-        twos = itertools.repeat(2)
-        if exact:
-            def keys_of(states):
-                return map(dumps, map(key, states), twos)
-        else:
-            def keys_of(states):
-                return map(xxh, map(dumps, map(key, states), twos))
-        par_idx: list = []
-        par_n: list = []
-        flags: dict = {}        # Bound -> first state number that met it, since the last flush
-        nxt: list = []          # the next level's states, in admission order
-        nxt_idx: list = []      # ... and their state numbers
-        depth = 0
-        stop = False
-
-        record = self._recorder(found, reported)
-        rec = self.recorder
-
-        def flush(d) -> bool:
-            """Admit the pending batch (successors at depth ``d``); True to stop."""
-            nonlocal budget
-            if not cs:
-                bounds.update(flags)
-                flags.clear()
-                return False
-            ck = list(keys_of(cs))        # one map() chain for the whole batch
-            n = len(ck)
-            # first occurrence of each key, in batch order (C-level dict build)
-            first = np.fromiter(dict(zip(reversed(ck), range(n - 1, -1, -1))).values(),
-                                dtype=np.int64)
-            first.sort()
-            new = table.new_positions(ck, first).tolist()
-            base = table.n
-            cut = len(new)
-            halt = False
-            stop_at = None      # batch position of the candidate the search stops at
-            if cut > budget:
-                cut = budget
-                bounds.add(Bound.MAX_STATES)
-                halt = True
-                stop_at = new[budget]       # the first state that does not fit
-            states = [cs[p] for p in new[:cut]]
-            viols = list(map(viol_fn, states))          # no bytecode per state
-            for j in itertools.compress(range(cut), viols):
-                if record(viols[j], base + j, d):
-                    cut = j + 1
-                    halt = True
-                    stop_at = new[j]
-                    break
-            owners = np.repeat(np.arange(len(par_n)), par_n)
-            if cut:
-                kept = np.asarray(new[:cut], dtype=np.int64)
-                pidx = np.asarray(par_idx, dtype=np.int64)
-                table.add(cut, pidx[owners[kept]])
-                nxt.extend(states[:cut] if cut < len(states) else states)
-                nxt_idx.extend(range(base, base + cut))
-                if rec is not None:
-                    rec.states(states[:cut])
-            if rec is not None:
-                src = np.asarray(par_idx, dtype=np.int64)[owners]
-                rec.edges(src[src != _NO_PARENT], table.lookup_keys(ck)[src != _NO_PARENT])
-            budget -= cut
-            if stop_at is not None:
-                # the search stops right after expanding the parent of the
-                # candidate it stops at (as if parents were expanded one by one)
-                stop_parent = int(owners[stop_at])
-                stats.transitions += sum(par_n[:stop_parent + 1])
-                bounds.update(b for b, g in flags.items() if g <= par_idx[stop_parent])
-            else:
-                stats.transitions += n
-                bounds.update(flags)
-            flags.clear()
-            if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
-                bounds.add(Bound.MAX_MEMORY)
-                halt = True
-            cs.clear()
-            par_idx.clear()
-            par_n.clear()
-            return halt
-
+        self.table = ExactTable() if self.exact else FingerprintTable()
+        res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
+        adm = _Admission(self, res)
         try:
-            # -- initial states: a batch of successors of nobody
-            for s in m.init_states():
-                cs.append(s)
-                if len(cs) >= batch or len(cs) > budget:     # never build far beyond the budget
-                    par_idx.append(_NO_PARENT)
-                    par_n.append(len(cs))
-                    stop = flush(0)
-                    stats.transitions = 0
-                    if stop:
-                        break
-            if not stop and cs:
-                par_idx.append(_NO_PARENT)
-                par_n.append(len(cs))
-                stop = flush(0)
-            stats.transitions = 0
-            stats.initial_states = table.n
-            level, level_idx = nxt, nxt_idx
-            nxt, nxt_idx = [], []
-            next_report = _time.perf_counter() + self.progress_interval
+            stop = self._initial_states(adm)
+            self._levels(adm, t_start, stop)
+        except KeyboardInterrupt:
+            res.status = "interrupted"
+        return self._result(res, adm, t_start)
 
-            def report(left):
-                nonlocal next_report
-                if self.progress is None:
-                    return
-                now = _time.perf_counter()
-                if now >= next_report:
-                    next_report = now + self.progress_interval
-                    self.progress({"states": table.n, "frontier": left + len(nxt),
-                                   "depth": depth, "seconds": now - t_start,
-                                   "memory": peak_rss_bytes()})
-            while level and not stop:
-                at_bound = max_depth is not None and depth >= max_depth
-                for pos in range(len(level)):
+    def _initial_states(self, adm: "_Admission") -> bool:
+        """Admit the initial states, as batches of successors of nobody;
+        True to stop."""
+        cs, stop = adm.cs, False
+        batch = self.batch
+        for s in self.model.init_states():
+            cs.append(s)
+            if len(cs) >= batch or len(cs) > adm.budget:     # never build far beyond the budget
+                adm.par_idx.append(_NO_PARENT)
+                adm.par_n.append(len(cs))
+                stop = adm.flush(0)
+                adm.stats.transitions = 0
+                if stop:
+                    break
+        if not stop and cs:
+            adm.par_idx.append(_NO_PARENT)
+            adm.par_n.append(len(cs))
+            stop = adm.flush(0)
+        adm.stats.transitions = 0
+        adm.stats.initial_states = self.table.n
+        return stop
+
+    def _levels(self, adm: "_Admission", t_start: float, stop: bool) -> None:
+        """The breadth-first level loop: expand each state of a level, queue
+        its successors for admission (a batch at a time); a state without
+        successors is final, bounded or a deadlock.  (``stop``: the initial
+        states already stopped the search.)"""
+        m = self.model
+        succ_fn = m.successors
+        max_depth = self.max_depth
+        batch = self.batch
+        table = self.table
+        stats = adm.stats
+        flush = adm.flush
+        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
+        second = operator.itemgetter(1)
+        depth = 0
+        level, level_idx = adm.take_level()
+        next_report = _time.perf_counter() + self.progress_interval
+
+        def report(left):
+            nonlocal next_report
+            if self.progress is None:
+                return
+            now = _time.perf_counter()
+            if now >= next_report:
+                next_report = now + self.progress_interval
+                self.progress({"states": table.n, "frontier": left + len(adm.nxt),
+                               "depth": depth, "seconds": now - t_start,
+                               "memory": peak_rss_bytes()})
+
+        def expand_one(succs: list, c0: int, at_bound: bool) -> bool:
+            """The chunk of the level at ``c0`` (its successor lists
+            ``succs``) state by state: terminal states, the depth bound.
+            True to stop."""
+            for j, succ in enumerate(succs):
+                pos = c0 + j
+                if not succ:
                     s = level[pos]
-                    succ = succ_fn(s)
-                    if not succ:
-                        kind = m.terminal_kind(s)
-                        if kind == "bounded":
-                            flags.setdefault(Bound.MODEL, level_idx[pos])
-                        elif kind == "deadlock" and self.deadlock:
-                            # the pending successors of earlier states come first
-                            if flush(depth + 1):
-                                stop = True
-                                break
-                            v = m.deadlock_violation(s)
-                            if v is not None and record([v], level_idx[pos], depth):
-                                stop = True
-                                break
-                        continue
-                    if at_bound:
-                        flags.setdefault(Bound.DEPTH, level_idx[pos])
-                        continue
-                    par_idx.append(level_idx[pos])
-                    par_n.append(len(succ))
-                    cs.extend(map(second, succ))     # labels are dropped now
+                    kind = m.terminal_kind(s)
+                    if kind == "bounded":
+                        flags.setdefault(Bound.MODEL, level_idx[pos])
+                    elif kind == "deadlock" and self.deadlock:
+                        # the pending successors of earlier states come first
+                        if flush(depth + 1):
+                            return True
+                        v = m.deadlock_violation(s)
+                        if v is not None and adm.record([v], level_idx[pos], depth):
+                            return True
+                    continue
+                if at_bound:
+                    flags.setdefault(Bound.DEPTH, level_idx[pos])
+                    continue
+                par_idx.append(level_idx[pos])
+                par_n.append(len(succ))
+                cs.extend(map(second, succ))     # labels are dropped now
+                if len(cs) >= batch:
+                    if flush(depth + 1):
+                        return True
+                    report(len(level) - pos)
+            return False
+
+        chain = itertools.chain.from_iterable
+        chunk = max(1, batch // 4)
+        while level and not stop:
+            at_bound = max_depth is not None and depth >= max_depth
+            for c0 in range(0, len(level), chunk):
+                # a chunk of the level expanded with C-level map()s: no
+                # bytecode per state unless the chunk holds a terminal
+                # state or the depth bound is reached
+                succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                ns = list(map(len, succs))
+                if not at_bound and 0 not in ns:
+                    par_idx.extend(level_idx[c0:c0 + chunk])
+                    par_n.extend(ns)
+                    cs.extend(map(second, chain(succs)))     # labels are dropped now
+                    del succs
                     if len(cs) >= batch:
                         if flush(depth + 1):
                             stop = True
                             break
-                        report(len(level) - pos)
-                if not stop and flush(depth + 1):
+                        report(len(level) - c0 - len(ns))
+                    continue
+                if expand_one(succs, c0, at_bound):
                     stop = True
-                report(0)
-                level = nxt
-                level_idx = nxt_idx
-                nxt, nxt_idx = [], []
-                if level:
-                    depth += 1
-                    stats.max_depth = depth
-            stats.frontier = len(level)
-        except KeyboardInterrupt:
-            res.status = "interrupted"
-        stats.states = table.n
+                    break
+            if not stop and flush(depth + 1):
+                stop = True
+            report(0)
+            level, level_idx = adm.take_level()
+            if level:
+                depth += 1
+                stats.max_depth = depth
+        stats.frontier = len(level)
+
+    def _result(self, res: SearchResult, adm: "_Admission", t_start: float) -> SearchResult:
+        """The search's figures and verdict, and a trace per violation found."""
+        stats, bounds, found = res.stats, adm.bounds, res.found
+        stats.states = self.table.n
         stats.seconds = _time.perf_counter() - t_start
         stats.peak_memory = peak_rss_bytes()
         if not self.exact:
@@ -728,3 +687,115 @@ class Explorer:
                     f"is the recorded state #{want}; the model must be deterministic "
                     f"(successors() of equal states must be equal, in the same order)")
         return Trace(tuple(states), tuple(labels))
+
+
+class _Admission:
+    """The pending batch of one search and its admission (:meth:`flush`).
+
+    The batch holds candidate states and, per expanded parent, its state
+    number and successor count.  Their keys are computed at admission with
+    one map() chain: no Python bytecode per transition.  Admitted states go
+    to the next level (:meth:`take_level`)."""
+
+    def __init__(self, ex: "Explorer", res: SearchResult):
+        self.ex = ex
+        self.table = ex.table
+        self.stats = res.stats
+        self.cs: list = []
+        self.par_idx: list = []
+        self.par_n: list = []
+        self.flags: dict = {}       # Bound -> first state number that met it, since the last flush
+        self.nxt: list = []         # the next level's states, in admission order
+        self.nxt_idx: list = []     # ... and their state numbers
+        self.bounds: set = set()
+        self.budget = ex.max_states if ex.max_states is not None else _MAX_STATES
+        self.record = ex._recorder(res.found, set())
+        key = ex.model.key
+        dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
+        twos = itertools.repeat(2)
+        if ex.exact:
+            def keys_of(states):
+                return map(dumps, map(key, states), twos)
+        else:
+            def keys_of(states):
+                return map(xxh, map(dumps, map(key, states), twos))
+        self.keys_of = keys_of
+
+    def take_level(self) -> tuple[list, list]:
+        """The states admitted since the last call, and their numbers."""
+        level, idx = self.nxt, self.nxt_idx
+        self.nxt, self.nxt_idx = [], []
+        return level, idx
+
+    def flush(self, d) -> bool:
+        """Admit the pending batch (successors at depth ``d``); True to stop."""
+        cs, par_idx, par_n, flags = self.cs, self.par_idx, self.par_n, self.flags
+        bounds, table, stats = self.bounds, self.table, self.stats
+        if not cs:
+            bounds.update(flags)
+            flags.clear()
+            return False
+        budget = self.budget
+        ck = list(self.keys_of(cs))   # one map() chain for the whole batch
+        n = len(ck)
+        # first occurrence of each key, in batch order (C-level dict build)
+        first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
+        first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
+        first.sort()
+        new = table.new_positions(ck, first).tolist()
+        base = table.n
+        cut = len(new)
+        halt = False
+        stop_at = None      # batch position of the candidate the search stops at
+        if cut > budget:
+            cut = budget
+            bounds.add(Bound.MAX_STATES)
+            halt = True
+            stop_at = new[budget]       # the first state that does not fit
+        states = [cs[p] for p in new[:cut]]
+        viols = list(map(self.ex.model.violations, states))     # no bytecode per state
+        for j in itertools.compress(range(cut), viols):
+            if self.record(viols[j], base + j, d):
+                cut = j + 1
+                halt = True
+                stop_at = new[j]
+                break
+        owners = np.repeat(np.arange(len(par_n)), par_n)
+        rec = self.ex.recorder
+        if cut:
+            kept = np.asarray(new[:cut], dtype=np.int64)
+            pidx = np.asarray(par_idx, dtype=np.int64)
+            table.add(cut, pidx[owners[kept]])
+            self.nxt.extend(states[:cut] if cut < len(states) else states)
+            self.nxt_idx.extend(range(base, base + cut))
+            if rec is not None:
+                rec.states(states[:cut])
+        if rec is not None:
+            # each candidate's state number, from its key's first
+            # occurrence (looked up once, in new_positions): no second
+            # lookup of the batch in the table
+            num = table.found
+            num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
+            dst = num[np.searchsorted(first, np.fromiter(
+                map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
+            src = np.asarray(par_idx, dtype=np.int64)[owners]
+            rec.edges(src[src != _NO_PARENT], dst[src != _NO_PARENT])
+        self.budget = budget - cut
+        if stop_at is not None:
+            # the search stops right after expanding the parent of the
+            # candidate it stops at (as if parents were expanded one by one)
+            stop_parent = int(owners[stop_at])
+            stats.transitions += sum(par_n[:stop_parent + 1])
+            bounds.update(b for b, g in flags.items() if g <= par_idx[stop_parent])
+        else:
+            stats.transitions += n
+            bounds.update(flags)
+        flags.clear()
+        max_memory = self.ex.max_memory
+        if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
+            bounds.add(Bound.MAX_MEMORY)
+            halt = True
+        cs.clear()
+        par_idx.clear()
+        par_n.clear()
+        return halt

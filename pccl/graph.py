@@ -96,7 +96,7 @@ def _node_text(model, n, st, g) -> str:
     parts = [f"s{n} t={D.fmt_time(st[TIME])}"]
     where = []
     for i, ag in enumerate(st[AGS]):
-        desc = model.describe_k(ag[PC]).replace("at the top of the event block", "top") \
+        desc = model.compiled.describe_k(ag[PC]).replace("at the top of the event block", "top") \
             .replace("at endEventBlock", "end").replace("at line ", "L")
         st_txt = D.status_text(model, ag[STATUS])
         where.append(f"a{i}:{desc}" + ("" if st_txt == "running" else f" {st_txt.split('(')[0]}"))

@@ -23,9 +23,9 @@ so views are never built on a hot path.  A view is a tuple: it is equal to,
 and hashes like, the plain configuration it shows.
 
 A configuration is meaningful only together with the :class:`pccl.engine.Model`
-that made it: ``pc`` is an interned k cell (``Model.ctl``), a status of
-:data:`STUCK` or more is a key of ``Model.stuck_reasons``, and ``locals``,
-``allread`` and ``shared`` are indexed by the slots of ``Model.layout``.
+that made it: ``pc`` is an interned k cell (``CompiledProgram.ctl``), a status of
+:data:`STUCK` or more is a key of ``CompiledProgram.stuck_reasons``, and ``locals``,
+``allread`` and ``shared`` are indexed by the slots of ``CompiledProgram.layout``.
 """
 
 from __future__ import annotations
@@ -46,10 +46,10 @@ N_STATE_CELLS, N_AGENT_CELLS, N_REACH_CELLS = 6, 8, 5
 DISCRETE, DYNAMIC = 0, 1
 # lockState
 IDLE, REQUEST, LOCK = 0, 1, 2
-# status: RUNNING, EXITED, or stuck: a code >= STUCK, a key of Model.stuck_reasons
+# status: RUNNING, EXITED, or stuck: a code >= STUCK, a key of CompiledProgram.stuck_reasons
 RUNNING, EXITED, STUCK = 0, 1, 2
 
-# k items (the cons cells behind a pc, Model.ctl): a statement id (>= 0),
+# k items (the cons cells behind a pc, CompiledProgram.ctl): a statement id (>= 0),
 # endEventBlock, atomicEnd, or "acquire the lock of atomic statement sid"
 END, AEND = -1, -2
 
@@ -163,12 +163,12 @@ class Reach(NamedTuple):
 
 
 class Agent(NamedTuple):
-    pc: int              # the interned k cell (Model.ctl)
+    pc: int              # the interned k cell (CompiledProgram.ctl)
     counter: int
     lock_state: int      # IDLE, REQUEST or LOCK
     status: int          # RUNNING, EXITED or a stuck code (>= STUCK)
-    locals: tuple        # indexed by the slots of Model.layout.local
-    allread: tuple       # indexed by the slots of Model.layout.allread
+    locals: tuple        # indexed by the slots of CompiledProgram.layout.local
+    allread: tuple       # indexed by the slots of CompiledProgram.layout.allread
     position: tuple      # (x, y, z)
     reach: Reach
 
@@ -177,7 +177,7 @@ class State(NamedTuple):
     time: Any            # an int or float multiple of δ
     phase: int           # DISCRETE or DYNAMIC
     lock_queue: tuple    # agent ids, the holder first
-    shared: tuple        # indexed by the slots of Model.layout.shared
+    shared: tuple        # indexed by the slots of CompiledProgram.layout.shared
     agents: tuple        # Agent views
     env: Any             # the blackbox's state
 

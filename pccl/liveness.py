@@ -90,6 +90,9 @@ class _Grow:
         self.n = 0
 
 
+_phase = operator.itemgetter(PHASE)
+
+
 def _pending_mask(st) -> int:
     """Agents whose doReach is under way (nondet may still let them arrive)."""
     m = 0
@@ -121,8 +124,8 @@ class GraphRecorder:
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list) -> None:
         """The states just admitted, in state-number order."""
-        self.dyn.extend(np.fromiter((s[PHASE] != DISCRETE for s in states), dtype=np.uint8,
-                                    count=len(states)))
+        phase = np.fromiter(map(_phase, states), dtype=np.int64, count=len(states))
+        self.dyn.extend((phase != DISCRETE).astype(np.uint8))
         if self.bits is not None:
             vals = np.zeros(len(states), dtype=np.uint64)
             for k, p in enumerate(self.props):

@@ -20,12 +20,14 @@ name.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 from collections.abc import Callable, Mapping
 
 from . import validate as V
-from .errors import FLAGS, ArgumentError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
+from .world import MAX_AGENTS
+from .errors import FLAGS, ArgumentError, OptionError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -221,6 +223,46 @@ class RunOptions(CommonOptions):
         kw = super().model_kwargs(with_max_time=with_max_time)
         kw["abstract_time"] = False
         return kw
+
+
+def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> list:
+    """The checks of :class:`pccl.engine.Model`'s team and timing, made once
+    the team size is known (the world may give it): an :class:`OptionError`
+    naming the option, for every caller of the model (the API re-raises it
+    as an :class:`ArgumentError` of the function called, the CLI names the
+    flag).  Returns the rate map ρ, one rate per agent."""
+    if n_agents < 1:
+        raise OptionError("agents", f"the number of agents must be at least 1, got {n_agents}")
+    if n_agents > MAX_AGENTS:
+        raise OptionError(
+            "agents", f"the number of agents must be at most {MAX_AGENTS:,}, got "
+            f"{n_agents:,}")
+    if not (isinstance(delta, (int, float)) and not isinstance(delta, bool) and delta > 0
+            and math.isfinite(delta)):
+        raise OptionError("delta", f"δ must be a positive finite number, got {delta}")
+    if max_time is not None and not (isinstance(max_time, (int, float))
+                                     and not isinstance(max_time, bool)
+                                     and math.isfinite(max_time) and max_time >= 0):
+        raise OptionError("max_time", f"must be a finite number >= 0, got {max_time}")
+    if not (isinstance(n0, int) and n0 >= 1):
+        raise OptionError("n0", f"n0 must be a positive integer, got {n0}")
+    rho = [1] * n_agents
+    for a, r in (rates or {}).items():
+        if not (isinstance(a, int) and 0 <= a < n_agents):
+            raise OptionError("rates", f"agent {a} does not exist (agents are 0..{n_agents - 1})")
+        if not (isinstance(r, int) and r >= 1):
+            raise OptionError("rates", f"rate of agent {a} must be a positive integer, got {r}")
+        if r > n0:
+            # counter + ρ ≤ n0 never holds: the agent would never run an event
+            # and a search would "explore clean" without it
+            raise OptionError(
+                "rates", f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
+                f"would never run an event (it runs while counter + rate ≤ n0); "
+                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
+        rho[a] = r
+    if events not in ("any", "first"):
+        raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
+    return rho
 
 
 def integral(x):

@@ -120,7 +120,7 @@ def has_motion(model) -> bool:
     """Whether the program can move a robot (has a ``doReach`` statement)."""
     from . import ast as A
     return any(isinstance(s, A.CallStmt) and s.name == "doReach"
-               for s in getattr(model, "stmts", {}).values())
+               for s in model.compiled.stmts.values())
 
 
 # ---------------------------------------------------------------------------
@@ -163,7 +163,7 @@ def _frames_from_trace(trace) -> list:
 def _destinations(model, st) -> list:
     """[(name, [(x, y), ...])] for the shared List<ItemPosition> variables."""
     out: list = []
-    for v in getattr(model.layout, "shared", ()):
+    for v in model.compiled.layout.shared:
         ty = v.ty
         if ty.kind != "list" or ty.elem is None or ty.elem.kind != "pos":
             continue

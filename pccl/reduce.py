@@ -120,11 +120,11 @@ def property_names(m) -> set:
 
 def mergeable_sids(m) -> set:
     """Statements that touch only the agent's own invisible ``loc:`` variables."""
-    lay = m.layout
+    lay = m.compiled.layout
     visible = property_names(m)
-    funcs = set(m.functions)
+    funcs = set(m.compiled.functions)
     ok = set()
-    for sid, s in m.stmts.items():
+    for sid, s in m.compiled.stmts.items():
         if not isinstance(s, (A.Assign, A.If, A.While, A.Skip, A.CallStmt)):
             continue
         if isinstance(s, A.CallStmt) and s.name not in ("add", "remove"):
@@ -158,14 +158,14 @@ class _IdInfo:
 
     def __init__(self, m):
         self.m = m
-        self.lay = m.layout
+        self.lay = m.compiled.layout
         self.reason: Optional[str] = None
         prog = m.program
         defs: dict = {}
         for d in prog.decls:
             if isinstance(d, A.VarDecl) and d.init is not None:
                 defs.setdefault(d.name, []).append(d.init)
-        self.stmts = list(m.stmts.values())
+        self.stmts = list(m.compiled.stmts.values())
         for s in self.stmts:
             if isinstance(s, A.Assign) and isinstance(s.target, A.Name):
                 defs.setdefault(s.target.name, []).append(s.value)
@@ -317,11 +317,11 @@ def positions_read(m) -> Optional[str]:
     """Why positions (and the doReach cell) matter, or None."""
     if m.collisions:
         return "--collisions"
-    for s in m.stmts.values():
+    for s in m.compiled.stmts.values():
         if isinstance(s, A.CallStmt) and s.name == "doReach":
             return f"doReach at line {s.span.line}"
     exprs = [d.init for d in m.program.decls if isinstance(d, A.VarDecl) and d.init is not None]
-    exprs += [x for s in m.stmts.values() for x in _stmt_exprs(s)]
+    exprs += [x for s in m.compiled.stmts.values() for x in _stmt_exprs(s)]
     exprs += [ev.guard for ev in m.program.events]
     for x in exprs:
         for e in A.walk_expr(x):
@@ -357,7 +357,7 @@ def symmetry_problem(m) -> tuple:
     why = info.check()
     if why:
         return why, None
-    lay = m.layout
+    lay = m.compiled.layout
     slots = ([vs.slot for vs in lay.local if vs.name in info.ids],
              [vs.slot for vs in lay.allread if vs.name in info.ids],
              [vs.slot for vs in lay.shared if vs.name in info.ids])
@@ -455,8 +455,7 @@ class Merger:
         self.sids = sids
         self.ok: dict = {}
         if base is None:
-            plain = type(m).successors
-            base = lambda st: plain(m, st)        # noqa: E731
+            base = m.plain_successors
         self.plain = base
 
     def pc_ok(self, pc) -> bool:
@@ -598,7 +597,7 @@ def _loop_sids(m) -> set:
     """Statements that are a ``while`` or inside one: the only ones an agent
     can execute twice in one event execution."""
     out: set = set()
-    for s in m.stmts.values():
+    for s in m.compiled.stmts.values():
         if isinstance(s, A.While):
             out.update(x.sid for x in A.walk_stmts([s]))
     return out
@@ -609,8 +608,8 @@ def local_guards(m) -> bool:
     variables (any of them: reading a property's variable is invisible),
     enum members and pure calls: then EVENT SELECT and IDLE touch only the
     agent's own k cell."""
-    lay = m.layout
-    funcs = set(m.functions)
+    lay = m.compiled.layout
+    funcs = set(m.compiled.functions)
     for ev in m.program.events:
         for e in A.walk_expr(ev.guard):
             if isinstance(e, A.Name):
@@ -652,8 +651,7 @@ class Por:
         self.sids = mergeable_sids(m) - _loop_sids(m)
         self.guards = local_guards(m)
         self.ok: dict = {}
-        plain = type(m).successors
-        self.plain = lambda st: plain(m, st)
+        self.plain = m.plain_successors
 
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)

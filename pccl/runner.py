@@ -176,7 +176,7 @@ def waiting_on(model, st) -> list:
         if ag[STATUS] != RUNNING:
             continue
         if ag[PC] != model.ctl.empty_pc and model.ctl.cells[ag[PC]][0] != END:
-            out.append((i, model.describe_k(ag[PC])))
+            out.append((i, model.compiled.describe_k(ag[PC])))
             continue
         try:
             enabled = model.enabled_events(i, ag, sh, ags)
@@ -304,7 +304,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     looping = _looping_agent(model, st, per_agent)
                     return finish("max-steps",
                                   f"agent {looping} runs more than {max_steps} transitions without "
-                                  f"letting time advance ({model.describe_k(st[AGS][looping][PC])}); "
+                                  f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
                                   f"raise --max-steps if this is intended",
                                   1, looping_agent=looping)
             st = nxt

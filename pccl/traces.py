@@ -97,7 +97,7 @@ def state_typed(model, st) -> dict:
     for i, ag in enumerate(st[AGS]):
         r = ag[REACH]
         agents.append({
-            "id": i, "status": _status(model, ag[STATUS]), "at": model.describe_k(ag[PC]),
+            "id": i, "status": _status(model, ag[STATUS]), "at": model.compiled.describe_k(ag[PC]),
             "counter": ag[CNT], "lockState": D.LOCK_NAMES[ag[LCK]],
             "position": list(ag[POS]),
             "target": None if r[TARGET] is None else list(r[TARGET]),
@@ -172,7 +172,7 @@ def branch_taken(model, label, before, after) -> Optional[dict]:
     info = model.ctl.info(ag[PC])
     if info.kind == K_IF:
         pcs = info.branch_pcs
-        stmt = model.stmts[info.sid]
+        stmt = model.compiled.stmts[info.sid]
         try:
             k = pcs.index(ag2[PC])
         except ValueError:
@@ -215,7 +215,7 @@ def step_record(model, n, label, before, after) -> dict:
     if rule == "EVENT SELECT" and detail is not None:
         column = model.program.events[detail].guard.span.column
     elif info["line"] is not None and isinstance(detail, int) and rule not in ("DOREACH INVOKE",):
-        sp = model.stmt_span(detail)
+        sp = model.compiled.stmt_span(detail)
         column = sp.column if sp else None
     rec = {"index": n, "time": before[TIME], "agent": agent, "rule": info["rule"],
            "event": info["event"], "line": info["line"], "column": column,

@@ -113,3 +113,22 @@ def join(a: Ty, b: Ty) -> Optional[Ty]:
         e = join(a.elem, b.elem)
         return None if e is None else list_of(e)
     return None
+
+
+def indexes_agent(section: str, is_array: bool, n_indexes: int, *, in_property: bool) -> bool:
+    """The per-agent indexing rule (docs/language.md §4): whether the first
+    index of ``x[...]...``, ``x`` a variable of ``section`` indexed
+    ``n_indexes`` times, picks an agent.  The checker types and the
+    compiler compiles index chains by it.
+
+    A shared (allwrite) variable has no agent index.  In a property every
+    per-agent variable (loc or allread) takes the agent index first
+    (``v[i]``, ``v[i][k]``).  In the program only an allread variable does:
+    a scalar's ``x[j]`` is agent j's component; an array's ``x[k]`` is this
+    agent's element k and ``x[j][k]`` agent j's element k."""
+    if section == "allwrite":
+        return False
+    if in_property:
+        return True
+    return section == "allread" and (not is_array or n_indexes >= 2)
+

@@ -129,7 +129,7 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
         a, b = states[n], states[n + 1]
         rule, i, detail = lab
         ch = _visible_changes(model, a, b)
-        shared_names = {v.name for v in model.layout.shared}
+        shared_names = {v.name for v in model.compiled.layout.shared}
         shared = [f"{c}={nw}" for c, o, nw in ch if c in shared_names or c == "lockQueue"]
         if rule == "TIME ADVANCE":
             out.append(rule_line(f"t={D.fmt_time(b[TIME])}"))

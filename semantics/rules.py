@@ -5,7 +5,7 @@ Each agent rule has the signature ``rule(m, st, i, ag, head, out)``: ``m`` is
 the model, read only through :class:`RuleContext`; ``st`` the configuration,
 ``i`` the agent id, ``ag`` its agent cell, ``head`` the decoded head of its
 ``k`` cell (a :class:`KHead`, built once per pc by
-:class:`pccl.engine.Control`), and ``out`` a list to which the rule appends
+:class:`pccl.compiled.Control`), and ``out`` a list to which the rule appends
 ``(label, successor)`` pairs, one per way it applies.  A rule that does not
 apply appends nothing.  Global rules take ``(m, st, out)``.
 
@@ -16,7 +16,7 @@ labelled rules ``[assign]``, ``[if]``, ``[while]``), all labelled
 
 A configuration is meaningful only together with the model that made it:
 ``pc`` is an interned k cell and a stuck status a key of
-``Model.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
+``CompiledProgram.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
 
     state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
     agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
@@ -40,12 +40,16 @@ from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING
 K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
     K_DOREACH, K_EXIT, K_ASSERT = range(11)
 
-_RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
-                   TypeError, IndexError, ValueError)
+# -- the configuration kernel's public API (the engine uses it too) ------------------
+
+#: The exceptions that a compiled expression or statement may raise at run
+#: time; each gets the agent stuck (:func:`stuck_successor`), never the search.
+RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
+                  TypeError, IndexError, ValueError)
 
 
 class KCells(Protocol):
-    """The interned k cells a rule may jump to (:class:`pccl.engine.Control`)."""
+    """The interned k cells a rule may jump to (:class:`pccl.compiled.Control`)."""
     empty_pc: int              # ·  (the top of the event block)
     idle_pc: int               # endEventBlock
     event_pcs: Sequence[int]   # event e's effect ~> endEventBlock
@@ -53,7 +57,7 @@ class KCells(Protocol):
 
 class RuleContext(Protocol):
     """Exactly what a rule may read from the model (:class:`pccl.engine.Model`
-    implements it).  tests/test_layout.py checks that the rules read nothing
+    implements it).  tests/test_kernel.py checks that the rules read nothing
     else."""
     rho: Sequence[int]         # the rate map ρ: counter increment per agent
     n0: int                    # event-block executions per time step
@@ -72,7 +76,7 @@ class RuleContext(Protocol):
 
 class KHead:
     """The decoded head of a k cell: what the rules need of ``k(pc)``,
-    built once per pc and cached (:meth:`pccl.engine.Control.info`).
+    built once per pc and cached (:meth:`pccl.compiled.Control.info`).
 
     Each kind sets the fields it has (the others are None):
 
@@ -125,22 +129,25 @@ _KIND_NAMES = ("K_EMPTY", "K_END", "K_AEND", "K_ACQ", "K_SIMPLE", "K_IF", "K_WHI
 
 def _outcomes(m, fn, has_rand, *args):
     """Evaluate ``fn(*args)``; with rand, every outcome (explore) or the
-    policy's (run).  Runtime errors become :class:`_Err` results."""
+    policy's (run).  Runtime errors become :class:`Err` results."""
     if not has_rand:
         try:
             return [fn(*args)]
-        except _RUNTIME_ERRORS as exc:
-            return [_Err.of(exc)]
+        except RUNTIME_ERRORS as exc:
+            return [Err.of(exc)]
 
     def guarded(*a):
         try:
             return fn(*a)
-        except _RUNTIME_ERRORS as exc:
-            return _Err.of(exc)
+        except RUNTIME_ERRORS as exc:
+            return Err.of(exc)
     return m.oracle.outcomes(guarded, *args)
 
 
-class _Err:
+class Err:
+    """A runtime error as the result of an evaluation: ``reason`` (the
+    message of a stuck agent) and ``where`` (a location, when the error
+    carries one, e.g. a guard)."""
     __slots__ = ("reason", "where")
 
     def __init__(self, reason, where=None):
@@ -148,17 +155,18 @@ class _Err:
         self.where = where
 
     @staticmethod
-    def of(exc) -> "_Err":
-        return _Err(getattr(exc, "reason", None) or _describe(exc), getattr(exc, "where", None))
+    def of(exc) -> "Err":
+        return Err(getattr(exc, "reason", None) or describe_error(exc), getattr(exc, "where", None))
 
 
-def _describe(exc):
+def describe_error(exc) -> str:
+    """The reason of a stuck agent for a Python exception in compiled code."""
     if isinstance(exc, ZeroDivisionError):
         return "division by zero"
     return f"{type(exc).__name__}: {exc}"
 
 
-def _stuck(m, st, i, ag, reason, where, kind="error"):
+def stuck_successor(m, st, i, ag, reason, where, kind="error"):
     """The successor in which agent i is stuck(reason, location)."""
     code = m.stuck_code(kind, reason, where)
     return put_agent(st, i, with_status(ag, code))
@@ -186,17 +194,29 @@ def event_select(m, st, i, ag, head, out):
     if ag[1] + m.rho[i] > m.n0:
         return
     sh, ags = st[3], st[4]
-    if m.guards_rand:
-        results = _outcomes(m, m.enabled_events, True, i, ag, sh, ags)
-    else:
-        # the common case, without _outcomes' wrapper
+    if not m.guards_rand:
+        # the common case: one outcome, without _outcomes' wrapper
         try:
-            results = (m.enabled_events(i, ag, sh, ags),)
-        except _RUNTIME_ERRORS as exc:
-            results = (_Err.of(exc),)
-    for res in results:
-        if isinstance(res, _Err):
-            out.append((("EVENT SELECT", i, None), _stuck(m, st, i, ag, res.reason, res.where)))
+            res = m.enabled_events(i, ag, sh, ags)
+        except RUNTIME_ERRORS as exc:
+            err = Err.of(exc)
+            out.append((("EVENT SELECT", i, None), stuck_successor(m, st, i, ag, err.reason, err.where)))
+            return
+        if not res:
+            out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
+            return
+        if m.first_only:
+            res = res[:1]
+        pcs = m.ctl.event_pcs
+        for e in res:
+            # with_pc(ag, pcs[e]), inlined
+            out.append((("EVENT SELECT", i, e),
+                        put_agent(st, i, (pcs[e], ag[1], ag[2], ag[3], ag[4], ag[5], ag[6],
+                                          ag[7]))))
+        return
+    for res in _outcomes(m, m.enabled_events, True, i, ag, sh, ags):
+        if isinstance(res, Err):
+            out.append((("EVENT SELECT", i, None), stuck_successor(m, st, i, ag, res.reason, res.where)))
             continue
         if not res:
             out.append((("IDLE", i, None), put_agent(st, i, with_pc(ag, m.ctl.idle_pc))))
@@ -222,18 +242,23 @@ def statement_assign(m, st, i, ag, head, out):
     Changes k, and the variable's cell (locals, allread or shared).  A runtime
     error makes the agent stuck(reason, location) instead.
     """
-    try:
-        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
-            else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
-    for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+    if not head.has_rand:       # the common case: one outcome, no wrapper
+        try:
+            ag2, sh2 = head.fn(i, ag, st[3], st[4])
+        except RUNTIME_ERRORS as exc:
+            r = Err.of(exc)
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
+            return
+        # with_pc(ag2, head.next_pc), inlined
+        ag2 = (head.next_pc, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
+        out.append((label, put_agent(st, i, ag2, sh2)))
+        return
+    for r in _evaluate(m, head.fn, i, ag, st):
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             ag2, sh2 = r
-            # with_pc(ag2, head.next_pc), inlined
             ag2 = (head.next_pc, ag2[1], ag2[2], ag2[3], ag2[4], ag2[5], ag2[6], ag2[7])
             out.append((label, put_agent(st, i, ag2, sh2)))
 
@@ -247,15 +272,21 @@ def statement_if(m, st, i, ag, head, out):
 
     Changes k only.
     """
-    try:
-        res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
-            else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
-    for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+    if not head.has_rand:       # the common case: one outcome, no wrapper
+        try:
+            r = head.fn(i, ag, st[3], st[4])
+        except RUNTIME_ERRORS as exc:
+            r = Err.of(exc)
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
+            return
+        # with_pc(ag, head.branch_pcs[r]), inlined
+        out.append((label, put_agent(st, i, (head.branch_pcs[r], ag[1], ag[2], ag[3], ag[4],
+                                             ag[5], ag[6], ag[7]))))
+        return
+    for r in _evaluate(m, head.fn, i, ag, st):
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             out.append((label, put_agent(st, i, with_pc(ag, head.branch_pcs[r]))))
 
@@ -272,12 +303,12 @@ def statement_while(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         else:
             out.append((label, put_agent(st, i, with_pc(ag, head.body_pc if r else head.next_pc))))
 
@@ -293,17 +324,17 @@ def statement_assert(m, st, i, ag, head, out):
     try:
         res = _evaluate(m, head.fn, i, ag, st) if head.has_rand \
             else (head.fn(i, ag, st[3], st[4]),)
-    except _RUNTIME_ERRORS as exc:
-        res = (_Err.of(exc),)
+    except RUNTIME_ERRORS as exc:
+        res = (Err.of(exc),)
     label = ("STATEMENT", i, head.sid)
     for r in res:
-        if isinstance(r, _Err):
-            out.append((label, _stuck(m, st, i, ag, r.reason, head.sid)))
+        if isinstance(r, Err):
+            out.append((label, stuck_successor(m, st, i, ag, r.reason, head.sid)))
         elif r:
             out.append((label, put_agent(st, i, with_pc(ag, head.next_pc))))
         else:
-            out.append((label, _stuck(m, st, i, ag, "assertion failed", head.sid,
-                                      kind="assert")))
+            out.append((label, stuck_successor(m, st, i, ag, "assertion failed", head.sid,
+                                               kind="assert")))
 
 
 def statement_nested_atomic(m, st, i, ag, head, out):
@@ -362,8 +393,8 @@ def doreach_update(m, st, i, ag, head, out):
     """
     sid = head.sid
     for res in _outcomes(m, head.fn, head.has_rand, i, ag, st[3], st[4]):
-        if isinstance(res, _Err):
-            out.append((("DOREACH UPDATE", i, sid), _stuck(m, st, i, ag, res.reason, sid)))
+        if isinstance(res, Err):
+            out.append((("DOREACH UPDATE", i, sid), stuck_successor(m, st, i, ag, res.reason, sid)))
             continue
         target, obstacles = res
         target = m.round_pos(target)      # positions are compared at the world's resolution

@@ -14,6 +14,7 @@ Nothing here reads /work/shared: the programs used live in the repository.
 
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
@@ -31,6 +32,26 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
+def cli(*args, cwd=None, **kw):
+    """Run ``pccl ARGS`` in-process with click's CliRunner (``kw`` to
+    ``invoke``: ``env``, ``input``...; ``cwd`` to run from a directory).
+    No command may crash: an exception other than ``SystemExit`` is
+    re-raised here with its traceback, and no output holds one."""
+    from click.testing import CliRunner
+    from pccl.cli import main
+    old = os.getcwd()
+    if cwd is not None:
+        os.chdir(cwd)
+    try:
+        res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True, **kw)
+    finally:
+        os.chdir(old)
+    if res.exception is not None and not isinstance(res.exception, SystemExit):
+        raise res.exception
+    assert "Traceback" not in res.output, res.output
+    return res
+
+
 # the configuration's cells and values (pccl.layout), for the tests to read states by name
 from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402
                          IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
@@ -47,7 +68,7 @@ def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw)
 def sid(m, text: str, nth: int = 0) -> int:
     """The sid of the ``nth`` statement whose source line (stripped) starts with ``text``."""
     lines = m.program.source.splitlines()
-    hits = sorted((s.span.line, s.span.column, k) for k, s in m.stmts.items()
+    hits = sorted((s.span.line, s.span.column, k) for k, s in m.compiled.stmts.items()
                   if lines[s.span.line - 1].strip().startswith(text))
     assert len(hits) > nth, f"no statement starting with {text!r}"
     return hits[nth][2]
@@ -68,7 +89,7 @@ def k_of(m, ag) -> tuple:
 
 
 def _slot(m, name):
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     return vs
 
 
@@ -124,7 +145,7 @@ def set_state(m, st, *, time=None, phase=None, lq=None, env=None, **values):
 
 def var(m, st, i, name):
     """Agent i's value of a local or allread variable."""
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     if vs.section == "loc":
         return st[AGS][i][LOC][vs.slot]
     if vs.section == "allread":
@@ -133,7 +154,7 @@ def var(m, st, i, name):
 
 
 def shared(m, st, name):
-    vs = m.layout.vars[name]
+    vs = m.compiled.layout.vars[name]
     assert vs.section == "allwrite"
     return st[SH][vs.slot]
 

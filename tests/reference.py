@@ -44,7 +44,8 @@ import itertools
 import math
 from collections import deque
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Optional
+from typing import Any, Optional
+from collections.abc import Callable
 
 from pccl import ast as A
 

@@ -180,15 +180,6 @@ def test_race_safe_no_violation_exhaustive(blackbox, agents):
     assert f"[blackbox {blackbox}]" in res.verdict
 
 
-def test_api_explore_defaults_to_nondet_for_a_program_that_moves():
-    res = explore(RACE_NONATOMIC, world=RACE_WORLD)
-    assert res.blackbox == "nondet" and res.status == "violation"
-    assert res.model.blackbox_reason == "default for programs that move"
-    res = explore(FISCHER, overrides=SMALL, depth=3)       # no doReach: the run default
-    assert res.blackbox == "straight" and res.model.blackbox_reason is None
-    assert "travel times" not in res.verdict
-
-
 @pytest.mark.parametrize("agents", [2, 3])
 @pytest.mark.parametrize("blackbox", ["instant", "nondet"])
 def test_race_nonatomic_stuck_on_remove(blackbox, agents):

@@ -84,7 +84,7 @@ GENERIC = {"pccl.explorer", "pccl.parallel", "pccl.fingerprint", "pccl.memory"}
 FRONT = {"pccl.ast", "pccl.parser", "pccl.checker", "pccl.types", "pccl.errors",
          "pccl.values", "pccl.builtins"}
 #: what the front end must not know
-BACK = {"pccl.compile", "pccl.engine", "pccl.explorer", "pccl.parallel", "pccl.reduce",
+BACK = {"pccl.compile", "pccl.compiled", "pccl.engine", "pccl.explorer", "pccl.parallel", "pccl.reduce",
         "pccl.semantics.rules", "pccl.blackboxes", "pccl.api", "pccl.cli", "pccl.display"}
 
 
@@ -102,7 +102,7 @@ def test_rules_see_only_what_they_are_given():
     """The rules read the model through their arguments: they import no
     engine, compiler, explorer or user interface."""
     assert not (_reach("pccl.semantics.rules")
-                & {"pccl.engine", "pccl.compile", "pccl.explorer", "pccl.parallel",
+                & {"pccl.engine", "pccl.compile", "pccl.compiled", "pccl.explorer", "pccl.parallel",
                    "pccl.reduce", "pccl.api", "pccl.cli", "pccl.checker", "pccl.parser"})
 
 
@@ -111,6 +111,15 @@ def test_blackboxes_import_only_blackboxes_and_errors():
         if mod.startswith("pccl.blackboxes"):
             assert GRAPH[mod] <= {m for m in MODULES if m.startswith("pccl.blackboxes")} \
                 | {"pccl.errors", "pccl.ast"}, (mod, GRAPH[mod])
+
+
+def test_the_compiled_program_knows_nothing_of_the_search():
+    """compiled.py is the program after compiling: it reaches neither the
+    model nor the world, the blackboxes, the explorer or the reductions."""
+    assert not (_reach("pccl.compiled")
+                & {"pccl.engine", "pccl.world", "pccl.blackboxes", "pccl.explorer",
+                   "pccl.parallel", "pccl.reduce", "pccl.api", "pccl.cli"})
+    assert "pccl.compiled" in GRAPH["pccl.engine"]
 
 
 def test_nothing_imports_the_command_line():

@@ -42,7 +42,7 @@ def drive(bb, world, motions, steps, delta=1.0):
     does (positions rounded to the resolution, flags fed back)."""
     env = bb.init_env(world, len(motions))
     history = []
-    for k in range(steps):
+    for _k in range(steps):
         o = one(bb, world, motions, env, delta)
         history.append(o)
         env = o.env

@@ -9,23 +9,15 @@ import subprocess
 import sys
 
 import pytest
-from click.testing import CliRunner
 
-from pccl.cli import main
 
 from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS
+from conftest import cli
 
 LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
 SMALL = ["--set", "k=1", "--set", "cstime=0"]
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    # no command may crash: only SystemExit (exit status) is allowed
-    assert res.exception is None or isinstance(res.exception, SystemExit), \
-        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
-    assert "Traceback" not in res.output
-    return res
 
 
 def assert_user_error(res, where=None):

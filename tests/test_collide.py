@@ -8,12 +8,11 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from pccl.api import explore
-from pccl.cli import main
 from pccl.collide import EPS, collisions, contacts
 from pccl.world import World, load_world, parse_world
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -29,11 +28,6 @@ def world(radius=0.25, obstacles=()):
     return World(radius=radius, obstacles=tuple(obstacles))
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 # ----------------------------------------------------------------------

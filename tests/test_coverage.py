@@ -5,20 +5,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from click.testing import CliRunner
 
 from pccl.api import explore
-from pccl.cli import main
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 NEVER = ROOT / "docs" / "examples" / "never.pccl"
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def test_an_event_whose_guard_never_holds_is_named_with_its_statements():

@@ -16,8 +16,9 @@ tested"):
   volatile statistics (lines starting with ``seconds``, ``states/second``,
   ``peak memory``, ``fingerprints`` and the JSON keys ``"seconds"``,
   ``"states_per_second"``, ``"peak_memory_bytes"``,
-  ``"collision_probability"``) (with their separators ``,`` and ``.``) are replaced by one ``N`` per number.  A line that is exactly
-  ``...`` in the expected output matches any number of lines (zero or more).
+  ``"collision_probability"``) (with their separators ``,`` and ``.``) are
+  replaced by one ``N`` per number.  A line that is exactly ``...`` in the
+  expected output matches any number of lines (zero or more).
 * A fenced block ```` ```python ```` containing ``>>>`` prompts is run with
   :mod:`doctest` (option ELLIPSIS), from the repository root; the blocks of
   one document run in order and share their names, like one session.

@@ -674,10 +674,10 @@ def test_float_slot_values_are_floats(decl, stmts, expr):
     """Every value held in a float slot is a Python float (not an int or a
     bool), in every reachable state."""
     m = make_model(half_program(decl, stmts, expr), source=True, blackbox="instant", agents=1)
-    names = [n for n in ("f", "a", "xs", "p", "r") if n in m.layout.vars]
+    names = [n for n in ("f", "a", "xs", "p", "r") if n in m.compiled.layout.vars]
     for st in reachable(m):
         for n in names:
-            val = st[SH][m.layout.vars[n].slot]
+            val = st[SH][m.compiled.layout.vars[n].slot]
             assert not floats_in(val), f"{n} = {val!r} holds a non-float"
 
 

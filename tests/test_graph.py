@@ -10,9 +10,8 @@ from pathlib import Path
 
 import pydot
 import pytest
-from click.testing import CliRunner
 
-from pccl.cli import main
+from conftest import cli
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -21,11 +20,6 @@ LOST = ROOT / "docs" / "examples" / "lost_update.pccl"
 NEVER = ROOT / "docs" / "examples" / "never.pccl"
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def state_nodes(g) -> list:
@@ -73,3 +67,12 @@ def test_json_graph_and_max_states(tmp_path):
 def test_unknown_extension_is_refused(tmp_path):
     res = cli("graph", LOST, "-o", tmp_path / "g.png")
     assert res.exit_code == 2 and "use a .dot, .gv or .json file" in res.output
+
+
+def test_a_bad_option_names_the_flag(tmp_path):
+    """graph builds its model from the command's options object: a value
+    only the model can judge is reported against the flag (exit 2)."""
+    res = cli("graph", LOST, "-o", tmp_path / "g.dot", "--rate", "7=2")
+    assert res.exit_code == 2
+    assert res.output.strip().startswith("--rate: error: agent 7 does not exist"), res.output
+    assert not (tmp_path / "g.dot").exists()

@@ -7,21 +7,14 @@ from __future__ import annotations
 import json
 
 import pytest
-from click.testing import CliRunner
 
-from pccl.cli import main
 from pccl.errors import PcclError
 
 from conftest import FISCHER, model_of
 from pccl.layout import AGS, LOC
+from conftest import cli
 
 
-def cli(*args, **kw):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True, **kw)
-    assert res.exception is None or isinstance(res.exception, SystemExit), \
-        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
-    assert "Traceback" not in res.output
-    return res
 
 
 def write(tmp_path, text, name="p.pccl"):

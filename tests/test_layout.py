@@ -200,4 +200,4 @@ def test_status_codes():
     for rule in ("EVENT SELECT", "STATEMENT"):        # the division by zero
         st = next(s for lab, s in m.successors(st) if lab[:2] == (rule, 0))
     code = st[L.AGS][0][L.STATUS]
-    assert L.is_stuck(code) and m.stuck_reasons[code][1] == "division by zero"
+    assert L.is_stuck(code) and m.compiled.stuck_reasons[code][1] == "division by zero"

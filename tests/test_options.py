@@ -13,7 +13,6 @@ import json
 
 import click
 import pytest
-from click.testing import CliRunner
 
 import pccl.api as api
 from pccl import options as O
@@ -24,14 +23,11 @@ from pccl.layout import TIME
 from pccl.results import AgentView, Finding, StateView, StepView
 
 from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD
+from conftest import cli
 
 COMMANDS = {"run": O.RunOptions, "explore": O.ExploreOptions}
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
-    return res
 
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))

@@ -8,12 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 pytest.importorskip("matplotlib")
 import matplotlib.image as mpimg  # noqa: E402
 
-from pccl.cli import main  # noqa: E402
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -30,11 +29,6 @@ BLUE = (31, 119, 180)      # tab10: agent 0
 ORANGE = (255, 127, 14)    # tab10: agent 1
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def all_output(res) -> str:

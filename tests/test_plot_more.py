@@ -6,29 +6,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 pytest.importorskip("matplotlib")
 import matplotlib.image as mpimg  # noqa: E402
 
 from pccl import plot as P  # noqa: E402
 from pccl.api import explore, make_model  # noqa: E402
-from pccl.cli import main  # noqa: E402
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
-WALL_SOURCE = '// One robot drives at a wall: straight fails its doReach; used by test_failed_doreach_is_marked.\nloc:\n  boolean go = true;\n\nGo():\n  pre(go);\n  eff:\n    doReach(ItemPosition(4, 0), getObs());\n    go = false;\n\nCheck():\n  pre(!go && doReach_fail);\n  eff:\n    assert(false);\n'
-WALL_WORLD_SOURCE = '# A wall between the robot and its target (tests/programs/wall.pccl).\nagents = 1\nresolution = 0.01\nradius = 0.25\nspeed = 1.0\nstart = [[0, 0]]\n\n[[obstacles]]\npolygon = [[1.5, -1], [2.5, -1], [2.5, 1], [1.5, 1]]\n'
+WALL_SOURCE = '// One robot drives at a wall: straight fails its doReach; used by test_failed_doreach_is_marked.\nloc:\n  boolean go = true;\n\nGo():\n  pre(go);\n  eff:\n    doReach(ItemPosition(4, 0), getObs());\n    go = false;\n\nCheck():\n  pre(!go && doReach_fail);\n  eff:\n    assert(false);\n'  # noqa: E501
+WALL_WORLD_SOURCE = '# A wall between the robot and its target (tests/programs/wall.pccl).\nagents = 1\nresolution = 0.01\nradius = 0.25\nspeed = 1.0\nstart = [[0, 0]]\n\n[[obstacles]]\npolygon = [[1.5, -1], [2.5, -1], [2.5, 1], [1.5, 1]]\n'  # noqa: E501
 FISCHER = ROOT / "programs" / "fischer.pccl"
 LOST = ROOT / "docs" / "examples" / "lost_update.pccl"
 TAB20_1 = (174, 199, 232)     # the second event's colour in a timeline
 RED_X = (255, 0, 0)
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def pixels(path) -> np.ndarray:

@@ -55,12 +55,12 @@ MODELS = {
 }
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model(name):
     return MODELS[name]()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def inits(name):
     return tuple(model(name).init_states())
 
@@ -88,7 +88,7 @@ def check_state(m, st):
     assert st[PHASE] in (DISCRETE, DYNAMIC)
     for i, ag in enumerate(st[AGS]):
         assert 0 <= ag[CNT] <= m.n0, f"agent {i} counter {ag[CNT]} outside 0..{m.n0}"
-        assert ag[STATUS] in (0, 1) or ag[STATUS] in m.stuck_reasons
+        assert ag[STATUS] in (0, 1) or ag[STATUS] in m.compiled.stuck_reasons
         assert 0 <= ag[PC] < len(m.ctl.ks)
     check_lock_invariants(m, st)
 
@@ -166,7 +166,7 @@ def test_whole_state_space_keeps_lock_invariants(name):
     while todo:
         s = todo.pop()
         check_lock_invariants(m, s)
-        for label, s2 in m.successors(s):
+        for _label, s2 in m.successors(s):
             k = m.key(s2)
             if k not in seen:
                 seen.add(k)

@@ -448,7 +448,7 @@ def test_agents_holding_other_agents_ids_are_canonical():
         for perm in itertools.permutations(range(3)):
             r = {old: new for new, old in enumerate(perm)}
 
-            def rn(v):
+            def rn(v, r=r):
                 return r[v] if type(v) is int and v >= 0 else v
             cells = []
             for old in perm:

@@ -6,20 +6,14 @@ import json
 import shutil
 from pathlib import Path
 
-from click.testing import CliRunner
 
-from pccl.cli import main
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
 LOST = ROOT / "docs" / "examples" / "lost_update.pccl"
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def record(tmp_path, *args, name="t.json"):

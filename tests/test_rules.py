@@ -13,7 +13,7 @@ import itertools
 import pytest
 
 from pccl import display as D
-from pccl.engine import AEND, END, acq
+from pccl.layout import AEND, END, acq
 from pccl.errors import PcclError
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, IDLE, LCK, LOCK, PC, POS, REACH,
@@ -104,7 +104,7 @@ def test_initial_configuration(m, st0):
 def test_event_select_any_offers_every_enabled_event(m, st0):
     out = succ(m, st0, agent=0)
     assert [l for l, _ in out] == [("EVENT SELECT", 0, 0), ("EVENT SELECT", 0, 1)]
-    for (l, s), e in zip(out, (0, 1)):
+    for (_l, s), e in zip(out, (0, 1)):
         assert s == set_agent(m, st0, 0, pc=k_pc(m, *event_k(m, e)))
 
 
@@ -269,7 +269,7 @@ def test_statement_assert_false_gets_agent_stuck(m, st0):
     assert set_agent(m, after, 0, status=RUNNING) == st       # nothing else changed
     (v,) = m.violations(after)
     assert v.kind == "assert" and v.agent == 0
-    assert v.span.line == m.stmts[a].span.line
+    assert v.span.line == m.compiled.stmts[a].span.line
     assert succ(m, after, agent=0) == []
 
 

@@ -4,15 +4,13 @@ outcome reproduces it."""
 from __future__ import annotations
 
 import json
-import os
 import re
 import shlex
 from pathlib import Path
 
-from click.testing import CliRunner
 
-from pccl.cli import main
 from pccl.layout import TIME
+import conftest
 
 ROOT = Path(__file__).resolve().parent.parent
 ARGS = ["simulate", "programs/race_nonatomic.pccl", "--world", "programs/race.toml", "-b", "nondet",
@@ -20,15 +18,7 @@ ARGS = ["simulate", "programs/race_nonatomic.pccl", "--world", "programs/race.to
 
 
 def cli(*args):
-    old = os.getcwd()
-    os.chdir(ROOT)
-    try:
-        res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    finally:
-        os.chdir(old)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
+    return conftest.cli(*args, cwd=ROOT)
 
 
 def test_simulate_reports_stuck_with_a_seed_whose_run_reproduces_it():
@@ -41,7 +31,7 @@ def test_simulate_reports_stuck_with_a_seed_whose_run_reproduces_it():
     assert sum(int(b[1]) for b in blocks) == 200
     stuck = [b for b in blocks if b[0].startswith("stuck")]
     assert stuck
-    for label, count, example, seed, command in blocks:
+    for label, _count, example, seed, command in blocks:
         argv = shlex.split(command)
         assert argv[:2] == ["pccl", "run"] and argv[-2:] == ["--seed", seed]
         run = cli(*argv[1:])
@@ -81,3 +71,13 @@ def test_each_simulated_run_is_the_run_of_its_seed():
     for k in range(60):
         r = run(prog, world=world, blackbox="nondet", agents=3, seed=k)
         assert got[k] == (r.status, r.message, r.final[TIME], r.steps), k
+
+
+def test_a_bad_option_names_the_flag():
+    """simulate builds its model from the options of pccl run: a rate above
+    n0 is reported against --rate, as pccl run reports it."""
+    res = cli("simulate", "programs/fischer.pccl", "-n", "2", "--rate", "1=2")
+    run = cli("run", "programs/fischer.pccl", "--rate", "1=2")
+    assert res.exit_code == run.exit_code == 2
+    assert res.output.strip().startswith("--rate: error: rate 2 of agent 1 is above n0 = 1")
+    assert res.output.strip() == run.output.strip()

@@ -10,14 +10,12 @@ fixpoint, no numpy, no SCCs)."""
 from __future__ import annotations
 
 import pytest
-from click.testing import CliRunner
 
 from pccl.api import explore, make_model
-from pccl.cli import main
-from pccl.errors import PcclError
 from pccl.layout import AGS, DISCRETE, EXITED, FAIL, LOC, PHASE, REACH, STATUS, TIME
 
 from conftest import FISCHER, TEST_PROGRAMS
+from conftest import cli
 
 RDV = str(TEST_PROGRAMS / "rdv_meet.pccl")
 RDV_OPEN = str(TEST_PROGRAMS / "rdv_open.toml")
@@ -30,12 +28,6 @@ FAST = str(TEST_PROGRAMS / "fast_slow.pccl")
 ALL_EXIT = "eventually forall i: exited[i]"
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    assert res.exception is None or isinstance(res.exception, SystemExit), \
-        f"pccl {' '.join(map(str, args))} raised {res.exception!r}\n{res.output}"
-    assert "Traceback" not in res.output
-    return res
 
 
 # ---------------------------------------------------------------------------
@@ -244,7 +236,7 @@ def test_reachable_on_fischer_gives_a_witness_and_unreachable_fails():
     assert r.exit_status == 0 and r.status == "exhaustive"
     (w,) = r.witnesses
     tr = w["_trace"]
-    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.layout.vars["inCs"].slot]
+    assert sum(v is True for v in (tr.last[AGS][i][LOC][r.model.compiled.layout.vars["inCs"].slot]
                                    for i in range(2))) == 1
     # shortest: no state on the path before the last satisfies it
     p = r.model.temporal[0].p

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import jsonschema
 import pytest
-from click.testing import CliRunner
 
-from pccl.cli import main
+from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -22,11 +21,6 @@ SCHEMA = json.loads((ROOT / "docs" / "trace-format.schema.json").read_text())
 FISCHER_ARGS = ["explore", str(FISCHER), "--invariant", "count(inCs) <= 1", "--set", "k=1"]
 
 
-def cli(*args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
 
 
 def validate(doc):

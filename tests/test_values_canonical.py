@@ -44,8 +44,8 @@ def stuck(m, st, i=0):
     code = st[AGS][i][STATUS]
     if code < 2:
         return None
-    kind, reason, where = m.stuck_reasons[code]
-    return reason, m.span_of(where).line
+    kind, reason, where = m.compiled.stuck_reasons[code]
+    return reason, m.compiled.span_of(where).line
 
 
 # ---------------------------------------------------------------------------

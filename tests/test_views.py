@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from click.testing import CliRunner
 
-from pccl.cli import main
+import conftest
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -16,11 +15,7 @@ FISCHER = ["explore", str(PROGRAMS / "fischer.pccl"), "--reduce", "none",
 
 
 def cli(*args, columns=100):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True,
-                             env={"COLUMNS": str(columns)})
-    if res.exception is not None and not isinstance(res.exception, SystemExit):
-        raise res.exception
-    return res
+    return conftest.cli(*args, env={"COLUMNS": str(columns)})
 
 
 def trace_block(text: str) -> list:
