@@ -489,6 +489,30 @@ class _Pipes:
                     pass
 
 
+#: seconds to wait for a Ray head's port to answer before giving up
+RAY_CONNECT_TIMEOUT = 10.0
+
+
+def probe_ray_address(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
+    """Raise :class:`RayUnavailable` unless something accepts a TCP
+    connection at ``address`` (``HOST:PORT`` or ``ray://HOST:PORT``; other
+    forms, such as ``auto``, are left to Ray).  Without this, ``ray.init``
+    keeps retrying an address where nothing listens."""
+    import socket
+    rest = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    host = host.strip("[]")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise RayUnavailable(
+            f"--ray {address}: nothing answers at {host}:{port} ({why}); start the head "
+            f"there with `ray start --head --port {port}`, or use --ray local") from None
+
+
 class RayUnavailable(RuntimeError):
     """Ray is not installed, or cannot be started or reached (the front
     ends turn this into their own error message)."""
@@ -525,6 +549,8 @@ class _RayTransport:
             return False
         quiet = dict(include_dashboard=False, logging_level=logging.WARNING,
                      log_to_driver=False, configure_logging=True)
+        if address != "local":
+            probe_ray_address(address)      # ray.init retries an address that never answers
         try:
             if address == "local":
                 ray.init(num_cpus=cpus, **quiet)

@@ -250,3 +250,33 @@ def test_several_workers_say_the_time_lock_check_did_not_run():
     two = explore(spin, workers=2)
     assert any("time-lock check not run" in n for n in two.notes)
     assert not any("time-lock" in n for n in one.notes)
+
+
+def test_ray_address_where_nothing_listens_fails_at_once():
+    """--ray HOST:PORT with no Ray head there: exit 2 with the address and
+    what to do, instead of ray.init retrying for ever (probed before Ray is
+    imported into the search)."""
+    import socket
+    from pccl.parallel import RayUnavailable, probe_ray_address
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()                       # a free port: nothing listens
+    with pytest.raises(RayUnavailable, match=f"nothing answers at 127.0.0.1:{port}"):
+        probe_ray_address(f"127.0.0.1:{port}", timeout=2)
+    with pytest.raises(RayUnavailable, match="ray start --head"):
+        probe_ray_address(f"ray://127.0.0.1:{port}", timeout=2)
+    probe_ray_address("auto")       # left to Ray
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+    try:
+        probe_ray_address(f"127.0.0.1:{srv.getsockname()[1]}", timeout=2)   # answers: no error
+    finally:
+        srv.close()
+    _ray()
+    r = subprocess.run([sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=0",
+                        "--ray", f"127.0.0.1:{port}", "--no-progress"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert f"nothing answers at 127.0.0.1:{port}" in r.stderr and "Traceback" not in r.stderr
