@@ -266,7 +266,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if record:
         cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
                        overrides=dict(overrides), invariants=invariants, seed=seed,
-                       max_steps=max_steps)
+                       max_steps=max_steps, property_texts=properties)
         doc = T.run_document(res, cfg)
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
@@ -508,7 +508,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         if reporter is not None:
             reporter.close()
     cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
-                   overrides=dict(overrides), invariants=invariants, deadlock=deadlock)
+                   overrides=dict(overrides), invariants=invariants, deadlock=deadlock,
+                   property_texts=properties)
     doc = T.explore_document(res, cfg)
     if fmt == "json":
         out = _explore_json(program, res)

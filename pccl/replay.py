@@ -76,7 +76,9 @@ def model_from_config(cfg: dict, trace_path, warnings: list):
     rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
     opts = dict(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
                 collisions=cfg["collisions"], overrides=dict(cfg.get("overrides") or {}),
-                invariants=tuple(cfg.get("invariants") or ()), max_time=cfg.get("max_time"),
+                invariants=tuple(cfg.get("invariants") or ()),
+                properties=tuple(cfg.get("property_options") or ()),
+                max_time=cfg.get("max_time"),
                 abstract_time=bool(cfg.get("abstract_time")),
                 reduce="none")      # a trace records unreduced steps
     if cfg.get("pccl_version") not in (None, T.pccl_version()):

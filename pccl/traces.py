@@ -55,7 +55,7 @@ def _file(path) -> Optional[dict]:
 
 def config(command: str, model, *, program, world=None, blackbox="straight", agents=None,
            overrides=None, invariants=(), seed=None, max_time=None, max_steps=None,
-           deadlock=True, abstract_time=None) -> dict:
+           deadlock=True, abstract_time=None, property_texts=()) -> dict:
     """The configuration of a ``run``/``explore`` command, enough to rebuild
     its model (:func:`model_from_config`)."""
     m = model
@@ -71,7 +71,9 @@ def config(command: str, model, *, program, world=None, blackbox="straight", age
            "collisions": bool(m.collisions),
            "overrides": {k: str(v) for k, v in dict(overrides or {}).items()},
            "invariants": list(invariants),
+           "property_options": list(property_texts),
            "properties": [p.name for p in m.properties],
+           "reductions": list(getattr(getattr(m, "reduction", None), "on", ())),
            "max_time": m.max_time,
            "abstract_time": m.abstract_time,
            "deadlock": bool(deadlock),

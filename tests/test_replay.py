@@ -6,14 +6,11 @@ import json
 import shutil
 from pathlib import Path
 
-
 from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
 LOST = ROOT / "docs" / "examples" / "lost_update.pccl"
-
-
 
 
 def record(tmp_path, *args, name="t.json"):
@@ -32,6 +29,32 @@ def test_replay_reproduces_a_counterexample(tmp_path):
     assert f"replayed {n} of {n} steps" in res.output
     assert "reproduced: invariant 'count(inCs) <= 1' violated" in res.output
     assert "warning" not in res.output
+
+
+def test_a_property_option_violation_is_recorded_and_reproduced(tmp_path):
+    # --property texts travel in the trace (property_options) so that replay
+    # checks them again; the reductions the search ran with are recorded too
+    t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--property", "count(inCs) <= 1",
+               "--set", "k=1")
+    doc = json.loads(t.read_text())
+    assert doc["config"]["property_options"] == ["count(inCs) <= 1"]
+    assert doc["config"]["invariants"] == []
+    assert doc["config"]["reductions"] == ["merge", "symmetry", "por"]
+    n = len(doc["steps"])
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert f"replayed {n} of {n} steps" in res.output
+    assert "reproduced: invariant 'count(inCs) <= 1' violated" in res.output
+    t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--property", "count(inCs) <= 1",
+               "--set", "k=1", "--reduce", "none", name="none.json")
+    assert json.loads(t.read_text())["config"]["reductions"] == []
+    # a file written before these fields existed still replays (they are optional)
+    old = json.loads(t.read_text())
+    del old["config"]["property_options"], old["config"]["reductions"]
+    old["config"]["invariants"] = ["count(inCs) <= 1"]
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    res = cli("replay", tmp_path / "old.json")
+    assert res.exit_code == 1 and "reproduced:" in res.output, res.output
 
 
 def test_a_reduced_counterexample_replays_step_by_step(tmp_path):
