@@ -73,7 +73,7 @@ def config(command: str, model, *, program, world=None, blackbox="straight", age
            "invariants": list(invariants),
            "property_options": list(property_texts),
            "properties": [p.name for p in m.properties],
-           "reductions": list(getattr(getattr(m, "reduction", None), "on", ())),
+           "reductions": list(m.reduction.on),
            "max_time": m.max_time,
            "abstract_time": m.abstract_time,
            "deadlock": bool(deadlock),

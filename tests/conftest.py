@@ -52,6 +52,21 @@ def cli(*args, cwd=None, **kw):
     return res
 
 
+def reachable(m, limit=5000) -> list:
+    """The reachable states of model m (at most ``limit``), depth first,
+    one per key."""
+    seen, out, todo = set(), [], list(m.init_states())
+    while todo and len(out) < limit:
+        st = todo.pop()
+        k = m.key(st)
+        if k in seen:
+            continue
+        seen.add(k)
+        out.append(st)
+        todo.extend(s for _, s in m.successors(st))
+    return out
+
+
 # the configuration's cells and values (pccl.layout), for the tests to read states by name
 from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402
                          IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,

@@ -10,6 +10,8 @@ import pytest
 from pccl.api import make_model
 from pccl.engine import Model
 
+from conftest import reachable
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 
@@ -29,18 +31,6 @@ CASES = [
 ]
 
 
-def _states(m, limit=20_000):
-    seen, todo = set(), list(m.init_states())
-    while todo and len(seen) < limit:
-        st = todo.pop()
-        k = m.key(st)
-        if k in seen:
-            continue
-        seen.add(k)
-        yield st
-        todo.extend(s for _, s in Model.successors(m, st))
-
-
 @pytest.mark.parametrize("program,kw", CASES, ids=[f"{p}-{i}" for i, (p, _) in enumerate(CASES)])
 def test_unrolled_successors_equal_the_generic_ones(program, kw):
     path = os.path.join(ROOT, program)
@@ -52,7 +42,7 @@ def test_unrolled_successors_equal_the_generic_ones(program, kw):
     m = make_model(path, reduce="none", **kw)
     assert m.plain_successors is not None and m.successors is m.plain_successors
     n = 0
-    for st in _states(m):
+    for st in reachable(m, 20_000):
         assert m.plain_successors(st) == Model.successors(m, st)
         n += 1
     assert n > 10

@@ -36,7 +36,7 @@ from pccl import display as D
 from pccl.api import explore as _explore, make_model, run
 from pccl.values import UNDEF
 
-from conftest import PROGRAMS, ROOT, SH, TEST_PROGRAMS
+from conftest import PROGRAMS, ROOT, SH, TEST_PROGRAMS, reachable
 
 
 def explore(*args, **kw):
@@ -645,20 +645,6 @@ def test_float_slot_holding_one_halves_to_one_half(decl, stmts, expr):
     state = D.state_json(res.model, res.final)
     assert state["shared"]["r"] == 0.5
     assert_found_both_ways(prog, "r != 0.5", source=True, blackbox="instant", agents=1)
-
-
-def reachable(m, limit=5000):
-    """The reachable states of model m (at most ``limit``), depth first."""
-    seen, out, todo = set(), [], list(m.init_states())
-    while todo and len(out) < limit:
-        st = todo.pop()
-        k = m.key(st)
-        if k in seen:
-            continue
-        seen.add(k)
-        out.append(st)
-        todo.extend(s for _, s in m.successors(st))
-    return out
 
 
 def floats_in(x):
