@@ -31,6 +31,7 @@ from typing import Optional
 from . import ast as A
 from .errors import PcclError
 from .semantics import rules as R
+from .scalarset import IdTypes, is_own_id, is_sentinel
 from .layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, RUNNING, SH,
                      STATUS, TIME)
 from .semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
@@ -153,166 +154,6 @@ def mergeable_sids(m) -> set:
     return ok
 
 
-class _IdInfo:
-    """Scalarset-style inference of the variables that hold agent ids."""
-
-    def __init__(self, m):
-        self.m = m
-        self.lay = m.compiled.layout
-        self.reason: Optional[str] = None
-        prog = m.program
-        defs: dict = {}
-        for d in prog.decls:
-            if isinstance(d, A.VarDecl) and d.init is not None:
-                defs.setdefault(d.name, []).append(d.init)
-        self.stmts = list(m.compiled.stmts.values())
-        for s in self.stmts:
-            if isinstance(s, A.Assign) and isinstance(s.target, A.Name):
-                defs.setdefault(s.target.name, []).append(s.value)
-        self.defs = defs
-        self.bound: set = set()
-        cand = {n for n, vs in self.lay.vars.items()
-                if vs.ty.kind == "int" and n in defs}
-        while True:
-            self.ids = cand
-            keep = {n for n in cand
-                    if all(self.is_id(e) or _sentinel(e) for e in defs[n])
-                    and any(self.is_id(e) for e in defs[n])}
-            if keep == cand:
-                break
-            cand = keep
-
-    def is_id(self, e) -> bool:
-        if isinstance(e, A.Call):
-            return e.name == "getAgentIndex" and not e.args
-        if isinstance(e, A.Name):
-            return e.name in self.ids or e.name in self.bound
-        return False
-
-    def bad(self, why):
-        if self.reason is None:
-            self.reason = why
-
-    def visit(self, e, ok: bool, where: str, prop: bool = False):
-        if self.reason is not None:
-            return
-        if self.is_id(e):
-            if not ok:
-                self.bad(f"an agent id ({_show(e)}) is used other than in ==, != or as an "
-                         f"agent index {where}")
-            return
-        if isinstance(e, A.Quant):
-            self.bound.add(e.var)
-            self.visit(e.body, False, where, prop)
-            return
-        if isinstance(e, A.Binary) and e.op in ("==", "!="):
-            li, ri = self.is_id(e.left), self.is_id(e.right)
-            if li or ri:
-                if (li or _sentinel(e.left)) and (ri or _sentinel(e.right)):
-                    return
-            self.visit(e.left, False, where, prop)
-            self.visit(e.right, False, where, prop)
-            return
-        if isinstance(e, A.Index):
-            if self._agent_indexed(e.base, prop):
-                if not self.is_id(e.index):
-                    self.bad(f"{_show(e)} names agent {_show(e.index)} {where}")
-                    return
-                return
-            self.visit(e.base, False, where, prop)
-            self.visit(e.index, False, where, prop)
-            return
-        if isinstance(e, A.Call) and prop and e.name == "count":
-            return
-        for c in _children(e):
-            self.visit(c, False, where, prop)
-
-    def _agent_indexed(self, base, prop) -> bool:
-        if not isinstance(base, A.Name):
-            return False
-        vs = self.lay.vars.get(base.name)
-        if prop:
-            return (vs is not None and vs.section in ("loc", "allread")) or \
-                (vs is None and base.name in ("pos", "doReach_done", "doReach_fail",
-                                              "exited", "stuck", "running"))
-        return vs is not None and vs.section == "allread"
-
-    def check(self) -> Optional[str]:
-        try:
-            return self._check()
-        except RecursionError:
-            return "an expression is too deeply nested for the agent-id analysis"
-
-    def _check(self) -> Optional[str]:
-        m = self.m
-        for d in m.program.decls:
-            if isinstance(d, A.VarDecl) and d.init is not None:
-                self.visit(d.init, d.name in self.ids, f"at line {d.span.line}")
-        for s in self.stmts:
-            where = f"at line {s.span.line}"
-            if isinstance(s, A.Assign):
-                t = s.target
-                if isinstance(t, A.Name):
-                    self.visit(s.value, t.name in self.ids, where)
-                else:
-                    self.visit(t, False, where)
-                    self.visit(s.value, False, where)
-            else:
-                for x in _stmt_exprs(s):
-                    self.visit(x, False, where)
-        for ev in m.program.events:
-            self.visit(ev.guard, False, f"in the guard of {ev.name} (line {ev.guard.span.line})")
-        for p in list(m.properties) + list(getattr(m, "temporal", ())):
-            self.bound = set()
-            self.visit(p.expr, False, f"in property `{p.text}`", prop=True)
-        self.bound = set()
-        return self.reason
-
-
-def _children(e):
-    if isinstance(e, A.ListLit):
-        return e.items
-    if isinstance(e, A.Index):
-        return (e.base, e.index)
-    if isinstance(e, A.Field):
-        return (e.base,)
-    if isinstance(e, A.Call):
-        return e.args
-    if isinstance(e, A.Unary):
-        return (e.operand,)
-    if isinstance(e, A.Binary):
-        return (e.left, e.right)
-    if isinstance(e, A.Quant):
-        return (e.body,)
-    if isinstance(e, A.Temporal):
-        return tuple(x for x in (e.p, e.q, e.bound) if x is not None)
-    return ()
-
-
-def _sentinel(e) -> bool:
-    """A negative integer constant (``-1``): never an agent id."""
-    if isinstance(e, A.IntLit):
-        return e.value < 0
-    return (isinstance(e, A.Unary) and e.op == "-" and isinstance(e.operand, A.IntLit)
-            and e.operand.value > 0)
-
-
-def _show(e) -> str:
-    if isinstance(e, A.Name):
-        return e.name
-    if isinstance(e, A.IntLit):
-        return str(e.value)
-    if isinstance(e, A.Call):
-        return f"{e.name}({', '.join(_show(a) for a in e.args)})"
-    if isinstance(e, A.Index):
-        return f"{_show(e.base)}[{_show(e.index)}]"
-    if isinstance(e, A.Unary):
-        return f"{e.op}{_show(e.operand)}"
-    if isinstance(e, A.Binary):
-        return f"{_show(e.left)} {e.op} {_show(e.right)}"
-    return "…"
-
-
 def positions_read(m) -> Optional[str]:
     """Why positions (and the doReach cell) matter, or None."""
     if m.collisions:
@@ -353,18 +194,17 @@ def symmetry_problem(m) -> tuple:
     why = positions_read(m)
     if why:
         return f"positions are read ({why})", None
-    info = _IdInfo(m)
-    why = info.check()
-    if why:
-        return why, None
+    info = IdTypes(m.compiled.layout, m.program, m.compiled.stmts.values(),
+                   [(p.expr, p.text) for p in list(m.properties) + list(m.temporal)])
+    if info.reason:
+        return info.reason, None
     lay = m.compiled.layout
     slots = ([vs.slot for vs in lay.local if vs.name in info.ids],
              [vs.slot for vs in lay.allread if vs.name in info.ids],
              [vs.slot for vs in lay.shared if vs.name in info.ids])
     # per-agent id variables that only ever hold the agent's own id (or a
     # sentinel) need no renaming: the fast canonical form applies
-    self_only = all(all(_sentinel(e) or (isinstance(e, A.Call) and e.name == "getAgentIndex")
-                        for e in info.defs.get(vs.name, ()))
+    self_only = all(all(is_sentinel(e) or is_own_id(e) for e in info.defs.get(vs.name, ()))
                     for vs in lay.local + lay.allread if vs.name in info.ids)
     return None, slots + (self_only,)
 
@@ -386,6 +226,13 @@ def use_limits(uses) -> dict:
         for name, why in USE_LIMITS.get(u, {}).items():
             out.setdefault(name, why)
     return out
+
+
+def _needs_two(name: str) -> PcclError:
+    """Asked for by name, a reduction that has nothing to reduce with one
+    agent is an error, not a silent no-op (as an unsound one is)."""
+    return PcclError(f"{name} reduction needs two or more agents (the team has one); "
+                     f"drop it from --reduce", filename="--reduce")
 
 
 def plan(m, reduce, uses=()) -> tuple:
@@ -417,10 +264,12 @@ def plan(m, reduce, uses=()) -> tuple:
             why = f"liveness property `{live[0]}` needs real cycles for its lassos"
         if why is None:
             on.append("symmetry")
-        elif want is not None and m.N >= 2:
+        elif want is not None and m.N < 2:
+            raise _needs_two("symmetry")
+        elif want is not None:
             raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
                             filename="--reduce")
-        elif m.N >= 2 or want is not None:
+        elif m.N >= 2:
             p.off["symmetry"] = why
     if "por" not in limits and (want is None or "por" in want):
         temporal = [t.text for t in getattr(m, "temporal", ())]
@@ -435,7 +284,7 @@ def plan(m, reduce, uses=()) -> tuple:
         elif m.N >= 2:
             on.append("por")
         elif want is not None:
-            p.off["por"] = "one agent"
+            raise _needs_two("por")
     p.on = tuple(on)
     return p, slots
 
