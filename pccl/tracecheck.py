@@ -421,7 +421,7 @@ def check(doc: Any, name: str) -> dict:
         doc = doc["trace"]        # the output of --format json
     if not isinstance(doc, dict) or doc.get("format") != T.FORMAT:
         raise PcclError("not a pccl trace file (no \"format\": \"pccl-trace\")", filename=name)
-    if doc.get("version") != T.VERSION:
+    if not _is_int(doc.get("version")) or doc.get("version") != T.VERSION:
         raise PcclError(f"trace format version {_show(doc.get('version'))} is not supported "
                         f"(this pccl reads version {T.VERSION})", filename=name)
     try:
