@@ -353,13 +353,13 @@ class _Steer(random.Random):
         self.picks = picks
         self.n = 0
 
-    def choice(self, seq):  # type: ignore[override]
+    def choice(self, seq):
         for s in seq:
             if s == self.first:
                 return s
         raise _Beyond()          # pragma: no cover - the replay found it among them
 
-    def randrange(self, start, stop=None, step=1):  # type: ignore[override]
+    def randrange(self, start, stop=None, step=1):
         if self.n >= len(self.picks):
             raise _Beyond()
         j, k = self.picks[self.n]
