@@ -37,7 +37,9 @@ RUN_STATUSES = ("final", "bounded", "violation", "deadlock", "max-steps", "stall
                 "interrupted")
 EXPLORE_STATUSES = ("violation", "exhaustive", "bounded", "interrupted")
 VIOLATION_KINDS = ("invariant", "assert", "stuck", "deadlock", "collision", "liveness",
-                   "timelock", "response", "unreachable")
+                   "timelock", "response", "unreachable",
+                   # a run's --property monitor: the property's own kind
+                   "eventually", "leadsto", "within")
 #: Kinds whose counterexample may be a lasso (``cycle_start``).
 LASSO_KINDS = ("liveness", "timelock")
 STATE_CELLS = ("time", "phase", "lockQueue", "env")
@@ -231,8 +233,8 @@ def _file(v, path, null=False):
 
 def _config(c) -> dict:
     _obj(c, "config", ("command", "program", "world", "blackbox", "agents", "delta", "n0",
-                       "rates", "events", "collisions", "overrides", "invariants", "max_time",
-                       "deadlock"))
+                       "rates", "events", "collisions", "overrides", "invariants", "properties",
+                       "max_time", "abstract_time", "deadlock", "pccl_version"))
     p = "config"
     _enum(c["command"], f"{p}.command", ("run", "explore"))
     _file(c["program"], f"{p}.program")
@@ -259,17 +261,15 @@ def _config(c) -> dict:
         for n, x in enumerate(_list(c["reductions"], f"{p}.reductions")):
             _enum(x, f"{p}.reductions[{n}]", ("merge", "symmetry", "por"))
     _number(c["max_time"], f"{p}.max_time", lo=0, null=True)
-    if c.get("abstract_time") is not None:
-        _boolean(c["abstract_time"], f"{p}.abstract_time")
+    _boolean(c["abstract_time"], f"{p}.abstract_time")
     _boolean(c["deadlock"], f"{p}.deadlock")
-    if "pccl_version" in c:
-        _string(c["pccl_version"], f"{p}.pccl_version", null=True)
+    _string(c["pccl_version"], f"{p}.pccl_version")
     if "seed" in c:
-        _integer(c["seed"], f"{p}.seed", null=True)
+        _integer(c["seed"], f"{p}.seed")
     if "max_steps" in c:
-        _integer(c["max_steps"], f"{p}.max_steps", 1, null=True)
+        _integer(c["max_steps"], f"{p}.max_steps", 1)
     if "stall_steps" in c:
-        _integer(c["stall_steps"], f"{p}.stall_steps", 0, null=True)
+        _integer(c["stall_steps"], f"{p}.stall_steps", 0)
     return c
 
 

@@ -489,3 +489,29 @@ def test_a_violation_record_must_match(lost_trace):
     res = cli("replay", rewrite(lost_trace, lambda d: d["result"]["violation"].__setitem__(
         "line", 99)))
     assert res.exit_code == 2 and "is not: invariant 'noLostUpdate' violated" in res.output
+
+
+def test_a_run_violating_a_temporal_property_replays(tmp_path):
+    # the run monitor's violation carries the property's kind ("within"); the
+    # schema and replay used to refuse such a file
+    t = record(tmp_path, "run", PROGRAMS / "fischer.pccl", "--set", "k=1", "--max-time", "30",
+               "--property", "start[0] ~> inCs[1] within 1", "--seed", "2")
+    d = json.loads(t.read_text())
+    assert d["result"]["violation"]["kind"] == "within"
+    import jsonschema
+    jsonschema.validate(d, json.loads((ROOT / "docs" / "trace-format.schema.json").read_text()),
+                        cls=jsonschema.Draft202012Validator)
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: start[0] ~> inCs[1] within 1: the premise held at t = 0" in res.output
+
+
+def test_a_stalled_run_replays_with_its_recorded_stall_steps(tmp_path):
+    t = record(tmp_path, "run", RDV, "--world", RDV_WALL, "-b", "straight", "--stall-steps", "3")
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: stalled since t = 1" in res.output
+    # a file without stall_steps (older) means the default, 20: this run
+    # would not have stopped yet
+    res = cli("replay", rewrite(t, lambda d: d["config"].pop("stall_steps")))
+    assert res.exit_code == 2 and "the replayed one goes on" in res.output

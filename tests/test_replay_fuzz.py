@@ -8,6 +8,8 @@ corrupted, the text cut off.  Each mutant is replayed in-process through the
 CLI (the conftest ``cli()`` helper fails on any exception or traceback) and:
 
 * the exit status is 0, 1 or 2;
+* a mutant the JSON Schema (docs/trace-format.schema.json) refuses exits 2:
+  the hand-written checks and the schema agree;
 * a mutant that parses to the very same document (as JSON, types included)
   replays as the original did;
 * a mutant that differs in what replay re-derives (the steps, the initial
@@ -27,6 +29,7 @@ import os
 import random
 from pathlib import Path
 
+import jsonschema
 import pytest
 
 from conftest import cli
@@ -46,6 +49,8 @@ SOURCES = {
             "--seed", "3"),
 }
 #: PCCL_FUZZ_MUTANTS=2000 for a longer search (CI runs the default)
+SCHEMA = jsonschema.Draft202012Validator(
+    json.loads((ROOT / "docs" / "trace-format.schema.json").read_text()))
 MUTANTS_PER_SOURCE = int(os.environ.get("PCCL_FUZZ_MUTANTS", "70"))
 
 
@@ -224,6 +229,11 @@ def test_mutated_trace_files_exit_0_1_or_2_and_never_reproduce_a_changed_path(
             where = f"{name} mutant {k}: {res.output[-300:]}"
             if doc is None:
                 assert res.exit_code == 2, where
+            elif not SCHEMA.is_valid(doc):
+                # the hand-written checks of pccl/tracecheck.py and the schema
+                # agree: a file the schema refuses is refused
+                assert res.exit_code == 2, where
+                assert "reproduced:" not in res.output, where
             else:
                 changed = _diff(original, doc)
                 if not changed:
