@@ -210,6 +210,7 @@ def rederived(path: tuple, source: str, doc: dict) -> bool:
     return False
 
 
+@pytest.mark.slow          # ~6 s of CPU, up to ~25 s on a loaded machine; CI runs it
 def test_mutated_trace_files_exit_0_1_or_2_and_never_reproduce_a_changed_path(
         sources, tmp_path):
     checked = refused = others = 0
