@@ -266,7 +266,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if record:
         cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
                        overrides=dict(overrides), invariants=invariants, seed=seed,
-                       max_steps=max_steps, property_texts=properties)
+                       max_steps=max_steps, property_texts=properties,
+                       stall_steps=stall_steps)
         doc = T.run_document(res, cfg)
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
@@ -534,22 +535,27 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
 
 
 @main.command(short_help="Re-execute a trace file; report the first divergence.",
-              epilog="Exit status: 0 a clean run reproduced, 1 a violation reproduced, 2 the "
-                     "trace diverges (or bad input).")
+              epilog="Exit status: 0 a clean run or a witness reproduced (or nothing to "
+                     "replay), 1 a violation reproduced, 2 the trace diverges, its verdict "
+                     "cannot be reproduced by a trace (unreachable), or bad input "
+                     "(docs/trace-format.md).")
 @click.argument("trace_file", metavar="FILE", type=click.Path(dir_okay=False))
+@click.option("--blackbox", "-b", default=None, metavar="MODULE:ATTR",
+              help="the user blackbox the trace was recorded with (it must be the one the "
+                   "file names); replay never imports a module named in the file itself")
 @view_options
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
-def replay(trace_file, view, full, plot):
+def replay(trace_file, blackbox, view, full, plot):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
-    rebuild the model from the recorded configuration, start from the recorded
-    initial state and check that every recorded step is enabled and makes the
-    recorded changes."""
+    check the file, rebuild the model from the recorded configuration, start
+    from the recorded initial state, check that every recorded step is enabled
+    and makes the recorded changes, and re-derive the recorded end."""
     from .replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
     try:
-        res = do_replay(trace_file)
+        res = do_replay(trace_file, blackbox=blackbox)
     except PcclError as e:
         _fail(e)
     cfg = res.doc["config"]

@@ -55,7 +55,7 @@ def _file(path) -> Optional[dict]:
 
 def config(command: str, model, *, program, world=None, blackbox="straight", agents=None,
            overrides=None, invariants=(), seed=None, max_time=None, max_steps=None,
-           deadlock=True, abstract_time=None, property_texts=()) -> dict:
+           deadlock=True, abstract_time=None, property_texts=(), stall_steps=None) -> dict:
     """The configuration of a ``run``/``explore`` command, enough to rebuild
     its model (:func:`model_from_config`)."""
     m = model
@@ -81,6 +81,8 @@ def config(command: str, model, *, program, world=None, blackbox="straight", age
     if command == "run":
         cfg["seed"] = seed
         cfg["max_steps"] = max_steps
+        if stall_steps is not None:
+            cfg["stall_steps"] = stall_steps
     return cfg
 
 
@@ -252,8 +254,9 @@ def document(model, cfg: dict, states: list, labels: list, *, status: str,
 
 
 def explore_document(res, cfg: dict) -> dict:
-    """The trace document of an :class:`~pccl.api.ExploreResult` (its first
-    counterexample; no steps when there is none)."""
+    """The trace document of an :class:`~pccl.api.ExploreResult`: its first
+    counterexample; without one the witness of the first ``reachable P``
+    that has one (``result.witness``); else no steps."""
     m = res.model
     if res.counterexamples:
         cx = res.counterexamples[0]
@@ -265,6 +268,13 @@ def explore_document(res, cfg: dict) -> dict:
                        violation=cx.violation, message=res.verdict)
         if cx.cycle_start is not None:
             doc["result"]["cycle_start"] = cx.cycle_start
+        return doc
+    if res.witnesses:           # reachable P holds: its (shortest) witness path
+        w = res.witnesses[0]
+        tr = w["_trace"]
+        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
+                       message=res.verdict)
+        doc["result"]["witness"] = {"name": w["name"], "text": w["text"]}
         return doc
     return document(m, cfg, [], [], status=res.status, message=res.verdict)
 

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
+import pytest
+
 from conftest import cli
+from pccl import traces as T
+from pccl.errors import PcclError
+from pccl.replay import replay as api_replay
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -155,3 +162,356 @@ def test_a_step_that_is_not_enabled_lists_the_enabled_ones(tmp_path):
     assert res.exit_code == 2
     assert "diverged at step 1 of 20 (agent 0 IDLE [Add] line 13" in res.output
     assert "that transition is not enabled; enabled here: agent 0 EVENT SELECT [Add]" in res.output
+
+
+# ---------------------------------------------------------------------------
+# trace files are data (issue 20): nothing named in a file is imported, every
+# malformed file is one message naming the field (exit 2), the end of a trace
+# is re-derived, not trusted
+# ---------------------------------------------------------------------------
+
+TESTS = ROOT / "tests"
+RDV = TESTS / "programs" / "rdv_meet.pccl"
+RDV_OPEN = TESTS / "programs" / "rdv_open.toml"
+RDV_WALL = TESTS / "programs" / "rdv_wall.toml"
+RACE_NA = PROGRAMS / "race_nonatomic.pccl"
+
+
+def pccl_exe() -> str:
+    return str(Path(sys.executable).with_name("pccl"))
+
+
+def rewrite(path, edit, name=None):
+    """A copy of the trace ``path`` with ``edit(doc)`` applied."""
+    d = json.loads(Path(path).read_text())
+    edit(d)
+    out = Path(path).with_name(name or "edited.json")
+    out.write_text(json.dumps(d))
+    return out
+
+
+def typed_state(path, k):
+    """The typed state after step k of the trace ``path`` (as replay rebuilds it)."""
+    r = api_replay(path)
+    return T.normal(T.state_typed(r.model, r.states[k]))
+
+
+@pytest.fixture(scope="module")
+def run_trace(tmp_path_factory):
+    d = tmp_path_factory.mktemp("run")
+    out = d / "run.json"
+    res = cli("run", PROGRAMS / "race.pccl", "--world", PROGRAMS / "race.toml", "-b", "instant",
+              "--seed", "3", "--trace-out", out)
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_a_trace_naming_os_abort_is_refused_and_nothing_runs(tmp_path):
+    # the issue: replay imported and called config.blackbox, os:abort killed it (exit 134)
+    t = record(tmp_path, "explore", LOST, "--reduce", "none")
+    bad = rewrite(t, lambda d: d["config"].__setitem__("blackbox", "os:abort"))
+    p = subprocess.run([pccl_exe(), "replay", str(bad)], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 2, (p.returncode, p.stdout, p.stderr)
+    assert "Traceback" not in p.stderr
+    assert (f"{bad}: error: config.blackbox: the trace names the user blackbox 'os:abort'; "
+            "replay does not import code a trace file names: if you trust it, pass "
+            "--blackbox os:abort") in p.stderr
+    # given on the command line it must be the file's own name
+    res = cli("replay", bad, "--blackbox", "os:getcwd")
+    assert res.exit_code == 2
+    assert ("config.blackbox: the trace was recorded with blackbox 'os:abort', but --blackbox "
+            "gives 'os:getcwd'") in res.output
+
+
+def test_a_user_blackbox_replays_only_when_the_user_names_it(tmp_path):
+    bb = tmp_path / "hop_bb.py"
+    shutil.copy(TESTS / "replay_user_bb.py", bb)
+    marker = bb.with_suffix(".imported")
+    spec = f"{bb}:BLACKBOX"
+    t = record(tmp_path, "run", RDV, "--world", RDV_OPEN, "-b", spec, "--seed", "1")
+    assert json.loads(t.read_text())["config"]["blackbox"] == spec
+    marker.unlink()
+    res = cli("replay", t)
+    assert res.exit_code == 2 and f"pass --blackbox {spec}" in res.output
+    assert not marker.exists()              # not imported
+    res = cli("replay", t, "--blackbox", spec)
+    assert res.exit_code == 0, res.output
+    assert "blackbox hop" in res.output and "reproduced: final" in res.output
+    assert marker.exists()
+    # another blackbox than the file's: refused, naming both
+    res = cli("replay", t, "--blackbox", "instant")
+    assert res.exit_code == 2
+    assert f"recorded with blackbox '{spec}', but --blackbox gives 'instant'" in res.output
+
+
+def test_the_api_takes_a_blackbox_object_checked_against_the_file(tmp_path):
+    import importlib.util
+    bb = tmp_path / "hop_api.py"
+    shutil.copy(TESTS / "replay_user_bb.py", bb)
+    t = record(tmp_path, "run", RDV, "--world", RDV_OPEN, "-b", f"{bb}:BLACKBOX", "--seed", "1")
+    spec = importlib.util.spec_from_file_location("hop_api_for_test", bb)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    # an object of the same name: the file named it as module:attr (the
+    # module loaded under another name here), its name is "hop"
+    with pytest.raises(PcclError, match="config.blackbox: the trace names the user blackbox"):
+        api_replay(t)
+    doc = json.loads(t.read_text())
+    doc["config"]["blackbox"] = "hop"             # how the API records an object
+    t2 = tmp_path / "api.json"
+    t2.write_text(json.dumps(doc))
+    r = api_replay(t2, blackbox=mod.BLACKBOX)
+    assert (r.status, r.exit_status) == ("clean", 0), r.message
+    from pccl.blackboxes import INSTANT
+    with pytest.raises(PcclError, match="recorded with blackbox 'hop', but the blackbox given "
+                                        "is 'instant'"):
+        api_replay(t2, blackbox=INSTANT)
+
+
+MALFORMED = {
+    # name: (how the file is made from a good one's text, or its parsed
+    # document; the message expected)
+    "invalid UTF-8": (lambda text: text.encode().replace(b'"pccl-trace"', b'"pccl-\xfftrace"'),
+                      "not a trace file: not UTF-8 (byte 0xff at offset"),
+    "an integer of 5,000 digits": (lambda text: text.replace('"index": 1,', '"index": ' + "9" * 5000 + ",", 1),
+                                   "not a trace file: an integer of 5000 digits (at most 4300)"),
+    "deeply nested JSON": (lambda text: text.replace('"steps": [', '"steps": ' + "[" * 100_000, 1),
+                           "not a trace file: nested too deeply"),
+    "a violation of the wrong type": (lambda d: d["result"].__setitem__("violation", "bad"),
+                                      "result.violation: expected an object, got a string"),
+    "a missing config": (lambda d: d.pop("config"), "config: missing"),
+    "steps not a list": (lambda d: d.__setitem__("steps", {"0": d["steps"][0]}),
+                         "steps: expected a list, got an object"),
+    "a step of the wrong type": (lambda d: d["steps"].__setitem__(3, "STATEMENT"),
+                                 "steps[3]: expected an object, got a string"),
+    "changes of the wrong type": (lambda d: d["steps"][2].__setitem__("changes", 5),
+                                  "steps[2].changes: expected a list, got an integer 5"),
+    "a cell of the wrong type": (lambda d: d["steps"][2]["changes"][0].__setitem__("cell", "total"),
+                                 "steps[2].changes[0].cell: expected an object, got a string"),
+    "an agent index of the wrong type": (lambda d: d["initial"].__setitem__("agents", "two"),
+                                         "initial.agents: expected a list, got a string"),
+}
+
+
+@pytest.fixture(scope="module")
+def lost_trace(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lost") / "lost.json"
+    res = cli("explore", LOST, "--reduce", "none", "--trace-out", out)
+    assert res.exit_code == 1
+    return out
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED))
+def test_a_malformed_trace_is_one_message_naming_the_field(lost_trace, tmp_path, case):
+    make, message = MALFORMED[case]
+    text = lost_trace.read_text()
+    bad = tmp_path / "bad.json"
+    if make.__code__.co_varnames[0] == "text":
+        out = make(text)
+    else:                                       # an edit of the parsed document
+        d = json.loads(text)
+        make(d)
+        out = json.dumps(d, indent=1)
+    if isinstance(out, bytes):
+        bad.write_bytes(out)
+    else:
+        bad.write_text(out)
+    res = cli("replay", bad)
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"{bad}"), res.output
+    assert message in lines[0], res.output
+
+
+def test_a_json_syntax_error_names_line_and_column(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "pccl-trace",\n  "version": 1,\n  "config": }\n')
+    res = cli("replay", bad)
+    assert res.exit_code == 2
+    assert res.output.startswith(f"{bad}:3:13: error: not a JSON trace file: Expecting value")
+
+
+def test_a_run_trace_with_its_steps_removed_does_not_reproduce(run_trace, tmp_path):
+    # the issue: it replayed as "reproduced: final — every agent exited"
+    t = rewrite(run_trace, lambda d: d.__setitem__("steps", []))
+    res = cli("replay", t)
+    assert res.exit_code == 2, res.output
+    assert "the recorded final state is not the last state" in res.output
+    # final made consistent as well: the run does not end at the initial state
+    init = json.loads(run_trace.read_text())["initial"]
+    t = rewrite(t, lambda d: d.__setitem__("final", init), "edited2.json")
+    res = cli("replay", t)
+    assert res.exit_code == 2, res.output
+    assert ("the recorded run ends here (final: every agent exited) and the replayed one goes "
+            "on") in res.output
+    assert "reproduced:" not in res.output
+
+
+def test_a_run_result_rewritten_to_deadlock_does_not_reproduce(run_trace):
+    # the issue: it replayed as "reproduced: deadlock"
+    t = rewrite(run_trace, lambda d: d["result"].__setitem__("status", "deadlock"))
+    res = cli("replay", t)
+    assert res.exit_code == 2, res.output
+    assert ("the recorded result (deadlock: every agent exited) does not match the replayed "
+            "run's (final: every agent exited)") in res.output
+
+
+def test_a_run_cut_short_does_not_reproduce(run_trace):
+    d = json.loads(run_trace.read_text())
+    k = len(d["steps"]) - 5
+    final = typed_state(run_trace, k)
+
+    def cut(d):
+        d["steps"] = d["steps"][:k]
+        d["final"] = final
+    res = cli("replay", rewrite(run_trace, cut))
+    assert res.exit_code == 2, res.output
+    assert "the replayed one goes on" in res.output
+
+
+def test_the_end_of_a_run_agrees_with_the_runner(tmp_path):
+    # two ways to the same verdict: the run's own result and the replay's
+    # re-derivation of it, over runs that end differently
+    cases = [("run", PROGRAMS / "race.pccl", "--world", PROGRAMS / "race.toml", "-b", "instant"),
+             ("run", RACE_NA, "--world", PROGRAMS / "race.toml", "-b", "nondet", "--agents", "3"),
+             ("run", PROGRAMS / "fischer.pccl", "--set", "k=1", "--max-time", "8",
+              "--invariant", "count(inCs) <= 1")]
+    seen = set()
+    for n, case in enumerate(cases):
+        for seed in (1, 5):
+            t = record(tmp_path, *case, "--seed", seed, name=f"r{n}_{seed}.json")
+            rec = json.loads(t.read_text())["result"]
+            res = cli("replay", t)
+            assert res.exit_code == (1 if rec["violation"] else 0), res.output
+            assert "reproduced:" in res.output and rec["message"] in res.output
+            seen.add(rec["status"])
+    assert len(seen) >= 2, seen
+
+
+@pytest.fixture(scope="module")
+def lasso_trace(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lasso") / "lasso.json"
+    res = cli("explore", RDV, "--world", RDV_WALL, "-b", "straight", "--property",
+              "eventually forall i: exited[i]", "--trace-out", out)
+    assert res.exit_code == 1
+    return out
+
+
+def test_a_lasso_replays_and_closes(lasso_trace):
+    d = json.loads(lasso_trace.read_text())
+    cs = d["result"]["cycle_start"]
+    res = cli("replay", lasso_trace)
+    assert res.exit_code == 1, res.output
+    assert f"a lasso: the cycle from step {cs} closes" in res.output
+
+
+def test_a_lasso_whose_cycle_was_cut_off_is_refused(lasso_trace):
+    # the issue: a lasso whose cycle was cut off was accepted
+    d = json.loads(lasso_trace.read_text())
+    k = len(d["steps"]) - 2
+    final = typed_state(lasso_trace, k)
+
+    def cut(d):
+        d["steps"] = d["steps"][:k]
+        d["final"] = final
+    res = cli("replay", rewrite(lasso_trace, cut))
+    assert res.exit_code == 2, res.output
+    assert (f"the cycle does not close: the last state is not the state after step "
+            f"{d['result']['cycle_start']}") in res.output
+
+
+def test_a_lasso_must_be_a_counterexample_of_its_property(lasso_trace):
+    # the same lasso claimed for a property it does not violate
+    def other(d):
+        d["config"]["property_options"] = ["eventually met || !met"]
+        d["result"]["violation"]["name"] = "eventually met || !met"
+    res = cli("replay", rewrite(lasso_trace, other))
+    assert res.exit_code == 2, res.output
+    assert "`eventually met || !met` holds after step 0" in res.output
+    res = cli("replay", rewrite(lasso_trace, lambda d: d["result"].pop("cycle_start")))
+    assert res.exit_code == 2
+    assert "the path does not end in a terminal state" in res.output
+
+
+def test_an_unreachable_verdict_is_not_replayed_as_a_clean_run(tmp_path):
+    # the issue: it replayed with exit 0
+    t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--set", "k=0", "--property",
+               "reachable count(inCs) == 3")
+    res = cli("replay", t)
+    assert res.exit_code == 2, res.output
+    assert ("nothing to replay: the recorded verdict (unreachable: no reachable state "
+            "satisfies `reachable count(inCs) == 3`) is about every run of the model, and no "
+            "trace can reproduce it") in res.output
+
+
+def test_a_reachable_witness_is_written_and_replayed(tmp_path):
+    t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--set", "k=0", "--property",
+               "reachable count(inCs) == 1")
+    d = json.loads(t.read_text())
+    assert d["result"]["witness"] == {"name": "reachable count(inCs) == 1",
+                                      "text": "reachable count(inCs) == 1"}
+    assert d["result"]["violation"] is None and len(d["steps"]) >= 1
+    res = cli("replay", t)
+    assert res.exit_code == 0, res.output
+    assert (f"reproduced: witness — `reachable count(inCs) == 1` holds after "
+            f"{len(d['steps'])} steps") in res.output
+    # cut before the step that sets inCs (final made consistent): no witness
+    k = min(n for n, st in enumerate(d["steps"])
+            if any(c["cell"].get("var") == "inCs" and c["new"] is True for c in st["changes"]))
+    final = typed_state(t, k)
+
+    def cut(d):
+        d["steps"] = d["steps"][:k]
+        d["final"] = final
+    res = cli("replay", rewrite(t, cut))
+    assert res.exit_code == 2
+    assert "does not hold in the last state, so the path is no witness" in res.output
+
+
+def test_step_time_branch_and_final_are_checked(lost_trace):
+    res = cli("replay", rewrite(lost_trace, lambda d: d["steps"][3].__setitem__("time", 1)))
+    assert res.exit_code == 2
+    assert "diverged at step 4 of 20" in res.output and "its time differs" in res.output
+
+    def flip(d):
+        d["final"]["shared"]["total"] = 7
+    res = cli("replay", rewrite(lost_trace, flip))
+    assert res.exit_code == 2
+    assert "the recorded final state is not the last state (final.shared.total" in res.output
+    # 1 is not true: values are compared as JSON, with their types
+    res = cli("replay", rewrite(lost_trace, lambda d: d["initial"]["shared"].__setitem__(
+        "total", float(d["initial"]["shared"]["total"]))))
+    assert res.exit_code == 2 and "diverged at the initial state" in res.output
+
+
+def test_a_violation_record_must_match(lost_trace):
+    res = cli("replay", rewrite(lost_trace, lambda d: d["result"]["violation"].__setitem__(
+        "line", 99)))
+    assert res.exit_code == 2 and "is not: invariant 'noLostUpdate' violated" in res.output
+
+
+def test_a_run_violating_a_temporal_property_replays(tmp_path):
+    # the run monitor's violation carries the property's kind ("within"); the
+    # schema and replay used to refuse such a file
+    t = record(tmp_path, "run", PROGRAMS / "fischer.pccl", "--set", "k=1", "--max-time", "30",
+               "--property", "start[0] ~> inCs[1] within 1", "--seed", "2")
+    d = json.loads(t.read_text())
+    assert d["result"]["violation"]["kind"] == "within"
+    import jsonschema
+    jsonschema.validate(d, json.loads((ROOT / "docs" / "trace-format.schema.json").read_text()),
+                        cls=jsonschema.Draft202012Validator)
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: start[0] ~> inCs[1] within 1: the premise held at t = 0" in res.output
+
+
+def test_a_stalled_run_replays_with_its_recorded_stall_steps(tmp_path):
+    t = record(tmp_path, "run", RDV, "--world", RDV_WALL, "-b", "straight", "--stall-steps", "3")
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: stalled since t = 1" in res.output
+    # a file without stall_steps (older) means the default, 20: this run
+    # would not have stopped yet
+    res = cli("replay", rewrite(t, lambda d: d["config"].pop("stall_steps")))
+    assert res.exit_code == 2 and "the replayed one goes on" in res.output

@@ -568,4 +568,4 @@ def test_lasso_trace_file_validates_and_replays(tmp_path):
     assert doc["result"]["violation"]["kind"] == "liveness"
     rep = cli("replay", out)
     assert rep.exit_code == 1
-    assert "every step of the recorded liveness counterexample" in rep.output
+    assert "(after 14 steps; a lasso: the cycle from step 8 closes)" in rep.output

@@ -136,3 +136,27 @@ def test_enum_values_are_member_names(tmp_path):
 def test_trace_out_unwritable_is_refused_before_the_search(tmp_path):
     res = cli(*FISCHER_ARGS, "--trace-out", tmp_path / "nodir" / "x.json")
     assert res.exit_code == 2 and "--trace-out" in res.output
+
+
+def test_a_reachable_witness_is_the_trace_of_an_explore_without_violation(tmp_path):
+    # it used to be an empty trace: a 'reachable P' trace now carries its
+    # verdict, the witness path and the property (result.witness)
+    out = tmp_path / "w.json"
+    res = cli("explore", FISCHER, "--set", "k=0", "--property", "reachable count(inCs) == 1",
+              "--trace-out", out)
+    assert res.exit_code == 0
+    d = json.loads(out.read_text())
+    validate(d)
+    assert d["result"]["status"] == "exhaustive" and d["result"]["violation"] is None
+    assert d["result"]["witness"]["text"] == "reachable count(inCs) == 1"
+    assert d["steps"] and d["final"]["agents"][0]["variables"]["inCs"] != \
+        d["final"]["agents"][1]["variables"]["inCs"]
+
+
+def test_a_run_trace_records_stall_steps(tmp_path):
+    out = tmp_path / "r.json"
+    cli("run", RACE, "--world", RACE_WORLD, "--seed", "1", "--stall-steps", "7",
+        "--trace-out", out)
+    d = json.loads(out.read_text())
+    validate(d)
+    assert d["config"]["stall_steps"] == 7
