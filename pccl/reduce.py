@@ -32,7 +32,7 @@ from . import ast as A
 from .errors import PcclError
 from .semantics import rules as R
 from .scalarset import IdTypes, is_own_id, is_sentinel
-from .layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, RUNNING, SH,
+from .layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, REACH, RUNNING, SH,
                      STATUS, TIME)
 from .semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
 
@@ -191,9 +191,12 @@ def symmetry_problem(m) -> tuple:
         builtin = False
     if not builtin:
         return f"blackbox {bb} may treat agents differently", None
-    why = positions_read(m)
-    if why:
-        return f"positions are read ({why})", None
+    # positions, targets and reach flags move with their agent under the
+    # permutation (issue 23): the built-in blackboxes treat robots alike and
+    # keep no per-robot env; when nothing reads positions they leave the key
+    motion = positions_read(m) is not None
+    if motion and m.blackbox.init_env(m.world, m.N) is not None:
+        return f"blackbox {bb} keeps an environment state that is not permuted", None
     info = IdTypes(m.compiled.layout, m.program, m.compiled.stmts.values(),
                    [(p.expr, p.text) for p in list(m.properties) + list(m.temporal)])
     if info.reason:
@@ -206,7 +209,7 @@ def symmetry_problem(m) -> tuple:
     # sentinel) need no renaming: the fast canonical form applies
     self_only = all(all(is_sentinel(e) or is_own_id(e) for e in info.defs.get(vs.name, ()))
                     for vs in lay.local + lay.allread if vs.name in info.ids)
-    return None, slots + (self_only,)
+    return None, slots + (self_only, motion)
 
 
 #: Uses of a search that some reductions cannot serve: use -> {reduction:
@@ -545,10 +548,10 @@ class Por:
 def make_symmetric_key(m, slots):
     """A key function returning a canonical representative of the state's
     orbit under permutations of agent ids."""
-    loc_s, ar_s, sh_s, self_only = slots
+    loc_s, ar_s, sh_s, self_only, motion = slots
     dumps = marshal.dumps
     if self_only:
-        return _self_only_key(m, loc_s, ar_s, sh_s)
+        return _self_only_key(m, loc_s, ar_s, sh_s, motion)
     abstract = m.abstract_time
     N = m.N
     has_ids = bool(loc_s or ar_s or sh_s)
@@ -583,10 +586,12 @@ def make_symmetric_key(m, slots):
             cells = tuple((a[PC], a[CNT], a[LCK], a[STATUS],
                            ren(a[LOC], loc_s, r) if loc_s else a[LOC],
                            ren(a[AR], ar_s, r) if ar_s else a[AR])
+                          + ((a[POS], a[REACH]) if motion else ())
                           for a in (ags[o] for o in order))
             sh = ren(st[SH], sh_s, r) if sh_s else st[SH]
         else:
-            cells = tuple(ags[o][:POS] for o in order)     # the cells before position
+            # the whole cell moves with its agent; unread positions leave the key
+            cells = tuple(ags[o] if motion else ags[o][:POS] for o in order)
             sh = st[SH]
         lq = tuple(r[x] for x in st[LQ])
         if abstract:
@@ -607,7 +612,8 @@ def make_symmetric_key(m, slots):
                 refs = tuple(sh[k] == j for k in sh_s)
             else:
                 lv, av, refs = a[LOC], a[AR], ()
-            sk.append(dumps(((a[PC], a[CNT], a[LCK], a[STATUS], lv, av), refs,
+            sk.append(dumps(((a[PC], a[CNT], a[LCK], a[STATUS], lv, av)
+                             + ((a[POS], a[REACH]) if motion else ()), refs,
                              lq.index(j) if j in lq else -1), 2))
         order = sorted(range(N), key=sk.__getitem__)
         if not any_other:
@@ -632,7 +638,7 @@ def make_symmetric_key(m, slots):
 SELF = float("-inf")
 
 
-def _self_only_key(m, loc_s, ar_s, sh_s):
+def _self_only_key(m, loc_s, ar_s, sh_s, motion):
     """The canonical key when per-agent id variables hold only the agent's
     own id or a sentinel: such a value is replaced by :data:`SELF` (its
     renamed value is the cell's place, so nothing is lost); agents are
@@ -670,7 +676,8 @@ def _self_only_key(m, loc_s, ar_s, sh_s):
                     if ar[k] == j:
                         ar[k] = SELF
                 ar = tuple(ar)
-            items.append(((a[PC], a[CNT], a[LCK], a[STATUS], loc, ar),
+            items.append(((a[PC], a[CNT], a[LCK], a[STATUS], loc, ar)
+                          + ((a[POS], a[REACH]) if motion else ()),
                           (sh[s1] == j,) if s1 is not None else
                           tuple([sh[k] == j for k in sh_s]) if sh_s else (),
                           lq.index(j) if j in lq else -1, j))

@@ -201,7 +201,7 @@ def check(seed: int, reductions=("symmetry", "merge", "por")) -> dict:
     return out
 
 
-def orbits_agree(text, agents, invariants, limit=5_000) -> bool:
+def orbits_agree(text, agents, invariants, limit=5_000, **options) -> bool:
     """The symmetry key is a bisimulation that respects the properties: over
     the unreduced reachable states, all states with one canonical key have
     the same set of successor keys and the same violations (kind, name,
@@ -209,6 +209,7 @@ def orbits_agree(text, agents, invariants, limit=5_000) -> bool:
     far finer than the verdict, it fails on a program that tells agents
     apart even where no property happens to notice."""
     kw = dict(source=True, agents=agents, blackbox="instant", invariants=invariants)
+    kw.update(options)
     sym = make_model(text, reduce="symmetry", **kw)
     full = make_model(text, reduce="none", **kw)
     key = sym.key
