@@ -18,7 +18,7 @@ from pccl.errors import PcclError
 
 from .base import Blackbox, Motion, Outcome
 from .instant import INSTANT, Instant
-from .nondet import NONDET, Nondet
+from .nondet import NONDET, NONDET_FAIL, Nondet
 from .pymunk_bb import PYMUNK, PymunkBlackbox
 from .straight import STRAIGHT, Straight
 
@@ -26,6 +26,7 @@ BLACKBOXES = {
     "instant": INSTANT,
     "straight": STRAIGHT,
     "nondet": NONDET,
+    "nondet-fail": NONDET_FAIL,
     "pymunk": PYMUNK,
 }
 
@@ -33,7 +34,7 @@ DEFAULT_BLACKBOX = "straight"
 
 __all__ = ["BLACKBOXES", "DEFAULT_BLACKBOX", "load_blackbox", "Blackbox",
            "Motion", "Outcome", "Instant", "Straight", "Nondet",
-           "PymunkBlackbox", "INSTANT", "STRAIGHT", "NONDET", "PYMUNK"]
+           "PymunkBlackbox", "INSTANT", "STRAIGHT", "NONDET", "NONDET_FAIL", "PYMUNK"]
 
 _REQUIRED = ("name", "uses_time", "init_env", "step")
 
