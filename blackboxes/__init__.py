@@ -69,6 +69,12 @@ def load_blackbox(spec: str):
     if not modname or not attr:
         raise PcclError(f"bad blackbox '{spec}': write module:attribute, "
                         f"e.g. mymodule:BLACKBOX (or one of: {_names()})")
+    if modname.lower() in BLACKBOXES and importlib.util.find_spec(modname) is None:
+        guess = f"{modname.lower()}-{attr.lower()}"
+        hint = (f" (did you mean '{guess}'?)" if guess in BLACKBOXES else "")
+        raise PcclError(f"bad blackbox '{spec}': '{modname}' is a shipped blackbox, "
+                        f"not a module{hint}; valid names: {_names()}, or "
+                        "module:attribute for your own")
     module = _import(modname, spec)
     obj = module
     for part in attr.split("."):
