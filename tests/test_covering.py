@@ -21,7 +21,6 @@ from pccl import api
 from pccl.blackboxes import load_blackbox
 from pccl.blackboxes.base import Motion
 from pccl.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
-from pccl.parser import parse_program
 from pccl.world import parse_world
 
 from conftest import PROGRAMS, TEST_PROGRAMS
