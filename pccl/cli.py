@@ -13,9 +13,10 @@ from .errors import PcclError
 from .layout import AGS, POS, STATUS, TIME
 from .options import ExploreOptions, ModelOptions, RunOptions
 
-BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
-                 "for your own [default: straight; explore: nondet for a program that calls "
-                 "doReach, so that every timing is explored]")
+BLACKBOX_HELP = ("environment model: instant, straight, nondet, nondet-fail, pymunk, or "
+                 "module:attribute for your own [default: straight; explore: nondet for a "
+                 "program that calls doReach: every timing, and every failure straight or "
+                 "pymunk could report]")
 
 
 class RateType(click.ParamType):
