@@ -18,7 +18,7 @@ from pccl.errors import PcclError
 
 from .base import Blackbox, Motion, Outcome
 from .instant import INSTANT, Instant
-from .nondet import NONDET, Nondet
+from .nondet import NONDET, NONDET_FAIL, Nondet
 from .pymunk_bb import PYMUNK, PymunkBlackbox
 from .straight import STRAIGHT, Straight
 
@@ -26,6 +26,7 @@ BLACKBOXES = {
     "instant": INSTANT,
     "straight": STRAIGHT,
     "nondet": NONDET,
+    "nondet-fail": NONDET_FAIL,
     "pymunk": PYMUNK,
 }
 
@@ -33,7 +34,7 @@ DEFAULT_BLACKBOX = "straight"
 
 __all__ = ["BLACKBOXES", "DEFAULT_BLACKBOX", "load_blackbox", "Blackbox",
            "Motion", "Outcome", "Instant", "Straight", "Nondet",
-           "PymunkBlackbox", "INSTANT", "STRAIGHT", "NONDET", "PYMUNK"]
+           "PymunkBlackbox", "INSTANT", "STRAIGHT", "NONDET", "NONDET_FAIL", "PYMUNK"]
 
 _REQUIRED = ("name", "uses_time", "init_env", "step")
 
@@ -68,6 +69,12 @@ def load_blackbox(spec: str):
     if not modname or not attr:
         raise PcclError(f"bad blackbox '{spec}': write module:attribute, "
                         f"e.g. mymodule:BLACKBOX (or one of: {_names()})")
+    if modname.lower() in BLACKBOXES and importlib.util.find_spec(modname) is None:
+        guess = f"{modname.lower()}-{attr.lower()}"
+        hint = (f" (did you mean '{guess}'?)" if guess in BLACKBOXES else "")
+        raise PcclError(f"bad blackbox '{spec}': '{modname}' is a shipped blackbox, "
+                        f"not a module{hint}; valid names: {_names()}, or "
+                        "module:attribute for your own")
     module = _import(modname, spec)
     obj = module
     for part in attr.split("."):

@@ -53,6 +53,7 @@ class Obstacles:
             self.bounds = (math.inf, math.inf, -math.inf, -math.inf)
         self._points: dict = {}
         self._segments: dict = {}
+        self._near: dict = {}
         self._roadmaps: dict = {}
         self._pymunk_parts: Optional[tuple] = None
 
@@ -92,6 +93,28 @@ class Obstacles:
             if len(self._segments) >= _RESULT_CACHE_LIMIT:
                 self._segments.clear()
             self._segments[key] = hit
+        return hit
+
+    def near_segment(self, x0: float, y0: float, x1: float, y1: float,
+                     clearance: float) -> bool:
+        """True if the closed segment (x0, y0)-(x1, y1) comes closer than
+        ``clearance`` to an obstacle (touching it included)."""
+        if self.empty:
+            return False
+        b = self.bounds
+        c = clearance
+        if (max(x0, x1) < b[0] - c or min(x0, x1) > b[2] + c
+                or max(y0, y1) < b[1] - c or min(y0, y1) > b[3] + c):
+            return False
+        key = (x0, y0, x1, y1, c)
+        hit = self._near.get(key)
+        if hit is None:
+            g = (shapely.Point(x0, y0) if x0 == x1 and y0 == y1
+                 else shapely.LineString(((x0, y0), (x1, y1))))
+            hit = bool(shapely.distance(self.union, g) < c)
+            if len(self._near) >= _RESULT_CACHE_LIMIT:
+                self._near.clear()
+            self._near[key] = hit
         return hit
 
     def roadmap(self, radius: float) -> "Roadmap":
@@ -168,6 +191,40 @@ def obstacles_of(*parts) -> Obstacles:
         _id_cache.clear()
     _id_cache[ids] = (parts, obs)          # holds the parts: ids stay unique
     return obs
+
+
+def segment_distance(a, b, c, d) -> float:
+    """The distance between the closed segments a-b and c-d (points are
+    ``(x, y, ...)``; only x and y count)."""
+    ax, ay, bx, by = float(a[0]), float(a[1]), float(b[0]), float(b[1])
+    cx, cy, dx, dy = float(c[0]), float(c[1]), float(d[0]), float(d[1])
+    if _segments_cross(ax, ay, bx, by, cx, cy, dx, dy):
+        return 0.0
+    return min(_point_segment(ax, ay, cx, cy, dx, dy),
+               _point_segment(bx, by, cx, cy, dx, dy),
+               _point_segment(cx, cy, ax, ay, bx, by),
+               _point_segment(dx, dy, ax, ay, bx, by))
+
+
+def _point_segment(px, py, ax, ay, bx, by) -> float:
+    ux, uy = bx - ax, by - ay
+    L2 = ux * ux + uy * uy
+    if L2 == 0.0:
+        return math.hypot(px - ax, py - ay)
+    k = max(0.0, min(1.0, ((px - ax) * ux + (py - ay) * uy) / L2))
+    return math.hypot(px - (ax + k * ux), py - (ay + k * uy))
+
+
+def _segments_cross(ax, ay, bx, by, cx, cy, dx, dy) -> bool:
+    """Proper or improper intersection of two segments (collinear overlaps
+    are found by the point–segment distances, which are then 0)."""
+    def orient(px, py, qx, qy, rx, ry):
+        return (qx - px) * (ry - py) - (qy - py) * (rx - px)
+    d1 = orient(cx, cy, dx, dy, ax, ay)
+    d2 = orient(cx, cy, dx, dy, bx, by)
+    d3 = orient(ax, ay, bx, by, cx, cy)
+    d4 = orient(ax, ay, bx, by, dx, dy)
+    return ((d1 > 0 > d2 or d1 < 0 < d2) and (d3 > 0 > d4 or d3 < 0 < d4))
 
 
 # ----------------------------------------------------------------------

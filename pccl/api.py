@@ -160,6 +160,45 @@ def fixed_timing_note(model) -> Optional[str]:
         return None
     return f"travel times fixed by {bb.name}; -b {EXPLORE_MOVING_DEFAULT} explores every timing"
 
+#: Shipped blackboxes that cover straight and pymunk except for positions in
+#: mid-motion (docs/blackboxes.md, "What each blackbox covers").
+COVERING_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
+
+
+def positions_read_in_motion(model) -> Optional[str]:
+    """Where ``model`` reads robots' positions, which a covering blackbox
+    (``nondet``) does not enumerate in mid-motion: the first
+    ``getPosition()``, ``pos`` in a property, or ``--collisions``; None if
+    the program observes motion only through the doReach flags."""
+    if model.collisions:
+        return "--collisions"
+    lines = [e.span.line for e in A.walk(model.program)
+             if isinstance(e, A.Call) and e.name == "getPosition"]
+    if lines:
+        return f"getPosition() at line {min(lines)}"
+    for p in list(model.properties) + list(getattr(model, "temporal", ())):
+        for e in A.walk_expr(p.expr):
+            if isinstance(e, A.Name) and e.name == "pos":
+                return f"pos in property `{p.text}`"
+    return None
+
+
+def not_covered_note(model) -> Optional[str]:
+    """Under a covering blackbox (``nondet``, ``nondet-fail``), what of the
+    physical blackboxes' behaviours the search does not cover, for the
+    header of ``pccl explore``: ``positions in mid-motion not covered
+    (getPosition() at line 29)``; None when nothing is left out."""
+    from .blackboxes import BLACKBOXES
+    bb = model.blackbox
+    name = getattr(bb, "name", None)
+    if name not in COVERING_BLACKBOXES or BLACKBOXES.get(name) is not bb:
+        return None
+    if not program_moves(model.program):
+        return None
+    why = positions_read_in_motion(model)
+    return f"positions in mid-motion not covered ({why})" if why else None
+
+
 @dataclass
 class ExploreResult:
     """What :func:`explore` found.  ``violation``/``violations`` are
@@ -190,6 +229,8 @@ class ExploreResult:
     notes: list = field(default_factory=list)
     timelock: bool = False            # whether the time-lock check ran
     bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
+    #: what the covering blackbox leaves out of straight's and pymunk's behaviours
+    not_covered: Optional[str] = None
 
     @property
     def exhaustive(self) -> bool:
@@ -377,7 +418,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                          sr.collision_probability, model, sr, list(sr.found),
                          cov.report() if cov is not None else None, witnesses,
                          list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped,
-                         timelock, labels)
+                         timelock, labels, not_covered_note(model))
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

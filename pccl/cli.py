@@ -13,9 +13,10 @@ from .errors import PcclError
 from .layout import AGS, POS, STATUS, TIME
 from .options import ExploreOptions, ModelOptions, RunOptions
 
-BLACKBOX_HELP = ("environment model: instant, straight, nondet, pymunk, or module:attribute "
-                 "for your own [default: straight; explore: nondet for a program that calls "
-                 "doReach, so that every timing is explored]")
+BLACKBOX_HELP = ("environment model: instant, straight, nondet, nondet-fail, pymunk, or "
+                 "module:attribute for your own [default: straight; explore: nondet for a "
+                 "program that calls doReach: every timing, and every failure straight or "
+                 "pymunk could report]")
 
 
 class RateType(click.ParamType):
@@ -856,6 +857,10 @@ def _explore_header(program, m) -> str:
     it was chosen, when by default), options."""
     reason = getattr(m, "blackbox_reason", None)
     why = f" ({reason})" if reason else ""
+    from .api import not_covered_note
+    uncovered = not_covered_note(m)
+    if uncovered:
+        why += f", {uncovered}"
     return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
             f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
             f"time abstraction {'on' if m.abstract_time else 'off'}, "
@@ -939,7 +944,8 @@ def _explore_json(program, res) -> dict:
             "witnesses": [{"name": w["name"], "text": w["text"], "depth": w["depth"],
                            "trace": [s.to_json() for s in w["trace"]],
                            "state": w["state"].to_json()} for w in res.witnesses],
-            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock}
+            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
+            "not_covered": res.not_covered}
 
 
 if __name__ == "__main__":  # pragma: no cover

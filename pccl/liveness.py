@@ -403,6 +403,11 @@ class LivenessResult:
     notes: list = field(default_factory=list)        # what could not be decided, and why
 
 
+#: Blackboxes under which a robot may stay under way at every step; liveness
+#: assumes it settles (arrives or fails) eventually, as physical robots do.
+FAIR_ARRIVAL_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
+
+
 def wants_graph(model, timelock: bool) -> bool:
     return timelock or bool(getattr(model, "temporal", ()))
 
@@ -411,7 +416,8 @@ def make_recorder(model, timelock: bool) -> Optional[GraphRecorder]:
     if not wants_graph(model, timelock):
         return None
     props = list(model.temporal)
-    fair = getattr(model.blackbox, "name", None) == "nondet" and any(p.liveness for p in props)
+    fair = (getattr(model.blackbox, "name", None) in FAIR_ARRIVAL_BLACKBOXES
+            and any(p.liveness for p in props))
     return GraphRecorder(model, props, fairness=fair)
 
 

@@ -50,7 +50,7 @@ PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition",
 
 #: Blackboxes known to treat agents alike and to keep an agent without a
 #: target where it is.
-SYMMETRIC_BLACKBOXES = frozenset({"instant", "straight", "nondet"})
+SYMMETRIC_BLACKBOXES = frozenset({"instant", "straight", "nondet", "nondet-fail"})
 
 
 @dataclass

@@ -207,7 +207,8 @@ class ReferenceModel:
                  rates: Optional[dict] = None, events: str = "any",
                  max_time=None, blackbox: str = "instant",
                  abstract_time: bool = True, functions: Optional[dict] = None,
-                 starts=None, resolution: float = 0.01):
+                 starts=None, resolution: float = 0.01, radius: float = 0.25,
+                 speed: float = 1.0):
         assert events in ("any", "first")
         assert blackbox in ("instant", "nondet")
         self.program = program
@@ -222,6 +223,8 @@ class ReferenceModel:
         self.blackbox = blackbox
         self.abstract_time = abstract_time
         self.resolution = resolution
+        self.radius = radius
+        self.speed = speed
         self.functions = {"getInput": (), "getObs": ()}
         self.functions.update(functions or {})
         if starts is None:
@@ -715,21 +718,33 @@ class ReferenceModel:
                  (x, y compared after rounding to the resolution; an agent at
                  its target is done).  Agents without a target stay, flags
                  false.  Exited and stuck agents are treated like the others.
+                 A moving agent may also fail (stays, fail true) when another
+                 robot's body could block it (docs/blackboxes.md): its path
+                 comes within 2 radii of the other's path (if that one moves)
+                 or position; or when steps are slow (speed * delta < 10
+                 resolutions).  A failed agent stays failed.
         """
+        moving = [a.target is not None and not a.done and not a.fail
+                  and a.pos[:2] != a.target[:2] for a in st.agents]
         per_agent = []
-        for a in st.agents:
+        for i, a in enumerate(st.agents):
             if a.target is None:
                 per_agent.append([(a.pos, False, False)])          # held in place
             elif self.blackbox == "instant":
                 per_agent.append([(a.target, True, False)])         # arrives
             else:  # nondet
-                if a.done or a.pos[:2] == a.target[:2]:
+                if a.fail:
+                    per_agent.append([(a.pos, False, True)])
+                elif a.done or a.pos[:2] == a.target[:2]:
                     # arrived earlier, or asked to go where it already is:
                     # not a moving agent; it is at its target, done
                     per_agent.append([(a.pos, True, False)])
                 else:
-                    per_agent.append([(a.target, True, False),      # arrives
-                                      (a.pos, False, False)])       # stays
+                    opts = [(a.target, True, False),                # arrives
+                            (a.pos, False, False)]                  # stays
+                    if self._may_be_blocked(st, moving, i):
+                        opts.append((a.pos, False, True))           # fails
+                    per_agent.append(opts)
         out = []
         for combo in itertools.product(*per_agent):
             w = Work(st)
@@ -741,6 +756,23 @@ class ReferenceModel:
             w.phase = "discrete"
             out.append(("DOREACH INVOKE", w.freeze()))
         return out
+
+    def _may_be_blocked(self, st: State, moving: list, i: int) -> bool:
+        """Whether another robot could block moving agent i (shapely
+        distances; no obstacles in the oracle's worlds)."""
+        import shapely
+        if self.speed * self.delta < 10 * self.resolution:
+            return True
+
+        def region(k):
+            a = st.agents[k]
+            pts = [a.pos[:2], a.target[:2]] if moving[k] else [a.pos[:2]]
+            if len(pts) == 2 and pts[0] != pts[1]:
+                return shapely.LineString(pts)
+            return shapely.Point(pts[0])
+        mine = region(i)
+        return any(mine.distance(region(k)) < 2 * self.radius
+                   for k in range(len(st.agents)) if k != i)
 
     # ------------------------------------------------------------------
     # identity and properties

@@ -424,11 +424,14 @@ def test_load_user_module_from_file_path(user_module):
 
 BAD = {
     "straigt": "unknown blackbox 'straigt' (did you mean 'straight'?); valid "
-               "names: instant, nondet, pymunk, straight, or module:attribute "
+               "names: instant, nondet, nondet-fail, pymunk, straight, or module:attribute "
                "for your own",
-    "box2d": "unknown blackbox 'box2d'; valid names: instant, nondet, pymunk, "
-             "straight, or module:attribute for your own",
-    "": "empty blackbox name; valid names: instant, nondet, pymunk, straight "
+    "box2d": "unknown blackbox 'box2d'; valid names: instant, nondet, nondet-fail, "
+             "pymunk, straight, or module:attribute for your own",
+    "nondet:fail": "bad blackbox 'nondet:fail': 'nondet' is a shipped blackbox, not a "
+                   "module (did you mean 'nondet-fail'?); valid names: instant, nondet, "
+                   "nondet-fail, pymunk, straight, or module:attribute for your own",
+    "": "empty blackbox name; valid names: instant, nondet, nondet-fail, pymunk, straight "
         "(or module:attribute for your own)",
     "no_such_module_xyz:BB": "bad blackbox 'no_such_module_xyz:BB': cannot "
                              "import module 'no_such_module_xyz' (No module "
@@ -440,7 +443,7 @@ BAD = {
     "pccl.blackboxes.straight:": "bad blackbox 'pccl.blackboxes.straight:': "
                                  "write module:attribute, e.g. "
                                  "mymodule:BLACKBOX (or one of: instant, "
-                                 "nondet, pymunk, straight)",
+                                 "nondet, nondet-fail, pymunk, straight)",
 }
 
 

@@ -195,8 +195,11 @@ def test_formation_leaving_early_is_caught():
 # rendezvous
 # --------------------------------------------------------------------------
 
-@pytest.mark.parametrize("blackbox", BLACKBOXES)
-@pytest.mark.parametrize("agents", (1,) + AGENTS)
+# Not nondet with 3 agents: there robots' paths cross, nondet may fail a
+# robot after its detour (pymunk's discs can block one another) and the
+# program asserts; see test_rendezvous_detour_blocked_under_nondet.
+@pytest.mark.parametrize("blackbox,agents", [(b, n) for b in BLACKBOXES for n in (1,) + AGENTS
+                                             if (b, n) != ("nondet", 3)])
 @pytest.mark.parametrize("seed", SEEDS)
 def test_rendezvous_runs_into_column(blackbox, agents, seed):
     res = api.run(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox=blackbox, agents=agents, seed=seed)
@@ -228,7 +231,7 @@ def test_rendezvous_detours_under_straight():
 
 @pytest.mark.parametrize("blackbox,agents,overrides", [
     ("nondet", 2, None), ("instant", 2, None), ("straight", 2, None),
-    ("nondet", 3, {"maxPrio": "0"}), ("straight", 3, {"maxPrio": "0"})])
+    ("straight", 3, {"maxPrio": "0"})])
 def test_rendezvous_explores_clean(blackbox, agents, overrides):
     res = api.explore(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox=blackbox, agents=agents,
                       overrides=overrides, collisions=(agents == 2),
@@ -236,6 +239,25 @@ def test_rendezvous_explores_clean(blackbox, agents, overrides):
     assert res.status == "exhaustive", res.verdict
     assert res.exit_status == 0
     assert res.violations == []
+
+
+def test_rendezvous_detour_blocked_under_nondet():
+    # With 3 robots, a robot's detour path crosses another robot's path:
+    # under pymunk the discs may block each other, so the covering nondet
+    # lets the detour fail, and the program's assert(false) in Lost fires.
+    # Under straight (robots never block one another) it stays clean.
+    res = api.explore(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox="nondet", agents=3,
+                      overrides={"maxPrio": "0"})
+    assert res.status == "violation", res.verdict
+    assert res.violation.kind == "assert"
+    stuck = res.violation.agent
+    # the failing doReach is the detour's (or the final leg's)
+    last = res.final_state.agents[stuck]
+    assert last.variables["stage"] in ("DETOUR", "FINAL")
+    assert last.doReach_fail is True
+    res = api.explore(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox="straight", agents=3,
+                      overrides={"maxPrio": "0"})
+    assert res.status == "exhaustive", res.verdict
 
 
 def test_rendezvous_check_outside_lock_is_caught():

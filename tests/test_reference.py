@@ -257,13 +257,16 @@ def test_fischer_shortest_mutex_violation(consts, expected):
 # (c) Race, with and without the check inside atomic
 # --------------------------------------------------------------------------
 
+# Under nondet the robots' paths meet (both race for the same destination),
+# so a moving robot may also fail (pymunk's discs block one another): the
+# counts grew when nondet began to cover that (docs/blackboxes.md).
 RACE = [
     ("race", "instant", RACE_DESTS_2, (722, 1206, 72)),
-    ("race", "nondet", RACE_DESTS_2, (1562, 2656, 72)),
+    ("race", "nondet", RACE_DESTS_2, (2234, 3783, 72)),      # was 1562: fail outcomes
     ("race_nonatomic", "instant", RACE_DESTS_2, (450, 738, 66)),
-    ("race_nonatomic", "nondet", RACE_DESTS_2, (1372, 2306, 67)),
-    ("race", "nondet", RACE_DESTS_3, (3729, 6393, 94)),
-    ("race_nonatomic", "nondet", RACE_DESTS_3, (3144, 5355, 92)),
+    ("race_nonatomic", "nondet", RACE_DESTS_2, (2020, 3391, 67)),   # was 1372
+    ("race", "nondet", RACE_DESTS_3, (5280, 8991, 94)),      # was 3729
+    ("race_nonatomic", "nondet", RACE_DESTS_3, (4647, 7869, 92)),   # was 3144
 ]
 
 
@@ -311,7 +314,7 @@ def test_race_shortest_stuck(name, bb, dests, expected):
 
 
 @pytest.mark.parametrize("bb,dests,expected", [
-    ("nondet", RACE_DESTS_2, (3595, 6212, 99)),
+    ("nondet", RACE_DESTS_2, (4585, 7991, 99)),     # was 3595: fail outcomes
     ("instant", RACE_DESTS_3, (4610, 7814, 124)),
 ], ids=["nondet-2dests", "instant-3dests"])
 def test_race_safe_never_stuck(bb, dests, expected):

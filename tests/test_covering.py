@@ -1,0 +1,337 @@
+"""The default exploring blackbox (``nondet``) covers ``straight``
+(docs/blackboxes.md, "What each blackbox covers").
+
+Differential: for every shipped and test program with a world, and for
+generated two-robot programs with a random wall, every configuration in
+which a seeded ``pccl run --blackbox straight`` ends (final, stalled, a
+violation) is reachable in ``pccl explore`` under the default blackbox, as
+far as a program can observe it: statuses, variables, the doReach flags and
+positions.  And a property that holds under the default blackbox holds on
+those runs.
+"""
+
+from __future__ import annotations
+
+import random
+import textwrap
+
+import pytest
+
+from pccl import api
+from pccl.blackboxes import load_blackbox
+from pccl.blackboxes.base import Motion
+from pccl.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
+from pccl.world import parse_world
+
+from conftest import PROGRAMS, TEST_PROGRAMS
+
+SEEDS = range(4)
+
+#: (program, world, agents or None for the world's): every shipped program
+#: with a world, and the test programs with one.
+WORLD_PROGRAMS = [
+    ("race.pccl", "race.toml", None),
+    ("race.pccl", "race_obstacles.toml", None),
+    ("race_nonatomic.pccl", "race.toml", None),
+    ("race_nonatomic.pccl", "race_obstacles.toml", None),
+    ("race_safe.pccl", "race.toml", None),
+    ("race_safe.pccl", "race_obstacles.toml", None),
+    ("collide.pccl", "collide.toml", None),
+    ("collide_fixed.pccl", "collide.toml", None),
+    ("formation.pccl", "formation.toml", 2),
+    ("rendezvous.pccl", "rendezvous.toml", 2),
+    ("rdv_meet.pccl", "rdv_wall.toml", None),
+    ("rdv_meet.pccl", "rdv_open.toml", None),
+]
+
+
+def _path(name: str) -> str:
+    p = PROGRAMS / name
+    return str(p if p.exists() else TEST_PROGRAMS / name)
+
+
+def observable(st) -> tuple:
+    """What a program can observe of a configuration (time left out)."""
+    return (st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[POS], ag[REACH][DONE], ag[REACH][FAIL])
+                          for ag in st[AGS]))
+
+
+def explored(program, world, agents, invariants=()) -> set:
+    """The observable parts of every state ``explore`` reaches under its
+    default blackbox (no reductions: every state of the rules)."""
+    prog = api.load_program(program)
+    bb, _ = api.explore_blackbox(prog)
+    assert bb == "nondet"                       # the default for programs that move
+    m = api.make_model(program, world=world, agents=agents, blackbox=bb, reduce="none",
+                       invariants=list(invariants))
+    seen, out, todo = set(), set(), list(m.init_states())
+    while todo:
+        st = todo.pop()
+        k = m.key(st)
+        if k in seen:
+            continue
+        seen.add(k)
+        out.add(observable(st))
+        todo.extend(s for _, s in m.successors(st))
+    return out
+
+
+def straight_runs(program, world, agents, invariants=()):
+    return [api.run(program, world=world, agents=agents, blackbox="straight", seed=s,
+                    max_time=60, invariants=list(invariants)) for s in SEEDS]
+
+
+def check_covered(program, world, agents):
+    reach = explored(program, world, agents)
+    for res in straight_runs(program, world, agents):
+        assert observable(res.final) in reach, (
+            f"{program} with {world}: run under straight ends {res.status} "
+            f"({res.message}) in a configuration nondet never reaches")
+
+
+@pytest.mark.parametrize("program,world,agents", WORLD_PROGRAMS,
+                         ids=[f"{p}-{w}" for p, w, _ in WORLD_PROGRAMS])
+def test_straight_runs_are_reachable_under_the_default(program, world, agents):
+    check_covered(_path(program), _path(world), agents)
+
+
+def test_walled_rendezvous_fail_is_explored():
+    """Issue 21: the blocked robot's doReach fails under straight (the run
+    stalls); under the default blackbox that is explored too, so
+    `eventually forall i: exited[i]` no longer holds."""
+    prog, world = _path("rdv_meet.pccl"), _path("rdv_wall.toml")
+    res = api.run(prog, world=world, blackbox="straight", seed=0)
+    assert res.status == "stalled"
+    r = api.explore(prog, world=world, properties=["eventually forall i: exited[i]"])
+    assert r.blackbox == "nondet" and r.status == "violation", r.verdict
+    assert r.final_state.agents[0].doReach_fail is True
+    # without the wall it still holds (fair arrival, no failure possible)
+    r = api.explore(prog, world=_path("rdv_open.toml"),
+                    properties=["eventually forall i: exited[i]"])
+    assert r.status == "exhaustive", r.verdict
+
+
+# --------------------------------------------------------------------------
+# generated programs: two robots, random targets, a random wall
+# --------------------------------------------------------------------------
+
+GEN_PROGRAM = """\
+allwrite:
+  int arrived = 0;
+  int failed = 0;
+loc:
+  int id = getAgentIndex();
+  bool started = false;
+  bool second = false;
+
+Go():
+  pre(!started);
+  eff:
+    started = true;
+    if (id == 0):
+      doReach(ItemPosition({x0}, {y0}), getObs());
+    else:
+      doReach(ItemPosition({x1}, {y1}), getObs());
+
+Again():
+  pre(started && !second && doReach_done && id == 0);
+  eff:
+    second = true;
+    doReach(ItemPosition({x2}, {y2}), getObs());
+
+Done():
+  pre(started && doReach_done && (second || id == 1));
+  eff:
+    atomic:
+      arrived = arrived + 1;
+    exit();
+
+Failed():
+  pre(started && doReach_fail);
+  eff:
+    atomic:
+      failed = failed + 1;
+    exit();
+"""
+
+GEN_WORLD = """\
+agents = 2
+resolution = 0.01
+radius = {r}
+speed = {speed}
+start = [[{sx0}, {sy0}], [{sx1}, {sy1}]]
+
+[[obstacles]]
+polygon = [[{wx0}, {wy0}], [{wx1}, {wy0}], [{wx1}, {wy1}], [{wx0}, {wy1}]]
+"""
+
+#: Candidate invariants: where one holds under the default blackbox it must
+#: hold on every straight run.
+GEN_PROPERTIES = ["failed == 0", "arrived <= 1", "failed <= 1", "arrived + failed <= 2"]
+
+
+def generated(seed: int, tmp_path):
+    rnd = random.Random(seed)
+
+    def c():
+        return round(rnd.uniform(0, 6), 1)
+    vals = {f"{k}{i}": c() for k in "xy" for i in range(3)}
+    text = GEN_PROGRAM.format(**vals)
+    wx0, wy0 = round(rnd.uniform(1, 4), 1), round(rnd.uniform(-1, 4), 1)
+    vertical = rnd.random() < 0.5
+    wx1 = round(wx0 + (0.3 if vertical else rnd.uniform(1, 3)), 1)
+    wy1 = round(wy0 + (rnd.uniform(1, 3) if vertical else 0.3), 1)
+    world = GEN_WORLD.format(r=rnd.choice([0.1, 0.25]), speed=rnd.choice([0.7, 1.0, 1.5]),
+                             sx0=c(), sy0=c(), sx1=c(), sy1=c(),
+                             wx0=wx0, wy0=wy0, wx1=wx1, wy1=wy1)
+    prog_path = tmp_path / f"gen{seed}.pccl"
+    world_path = tmp_path / f"gen{seed}.toml"
+    prog_path.write_text(text)
+    world_path.write_text(world)
+    return str(prog_path), str(world_path)
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_generated_walls(seed, tmp_path):
+    prog, world = generated(seed, tmp_path)
+    check_covered(prog, world, None)
+    for prop in GEN_PROPERTIES:
+        r = api.explore(prog, world=world, invariants=[prop])
+        if r.status != "exhaustive":
+            continue
+        for res in straight_runs(prog, world, None, invariants=[prop]):
+            assert res.status != "violation", (prop, res.message)
+
+
+def test_generated_walls_do_fail_under_straight(tmp_path):
+    """The generator is not vacuous: some straight runs fail on the wall,
+    and some arrive."""
+    statuses = set()
+    for seed in range(24):
+        prog, world = generated(seed, tmp_path)
+        res = api.run(prog, world=world, blackbox="straight", seed=0, max_time=60)
+        failed, arrived = res.final_state.shared["failed"], res.final_state.shared["arrived"]
+        statuses.add((failed > 0, arrived > 0))
+    assert (True, False) in statuses or (True, True) in statuses
+    assert (False, True) in statuses
+
+
+# --------------------------------------------------------------------------
+# the blackbox itself
+# --------------------------------------------------------------------------
+
+WALL = parse_world(textwrap.dedent("""\
+    resolution = 0.01
+    radius = 0.25
+    [[obstacles]]
+    polygon = [[0.9, -1], [1.1, -1], [1.1, 1], [0.9, 1]]
+    """))
+
+
+def motion(p, t, **kw):
+    return Motion(position=p, target=t, obstacles=(), t0=None, done=False, fail=False, **kw)
+
+
+def test_nondet_outcomes_blocked_and_free():
+    nd = load_blackbox("nondet")
+    # blocked path: stay, arrive, fail (in that order), fail where it stands
+    outs = nd.step(WALL, [motion((0.0, 0.0, 0.0), (2.0, 0.0, 0.0))], None, 0, 1.0)
+    assert [(o.positions[0][:2], o.done[0], o.fail[0]) for o in outs] == [
+        ((0.0, 0.0), False, False), ((2.0, 0.0), True, False), ((0.0, 0.0), False, True)]
+    # the same path, clear of the wall by more than a radius: no fail outcome
+    outs = nd.step(WALL, [motion((0.0, 2.0, 0.0), (2.0, 2.0, 0.0))], None, 0, 1.0)
+    assert [o.fail for o in outs] == [(False,), (False,)]
+    # within a radius of the wall (pymunk's disc would touch it): may fail
+    outs = nd.step(WALL, [motion((0.0, 1.2, 0.0), (2.0, 1.2, 0.0))], None, 0, 1.0)
+    assert len(outs) == 3
+
+
+def test_nondet_fail_when_straight_fails():
+    """Wherever straight fails a robot at a step, nondet has an outcome with
+    the same flags and positions (random segments against the wall)."""
+    nd, st = load_blackbox("nondet"), load_blackbox("straight")
+    rnd = random.Random(7)
+    fails = 0
+    for _ in range(300):
+        ms = [motion((round(rnd.uniform(-2, 4), 2), round(rnd.uniform(-2, 2), 2), 0.0),
+                     (round(rnd.uniform(-2, 4), 2), round(rnd.uniform(-2, 2), 2), 0.0))
+              for _ in range(2)]
+        (o,) = st.step(WALL, ms, None, 0, 1.0)
+        if not any(o.fail):
+            continue
+        fails += 1
+        flags = [(x.done, x.fail) for x in nd.step(WALL, ms, None, 0, 1.0)]
+        pos = {x.positions for x in nd.step(WALL, ms, None, 0, 1.0)
+               if x.fail == o.fail}
+        assert any(f[1] == o.fail for f in flags)
+        # a robot straight fails stands where nondet's failing robot stands
+        assert any(all(p[i] == o.positions[i] for i in range(2) if o.fail[i]) for p in pos)
+    assert fails > 20
+
+
+def test_robots_blocking_each_other():
+    nd = load_blackbox("nondet")
+    empty = parse_world("resolution = 0.01\nradius = 0.25\n")
+    # head-on: both may fail (pymunk's discs meet)
+    outs = nd.step(empty, [motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0)),
+                           motion((4.0, 0.0, 0.0), (0.0, 0.0, 0.0))], None, 0, 1.0)
+    assert len(outs) == 9
+    # parallel lanes 2 apart: neither can touch the other
+    outs = nd.step(empty, [motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0)),
+                           motion((0.0, 2.0, 0.0), (4.0, 2.0, 0.0))], None, 0, 1.0)
+    assert len(outs) == 4
+    # a robot parked on the lane blocks it
+    outs = nd.step(empty, [motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0)),
+                           motion((2.0, 0.3, 0.0), None)], None, 0, 1.0)
+    assert [o.fail for o in outs] == [(False, False), (False, False), (True, False)]
+
+
+def test_nondet_fail_may_fail_anywhere():
+    nf = load_blackbox("nondet-fail")
+    empty = parse_world("resolution = 0.01\n")
+    outs = nf.step(empty, [motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0))], None, 0, 1.0)
+    assert [(o.done, o.fail) for o in outs] == [((False,), (False,)), ((True,), (False,)),
+                                                ((False,), (True,))]
+    # under nondet the same free move cannot fail
+    assert len(load_blackbox("nondet").step(empty, [motion((0.0, 0.0, 0.0), (4.0, 0.0, 0.0))],
+                                            None, 0, 1.0)) == 2
+
+
+def test_nondet_fail_includes_nondet(tmp_path):
+    """Every state nondet reaches, nondet-fail reaches too."""
+    prog, world = generated(3, tmp_path)
+    a = explored(prog, world, None)
+    m = api.make_model(prog, world=world, blackbox="nondet-fail", reduce="none")
+    seen, out, todo = set(), set(), list(m.init_states())
+    while todo:
+        st = todo.pop()
+        if m.key(st) in seen:
+            continue
+        seen.add(m.key(st))
+        out.add(observable(st))
+        todo.extend(s for _, s in m.successors(st))
+    assert a <= out and len(out) > len(a)
+
+
+def test_header_says_positions_in_motion_not_covered():
+    from conftest import cli
+    r = cli("explore", _path("rendezvous.pccl"), "--world", _path("rendezvous.toml"),
+            "--agents", "2", "--no-progress")
+    head = r.output.splitlines()[0]
+    assert "blackbox nondet (default for programs that move), positions in mid-motion not " \
+           "covered (getPosition() at line 29)" in head
+    # a program that observes motion only through the flags: nothing to say
+    r = cli("explore", _path("rdv_meet.pccl"), "--world", _path("rdv_open.toml"),
+            "--no-progress")
+    assert "not covered" not in r.output.splitlines()[0]
+    # pos in a property; --collisions
+    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"),
+                    invariants=["forall i: pos[i].x <= 3"])
+    assert r.not_covered == "positions in mid-motion not covered (pos in property " \
+                            "`forall i: pos[i].x <= 3`)"
+    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True)
+    assert r.not_covered == "positions in mid-motion not covered (--collisions)"
+    # a deterministic blackbox has nothing to say
+    r = api.explore(_path("rendezvous.pccl"), world=_path("rendezvous.toml"), agents=2,
+                    blackbox="straight")
+    assert r.not_covered is None
