@@ -437,6 +437,10 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--no-timelock", "timelock", flag_value=False, default=True,
               help="do not report time-locks (states from which time can never advance again "
                    "while an agent has not exited)")
+@click.option("--no-stall", "stall", flag_value=False, default=True,
+              help="do not report stalls (states from which the team can only let time pass: "
+                   "no variable, position or flag can change again, while an agent has not "
+                   "exited)")
 @click.option("--fastest", is_flag=True,
               help="report the counterexample that reaches its violation at the smallest "
                    "global time (ties: fewest transitions) instead of the shortest")
@@ -468,7 +472,7 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
+            stall, fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
             trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
@@ -933,7 +937,8 @@ def _explore_json(program, res) -> dict:
             "witnesses": [{"name": w["name"], "text": w["text"], "depth": w["depth"],
                            "trace": [s.to_json() for s in w["trace"]],
                            "state": w["state"].to_json()} for w in res.witnesses],
-            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock}
+            "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
+            "stall_check": res.stall}
 
 
 if __name__ == "__main__":  # pragma: no cover

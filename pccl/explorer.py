@@ -444,7 +444,8 @@ class Explorer:
     (successors admitted per vectorised step), ``recorder`` (an object with
     ``states(list)`` and ``edges(src, dst)``, told the states admitted and
     every transition's state numbers: :mod:`pccl.liveness` records the graph
-    with it).
+    with it; a recorder whose ``wants_candidates`` is true gets the
+    successor states as a third argument, aligned with ``dst``).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -779,7 +780,13 @@ class _Admission:
             dst = num[np.searchsorted(first, np.fromiter(
                 map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
             src = np.asarray(par_idx, dtype=np.int64)[owners]
-            rec.edges(src[src != _NO_PARENT], dst[src != _NO_PARENT])
+            keep = src != _NO_PARENT
+            if getattr(rec, "wants_candidates", False):
+                # the successor states too (before the batch is cleared)
+                cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
+                rec.edges(src[keep], dst[keep], cands)
+            else:
+                rec.edges(src[keep], dst[keep])
         self.budget = budget - cut
         if stop_at is not None:
             # the search stops right after expanding the parent of the

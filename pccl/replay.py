@@ -129,7 +129,7 @@ def _state_difference(a, b, prefix: str = "") -> str:
 
 
 #: Violation kinds of temporal properties (pccl/liveness.py).
-_TEMPORAL_KINDS = ("liveness", "timelock", "response", "unreachable")
+_TEMPORAL_KINDS = ("liveness", "timelock", "response", "unreachable", "stall")
 
 
 def replay(path) -> ReplayResult:
