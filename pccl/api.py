@@ -300,6 +300,16 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     timelock = timelock and one
     stall = stall and one
     rec = L.make_recorder(model, timelock, stall) if one else None
+    runaways: list = []
+
+    def on_runaway(info: dict) -> None:
+        from .stall import runaway_note
+        msg = runaway_note(model, info)
+        runaways.append(msg)
+        note = getattr(progress, "note", None)     # the CLI's reporter: at once, on stderr
+        if note is not None:
+            note(msg)
+
     if ray is not None:
         from .parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -311,7 +321,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         from .fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, **opts)
     else:
-        ex = Explorer(cov or model, recorder=rec, **opts)
+        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -381,7 +391,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                          first.state if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
                          cov.report() if cov is not None else None, witnesses,
-                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped,
+                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
                          timelock, stall, labels)
 
 

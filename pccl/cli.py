@@ -744,8 +744,10 @@ def _progress_printer(header: str, progress, interval: float, *, stream=None, tt
 
 
 def _progress_figures(p, rate) -> str:
+    t = p.get("max_time")
     return (f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
-            f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
+            + (f"t {D.fmt_time(t)}  " if t is not None else "")
+            + f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
 
 
 class _Rate:
@@ -783,6 +785,10 @@ class _LiveProgress:
         return Group(self._text(self.header, overflow="ellipsis", no_wrap=True),
                      self._text(line, style="bold", overflow="ellipsis", no_wrap=True))
 
+    def note(self, text):
+        """A note (a zero-time runaway) above the live line, at once."""
+        self.console.print(self._text(f"note: {text}"))
+
     def __call__(self, p):
         elapsed = _hms(p["seconds"])
         self.live.update(self._render(f"{elapsed}  {_progress_figures(p, self.rate(p))}"),
@@ -812,6 +818,10 @@ class _PlainProgress:
         self.started = True
         self._echo(self.header)
 
+    def note(self, text):
+        """A note (a zero-time runaway), at once."""
+        self._echo(f"note: {text}")
+
     def __call__(self, p):
         if p["seconds"] < self.next_line:
             return
@@ -837,10 +847,12 @@ def _stats_lines(res) -> list:
     lines = [f"  initial states   {s.initial_states:,}{red}",
              f"  states           {s.states:,}{red}",
              f"  transitions      {s.transitions:,}{red}",
-             f"  max depth        {s.max_depth}",
-             f"  seconds          {s.seconds:.2f}",
-             f"  states/second    {s.states_per_second:,.0f}",
-             f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
+             f"  max depth        {s.max_depth}"]
+    if s.max_time is not None:
+        lines.append(f"  max time         {D.fmt_time(s.max_time)}")
+    lines += [f"  seconds          {s.seconds:.2f}",
+              f"  states/second    {s.states_per_second:,.0f}",
+              f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
     if res.search is not None and res.search.exact:
         lines.append("  state identity   exact (canonical encodings; no collision possible)")
     else:

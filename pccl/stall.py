@@ -215,3 +215,32 @@ def waiting(model, st) -> list:
 
 def waiting_text(waits: list) -> str:
     return "; ".join(f"agent {i} {w}" for i, w in waits)
+
+
+# ---------------------------------------------------------------------------
+# zero-time runaways
+# ---------------------------------------------------------------------------
+
+def runaway_note(model, info: dict) -> str:
+    """The note for a search that went ``info["levels"]`` levels without its
+    largest model time growing (:class:`pccl.explorer.Explorer`'s
+    ``on_runaway``): the agent that keeps time from advancing in one of the
+    deepest states, and its line, as ``pccl run``'s --max-steps message names
+    them."""
+    from collections import Counter
+    from .display import fmt_time, source_line
+    from .runner import _looping_agent
+    st = info["state"]
+    i = _looping_agent(model, st, Counter())
+    pc = st[AGS][i][PC]
+    where = model.compiled.describe_k(pc)
+    cell = model.ctl.cells[pc]
+    if cell and isinstance(cell[0], int) and cell[0] in model.compiled.stmts:
+        text = source_line(model, model.compiled.stmts[cell[0]].span)
+        if text:
+            where += f": {text}"
+    return (f"zero-time runaway: {info['levels']} levels of the search (to depth "
+            f"{info['depth']}) found new states without the model time passing "
+            f"t = {fmt_time(info['max_time'])}; agent {i} keeps time from advancing "
+            f"({where}); a zero-time loop makes new states for ever: bound the search "
+            f"(--max-states, --depth, --max-memory) or let time advance in the loop")
