@@ -136,8 +136,8 @@ def _fail(err: PcclError):
 
 EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
                     "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
-                    "counterexample, a time-lock, an unreachable 'reachable P', a stalled "
-                    "run), 2 bad input (the program, the world, an option), "
+                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a "
+                    "stalled run), 2 bad input (the program, the world, an option), "
                     "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 _signal = {"term": False}
@@ -190,7 +190,7 @@ def main():
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock,
-    a time-lock, a failed temporal property (--property: eventually P, P ~> Q,
+    a time-lock, a stall, a failed temporal property (--property: eventually P, P ~> Q,
     P ~> Q within T, reachable P) or (with --collisions) a collision.
     """
 
