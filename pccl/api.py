@@ -228,6 +228,7 @@ class ExploreResult:
     holds: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     timelock: bool = False            # whether the time-lock check ran
+    stall: bool = False               # whether the stall check ran
     bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
     #: what the covering blackbox leaves out of straight's and pymunk's behaviours
     not_covered: Optional[str] = None
@@ -302,7 +303,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     find_all, exact, progress, coverage = o.find_all, o.exact, o.progress, o.coverage
     max_memory, workers, progress_interval = o.max_memory, o.workers, o.progress_interval
     ray = o.ray
-    timelock, fastest = o.timelock, o.fastest
+    timelock, fastest, stall = o.timelock, o.fastest, o.stall
     if max_memory == "default":
         max_memory = default_max_memory()
     cov = None
@@ -334,8 +335,22 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if timelock and not one and model.ctl is not None:
         skipped.append("time-lock check not run: it needs the state graph of one process "
                        "(workers=1, no ray); a time-locked program passes here and fails there")
+    if stall and not one and model.ctl is not None:
+        skipped.append("stall check not run: it needs the state graph of one process "
+                       "(workers=1, no ray); a stalled program passes here and fails there")
     timelock = timelock and one
-    rec = L.make_recorder(model, timelock) if one else None
+    stall = stall and one
+    rec = L.make_recorder(model, timelock, stall) if one else None
+    runaways: list = []
+
+    def on_runaway(info: dict) -> None:
+        from .stall import runaway_note
+        msg = runaway_note(model, info)
+        runaways.append(msg)
+        note = getattr(progress, "note", None)     # the CLI's reporter: at once, on stderr
+        if note is not None:
+            note(msg)
+
     if ray is not None:
         from .parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -347,7 +362,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         from .fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, **opts)
     else:
-        ex = Explorer(cov or model, recorder=rec, **opts)
+        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -367,7 +382,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         import time as _time
         from .explorer import peak_rss_bytes
         t0 = _time.perf_counter()
-        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all)
+        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all, stall=stall)
         L.attach_traces(model, ex, lv)
         # the figures include the analysis of the graph
         sr.stats.seconds += _time.perf_counter() - t0
@@ -417,8 +432,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                          first.state if first else None,
                          sr.collision_probability, model, sr, list(sr.found),
                          cov.report() if cov is not None else None, witnesses,
-                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped,
-                         timelock, labels, not_covered_note(model))
+                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
+                         timelock, stall, labels, not_covered_note(model))
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

@@ -137,8 +137,8 @@ def _fail(err: PcclError):
 
 EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
                     "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
-                    "counterexample, a time-lock, an unreachable 'reachable P', a stalled "
-                    "run), 2 bad input (the program, the world, an option), "
+                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a "
+                    "stalled run), 2 bad input (the program, the world, an option), "
                     "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 _signal = {"term": False}
@@ -191,7 +191,7 @@ def main():
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock,
-    a time-lock, a failed temporal property (--property: eventually P, P ~> Q,
+    a time-lock, a stall, a failed temporal property (--property: eventually P, P ~> Q,
     P ~> Q within T, reachable P) or (with --collisions) a collision.
     """
 
@@ -439,6 +439,10 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--no-timelock", "timelock", flag_value=False, default=True,
               help="do not report time-locks (states from which time can never advance again "
                    "while an agent has not exited)")
+@click.option("--no-stall", "stall", flag_value=False, default=True,
+              help="do not report stalls (states from which the team can only let time pass: "
+                   "no variable, position or flag can change again, while an agent has not "
+                   "exited)")
 @click.option("--fastest", is_flag=True,
               help="report the counterexample that reaches its violation at the smallest "
                    "global time (ties: fewest transitions) instead of the shortest")
@@ -470,7 +474,7 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
+            stall, fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
             trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
@@ -747,8 +751,10 @@ def _progress_printer(header: str, progress, interval: float, *, stream=None, tt
 
 
 def _progress_figures(p, rate) -> str:
+    t = p.get("max_time")
     return (f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
-            f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
+            + (f"t {D.fmt_time(t)}  " if t is not None else "")
+            + f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
 
 
 class _Rate:
@@ -786,6 +792,10 @@ class _LiveProgress:
         return Group(self._text(self.header, overflow="ellipsis", no_wrap=True),
                      self._text(line, style="bold", overflow="ellipsis", no_wrap=True))
 
+    def note(self, text):
+        """A note (a zero-time runaway) above the live line, at once."""
+        self.console.print(self._text(f"note: {text}"))
+
     def __call__(self, p):
         elapsed = _hms(p["seconds"])
         self.live.update(self._render(f"{elapsed}  {_progress_figures(p, self.rate(p))}"),
@@ -815,6 +825,10 @@ class _PlainProgress:
         self.started = True
         self._echo(self.header)
 
+    def note(self, text):
+        """A note (a zero-time runaway), at once."""
+        self._echo(f"note: {text}")
+
     def __call__(self, p):
         if p["seconds"] < self.next_line:
             return
@@ -840,10 +854,12 @@ def _stats_lines(res) -> list:
     lines = [f"  initial states   {s.initial_states:,}{red}",
              f"  states           {s.states:,}{red}",
              f"  transitions      {s.transitions:,}{red}",
-             f"  max depth        {s.max_depth}",
-             f"  seconds          {s.seconds:.2f}",
-             f"  states/second    {s.states_per_second:,.0f}",
-             f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
+             f"  max depth        {s.max_depth}"]
+    if s.max_time is not None:
+        lines.append(f"  max time         {D.fmt_time(s.max_time)}")
+    lines += [f"  seconds          {s.seconds:.2f}",
+              f"  states/second    {s.states_per_second:,.0f}",
+              f"  peak memory      {s.peak_memory / 2**20:,.1f} MiB"]
     if res.search is not None and res.search.exact:
         lines.append("  state identity   exact (canonical encodings; no collision possible)")
     else:
@@ -945,7 +961,8 @@ def _explore_json(program, res) -> dict:
                            "trace": [s.to_json() for s in w["trace"]],
                            "state": w["state"].to_json()} for w in res.witnesses],
             "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
-            "not_covered": res.not_covered}
+            "not_covered": res.not_covered,
+            "stall_check": res.stall}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -111,6 +111,10 @@ class Model:
     ``guards_rand``, ``enabled_events``, ``stuck_code``) are bound to it
     once, as plain attributes, so that a rule reads each with one lookup."""
 
+    #: A state's model time: the explorer's ``max time`` (statistics,
+    #: progress) and its note on zero-time runaways read it.
+    clock = staticmethod(operator.itemgetter(TIME))
+
     def __init__(self, program: A.Program, *, world=None, blackbox=None,
                  n_agents: Optional[int] = None, delta=1, n0: int = 1,
                  rates: Optional[dict] = None, events: str = "any",

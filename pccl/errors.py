@@ -61,7 +61,8 @@ class ArgumentError(PcclError, ValueError):
 #: that renders it, so that this module imports nothing above it).
 FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
          "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
-         "properties": "--property", "timelock": "--no-timelock"}
+         "properties": "--property", "timelock": "--no-timelock",
+         "stall": "--no-stall"}
 
 
 def flag(name: str) -> str:

@@ -108,6 +108,10 @@ class Model(Protocol):
     def deadlock_violation(self, state) -> Optional[ViolationLike]:
         """The violation to report for a deadlocked state (or ``None``)."""
 
+    # Optional: ``clock(state)``, the state's model time: the statistics and
+    # progress show the largest one reached, and a search that goes
+    # ``runaway_levels`` levels without it growing reports a runaway.
+    #
     # Optional: ``prepare()``, called by the parallel search before it forks
     # its workers.  A model that builds tables lazily which its states refer
     # to (PCCL interns k cells as small ints) must build them there, so that
@@ -137,6 +141,8 @@ class Stats:
     seconds: float = 0.0
     peak_memory: int = 0          # bytes, peak resident set size of the process
     frontier: int = 0
+    #: the largest model time of an admitted state (models with ``clock``)
+    max_time: Any = None
 
     @property
     def states_per_second(self) -> float:
@@ -147,7 +153,7 @@ class Stats:
                 "transitions": self.transitions, "max_depth": self.max_depth,
                 "seconds": round(self.seconds, 3),
                 "states_per_second": round(self.states_per_second, 1),
-                "peak_memory_bytes": self.peak_memory}
+                "peak_memory_bytes": self.peak_memory, "max_time": self.max_time}
 
 
 @dataclass(frozen=True)
@@ -444,7 +450,12 @@ class Explorer:
     (successors admitted per vectorised step), ``recorder`` (an object with
     ``states(list)`` and ``edges(src, dst)``, told the states admitted and
     every transition's state numbers: :mod:`pccl.liveness` records the graph
-    with it).
+    with it; a recorder whose ``wants_candidates`` is true gets the
+    successor states as a third argument, aligned with ``dst``),
+    ``on_runaway`` (called once with ``{"depth", "levels", "max_time",
+    "state"}`` when ``runaway_levels`` levels pass without the model's
+    ``clock`` growing: a zero-time loop that keeps making new states;
+    ``state`` is one of the deepest level's).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -452,8 +463,11 @@ class Explorer:
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
                  progress_interval: float = 0.5, batch: int = 4096,
-                 max_memory: Optional[int] = None, recorder=None):
+                 max_memory: Optional[int] = None, recorder=None,
+                 runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None):
         self.model = model
+        self.runaway_levels = runaway_levels
+        self.on_runaway = on_runaway
         self.recorder = recorder
         self.max_memory = max_memory
         self.max_depth = max_depth
@@ -540,7 +554,7 @@ class Explorer:
                 next_report = now + self.progress_interval
                 self.progress({"states": table.n, "frontier": left + len(adm.nxt),
                                "depth": depth, "seconds": now - t_start,
-                               "memory": peak_rss_bytes()})
+                               "memory": peak_rss_bytes(), "max_time": stats.max_time})
 
         def expand_one(succs: list, c0: int, at_bound: bool) -> bool:
             """The chunk of the level at ``c0`` (its successor lists
@@ -575,6 +589,8 @@ class Explorer:
 
         chain = itertools.chain.from_iterable
         chunk = max(1, batch // 4)
+        # zero-time runaways: the depth at which the largest time last grew
+        time_depth, last_time, warned = 0, stats.max_time, self.on_runaway is None
         while level and not stop:
             at_bound = max_depth is not None and depth >= max_depth
             for c0 in range(0, len(level), chunk):
@@ -604,6 +620,14 @@ class Explorer:
             if level:
                 depth += 1
                 stats.max_depth = depth
+                if stats.max_time != last_time:
+                    time_depth, last_time = depth, stats.max_time
+                elif not warned and last_time is not None \
+                        and depth - time_depth >= self.runaway_levels:
+                    warned = True
+                    assert self.on_runaway is not None
+                    self.on_runaway({"depth": depth, "levels": depth - time_depth,
+                                     "max_time": last_time, "state": level[-1]})
         stats.frontier = len(level)
 
     def _result(self, res: SearchResult, adm: "_Admission", t_start: float) -> SearchResult:
@@ -710,6 +734,7 @@ class _Admission:
         self.bounds: set = set()
         self.budget = ex.max_states if ex.max_states is not None else _MAX_STATES
         self.record = ex._recorder(res.found, set())
+        self.clock = getattr(ex.model, "clock", None)
         key = ex.model.key
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         twos = itertools.repeat(2)
@@ -753,6 +778,11 @@ class _Admission:
             halt = True
             stop_at = new[budget]       # the first state that does not fit
         states = [cs[p] for p in new[:cut]]
+        clock = self.clock
+        if clock is not None and cut:
+            t = max(map(clock, states[:cut]))
+            if stats.max_time is None or t > stats.max_time:
+                stats.max_time = t
         viols = list(map(self.ex.model.violations, states))     # no bytecode per state
         for j in itertools.compress(range(cut), viols):
             if self.record(viols[j], base + j, d):
@@ -779,7 +809,13 @@ class _Admission:
             dst = num[np.searchsorted(first, np.fromiter(
                 map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
             src = np.asarray(par_idx, dtype=np.int64)[owners]
-            rec.edges(src[src != _NO_PARENT], dst[src != _NO_PARENT])
+            keep = src != _NO_PARENT
+            if getattr(rec, "wants_candidates", False):
+                # the successor states too (before the batch is cleared)
+                cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
+                rec.edges(src[keep], dst[keep], cands)
+            else:
+                rec.edges(src[keep], dst[keep])
         self.budget = budget - cut
         if stop_at is not None:
             # the search stops right after expanding the parent of the

@@ -144,7 +144,10 @@ class FastestExplorer(Explorer):
                     new, keys = admit(states, idx)
                     if rec is not None:
                         dst = table.lookup_keys(keys)
-                        rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)
+                        if getattr(rec, "wants_candidates", False):
+                            rec.edges(np.full(len(dst), idx, dtype=np.int64), dst, states)
+                        else:
+                            rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)
                     for s2, i2 in zip(states, new):
                         if i2 >= 0:
                             push((ticks + (s2[PHASE] != DISCRETE), depth + 1), s2, i2)

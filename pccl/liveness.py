@@ -43,6 +43,7 @@ time-lock
 
 from __future__ import annotations
 
+import itertools
 import operator
 from dataclasses import dataclass, field
 from typing import Any, Optional
@@ -108,7 +109,7 @@ def _pending_mask(st) -> int:
 class GraphRecorder:
     """Collects the state graph during a search (see the module docstring)."""
 
-    def __init__(self, model, props=(), fairness: bool = False):
+    def __init__(self, model, props=(), fairness: bool = False, stall: bool = False):
         self.model = model
         self.props = list(props)
         if 2 * len(self.props) > 64:
@@ -120,6 +121,22 @@ class GraphRecorder:
         self.bits = _Grow(np.uint64) if self.props else None
         self.pend = _Grow(np.uint64) if self.fairness else None
         self.complete = True
+        # the stall check (pccl/stall.py): per state its signature's hash and
+        # whether some transition out of it changes the signature
+        self.sig_of: Any = None
+        self.sig: Optional[_Grow] = None
+        self.chg: Optional[_Grow] = None
+        #: edges() wants the successor states themselves: under symmetry a
+        #: state number stands for a renamed state, so a transition's change
+        #: is decided on the actual successor
+        self.wants_candidates = False
+        if stall:
+            from .stall import signature_fn
+            self.sig_of = signature_fn(model)
+            self.sig = _Grow(np.int64)
+            self.chg = _Grow(np.uint8)
+            red = getattr(model, "reduction", None)
+            self.wants_candidates = "symmetry" in getattr(red, "on", ())
 
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list) -> None:
@@ -139,13 +156,31 @@ class GraphRecorder:
         if self.pend is not None:
             self.pend.extend(np.fromiter(map(_pending_mask, states), dtype=np.uint64,
                                          count=len(states)))
+        if self.sig is not None and self.chg is not None:
+            self.sig.extend(np.fromiter(map(self.sig_of, states), dtype=np.int64,
+                                        count=len(states)))
+            self.chg.extend(np.zeros(len(states), dtype=np.uint8))
 
-    def edges(self, src: np.ndarray, dst: np.ndarray) -> None:
+    def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None) -> None:
+        """Transitions by state number (``dst`` -1: a successor not admitted);
+        ``cands``: the successor states, when :attr:`wants_candidates`."""
         ok = (dst >= 0) & (src >= 0)
         if not ok.all():
             if (dst < 0).any():
                 self.complete = False
             src, dst = src[ok], dst[ok]
+            if cands is not None:
+                cands = list(itertools.compress(cands, ok.tolist()))
+        if self.sig is not None and self.chg is not None and len(src):
+            sig = self.sig.view()
+            if self.wants_candidates:
+                assert cands is not None, "the recorder needs the successor states"
+                to = np.fromiter(map(self.sig_of, cands), dtype=np.int64, count=len(cands))
+            else:
+                to = sig[dst]
+            changed = to != sig[src]
+            if changed.any():
+                self.chg.view()[src[changed]] = 1
         self.src.extend(src.astype(np.uint32))
         self.dst.extend(dst.astype(np.uint32))
 
@@ -382,13 +417,14 @@ class Graph:
 @dataclass(frozen=True)
 class TemporalViolation:
     """A temporal verdict that fails: ``kind`` is ``liveness``, ``response``,
-    ``unreachable`` or ``timelock``."""
+    ``unreachable``, ``timelock`` or ``stall``."""
     kind: str
     name: str
     message: str
     agent: Optional[int] = None
     span: object = None
     loops: tuple = ()            # time-lock: (agent, (lines...)) per looping agent
+    waits: tuple = ()            # stall: (agent, what it waits on) per running agent
 
     @property
     def identity(self):
@@ -408,17 +444,17 @@ class LivenessResult:
 FAIR_ARRIVAL_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
 
 
-def wants_graph(model, timelock: bool) -> bool:
-    return timelock or bool(getattr(model, "temporal", ()))
+def wants_graph(model, timelock: bool, stall: bool = False) -> bool:
+    return timelock or stall or bool(getattr(model, "temporal", ()))
 
 
-def make_recorder(model, timelock: bool) -> Optional[GraphRecorder]:
-    if not wants_graph(model, timelock):
+def make_recorder(model, timelock: bool, stall: bool = False) -> Optional[GraphRecorder]:
+    if not wants_graph(model, timelock, stall):
         return None
     props = list(model.temporal)
     fair = (getattr(model.blackbox, "name", None) in FAIR_ARRIVAL_BLACKBOXES
             and any(p.liveness for p in props))
-    return GraphRecorder(model, props, fairness=fair)
+    return GraphRecorder(model, props, fairness=fair, stall=stall)
 
 
 def _chain_to(table, idx: int) -> list:
@@ -430,9 +466,9 @@ def _chain_to(table, idx: int) -> list:
 
 
 def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
-            find_all: bool = False) -> LivenessResult:
-    """Decide the temporal properties and the time-lock check on the graph
-    ``rec`` recorded during the search ``sr``."""
+            find_all: bool = False, stall: bool = False) -> LivenessResult:
+    """Decide the temporal properties, the time-lock check and the stall
+    check on the graph ``rec`` recorded during the search ``sr``."""
     from .explorer import Bound
     out = LivenessResult()
     table = explorer.table
@@ -555,7 +591,34 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
                                   "time-lock: time can never advance again, though not every "
                                   "agent has exited (a zero-time cycle that cannot be left)")
             record(v, chain, cstart)
+
+    # -- stall -----------------------------------------------------------------------
+    if stall and rec.chg is not None and (complete or depth_only) \
+            and (find_all or not out.found):
+        s = _first_stalled(g, rec.chg.view()[:n].astype(bool))
+        if s is not None:
+            v = TemporalViolation("stall", "stall", STALL_MESSAGE)
+            record(v, _chain_to(table, s), None)
     return out
+
+
+#: The verdict of a stall, before attach_traces adds what each agent waits on.
+STALL_MESSAGE = ("stall: the team can never change again (no variable, position or flag), "
+                 "though not every agent has exited and time goes on")
+
+
+def _first_stalled(g: "Graph", changes: np.ndarray) -> Optional[int]:
+    """The first stalled state in search order (breadth-first: a shortest
+    path): a state that reaches no transition changing the signature
+    (``changes``: the states with such a transition out), no terminal state
+    and no state from which time can never advance (a time-lock, reported as
+    such), or None.  Every state it reaches is stalled too, and, the graph
+    being finite, it reaches a cycle through TIME ADVANCE."""
+    bad = g.terminal | changes
+    bad |= ~g.can_reach(g.dyn)
+    stalled = ~g.can_reach(bad)
+    hits = np.flatnonzero(stalled)
+    return int(hits[0]) if hits.size else None
 
 
 def _fmt(x) -> str:
@@ -716,6 +779,13 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
                     cx.violation, loops=loop,
                     message=cx.violation.message + "; looping: " + ", ".join(parts),
                     agent=loops[0][0] if loops else None)
+        if cx.violation.kind == "stall":
+            from .stall import waiting, waiting_text
+            waits = waiting(model, tr.last)
+            cx.violation = dataclasses.replace(
+                cx.violation, waits=tuple(waits),
+                message=cx.violation.message + ("; " + waiting_text(waits) if waits else ""),
+                agent=waits[0][0] if waits else None)
         cx.trace = Trace(tr.states, tr.labels)
         cx.depth = len(tr)
     for _, cx in lv.witnesses:

@@ -151,6 +151,7 @@ class ExploreOptions(ModelOptions):
     progress_interval: float = 0.5
     progress: Optional[Callable] = None
     timelock: bool = True                   # report time-locks (docs/temporal.md)
+    stall: bool = True                      # report stalls (docs/temporal.md)
     fastest: bool = False                   # order the search on global time
 
     @classmethod
@@ -170,6 +171,7 @@ class ExploreOptions(ModelOptions):
         V.number(func, "progress_interval", self.progress_interval, positive=True)
         V.boolean(func, "coverage", self.coverage)
         V.boolean(func, "timelock", self.timelock)
+        V.boolean(func, "stall", self.stall)
         V.boolean(func, "fastest", self.fastest)
         w = self.workers
         if w != "auto" and (not isinstance(w, int) or isinstance(w, bool) or w < 1):

@@ -320,6 +320,8 @@ def replay(path, *, blackbox=None) -> ReplayResult:
         return _end_of_witness(m, result["witness"], res, diverge)
     if recorded["kind"] in ("liveness", "timelock", "response"):
         return _end_of_temporal(m, cfg, recorded, result.get("cycle_start"), res, diverge)
+    if recorded["kind"] == "stall":
+        return _end_of_stall(m, recorded, result.get("cycle_start"), res, diverge)
     # a safety violation of explore: the model's own checks on the last state
     viols = list(m.violations(state))
     if not viols and cfg.get("deadlock", True) and not m.successors(state) \
@@ -442,6 +444,55 @@ def _end_of_witness(m, w, res, diverge):
 
 #: How many states the time-lock check visits from the cycle at most.
 TIMELOCK_LIMIT = 100_000
+
+
+def _end_of_stall(m, recorded, cycle_start, res, diverge):
+    """The last state is stalled (pccl/stall.py, docs/temporal.md): from it
+    no reachable transition changes the team's visible state, no run ends,
+    time advances, and not every agent has exited; the message (with what
+    each agent waits on) is made again from the state."""
+    from .layout import AGS, EXITED, STATUS
+    from .liveness import STALL_MESSAGE
+    from .stall import signature_fn, waiting, waiting_text
+    n = len(res.labels)
+
+    def bad(why: str):
+        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
+
+    if cycle_start is not None:
+        return bad("a stall counterexample is not a lasso")
+    last = res.states[-1]
+    if all(ag[STATUS] == EXITED for ag in last[AGS]):
+        return bad("every agent has exited at the recorded stall")
+    sig = signature_fn(m)
+    want = sig(last)
+    seen, todo, advances = {m.key(last)}, [last], False
+    while todo:
+        st = todo.pop()
+        succ = m.successors(st)
+        if not succ:
+            return bad("a run can end from the recorded stall")
+        for lab, nxt in succ:
+            advances = advances or lab[0] == "TIME ADVANCE"
+            if sig(nxt) != want:
+                return bad(f"the team can still change from the recorded stall ({lab[0]})")
+            k = m.key(nxt)
+            if k not in seen:
+                seen.add(k)
+                todo.append(nxt)
+        if len(seen) > TIMELOCK_LIMIT:
+            res.warnings.append(f"warning: the stall was checked on the first "
+                                f"{TIMELOCK_LIMIT:,} states reachable from it only")
+            break
+    if not advances and not todo:
+        return bad("time never advances from the recorded stall (a time-lock, not a stall)")
+    waits = waiting(m, last)
+    message = STALL_MESSAGE + ("; " + waiting_text(waits) if waits else "")
+    if message != recorded["message"]:
+        return bad(f"the recorded stall message is not the state's: {message}")
+    res.status, res.exit_status = "violation", 1
+    res.message = f"reproduced: {message} (after {n} steps)"
+    return res
 
 
 def _end_of_temporal(m, cfg, recorded, cycle_start, res, diverge):

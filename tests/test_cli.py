@@ -346,7 +346,7 @@ def test_check_names_the_world_for_a_world_function():
 
 
 PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  frontier [\d,]+  "
-                        r"depth \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
+                        r"depth \d+  t \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
 
 
 def test_explore_progress_not_a_terminal_plain_timestamped_lines():
