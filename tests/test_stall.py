@@ -99,9 +99,6 @@ def test_rendezvous_without_the_wall_passes():
         assert res.stall
 
 
-@pytest.mark.xfail(strict=False, reason="the default blackbox nondet does not yet cover "
-                   "obstacle failures (another branch makes nondet cover them); then the "
-                   "default finds the stall too")
 def test_walled_rendezvous_stalls_under_the_default_blackbox():
     r = cli("explore", RDV, "--world", WALL)
     assert r.exit_code == 1, r.output
