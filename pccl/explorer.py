@@ -444,7 +444,8 @@ class Explorer:
     (successors admitted per vectorised step), ``recorder`` (an object with
     ``states(list)`` and ``edges(src, dst)``, told the states admitted and
     every transition's state numbers: :mod:`pccl.liveness` records the graph
-    with it).
+    with it), ``labels`` (a set: every distinct label of a transition taken
+    out of a reachable state is added to it; one C-level update per chunk).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -452,9 +453,11 @@ class Explorer:
                  find_all: bool = False, exact: bool = False,
                  progress: Optional[Callable[[dict], None]] = None,
                  progress_interval: float = 0.5, batch: int = 4096,
-                 max_memory: Optional[int] = None, recorder=None):
+                 max_memory: Optional[int] = None, recorder=None,
+                 labels: Optional[set] = None):
         self.model = model
         self.recorder = recorder
+        self.labels = labels
         self.max_memory = max_memory
         self.max_depth = max_depth
         self.max_states = max_states
@@ -527,6 +530,8 @@ class Explorer:
         flush = adm.flush
         cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
         second = operator.itemgetter(1)
+        labels = self.labels
+        first = operator.itemgetter(0)
         depth = 0
         level, level_idx = adm.take_level()
         next_report = _time.perf_counter() + self.progress_interval
@@ -582,6 +587,8 @@ class Explorer:
                 # bytecode per state unless the chunk holds a terminal
                 # state or the depth bound is reached
                 succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                if labels is not None:
+                    labels.update(map(first, chain(succs)))
                 ns = list(map(len, succs))
                 if not at_bound and 0 not in ns:
                     par_idx.extend(level_idx[c0:c0 + chunk])
