@@ -143,6 +143,12 @@ def test_never_fired_after_a_violation_only_with_all(never):
     assert r.checked.never_fired == (("Reset", RESET_LINE),)
 
 
+def test_never_fired_with_fastest(never):
+    r = explore(never, fastest=True)
+    assert r.status == "exhaustive"
+    assert r.checked.never_fired == (("Reset", RESET_LINE),)
+
+
 def test_never_fired_not_computed_with_workers(never):
     r = explore(never, workers=2)
     assert r.status == "exhaustive"
@@ -192,8 +198,10 @@ def test_reductions_hide_no_firing(rel, chdir_root):
     (reduced) search equals that of --reduce none, and of each reduction
     alone where it applies."""
     kw = _options(rel)
-    base = explore(rel, reduce="none", find_all=True, max_states=60_000, **kw)
+    base = explore(rel, reduce="none", find_all=True, max_states=150_000, coverage=True, **kw)
     assert base.checked.never_fired is not None, (rel, base.status, base.checked.events_reason)
+    # computed two ways: --coverage counts the firings of the unreduced search
+    assert [e for e, _ in base.checked.never_fired] == base.coverage.never_fired, rel
     red = explore(rel, find_all=True, **kw)
     assert red.checked.never_fired == base.checked.never_fired, rel
     for name in red.model.reduction.on:
