@@ -36,7 +36,7 @@ BLACKBOX_COVERS = {
     "nondet": "every travel time: each moving robot arrives or stays at every step",
     "straight": "one timing: straight-line travel at the world's speed",
     "instant": "one timing: every robot reaches its target in the next step",
-    "pymunk": "one timing: a physics simulation (acceleration, contact)",
+    "pymunk": "one timing: a physics simulation with acceleration and contact",
 }
 
 
