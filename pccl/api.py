@@ -112,6 +112,7 @@ def build_model(program, opts: ModelOptions, *, rng: Optional[random.Random] = N
     model = Model(prog, world=load_world_arg(opts.world), blackbox=blackbox,
                   n_agents=opts.agents, **kw)
     model.blackbox_reason = reason
+    model.world_given = opts.world is not None      # read by the checked section's notes
     return model
 
 
@@ -232,6 +233,10 @@ class ExploreResult:
     bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
     #: what the covering blackbox leaves out of straight's and pymunk's behaviours
     not_covered: Optional[str] = None
+    #: what the verdict covers (:class:`~pccl.checked.Checked`: properties and
+    #: their outcomes, built-in checks, blackbox, bounds, reductions, events
+    #: that never fired, notes); ``.to_json()`` is ``"checked"`` of the JSON
+    checked: Any = None
 
     @property
     def exhaustive(self) -> bool:
@@ -341,6 +346,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     timelock = timelock and one
     stall = stall and one
     rec = L.make_recorder(model, timelock, stall) if one else None
+    # the distinct labels of the transitions taken: the events that fired
+    labels: Optional[set] = set() if one else None
     runaways: list = []
 
     def on_runaway(info: dict) -> None:
@@ -360,9 +367,9 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         ex = ParallelExplorer(model, workers=nworkers, **opts)
     elif fastest:
         from .fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, recorder=rec, **opts)
+        ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
     else:
-        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, **opts)
+        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -373,6 +380,10 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         raise
     finally:
         model.lock_deadlocks = saved
+    # every reachable state was expanded (before the graph analysis, which
+    # may turn an exhaustive search into a violation)
+    complete = sr.status == "exhaustive" or (
+        find_all and sr.status == "violation" and not sr.bounds_hit)
     if getattr(model, "merger", None) is not None:
         from .reduce import expand_trace
         for f in sr.found:
@@ -391,8 +402,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
             sr.found.extend(lv.found)
             sr.status = "violation"
     bb = model.blackbox.name
-    labels = [bound_label(b, model, depth=depth, max_states=max_states, max_memory=max_memory)
-              for b in sr.bounds_hit]
+    bound_names = [bound_label(b, model, depth=depth, max_states=max_states,
+                               max_memory=max_memory) for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]
     n = len(sr.found)
     if sr.status == "violation":
@@ -405,7 +416,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         verdict = "no violation — exhaustive"
         code = 0
     elif sr.status == "bounded":
-        verdict = "no violation within bounds — stopped by " + ", ".join(labels)
+        verdict = "no violation within bounds — stopped by " + ", ".join(bound_names)
         code = 0
     elif n:
         verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
@@ -427,13 +438,25 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
             witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
                               "trace": steps, "state": StateView.of(model, cx.trace.last),
                               "_trace": cx.trace})
-    return ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
-                         violations, first.trace if first else (),
-                         first.state if first else None,
-                         sr.collision_probability, model, sr, list(sr.found),
-                         cov.report() if cov is not None else None, witnesses,
-                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
-                         timelock, stall, labels, not_covered_note(model))
+    res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
+                        violations, first.trace if first else (),
+                        first.state if first else None,
+                        sr.collision_probability, model, sr, list(sr.found),
+                        cov.report() if cov is not None else None, witnesses,
+                        list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
+                        timelock, stall, bound_names, not_covered_note(model))
+    from .checked import for_explore
+    configured = ([f"--depth {depth}"] if depth is not None else []) + \
+        ([f"--max-states {max_states}"] if max_states is not None else []) + \
+        ([f"--max-time {model.max_time}"] if model.max_time is not None else []) + \
+        (["--max-memory 80% of RAM"] if o.max_memory == "default" else
+         [f"--max-memory {format_size(max_memory)}"] if max_memory is not None else [])
+    where = "Ray actors" if ray is not None else f"{nworkers} worker processes"
+    res.checked = for_explore(
+        model, res, o, complete=complete, labels=labels, bounds=tuple(configured),
+        labels_reason=None if labels is not None else
+        f"the transitions are taken in {where}; use --workers 1")
+    return res
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

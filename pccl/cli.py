@@ -9,6 +9,7 @@ import sys
 import click
 
 from . import display as D
+from .checked import NO_PROPERTY_NOTE
 from .errors import PcclError
 from .layout import AGS, POS, STATUS, TIME
 from .options import ExploreOptions, ModelOptions, RunOptions
@@ -263,6 +264,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     except PcclError as e:
         _fail(e)
     m = res.model
+    from .checked import for_run
+    checked = for_run(m, res, opts)
     doc = None
     if record:
         cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
@@ -280,7 +283,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                            for t, s in res.summary],
                "final": D.state_json(m, res.final),
                "properties": [{"name": o.name, "kind": o.kind, "outcome": o.outcome,
-                               "detail": o.detail} for o in res.properties]}
+                               "detail": o.detail} for o in res.properties],
+               "checked": checked.to_json()}
         out["trace"] = doc
         click.echo(json.dumps(out, indent=2, default=str))
     else:
@@ -308,6 +312,9 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             click.echo("properties on this run:")
             for o in res.properties:
                 click.echo(f"  {o.name}: {o.outcome} — {o.detail}")
+        for note in checked.notes:
+            if note != NO_PROPERTY_NOTE:       # a run is one execution, not a proof
+                click.echo(f"note: {note}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
     if trace_out:
@@ -927,13 +934,13 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
             click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("witness state:")
         click.echo(D.format_state(m, w["_trace"].last))
-    if res.holds or res.notes:
+    if res.notes:
         click.echo("")
-        for name in res.holds:
-            if not any(w["name"] == name for w in res.witnesses):
-                click.echo(f"holds: {name}")
         for note in res.notes:
             click.echo(f"note: {note}")
+    # what the verdict covers; it says which properties hold
+    for ln in res.checked.lines():
+        click.echo(ln)
     click.echo("statistics:")
     for ln in _stats_lines(res):
         click.echo(ln)
@@ -962,7 +969,8 @@ def _explore_json(program, res) -> dict:
                            "state": w["state"].to_json()} for w in res.witnesses],
             "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
             "not_covered": res.not_covered,
-            "stall_check": res.stall}
+            "stall_check": res.stall,
+            "checked": res.checked.to_json()}
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -125,6 +125,9 @@ class Model:
         self.program = program
         #: why the search picked its blackbox (set by the API and the CLI)
         self.blackbox_reason: Optional[str] = None
+        #: whether the world came from --world (None: not known; pccl.checked
+        #: then compares it with the default world)
+        self.world_given: Optional[bool] = None
         self._set_world(world, blackbox)
         if n_agents is None:
             n_agents = self.world.n_agents or 2

@@ -455,7 +455,9 @@ class Explorer:
     ``on_runaway`` (called once with ``{"depth", "levels", "max_time",
     "state"}`` when ``runaway_levels`` levels pass without the model's
     ``clock`` growing: a zero-time loop that keeps making new states;
-    ``state`` is one of the deepest level's).
+    ``state`` is one of the deepest level's),
+    ``labels`` (a set: every distinct label of a transition taken
+    out of a reachable state is added to it; one C-level update per chunk).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -464,11 +466,13 @@ class Explorer:
                  progress: Optional[Callable[[dict], None]] = None,
                  progress_interval: float = 0.5, batch: int = 4096,
                  max_memory: Optional[int] = None, recorder=None,
-                 runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None):
+                 runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None,
+                 labels: Optional[set] = None):
         self.model = model
         self.runaway_levels = runaway_levels
         self.on_runaway = on_runaway
         self.recorder = recorder
+        self.labels = labels
         self.max_memory = max_memory
         self.max_depth = max_depth
         self.max_states = max_states
@@ -541,6 +545,8 @@ class Explorer:
         flush = adm.flush
         cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
         second = operator.itemgetter(1)
+        labels = self.labels
+        first = operator.itemgetter(0)
         depth = 0
         level, level_idx = adm.take_level()
         next_report = _time.perf_counter() + self.progress_interval
@@ -598,6 +604,8 @@ class Explorer:
                 # bytecode per state unless the chunk holds a terminal
                 # state or the depth bound is reached
                 succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                if labels is not None:
+                    labels.update(map(first, chain(succs)))
                 ns = list(map(len, succs))
                 if not at_bound and 0 not in ns:
                     par_idx.extend(level_idx[c0:c0 + chunk])

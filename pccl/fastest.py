@@ -126,6 +126,8 @@ class FastestExplorer(Explorer):
                         stop = True
                         break
                     succ = m.successors(s)
+                    if self.labels is not None:
+                        self.labels.update(lab for lab, _ in succ)
                     if not succ:
                         kind = m.terminal_kind(s)
                         if kind == "bounded":

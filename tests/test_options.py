@@ -141,7 +141,7 @@ def test_explore_result_is_typed_and_matches_the_cli_json():
 def test_state_view_text_is_what_the_cli_prints():
     r = api.explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="instant")
     out = cli("explore", RACE_NONATOMIC, "--world", RACE_WORLD, "-b", "instant").output
-    block = out.split("violating state:\n", 1)[1].split("\nstatistics:", 1)[0]
+    block = out.split("violating state:\n", 1)[1].split("\nchecked:", 1)[0]
     assert str(r.final_state) == block
     res = api.run(RACE, world=RACE_WORLD, blackbox="instant", seed=3)
     out = cli("run", RACE, "--world", RACE_WORLD, "-b", "instant", "--seed", "3").output

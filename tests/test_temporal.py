@@ -537,7 +537,7 @@ def test_liveness_turns_symmetry_off_and_says_why():
     # the time-lock check is what reports such a program
     assert res.exit_code == 0
     assert "symmetry off: liveness property `eventually !b` needs real cycles" in res.output
-    assert "holds: eventually !b" in res.output
+    assert "  property 'eventually !b': held" in res.output
 
 
 def test_verdicts_agree_with_and_without_reductions():
