@@ -224,6 +224,10 @@ def check(program, world):
 @click.option("--stall-steps", type=click.IntRange(min=0), default=20, show_default=True,
               help="stop, as stalled (exit 1), when no variable, position or flag has changed "
                    "for this many time steps while agents still run (0: never)")
+@click.option("--max-memory", "max_memory", metavar="SIZE", default=None,
+              callback=lambda c, p, v: _size(v),
+              help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
+                   "[default: 80% of physical memory]")
 @click.option("--trace", is_flag=True, help="print every transition")
 @click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
@@ -240,10 +244,10 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, stall_steps, invariants, properties, trace, fmt, plot, trace_out,
-        view, full):
+        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt, plot,
+        trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
-    from .api import build_model
+    from .api import build_model, memory_bound
     from .runner import run as run_model
     from . import traces as T
     if plot:
@@ -257,7 +261,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
         res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
-                        stall_steps=stall_steps)
+                        stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory))
         res.model = model
     except PcclError as e:
         _fail(e)
@@ -296,8 +300,11 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         for t, s in res.summary:
             click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
             prev = s
+        mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
+               if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
+               else "")
         click.echo(f"result: {res.status} — {res.message} "
-                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions)")
+                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions{mem})")
         for v in res.violations:
             if v.span is not None:
                 click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
@@ -351,7 +358,8 @@ def _step_summary(m, prev, s) -> str:
         st = D.status_text(m, ag[STATUS])
         parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
     if prev is not None:
-        ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
+        ch = [c for c in D.diff(m, prev, s, fmt=D.short_value)
+              if not c[0].startswith(("pos[", "time", "transitionState"))]
         if ch:
             parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
     return "  ".join(parts)
