@@ -21,7 +21,7 @@ from typing import Any, Optional, Union
 
 from . import ast as A
 from .engine import Model
-from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
+from .explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
 from .errors import ArgumentError, OptionError
 from .options import ExploreOptions, ModelOptions, RunOptions
@@ -357,6 +357,15 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     elif sr.status == "bounded":
         verdict = "no violation within bounds — stopped by " + ", ".join(labels)
         code = 0
+    elif sr.status == OUT_OF_MEMORY:
+        verdict = (f"out of memory — the process could not allocate more after "
+                   f"{sr.stats.states:,} states (not exhaustive; a limit such as ulimit -v is "
+                   f"below --max-memory {format_size(max_memory) if max_memory else 'none'}: "
+                   f"give a smaller --max-memory to stop as a bound)")
+        if n:
+            verdict += (f"; {n} distinct violation(s) found so far, first: "
+                        f"{sr.found[0].violation.message}")
+        code = 1 if n else 2
     elif n:
         verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
                    f"so far (not exhaustive); first: {sr.found[0].violation.message}")

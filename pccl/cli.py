@@ -169,6 +169,14 @@ class _Main(click.Group):
         except KeyboardInterrupt:
             click.echo("pccl: interrupted", err=True)
             sys.exit(_interrupted_status(130))
+        except MemoryError:
+            # what the command held is released with its frames by now
+            from .memory import peak_rss_bytes
+            click.echo(f"pccl {ctx.invoked_subcommand or ''}: out of memory: the process could "
+                       f"not allocate more (peak memory {peak_rss_bytes() / 2**20:,.1f} MiB; a "
+                       f"limit such as ulimit -v, or the machine's memory); give --max-memory "
+                       f"below that limit to stop cleanly as a bound", err=True)
+            sys.exit(2)
         finally:
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
@@ -315,7 +323,10 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                 click.echo(f"  {o.name}: {o.outcome} — {o.detail}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
-    if trace_out:
+    if trace_out and res.status == "out-of-memory":     # its trace was dropped
+        click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
+                   f"written to {trace_out}", err=True)
+    elif trace_out:
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
@@ -614,6 +625,13 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     try:
         model = build_model(program, opts)
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
+        if g.out_of_memory:
+            from .memory import peak_rss_bytes
+            click.echo(f"pccl graph {program}: out of memory after {len(g.states):,} states and "
+                       f"{len(g.edges):,} transitions (peak memory "
+                       f"{peak_rss_bytes() / 2**20:,.1f} MiB); nothing written to {output}: "
+                       f"give a smaller --max-states", err=True)
+            sys.exit(2)
         if ext == ".json":
             cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
                            overrides=dict(overrides), invariants=invariants,
@@ -668,6 +686,8 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                              collisions=collisions, overrides=overrides,
                              max_time=_delta(max_time), max_steps=max_steps)
     bad = any(o.key[0] not in ("final", "bounded") for o in outcomes.values())
+    # a run out of memory is a limit of the tool, not a verdict (exit 2)
+    code = 2 if ("out-of-memory",) in outcomes else 1 if bad else 0
     if fmt == "json":
         click.echo(json.dumps({
             "program": program, "runs": runs, "first_seed": seed, "agents": model.N,
@@ -677,8 +697,8 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                           "times": {"min": min(o.times), "median": statistics_median(o.times),
                                     "max": max(o.times)},
                           "command": command(o.first_seed)} for o in outcomes.values()],
-            "exit_status": 1 if bad else 0}, indent=2, default=str))
-        sys.exit(1 if bad else 0)
+            "exit_status": code}, indent=2, default=str))
+        sys.exit(code)
     click.echo(f"pccl simulate {program}: {runs} runs (seeds {seed}–{seed + runs - 1}), "
                f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
                f"n0={model.n0}{_rates_text(model)}")
@@ -695,7 +715,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
         click.echo(f"completion time ({len(done)} runs in which every agent exited):")
         for ln in S.histogram(done):
             click.echo(ln)
-    sys.exit(1 if bad else 0)
+    sys.exit(code)
 
 
 def statistics_median(xs):
