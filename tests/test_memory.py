@@ -273,7 +273,7 @@ def test_run_cli_max_memory(tmp_path):
 def test_run_max_memory_api_checks_its_value():
     from pccl.api import run
     from pccl.errors import ArgumentError
-    with pytest.raises(ArgumentError, match="max_memory"):
+    with pytest.raises(ArgumentError, match="max_memory must be an integer >= 1"):
         run(GROW, source=True, max_memory=0)
 
 
