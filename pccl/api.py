@@ -21,12 +21,13 @@ from typing import Any, Optional, Union
 
 from . import ast as A
 from .engine import Model
-from .explorer import Bound, Counterexample, Explorer, SearchResult, Stats, Trace
+from .explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
 from .errors import ArgumentError, OptionError
 from .options import ExploreOptions, ModelOptions, RunOptions
 from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
+from .memory import format_size
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
 #: model's (derived, so a new search option cannot be missing here).
@@ -254,14 +255,19 @@ def explore(program, **options) -> ExploreResult:
     return explore_model(_api_model("explore", program, opts, explore=True), options=opts)
 
 
-#: Fraction of the machine's physical memory a search may use by default
-#: (``max_memory="default"``): enough to leave the rest of the machine alive.
+#: Fraction of the machine's physical memory a search or a run may use by
+#: default (``max_memory="default"``): enough to leave the rest of the machine alive.
 DEFAULT_MEMORY_FRACTION = 0.8
 
 
 def default_max_memory() -> int:
     from .explorer import physical_memory
     return int(physical_memory() * DEFAULT_MEMORY_FRACTION)
+
+
+def memory_bound(max_memory) -> Optional[int]:
+    """A ``max_memory`` option in bytes (``"default"``: 80 % of physical memory)."""
+    return default_max_memory() if max_memory == "default" else max_memory
 
 
 def require_ray():
@@ -418,6 +424,15 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     elif sr.status == "bounded":
         verdict = "no violation within bounds — stopped by " + ", ".join(bound_names)
         code = 0
+    elif sr.status == OUT_OF_MEMORY:
+        verdict = (f"out of memory — the process could not allocate more after "
+                   f"{sr.stats.states:,} states (not exhaustive; a limit such as ulimit -v is "
+                   f"below --max-memory {format_size(max_memory) if max_memory else 'none'}: "
+                   f"give a smaller --max-memory to stop as a bound)")
+        if n:
+            verdict += (f"; {n} distinct violation(s) found so far, first: "
+                        f"{sr.found[0].violation.message}")
+        code = 1 if n else 2
     elif n:
         verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
                    f"so far (not exhaustive); first: {sr.found[0].violation.message}")
@@ -472,15 +487,6 @@ def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=
     return str(bound)
 
 
-def format_size(n: int) -> str:
-    """Bytes as ``--max-memory`` accepts them back (``1.5G``, ``300M``)."""
-    for unit, size in (("G", 2**30), ("M", 2**20), ("K", 2**10)):
-        if n >= size:
-            v = n / size
-            return f"{v:.1f}{unit}".replace(".0" + unit, unit)
-    return str(n)
-
-
 def parse_size(text: str) -> int:
     """``--max-memory`` values: bytes, or a number with K, M, G, T (powers of
     1024; an optional trailing ``B``/``iB``)."""
@@ -525,13 +531,16 @@ def run(program, **options) -> RunResult:
     (``seed``, ``max_steps``, ``max_time``, ``invariants``, ``stall_steps``,
     ...) plus ``record_trace``.  ``stall_steps``: stop (status ``stalled``,
     exit status 1) when no variable, position or flag changed for this many
-    time steps while an agent still runs; 0 turns that off."""
+    time steps while an agent still runs; 0 turns that off.  ``max_memory``:
+    as explore's, bytes of peak resident memory at which the run stops as
+    bounded (``"default"``: 80 % of physical memory; ``None``: no limit)."""
     V.program("run", program, options.get("source", False))
     opts = RunOptions.from_api("run", options)
     rng = random.Random(opts.seed)
     model = _api_model("run", program, opts, rng=rng)
     res = _run(model, seed=opts.seed, max_steps=opts.max_steps,
-               record_trace=opts.record_trace, rng=rng, stall_steps=opts.stall_steps)
+               record_trace=opts.record_trace, rng=rng, stall_steps=opts.stall_steps,
+               max_memory=memory_bound(opts.max_memory))
     res.model = model
     return res
 

@@ -139,7 +139,8 @@ def _fail(err: PcclError):
 EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
                     "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
                     "counterexample, a time-lock, a stall, an unreachable 'reachable P', a "
-                    "stalled run), 2 bad input (the program, the world, an option), "
+                    "run), 2 bad input (the program, the world, an option) or a limit of the "
+                    "tool (out of memory, rand over 1,000,000 outcomes), "
                     "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 _signal = {"term": False}
@@ -171,6 +172,14 @@ class _Main(click.Group):
         except KeyboardInterrupt:
             click.echo("pccl: interrupted", err=True)
             sys.exit(_interrupted_status(130))
+        except MemoryError:
+            # what the command held is released with its frames by now
+            from .memory import peak_rss_bytes
+            click.echo(f"pccl {ctx.invoked_subcommand or ''}: out of memory: the process could "
+                       f"not allocate more (peak memory {peak_rss_bytes() / 2**20:,.1f} MiB; a "
+                       f"limit such as ulimit -v, or the machine's memory); give --max-memory "
+                       f"below that limit to stop cleanly as a bound", err=True)
+            sys.exit(2)
         finally:
             if previous is not None:
                 signal.signal(signal.SIGTERM, previous)
@@ -226,6 +235,10 @@ def check(program, world):
 @click.option("--stall-steps", type=click.IntRange(min=0), default=20, show_default=True,
               help="stop, as stalled (exit 1), when no variable, position or flag has changed "
                    "for this many time steps while agents still run (0: never)")
+@click.option("--max-memory", "max_memory", metavar="SIZE", default=None,
+              callback=lambda c, p, v: _size(v),
+              help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
+                   "[default: 80% of physical memory]")
 @click.option("--trace", is_flag=True, help="print every transition")
 @click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
@@ -242,10 +255,10 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, stall_steps, invariants, properties, trace, fmt, plot, trace_out,
-        view, full):
+        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt, plot,
+        trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
-    from .api import build_model
+    from .api import build_model, memory_bound
     from .runner import run as run_model
     from . import traces as T
     if plot:
@@ -259,7 +272,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
         res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
-                        stall_steps=stall_steps)
+                        stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory))
         res.model = model
     except PcclError as e:
         _fail(e)
@@ -302,8 +315,11 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         for t, s in res.summary:
             click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
             prev = s
+        mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
+               if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
+               else "")
         click.echo(f"result: {res.status} — {res.message} "
-                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions)")
+                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions{mem})")
         for v in res.violations:
             if v.span is not None:
                 click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
@@ -317,7 +333,10 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                 click.echo(f"note: {note}")
         click.echo("final configuration:")
         click.echo(D.format_state(m, res.final))
-    if trace_out:
+    if trace_out and res.status == "out-of-memory":     # its trace was dropped
+        click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
+                   f"written to {trace_out}", err=True)
+    elif trace_out:
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
@@ -360,7 +379,8 @@ def _step_summary(m, prev, s) -> str:
         st = D.status_text(m, ag[STATUS])
         parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
     if prev is not None:
-        ch = [c for c in D.diff(m, prev, s) if not c[0].startswith(("pos[", "time", "transitionState"))]
+        ch = [c for c in D.diff(m, prev, s, fmt=D.short_value)
+              if not c[0].startswith(("pos[", "time", "transitionState"))]
         if ch:
             parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
     return "  ".join(parts)
@@ -624,6 +644,13 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     try:
         model = build_model(program, opts)
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
+        if g.out_of_memory:
+            from .memory import peak_rss_bytes
+            click.echo(f"pccl graph {program}: out of memory after {len(g.states):,} states and "
+                       f"{len(g.edges):,} transitions (peak memory "
+                       f"{peak_rss_bytes() / 2**20:,.1f} MiB); nothing written to {output}: "
+                       f"give a smaller --max-states", err=True)
+            sys.exit(2)
         if ext == ".json":
             cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
                            overrides=dict(overrides), invariants=invariants,
@@ -678,6 +705,8 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                              collisions=collisions, overrides=overrides,
                              max_time=_delta(max_time), max_steps=max_steps)
     bad = any(o.key[0] not in ("final", "bounded") for o in outcomes.values())
+    # a run out of memory is a limit of the tool, not a verdict (exit 2)
+    code = 2 if ("out-of-memory",) in outcomes else 1 if bad else 0
     if fmt == "json":
         click.echo(json.dumps({
             "program": program, "runs": runs, "first_seed": seed, "agents": model.N,
@@ -687,8 +716,8 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                           "times": {"min": min(o.times), "median": statistics_median(o.times),
                                     "max": max(o.times)},
                           "command": command(o.first_seed)} for o in outcomes.values()],
-            "exit_status": 1 if bad else 0}, indent=2, default=str))
-        sys.exit(1 if bad else 0)
+            "exit_status": code}, indent=2, default=str))
+        sys.exit(code)
     click.echo(f"pccl simulate {program}: {runs} runs (seeds {seed}–{seed + runs - 1}), "
                f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
                f"n0={model.n0}{_rates_text(model)}")
@@ -705,7 +734,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
         click.echo(f"completion time ({len(done)} runs in which every agent exited):")
         for ln in S.histogram(done):
             click.echo(ln)
-    sys.exit(1 if bad else 0)
+    sys.exit(code)
 
 
 def statistics_median(xs):

@@ -22,7 +22,7 @@ from . import ast as A
 from . import values as V
 from .builtins import BUILTINS, STATEMENTS, UNINTERPRETED
 from .checker import CheckedProgram
-from .errors import PcclError
+from .errors import PcclError, ToolLimitError
 from .layout import AGS, AR, DONE, FAIL, LOC, N_AGENT_CELLS, POS, REACH, SH, TIME
 from .types import ANY, FLOAT, Ty, indexes_agent
 
@@ -180,6 +180,9 @@ class Oracle:
         self.span = None
         self.eager = False      # inside outcomes(): the whole product is built
         self.size = 1           # outcomes of the current evaluation so far
+        #: the program's file name and text, for the location of a ToolLimitError
+        self.filename: Optional[str] = None
+        self.source: Optional[str] = None
 
     def rand(self, n, span=None):
         if type(n) is not int:
@@ -194,9 +197,16 @@ class Oracle:
         if self.eager:
             size = self.size * (n + 1)
             if size > MAX_OUTCOMES:
-                raise V.PcclRuntimeError(
-                    f"rand({n}): this transition would have {size:,} outcomes; explore "
-                    f"enumerates at most {MAX_OUTCOMES:,} per transition (use a smaller range)")
+                # a limit of the tool, not a fault of the agent: not a stuck
+                # agent (a violation) but an error that stops the search
+                self.eager = False
+                line = f" at line {span.line}" if span is not None else ""
+                raise ToolLimitError(
+                    f"rand({n:,}){line}: this transition would have {size:,} outcomes, and "
+                    f"explore enumerates at most {MAX_OUTCOMES:,} per transition: a limit of "
+                    f"the tool, not a violation of the program (use a smaller range; pccl run "
+                    f"draws one outcome and has no such limit)",
+                    span=span, filename=self.filename, source=self.source)
             self.size = size
         k = len(self.trail)
         v = self.prefix[k] if k < len(self.prefix) else 0

@@ -48,6 +48,7 @@ class CompiledProgram:
         self.layout: Layout = build_layout(program, self.info)
         #: ``rand`` outcomes: every one (explore) or the policy's (run)
         self.oracle = Oracle(rand_policy)
+        self.oracle.filename, self.oracle.source = program.filename, program.source
         self.comp = Compiler(program, self.layout, n_agents, self.functions, self.oracle,
                              self.info)
         #: statement id -> statement, and -> its event (None: Init)

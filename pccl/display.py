@@ -125,8 +125,31 @@ def current_event(model, ag) -> Optional[str]:
     return None
 
 
-def diff(model, a, b) -> list:
-    """[(cell, old, new)] for what changed between two configurations."""
+#: A list or array of more elements than this is shortened by
+#: :func:`short_value` (the first ``SHORT_HEAD`` and the last two shown).
+SHORT_LIMIT = 12
+SHORT_HEAD = 8
+
+
+def short_value(v, ty=None) -> str:
+    """:func:`format_value`, with long lists shortened to their first and
+    last elements and their length (``[0, 1, …, 999] (1,000 elements)``), at
+    any depth: a summary line stays short however large the value (the
+    time-step summary of ``pccl run``)."""
+    if isinstance(v, tuple) and len(v) > SHORT_LIMIT:
+        elem = getattr(ty, "elem", None)
+        head = [short_value(x, elem) for x in v[:SHORT_HEAD]]
+        tail = [short_value(x, elem) for x in v[-2:]]
+        return "[" + ", ".join(head + ["…"] + tail) + f"] ({len(v):,} elements)"
+    if isinstance(v, tuple) and any(isinstance(x, tuple) for x in v):
+        elem = getattr(ty, "elem", None)
+        return "[" + ", ".join(short_value(x, elem) for x in v) + "]"
+    return format_value(v, ty)
+
+
+def diff(model, a, b, fmt=format_value) -> list:
+    """[(cell, old, new)] for what changed between two configurations
+    (values shown by ``fmt``)."""
     out = []
     if a[TIME] != b[TIME]:
         out.append(("time", fmt_time(a[TIME]), fmt_time(b[TIME])))
@@ -136,13 +159,13 @@ def diff(model, a, b) -> list:
         out.append(("lockQueue", _lq(a[LQ]), _lq(b[LQ])))
     for (n, ty, va), (_, _, vb) in zip(shared_vars(model, a), shared_vars(model, b)):
         if va != vb:
-            out.append((n, format_value(va, ty), format_value(vb, ty)))
+            out.append((n, fmt(va, ty), fmt(vb, ty)))
     for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
         if ga is gb:
             continue
         for (n, ty, va), (_, _, vb) in zip(agent_vars(model, a, i), agent_vars(model, b, i)):
             if va != vb:
-                out.append((f"{n}[{i}]", format_value(va, ty), format_value(vb, ty)))
+                out.append((f"{n}[{i}]", fmt(va, ty), fmt(vb, ty)))
         if ga[POS] != gb[POS]:
             out.append((f"pos[{i}]", fmt_pos(ga[POS]), fmt_pos(gb[POS])))
         if ga[LCK] != gb[LCK]:

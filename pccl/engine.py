@@ -40,9 +40,9 @@ from .compiled import CompiledProgram
 from .blackboxes.base import Motion
 from .errors import OptionError, PcclError
 from .fingerprint import check_canonical
-from .layout import (AGS, AR, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LOC, LQ,
+from .layout import (AGS, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LCK, LQ,
                      PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acquire_sid,
-                     is_acquire, make_agent, make_state, put_agent, with_cell, with_pc,
+                     is_acquire, make_agent, make_state, put_agent, with_pc,
                      with_status, without_time)
 from .values import UNDEF
 from .options import check_model_values
@@ -426,7 +426,7 @@ class Model:
         _check_env(self, env0, 0)
         # the stages: shared initialisers once (in agent 0's context), then per
         # agent its declarations and its Init block
-        stages = [(0, vs) for vs in lay.shared if vs.decl.init is not None]
+        stages: list = [(-1, vs) for vs in lay.shared if vs.decl.init is not None]
         per_agent = [vs for vs in lay.allread + lay.local if vs.decl.init is not None]
         has_init = bool(self.program.init)
         for i in range(N):
@@ -440,89 +440,137 @@ class Model:
             yield make_state(0, DISCRETE, (), shared0, agents, env0)
             return
         # Depth-first over the stages with an explicit stack (no recursion:
-        # 10,000 agents make 10,000s of stages).  The path's configuration is
-        # kept as a mutable list of agent cells plus (lockQueue, shared): a
-        # level of the stack remembers only its own agent's input cell, not a
-        # whole configuration (with 10,000 agents, one configuration per
-        # level was gigabytes), and a full tuple is built only per yield and
-        # per Init block.  A stage of agent i changes only cell i, shared and
-        # lockQueue; popping the first stage of agent i restores its blank
-        # cell, so later agents are blank whenever an earlier stage resumes.
-        cells = list(agents)
-        first = [k == 0 or stages[k - 1][0] != stages[k][0] for k in range(n)]
+        # 10,000 agents make 10,000s of stages).  Memory is linear in the
+        # configuration: the path's configuration is kept in mutable form
+        # (the shared variables and the locals and allread of the agents
+        # whose declarations are being evaluated as lists, the agent cells as
+        # a list) and a level of the stack is a generator that writes its
+        # outcome there and undoes it when it moves on or is popped, so a
+        # level holds one slot's value, never a copy of a tuple (one copy of
+        # the locals per declaration was quadratic: 10,000 declarations took
+        # 1.7 GiB).  Tuples are built once per agent (when its declarations
+        # are done), per Init block and per yield.
+        w = _InitPath(agents, shared0, loc0, ar0, has_init)
         stack: list = []
 
-        def push(k, lq, sh):
+        def push(k):
             i, vs = stages[k]
-            if first[k]:
-                cells[i] = agents[i]
-            ag = cells[i]
+            prev = stages[k - 1][0] if k else None
+            if i >= 0 and prev != i:
+                w.begin_agent(i, prev)
             if vs is None:
-                it = self._init_outcomes(i, ag, lq, sh, cells, env0)
+                stack.append(self._init_stage(w, i, env0))
+            elif i < 0:
+                stack.append(self._shared_decl_stage(w, vs))
             else:
-                it = self._decl_outcomes(i, vs, ag, lq, sh, cells)
-            stack.append((it, i, first[k]))
+                stack.append(self._decl_stage(w, i, vs))
 
-        push(0, (), shared0)
+        push(0)
         while stack:
-            it, i, fst = stack[-1]
-            r = next(it, None)
-            if r is None:
+            if next(stack[-1], None) is None:
                 stack.pop()
-                if fst:
-                    cells[i] = agents[i]
+                k = len(stack)
+                i = stages[k][0]
+                if i >= 0 and (k == 0 or stages[k - 1][0] != i):
+                    w.end_agent(i)
                 continue
-            lq, sh, cells[i] = r
             if len(stack) < n:
-                push(len(stack), lq, sh)
+                push(len(stack))
                 continue
-            st = make_state(0, DISCRETE, lq, sh, tuple(cells), env0)
+            w.finish_last(stages[-1][0])
+            st = make_state(0, DISCRETE, w.lq, w.sh_tuple(), tuple(w.cells), env0)
             if st in seen:
                 continue
             if len(seen) < cap:
                 seen.add(st)
             yield st
 
-    def _init_outcomes(self, i, ag, lq, sh, cells, env0):
-        """Stage: agent i's Init block; yields (lockQueue, shared, cell i)."""
-        cells[i] = ag
-        for s in self._init_paths(make_state(0, DISCRETE, lq, sh, tuple(cells), env0), i):
-            yield s[LQ], s[SH], s[AGS][i]
-
-    def _decl_outcomes(self, i, vs, ag, lq, sh, cells):
-        """Stage: agent i's declaration ``vs`` initialised; yields
-        (lockQueue, shared, cell i), one per ``rand`` outcome, lazily."""
-        if ag[STATUS] != RUNNING:
-            yield lq, sh, ag
-            return
+    def _shared_decl_stage(self, w, vs):
+        """Stage: the initialiser of the shared (allwrite) variable ``vs``,
+        evaluated once in agent 0's context; one outcome per ``rand``
+        outcome.  A runtime error is an error of the program's initial
+        configuration (no agent runs it): a :class:`PcclError` at the
+        declaration (docs/decisions.md)."""
         fn = self.compiled.decl_init(vs)
-        oracle = self.oracle
+        oracle, j, shl, cells, blank = self.oracle, vs.slot, w.shl, w.cells, w.shared0[vs.slot]
 
         def guarded(*a):
-            oracle.agent = i
-            cells[i] = ag            # the path may have moved on since the last outcome
+            oracle.agent = 0
             try:
                 return fn(*a)
             except R.RUNTIME_ERRORS as exc:
                 return R.Err.of(exc)
             finally:
                 oracle.agent = None
-        results = (oracle.iter_outcomes(guarded, i, ag, sh, cells) if has_rand(vs.decl.init)
-                   else (guarded(i, ag, sh, cells),))
+        results = (oracle.iter_outcomes(guarded, 0, cells[0], shl, cells)
+                   if has_rand(vs.decl.init) else (guarded(0, cells[0], shl, cells),))
+        try:
+            for res in results:
+                if isinstance(res, R.Err):
+                    raise PcclError(f"the initialiser of `{vs.name}` at line "
+                                    f"{vs.decl.span.line}: {res.reason}",
+                                    span=vs.decl.span, filename=self.program.filename,
+                                    source=self.program.source)
+                shl[j] = (res,) * vs.ty.size if vs.ty.kind == "array" else res
+                yield True
+                shl[j] = blank
+        finally:
+            shl[j] = blank
+
+    def _decl_stage(self, w, i, vs):
+        """Stage: agent i's declaration ``vs`` initialised, one outcome per
+        ``rand`` outcome, lazily; the value is written into the agent's
+        slot list (or its status set to stuck) and undone on resumption."""
+        if w.bases[i][STATUS] != RUNNING:
+            yield True
+            return
+        fn = self.compiled.decl_init(vs)
+        oracle, cells, sh = self.oracle, w.cells, w.sh_tuple()
+        slots = w.locs[i] if vs.section == "loc" else w.ars[i]
         j = vs.slot
-        for res in results:
-            if isinstance(res, R.Err):
-                code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
-                yield lq, sh, with_status(ag, code)
-                continue
-            # the value is canonical (Compiler.value); `bool f[3] = false;` fills
-            v = (res,) * vs.ty.size if vs.ty.kind == "array" else res
-            if vs.section == "allwrite":
-                yield lq, sh[:j] + (v,) + sh[j + 1:], ag
-            else:
-                c = LOC if vs.section == "loc" else AR
-                cell = ag[c][:j] + (v,) + ag[c][j + 1:]
-                yield lq, sh, with_cell(ag, c, cell)
+        blank = slots[j]
+        base = w.bases[i]
+
+        def guarded(*a):
+            oracle.agent = i
+            # the agent as its initialisers see it: the slot lists as its
+            # locals and allread (compiled expressions only subscript them)
+            cells[i] = w.view(i)      # the path may have moved on since the last outcome
+            try:
+                return fn(i, cells[i], sh, cells)
+            except R.RUNTIME_ERRORS as exc:
+                return R.Err.of(exc)
+            finally:
+                oracle.agent = None
+        results = (oracle.iter_outcomes(guarded) if has_rand(vs.decl.init) else (guarded(),))
+        try:
+            for res in results:
+                if isinstance(res, R.Err):
+                    code = self.stuck_code("error", res.reason, ("decl", vs.decl.span))
+                    w.bases[i] = with_status(base, code)
+                    yield True
+                    w.bases[i] = base
+                    continue
+                # the value is canonical (Compiler.value); `bool f[3] = false;` fills
+                slots[j] = (res,) * vs.ty.size if vs.ty.kind == "array" else res
+                yield True
+                slots[j] = blank
+        finally:
+            slots[j] = blank
+            w.bases[i] = base
+
+    def _init_stage(self, w, i, env0):
+        """Stage: agent i's Init block run to completion; one outcome per
+        state it can end in (lockQueue, shared and agent i's cell set)."""
+        w.finish_agent(i)
+        lq, sh, cell = w.lq, w.sh_tuple(), w.cells[i]
+        ends = [(s[LQ], s[SH], s[AGS][i]) for s in self._init_paths(
+            make_state(0, DISCRETE, lq, sh, tuple(w.cells), env0), i)]
+        try:
+            for w.lq, w.sh, w.cells[i] in ends:
+                yield True
+        finally:
+            w.lq, w.sh, w.cells[i] = lq, sh, cell
 
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
@@ -871,6 +919,66 @@ class Model:
         return Violation("deadlock", "deadlock", msg, None, None)
 
 _EXACT = decimal.Context(prec=60)
+
+
+class _InitPath:
+    """The configuration on the path of :meth:`Model.init_states`'s
+    depth-first search, in mutable form (see there): ``cells`` the agent
+    cells; ``shl`` the shared variables while their initialisers run, then
+    ``sh`` (a tuple); for an agent whose declarations are being evaluated,
+    ``bases[i]`` (its cell, for the status) and ``locs[i]``/``ars[i]``
+    (its locals and allread as lists); ``lq`` the lock queue."""
+
+    def __init__(self, agents, shared0, loc0, ar0, has_init):
+        self.agents, self.shared0, self.loc0, self.ar0 = agents, shared0, loc0, ar0
+        self.has_init = has_init
+        self.cells = list(agents)
+        self.shl = list(shared0)
+        self.sh: Optional[tuple] = None      # set once the shared stages are done
+        self.lq: tuple = ()
+        n = len(agents)
+        self.bases: list = [None] * n
+        self.locs: list = [None] * n
+        self.ars: list = [None] * n
+
+    def sh_tuple(self) -> tuple:
+        if self.sh is None:
+            return tuple(self.shl)
+        return self.sh
+
+    def begin_agent(self, i, prev) -> None:
+        """The first stage of agent i is pushed (``prev``: the agent of the
+        stage before, -1 for a shared one, None for none)."""
+        if prev is not None and prev >= 0:
+            if not self.has_init:           # else its Init stage set its cell
+                self.finish_agent(prev)
+        elif self.sh is None:
+            self.sh = tuple(self.shl)           # the shared initialisers are done
+        self.bases[i] = self.agents[i]
+        self.locs[i], self.ars[i] = list(self.loc0), list(self.ar0)
+
+    def end_agent(self, i) -> None:
+        """The first stage of agent i is popped: agent i is blank again."""
+        self.cells[i] = self.agents[i]
+        self.bases[i] = self.locs[i] = self.ars[i] = None
+        if i == 0:
+            self.sh = None                      # back to the shared stages (if any)
+
+    def view(self, i) -> tuple:
+        b = self.bases[i]
+        return (b[PC], b[CNT], b[LCK], b[STATUS], self.locs[i], self.ars[i], b[POS], b[REACH])
+
+    def finish_agent(self, i) -> None:
+        """Agent i's declarations are done: its cell as a tuple."""
+        b = self.bases[i]
+        self.cells[i] = make_agent(b[PC], b[CNT], b[LCK], b[STATUS], tuple(self.locs[i]),
+                                   tuple(self.ars[i]), b[POS], b[REACH])
+
+    def finish_last(self, i) -> None:
+        """Before a yield: the last stage's agent (i) as a tuple, unless its
+        Init stage set it."""
+        if i >= 0 and not self.has_init:
+            self.finish_agent(i)
 
 
 def _top_temporal(e):

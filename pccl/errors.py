@@ -51,6 +51,13 @@ class PcclError(Exception):
         return self.render()
 
 
+class ToolLimitError(PcclError):
+    """A limit of the tool, not an error of the program nor a violation of
+    its properties (``rand(n)`` with more outcomes in one transition than
+    explore enumerates): reported like bad input, with the location, exit
+    status 2."""
+
+
 class ArgumentError(PcclError, ValueError):
     """A bad argument to a function of the Python API (:mod:`pccl.api`):
     its ``filename`` is the function, e.g. ``pccl.api.explore``."""

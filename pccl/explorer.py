@@ -118,6 +118,12 @@ class Model(Protocol):
     # every process numbers them alike.
 
 
+#: The status of a search stopped by a ``MemoryError`` (the process could not
+#: allocate, e.g. under ``ulimit -v`` below ``--max-memory``): the figures so
+#: far and the violations found, not exhaustive.
+OUT_OF_MEMORY = "out-of-memory"
+
+
 class Bound(enum.Enum):
     """What cut a search short.  The explorer never spells CLI flags; the
     front ends render these (``pccl explore`` as ``--depth 10`` etc.)."""
@@ -217,7 +223,7 @@ class Counterexample:
 
 @dataclass
 class SearchResult:
-    status: str                    # violation | exhaustive | bounded | interrupted
+    status: str                    # violation | exhaustive | bounded | interrupted | out-of-memory
     found: list = field(default_factory=list)       # [Counterexample]
     bounds_hit: list = field(default_factory=list)  # [Bound]
     stats: Stats = field(default_factory=Stats)
@@ -507,6 +513,11 @@ class Explorer:
             self._levels(adm, t_start, stop)
         except KeyboardInterrupt:
             res.status = "interrupted"
+        except MemoryError:
+            # the process could not allocate (a limit below --max-memory):
+            # drop the frontier, keep the figures and what was found
+            adm.out_of_memory()
+            res.status = OUT_OF_MEMORY
         return self._result(res, adm, t_start)
 
     def _initial_states(self, adm: "_Admission") -> bool:
@@ -647,7 +658,7 @@ class Explorer:
         if not self.exact:
             res.collision_probability = collision_bound(stats.states)
         res.bounds_hit = sorted(bounds, key=lambda b: b.value)
-        if res.status != "interrupted":
+        if res.status not in ("interrupted", OUT_OF_MEMORY):
             if found:
                 res.status = "violation"
             elif bounds:
@@ -753,6 +764,11 @@ class _Admission:
             def keys_of(states):
                 return map(xxh, map(dumps, map(key, states), twos))
         self.keys_of = keys_of
+
+    def out_of_memory(self) -> None:
+        """A MemoryError stopped the search: free the pending states."""
+        self.cs.clear()
+        self.nxt, self.nxt_idx = [], []
 
     def take_level(self) -> tuple[list, list]:
         """The states admitted since the last call, and their numbers."""

@@ -30,7 +30,7 @@ import time as _time
 import numpy as np
 import xxhash
 
-from .explorer import (Bound, Explorer, ExactTable, FingerprintTable, SearchResult, Stats,
+from .explorer import (OUT_OF_MEMORY, Bound, Explorer, ExactTable, FingerprintTable, SearchResult, Stats,
                        _MAX_STATES, _NO_PARENT, peak_rss_bytes)
 from .fingerprint import collision_bound
 
@@ -159,6 +159,9 @@ class FastestExplorer(Explorer):
                     stop = True
         except KeyboardInterrupt:
             res.status = "interrupted"
+        except MemoryError:                 # as Explorer: the figures so far
+            buckets.clear()
+            res.status = OUT_OF_MEMORY
         stats.states = table.n
         stats.frontier = sum(len(b) for b in buckets.values())
         stats.seconds = _time.perf_counter() - t_start
@@ -166,7 +169,7 @@ class FastestExplorer(Explorer):
         if not exact:
             res.collision_probability = collision_bound(stats.states)
         res.bounds_hit = sorted(bounds, key=lambda b: b.value)
-        if res.status != "interrupted":
+        if res.status not in ("interrupted", OUT_OF_MEMORY):
             res.status = "violation" if found else ("bounded" if bounds else "exhaustive")
         for f in found:
             f.trace = self.replay(f.index)

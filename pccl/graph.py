@@ -36,6 +36,7 @@ class Graph:
     violations: dict = field(default_factory=dict)  # number -> [Violation]
     terminal: dict = field(default_factory=dict)    # number -> final | bounded | deadlock
     truncated: bool = False
+    out_of_memory: bool = False                     # a MemoryError stopped the build
 
 
 def build(model, *, max_states: int = 10_000, deadlock: bool = True) -> Graph:
@@ -60,10 +61,20 @@ def build(model, *, max_states: int = 10_000, deadlock: bool = True) -> Graph:
         queue.append(n)
         return n
 
+    try:
+        _explore(model, g, admit, queue, deadlock)
+    except MemoryError:         # the states so far are kept; the CLI writes no file
+        queue.clear()
+        g.out_of_memory = g.truncated = True
+    return g
+
+
+def _explore(model, g, admit, queue, deadlock) -> None:
     for st in model.init_states():
         n = admit(st, 0)
-        if n is not None:
-            g.initial.add(n)
+        if n is None:           # --max-states reached: the other initial states are not
+            break               # enumerated (fischer with 4 agents has 66**4 of them)
+        g.initial.add(n)
     while queue:
         n = queue.popleft()
         st = g.states[n]
@@ -79,7 +90,6 @@ def build(model, *, max_states: int = 10_000, deadlock: bool = True) -> Graph:
             m = admit(nxt, g.depth[n] + 1)
             if m is not None:
                 g.edges.append((n, m, label))
-    return g
 
 
 def _edge_text(model, label, a, b) -> str:

@@ -477,10 +477,11 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
         b in (Bound.MODEL,) for b in sr.bounds_hit)
     depth_only = rec.complete and sr.status == "bounded" and all(
         b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
-    if sr.status == "violation" or sr.status == "interrupted":
+    if sr.status in ("violation", "interrupted", "out-of-memory"):
         if rec.props:
             out.notes.append("temporal properties not checked: the search stopped at "
-                             + ("a violation" if sr.status == "violation" else "an interrupt"))
+                             + {"violation": "a violation", "interrupted": "an interrupt",
+                                "out-of-memory": "out of memory"}[sr.status])
         return out
     g = rec.freeze(n)
     n_init = sr.stats.initial_states

@@ -20,7 +20,7 @@ try:
 except ImportError:  # pragma: no cover - Windows
     _resource = None  # type: ignore[assignment]
 
-__all__ = ["peak_rss_bytes", "rss_bytes"]
+__all__ = ["format_size", "peak_rss_bytes", "rss_bytes"]
 
 
 def _maxrss_bytes(resource_module, platform: str = sys.platform) -> int:
@@ -75,3 +75,12 @@ def rss_bytes() -> int:
         return int(psutil.Process().memory_info().rss)
     except Exception:  # pragma: no cover - psutil missing or unreadable
         return peak_rss_bytes()
+
+
+def format_size(n: int) -> str:
+    """Bytes as ``--max-memory`` accepts them back (``1.5G``, ``300M``)."""
+    for unit, size in (("G", 2**30), ("M", 2**20), ("K", 2**10)):
+        if n >= size:
+            v = n / size
+            return f"{v:.1f}{unit}".replace(".0" + unit, unit)
+    return str(n)

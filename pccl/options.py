@@ -205,6 +205,14 @@ class RunOptions(CommonOptions):
     max_steps: int = 100_000
     record_trace: bool = False
     stall_steps: int = 20                   # 0: no stall detection
+    max_memory: Any = "default"             # bytes, None (no limit) or "default", as explore's
+
+    @classmethod
+    def from_cli(cls, params: Mapping[str, Any]):
+        opts = super().from_cli(params)
+        if opts.max_memory is None:
+            opts = opts.replace(max_memory="default")
+        return opts
 
     @classmethod
     def from_api(cls, func: str, kwargs: Mapping[str, Any]):
@@ -220,6 +228,8 @@ class RunOptions(CommonOptions):
         V.integer(func, "max_steps", self.max_steps, minimum=1)
         V.integer(func, "stall_steps", self.stall_steps, minimum=0)
         V.boolean(func, "record_trace", self.record_trace)
+        if self.max_memory != "default":
+            V.integer(func, "max_memory", self.max_memory, minimum=1, optional=True)
 
     def model_kwargs(self, *, with_max_time: bool = True) -> dict:
         kw = super().model_kwargs(with_max_time=with_max_time)

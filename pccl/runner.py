@@ -7,7 +7,16 @@ run.  The run ends when every agent has exited, in a terminal state, at
 invariant, collision), when one time step takes more than ``--max-steps``
 transitions (an event that never ends, such as ``while (true)``), or when the
 team has stalled: no variable, position or flag changed for ``stall_steps``
-time steps while some agent still runs (``--stall-steps``).
+time steps while some agent still runs (``--stall-steps``).  A run that
+passes ``--max-memory`` stops as bounded; one that runs out of memory
+(``MemoryError``) stops with status ``out-of-memory`` (exit status 2): both
+with what the run did so far.
+
+Memory is linear in the size of a state, whatever the length of the run:
+the summary keeps at most :data:`SUMMARY_LIMIT` time steps and at most
+:data:`SUMMARY_BUDGET` values' worth of the lists and arrays they hold
+(a list that grows each time step made one state per time step quadratic);
+beyond either it is thinned evenly.
 """
 
 from __future__ import annotations
@@ -24,7 +33,8 @@ from .layout import (AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING,
 
 @dataclass
 class RunResult:
-    status: str                 # final | bounded | deadlock | violation | max-steps
+    status: str                 # final | bounded | deadlock | violation | max-steps | stalled
+                                # | interrupted | out-of-memory
     message: str
     exit_status: int
     final: tuple                # the last configuration
@@ -39,6 +49,10 @@ class RunResult:
     waiting: list = field(default_factory=list)
     #: what this run says about each temporal property (PropertyOutcome)
     properties: list = field(default_factory=list)
+    #: peak resident memory of the process (bytes) when the run ended
+    peak_memory: int = 0
+    #: the --max-memory the run was given (bytes, None: none)
+    max_memory: Optional[int] = None
 
     model: Any = None
 
@@ -205,12 +219,16 @@ def _guard_text(src) -> str:
 
 
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
-        rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20) -> RunResult:
+        rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20,
+        max_memory: Optional[int] = None) -> RunResult:
     """Execute ``model`` once.  ``model`` must have been built with a
     ``rand_policy`` if rand should be sampled (see :func:`pccl.api.make_model`);
     otherwise all rand outcomes are successors and one is picked at random.
     ``stall_steps``: stop when nothing changed for this many time steps
-    while an agent still runs (0: never)."""
+    while an agent still runs (0: never).  ``max_memory``: stop, as
+    bounded, once the process's peak resident memory passes this many bytes
+    (checked every :data:`MEMORY_CHECK` transitions; None: never)."""
+    from .memory import peak_rss_bytes
     rng = rng or random.Random(seed)
     gen = iter(model.init_states())
     inits = list(itertools.islice(gen, 2))
@@ -219,6 +237,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
     trace: list = []
     summary = [(st[TIME], st)]
+    weights = [0]               # per summary entry: the list/array values it added
+    budget = SUMMARY_BUDGET
     steps = 0
     n_env, stride = 0, 1
     since_time = 0
@@ -229,7 +249,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     mon = _Monitor(temporal) if temporal else None
 
     def finish(status, message, code, **kw):
-        res = RunResult(status, message, code, st, steps, trace, summary, **kw)
+        res = RunResult(status, message, code, st, steps, trace, summary, **kw,
+                        peak_memory=peak_rss_bytes(), max_memory=max_memory)
         if mon is not None:
             res.properties = mon.outcomes(status in ("final", "deadlock", "stalled"),
                                           "every agent exited" if status == "final" else status)
@@ -269,6 +290,12 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
             if on_step is not None:
                 on_step(label, st, nxt)
             steps += 1
+            if max_memory is not None and not steps % MEMORY_CHECK \
+                    and peak_rss_bytes() > max_memory:
+                st = nxt
+                from .memory import format_size
+                return finish("bounded", f"stopped at --max-memory {format_size(max_memory)}: "
+                              f"the process's peak memory passed it", 0)
             rule, agent = label[0], label[1]
             if rule == "TIME ADVANCE":
                 since_time = 0
@@ -291,10 +318,15 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                                   1, stalled_since=since, waiting=waits)
                 n_env += 1
                 if n_env % stride == 0:
+                    w = _weight(nxt, summary[-1][1])
                     summary.append((nxt[TIME], nxt))
-                    if len(summary) > SUMMARY_LIMIT:    # bounded memory on long runs:
+                    weights.append(w)
+                    budget -= w
+                    if len(summary) > SUMMARY_LIMIT or budget < 0:  # bounded memory:
                         summary[1:] = summary[2::2]     # keep every other one, and
+                        weights[1:] = weights[2::2]
                         stride *= 2                     # record half as often from now on
+                        budget = SUMMARY_BUDGET - sum(weights)
             else:
                 since_time += 1
                 if agent is not None:
@@ -310,11 +342,51 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
             st = nxt
     except KeyboardInterrupt:   # Ctrl-C or SIGTERM: the run so far, status 130
         return finish("interrupted", f"interrupted after {steps} transitions", 130)
+    except MemoryError:
+        # the frames that failed are gone; the recorded trace, the likely
+        # culprit, is dropped so that the result can be shown
+        dropped = f"; the recorded trace ({len(trace):,} transitions) was dropped" if trace else ""
+        trace.clear()
+        return finish("out-of-memory",
+                      f"out of memory after {steps} transitions: the process could not "
+                      f"allocate more (a limit such as ulimit -v, or the machine's memory); "
+                      f"give --max-memory below that limit to stop as a bound{dropped}", 2)
 
 
 #: The most time steps a run's summary keeps; a longer run's summary is
 #: thinned evenly (every 2nd, 4th, ... time step), so memory stays bounded.
 SUMMARY_LIMIT = 100_000
+
+#: The most list and array elements the summary's states may add to memory
+#: (about 8 bytes each): the states of a run whose lists grow each time step
+#: would otherwise make memory quadratic in the run's length.  Beyond it the
+#: summary is thinned as beyond :data:`SUMMARY_LIMIT`.
+SUMMARY_BUDGET = 8_000_000
+
+#: Transitions between two checks of ``--max-memory``.
+MEMORY_CHECK = 256
+
+
+def _weight(st, prev) -> int:
+    """About how many list and array elements ``st`` holds that ``prev``
+    (the summary's previous state) does not share: the memory a summary
+    entry adds beyond its cells.  Values are compared by identity (a list
+    that did not change is the same tuple), nested lists one level deep."""
+    pairs = [(st[SH], prev[SH])]
+    for a, b in zip(st[AGS], prev[AGS]):
+        if a is not b:
+            pairs.append((a[LOC], b[LOC]))
+            pairs.append((a[AR], b[AR]))
+    w = 0
+    for cur, old in pairs:
+        if cur is old:
+            continue
+        for v, o in zip(cur, old):
+            if v is not o and type(v) is tuple:
+                w += len(v)
+                if v and type(v[0]) is tuple:
+                    w += sum(len(x) for x in v if type(x) is tuple)
+    return w
 
 
 def _looping_agent(model, st, per_agent: Counter) -> int:

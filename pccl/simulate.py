@@ -62,6 +62,8 @@ def simulate(model, rng: random.Random, *, runs: int, seed: int = 0, max_steps: 
         o.times.append(res.final[TIME])
         if on_run is not None:
             on_run(k, res)
+        if res.status == "out-of-memory":       # the next runs would fail alike
+            break
     return out
 
 

@@ -160,10 +160,33 @@ class Err:
 
 
 def describe_error(exc) -> str:
-    """The reason of a stuck agent for a Python exception in compiled code."""
+    """The reason of a stuck agent for a Python exception in compiled code,
+    in PCCL's terms: never Python's text (``OverflowError: int too large to
+    convert to float``), which names nothing of the program.  The location
+    (the statement's line) is added where the reason is shown."""
+    if isinstance(exc, PcclRuntimeError):
+        return str(exc)
     if isinstance(exc, ZeroDivisionError):
         return "division by zero"
-    return f"{type(exc).__name__}: {exc}"
+    if isinstance(exc, OverflowError):
+        # an int beyond a float's range met a float (x * 1.5, x / 2.5,
+        # ItemPosition(x, 0)), or a float result beyond it (dist of huge positions)
+        return ("arithmetic overflow: a number beyond the range of a float "
+                "(about ±1.8e308)")
+    if isinstance(exc, IndexError):
+        return "index out of range"
+    if isinstance(exc, ValueError):
+        text = str(exc)
+        if "integer string conversion" in text:
+            return "arithmetic overflow: an integer too large to convert"
+        if "math domain error" in text:
+            return "arithmetic error: an argument outside the domain of the function"
+        if text.startswith("rand hook returned"):     # the API's rand_policy: its own words
+            return text
+        return "invalid value"
+    if isinstance(exc, TypeError):
+        return "a value of the wrong type in an operation"
+    return "runtime error"
 
 
 def stuck_successor(m, st, i, ag, reason, where, kind="error"):

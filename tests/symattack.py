@@ -210,6 +210,8 @@ def orbits_agree(text, agents, invariants, limit=5_000, **options) -> bool:
     apart even where no property happens to notice."""
     kw = dict(source=True, agents=agents, blackbox="instant", invariants=invariants)
     kw.update(options)
+    if agents is None:
+        del kw["agents"]                # the world's count
     sym = make_model(text, reduce="symmetry", **kw)
     full = make_model(text, reduce="none", **kw)
     key = sym.key
@@ -238,3 +240,92 @@ if __name__ == "__main__":
     print(text)
     print("invariants:", invariants, "agents:", agents)
     print(check(seed))
+
+
+# ---------------------------------------------------------------------------
+# robots that move (issue 23): symmetry with positions in the key
+# ---------------------------------------------------------------------------
+
+MOVING = """Agent::Movers
+
+allwrite:
+  List<ItemPosition> dests = getInput();
+  int owner = -1;
+
+allread:
+  bool arrived = false;
+
+loc:
+  ItemPosition goal;
+  bool going = false;
+  bool gaveUp = false;
+  int tries = 0;
+  int id = getAgentIndex();
+
+Init:
+"""
+
+#: guards and statements for movers; the second lists tell agents apart
+MOVE_GUARDS = ["!going && !arrived && !gaveUp", "going && doReach_done", "going && doReach_fail",
+               "going && !doReach_done && !doReach_fail", "arrived", "owner == -1",
+               "owner == id", "tries < 2", "dist(getPosition(), ItemPosition(4, 0)) < 1",
+               "!isEmpty(dests)"]
+MOVE_GUARDS_ASYM = ["id == 0", "arrived[0]", "getPosition().x < 0", "owner == 1"]
+MOVE_STMTS = ["goal = ItemPosition(4, 0);\n", "goal = ItemPosition(2, 3);\n",
+              "going = true;\n    doReach(goal, getObs());\n", "going = false;\n",
+              "arrived = true;\n", "gaveUp = true;\n", "tries = tries + 1;\n",
+              "owner = id;\n", "owner = -1;\n", "exit();\n",
+              "atomic:\n      if (!isEmpty(dests)):\n        goal = head(dests);\n        remove(dests, goal);\n",
+              "doReach(getPosition(), getObs());\n"]
+MOVE_STMTS_ASYM = ["goal = ItemPosition(getAgentIndex(), 0);\n", "tries = id;\n",
+                   "goal = ItemPosition(4 + id, 0);\n"]
+MOVE_PROPS = ["forall i: forall j: (i != j && arrived[i] && arrived[j]) -> dist(pos[i], pos[j]) > 0.1",
+              "count(arrived) <= 1", "forall i: !doReach_fail[i]", "forall i: pos[i].y < 3",
+              "forall i: exited[i] -> arrived[i]", "owner == -1 || arrived[owner]"]
+MOVE_PROPS_ASYM = ["!arrived[0]", "pos[1].x < 3", "forall i: doReach_done[i] -> i == 0"]
+MOVE_WORLDS = [
+    "agents = 2\nspeed = 2.0\nradius = 0.25\nstart = [[0, 0], [-3, 1]]\n"
+    "[functions]\ngetInput = [[4, 0], [2, 3]]\n",
+    "agents = 3\nspeed = 2.0\nradius = 0.25\nstart = [[0, 0], [-3, 1], [0, 3]]\n"
+    "[functions]\ngetInput = [[4, 0], [2, 3]]\n",
+    "agents = 2\nspeed = 1.5\nradius = 0.25\nstart = [[0, 0], [0, 3]]\n"
+    "[functions]\ngetInput = [[4, 0]]\n"
+    "[[obstacles]]\npolygon = [[1.9, -1], [2.1, -1], [2.1, 1], [1.9, 1]]\n",
+]
+
+
+def moving_program(seed: int) -> tuple:
+    """(text, invariants, world text, blackbox) for ``seed``."""
+    rng = random.Random(seed)
+    p_asym = rng.choice([0.0, 0.0, 0.0, 0.1])
+    text = MOVING
+    for e in range(rng.randint(2, 4)):
+        gs = [rng.choice(MOVE_GUARDS_ASYM if rng.random() < p_asym else MOVE_GUARDS)
+              for _ in range(rng.randint(1, 2))]
+        body = "".join("    " + rng.choice(MOVE_STMTS_ASYM if rng.random() < p_asym else MOVE_STMTS)
+                       for _ in range(rng.randint(1, 3)))
+        text += f"\nM{e}():\n  pre({' && '.join(gs)});\n  eff:\n{body}"
+    invariants = [rng.choice(MOVE_PROPS_ASYM if rng.random() < p_asym else MOVE_PROPS)]
+    return text, invariants, rng.choice(MOVE_WORLDS), rng.choice(["nondet", "straight", "instant"])
+
+
+def check_moving(seed: int, tmpdir) -> dict:
+    """As :func:`check`, for :func:`moving_program` (symmetry only)."""
+    import pathlib
+    text, invariants, world_text, bb = moving_program(seed)
+    world = pathlib.Path(tmpdir) / f"w{seed}.toml"
+    world.write_text(world_text)
+    kw = dict(source=True, world=str(world), blackbox=bb, invariants=invariants)
+    try:
+        plan = make_model(text, reduce="auto", **kw).reduction
+    except PcclError as e:
+        return {"invalid": str(e)}
+    if "symmetry" not in plan.on:
+        return {"symmetry": None}
+    base = explore(text, reduce="none", find_all=True, max_states=5_000, **kw)
+    if base.status == "bounded":
+        return {"bounded": True}
+    res = explore(text, reduce="symmetry", find_all=True, **kw)
+    return {"symmetry": (verdict(res), verdict(res) == verdict(base)),
+            "orbits": orbits_agree(text, None, invariants, world=str(world), blackbox=bb),
+            "states": (res.stats.states, base.stats.states)}

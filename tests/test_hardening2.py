@@ -346,16 +346,19 @@ def test_signal_during_initial_states(tmp_path):
     assert "interrupted" in out and "statistics:" in out
 
 
-def test_rand_with_too_many_outcomes_in_a_statement_is_a_clear_stuck_agent(tmp_path):
+def test_rand_with_too_many_outcomes_in_a_statement_is_a_limit_of_the_tool(tmp_path):
     """rand(10**8) in an effect would build 10^8 successors of one state
-    before any bound is checked: it is a stuck agent with the line instead."""
+    before any bound is checked: it stops the search as a limit of the tool
+    (a ToolLimitError with the line), not as a stuck agent (a violation of
+    the program) -- docs/decisions.md."""
     from pccl.api import explore
+    from pccl.errors import ToolLimitError
     p = tmp_path / "big.pccl"
     p.write_text("loc:\n  int x = 0;\n\nGo():\n  pre(x == 0);\n  eff:\n    x = rand(100000000) + 1;\n")
-    r = explore(str(p), max_states=10)
-    assert r.status == "violation" and r.violation["kind"] == "stuck"
-    assert "at most 1,000,000" in r.violation["message"] or "1,000,000" in str(r.violation)
-    assert r.violation["line"] == 7
+    with pytest.raises(ToolLimitError) as e:
+        explore(str(p), max_states=10)
+    assert e.value.line == 7 and e.value.column == 9
+    assert "at most 1,000,000" in e.value.message and "a limit of the tool" in e.value.message
     small = tmp_path / "small.pccl"
     small.write_text("loc:\n  int x = 0;\n\nGo():\n  pre(x == 0);\n  eff:\n    x = rand(3) + 1;\n")
     r = explore(str(small), agents=1)
