@@ -143,8 +143,9 @@ def _join(toks: list[Tok], in_decls: bool) -> str:
             sep = "" if _is_operand_end(prev) else " "
         else:
             sep = " "
-        # never join two tokens into one (``<`` ``=``, ``a`` ``b``)
-        if sep == "" and prev is not None and len(tokenize(prev_text + text)) != 2:
+        # never join two tokens into one (``<`` ``=``, ``a`` ``b``), nor write ``--``
+        if sep == "" and prev is not None and (len(tokenize(prev_text + text)) != 2
+                                               or prev_text == text == "-"):
             sep = " "
         out.append(sep)
         out.append(text)
@@ -226,7 +227,7 @@ def _layout(source: str) -> str:
     # (line index, text, trailing comment's offset from the indentation, the comment)
     rows: list[tuple[int, str, Optional[int], Optional[str]]] = []
     in_decls = False
-    stmt_shift = 0              # new indent - old indent of the current statement
+    open_cols: list[int] = []   # per open bracket: the column its continuation lines start at
     for k, lt in enumerate(lines):
         indent, is_code, depth = infos[k]
         body = lt[1:] if lt and lt[0].kind == WS else lt
@@ -235,9 +236,8 @@ def _layout(source: str) -> str:
             continue
         if k in levels:
             new_indent = INDENT * levels[k]
-            stmt_shift = len(new_indent) - indent
         elif is_code or depth > 0:          # a continuation inside brackets
-            new_indent = " " * max(0, indent + stmt_shift)
+            new_indent = " " * (open_cols[-1] if open_cols else len(INDENT) * 2)
         else:                               # a comment-only line
             open_widths = list(stacks[k])
             j = next_code[k]
@@ -258,7 +258,24 @@ def _layout(source: str) -> str:
             lead = len(lt[0].text) if lt[0].kind == WS else 0
             offset = c.col - lead if c.line == lt[0].line else c.col
         rows.append((k, new_indent + text, offset, comment))
+        _track_brackets(new_indent + text, open_cols)
     return _blank_lines(_place_comments(rows), levels)
+
+
+def _track_brackets(line: str, open_cols: list[int]) -> None:
+    """Update the open brackets after a formatted line: a continuation line
+    starts just after its bracket, or, when the bracket ends its line, four
+    columns right of that line's indentation."""
+    toks = [t for t in tokenize(line) if t.kind not in (WS, NL, COMMENT, BCOMMENT)]
+    indent = len(line) - len(line.lstrip(" "))
+    for n, t in enumerate(toks):
+        if t.text in ("(", "[", "{"):
+            if n + 1 < len(toks) and t.line == toks[n + 1].line:
+                open_cols.append(t.col + 1)
+            else:
+                open_cols.append(indent + 2 * len(INDENT))
+        elif t.text in (")", "]", "}") and open_cols:
+            open_cols.pop()
 
 
 def _level_of(indent: int, widths: list[int]) -> int:
