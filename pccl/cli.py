@@ -1001,11 +1001,13 @@ def lsp():
     hover, definitions, references, symbols, completion, formatting
     (docs/editors.md).  Needs the `lsp` extra: pip install 'pccl[lsp]'."""
     try:
-        from .lsp import serve
+        import lsprotocol  # noqa: F401
+        import pygls  # noqa: F401
     except ImportError as e:
         click.echo(f"pccl lsp: error: {e.name or 'pygls'} is not installed; "
                    f"pip install 'pccl[lsp]'", err=True)
         sys.exit(2)
+    from .lsp import serve
     serve()
 
 
