@@ -18,6 +18,7 @@ from lsprotocol import types as T  # noqa: E402
 from pygls.lsp.client import LanguageClient  # noqa: E402
 from pygls.uris import from_fs_path  # noqa: E402
 
+from pccl import ast as A  # noqa: E402
 from pccl import lsp as L  # noqa: E402
 from pccl.builtins import BUILTINS, READONLY_FLAGS  # noqa: E402
 from pccl.checker import check_program  # noqa: E402
@@ -26,6 +27,7 @@ from pccl.fmt import format_source  # noqa: E402
 from pccl.parser import parse_program  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
+PROPERTY_NAMES = {"time", "N", "pos", "exited", "stuck", "running"}
 FISCHER = ROOT / "programs" / "fischer.pccl"
 FISCHER_TEXT = FISCHER.read_text()
 
@@ -295,10 +297,11 @@ def test_every_shipped_program_analyses_clean_with_its_world():
         assert an.world_path == (str(base) if base.exists() else None), p
         # every occurrence's range holds the name, and every name used is declared
         lines = p.read_text().split("\n")
+        bound = {q.var for q in A.walk(an.program) if isinstance(q, A.Quant)}
         for name, r in an.occurrences:
             assert lines[r.line][r.col:r.end_col] == name
             assert name in an.symbols or name in BUILTINS or name in an.info.functions \
-                or name in READONLY_FLAGS, name
+                or name in READONLY_FLAGS or name in bound or name in PROPERTY_NAMES, name
 
 
 def test_a_half_typed_program_keeps_its_last_symbols():
