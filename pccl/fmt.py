@@ -156,10 +156,6 @@ def _join(toks: list[Tok], in_decls: bool) -> str:
     return "".join(out)
 
 
-def _code_tokens(line_toks: list[Tok]) -> list[Tok]:
-    return [t for t in line_toks if t.kind not in (WS, NL)]
-
-
 def format_source(source: str, filename: str = "<input>") -> str:
     """The canonical layout of ``source`` (a program that parses; a syntax
     error is raised as :class:`pccl.errors.PcclError`)."""
