@@ -199,6 +199,8 @@ def main():
       pccl replay FILE              re-execute a trace file (--trace-out)
       pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
+      pccl fmt PROGRAM...           canonical layout (--check: exit 1 if not)
+      pccl lsp                      language server for editors (stdio)
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock,
     a time-lock, a stall, a failed temporal property (--property: eventually P, P ~> Q,
@@ -1000,6 +1002,73 @@ def _explore_json(program, res) -> dict:
             "not_covered": res.not_covered,
             "stall_check": res.stall,
             "checked": res.checked.to_json()}
+
+
+@main.command(name="fmt", short_help="Format programs in the canonical layout.")
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, allow_dash=True))
+@click.option("--check", is_flag=True,
+              help="write nothing; exit 1 if a file would change (for CI)")
+@click.option("--diff", "show_diff", is_flag=True,
+              help="write nothing; print the changes as a unified diff, exit 1 if any")
+def fmt_cmd(files, check, show_diff):
+    """Rewrite each PROGRAM in the canonical layout (docs/editors.md):
+    indentation, spacing and blank lines only; comments and line structure
+    are kept, and the program's meaning never changes.  `-` reads standard
+    input and writes the result to standard output."""
+    import difflib
+
+    from .fmt import FormatterBug, format_source
+    changed = []
+    for path in files:
+        try:
+            if path == "-":
+                source = sys.stdin.read()
+            else:
+                try:
+                    with open(path, encoding="utf-8-sig", newline="") as fh:
+                        source = fh.read()
+                except (OSError, UnicodeDecodeError) as e:
+                    raise PcclError(f"cannot read '{path}': {getattr(e, 'strerror', None) or e}",
+                                    filename=path) from None
+            out = format_source(source, "<stdin>" if path == "-" else path)
+        except PcclError as e:
+            _fail(e)
+        except FormatterBug as e:
+            click.echo(f"pccl fmt: internal error, file left as it is: {e}", err=True)
+            sys.exit(2)
+        if path == "-" and not (check or show_diff):
+            click.echo(out, nl=False)
+            continue
+        if out == source:
+            continue
+        changed.append(path)
+        if show_diff:
+            click.echo("".join(difflib.unified_diff(source.splitlines(True), out.splitlines(True),
+                                                    path, path + " (formatted)")), nl=False)
+        elif check:
+            click.echo(f"would reformat {path}")
+        else:
+            with open(path, "w", encoding="utf-8", newline="") as fh:
+                fh.write(out)
+            click.echo(f"reformatted {path}")
+    if (check or show_diff) and changed:
+        sys.exit(1)
+
+
+@main.command(short_help="Language server for editors (LSP over stdio).")
+def lsp():
+    """Run the PCCL language server on standard input and output: diagnostics,
+    hover, definitions, references, symbols, completion, formatting
+    (docs/editors.md).  Needs the `lsp` extra: pip install 'pccl[lsp]'."""
+    try:
+        import lsprotocol  # noqa: F401
+        import pygls  # noqa: F401
+    except ImportError as e:
+        click.echo(f"pccl lsp: error: {e.name or 'pygls'} is not installed; "
+                   f"pip install 'pccl[lsp]'", err=True)
+        sys.exit(2)
+    from .lsp import serve
+    serve()
 
 
 if __name__ == "__main__":  # pragma: no cover
