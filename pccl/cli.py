@@ -138,7 +138,7 @@ def _fail(err: PcclError):
 
 EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
                     "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
-                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a "
+                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a stalled "
                     "run), 2 bad input (the program, the world, an option) or a limit of the "
                     "tool (out of memory, rand over 1,000,000 outcomes), "
                     "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
