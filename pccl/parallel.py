@@ -1031,14 +1031,17 @@ class ParallelExplorer(Explorer):
         if total:
             table.insert(fps, self.parents[:total])
         del fps
-        for p in parts:
-            src, tfps = p[2], p[3]
-            if len(src):
-                rec.edges(src.astype(np.int64), table.lookup(tfps))
-        rec.put_states(total, [p[4] for p in parts if p[5] is not None],
-                       [p[5] for p in parts if p[5] is not None])
-        self.table = table
         self.peak_workers = [max(a, p[6]) for a, p in zip(self.peak_workers, parts)]
+        idx = [p[4] for p in parts if p[5] is not None]
+        cols = [p[5] for p in parts if p[5] is not None]
+        step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
+        while parts:
+            _, _, src, tfps, *_ = parts.pop(0)
+            for a in range(0, len(src), step):
+                rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
+            del src, tfps
+        rec.put_states(total, idx, cols)
+        self.table = table
 
     def peak_memory(self) -> int:
         """Peak memory of the search so far, summed over its processes."""

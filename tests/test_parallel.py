@@ -200,6 +200,16 @@ def test_ray_actors_give_the_one_process_results(local_ray):
 
 
 @pytest.mark.slow
+def test_ray_actors_give_the_one_process_time_lock_and_temporal_verdicts(local_ray):
+    """The graph travels back from Ray actors too: the time-lock programs
+    and a lasso counterexample, as in one process."""
+    for name in ("tl_spin.pccl-agents2", "tl_spin_leave.pccl-agents2", "rdv-wall-lasso"):
+        program, opts = TEMPORAL_CASES[name]
+        one = full_signature(explore(program, **opts))
+        assert full_signature(explore(program, ray="auto", workers=2, **opts)) == one, name
+
+
+@pytest.mark.slow
 def test_cli_ray_local_starts_and_stops_ray():
     _ray()
     base = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=1",
