@@ -352,12 +352,16 @@ def test_workers_hand_over_the_graph_the_one_process_search_records():
     assert graphs[1] == graphs[0] and graphs[2] == graphs[0]
 
 
-def _parent_links(m, _cache={}):
-    if "p" not in _cache:
+_LINKS: dict = {}
+
+
+def _parent_links(m):
+    """The one-process search's parent links (computed once)."""
+    if "p" not in _LINKS:
         ex = Explorer(m)
         sr = ex.run()
-        _cache["p"] = [ex.table.parent(i) for i in range(sr.stats.states)]
-    return _cache["p"]
+        _LINKS["p"] = [ex.table.parent(i) for i in range(sr.stats.states)]
+    return _LINKS["p"]
 
 
 def test_fastest_still_needs_one_process():
