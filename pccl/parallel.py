@@ -53,6 +53,17 @@ engine-neutral; a *transport* moves the two rounds:
 
 The coordinator holds the global parent links (4 bytes per state) and
 replays counterexamples, asking owners for state numbers.
+
+With a recorder (the time-lock check, temporal properties: see
+:mod:`pccl.liveness`) each worker also records the transitions it
+generated (source number, target fingerprint) and the recorder's columns of
+the states it held; after an exhaustive or bounded search the coordinator
+gathers them (:meth:`ParallelExplorer._gather_graph`), so that the analysis
+runs on the graph the one-process search records.
+
+Signals: the workers ignore SIGINT and SIGTERM and die with the
+coordinator (:func:`_serve`); the coordinator acts on a signal between
+levels (:class:`_Signals`).
 """
 
 from __future__ import annotations
