@@ -334,24 +334,21 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
                             f"use workers=1 without ray", filename="pccl.api.explore_model")
     one = ray is None and nworkers == 1
-    if not one and (model.temporal or fastest):
-        what = "fastest=True" if fastest else "a temporal property"
-        raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
+    if not one and fastest:
+        raise ArgumentError("fastest=True searches in one process: use workers=1",
                             filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
     from . import liveness as L
     skipped = []
-    if timelock and not one and model.ctl is not None:
-        skipped.append("time-lock check not run: it needs the state graph of one process "
-                       "(workers=1, no ray); a time-locked program passes here and fails there")
     if stall and not one and model.ctl is not None:
         skipped.append("stall check not run: it needs the state graph of one process "
                        "(workers=1, no ray); a stalled program passes here and fails there")
-    timelock = timelock and one
     stall = stall and one
-    rec = L.make_recorder(model, timelock, stall) if one else None
+    # the workers record the state graph too (pccl/parallel.py): the same
+    # time-lock and temporal analysis runs on the same graph, whatever the backend
+    rec = L.make_recorder(model, timelock, stall)
     # the distinct labels of the transitions taken: the events that fired
     labels: Optional[set] = set() if one else None
     runaways: list = []
@@ -367,10 +364,10 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if ray is not None:
         from .parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex: Any = ParallelExplorer(model, workers=nworkers, ray=ray, **opts)
+        ex: Any = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
     elif nworkers is not None and nworkers > 1:
         from .parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=nworkers, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
     elif fastest:
         from .fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
@@ -397,13 +394,12 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     lv = None
     if rec is not None:
         import time as _time
-        from .explorer import peak_rss_bytes
         t0 = _time.perf_counter()
         lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all, stall=stall)
         L.attach_traces(model, ex, lv)
         # the figures include the analysis of the graph
         sr.stats.seconds += _time.perf_counter() - t0
-        sr.stats.peak_memory = peak_rss_bytes()
+        sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
         if lv.found and sr.status != "interrupted":
             sr.found.extend(lv.found)
             sr.status = "violation"

@@ -525,9 +525,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = build_model(program, opts, explore=True)
         if coverage:
             model.set_reduce(opts.reduce, uses=("coverage",))
-        if (opts.workers != 1 or opts.ray is not None) and (model.temporal or fastest):
-            raise PcclError(("--fastest" if fastest else "a temporal property") +
-                            " needs the state graph of one process: use --workers 1",
+        if (opts.workers != 1 or opts.ray is not None) and fastest:
+            raise PcclError("--fastest searches in one process: use --workers 1 (without --ray)",
                             filename="--workers")
     except PcclError as e:
         _fail(e)

@@ -687,6 +687,10 @@ class Explorer:
             return False
         return record
 
+    def peak_memory(self) -> int:
+        """Peak resident memory of the search so far (bytes)."""
+        return peak_rss_bytes()
+
     # ------------------------------------------------------------------
     def replay(self, idx: int) -> Trace:
         """Rebuild the path to state number ``idx`` by replaying the model

@@ -106,6 +106,40 @@ def _pending_mask(st) -> int:
     return m
 
 
+class StateColumns:
+    """The per-state part of the graph, as a pure function of the states:
+    ``columns(states)`` returns one array per recorded column (dynamic or
+    not; the property bits, with temporal properties; the pending
+    doReach agents, under fair arrival).  Small and picklable (the
+    properties' closures travel as the model does), so that the workers of
+    the parallel search compute the columns of the states they hold."""
+
+    def __init__(self, props=(), fairness: bool = False):
+        self.props = list(props)
+        self.fairness = fairness
+
+    def dtypes(self) -> list:
+        return [np.uint8] + ([np.uint64] if self.props else []) + \
+            ([np.uint64] if self.fairness else [])
+
+    def __call__(self, states: list) -> list:
+        n = len(states)
+        phase = np.fromiter(map(_phase, states), dtype=np.int64, count=n)
+        cols = [(phase != DISCRETE).astype(np.uint8)]
+        if self.props:
+            vals = np.zeros(n, dtype=np.uint64)
+            for k, p in enumerate(self.props):
+                for fn, b in ((p.p, 2 * k), (p.q, 2 * k + 1)):
+                    if fn is None:
+                        continue
+                    col = np.fromiter((_holds(fn, s) for s in states), dtype=bool, count=n)
+                    vals |= col.astype(np.uint64) << np.uint64(b)
+            cols.append(vals)
+        if self.fairness:
+            cols.append(np.fromiter(map(_pending_mask, states), dtype=np.uint64, count=n))
+        return cols
+
+
 class GraphRecorder:
     """Collects the state graph during a search (see the module docstring)."""
 
@@ -115,6 +149,8 @@ class GraphRecorder:
         if 2 * len(self.props) > 64:
             raise ValueError("at most 32 temporal properties at a time")
         self.fairness = fairness and model.N <= 64
+        #: the per-state columns (the parallel search runs it in its workers)
+        self.columns = StateColumns(self.props, self.fairness)
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -138,28 +174,29 @@ class GraphRecorder:
             red = getattr(model, "reduction", None)
             self.wants_candidates = "symmetry" in getattr(red, "on", ())
 
+    def _grows(self) -> list:
+        return [g for g in (self.dyn, self.bits, self.pend) if g is not None]
+
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list) -> None:
         """The states just admitted, in state-number order."""
-        phase = np.fromiter(map(_phase, states), dtype=np.int64, count=len(states))
-        self.dyn.extend((phase != DISCRETE).astype(np.uint8))
-        if self.bits is not None:
-            vals = np.zeros(len(states), dtype=np.uint64)
-            for k, p in enumerate(self.props):
-                for fn, b in ((p.p, 2 * k), (p.q, 2 * k + 1)):
-                    if fn is None:
-                        continue
-                    col = np.fromiter((_holds(fn, s) for s in states), dtype=bool,
-                                      count=len(states))
-                    vals |= col.astype(np.uint64) << np.uint64(b)
-            self.bits.extend(vals)
-        if self.pend is not None:
-            self.pend.extend(np.fromiter(map(_pending_mask, states), dtype=np.uint64,
-                                         count=len(states)))
+        for grow, col in zip(self._grows(), self.columns(states)):
+            grow.extend(col)
         if self.sig is not None and self.chg is not None:
             self.sig.extend(np.fromiter(map(self.sig_of, states), dtype=np.int64,
                                         count=len(states)))
             self.chg.extend(np.zeros(len(states), dtype=np.uint8))
+
+    def put_states(self, n: int, idx: list, cols: list) -> None:
+        """The columns of all ``n`` states at once, in any order: ``idx[j]``
+        the state numbers whose columns are ``cols[j]`` (the parallel search:
+        one part per worker).  A state no part names stays 0."""
+        for c, (grow, dtype) in enumerate(zip(self._grows(), self.columns.dtypes())):
+            full = np.zeros(n, dtype=dtype)
+            for ix, cs in zip(idx, cols):
+                full[ix] = cs[c]
+            grow.release()
+            grow.extend(full)
 
     def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None) -> None:
         """Transitions by state number (``dst`` -1: a successor not admitted);

@@ -185,9 +185,8 @@ class ExploreOptions(ModelOptions):
             raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
                                 f"process: use workers=1 without ray",
                                 filename=f"pccl.api.{func}")
-        if (r is not None or w != 1) and (self.properties or self.fastest):
-            what = "fastest=True" if self.fastest else "properties"
-            raise ArgumentError(f"{what} needs the state graph of one process: use workers=1",
+        if (r is not None or w != 1) and self.fastest:
+            raise ArgumentError("fastest=True searches in one process: use workers=1",
                                 filename=f"pccl.api.{func}")
 
 

@@ -53,6 +53,17 @@ engine-neutral; a *transport* moves the two rounds:
 
 The coordinator holds the global parent links (4 bytes per state) and
 replays counterexamples, asking owners for state numbers.
+
+With a recorder (the time-lock check, temporal properties: see
+:mod:`pccl.liveness`) each worker also records the transitions it
+generated (source number, target fingerprint) and the recorder's columns of
+the states it held; after an exhaustive or bounded search the coordinator
+gathers them (:meth:`ParallelExplorer._gather_graph`), so that the analysis
+runs on the graph the one-process search records.
+
+Signals: the workers ignore SIGINT and SIGTERM and die with the
+coordinator (:func:`_serve`); the coordinator acts on a signal between
+levels (:class:`_Signals`).
 """
 
 from __future__ import annotations
@@ -107,7 +118,8 @@ class _Worker:
     """Engine-neutral: the transports call these methods in a process of
     their own (or, for worker 0 of :class:`_Pipes`, in the coordinator's)."""
 
-    def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool):
+    def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool,
+                 columns=None):
         self.m, self.wid, self.n = model, wid, n
         self.deadlock, self.find_all = deadlock, find_all
         self.table = FingerprintTable()
@@ -124,6 +136,21 @@ class _Worker:
         twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         self.keys_of = lambda states: map(xxh, map(dumps, map(key, states), twos))
+        # The state graph, when a recorder rides along (time-lock check,
+        # temporal properties): per expanded level the sources' numbers and
+        # the targets' fingerprints of every transition, and per admitted
+        # state its number and ``columns(states)`` (see :meth:`graph`).
+        self.columns = columns
+        self.g_src: list = []
+        self.g_fps: list = []
+        self.g_idx: list = []
+        self.g_cols: list = []
+
+    def _note_states(self, idx, states: list) -> None:
+        """The states admitted to my level (numbers ``idx``): their columns."""
+        if self.columns is not None and states:
+            self.g_idx.append(np.asarray(idx, dtype=np.int64))
+            self.g_cols.append(self.columns(states))
 
     def _discard(self, states: list) -> None:
         """States no longer needed: freed now, or (``defer_free``, set by
@@ -180,6 +207,9 @@ class _Worker:
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
             fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+            if self.columns is not None:
+                self.g_src.append(np.repeat(pi, pn).astype(np.uint32))
+                self.g_fps.append(fps)
             # first occurrence of each fingerprint (the smallest key: keys ascend)
             first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
                                 dtype=np.int64, count=-1)
@@ -271,6 +301,7 @@ class _Worker:
             cs = self.cand
             self.level = [cs[p] for p in pos]
             self.level_idx = (won_ranks + base).tolist()
+            self._note_states(self.level_idx, self.level)
             self._discard(cs)
             del cs
             self.cand, self.cand_keys = [], None
@@ -296,6 +327,22 @@ class _Worker:
     def adopt(self, idx, states):
         self.level_idx.extend(idx)
         self.level.extend(states)
+        self._note_states(idx, states)
+
+    def graph(self):
+        """What this worker knows of the state graph, handed over once at the
+        end of the search: my partition of the visited set (fingerprints and
+        their state numbers), the transitions I generated (source numbers,
+        target fingerprints: the coordinator numbers the targets) and the
+        columns of the states I held."""
+        t = self.table
+        src = np.concatenate(self.g_src) if self.g_src else np.zeros(0, np.uint32)
+        fps = np.concatenate(self.g_fps) if self.g_fps else np.zeros((0, 2), np.uint64)
+        self.g_src, self.g_fps = [], []
+        idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
+        cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
+        self.g_idx, self.g_cols = [], []
+        return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes())
 
     def index_of(self, fp: bytes) -> int:
         local = self.table.index_of(fp)
@@ -347,10 +394,42 @@ def _recv(conn):
     return conn.recv()
 
 
-def _serve(conn, model, wid, n, deadlock, find_all):
-    signal.signal(signal.SIGINT, signal.SIG_IGN)     # the coordinator handles Ctrl-C
+#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """Ask the kernel to kill this process when its parent dies (Linux:
+    ``prctl(PR_SET_PDEATHSIG, SIGKILL)``); a parent already gone by now
+    means exit at once.  ``PCCL_PDEATHSIG=0`` in the environment skips the
+    ``prctl`` (the tests use it to check the portable fallback: the pipe to
+    the parent closes, and :func:`_serve` returns)."""
+    if os.environ.get("PCCL_PDEATHSIG") == "0" or not hasattr(os, "getppid"):
+        return
+    try:
+        import ctypes
+        import ctypes.util
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):       # not Linux: the closed pipe tells
+        return
+    if os.getppid() != parent:              # died before the prctl
+        os._exit(0)
+
+
+def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
+           inherited=()):
+    # The coordinator alone handles Ctrl-C and SIGTERM (sent to the whole
+    # process group by a terminal or a job control): a worker ignores both
+    # and stops when the coordinator says so, or when its pipe closes.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for c in inherited:     # the coordinator's ends of the pipes: else its death is no EOF
+        c.close()
+    if parent is not None:
+        _die_with_parent(parent)
     gc.disable()
-    w = _Worker(model, wid, n, deadlock, find_all)
+    w = _Worker(model, wid, n, deadlock, find_all, columns)
     w.defer_free = True
     while True:
         try:
@@ -392,17 +471,19 @@ class _Pipes:
         self.outstanding = [0] * n
         self.local: Optional[_Worker] = None
 
-    def start(self, model, deadlock: bool, find_all: bool) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
         ctx = multiprocessing.get_context("fork")
+        me = os.getpid()
         for w in range(1, self.n):
             a, b = ctx.Pipe()
-            p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all),
+            p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all,
+                                                 columns, me, [*self.conns, a]),
                             daemon=True)
             p.start()
             b.close()
             self.conns.append(a)
             self.procs.append(p)
-        self.local = _Worker(model, 0, self.n, deadlock, find_all)
+        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns)
         self.local.defer_free = self.n > 1     # freed while waiting for the others
 
     def stop(self) -> None:
@@ -560,7 +641,7 @@ class _RayTransport:
             raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}") from None
         return True
 
-    def start(self, model, deadlock: bool, find_all: bool) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
         ray = self.ray
         self.owned = self.connect(ray, self.address, self.n or available_workers())
         cpus = ray.cluster_resources().get("CPU", 0)
@@ -569,7 +650,8 @@ class _RayTransport:
         per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
         actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_Worker)
         ref = ray.put(model)
-        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all) for w in range(self.n)]
+        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns)
+                       for w in range(self.n)]
         self._get([a.ready.remote() for a in self.actors])
 
     def _get(self, refs):
@@ -622,6 +704,57 @@ class _RayTransport:
 # The coordinator
 # ---------------------------------------------------------------------------
 
+class _Signals:
+    """Ctrl-C and SIGTERM during a parallel search, handled between levels.
+
+    Raised at an arbitrary point, the ``KeyboardInterrupt`` that Python's
+    handlers raise can cut a message to a worker in half, or land while the
+    coordinator collects the replies of an interrupted round, and the search
+    then has no consistent figures to print.  So while the search runs, a
+    handler only notes the signal; :meth:`check`, called before each round
+    (and before each chunk of initial states), runs the handler that was
+    there before (the command line's: it raises ``KeyboardInterrupt`` and
+    remembers SIGTERM for the exit status), where nothing is in flight.  A
+    signal stops the search within one level's work.  Further signals are
+    noted and dropped: the search reports once.  A signal whose handler is
+    not a Python function (ignored, or the default action of SIGTERM) is
+    left alone; the workers ignore both signals (:func:`_serve`)."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        import threading
+        self.saved: dict = {}
+        self.pending: Optional[tuple] = None
+        self.fired = False
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for name in self.SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is None:
+                continue
+            prev = signal.getsignal(sig)
+            if callable(prev):
+                self.saved[sig] = prev
+                signal.signal(sig, self._note)
+
+    def _note(self, signum, frame) -> None:
+        if self.pending is None and not self.fired:
+            self.pending = (signum, frame)
+
+    def check(self) -> None:
+        """Run the handler of a signal noted since the last check (once)."""
+        if self.pending is not None:
+            signum, frame = self.pending
+            self.pending, self.fired = None, True
+            self.saved[signum](signum, frame)
+
+    def restore(self) -> None:
+        for sig, prev in self.saved.items():
+            signal.signal(sig, prev)
+        self.saved = {}
+
+
 class _RemoteTable:
     """What :meth:`Explorer.replay` needs, answered by the owners."""
 
@@ -629,6 +762,7 @@ class _RemoteTable:
 
     def __init__(self, coord: "ParallelExplorer"):
         self.c = coord
+        self.n = 0          # the states admitted, once the search is over
 
     def index_of(self, fp: bytes) -> int:
         lo = int(np.frombuffer(fp, dtype=np.uint64)[1])
@@ -674,14 +808,21 @@ class ParallelExplorer(Explorer):
             prepare()       # lazily built tables that states refer to, before the fork
         enabled = gc.isenabled()
         gc.disable()
+        rec = self.recorder
+        columns = getattr(rec, "columns", None) if rec is not None else None
+        # installed before the fork: a worker never runs a handler that raises
+        self.signals = _Signals()
         try:
-            self.transport.start(self.model, self.deadlock, self.find_all)
+            self.transport.start(self.model, self.deadlock, self.find_all, columns)
             self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
             return self._run()
         finally:
-            self.transport.stop()
-            if enabled:
-                gc.enable()
+            try:
+                self.transport.stop()
+            finally:
+                self.signals.restore()
+                if enabled:
+                    gc.enable()
 
     def _run(self) -> SearchResult:
         m, T = self.model, self.transport
@@ -726,6 +867,7 @@ class ParallelExplorer(Explorer):
             # -- initial states: numbered here in chunks, handed out round-robin
             it = iter(m.init_states())
             while not stop:
+                self.signals.check()
                 chunk = list(itertools.islice(it, min(self.batch, budget - total + 1)))
                 if not chunk:
                     break
@@ -764,6 +906,7 @@ class ParallelExplorer(Explorer):
             level_base = 0
             next_report = _time.perf_counter() + self.progress_interval
             while level_size and not stop:
+                self.signals.check()
                 at_bound = self.max_depth is not None and depth >= self.max_depth
                 replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
                                              for w in range(n)])
@@ -866,6 +1009,7 @@ class ParallelExplorer(Explorer):
                 except Exception:
                     found.clear()
         stats.states = total
+        self.table.n = total
         stats.seconds = _time.perf_counter() - t_start
         stats.peak_memory = self._memory(peak_workers)
         res.collision_probability = collision_bound(stats.states)
@@ -874,7 +1018,45 @@ class ParallelExplorer(Explorer):
             res.status = "violation" if found else "bounded" if bounds else "exhaustive"
         for f in found:
             f.trace = self.replay(f.index)
+        self.peak_workers = peak_workers
+        if self.recorder is not None and res.status in ("exhaustive", "bounded"):
+            self._gather_graph(total)
         return res
+
+    def _gather_graph(self, total: int) -> None:
+        """Hand the state graph to the recorder, as the one-process search
+        records it: every worker sends its partition of the visited set and
+        the transitions it generated; here the partitions become one
+        :class:`FingerprintTable` numbered as the search numbered the states
+        (which then also replays counterexamples, after the workers are
+        gone), the transitions' targets get their numbers from it, and the
+        states' columns are put in number order.  The recorder's analysis
+        (:func:`pccl.liveness.analyse`) then runs on exactly the graph the
+        one-process search records."""
+        rec, n = self.recorder, self.workers
+        parts = self.transport.all("graph", [()] * n)
+        fps = np.zeros((total, 2), dtype=np.uint64)
+        for p in parts:
+            fps[p[1]] = p[0]
+        table = FingerprintTable()
+        if total:
+            table.insert(fps, self.parents[:total])
+        del fps
+        self.peak_workers = [max(a, p[6]) for a, p in zip(self.peak_workers, parts)]
+        idx = [p[4] for p in parts if p[5] is not None]
+        cols = [p[5] for p in parts if p[5] is not None]
+        step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
+        while parts:
+            _, _, src, tfps, *_ = parts.pop(0)
+            for a in range(0, len(src), step):
+                rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
+            del src, tfps
+        rec.put_states(total, idx, cols)
+        self.table = table
+
+    def peak_memory(self) -> int:
+        """Peak memory of the search so far, summed over its processes."""
+        return self._memory(getattr(self, "peak_workers", [0] * int(self.workers or 1)))
 
     def _memory(self, peak_workers) -> int:
         """Peak memory summed over the processes: with pipes worker 0 is

@@ -20,7 +20,7 @@ def signature(r):
             r.stats.initial_states, r.bounds,
             [(v["kind"], v["name"], v["line"], v["depth"]) for v in r.violations],
             [cx.index for cx in r.counterexamples],
-            [tuple(cx.trace.labels) for cx in r.counterexamples],
+            [cx.trace and tuple(cx.trace.labels) for cx in r.counterexamples],
             [v["trace"] for v in r.violations])
 
 
@@ -200,6 +200,16 @@ def test_ray_actors_give_the_one_process_results(local_ray):
 
 
 @pytest.mark.slow
+def test_ray_actors_give_the_one_process_time_lock_and_temporal_verdicts(local_ray):
+    """The graph travels back from Ray actors too: the time-lock programs
+    and a lasso counterexample, as in one process."""
+    for name in ("tl_spin.pccl-agents2", "tl_spin_leave.pccl-agents2", "rdv-wall-lasso"):
+        program, opts = TEMPORAL_CASES[name]
+        one = full_signature(explore(program, **opts))
+        assert full_signature(explore(program, ray="auto", workers=2, **opts)) == one, name
+
+
+@pytest.mark.slow
 def test_cli_ray_local_starts_and_stops_ray():
     _ray()
     base = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=1",
@@ -241,15 +251,123 @@ def test_bad_ray_argument_is_named():
         explore(FISCHER, overrides={"k": "0"}, exact=True, ray="local")
 
 
-def test_several_workers_say_the_time_lock_check_did_not_run():
-    from pccl.api import explore
+# ---------------------------------------------------------------------------
+# One verdict on every backend: the time-lock check and temporal properties
+# run on the graph the workers record, as on the one-process graph
+# ---------------------------------------------------------------------------
+
+def full_signature(r):
+    """Everything a verdict shows: the search's figures, the violations with
+    their traces (lassos included), what holds, the notes, the witnesses."""
+    return (signature(r), r.verdict, r.notes, r.holds,
+            [(w["name"], w["depth"], w["trace"]) for w in r.witnesses],
+            [cx.cycle_start for cx in r.counterexamples])
+
+
+def _tl_programs():
     from conftest import TEST_PROGRAMS
-    spin = str(TEST_PROGRAMS / "tl_spin.pccl")
-    one = explore(spin)
-    assert one.status == "violation" and one.violation.kind == "timelock"
-    two = explore(spin, workers=2)
-    assert any("time-lock check not run" in n for n in two.notes)
-    assert not any("time-lock" in n for n in one.notes)
+    return sorted(str(p) for p in TEST_PROGRAMS.glob("tl_*.pccl"))
+
+
+def _temporal_cases():
+    from conftest import TEST_PROGRAMS as T
+    rdv, alls = str(T / "rdv_meet.pccl"), ["eventually forall i: exited[i]"]
+    ring = str(T / "token_ring.pccl")
+    cases = {f"{p.rsplit('/', 1)[1]}-agents{a}": (p, dict(agents=a))
+             for p in _tl_programs() for a in (2, 3)}
+    cases.update({
+        "tl_spin_leave-depth": (str(T / "tl_spin_leave.pccl"), dict(depth=3)),
+        "rdv-wall-lasso": (rdv, dict(world=str(T / "rdv_wall.toml"), blackbox="straight",
+                                     properties=alls)),
+        "rdv-open-nondet-fair": (rdv, dict(world=str(T / "rdv_open.toml"), blackbox="nondet",
+                                           properties=alls)),
+        "token-keep-leadsto": (str(T / "token_keep.pccl"),
+                               dict(agents=3, properties=["forall i: want[i] ~> has[i]"])),
+        "token-ring-within": (ring, dict(agents=3, properties=["want[1] ~> has[1] within 2.5"])),
+        "fischer-reachable": (FISCHER, dict(overrides={"k": "0", "d": "1"},
+                                            properties=["reachable count(inCs) == 1",
+                                                        "reachable count(inCs) == 3"])),
+        "fischer-max-states-temporal": (FISCHER, dict(overrides={"k": "0", "d": "1"},
+                                                      max_states=2000,
+                                                      properties=["eventually inCs[0]"])),
+    })
+    return cases
+
+
+TEMPORAL_CASES = _temporal_cases()
+
+
+def test_the_time_lock_programs_are_there():
+    """The time-lock cases below cover a time-locked program and one that
+    only looks like one (a spin that can be left)."""
+    names = [p.rsplit("/", 1)[1] for p in _tl_programs()]
+    assert {"tl_spin.pccl", "tl_spin_leave.pccl"} <= set(names)
+    assert explore(str(_tl_programs()[0]), workers=1).violation.kind == "timelock"
+
+
+@pytest.mark.parametrize("name", sorted(TEMPORAL_CASES))
+def test_time_lock_and_temporal_verdicts_equal_on_every_backend(name):
+    """The time-lock check and the temporal properties give, with 2 and 3
+    workers, the one-process verdict: status, message, figures, the very
+    counterexample (lasso and cycle), what holds, the notes.  (Before, with
+    workers, a time-locked program was 'no violation', exit 0, with a note
+    that the check did not run; temporal properties were refused.)"""
+    program, opts = TEMPORAL_CASES[name]
+    one = full_signature(explore(program, **opts))
+    for w in (2, 3):
+        assert full_signature(explore(program, workers=w, **opts)) == one, f"workers={w}"
+
+
+def test_time_lock_with_workers_is_a_violation():
+    from conftest import TEST_PROGRAMS
+    r = explore(str(TEST_PROGRAMS / "tl_spin.pccl"), workers=2)
+    assert r.status == "violation" and r.exit_status == 1
+    assert r.violation.kind == "timelock" and r.notes == []
+    assert r.counterexamples[0].cycle_start is not None
+
+
+def test_workers_hand_over_the_graph_the_one_process_search_records():
+    """The recorder after a parallel search holds the one-process graph:
+    the same edges (as a multiset per source, in successor order) and the
+    same per-state columns."""
+    import numpy as np
+    from pccl import liveness as L
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"},
+                   properties=["reachable count(inCs) == 1"])
+    graphs = []
+    for w in (1, 2, 3):
+        rec = L.make_recorder(m, True)
+        ex = Explorer(m, recorder=rec) if w == 1 else \
+            ParallelExplorer(m, workers=w, recorder=rec)
+        sr = ex.run()
+        g = rec.freeze(sr.stats.states)
+        graphs.append((sr.stats.states, g.esrc.tolist(), g.fdst.tolist(), g.dyn.tolist(),
+                       g.bits.tolist(), rec.complete))
+        if w > 1:       # the coordinator's table numbers states as the search did
+            assert ex.table.n == sr.stats.states
+            links = _parent_links(m)
+            assert [ex.table.parent(i) for i in range(0, sr.stats.states, 97)] == \
+                [links[i] for i in range(0, sr.stats.states, 97)]
+    assert graphs[0][0] > 1000 and np.asarray(graphs[0][3]).any()
+    assert graphs[1] == graphs[0] and graphs[2] == graphs[0]
+
+
+_LINKS: dict = {}
+
+
+def _parent_links(m):
+    """The one-process search's parent links (computed once)."""
+    if "p" not in _LINKS:
+        ex = Explorer(m)
+        sr = ex.run()
+        _LINKS["p"] = [ex.table.parent(i) for i in range(sr.stats.states)]
+    return _LINKS["p"]
+
+
+def test_fastest_still_needs_one_process():
+    from pccl.errors import PcclError
+    with pytest.raises(PcclError, match="fastest=True searches in one process"):
+        explore(FISCHER, overrides={"k": "0"}, fastest=True, workers=2)
 
 
 def test_ray_address_where_nothing_listens_fails_at_once():
@@ -280,3 +398,108 @@ def test_ray_address_where_nothing_listens_fails_at_once():
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
     assert f"nothing answers at 127.0.0.1:{port}" in r.stderr and "Traceback" not in r.stderr
+
+
+# ---------------------------------------------------------------------------
+# Signals and the death of the coordinator
+# ---------------------------------------------------------------------------
+
+LONG_SEARCH = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--workers", "2",
+               "--progress", "--progress-interval", "0.1"]
+
+
+def _start_long_search(env=None):
+    """``pccl explore`` on fischer (k=10: minutes) with two workers, in a
+    session of its own (its own process group, as a terminal's job), once
+    its first progress line is out: the search is under way."""
+    import os
+    p = subprocess.Popen(LONG_SEARCH, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, start_new_session=True,
+                         env=None if env is None else {**os.environ, **env})
+    seen = []
+    while True:
+        line = p.stderr.readline()
+        seen.append(line)
+        if not line or "states " in line:
+            break
+    assert line, "".join(seen)
+    return p, "".join(seen)
+
+
+def _gone(pids, timeout):
+    import time
+    import psutil
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        alive = []
+        for pid in pids:
+            try:
+                if psutil.Process(pid).status() != psutil.STATUS_ZOMBIE:
+                    alive.append(pid)
+            except psutil.NoSuchProcess:
+                pass
+        if not alive:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_signal_during_a_parallel_search_reports_once(signame):
+    """SIGINT or SIGTERM to the process group (a terminal's Ctrl-C, a job
+    control's stop) or to the coordinator alone: the header, the
+    statistics so far and the interrupted verdict, each exactly once, no
+    traceback from any process, exit 130 (SIGINT) or 143 (SIGTERM), and
+    no worker left behind.  (Before: with the group signalled, a worker's
+    KeyboardInterrupt traceback, often no report at all, once a hang.)
+    Repeated: the old failures were intermittent."""
+    import os
+    import signal
+    import psutil
+    sig = getattr(signal, signame)
+    for attempt in range(6):
+        p, _ = _start_long_search()
+        workers = [c.pid for c in psutil.Process(p.pid).children()]
+        try:
+            if attempt % 2 == 0:
+                os.killpg(p.pid, sig)
+            else:
+                os.kill(p.pid, sig)
+            out, err = p.communicate(timeout=120)
+        finally:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        where = f"{signame} to the {'group' if attempt % 2 == 0 else 'parent'}"
+        assert p.returncode == (130 if sig == signal.SIGINT else 143), (where, out, err)
+        assert "Traceback" not in out + err and "KeyboardInterrupt" not in out + err, where
+        assert out.count("pccl explore programs/fischer.pccl: 2 agents") == 1, (where, out)
+        assert out.count("statistics:") == 1 and out.count("\ninterrupted — ") == 1, (where, out)
+        assert "states  " in out and "transitions  " in out
+        assert workers and _gone(workers, 10), where
+
+
+@pytest.mark.parametrize("pdeathsig", ["1", "0"])
+def test_workers_die_with_a_killed_coordinator(pdeathsig):
+    """SIGKILL to the coordinator: its workers exit within seconds, by the
+    parent-death signal (Linux) and, without it (PCCL_PDEATHSIG=0), because
+    their pipe to the coordinator closes (before: each worker held the
+    coordinator's end of its own pipe open, and one ran on for 80 minutes)."""
+    import os
+    import signal
+    import psutil
+    p, _ = _start_long_search(env={"PCCL_PDEATHSIG": pdeathsig})
+    try:
+        workers = [c.pid for c in psutil.Process(p.pid).children()]
+        assert len(workers) == 1, workers          # --workers 2: worker 0 is the coordinator
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait(timeout=10)
+        assert _gone(workers, 10), "a worker outlived its coordinator"
+    finally:
+        for pid in [p.pid] + workers:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+        p.communicate()

@@ -9,6 +9,7 @@ fixpoint, no numpy, no SCCs)."""
 
 from __future__ import annotations
 
+import json
 import pytest
 
 from pccl.api import explore, make_model
@@ -444,9 +445,21 @@ def test_fastest_among_equal_times_is_shortest():
     assert len(tr) == len(b.counterexamples[0].trace)
 
 
-def test_workers_refuse_temporal():
-    res = cli("explore", RING, "--workers", "2", "--property", "eventually has[0]")
-    assert res.exit_code == 2 and "--workers" in res.stderr
+def test_workers_check_temporal_properties_and_refuse_fastest():
+    """With workers the temporal verdict is the one-process verdict
+    (tests/test_parallel.py compares them in full); --fastest, a search of
+    its own, still needs one process and says so."""
+    one = cli("explore", RING, "--agents", "3", "--property", "forall i: want[i] ~> has[i]",
+              "--no-progress", "--format", "json")
+    two = cli("explore", RING, "--agents", "3", "--property", "forall i: want[i] ~> has[i]",
+              "--no-progress", "--format", "json", "--workers", "2")
+    assert one.exit_code == two.exit_code == 0, two.stderr
+    a, b = json.loads(one.stdout), json.loads(two.stdout)
+    assert a["holds"] == b["holds"] and len(a["holds"]) == 3
+    assert a["statistics"]["states"] == b["statistics"]["states"]
+    res = cli("explore", RING, "--workers", "2", "--fastest")
+    assert res.exit_code == 2 and "--fastest searches in one process" in res.stderr
+    assert "Traceback" not in res.stderr
 
 
 @pytest.mark.parametrize("seed", range(5))
