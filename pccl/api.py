@@ -341,11 +341,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
     from . import liveness as L
-    skipped = []
-    if stall and not one and model.ctl is not None:
-        skipped.append("stall check not run: it needs the state graph of one process "
-                       "(workers=1, no ray); a stalled program passes here and fails there")
-    stall = stall and one
+    skipped: list = []
     # the workers record the state graph too (pccl/parallel.py): the same
     # time-lock and temporal analysis runs on the same graph, whatever the backend
     rec = L.make_recorder(model, timelock, stall)

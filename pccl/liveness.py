@@ -114,13 +114,22 @@ class StateColumns:
     properties' closures travel as the model does), so that the workers of
     the parallel search compute the columns of the states they hold."""
 
-    def __init__(self, props=(), fairness: bool = False):
+    def __init__(self, props=(), fairness: bool = False, sig_of=None):
         self.props = list(props)
         self.fairness = fairness
+        #: the stall check's signature hash (pccl/stall.py), or None
+        self.sig_of = sig_of
 
     def dtypes(self) -> list:
         return [np.uint8] + ([np.uint64] if self.props else []) + \
-            ([np.uint64] if self.fairness else [])
+            ([np.uint64] if self.fairness else []) + ([np.int64] if self.sig_of else [])
+
+    def changed(self, st, succ_states) -> bool:
+        """Does some transition out of ``st`` (to the actual successor
+        states, before any renaming) change the stall signature?"""
+        sig = self.sig_of
+        here = sig(st)
+        return any(sig(t) != here for t in succ_states)
 
     def __call__(self, states: list) -> list:
         n = len(states)
@@ -137,6 +146,8 @@ class StateColumns:
             cols.append(vals)
         if self.fairness:
             cols.append(np.fromiter(map(_pending_mask, states), dtype=np.uint64, count=n))
+        if self.sig_of is not None:
+            cols.append(np.fromiter(map(self.sig_of, states), dtype=np.int64, count=n))
         return cols
 
 
@@ -149,8 +160,12 @@ class GraphRecorder:
         if 2 * len(self.props) > 64:
             raise ValueError("at most 32 temporal properties at a time")
         self.fairness = fairness and model.N <= 64
+        sig_of = None
+        if stall:
+            from .stall import signature_fn
+            sig_of = signature_fn(model)
         #: the per-state columns (the parallel search runs it in its workers)
-        self.columns = StateColumns(self.props, self.fairness)
+        self.columns = StateColumns(self.props, self.fairness, sig_of)
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -166,25 +181,36 @@ class GraphRecorder:
         #: state number stands for a renamed state, so a transition's change
         #: is decided on the actual successor
         self.wants_candidates = False
+        #: the parallel search computes the changes in its workers
+        #: (:meth:`put_changes`), not from the edges
+        self.changes_given = False
         if stall:
-            from .stall import signature_fn
-            self.sig_of = signature_fn(model)
+            self.sig_of = sig_of
             self.sig = _Grow(np.int64)
             self.chg = _Grow(np.uint8)
             red = getattr(model, "reduction", None)
             self.wants_candidates = "symmetry" in getattr(red, "on", ())
 
     def _grows(self) -> list:
-        return [g for g in (self.dyn, self.bits, self.pend) if g is not None]
+        return [g for g in (self.dyn, self.bits, self.pend, self.sig) if g is not None]
+
+    def put_changes(self, n: int, idx: list, flags: list) -> None:
+        """The stall check's per-state "some transition changes the team"
+        flags, computed where the states were expanded (the workers)."""
+        if self.chg is None:
+            return
+        full = np.zeros(n, dtype=np.uint8)
+        for ix, fl in zip(idx, flags):
+            full[ix] = fl
+        self.chg.release()
+        self.chg.extend(full)
 
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list) -> None:
         """The states just admitted, in state-number order."""
         for grow, col in zip(self._grows(), self.columns(states)):
             grow.extend(col)
-        if self.sig is not None and self.chg is not None:
-            self.sig.extend(np.fromiter(map(self.sig_of, states), dtype=np.int64,
-                                        count=len(states)))
+        if self.chg is not None:
             self.chg.extend(np.zeros(len(states), dtype=np.uint8))
 
     def put_states(self, n: int, idx: list, cols: list) -> None:
@@ -208,7 +234,7 @@ class GraphRecorder:
             src, dst = src[ok], dst[ok]
             if cands is not None:
                 cands = list(itertools.compress(cands, ok.tolist()))
-        if self.sig is not None and self.chg is not None and len(src):
+        if self.sig is not None and self.chg is not None and len(src) and not self.changes_given:
             sig = self.sig.view()
             if self.wants_candidates:
                 assert cands is not None, "the recorder needs the successor states"

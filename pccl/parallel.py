@@ -145,6 +145,10 @@ class _Worker:
         self.g_fps: list = []
         self.g_idx: list = []
         self.g_cols: list = []
+        # the stall check: per expanded state whether a transition changes
+        # the team's signature (decided here, on the actual successors)
+        self.g_chg_idx: list = []
+        self.g_chg: list = []
 
     def _note_states(self, idx, states: list) -> None:
         """The states admitted to my level (numbers ``idx``): their columns."""
@@ -178,6 +182,8 @@ class _Worker:
         par_n: list = []
         dead: list = []
         depth_min = model_min = None
+        cols = self.columns
+        chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
         for g, s in zip(self.level_idx, self.level):
             succ = succ_fn(s)
             if not succ:
@@ -195,6 +201,9 @@ class _Worker:
             par_idx.append(g)
             par_n.append(len(succ))
             cs.extend(map(second, succ))
+            if chg_of is not None:
+                self.g_chg_idx.append(g)
+                self.g_chg.append(chg_of(s, list(map(second, succ))))
         self._discard(self.level)
         self.level = []
         total = len(cs)
@@ -342,7 +351,9 @@ class _Worker:
         idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
         cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
         self.g_idx, self.g_cols = [], []
-        return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes())
+        chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
+        self.g_chg_idx, self.g_chg = [], []
+        return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes(), chg)
 
     def index_of(self, fp: bytes) -> int:
         local = self.table.index_of(fp)
@@ -1045,6 +1056,8 @@ class ParallelExplorer(Explorer):
         self.peak_workers = [max(a, p[6]) for a, p in zip(self.peak_workers, parts)]
         idx = [p[4] for p in parts if p[5] is not None]
         cols = [p[5] for p in parts if p[5] is not None]
+        chg = [p[7] for p in parts]
+        rec.changes_given = True
         step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
         while parts:
             _, _, src, tfps, *_ = parts.pop(0)
@@ -1052,6 +1065,7 @@ class ParallelExplorer(Explorer):
                 rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
             del src, tfps
         rec.put_states(total, idx, cols)
+        rec.put_changes(total, [c[0] for c in chg], [c[1] for c in chg])
         self.table = table
 
     def peak_memory(self) -> int:
