@@ -187,7 +187,7 @@ def check(seed: int, reductions=("symmetry", "merge", "por")) -> dict:
         return {"invalid": str(e)}
     kw.update(find_all=True, max_states=5_000)
     base = explore(text, reduce="none", **kw)
-    if base.status == "bounded":
+    if base.bounds:
         return {"bounded": True}
     out = {}
     if "symmetry" in reductions and "symmetry" in plan.on:
@@ -323,9 +323,9 @@ def check_moving(seed: int, tmpdir) -> dict:
     if "symmetry" not in plan.on:
         return {"symmetry": None}
     base = explore(text, reduce="none", find_all=True, max_states=5_000, **kw)
-    if base.status == "bounded":
+    if base.bounds:
         return {"bounded": True}
-    res = explore(text, reduce="symmetry", find_all=True, **kw)
+    res = explore(text, reduce="symmetry", find_all=True, max_states=5_000, **kw)
     return {"symmetry": (verdict(res), verdict(res) == verdict(base)),
             "orbits": orbits_agree(text, None, invariants, world=str(world), blackbox=bb),
             "states": (res.stats.states, base.stats.states)}

@@ -380,8 +380,8 @@ def reasons(text, **kw):
      "  eff:\n    t = (id + 1) % getNumAgents();\n", [], "used other than"),
     ("allwrite:\n  int a[3] = 0;\n\nE():\n  pre(true);\n  eff:\n    a[getAgentIndex()] = 1;\n",
      [], "getAgentIndex()"),
-    ("loc:\n  int x = 0;\n\nE():\n  pre(true);\n  eff:\n    doReach(ItemPosition(1, 1), []);\n",
-     [], "doReach at line 7"),
+    ("loc:\n  int x = 0;\n\nE():\n  pre(true);\n  eff:\n    doReach(ItemPosition(getAgentIndex(), 1), []);\n",
+     [], "getAgentIndex()"),
 ])
 def test_symmetry_off_with_a_reason(text, props, why):
     plan = reasons(text, invariants=tuple(props), blackbox="instant")

@@ -373,6 +373,68 @@ def _weak_arrays(self, e, prop, bound):
     return ORIG_AGENT_INDEX(self, e, prop, bound)
 
 
+# ---------------------------------------------------------------------------
+# 5. robots that move (issue 23): positions and reach cells in the key
+# ---------------------------------------------------------------------------
+
+N_MOVING = 150
+
+
+@pytest.mark.slow
+def test_moving_robots_keep_symmetry_soundly(tmp_path):
+    """Generated programs that move (doReach, getPosition, pos[i], walls,
+    three blackboxes): wherever symmetry is on, the key is a bisimulation
+    and the verdict equals reduce="none"."""
+    on, bad = 0, []
+    for seed in range(N_MOVING):
+        r = symattack.check_moving(seed, tmp_path)
+        assert "invalid" not in r, r
+        if r.get("symmetry") is None or "bounded" in r:
+            continue
+        on += 1
+        if not r["orbits"] or not r["symmetry"][1]:
+            bad.append(seed)
+    assert bad == [], f"symattack.moving_program(SEED): {bad}"
+    assert on > N_MOVING // 2
+
+
+@pytest.mark.slow
+def test_the_moving_attack_catches_a_key_without_positions(tmp_path, monkeypatch):
+    """Positions left out of the key while robots move: caught."""
+    from pccl import reduce as RD
+    orig = RD.symmetry_problem
+
+    def weak(m):
+        why, slots = orig(m)
+        return (why, slots) if slots is None else (why, slots[:4] + (False,))
+    monkeypatch.setattr(RD, "symmetry_problem", weak)
+    for seed in range(300):
+        r = symattack.check_moving(seed, tmp_path)
+        if r.get("symmetry") and (not r["orbits"] or not r["symmetry"][1]):
+            return
+    pytest.fail("the moving attack did not catch a key without positions")
+
+
+def test_race_safe_is_symmetric_with_positions_in_the_key():
+    m = make_model("programs/race_safe.pccl", world="programs/race.toml", agents=3,
+                   blackbox="nondet", reduce="auto")
+    assert "symmetry" in m.reduction.on
+    st = next(iter(m.init_states()))
+    # the start positions differ, so the initial state is its own orbit's
+    # only member up to the permutation that moves the positions with it
+    from pccl.layout import AGS, POS
+    assert len({a[POS] for a in st[AGS]}) == 3
+    assert symattack.orbits_agree(open("programs/race_safe.pccl").read(), None, [], limit=3000,
+                                  world="programs/race.toml", blackbox="nondet")
+
+
+def test_pymunk_keeps_symmetry_off_for_movers():
+    pytest.importorskip("pymunk")
+    p = make_model("programs/race_safe.pccl", world="programs/race.toml", agents=2,
+                   blackbox="pymunk", reduce="auto").reduction
+    assert "symmetry" not in p.on and "pymunk may treat agents differently" in p.off["symmetry"]
+
+
 ORIG_TYPEOF = SS.IdTypes.typeof
 ORIG_AGENT_INDEX = SS.IdTypes.agent_index
 
