@@ -700,6 +700,53 @@ def view(trace_file, output, blackbox):
     _write_html(output, doc, model=model, states=states, notes=notes)
 
 
+@main.command(short_help="Interactive explorer in the browser (127.0.0.1).",
+              epilog="Exit status: 0 stopped (Ctrl-C), 2 bad input (docs/tools.md#serve).")
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
+              help="stop time from advancing past this (as explore)")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="an invariant to check in every state shown (repeatable)")
+@click.option("--abstract-time/--no-abstract-time", default=None,
+              help="as explore: time abstraction (default: on when the program never reads time)")
+@click.option("--port", type=click.IntRange(min=0, max=65535), default=8024, show_default=True,
+              help="the port on 127.0.0.1 (0: any free port)")
+def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+          max_time, invariants, abstract_time, port):
+    """Explore PROGRAM interactively in a browser: start from an initial state,
+    see every enabled transition with its rule and source line, take one, go
+    back, jump to a visited state, load a trace file, run a bounded search from
+    the current state.  The model is explore's (same options), unreduced.  The
+    server listens on 127.0.0.1 only; stop it with Ctrl-C."""
+    from .api import build_model
+    from . import serve as S
+    from . import traces as T
+    _check_repeats(rates, overrides)
+    opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
+    try:
+        model = build_model(program, opts, explore=True)
+        cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                       overrides=dict(overrides), invariants=invariants)
+        session = S.Session(model, cfg)
+    except PcclError as e:
+        _fail(e)
+    try:
+        srv = S.make_server(session, port)
+    except OSError as e:
+        _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
+    host, real_port = srv.server_address[:2]
+    click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
+               f"open http://{host}:{real_port}/ (Ctrl-C stops)")
+    try:
+        srv.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        srv.server_close()
+    sys.exit(0)
+
+
 def _world_of(doc):
     """The world a trace names, when its file can still be read (else None)."""
     from .world import load_world
