@@ -567,7 +567,7 @@
     var tbl = el("table"), keys = [];
     function group(t) { var r = tbl.appendChild(el("tr", { "class": "group" })); r.appendChild(el("td", { colspan: 2 }, t)); }
     function add(key, label, v, raw) {
-      var r = tbl.appendChild(el("tr", { "data-cell": key }));
+      var r = tbl.appendChild(el("tr", { "data-cell": key, "data-value": raw ? v : fmt(v) }));
       r.appendChild(el("td", {}, label));
       var td = r.appendChild(el("td"));
       if (changed[key]) {
@@ -818,8 +818,8 @@
       api("/api/state").then(V.receive).catch(function (e) { $("error").textContent = e.message; });
       return;
     }
-    V.load(BOOT.data);
     var h = hashStep();
+    V.load(BOOT.data);
     if (h !== null) V.goto(h);
     window.addEventListener("hashchange", function () { var s = hashStep(); if (s !== null && s !== V.k) V.goto(s); });
   }
