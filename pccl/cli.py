@@ -642,14 +642,14 @@ def replay(trace_file, blackbox, view, full, plot, html):
     sys.exit(res.exit_status)
 
 
-def _write_html(path, doc, *, model=None, states=None, notes=(), quiet=False):
+def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False):
     """Write the HTML viewer of ``doc``; the states' pending computations
     are kept only when they are the document's whole path."""
     from . import viewer
     if states is not None and len(states) != len(doc["steps"]) + 1:
         states = None
     try:
-        viewer.write(path, doc, model=model, states=states, notes=list(notes))
+        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes))
     except PcclError as e:      # the verdict stands: report, keep its exit status
         click.echo(e.render(), err=True)
         return
@@ -697,7 +697,7 @@ def view(trace_file, output, blackbox):
         world = _world_of(doc)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
-    _write_html(output, doc, model=model, states=states, notes=notes)
+    _write_html(output, doc, model=model, states=states, world=world, notes=notes)
 
 
 @main.command(short_help="Interactive explorer in the browser (127.0.0.1).",

@@ -128,10 +128,8 @@ class Session:
             raise BadRequest("the trace holds no path")
         m = self.model
         init = doc["initial"]
-        for i, s in enumerate(self.initials):
-            if T.normal(T.state_typed(m, s)) == init:
-                break
-        else:
+        i = next((j for j, s in enumerate(self.initials) if T.normal(T.state_typed(m, s)) == init), None)
+        if i is None:
             raise BadRequest("the trace's initial state is not an initial state of this model "
                              "(another program, world or --set?)")
         states, labels = [self.initials[i]], []

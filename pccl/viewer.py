@@ -57,7 +57,7 @@ def source_data(model=None, doc: Optional[dict] = None) -> Optional[dict]:
     """The program's text: the model's (it was parsed from it), else the file
     the trace names."""
     prog = getattr(model, "program", None)
-    if prog is not None and getattr(prog, "source", ""):
+    if prog is not None and prog.source:
         return {"path": prog.filename, "text": prog.source}
     rec = ((doc or {}).get("config") or {}).get("program")
     if rec and rec.get("path"):
