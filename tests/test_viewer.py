@@ -272,3 +272,20 @@ def test_serve_cli_bad_input(tmp_path):
     assert r.exit_code == 2 and "Traceback" not in r.output
     r = cli("serve", FISCHER, "--port", "70000")
     assert r.exit_code == 2 and "--port" in r.output
+
+
+def test_wheel_carries_the_viewer_assets():
+    """Every file of pccl/viewer_assets is package data, and the page is
+    built from the installed resources."""
+    import fnmatch
+    import tomllib
+    from pathlib import Path
+    from pccl import viewer
+    root = Path(__file__).resolve().parent.parent
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["pccl"]
+    assets = sorted(p.relative_to(root / "pccl").as_posix() for p in (root / "pccl" / "viewer_assets").iterdir())
+    assert {"viewer_assets/viewer.html", "viewer_assets/viewer.js", "viewer_assets/viewer.css"} <= set(assets)
+    for a in assets:
+        assert any(fnmatch.fnmatch(a, g) for g in globs), a
+    page = viewer.page(None, mode="serve")
+    assert viewer._asset("viewer.js").strip() in page and viewer._asset("viewer.css").strip() in page
