@@ -197,6 +197,8 @@ def main():
       pccl explore PROGRAM          every interleaving, breadth-first, with
                                     shortest counterexamples
       pccl replay FILE              re-execute a trace file (--trace-out)
+      pccl view FILE -o F.html      a self-contained HTML viewer of a trace file
+      pccl serve PROGRAM            interactive explorer in the browser (127.0.0.1)
       pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
       pccl fmt PROGRAM...           canonical layout (--check: exit 1 if not)
@@ -245,6 +247,8 @@ def check(program, world):
 @click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
+@click.option("--html", type=click.Path(dir_okay=False), default=None,
+              help="write a self-contained HTML viewer of the path to this file")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the run as a trace file (JSON, docs/trace-format.md) for pccl replay")
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
@@ -258,7 +262,7 @@ def check(program, world):
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt, plot,
-        trace_out, view, full):
+        html, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import build_model, memory_bound
     from .runner import run as run_model
@@ -267,7 +271,9 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
-    record = bool(trace or plot or trace_out or fmt == "json" or view)
+    if html:
+        _check_output(html, "--html")
+    record = bool(trace or plot or trace_out or fmt == "json" or view or html)
     _check_repeats(rates, overrides)
     opts = RunOptions.from_cli(click.get_current_context().params).replace(record_trace=record)
     try:
@@ -342,6 +348,11 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
+    if html and res.status == "out-of-memory":
+        click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
+                   f"written to {html}", err=True)
+    elif html:
+        _write_html(html, doc, model=m, states=_run_path(res)[0], quiet=(fmt == "json"))
     sys.exit(_interrupted_status(res.exit_status))
 
 
@@ -495,6 +506,8 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--progress-interval", type=FiniteFloat(min=0, min_open=True), default=10.0,
               show_default=True, metavar="SECONDS",
               help="seconds between plain progress lines (when stderr is not a terminal)")
+@click.option("--html", type=click.Path(dir_okay=False), default=None,
+              help="write a self-contained HTML viewer of the path to this file")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
 @view_options
@@ -504,7 +517,7 @@ def _plot_run(m, res, path, *, quiet=False):
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
-            trace_out, view, full, coverage, workers, ray):
+            html, trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import build_model, explore_model
@@ -513,6 +526,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _check_plot_output(plot)
     if trace_out:
         _check_output(trace_out, "--trace-out")
+    if html:
+        _check_output(html, "--html")
     if ray is not None:
         from .api import require_ray
         try:
@@ -564,6 +579,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             click.echo(e.render(), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
+    if html and doc["initial"] is not None:
+        _write_html(html, doc, model=model, states=_explore_states(res), quiet=(fmt == "json"))
+    elif html:
+        click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
     sys.exit(_interrupted_status(res.exit_status))
 
 
@@ -579,7 +598,9 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
 @view_options
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
-def replay(trace_file, blackbox, view, full, plot):
+@click.option("--html", type=click.Path(dir_okay=False), default=None,
+              help="write a self-contained HTML viewer of the trace to this file")
+def replay(trace_file, blackbox, view, full, plot, html):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
     check the file, rebuild the model from the recorded configuration, start
     from the recorded initial state, check that every recorded step is enabled
@@ -587,6 +608,8 @@ def replay(trace_file, blackbox, view, full, plot):
     from .replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
+    if html:
+        _check_output(html, "--html")
     try:
         res = do_replay(trace_file, blackbox=blackbox)
     except PcclError as e:
@@ -610,7 +633,129 @@ def replay(trace_file, blackbox, view, full, plot):
             click.echo(f"plot written to {plot}")
         except PcclError as e:
             click.echo(e.render(), err=True)
+    if html and res.doc is not None and res.doc["initial"] is not None:
+        _write_html(html, res.doc, model=m, states=res.states,
+                    notes=[res.message] if res.status == "diverged" else [])
+    elif html:
+        click.echo(f"pccl: nothing to replay, so no viewer written to {html}", err=True)
     sys.exit(res.exit_status)
+
+
+def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False):
+    """Write the HTML viewer of ``doc``; the states' pending computations
+    are kept only when they are the document's whole path."""
+    from . import viewer
+    if states is not None and len(states) != len(doc["steps"]) + 1:
+        states = None
+    try:
+        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes))
+    except PcclError as e:      # the verdict stands: report, keep its exit status
+        click.echo(e.render(), err=True)
+        return
+    click.echo(f"viewer written to {path}", err=quiet)
+
+
+def _explore_states(res):
+    """The states of the path explore_document records (None: no path)."""
+    if res.counterexamples:
+        tr = res.counterexamples[0].trace
+        return None if tr is None else list(tr.states)
+    if res.witnesses:
+        return list(res.witnesses[0]["_trace"].states)
+    return None
+
+
+@main.command(short_help="Write the HTML viewer of a trace file.",
+              epilog="Exit status: 0 written, 2 bad input (docs/tools.md#viewer).")
+@click.argument("trace_file", metavar="TRACE", type=click.Path(dir_okay=False))
+@click.option("--output", "-o", type=click.Path(dir_okay=False), required=True,
+              help="the HTML file to write")
+@click.option("--blackbox", "-b", default=None, metavar="MODULE:ATTR",
+              help="the user blackbox the trace was recorded with, to replay it (as for replay)")
+def view(trace_file, output, blackbox):
+    """Write a self-contained HTML viewer of the trace file TRACE (written by
+    --trace-out): the arena or timeline, swimlane, state inspector and source,
+    animated step by step.  The trace is replayed when its program can be
+    found (to show every agent's pending computation exactly); a trace that
+    cannot be replayed is shown as recorded, with a note saying why."""
+    from . import tracecheck as TC
+    from .replay import replay as do_replay
+    _check_output(output, "--output")
+    try:
+        doc = TC.load(trace_file)
+    except PcclError as e:
+        _fail(e)
+    notes, model, states, world = [], None, None, None
+    try:
+        res = do_replay(trace_file, blackbox=blackbox)
+        model, states = res.model, res.states
+        if res.status == "diverged":
+            notes.append(f"the trace does not replay: {res.message}")
+    except PcclError as e:
+        notes.append(f"not replayed ({e.message}): shown as recorded")
+        world = _world_of(doc)
+    if doc["initial"] is None:
+        notes.append("the trace holds no path")
+    _write_html(output, doc, model=model, states=states, world=world, notes=notes)
+
+
+@main.command(short_help="Interactive explorer in the browser (127.0.0.1).",
+              epilog="Exit status: 0 stopped (Ctrl-C), 2 bad input (docs/tools.md#serve).")
+@click.argument("program", type=click.Path(dir_okay=False))
+@common_options
+@click.option("--max-time", type=FiniteFloat(min=0), default=None,
+              help="stop time from advancing past this (as explore)")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="an invariant to check in every state shown (repeatable)")
+@click.option("--abstract-time/--no-abstract-time", default=None,
+              help="as explore: time abstraction (default: on when the program never reads time)")
+@click.option("--port", type=click.IntRange(min=0, max=65535), default=8024, show_default=True,
+              help="the port on 127.0.0.1 (0: any free port)")
+def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+          max_time, invariants, abstract_time, port):
+    """Explore PROGRAM interactively in a browser: start from an initial state,
+    see every enabled transition with its rule and source line, take one, go
+    back, jump to a visited state, load a trace file, run a bounded search from
+    the current state.  The model is explore's (same options), unreduced.  The
+    server listens on 127.0.0.1 only; stop it with Ctrl-C."""
+    from .api import build_model
+    from . import serve as S
+    from . import traces as T
+    _check_repeats(rates, overrides)
+    opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
+    try:
+        model = build_model(program, opts, explore=True)
+        cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
+                       overrides=dict(overrides), invariants=invariants)
+        session = S.Session(model, cfg)
+    except PcclError as e:
+        _fail(e)
+    try:
+        srv = S.make_server(session, port)
+    except OSError as e:
+        _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
+    host, real_port = srv.server_address[:2]
+    click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
+               f"open http://{host}:{real_port}/ (Ctrl-C stops)")
+    try:
+        srv.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        srv.server_close()
+    sys.exit(0)
+
+
+def _world_of(doc):
+    """The world a trace names, when its file can still be read (else None)."""
+    from .world import load_world
+    rec = (doc.get("config") or {}).get("world")
+    if not rec:
+        return None
+    try:
+        return load_world(rec["path"])
+    except (PcclError, OSError):
+        return None
 
 
 @main.command(short_help="Write the reachable state graph (DOT or JSON).", epilog=EXIT_STATUS_HELP)

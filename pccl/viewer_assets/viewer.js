@@ -1,0 +1,827 @@
+/* pccl viewer: one trace (static page) or the interactive explorer (pccl serve).
+ * Reads the trace document of pccl/traces.py (docs/trace-format.md) and
+ * rebuilds every state from `initial` and the steps' typed changes.
+ * The page's state is exposed in DOM attributes for tests and tools:
+ * body[data-step], .robot[data-agent][data-x][data-y], #source[data-line],
+ * #inspector[data-changed], #verdict[data-kind]. window.pcclViewer is the API. */
+(function () {
+  "use strict";
+  var BOOT = window.PCCL_BOOT || { mode: "static", data: null };
+  var SVGNS = "http://www.w3.org/2000/svg";
+  var COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+    "#7f7f7f", "#bcbd22", "#17becf"];
+  var ROWH = 20;
+
+  /* ---------------------------------------------------------------- pure logic */
+
+  function cellKey(cell) {               /* as traces.cell_name: waitTime[0], reqid, pos[1], time */
+    var c = cell.cell;
+    var name = cell["var"] !== undefined ? cell["var"] : (c === "position" ? "pos" : c);
+    return cell.agent !== undefined && cell.agent !== null ? name + "[" + cell.agent + "]" : name;
+  }
+
+  function applyChanges(s, changes) {    /* a new state; unchanged parts shared with s */
+    var n = Object.assign({}, s), agents = null, copied = {};
+    for (var j = 0; j < changes.length; j++) {
+      var ch = changes[j], c = ch.cell;
+      if (c.agent !== undefined) {
+        if (!agents) { agents = s.agents.slice(); n.agents = agents; }
+        var a = agents[c.agent];
+        if (!copied[c.agent]) { a = Object.assign({}, a); agents[c.agent] = a; copied[c.agent] = true; }
+        if (c["var"] !== undefined) {
+          if (!copied["v" + c.agent]) { a.variables = Object.assign({}, a.variables); copied["v" + c.agent] = true; }
+          a.variables[c["var"]] = ch["new"];
+        } else {
+          a[c.cell] = ch["new"];
+        }
+      } else if (c["var"] !== undefined) {
+        if (!copied.sh) { n.shared = Object.assign({}, s.shared); copied.sh = true; }
+        n.shared[c["var"]] = ch["new"];
+      } else {
+        n[c.cell] = ch["new"];
+      }
+    }
+    return n;
+  }
+
+  function buildStates(doc) {
+    var states = [doc.initial], s = doc.initial;
+    for (var k = 0; k < doc.steps.length; k++) { s = applyChanges(s, doc.steps[k].changes); states.push(s); }
+    return states;
+  }
+
+  /* every agent's pending computation per state: given, else from the next step it takes */
+  function buildAt(doc, states, given) {
+    if (given && given.length === states.length) return function (k, i) { return given[k][i]; };
+    var n = doc.steps.length, N = doc.initial.agents.length, next = [];
+    for (var i = 0; i < N; i++) {
+      var arr = new Array(n + 1), cur = null;
+      arr[n] = doc.final ? doc.final.agents[i].at : null;
+      for (var k = n - 1; k >= 0; k--) {
+        var st = doc.steps[k];
+        if (st.agent === i && st.line !== null && st.line !== undefined) cur = "at line " + st.line;
+        arr[k] = cur !== null ? cur : (k === 0 ? doc.initial.agents[i].at : "?");
+      }
+      if (n > 0 && arr[0] === "?") arr[0] = doc.initial.agents[i].at;
+      next.push(arr);
+    }
+    return function (k, i) { return next[i][k]; };
+  }
+
+  function fmt(v) {
+    if (v === null || v === undefined) return "undefined";
+    if (Array.isArray(v)) {
+      if (v.length >= 2 && v.length <= 3 && v.every(function (x) { return typeof x === "number"; }))
+        return "(" + v.map(num).join(", ") + ")";
+      return "[" + v.map(fmt).join(", ") + "]";
+    }
+    if (typeof v === "number") return num(v);
+    if (typeof v === "object") {
+      if (v.status !== undefined) return v.status + (v.reason ? ": " + v.reason : "");
+      return JSON.stringify(v);
+    }
+    return String(v);
+  }
+  function num(x) { return typeof x === "number" ? String(Math.round(x * 1000) / 1000) : String(x); }
+
+  function isPoint(v) {
+    return Array.isArray(v) && v.length >= 2 && v.length <= 3 && v.every(function (x) { return typeof x === "number"; });
+  }
+
+  /* the model of one trace: states, per-agent trails, marks */
+  function Trace(data) {
+    var doc = data.trace;
+    this.data = data; this.doc = doc;
+    this.empty = !doc.initial;
+    if (this.empty) return;
+    this.states = buildStates(doc);
+    this.n = doc.steps.length;
+    this.N = doc.initial.agents.length;
+    this.at = buildAt(doc, this.states, data.at);
+    var res = doc.result || {};
+    this.violation = res.violation || null;
+    this.cycleStart = res.cycle_start !== undefined ? res.cycle_start : null;
+    /* trails: [step, x, y] where a position changed; failures; targets */
+    this.trails = []; this.fails = []; this.targets = [];
+    for (var i = 0; i < this.N; i++) {
+      var p = doc.initial.agents[i].position;
+      this.trails.push([[0, p[0], p[1]]]);
+    }
+    for (var k = 0; k < this.n; k++) {
+      var chs = doc.steps[k].changes;
+      for (var j = 0; j < chs.length; j++) {
+        var ch = chs[j], c = ch.cell;
+        if (c.cell === "position") this.trails[c.agent].push([k + 1, ch["new"][0], ch["new"][1]]);
+        else if (c.cell === "doReach_fail" && ch["new"] === true) {
+          var q = this.states[k + 1].agents[c.agent].position;
+          this.fails.push({ step: k + 1, agent: c.agent, x: q[0], y: q[1] });
+        } else if (c.cell === "target" && ch["new"]) this.targets.push({ step: k + 1, agent: c.agent, p: ch["new"] });
+      }
+    }
+    this.dests = [];                       /* initial List<ItemPosition>-like shared values */
+    var sh = doc.initial.shared;
+    for (var name in sh) {
+      var v = sh[name];
+      if (Array.isArray(v) && v.length && v.every(isPoint)) v.forEach(function (pt) { this.dests.push(pt); }, this);
+    }
+  }
+  Trace.prototype.culprits = function () {   /* agents to ring at the violating state */
+    var v = this.violation, last = this.states[this.n], r = this.data.world.radius, out = [];
+    if (!v) return out;
+    if (v.agent !== null && v.agent !== undefined) return [v.agent];
+    if (v.kind === "collision") {
+      for (var i = 0; i < this.N; i++) for (var j = i + 1; j < this.N; j++) {
+        var a = last.agents[i].position, b = last.agents[j].position;
+        if (Math.hypot(a[0] - b[0], a[1] - b[1]) < 2 * r + 1e-9) { out.push(i); out.push(j); }
+      }
+      if (out.length) return out.filter(function (x, k) { return out.indexOf(x) === k; });
+    }
+    if (v.kind === "deadlock") {
+      for (var m = 0; m < this.N; m++) if (last.agents[m].status.status !== "exited") out.push(m);
+      return out;
+    }
+    for (var z = 0; z < this.N; z++) out.push(z);
+    return out;
+  };
+  Trace.prototype.changedKeys = function (k) {
+    if (k <= 0) return [];
+    return this.doc.steps[k - 1].changes.map(function (ch) { return cellKey(ch.cell); });
+  };
+  Trace.prototype.trailUpTo = function (i, k) {   /* points of agent i's path until state k */
+    var t = this.trails[i], lo = 0, hi = t.length;
+    while (lo < hi) { var mid = (lo + hi) >> 1; if (t[mid][0] <= k) lo = mid + 1; else hi = mid; }
+    return t.slice(0, lo);
+  };
+  Trace.prototype.stepText = function (k, i) {    /* swimlane cell of agent i (or null: shared) at step k */
+    var st = this.doc.steps[k - 1];
+    var own = [], shared = [];
+    st.changes.forEach(function (ch) {
+      var c = ch.cell, txt = cellKey(c).replace(/\[\d+\]$/, "") + "=" + fmt(ch["new"]);
+      if (c.agent !== undefined) { if (c.agent === i) own.push(txt); }
+      else if (c.cell !== "time" && c.cell !== "phase") shared.push(txt);
+    });
+    if (i === null) {
+      if (st.rule === "TIME ADVANCE") return "time advance → t=" + num(this.states[k].time);
+      return shared.join(", ");
+    }
+    if (st.rule === "DOREACH INVOKE") return own.length ? "moves: " + own.join(", ") : "";
+    if (st.agent !== i) return "";
+    var text;
+    if (st.rule === "EVENT SELECT") text = (st.event || "?") + "()";
+    else if (st.line !== null && st.line !== undefined) text = "L" + st.line + " " + (st.source || "");
+    else text = st.rule;
+    if (st.branch) text += " → " + st.branch.taken;
+    if (own.length) text += ": " + own.join(", ");
+    return text;
+  };
+
+  /* ---------------------------------------------------------------- DOM helpers */
+
+  function $(id) { return document.getElementById(id); }
+  function el(tag, attrs, text) {
+    var e = document.createElement(tag);
+    for (var k in attrs || {}) e.setAttribute(k, attrs[k]);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function sv(tag, attrs, text) {
+    var e = document.createElementNS(SVGNS, tag);
+    for (var k in attrs || {}) e.setAttribute(k, attrs[k]);
+    if (text !== undefined) e.textContent = text;
+    return e;
+  }
+  function colour(i) { return COLOURS[i % COLOURS.length]; }
+
+  /* a virtualised list: only the visible rows are in the DOM */
+  function VList(box, count, render, onclick, header) {
+    this.box = box; this.count = count; this.render = render; this.cur = -1; this.marks = {};
+    box.textContent = "";
+    this.head = header ? box.appendChild(header) : null;
+    this.headH = header ? ROWH : 0;
+    this.spacer = box.appendChild(el("div", { style: "height:" + (count * ROWH + this.headH) + "px" }));
+    this.rows = {};
+    var self = this;
+    box.onscroll = function () { self.draw(); };
+    box.onclick = function (e) {
+      var r = e.target.closest(".vrow[data-index]");
+      if (r) onclick(+r.getAttribute("data-index"));
+    };
+    this.draw();
+  }
+  VList.prototype.draw = function () {
+    var top = this.box.scrollTop, h = this.box.clientHeight || 300;
+    var a = Math.max(0, Math.floor(top / ROWH) - 5), b = Math.min(this.count, Math.ceil((top + h) / ROWH) + 5);
+    var keep = {};
+    for (var i = a; i < b; i++) {
+      keep[i] = true;
+      var r = this.rows[i];
+      if (!r) {
+        r = this.render(i);
+        r.classList.add("vrow");
+        r.setAttribute("data-index", i);
+        r.style.top = (i * ROWH + this.headH) + "px";
+        this.box.appendChild(r);
+        this.rows[i] = r;
+      }
+      r.classList.toggle("cur", i === this.cur);
+    }
+    for (var k in this.rows) if (!keep[k]) { this.box.removeChild(this.rows[k]); delete this.rows[k]; }
+  };
+  VList.prototype.select = function (i) {
+    this.cur = i;
+    var top = i * ROWH, h = this.box.clientHeight || 300;
+    if (top < this.box.scrollTop || top + ROWH + this.headH > this.box.scrollTop + h)
+      this.box.scrollTop = Math.max(0, top - h / 3);
+    this.draw();
+  };
+
+  /* ---------------------------------------------------------------- the viewer */
+
+  var V = { k: 0, trace: null, playing: false, mode: BOOT.mode };
+  window.pcclViewer = V;
+  V.cellKey = cellKey; V.applyChanges = applyChanges; V.buildStates = buildStates; V.fmt = fmt;
+
+  V.load = function (data) {
+    V.data = data;
+    V.trace = new Trace(data);
+    var T = V.trace;
+    $("title").textContent = data.title || "pccl";
+    document.title = data.title || "pccl";
+    drawVerdict();
+    drawSource();
+    if (T.empty) {
+      $("picture").textContent = "no path to show: " + ((data.trace.result || {}).message || "");
+      $("slider").max = 0;
+      document.body.setAttribute("data-steps", "0");
+      return;
+    }
+    $("slider").max = T.n;
+    document.body.setAttribute("data-steps", String(T.n));
+    document.body.setAttribute("data-agents", String(T.N));
+    if (data.motion) buildArena(); else buildTimeline();
+    buildSwimlane();
+    buildSummary();
+    V.goto(0, true);
+  };
+
+  function drawVerdict() {
+    var res = V.data.trace.result || {}, v = res.violation, box = $("verdict");
+    box.textContent = "";
+    box.className = v ? "bad" : "";
+    box.setAttribute("data-status", res.status || "");
+    box.setAttribute("data-kind", v ? v.kind : "");
+    box.setAttribute("data-name", v ? v.name : "");
+    var line = res.message || (v ? v.message : res.status || "");
+    box.appendChild(document.createTextNode(line));
+    if (v && v.message && v.message !== line) box.appendChild(el("span", { "class": "note" }, v.message));
+    if (res.cycle_start !== undefined && res.cycle_start !== null)
+      box.appendChild(el("span", { "class": "note" }, "lasso: the steps after step " + res.cycle_start +
+        " repeat forever (marked in the swimlane; playing loops them)"));
+    if (res.witness) box.appendChild(el("span", { "class": "note" }, "witness of reachable " + res.witness.text));
+    (V.data.notes || []).forEach(function (n) { box.appendChild(el("span", { "class": "note" }, n)); });
+  }
+
+  function drawSource() {
+    var box = $("source"), src = V.data.source;
+    box.textContent = "";
+    V.srcLines = {};
+    if (!src) { box.textContent = "(the program's source is not available)"; return; }
+    $("source-title").textContent = "source: " + src.path;
+    var v = V.data.trace.result && V.data.trace.result.violation;
+    src.text.split("\n").forEach(function (t, j) {
+      var d = el("div", { "class": "ln", "data-line": String(j + 1) }, t);
+      if (v && v.line === j + 1) d.classList.add("vio");
+      box.appendChild(d);
+      V.srcLines[j + 1] = d;
+    });
+  }
+
+  /* arena ------------------------------------------------------------ */
+  function buildArena() {
+    var T = V.trace, w = V.data.world, r = w.radius;
+    var xs = [], ys = [];
+    function ext(p) { xs.push(p[0]); ys.push(p[1]); }
+    if (w.arena) { ext(w.arena[0]); ext(w.arena[1]); }
+    w.obstacles.forEach(function (poly) { poly.forEach(ext); });
+    T.trails.forEach(function (t) { t.forEach(function (q) { ext([q[1], q[2]]); }); });
+    T.targets.forEach(function (t) { ext(t.p); });
+    T.dests.forEach(ext);
+    var m = 2 * r + 0.3;
+    var x0 = Math.min.apply(null, xs) - m, x1 = Math.max.apply(null, xs) + m;
+    var y0 = Math.min.apply(null, ys) - m, y1 = Math.max.apply(null, ys) + m;
+    var W = x1 - x0, H = y1 - y0;
+    V.unit = Math.max(W, H) / 100;
+    var u = V.unit;
+    var svg = sv("svg", { id: "arena", viewBox: [x0, -y1, W, H].join(" "), "stroke-width": u * 0.3 });
+    if (w.arena) {
+      var a = w.arena;
+      svg.appendChild(sv("rect", { "class": "arena", x: a[0][0], y: -a[1][1], width: a[1][0] - a[0][0],
+        height: a[1][1] - a[0][1], "stroke-width": u * 0.3 }));
+    }
+    w.obstacles.forEach(function (poly, j) {
+      svg.appendChild(sv("polygon", { "class": "obstacle", "data-obstacle": j + 1,
+        points: poly.map(function (p) { return p[0] + "," + (-p[1]); }).join(" "), "stroke-width": u * 0.3 }));
+      var cx = 0, cy = 0;
+      poly.forEach(function (p) { cx += p[0]; cy += p[1]; });
+      svg.appendChild(sv("text", { x: cx / poly.length, y: -cy / poly.length, "font-size": u * 3,
+        "text-anchor": "middle", "dominant-baseline": "central", fill: "#fff" }, String(j + 1)));
+    });
+    T.dests.forEach(function (p) {
+      svg.appendChild(sv("path", { "class": "dest", d: star(p[0], -p[1], u * 2.2), "stroke-width": u * 0.2 }));
+    });
+    for (var i = 0; i < T.N; i++) {       /* start positions: dashed footprints */
+      var p0 = T.states[0].agents[i].position;
+      svg.appendChild(sv("circle", { "class": "start", cx: p0[0], cy: -p0[1], r: r, stroke: colour(i),
+        "stroke-width": u * 0.3 }));
+    }
+    V.layer = svg.appendChild(sv("g", { id: "dynamic" }));
+    V.robots = [];
+    V.trailEls = []; V.headEls = []; V.targetEls = [];
+    for (var k = 0; k < T.N; k++) {
+      V.trailEls.push(V.layer.appendChild(sv("polyline", { "class": "trail", stroke: colour(k), "stroke-width": u * 0.5 })));
+      V.headEls.push(V.layer.appendChild(sv("line", { "class": "heading", stroke: colour(k), "stroke-width": u * 0.3,
+        "data-agent": k })));
+      V.targetEls.push(V.layer.appendChild(sv("path", { "class": "target", stroke: colour(k), "stroke-width": u * 0.5,
+        "data-agent": k })));
+    }
+    V.failLayer = V.layer.appendChild(sv("g", { id: "fails" }));
+    for (var g = 0; g < T.N; g++) {
+      var robot = sv("g", { "class": "robot", "data-agent": g });
+      robot.appendChild(sv("circle", { r: r, fill: colour(g), "stroke-width": u * 0.3 }));
+      robot.appendChild(sv("text", { "font-size": Math.min(r * 1.2, u * 4), "text-anchor": "middle",
+        "dominant-baseline": "central" }, String(g)));
+      robot.appendChild(sv("title", {}, "agent " + g));
+      V.robots.push(V.layer.appendChild(robot));
+    }
+    V.ringLayer = V.layer.appendChild(sv("g", { id: "rings" }));
+    $("picture").textContent = "";
+    $("picture").appendChild(svg);
+  }
+  function star(x, y, s) {
+    var pts = [];
+    for (var j = 0; j < 10; j++) {
+      var a = Math.PI / 2 + j * Math.PI / 5, rr = j % 2 ? s * 0.4 : s;
+      pts.push((x + rr * Math.cos(a)) + "," + (y - rr * Math.sin(a)));
+    }
+    return "M" + pts.join("L") + "Z";
+  }
+  function cross(x, y, s) {
+    return "M" + (x - s) + "," + (y - s) + "L" + (x + s) + "," + (y + s) + "M" + (x - s) + "," + (y + s) + "L" + (x + s) + "," + (y - s);
+  }
+
+  function drawArena(k, frac) {
+    var T = V.trace, st = T.states[k], u = V.unit, r = V.data.world.radius;
+    var prev = frac !== undefined && k > 0 ? T.states[k - 1] : null;
+    for (var i = 0; i < T.N; i++) {
+      var ag = st.agents[i], p = ag.position, x = p[0], y = p[1];
+      if (prev) {                          /* interpolate the motion of this step */
+        var q = prev.agents[i].position;
+        x = q[0] + (p[0] - q[0]) * frac; y = q[1] + (p[1] - q[1]) * frac;
+      }
+      var robot = V.robots[i];
+      robot.setAttribute("transform", "translate(" + x + "," + (-y) + ")");
+      robot.setAttribute("data-x", String(p[0]));
+      robot.setAttribute("data-y", String(p[1]));
+      robot.setAttribute("data-status", ag.status.status);
+      robot.classList.toggle("stuck", ag.status.status === "stuck");
+      var pts = T.trailUpTo(i, prev ? k - 1 : k).map(function (q) { return q[1] + "," + (-q[2]); });
+      pts.push(x + "," + (-y));
+      V.trailEls[i].setAttribute("points", pts.join(" "));
+      var tgt = ag.target, he = V.headEls[i], te = V.targetEls[i];
+      if (tgt && !ag.doReach_done && ag.status.status !== "exited") {
+        he.setAttribute("x1", x); he.setAttribute("y1", -y); he.setAttribute("x2", tgt[0]); he.setAttribute("y2", -tgt[1]);
+        he.style.display = "";
+        te.setAttribute("d", cross(tgt[0], -tgt[1], u * 1.2));
+        te.style.display = "";
+        robot.setAttribute("data-target", tgt[0] + "," + tgt[1]);
+      } else {
+        he.style.display = "none"; te.style.display = "none";
+        robot.removeAttribute("data-target");
+      }
+    }
+    V.failLayer.textContent = "";
+    T.fails.forEach(function (f) {
+      if (f.step > k) return;
+      var g = V.failLayer.appendChild(sv("g", { "class": "fail", "data-agent": f.agent, "data-step": f.step }));
+      g.appendChild(sv("path", { d: cross(f.x, -f.y, r * 1.3), "stroke-width": u * 0.6 }));
+      g.appendChild(sv("text", { x: f.x + r * 1.4, y: -f.y, "font-size": u * 2.6, fill: "#c62828" },
+        "doReach failed (" + f.agent + ")"));
+    });
+    V.ringLayer.textContent = "";
+    V.robots.forEach(function (rb) { rb.classList.remove("culprit"); });
+    if (k === T.n && T.violation) {
+      T.culprits().forEach(function (i) {
+        var p = st.agents[i].position;
+        V.robots[i].classList.add("culprit");
+        V.ringLayer.appendChild(sv("circle", { "class": "ring", cx: p[0], cy: -p[1], r: r * 1.6,
+          "stroke-width": u * 0.7, "data-agent": i }));
+      });
+    }
+  }
+
+  /* timeline (programs that do not move) ----------------------------- */
+  function buildTimeline() {
+    var T = V.trace, W = 900, laneH = 34, top = 18, left = 70;
+    var H = top + T.N * laneH + 24;
+    var svg = sv("svg", { id: "timeline", viewBox: "0 0 " + (W + left + 10) + " " + H });
+    var sx = function (k) { return left + (T.n ? k * W / T.n : 0); };
+    V.sx = sx;
+    var events = {}, nev = 0;
+    function evColour(name) {
+      if (name === null) return "#bdbdbd";
+      if (events[name] === undefined) events[name] = nev++;
+      return COLOURS[(events[name] + 2) % COLOURS.length];
+    }
+    for (var i = 0; i < T.N; i++) {
+      var y = top + i * laneH;
+      svg.appendChild(sv("text", { "class": "lane-label", x: 4, y: y + laneH / 2, "dominant-baseline": "central" }, "agent " + i));
+      svg.appendChild(sv("line", { x1: left, x2: left + W, y1: y + laneH / 2, y2: y + laneH / 2, stroke: "#eee" }));
+    }
+    /* bars: runs of an agent's steps within one event block */
+    var open = [];
+    for (var a = 0; a < T.N; a++) open.push(null);
+    function close(a, endK) {
+      var o = open[a];
+      if (!o) return;
+      var x = sx(o.from - 1), w = Math.max(1.5, sx(endK) - x);
+      var bar = sv("rect", { "class": "tl-bar", x: x, y: top + a * laneH + 6, width: w, height: laneH - 12,
+        fill: evColour(o.event), "data-agent": a, "data-event": o.event || "" });
+      bar.appendChild(sv("title", {}, "agent " + a + ": " + (o.event || "idle") + " (steps " + o.from + "–" + endK + ")"));
+      svg.appendChild(bar);
+      if (o.event && sx(endK) - x > 40)
+        svg.appendChild(sv("text", { x: x + 3, y: top + a * laneH + laneH / 2, "font-size": 10, fill: "#fff",
+          "dominant-baseline": "central" }, o.event));
+      open[a] = null;
+    }
+    var ticks = 0;
+    for (var k = 1; k <= T.n; k++) {
+      var st = T.doc.steps[k - 1], ag = st.agent;
+      if (st.rule === "TIME ADVANCE") {
+        if (ticks++ < 400) {
+          svg.appendChild(sv("line", { x1: sx(k), x2: sx(k), y1: top - 4, y2: H - 20, stroke: "#e0e0e0" }));
+          svg.appendChild(sv("text", { x: sx(k), y: H - 6, "font-size": 9, "text-anchor": "middle", fill: "#777" },
+            "t=" + num(T.states[k].time)));
+        }
+        continue;
+      }
+      if (ag === null || ag === undefined) continue;
+      var ev = st.rule === "IDLE" ? null : st.event;
+      if (st.rule === "EVENT SELECT" || st.rule === "IDLE" || !open[ag] || open[ag].event !== ev) {
+        close(ag, k - 1);
+        open[ag] = { from: k, event: ev };
+      }
+      open[ag].last = k;
+      if (st.rule === "EXIT") close(ag, k);
+    }
+    for (var b = 0; b < T.N; b++) if (open[b]) close(b, open[b].last);
+    if (T.violation) {
+      T.culprits().forEach(function (i) {
+        svg.appendChild(sv("circle", { "class": "tl-bad", cx: sx(T.n), cy: top + i * laneH + laneH / 2, r: 6,
+          "data-agent": i }));
+      });
+    }
+    V.cursor = svg.appendChild(sv("line", { "class": "tl-cursor", y1: top - 6, y2: H - 20 }));
+    V.laneState = [];
+    for (var c = 0; c < T.N; c++)
+      V.laneState.push(svg.appendChild(sv("g", { "class": "lane", "data-agent": c })));
+    svg.addEventListener("click", function (e) {
+      var pt = svg.createSVGPoint(); pt.x = e.clientX; pt.y = e.clientY;
+      var p = pt.matrixTransform(svg.getScreenCTM().inverse());
+      V.goto(Math.round((p.x - left) * T.n / W));
+    });
+    $("picture").textContent = "";
+    $("picture").appendChild(svg);
+  }
+  function drawTimeline(k) {
+    var T = V.trace, x = V.sx(k);
+    V.cursor.setAttribute("x1", x); V.cursor.setAttribute("x2", x);
+    V.cursor.setAttribute("data-step", k);
+    V.laneState.forEach(function (g, i) {
+      var ag = T.states[k].agents[i];
+      g.setAttribute("data-status", ag.status.status);
+      g.setAttribute("data-at", T.at(k, i));
+    });
+  }
+
+  /* swimlane and run summary ------------------------------------------ */
+  function buildSwimlane() {
+    var T = V.trace, cols = ["#", "t"];
+    for (var i = 0; i < T.N; i++) cols.push("agent " + i);
+    cols.push("shared");
+    var widths = ["3.5em", "3em"];
+    var w = (100 / (T.N + 1)).toFixed(2) + "%";
+    for (var j = 0; j <= T.N; j++) widths.push("calc(" + w + " - " + (6.5 / (T.N + 1)).toFixed(2) + "em)");
+    function row(cells) {
+      var r = el("div");
+      cells.forEach(function (c, j) {
+        var s = r.appendChild(el("span", { title: c }, c));
+        s.style.flex = "0 0 " + widths[j];
+      });
+      return r;
+    }
+    var head = row(cols);
+    head.className = "vrow vhead";
+    V.swim = new VList($("swimlane"), T.n + 1, function (k) {
+      var cells = [String(k), num(T.states[k > 0 ? k - 1 : 0].time)];
+      if (k === 0) {
+        for (var a = 0; a < T.N; a++) cells.push("initial: pos " + fmt(T.states[0].agents[a].position));
+        cells.push(Object.keys(T.doc.initial.shared).map(function (n) { return n + "=" + fmt(T.doc.initial.shared[n]); }).join(", "));
+      } else {
+        for (var b = 0; b < T.N; b++) cells.push(T.stepText(k, b));
+        cells.push(T.stepText(k, null));
+      }
+      var r = row(cells);
+      r.setAttribute("data-step", k);
+      if (T.cycleStart !== null && k > T.cycleStart) r.classList.add("cycle");
+      if (k === T.n && T.violation) r.classList.add("bad");
+      return r;
+    }, function (k) { V.goto(k); }, head);
+  }
+
+  function buildSummary() {
+    var T = V.trace, box = $("summary");
+    var cfg = V.data.trace.config || {};
+    V.times = [0];
+    for (var k = 1; k <= T.n; k++) if (T.doc.steps[k - 1].rule === "TIME ADVANCE") V.times.push(k);
+    if (cfg.command !== "run" || !V.data.motion) { box.hidden = true; V.sum = null; return; }
+    box.hidden = false;
+    V.sum = new VList($("summary-list"), V.times.length, function (j) {
+      var k = V.times[j], st = T.states[k];
+      var parts = st.agents.map(function (ag, i) {
+        return "a" + i + " " + fmt(ag.position) + (ag.status.status === "running" ? "" : " " + ag.status.status);
+      });
+      var r = el("div", {}, "t=" + num(st.time) + ": " + parts.join("  "));
+      r.setAttribute("data-step", k);
+      return r;
+    }, function (j) { V.goto(V.times[j]); });
+  }
+
+  /* inspector --------------------------------------------------------- */
+  function drawInspector(k) {
+    var T = V.trace, st = T.states[k], box = $("inspector");
+    var changed = {}, old = {};
+    if (k > 0) T.doc.steps[k - 1].changes.forEach(function (ch) { changed[cellKey(ch.cell)] = true; old[cellKey(ch.cell)] = ch.old; });
+    if (k > 0) for (var a = 0; a < T.N; a++) {
+      if (T.at(k, a) !== T.at(k - 1, a)) { changed["at[" + a + "]"] = true; old["at[" + a + "]"] = T.at(k - 1, a); }
+    }
+    var tbl = el("table"), keys = [];
+    function group(t) { var r = tbl.appendChild(el("tr", { "class": "group" })); r.appendChild(el("td", { colspan: 2 }, t)); }
+    function add(key, label, v, raw) {
+      var r = tbl.appendChild(el("tr", { "data-cell": key, "data-value": raw ? v : fmt(v) }));
+      r.appendChild(el("td", {}, label));
+      var td = r.appendChild(el("td"));
+      if (changed[key]) {
+        r.classList.add("changed");
+        keys.push(key);
+        td.appendChild(el("span", { "class": "old" }, raw ? old[key] : fmt(old[key])));
+      }
+      td.appendChild(document.createTextNode(raw ? v : fmt(v)));
+    }
+    group("configuration");
+    add("time", "time", st.time);
+    add("phase", "phase", st.phase, true);
+    add("lockQueue", "lockQueue", st.lockQueue);
+    if (st.env !== null && st.env !== undefined) add("env", "env", st.env);
+    var sh = Object.keys(st.shared);
+    if (sh.length) { group("shared"); sh.forEach(function (n) { add(n, n, st.shared[n]); }); }
+    for (var i = 0; i < T.N; i++) {
+      var ag = st.agents[i], s = "[" + i + "]";
+      group("agent " + i);
+      add("at" + s, "k", T.at(k, i), true);
+      add("status" + s, "status", ag.status);
+      add("counter" + s, "counter", ag.counter);
+      add("lockState" + s, "lock", ag.lockState, true);
+      add("pos" + s, "position", ag.position);
+      add("target" + s, "target", ag.target);
+      add("doReach_done" + s, "doReach_done", ag.doReach_done);
+      add("doReach_fail" + s, "doReach_fail", ag.doReach_fail);
+      for (var n in ag.variables) add(n + s, n, ag.variables[n]);
+    }
+    box.textContent = "";
+    var bad = k === T.n && T.violation;
+    box.classList.toggle("violating", !!bad);
+    box.setAttribute("data-violating", bad ? "true" : "false");
+    if (bad) box.appendChild(el("div", { "class": "banner", id: "violating" },
+      "violating state: " + T.violation.message));
+    else if (k === T.n && T.cycleStart !== null)
+      box.appendChild(el("div", { "class": "banner" }, "equal to the state after step " + T.cycleStart + ": the cycle closes"));
+    box.appendChild(tbl);
+    box.setAttribute("data-changed", keys.slice().sort().join(","));
+    $("state-label").textContent = k === 0 ? "(initial)" : "after step " + k;
+  }
+
+  function drawStepInfo(k) {
+    var T = V.trace, box = $("stepinfo");
+    if (k === 0) { box.textContent = "initial state, t=" + num(T.states[0].time); return; }
+    var st = T.doc.steps[k - 1];
+    var who = st.agent === null || st.agent === undefined ? "" : "agent " + st.agent + "  ";
+    var t = "step " + k + ". t=" + num(st.time) + "  " + who + st.rule + (st.event ? " [" + st.event + "]" : "") +
+      (st.line ? "  line " + st.line + ": " + (st.source || "") : "");
+    if (st.outcome !== undefined) t += "  outcome " + st.outcome;
+    if (st.branch) t += "  → " + st.branch.taken;
+    var ch = st.changes.map(function (c) { return "\n   " + cellKey(c.cell) + " " + fmt(c.old) + " → " + fmt(c["new"]); });
+    box.textContent = t + ch.join("");
+  }
+
+  function drawSourceLine(k) {
+    var box = $("source"), T = V.trace;
+    if (V.curLine) { V.curLine.classList.remove("cur"); V.curLine.style.borderLeftColor = ""; V.curLine = null; }
+    var st = k > 0 ? T.doc.steps[k - 1] : null;
+    var line = st && st.line ? st.line : null;
+    box.setAttribute("data-line", line === null ? "" : String(line));
+    box.setAttribute("data-agent", st && st.agent !== null && st.agent !== undefined ? String(st.agent) : "");
+    if (line !== null && V.srcLines && V.srcLines[line]) {
+      var d = V.srcLines[line];
+      d.classList.add("cur");
+      if (st.agent !== null && st.agent !== undefined) d.style.borderLeftColor = colour(st.agent);
+      V.curLine = d;
+      var top = d.offsetTop - box.offsetTop;
+      if (top < box.scrollTop || top > box.scrollTop + box.clientHeight - 20) box.scrollTop = Math.max(0, top - box.clientHeight / 3);
+    }
+  }
+
+  V.goto = function (k, force) {
+    var T = V.trace;
+    if (!T || T.empty) return;
+    k = Math.max(0, Math.min(T.n, k | 0));
+    if (k === V.k && !force) return;
+    V.k = k;
+    render(k);
+  };
+  function render(k) {
+    var T = V.trace;
+    document.body.setAttribute("data-step", String(k));
+    $("slider").value = k;
+    $("where").textContent = "step " + k + " / " + T.n + "  t=" + num(T.states[k].time);
+    if (V.data.motion) drawArena(k); else drawTimeline(k);
+    drawInspector(k);
+    drawStepInfo(k);
+    drawSourceLine(k);
+    V.swim.select(k);
+    if (V.sum) {
+      var j = 0;
+      while (j + 1 < V.times.length && V.times[j + 1] <= k) j++;
+      V.sum.select(j);
+    }
+    if (BOOT.mode === "static" && window.history && history.replaceState) {
+      try { history.replaceState(null, "", "#step=" + k); } catch (e) { /* file: URLs in some browsers */ }
+    }
+    if (V.onrender) V.onrender(k);
+  }
+
+  /* playback: one step per 1/speed s, motion interpolated within the step */
+  V.play = function () {
+    var T = V.trace;
+    if (!T || T.empty || V.playing) return;
+    if (V.k >= T.n) V.goto(T.cycleStart !== null ? T.cycleStart : 0);
+    V.playing = true;
+    $("play").textContent = "pause";
+    var t0 = null;
+    function frame(ts) {
+      if (!V.playing) return;
+      if (t0 === null) t0 = ts;
+      var dur = 1000 / (+$("speed").value || 5), f = (ts - t0) / dur;
+      if (f >= 1) {
+        t0 = ts;
+        if (V.k >= T.n) {
+          if (T.cycleStart !== null && T.cycleStart < T.n) V.goto(T.cycleStart);
+          else { V.pause(); return; }
+        } else {
+          V.goto(V.k + 1);
+          if (V.data.motion) drawArena(V.k, 0);
+        }
+      } else if (V.data.motion && V.k > 0) {
+        drawArena(V.k, f);
+      }
+      requestAnimationFrame(frame);
+    }
+    requestAnimationFrame(frame);
+  };
+  V.pause = function () {
+    if (!V.playing) return;
+    V.playing = false;
+    $("play").textContent = "play";
+    render(V.k);
+  };
+  V.next = function () { V.pause(); V.goto(V.k + 1); };
+  V.prev = function () { V.pause(); V.goto(V.k - 1); };
+  V.state = function (k) { return V.trace.states[k === undefined ? V.k : k]; };
+
+  function wire() {
+    $("first").onclick = function () { V.pause(); V.goto(0); };
+    $("last").onclick = function () { V.pause(); V.goto(V.trace ? V.trace.n : 0); };
+    $("prev").onclick = V.prev;
+    $("next").onclick = V.next;
+    $("play").onclick = function () { if (V.playing) V.pause(); else V.play(); };
+    $("slider").oninput = function () { V.pause(); V.goto(+this.value); };
+    document.addEventListener("keydown", function (e) {
+      var t = e.target && e.target.tagName;
+      if (t === "INPUT" || t === "SELECT" || t === "TEXTAREA") return;
+      if (e.key === "ArrowRight") { V.next(); e.preventDefault(); }
+      else if (e.key === "ArrowLeft") { V.prev(); e.preventDefault(); }
+      else if (e.key === "Home") { V.pause(); V.goto(0); e.preventDefault(); }
+      else if (e.key === "End") { V.pause(); V.goto(V.trace.n); e.preventDefault(); }
+      else if (e.key === " ") { if (V.playing) V.pause(); else V.play(); e.preventDefault(); }
+    });
+  }
+
+  function hashStep() {
+    var m = /step=(\d+)/.exec(location.hash || "");
+    return m ? +m[1] : null;
+  }
+
+  /* ---------------------------------------------------------------- serve mode */
+
+  function api(path, body) {
+    var opts = body === undefined ? { method: "GET" } :
+      { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
+    return fetch(path, opts).then(function (r) {
+      return r.json().then(function (j) {
+        if (!r.ok) throw new Error(j.error || ("HTTP " + r.status));
+        return j;
+      });
+    });
+  }
+  V.api = api;
+
+  function showExplorer(x) {
+    V.explorer = x;
+    $("init-count").textContent = String(x.n_initial);
+    $("init-index").max = Math.max(0, x.n_initial - 1);
+    $("init-index").value = x.initial_index;
+    $("explorer-status").textContent = "depth " + x.depth + " · " + x.successors.length + " enabled transition" +
+      (x.successors.length === 1 ? "" : "s") + (x.terminal ? " · " + x.terminal : "");
+    var ul = $("checks");
+    ul.textContent = "";
+    x.checks.forEach(function (c) {
+      var li = ul.appendChild(el("li", { "data-name": c.name, "data-holds": c.holds ? "true" : "false" },
+        (c.holds ? "✓ " : "✗ ") + c.name + (c.holds ? " holds" : " violated") + (c.message ? ": " + c.message : "")));
+      if (!c.holds) li.classList.add("bad");
+    });
+    var ol = $("successors");
+    ol.textContent = "";
+    x.successors.forEach(function (s) {
+      var li = ol.appendChild(el("li"));
+      var b = li.appendChild(el("button", { "class": "succ", "data-index": s.index, "data-rule": s.rule,
+        "data-agent": s.agent === null ? "" : s.agent, "data-line": s.line === null ? "" : s.line }, s.text));
+      b.onclick = function () { act("/api/step", { index: s.index }); };
+    });
+    var sel = $("visited");
+    sel.textContent = "";
+    x.visited.forEach(function (v) { sel.appendChild(el("option", { value: v.id }, "#" + v.id + " depth " + v.depth + ": " + v.text)); });
+    sel.value = x.current_visit;
+  }
+
+  function act(path, body) {
+    $("error").textContent = "";
+    return api(path, body).then(function (j) { V.receive(j); return j; })
+      .catch(function (e) { $("error").textContent = e.message; throw e; });
+  }
+  V.act = act;
+  V.receive = function (j) {
+    V.pause();
+    V.load(j.view);
+    showExplorer(j.explorer);
+    V.goto(V.trace.empty ? 0 : V.trace.n, true);
+    document.body.setAttribute("data-depth", String(j.explorer.depth));
+  };
+
+  function wireExplorer() {
+    $("explorer").hidden = false;
+    $("back").onclick = function () { act("/api/back", {}); };
+    $("here").onclick = function () { act("/api/truncate", { depth: V.k }); };
+    $("init-go").onclick = function () { act("/api/init", { index: +$("init-index").value }); };
+    $("visit-go").onclick = function () { act("/api/visit", { id: +$("visited").value }); };
+    $("search-go").onclick = function () {
+      $("search-result").textContent = "searching…";
+      api("/api/search", { depth: +$("search-depth").value, max_states: +$("search-states").value })
+        .then(function (j) {
+          $("search-result").textContent = j.text;
+          $("search-result").setAttribute("data-status", j.status);
+          $("search-follow").hidden = !j.path_length;
+        }).catch(function (e) { $("search-result").textContent = ""; $("error").textContent = e.message; });
+    };
+    $("search-follow").onclick = function () { act("/api/follow", {}); };
+    $("load-file").onchange = function () {
+      var f = this.files[0];
+      if (!f) return;
+      f.text().then(function (text) { return act("/api/load", { text: text, name: f.name }); }).catch(function () {});
+    };
+  }
+
+  /* ---------------------------------------------------------------- boot */
+
+  function boot() {
+    wire();
+    if (BOOT.mode === "serve") {
+      wireExplorer();
+      api("/api/state").then(V.receive).catch(function (e) { $("error").textContent = e.message; });
+      return;
+    }
+    var h = hashStep();
+    V.load(BOOT.data);
+    if (h !== null) V.goto(h);
+    window.addEventListener("hashchange", function () { var s = hashStep(); if (s !== null && s !== V.k) V.goto(s); });
+  }
+  if (typeof document !== "undefined" && document.getElementById("controls")) boot();
+})();
