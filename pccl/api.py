@@ -393,7 +393,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         if isinstance(e, NativeOverflow):
             # a value the vectors cannot hold: the Python engine, from the start
             model.engine_used, model.engine_reason = (
-                "python", "the native search met an int beyond 64 bits or an undefined value")
+                "python", "the native search met an int beyond 64 bits, a division by zero or "
+                "an undefined value")
             labels = set()
             ex = Explorer(model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
             sr = ex.run()

@@ -63,8 +63,10 @@ SCALAR = ("int", "bool", "enum")
 
 
 class NativeOverflow(RuntimeError):
-    """The native search met a value it cannot hold (an int beyond 64 bits,
-    or a read of an undefined variable): the Python engine must run."""
+    """The native search met what it does not model (an int beyond 64 bits, a
+    division by zero, an agent index out of range, a read of an undefined
+    variable: the runtime errors that get an agent stuck): the Python engine
+    must run."""
 
 
 class Unsupported(Exception):
@@ -96,7 +98,7 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     if parallel:
         return "a parallel search (the native engine runs in one process)"
     try:
-        Generator(model).check()
+        Generator(model).source()
     except Unsupported as e:
         return str(e)
     return None
@@ -242,6 +244,10 @@ class Generator:
             return f"SUB({a}, {b})"
         if op == "*":
             return f"MUL({a}, {b})"
+        if op == "/":
+            return f"DIV({a}, {b})"
+        if op == "%":
+            return f"MOD({a}, {b})"
         if op in ("<", "<=", ">", ">=", "==", "!="):
             return f"((V)({a} {op} {b}))"
         raise Unsupported(f"the operator '{op}'")
@@ -266,12 +272,18 @@ class Generator:
             return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
         if isinstance(e, A.Binary):
             return self.binop(e.op, self.expr(e.left, i), self.expr(e.right, i))
+        if isinstance(e, A.Index) and isinstance(e.base, A.Name):
+            vs = self.lay.vars.get(e.base.name)
+            if vs is not None and indexes_agent(vs.section, False, 1, in_property=False):
+                return self.read(self.var_ref(vs, f"AIX({self.expr(e.index, i)})"), vs)
         if isinstance(e, A.Call) and not e.args and e.name == "getAgentIndex":
             return f"((V){i})"
         if isinstance(e, A.Call) and not e.args and e.name == "getNumAgents":
             return f"((V){self.N})"
-        raise Unsupported(f"the expression at line {e.span.line}:{e.span.col}"
-                          if getattr(e, "span", None) else "an expression")
+        what = f"{e.name}()" if isinstance(e, A.Call) else type(e).__name__.lower()
+        span = getattr(e, "span", None)
+        raise Unsupported(f"the expression {what}" + (f" at line {span.line}:{span.column}"
+                                                     if span is not None else ""))
 
     def pexpr(self, e, bound: dict) -> str:
         """C for a property expression (``bound``: quantified name -> agent)."""
@@ -307,11 +319,12 @@ class Generator:
             # Python counts values that are True: undefined counts as not True
             return "((V)(" + " + ".join(f"({self.var_ref(vs, j)} == 1)"
                                         for j in range(self.N)) + "))"
-        if isinstance(e, A.Index) and isinstance(e.base, A.Name) and isinstance(
-                e.index, A.Name) and e.index.name in bound:
+        if isinstance(e, A.Index) and isinstance(e.base, A.Name):
             vs = self.lay.vars.get(e.base.name)
             if vs is not None and indexes_agent(vs.section, False, 1, in_property=True):
-                return self.read(self.var_ref(vs, bound[e.index.name]), vs)
+                if isinstance(e.index, A.Name) and e.index.name in bound:
+                    return self.read(self.var_ref(vs, bound[e.index.name]), vs)
+                return self.read(self.var_ref(vs, f"AIX({self.pexpr(e.index, bound)})"), vs)
         raise Unsupported("a property expression beyond the native subset")
 
     # -- rules ---------------------------------------------------------------------
@@ -461,6 +474,9 @@ static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r 
 static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
 static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
 static inline V NEG(V a) {{ if (a == INT64_MIN) ovf = 1; return -a; }}
+static inline V DIV(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a / b; }}
+static inline V MOD(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a % b; }}
+static inline V AIX(V j) {{ if (j < 0 || j >= NAG) {{ ovf = 1; return 0; }} return j; }}
 static inline V U(V a) {{ if (a == INT64_MIN) ovf = 1; return a; }}
 static void lq_append(V *t, V i) {{ for (int k = 0; k < NAG; k++) if (t[LQ0 + k] < 0) {{ t[LQ0 + k] = i; return; }} }}
 static void lq_remove(V *t, V i) {{
@@ -514,7 +530,7 @@ static PyObject *successors(PyObject *self, PyObject *arg) {{
 fail:
   Py_DECREF(out);
   if (ovf && !PyErr_Occurred())
-    PyErr_SetString(OverflowExc, "an int beyond 64 bits or an undefined value");
+    PyErr_SetString(OverflowExc, "an int beyond 64 bits, a division by zero or an undefined value");
   return NULL;
 }}
 static PyObject *ok(PyObject *self, PyObject *arg) {{
