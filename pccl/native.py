@@ -172,7 +172,7 @@ class Generator:
                                   "holds int, bool and enum scalars)")
         if m.guards_rand:
             raise Unsupported("rand() in a guard")
-        for sid, s in self.c.stmts.items():
+        for s in self.c.stmts.values():
             self.stmt_ok(s)
         for ev in self.c.program.events:
             self.expr(ev.guard, 0)
@@ -383,6 +383,8 @@ class Generator:
                 s = c.stmts[h.sid]
                 sets = [f"t[{PC}] = {h.next_pc}"]
                 if isinstance(s, A.Assign):
+                    if not isinstance(s.target, A.Name):
+                        raise Unsupported(f"an indexed assignment (line {s.span.line})")
                     vs = self.lay.vars[s.target.name]
                     out.append(f"{ind}V v = {self.expr(s.value, i)};")
                     out.append(f"{ind}if (ovf) return -1;")
@@ -598,7 +600,7 @@ def build(src: str):
     spec = importlib.util.spec_from_file_location(name, path)
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)        # type: ignore[union-attr]
+    spec.loader.exec_module(mod)
     return mod
 
 
