@@ -357,10 +357,15 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         if note is not None:
             note(msg)
 
-    if ray is not None:
+    native = _choose_engine(model, o, rec is not None, one)
+    if native is not None:
+        def on_runaway_native(info: dict) -> None:
+            on_runaway({**info, "state": native.decode(info["state"])})
+        ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels, **opts)
+    elif ray is not None:
         from .parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex: Any = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
     elif nworkers is not None and nworkers > 1:
         from .parallel import ParallelExplorer
         ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
@@ -372,11 +377,25 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
+        if native is not None:
+            for f in sr.found:
+                if f.trace is not None:
+                    f.trace = native.decode_trace(f.trace)
     except RuntimeError as e:
-        from .parallel import RayUnavailable
-        if isinstance(e, RayUnavailable):       # Ray could not be started or reached
-            raise ArgumentError(str(e), filename="pccl --ray") from None
-        raise
+        from .native import NativeOverflow
+        if isinstance(e, NativeOverflow):
+            # a value the vectors cannot hold: the Python engine, from the start
+            model.engine_used, model.engine_reason = (
+                "python", "the native search met an int beyond 64 bits, a division by zero or "
+                "an undefined value")
+            labels = set()
+            ex = Explorer(model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
+            sr = ex.run()
+        else:
+            from .parallel import RayUnavailable
+            if isinstance(e, RayUnavailable):       # Ray could not be started or reached
+                raise ArgumentError(str(e), filename="pccl --ray") from None
+            raise
     finally:
         model.lock_deadlocks = saved
     # every reachable state was expanded (before the graph analysis, which
@@ -464,6 +483,30 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         labels_reason=None if labels is not None else
         f"the transitions are taken in {where}; use --workers 1")
     return res
+
+
+def _choose_engine(model: Model, o: ExploreOptions, recorder: bool, one: bool):
+    """The native model for this search (pccl/native.py), or None for the
+    Python engine; sets ``model.engine_used`` and ``model.engine_reason``
+    (why not native) for the header."""
+    model.engine_asked = o.engine != "auto"
+    if o.engine == "python":
+        model.engine_used, model.engine_reason = "python", None
+        return None
+    from . import native as NV
+    why = NV.unsupported(model, recorder=recorder, parallel=not one)
+    if why is None and o.coverage:
+        why = "--coverage counts guards in Python"
+    if why is None and o.fastest:
+        why = "--fastest orders the search in Python"
+    if why is not None:
+        if o.engine == "native":
+            raise ArgumentError(f"the native engine cannot run this search: {why}",
+                                filename="--engine")
+        model.engine_used, model.engine_reason = "python", why
+        return None
+    model.engine_used, model.engine_reason = "native", None
+    return NV.NativeModel(model)
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

@@ -489,6 +489,10 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
                    "comma-separated list of merge, symmetry, por")
+@click.option("--engine", type=Choice(["auto", "native", "python"]), default="auto",
+              show_default=True,
+              help="successors in generated C (native, compiled with the system cc) or in "
+                   "Python; auto: native where it can serve the program and the search")
 @click.option("--no-deadlock", "deadlock", flag_value=False, default=True,
               help="do not report deadlocks")
 @click.option("--all", "find_all", is_flag=True,
@@ -516,8 +520,8 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            stall, fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
-            html, trace_out, view, full, coverage, workers, ray):
+            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, plot, progress,
+            progress_interval, html, trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import build_model, explore_model
@@ -1062,7 +1066,17 @@ def _explore_header(program, m) -> str:
     return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
             f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
             f"time abstraction {'on' if m.abstract_time else 'off'}, "
-            f"reductions {m.reduction.describe()}")
+            f"reductions {m.reduction.describe()}{_engine_text(m)}")
+
+
+def _engine_text(m) -> str:
+    """The header's engine: named when the native engine ran or an engine was
+    asked for (``--engine``), with the reason when it is not native."""
+    used = getattr(m, "engine_used", None)
+    if used is None or (used == "python" and not getattr(m, "engine_asked", False)):
+        return ""
+    why = getattr(m, "engine_reason", None)
+    return f", engine {used}" + (f" ({why})" if why else "")
 
 
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):

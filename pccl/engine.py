@@ -128,6 +128,11 @@ class Model:
         #: whether the world came from --world (None: not known; pccl.checked
         #: then compares it with the default world)
         self.world_given: Optional[bool] = None
+        #: the engine that explored (None: not explored yet), why not native,
+        #: and whether it was asked for (set by the API; pccl/native.py)
+        self.engine_used: Optional[str] = None
+        self.engine_reason: Optional[str] = None
+        self.engine_asked = False
         self._set_world(world, blackbox)
         if n_agents is None:
             n_agents = self.world.n_agents or 2

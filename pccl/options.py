@@ -153,6 +153,8 @@ class ExploreOptions(ModelOptions):
     timelock: bool = True                   # report time-locks (docs/temporal.md)
     stall: bool = True                      # report stalls (docs/temporal.md)
     fastest: bool = False                   # order the search on global time
+    #: the successor engine: auto (native where it can serve), native, python
+    engine: str = "auto"
 
     @classmethod
     def from_cli(cls, params: Mapping[str, Any]):
@@ -173,6 +175,9 @@ class ExploreOptions(ModelOptions):
         V.boolean(func, "timelock", self.timelock)
         V.boolean(func, "stall", self.stall)
         V.boolean(func, "fastest", self.fastest)
+        if self.engine not in ENGINES:
+            raise ArgumentError(f"engine must be one of {', '.join(ENGINES)}, got "
+                                f"{self.engine!r}", filename=f"pccl.api.{func}")
         w = self.workers
         if w != "auto" and (not isinstance(w, int) or isinstance(w, bool) or w < 1):
             raise ArgumentError(f"workers must be an integer >= 1 or 'auto', got {w!r}",
@@ -188,6 +193,10 @@ class ExploreOptions(ModelOptions):
         if (r is not None or w != 1) and self.fastest:
             raise ArgumentError("fastest=True searches in one process: use workers=1",
                                 filename=f"pccl.api.{func}")
+
+
+#: The successor engines (pccl/native.py).
+ENGINES = ("auto", "native", "python")
 
 
 #: Model options that a run does not take, and why.
