@@ -52,10 +52,15 @@ from array import array
 from typing import Any, Optional
 
 from . import ast as A
-from .layout import (AGS, DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING, STUCK)
+from .layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC, PHASE,
+                     POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, TIME)
 from .semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_EMPTY, K_END, K_EXIT, K_IF,
                               K_SIMPLE, K_WHILE)
 from .types import indexes_agent
+
+#: The native state vector's own layout (not a configuration): the clock and
+#: the phase first, then the lock queue, shared, and the agents (see encode).
+V_TIME, V_PHASE = 0, 1
 
 UNDEF_C = "INT64_MIN"
 MAX_AGENTS = 16
@@ -200,11 +205,11 @@ class Generator:
         if st is None:
             return
         for status in (RUNNING, EXITED, STUCK):
-            ags = tuple(a[:3] + (status,) + a[4:] for a in st[AGS])
+            ags = tuple(a[:STATUS] + (status,) + a[STATUS + 1:] for a in st[AGS])
             s2 = st[:AGS] + (ags,) + st[AGS + 1:]
             outs = m.environment_step(s2)
-            want = (tuple(a[6] for a in ags), tuple(a[7][3] for a in ags),
-                    tuple(a[7][4] for a in ags), s2[5])
+            want = (tuple(a[POS] for a in ags), tuple(a[REACH][DONE] for a in ags),
+                    tuple(a[REACH][FAIL] for a in ags), s2[ENV])
             if len(outs) != 1 or tuple(outs[0]) != want:
                 raise Unsupported("the blackbox moves agents (the program calls doReach)")
 
@@ -295,7 +300,7 @@ class Generator:
             if e.name == "N":
                 return f"((V){self.N})"
             if e.name == "time":
-                return "s[0]"
+                return f"s[{V_TIME}]"
             vs = self.lay.vars.get(e.name)
             if vs is not None and vs.section == "allwrite":
                 return self.read(self.var_ref(vs, 0), vs)
@@ -452,7 +457,7 @@ class Generator:
             blocked.append(f"(s[{A_ + 3}] != {EXITED} && s[{A_ + 1}] <= {cap})")
         max_ticks = m.max_ticks
         tcheck = ("1" if max_ticks is None
-                  else f"(s[0] / {m.delta} + 1 <= {max_ticks}LL)")
+                  else f"(s[{V_TIME}] / {m.delta} + 1 <= {max_ticks}LL)")
         oks = [f"s[{self.AG0 + i * self.A + 3}] < {STUCK}" for i in range(N)]
         lq_ok = " && ".join(
             f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
@@ -514,11 +519,11 @@ static PyObject *successors(PyObject *self, PyObject *arg) {{
   PyObject *out = PyList_New(0);
   if (!out) return NULL;
   OUT = out; ovf = 0;
-  if (s[1] == {DISCRETE}) {{
+  if (s[{V_PHASE}] == {DISCRETE}) {{
 {agent_calls}
     if (({' || '.join(running)}) && !({' || '.join(blocked)}) && {tcheck}) {{
       V t[NS]; memcpy(t, s, sizeof t);
-      t[0] = ADD(s[0], {m.delta}); t[1] = {DYNAMIC};
+      t[{V_TIME}] = ADD(s[{V_TIME}], {m.delta}); t[{V_PHASE}] = {DYNAMIC};
       if (EMIT({ta}, t)) goto fail;
     }}
   }} else {{
@@ -546,7 +551,7 @@ static PyObject *ok(PyObject *self, PyObject *arg) {{
 static PyObject *clock_(PyObject *self, PyObject *arg) {{
   const V *s = arg_state(arg);
   if (!s) return NULL;
-  return PyLong_FromLongLong(s[0]);
+  return PyLong_FromLongLong(s[{V_TIME}]);
 }}
 static PyObject *setup(PyObject *self, PyObject *args) {{
   PyObject *labels, *exc;
@@ -624,9 +629,9 @@ class NativeModel:
             self.key = operator.itemgetter(slice(8, None))
         st0 = next(iter(py.init_states()))
         # the constant parts of a configuration: positions, reach cells, env
-        self._pos = tuple(a[6] for a in st0[AGS])
-        self._reach = tuple(a[7] for a in st0[AGS])
-        self._env = st0[5]
+        self._pos = tuple(a[POS] for a in st0[AGS])
+        self._reach = tuple(a[REACH] for a in st0[AGS])
+        self._env = st0[ENV]
         lay = py.compiled.layout
         self._kinds = ([v.ty.kind for v in lay.shared], [v.ty.kind for v in lay.local],
                        [v.ty.kind for v in lay.allread])
@@ -641,14 +646,14 @@ class NativeModel:
 
     def encode(self, st) -> bytes:
         g = self.gen
-        v = [self._v(st[0]), st[1]]
-        lq = list(st[2])
+        v = [self._v(st[TIME]), st[PHASE]]
+        lq = list(st[LQ])
         v += lq + [-1] * (g.N - len(lq))
-        v += [self._v(x) for x in st[3]]
+        v += [self._v(x) for x in st[SH]]
         for a in st[AGS]:
-            v += [a[0], a[1], a[2], a[3]]
-            v += [self._v(x) for x in a[4]]
-            v += [self._v(x) for x in a[5]]
+            v += [a[PC], a[CNT], a[LCK], a[STATUS]]
+            v += [self._v(x) for x in a[LOC]]
+            v += [self._v(x) for x in a[AR]]
         return array("q", v).tobytes()
 
     @staticmethod

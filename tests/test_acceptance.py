@@ -174,10 +174,20 @@ def test_race_failure_is_only_the_head_race(blackbox):
 @pytest.mark.parametrize("blackbox, agents", [("instant", 2), ("straight", 2), ("nondet", 2),
                                               ("straight", 3)])
 def test_race_safe_no_violation_exhaustive(blackbox, agents):
-    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox=blackbox, agents=agents)
+    # under the covering nondet both robots may drive for one waypoint, block
+    # each other and never handle doReach_fail: a stall (pinned in
+    # test_fingerprints); the races it closes are the stuck agents
+    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox=blackbox, agents=agents,
+                  stall=blackbox != "nondet")
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
     assert f"[blackbox {blackbox}]" in res.verdict
+
+
+def test_race_safe_stalls_when_the_robots_block_each_other():
+    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox="nondet", agents=2)
+    assert res.status == "violation" and res.violation["kind"] == "stall"
+    assert "doReach_fail" in res.violation["message"]
 
 
 @pytest.mark.parametrize("agents", [2, 3])

@@ -169,7 +169,8 @@ CONFIGS = {
     "programs/collide_fixed.pccl": dict(world="programs/collide.toml"),
 }
 #: programs whose state space is infinite (the search never finishes)
-INFINITE = {"tests/programs/eng_loop.pccl": "n grows for ever inside one event"}
+INFINITE = {"tests/programs/eng_loop.pccl": "n grows for ever inside one event",
+            "tests/programs/runaway.pccl": "x grows for ever inside one event"}
 SLOW = {"programs/formation.pccl"}
 
 
@@ -255,13 +256,15 @@ def test_builtin_checks_follow_the_options(never):
         return {c: o for c, o, _ in r.checked.builtin}
     r = explore(never)
     assert on(r) == {"assertions": True, "stuck agents": True, "deadlock": True,
-                     "stall": False, "time-lock": True, "collisions": False}
-    r = explore(never, deadlock=False, timelock=False, collisions=True)
+                     "stall": True, "time-lock": True, "collisions": False}
+    r = explore(never, deadlock=False, timelock=False, stall=False, collisions=True)
     assert on(r) == {"assertions": True, "stuck agents": True, "deadlock": False,
                      "stall": False, "time-lock": False, "collisions": True}
     res = cli("explore", never, "--no-deadlock", "--no-progress")
-    assert ("  built-in: assertions +, stuck agents +, deadlock -, stall -, time-lock +, "
+    assert ("  built-in: assertions +, stuck agents +, deadlock -, stall +, time-lock +, "
             "collisions -") in res.output
+    res = cli("explore", never, "--no-stall", "--no-progress")
+    assert "stall -" in res.output
 
 
 def test_blackbox_and_reductions(chdir_root):

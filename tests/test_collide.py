@@ -184,7 +184,9 @@ def test_unfixed_swap_collides_under_straight():
 
 
 def test_unfixed_swap_is_clean_without_collision_checking():
-    r = explore(COLLIDE, world=WORLD)
+    # (under the covering nondet the swapping robots may also block each
+    # other and wait for ever: a stall, which is not what this is about)
+    r = explore(COLLIDE, world=WORLD, stall=False)
     assert r.status == "exhaustive" and r.exit_status == 0
 
 

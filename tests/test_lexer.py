@@ -41,7 +41,7 @@ def docs_blocks() -> list[tuple[str, str]]:
 
 
 SOURCES = [(str(p.relative_to(ROOT)), p.read_text(encoding="utf-8")) for p in FILES] + docs_blocks()
-IDS = [s[0] for s in SOURCES]
+IDS = [name for name, *_ in SOURCES]
 
 
 def test_registered_as_pccl():

@@ -12,6 +12,7 @@ import pytest
 
 from pccl import native as NV
 from pccl.api import explore, make_model
+from pccl.layout import AGS, PC
 from pccl.errors import ArgumentError
 
 from hypothesis import HealthCheck, assume, given, settings
@@ -35,7 +36,7 @@ def _cache(tmp_path_factory, monkeypatch):
 def canonical(model, st) -> tuple:
     """A configuration with each pc replaced by its k cell (pcs are interned
     in the order met: the native engine interns them all up front)."""
-    ags = tuple((tuple(model.ctl.ks[a[0]]),) + a[1:] for a in st[4])
+    ags = tuple((tuple(model.ctl.ks[a[PC]]),) + a[PC + 1:] for a in st[AGS])
     return st[:4] + (ags,) + st[5:]
 
 

@@ -51,8 +51,11 @@ def test_blackbox_object_from_python_api_is_used():
             return [Outcome(tuple(m.position for m in motions), (False,) * len(motions),
                             (False,) * len(motions), None)]
 
+    # robots that never arrive: a stall, by the stall check
     res = api.explore(RACE, world=WORLD, blackbox=Frozen())
     assert res.blackbox == "frozen" and "[blackbox frozen]" in res.verdict
+    assert res.violation.kind == "stall"
+    res = api.explore(RACE, world=WORLD, blackbox=Frozen(), stall=False)
     assert res.status == "exhaustive"
     assert res.stats.states < 200
 

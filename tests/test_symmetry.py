@@ -230,7 +230,7 @@ def test_a_reduction_asked_for_with_one_agent_is_an_error(tmp_path, asked):
     name = "por" if asked == "por" else "symmetry"
     assert f"{name} reduction needs two or more agents" in r.output
     assert "Traceback" not in r.output
-    ok = cli("explore", str(f), "-n", "1")          # auto: nothing to say
+    ok = cli("explore", str(f), "-n", "1", "--no-stall")     # auto: nothing to say
     assert ok.exit_code == 0 and "reductions merge\n" in ok.output.splitlines()[0] + "\n"
 
 
