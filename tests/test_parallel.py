@@ -458,7 +458,7 @@ def test_signal_during_a_parallel_search_reports_once(signame):
     import signal
     import psutil
     sig = getattr(signal, signame)
-    for attempt in range(6):
+    for attempt in range(4):
         p, _ = _start_long_search()
         workers = [c.pid for c in psutil.Process(p.pid).children()]
         try:
