@@ -99,13 +99,13 @@ def test_fischer_equal_with_counterexample(k, d, inv):
 
 
 def test_three_agents_and_time_bound():
-    kw = dict(overrides={"k": "0", "d": "1"}, agents=3, max_time=2, abstract_time=False,
+    kw = dict(overrides={"k": "0", "d": "1"}, agents=3, max_time=1, abstract_time=False,
               **UNREDUCED)
     py, nat = both(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
-    assert nat == py and py["status"] == "bounded" and py["max_time"] == 2
+    assert nat == py and py["status"] == "bounded" and py["max_time"] == 1
 
 
-@settings(max_examples=40, deadline=None, derandomize=True,
+@settings(max_examples=20, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                  HealthCheck.filter_too_much])
 @given(prog=programs(), agents=hs.integers(1, 3), blackbox=hs.sampled_from(["instant", "straight"]))
