@@ -36,6 +36,7 @@ WORLD_PROGRAMS = [
     ("race_nonatomic.pccl", "race_obstacles.toml", None),
     ("race_safe.pccl", "race.toml", None),
     ("race_safe.pccl", "race_obstacles.toml", None),
+    ("race_robust.pccl", "race.toml", None),
     ("collide.pccl", "collide.toml", None),
     ("collide_fixed.pccl", "collide.toml", None),
     ("formation.pccl", "formation.toml", 2),
