@@ -352,6 +352,14 @@ def _run_path(res):
     return [res.final], []
 
 
+def _stdout_is_terminal() -> bool:
+    """Whether stdout is a terminal (replay then shows the steps by default)."""
+    try:
+        return sys.stdout.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
 def _check_output(path, option):
     try:
         check_writable(path, option)
@@ -577,19 +585,29 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
 @click.option("--blackbox", "-b", default=None, metavar="MODULE:ATTR",
               help="the user blackbox the trace was recorded with (it must be the one the "
                    "file names); replay never imports a module named in the file itself")
+@click.option("--program", "program_file", type=click.Path(dir_okay=False), default=None,
+              help="replay against this program instead of the recorded one (its hash is "
+                   "compared with the recorded one)")
+@click.option("--world", "world_file", type=click.Path(dir_okay=False), default=None,
+              help="replay against this world file instead of the recorded one")
 @view_options
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
-def replay(trace_file, blackbox, view, full, plot):
+def replay(trace_file, blackbox, program_file, world_file, view, full, plot):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
     check the file, rebuild the model from the recorded configuration, start
     from the recorded initial state, check that every recorded step is enabled
-    and makes the recorded changes, and re-derive the recorded end."""
+    and makes the recorded changes, and re-derive the recorded end.  The program
+    and world are found by the recorded path, the path relative to FILE or the
+    absolute path (the one with the recorded hash); --program/--world override.
+    On a terminal the steps are shown (--view steps) unless --view says otherwise."""
     from .replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
+    if view is None and _stdout_is_terminal():
+        view = "steps"
     try:
-        res = do_replay(trace_file, blackbox=blackbox)
+        res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file)
     except PcclError as e:
         _fail(e)
     cfg = res.doc["config"]
