@@ -68,7 +68,7 @@ def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> 
         if rec is None:
             warnings.append(f"warning: the trace was recorded without a {what}; using {p}")
             return p
-        now = T.sha256_of(p)
+        now = T.sha256_of(p) or ""
         if rec.get("sha256") and now != rec["sha256"]:
             warnings.append(f"warning: {what} {p} (--{what}) is not the recorded {what} "
                             f"{rec['path']}: sha256 {now[:12]}… here, {rec['sha256'][:12]}… "
@@ -99,6 +99,7 @@ def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> 
         if not want or sha == want:
             return c
     p, now = found[0]
+    want, now = want or "", now or ""
     warnings.append(f"warning: {what} {p} has changed since the trace was recorded "
                     f"(sha256 {want[:12]}… recorded, {now[:12]}… now); the replay diverges "
                     f"where they differ (--{what} FILE replays against another file)")
