@@ -98,8 +98,8 @@ def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> 
     for c, sha in found:
         if not want or sha == want:
             return c
-    p, now = found[0]
-    want, now = want or "", now or ""
+    p, got = found[0]
+    want, now = want or "", got or ""
     warnings.append(f"warning: {what} {p} has changed since the trace was recorded "
                     f"(sha256 {want[:12]}… recorded, {now[:12]}… now); the replay diverges "
                     f"where they differ (--{what} FILE replays against another file)")
