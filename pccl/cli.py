@@ -221,6 +221,8 @@ def check(program, world):
         w = load_world_arg(world)
         names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
         check_program(prog, functions=names)
+        if w is not None:
+            _check_with_world(prog, w)
     except PcclError as e:
         _fail(e)
     click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
@@ -350,6 +352,20 @@ def _run_path(res):
     if res.trace:
         return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
     return [res.final], []
+
+
+def _check_with_world(prog, world) -> None:
+    """What run and explore check of a program with its world before the
+    first step: the world's function values against the types the program
+    reads them as (errors at the world file's line), the team and its start
+    positions (the world file's checks: inside the arena, off obstacles and
+    apart), the initial state."""
+    from .engine import Model
+    from .options import RunOptions
+    kw = RunOptions().model_kwargs()
+    kw.pop("blackbox", None)
+    model = Model(prog, world=world, blackbox="instant", **kw)
+    next(iter(model.init_states()), None)
 
 
 def _stdout_is_terminal() -> bool:
