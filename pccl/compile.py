@@ -369,7 +369,7 @@ class Compiler:
                                      filename=self.program.filename, source=self.program.source,
                                      span=getattr(node, "span", None))
             err.function, err.detail = name, f"does not fit {ty}: {exc}"
-            raise err
+            raise err from None
 
     # -- expressions ---------------------------------------------------------
     def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[Ty] = None) -> str:
