@@ -315,10 +315,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             for n, (lab, a, b) in enumerate(res.trace):
                 click.echo(D.format_step(m, n + 1, lab, a, b))
         click.echo("time steps:")
-        prev = None
-        for t, s in res.summary:
-            click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
-            prev = s
+        for ln in _collapsed_summary(m, res.summary):
+            click.echo(ln)
         mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
                if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
                else "")
@@ -345,6 +343,33 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
     sys.exit(_interrupted_status(res.exit_status))
+
+
+def _collapsed_summary(m, summary) -> list:
+    """The per-time-step lines of a run; consecutive identical ones (nothing
+    moved or changed) are one line ``t=A–B: … (N identical time steps)``."""
+    out: list = []
+    prev = None
+    group: list = []            # [(time, text)] with the same text
+
+    def flush():
+        if not group:
+            return
+        (t0, text), (t1, _) = group[0], group[-1]
+        if len(group) == 1:
+            out.append(f"  t={D.fmt_time(t0)}: {text}")
+        else:
+            out.append(f"  t={D.fmt_time(t0)}–{D.fmt_time(t1)}: {text} "
+                       f"({len(group)} identical time steps)")
+        group.clear()
+    for t, st in summary:
+        text = _step_summary(m, prev, st)
+        if group and text != group[-1][1]:
+            flush()
+        group.append((t, text))
+        prev = st
+    flush()
+    return out
 
 
 def _run_path(res):

@@ -335,7 +335,7 @@ def test_memory_error_in_any_command_is_one_line(monkeypatch, tmp_path):
     """A MemoryError the command does not handle itself: one line, exit 2."""
     from pccl import replay as R
 
-    def boom(path):
+    def boom(path, **kw):
         raise MemoryError
     monkeypatch.setattr(R, "replay", boom)
     res = cli("replay", write(tmp_path, "{}", "t.json"))

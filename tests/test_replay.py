@@ -511,7 +511,8 @@ def test_a_stalled_run_replays_with_its_recorded_stall_steps(tmp_path):
     t = record(tmp_path, "run", RDV, "--world", RDV_WALL, "-b", "straight", "--stall-steps", "3")
     res = cli("replay", t)
     assert res.exit_code == 1, res.output
-    assert "reproduced: stalled since t = 1" in res.output
+    assert "reproduced: agent 0 waits for Go" in res.output
+    assert "nothing changed since t = 1" in res.output
     # a file without stall_steps (older) means the default, 20: this run
     # would not have stopped yet
     res = cli("replay", rewrite(t, lambda d: d["config"].pop("stall_steps")))
