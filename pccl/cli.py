@@ -141,7 +141,10 @@ EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within t
                     "counterexample, a time-lock, a stall, an unreachable 'reachable P', a stalled "
                     "run), 2 bad input (the program, the world, an option) or a limit of the "
                     "tool (out of memory, rand over 1,000,000 outcomes), "
-                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM). With --exit-codes "
+                    "detailed (run, explore) a violation exits 11 deadlock/stall, 12 "
+                    "invariant/collision, 13 temporal property, 14 assertion/stuck, "
+                    "15 time-lock, 16 --max-steps.")
 
 _signal = {"term": False}
 
@@ -154,6 +157,13 @@ def _on_sigterm(signum, frame):
 
 def _interrupted_status(code: int) -> int:
     return 143 if code == 130 and _signal["term"] else code
+
+
+def _exit_status(code: int, kinds, mode: str) -> int:
+    """The status to exit with: 143 for SIGTERM, and under ``--exit-codes
+    detailed`` a violation's status by its kind (pccl/exitcodes.py)."""
+    from .exitcodes import status
+    return status(_interrupted_status(code), kinds, mode)
 
 
 class _Main(click.Group):
@@ -244,7 +254,14 @@ def check(program, world):
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
 @click.option("--trace", is_flag=True, help="print every transition")
-@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
+              show_default=True,
+              help="k: the final configuration as a K configuration, as explore --format k")
+@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
+              default="default", show_default=True,
+              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
+                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
+                   "(instead of 1)")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
@@ -259,8 +276,8 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt, plot,
-        trace_out, view, full):
+        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
+        exit_codes, plot, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import build_model, memory_bound
     from .runner import run as run_model
@@ -293,8 +310,12 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "result": res.status, "message": res.message,
-               "exit_status": _interrupted_status(res.exit_status),
+               "status": res.status,
+               "result": res.status,        # the same as status (older name, kept)
+               "message": res.message,
+               "exit_status": _exit_status(res.exit_status,
+                                           [v.kind for v in res.violations] + [res.status],
+                                           exit_codes),
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
                            for t, s in res.summary],
@@ -334,7 +355,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             if note != NO_PROPERTY_NOTE:       # a run is one execution, not a proof
                 click.echo(f"note: {note}")
         click.echo("final configuration:")
-        click.echo(D.format_state(m, res.final))
+        click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
     if trace_out and res.status == "out-of-memory":     # its trace was dropped
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {trace_out}", err=True)
@@ -342,7 +363,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot:
         _plot_run(m, res, plot, quiet=(fmt == "json"))
-    sys.exit(_interrupted_status(res.exit_status))
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
+                          exit_codes))
 
 
 def _collapsed_summary(m, summary) -> list:
@@ -535,6 +557,11 @@ def _plot_run(m, res, path, *, quiet=False):
               help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
 @click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True)
+@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
+              default="default", show_default=True,
+              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
+                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
+                   "(instead of 1)")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
@@ -552,8 +579,8 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            stall, fastest, reduce, deadlock, find_all, exact, fmt, plot, progress, progress_interval,
-            trace_out, view, full, coverage, workers, ray):
+            stall, fastest, reduce, deadlock, find_all, exact, fmt, exit_codes, plot, progress,
+            progress_interval, trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import build_model, explore_model
@@ -597,6 +624,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     doc = T.explore_document(res, cfg)
     if fmt == "json":
         out = _explore_json(program, res)
+        out["exit_status"] = _exit_status(res.exit_status, [v.kind for v in res.violations],
+                                          exit_codes)
         out["trace"] = doc
         if res.coverage is not None:
             out["coverage"] = res.coverage.as_dict()
@@ -614,7 +643,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             click.echo(e.render(), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
-    sys.exit(_interrupted_status(res.exit_status))
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
 
 
 @main.command(short_help="Re-execute a trace file; report the first divergence.",
