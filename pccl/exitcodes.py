@@ -4,7 +4,7 @@ exit codes do).  docs/language.md ("Exit codes") has the table."""
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 #: ``--exit-codes detailed``: the status of a violation by its kind.  0, 2,
 #: 130 and 143 keep their meaning; 1 stays for a kind not listed here.
