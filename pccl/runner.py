@@ -31,7 +31,7 @@ from .layout import (AGS, AR, DONE, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, 
                      TARGET, TIME)
 
 
-@dataclass
+@dataclass(repr=False)
 class RunResult:
     status: str                 # final | bounded | deadlock | violation | max-steps | stalled
                                 # | interrupted | out-of-memory
@@ -55,6 +55,13 @@ class RunResult:
     max_memory: Optional[int] = None
 
     model: Any = None
+
+    def __repr__(self) -> str:
+        """One line: the status, the message, the end time and the counts."""
+        from .display import fmt_time
+        return (f"<RunResult {self.status} (exit {self.exit_status}): {self.message!r}; "
+                f"t={fmt_time(self.final[TIME])}, {self.steps:,} transitions"
+                + (f", {len(self.trace)} recorded" if self.trace else "") + ">")
 
     @property
     def final_state(self):
