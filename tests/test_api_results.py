@@ -32,7 +32,7 @@ def test_step_changes_are_data_and_agree_with_the_text_and_the_trace_file():
     assert dict(last.path) == {"agent": last.agent, "var": "inCs"}
     cx = r.counterexamples[0].trace
     m = r.model
-    for n, (step, lab) in enumerate(zip(r.trace, cx.labels)):
+    for n, step in enumerate(r.trace):
         before, after = cx.states[n], cx.states[n + 1]
         # the printed text: what pccl explore prints for the step
         printed = [(c, o, nw) for c, o, nw in D.diff(m, before, after)]
