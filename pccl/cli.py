@@ -464,7 +464,8 @@ def _plot_module():
     try:
         plot = importlib.import_module(".plot", __package__)
     except ImportError as e:  # matplotlib missing
-        click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
+        from .errors import install_hint
+        click.echo(f"pccl: --plot needs matplotlib: {install_hint('plot')} ({e})", err=True)
         sys.exit(2)
     return plot
 
@@ -524,7 +525,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--ray", "ray", metavar="ADDRESS|local", default=None,
               help="run the workers as Ray actors: on the cluster at ADDRESS (HOST:PORT, "
                    "auto), or on a Ray instance started on this machine (local); needs "
-                   "pip install 'pccl[ray]'")
+                   "the ray extra (pip install -e '.[ray]' in the pccl checkout)")
 @click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
@@ -1125,6 +1126,11 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         if tr is None:          # reachable P: unreachable has no path to show
             continue
         note = ", shortest under the reductions" if m.reduction.on else ""
+        depth = getattr(cx, "depth", None)
+        if m.reduction.on and depth is not None and depth != len(tr):
+            # --depth counts transitions of the reduced graph, the steps shown
+            # are the rules' (expanded): say both, so --depth can be read here
+            note += f"; depth {depth} in the reduced graph, as --depth counts"
         if res.search is not None and getattr(res.search, "fastest", False):
             note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
         loop = cx.cycle_start
@@ -1250,13 +1256,15 @@ def fmt_cmd(files, check, show_diff):
 def lsp():
     """Run the PCCL language server on standard input and output: diagnostics,
     hover, definitions, references, symbols, completion, formatting
-    (docs/editors.md).  Needs the `lsp` extra: pip install 'pccl[lsp]'."""
+    (docs/editors.md).  Needs the `lsp` extra: pip install -e '.[lsp]' in the pccl
+    checkout."""
     try:
         import lsprotocol  # noqa: F401
         import pygls  # noqa: F401
     except ImportError as e:
+        from .errors import install_hint
         click.echo(f"pccl lsp: error: {e.name or 'pygls'} is not installed; "
-                   f"pip install 'pccl[lsp]'", err=True)
+                   f"{install_hint('lsp')}", err=True)
         sys.exit(2)
     from .lsp import serve
     serve()

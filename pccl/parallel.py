@@ -70,6 +70,7 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
+from .errors import install_hint
 from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
@@ -80,7 +81,7 @@ _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
 
 #: The message when ``--ray`` is asked for without Ray installed.
-RAY_MISSING = "--ray needs Ray, an optional extra: pip install 'pccl[ray]'"
+RAY_MISSING = "--ray needs Ray, an optional extra: " + install_hint("ray")
 
 
 def available_workers() -> int:

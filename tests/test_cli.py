@@ -488,3 +488,24 @@ def test_run_format_k_prints_the_final_configuration_in_k():
     assert res.exit_code == 0
     tail = res.output.split("final configuration:\n", 1)[1]
     assert tail.startswith("<agent> ") and "<gMemory>" in tail and "<time> 3 </time>" in tail
+
+
+# ---------------------------------------------------------------------------
+# issue 27, item 6: --depth means what the counterexample shows
+# ---------------------------------------------------------------------------
+
+def test_depth_is_shown_in_the_counterexample_and_is_what_depth_bounds():
+    args = ("explore", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1")
+    out = cli(*args).output
+    m = re.search(r"^counterexample \((\d+) steps, shortest under the reductions; depth (\d+) "
+                  r"in the reduced graph, as --depth counts\):$", out, re.M)
+    assert m, out
+    steps, depth = int(m[1]), int(m[2])
+    assert steps > depth                     # the steps are expanded, the depth is not
+    # the depth printed is the smallest --depth that finds the violation
+    assert cli(*args, "--depth", str(depth)).exit_code == 1
+    below = cli(*args, "--depth", str(depth - 1))
+    assert below.exit_code == 0 and f"stopped by --depth {depth - 1}" in below.output
+    # without reductions steps and depth are one number, and the note is not printed
+    plain = cli(*args, "--reduce", "none").output
+    assert re.search(r"^counterexample \(\d+ steps\):$", plain, re.M), plain
