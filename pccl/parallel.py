@@ -70,7 +70,6 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
-from .errors import install_hint
 from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
                        Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
                        peak_rss_bytes)
@@ -81,7 +80,17 @@ _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
 
 #: The message when ``--ray`` is asked for without Ray installed.
-RAY_MISSING = "--ray needs Ray, an optional extra: " + install_hint("ray")
+def _ray_hint() -> str:
+    """pccl.errors.install_hint("ray"), spelt here: this module imports only
+    generic modules (tests/test_architecture.py)."""
+    import os
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if os.path.isfile(os.path.join(root, "pyproject.toml")):
+        return f"pip install -e '{root}[ray]'"
+    return "pip install -e '.[ray]' in the pccl checkout"
+
+
+RAY_MISSING = "--ray needs Ray, an optional extra: " + _ray_hint()
 
 
 def available_workers() -> int:

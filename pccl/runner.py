@@ -307,7 +307,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     per_agent[agent] += 1
                 if since_time > max_steps:
                     st = nxt
-                    looping = _looping_agent(model, st, per_agent)
+                    from .stall import looping_agent
+                    looping = looping_agent(model, st, per_agent)
                     return finish("max-steps",
                                   f"agent {looping} runs more than {max_steps} transitions without "
                                   f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
@@ -363,12 +364,3 @@ def _weight(st, prev) -> int:
     return w
 
 
-def _looping_agent(model, st, per_agent: Counter) -> int:
-    """The agent that keeps time from advancing: mid-event with the most steps."""
-    best, best_n = None, -1
-    for i, ag in enumerate(st[AGS]):
-        mid = ag[PC] != model.ctl.empty_pc
-        n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
-        if ag[STATUS] == RUNNING and n > best_n:
-            best, best_n = i, n
-    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])
