@@ -64,13 +64,13 @@ import math
 from dataclasses import dataclass
 from enum import IntEnum
 
-from pccl.errors import PcclError
+from pccl.errors import PcclError, install_hint
 
 from ._geometry import EMPTY, obstacles_of
 from .base import Outcome
 
 #: What ``--blackbox pymunk`` says when pymunk is not installed (an extra).
-MISSING = "the pymunk blackbox needs pymunk: pip install 'pccl[physics]'"
+MISSING = "the pymunk blackbox needs pymunk: " + install_hint("physics")
 
 
 def available() -> bool:

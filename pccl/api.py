@@ -201,7 +201,7 @@ def not_covered_note(model) -> Optional[str]:
     return f"positions in mid-motion not covered ({why})" if why else None
 
 
-@dataclass
+@dataclass(repr=False)
 class ExploreResult:
     """What :func:`explore` found.  ``violation``/``violations`` are
     :class:`~pccl.results.Finding` objects (each with its ``trace`` of
@@ -242,6 +242,13 @@ class ExploreResult:
     @property
     def exhaustive(self) -> bool:
         return self.status == "exhaustive"
+
+    def __repr__(self) -> str:
+        """One line: the status, the verdict, the counts (the fields hold
+        the whole model, traces and states: ``r.trace``, ``r.model``...)."""
+        return (f"<ExploreResult {self.status} (exit {self.exit_status}): {self.verdict!r}; "
+                f"{self.stats.states:,} states, {self.stats.transitions:,} transitions"
+                + (f"; trace of {len(self.trace)} steps" if self.trace else "") + ">")
 
 
 def explore(program, **options) -> ExploreResult:

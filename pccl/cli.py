@@ -141,7 +141,10 @@ EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within t
                     "counterexample, a time-lock, a stall, an unreachable 'reachable P', a stalled "
                     "run), 2 bad input (the program, the world, an option) or a limit of the "
                     "tool (out of memory, rand over 1,000,000 outcomes), "
-                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM). With --exit-codes "
+                    "detailed (run, explore) a violation exits 11 deadlock/stall, 12 "
+                    "invariant/collision, 13 temporal property, 14 assertion/stuck, "
+                    "15 time-lock, 16 --max-steps.")
 
 _signal = {"term": False}
 
@@ -154,6 +157,13 @@ def _on_sigterm(signum, frame):
 
 def _interrupted_status(code: int) -> int:
     return 143 if code == 130 and _signal["term"] else code
+
+
+def _exit_status(code: int, kinds, mode: str) -> int:
+    """The status to exit with: 143 for SIGTERM, and under ``--exit-codes
+    detailed`` a violation's status by its kind (pccl/exitcodes.py)."""
+    from .exitcodes import status
+    return status(_interrupted_status(code), kinds, mode)
 
 
 class _Main(click.Group):
@@ -223,6 +233,8 @@ def check(program, world):
         w = load_world_arg(world)
         names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
         check_program(prog, functions=names)
+        if w is not None:
+            _check_with_world(prog, w)
     except PcclError as e:
         _fail(e)
     click.echo(f"{program}: ok ({len(prog.events)} events, {prog.n_statements} statements)")
@@ -244,7 +256,14 @@ def check(program, world):
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
 @click.option("--trace", is_flag=True, help="print every transition")
-@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text", show_default=True)
+@click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
+              show_default=True,
+              help="k: the final configuration as a K configuration, as explore --format k")
+@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
+              default="default", show_default=True,
+              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
+                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
+                   "(instead of 1)")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 @click.option("--html", type=click.Path(dir_okay=False), default=None,
@@ -261,8 +280,8 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
-        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt, plot,
-        html, trace_out, view, full):
+        max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
+        exit_codes, plot, html, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from .api import build_model, memory_bound
     from .runner import run as run_model
@@ -297,8 +316,12 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     if fmt == "json":
         out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
                "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "result": res.status, "message": res.message,
-               "exit_status": _interrupted_status(res.exit_status),
+               "status": res.status,
+               "result": res.status,        # the same as status (older name, kept)
+               "message": res.message,
+               "exit_status": _exit_status(res.exit_status,
+                                           [v.kind for v in res.violations] + [res.status],
+                                           exit_codes),
                "steps": res.steps,
                "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
                            for t, s in res.summary],
@@ -319,10 +342,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             for n, (lab, a, b) in enumerate(res.trace):
                 click.echo(D.format_step(m, n + 1, lab, a, b))
         click.echo("time steps:")
-        prev = None
-        for t, s in res.summary:
-            click.echo(f"  t={D.fmt_time(t)}: " + _step_summary(m, prev, s))
-            prev = s
+        for ln in _collapsed_summary(m, res.summary):
+            click.echo(ln)
         mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
                if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
                else "")
@@ -340,7 +361,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             if note != NO_PROPERTY_NOTE:       # a run is one execution, not a proof
                 click.echo(f"note: {note}")
         click.echo("final configuration:")
-        click.echo(D.format_state(m, res.final))
+        click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
     if trace_out and res.status == "out-of-memory":     # its trace was dropped
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {trace_out}", err=True)
@@ -353,7 +374,35 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                    f"written to {html}", err=True)
     elif html:
         _write_html(html, doc, model=m, states=_run_path(res)[0], quiet=(fmt == "json"))
-    sys.exit(_interrupted_status(res.exit_status))
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
+                          exit_codes))
+
+
+def _collapsed_summary(m, summary) -> list:
+    """The per-time-step lines of a run; consecutive identical ones (nothing
+    moved or changed) are one line ``t=A–B: … (N identical time steps)``."""
+    out: list = []
+    prev = None
+    group: list = []            # [(time, text)] with the same text
+
+    def flush():
+        if not group:
+            return
+        (t0, text), (t1, _) = group[0], group[-1]
+        if len(group) == 1:
+            out.append(f"  t={D.fmt_time(t0)}: {text}")
+        else:
+            out.append(f"  t={D.fmt_time(t0)}–{D.fmt_time(t1)}: {text} "
+                       f"({len(group)} identical time steps)")
+        group.clear()
+    for t, st in summary:
+        text = _step_summary(m, prev, st)
+        if group and text != group[-1][1]:
+            flush()
+        group.append((t, text))
+        prev = st
+    flush()
+    return out
 
 
 def _run_path(res):
@@ -361,6 +410,28 @@ def _run_path(res):
     if res.trace:
         return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
     return [res.final], []
+
+
+def _check_with_world(prog, world) -> None:
+    """What run and explore check of a program with its world before the
+    first step: the world's function values against the types the program
+    reads them as (errors at the world file's line), the team and its start
+    positions (the world file's checks: inside the arena, off obstacles and
+    apart), the initial state."""
+    from .engine import Model
+    from .options import RunOptions
+    kw = RunOptions().model_kwargs()
+    kw.pop("blackbox", None)
+    model = Model(prog, world=world, blackbox="instant", **kw)
+    next(iter(model.init_states()), None)
+
+
+def _stdout_is_terminal() -> bool:
+    """Whether stdout is a terminal (replay then shows the steps by default)."""
+    try:
+        return sys.stdout.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 def _check_output(path, option):
@@ -404,7 +475,8 @@ def _plot_module():
     try:
         plot = importlib.import_module(".plot", __package__)
     except ImportError as e:  # matplotlib missing
-        click.echo(f"pccl: --plot needs matplotlib: pip install 'pccl[plot]' ({e})", err=True)
+        from .errors import install_hint
+        click.echo(f"pccl: --plot needs matplotlib: {install_hint('plot')} ({e})", err=True)
         sys.exit(2)
     return plot
 
@@ -464,7 +536,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--ray", "ray", metavar="ADDRESS|local", default=None,
               help="run the workers as Ray actors: on the cluster at ADDRESS (HOST:PORT, "
                    "auto), or on a Ray instance started on this machine (local); needs "
-                   "pip install 'pccl[ray]'")
+                   "the ray extra (pip install -e '.[ray]' in the pccl checkout)")
 @click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
               help="stop (as a bound) when the process's memory passes SIZE, e.g. 800M or 4G "
                    "[default: 80% of physical memory]")
@@ -501,6 +573,11 @@ def _plot_run(m, res, path, *, quiet=False):
               help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
 @click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True)
+@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
+              default="default", show_default=True,
+              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
+                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
+                   "(instead of 1)")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,
@@ -520,7 +597,7 @@ def _plot_run(m, res, path, *, quiet=False):
                    "never executed")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, plot, progress,
+            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot, progress,
             progress_interval, html, trace_out, view, full, coverage, workers, ray):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
@@ -566,6 +643,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     doc = T.explore_document(res, cfg)
     if fmt == "json":
         out = _explore_json(program, res)
+        out["exit_status"] = _exit_status(res.exit_status, [v.kind for v in res.violations],
+                                          exit_codes)
         out["trace"] = doc
         if res.coverage is not None:
             out["coverage"] = res.coverage.as_dict()
@@ -587,7 +666,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _write_html(html, doc, model=model, states=_explore_states(res), quiet=(fmt == "json"))
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
-    sys.exit(_interrupted_status(res.exit_status))
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
 
 
 @main.command(short_help="Re-execute a trace file; report the first divergence.",
@@ -599,23 +678,33 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
 @click.option("--blackbox", "-b", default=None, metavar="MODULE:ATTR",
               help="the user blackbox the trace was recorded with (it must be the one the "
                    "file names); replay never imports a module named in the file itself")
+@click.option("--program", "program_file", type=click.Path(dir_okay=False), default=None,
+              help="replay against this program instead of the recorded one (its hash is "
+                   "compared with the recorded one)")
+@click.option("--world", "world_file", type=click.Path(dir_okay=False), default=None,
+              help="replay against this world file instead of the recorded one")
 @view_options
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
 @click.option("--html", type=click.Path(dir_okay=False), default=None,
               help="write a self-contained HTML viewer of the trace to this file")
-def replay(trace_file, blackbox, view, full, plot, html):
+def replay(trace_file, blackbox, program_file, world_file, view, full, plot, html):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
     check the file, rebuild the model from the recorded configuration, start
     from the recorded initial state, check that every recorded step is enabled
-    and makes the recorded changes, and re-derive the recorded end."""
+    and makes the recorded changes, and re-derive the recorded end.  The program
+    and world are found by the recorded path, the path relative to FILE or the
+    absolute path (the one with the recorded hash); --program/--world override.
+    On a terminal the steps are shown (--view steps) unless --view says otherwise."""
     from .replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
     if html:
         _check_output(html, "--html")
+    if view is None and _stdout_is_terminal():
+        view = "steps"
     try:
-        res = do_replay(trace_file, blackbox=blackbox)
+        res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file)
     except PcclError as e:
         _fail(e)
     cfg = res.doc["config"]
@@ -818,34 +907,74 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     sys.exit(1 if bad else 0)
 
 
-@main.command(short_help="Many seeded runs: outcome counts, times, reproducing seeds.",
-              epilog="Exit status: 0 no run had a violation, 1 some run had one (or was stopped "
-                     "by --max-steps), 2 bad input.")
+#: steps of the first violating run that simulate prints without --trace
+SIM_TAIL = 10
+
+
+@main.command(short_help="Many seeded runs: outcome frequencies, times, reproducing commands.",
+              epilog="Exit status: 0 no run had a violation, 1 some run had one (a failed "
+                     "invariant or property, a stuck agent, a deadlock, a stall, or a run "
+                     "stopped by --max-steps), 2 bad input.")
 @click.argument("program", type=click.Path(dir_okay=False))
 @common_options_without_n
-@click.option("--runs", "-n", "runs", type=click.IntRange(min=1), default=100, show_default=True,
-              help="number of runs (seeds SEED, SEED+1, ...)")
+@click.option("--runs", "runs", type=click.IntRange(min=1), default=None,
+              help="number of runs (seeds SEED, SEED+1, ...)  [default: 100]")
+@click.option("-n", "runs_n", type=click.IntRange(min=1), default=None, metavar="RUNS",
+              help="deprecated spelling of --runs (in run and explore -n is --agents)")
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the first run")
 @click.option("--max-time", type=FiniteFloat(min=0), default=100, show_default=True,
               help="stop a run when global time would pass this")
 @click.option("--max-steps", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="most transitions in one time step before a run is stopped as looping")
+@click.option("--stall-steps", type=click.IntRange(min=0), default=20, show_default=True,
+              help="stop a run, as stalled, when nothing changed for this many time steps")
+@click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
+              help="a state property checked after every transition of every run "
+                   "(repeatable; the program's invariant: section is always checked)")
+@click.option("--property", "properties", multiple=True, metavar="FORM",
+              help="a property checked on every run, as pccl run --property (repeatable)")
+@click.option("--trace", is_flag=True,
+              help="print every step of the first violating run (default: its last "
+                   f"{SIM_TAIL})")
+@click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
+              help="write the first violating run as a trace file (for pccl replay)")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
 def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
-             runs, seed, max_time, max_steps, fmt):
-    """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...) and count
-    the outcomes: final, bounded, deadlock, max-steps and each violation, with the
-    first seed of each and the pccl run command that reproduces it."""
+             runs, runs_n, seed, max_time, max_steps, stall_steps, invariants, properties,
+             trace, trace_out, fmt):
+    """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...), checking
+    the program's invariants and any --invariant/--property on every run, and count
+    the outcomes: final, bounded, deadlock, stalled, max-steps and each violation, with
+    their frequencies (95% confidence intervals), the times, the first violating run's
+    trace, and the pccl run command that reproduces each outcome."""
     import random
     from .api import build_model
     from . import simulate as S
+    from . import traces as T
+    if runs is not None and runs_n is not None:
+        raise click.UsageError("give the number of runs once: --runs (or the deprecated -n)")
+    if runs_n is not None:
+        click.echo("pccl simulate: -n is deprecated (in run and explore -n is the number of "
+                   "agents); use --runs", err=True)
+        runs = runs_n
+    runs = 100 if runs is None else runs
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
     rng = random.Random(seed)
     _check_repeats(rates, overrides)
     # the runs of pccl run, one per seed
     opts = RunOptions.from_cli(click.get_current_context().params)
+    first_bad = None
     try:
         model = build_model(program, opts, rng=rng)
-        outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps)
+        outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps,
+                              stall_steps=stall_steps)
+        bad_seeds = [o.first_seed for o in outcomes.values() if S.is_bad(o)
+                     and o.key[0] != "out-of-memory"]
+        if bad_seeds:
+            first_bad = S.replay_run(model, rng, seed=min(bad_seeds), max_steps=max_steps,
+                                     stall_steps=stall_steps)
+            first_bad.model = model
     except PcclError as e:
         _fail(e)
 
@@ -853,38 +982,101 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
         return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
                              delta=_delta(delta), n0=n0, rates=rates, events=events,
                              collisions=collisions, overrides=overrides,
-                             max_time=_delta(max_time), max_steps=max_steps)
-    bad = any(o.key[0] not in ("final", "bounded") for o in outcomes.values())
+                             max_time=_delta(max_time), max_steps=max_steps,
+                             invariants=invariants, properties=properties,
+                             stall_steps=stall_steps)
+    bad = any(S.is_bad(o) for o in outcomes.values())
     # a run out of memory is a limit of the tool, not a verdict (exit 2)
     code = 2 if ("out-of-memory",) in outcomes else 1 if bad else 0
+    done_runs = sum(len(o.seeds) for o in outcomes.values())
+    bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
+    n_bad = len(bad_times)
+    doc = None
+    if first_bad is not None and trace_out:
+        cfg = T.config("run", model, program=program, world=world, blackbox=blackbox,
+                       overrides=dict(overrides), invariants=invariants,
+                       seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)),
+                       max_steps=max_steps, property_texts=properties,
+                       stall_steps=stall_steps)
+        doc = T.run_document(first_bad, cfg)
     if fmt == "json":
+        lo, hi = S.wilson(n_bad, done_runs)
         click.echo(json.dumps({
-            "program": program, "runs": runs, "first_seed": seed, "agents": model.N,
+            "program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
             "blackbox": model.blackbox.name,
-            "outcomes": [{"outcome": o.label, "count": len(o.seeds), "first_seed": o.first_seed,
+            "invariants": list(invariants), "properties": list(properties),
+            "outcomes": [{"outcome": o.label, "count": len(o.seeds),
+                          "frequency": len(o.seeds) / done_runs,
+                          "ci95": list(S.wilson(len(o.seeds), done_runs)),
+                          "first_seed": o.first_seed,
                           "seeds": o.seeds[:100], "example": o.example,
                           "times": {"min": min(o.times), "median": statistics_median(o.times),
+                                    "mean": sum(o.times) / len(o.times),
                                     "max": max(o.times)},
+                          "violation": S.is_bad(o),
                           "command": command(o.first_seed)} for o in outcomes.values()],
+            "violations": {"count": n_bad, "frequency": n_bad / done_runs, "ci95": [lo, hi],
+                           "time_to_violation": ({"min": min(bad_times),
+                                                  "median": statistics_median(bad_times),
+                                                  "mean": sum(bad_times) / n_bad,
+                                                  "max": max(bad_times)} if bad_times else None),
+                           "first_seed": first_bad and min(
+                               o.first_seed for o in outcomes.values() if S.is_bad(o))},
             "exit_status": code}, indent=2, default=str))
+        if doc is not None:
+            _write_trace(doc, trace_out, quiet=True)
         sys.exit(code)
-    click.echo(f"pccl simulate {program}: {runs} runs (seeds {seed}–{seed + runs - 1}), "
+    click.echo(f"pccl simulate {program}: {done_runs} runs (seeds {seed}–{seed + done_runs - 1}), "
                f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
                f"n0={model.n0}{_rates_text(model)}")
+    props = _property_names(model)
+    if props:
+        click.echo("checked on every run: " + ", ".join(props))
     click.echo("outcomes:")
     for o in sorted(outcomes.values(), key=lambda o: -len(o.seeds)):
-        n = len(o.seeds)
-        click.echo(f"  {o.label}: {n} run{'s' if n != 1 else ''} ({100 * n / runs:.1f}%), "
+        click.echo(f"  {o.label}: {S.frequency(len(o.seeds), done_runs)}, "
                    f"{S.time_summary(o.times)}")
-        if o.key[0] not in ("final", "bounded"):
+        if S.is_bad(o):
             click.echo(f"    e.g. {o.example}")
         click.echo(f"    first seed {o.first_seed}: {command(o.first_seed)}")
+    if n_bad:
+        click.echo(f"violations: {S.frequency(n_bad, done_runs)}; time to violation: "
+                   + S.time_summary(bad_times).removeprefix("time "))
+    else:
+        lo, hi = S.wilson(0, done_runs)
+        click.echo(f"violations: none in {done_runs} runs (95% CI 0.0–{100 * hi:.1f}%: a "
+                   f"sample, not a proof; pccl explore checks every run)")
     done = [t for o in outcomes.values() if o.key[0] == "final" for t in o.times]
     if done:
         click.echo(f"completion time ({len(done)} runs in which every agent exited):")
         for ln in S.histogram(done):
             click.echo(ln)
+    if first_bad is not None:
+        s0 = min(o.first_seed for o in outcomes.values() if S.is_bad(o))
+        click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
+        n_steps = len(first_bad.trace)
+        skip = 0 if trace else max(0, n_steps - SIM_TAIL)
+        click.echo(f"trace ({n_steps} steps" + (f"; the last {n_steps - skip}, --trace for all"
+                                                if skip else "") + "):")
+        for k, (lab, a, b) in enumerate(first_bad.trace):
+            if k >= skip:
+                click.echo(D.format_step(model, k + 1, lab, a, b))
+    if doc is not None:
+        _write_trace(doc, trace_out)
     sys.exit(code)
+
+
+def _property_names(model) -> list:
+    """The invariants and temporal properties a model checks, as the user wrote them."""
+    out = []
+    for p in list(model.properties) + list(model.temporal):
+        if not p.text:
+            continue
+        name = f"{p.name} " if p.name and p.name != p.text else ""
+        label = f"{name}'{p.text}'"
+        if label not in out:
+            out.append(label)
+    return out
 
 
 def statistics_median(xs):
@@ -1092,6 +1284,11 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         if tr is None:          # reachable P: unreachable has no path to show
             continue
         note = ", shortest under the reductions" if m.reduction.on else ""
+        depth = getattr(cx, "depth", None)
+        if m.reduction.on and depth is not None and depth != len(tr):
+            # --depth counts transitions of the reduced graph, the steps shown
+            # are the rules' (expanded): say both, so --depth can be read here
+            note += f"; depth {depth} in the reduced graph, as --depth counts"
         if res.search is not None and getattr(res.search, "fastest", False):
             note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
         loop = cx.cycle_start
@@ -1217,13 +1414,15 @@ def fmt_cmd(files, check, show_diff):
 def lsp():
     """Run the PCCL language server on standard input and output: diagnostics,
     hover, definitions, references, symbols, completion, formatting
-    (docs/editors.md).  Needs the `lsp` extra: pip install 'pccl[lsp]'."""
+    (docs/editors.md).  Needs the `lsp` extra: pip install -e '.[lsp]' in the pccl
+    checkout."""
     try:
         import lsprotocol  # noqa: F401
         import pygls  # noqa: F401
     except ImportError as e:
+        from .errors import install_hint
         click.echo(f"pccl lsp: error: {e.name or 'pygls'} is not installed; "
-                   f"pip install 'pccl[lsp]'", err=True)
+                   f"{install_hint('lsp')}", err=True)
         sys.exit(2)
     from .lsp import serve
     serve()

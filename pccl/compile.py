@@ -291,6 +291,13 @@ def _may_grow(e: A.Expr) -> bool:
     return False
 
 
+class FunctionValueError(PcclError):
+    """A world function's value that does not fit the type the program reads
+    it as; the engine moves it to the world file's line when there is one."""
+    function: str = ""
+    detail: str = ""
+
+
 class Compiler:
     """Generates Python source for expressions and statements of one program."""
 
@@ -358,7 +365,11 @@ class Compiler:
             if raw == ():
                 hint = (f" ({name}() is the empty list unless the world gives it a value: "
                         f"needs --world FILE with {name} under [functions])")
-            self.error(f"value of {name}() does not fit {ty}: {exc}{hint}", node)
+            err = FunctionValueError(f"value of {name}() does not fit {ty}: {exc}{hint}",
+                                     filename=self.program.filename, source=self.program.source,
+                                     span=getattr(node, "span", None))
+            err.function, err.detail = name, f"does not fit {ty}: {exc}"
+            raise err from None
 
     # -- expressions ---------------------------------------------------------
     def expr(self, e: A.Expr, *, prop: bool = False, bound=(), want: Optional[Ty] = None) -> str:

@@ -141,9 +141,13 @@ class Model:
         self._set_team(n_agents, n0, rho, events)
         self._set_clock(delta, max_time)
         self.collisions = collisions
-        self.compiled = CompiledProgram(program, functions=self._functions(functions),
-                                        n_agents=self.N, rand_policy=rand_policy,
-                                        first_only=self.first_only)
+        from .compile import FunctionValueError
+        try:
+            self.compiled = CompiledProgram(program, functions=self._functions(functions),
+                                            n_agents=self.N, rand_policy=rand_policy,
+                                            first_only=self.first_only)
+        except FunctionValueError as e:
+            raise _at_world_file(self.world, e) from None
         self._bind_rule_context(self.compiled)
         self._add_properties(program, invariants, properties)
         self._set_time_abstraction(abstract_time)
@@ -414,6 +418,15 @@ class Model:
     INIT_DEDUP = 1 << 16
 
     def init_states(self):
+        """The initial configurations (:meth:`_init_states`); a world
+        function's value that does not fit is reported at the world file."""
+        from .compile import FunctionValueError
+        try:
+            yield from self._init_states()
+        except FunctionValueError as e:
+            raise _at_world_file(self.world, e) from None
+
+    def _init_states(self):
         """The initial configurations, one per combination of ``rand``
         outcomes in declarations and ``Init``, generated lazily (depth-first,
         in increasing outcome order): the product of the agents' outcomes is
@@ -1047,6 +1060,20 @@ def _check_env(model, env, time, n=None):
 
 
 _BLACKBOX_ATTRS = ("name", "uses_time", "init_env", "step")
+
+
+def _at_world_file(world, e) -> PcclError:
+    """A world function's bad value, at the world file's line and column
+    (where the user must fix it), naming the program line that reads it; the
+    error as it is when the value does not come from a file."""
+    from .world import function_location
+    loc = function_location(world, e.function)
+    if loc is None:
+        return e
+    fn, source, line, col, end = loc
+    read = f" (read at {e.filename}:{e.line}:{e.column})" if e.line else ""
+    return PcclError(f"value of {e.function}(){read} {e.detail}", filename=fn, source=source,
+                     line=line, column=col, end_column=end)
 
 
 def _check_blackbox_object(bb):

@@ -129,3 +129,15 @@ class PcclRuntimeError(Exception):
     def __init__(self, reason: str):
         super().__init__(reason)
         self.reason = reason
+
+
+def install_hint(extra: str) -> str:
+    """How to install an optional extra of pccl: pccl is installed from its
+    checkout (it is not on the package index), so the command names the
+    checkout when there is one: ``pip install -e '/path/to/pccl[physics]'``."""
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    if (root / "pyproject.toml").is_file():
+        return f"pip install -e '{root}[{extra}]'"
+    return f"pip install -e '.[{extra}]' in the pccl checkout"
+

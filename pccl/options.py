@@ -35,9 +35,9 @@ API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progres
 
 #: Command-line parameters that choose how a result is shown, per command.
 PRESENTATION = {
-    "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full"}),
+    "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full", "exit_codes"}),
     "explore": frozenset({"fmt", "plot", "html", "progress", "progress_interval", "trace_out",
-                          "view", "full"}),
+                          "view", "full", "exit_codes"}),
 }
 
 

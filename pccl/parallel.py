@@ -91,7 +91,17 @@ _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
 
 #: The message when ``--ray`` is asked for without Ray installed.
-RAY_MISSING = "--ray needs Ray, an optional extra: pip install 'pccl[ray]'"
+def _ray_hint() -> str:
+    """pccl.errors.install_hint("ray"), spelt here: this module imports only
+    generic modules (tests/test_architecture.py)."""
+    import os
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if os.path.isfile(os.path.join(root, "pyproject.toml")):
+        return f"pip install -e '{root}[ray]'"
+    return "pip install -e '.[ray]' in the pccl checkout"
+
+
+RAY_MISSING = "--ray needs Ray, an optional extra: " + _ray_hint()
 
 
 def available_workers() -> int:

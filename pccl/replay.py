@@ -55,21 +55,54 @@ def load(path) -> dict:
     return TC.load(path)
 
 
-def _resolve(rec: Optional[dict], trace_path, what, warnings) -> Optional[str]:
+def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> Optional[str]:
+    """The file a trace's ``config.program``/``config.world`` names.
+    ``override`` (``--program``/``--world``) wins; otherwise the first of the
+    recorded path (from the working directory), the path relative to the
+    trace file and the absolute path whose bytes have the recorded SHA-256,
+    else the first that exists (with a warning that it changed)."""
+    if override is not None:
+        p = os.fspath(override)
+        if not os.path.isfile(p):
+            raise PcclError(f"--{what}: no such file: {p}")
+        if rec is None:
+            warnings.append(f"warning: the trace was recorded without a {what}; using {p}")
+            return p
+        now = T.sha256_of(p) or ""
+        if rec.get("sha256") and now != rec["sha256"]:
+            warnings.append(f"warning: {what} {p} (--{what}) is not the recorded {what} "
+                            f"{rec['path']}: sha256 {now[:12]}… here, {rec['sha256'][:12]}… "
+                            f"recorded; the replay diverges where they differ")
+        return p
     if rec is None:
         return None
-    p = rec["path"]
-    if not os.path.exists(p):
-        alt = os.path.join(os.path.dirname(os.fspath(trace_path)), p)
-        if os.path.exists(alt):
-            p = alt
-    now = T.sha256_of(p) if os.path.isfile(p) else None
-    if now is None:
+    here = os.path.dirname(os.path.abspath(os.fspath(trace_path)))
+    cands = [rec["path"]]
+    if rec.get("relative"):
+        cands.append(os.path.join(here, rec["relative"]))
+    if rec.get("absolute"):
+        cands.append(rec["absolute"])
+    cands.append(os.path.join(here, rec["path"]))    # older files: next to the trace
+    seen, found = [], []
+    for c in cands:
+        if c in seen:
+            continue
+        seen.append(c)
+        if os.path.isfile(c):
+            found.append((c, T.sha256_of(c)))
+    if not found:
         raise PcclError(f"config.{what}.path: the {what} {rec['path']} recorded in the trace "
-                        f"does not exist", filename=os.fspath(trace_path))
-    if rec.get("sha256") and now != rec["sha256"]:
-        warnings.append(f"warning: {what} {rec['path']} has changed since the trace was "
-                        f"recorded (sha256 {rec['sha256'][:12]}… recorded, {now[:12]}… now)")
+                        f"does not exist (looked for {', '.join(seen)}); give it with "
+                        f"--{what} FILE", filename=os.fspath(trace_path))
+    want = rec.get("sha256")
+    for c, sha in found:
+        if not want or sha == want:
+            return c
+    p, got = found[0]
+    want, now = want or "", got or ""
+    warnings.append(f"warning: {what} {p} has changed since the trace was recorded "
+                    f"(sha256 {want[:12]}… recorded, {now[:12]}… now); the replay diverges "
+                    f"where they differ (--{what} FILE replays against another file)")
     return p
 
 
@@ -143,7 +176,8 @@ def resolve_blackbox(recorded: str, given, trace_name: str):
          f"'{name}'")
 
 
-def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None):
+def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None, program=None,
+                      world=None):
     """The model a (checked) trace configuration describes; ``blackbox``:
     the object :func:`resolve_blackbox` chose (default: the file's name,
     which must then be a shipped blackbox)."""
@@ -151,8 +185,8 @@ def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None):
     name = os.fspath(trace_path)
     if blackbox is None:
         blackbox = resolve_blackbox(cfg["blackbox"], None, name)
-    prog = _resolve(cfg["program"], trace_path, "program", warnings)
-    world = _resolve(cfg.get("world"), trace_path, "world", warnings)
+    prog = _resolve(cfg["program"], trace_path, "program", warnings, program)
+    world = _resolve(cfg.get("world"), trace_path, "world", warnings, world)
     rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
     opts = dict(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
                 collisions=cfg["collisions"], overrides=dict(cfg.get("overrides") or {}),
@@ -222,16 +256,17 @@ def _typed(m, st) -> dict:
     return T.normal(T.state_typed(m, st))
 
 
-def replay(path, *, blackbox=None) -> ReplayResult:
+def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
     """Replay the trace file ``path``.  ``blackbox``: the user's blackbox (a
     ``module:attr`` spec or an object) when the file names one of its own;
-    a shipped one is taken from the file."""
+    a shipped one is taken from the file.  ``program``/``world``: replay
+    against these files instead of the recorded ones (checked by hash)."""
     name = os.fspath(path)
     doc = TC.load(path)
     cfg = doc["config"]
     warnings: list = []
     bb = resolve_blackbox(cfg["blackbox"], blackbox, name)
-    m = model_from_config(cfg, path, warnings, bb)
+    m = model_from_config(cfg, path, warnings, bb, program=program, world=world)
     steps = doc["steps"]
     result = doc["result"]
     recorded = result["violation"]

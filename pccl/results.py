@@ -119,14 +119,47 @@ class StateView(_Keyed):
 
 @dataclass(frozen=True)
 class Change(_Keyed):
-    """One cell a step changed: ``cell`` as the trace prints it
-    (``inCs[0]``, ``status[1]``, ``time``), old and new values."""
+    """One cell a step changed, as data: ``cell`` its name as the trace
+    prints it (``inCs[0]``, ``status[1]``, ``time``), ``path`` the structured
+    cell of the trace format (``{"agent": 0, "var": "inCs"}``,
+    ``{"agent": 1, "cell": "status"}``, ``{"cell": "time"}``), ``agent`` (None
+    for a shared or global cell), ``old`` and ``new`` the values as data
+    (numbers, booleans, strings, lists; a position is ``[x, y, z]``; a
+    status ``"running"`` or ``{"status": "stuck", ...}``), and
+    ``old_text``/``new_text`` as the trace prints them.  ``to_json()`` (the
+    CLI's JSON) keeps the printed form."""
     cell: str
     old: Any
     new: Any
+    path: Mapping = field(default_factory=dict, compare=False)
+    old_text: str = ""
+    new_text: str = ""
+
+    @property
+    def agent(self) -> Optional[int]:
+        return self.path.get("agent")
 
     def to_json(self) -> dict:
-        return {"cell": self.cell, "old": self.old, "new": self.new}
+        return {"cell": self.cell, "old": self.old_text, "new": self.new_text}
+
+
+_TEXT_NAME = {"phase": "transitionState"}
+
+
+def _changes(model, before, after) -> tuple:
+    """The typed changes of a step (pccl/traces.py), with the printed text
+    of each (pccl/display.py); the cells the trace prints, in its order."""
+    from . import traces as T
+    texts = {c: (o, n) for c, o, n in D.diff(model, before, after)}
+    out = []
+    for c in T.changes(model, before, after):
+        name = T.cell_name(c["cell"])
+        name = _TEXT_NAME.get(name, name)
+        if name not in texts:           # counter, env: not printed
+            continue
+        o, n = texts[name]
+        out.append(Change(name, c["old"], c["new"], _frozen(c["cell"]), o, n))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -147,8 +180,7 @@ class StepView(_Keyed):
     def of(cls, model, n, label, before, after) -> "StepView":
         d = D.step_json(model, n, label, before, after)
         return cls(d["step"], d["time"], d["agent"], d["rule"], d["event"], d["line"],
-                   d["source"], tuple(Change(c["cell"], c["old"], c["new"])
-                                      for c in d["changes"]))
+                   d["source"], _changes(model, before, after))
 
     def to_json(self) -> dict:
         return {"step": self.step, "time": self.time, "agent": self.agent, "rule": self.rule,

@@ -27,11 +27,11 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from .layout import (AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
+from .layout import (AGS, AR, DONE, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
                      TARGET, TIME)
 
 
-@dataclass
+@dataclass(repr=False)
 class RunResult:
     status: str                 # final | bounded | deadlock | violation | max-steps | stalled
                                 # | interrupted | out-of-memory
@@ -55,6 +55,13 @@ class RunResult:
     max_memory: Optional[int] = None
 
     model: Any = None
+
+    def __repr__(self) -> str:
+        """One line: the status, the message, the end time and the counts."""
+        from .display import fmt_time
+        return (f"<RunResult {self.status} (exit {self.exit_status}): {self.message!r}; "
+                f"t={fmt_time(self.final[TIME])}, {self.steps:,} transitions"
+                + (f", {len(self.trace)} recorded" if self.trace else "") + ">")
 
     @property
     def final_state(self):
@@ -181,43 +188,6 @@ def _signature(st) -> tuple:
                                    ag[REACH][DONE], ag[REACH][FAIL]) for ag in st[AGS]))
 
 
-def waiting_on(model, st) -> list:
-    """Per running agent, what it waits on: ``[(agent, text)]``."""
-    from .display import source_line
-    out = []
-    sh, ags = st[SH], st[AGS]
-    for i, ag in enumerate(ags):
-        if ag[STATUS] != RUNNING:
-            continue
-        if ag[PC] != model.ctl.empty_pc and model.ctl.cells[ag[PC]][0] != END:
-            out.append((i, model.compiled.describe_k(ag[PC])))
-            continue
-        try:
-            enabled = model.enabled_events(i, ag, sh, ags)
-        except Exception:            # a guard error is reported by the run itself
-            enabled = []
-        evs = model.program.events
-        if enabled:
-            names = ", ".join(evs[e].name for e in enabled)
-            out.append((i, f"runs {names} but changes nothing"))
-        elif evs:
-            guards = "; ".join(f"`{_guard_text(source_line(model, ev.guard.span))}` "
-                               f"({ev.name}, line {ev.guard.span.line})" for ev in evs)
-            out.append((i, f"waits for one of: {guards}"))
-        else:
-            out.append((i, "has no event"))
-    return out
-
-
-def _guard_text(src) -> str:
-    """``pre(c);`` as ``c``."""
-    t = (src or "").strip().rstrip(";").strip()
-    for pre in ("pre(", "Pre("):
-        if t.startswith(pre) and t.endswith(")"):
-            return t[len(pre):-1].strip()
-    return t
-
-
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
         rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20,
         max_memory: Optional[int] = None) -> RunResult:
@@ -310,11 +280,15 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     st = nxt
                     summary.append((nxt[TIME], nxt))
                     from .display import fmt_time
-                    waits = waiting_on(model, st)
+                    from .stall import waiting, waiting_text
+                    waits = waiting(model, st)
+                    # the cause first (what blocks each waiting agent: only
+                    # guards that can still hold for it, the flag behind them)
                     return finish("stalled",
-                                  f"stalled since t = {fmt_time(since)}: no variable, position "
-                                  f"or flag changed for {still} time steps while agents still run; "
-                                  + "; ".join(f"agent {i} {w}" for i, w in waits),
+                                  (waiting_text(waits) + "; " if waits else "")
+                                  + f"nothing changed since t = {fmt_time(since)} (no variable, "
+                                  f"position or flag for {still} time steps) while agents "
+                                  f"still run",
                                   1, stalled_since=since, waiting=waits)
                 n_env += 1
                 if n_env % stride == 0:
@@ -333,7 +307,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     per_agent[agent] += 1
                 if since_time > max_steps:
                     st = nxt
-                    looping = _looping_agent(model, st, per_agent)
+                    from .stall import looping_agent
+                    looping = looping_agent(model, st, per_agent)
                     return finish("max-steps",
                                   f"agent {looping} runs more than {max_steps} transitions without "
                                   f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
@@ -389,12 +364,3 @@ def _weight(st, prev) -> int:
     return w
 
 
-def _looping_agent(model, st, per_agent: Counter) -> int:
-    """The agent that keeps time from advancing: mid-event with the most steps."""
-    best, best_n = None, -1
-    for i, ag in enumerate(st[AGS]):
-        mid = ag[PC] != model.ctl.empty_pc
-        n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
-        if ag[STATUS] == RUNNING and n > best_n:
-            best, best_n = i, n
-    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])

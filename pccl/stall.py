@@ -229,9 +229,8 @@ def runaway_note(model, info: dict) -> str:
     them."""
     from collections import Counter
     from .display import fmt_time, source_line
-    from .runner import _looping_agent
     st = info["state"]
-    i = _looping_agent(model, st, Counter())
+    i = looping_agent(model, st, Counter())
     pc = st[AGS][i][PC]
     where = model.compiled.describe_k(pc)
     cell = model.ctl.cells[pc]
@@ -244,3 +243,14 @@ def runaway_note(model, info: dict) -> str:
             f"t = {fmt_time(info['max_time'])}; agent {i} keeps time from advancing "
             f"({where}); a zero-time loop makes new states for ever: bound the search "
             f"(--max-states, --depth, --max-memory) or let time advance in the loop")
+
+
+def looping_agent(model, st, per_agent) -> int:
+    """The agent that keeps time from advancing: mid-event with the most steps."""
+    best, best_n = None, -1
+    for i, ag in enumerate(st[AGS]):
+        mid = ag[PC] != model.ctl.empty_pc
+        n = per_agent.get(i, 0) + (10 ** 9 if mid else 0)
+        if ag[STATUS] == RUNNING and n > best_n:
+            best, best_n = i, n
+    return best if best is not None else max(per_agent, key=lambda i: per_agent[i])

@@ -225,6 +225,9 @@ def _file(v, path, null=False):
         return
     _obj(v, path, ("path", "sha256"))
     _string(v["path"], _join(path, "path"), nonempty=True)
+    for k in ("absolute", "relative"):          # optional: older files have neither
+        if k in v:
+            _string(v[k], _join(path, k), nonempty=True)
     sha = v["sha256"]
     if sha is not None and not (isinstance(sha, str) and len(sha) == 64
                                 and all(c in "0123456789abcdef" for c in sha)):

@@ -48,9 +48,27 @@ def sha256_of(path) -> Optional[str]:
 
 
 def _file(path) -> Optional[dict]:
+    """A file the trace depends on: the path as given (relative to the
+    working directory), the absolute path and the SHA-256 of its bytes;
+    :func:`write` adds the path relative to the trace file."""
     if path is None:
         return None
-    return {"path": os.fspath(path), "sha256": sha256_of(path)}
+    return {"path": os.fspath(path), "sha256": sha256_of(path),
+            "absolute": os.path.abspath(os.fspath(path))}
+
+
+def _relative_to(doc: dict, trace_path) -> None:
+    """Add ``relative`` (the path from the trace file's directory) to the
+    files of ``doc``'s configuration, so that replay finds them from
+    anywhere as long as the trace moves with the program."""
+    base = os.path.dirname(os.path.abspath(os.fspath(trace_path)))
+    for key in ("program", "world"):
+        rec = (doc.get("config") or {}).get(key)
+        if isinstance(rec, dict) and rec.get("absolute"):
+            try:
+                rec["relative"] = os.path.relpath(rec["absolute"], base)
+            except ValueError:          # another drive (Windows): no relative path
+                pass
 
 
 def config(command: str, model, *, program, world=None, blackbox="straight", agents=None,
@@ -292,6 +310,7 @@ def run_document(res, cfg: dict) -> dict:
 
 def write(doc: dict, path) -> None:
     from .errors import PcclError
+    _relative_to(doc, path)
     try:
         with open(path, "w", encoding="utf-8") as f:
             json.dump(doc, f, indent=1, default=str)

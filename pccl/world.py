@@ -277,7 +277,39 @@ class WorldChecker:
         functions.setdefault("getInput", ())
         functions.setdefault("getObs", obstacles)
         kw["functions"] = tuple(sorted(functions.items()))
+        if kw.get("starts"):
+            self.check_starts(kw["starts"], kw.get("arena"), obstacles,
+                              kw.get("radius", World.radius))
         return World(filename=self.filename, **kw)
+
+    def check_starts(self, starts: tuple, arena, obstacles: tuple, radius: float) -> None:
+        """Each given start lies inside the arena, not inside an obstacle
+        (its centre; a disc that touches one is allowed: a robot may start
+        against a wall) and apart from the other starts (discs of
+        ``radius`` that do not overlap): a robot cannot start where it
+        could not stand."""
+        for i, q in enumerate(starts):
+            x, y = q[0], q[1]
+            if arena is not None:
+                (x0, y0), (x1, y1) = arena
+                if not (x0 <= x <= x1 and y0 <= y <= y1):
+                    self.error(f"'start' entry {i + 1} ({x:g}, {y:g}) lies outside the arena "
+                               f"[[{x0:g}, {y0:g}], [{x1:g}, {y1:g}]]", key="start", path=(i,))
+            for j in range(i):
+                d = math.hypot(starts[j][0] - x, starts[j][1] - y)
+                if d < 2 * radius - 1e-9:
+                    self.error(f"'start' entry {i + 1} ({x:g}, {y:g}) overlaps entry {j + 1} "
+                               f"({starts[j][0]:g}, {starts[j][1]:g}): centre distance {d:g} "
+                               f"< 2 × radius {2 * radius:g}", key="start", path=(i,))
+        geoms = _obstacle_geoms(obstacles)
+        if geoms:
+            import shapely
+            for i, q in enumerate(starts):
+                pt = shapely.Point(q[0], q[1])
+                for k, g in enumerate(geoms):
+                    if g.distance(pt) <= 1e-9:
+                        self.error(f"'start' entry {i + 1} ({q[0]:g}, {q[1]:g}) lies inside "
+                                   f"obstacle {k + 1}", key="start", path=(i,))
 
     def positive(self, v: Any, key: str) -> float:
         if not _is_number(v):
@@ -431,3 +463,21 @@ def _obstacle_geoms(obstacles: tuple) -> list:
         return []
     import shapely
     return [shapely.Polygon([(p[0], p[1]) for p in poly]) for poly in obstacles]
+
+
+def function_location(world, name: str):
+    """Where the world file gives ``name`` under ``[functions]``:
+    ``(filename, source, line, column, end_column)``, or None (no file, or
+    the function is not written there)."""
+    fn = getattr(world, "filename", None)
+    if not fn:
+        return None
+    try:
+        with open(fn, encoding="utf-8") as f:
+            source = f.read()
+    except OSError:
+        return None
+    where = TomlSource(source).locate("functions", name)
+    if where is None:
+        return None
+    return fn, source, where[0], where[1], where[2]

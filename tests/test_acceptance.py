@@ -126,6 +126,7 @@ def test_fischer_mutex_holds_with_large_d():
 # ---------------------------------------------------------------------------
 
 RACE_SAFE = str(Path(RACE).with_name("race_safe.pccl"))
+RACE_ROBUST = str(Path(RACE).with_name("race_robust.pccl"))
 
 
 @pytest.mark.parametrize("agents", [2, 3])
@@ -171,8 +172,7 @@ def test_race_failure_is_only_the_head_race(blackbox):
         assert v["line"] == head_line
 
 
-@pytest.mark.parametrize("blackbox, agents", [("instant", 2), ("straight", 2), ("nondet", 2),
-                                              ("straight", 3)])
+@pytest.mark.parametrize("blackbox, agents", [("instant", 2), ("straight", 2), ("straight", 3)])
 def test_race_safe_no_violation_exhaustive(blackbox, agents):
     # under the covering nondet both robots may drive for one waypoint, block
     # each other and never handle doReach_fail: a stall (pinned in
@@ -184,10 +184,22 @@ def test_race_safe_no_violation_exhaustive(blackbox, agents):
     assert f"[blackbox {blackbox}]" in res.verdict
 
 
-def test_race_safe_stalls_when_the_robots_block_each_other():
-    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox="nondet", agents=2)
-    assert res.status == "violation" and res.violation["kind"] == "stall"
-    assert "doReach_fail" in res.violation["message"]
+def test_race_safe_stalls_under_nondet():
+    """Under the covering nondet two robots heading for the same waypoint may
+    both fail, and race_safe never handles doReach_fail: a stall whose
+    message names the flag (docs/decisions.md, README)."""
+    res = explore(RACE_SAFE, world=RACE_WORLD, blackbox="nondet")
+    assert res.status == "violation" and res.exit_status == 1
+    assert res.violation["kind"] == "stall", res.verdict
+    assert "doReach_fail[0] is true" in res.verdict and "doReach_fail[1] is true" in res.verdict
+
+
+@pytest.mark.parametrize("blackbox, agents", [("instant", 2), ("straight", 2), ("nondet", 2),
+                                              ("straight", 3)])
+def test_race_robust_no_violation_exhaustive(blackbox, agents):
+    res = explore(RACE_ROBUST, world=RACE_WORLD, blackbox=blackbox, agents=agents)
+    assert res.violations == [], res.verdict
+    assert res.status == "exhaustive" and res.exit_status == 0
 
 
 @pytest.mark.parametrize("agents", [2, 3])

@@ -429,3 +429,83 @@ def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers
     assert "interrupted" in out and "not exhaustive" in out
     assert "states/second" in out
     assert "Traceback" not in err
+
+
+# ---------------------------------------------------------------------------
+# issue 27, item 5: --exit-codes detailed, run --format k, run's JSON status
+# ---------------------------------------------------------------------------
+
+_P = "programs/"
+_T = "tests/programs/"
+DETAILED_CASES = [
+    (("explore", _P + "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1"), 12),
+    (("run", _P + "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1"), 12),
+    (("explore", _P + "race.pccl", "--world", _P + "race.toml", "-b", "instant"), 14),
+    (("explore", _T + "eng_assert.pccl"), 14),
+    (("explore", _P + "race_safe.pccl", "--world", _P + "race.toml"), 11),       # stall
+    (("run", _T + "rdv_meet.pccl", "--world", _T + "rdv_wall.toml"), 11),         # stalled
+    (("explore", _T + "tl_spin.pccl"), 15),
+    (("explore", "docs/examples/never.pccl", "--property", "eventually false"), 13),
+    (("run", _T + "runaway.pccl", "--max-steps", "50"), 16),
+    (("explore", "docs/examples/never.pccl"), 0),
+]
+
+
+@pytest.mark.parametrize("args, detailed", DETAILED_CASES)
+def test_exit_codes_detailed_tells_the_violations_apart(args, detailed):
+    from pathlib import Path
+    root = Path(__file__).resolve().parent.parent
+    plain = cli(*args, cwd=root)
+    res = cli(*args, "--exit-codes", "detailed", cwd=root)
+    assert plain.exit_code == (1 if detailed else 0)          # the default is unchanged
+    assert res.exit_code == detailed, res.output
+    assert plain.output.splitlines()[:3] == res.output.splitlines()[:3]   # same verdict
+
+
+def test_exit_codes_table_is_documented():
+    """Every detailed status is in the exit-code table of the README and of
+    docs/language.md."""
+    from pathlib import Path
+    from pccl.exitcodes import DETAILED, TABLE
+    root = Path(__file__).resolve().parent.parent
+    assert {c for c, _ in TABLE} == set(DETAILED.values())
+    for doc in ("README.md", "docs/language.md"):
+        text = (root / doc).read_text()
+        for code, _ in TABLE:
+            assert f"| {code} |" in text, (doc, code)
+
+
+def test_detailed_exit_status_in_json():
+    res = cli("run", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1",
+              "--exit-codes", "detailed", "--format", "json")
+    data = json.loads(res.output)
+    assert res.exit_code == data["exit_status"] == 12
+    assert data["status"] == data["result"] == "violation"      # explore's word, and the old one
+
+
+def test_run_format_k_prints_the_final_configuration_in_k():
+    res = cli("run", FISCHER, "--set", "k=1", "--format", "k", "--max-time", "3")
+    assert res.exit_code == 0
+    tail = res.output.split("final configuration:\n", 1)[1]
+    assert tail.startswith("<agent> ") and "<gMemory>" in tail and "<time> 3 </time>" in tail
+
+
+# ---------------------------------------------------------------------------
+# issue 27, item 6: --depth means what the counterexample shows
+# ---------------------------------------------------------------------------
+
+def test_depth_is_shown_in_the_counterexample_and_is_what_depth_bounds():
+    args = ("explore", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1")
+    out = cli(*args).output
+    m = re.search(r"^counterexample \((\d+) steps, shortest under the reductions; depth (\d+) "
+                  r"in the reduced graph, as --depth counts\):$", out, re.M)
+    assert m, out
+    steps, depth = int(m[1]), int(m[2])
+    assert steps > depth                     # the steps are expanded, the depth is not
+    # the depth printed is the smallest --depth that finds the violation
+    assert cli(*args, "--depth", str(depth)).exit_code == 1
+    below = cli(*args, "--depth", str(depth - 1))
+    assert below.exit_code == 0 and f"stopped by --depth {depth - 1}" in below.output
+    # without reductions steps and depth are one number, and the note is not printed
+    plain = cli(*args, "--reduce", "none").output
+    assert re.search(r"^counterexample \(\d+ steps\):$", plain, re.M), plain

@@ -184,10 +184,16 @@ def test_unfixed_swap_collides_under_straight():
 
 
 def test_unfixed_swap_is_clean_without_collision_checking():
-    # (under the covering nondet the swapping robots may also block each
-    # other and wait for ever: a stall, which is not what this is about)
-    r = explore(COLLIDE, world=WORLD, stall=False)
+    r = explore(COLLIDE, world=WORLD, blackbox="straight")
     assert r.status == "exhaustive" and r.exit_status == 0
+
+
+def test_unfixed_swap_stalls_under_the_covering_nondet():
+    """Under the default nondet the robots' lanes meet, both doReach may
+    fail, and collide.pccl never handles doReach_fail: a stall."""
+    r = explore(COLLIDE, world=WORLD)
+    assert r.status == "violation" and r.violation["kind"] == "stall", r.verdict
+    assert "doReach_fail" in r.verdict
 
 
 def test_unfixed_swap_collides_under_nondet_but_not_instant():

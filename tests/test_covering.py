@@ -12,6 +12,7 @@ those runs.
 
 from __future__ import annotations
 
+import math
 import random
 import textwrap
 
@@ -36,6 +37,7 @@ WORLD_PROGRAMS = [
     ("race_nonatomic.pccl", "race_obstacles.toml", None),
     ("race_safe.pccl", "race.toml", None),
     ("race_safe.pccl", "race_obstacles.toml", None),
+    ("race_robust.pccl", "race.toml", None),
     ("collide.pccl", "collide.toml", None),
     ("collide_fixed.pccl", "collide.toml", None),
     ("formation.pccl", "formation.toml", 2),
@@ -181,8 +183,18 @@ def generated(seed: int, tmp_path):
     vertical = rnd.random() < 0.5
     wx1 = round(wx0 + (0.3 if vertical else rnd.uniform(1, 3)), 1)
     wy1 = round(wy0 + (rnd.uniform(1, 3) if vertical else 0.3), 1)
-    world = GEN_WORLD.format(r=rnd.choice([0.1, 0.25]), speed=rnd.choice([0.7, 1.0, 1.5]),
-                             sx0=c(), sy0=c(), sx1=c(), sy1=c(),
+    r, speed = rnd.choice([0.1, 0.25]), rnd.choice([0.7, 1.0, 1.5])
+
+    def valid(sx0, sy0, sx1, sy1):
+        """A robot cannot start inside the wall or on the other (the world
+        file rejects such starts, pccl check --world too)."""
+        inside = any(wx0 <= x <= wx1 and wy0 <= y <= wy1 for x, y in ((sx0, sy0), (sx1, sy1)))
+        return not inside and math.hypot(sx0 - sx1, sy0 - sy1) >= 2 * r
+    starts = (c(), c(), c(), c())
+    while not valid(*starts):
+        starts = (c(), c(), c(), c())
+    world = GEN_WORLD.format(r=r, speed=speed,
+                             sx0=starts[0], sy0=starts[1], sx1=starts[2], sy1=starts[3],
                              wx0=wx0, wy0=wy0, wx1=wx1, wy1=wy1)
     prog_path = tmp_path / f"gen{seed}.pccl"
     world_path = tmp_path / f"gen{seed}.toml"

@@ -353,3 +353,38 @@ def test_wildcard_and_normalisation():
     assert regenerate(["a", "...", "c", "...", "z"], ["A", "b", "c", "d", "Z"]) == \
         ["A", "...", "c", "...", "Z"]
     assert regenerate(["x"], ["y", ""]) == ["y"]
+
+
+def _json_examples():
+    """Every JSON example: ```json blocks, and the expected output of each
+    console command that prints JSON (its output starts with ``{``)."""
+    out = []
+    for b in ALL_BLOCKS:
+        if b.lang == "json":
+            out.append((b.id, "\n".join(b.body)))
+        elif b.lang == "console":
+            for cmd, expected in session(b):
+                text = "\n".join(expected)
+                if text.lstrip().startswith(("{", "[")) and "--format json" in cmd:
+                    out.append((f"{b.id} ({cmd[:40]}…)", text))
+    return out
+
+
+def test_every_json_example_parses():
+    """Issue 27: a JSON example must be valid JSON (no `...` elisions in it:
+    filter the output instead)."""
+    import json
+    examples = _json_examples()
+    assert examples
+    bad = []
+    for where, text in examples:
+        try:
+            json.loads(text)
+        except ValueError as e:
+            try:                    # JSON lines: one value per line
+                for ln in text.splitlines():
+                    if ln.strip():
+                        json.loads(ln)
+            except ValueError:
+                bad.append(f"{where}: {e}")
+    assert not bad, "\n".join(bad)

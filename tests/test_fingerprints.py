@@ -139,6 +139,8 @@ SHIPPED = [
      dict(world=P("race.toml"), blackbox="nondet")),
     ("race_safe-nondet", P("race_safe.pccl"),
      dict(world=P("race.toml"), blackbox="nondet")),
+    ("race_robust-nondet", P("race_robust.pccl"),
+     dict(world=P("race.toml"), blackbox="nondet")),
     ("collide-straight-collisions", P("collide.pccl"),
      dict(world=P("collide.toml"), blackbox="straight", collisions=True)),
     ("collide-nondet", P("collide.pccl"), dict(world=P("collide.toml"), blackbox="nondet")),
@@ -249,6 +251,8 @@ PINNED = {
     # a stall since nondet covers robots blocking each other: both robots
     # drive to the same waypoint and race_safe never handles doReach_fail
     "race_safe-nondet": ("violation", 10143, 17737, 124),  # 7924 before
+    # race_safe handling doReach_fail (picks again): no stall
+    "race_robust-nondet": ("exhaustive", 24898, 44360, 128),
     "collide-straight-collisions": ("violation", 65, 96, 32),
     "collide-nondet": ("violation", 110, 176, 15),        # 60 before; a stall
     "collide_fixed-straight-collisions": ("exhaustive", 504, 794, 82),

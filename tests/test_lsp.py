@@ -328,4 +328,4 @@ def test_lsp_without_pygls_says_how_to_install(tmp_path):
                         "from pccl.cli import main; main(['lsp'])", str(tmp_path)],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2
-    assert "pip install 'pccl[lsp]'" in r.stderr and "Traceback" not in r.stderr
+    assert "pip install -e '" in r.stderr and "[lsp]'" in r.stderr and "Traceback" not in r.stderr

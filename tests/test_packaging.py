@@ -45,14 +45,26 @@ def test_pymunk_blackbox_without_pymunk_says_how_to_install(monkeypatch):
     for cmd in ("run", "explore"):
         res = CliRunner().invoke(main, [cmd, RACE, "--world", RACE_WORLD, "-b", "pymunk"])
         assert res.exit_code == 2, res.output
+        from pccl.errors import install_hint
         assert res.stderr.strip() == ("--blackbox: error: the pymunk blackbox needs pymunk: "
-                                      "pip install 'pccl[physics]'")
+                                      + install_hint("physics"))
     # the object itself, passed through the API, says the same (init_env)
     from pccl.api import explore
     from pccl.blackboxes import PYMUNK
     from pccl.errors import PcclError
-    with pytest.raises(PcclError, match=r"pip install 'pccl\[physics\]'"):
+    with pytest.raises(PcclError, match=r"pip install -e '.*\[physics\]'"):
         explore(RACE, world=RACE_WORLD, blackbox=PYMUNK)
+
+
+def test_install_hint_names_this_checkout():
+    """pccl is not on the package index: the hint installs from the
+    checkout this pccl runs from, a path that exists."""
+    from pathlib import Path
+    from pccl.errors import install_hint
+    hint = install_hint("physics")
+    root = Path(__file__).resolve().parent.parent
+    assert hint == f"pip install -e '{root}[physics]'"
+    assert (root / "pyproject.toml").is_file()
 
 
 def test_packaging_metadata_makes_pymunk_an_extra():
@@ -128,8 +140,8 @@ def test_clean_install_without_extras_explores(tmp_path):
     res = subprocess.run([str(bindir / "pccl"), "run", RACE, "--world", RACE_WORLD,
                           "-b", "pymunk"], capture_output=True, text=True, timeout=120)
     assert res.returncode == 2
-    assert "pip install 'pccl[physics]'" in res.stderr
+    assert "pip install -e '" in res.stderr and "[physics]'" in res.stderr
     res = subprocess.run([str(bindir / "pccl"), "explore", FISCHER, "--ray", "local"],
                          capture_output=True, text=True, timeout=120, cwd=str(tmp_path))
     assert res.returncode == 2 and "Traceback" not in res.stderr
-    assert "pip install 'pccl[ray]'" in res.stderr
+    assert "pip install -e '" in res.stderr and "[ray]'" in res.stderr

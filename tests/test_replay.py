@@ -511,8 +511,96 @@ def test_a_stalled_run_replays_with_its_recorded_stall_steps(tmp_path):
     t = record(tmp_path, "run", RDV, "--world", RDV_WALL, "-b", "straight", "--stall-steps", "3")
     res = cli("replay", t)
     assert res.exit_code == 1, res.output
-    assert "reproduced: stalled since t = 1" in res.output
+    assert "reproduced: agent 0 waits for Go" in res.output
+    assert "nothing changed since t = 1" in res.output
     # a file without stall_steps (older) means the default, 20: this run
     # would not have stopped yet
     res = cli("replay", rewrite(t, lambda d: d["config"].pop("stall_steps")))
     assert res.exit_code == 2 and "the replayed one goes on" in res.output
+
+
+# ---------------------------------------------------------------------------
+# issue 27, item 2: replay from anywhere, --program/--world, hashes, --view
+# ---------------------------------------------------------------------------
+
+def _make_trace_elsewhere(tmp_path):
+    """A run recorded from tmp_path/made with a relative program path; the
+    trace goes to tmp_path/made/traces/t.json."""
+    made = tmp_path / "made"
+    (made / "traces").mkdir(parents=True)
+    shutil.copy(PROGRAMS / "fischer.pccl", made / "fischer.pccl")
+    res = cli("run", "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1",
+              "--trace-out", "traces/t.json", cwd=made)
+    assert res.exit_code == 1
+    return made, made / "traces" / "t.json"
+
+
+def test_replay_from_another_directory(tmp_path):
+    made, t = _make_trace_elsewhere(tmp_path)
+    rec = json.loads(t.read_text())["config"]["program"]
+    assert rec["path"] == "fischer.pccl"
+    assert rec["absolute"] == str(made / "fischer.pccl")
+    assert rec["relative"] == str(Path("..") / "fischer.pccl")
+    res = cli("replay", t, cwd=ROOT)                 # not where it was made
+    assert res.exit_code == 1, res.output
+    assert "reproduced: invariant 'count(inCs) <= 1' violated" in res.output
+    assert "warning" not in res.output
+
+
+def test_replay_after_moving_trace_and_program_together(tmp_path):
+    made, t = _make_trace_elsewhere(tmp_path)
+    moved = tmp_path / "moved"
+    shutil.move(str(made), str(moved))               # the absolute path is gone
+    res = cli("replay", moved / "traces" / "t.json", cwd=ROOT)
+    assert res.exit_code == 1, res.output
+    assert "reproduced" in res.output
+
+
+def test_replay_missing_program_says_how_to_give_it(tmp_path):
+    made, t = _make_trace_elsewhere(tmp_path)
+    (made / "fischer.pccl").unlink()
+    res = cli("replay", t, cwd=ROOT)
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "does not exist" in res.output and "--program FILE" in res.output
+    ok = cli("replay", t, "--program", PROGRAMS / "fischer.pccl", cwd=ROOT)
+    assert ok.exit_code == 1 and "reproduced" in ok.output and "warning" not in ok.output
+
+
+def test_replay_mismatched_program_is_found_by_hash(tmp_path):
+    made, t = _make_trace_elsewhere(tmp_path)
+    other = tmp_path / "other.pccl"
+    src = (PROGRAMS / "fischer.pccl").read_text()
+    other.write_text(src.replace("inCs = true;", "inCs = false;", 1))
+    res = cli("replay", t, "--program", other, cwd=ROOT)
+    assert "is not the recorded program" in res.output
+    assert "sha256" in res.output
+    assert res.exit_code == 2, res.output             # it diverges where they differ
+    # a recorded file edited after recording: found by path, flagged by hash
+    (made / "fischer.pccl").write_text(other.read_text())
+    res = cli("replay", t, cwd=ROOT)
+    assert "has changed since the trace was recorded" in res.output and res.exit_code == 2
+
+
+def test_older_trace_files_without_absolute_paths_replay(tmp_path):
+    made, t = _make_trace_elsewhere(tmp_path)
+    doc = json.loads(t.read_text())
+    for k in ("absolute", "relative"):
+        del doc["config"]["program"][k]
+    old = made / "old.json"
+    old.write_text(json.dumps(doc))
+    res = cli("replay", old, cwd=made)
+    assert res.exit_code == 1 and "reproduced" in res.output
+
+
+def test_replay_shows_the_steps_on_a_terminal(tmp_path, monkeypatch):
+    import pccl.cli as C
+    t = record(tmp_path, "run", PROGRAMS / "fischer.pccl", "--set", "k=1",
+               "--invariant", "count(inCs) <= 1")
+    plain = cli("replay", t)
+    steps = cli("replay", t, "--view", "steps")
+    monkeypatch.setattr(C, "_stdout_is_terminal", lambda: True)
+    tty = cli("replay", t)
+    assert tty.output == steps.output != plain.output
+    assert len(tty.output.splitlines()) > len(plain.output.splitlines()) + 100
+    swim = cli("replay", t, "--view", "swimlane")
+    assert swim.output != tty.output                  # an explicit --view wins

@@ -503,8 +503,18 @@ def test_run_stops_a_stalled_team():
     assert r.stalled_since == 1
     assert r.final[TIME] == 1 + 20            # 20 unchanged time steps after t = 1
     assert [i for i, _ in r.waiting] == [0, 1]
-    assert "`id == 0 && started && doReach_done` (Arrive, line 18)" in r.waiting[0][1]
-    assert r.message.startswith("stalled since t = 1: ")
+    # the cause first: agent 0's Arrive is blocked by its failed doReach
+    assert r.message.startswith("agent 0 waits for Go (line 12: ")
+    assert ("Arrive (line 18: `doReach_done` is false — doReach_fail[0] is true: its doReach "
+            "to (2.0, 0.0, 0.0) failed" in r.waiting[0][1])
+    # only guards that can hold for the agent: agent 1 (id 1) never runs Go
+    # or Arrive (`id == 0`), so it waits for Wait alone
+    assert r.waiting[1][1] == "waits for Wait (line 24: `met` is false — met = false)"
+    assert r.message.endswith("nothing changed since t = 1 (no variable, position or flag for "
+                              "20 time steps) while agents still run")
+    # explore's stall check names the same causes (pccl/stall.py, one code)
+    from pccl.stall import waiting
+    assert r.waiting == waiting(r.model, r.final)
     # nothing changed in the state between t = 1 and the end, but the clock
     from pccl.runner import _signature
     sigs = {_signature(s) for t, s in r.summary if t >= 1}
@@ -522,8 +532,13 @@ def test_run_stall_steps_option():
         run(RDV, stall_steps=-1)
     res = cli("run", RDV, "--world", RDV_WALL, "--stall-steps", "3")
     assert res.exit_code == 1
-    assert "result: stalled — stalled since t = 1: no variable, position or flag changed " \
-           "for 3 time steps" in res.output
+    assert "result: stalled — agent 0 waits for Go" in res.output
+    assert "nothing changed since t = 1 (no variable, position or flag for 3 time steps)" \
+        in res.output
+    # the per-step summary collapses the identical time steps into one line
+    assert "  t=2–4: a0 (0.0, 0.0, 0.0)  a1 (3.0, 0.0, 0.0) (3 identical time steps)" \
+        in res.output
+    assert len([ln for ln in res.output.splitlines() if ln.startswith("  t=")]) == 3
 
 
 def test_run_of_a_moving_or_finishing_team_is_not_stalled():

@@ -435,3 +435,53 @@ def test_errors_are_pccl_errors_with_location():
     err = info.value
     assert (err.filename, err.line, err.column) == ("w.toml", 2, 14)
     assert err.source.startswith("agents = 2")
+
+
+# ---------------------------------------------------------------------------
+# issue 27, item 3: pccl check --world runs the checks run and explore run
+# ---------------------------------------------------------------------------
+
+def _cli(*args):
+    from conftest import cli as _c
+    return _c(*args)
+
+
+RACE_PROGRAM = Path(__file__).resolve().parent.parent / "programs" / "race.pccl"
+
+
+@pytest.mark.parametrize("body, line, col, words", [
+    ("agents = 2\nstart = [[0, 0], [5, 0]]\n\n[functions]\ngetInput = [1, 2, 3]\n", 5, 12,
+     ["value of getInput() (read at", "race.pccl:7:30) does not fit List<ItemPosition>"]),
+    ("agents = 2\nstart = [[0, 0], [0.3, 0]]\n", 2, 18,
+     ["'start' entry 2 (0.3, 0) overlaps entry 1 (0, 0)"]),
+    ("agents = 2\narena = [[0, 0], [4, 4]]\nstart = [[1, 1], [5, 1]]\n", 3, 18,
+     ["'start' entry 2 (5, 1) lies outside the arena"]),
+    ("agents = 1\nstart = [[1, 1]]\n[[obstacles]]\npolygon = [[0, 0], [2, 0], [2, 2], [0, 2]]\n",
+     2, 10, ["'start' entry 1 (1, 1) lies inside obstacle 1"]),
+])
+def test_check_world_runs_the_world_checks(tmp_path, body, line, col, words):
+    """check --world said ok for these; run then failed (a bad getInput at
+    the program's line).  Now check, run and explore give one message, at
+    the world file's line and column."""
+    w = tmp_path / "w.toml"
+    w.write_text(body)
+    outs = []
+    for cmd in ("check", "run", "explore"):
+        res = _cli(cmd, RACE_PROGRAM, "--world", w)
+        assert res.exit_code == 2, (cmd, res.output)
+        assert "Traceback" not in res.output
+        first = res.output.splitlines()[0]
+        assert first.startswith(f"{w}:{line}:{col}: error: "), (cmd, first)
+        for word in words:
+            assert word in first, (cmd, first)
+        outs.append(res.output)
+    assert outs[0] == outs[1] == outs[2]
+
+
+def test_check_world_ok_for_the_shipped_worlds():
+    root = Path(__file__).resolve().parent.parent
+    for prog, world in [("programs/race.pccl", "programs/race.toml"),
+                        ("programs/collide_fixed.pccl", "programs/collide.toml"),
+                        ("docs/examples/dock.pccl", "docs/examples/dock.toml")]:
+        res = _cli("check", root / prog, "--world", root / world)
+        assert res.exit_code == 0 and ": ok (" in res.output, res.output
