@@ -750,7 +750,7 @@ class Explorer:
             arrays.update(self.table.dump(n))
         if self.recorder is not None:
             arrays.update({f"rec_{k}": v for k, v in
-                           self.recorder.dump(n, mark["edges"], mark["first"]).items()})
+                           self.recorder.dump(n, mark["edges"]).items()})
         self.checkpoint.write(state, arrays)
 
     def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:

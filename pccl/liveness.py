@@ -253,18 +253,14 @@ class GraphRecorder:
                                         ("pend", self.pend), ("sig", self.sig),
                                         ("chg", self.chg)) if g is not None}
 
-    def dump(self, n: int, edges: int, first: int) -> dict:
-        """The graph as it stood when states ``first..n-1`` (a level) were
-        about to be expanded: ``n`` states, ``edges`` transitions.  The stall
-        check's change flags of that level, set by a partial expansion, are
-        cleared: the resumed search expands the level again."""
+    def dump(self, n: int, edges: int) -> dict:
+        """The graph as it stood when a level was about to be expanded: ``n``
+        states, ``edges`` transitions.  (The stall check's change flags a
+        partial expansion of that level set are kept: the resumed search
+        expands the level again and sets exactly those.)"""
         out = {"src": self.src.view()[:edges], "dst": self.dst.view()[:edges]}
         for name, g in self._columns().items():
             out[name] = g.view()[:n]
-        if "chg" in out:
-            chg = out["chg"].copy()
-            chg[first:] = 0
-            out["chg"] = chg
         return out
 
     def load(self, arrays: dict, complete: bool) -> None:
