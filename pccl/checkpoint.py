@@ -85,6 +85,12 @@ def _digest(data) -> str:
     return xxhash.xxh3_128_hexdigest(data)
 
 
+def _array_digest(arr: np.ndarray) -> str:
+    """The xxh3-128 of an array's bytes (C order), without a copy when contiguous."""
+    arr = np.ascontiguousarray(arr)
+    return _digest(arr.data.cast("B") if arr.size else b"")
+
+
 def _text_hash(text) -> str:
     if isinstance(text, str):
         text = text.encode()
@@ -210,8 +216,7 @@ class Checkpointer:
                 f.flush()
                 os.fsync(f.fileno())
                 size = f.tell()
-            files[fname] = {"bytes": size, "xxh3": _digest(memoryview(arr).cast("B"))
-                            if arr.size else _digest(b"")}
+            files[fname] = {"bytes": size, "xxh3": _array_digest(arr)}
         blob = pickle.dumps(state, protocol=5)
         with open(os.path.join(tmp, "state.pkl"), "wb") as f:
             f.write(blob)
@@ -231,10 +236,10 @@ class Checkpointer:
                     "depth": state["depth"], "states": state["n"],
                     "identity": self.identity, "files": files}
         fd, mtmp = tempfile.mkstemp(prefix="tmp-manifest-", dir=d)
-        with os.fdopen(fd, "w") as f:
-            json.dump(manifest, f, indent=1)
-            f.flush()
-            os.fsync(f.fileno())
+        with os.fdopen(fd, "w") as mf:
+            json.dump(manifest, mf, indent=1)
+            mf.flush()
+            os.fsync(mf.fileno())
         os.replace(mtmp, os.path.join(d, MANIFEST))
         _fsync_dir(d)
         for entry in os.listdir(d):         # older generations, stale temporaries
@@ -302,8 +307,7 @@ class Checkpointer:
                     state = pickle.loads(data)
                 else:
                     arr = np.load(io.BytesIO(data), allow_pickle=False)
-                    got = _digest(memoryview(np.ascontiguousarray(arr)).cast("B")) \
-                        if arr.size else _digest(b"")
+                    got = _array_digest(arr)
                     if got != info["xxh3"]:
                         raise ValueError(f"{gen}/{fname} does not match its digest")
                     arrays[fname[:-4]] = arr
