@@ -31,7 +31,6 @@ after the new manifest is in place.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 import pickle
@@ -86,9 +85,14 @@ def _digest(data) -> str:
 
 
 def _array_digest(arr: np.ndarray) -> str:
-    """The xxh3-128 of an array's bytes (C order), without a copy when contiguous."""
-    arr = np.ascontiguousarray(arr)
-    return _digest(arr.data.cast("B") if arr.size else b"")
+    """The xxh3-128 of an array's bytes (C order), a slice at a time: no copy
+    of a whole (possibly mapped) array."""
+    h = xxhash.xxh3_128()
+    flat = arr.reshape(-1) if arr.flags.c_contiguous else np.ascontiguousarray(arr).reshape(-1)
+    step = max(1, (1 << 24) // max(1, flat.itemsize))
+    for a in range(0, flat.size, step):
+        h.update(np.ascontiguousarray(flat[a:a + step]).data.cast("B"))
+    return h.hexdigest()
 
 
 def _text_hash(text) -> str:
@@ -296,19 +300,21 @@ class Checkpointer:
         try:
             for fname, info in files.items():
                 p = os.path.join(gdir, fname)
-                with open(p, "rb") as f:
-                    data = f.read()
-                if len(data) != info["bytes"]:
-                    raise ValueError(f"{gen}/{fname} has {len(data):,} bytes, the manifest "
+                size = os.path.getsize(p)
+                if size != info["bytes"]:
+                    raise ValueError(f"{gen}/{fname} has {size:,} bytes, the manifest "
                                      f"says {info['bytes']:,}")
                 if fname == "state.pkl":
+                    with open(p, "rb") as f:
+                        data = f.read()
                     if _digest(data) != info["xxh3"]:
                         raise ValueError(f"{gen}/{fname} does not match its digest")
                     state = pickle.loads(data)
+                    del data
                 else:
-                    arr = np.load(io.BytesIO(data), allow_pickle=False)
-                    got = _array_digest(arr)
-                    if got != info["xxh3"]:
+                    # mapped, not read: the table is copied once, into the search's
+                    arr = np.load(p, mmap_mode="r", allow_pickle=False)
+                    if _array_digest(arr) != info["xxh3"]:
                         raise ValueError(f"{gen}/{fname} does not match its digest")
                     arrays[fname[:-4]] = arr
             if not isinstance(state, dict) or "depth" not in state:

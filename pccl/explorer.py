@@ -549,6 +549,7 @@ class Explorer:
                 except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
                     raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
                                   f"--checkpoint") from None
+                del state, arrays       # the mapped files: copied into the table by now
                 t_start -= start["seconds"]
                 stop = False
             else:
