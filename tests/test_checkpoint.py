@@ -8,6 +8,7 @@ import json
 import os
 import pickle
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -167,7 +168,7 @@ def test_checkpoint_every_level_then_resume_from_each(tmp_path):
     def spy(self, state, arrays):
         orig(self, state, arrays)
         snap = str(tmp_path / f"gen{len(saved)}")
-        subprocess.run(["cp", "-r", self.dir, snap], check=True)
+        shutil.copytree(self.dir, snap)
         saved.append((state["depth"], snap))
 
     C.Checkpointer.write = spy
@@ -263,7 +264,7 @@ def test_resume_with_other_options_or_program_exits_2(tmp_path):
 
 
 @pytest.mark.parametrize("damage", ["manifest", "truncate", "flip", "missing", "format",
-                                    "empty-dir", "no-dir"])
+                                    "version", "empty-dir", "no-dir"])
 def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     d = _checkpoint_of(tmp_path)
     man = json.load(open(os.path.join(d, C.MANIFEST)))
@@ -284,6 +285,9 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     elif damage == "format":
         man["format"] = 99
         json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
+    elif damage == "version":
+        man["pccl"] = "0.0.1"
+        json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
     elif damage == "empty-dir":
         d = str(tmp_path / "empty")
         os.makedirs(d)
@@ -293,7 +297,9 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     assert p.returncode == 2, p.stderr
     assert "Traceback" not in p.stderr and p.stderr.startswith(f"--resume: error: {d}: ")
     want = {"manifest": "corrupt", "truncate": "corrupt", "flip": "does not match its digest",
-            "missing": "corrupt", "format": "format 99", "empty-dir": "no checkpoint here",
+            "missing": "corrupt", "format": "format 99",
+            "version": "the checkpoint was written by pccl 0.0.1, this is pccl",
+            "empty-dir": "no checkpoint here",
             "no-dir": "no such directory"}[damage]
     assert want in p.stderr
 
