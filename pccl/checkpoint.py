@@ -183,6 +183,8 @@ class Checkpointer:
         self.last_write = _time.monotonic()
         self.written: Optional[dict] = None       # {"depth", "states"} of the last write
         self.resumed: Optional[dict] = None       # likewise, of the checkpoint resumed
+        #: (depth, states) of the checkpoint last written or read: not written again
+        self.last_saved: Optional[tuple] = None
         self.writes = 0
         self.write_seconds = 0.0
         self.bytes = 0
@@ -258,6 +260,7 @@ class Checkpointer:
                         pass
         self.last_write = _time.monotonic()
         self.written = {"depth": state["depth"], "states": state["n"]}
+        self.last_saved = (state["depth"], state["n"])
         self.writes += 1
         self.write_seconds += _time.perf_counter() - t0
         self.bytes = sum(f["bytes"] for f in files.values())
@@ -324,6 +327,7 @@ class Checkpointer:
                             f"--checkpoint") from None
         self.generation = int(gen[4:])
         self.resumed = {"depth": state["depth"], "states": state["n"]}
+        self.last_saved = (state["depth"], state["n"])
         if self.note is not None:
             self.note(f"resumed from {d} at depth {state['depth']}, {state['n']:,} states")
         self.last_write = _time.monotonic()

@@ -670,8 +670,7 @@ class Explorer:
                 # interrupted half way is expanded again on resume)
                 self._mark = self._level_mark(adm, depth, level, level_idx, t_start,
                                               (time_depth, last_time, warned))
-                if ck.due() and not (ck.written and ck.written["depth"] == depth
-                                     and ck.written["states"] == table.n):
+                if ck.due() and ck.last_saved != (depth, table.n):
                     self._save(adm, adm.res)
             at_bound = max_depth is not None and depth >= max_depth
             for c0 in range(0, len(level), chunk):
