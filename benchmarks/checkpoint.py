@@ -60,6 +60,18 @@ def dir_size(d) -> int:
     return sum(os.path.getsize(os.path.join(r, f)) for r, _, fs in os.walk(d) for f in fs)
 
 
+def cost(args, interval, d0, t_full, full):
+    """2.: the uninterrupted search writing checkpoints every ``interval``."""
+    t_ck, ck = pccl(args + ["--checkpoint", d0, "--checkpoint-interval", interval])
+    m = [re.search(r"\((\d+) written, ([0-9.]+) s\)", n) for n in ck["notes"]]
+    n_ck, s_ck = next(((int(x.group(1)), float(x.group(2))) for x in m if x), (0, 0.0))
+    print(f"with --checkpoint-interval {interval}: {n_ck} checkpoints, {s_ck:.1f} s writing "
+          f"them ({1000 * s_ck / max(1, n_ck):.0f} ms each; the last, of "
+          f"{full['statistics']['states']:,} states: {dir_size(d0) / 2**20:,.1f} MiB on disk); "
+          f"{t_ck:.1f} s wall ({t_ck / t_full:.2f}x); same result: {same(ck, full)}")
+    shutil.rmtree(d0, ignore_errors=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("-n", "--agents", default="3")
@@ -69,11 +81,22 @@ def main():
                     help="--checkpoint-interval of the killed runs [default: 1/20 of the "
                          "uninterrupted time]")
     ap.add_argument("--program", default="programs/fischer.pccl")
+    ap.add_argument("--no-cost", action="store_true", help="skip the cost measurement (2.)")
+    ap.add_argument("--baseline", metavar="FILE", default=None,
+                    help="the uninterrupted run's time and result: read from FILE if it "
+                         "exists, else measured and written there")
     a = ap.parse_args()
     sets = a.sets if a.sets is not None else ["k=2", "d=2"]
     args = [a.program, "-n", a.agents] + [x for s in sets for x in ("--set", s)]
     print(f"pccl explore {' '.join(args)}")
-    t_full, full = pccl(args)
+    if a.baseline and os.path.exists(a.baseline):
+        with open(a.baseline) as f:
+            t_full, full = json.load(f)
+    else:
+        t_full, full = pccl(args)
+        if a.baseline:
+            with open(a.baseline, "w") as f:
+                json.dump([t_full, full], f)
     st = full["statistics"]
     print(f"uninterrupted: {t_full:.1f} s wall, {st['states']:,} states, "
           f"{st['transitions']:,} transitions, depth {st['max_depth']}, {full['status']}, "
@@ -81,17 +104,9 @@ def main():
 
     work = tempfile.mkdtemp(prefix="pccl-ck-bench-")
     try:
-        # the cost of checkpoints: the uninterrupted search writing them
         interval = a.interval or f"{max(1.0, t_full / 20):.0f}s"
-        d0 = os.path.join(work, "cost")
-        t_ck, ck = pccl(args + ["--checkpoint", d0, "--checkpoint-interval", interval])
-        m = [re.search(r"\((\d+) written, ([0-9.]+) s\)", n) for n in ck["notes"]]
-        n_ck, s_ck = next(((int(x.group(1)), float(x.group(2))) for x in m if x), (0, 0.0))
-        print(f"with --checkpoint-interval {interval}: {n_ck} checkpoints, {s_ck:.1f} s writing "
-              f"them ({1000 * s_ck / max(1, n_ck):.0f} ms each; the last, of "
-              f"{st['states']:,} states: {dir_size(d0) / 2**20:,.1f} MiB on disk); "
-              f"{t_ck:.1f} s wall ({t_ck / t_full:.2f}x); same result: {same(ck, full)}")
-        shutil.rmtree(d0, ignore_errors=True)
+        if not a.no_cost:
+            cost(args, interval, os.path.join(work, "cost"), t_full, full)
 
         # killed with SIGKILL and resumed
         d = os.path.join(work, "killed")
@@ -104,11 +119,14 @@ def main():
             t, res = pccl(args + extra + ["--checkpoint-interval", interval], kill_after=kill)
             total += t
             runs += 1
+            how = "resumed, " if resume else ""
             if res is None:
                 kills += 1
-                print(f"  run {runs}: {'resumed, ' if resume else ''}killed (SIGKILL) after {t:.1f} s")
+                print(f"  run {runs}: {how}killed (SIGKILL) after {t:.1f} s")
             else:
-                print(f"  run {runs}: {'resumed, ' if resume else ''}finished after {t:.1f} s")
+                notes = [n for n in res["notes"] if n.startswith(("resumed", "checkpoint"))]
+                print(f"  run {runs}: {how}finished after {t:.1f} s; {'; '.join(notes)}; "
+                      f"on disk {dir_size(d) / 2**20:,.1f} MiB")
         print(f"killed {kills} times and resumed (--checkpoint-interval {interval}): "
               f"{total:.1f} s wall in all, {total / t_full:.2f}x the uninterrupted run; "
               f"same result: {same(res, full)}")
