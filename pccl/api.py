@@ -380,7 +380,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         from .fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
     else:
-        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
+        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels,
+                      checkpoint=_checkpointer(model, o), **opts)
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -471,6 +472,9 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
             witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
                               "trace": steps, "state": StateView.of(model, cx.trace.last),
                               "_trace": cx.trace})
+    ck = getattr(ex, "checkpoint", None)
+    if ck is not None:
+        skipped.extend(_checkpoint_notes(ck))
     res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,
@@ -506,6 +510,8 @@ def _choose_engine(model: Model, o: ExploreOptions, recorder: bool, one: bool):
         why = "--coverage counts guards in Python"
     if why is None and o.fastest:
         why = "--fastest orders the search in Python"
+    if why is None and (o.checkpoint is not None or o.resume is not None):
+        why = "--checkpoint and --resume save the Python engine's states"
     if why is not None:
         if o.engine == "native":
             raise ArgumentError(f"the native engine cannot run this search: {why}",
@@ -514,6 +520,34 @@ def _choose_engine(model: Model, o: ExploreOptions, recorder: bool, one: bool):
         return None
     model.engine_used, model.engine_reason = "native", None
     return NV.NativeModel(model)
+
+
+def _checkpointer(model, o: ExploreOptions):
+    """The :class:`~pccl.checkpoint.Checkpointer` of ``--checkpoint`` /
+    ``--resume`` (None without them)."""
+    if o.checkpoint is None and o.resume is None:
+        return None
+    from .checkpoint import Checkpointer, search_identity
+    ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
+                      interval=o.checkpoint_interval, resume=o.resume,
+                      identity=search_identity(model, o),
+                      note=getattr(o.progress, "note", None))
+    if o.checkpoint is not None or os.path.isdir(o.resume or ""):
+        ck.prepare_dir()
+    return ck
+
+
+def _checkpoint_notes(ck) -> list:
+    """What the search did with its checkpoints, for the notes."""
+    out = []
+    if ck.resumed is not None:
+        out.append(f"resumed from {ck.resume_dir} at depth {ck.resumed['depth']}, "
+                   f"{ck.resumed['states']:,} states")
+    if ck.written is not None:
+        out.append(f"checkpoint written to {ck.dir} at depth {ck.written['depth']}, "
+                   f"{ck.written['states']:,} states ({ck.writes} written, "
+                   f"{ck.write_seconds:.2f} s)")
+    return out
 
 
 def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:

@@ -595,10 +595,20 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--coverage", is_flag=True,
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
+@click.option("--checkpoint", "checkpoint", metavar="DIR", default=None,
+              help="write the search's state to DIR every --checkpoint-interval and when "
+                   "interrupted (Ctrl-C, SIGTERM); --resume DIR continues it")
+@click.option("--checkpoint-interval", "checkpoint_interval", metavar="DURATION",
+              default="30m", show_default=True, callback=lambda c, p, v: _interval(v),
+              help="time between checkpoints: 90s, 10m, 1h (0: at every level)")
+@click.option("--resume", "resume", metavar="DIR", default=None,
+              help="continue the search from the checkpoint in DIR (same program and "
+                   "options; it keeps writing checkpoints there)")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot, progress,
-            progress_interval, html, trace_out, view, full, coverage, workers, ray):
+            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
+            progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
+            checkpoint, checkpoint_interval, resume):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from .api import build_model, explore_model
@@ -624,6 +634,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         if (opts.workers != 1 or opts.ray is not None) and fastest:
             raise PcclError("--fastest searches in one process: use --workers 1 (without --ray)",
                             filename="--workers")
+        from .options import checkpoint_refusal
+        why = checkpoint_refusal(opts, cli=True)
+        if why is not None:
+            raise PcclError(why, filename="--checkpoint" if checkpoint else "--resume")
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
@@ -666,7 +680,35 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _write_html(html, doc, model=model, states=_explore_states(res), quiet=(fmt == "json"))
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
+    if res.status == "interrupted" and (checkpoint or resume):
+        _resume_hint(res, checkpoint or resume)
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
+
+
+def _resume_hint(res, directory) -> None:
+    """After an interrupted search with --checkpoint: where the checkpoint
+    is and the command that resumes it (on stderr)."""
+    import shlex
+    if not any(n.startswith("checkpoint written to") for n in res.notes):
+        click.echo("pccl: interrupted before the first level was complete: no checkpoint "
+                   "written", err=True)
+        return
+    args = sys.argv[1:]
+    if "explore" in args:
+        args = args[args.index("explore") + 1:]
+    keep, skip = [], False
+    for a in args:
+        if skip:
+            skip = False
+            continue
+        if a in ("--checkpoint", "--resume"):
+            skip = True
+            continue
+        if a.startswith(("--checkpoint=", "--resume=")):
+            continue
+        keep.append(a)
+    cmd = shlex.join(["pccl", "explore", *keep, "--resume", str(directory)])
+    click.echo(f"pccl: checkpoint written to {directory}; resume with: {cmd}", err=True)
 
 
 @main.command(short_help="Re-execute a trace file; report the first divergence.",
@@ -1096,6 +1138,14 @@ def _workers(value):
     if not 1 <= n <= 256:
         raise click.BadParameter(f"expected 1 to 256 processes, got {n}")
     return n
+
+
+def _interval(value):
+    from .checkpoint import parse_interval
+    try:
+        return parse_interval(value)
+    except ValueError as e:
+        raise click.BadParameter(str(e)) from None
 
 
 def _size(value):

@@ -411,6 +411,24 @@ class Model:
         after this, equal configurations are equal tuples in every process."""
         self.ctl.close()
 
+    def checkpoint_tables(self) -> dict:
+        """The lazily interned tables states refer to (k cells, stuck
+        reasons), for a checkpoint (pccl/checkpoint.py)."""
+        return {"cells": list(self.ctl.cells), "stuck": dict(self.compiled.stuck_reasons)}
+
+    def restore_tables(self, data: dict) -> None:
+        """Intern the cells of :meth:`checkpoint_tables` in their order, so
+        that pcs (and fingerprints) are numbered as in the search that wrote it."""
+        ctl, cells = self.ctl, data["cells"]
+        have = len(ctl.cells)
+        if list(ctl.cells) != list(cells[:have]):
+            raise ValueError("the checkpoint's k cells are not this program's")
+        for cell in cells[have:]:
+            ctl._cell(cell)
+        if len(ctl.cells) != len(cells):
+            raise ValueError("the checkpoint's k cells repeat")
+        self.compiled.stuck_reasons.update(data["stuck"])
+
     # -- initial states -------------------------------------------------------------------
     #: Initial states remembered to drop duplicates early (fewer with many
     #: agents); beyond that the explorer merges them (it admits initial

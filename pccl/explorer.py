@@ -376,6 +376,19 @@ class FingerprintTable:
         else:
             self._place(np.arange(n, n + k, dtype=np.uint32))
 
+    def dump(self, n: int) -> dict:
+        """The first ``n`` states' arrays (a checkpoint)."""
+        return {"fps": self.fps[:n], "parents": self.parents[:n]}
+
+    def load(self, arrays: dict) -> None:
+        """Fill an empty table from :meth:`dump`'s arrays."""
+        fps, parents = arrays["fps"], arrays["parents"]
+        if fps.dtype != np.uint64 or fps.ndim != 2 or fps.shape[1:] != (2,) \
+                or parents.dtype != np.uint32 or parents.shape != (len(fps),):
+            raise ValueError("the fingerprint arrays have the wrong shape or type")
+        self._batch = (np.ascontiguousarray(fps), None)
+        self.add(len(fps), parents)
+
     def insert(self, q: np.ndarray, values: np.ndarray) -> None:
         """Admit fingerprints ``q`` (distinct, absent) with ``values`` stored
         in the parent slot (the parallel search stores global state numbers)."""
@@ -423,6 +436,14 @@ class ExactTable:
         self.parents.extend(parents.tolist())
         self.n = len(ids)
 
+    def dump(self, n: int) -> dict:
+        return {"keys": list(itertools.islice(self.ids, n)), "parents": self.parents[:n]}
+
+    def load(self, data: dict) -> None:
+        self.ids = dict(zip(data["keys"], itertools.count()))
+        self.parents = list(data["parents"])
+        self.n = len(self.ids)
+
     def index_of(self, key: bytes) -> int:
         return self.ids.get(key, -1)
 
@@ -463,7 +484,10 @@ class Explorer:
     ``clock`` growing: a zero-time loop that keeps making new states;
     ``state`` is one of the deepest level's),
     ``labels`` (a set: every distinct label of a transition taken
-    out of a reachable state is added to it; one C-level update per chunk).
+    out of a reachable state is added to it; one C-level update per chunk),
+    ``checkpoint`` (a :class:`pccl.checkpoint.Checkpointer`: write the
+    search's state at level boundaries every so often and when interrupted,
+    and resume from a checkpoint; the result is the uninterrupted search's).
     """
 
     def __init__(self, model: Model, *, max_depth: Optional[int] = None,
@@ -473,8 +497,14 @@ class Explorer:
                  progress_interval: float = 0.5, batch: int = 4096,
                  max_memory: Optional[int] = None, recorder=None,
                  runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None,
-                 labels: Optional[set] = None):
+                 labels: Optional[set] = None, checkpoint=None):
         self.model = model
+        #: a :class:`pccl.checkpoint.Checkpointer` (or None): where the search
+        #: writes checkpoints at level boundaries, and what it resumes from
+        self.checkpoint = checkpoint
+        self._mark: Optional[dict] = None
+        self._runaway_info: Optional[dict] = None
+        self._peak_before = 0       # peak memory of the search before the checkpoint resumed
         self.runaway_levels = runaway_levels
         self.on_runaway = on_runaway
         self.recorder = recorder
@@ -508,11 +538,27 @@ class Explorer:
         self.table = ExactTable() if self.exact else FingerprintTable()
         res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
         adm = _Admission(self, res)
+        ck = self.checkpoint
+        self._mark = None
         try:
-            stop = self._initial_states(adm)
-            self._levels(adm, t_start, stop)
+            start = None
+            if ck is not None and ck.resume_dir is not None:
+                state, arrays = ck.load()
+                try:
+                    start = self._restore(adm, res, state, arrays)
+                except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+                    raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                                  f"--checkpoint") from None
+                del state, arrays       # the mapped files: copied into the table by now
+                t_start -= start["seconds"]
+                stop = False
+            else:
+                stop = self._initial_states(adm)
+            self._levels(adm, t_start, stop, start)
         except KeyboardInterrupt:
             res.status = "interrupted"
+            if ck is not None and ck.dir is not None and self._mark is not None:
+                self._save(adm, res)
         except MemoryError:
             # the process could not allocate (a limit below --max-memory):
             # drop the frontier, keep the figures and what was found
@@ -542,11 +588,13 @@ class Explorer:
         adm.stats.initial_states = self.table.n
         return stop
 
-    def _levels(self, adm: "_Admission", t_start: float, stop: bool) -> None:
+    def _levels(self, adm: "_Admission", t_start: float, stop: bool,
+                start: Optional[dict] = None) -> None:
         """The breadth-first level loop: expand each state of a level, queue
         its successors for admission (a batch at a time); a state without
         successors is final, bounded or a deadlock.  (``stop``: the initial
-        states already stopped the search.)"""
+        states already stopped the search; ``start``: the level, depth and
+        runaway detector of a checkpoint resumed.)"""
         m = self.model
         succ_fn = m.successors
         max_depth = self.max_depth
@@ -559,7 +607,12 @@ class Explorer:
         labels = self.labels
         first = operator.itemgetter(0)
         depth = 0
-        level, level_idx = adm.take_level()
+        if start is not None:
+            depth = start["depth"]
+            level, level_idx = start["level"], start["level_idx"]
+        else:
+            level, level_idx = adm.take_level()
+        ck = self.checkpoint
         next_report = _time.perf_counter() + self.progress_interval
 
         def report(left):
@@ -608,7 +661,17 @@ class Explorer:
         chunk = max(1, batch // 4)
         # zero-time runaways: the depth at which the largest time last grew
         time_depth, last_time, warned = 0, stats.max_time, self.on_runaway is None
+        if start is not None:
+            time_depth, last_time, warned = start["runaway"]
+            warned = warned or self.on_runaway is None
         while level and not stop:
+            if ck is not None:
+                # what a checkpoint of this level's start holds (a level
+                # interrupted half way is expanded again on resume)
+                self._mark = self._level_mark(adm, depth, level, level_idx, t_start,
+                                              (time_depth, last_time, warned))
+                if ck.due() and ck.last_saved != (depth, table.n):
+                    self._save(adm, adm.res)
             at_bound = max_depth is not None and depth >= max_depth
             for c0 in range(0, len(level), chunk):
                 # a chunk of the level expanded with C-level map()s: no
@@ -645,16 +708,91 @@ class Explorer:
                         and depth - time_depth >= self.runaway_levels:
                     warned = True
                     assert self.on_runaway is not None
-                    self.on_runaway({"depth": depth, "levels": depth - time_depth,
-                                     "max_time": last_time, "state": level[-1]})
+                    self._runaway_info = {"depth": depth, "levels": depth - time_depth,
+                                          "max_time": last_time, "state": level[-1]}
+                    self.on_runaway(self._runaway_info)
         stats.frontier = len(level)
+
+    # -- checkpoints (pccl/checkpoint.py) -----------------------------------
+    def _level_mark(self, adm: "_Admission", depth: int, level: list, level_idx: list,
+                    t_start: float, runaway: tuple) -> dict:
+        """The search as it stands at the start of a level: what a checkpoint
+        holds besides the arrays (which are cut at ``n`` when written: the
+        table and the recorded graph only grow)."""
+        stats, rec = adm.stats, self.recorder
+        first = level_idx[0] if level_idx else self.table.n
+        assert not level_idx or level_idx[-1] - first + 1 == len(level_idx) == self.table.n - first
+        return {"depth": depth, "n": self.table.n, "level": level, "first": first,
+                "transitions": stats.transitions, "max_time": stats.max_time,
+                "max_depth": stats.max_depth, "initial_states": stats.initial_states,
+                "budget": adm.budget, "bounds": [b.value for b in adm.bounds],
+                "nfound": len(adm.res.found),
+                "labels": None if self.labels is None else set(self.labels),
+                "runaway": runaway, "runaway_info": self._runaway_info,
+                "seconds": _time.perf_counter() - t_start,
+                "edges": None if rec is None else rec.src.n,
+                "rec_complete": None if rec is None else rec.complete}
+
+    def _save(self, adm: "_Admission", res: SearchResult) -> None:
+        """Write the checkpoint of the current level's start."""
+        mark = self._mark
+        assert mark is not None and self.checkpoint is not None
+        n = mark["n"]
+        state = {k: v for k, v in mark.items() if k not in ("nfound",)}
+        state["found"] = [(f.violation, f.index, f.depth) for f in res.found[:mark["nfound"]]]
+        state["peak_memory"] = peak_rss_bytes()
+        tables = getattr(self.model, "checkpoint_tables", None)
+        state["tables"] = tables() if tables is not None else None
+        arrays: dict = {}
+        if self.exact:
+            state["exact"] = self.table.dump(n)
+        else:
+            arrays.update(self.table.dump(n))
+        if self.recorder is not None:
+            arrays.update({f"rec_{k}": v for k, v in
+                           self.recorder.dump(n, mark["edges"]).items()})
+        self.checkpoint.write(state, arrays)
+
+    def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:
+        """Put the search back where the checkpoint ``state``/``arrays`` left it;
+        returns what :meth:`_levels` starts from."""
+        tables = getattr(self.model, "restore_tables", None)
+        if tables is not None and state.get("tables") is not None:
+            tables(state["tables"])
+        if self.exact != ("exact" in state):
+            raise ValueError("the checkpoint's state identity (--exact or not) differs")
+        self.table.load(state["exact"] if self.exact else arrays)
+        n, first = state["n"], state["first"]
+        if self.table.n != n or len(state["level"]) != n - first:
+            raise ValueError("the checkpoint's table and level do not agree")
+        stats = adm.stats
+        stats.transitions, stats.max_time = state["transitions"], state["max_time"]
+        stats.max_depth, stats.initial_states = state["max_depth"], state["initial_states"]
+        stats.peak_memory = state["peak_memory"]
+        self._peak_before = state["peak_memory"]
+        adm.budget = state["budget"]
+        adm.bounds.update(Bound(b) for b in state["bounds"])
+        for v, idx, d in state["found"]:
+            res.found.append(Counterexample(v, idx, d))
+            adm.reported.add(v.identity)
+        if self.labels is not None and state["labels"] is not None:
+            self.labels.update(state["labels"])
+        if self.recorder is not None:
+            self.recorder.load({k[4:]: v for k, v in arrays.items() if k.startswith("rec_")},
+                               state["rec_complete"])
+        self._runaway_info = info = state["runaway_info"]
+        if info is not None and self.on_runaway is not None:
+            self.on_runaway(info)        # the note of the search before the checkpoint
+        return {"depth": state["depth"], "level": state["level"],
+                "level_idx": list(range(first, n)), "runaway": state["runaway"],
+                "seconds": state["seconds"]}
 
     def _result(self, res: SearchResult, adm: "_Admission", t_start: float) -> SearchResult:
         """The search's figures and verdict, and a trace per violation found."""
         stats, bounds, found = res.stats, adm.bounds, res.found
         stats.states = self.table.n
         stats.seconds = _time.perf_counter() - t_start
-        stats.peak_memory = peak_rss_bytes()
+        stats.peak_memory = max(peak_rss_bytes(), getattr(self, "_peak_before", 0))
         if not self.exact:
             res.collision_probability = collision_bound(stats.states)
         res.bounds_hit = sorted(bounds, key=lambda b: b.value)
@@ -756,7 +894,10 @@ class _Admission:
         self.nxt_idx: list = []     # ... and their state numbers
         self.bounds: set = set()
         self.budget = ex.max_states if ex.max_states is not None else _MAX_STATES
-        self.record = ex._recorder(res.found, set())
+        self.res = res
+        #: identities of the violations reported (``--all`` reports each once)
+        self.reported: set = set()
+        self.record = ex._recorder(res.found, self.reported)
         self.clock = getattr(ex.model, "clock", None)
         key = ex.model.key
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest

@@ -247,6 +247,36 @@ class GraphRecorder:
         self.src.extend(src.astype(np.uint32))
         self.dst.extend(dst.astype(np.uint32))
 
+    # -- checkpoints (pccl/checkpoint.py) -------------------------------------------
+    def _columns(self) -> dict:
+        return {name: g for name, g in (("dyn", self.dyn), ("bits", self.bits),
+                                        ("pend", self.pend), ("sig", self.sig),
+                                        ("chg", self.chg)) if g is not None}
+
+    def dump(self, n: int, edges: int) -> dict:
+        """The graph as it stood when a level was about to be expanded: ``n``
+        states, ``edges`` transitions.  (The stall check's change flags a
+        partial expansion of that level set are kept: the resumed search
+        expands the level again and sets exactly those.)"""
+        out = {"src": self.src.view()[:edges], "dst": self.dst.view()[:edges]}
+        for name, g in self._columns().items():
+            out[name] = g.view()[:n]
+        return out
+
+    def load(self, arrays: dict, complete: bool) -> None:
+        """Fill an empty recorder from :meth:`dump`'s arrays."""
+        want = {"src", "dst", *self._columns()}
+        if set(arrays) != want:
+            raise ValueError(f"the recorded graph holds {', '.join(sorted(arrays)) or 'nothing'}, "
+                             f"this search records {', '.join(sorted(want))}")
+        self.src.extend(arrays["src"])
+        self.dst.extend(arrays["dst"])
+        for name, g in self._columns().items():
+            if arrays[name].dtype != g.a.dtype:
+                raise ValueError(f"the recorded column {name} has the wrong type")
+            g.extend(arrays[name])
+        self.complete = bool(complete)
+
     # -- the graph ---------------------------------------------------------------
     def freeze(self, n: int) -> "Graph":
         """The graph in CSR form (no copy when the edges came by source, as

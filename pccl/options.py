@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 from collections.abc import Callable, Mapping
@@ -155,6 +156,13 @@ class ExploreOptions(ModelOptions):
     fastest: bool = False                   # order the search on global time
     #: the successor engine: auto (native where it can serve), native, python
     engine: str = "auto"
+    #: write checkpoints into this directory (pccl/checkpoint.py), every
+    #: checkpoint_interval seconds (0: every level) and when interrupted
+    checkpoint: Optional[str] = None
+    checkpoint_interval: Union[int, float] = 1800
+    #: resume the search from the checkpoint in this directory (and keep
+    #: writing checkpoints there unless checkpoint names another)
+    resume: Optional[str] = None
 
     @classmethod
     def from_cli(cls, params: Mapping[str, Any]):
@@ -193,6 +201,34 @@ class ExploreOptions(ModelOptions):
         if (r is not None or w != 1) and self.fastest:
             raise ArgumentError("fastest=True searches in one process: use workers=1",
                                 filename=f"pccl.api.{func}")
+        for name in ("checkpoint", "resume"):
+            v = getattr(self, name)
+            if v is not None and (not isinstance(v, (str, os.PathLike)) or not os.fspath(v)):
+                raise ArgumentError(f"{name} must be a directory path, got {v!r}",
+                                    filename=f"pccl.api.{func}")
+        V.number(func, "checkpoint_interval", self.checkpoint_interval, minimum=0)
+        why = checkpoint_refusal(self)
+        if why is not None:
+            raise ArgumentError(why, filename=f"pccl.api.{func}")
+
+
+def checkpoint_refusal(o: "ExploreOptions", *, cli: bool = False) -> Optional[str]:
+    """Why ``o`` cannot checkpoint or resume (None: it can)."""
+    if o.checkpoint is None and o.resume is None:
+        return None
+    what = ("--resume" if o.checkpoint is None else "--checkpoint") if cli else \
+        ("resume" if o.checkpoint is None else "checkpoint")
+    if o.ray is not None or o.workers != 1:
+        return (f"{what} runs in one process for now: use "
+                f"{'--workers 1 without --ray' if cli else 'workers=1 without ray'}")
+    if o.fastest:
+        return f"{what} does not run with {'--fastest' if cli else 'fastest=True'} yet"
+    if o.coverage:
+        return f"{what} does not run with {'--coverage' if cli else 'coverage=True'} yet"
+    for name in ("functions", "rand_policy"):
+        if getattr(o, name) is not None:
+            return f"{what} does not run with {name}= (a Python object is not checkpointed)"
+    return None
 
 
 #: The successor engines (pccl/native.py).

@@ -1,0 +1,138 @@
+"""The cost of checkpoints, and a search killed and resumed (docs/scale-out.md,
+"Checkpoint and resume").
+
+    python benchmarks/checkpoint.py                     # the issue's target (minutes)
+    python benchmarks/checkpoint.py -n 2 --set k=2      # a quick one
+
+1. The uninterrupted search, timed (``pccl explore ... --format json``).
+2. The cost of checkpoints: the uninterrupted search with ``--checkpoint DIR
+   --checkpoint-interval I``: checkpoints written, seconds per checkpoint,
+   size on disk, wall time over the search without checkpoints.
+3. The same search with ``--checkpoint DIR --checkpoint-interval I`` killed
+   with SIGKILL ``--kills`` times (each run killed after a fraction of the
+   uninterrupted time) and resumed with ``--resume DIR`` until it ends: its
+   result must be identical; the total wall time over the uninterrupted one
+   is the ratio the issue asks to be at most 1.2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SAME = ("status", "verdict", "violations", "bounds", "checked")
+STATS = ("initial_states", "states", "transitions", "max_depth", "max_time")
+
+
+def pccl(args, *, kill_after=None):
+    """Run ``pccl explore args``; (wall seconds, JSON or None if killed)."""
+    cmd = [sys.executable, "-m", "pccl.cli", "explore", *args, "--format", "json",
+           "--no-progress"]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        out, err = proc.communicate(timeout=kill_after)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate()
+        return time.perf_counter() - t0, None
+    if proc.returncode not in (0, 1):
+        raise SystemExit(f"pccl failed ({proc.returncode}): {err}")
+    return time.perf_counter() - t0, json.loads(out)
+
+
+def same(a, b) -> bool:
+    return all(a[k] == b[k] for k in SAME) and \
+        all(a["statistics"][k] == b["statistics"][k] for k in STATS)
+
+
+def dir_size(d) -> int:
+    return sum(os.path.getsize(os.path.join(r, f)) for r, _, fs in os.walk(d) for f in fs)
+
+
+def cost(args, interval, d0, t_full, full):
+    """2.: the uninterrupted search writing checkpoints every ``interval``."""
+    t_ck, ck = pccl(args + ["--checkpoint", d0, "--checkpoint-interval", interval])
+    m = [re.search(r"\((\d+) written, ([0-9.]+) s\)", n) for n in ck["notes"]]
+    n_ck, s_ck = next(((int(x.group(1)), float(x.group(2))) for x in m if x), (0, 0.0))
+    print(f"with --checkpoint-interval {interval}: {n_ck} checkpoints, {s_ck:.1f} s writing "
+          f"them ({1000 * s_ck / max(1, n_ck):.0f} ms each; the last, of "
+          f"{full['statistics']['states']:,} states: {dir_size(d0) / 2**20:,.1f} MiB on disk); "
+          f"{t_ck:.1f} s wall ({t_ck / t_full:.2f}x); same result: {same(ck, full)}")
+    shutil.rmtree(d0, ignore_errors=True)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("-n", "--agents", default="3")
+    ap.add_argument("--set", dest="sets", action="append", default=None)
+    ap.add_argument("--kills", type=int, default=3)
+    ap.add_argument("--interval", default=None,
+                    help="--checkpoint-interval of the killed runs [default: 1/20 of the "
+                         "uninterrupted time]")
+    ap.add_argument("--program", default="programs/fischer.pccl")
+    ap.add_argument("--no-cost", action="store_true", help="skip the cost measurement (2.)")
+    ap.add_argument("--baseline", metavar="FILE", default=None,
+                    help="the uninterrupted run's time and result: read from FILE if it "
+                         "exists, else measured and written there")
+    a = ap.parse_args()
+    sets = a.sets if a.sets is not None else ["k=2", "d=2"]
+    args = [a.program, "-n", a.agents] + [x for s in sets for x in ("--set", s)]
+    print(f"pccl explore {' '.join(args)}")
+    if a.baseline and os.path.exists(a.baseline):
+        with open(a.baseline) as f:
+            t_full, full = json.load(f)
+    else:
+        t_full, full = pccl(args)
+        if a.baseline:
+            with open(a.baseline, "w") as f:
+                json.dump([t_full, full], f)
+    st = full["statistics"]
+    print(f"uninterrupted: {t_full:.1f} s wall, {st['states']:,} states, "
+          f"{st['transitions']:,} transitions, depth {st['max_depth']}, {full['status']}, "
+          f"peak {st['peak_memory_bytes'] / 2**20:,.0f} MiB")
+
+    work = tempfile.mkdtemp(prefix="pccl-ck-bench-")
+    try:
+        interval = a.interval or f"{max(1.0, t_full / 20):.0f}s"
+        if not a.no_cost:
+            cost(args, interval, os.path.join(work, "cost"), t_full, full)
+
+        # killed with SIGKILL and resumed
+        d = os.path.join(work, "killed")
+        total, kills, runs = 0.0, 0, 0
+        res = None
+        while res is None:
+            resume = os.path.exists(os.path.join(d, "checkpoint.json"))
+            extra = ["--resume", d] if resume else ["--checkpoint", d]
+            kill = t_full / (a.kills + 1) if kills < a.kills else None
+            t, res = pccl(args + extra + ["--checkpoint-interval", interval], kill_after=kill)
+            total += t
+            runs += 1
+            how = "resumed, " if resume else ""
+            if res is None:
+                kills += 1
+                print(f"  run {runs}: {how}killed (SIGKILL) after {t:.1f} s")
+            else:
+                notes = [n for n in res["notes"] if n.startswith(("resumed", "checkpoint"))]
+                print(f"  run {runs}: {how}finished after {t:.1f} s; {'; '.join(notes)}; "
+                      f"on disk {dir_size(d) / 2**20:,.1f} MiB")
+        print(f"killed {kills} times and resumed (--checkpoint-interval {interval}): "
+              f"{total:.1f} s wall in all, {total / t_full:.2f}x the uninterrupted run; "
+              f"same result: {same(res, full)}")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

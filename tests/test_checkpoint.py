@@ -1,0 +1,385 @@
+"""Checkpoint and resume (``pccl explore --checkpoint DIR`` / ``--resume DIR``):
+a search interrupted at any point and resumed gives exactly the result of
+an uninterrupted one (pccl/checkpoint.py)."""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from pccl import api
+from pccl import checkpoint as C
+from pccl.fingerprint import fingerprint
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PROG = os.path.join(ROOT, "programs")
+TPROG = os.path.join(ROOT, "tests", "programs")
+
+#: (name, program, options): every feature of the one-process search
+CASES = [
+    ("fischer-k1", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"})),
+    ("fischer-k2-depth", f"{PROG}/fischer.pccl",
+     dict(overrides={"k": "2"}, depth=120, invariants=("count(inCs) <= 1",))),
+    ("fischer-none-depth", f"{PROG}/fischer.pccl",
+     dict(overrides={"k": "1"}, reduce="none", depth=40)),
+    ("fischer-max-states", f"{PROG}/fischer.pccl",
+     dict(overrides={"k": "1"}, max_states=20_000)),
+    ("race-nondet-all", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", find_all=True)),
+    ("race-nondet", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", reduce="none")),
+    ("tl-spin", f"{TPROG}/tl_spin.pccl", dict()),
+    ("rdv-stall", f"{TPROG}/rdv_meet.pccl",
+     dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight")),
+    ("rdv-stall-none", f"{TPROG}/rdv_meet.pccl",
+     dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight", reduce="none")),
+    ("fischer-temporal", f"{PROG}/fischer.pccl",
+     dict(overrides={"k": "1"}, depth=80, exact=True,
+          properties=("reachable count(inCs) == 1",))),
+]
+
+_OURS = ("resumed from", "checkpoint written to")
+
+
+def summary(r) -> dict:
+    """Everything a result says but time, memory and the checkpoint notes."""
+    s = r.stats
+    checked = r.checked.to_json()
+    checked["notes"] = [n for n in checked.get("notes", []) if not n.startswith(_OURS)]
+    return {"status": r.status, "verdict": r.verdict, "exit": r.exit_status,
+            "stats": (s.initial_states, s.states, s.transitions, s.max_depth, s.max_time),
+            "bounds": r.bound_labels,
+            "violations": [v.to_json() for v in r.violations],
+            "witnesses": [(w["name"], w["depth"], [st.to_json() for st in w["trace"]])
+                          for w in r.witnesses],
+            "holds": r.holds, "timelock": r.timelock, "stall": r.stall,
+            "notes": [n for n in r.notes if not n.startswith(_OURS)],
+            "checked": checked}
+
+
+class _Interrupt:
+    """A progress callback that interrupts the search at its ``k``-th call (a
+    batch admitted or a level finished), like Ctrl-C there."""
+
+    def __init__(self, k: int):
+        self.k, self.calls = k, 0
+
+    def __call__(self, p) -> None:
+        self.calls += 1
+        if self.calls == self.k:
+            raise KeyboardInterrupt
+
+
+def interrupted_run(program, opts: dict, d: str, cuts: list) -> tuple:
+    """Run with checkpoints in ``d``, interrupted at each of ``cuts`` (progress
+    calls) and resumed; returns the final result and how often it resumed."""
+    resumed = 0
+    for k in cuts + [None]:
+        kw = dict(opts, checkpoint=d, progress_interval=1e-9)
+        if k is not None:
+            kw["progress"] = _Interrupt(k)
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            return r, resumed
+    return r, resumed
+
+
+def _calls(program, opts) -> int:
+    counter = _Interrupt(0)
+    api.explore(program, progress=counter, progress_interval=1e-9, **opts)
+    return counter.calls
+
+
+@pytest.mark.parametrize("name,program,opts", CASES, ids=[c[0] for c in CASES])
+def test_interrupted_and_resumed_search_equals_uninterrupted(tmp_path, name, program, opts):
+    full = api.explore(program, **opts)
+    calls = _calls(program, opts)
+    rng = random.Random(name)
+    # interruptions at random points (batches, level ends), three resumes
+    cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
+    cuts = [c - (cuts[i - 1] if i else 0) for i, c in enumerate(cuts)]
+    r, resumed = interrupted_run(program, opts, str(tmp_path / "ck"), cuts)
+    assert summary(r) == summary(full)
+    assert resumed >= 1
+    assert any(n.startswith("resumed from") for n in r.notes)
+
+
+RUNAWAY = """Agent::Count
+
+loc:
+  int x = 0;
+
+Count():
+  pre(true);
+  eff:
+    while (true):
+      x = x + 1;
+"""
+
+
+def test_runaway_note_survives_a_resume(tmp_path):
+    """A zero-time runaway noted before the checkpoint is in the resumed
+    result too; one noted after it, once."""
+    p = tmp_path / "runaway.pccl"
+    p.write_text(RUNAWAY)
+    opts = dict(agents=1, reduce="none", max_states=1200)
+    full = api.explore(str(p), **opts)
+    assert sum("zero-time runaway" in n for n in full.notes) == 1
+    calls = _calls(str(p), opts)
+    for k in (calls // 10, calls // 2, calls - 3):
+        r, resumed = interrupted_run(str(p), opts, str(tmp_path / f"ck{k}"), [k])
+        assert resumed == 1 and summary(r) == summary(full), k
+
+
+def test_interrupt_at_every_point_of_a_small_search(tmp_path):
+    program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
+                                                         blackbox="nondet", find_all=True)
+    full = summary(api.explore(program, **opts))
+    calls = _calls(program, opts)
+    assert calls > 5
+    for k in range(1, calls + 1):
+        d = str(tmp_path / f"ck{k}")
+        r, _ = interrupted_run(program, opts, d, [k])
+        assert summary(r) == full, k
+
+
+def test_checkpoint_every_level_then_resume_from_each(tmp_path):
+    """--checkpoint-interval 0: a checkpoint at every level; the one a crash
+    leaves (any of them) resumes to the same result."""
+    program, opts = f"{TPROG}/rdv_meet.pccl", dict(world=f"{TPROG}/rdv_wall.toml",
+                                                    blackbox="straight", reduce="none")
+    full = summary(api.explore(program, **opts))
+    d = str(tmp_path / "every")
+    saved = []
+    orig = C.Checkpointer.write
+
+    def spy(self, state, arrays):
+        orig(self, state, arrays)
+        snap = str(tmp_path / f"gen{len(saved)}")
+        shutil.copytree(self.dir, snap)
+        saved.append((state["depth"], snap))
+
+    C.Checkpointer.write = spy
+    try:
+        api.explore(program, checkpoint=d, checkpoint_interval=0, **opts)
+    finally:
+        C.Checkpointer.write = orig
+    depths = [dep for dep, _ in saved]
+    assert depths == list(range(len(depths))) and len(depths) >= 10
+    for _, snap in saved:
+        assert summary(api.explore(program, resume=snap, **opts)) == full
+
+
+def test_states_round_trip_through_a_checkpoint():
+    """UNDEF (Ellipsis), floats, None, named tuples: the frontier pickled and
+    read back is the same states, with the same fingerprints."""
+    m = api.make_model(f"{PROG}/race_nonatomic.pccl", world=f"{PROG}/race.toml",
+                       blackbox="nondet")
+    states = list(m.init_states())
+    for _ in range(6):
+        states += [s for st in states[-5:] for _, s in m.successors(st)]
+    back = pickle.loads(pickle.dumps(states, protocol=5))
+    assert back == states
+    assert [fingerprint(m.key(s)) for s in back] == [fingerprint(m.key(s)) for s in states]
+
+    def cells(x):
+        if isinstance(x, tuple):
+            for y in x:
+                yield from cells(y)
+        else:
+            yield x
+    flat_a, flat_b = list(cells(tuple(states))), list(cells(tuple(back)))
+    assert any(x is Ellipsis for x in flat_a)
+    assert [x is Ellipsis for x in flat_a] == [x is Ellipsis for x in flat_b]
+    assert [type(x) for x in flat_a] == [type(x) for x in flat_b]
+
+
+def test_crash_while_writing_leaves_the_previous_checkpoint_usable(tmp_path, monkeypatch):
+    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=60)
+    full = summary(api.explore(program, **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(program, checkpoint=d, progress=_Interrupt(40), progress_interval=1e-9,
+                    **opts)
+    assert r.status == "interrupted"
+    before = json.load(open(os.path.join(d, C.MANIFEST)))
+
+    # the process dies after the new generation's files, before its manifest
+    def die(*a, **k):
+        raise SystemExit("killed while writing")
+    monkeypatch.setattr(C.os, "replace", die)
+    with pytest.raises(SystemExit):
+        api.explore(program, resume=d, checkpoint_interval=0, **opts)
+    monkeypatch.undo()
+    assert json.load(open(os.path.join(d, C.MANIFEST))) == before
+    leftovers = [e for e in os.listdir(d) if e != C.MANIFEST and e != before["generation"]]
+    assert leftovers                     # the half-written generation is there ...
+    # ... and ignored: the previous checkpoint resumes to the uninterrupted result
+    assert summary(api.explore(program, resume=d, **opts)) == full
+    # a truncated file of a generation no manifest names is ignored too
+    half = os.path.join(d, "gen-999999")
+    os.makedirs(half)
+    open(os.path.join(half, "state.pkl"), "wb").write(b"\x80\x05junk")
+    assert summary(api.explore(program, resume=d, **opts)) == full
+
+
+def _cli(*args, timeout=120):
+    return subprocess.run([sys.executable, "-m", "pccl.cli", *args], capture_output=True,
+                          text=True, cwd=ROOT, timeout=timeout)
+
+
+def _checkpoint_of(tmp_path, *args):
+    d = str(tmp_path / "ck")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, progress=_Interrupt(5),
+                    progress_interval=1e-9, overrides={"k": "1"})
+    assert r.status == "interrupted"
+    return d
+
+
+def test_resume_with_other_options_or_program_exits_2(tmp_path):
+    d = _checkpoint_of(tmp_path)
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=2", "--resume", d)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert f"--resume: error: {d}: the checkpoint was written with --set k=1, this run " \
+           f"has --set k=2" in p.stderr
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--depth", "9", "--resume", d)
+    assert p.returncode == 2 and "with no --depth, this run has --depth 9" in p.stderr
+    p = _cli("explore", "programs/race.pccl", "-w", "programs/race.toml", "--resume", d)
+    assert p.returncode == 2 and "the checkpoint was written for a different program" in p.stderr
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--reduce", "none",
+             "--resume", d)
+    assert p.returncode == 2 and "reductions merge+symmetry+por, this run has " \
+                                 "reductions none" in p.stderr
+
+
+@pytest.mark.parametrize("damage", ["manifest", "truncate", "flip", "missing", "format",
+                                    "version", "empty-dir", "no-dir"])
+def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
+    d = _checkpoint_of(tmp_path)
+    man = json.load(open(os.path.join(d, C.MANIFEST)))
+    gen = os.path.join(d, man["generation"])
+    if damage == "manifest":
+        open(os.path.join(d, C.MANIFEST), "w").write("{not json")
+    elif damage == "truncate":
+        p = os.path.join(gen, "state.pkl")
+        data = open(p, "rb").read()
+        open(p, "wb").write(data[:len(data) // 2])
+    elif damage == "flip":
+        p = os.path.join(gen, "fps.npy")
+        data = bytearray(open(p, "rb").read())
+        data[-3] ^= 0xFF
+        open(p, "wb").write(bytes(data))
+    elif damage == "missing":
+        os.unlink(os.path.join(gen, "parents.npy"))
+    elif damage == "format":
+        man["format"] = 99
+        json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
+    elif damage == "version":
+        man["pccl"] = "0.0.1"
+        json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
+    elif damage == "empty-dir":
+        d = str(tmp_path / "empty")
+        os.makedirs(d)
+    elif damage == "no-dir":
+        d = str(tmp_path / "nowhere")
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d)
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr and p.stderr.startswith(f"--resume: error: {d}: ")
+    want = {"manifest": "corrupt", "truncate": "corrupt", "flip": "does not match its digest",
+            "missing": "corrupt", "format": "format 99",
+            "version": "the checkpoint was written by pccl 0.0.1, this is pccl",
+            "empty-dir": "no checkpoint here",
+            "no-dir": "no such directory"}[damage]
+    assert want in p.stderr
+
+
+def test_checkpoint_refused_with_workers_ray_fastest_coverage():
+    for extra, want in ((["--workers", "2"], "--checkpoint runs in one process for now: use "
+                                             "--workers 1"),
+                        (["--fastest"], "--checkpoint does not run with --fastest yet"),
+                        (["--coverage"], "--checkpoint does not run with --coverage yet")):
+        p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/nonexistent/ck", *extra)
+        assert p.returncode == 2 and want in p.stderr and "Traceback" not in p.stderr, p.stderr
+    with pytest.raises(api.ArgumentError, match="checkpoint runs in one process"):
+        api.explore(f"{PROG}/fischer.pccl", checkpoint="x", workers=2)
+    p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
+    assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
+
+
+def test_interval_spellings():
+    assert [C.parse_interval(x) for x in ("90s", "10m", "1h", "0", "2.5", "30M")] == \
+        [90, 600, 3600, 0, 2.5, 1800]
+    for bad in ("", "-1", "1d", "ten"):
+        with pytest.raises(ValueError):
+            C.parse_interval(bad)
+
+
+def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
+    d = str(tmp_path / "ck")
+    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--no-progress",
+            "--format", "json"]
+    proc = subprocess.Popen([sys.executable, "-m", "pccl.cli", *args, "--checkpoint", d],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # wait until the search is under way (its first checkpoint needs a level)
+    time.sleep(1.5)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    if proc.returncode == 0:            # the machine was fast: nothing to resume
+        pytest.skip("the search ended before the signal")
+    assert proc.returncode == 143, err
+    assert json.loads(out)["status"] == "interrupted"
+    assert f"pccl: checkpoint written to {d}; resume with: pccl explore programs/fischer.pccl " \
+           f"--set k=2 --no-progress --format json --resume {d}" in err
+    p = _cli(*args, "--resume", d)
+    q = _cli(*args)
+    a, b = json.loads(p.stdout), json.loads(q.stdout)
+    for k in ("status", "verdict", "violations", "bounds", "checked"):
+        assert a[k] == b[k]
+    for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
+        assert a["statistics"][k] == b["statistics"][k]
+    assert any(n.startswith("resumed from") for n in a["notes"])
+
+
+@pytest.mark.slow
+def test_sigkill_at_random_times_then_resume(tmp_path):
+    """The issue's test: a search killed with SIGKILL (no chance to write
+    anything) at random times, resumed each time from the last periodic
+    checkpoint, ends with the uninterrupted result."""
+    d = str(tmp_path / "ck")
+    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--no-progress",
+            "--format", "json", "--checkpoint-interval", "0.3"]
+    full = json.loads(_cli(*args).stdout)
+    rng = random.Random(7)
+    kills = 0
+    for _ in range(8):
+        extra = ["--resume", d] if os.path.exists(os.path.join(d, C.MANIFEST)) else \
+            ["--checkpoint", d]
+        proc = subprocess.Popen([sys.executable, "-m", "pccl.cli", *args, *extra], cwd=ROOT,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(rng.uniform(1.0, 2.5))
+        if proc.poll() is not None:
+            break
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate()
+        kills += 1
+        if kills == 3:
+            break
+    p = _cli(*args, "--resume", d) if os.path.exists(os.path.join(d, C.MANIFEST)) \
+        else _cli(*args)
+    a = json.loads(p.stdout)
+    for k in ("status", "verdict", "violations", "bounds", "checked"):
+        assert a[k] == full[k]
+    for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
+        assert a["statistics"][k] == full["statistics"][k]
+    assert kills >= 1
