@@ -126,7 +126,7 @@ def test_view_a_trace_whose_program_is_gone(fischer_files, tmp_path):
     doc = json.loads(trace.read_text())
     prog = tmp_path / "gone.pccl"
     shutil.copy(FISCHER, prog)
-    doc["config"]["program"]["path"] = str(prog)
+    doc["config"]["program"].update(path=str(prog), absolute=str(prog), relative="gone.pccl")
     moved = tmp_path / "moved.json"
     moved.write_text(json.dumps(doc))
     prog.unlink()
