@@ -201,3 +201,25 @@ def chdir_root(monkeypatch):
     """Run with the repository root as the working directory (for relative paths)."""
     monkeypatch.chdir(ROOT)
     return ROOT
+
+
+# ---------------------------------------------------------------------------
+# the quick subset: python -m pytest -m "not slow" (README, "Tests")
+# ---------------------------------------------------------------------------
+
+def _slow_ids() -> frozenset:
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "slow_tests.txt")
+    with open(path, encoding="utf-8") as f:
+        return frozenset(ln.strip() for ln in f if ln.strip() and not ln.startswith("#"))
+
+
+SLOW_TESTS = _slow_ids()
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests listed in tests/slow_tests.txt (measured: 0.25 s or
+    more each) as ``slow``, so that ``-m "not slow"`` is a quick subset."""
+    import pytest
+    for item in items:
+        if item.nodeid in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)
