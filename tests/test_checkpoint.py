@@ -348,6 +348,9 @@ def test_checkpoint_refused_with_workers_ray_fastest_coverage():
         api.explore(f"{PROG}/fischer.pccl", checkpoint="x", workers=2)
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
+    p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.startswith("--checkpoint: error: cannot write checkpoints to /dev/null/ck")
 
 
 def test_interval_spellings():
