@@ -543,6 +543,8 @@ def _checkpoint_notes(ck) -> list:
     if ck.resumed is not None:
         out.append(f"resumed from {ck.resume_dir} at depth {ck.resumed['depth']}, "
                    f"{ck.resumed['states']:,} states")
+    if ck.error is not None:
+        out.append(ck.error)
     if ck.written is not None:
         out.append(f"checkpoint written to {ck.dir} at depth {ck.written['depth']}, "
                    f"{ck.written['states']:,} states ({ck.writes} written, "

@@ -188,6 +188,17 @@ class Checkpointer:
         self.writes = 0
         self.write_seconds = 0.0
         self.bytes = 0
+        #: why the last write failed (None: it did not)
+        self.error: Optional[str] = None
+
+    def failed(self, e: OSError) -> None:
+        """A write failed (a full disk): the previous checkpoint stays; said
+        at once and in the notes."""
+        self.error = f"checkpoint not written to {self.dir}: {e.strerror or e}; the previous " \
+            f"one stays"
+        self.last_write = _time.monotonic()       # try again after an interval
+        if self.note is not None:
+            self.note(self.error)
 
     # -- writing ---------------------------------------------------------------
     def due(self) -> bool:
@@ -204,6 +215,14 @@ class Checkpointer:
         except OSError as e:
             raise CheckpointError(f"cannot write checkpoints to {self.dir}: "
                                   f"{e.strerror or e}", filename="--checkpoint") from None
+        # a checkpoint already there stays valid until this search's first
+        # manifest replaces it: number the generations after it
+        try:
+            with open(os.path.join(self.dir, MANIFEST), encoding="utf-8") as f:
+                gen = json.load(f).get("generation", "")
+            self.generation = max(self.generation, int(gen[4:]))
+        except (OSError, ValueError, TypeError, AttributeError):
+            pass
 
     def write(self, state: dict, arrays: dict) -> None:
         """Write a generation: ``arrays`` (name -> numpy array) and ``state``

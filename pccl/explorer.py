@@ -751,7 +751,10 @@ class Explorer:
         if self.recorder is not None:
             arrays.update({f"rec_{k}": v for k, v in
                            self.recorder.dump(n, mark["edges"]).items()})
-        self.checkpoint.write(state, arrays)
+        try:
+            self.checkpoint.write(state, arrays)
+        except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
+            self.checkpoint.failed(e)
 
     def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:
         """Put the search back where the checkpoint ``state``/``arrays`` left it;

@@ -47,7 +47,7 @@ CASES = [
           properties=("reachable count(inCs) == 1",))),
 ]
 
-_OURS = ("resumed from", "checkpoint written to")
+_OURS = ("resumed from", "checkpoint written to", "checkpoint not written")
 
 
 def summary(r) -> dict:
@@ -234,6 +234,39 @@ def test_crash_while_writing_leaves_the_previous_checkpoint_usable(tmp_path, mon
     assert summary(api.explore(program, resume=d, **opts)) == full
 
 
+def test_a_failing_write_leaves_the_search_going_and_the_previous_checkpoint(tmp_path,
+                                                                            monkeypatch):
+    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=60)
+    full = summary(api.explore(program, **opts))
+    d = str(tmp_path / "ck")
+    api.explore(program, checkpoint=d, progress=_Interrupt(40), progress_interval=1e-9, **opts)
+    before = json.load(open(os.path.join(d, C.MANIFEST)))
+    real_save = C.np.save
+
+    def full_disk(*a, **k):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(C.np, "save", full_disk)
+    r = api.explore(program, resume=d, checkpoint_interval=0, **opts)
+    monkeypatch.setattr(C.np, "save", real_save)
+    assert summary(r) == full                       # the search went on
+    assert f"checkpoint not written to {d}: No space left on device; the previous one " \
+           f"stays" in r.notes
+    assert json.load(open(os.path.join(d, C.MANIFEST))) == before
+    assert summary(api.explore(program, resume=d, **opts)) == full
+
+
+def test_a_new_search_into_a_checkpoint_directory_keeps_the_old_one_until_replaced(tmp_path):
+    d = _checkpoint_of(tmp_path)
+    before = json.load(open(os.path.join(d, C.MANIFEST)))
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, progress=_Interrupt(3),
+                    progress_interval=1e-9, overrides={"k": "1"})
+    after = json.load(open(os.path.join(d, C.MANIFEST)))
+    assert r.status == "interrupted"
+    assert int(after["generation"][4:]) > int(before["generation"][4:])
+    assert os.listdir(d) == [C.MANIFEST, after["generation"]] or \
+        sorted(os.listdir(d)) == sorted([C.MANIFEST, after["generation"]])
+
+
 def _cli(*args, timeout=120):
     return subprocess.run([sys.executable, "-m", "pccl.cli", *args], capture_output=True,
                           text=True, cwd=ROOT, timeout=timeout)
@@ -315,6 +348,9 @@ def test_checkpoint_refused_with_workers_ray_fastest_coverage():
         api.explore(f"{PROG}/fischer.pccl", checkpoint="x", workers=2)
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
+    p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.startswith("--checkpoint: error: cannot write checkpoints to /dev/null/ck")
 
 
 def test_interval_spellings():
