@@ -134,18 +134,6 @@ class Checked:
 # what the program reads
 # ---------------------------------------------------------------------------
 
-def _exprs_of(s) -> list:
-    if isinstance(s, A.Assign):
-        return [s.target, s.value]
-    if isinstance(s, A.If):
-        return [c for c, _ in s.branches]
-    if isinstance(s, A.While):
-        return [s.cond]
-    if isinstance(s, A.CallStmt):
-        return list(s.args)
-    return []
-
-
 def world_reads(prog: A.Program) -> dict:
     """What ``prog`` reads of the world, by kind (``input``, ``obstacles``,
     ``positions``): the first line where it does."""
@@ -158,7 +146,7 @@ def world_reads(prog: A.Program) -> dict:
     for s in stmts:
         if isinstance(s, A.CallStmt) and s.name == "doReach":
             found.setdefault("positions", ("doReach", s.span.line))
-        exprs.extend(_exprs_of(s))
+        exprs.extend(A.own_exprs(s))
     kinds = {"getInput": "input", "getObs": "obstacles", "getPosition": "positions"}
     for x in exprs:
         for e in A.walk_expr(x):
