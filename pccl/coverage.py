@@ -30,6 +30,7 @@ class CoverageModel:
         self.violations = model.violations
         self.terminal_kind = model.terminal_kind
         self.deadlock_violation = model.deadlock_violation
+        self.time_costs = model.time_costs
         self.held: Counter = Counter()      # event -> expanded (state, agent) where its guard held
         self.fired: Counter = Counter()     # event -> EVENT SELECT transitions
         self.executed: Counter = Counter()  # statement id -> transitions

@@ -27,6 +27,7 @@ blackbox, the clock, the properties and the transitions.
 from __future__ import annotations
 
 import decimal
+import itertools
 import math
 import operator
 
@@ -40,8 +41,8 @@ from .compiled import CompiledProgram
 from .blackboxes.base import Motion
 from .errors import OptionError, PcclError
 from .fingerprint import check_canonical
-from .layout import (AGS, BLANK_REACH, CNT, DISCRETE, ENV, EXITED, IDLE, LCK, LQ,
-                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TIME, acquire_sid,
+from .layout import (AGS, BLANK_REACH, CNT, DISCRETE, DONE, ENV, EXITED, FAIL, IDLE, LCK, LQ,
+                     PC, PHASE, POS, REACH, RUNNING, SH, STATUS, STUCK, TARGET, TIME, acquire_sid,
                      is_acquire, make_agent, make_state, put_agent, with_pc,
                      with_status, without_time)
 from .values import UNDEF
@@ -954,7 +955,56 @@ class Model:
             msg += "; " + "; ".join(waiting)
         return Violation("deadlock", "deadlock", msg, None, None)
 
+    # -- what the search family reads through the model (fastest.py, liveness.py):
+    #    the configuration's layout and its display stay on this side
+    @staticmethod
+    def time_costs(states) -> list:
+        """The time steps (of δ) a transition into each of ``states`` costs:
+        1 into a dynamic state (exactly a TIME ADVANCE), else 0.  A plain
+        function (picklable by name: the parallel workers' graph columns)."""
+        return list(map(operator.ne, map(_PHASE_OF, states), itertools.repeat(DISCRETE)))
+
+    @staticmethod
+    def arrival_pending(st) -> int:
+        """The agents of ``st`` whose doReach is under way, as a bit mask (fair
+        arrival: nondet may still let them arrive)."""
+        m = 0
+        for i, ag in enumerate(st[AGS]):
+            reach = ag[REACH]
+            t, pos = reach[TARGET], ag[POS]
+            if (t is not None and not reach[DONE] and not reach[FAIL]
+                    and (pos[0] != t[0] or pos[1] != t[1])):
+                m |= 1 << i
+        return m
+
+    def label_info(self, label, before=None) -> dict:
+        """A transition label decoded: ``{"rule", "agent", "event", "line",
+        "source"}`` (:func:`pccl.display.label_info`)."""
+        from .display import label_info
+        return label_info(self, label, before)
+
+    def stall_signature(self) -> Callable:
+        """``sig(state) -> int``, what the stall check compares (pccl/stall.py)."""
+        from .stall import signature_fn
+        return signature_fn(self)
+
+    def waiting_note(self, st) -> tuple[list, str]:
+        """What each running agent of a stalled ``st`` waits on: ``([(agent,
+        text)], one line)`` (pccl/stall.py)."""
+        from .stall import waiting, waiting_text
+        waits = waiting(self, st)
+        return waits, waiting_text(waits)
+
+    def expand_trace(self, trace):
+        """``trace`` with every merged transition replaced by its steps
+        (itself when statements are not merged)."""
+        if self.__dict__.get("merger") is None:
+            return trace
+        from .reduce import expand_trace
+        return expand_trace(self, trace)
+
 _EXACT = decimal.Context(prec=60)
+_PHASE_OF = operator.itemgetter(PHASE)
 
 
 class _InitPath:

@@ -116,6 +116,15 @@ class Model(Protocol):
     # its workers.  A model that builds tables lazily which its states refer
     # to (PCCL interns k cells as small ints) must build them there, so that
     # every process numbers them alike.
+    #
+    # What the rest of the search family reads of a state or a label comes
+    # through the model too, never from PCCL's configuration layout or its
+    # display (tests/test_architecture.py): ``time_costs(states)``, the time
+    # steps a transition into each state costs (pccl/fastest.py orders on
+    # it; pccl/liveness.py's dynamic-state column); and for the graph
+    # analyses of pccl/liveness.py ``arrival_pending(state)``,
+    # ``stall_signature()``, ``waiting_note(state)``, ``label_info(label,
+    # before)`` and ``expand_trace(trace)`` (see :class:`pccl.engine.Model`).
 
 
 #: The status of a search stopped by a ``MemoryError`` (the process could not
@@ -416,7 +425,7 @@ class ExactTable:
         self.n = 0
         self.ids: dict = {}
         self.parents: list = []
-        self._batch = None
+        self._batch: Any = None
         self.found: Any = None
 
     def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
@@ -902,7 +911,7 @@ class _Admission:
         self.reported: set = set()
         self.record = ex._recorder(res.found, self.reported)
         self.clock = getattr(ex.model, "clock", None)
-        key = ex.model.key
+        key: Callable[[Any], Any] = ex.model.key      # a key is marshallable (Model.key)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         twos = itertools.repeat(2)
         if ex.exact:

@@ -26,15 +26,25 @@ import gc
 import heapq
 import marshal
 import time as _time
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any, Protocol, cast
 
 import numpy as np
 import xxhash
 
-from .explorer import (OUT_OF_MEMORY, Bound, Explorer, ExactTable, FingerprintTable, SearchResult, Stats,
+from .explorer import (OUT_OF_MEMORY, Bound, Explorer, Model, ExactTable, FingerprintTable, SearchResult, Stats,
                        _MAX_STATES, _NO_PARENT, peak_rss_bytes)
 from .fingerprint import collision_bound
 
-__all__ = ["FastestExplorer"]
+__all__ = ["FastestExplorer", "TimedModel"]
+
+
+class TimedModel(Model, Protocol):
+    """What the fastest search needs besides :class:`~pccl.explorer.Model`:
+    the cost in time steps of a transition into each of ``states`` (PCCL: 1
+    into a dynamic state, i.e. a TIME ADVANCE; 0 otherwise)."""
+
+    def time_costs(self, states: Sequence[Any]) -> Iterable[int]: ...
 
 
 class FastestExplorer(Explorer):
@@ -53,9 +63,9 @@ class FastestExplorer(Explorer):
         return res
 
     def _run_fastest(self) -> SearchResult:
-        from .layout import DISCRETE, PHASE
-        m = self.model
-        key = m.key
+        m = cast(TimedModel, self.model)
+        key: Callable[[Any], Any] = m.key       # a key is marshallable (Model.key)
+        time_costs = m.time_costs       # a step's time cost comes from the model
         exact = self.exact
         table = self.table = ExactTable() if exact else FingerprintTable()
         if exact:
@@ -150,9 +160,9 @@ class FastestExplorer(Explorer):
                             rec.edges(np.full(len(dst), idx, dtype=np.int64), dst, states)
                         else:
                             rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)
-                    for s2, i2 in zip(states, new):
+                    for s2, i2, c in zip(states, new, time_costs(states)):
                         if i2 >= 0:
-                            push((ticks + (s2[PHASE] != DISCRETE), depth + 1), s2, i2)
+                            push((ticks + c, depth + 1), s2, i2)
                 if (self.max_memory is not None and not stop
                         and peak_rss_bytes() > self.max_memory):
                     bounds.add(Bound.MAX_MEMORY)

@@ -51,7 +51,6 @@ from typing import Any, Optional
 import numpy as np
 
 from .explorer import Counterexample
-from .layout import AGS, DISCRETE, DONE, FAIL, PHASE, POS, REACH, TARGET
 
 __all__ = ["GraphRecorder", "analyse", "LivenessResult"]
 
@@ -91,32 +90,25 @@ class _Grow:
         self.n = 0
 
 
-_phase = operator.itemgetter(PHASE)
-
-
-def _pending_mask(st) -> int:
-    """Agents whose doReach is under way (nondet may still let them arrive)."""
-    m = 0
-    for i, ag in enumerate(st[AGS]):
-        reach = ag[REACH]
-        t, pos = reach[TARGET], ag[POS]
-        if (t is not None and not reach[DONE] and not reach[FAIL]
-                and (pos[0] != t[0] or pos[1] != t[1])):
-            m |= 1 << i
-    return m
-
-
 class StateColumns:
     """The per-state part of the graph, as a pure function of the states:
     ``columns(states)`` returns one array per recorded column (dynamic or
     not; the property bits, with temporal properties; the pending
     doReach agents, under fair arrival).  Small and picklable (the
     properties' closures travel as the model does), so that the workers of
-    the parallel search compute the columns of the states they hold."""
+    the parallel search compute the columns of the states they hold.
 
-    def __init__(self, props=(), fairness: bool = False, sig_of=None):
+    What it reads of a state comes from the model (no configuration layout
+    here): ``time_costs(states)`` (1 into a dynamic state), and, under fair
+    arrival, ``pending(state)``, the bit mask of agents whose doReach is
+    under way (:meth:`pccl.engine.Model.arrival_pending`)."""
+
+    def __init__(self, props=(), fairness: bool = False, sig_of=None, *,
+                 time_costs=None, pending=None):
         self.props = list(props)
         self.fairness = fairness
+        self.time_costs = time_costs
+        self.pending = pending
         #: the stall check's signature hash (pccl/stall.py), or None
         self.sig_of = sig_of
 
@@ -133,8 +125,7 @@ class StateColumns:
 
     def __call__(self, states: list) -> list:
         n = len(states)
-        phase = np.fromiter(map(_phase, states), dtype=np.int64, count=n)
-        cols = [(phase != DISCRETE).astype(np.uint8)]
+        cols: list = [np.fromiter(self.time_costs(states), dtype=np.uint8, count=n)]
         if self.props:
             vals = np.zeros(n, dtype=np.uint64)
             for k, p in enumerate(self.props):
@@ -145,7 +136,7 @@ class StateColumns:
                     vals |= col.astype(np.uint64) << np.uint64(b)
             cols.append(vals)
         if self.fairness:
-            cols.append(np.fromiter(map(_pending_mask, states), dtype=np.uint64, count=n))
+            cols.append(np.fromiter(map(self.pending, states), dtype=np.uint64, count=n))
         if self.sig_of is not None:
             cols.append(np.fromiter(map(self.sig_of, states), dtype=np.int64, count=n))
         return cols
@@ -162,10 +153,11 @@ class GraphRecorder:
         self.fairness = fairness and model.N <= 64
         sig_of = None
         if stall:
-            from .stall import signature_fn
-            sig_of = signature_fn(model)
+            sig_of = model.stall_signature()
         #: the per-state columns (the parallel search runs it in its workers)
-        self.columns = StateColumns(self.props, self.fairness, sig_of)
+        self.columns = StateColumns(self.props, self.fairness, sig_of,
+                                    time_costs=model.time_costs,
+                                    pending=model.arrival_pending if self.fairness else None)
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -832,10 +824,9 @@ def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):
 def loops_of(model, steps) -> list:
     """For a cycle's steps: ``[(agent, [source lines])]`` of the agents that
     take steps in it."""
-    from .display import label_info
     by: dict = {}
     for st in steps:
-        info = label_info(model, st.label, st.before)
+        info = model.label_info(st.label, st.before)
         a = info["agent"]
         if a is None:
             continue
@@ -850,11 +841,9 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
     into real traces (statement by statement under statement merging)."""
     import dataclasses
     from .explorer import Trace
-    from .reduce import expand_trace
 
     def replay(chain):
-        tr = explorer.replay_chain(chain)
-        return expand_trace(model, tr) if getattr(model, "merger", None) else tr
+        return model.expand_trace(explorer.replay_chain(chain))
 
     for cx in lv.found:
         if not cx.chain:
@@ -874,11 +863,10 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
                     message=cx.violation.message + "; looping: " + ", ".join(parts),
                     agent=loops[0][0] if loops else None)
         if cx.violation.kind == "stall":
-            from .stall import waiting, waiting_text
-            waits = waiting(model, tr.last)
+            waits, text = model.waiting_note(tr.last)
             cx.violation = dataclasses.replace(
                 cx.violation, waits=tuple(waits),
-                message=cx.violation.message + ("; " + waiting_text(waits) if waits else ""),
+                message=cx.violation.message + ("; " + text if waits else ""),
                 agent=waits[0][0] if waits else None)
         cx.trace = Trace(tr.states, tr.labels)
         cx.depth = len(tr)

@@ -532,7 +532,6 @@ def _end_of_stall(m, recorded, cycle_start, res, diverge):
 
 def _end_of_temporal(m, cfg, recorded, cycle_start, res, diverge):
     from .layout import AGS, DISCRETE, EXITED, PHASE, STATUS
-    from .liveness import _pending_mask
     from .runner import _Monitor
     states, labels = res.states, res.labels
     n = len(labels)
@@ -614,7 +613,7 @@ def _end_of_temporal(m, cfg, recorded, cycle_start, res, diverge):
                 if getattr(m.blackbox, "name", None) == "nondet":
                     cyc = states[cycle_start:]
                     for a in range(m.N):
-                        if all(_pending_mask(st) >> a & 1 for st in cyc):
+                        if all(m.arrival_pending(st) >> a & 1 for st in cyc):
                             return bad(f"the cycle is unfair: agent {a}'s doReach is under "
                                        f"way throughout, and nondet lets it arrive")
     res.status, res.exit_status = "violation", 1

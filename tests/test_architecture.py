@@ -136,3 +136,28 @@ def test_the_source_tree_has_the_installed_layout():
         if pkg != "pccl":
             link = ROOT / pkg.replace(".", "/")
             assert link.is_symlink() and link.resolve() == (ROOT / d).resolve(), pkg
+
+
+#: the search family: the explorer and its frontiers, the graph analyses,
+#: checkpoints and the bookkeeping (by module name, wherever the package puts them)
+SEARCH = {"explorer", "fastest", "parallel", "liveness", "checkpoint", "fingerprint", "memory"}
+#: PCCL's display and configuration layout: what the search reads only
+#: through the model (a step's time cost, a label's text, a stall's note)
+DISPLAY_LAYOUT = {"display", "layout", "traces", "views", "values", "stall", "reduce", "plot",
+                  "viewer", "graph", "results"}
+
+
+def _by_stem(stems: set) -> set:
+    return {m for m in MODULES if m.rpartition(".")[2] in stems}
+
+
+@pytest.mark.parametrize("mod", sorted(_by_stem(SEARCH)))
+def test_the_search_family_imports_no_display_or_layout(mod):
+    """Not even through another module: what the search needs of a state
+    or a label comes through the model's methods."""
+    reached = {m for m in _reach(mod) | {mod} if m.rpartition(".")[2] in DISPLAY_LAYOUT}
+    assert not reached, reached
+
+
+def test_the_search_family_is_found():
+    assert {m.rpartition(".")[2] for m in _by_stem(SEARCH)} == SEARCH
