@@ -472,6 +472,75 @@ class ExactTable:
 _NO_PARENT = 0xFFFF_FFFF
 
 
+# What the three frontiers share: the breadth-first levels here, the fastest
+# priority (pccl/fastest.py) and the partitioned workers (pccl/parallel.py)
+# admit initial states by :meth:`Explorer._initial_chunks`, read a state
+# without successors by :func:`terminal`, record violations by
+# :meth:`Explorer._recorder`, check the bounds by :meth:`Explorer._at_depth_bound`,
+# :meth:`Explorer._budget` and :meth:`Explorer._memory_bound`, report by
+# :class:`Progress` and finish by :meth:`Explorer._finish`.
+
+def terminal(model: Model, state, deadlock: bool) -> tuple:
+    """What a state without successors means to the search: ``(Bound.MODEL,
+    None)`` when the model's own horizon stopped it, ``(None, violation)``
+    for a deadlock to report (``deadlock``: deadlocks are checked), else
+    ``(None, None)`` (a final state)."""
+    kind = model.terminal_kind(state)
+    if kind == "bounded":
+        return Bound.MODEL, None
+    if kind == "deadlock" and deadlock:
+        return None, model.deadlock_violation(state)
+    return None, None
+
+
+class Progress:
+    """The ``progress`` callback, called at most every ``interval`` seconds:
+    ``progress(figures)`` calls ``figures(seconds since the start)`` for the
+    dict only when it is due."""
+
+    def __init__(self, fn: Optional[Callable[[dict], None]], interval: float, t_start: float):
+        self.fn, self.interval, self.t_start = fn, interval, t_start
+        self.next = _time.perf_counter() + interval
+
+    def __call__(self, figures: Callable[[float], dict]) -> None:
+        if self.fn is None:
+            return
+        now = _time.perf_counter()
+        if now >= self.next:
+            self.next = now + self.interval
+            self.fn(figures(now - self.t_start))
+
+
+class _Runaway:
+    """Zero-time runaways (``on_runaway``): the depth at which the largest
+    model time last grew, told the depth and time after every level."""
+
+    def __init__(self, ex: "Explorer", max_time: Any, start: Optional[dict]):
+        self.ex = ex
+        runaway: tuple = start["runaway"] if start is not None else (0, max_time, False)
+        self.time_depth: int = runaway[0]
+        self.last_time: Any = runaway[1]
+        warned: bool = runaway[2]
+        self.warned = warned or ex.on_runaway is None
+
+    def state(self) -> tuple:
+        """What a checkpoint keeps of it."""
+        return self.time_depth, self.last_time, self.warned
+
+    def level(self, depth: int, max_time: Any, level: list) -> None:
+        """A new level at ``depth``, the largest time so far ``max_time``."""
+        if max_time != self.last_time:
+            self.time_depth, self.last_time = depth, max_time
+        elif not self.warned and self.last_time is not None \
+                and depth - self.time_depth >= self.ex.runaway_levels:
+            self.warned = True
+            ex = self.ex
+            assert ex.on_runaway is not None
+            ex._runaway_info = {"depth": depth, "levels": depth - self.time_depth,
+                                "max_time": self.last_time, "state": level[-1]}
+            ex.on_runaway(ex._runaway_info)
+
+
 class Explorer:
     """Breadth-first search of a :class:`Model`.
 
@@ -578,149 +647,169 @@ class Explorer:
     def _initial_states(self, adm: "_Admission") -> bool:
         """Admit the initial states, as batches of successors of nobody;
         True to stop."""
-        cs, stop = adm.cs, False
-        batch = self.batch
-        for s in self.model.init_states():
-            cs.append(s)
-            if len(cs) >= batch or len(cs) > adm.budget:     # never build far beyond the budget
-                adm.par_idx.append(_NO_PARENT)
-                adm.par_n.append(len(cs))
-                stop = adm.flush(0)
-                adm.stats.transitions = 0
-                if stop:
-                    break
-        if not stop and cs:
+        stop = False
+        for chunk in self._initial_chunks(lambda: adm.budget):
+            adm.cs.extend(chunk)
             adm.par_idx.append(_NO_PARENT)
-            adm.par_n.append(len(cs))
+            adm.par_n.append(len(chunk))
             stop = adm.flush(0)
+            if stop:
+                break
         adm.stats.transitions = 0
         adm.stats.initial_states = self.table.n
         return stop
 
     def _levels(self, adm: "_Admission", t_start: float, stop: bool,
                 start: Optional[dict] = None) -> None:
-        """The breadth-first level loop: expand each state of a level, queue
-        its successors for admission (a batch at a time); a state without
-        successors is final, bounded or a deadlock.  (``stop``: the initial
-        states already stopped the search; ``start``: the level, depth and
-        runaway detector of a checkpoint resumed.)"""
-        m = self.model
-        succ_fn = m.successors
-        max_depth = self.max_depth
-        batch = self.batch
-        table = self.table
-        stats = adm.stats
-        flush = adm.flush
-        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
-        second = operator.itemgetter(1)
-        labels = self.labels
-        first = operator.itemgetter(0)
+        """The breadth-first level loop: expand each level
+        (:meth:`_expand_level`), admit what is pending, move to the next
+        level.  (``stop``: the initial states already stopped the search;
+        ``start``: the level, depth and runaway detector of a checkpoint
+        resumed.)"""
+        table, stats, ck = self.table, adm.stats, self.checkpoint
         depth = 0
         if start is not None:
             depth = start["depth"]
             level, level_idx = start["level"], start["level_idx"]
         else:
             level, level_idx = adm.take_level()
-        ck = self.checkpoint
-        next_report = _time.perf_counter() + self.progress_interval
+        progress = Progress(self.progress, self.progress_interval, t_start)
 
-        def report(left):
-            nonlocal next_report
-            if self.progress is None:
-                return
-            now = _time.perf_counter()
-            if now >= next_report:
-                next_report = now + self.progress_interval
-                self.progress({"states": table.n, "frontier": left + len(adm.nxt),
-                               "depth": depth, "seconds": now - t_start,
-                               "memory": peak_rss_bytes(), "max_time": stats.max_time})
+        def report(left: int) -> None:
+            progress(lambda secs: {"states": table.n, "frontier": left + len(adm.nxt),
+                                   "depth": depth, "seconds": secs,
+                                   "memory": peak_rss_bytes(), "max_time": stats.max_time})
 
-        def expand_one(succs: list, c0: int, at_bound: bool) -> bool:
-            """The chunk of the level at ``c0`` (its successor lists
-            ``succs``) state by state: terminal states, the depth bound.
-            True to stop."""
-            for j, succ in enumerate(succs):
-                pos = c0 + j
-                if not succ:
-                    s = level[pos]
-                    kind = m.terminal_kind(s)
-                    if kind == "bounded":
-                        flags.setdefault(Bound.MODEL, level_idx[pos])
-                    elif kind == "deadlock" and self.deadlock:
-                        # the pending successors of earlier states come first
-                        if flush(depth + 1):
-                            return True
-                        v = m.deadlock_violation(s)
-                        if v is not None and adm.record([v], level_idx[pos], depth):
-                            return True
-                    continue
-                if at_bound:
-                    flags.setdefault(Bound.DEPTH, level_idx[pos])
-                    continue
-                par_idx.append(level_idx[pos])
-                par_n.append(len(succ))
-                cs.extend(map(second, succ))     # labels are dropped now
-                if len(cs) >= batch:
-                    if flush(depth + 1):
-                        return True
-                    report(len(level) - pos)
-            return False
-
-        chain = itertools.chain.from_iterable
-        chunk = max(1, batch // 4)
-        # zero-time runaways: the depth at which the largest time last grew
-        time_depth, last_time, warned = 0, stats.max_time, self.on_runaway is None
-        if start is not None:
-            time_depth, last_time, warned = start["runaway"]
-            warned = warned or self.on_runaway is None
+        runaway = _Runaway(self, stats.max_time, start)
         while level and not stop:
             if ck is not None:
                 # what a checkpoint of this level's start holds (a level
                 # interrupted half way is expanded again on resume)
                 self._mark = self._level_mark(adm, depth, level, level_idx, t_start,
-                                              (time_depth, last_time, warned))
+                                              runaway.state())
                 if ck.due() and ck.last_saved != (depth, table.n):
                     self._save(adm, adm.res)
-            at_bound = max_depth is not None and depth >= max_depth
-            for c0 in range(0, len(level), chunk):
-                # a chunk of the level expanded with C-level map()s: no
-                # bytecode per state unless the chunk holds a terminal
-                # state or the depth bound is reached
-                succs = list(map(succ_fn, level[c0:c0 + chunk]))
-                if labels is not None:
-                    labels.update(map(first, chain(succs)))
-                ns = list(map(len, succs))
-                if not at_bound and 0 not in ns:
-                    par_idx.extend(level_idx[c0:c0 + chunk])
-                    par_n.extend(ns)
-                    cs.extend(map(second, chain(succs)))     # labels are dropped now
-                    del succs
-                    if len(cs) >= batch:
-                        if flush(depth + 1):
-                            stop = True
-                            break
-                        report(len(level) - c0 - len(ns))
-                    continue
-                if expand_one(succs, c0, at_bound):
-                    stop = True
-                    break
-            if not stop and flush(depth + 1):
-                stop = True
+            stop = self._expand_level(adm, level, level_idx, depth, report) \
+                or adm.flush(depth + 1)
             report(0)
             level, level_idx = adm.take_level()
             if level:
                 depth += 1
                 stats.max_depth = depth
-                if stats.max_time != last_time:
-                    time_depth, last_time = depth, stats.max_time
-                elif not warned and last_time is not None \
-                        and depth - time_depth >= self.runaway_levels:
-                    warned = True
-                    assert self.on_runaway is not None
-                    self._runaway_info = {"depth": depth, "levels": depth - time_depth,
-                                          "max_time": last_time, "state": level[-1]}
-                    self.on_runaway(self._runaway_info)
+                runaway.level(depth, stats.max_time, level)
         stats.frontier = len(level)
+
+    def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
+                      report: Callable[[int], None]) -> bool:
+        """Expand one level, queueing its successors for admission a batch
+        at a time: the hot path (its locals are hoisted once per level).
+        True to stop."""
+        succ_fn = self.model.successors
+        batch = self.batch
+        flush = adm.flush
+        cs, par_idx, par_n = adm.cs, adm.par_idx, adm.par_n
+        second = operator.itemgetter(1)
+        labels = self.labels
+        first = operator.itemgetter(0)
+        chain = itertools.chain.from_iterable
+        chunk = max(1, batch // 4)
+        at_bound = self._at_depth_bound(depth)
+        for c0 in range(0, len(level), chunk):
+            # a chunk of the level expanded with C-level map()s: no
+            # bytecode per state unless the chunk holds a terminal
+            # state or the depth bound is reached
+            succs = list(map(succ_fn, level[c0:c0 + chunk]))
+            if labels is not None:
+                labels.update(map(first, chain(succs)))
+            ns = list(map(len, succs))
+            if not at_bound and 0 not in ns:
+                par_idx.extend(level_idx[c0:c0 + chunk])
+                par_n.extend(ns)
+                cs.extend(map(second, chain(succs)))     # labels are dropped now
+                del succs
+                if len(cs) >= batch:
+                    if flush(depth + 1):
+                        return True
+                    report(len(level) - c0 - len(ns))
+                continue
+            if self._expand_one(adm, level, level_idx, depth, succs, c0, at_bound, report):
+                return True
+        return False
+
+    def _expand_one(self, adm: "_Admission", level: list, level_idx: list, depth: int,
+                    succs: list, c0: int, at_bound: bool,
+                    report: Callable[[int], None]) -> bool:
+        """The chunk of the level at ``c0`` (its successor lists ``succs``)
+        state by state: terminal states, the depth bound.  True to stop."""
+        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
+        second = operator.itemgetter(1)
+        for j, succ in enumerate(succs):
+            pos = c0 + j
+            if not succ:
+                bound, v = terminal(self.model, level[pos], self.deadlock)
+                if bound is not None:
+                    flags.setdefault(bound, level_idx[pos])
+                elif v is not None:
+                    # the pending successors of earlier states come first
+                    if adm.flush(depth + 1) or adm.record([v], level_idx[pos], depth):
+                        return True
+                continue
+            if at_bound:
+                flags.setdefault(Bound.DEPTH, level_idx[pos])
+                continue
+            par_idx.append(level_idx[pos])
+            par_n.append(len(succ))
+            cs.extend(map(second, succ))     # labels are dropped now
+            if len(cs) >= self.batch:
+                if adm.flush(depth + 1):
+                    return True
+                report(len(level) - pos)
+        return False
+
+    # -- the skeleton's shared steps (see terminal() above) -------------------
+    def _initial_chunks(self, room: Callable[[], int]) -> Iterator[list]:
+        """The model's initial states in chunks of at most ``batch``, and
+        never more than one beyond the ``room()`` left in the state budget
+        (so that a small budget does not build all of them)."""
+        it = iter(self.model.init_states())
+        while True:
+            chunk = list(itertools.islice(it, min(self.batch, room() + 1)))
+            if not chunk:
+                return
+            yield chunk
+
+    def _budget(self) -> int:
+        """How many states the search may admit."""
+        return self.max_states if self.max_states is not None else _MAX_STATES
+
+    def _at_depth_bound(self, depth: int) -> bool:
+        """States at ``depth`` are not expanded (``max_depth``)."""
+        return self.max_depth is not None and depth >= self.max_depth
+
+    def _memory_bound(self, bounds: set, peak: int) -> bool:
+        """True (and :attr:`Bound.MAX_MEMORY` in ``bounds``) once ``peak``
+        passes ``max_memory``."""
+        if self.max_memory is not None and peak > self.max_memory:
+            bounds.add(Bound.MAX_MEMORY)
+            return True
+        return False
+
+    def _finish(self, res: SearchResult, bounds: set, t_start: float,
+                peak: int) -> SearchResult:
+        """The search's figures and verdict (the states are the table's), and
+        a trace per violation found."""
+        stats, found = res.stats, res.found
+        stats.states = self.table.n
+        stats.seconds = _time.perf_counter() - t_start
+        stats.peak_memory = peak
+        if not res.exact:
+            res.collision_probability = collision_bound(stats.states)
+        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
+        if res.status not in ("interrupted", OUT_OF_MEMORY):
+            res.status = "violation" if found else "bounded" if bounds else "exhaustive"
+        for f in found:
+            f.trace = self.replay(f.index)
+        return res
 
     # -- checkpoints (pccl/checkpoint.py) -----------------------------------
     def _level_mark(self, adm: "_Admission", depth: int, level: list, level_idx: list,
@@ -801,23 +890,8 @@ class Explorer:
 
     def _result(self, res: SearchResult, adm: "_Admission", t_start: float) -> SearchResult:
         """The search's figures and verdict, and a trace per violation found."""
-        stats, bounds, found = res.stats, adm.bounds, res.found
-        stats.states = self.table.n
-        stats.seconds = _time.perf_counter() - t_start
-        stats.peak_memory = max(peak_rss_bytes(), getattr(self, "_peak_before", 0))
-        if not self.exact:
-            res.collision_probability = collision_bound(stats.states)
-        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
-        if res.status not in ("interrupted", OUT_OF_MEMORY):
-            if found:
-                res.status = "violation"
-            elif bounds:
-                res.status = "bounded"
-            else:
-                res.status = "exhaustive"
-        for f in found:
-            f.trace = self.replay(f.index)
-        return res
+        return self._finish(res, adm.bounds, t_start,
+                            max(peak_rss_bytes(), getattr(self, "_peak_before", 0)))
 
     def _recorder(self, found: list, reported: set):
         """``record(violations, state number, depth) -> stop?``: appends each
@@ -905,7 +979,7 @@ class _Admission:
         self.nxt: list = []         # the next level's states, in admission order
         self.nxt_idx: list = []     # ... and their state numbers
         self.bounds: set = set()
-        self.budget = ex.max_states if ex.max_states is not None else _MAX_STATES
+        self.budget = ex._budget()
         self.res = res
         #: identities of the violations reported (``--all`` reports each once)
         self.reported: set = set()
@@ -982,21 +1056,7 @@ class _Admission:
             if rec is not None:
                 rec.states(states[:cut])
         if rec is not None:
-            # each candidate's state number, from its key's first
-            # occurrence (looked up once, in new_positions): no second
-            # lookup of the batch in the table
-            num = table.found
-            num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
-            dst = num[np.searchsorted(first, np.fromiter(
-                map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
-            src = np.asarray(par_idx, dtype=np.int64)[owners]
-            keep = src != _NO_PARENT
-            if getattr(rec, "wants_candidates", False):
-                # the successor states too (before the batch is cleared)
-                cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
-                rec.edges(src[keep], dst[keep], cands)
-            else:
-                rec.edges(src[keep], dst[keep])
+            self._record_edges(rec, ck, first_of, first, owners, base, cut)
         self.budget = budget - cut
         if stop_at is not None:
             # the search stops right after expanding the parent of the
@@ -1008,11 +1068,30 @@ class _Admission:
             stats.transitions += n
             bounds.update(flags)
         flags.clear()
-        max_memory = self.ex.max_memory
-        if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
-            bounds.add(Bound.MAX_MEMORY)
+        ex = self.ex
+        if not halt and ex.max_memory is not None and ex._memory_bound(bounds, peak_rss_bytes()):
             halt = True
         cs.clear()
         par_idx.clear()
         par_n.clear()
         return halt
+
+    def _record_edges(self, rec, ck: list, first_of: dict, first: np.ndarray,
+                      owners: np.ndarray, base: int, cut: int) -> None:
+        """Tell the recorder every transition of the batch (``ck``: the
+        candidates' keys) as state numbers."""
+        # each candidate's state number, from its key's first occurrence
+        # (looked up once, in new_positions): no second lookup of the batch
+        num = self.table.found
+        num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
+        dst = num[np.searchsorted(first, np.fromiter(
+            map(first_of.__getitem__, ck), dtype=np.int64, count=len(ck)))]
+        src = np.asarray(self.par_idx, dtype=np.int64)[owners]
+        keep = src != _NO_PARENT
+        if getattr(rec, "wants_candidates", False):
+            # the successor states too (before the batch is cleared)
+            cs = self.cs
+            cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
+            rec.edges(src[keep], dst[keep], cands)
+        else:
+            rec.edges(src[keep], dst[keep])

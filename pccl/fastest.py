@@ -32,9 +32,8 @@ from typing import Any, Protocol, cast
 import numpy as np
 import xxhash
 
-from .explorer import (OUT_OF_MEMORY, Bound, Explorer, Model, ExactTable, FingerprintTable, SearchResult, Stats,
-                       _MAX_STATES, _NO_PARENT, peak_rss_bytes)
-from .fingerprint import collision_bound
+from .explorer import (OUT_OF_MEMORY, Bound, Explorer, Model, ExactTable, FingerprintTable,
+                       Progress, SearchResult, Stats, _NO_PARENT, peak_rss_bytes, terminal)
 
 __all__ = ["FastestExplorer", "TimedModel"]
 
@@ -49,7 +48,10 @@ class TimedModel(Model, Protocol):
 
 class FastestExplorer(Explorer):
     """An :class:`~pccl.explorer.Explorer` whose search is ordered on global
-    time first, transitions second (same options, same results)."""
+    time first, transitions second (same options, same results).  The
+    frontier is :class:`_Buckets`; initial-state admission, terminal states,
+    bounds, recording, progress and the result are the shared steps of
+    :class:`~pccl.explorer.Explorer`."""
 
     def run(self) -> SearchResult:
         enabled = gc.isenabled()
@@ -63,124 +65,137 @@ class FastestExplorer(Explorer):
         return res
 
     def _run_fastest(self) -> SearchResult:
-        m = cast(TimedModel, self.model)
-        key: Callable[[Any], Any] = m.key       # a key is marshallable (Model.key)
-        time_costs = m.time_costs       # a step's time cost comes from the model
-        exact = self.exact
-        table = self.table = ExactTable() if exact else FingerprintTable()
-        if exact:
+        self.table = ExactTable() if self.exact else FingerprintTable()
+        stats = Stats()
+        res = SearchResult("exhaustive", stats=stats, exact=self.exact)
+        t_start = _time.perf_counter()
+        fr = _Buckets(self, res)
+        progress = Progress(self.progress, self.progress_interval, t_start)
+        try:
+            for chunk in self._initial_chunks(lambda: fr.budget):
+                fr.push_new(chunk, 0, 0, _NO_PARENT, [0] * len(chunk))
+            stats.initial_states = self.table.n
+            stop = False
+            while fr.heap and not stop:
+                stop = fr.expand_bucket()
+                if not stop and self.max_memory is not None:
+                    stop = self._memory_bound(fr.bounds, peak_rss_bytes())
+                progress(lambda secs: {"states": self.table.n, "frontier": fr.waiting(),
+                                       "depth": stats.max_depth, "seconds": secs,
+                                       "memory": peak_rss_bytes(), "max_time": None})
+        except KeyboardInterrupt:
+            res.status = "interrupted"
+        except MemoryError:                 # as Explorer: the figures so far
+            fr.buckets.clear()
+            res.status = OUT_OF_MEMORY
+        stats.frontier = fr.waiting()
+        return self._finish(res, fr.bounds, t_start, peak_rss_bytes())
+
+
+class _Buckets:
+    """The fastest search's frontier: states waiting in buckets keyed by
+    (time steps, transitions), expanded smallest key first."""
+
+    def __init__(self, ex: FastestExplorer, res: SearchResult):
+        self.ex = ex
+        self.m = m = cast(TimedModel, ex.model)
+        self.time_costs = m.time_costs       # a step's time cost comes from the model
+        key: Callable[[Any], Any] = m.key    # a key is marshallable (Model.key)
+        if ex.exact:
             def key_of(s):
                 return marshal.dumps(key(s), 2)
         else:
             def key_of(s):
                 return xxhash.xxh3_128_digest(marshal.dumps(key(s), 2))
-        rec = self.recorder
-        stats = Stats()
-        res = SearchResult("exhaustive", stats=stats, exact=exact)
-        t_start = _time.perf_counter()
-        found = res.found
-        record = self._recorder(found, set())
-        bounds: set = set()
-        budget = self.max_states if self.max_states is not None else _MAX_STATES
-        buckets: dict = {}
-        heap: list = []
+        self.key_of = key_of
+        self.table = ex.table
+        self.rec = ex.recorder
+        self.stats = res.stats
+        self.record = ex._recorder(res.found, set())
+        self.bounds: set = set()
+        self.budget = ex._budget()
+        self.buckets: dict = {}
+        self.heap: list = []
 
-        def push(k, s, idx):
-            b = buckets.get(k)
-            if b is None:
-                b = buckets[k] = []
-                heapq.heappush(heap, k)
-            b.append((s, idx))
+    def waiting(self) -> int:
+        return sum(len(b) for b in self.buckets.values())
 
-        def admit(states, parent):
-            """Admit the new ones among ``states`` (successors of the state
-            numbered ``parent``); their state numbers (-1 for those already
-            visited or beyond the budget), and their keys."""
-            nonlocal budget
-            keys = [key_of(s) for s in states]
-            n = len(keys)
-            first = np.fromiter(dict(zip(reversed(keys), range(n - 1, -1, -1))).values(),
-                                dtype=np.int64, count=-1)
-            first.sort()
-            new = table.new_positions(keys, first).tolist()
-            cnt = min(len(new), budget)
-            if cnt < len(new):
-                bounds.add(Bound.MAX_STATES)
-            out = [-1] * n
-            if cnt:
-                base = table.n
-                table.add(cnt, np.full(cnt, parent, dtype=np.int64))
-                budget -= cnt
-                for r, p in enumerate(new[:cnt]):
-                    out[p] = base + r
-                if rec is not None:
-                    rec.states([states[p] for p in new[:cnt]])
-            return out, keys
+    def admit(self, states: list, parent: int) -> tuple[list, list]:
+        """Admit the new ones among ``states`` (successors of the state
+        numbered ``parent``); their state numbers (-1 for those already
+        visited or beyond the budget), and their keys."""
+        table, rec = self.table, self.rec
+        keys = [self.key_of(s) for s in states]
+        n = len(keys)
+        first = np.fromiter(dict(zip(reversed(keys), range(n - 1, -1, -1))).values(),
+                            dtype=np.int64, count=-1)
+        first.sort()
+        new = table.new_positions(keys, first).tolist()
+        cnt = min(len(new), self.budget)
+        if cnt < len(new):
+            self.bounds.add(Bound.MAX_STATES)
+        out = [-1] * n
+        if cnt:
+            base = table.n
+            table.add(cnt, np.full(cnt, parent, dtype=np.int64))
+            self.budget -= cnt
+            for r, p in enumerate(new[:cnt]):
+                out[p] = base + r
+            if rec is not None:
+                rec.states([states[p] for p in new[:cnt]])
+        return out, keys
 
-        stop = False
-        try:
-            inits = list(m.init_states())
-            idxs, _ = admit(inits, _NO_PARENT)
-            for s, i in zip(inits, idxs):
-                if i >= 0:
-                    push((0, 0), s, i)
-            stats.initial_states = table.n
-            while heap and not stop:
-                k = heapq.heappop(heap)
-                bucket = buckets.pop(k)
-                ticks, depth = k
-                stats.max_depth = max(stats.max_depth, depth)
-                for s, idx in bucket:
-                    viols = m.violations(s)
-                    if viols and record(viols, idx, depth):
-                        stop = True
-                        break
-                    succ = m.successors(s)
-                    if self.labels is not None:
-                        self.labels.update(lab for lab, _ in succ)
-                    if not succ:
-                        kind = m.terminal_kind(s)
-                        if kind == "bounded":
-                            bounds.add(Bound.MODEL)
-                        elif kind == "deadlock" and self.deadlock:
-                            v = m.deadlock_violation(s)
-                            if v is not None and record([v], idx, depth):
-                                stop = True
-                                break
-                        continue
-                    if self.max_depth is not None and depth >= self.max_depth:
-                        bounds.add(Bound.DEPTH)
-                        continue
-                    stats.transitions += len(succ)
-                    states = [s2 for _, s2 in succ]
-                    new, keys = admit(states, idx)
-                    if rec is not None:
-                        dst = table.lookup_keys(keys)
-                        if getattr(rec, "wants_candidates", False):
-                            rec.edges(np.full(len(dst), idx, dtype=np.int64), dst, states)
-                        else:
-                            rec.edges(np.full(len(dst), idx, dtype=np.int64), dst)
-                    for s2, i2, c in zip(states, new, time_costs(states)):
-                        if i2 >= 0:
-                            push((ticks + c, depth + 1), s2, i2)
-                if (self.max_memory is not None and not stop
-                        and peak_rss_bytes() > self.max_memory):
-                    bounds.add(Bound.MAX_MEMORY)
-                    stop = True
-        except KeyboardInterrupt:
-            res.status = "interrupted"
-        except MemoryError:                 # as Explorer: the figures so far
-            buckets.clear()
-            res.status = OUT_OF_MEMORY
-        stats.states = table.n
-        stats.frontier = sum(len(b) for b in buckets.values())
-        stats.seconds = _time.perf_counter() - t_start
-        stats.peak_memory = peak_rss_bytes()
-        if not exact:
-            res.collision_probability = collision_bound(stats.states)
-        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
-        if res.status not in ("interrupted", OUT_OF_MEMORY):
-            res.status = "violation" if found else ("bounded" if bounds else "exhaustive")
-        for f in found:
-            f.trace = self.replay(f.index)
-        return res
+    def push_new(self, states: list, ticks: int, depth: int, parent: int, costs) -> list:
+        """Admit ``states`` and queue the new ones, each at ``ticks`` plus
+        its time cost, ``depth`` transitions; their keys."""
+        new, keys = self.admit(states, parent)
+        buckets, heap = self.buckets, self.heap
+        for s, i, c in zip(states, new, costs):
+            if i >= 0:
+                k = (ticks + c, depth)
+                b = buckets.get(k)
+                if b is None:
+                    b = buckets[k] = []
+                    heapq.heappush(heap, k)
+                b.append((s, i))
+        return keys
+
+    def expand_bucket(self) -> bool:
+        """Expand the smallest bucket; True to stop."""
+        k = heapq.heappop(self.heap)
+        ticks, depth = k
+        self.stats.max_depth = max(self.stats.max_depth, depth)
+        for s, idx in self.buckets.pop(k):
+            if self._expand(s, idx, ticks, depth):
+                return True
+        return False
+
+    def _expand(self, s, idx: int, ticks: int, depth: int) -> bool:
+        """Check and expand one state; True to stop."""
+        ex, m = self.ex, self.m
+        viols = m.violations(s)
+        if viols and self.record(viols, idx, depth):
+            return True
+        succ = m.successors(s)
+        if ex.labels is not None:
+            ex.labels.update(lab for lab, _ in succ)
+        if not succ:
+            bound, v = terminal(m, s, ex.deadlock)
+            if bound is not None:
+                self.bounds.add(bound)
+            return v is not None and self.record([v], idx, depth)
+        if ex._at_depth_bound(depth):
+            self.bounds.add(Bound.DEPTH)
+            return False
+        self.stats.transitions += len(succ)
+        states = [s2 for _, s2 in succ]
+        keys = self.push_new(states, ticks, depth + 1, idx, self.time_costs(states))
+        rec = self.rec
+        if rec is not None:
+            dst = self.table.lookup_keys(keys)
+            src = np.full(len(dst), idx, dtype=np.int64)
+            if getattr(rec, "wants_candidates", False):
+                rec.edges(src, dst, states)
+            else:
+                rec.edges(src, dst)
+        return False

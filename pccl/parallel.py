@@ -81,9 +81,8 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
-from .explorer import (Bound, Explorer, FingerprintTable, SearchResult,
-                       Stats, _MAX_STATES, _reserve, collision_bound, fingerprint,
-                       peak_rss_bytes)
+from .explorer import (Bound, Explorer, FingerprintTable, Progress, SearchResult,
+                       Stats, _MAX_STATES, _reserve, fingerprint, peak_rss_bytes, terminal)
 
 __all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "import_ray"]
 
@@ -110,6 +109,15 @@ def available_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):   # pragma: no cover - non-Linux
         return max(1, os.cpu_count() or 1)
+
+
+def _split_like(arr: np.ndarray, parts: list) -> list:
+    """``arr`` cut into consecutive pieces as long as the ``parts``."""
+    out, a = [], 0
+    for p in parts:
+        out.append(arr[a:a + len(p)])
+        a += len(p)
+    return out
 
 
 def _owner_split(fps: np.ndarray, keys: np.ndarray, n: int) -> list:
@@ -197,13 +205,11 @@ class _Worker:
         for g, s in zip(self.level_idx, self.level):
             succ = succ_fn(s)
             if not succ:
-                kind = m.terminal_kind(s)
-                if kind == "bounded":
+                bound, v = terminal(m, s, self.deadlock)
+                if bound is not None:
                     model_min = g if model_min is None else model_min
-                elif kind == "deadlock" and self.deadlock:
-                    v = m.deadlock_violation(s)
-                    if v is not None:
-                        dead.append((g, v))
+                elif v is not None:
+                    dead.append((g, v))
                 continue
             if at_bound:
                 depth_min = g if depth_min is None else depth_min
@@ -846,203 +852,198 @@ class ParallelExplorer(Explorer):
                     gc.enable()
 
     def _run(self) -> SearchResult:
-        m, T = self.model, self.transport
+        """The coordinator: the initial states (:meth:`_initial_rounds`),
+        then level by level (:meth:`_level_rounds`), then the shared finish."""
         n: int = self.workers
-        key = m.key
         t_start = _time.perf_counter()
-        stats = Stats()
-        res = SearchResult("exhaustive", stats=stats)
-        found, bounds = res.found, set()
-        reported: set = set()
-        budget = self.max_states if self.max_states is not None else _MAX_STATES
+        res = SearchResult("exhaustive", stats=Stats())
+        self._res = res
+        self._bounds: set = set()
+        self._record = self._recorder(res.found, set())
+        self._budget_all = budget = self._budget()
         cap = min(_MAX_STATES, budget + 1)
         self.parents: Any = _reserve((cap,), np.uint32)
         if self.parents is None:
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)
-        total = 0
-        peak_workers = [0] * n
-        empty_u64 = np.zeros(0, np.uint64)
-        empty_i64 = np.zeros(0, np.int64)
-
-        record = self._recorder(found, reported)
-
-        def put_parents(base, values):
-            nonlocal total
-            need = base + len(values)
-            if need > len(self.parents):
-                if self.parents.base is not None:
-                    raise MemoryError("more states than reserved")
-                self.parents.resize(max(need, 2 * len(self.parents)), refcheck=False)
-            self.parents[base:need] = values
-            total = need
-
-        def note_peaks(peaks):
-            for w, p in enumerate(peaks):
-                peak_workers[w] = max(peak_workers[w], p)
-
-        stop = False
-        depth = 0
-        decisions: Any = None   # per worker: the decision on the last level, sent with the next step
+        self._total = 0
+        self.peak_workers = [0] * n
+        #: per worker: the decision on the last level, sent with the next step
+        self._decisions: Any = None
         try:
-            # -- initial states: numbered here in chunks, handed out round-robin
-            it = iter(m.init_states())
-            while not stop:
-                self.signals.check()
-                chunk = list(itertools.islice(it, min(self.batch, budget - total + 1)))
-                if not chunk:
-                    break
-                fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
-                                    dtype=np.uint64).reshape(-1, 2)
-                keys = np.arange(len(chunk), dtype=np.uint64)
-                new_keys = T.all("decide_initial", [(p,) for p in _owner_split(fps, keys, n)])
-                order = np.sort(np.concatenate(new_keys))
-                base = total
-                cut = len(order)
-                if cut > budget - base:
-                    cut = budget - base
-                    bounds.add(Bound.MAX_STATES)
-                    stop = True
-                for r in range(cut):
-                    v = m.violations(chunk[int(order[r])])
-                    if v and record(v, base + r, 0):
-                        cut, stop = r + 1, True
-                        break
-                ranks = np.searchsorted(order, np.concatenate(new_keys)) if len(order) \
-                    else empty_i64
-                owner_ranks, a = [], 0
-                for nk in new_keys:
-                    owner_ranks.append(ranks[a:a + len(nk)])
-                    a += len(nk)
-                note_peaks(T.all("commit", [((base, cut, orr, empty_u64, empty_i64),)
-                                            for orr in owner_ranks]))
-                for w in range(n):
-                    idx = [g for g in range(base, base + cut) if g % n == w]
-                    T.call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
-                put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
-            cut = total
-            stats.initial_states = total
-            level_size = cut
-            holder = np.arange(cut, dtype=np.int64) % n      # who holds each state of the level
-            level_base = 0
-            next_report = _time.perf_counter() + self.progress_interval
-            while level_size and not stop:
-                self.signals.check()
-                at_bound = self.max_depth is not None and depth >= self.max_depth
-                replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
-                                             for w in range(n)])
-                decisions = None
-                # replies[w]: (successors generated, deadlocks, first number at
-                # the depth bound, ... at the model bound, violating candidates,
-                # peak memory)
-                note_peaks([r[5] for r in replies])
-                allk = np.concatenate(new_keys)
-                order = np.argsort(allk, kind="stable")
-                sorted_keys = allk[order]
-                ranks = np.empty(len(allk), dtype=np.int64)
-                ranks[order] = np.arange(len(allk))
-                owner_ranks, a = [], 0
-                for nk in new_keys:
-                    owner_ranks.append(ranks[a:a + len(nk)])
-                    a += len(nk)
-                # the stop events, in the serial search's order (by key)
-                events = []                  # (key, kind, payload)
-                for r in replies:
-                    for g, v in r[1]:
-                        events.append((g << _SHIFT, 0, (g, v)))
-                    for k, v in r[4]:        # violating candidates: those that are new
-                        pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
-                        if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
-                            events.append((k, 1, (pos, v)))
-                limit = len(sorted_keys)
-                budget_key = None
-                if limit > budget - total:
-                    limit = budget - total
-                    budget_key = int(sorted_keys[limit])
-                events.sort(key=lambda e: (e[0], e[1]))
-                stop_key = None
-                cut = limit
-                for ek, kind, payload in events:
-                    if budget_key is not None and ek >= budget_key:
-                        break
-                    if kind == 0:
-                        g, v = payload
-                        # states admitted before the deadlocked parent's turn
-                        before = int(np.searchsorted(sorted_keys, np.uint64(ek)))
-                        if record([v], g, depth):
-                            cut, stop_key = min(cut, before), ek
-                            break
-                    else:
-                        r, v = payload
-                        if record(v, total + r, depth + 1):
-                            cut, stop_key = r + 1, ek
-                            break
-                if stop_key is None and budget_key is not None:
-                    stop_key = budget_key
-                    bounds.add(Bound.MAX_STATES)
-                # transitions: parents expanded up to the stop
-                if stop_key is None:
-                    stats.transitions += sum(r[0] for r in replies)
-                else:
-                    stats.transitions += sum(T.all("transitions_upto",
-                                                   [(stop_key >> _SHIFT,)] * n))
-                    stop = True
-                # bounds met before the stop
-                for r in replies:
-                    for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
-                        if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
-                            bounds.add(b)
-                base = total
-                # who generated each admitted state: its parent's holder
-                gen = holder[(sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
-                             - level_base] if cut else empty_i64
-                decisions = []
-                for w in range(n):
-                    sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
-                    decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
-                put_parents(base, (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.uint32))
-                holder = gen
-                level_base, level_size = base, cut
-                if cut:
-                    depth += 1
-                    stats.max_depth = depth
-                stats.frontier = cut
-                if self.max_memory is not None and not stop and \
-                        self._memory(peak_workers) > self.max_memory:
-                    bounds.add(Bound.MAX_MEMORY)
-                    stop = True
-                if self.progress is not None:
-                    now = _time.perf_counter()
-                    if now >= next_report:
-                        next_report = now + self.progress_interval
-                        self.progress({"states": total, "frontier": cut, "depth": depth,
-                                       "seconds": now - t_start,
-                                       "memory": self._memory(peak_workers)})
-            if decisions:       # the last level's decision: owners record its states
-                note_peaks(T.all("commit", [(d,) for d in decisions]))
-                decisions = None
+            stop = self._initial_rounds()
+            res.stats.initial_states = self._total
+            self._level_rounds(t_start, stop)
         except KeyboardInterrupt:
             res.status = "interrupted"
-            T.drain()
-            if decisions and found:     # the owners must know the states to replay
+            self.transport.drain()
+            if self._decisions and res.found:     # the owners must know the states to replay
                 try:
-                    T.all("commit", [(d,) for d in decisions])
+                    self.transport.all("commit", [(d,) for d in self._decisions])
                 except Exception:
-                    found.clear()
-        stats.states = total
-        self.table.n = total
-        stats.seconds = _time.perf_counter() - t_start
-        stats.peak_memory = self._memory(peak_workers)
-        res.collision_probability = collision_bound(stats.states)
-        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
-        if res.status != "interrupted":
-            res.status = "violation" if found else "bounded" if bounds else "exhaustive"
-        for f in found:
-            f.trace = self.replay(f.index)
-        self.peak_workers = peak_workers
+                    res.found.clear()
+        self.table.n = self._total
+        self._finish(res, self._bounds, t_start, self._memory(self.peak_workers))
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
-            self._gather_graph(total)
+            self._gather_graph(self._total)
         return res
+
+    def _put_parents(self, base: int, values: np.ndarray) -> None:
+        """The global parent links of the states numbered from ``base``."""
+        need = base + len(values)
+        if need > len(self.parents):
+            if self.parents.base is not None:
+                raise MemoryError("more states than reserved")
+            self.parents.resize(max(need, 2 * len(self.parents)), refcheck=False)
+        self.parents[base:need] = values
+        self._total = need
+
+    def _note_peaks(self, peaks: list) -> None:
+        pw = self.peak_workers
+        for w, p in enumerate(peaks):
+            pw[w] = max(pw[w], p)
+
+    def _initial_rounds(self) -> bool:
+        """The initial states, numbered here in chunks and handed out
+        round-robin; True to stop."""
+        m, T, n = self.model, self.transport, self.workers
+        key, budget = m.key, self._budget_all
+        empty_u64, empty_i64 = np.zeros(0, np.uint64), np.zeros(0, np.int64)
+        for chunk in self._initial_chunks(lambda: budget - self._total):
+            self.signals.check()
+            fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
+                                dtype=np.uint64).reshape(-1, 2)
+            keys = np.arange(len(chunk), dtype=np.uint64)
+            new_keys = T.all("decide_initial", [(p,) for p in _owner_split(fps, keys, n)])
+            order = np.sort(np.concatenate(new_keys))
+            base = self._total
+            cut, stop = len(order), False
+            if cut > budget - base:
+                cut, stop = budget - base, True
+                self._bounds.add(Bound.MAX_STATES)
+            for r in range(cut):
+                v = m.violations(chunk[int(order[r])])
+                if v and self._record(v, base + r, 0):
+                    cut, stop = r + 1, True
+                    break
+            ranks = np.searchsorted(order, np.concatenate(new_keys)) if len(order) \
+                else empty_i64
+            self._note_peaks(T.all("commit", [((base, cut, orr, empty_u64, empty_i64),)
+                                              for orr in _split_like(ranks, new_keys)]))
+            for w in range(n):
+                idx = [g for g in range(base, base + cut) if g % n == w]
+                T.call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
+            self._put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
+            if stop:
+                return True
+        return False
+
+    def _level_rounds(self, t_start: float, stop: bool) -> None:
+        """Level by level: every worker expands its share (and commits the
+        last decision), the coordinator orders the new states and the stop
+        events by key (:meth:`_stop_events`) and decides (:meth:`_decide`)."""
+        n, T, stats = self.workers, self.transport, self._res.stats
+        cut = self._total
+        holder = np.arange(cut, dtype=np.int64) % n      # who holds each state of the level
+        level_base, level_size, depth = 0, cut, 0
+        progress = Progress(self.progress, self.progress_interval, t_start)
+        while level_size and not stop:
+            self.signals.check()
+            at_bound = self._at_depth_bound(depth)
+            decisions, self._decisions = self._decisions, None
+            replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
+                                         for w in range(n)])
+            # replies[w]: (successors generated, deadlocks, first number at
+            # the depth bound, ... at the model bound, violating candidates,
+            # peak memory)
+            self._note_peaks([r[5] for r in replies])
+            allk = np.concatenate(new_keys)
+            order = np.argsort(allk, kind="stable")
+            sorted_keys = allk[order]
+            ranks = np.empty(len(allk), dtype=np.int64)
+            ranks[order] = np.arange(len(allk))
+            cut, stop_key = self._stop_events(replies, sorted_keys, depth)
+            # transitions: parents expanded up to the stop
+            if stop_key is None:
+                stats.transitions += sum(r[0] for r in replies)
+            else:
+                stats.transitions += sum(T.all("transitions_upto", [(stop_key >> _SHIFT,)] * n))
+                stop = True
+            # bounds met before the stop
+            for r in replies:
+                for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
+                    if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
+                        self._bounds.add(b)
+            level_base, holder = self._total, self._decide(
+                sorted_keys, _split_like(ranks, new_keys), cut, holder, level_base)
+            level_size = cut
+            if cut:
+                depth += 1
+                stats.max_depth = depth
+            stats.frontier = cut
+            if not stop and self.max_memory is not None:
+                stop = self._memory_bound(self._bounds, self._memory(self.peak_workers))
+            self._report(progress, cut, depth)
+        if self._decisions:       # the last level's decision: owners record its states
+            self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
+            self._decisions = None
+
+    def _report(self, progress: Progress, frontier: int, depth: int) -> None:
+        progress(lambda secs: {"states": self._total, "frontier": frontier, "depth": depth,
+                               "seconds": secs, "memory": self._memory(self.peak_workers)})
+
+    def _stop_events(self, replies: list, sorted_keys: np.ndarray, depth: int) -> tuple:
+        """The level's stop events (deadlocks, violating new candidates, the
+        state budget) in the one-process search's order (by key): how many
+        of the new states are admitted, and the key the search stops at
+        (None: it goes on)."""
+        events = []                  # (key, kind, payload)
+        for r in replies:
+            for g, v in r[1]:
+                events.append((g << _SHIFT, 0, (g, v)))
+            for k, v in r[4]:        # violating candidates: those that are new
+                pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
+                if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
+                    events.append((k, 1, (pos, v)))
+        total, room = self._total, self._budget_all - self._total
+        cut = len(sorted_keys)
+        budget_key = None
+        if cut > room:
+            cut = room
+            budget_key = int(sorted_keys[room])
+        events.sort(key=lambda e: (e[0], e[1]))
+        for ek, kind, payload in events:
+            if budget_key is not None and ek >= budget_key:
+                break
+            if kind == 0:
+                g, v = payload
+                # states admitted before the deadlocked parent's turn
+                if self._record([v], g, depth):
+                    return min(cut, int(np.searchsorted(sorted_keys, np.uint64(ek)))), ek
+            else:
+                r, v = payload
+                if self._record(v, total + r, depth + 1):
+                    return r + 1, ek
+        if budget_key is not None:
+            self._bounds.add(Bound.MAX_STATES)
+        return cut, budget_key
+
+    def _decide(self, sorted_keys: np.ndarray, owner_ranks: list, cut: int,
+                holder: np.ndarray, level_base: int) -> np.ndarray:
+        """Number the ``cut`` new states from the next free number, make
+        each worker's decision (sent with the next step) and record the
+        parent links; returns who generated (and now holds) each new state."""
+        n, base = self.workers, self._total
+        # who generated each admitted state: its parent's holder
+        gen = holder[(sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
+                     - level_base] if cut else np.zeros(0, np.int64)
+        decisions = []
+        for w in range(n):
+            sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
+            decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
+        self._decisions = decisions
+        self._put_parents(base, (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.uint32))
+        return gen
 
     def _gather_graph(self, total: int) -> None:
         """Hand the state graph to the recorder, as the one-process search
