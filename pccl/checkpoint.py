@@ -293,6 +293,20 @@ class Checkpointer:
         checking that it is whole and that it was written for this search."""
         d = self.resume_dir
         assert d is not None
+        man = self._manifest(d)
+        gen, files = man["generation"], man["files"]
+        state, arrays = self._read_generation(os.path.join(d, gen), gen, files)
+        self.generation = int(gen[4:])
+        self.resumed = {"depth": state["depth"], "states": state["n"]}
+        self.last_saved = (state["depth"], state["n"])
+        if self.note is not None:
+            self.note(f"resumed from {d} at depth {state['depth']}, {state['n']:,} states")
+        self.last_write = _time.monotonic()
+        return state, arrays
+
+    def _manifest(self, d: str) -> dict:
+        """The manifest of the checkpoint in ``d``, checked: format,
+        identity, version, and the generation it names."""
         path = os.path.join(d, MANIFEST)
         if not os.path.isdir(d):
             raise self._bad("no such directory")
@@ -316,7 +330,11 @@ class Checkpointer:
         if not isinstance(gen, str) or not re.fullmatch(r"gen-\d+", gen) \
                 or not isinstance(files, dict) or "state.pkl" not in files:
             raise self._bad(f"the checkpoint is corrupt ({MANIFEST} names no generation)")
-        gdir = os.path.join(d, gen)
+        return man
+
+    def _read_generation(self, gdir: str, gen: str, files: dict) -> tuple[dict, dict]:
+        """The generation's state and arrays, every file checked against
+        its size and digest in the manifest."""
         arrays: dict = {}
         state: Any = None
         try:
@@ -344,12 +362,6 @@ class Checkpointer:
         except Exception as e:          # a missing, truncated or altered file
             raise self._bad(f"the checkpoint is corrupt ({e}); write a new one with "
                             f"--checkpoint") from None
-        self.generation = int(gen[4:])
-        self.resumed = {"depth": state["depth"], "states": state["n"]}
-        self.last_saved = (state["depth"], state["n"])
-        if self.note is not None:
-            self.note(f"resumed from {d} at depth {state['depth']}, {state['n']:,} states")
-        self.last_write = _time.monotonic()
         return state, arrays
 
     def _check_identity(self, got) -> None:

@@ -553,96 +553,131 @@ def _chain_to(table, idx: int) -> list:
 def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
             find_all: bool = False, stall: bool = False) -> LivenessResult:
     """Decide the temporal properties, the time-lock check and the stall
-    check on the graph ``rec`` recorded during the search ``sr``."""
+    check on the graph ``rec`` recorded during the search ``sr``: the steps
+    of :class:`_Analysis`, in this order (without ``find_all`` the first
+    response or liveness violation ends it)."""
     from .explorer import Bound
     out = LivenessResult()
-    table = explorer.table
-    n = table.n
-    complete = rec.complete and sr.status in ("exhaustive", "bounded") and all(
-        b in (Bound.MODEL,) for b in sr.bounds_hit)
-    depth_only = rec.complete and sr.status == "bounded" and all(
-        b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
     if sr.status in ("violation", "interrupted", "out-of-memory"):
         if rec.props:
             out.notes.append("temporal properties not checked: the search stopped at "
                              + {"violation": "a violation", "interrupted": "an interrupt",
                                 "out-of-memory": "out of memory"}[sr.status])
         return out
-    g = rec.freeze(n)
-    n_init = sr.stats.initial_states
-    props = rec.props
+    complete = rec.complete and sr.status in ("exhaustive", "bounded") and all(
+        b in (Bound.MODEL,) for b in sr.bounds_hit)
+    depth_only = rec.complete and sr.status == "bounded" and all(
+        b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
+    a = _Analysis(model, explorer.table, sr, rec, out, complete, find_all)
+    a.reachable()
+    if a.within() or a.liveness(depth_only):
+        return out
+    if timelock and (complete or depth_only):
+        a.timelock()
+    if stall and rec.chg is not None and (complete or depth_only) \
+            and (find_all or not out.found):
+        a.stall()
+    return out
 
-    def lasso(prefix_chain: list, cycle: Optional[list]):
+
+class _Analysis:
+    """The steps of :func:`analyse` over one frozen graph."""
+
+    def __init__(self, model, table, sr, rec: GraphRecorder, out: LivenessResult,
+                 complete: bool, find_all: bool):
+        self.model, self.table, self.sr, self.rec, self.out = model, table, sr, rec, out
+        self.complete, self.find_all = complete, find_all
+        self.n = table.n
+        self.g = rec.freeze(self.n)
+        self.n_init = sr.stats.initial_states
+        self.props = rec.props
+
+    @staticmethod
+    def lasso(prefix_chain: list, cycle: Optional[list]) -> tuple:
         chain = prefix_chain + (cycle[1:] if cycle else [])
         start = len(prefix_chain) - 1 if cycle else None
         return chain, start
 
-    def record(v, chain, cycle_start):
+    def record(self, v, chain: list, cycle_start: Optional[int]) -> None:
         cx = Counterexample(v, chain[-1] if chain else -1, max(0, len(chain) - 1))
         cx.chain = chain
         cx.cycle_start = cycle_start
-        out.found.append(cx)
+        self.out.found.append(cx)
 
-    # -- reachable: witnesses from the bits (BFS order: shortest) ----------------
-    for k, p in enumerate(props):
-        if p.kind != "reachable":
-            continue
-        hits = np.flatnonzero(g.bit(2 * k))
-        if hits.size:
-            cx = Counterexample(None, int(hits[0]), 0)
-            cx.chain = _chain_to(table, int(hits[0]))
-            cx.depth = len(cx.chain) - 1
-            cx.cycle_start = None
-            out.witnesses.append((p, cx))
-            out.holds.append(p.name)
-        else:
-            where = "" if complete else " within the bounds (the search was not exhaustive)"
-            v = TemporalViolation("unreachable", p.name,
-                                  f"unreachable: no reachable state satisfies `{p.text}`{where}",
-                                  None, p.span)
-            record(v, [], None)
+    def reachable(self) -> None:
+        """reachable P: witnesses from the bits (BFS order: shortest)."""
+        out, g = self.out, self.g
+        for k, p in enumerate(self.props):
+            if p.kind != "reachable":
+                continue
+            hits = np.flatnonzero(g.bit(2 * k))
+            if hits.size:
+                cx = Counterexample(None, int(hits[0]), 0)
+                cx.chain = _chain_to(self.table, int(hits[0]))
+                cx.depth = len(cx.chain) - 1
+                cx.cycle_start = None
+                out.witnesses.append((p, cx))
+                out.holds.append(p.name)
+            else:
+                where = "" if self.complete else " within the bounds (the search was not exhaustive)"
+                v = TemporalViolation("unreachable", p.name,
+                                      f"unreachable: no reachable state satisfies `{p.text}`{where}",
+                                      None, p.span)
+                self.record(v, [], None)
 
-    # -- P ~> Q within T: (state, clock) search ----------------------------------
-    for k, p in enumerate(props):
-        if p.kind != "within":
-            continue
-        res = _bounded_response(g, table, n_init, g.bit(2 * k), g.bit(2 * k + 1), p.ticks)
-        if res is None:
-            out.holds.append(p.name)
-        else:
+    def within(self) -> bool:
+        """P ~> Q within T: a (state, clock) search.  True to stop."""
+        out, g = self.out, self.g
+        for k, p in enumerate(self.props):
+            if p.kind != "within":
+                continue
+            res = _bounded_response(g, self.table, self.n_init, g.bit(2 * k), g.bit(2 * k + 1),
+                                    p.ticks)
+            if res is None:
+                out.holds.append(p.name)
+                continue
             v = TemporalViolation("response", p.name,
                                   f"bounded response `{p.name}` violated: more than "
                                   f"{_fmt(p.bound)} time units pass after P without Q",
                                   None, p.span)
-            record(v, res[0], None)
+            self.record(v, res[0], None)
             out.found[-1].p_at = res[1]
-            if not find_all:
-                return out
+            if not self.find_all:
+                return True
+        return False
 
-    # -- liveness ----------------------------------------------------------------
-    live = [(k, p) for k, p in enumerate(props) if p.liveness]
-    if live and not (complete or depth_only):
-        out.notes.append("liveness properties not checked: the search did not finish "
-                         "(" + ", ".join(b.value for b in sr.bounds_hit) + ")")
-        live = []
-    elif live and not complete:
-        out.notes.append("liveness properties not checked: the search was bounded by --depth")
-        live = []
-    for k, p in live:
-        qmask = g.bit(2 * k) if p.kind == "eventually" else g.bit(2 * k + 1)
-        if p.kind == "eventually":
-            starts = np.zeros(n, dtype=bool)
-            starts[:n_init] = True
-        else:
-            starts = g.bit(2 * k)
-        res = _leadsto(g, starts, qmask, model.N if rec.fairness else 0)
-        if res is None:
-            out.holds.append(p.name)
-            continue
+    def liveness(self, depth_only: bool) -> bool:
+        """eventually P, P ~> Q: a lasso that avoids Q.  True to stop."""
+        out, g, sr = self.out, self.g, self.sr
+        live = [(k, p) for k, p in enumerate(self.props) if p.liveness]
+        if live and not (self.complete or depth_only):
+            out.notes.append("liveness properties not checked: the search did not finish "
+                             "(" + ", ".join(b.value for b in sr.bounds_hit) + ")")
+            return False
+        if live and not self.complete:
+            out.notes.append("liveness properties not checked: the search was bounded by --depth")
+            return False
+        for k, p in live:
+            qmask = g.bit(2 * k) if p.kind == "eventually" else g.bit(2 * k + 1)
+            if p.kind == "eventually":
+                starts = np.zeros(self.n, dtype=bool)
+                starts[:self.n_init] = True
+            else:
+                starts = g.bit(2 * k)
+            res = _leadsto(g, starts, qmask, self.model.N if self.rec.fairness else 0)
+            if res is None:
+                out.holds.append(p.name)
+                continue
+            self.record(*self._liveness_violation(p, res))
+            if not self.find_all:
+                return True
+        return False
+
+    def _liveness_violation(self, p, res) -> tuple:
+        """The violation of ``p`` and its lasso (chain, cycle start)."""
         s, path, cycle, terminal = res
-        prefix = _chain_to(table, s)[:-1] + path
-        chain, cstart = lasso(prefix, cycle)
-        what = "P" if p.kind == "leadsto" else ""
+        to_s = _chain_to(self.table, s)
+        chain, cstart = self.lasso(to_s[:-1] + path, cycle)
         if terminal:
             tail = "a run ends (terminal state) without it ever holding"
         else:
@@ -650,42 +685,38 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
         if p.kind == "eventually":
             msg = f"liveness `{p.name}` violated: {tail}"
         else:
-            msg = (f"leads-to `{p.name}` violated: P holds at step {len(_chain_to(table, s)) - 1}, "
+            msg = (f"leads-to `{p.name}` violated: P holds at step {len(to_s) - 1}, "
                    f"then Q never holds ({'the run ends' if terminal else 'the run loops forever'})")
-        del what
-        v = TemporalViolation("liveness", p.name, msg, None, p.span)
-        record(v, chain, cstart)
-        if not find_all:
-            return out
+        return TemporalViolation("liveness", p.name, msg, None, p.span), chain, cstart
 
-    # -- time-lock -------------------------------------------------------------------
-    if timelock and (complete or depth_only):
+    def timelock(self) -> None:
+        """A reachable state from which no dynamic or terminal state can be
+        reached: a zero-time cycle that cannot be left."""
+        g = self.g
         escape = g.dyn | g.terminal
-        can = g.can_reach(escape)
-        locked = ~can
-        if locked.any():
-            s = int(np.flatnonzero(locked)[0])
-            comp, nontrivial = g.sccs(g.reach(np.asarray([s]), locked).nonzero()[0], locked)
-            in_cycle = np.zeros(n, dtype=bool)
-            ok = comp >= 0
-            in_cycle[ok] = nontrivial[comp[ok]]
-            path = g.path(s, in_cycle, locked)
-            c = path[-1]
-            cycle = g.cycle_through(c, comp, [])
-            chain, cstart = lasso(_chain_to(table, s)[:-1] + path, cycle)
-            v = TemporalViolation("timelock", "time-lock",
-                                  "time-lock: time can never advance again, though not every "
-                                  "agent has exited (a zero-time cycle that cannot be left)")
-            record(v, chain, cstart)
+        locked = ~g.can_reach(escape)
+        if not locked.any():
+            return
+        s = int(np.flatnonzero(locked)[0])
+        comp, nontrivial = g.sccs(g.reach(np.asarray([s]), locked).nonzero()[0], locked)
+        in_cycle = np.zeros(self.n, dtype=bool)
+        ok = comp >= 0
+        in_cycle[ok] = nontrivial[comp[ok]]
+        path = g.path(s, in_cycle, locked)
+        cycle = g.cycle_through(path[-1], comp, [])
+        chain, cstart = self.lasso(_chain_to(self.table, s)[:-1] + path, cycle)
+        v = TemporalViolation("timelock", "time-lock",
+                              "time-lock: time can never advance again, though not every "
+                              "agent has exited (a zero-time cycle that cannot be left)")
+        self.record(v, chain, cstart)
 
-    # -- stall -----------------------------------------------------------------------
-    if stall and rec.chg is not None and (complete or depth_only) \
-            and (find_all or not out.found):
-        s = _first_stalled(g, rec.chg.view()[:n].astype(bool))
+    def stall(self) -> None:
+        """The first stalled state (pccl/stall.py's signature)."""
+        assert self.rec.chg is not None
+        s = _first_stalled(self.g, self.rec.chg.view()[:self.n].astype(bool))
         if s is not None:
-            v = TemporalViolation("stall", "stall", STALL_MESSAGE)
-            record(v, _chain_to(table, s), None)
-    return out
+            self.record(TemporalViolation("stall", "stall", STALL_MESSAGE),
+                        _chain_to(self.table, s), None)
 
 
 #: The verdict of a stall, before attach_traces adds what each agent waits on.

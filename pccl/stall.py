@@ -175,28 +175,7 @@ def waiting(model, st) -> list:
             out.append((i, f"is {comp.describe_k(pc)}, in an event that changes nothing "
                            f"visible{failed}"))
             continue
-        blocked, enabled = [], []
-        for ev in model.program.events:
-            false = []
-            for c in _conjuncts(ev.guard):
-                fn = cache.get(id(c))
-                if fn is None:
-                    fn = cache[id(c)] = comp.comp.make_expr(c)
-                try:
-                    ok = bool(fn(i, ag, sh, ags))
-                except Exception:       # noqa: BLE001 - a guard error: it does not hold
-                    ok = False
-                if not ok:
-                    false.append(c)
-            if not false:
-                enabled.append(ev.name)
-                continue
-            if any(_never_changes(model, c, written) for c in false):
-                continue
-            conds = ", ".join(f"`{_src(model, c.span)}` is false"
-                              + (f" — {w}" if (w := _why(model, i, ag, sh, c)) else "")
-                              for c in false)
-            blocked.append(f"{ev.name} (line {ev.guard.span.line}: {conds})")
+        blocked, enabled = _event_waits(model, i, ag, sh, ags, cache, written)
         if any("doReach_done" in _names(ev.guard) for ev in model.program.events):
             failed = ""             # said at the guard that reads doReach_done
         if enabled:
@@ -211,6 +190,36 @@ def waiting(model, st) -> list:
         else:
             out.append((i, "has no event"))
     return out
+
+
+def _event_waits(model, i, ag, sh, ags, cache: dict, written: set) -> tuple[list, list]:
+    """For agent ``i`` at the top of its event block: the events whose guard
+    could still hold but does not (with the false conjuncts and the values
+    behind them), and the events whose guard holds."""
+    comp = model.compiled
+    blocked, enabled = [], []
+    for ev in model.program.events:
+        false = []
+        for c in _conjuncts(ev.guard):
+            fn = cache.get(id(c))
+            if fn is None:
+                fn = cache[id(c)] = comp.comp.make_expr(c)
+            try:
+                ok = bool(fn(i, ag, sh, ags))
+            except Exception:       # noqa: BLE001 - a guard error: it does not hold
+                ok = False
+            if not ok:
+                false.append(c)
+        if not false:
+            enabled.append(ev.name)
+            continue
+        if any(_never_changes(model, c, written) for c in false):
+            continue
+        conds = ", ".join(f"`{_src(model, c.span)}` is false"
+                          + (f" — {w}" if (w := _why(model, i, ag, sh, c)) else "")
+                          for c in false)
+        blocked.append(f"{ev.name} (line {ev.guard.span.line}: {conds})")
+    return blocked, enabled
 
 
 def waiting_text(waits: list) -> str:
