@@ -161,3 +161,31 @@ def test_the_search_family_imports_no_display_or_layout(mod):
 
 def test_the_search_family_is_found():
     assert {m.rpartition(".")[2] for m in _by_stem(SEARCH)} == SEARCH
+
+
+def test_the_search_family_has_no_long_or_complex_function():
+    """No function of the search family (and stall.py) above 80 lines or
+    above complexity 15 (ruff's C901, as .ci/run's check)."""
+    import shutil
+    import subprocess
+    import sys
+    files = sorted(str(MODULES[m]) for m in _by_stem(SEARCH | {"stall"}))
+    long = []
+    for f in files:
+        for node in ast.walk(ast.parse(Path(f).read_text(), f)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > 80:
+                    long.append(f"{Path(f).name}:{node.lineno} {node.name} ({n} lines)")
+    assert long == []
+    if shutil.which("ruff") is None and not _has_module("ruff"):
+        pytest.skip("ruff is not installed")
+    out = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "--select", "C901",
+                          "--config", "lint.mccabe.max-complexity=15", *files],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
+def _has_module(name: str) -> bool:
+    import importlib.util
+    return importlib.util.find_spec(name) is not None
