@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import pytest
 
-from pccl.explorer import Bound, Explorer, Progress, terminal
-from pccl.fastest import FastestExplorer
-from pccl.parallel import ParallelExplorer
+from pccl.search.explorer import Bound, Explorer, Progress, terminal
+from pccl.search.fastest import FastestExplorer
+from pccl.search.parallel import ParallelExplorer
 
 
 @dataclass(frozen=True)
@@ -200,7 +200,7 @@ def test_the_pccl_model_gives_the_search_its_time_costs():
     """Model.time_costs (what fastest.py and liveness.py read) agrees with
     the configuration's phase, read here through the layout."""
     from pccl.api import make_model
-    from pccl.layout import DISCRETE, PHASE, AGS, REACH, TARGET, DONE, FAIL, POS
+    from pccl.model.layout import DISCRETE, PHASE, AGS, REACH, TARGET, DONE, FAIL, POS
     m = make_model("programs/race_nonatomic.pccl", world="programs/race.toml",
                    blackbox="nondet", agents=2)
     states, todo, seen = [], list(m.init_states()), set()
@@ -221,3 +221,27 @@ def test_the_pccl_model_gives_the_search_its_time_costs():
                    and not ag[REACH][FAIL] and tuple(ag[POS][:2]) != tuple(ag[REACH][TARGET][:2]))
     assert [m.arrival_pending(s) for s in states] == [pending(s) for s in states]
     assert any(m.arrival_pending(s) for s in states)
+
+
+def test_the_model_names_a_labels_agent_and_line_as_the_display_does():
+    """Model.label_line (what liveness.py reads for a time-lock's loops)
+    agrees with the display's label_info on every transition of reachable
+    states of two programs (events, statements, locks, doReach)."""
+    from pccl.api import make_model
+    from pccl.output.display import label_info
+    for prog, kw in (("programs/fischer.pccl", dict(agents=2, overrides={"k": "0"})),
+                     ("programs/race_nonatomic.pccl", dict(world="programs/race.toml",
+                                                           blackbox="nondet", agents=2))):
+        m = make_model(prog, reduce="none", **kw)
+        todo, seen, rules = list(m.init_states()), set(), set()
+        while todo and len(seen) < 600:
+            s = todo.pop()
+            if s in seen:
+                continue
+            seen.add(s)
+            for lab, t in m.successors(s):
+                info = label_info(m, lab, s)
+                assert m.label_line(lab) == (info["agent"], info["line"]), lab
+                rules.add(lab[0])
+                todo.append(t)
+        assert {"EVENT SELECT", "STATEMENT"} <= rules, rules
