@@ -700,7 +700,12 @@ class _RayTransport:
             else:
                 ray.init(address=address, **quiet)
         except Exception as exc:
-            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}") from None
+            hint = ""
+            if address != "local" and "RAY_AUTH_MODE" not in os.environ:
+                hint = ("; if the cluster uses token authentication (recent Ray turns it on "
+                        "for a new head), set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the "
+                        "head's token (its ~/.ray/auth_token)")
+            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}{hint}") from None
         return True
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
