@@ -640,7 +640,7 @@ class RayWorkerLost(RayUnavailable):
 class _RayWorker(_Worker):
     """A worker as a Ray actor: :meth:`ready` also says where it runs."""
 
-    def ready(self):        # type: ignore[override]
+    def ready(self):
         super().ready()
         import ray
         return (self.wid, ray.get_runtime_context().get_node_id(),
