@@ -86,10 +86,10 @@ class Cluster:
         self.nodes: dict = {}          # "node_a"/"node_b" -> the ray start process
         self.ids: dict = {}            # "node_a"/"node_b" -> Ray's node id
 
-    def start_node(self, name: str, head: bool) -> None:
+    def start_node(self, name: str, head: bool, cpus: int = 1) -> None:
         tmp = os.path.join(self.root, name)
         os.mkdir(tmp)
-        cmd = [self.ray, "start", "--block", "--num-cpus", "1", "--node-ip-address", "127.0.0.1",
+        cmd = [self.ray, "start", "--block", "--num-cpus", str(cpus), "--node-ip-address", "127.0.0.1",
                "--resources", json.dumps({name: 1}), "--temp-dir", tmp, "--disable-usage-stats",
                "--dashboard-agent-listen-port", str(_free_port())]
         cmd += (["--head", "--port", str(self.port), "--include-dashboard", "false"] if head
@@ -245,3 +245,23 @@ def test_a_node_lost_mid_search_is_named_and_ends_the_search(cluster, how):
     _kill(node_b, signal.SIGKILL if how == "killed" else signal.SIGSTOP)
     took, err = _lost_outcome(p, t, cluster.ids["node_b"], lines)
     assert took < 150, took
+
+
+def test_actors_that_cannot_be_placed_fail_after_the_start_timeout():
+    """A head without CPUs (as many clusters start theirs) and no other
+    node: the actors stay pending; the search says so after
+    PCCL_RAY_START_TIMEOUT seconds, exit status 2 (before: it waited for
+    ever)."""
+    c = Cluster()
+    try:
+        c.start_node("node_a", head=True, cpus=0)
+        t = time.monotonic()
+        r = subprocess.run(PCCL + [FISCHER, "--set", "k=0", "--ray", c.address, "--workers", "2",
+                                   "--no-progress"], capture_output=True, text=True,
+                           env={**c.env, "PCCL_RAY_START_TIMEOUT": "5"}, timeout=240)
+        assert r.returncode == 2, r.stderr[-3000:]
+        assert "2 of the 2 actors (workers 0, 1) did not start within 5 s" in r.stderr, r.stderr
+        assert "the cluster has 0 CPUs" in r.stderr and "Traceback" not in r.stderr
+        assert time.monotonic() - t < 120
+    finally:
+        c.down()
