@@ -251,10 +251,17 @@ def test_actors_that_cannot_be_placed_fail_after_the_start_timeout():
     """A head without CPUs (as many clusters start theirs) and no other
     node: the actors stay pending; the search says so after
     PCCL_RAY_START_TIMEOUT seconds, exit status 2 (before: it waited for
-    ever)."""
+    ever).  And, on the same cluster, pccl without the cluster's token: the
+    message says how token authentication is set up."""
     c = Cluster()
     try:
         c.start_node("node_a", head=True, cpus=0)
+        no_token = {k: v for k, v in c.env.items() if not k.startswith("RAY_AUTH")}
+        r = subprocess.run(PCCL + [FISCHER, "--set", "k=0", "--ray", c.address, "--no-progress"],
+                           capture_output=True, text=True, env=no_token, timeout=240)
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-3000:]
+        assert f"--ray {c.address}: cannot start or reach Ray" in r.stderr
+        assert "set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the head's token" in r.stderr
         t = time.monotonic()
         r = subprocess.run(PCCL + [FISCHER, "--set", "k=0", "--ray", c.address, "--workers", "2",
                                    "--no-progress"], capture_output=True, text=True,
