@@ -653,10 +653,17 @@ RAY_POLL = 5.0
 
 
 def _env_seconds(name: str, default: float) -> float:
-    try:
-        return float(os.environ.get(name, default))
-    except ValueError:
+    """A number of seconds from the environment (``default`` when unset)."""
+    text = os.environ.get(name)
+    if text is None:
         return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0 or value == float("inf"):
+        raise RayUnavailable(f"{name}={text}: expected a number of seconds above 0")
+    return value
 
 
 class _RayTransport:
@@ -710,6 +717,7 @@ class _RayTransport:
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
         ray = self.ray
+        limit = _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
         self.owned = self.connect(ray, self.address, self.n or available_workers())
         cpus = ray.cluster_resources().get("CPU", 0)
         if self.n is None:          # workers="auto": one per CPU of the cluster
@@ -721,7 +729,6 @@ class _RayTransport:
                        for w in range(self.n)]
         self.actor_ids = {a._actor_id.hex(): w for w, a in enumerate(self.actors)}
         refs = [a.ready.remote() for a in self.actors]
-        limit = _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
         _, pending = ray.wait(refs, num_returns=len(refs), timeout=limit)
         if pending:
             waiting = [w for w, r in enumerate(refs) if r in pending]

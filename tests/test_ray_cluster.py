@@ -27,8 +27,6 @@ import time
 
 import pytest
 
-pytestmark = pytest.mark.slow
-
 FISCHER = "programs/fischer.pccl"
 MUTEX = "count(inCs) <= 1"
 PCCL = [sys.executable, "-m", "pccl.cli", "explore"]
@@ -202,6 +200,7 @@ def _lost_outcome(p, t_kill: float, node_id: str, head_lines: str):
     return took, err
 
 
+@pytest.mark.slow
 def test_two_nodes_hold_one_actor_each_and_give_the_one_worker_result(cluster):
     base = PCCL + [FISCHER, "--set", "k=1", "--invariant", MUTEX, "--no-progress",
                    "--format", "json"]
@@ -232,6 +231,7 @@ def test_two_nodes_hold_one_actor_each_and_give_the_one_worker_result(cluster):
     assert took < 60, took
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["killed", "frozen"])
 def test_a_node_lost_mid_search_is_named_and_ends_the_search(cluster, how):
     """The machine of node_b dies (SIGKILL to its raylet, its actor,
@@ -247,6 +247,7 @@ def test_a_node_lost_mid_search_is_named_and_ends_the_search(cluster, how):
     assert took < 150, took
 
 
+@pytest.mark.slow
 def test_actors_that_cannot_be_placed_fail_after_the_start_timeout():
     """A head without CPUs (as many clusters start theirs) and no other
     node: the actors stay pending; the search says so after
@@ -272,3 +273,16 @@ def test_actors_that_cannot_be_placed_fail_after_the_start_timeout():
         assert time.monotonic() - t < 120
     finally:
         c.down()
+
+
+@pytest.mark.parametrize("value", ["abc", "0", "-3", "inf", ""])
+def test_a_bad_start_timeout_is_named(value, monkeypatch):
+    from pccl.parallel import RayUnavailable, _env_seconds
+    monkeypatch.setenv("PCCL_RAY_START_TIMEOUT", value)
+    with pytest.raises(RayUnavailable, match=f"PCCL_RAY_START_TIMEOUT={value}: expected a number "
+                                             f"of seconds above 0"):
+        _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
+    monkeypatch.setenv("PCCL_RAY_START_TIMEOUT", "2.5")
+    assert _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0) == 2.5
+    monkeypatch.delenv("PCCL_RAY_START_TIMEOUT")
+    assert _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0) == 300.0
