@@ -387,7 +387,7 @@ class _ToAst(Transformer):
 def _transform_iteratively(self, tree):
     """Transformer.transform without recursion: a chain of 3,000 operators
     is a tree 3,000 levels deep, beyond Python's recursion limit."""
-    stack = [(tree, iter(tree.children), [])]
+    stack: list[tuple[Tree, Iterator, list]] = [(tree, iter(tree.children), [])]
     while True:
         node, it, acc = stack[-1]
         for c in it:
