@@ -177,6 +177,9 @@ class _ToAst(Transformer):
     """Builds ast nodes.  Statements get sid -1 here; ``_number`` assigns
     the real sids in source order afterwards."""
 
+    def transform(self, tree):
+        return _transform_iteratively(self, tree)
+
     # ---- expressions -----------------------------------------------------
 
     def name(self, meta, children):
@@ -407,7 +410,6 @@ def _transform_iteratively(self, tree):
                 stack[-1][2].append(res)
 
 
-_ToAst.transform = _transform_iteratively  # type: ignore[method-assign]
 _TRANSFORMER = _ToAst()
 
 
