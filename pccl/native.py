@@ -732,6 +732,10 @@ class NativeModel:
     """The explorer's model over native state vectors (see the module's doc);
     ``py`` is the Python :class:`~pccl.engine.Model` it was generated from."""
 
+    #: successors admitted per batch: four times the explorer's default (the
+    #: numpy table's calls cost per batch; measured 15% less CPU on Fischer)
+    BATCH = 16384
+
     def __init__(self, py):
         self.py = py
         gen = Generator(py)
