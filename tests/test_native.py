@@ -268,3 +268,15 @@ def test_hooks_off_gives_the_same_search():
         assert want[1] == 7_777 if kw else want[1] > 7_777
         for batch in (1000, NV.NativeModel.BATCH):
             assert run(nm, batch, **kw) == want
+
+
+def test_without_xxhash_symbol_the_explorer_hashes_in_python(monkeypatch):
+    """Where xxhash's module does not export XXH3_128bits the fingerprint hook
+    is off, and the search is the same."""
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+    kw = dict(overrides={"k": "0", "d": "0"}, **UNREDUCED)
+    want = summary(explore(path, engine="native", **kw))
+    monkeypatch.setattr(NV, "_xxh3_128_address", lambda: None)
+    assert NV.NativeModel(make_model(path, reduce="none")).fingerprint_batch is None
+    got = explore(path, engine="native", **kw)
+    assert got.model.engine_used == "native" and summary(got) == want
