@@ -27,6 +27,16 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import spin  # noqa: E402
 
 
+def one(col: str, k: int, d: int, n: int, exe, baseline) -> tuple:
+    """One timed run of column ``col``: (pccl's counts, CPU seconds)."""
+    if col == "spin BFS":
+        st, cpu = spin.run_pan(exe, bfs=True, n=n)
+        return spin.spin_counts(st, spin.n_initial(k, n)), cpu
+    root = baseline if col == "baseline native" else None
+    eng = "python" if col == "python" else "native"
+    return spin.run_pccl(k, d, n, unreduced=True, engine=eng, root=root)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["2,2,2", "2,1,2", "0,2,3"])
@@ -57,14 +67,6 @@ def main(argv=None) -> int:
         if "spin BFS" in cols:
             exe = spin.build(k, d, n, os.path.join(work, f"k{k}d{d}n{n}"), bfs=True)
 
-        def one(col):
-            if col == "spin BFS":
-                st, cpu = spin.run_pan(exe, bfs=True, n=n)
-                return spin.spin_counts(st, spin.n_initial(k, n)), cpu
-            root = args.baseline if col == "baseline native" else None
-            eng = "python" if col == "python" else "native"
-            return spin.run_pccl(k, d, n, unreduced=True, engine=eng, root=root)
-
         for col in cols:        # the warm-up: the native modules compiled
             if col in ("baseline native", "native"):
                 spin.run_pccl(k, d, n, unreduced=True, engine="native",
@@ -73,7 +75,7 @@ def main(argv=None) -> int:
         runs: dict = {c: [] for c in cols}
         for _ in range(args.repeat):
             for col in cols:
-                runs[col].append(one(col))
+                runs[col].append(one(col, k, d, n, exe, args.baseline))
         ref = runs["native"][0][0]
         for col in cols:
             if runs[col][0][0] != ref:
