@@ -193,7 +193,7 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
     """fingerprint_batch's keys are pccl.fingerprint's (xxh3-128 of marshal v2
     of the key, with and without the clock), and its first occurrences those
     of the explorer's own dict."""
-    from pccl.fingerprint import fingerprint
+    from pccl.search.fingerprint import fingerprint
     nm = NV.NativeModel(make_model(os.path.join(ROOT, program), reduce="none", **kw))
     states = reachable(nm)
     assert len(states) > 100
@@ -242,7 +242,7 @@ def test_hooks_off_gives_the_same_search():
     """The explorer with the batch hooks and without them (per-state
     successors, Python's marshal and xxh3): the same search, at several
     batch sizes and a state budget that stops it mid-level."""
-    from pccl.explorer import Explorer
+    from pccl.search.explorer import Explorer
     path = os.path.join(ROOT, "programs/fischer.pccl")
 
     class Plain:

@@ -591,7 +591,7 @@ fail:
 }}
 /* fingerprints(states): (the 16-byte fingerprints of their keys, in order,
    as one bytes object; the positions, ascending, of each key's first
-   occurrence, as int64s).  A fingerprint is pccl.fingerprint's: xxh3_128 of
+   occurrence, as int64s).  A fingerprint is pccl.search.fingerprint's: xxh3_128 of
    marshal version 2 of the key (a bytes object: 's', its length as a
    little-endian int32, its bytes), in xxhash's canonical (big-endian) form */
 typedef struct {{ uint64_t lo, hi; }} H128;
@@ -818,7 +818,7 @@ class NativeModel:
         return self.py.violations(self.decode(b))
 
     def fingerprint_batch(self, states: list):
-        """The fingerprints of the keys of ``states`` (:func:`pccl.fingerprint.fingerprint`'s,
+        """The fingerprints of the keys of ``states`` (:func:`pccl.search.fingerprint.fingerprint`'s,
         computed in C) as a one-item list of their concatenation, and the
         positions of each key's first occurrence (ascending): the explorer's
         batch hook for its admission."""

@@ -679,7 +679,7 @@ class Explorer:
                 # bytecode per state unless the chunk holds a terminal
                 # state or the depth bound is reached
                 if expand is not None:
-                    # the model's batch hook (pccl/native.py): one call per
+                    # the model's batch hook (pccl/model/native.py): one call per
                     # chunk, the successors flat, the labels met
                     ns, flat, labs = expand(level[c0:c0 + chunk])
                     if labels is not None:
@@ -924,7 +924,7 @@ class _Admission:
             def keys_of(states):
                 return map(xxh, map(dumps, map(key, states), twos))
         self.keys_of = keys_of
-        #: the model's batch hook (pccl/native.py): a batch's fingerprints and
+        #: the model's batch hook (pccl/model/native.py): a batch's fingerprints and
         #: first occurrences in one call (not for --exact or a recorder)
         self.fp_batch = (getattr(ex.model, "fingerprint_batch", None)
                          if not ex.exact and ex.recorder is None else None)
