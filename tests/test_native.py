@@ -280,3 +280,18 @@ def test_without_xxhash_symbol_the_explorer_hashes_in_python(monkeypatch):
     assert NV.NativeModel(make_model(path, reduce="none")).fingerprint_batch is None
     got = explore(path, engine="native", **kw)
     assert got.model.engine_used == "native" and summary(got) == want
+
+
+def test_models_with_and_without_the_clock_in_the_key_side_by_side():
+    """Two models of one program, the clock in the key and not: each one's C
+    fingerprints are of its own key, whichever was built last (the key's
+    form is a constant of the generated source, not a module global)."""
+    from pccl.search.fingerprint import fingerprint
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+    kw = dict(reduce="none", overrides={"k": "0", "d": "0"})
+    a = NV.NativeModel(make_model(path, abstract_time=True, **kw))
+    b = NV.NativeModel(make_model(path, abstract_time=False, **kw))
+    for nm in (a, b, a):
+        states = reachable(nm, 3_000)
+        assert nm.fingerprint_batch(states)[0] == [b"".join(fingerprint(nm.key(s))
+                                                            for s in states)]

@@ -597,7 +597,9 @@ fail:
 typedef struct {{ uint64_t lo, hi; }} H128;
 typedef H128 (*xxh128_fn)(const void *, size_t);
 static xxh128_fn XXH;
-static Py_ssize_t KEYSKIP;
+/* the key: the vector without the clock under time abstraction (a constant
+   of the source: one module per key) */
+#define KEYSKIP {8 if m.abstract_time else 0}
 static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg) || !XXH) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg), m = 0;
@@ -662,8 +664,7 @@ static PyObject *clock_(PyObject *self, PyObject *arg) {{
 static PyObject *setup(PyObject *self, PyObject *args) {{
   PyObject *labels, *exc, *slow;
   unsigned long long xxh;
-  Py_ssize_t skip;
-  if (!PyArg_ParseTuple(args, "O!OOKn", &PyTuple_Type, &labels, &exc, &slow, &xxh, &skip))
+  if (!PyArg_ParseTuple(args, "O!OOK", &PyTuple_Type, &labels, &exc, &slow, &xxh))
     return NULL;
   Py_XDECREF(LABELS); Py_XDECREF(OverflowExc); Py_XDECREF(SLOWVIOL);
   Py_INCREF(labels); Py_INCREF(exc); Py_INCREF(slow);
@@ -673,7 +674,6 @@ static PyObject *setup(PyObject *self, PyObject *args) {{
   LABSEEN = calloc(NLABELS + 1, 1);
   if (!LABSEEN) return PyErr_NoMemory();
   XXH = (xxh128_fn)(uintptr_t)xxh;
-  KEYSKIP = skip;
   Py_RETURN_NONE;
 }}
 static PyMethodDef methods[] = {{
@@ -742,7 +742,7 @@ class NativeModel:
         self.lib = build(src)
         xxh = _xxh3_128_address()
         self.lib.setup(tuple(gen.labels), NativeOverflow, self._violations,
-                       xxh or 0, 8 if py.abstract_time else 0)
+                       xxh or 0)
         self.gen = gen
         self.successors = self.lib.successors
         #: one C call per chunk of a level: (successor counts, the successors
