@@ -17,10 +17,15 @@ per state (the rules of ``semantics/rules.py``, for each pc of the program,
 in the same order, with the same labels); ``violations`` one C call that
 returns ``[]`` when no agent is stuck and every invariant holds, otherwise
 the Python model's own violations of the decoded configuration; ``key``
-drops the clock under time abstraction.  The explorer, its fingerprint table
-(xxh3-128 of the marshalled key: an injective encoding, so the collision
-bound is the same) and the replay of counterexamples are the Python
-engine's, unchanged; traces are decoded to configurations afterwards.  So
+drops the clock under time abstraction.  Two batch hooks the explorer uses
+when a model has them: ``successor_batch`` expands a chunk of a level in one
+C call (successor counts, the successors flat, the labels met), and
+``fingerprint_batch`` computes a batch's fingerprints (the very function of
+:mod:`pccl.search.fingerprint`, xxh3-128 of the marshalled key, by xxhash's
+own exported ``XXH3_128bits``) and the first occurrence of each key in one C
+call.  The explorer, its fingerprint table (an injective encoding, so the
+collision bound is the same) and the replay of counterexamples are the
+Python engine's; traces are decoded to configurations afterwards.  So
 states, transitions, depth, verdicts and counterexamples equal the Python
 engine's by construction of the same BFS order (tests/test_native.py checks
 it).
