@@ -624,7 +624,11 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
     if (!s) goto fail;
     memcpy(buf + 5, (const char *)s + KEYSKIP, klen);
     H128 h = XXH(buf, 5 + klen);
+#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    uint64_t be[2] = {{ h.hi, h.lo }};
+#else
     uint64_t be[2] = {{ __builtin_bswap64(h.hi), __builtin_bswap64(h.lo) }};
+#endif
     memcpy(out + 16 * i, be, 16);
     size_t slot = (size_t)(h.lo ^ h.hi) & (size - 1);
     for (;;) {{
