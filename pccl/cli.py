@@ -175,9 +175,9 @@ class _Main(click.Group):
         import threading
         previous = None
         _signal["term"] = False
-        if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGTERM, _on_sigterm)
         try:
+            if threading.current_thread() is threading.main_thread():
+                previous = signal.signal(signal.SIGTERM, _on_sigterm)
             return super().invoke(ctx)
         except KeyboardInterrupt:
             click.echo("pccl: interrupted", err=True)
