@@ -28,9 +28,11 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from . import codec as C
 from . import tracecheck as TC
 from . import traces as T
 from .errors import ArgumentError, OptionError, PcclError
+from .layout import TIME
 
 
 @dataclass
@@ -227,17 +229,22 @@ def describe(rec: dict) -> str:
     return s
 
 
-def _changes_text(chs: list) -> str:
-    if not chs:
+def _changes_text(chs: list, every: bool = False) -> str:
+    """The changes as text; without ``every``, those the text views print
+    (not the pending computation ``k``, ``t0``, the obstacles)."""
+    shown = [c for c in chs if every or not isinstance(c, dict) or not isinstance(
+        c.get("cell"), dict) or c["cell"].get("cell") not in ("k", "t0", "obstacles")]
+    if not shown:
         return "no change"
-    return ", ".join(f"{T.cell_name(c['cell'])} {json.dumps(c['old'])} -> {json.dumps(c['new'])}"
-                     for c in chs)
+    return ", ".join(f"{C.cell_name(c['cell'])} {json.dumps(c['old'])} -> "
+                     f"{json.dumps(c['new'])}" for c in shown)
 
 
 def _state_difference(a, b, prefix: str = "") -> str:
-    """The first place where two typed states differ (for messages)."""
+    """The first place where a recorded typed state differs from a replayed
+    one (for messages; keys an older file lacks are not compared)."""
     if isinstance(a, dict) and isinstance(b, dict):
-        for k in list(a) + [k for k in b if k not in a]:
+        for k in a:
             if not _same(a.get(k), b.get(k)):
                 return _state_difference(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else k)
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
@@ -250,10 +257,6 @@ def _state_difference(a, b, prefix: str = "") -> str:
 def _same(a, b) -> bool:
     """Equal as JSON text: 1 is not 1.0, false is not 0."""
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
-
-
-def _typed(m, st) -> dict:
-    return T.normal(T.state_typed(m, st))
 
 
 def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
@@ -287,37 +290,57 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         res.message = message
         return res
 
-    want0 = doc["initial"]
+    version = doc["version"]
+    # an edited program (another hash): its statement ids may have moved, so
+    # a recorded pending computation that names none of them is not compared
+    # (the steps' lines and sources still are: the first that moved is named)
+    rec_prog = cfg.get("program") or {}
+    lenient = bool(rec_prog.get("sha256")) and \
+        T.sha256_of(m.program.filename) != rec_prog.get("sha256")
+    try:
+        want0 = C.decode_state(m, doc["initial"], "initial", lenient)
+    except C.DecodeError as e:
+        return diverge(0, f"diverged at the initial state: no state of this model is the "
+                          f"recorded one: {e.message}")
     inits = []
     state = None
     for s in m.init_states():      # a generator: stop at the recorded state
         inits.append(s)
-        if _same(_typed(m, s), want0):
+        if C.matches(want0, s):
             state = s
             break
     if state is None:
-        closest = _state_difference(want0, _typed(m, inits[0])) if inits else ""
+        closest = (_state_difference(doc["initial"], C.encode_state(m, inits[0]))
+                   if inits else "")
         return diverge(0, f"diverged at the initial state: none of the model's {len(inits)} "
                           f"initial states equals the recorded one (first difference from "
                           f"initial state 1: {closest})")
     res.states = [state]
     picks: list = []            # per step: (index among the successors, how many)
-    for rec in steps:
+    for k, rec in enumerate(steps):
         n = rec["index"]
         succ = m.successors(state)
         ident = _identity(rec)
-        want = rec["changes"]
-        same_label, found, other = [], None, None
+        try:
+            want = C.apply_changes(m, state, rec["changes"], f"steps[{k}].changes", version,
+                                   lenient)
+            undecodable = None
+        except C.DecodeError as e:
+            want, undecodable = None, e.message
+        same_label: list = []
+        found, other = None, None
         for j, (label, nxt) in enumerate(succ):
-            got = T.normal(T.step_record(m, n, label, state, nxt))
-            if _identity(got) != ident:
+            head = C.encode_step_head(m, n, label, state, nxt)
+            if _identity(head) != ident:
                 continue
-            if not _same(got["changes"], want):
-                same_label.append(got["changes"])
+            if want is None or not C.matches(want, nxt):
+                same_label.append(nxt)
                 continue
-            bad = [k for k in ("time", "branch") if not _same(got[k], rec[k])]
-            if bad:
-                other = (bad[0], got[bad[0]])
+            if not C.matches(rec["time"], state[TIME]):
+                other = ("time", head["time"])
+                continue
+            if not _same(head["branch"], rec["branch"]):
+                other = ("branch", head["branch"])
                 continue
             found = (j, label, nxt)
             break
@@ -329,10 +352,16 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
                                   f"{json.dumps(rec[other[0]])}, replayed "
                                   f"{json.dumps(other[1])}")
             if same_label:
+                got = C.encode_changes(m, state, same_label[0])
+                recorded_text, got_text = _changes_text(rec["changes"]), _changes_text(got)
+                if recorded_text == got_text:
+                    recorded_text, got_text = (_changes_text(rec["changes"], every=True),
+                                               _changes_text(got, every=True))
+                if undecodable:
+                    recorded_text += f" ({undecodable})"
                 return diverge(n, f"{where}: the transition is enabled but its changes differ: "
-                                  f"recorded {_changes_text(rec['changes'])}; replayed "
-                                  f"{_changes_text(same_label[0])}")
-            recs = [T.step_record(m, n, lab, state, nxt) for lab, nxt in succ]
+                                  f"recorded {recorded_text}; replayed {got_text}")
+            recs = [C.encode_step_head(m, n, lab, state, nxt) for lab, nxt in succ]
             moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
             if moved:
                 return diverge(n, f"{where}: the program differs here: line {rec['line']} now "
@@ -344,11 +373,14 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         res.labels.append(found[1])
         state = found[2]
         res.states.append(state)
-    last = _typed(m, state)
-    if not _same(last, doc["final"]):
+    try:
+        last_ok = C.matches(C.decode_state(m, doc["final"], "final", lenient), state)
+    except C.DecodeError:
+        last_ok = False
+    if not last_ok:
         return diverge(len(steps), f"diverged at the end: every step reproduced, but the "
                                    f"recorded final state is not the last state (final."
-                                   f"{_state_difference(doc['final'], last)})")
+                                   f"{_state_difference(doc['final'], C.encode_state(m, state))})")
     if cfg["command"] == "run":
         return _end_of_run(m, cfg, doc, res, picks, diverge)
     if recorded is None:

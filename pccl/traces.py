@@ -21,14 +21,10 @@ import json
 import os
 from typing import Optional
 
-from . import display as D
-from .layout import (AGS, CNT, DONE, ENV, FAIL, LCK, LQ, PC, PHASE, POS, REACH, SH, STATUS,
-                     TARGET, TIME)
-from .semantics.rules import K_IF, K_WHILE
-from .values import to_json
+from . import codec as C
 
-FORMAT = "pccl-trace"
-VERSION = 1
+FORMAT = C.FORMAT
+VERSION = C.VERSION
 
 
 def pccl_version() -> str:
@@ -105,118 +101,15 @@ def config(command: str, model, *, program, world=None, blackbox="straight", age
 
 
 # ---------------------------------------------------------------------------
-# typed states and changes
+# typed states and changes: the one encoding, pccl/codec.py
 # ---------------------------------------------------------------------------
 
-def _status(model, code):
-    return D.status_json(model, code)
-
-
-def state_typed(model, st) -> dict:
-    """A configuration as typed JSON data (without the pending computation k,
-    which ``at`` describes)."""
-    agents = []
-    for i, ag in enumerate(st[AGS]):
-        r = ag[REACH]
-        agents.append({
-            "id": i, "status": _status(model, ag[STATUS]), "at": model.compiled.describe_k(ag[PC]),
-            "counter": ag[CNT], "lockState": D.LOCK_NAMES[ag[LCK]],
-            "position": list(ag[POS]),
-            "target": None if r[TARGET] is None else list(r[TARGET]),
-            "doReach_done": r[DONE], "doReach_fail": r[FAIL],
-            "variables": {n: to_json(v, t) for n, t, v in D.agent_vars(model, st, i)}})
-    return {"time": st[TIME], "phase": D._phase(st[PHASE]), "lockQueue": list(st[LQ]),
-            "shared": {n: to_json(v, t) for n, t, v in D.shared_vars(model, st)},
-            "agents": agents, "env": to_json(st[ENV])}
-
-
-def changes(model, a, b) -> list:
-    """Typed changes between two configurations: [{"cell", "old", "new"}]."""
-    out = []
-
-    def add(cell, old, new):
-        out.append({"cell": cell, "old": old, "new": new})
-
-    if a[TIME] != b[TIME]:
-        add({"cell": "time"}, a[TIME], b[TIME])
-    if a[PHASE] != b[PHASE]:
-        add({"cell": "phase"}, D._phase(a[PHASE]), D._phase(b[PHASE]))
-    if a[LQ] != b[LQ]:
-        add({"cell": "lockQueue"}, list(a[LQ]), list(b[LQ]))
-    if a[SH] is not b[SH]:
-        for (n, ty, va), (_, _, vb) in zip(D.shared_vars(model, a), D.shared_vars(model, b)):
-            if va != vb:
-                add({"var": n}, to_json(va, ty), to_json(vb, ty))
-    for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
-        if ga is gb:
-            continue
-        for (n, ty, va), (_, _, vb) in zip(D.agent_vars(model, a, i), D.agent_vars(model, b, i)):
-            if va != vb:
-                add({"agent": i, "var": n}, to_json(va, ty), to_json(vb, ty))
-        if ga[CNT] != gb[CNT]:
-            add({"agent": i, "cell": "counter"}, ga[CNT], gb[CNT])
-        if ga[POS] != gb[POS]:
-            add({"agent": i, "cell": "position"}, list(ga[POS]), list(gb[POS]))
-        if ga[LCK] != gb[LCK]:
-            add({"agent": i, "cell": "lockState"}, D.LOCK_NAMES[ga[LCK]], D.LOCK_NAMES[gb[LCK]])
-        if ga[STATUS] != gb[STATUS]:
-            add({"agent": i, "cell": "status"}, _status(model, ga[STATUS]), _status(model, gb[STATUS]))
-        ra, rb = ga[REACH], gb[REACH]
-        if ra[TARGET] != rb[TARGET]:
-            add({"agent": i, "cell": "target"}, None if ra[TARGET] is None else list(ra[TARGET]),
-                None if rb[TARGET] is None else list(rb[TARGET]))
-        if ra[DONE] != rb[DONE]:
-            add({"agent": i, "cell": "doReach_done"}, ra[DONE], rb[DONE])
-        if ra[FAIL] != rb[FAIL]:
-            add({"agent": i, "cell": "doReach_fail"}, ra[FAIL], rb[FAIL])
-    if a[ENV] != b[ENV]:
-        add({"cell": "env"}, to_json(a[ENV]), to_json(b[ENV]))
-    return out
-
-
-def cell_name(cell: dict) -> str:
-    """``waitTime[0]``, ``reqid``, ``pos[1]``, ``time``: as the text views print cells."""
-    c = str(cell.get("cell"))
-    name = cell.get("var") or {"position": "pos"}.get(c, c)
-    return f"{name}[{cell['agent']}]" if "agent" in cell else name
-
-
-def branch_taken(model, label, before, after) -> Optional[dict]:
-    """For an ``if`` or ``while`` step: which branch was taken, derived from
-    the agent's pending computation before and after (None otherwise, and
-    when the agent got stuck evaluating the condition)."""
-    rule, i, sid = label
-    if rule != "STATEMENT" or i is None:
-        return None
-    ag, ag2 = before[AGS][i], after[AGS][i]
-    if ag2[STATUS] != ag[STATUS]:
-        return None
-    info = model.ctl.info(ag[PC])
-    if info.kind == K_IF:
-        pcs = info.branch_pcs
-        stmt = model.compiled.stmts[info.sid]
-        try:
-            k = pcs.index(ag2[PC])
-        except ValueError:
-            return None
-        n = len(stmt.branches)
-        if k == n:
-            taken = "else" if stmt.orelse else "none"
-        elif k == 0:
-            taken = "then"
-        else:
-            taken = f"else if #{k}"
-        if k < n:
-            span = stmt.branches[k][1][0].span if stmt.branches[k][1] else None
-        else:
-            span = stmt.orelse[0].span if stmt.orelse else None
-        return {"kind": "if", "index": k, "taken": taken,
-                "line": span.line if span else None}
-    if info.kind == K_WHILE:
-        body = ag2[PC] == info.body_pc
-        return {"kind": "while", "index": 0 if body else 1, "taken": "body" if body else "exit",
-                "line": None}
-    return None
+state_typed = C.encode_state
+changes = C.encode_changes
+step_record = C.encode_step
+violation_record = C.encode_violation
+cell_name = C.cell_name
+branch_taken = C.branch_taken
 
 
 def branch_text(br: Optional[dict]) -> str:
@@ -228,33 +121,6 @@ def branch_text(br: Optional[dict]) -> str:
             return "→ no branch (condition false, no else)"
         return f"→ {t}" + (f" (line {br['line']})" if br.get("line") else "")
     return "→ loop body" if br["taken"] == "body" else "→ loop exit"
-
-
-def step_record(model, n, label, before, after) -> dict:
-    info = D.label_info(model, label, before)
-    rule, agent, detail = label
-    column = None
-    if rule == "EVENT SELECT" and detail is not None:
-        column = model.program.events[detail].guard.span.column
-    elif info["line"] is not None and isinstance(detail, int) and rule not in ("DOREACH INVOKE",):
-        sp = model.compiled.stmt_span(detail)
-        column = sp.column if sp else None
-    rec = {"index": n, "time": before[TIME], "agent": agent, "rule": info["rule"],
-           "event": info["event"], "line": info["line"], "column": column,
-           "source": info["source"] or None,
-           "branch": branch_taken(model, label, before, after),
-           "changes": changes(model, before, after)}
-    if rule == "DOREACH INVOKE":
-        rec["outcome"] = detail
-    return rec
-
-
-def violation_record(model, v) -> Optional[dict]:
-    if v is None:
-        return None
-    span = getattr(v, "span", None)
-    return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
-            "line": span.line if span else None, "column": span.column if span else None}
 
 
 def document(model, cfg: dict, states: list, labels: list, *, status: str,

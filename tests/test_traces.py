@@ -64,7 +64,11 @@ def test_typed_values_and_cell_paths(fischer_trace):
     assert a0["position"] == [0.0, 0.0, 0.0]
     assert d["initial"]["shared"] == {"reqid": -1, "k": 1, "d": 2}
     last = d["steps"][-1]
-    assert last["changes"] == [{"cell": {"agent": 0, "var": "inCs"}, "old": False, "new": True}]
+    # version 2 records the pending computation k as a change too (the
+    # statement ids left to run): the last statement of the event block ran
+    assert last["changes"] == [{"cell": {"agent": 0, "var": "inCs"}, "old": False, "new": True},
+                               {"cell": {"agent": 0, "cell": "k"}, "old": [20, "end"],
+                                "new": ["end"]}]
     assert (last["line"], last["column"], last["rule"]) == (68, 9, "STATEMENT")
     times = [ch for s in d["steps"] for ch in s["changes"] if ch["cell"] == {"cell": "time"}]
     assert times and all(isinstance(ch["new"], int) for ch in times)
