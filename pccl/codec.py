@@ -182,10 +182,10 @@ def encode_changes(model, a, b) -> list:
     return out
 
 
-#: Cells of a change that the text views do not print (the pending
-#: computation shows as the next step's line; t0 and the obstacles as the
-#: doReach call that set them).
-INTERNAL_CELLS = frozenset({"k", "t0", "obstacles", "env"})
+#: Agent cells of a change that the text views and the HTML viewer do not
+#: print (the pending computation shows as the next step's line; t0 and the
+#: obstacles as the doReach call that set them).
+INTERNAL_CELLS = frozenset({"k", "t0", "obstacles"})
 
 
 def cell_name(cell: dict) -> str:

@@ -233,7 +233,7 @@ def _changes_text(chs: list, every: bool = False) -> str:
     """The changes as text; without ``every``, those the text views print
     (not the pending computation ``k``, ``t0``, the obstacles)."""
     shown = [c for c in chs if every or not isinstance(c, dict) or not isinstance(
-        c.get("cell"), dict) or c["cell"].get("cell") not in ("k", "t0", "obstacles")]
+        c.get("cell"), dict) or c["cell"].get("cell") not in C.INTERNAL_CELLS]
     if not shown:
         return "no change"
     return ", ".join(f"{C.cell_name(c['cell'])} {json.dumps(c['old'])} -> "
