@@ -471,6 +471,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                           for st in cx.trace.steps)
             witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
                               "trace": steps, "state": StateView.of(model, cx.trace.last),
+                              "initial": StateView.of(model, cx.trace.initial),
                               "_trace": cx.trace})
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
@@ -596,7 +597,7 @@ def violation_data(model, found: Counterexample) -> Finding:
                    v.span.line if v.span else None, v.span.column if v.span else None,
                    found.depth, "under the reductions" if reduced else "yes",
                    steps, None if tr is None else StateView.of(model, tr.last),
-                   found.cycle_start)
+                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial))
 
 
 # ---------------------------------------------------------------------------

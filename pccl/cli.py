@@ -314,22 +314,20 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
                        stall_steps=stall_steps)
         doc = T.run_document(res, cfg)
     if fmt == "json":
-        out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
-               "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "status": res.status,
-               "result": res.status,        # the same as status (older name, kept)
-               "message": res.message,
-               "exit_status": _exit_status(res.exit_status,
-                                           [v.kind for v in res.violations] + [res.status],
-                                           exit_codes),
-               "steps": res.steps,
-               "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
-                           for t, s in res.summary],
-               "final": D.state_json(m, res.final),
-               "properties": [{"name": o.name, "kind": o.kind, "outcome": o.outcome,
-                               "detail": o.detail} for o in res.properties],
-               "checked": checked.to_json()}
-        out["trace"] = doc
+        from .codec import encode_state, output
+        out = output(
+            "run", status=res.status, message=res.message,
+            exit_status=_exit_status(res.exit_status,
+                                     [v.kind for v in res.violations] + [res.status],
+                                     exit_codes),
+            program=program, blackbox=m.blackbox.name, agents=m.N, seed=seed,
+            delta=m.delta, n0=m.n0, rates=list(m.rho), steps=res.steps,
+            summary=[{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
+                     for t, s in res.summary],
+            final=encode_state(m, res.final),
+            properties=[{"name": o.name, "kind": o.kind, "outcome": o.outcome,
+                         "detail": o.detail} for o in res.properties],
+            checked=checked.to_json(), trace=doc)
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
@@ -730,7 +728,11 @@ def _resume_hint(res, directory) -> None:
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
 @click.option("--html", type=click.Path(dir_okay=False), default=None,
               help="write a self-contained HTML viewer of the trace to this file")
-def replay(trace_file, blackbox, program_file, world_file, view, full, plot, html):
+@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text",
+              show_default=True,
+              help="json: the verdict and the replayed trace, in the vocabulary of run and "
+                   "explore (docs/trace-format.md)")
+def replay(trace_file, blackbox, program_file, world_file, view, full, plot, html, fmt):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
     check the file, rebuild the model from the recorded configuration, start
     from the recorded initial state, check that every recorded step is enabled
@@ -743,7 +745,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         _check_plot_output(plot)
     if html:
         _check_output(html, "--html")
-    if view is None and _stdout_is_terminal():
+    if view is None and _stdout_is_terminal() and fmt == "text":
         view = "steps"
     try:
         res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file)
@@ -751,6 +753,17 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         _fail(e)
     cfg = res.doc["config"]
     m = res.model
+    if fmt == "json":
+        from .codec import output
+        from .replay import replayed_document
+        click.echo(json.dumps(output(
+            "replay", status=res.status, message=res.message, exit_status=res.exit_status,
+            trace=replayed_document(res),
+            **{"file": str(trace_file), "recorded_version": res.doc["version"],
+               "recorded_command": cfg["command"], "steps_replayed": len(res.labels),
+               "steps_total": res.steps_total, "diverged_at": res.diverged_at,
+               "warnings": list(res.warnings)}), indent=2, default=str))
+        sys.exit(res.exit_status)
     click.echo(f"pccl replay {trace_file}: {cfg['command']} of {cfg['program']['path']}, "
                f"{m.N} agents, blackbox {m.blackbox.name}, δ={D.fmt_time(m.delta)}, "
                f"n0={m.n0}{_rates_text(m)}" + (f", seed {cfg['seed']}" if "seed" in cfg else ""))
@@ -1034,7 +1047,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
     n_bad = len(bad_times)
     doc = None
-    if first_bad is not None and trace_out:
+    if first_bad is not None and (trace_out or fmt == "json"):
         cfg = T.config("run", model, program=program, world=world, blackbox=blackbox,
                        overrides=dict(overrides), invariants=invariants,
                        seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)),
@@ -1042,9 +1055,14 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                        stall_steps=stall_steps)
         doc = T.run_document(first_bad, cfg)
     if fmt == "json":
+        from .codec import output
         lo, hi = S.wilson(n_bad, done_runs)
-        click.echo(json.dumps({
-            "program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
+        status = "out-of-memory" if code == 2 else "violation" if n_bad else "clean"
+        message = (f"violations: {S.frequency(n_bad, done_runs)}" if n_bad else
+                   f"violations: none in {done_runs} runs")
+        click.echo(json.dumps(output(
+            "simulate", status=status, message=message, exit_status=code, trace=doc,
+            **{"program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
             "blackbox": model.blackbox.name,
             "invariants": list(invariants), "properties": list(properties),
             "outcomes": [{"outcome": o.label, "count": len(o.seeds),
@@ -1063,9 +1081,9 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                                                   "mean": sum(bad_times) / n_bad,
                                                   "max": max(bad_times)} if bad_times else None),
                            "first_seed": first_bad and min(
-                               o.first_seed for o in outcomes.values() if S.is_bad(o))},
-            "exit_status": code}, indent=2, default=str))
-        if doc is not None:
+                               o.first_seed for o in outcomes.values() if S.is_bad(o))}}),
+            indent=2, default=str))
+        if doc is not None and trace_out:
             _write_trace(doc, trace_out, quiet=True)
         sys.exit(code)
     click.echo(f"pccl simulate {program}: {done_runs} runs (seeds {seed}–{seed + done_runs - 1}), "
@@ -1390,10 +1408,13 @@ def _steps(n: int) -> str:
 
 
 def _explore_json(program, res) -> dict:
+    from .codec import output
+    from .results import path_json
     m = res.model
-    return {"program": program, "blackbox": res.blackbox, "agents": m.N,
+    return output(
+        "explore", status=res.status, message=res.verdict, exit_status=res.exit_status,
+        **{"program": program, "blackbox": res.blackbox, "agents": m.N,
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-            "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(),
             "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
@@ -1401,12 +1422,12 @@ def _explore_json(program, res) -> dict:
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
             "violations": [v.to_json() for v in res.violations],
             "witnesses": [{"name": w["name"], "text": w["text"], "depth": w["depth"],
-                           "trace": [s.to_json() for s in w["trace"]],
-                           "state": w["state"].to_json()} for w in res.witnesses],
+                           "trace": path_json(w["initial"], w["trace"], w["state"])}
+                          for w in res.witnesses],
             "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
             "not_covered": res.not_covered,
             "stall_check": res.stall,
-            "checked": res.checked.to_json()}
+            "checked": res.checked.to_json()})
 
 
 @main.command(name="fmt", short_help="Format programs in the canonical layout.")

@@ -627,3 +627,23 @@ def is_complete(st) -> bool:
 __all__ = ["ANY", "FORMAT", "READS", "VERSION", "DecodeError", "apply_changes", "cell_name",
            "decode_state", "decode_value", "encode_changes", "encode_state", "encode_step", "encode_step_head",
            "encode_status", "encode_violation", "is_complete", "matches"]
+
+
+# ---------------------------------------------------------------------------
+# the top level of every --format json output
+# ---------------------------------------------------------------------------
+
+#: The ``format`` of the JSON that ``run``, ``explore``, ``simulate`` and
+#: ``replay`` print with ``--format json`` (its ``version`` is :data:`VERSION`:
+#: one vocabulary with the trace files it carries).
+OUTPUT = "pccl-output"
+
+
+def output(command: str, *, status: str, message: Optional[str], exit_status: int,
+           trace: Optional[dict] = None, **fields) -> dict:
+    """The JSON a command prints: ``format``, ``version``, ``command``, the
+    verdict as ``status`` (one word), ``message`` (the verdict line) and
+    ``exit_status``, the command's own fields, and ``trace``: the trace
+    document (the trace file's contents) or null."""
+    return {"format": OUTPUT, "version": VERSION, "command": command, "status": status,
+            "message": message, "exit_status": exit_status, **fields, "trace": trace}

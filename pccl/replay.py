@@ -52,6 +52,20 @@ class ReplayResult:
     doc: Optional[dict] = None
 
 
+def replayed_document(res: ReplayResult) -> Optional[dict]:
+    """The trace document of a reproduced replay, written anew by this
+    pccl (the current version, whatever the file's): the recorded
+    configuration and result, the replayed states and steps.  None when
+    the replay diverged or had nothing to replay."""
+    if res.status not in ("violation", "clean", "witness") or not res.states:
+        return None
+    doc = res.doc or {}
+    out = T.document(res.model, doc["config"], res.states, res.labels,
+                     status=doc["result"]["status"], message=doc["result"].get("message"))
+    out["result"] = dict(doc["result"])
+    return out
+
+
 def load(path) -> dict:
     """The trace document in ``path``, parsed and checked (:mod:`pccl.tracecheck`)."""
     return TC.load(path)

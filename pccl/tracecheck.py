@@ -428,8 +428,9 @@ def check(doc: Any, name: str) -> dict:
     """The trace document ``doc`` (parsed JSON) if its structure is that of
     a trace file; else a PcclError naming the first bad field."""
     from . import traces as T
-    if isinstance(doc, dict) and isinstance(doc.get("trace"), dict) and "format" not in doc:
-        doc = doc["trace"]        # the output of --format json
+    if isinstance(doc, dict) and isinstance(doc.get("trace"), dict) and \
+            doc.get("format") in (None, "pccl-output"):
+        doc = doc["trace"]        # the output of --format json (older ones had no "format")
     if not isinstance(doc, dict) or doc.get("format") != T.FORMAT:
         raise PcclError("not a pccl trace file (no \"format\": \"pccl-trace\")", filename=name)
     from .codec import READS

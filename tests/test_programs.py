@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from pccl import api
-from pccl import display as D
+from pccl import codec as C
 from pccl.checker import check_program
 from pccl.cli import main as cli
 from pccl.parser import parse_file, parse_program
@@ -47,8 +47,8 @@ def variant_text(prog, old: str, new: str):
 def assert_final(res, n_agents: int):
     assert res.status == "final", res.message
     assert res.exit_status == 0
-    state = D.state_json(res.model, res.final)
-    assert [a["status"] for a in state["agents"]] == ["exited"] * n_agents
+    state = C.encode_state(res.model, res.final)
+    assert [a["status"]["status"] for a in state["agents"]] == ["exited"] * n_agents
     return state
 
 
@@ -224,7 +224,7 @@ def test_rendezvous_detours_under_straight():
     assert_final(res, 3)
     rules = [(label[0], label[1]) for label, _, _ in res.trace]
     assert ("DOREACH INVOKE", None) in rules
-    stages = {D.state_json(res.model, after)["agents"][0]["variables"]["stage"]
+    stages = {C.encode_state(res.model, after)["agents"][0]["variables"]["stage"]
               for _, _, after in res.trace}
     assert {"DETOUR", "FINAL", "THERE"} <= stages
 
