@@ -64,7 +64,7 @@ def check_fischer_violation(res):
     # no earlier state of the counterexample violates the property
     assert not any(var(m, s, 0, "inCs") and var(m, s, 1, "inCs") for _, s in raw[:-1])
     # the trace is the path: numbered steps, consecutive, replayable
-    assert [s["step"] for s in res.trace] == list(range(1, len(raw)))
+    assert [s["index"] for s in res.trace] == list(range(1, len(raw)))
     assert len(res.trace) == res.violation["depth"]
     st = raw[0][1]
     assert st in m.init_states()
@@ -76,7 +76,8 @@ def check_fischer_violation(res):
             "LOCK REQUEST", "ATOMIC EXECUTION", "LOCK RELEASE"} <= rules
     last = res.trace[-1]
     assert last["rule"] == "STATEMENT" and last["source"] == "inCs = true;"
-    assert {"cell": f"inCs[{last['agent']}]", "old": "false", "new": "true"} in last["changes"]
+    assert {"cell": {"agent": last["agent"], "var": "inCs"}, "old": False, "new": True} \
+        in last["changes"]
 
 
 def test_fischer_mutex_violation_found(fischer_any):
@@ -366,7 +367,7 @@ def test_deadlock_detected_and_can_be_turned_off():
     assert [v["kind"] for v in on.violations] == ["assert", "deadlock"]
     dl = on.violations[1]
     assert "deadlock" in dl["message"] and "agent 0" in dl["message"]
-    assert dl["depth"] == len(dl["trace"]) > on.violations[0]["depth"]
+    assert dl["depth"] == len(dl.trace) > on.violations[0]["depth"]
     off = explore(ASSERT_PROG, blackbox="instant", find_all=True, deadlock=False)
     assert [v["kind"] for v in off.violations] == ["assert"]
     assert off.status == "violation"

@@ -77,7 +77,7 @@ def summary(res) -> dict:
         # violation is found at the same depth, with the same trace
         "found": [(v["kind"], v["name"], v["line"], v["column"], v["depth"])
                   for v in res.violations],
-        "traces": [[(s["rule"], s["agent"]) for s in v["trace"]] for v in res.violations],
+        "traces": [[(s["rule"], s["agent"]) for s in v.trace] for v in res.violations],
     }
 
 

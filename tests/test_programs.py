@@ -271,6 +271,5 @@ def test_rendezvous_check_outside_lock_is_caught():
     assert res.status == "violation" and res.exit_status == 1
     assert violation_names(res) == {"maximal"}
     # the shortest counterexample shows the lost update: top goes down
-    writes = [(int(c["old"]), int(c["new"])) for step in res.trace
-              for c in step["changes"] if c["cell"] == "top"]
+    writes = [(c.old, c.new) for step in res.trace for c in step.changes if c.cell == "top"]
     assert any(new < old for old, new in writes), writes
