@@ -337,8 +337,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             click.echo(views.render(view, m, _run_path(res), full=full))
         elif trace:
             click.echo("trace:")
-            for n, (lab, a, b) in enumerate(res.trace):
-                click.echo(D.format_step(m, n + 1, lab, a, b))
+            for st in _run_path(res).steps:
+                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("time steps:")
         for ln in _collapsed_summary(m, res.summary):
             click.echo(ln)
@@ -371,7 +371,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
-        _write_html(html, doc, model=m, states=_run_path(res)[0], quiet=(fmt == "json"))
+        _write_html(html, doc, model=m, states=list(_run_path(res).states),
+                    quiet=(fmt == "json"))
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
                           exit_codes))
 
@@ -404,10 +405,9 @@ def _collapsed_summary(m, summary) -> list:
 
 
 def _run_path(res):
-    """A run's path as (states, labels)."""
-    if res.trace:
-        return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
-    return [res.final], []
+    """A run's path (its recorded trace, else its last state alone)."""
+    from .explorer import Trace
+    return res.trace if res.trace is not None else Trace((res.final,), ())
 
 
 def _check_with_world(prog, world) -> None:
@@ -667,7 +667,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot and res.violations:
         try:
-            _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
+            _plot_module().plot_trace(model, res.counterexamples[0].trace, plot,
                                       title=res.violations[0].message)
             click.echo(f"plot written to {plot}", err=(fmt == "json"))
         except PcclError as e:  # the violation stands: report, keep exit status 1
@@ -771,13 +771,12 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         click.echo(w)
     if view and res.states:
         from . import views
-        click.echo(views.render(view, m, (res.states, res.labels), full=full))
+        click.echo(views.render(view, m, res.trace, full=full))
     click.echo(f"replayed {len(res.labels)} of {res.steps_total} steps")
     click.echo(res.message)
     if plot and res.states:
         try:
-            _plot_module().plot_trace(m, [(None, res.states[0])] + list(zip(res.labels, res.states[1:])),
-                                      plot, title=res.message)
+            _plot_module().plot_trace(m, res.trace, plot, title=res.message)
             click.echo(f"plot written to {plot}")
         except PcclError as e:
             click.echo(e.render(), err=True)
@@ -1114,13 +1113,13 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     if first_bad is not None:
         s0 = min(o.first_seed for o in outcomes.values() if S.is_bad(o))
         click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
-        n_steps = len(first_bad.trace)
+        path = _run_path(first_bad)
+        n_steps = len(path)
         skip = 0 if trace else max(0, n_steps - SIM_TAIL)
         click.echo(f"trace ({n_steps} steps" + (f"; the last {n_steps - skip}, --trace for all"
                                                 if skip else "") + "):")
-        for k, (lab, a, b) in enumerate(first_bad.trace):
-            if k >= skip:
-                click.echo(D.format_step(model, k + 1, lab, a, b))
+        for st in path.steps[skip:]:
+            click.echo(D.format_step(model, st.number, st.label, st.before, st.after))
     if doc is not None:
         _write_trace(doc, trace_out)
     sys.exit(code)
@@ -1367,7 +1366,7 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
             click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
             from . import views
-            click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
+            click.echo(views.render(view, m, tr, full=full))
         else:
             for st in tr.steps:
                 if loop is not None and st.number == loop + 1:

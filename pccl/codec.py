@@ -264,6 +264,19 @@ def encode_step_head(model, n, label, before, after) -> dict:
     return rec
 
 
+def encode_path(model, trace) -> dict:
+    """A path (:class:`pccl.explorer.Trace`, or None: no path) as every JSON
+    output writes one: ``{"initial", "steps", "final"}`` (null states and no
+    steps without a path)."""
+    if trace is None:
+        return {"initial": None, "steps": [], "final": None}
+    s = trace.states
+    return {"initial": encode_state(model, s[0]),
+            "steps": [encode_step(model, n + 1, lab, s[n], s[n + 1])
+                      for n, lab in enumerate(trace.labels)],
+            "final": encode_state(model, s[-1])}
+
+
 def encode_violation(model, v) -> Optional[dict]:
     if v is None:
         return None

@@ -51,6 +51,13 @@ class ReplayResult:
     steps_total: int = 0
     doc: Optional[dict] = None
 
+    @property
+    def trace(self):
+        """The replayed path (:class:`pccl.explorer.Trace`; to the divergence
+        when it diverged), or None before the initial state was found."""
+        from .explorer import Trace
+        return Trace(tuple(self.states), tuple(self.labels)) if self.states else None
+
 
 def replayed_document(res: ReplayResult) -> Optional[dict]:
     """The trace document of a reproduced replay, written anew by this
@@ -60,7 +67,7 @@ def replayed_document(res: ReplayResult) -> Optional[dict]:
     if res.status not in ("violation", "clean", "witness") or not res.states:
         return None
     doc = res.doc or {}
-    out = T.document(res.model, doc["config"], res.states, res.labels,
+    out = T.document(res.model, doc["config"], res.trace,
                      status=doc["result"]["status"], message=doc["result"].get("message"))
     out["result"] = dict(doc["result"])
     return out

@@ -39,6 +39,7 @@ from typing import Any, Optional
 from . import display as D
 from . import traces as T
 from .errors import PcclError
+from .explorer import Trace
 from .layout import TIME
 
 MAX_BODY = 64 * 2**20          # a loaded trace file, at most
@@ -259,7 +260,7 @@ class Session:
             if terminal == "deadlock" and not vs:
                 vs = [m.deadlock_violation(st)]
                 checks.append({"name": "deadlock", "holds": False, "message": vs[0].message})
-        doc = T.document(m, self.cfg, self.states, self.labels,
+        doc = T.document(m, self.cfg, Trace(tuple(self.states), tuple(self.labels)),
                          status="violation" if vs else "exploring",
                          violation=vs[0] if vs else None,
                          message=vs[0].message if vs else f"exploring: depth {len(self.labels)}")

@@ -123,18 +123,16 @@ def branch_text(br: Optional[dict]) -> str:
     return "→ loop body" if br["taken"] == "body" else "→ loop exit"
 
 
-def document(model, cfg: dict, states: list, labels: list, *, status: str,
-             violation=None, message: Optional[str] = None) -> dict:
-    """The trace document of a path (``states[0]`` initial; ``labels[k]`` leads
-    from ``states[k]`` to ``states[k + 1]``)."""
-    steps = [step_record(model, n + 1, lab, states[n], states[n + 1])
-             for n, lab in enumerate(labels)]
+def document(model, cfg: dict, trace, *, status: str, violation=None,
+             message: Optional[str] = None) -> dict:
+    """The trace document of a path (a :class:`pccl.explorer.Trace`, or
+    None: no path): the path as :func:`pccl.codec.encode_path` writes it."""
+    path = C.encode_path(model, trace)
     return {"format": FORMAT, "version": VERSION, "config": cfg,
-            "initial": state_typed(model, states[0]) if states else None,
-            "steps": steps,
+            "initial": path["initial"], "steps": path["steps"],
             "result": {"status": status, "message": message,
                        "violation": violation_record(model, violation)},
-            "final": state_typed(model, states[-1]) if states else None}
+            "final": path["final"]}
 
 
 def explore_document(res, cfg: dict) -> dict:
@@ -146,32 +144,29 @@ def explore_document(res, cfg: dict) -> dict:
         cx = res.counterexamples[0]
         tr = cx.trace
         if tr is None:          # reachable P found unreachable: no path
-            return document(m, cfg, [], [], status=res.status, violation=cx.violation,
+            return document(m, cfg, None, status=res.status, violation=cx.violation,
                             message=res.verdict)
-        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                       violation=cx.violation, message=res.verdict)
+        doc = document(m, cfg, tr, status=res.status, violation=cx.violation,
+                       message=res.verdict)
         if cx.cycle_start is not None:
             doc["result"]["cycle_start"] = cx.cycle_start
         return doc
     if res.witnesses:           # reachable P holds: its (shortest) witness path
         w = res.witnesses[0]
         tr = w["_trace"]
-        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                       message=res.verdict)
+        doc = document(m, cfg, tr, status=res.status, message=res.verdict)
         doc["result"]["witness"] = {"name": w["name"], "text": w["text"]}
         return doc
-    return document(m, cfg, [], [], status=res.status, message=res.verdict)
+    return document(m, cfg, None, status=res.status, message=res.verdict)
 
 
 def run_document(res, cfg: dict) -> dict:
-    m = res.model
-    if res.trace:
-        states = [res.trace[0][1]] + [b for _, _, b in res.trace]
-        labels = [lab for lab, _, _ in res.trace]
-    else:
-        states, labels = [res.final], []
+    """The trace document of a :class:`~pccl.runner.RunResult`: its
+    recorded path (else its last state alone)."""
+    from .explorer import Trace
+    tr = res.trace if res.trace is not None else Trace((res.final,), ())
     v = res.violations[0] if res.violations else None
-    return document(m, cfg, states, labels, status=res.status, violation=v, message=res.message)
+    return document(res.model, cfg, tr, status=res.status, violation=v, message=res.message)
 
 
 def write(doc: dict, path) -> None:

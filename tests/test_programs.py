@@ -222,10 +222,10 @@ def test_rendezvous_detours_under_straight():
     res = api.run(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox="straight", agents=3, seed=0,
                   record_trace=True, overrides={"maxPrio": "0"})
     assert_final(res, 3)
-    rules = [(label[0], label[1]) for label, _, _ in res.trace]
+    rules = [(label[0], label[1]) for label in res.trace.labels]
     assert ("DOREACH INVOKE", None) in rules
     stages = {C.encode_state(res.model, after)["agents"][0]["variables"]["stage"]
-              for _, _, after in res.trace}
+              for after in res.trace.states[1:]}
     assert {"DETOUR", "FINAL", "THERE"} <= stages
 
 
