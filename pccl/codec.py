@@ -345,16 +345,16 @@ def decode_value(j, ty, path: str):
         if kind == "array" and ty.size is not None and len(j) != ty.size:
             raise DecodeError(f"{path}: expected {ty.size} elements, got {len(j)}")
         return tuple(decode_value(x, ty.elem, f"{path}[{n}]") for n, x in enumerate(j))
-    return decode_data(j)
+    return decode_data(j, path)
 
 
-def decode_data(j):
+def decode_data(j, path: str = "value"):
     """Untyped data (the blackbox's env, obstacles, ``any`` values): lists as
     tuples, everything else as it is."""
     if isinstance(j, list):
-        return tuple(decode_data(x) for x in j)
+        return tuple(decode_data(x, f"{path}[{n}]") for n, x in enumerate(j))
     if isinstance(j, dict):
-        raise DecodeError("an object where plain data (numbers, lists) was expected")
+        raise _fail(path, "plain data (numbers, booleans, lists)", j)
     return j
 
 
@@ -489,12 +489,12 @@ def decode_agent(model, j, path: str, lenient: bool = False) -> tuple:
     loc = _variables(model, variables, f"{path}.variables", lay.local)
     ar = _variables(model, variables, f"{path}.variables", lay.allread)
     lock = _get(j, "lockState", path)
-    if lock not in _LOCK_CODES:
+    if not isinstance(lock, str) or lock not in _LOCK_CODES:
         raise _fail(f"{path}.lockState", "idle, request or lock", lock)
     target = _get(j, "target", path)
     t0 = j.get("t0", ANY)
     reach = (None if target is None else decode_position(target, f"{path}.target"),
-             decode_data(j["obstacles"]) if "obstacles" in j else ANY,
+             decode_data(j["obstacles"], f"{path}.obstacles") if "obstacles" in j else ANY,
              t0 if t0 is None or t0 is ANY else _number(t0, f"{path}.t0"),
              _bool(_get(j, "doReach_done", path), f"{path}.doReach_done"),
              _bool(_get(j, "doReach_fail", path), f"{path}.doReach_fail"))
@@ -510,7 +510,7 @@ def decode_state(model, j, path: str = "state", lenient: bool = False) -> tuple:
     ``lenient``, pending computations of an edited program: :func:`decode_k`)."""
     j = _dict(j, path)
     phase = _get(j, "phase", path)
-    if phase not in _PHASE_CODES:
+    if not isinstance(phase, str) or phase not in _PHASE_CODES:
         raise _fail(f"{path}.phase", "discrete or dynamic", phase)
     agents = _get(j, "agents", path)
     if not isinstance(agents, list) or len(agents) != model.N:
@@ -521,7 +521,7 @@ def decode_state(model, j, path: str = "state", lenient: bool = False) -> tuple:
             _lock_queue(_get(j, "lockQueue", path), f"{path}.lockQueue", model.N), shared,
             tuple(decode_agent(model, a, f"{path}.agents[{n}]", lenient)
                   for n, a in enumerate(agents)),
-            decode_data(j["env"]) if "env" in j else ANY)
+            decode_data(j["env"], f"{path}.env") if "env" in j else ANY)
 
 
 def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
@@ -542,7 +542,8 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
             raise DecodeError(f"{path}.cell.var: no agent variable {cell['var']!r}")
         simple = {"k": (PC, lambda x, p: decode_k(model, x, p, lenient)), "counter": (CNT, _int),
                   "position": (POS, decode_position),
-                  "lockState": (LCK, lambda x, p: _LOCK_CODES[x] if x in _LOCK_CODES
+                  "lockState": (LCK, lambda x, p: _LOCK_CODES[x]
+                                if isinstance(x, str) and x in _LOCK_CODES
                                 else _raise(_fail(p, "idle, request or lock", x))),
                   "status": (STATUS, lambda x, p: decode_status(model, x, p))}
         if c in simple:
@@ -550,7 +551,7 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
             return ("agent", i, idx), fn(value, path)
         reach = {"target": (TARGET, lambda x, p: None if x is None else decode_position(x, p)),
                  "t0": (T0, lambda x, p: None if x is None else _number(x, p)),
-                 "obstacles": (OBSTACLES, lambda x, p: decode_data(x)),
+                 "obstacles": (OBSTACLES, decode_data),
                  "doReach_done": (DONE, _bool), "doReach_fail": (FAIL, _bool)}
         if c in reach:
             idx, fn = reach[c]
@@ -562,10 +563,10 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
                 return ("shared", v.slot), decode_value(value, v.ty, path)
         raise DecodeError(f"{path}.cell.var: no shared variable {cell['var']!r}")
     glob = {"time": (TIME, _number),
-            "phase": (PHASE, lambda x, p: _PHASE_CODES[x] if x in _PHASE_CODES
+            "phase": (PHASE, lambda x, p: _PHASE_CODES[x] if isinstance(x, str) and x in _PHASE_CODES
                       else _raise(_fail(p, "discrete or dynamic", x))),
             "lockQueue": (LQ, lambda x, p: _lock_queue(x, p, model.N)),
-            "env": (ENV, lambda x, p: decode_data(x))}
+            "env": (ENV, decode_data)}
     if c in glob:
         idx, fn = glob[c]
         return ("state", idx), fn(value, path)

@@ -245,3 +245,19 @@ def test_version_1_states_decode_with_the_cells_it_lacks_open():
     got = C.decode_state(r.model, d["final"])
     assert not C.is_complete(got) and C.matches(got, r.states[-1])
     assert got[AGS][0][PC] is C.ANY and got[AGS][0][REACH][T0] is C.ANY
+
+
+@pytest.mark.parametrize("cell, new", [
+    ({"agent": 0, "cell": "lockState"}, [1]), ({"cell": "phase"}, {"x": 1}),
+    ({"agent": 0, "cell": "k"}, "end"), ({"agent": 0, "cell": "status"}, {"status": "stuck"}),
+    ({"agent": 0, "var": "mine"}, [0]), ({"var": "nosuch"}, 1), ({"agent": 7, "cell": "k"}, []),
+    ({"cell": "env"}, {"a": 1}), ({"agent": 0, "cell": "position"}, [1, 2, 3]),
+])
+def test_a_change_of_the_wrong_shape_is_a_decode_error(cell, new):
+    # every value a file can hold decodes or is one DecodeError naming the
+    # field: never another exception
+    m = model("lost_update")
+    st = next(iter(m.init_states()))
+    with pytest.raises(C.DecodeError) as e:
+        C.apply_changes(m, st, [{"cell": cell, "old": None, "new": new}], "ch")
+    assert e.value.message.startswith("ch[0]"), e.value.message
