@@ -583,9 +583,11 @@ def _set(tup: tuple, k: int, v) -> tuple:
 
 def apply_changes(model, st: tuple, changes: list, path: str = "changes",
                   version: int = VERSION, lenient: bool = False) -> tuple:
-    """The configuration ``st`` with the recorded changes made (each
-    change's ``new``).  After a version-1 step the cells that version does
-    not record (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`;
+    """The configuration ``st`` with the recorded changes made: each
+    change's ``old`` must be the cell's value in ``st`` (else a
+    :class:`DecodeError` naming it) and differ from its ``new``, which it
+    becomes.  After a version-1 step the cells that version does not record
+    (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`;
     ``lenient``: as in :func:`decode_state`."""
     if not isinstance(changes, list):
         raise _fail(path, "a list", changes)
@@ -593,8 +595,14 @@ def apply_changes(model, st: tuple, changes: list, path: str = "changes",
     for n, ch in enumerate(changes):
         p = f"{path}[{n}]"
         ch = _dict(ch, p)
-        where, v = _decode_cell(model, _dict(ch.get("cell"), f"{p}.cell"), ch.get("new"),
-                                f"{p}.new", lenient)
+        cell = _dict(ch.get("cell"), f"{p}.cell")
+        where, old = _decode_cell(model, cell, ch.get("old"), f"{p}.old", lenient)
+        _, v = _decode_cell(model, cell, ch.get("new"), f"{p}.new", lenient)
+        if not matches(old, _cell_value(st, where)):
+            raise DecodeError(f"{p}.old: {cell_name(cell)} is not {ch.get('old')!r} before "
+                              f"this step")
+        if matches(old, v) and old is not ANY:
+            raise DecodeError(f"{p}: {cell_name(cell)} does not change")
         if where[0] == "state":
             st = _set(st, where[1], v)
         elif where[0] == "shared":
@@ -615,6 +623,20 @@ def apply_changes(model, st: tuple, changes: list, path: str = "changes",
                     for ag in st[AGS])
         st = _set(st, AGS, ags)
     return st
+
+
+def _cell_value(st: tuple, where: tuple):
+    """The value of the cell :func:`_decode_cell` located in ``st``."""
+    if where[0] == "state":
+        return st[where[1]]
+    if where[0] == "shared":
+        return st[SH][where[1]]
+    ag = st[AGS][where[1]]
+    if where[0] == "agent":
+        return ag[where[2]]
+    if where[0] == "reach":
+        return ag[REACH][where[2]]
+    return ag[LOC if where[0] == "local" else AR][where[2]]
 
 
 def matches(pattern, value) -> bool:

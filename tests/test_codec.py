@@ -261,3 +261,17 @@ def test_a_change_of_the_wrong_shape_is_a_decode_error(cell, new):
     with pytest.raises(C.DecodeError) as e:
         C.apply_changes(m, st, [{"cell": cell, "old": None, "new": new}], "ch")
     assert e.value.message.startswith("ch[0]"), e.value.message
+
+
+def test_a_recorded_old_value_is_checked(lost_v2, tmp_path):
+    # a step's changes say what each cell was before, too: a file whose old
+    # values were rewritten does not reproduce (the fuzz test's mutant)
+    d = json.loads(lost_v2.read_text())
+    n, k = next((n, k) for n, s in enumerate(d["steps"]) for k, ch in enumerate(s["changes"])
+                if ch["cell"] == {"var": "total"})
+    d["steps"][n]["changes"][k]["old"] = 99
+    bad = tmp_path / "old.json"
+    bad.write_text(json.dumps(d))
+    r = api_replay(bad)
+    assert (r.status, r.diverged_at) == ("diverged", n + 1), r.message
+    assert "recorded total 99 ->" in r.message
