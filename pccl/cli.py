@@ -780,7 +780,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
             click.echo(f"plot written to {plot}")
         except PcclError as e:
             click.echo(e.render(), err=True)
-    if html and res.doc is not None and res.doc["initial"] is not None:
+    if html and res.doc.get("initial") is not None:
         _write_html(html, res.doc, model=m, states=res.states,
                     notes=[res.message] if res.status == "diverged" else [])
     elif html:
@@ -882,6 +882,8 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     except OSError as e:
         _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
     host, real_port = srv.server_address[:2]
+    if isinstance(host, bytes):         # typeshed: an AF_UNIX address; never for this server
+        host = host.decode()
     click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
                f"open http://{host}:{real_port}/ (Ctrl-C stops)")
     try:

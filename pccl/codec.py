@@ -615,8 +615,8 @@ def apply_changes(model, st: tuple, changes: list, path: str = "changes",
             elif where[0] == "reach":
                 ag = _set(ag, REACH, _set(ag[REACH], where[2], v))
             else:
-                cell = LOC if where[0] == "local" else AR
-                ag = _set(ag, cell, _set(ag[cell], where[2], v))
+                part = LOC if where[0] == "local" else AR
+                ag = _set(ag, part, _set(ag[part], where[2], v))
             st = _set(st, AGS, _set(st[AGS], i, ag))
     if version < 2:
         ags = tuple((ANY,) + ag[1:REACH] + ((ag[REACH][TARGET], ANY, ANY) + ag[REACH][DONE:],)

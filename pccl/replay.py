@@ -44,12 +44,12 @@ class ReplayResult:
     exit_status: int
     message: str
     warnings: list = field(default_factory=list)
-    model: object = None
+    model: Any = None
     states: list = field(default_factory=list)
     labels: list = field(default_factory=list)
     diverged_at: Optional[int] = None      # step index (0: the initial state)
     steps_total: int = 0
-    doc: Optional[dict] = None
+    doc: dict = field(default_factory=dict)     # the trace document replayed
 
     @property
     def trace(self):
@@ -66,7 +66,7 @@ def replayed_document(res: ReplayResult) -> Optional[dict]:
     the replay diverged or had nothing to replay."""
     if res.status not in ("violation", "clean", "witness") or not res.states:
         return None
-    doc = res.doc or {}
+    doc = res.doc
     out = T.document(res.model, doc["config"], res.trace,
                      status=doc["result"]["status"], message=doc["result"].get("message"))
     out["result"] = dict(doc["result"])
