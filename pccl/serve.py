@@ -36,6 +36,7 @@ from collections import deque
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Optional
 
+from . import codec as C
 from . import display as D
 from . import traces as T
 from .errors import PcclError
@@ -127,19 +128,32 @@ class Session:
             raise BadRequest(e.message) from None
         if doc["initial"] is None:
             raise BadRequest("the trace holds no path")
+        # the trace's states decoded (pccl/codec.py) and compared with the
+        # model's own, as replay does
         m = self.model
-        init = doc["initial"]
-        i = next((j for j, s in enumerate(self.initials) if T.normal(T.state_typed(m, s)) == init), None)
+        version = doc["version"]
+        try:
+            init = C.decode_state(m, doc["initial"], "initial")
+            why = None
+        except C.DecodeError as e:
+            init, why = None, e.message
+        i = None if init is None else next(
+            (j for j, s in enumerate(self.initials) if C.matches(init, s)), None)
         if i is None:
             raise BadRequest("the trace's initial state is not an initial state of this model "
-                             "(another program, world or --set?)")
+                             "(another program, world or --set?)" + (f": {why}" if why else ""))
         states, labels = [self.initials[i]], []
-        keys = ("rule", "agent", "event", "line", "column", "outcome", "changes")
-        for rec in doc["steps"]:
+        keys = ("rule", "agent", "event", "line", "column", "outcome")
+        for k, rec in enumerate(doc["steps"]):
             st = states[-1]
+            try:
+                want = C.apply_changes(m, st, rec["changes"], f"steps[{k}].changes", version)
+            except C.DecodeError:
+                want = None
             for lab, nxt in m.successors(st):
-                r = T.normal(T.step_record(m, rec["index"], lab, st, nxt))
-                if all(r.get(k) == rec.get(k) for k in keys):
+                r = C.encode_step_head(m, rec["index"], lab, st, nxt)
+                if want is not None and all(r.get(x) == rec.get(x) for x in keys) \
+                        and C.matches(want, nxt):
                     states.append(nxt)
                     labels.append(lab)
                     break

@@ -275,3 +275,18 @@ def test_a_recorded_old_value_is_checked(lost_v2, tmp_path):
     r = api_replay(bad)
     assert (r.status, r.diverged_at) == ("diverged", n + 1), r.message
     assert "recorded total 99 ->" in r.message
+
+
+def test_the_browser_explorer_loads_version_1_and_2_files(lost_v2):
+    # pccl serve follows a trace's steps by decoding its states, as replay
+    # does (it compared the JSON of every candidate with the file's before,
+    # which no version-1 file matches once the encoding grew)
+    from pccl import serve as S
+    from pccl import traces as T
+    for path in (V1 / "lost_update_explore.json", lost_v2):
+        doc = json.loads(path.read_text())
+        m = make_model(str(LOST), reduce="none")
+        s = S.Session(m, T.config("explore", m, program=str(LOST)))
+        s.load(path.read_text())
+        assert len(s.labels) == len(doc["steps"]), path
+        assert C.encode_state(m, s.states[-1])["shared"] == doc["final"]["shared"]
