@@ -1,4 +1,4 @@
-"""pccl/codec.py: one encoder of states and steps, and its decoder.
+"""pccl/output/codec.py: one encoder of states and steps, and its decoder.
 
 Two ways to the same configuration: the search's own state, and the state
 decoded from its JSON (through a real JSON text); they must be equal, cell
@@ -19,10 +19,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from conftest import cli
-from pccl import codec as C
+from pccl.output import codec as C
 from pccl.api import make_model
-from pccl.layout import AGS, PC, REACH, T0
-from pccl.replay import replay as api_replay
+from pccl.model.layout import AGS, PC, REACH, T0
+from pccl.tools.replay import replay as api_replay
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -281,8 +281,8 @@ def test_the_browser_explorer_loads_version_1_and_2_files(lost_v2):
     # pccl serve follows a trace's steps by decoding its states, as replay
     # does (it compared the JSON of every candidate with the file's before,
     # which no version-1 file matches once the encoding grew)
-    from pccl import serve as S
-    from pccl import traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     for path in (V1 / "lost_update_explore.json", lost_v2):
         doc = json.loads(path.read_text())
         m = make_model(str(LOST), reduce="none")

@@ -3,7 +3,7 @@
 Every output is validated against ``$defs/output`` of the one schema
 (docs/trace-format.schema.json); they share the top level (format, version,
 command, status, message, exit_status, trace) and write states, steps and
-paths one way: the trace format's (pccl/codec.py).
+paths one way: the trace format's (pccl/output/codec.py).
 """
 
 from __future__ import annotations

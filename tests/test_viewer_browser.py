@@ -39,7 +39,7 @@ def shot(browser, name):
 def cell_names(step):
     """The cells the page shows as changed: every change but the agent
     cells it does not print (k, t0, obstacles: codec.INTERNAL_CELLS)."""
-    from pccl.codec import INTERNAL_CELLS, cell_name
+    from pccl.output.codec import INTERNAL_CELLS, cell_name
     return sorted(cell_name(ch["cell"]) for ch in step["changes"]
                   if not ("agent" in ch["cell"] and ch["cell"].get("cell") in INTERNAL_CELLS))
 
@@ -221,7 +221,8 @@ def test_long_trace_stays_responsive(browser, tmp_path):
 @pytest.fixture
 def fischer_server():
     from pccl.api import make_model
-    from pccl import serve as S, traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
     cfg = T.config("explore", m, program=FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",))
     session = S.Session(m, cfg)
@@ -235,7 +236,8 @@ def fischer_server():
 
 def test_serve_reaches_two_agents_in_cs_by_clicking(browser, fischer_server):
     from pccl.api import make_model
-    from pccl import serve as S, traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     srv, _ = fischer_server
     # the indices of the transitions to choose, from a second session's search
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
