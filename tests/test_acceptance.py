@@ -211,8 +211,8 @@ def test_race_nonatomic_stuck_on_remove(blackbox, agents):
     v = res.violation
     assert v["kind"] == "stuck" and "remove" in v["message"]
     assert v["line"] == line_of(RACE_NONATOMIC, "remove(dests, currentDest);")
-    end = res.final_state["agents"][v["agent"]]
-    assert end["status"] == "stuck" and end["line"] == v["line"]
+    end = res.final_state["agents"][v["agent"]]        # the trace format's state (version 2)
+    assert end["status"]["status"] == "stuck" and end["status"]["line"] == v["line"]
     assert f"[blackbox {blackbox}]" in res.verdict
 
 
@@ -556,7 +556,9 @@ def test_counterexample_steps_have_the_promised_fields():
     res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
     for n, s in enumerate(res.trace, 1):
         assert s.step == n
-        assert {"step", "time", "agent", "rule", "event", "line", "source", "changes"} == set(s.to_json())
+        # the trace format's step (version 2: index for step, plus column and branch)
+        assert {"index", "time", "agent", "rule", "event", "line", "column", "source", "branch",
+                "changes"} == set(s.to_json()) - {"outcome"}
         assert isinstance(s, StepView)
         if s.rule in ("TIME ADVANCE", "DOREACH INVOKE"):
             assert s.agent is None
