@@ -591,9 +591,8 @@ def violation_data(model, found: Counterexample) -> Finding:
     tr: Optional[Trace] = found.trace
     assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
-    if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
-        from pccl.model.reduce import expand_trace
-        tr = expand_trace(model, tr, v)
+    # merged labels were expanded where the traces were made (explore_model,
+    # liveness.attach_traces: reduce.expand_trace), not again here
     steps = () if tr is None else tuple(
         StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
     return Finding(v.kind, v.name, v.message, v.agent,
