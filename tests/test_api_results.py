@@ -44,6 +44,7 @@ def test_step_changes_are_data_and_agree_with_the_text_and_the_trace_file():
                  if c["cell"].get("cell") not in ("counter", "env", "k", "t0", "obstacles")]
         assert [(dict(c.path), c.old, c.new) for c in step.changes] == \
                [(c["cell"], c["old"], c["new"]) for c in typed]
-        # the CLI's JSON keeps the printed form
-        assert step.to_json()["changes"] == [{"cell": c, "old": o, "new": nw}
-                                             for c, o, nw in printed]
+        # the CLI's JSON is the trace format's step (vocabulary version 2; it
+        # was the printed form): every changed cell, typed
+        assert step.to_json()["changes"] == T.changes(m, before, after)
+        assert step.to_json() == T.step_record(m, n + 1, cx.labels[n], before, after)
