@@ -368,7 +368,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels, **opts)
+        ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels,
+                           batch=native.BATCH, **opts)
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
