@@ -150,36 +150,34 @@ def encode_changes(model, a, b) -> list:
             if va != vb or type(va) is not type(vb):
                 add({"var": n}, to_json(va, ty), to_json(vb, ty))
     for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
-        if ga is gb:
-            continue
-        for (n, ty, va), (_, _, vb) in zip(D.agent_vars(model, a, i), D.agent_vars(model, b, i)):
-            if va != vb or type(va) is not type(vb):
-                add({"agent": i, "var": n}, to_json(va, ty), to_json(vb, ty))
-        if ga[PC] != gb[PC]:
-            add({"agent": i, "cell": "k"}, encode_k(model, ga[PC]), encode_k(model, gb[PC]))
-        if ga[CNT] != gb[CNT]:
-            add({"agent": i, "cell": "counter"}, ga[CNT], gb[CNT])
-        if ga[POS] != gb[POS]:
-            add({"agent": i, "cell": "position"}, list(ga[POS]), list(gb[POS]))
-        if ga[LCK] != gb[LCK]:
-            add({"agent": i, "cell": "lockState"}, D.LOCK_NAMES[ga[LCK]], D.LOCK_NAMES[gb[LCK]])
-        if ga[STATUS] != gb[STATUS]:
-            add({"agent": i, "cell": "status"}, encode_status(model, ga[STATUS]),
-                encode_status(model, gb[STATUS]))
-        ra, rb = ga[REACH], gb[REACH]
-        if ra[TARGET] != rb[TARGET]:
-            add({"agent": i, "cell": "target"}, _pos(ra[TARGET]), _pos(rb[TARGET]))
-        if ra[T0] != rb[T0] or type(ra[T0]) is not type(rb[T0]):
-            add({"agent": i, "cell": "t0"}, ra[T0], rb[T0])
-        if ra[OBSTACLES] != rb[OBSTACLES]:
-            add({"agent": i, "cell": "obstacles"}, to_json(ra[OBSTACLES]), to_json(rb[OBSTACLES]))
-        if ra[DONE] != rb[DONE]:
-            add({"agent": i, "cell": "doReach_done"}, ra[DONE], rb[DONE])
-        if ra[FAIL] != rb[FAIL]:
-            add({"agent": i, "cell": "doReach_fail"}, ra[FAIL], rb[FAIL])
+        if ga is not gb:
+            _agent_changes(model, a, b, i, add)
     if a[ENV] != b[ENV]:
         add({"cell": "env"}, to_json(a[ENV]), to_json(b[ENV]))
     return out
+
+
+def _agent_changes(model, a, b, i, add) -> None:
+    """The changes of agent ``i``'s cells, in :func:`encode_changes`' order."""
+    ga, gb = a[AGS][i], b[AGS][i]
+    for (n, ty, va), (_, _, vb) in zip(D.agent_vars(model, a, i), D.agent_vars(model, b, i)):
+        if va != vb or type(va) is not type(vb):
+            add({"agent": i, "var": n}, to_json(va, ty), to_json(vb, ty))
+    ra, rb = ga[REACH], gb[REACH]
+    cells = (("k", ga[PC], gb[PC], lambda pc: encode_k(model, pc)),
+             ("counter", ga[CNT], gb[CNT], None),
+             ("position", ga[POS], gb[POS], list),
+             ("lockState", ga[LCK], gb[LCK], D.LOCK_NAMES.get),
+             ("status", ga[STATUS], gb[STATUS], lambda code: encode_status(model, code)),
+             ("target", ra[TARGET], rb[TARGET], _pos),
+             ("t0", ra[T0], rb[T0], None),
+             ("obstacles", ra[OBSTACLES], rb[OBSTACLES], to_json),
+             ("doReach_done", ra[DONE], rb[DONE], None),
+             ("doReach_fail", ra[FAIL], rb[FAIL], None))
+    for name, x, y, enc in cells:
+        if x != y or type(x) is not type(y):
+            add({"agent": i, "cell": name}, x if enc is None else enc(x),
+                y if enc is None else enc(y))
 
 
 #: Agent cells of a change that the text views and the HTML viewer do not
