@@ -311,85 +311,24 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         res.message = message
         return res
 
-    version = doc["version"]
     # an edited program (another hash): its statement ids may have moved, so
     # a recorded pending computation that names none of them is not compared
     # (the steps' lines and sources still are: the first that moved is named)
     rec_prog = cfg.get("program") or {}
     lenient = bool(rec_prog.get("sha256")) and \
         T.sha256_of(m.program.filename) != rec_prog.get("sha256")
-    try:
-        want0 = C.decode_state(m, doc["initial"], "initial", lenient)
-    except C.DecodeError as e:
-        return diverge(0, f"diverged at the initial state: no state of this model is the "
-                          f"recorded one: {e.message}")
-    inits = []
-    state = None
-    for s in m.init_states():      # a generator: stop at the recorded state
-        inits.append(s)
-        if C.matches(want0, s):
-            state = s
-            break
+    state, why = _initial_state(m, doc, lenient)
     if state is None:
-        closest = (_state_difference(doc["initial"], C.encode_state(m, inits[0]))
-                   if inits else "")
-        return diverge(0, f"diverged at the initial state: none of the model's {len(inits)} "
-                          f"initial states equals the recorded one (first difference from "
-                          f"initial state 1: {closest})")
+        return diverge(0, why)
     res.states = [state]
     picks: list = []            # per step: (index among the successors, how many)
     for k, rec in enumerate(steps):
-        n = rec["index"]
         succ = m.successors(state)
-        ident = _identity(rec)
-        try:
-            want = C.apply_changes(m, state, rec["changes"], f"steps[{k}].changes", version,
-                                   lenient)
-            undecodable = None
-        except C.DecodeError as e:
-            want, undecodable = None, e.message
-        same_label: list = []
-        found, other = None, None
-        for j, (label, nxt) in enumerate(succ):
-            head = C.encode_step_head(m, n, label, state, nxt)
-            if _identity(head) != ident:
-                continue
-            if want is None or not C.matches(want, nxt):
-                same_label.append(nxt)
-                continue
-            if not C.matches(rec["time"], state[TIME]):
-                other = ("time", head["time"])
-                continue
-            if not _same(head["branch"], rec["branch"]):
-                other = ("branch", head["branch"])
-                continue
-            found = (j, label, nxt)
-            break
-        if found is None:
-            where = f"diverged at step {n} of {len(steps)} ({describe(rec)})"
-            if other is not None:
-                return diverge(n, f"{where}: the transition is enabled and makes the recorded "
-                                  f"changes, but its {other[0]} differs: recorded "
-                                  f"{json.dumps(rec[other[0]])}, replayed "
-                                  f"{json.dumps(other[1])}")
-            if same_label:
-                got = C.encode_changes(m, state, same_label[0])
-                recorded_text, got_text = _changes_text(rec["changes"]), _changes_text(got)
-                if recorded_text == got_text:
-                    recorded_text, got_text = (_changes_text(rec["changes"], every=True),
-                                               _changes_text(got, every=True))
-                if undecodable:
-                    recorded_text += f" ({undecodable})"
-                return diverge(n, f"{where}: the transition is enabled but its changes differ: "
-                                  f"recorded {recorded_text}; replayed {got_text}")
-            recs = [C.encode_step_head(m, n, lab, state, nxt) for lab, nxt in succ]
-            moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
-            if moved:
-                return diverge(n, f"{where}: the program differs here: line {rec['line']} now "
-                                  f"reads '{moved[0]['source']}'")
-            enabled = sorted({describe(r) for r in recs})
-            return diverge(n, f"{where}: that transition is not enabled; enabled here: "
-                              + ("; ".join(enabled) if enabled else "none"))
+        found = _recorded_step(m, state, succ, rec, f"steps[{k}].changes", doc["version"],
+                               lenient)
+        if isinstance(found, str):
+            return diverge(rec["index"], f"diverged at step {rec['index']} of {len(steps)} "
+                                         f"({describe(rec)}): {found}")
         picks.append((found[0], len(succ)))
         res.labels.append(found[1])
         state = found[2]
@@ -410,7 +349,80 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         return _end_of_temporal(m, cfg, recorded, result.get("cycle_start"), res, diverge)
     if recorded["kind"] == "stall":
         return _end_of_stall(m, recorded, result.get("cycle_start"), res, diverge)
-    # a safety violation of explore: the model's own checks on the last state
+    return _end_of_safety(m, cfg, recorded, res, diverge)
+
+
+def _initial_state(m, doc: dict, lenient: bool):
+    """(the model's initial state the file records, None), or (None, why not)."""
+    try:
+        want = C.decode_state(m, doc["initial"], "initial", lenient)
+    except C.DecodeError as e:
+        return None, (f"diverged at the initial state: no state of this model is the "
+                      f"recorded one: {e.message}")
+    inits = []
+    for s in m.init_states():      # a generator: stop at the recorded state
+        inits.append(s)
+        if C.matches(want, s):
+            return s, None
+    closest = _state_difference(doc["initial"], C.encode_state(m, inits[0])) if inits else ""
+    return None, (f"diverged at the initial state: none of the model's {len(inits)} initial "
+                  f"states equals the recorded one (first difference from initial state 1: "
+                  f"{closest})")
+
+
+def _recorded_step(m, state, succ: list, rec: dict, path: str, version: int, lenient: bool):
+    """The successor ``(index, label, state)`` among ``succ`` that the step
+    ``rec`` records: same rule, agent, event, statement and outcome, its
+    decoded changes made to ``state``, same time and branch.  Else why
+    not (the text after "diverged at step n (...): ")."""
+    n = rec["index"]
+    ident = _identity(rec)
+    try:
+        want = C.apply_changes(m, state, rec["changes"], path, version, lenient)
+        undecodable = None
+    except C.DecodeError as e:
+        want, undecodable = None, e.message
+    same_label: list = []
+    other = None
+    for j, (label, nxt) in enumerate(succ):
+        head = C.encode_step_head(m, n, label, state, nxt)
+        if _identity(head) != ident:
+            continue
+        if want is None or not C.matches(want, nxt):
+            same_label.append(nxt)
+        elif not C.matches(rec["time"], state[TIME]):
+            other = ("time", head["time"])
+        elif not _same(head["branch"], rec["branch"]):
+            other = ("branch", head["branch"])
+        else:
+            return j, label, nxt
+    if other is not None:
+        return (f"the transition is enabled and makes the recorded changes, but its "
+                f"{other[0]} differs: recorded {json.dumps(rec[other[0]])}, replayed "
+                f"{json.dumps(other[1])}")
+    if same_label:
+        got = C.encode_changes(m, state, same_label[0])
+        recorded_text, got_text = _changes_text(rec["changes"]), _changes_text(got)
+        if recorded_text == got_text:
+            recorded_text, got_text = (_changes_text(rec["changes"], every=True),
+                                       _changes_text(got, every=True))
+        if undecodable:
+            recorded_text += f" ({undecodable})"
+        return (f"the transition is enabled but its changes differ: recorded {recorded_text}; "
+                f"replayed {got_text}")
+    recs = [C.encode_step_head(m, n, lab, state, nxt) for lab, nxt in succ]
+    moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
+    if moved:
+        return f"the program differs here: line {rec['line']} now reads '{moved[0]['source']}'"
+    enabled = sorted({describe(r) for r in recs})
+    return ("that transition is not enabled; enabled here: "
+            + ("; ".join(enabled) if enabled else "none"))
+
+
+def _end_of_safety(m, cfg, recorded, res, diverge):
+    """A safety violation of explore: the model's own checks on the last state."""
+    state = res.states[-1]
+    n = len(res.labels)
     viols = list(m.violations(state))
     if not viols and cfg.get("deadlock", True) and not m.successors(state) \
             and m.terminal_kind(state) == "deadlock":
@@ -418,11 +430,11 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
     match = [v for v in viols if _same(T.normal(T.violation_record(m, v)), recorded)]
     if match:
         res.status, res.exit_status = "violation", 1
-        res.message = f"reproduced: {match[0].message} (after {len(steps)} steps)"
+        res.message = f"reproduced: {match[0].message} (after {n} steps)"
         return res
     seen = "; ".join(v.message for v in viols) or "no violation"
-    return diverge(len(steps), f"diverged at the end: every step reproduced, but the recorded "
-                               f"violation ({recorded['message']}) is not: {seen}")
+    return diverge(n, f"diverged at the end: every step reproduced, but the recorded "
+                      f"violation ({recorded['message']}) is not: {seen}")
 
 
 # ---------------------------------------------------------------------------
