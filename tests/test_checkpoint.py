@@ -377,7 +377,7 @@ def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     p = _cli(*args, "--resume", d)
     q = _cli(*args)
     a, b = json.loads(p.stdout), json.loads(q.stdout)
-    for k in ("status", "verdict", "violations", "bounds", "checked"):
+    for k in ("status", "message", "violations", "bounds", "checked"):
         assert a[k] == b[k]
     for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
         assert a["statistics"][k] == b["statistics"][k]
