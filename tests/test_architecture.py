@@ -172,6 +172,7 @@ def test_semantics_reads_only_the_layout_of_the_model():
 DOC = ROOT / "docs" / "architecture.md"
 
 
+@pytest.mark.slow       # reads and parses every module (1-4 s under load)
 def test_the_doc_has_the_import_diagram_of_the_code():
     """The generated part of docs/architecture.md is what the imports give:
     after changing an import or a module's docstring, run
@@ -229,6 +230,7 @@ def _run(*args):
                           capture_output=True, text=True, cwd=ROOT)
 
 
+@pytest.mark.slow       # reads and parses every module (1-4 s under load)
 def test_check_fails_on_a_drifted_doc_and_regenerating_fixes_it(tmp_path):
     doc = tmp_path / "architecture.md"
     text = DOC.read_text()
@@ -243,6 +245,7 @@ def test_check_fails_on_a_drifted_doc_and_regenerating_fixes_it(tmp_path):
     assert _run("--check", "--doc", str(doc)).returncode == 0
 
 
+@pytest.mark.slow       # reads and parses every module (1-4 s under load)
 def test_a_doc_without_markers_is_one_message_and_exit_2(tmp_path):
     doc = tmp_path / "architecture.md"
     doc.write_text("# Architecture\n\nno generated part\n")
@@ -283,6 +286,7 @@ def _resolve(dotted: str):
     return obj
 
 
+@pytest.mark.slow       # reads and parses every module (1-4 s under load)
 def test_every_module_name_in_the_doc_exists():
     """Every `module.name` in backticks on docs/architecture.md (the trace's
     data flow names its functions so) is a module of pccl and an attribute
