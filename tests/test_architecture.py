@@ -323,7 +323,7 @@ def test_the_trace_section_names_only_real_functions():
     text = DOC.read_text()
     sec = text[text.index("## A trace from search to file to replay"):]
     sec = sec[:sec.index("\n## ", 1)]
-    names = set(re.findall(r"\b((?:explorer|liveness|runner|reduce|api|traces|codec|tracecheck|replay)"
+    names = set(re.findall(r"\b((?:explorer|liveness|runner|reduce|native|api|traces|codec|tracecheck|replay)"
                            r"(?:\.\w+)+)", sec))
     assert len(names) > 20
     bad = []
