@@ -334,3 +334,37 @@ def test_the_trace_section_names_only_real_functions():
         except AttributeError as e:
             bad.append(f"{n}: {e}")
     assert bad == []
+
+
+def _bytecode_imports(name: str, path: Path) -> set[str]:
+    """The pccl modules ``name`` imports, read a second way: from the
+    compiled bytecode's IMPORT_NAME instructions (every code object, nested
+    functions included), not from the syntax tree."""
+    import dis
+    is_pkg = path.stem == "__init__"
+    out: set[str] = set()
+    todo = [compile(path.read_text(), str(path), "exec")]
+    while todo:
+        code = todo.pop()
+        todo += [c for c in code.co_consts if hasattr(c, "co_code")]
+        ins = list(dis.get_instructions(code))
+        for k, i in enumerate(ins):
+            if i.opname != "IMPORT_NAME":
+                continue
+            level, fromlist = ins[k - 2].argval, ins[k - 1].argval
+            mod = i.argval
+            if level:
+                base = name.split(".")[:len(name.split(".")) - level + (1 if is_pkg else 0)]
+                mod = ".".join(base + ([mod] if mod else []))
+            for t in [f"{mod}.{f}" for f in fromlist or ()] or [mod]:
+                t = t if t in MODULES else mod
+                while t and t not in MODULES:
+                    t = t.rpartition(".")[0]
+                if t and t != name and t != "pccl":
+                    out.add(t)
+    return out
+
+
+def test_the_import_reader_agrees_with_the_bytecode():
+    """archdoc's reader (the syntax tree) and the compiled code give the same graph."""
+    assert {m: _bytecode_imports(m, p) for m, p in MODULES.items()} == GRAPH
