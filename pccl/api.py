@@ -24,7 +24,8 @@ from .engine import Model
 from .explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
 from .errors import ArgumentError, OptionError
-from .options import ExploreOptions, ModelOptions, RunOptions
+from .options import CommonOptions, ExploreOptions, ModelOptions, RunOptions, model_choices
+from .reduce import Reduced
 from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
 from .memory import format_size
@@ -72,8 +73,9 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
 
 
 def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Random] = None,
-               **options) -> Model:
-    """Build a :class:`Model`.  ``options`` are those of
+               **options) -> Reduced:
+    """Build a :class:`Model`, seen through its reductions (a
+    :class:`~pccl.reduce.Reduced`, with the model's interface).  ``options`` are those of
     :class:`~pccl.options.ModelOptions` (world, blackbox, agents, delta, n0,
     rates, events, collisions, overrides, invariants, max_time,
     abstract_time, reduce, functions, rand_policy, source).  With ``seed`` or
@@ -91,7 +93,7 @@ def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Rand
     return _api_model("make_model", program, opts, rng=rng)
 
 
-def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
+def _api_model(func: str, program, opts: CommonOptions, **kw) -> Reduced:
     """:func:`build_model` for the API: a bad option value the model finds is
     an :class:`ArgumentError` of ``func`` that names the keyword."""
     try:
@@ -100,21 +102,21 @@ def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
         raise e.for_api(func) from None
 
 
-def build_model(program, opts: ModelOptions, *, rng: Optional[random.Random] = None,
-                explore: bool = False) -> Model:
-    """The model ``opts`` describe (already checked).  ``explore``: choose the
-    blackbox as ``pccl explore`` does when none is given (:func:`explore_blackbox`)."""
+def build_model(program, opts: CommonOptions, *, rng: Optional[random.Random] = None,
+                explore: bool = False) -> Reduced:
+    """The model ``opts`` describe (already checked), seen through the
+    reductions they ask for.  ``explore``: choose the blackbox as ``pccl
+    explore`` does when none is given (:func:`explore_blackbox`)."""
     prog = apply_overrides(load_program(program, source=opts.source), opts.overrides)
     blackbox, reason = (explore_blackbox(prog, opts.blackbox) if explore
                         else (opts.blackbox, None))
-    kw = opts.model_kwargs()
-    if rng is not None and "rand_policy" not in kw:
-        kw["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
-    model = Model(prog, world=load_world_arg(opts.world), blackbox=blackbox,
-                  n_agents=opts.agents, **kw)
+    opts = opts.replace(world=load_world_arg(opts.world), blackbox=blackbox)
+    if rng is not None and opts.rand_policy is None:
+        opts = opts.replace(rand_policy=lambda n, agent, span: rng.randint(0, n))
+    model = Model(prog, opts)
     model.blackbox_reason = reason
     model.world_given = opts.world is not None      # read by the checked section's notes
-    return model
+    return Reduced(model, model_choices(opts)[1])
 
 
 # ---------------------------------------------------------------------------
@@ -287,7 +289,7 @@ def require_ray():
         raise ArgumentError(str(e), filename="pccl --ray") from None
 
 
-def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
+def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOptions] = None,
                   **search) -> ExploreResult:
     """Explore ``model``.  The search options are those of
     :class:`~pccl.options.ExploreOptions` (given as ``options=`` or as
@@ -302,7 +304,9 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     (if given) is called about every
     ``progress_interval`` seconds with a dict: states, frontier, depth,
     seconds, memory (bytes)."""
-    if not isinstance(model, Model):
+    if isinstance(model, Model) and not isinstance(model, Reduced):
+        model = Reduced(model, model_choices(model.options)[1])     # the reductions it asks for
+    if not isinstance(model, Reduced):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
     if options is None:
@@ -326,8 +330,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         max_memory = default_max_memory()
     cov = None
     if coverage:
-        if "coverage" not in getattr(model, "reduce_uses", ()):
-            model.set_reduce(model.reduction.requested, uses=("coverage",))
+        if "coverage" not in model.reduce_uses:
+            model = model.with_uses(("coverage",))
         from .coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
@@ -496,7 +500,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     return res
 
 
-def _choose_engine(model: Model, o: ExploreOptions, recorder: bool, one: bool):
+def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool):
     """The native model for this search (pccl/native.py), or None for the
     Python engine; sets ``model.engine_used`` and ``model.engine_reason``
     (why not native) for the header."""

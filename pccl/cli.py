@@ -420,9 +420,7 @@ def _check_with_world(prog, world) -> None:
     apart), the initial state."""
     from .engine import Model
     from .options import RunOptions
-    kw = RunOptions().model_kwargs()
-    kw.pop("blackbox", None)
-    model = Model(prog, world=world, blackbox="instant", **kw)
+    model = Model(prog, RunOptions(world=world, blackbox="instant"))
     next(iter(model.init_states()), None)
 
 
@@ -630,7 +628,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         model = build_model(program, opts, explore=True)
         if coverage:
-            model.set_reduce(opts.reduce, uses=("coverage",))
+            model = model.with_uses(("coverage",))
         if (opts.workers != 1 or opts.ray is not None) and fastest:
             raise PcclError("--fastest searches in one process: use --workers 1 (without --ray)",
                             filename="--workers")

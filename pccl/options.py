@@ -108,20 +108,6 @@ class CommonOptions:
         V.model_options(func, {k: v for k, v in raw.items()
                                if v is not None or k in ("max_time", "abstract_time")})
 
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        """The keyword arguments of :class:`pccl.engine.Model` (besides the
-        program, world, blackbox and team size)."""
-        kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
-                  invariants=tuple(self.invariants), collisions=self.collisions,
-                  properties=tuple(self.properties))
-        if with_max_time:
-            kw["max_time"] = self.max_time
-        if self.functions is not None:
-            kw["functions"] = self.functions
-        if self.rand_policy is not None:
-            kw["rand_policy"] = self.rand_policy
-        return kw
-
 
 @dataclass(frozen=True)
 class ModelOptions(CommonOptions):
@@ -129,11 +115,6 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
-
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        kw = super().model_kwargs(with_max_time=with_max_time)
-        kw.update(abstract_time=self.abstract_time, reduce=self.reduce)
-        return kw
 
 
 @dataclass(frozen=True)
@@ -275,10 +256,14 @@ class RunOptions(CommonOptions):
         if self.max_memory != "default":
             V.integer(func, "max_memory", self.max_memory, minimum=1, optional=True)
 
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        kw = super().model_kwargs(with_max_time=with_max_time)
-        kw["abstract_time"] = False
-        return kw
+
+def model_choices(opts: CommonOptions) -> tuple:
+    """``(abstract_time, reduce)`` of the model ``opts`` describe: a
+    :class:`ModelOptions`' own; a run's (:data:`NOT_FOR_RUN`) keeps the clock
+    and executes the unreduced semantics."""
+    if isinstance(opts, ModelOptions):
+        return opts.abstract_time, opts.reduce
+    return False, "none"
 
 
 def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> list:

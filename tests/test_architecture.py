@@ -122,6 +122,23 @@ def test_the_compiled_program_knows_nothing_of_the_search():
     assert "pccl.compiled" in GRAPH["pccl.engine"]
 
 
+def test_the_engine_gets_its_properties_parsed():
+    """The engine imports no parser: properties come parsed and checked
+    from pccl.properties (issue 22), the initial states from pccl.initstates."""
+    assert "pccl.parser" not in GRAPH["pccl.engine"]
+    assert {"pccl.properties", "pccl.initstates", "pccl.environment"} <= GRAPH["pccl.engine"]
+    for mod in ("pccl.initstates", "pccl.environment"):
+        assert not (_reach(mod) & {"pccl.parser", "pccl.engine", "pccl.explorer", "pccl.api"}), mod
+
+
+def test_the_model_class_stays_small():
+    """engine.Model under 300 lines (issue 22): properties, the Init-block
+    search, the environment and the reductions live in their own modules."""
+    tree = ast.parse(MODULES["pccl.engine"].read_text())
+    cls = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Model")
+    assert cls.end_lineno - cls.lineno + 1 < 300
+
+
 def test_nothing_imports_the_command_line():
     assert [m for m in GRAPH if "pccl.cli" in GRAPH[m]] == []
 
