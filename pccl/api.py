@@ -24,7 +24,8 @@ from .engine import Model
 from .explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from . import validate as V
 from .errors import ArgumentError, OptionError
-from .options import CommonOptions, ExploreOptions, ModelOptions, RunOptions, model_choices
+from .options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
+                      conflict, model_choices)
 from .reduce import Reduced
 from .results import Finding, StateView, StepView
 from .runner import RunResult, run as _run
@@ -110,7 +111,7 @@ def build_model(program, opts: CommonOptions, *, rng: Optional[random.Random] = 
     prog = apply_overrides(load_program(program, source=opts.source), opts.overrides)
     blackbox, reason = (explore_blackbox(prog, opts.blackbox) if explore
                         else (opts.blackbox, None))
-    opts = opts.replace(world=load_world_arg(opts.world), blackbox=blackbox)
+    opts = opts.replace(blackbox=blackbox)
     if rng is not None and opts.rand_policy is None:
         opts = opts.replace(rand_policy=lambda n, agent, span: rng.randint(0, n))
     model = Model(prog, opts)
@@ -341,13 +342,10 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     else:
         assert isinstance(workers, int), workers        # validated by ExploreOptions
         nworkers = workers
-    if (ray is not None or (nworkers is not None and nworkers > 1)) and (exact or coverage):
-        raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
-                            f"use workers=1 without ray", filename="pccl.api.explore_model")
+    c = conflict(o.replace(workers="auto" if nworkers is None else nworkers))     # as resolved
+    if c is not None:
+        raise ArgumentError(c.message(api_spelling), filename="pccl.api.explore_model")
     one = ray is None and nworkers == 1
-    if not one and fastest:
-        raise ArgumentError("fastest=True searches in one process: use workers=1",
-                            filename="pccl.api.explore_model")
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)

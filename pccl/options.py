@@ -34,6 +34,9 @@ from .errors import FLAGS, ArgumentError, OptionError, flag  # noqa: F401  (FLAG
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
                       "record_trace"})
 
+#: The version of the options' JSON form (:meth:`CommonOptions.to_dict`).
+OPTIONS_VERSION = 1
+
 #: Command-line parameters that choose how a result is shown, per command.
 PRESENTATION = {
     "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full", "exit_codes"}),
@@ -96,6 +99,62 @@ class CommonOptions:
 
     def replace(self, **changes):
         return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        """The options as JSON data, versioned (:data:`OPTIONS_VERSION`): a
+        trace file's ``config["options"]``.  What a command line cannot
+        express (:data:`API_ONLY`: callables, objects) is left out; a
+        blackbox object is given by its name, a world object as None (the
+        trace records the world's file)."""
+        out: dict[str, Any] = {"version": OPTIONS_VERSION}
+        for f in dataclasses.fields(self):
+            if f.name in API_ONLY:
+                continue
+            v = getattr(self, f.name)
+            if f.name == "world":
+                v = os.fspath(v) if isinstance(v, (str, os.PathLike)) else None
+            elif f.name == "blackbox" and v is not None and not isinstance(v, str):
+                v = getattr(v, "name", None)
+            elif f.name == "rates":
+                v = {str(a): r for a, r in dict(v or {}).items()}
+            elif isinstance(v, Mapping):
+                v = dict(v)
+            elif isinstance(v, (tuple, list)):
+                v = list(v)
+            elif isinstance(v, os.PathLike):
+                v = os.fspath(v)
+            out[f.name] = v
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]):
+        """Options from :meth:`to_dict`'s form.  The fields of other option
+        classes (a search's options, read for a model) are skipped; a name
+        no options class has, or another version, is a :class:`ValueError`."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"options must be an object, got {type(data).__name__}")
+        if data.get("version") != OPTIONS_VERSION:
+            raise ValueError(f"options version {data.get('version')!r} is not "
+                             f"{OPTIONS_VERSION}, the one this pccl reads")
+        known = {f.name for c in (ExploreOptions, RunOptions) for f in dataclasses.fields(c)}
+        unknown = sorted(set(data) - known - {"version"})
+        if unknown:
+            raise ValueError(f"unknown option{'s' if len(unknown) > 1 else ''} "
+                             f"{', '.join(unknown)}")
+        mine = {f.name for f in dataclasses.fields(cls)} - API_ONLY
+        kw = {k: v for k, v in data.items() if k in mine}
+        try:
+            if "rates" in kw:
+                kw["rates"] = {int(a): r for a, r in dict(kw["rates"] or {}).items()}
+            for k in ("overrides",):
+                if k in kw:
+                    kw[k] = dict(kw[k] or {})
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"rates and overrides must be objects: {e}") from None
+        for k in ("invariants", "properties"):
+            if k in kw:
+                kw[k] = tuple(kw[k] or ())
+        return cls(**kw)
 
     def check(self, func: str) -> None:
         """Raise :class:`ArgumentError` naming the first bad option."""
@@ -175,40 +234,70 @@ class ExploreOptions(ModelOptions):
         if r is not None and (not isinstance(r, str) or not r.strip()):
             raise ArgumentError(f"ray must be None, 'local' or a Ray address such as "
                                 f"'HOST:PORT', got {r!r}", filename=f"pccl.api.{func}")
-        if (r is not None or (w != 1 and w != "auto")) and (self.exact or self.coverage):
-            raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
-                                f"process: use workers=1 without ray",
-                                filename=f"pccl.api.{func}")
-        if (r is not None or w != 1) and self.fastest:
-            raise ArgumentError("fastest=True searches in one process: use workers=1",
-                                filename=f"pccl.api.{func}")
         for name in ("checkpoint", "resume"):
             v = getattr(self, name)
             if v is not None and (not isinstance(v, (str, os.PathLike)) or not os.fspath(v)):
                 raise ArgumentError(f"{name} must be a directory path, got {v!r}",
                                     filename=f"pccl.api.{func}")
         V.number(func, "checkpoint_interval", self.checkpoint_interval, minimum=0)
-        why = checkpoint_refusal(self)
-        if why is not None:
-            raise ArgumentError(why, filename=f"pccl.api.{func}")
+        c = conflict(self)
+        if c is not None:
+            raise ArgumentError(c.message(api_spelling), filename=f"pccl.api.{func}")
 
 
-def checkpoint_refusal(o: "ExploreOptions", *, cli: bool = False) -> Optional[str]:
+@dataclass(frozen=True)
+class Conflict:
+    """Search options that do not go together.  ``option`` is the one the
+    error is reported at; ``text`` names options as placeholders, spelt by
+    the caller (:meth:`message`): ``{fastest}`` is the option itself,
+    ``{workers=1}`` the option with that value.  The API spells them
+    ``fastest``/``workers=1`` (:func:`api_spelling`), the command line as
+    its flags."""
+    option: str
+    text: str
+
+    def message(self, spell: Callable[[str, Optional[str]], str]) -> str:
+        def one(key: str) -> str:
+            name, eq, value = key.partition("=")
+            return spell(name, value if eq else None)
+        import re
+        return re.sub(r"\{([a-z_]+(?:=[^}]*)?)\}", lambda mo: one(mo.group(1)), self.text)
+
+
+def api_spelling(name: str, value: Optional[str]) -> str:
+    """An option as the API's keyword (``workers=1``)."""
+    return name if value is None else f"{name}={value}"
+
+
+def conflict(o: "ExploreOptions") -> Optional[Conflict]:
+    """The first search options of ``o`` that do not go together (None: they
+    do): every cross-option check of a search, for the API and the CLI."""
+    w, r = o.workers, o.ray
+    if (r is not None or (w != 1 and w != "auto")) and (o.exact or o.coverage):
+        return Conflict("workers", f"{{{'exact' if o.exact else 'coverage'}=True}} runs in one "
+                                   "process: use {workers=1} without {ray}")
+    if (r is not None or w != 1) and o.fastest:
+        return Conflict("workers", "{fastest=True} searches in one process: use {workers=1} "
+                                   "without {ray}")
+    return checkpoint_conflict(o)
+
+
+def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     """Why ``o`` cannot checkpoint or resume (None: it can)."""
     if o.checkpoint is None and o.resume is None:
         return None
-    what = ("--resume" if o.checkpoint is None else "--checkpoint") if cli else \
-        ("resume" if o.checkpoint is None else "checkpoint")
+    what = "resume" if o.checkpoint is None else "checkpoint"
     if o.ray is not None or o.workers != 1:
-        return (f"{what} runs in one process for now: use "
-                f"{'--workers 1 without --ray' if cli else 'workers=1 without ray'}")
+        return Conflict(what, f"{{{what}}} runs in one process for now: use {{workers=1}} "
+                              "without {ray}")
     if o.fastest:
-        return f"{what} does not run with {'--fastest' if cli else 'fastest=True'} yet"
+        return Conflict(what, f"{{{what}}} does not run with {{fastest=True}} yet")
     if o.coverage:
-        return f"{what} does not run with {'--coverage' if cli else 'coverage=True'} yet"
+        return Conflict(what, f"{{{what}}} does not run with {{coverage=True}} yet")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
-            return f"{what} does not run with {name}= (a Python object is not checkpointed)"
+            return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "
+                                  "not checkpointed)")
     return None
 
 
