@@ -25,7 +25,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def old_explorer(rev: str, tmp: str):
-    src = subprocess.run(["git", "show", f"{rev}:pccl/explorer.py"], cwd=ROOT,
+    src = subprocess.run(["git", "show", f"{rev}:pccl/search/explorer.py"], cwd=ROOT,
                          capture_output=True, text=True, check=True).stdout
     path = os.path.join(tmp, "old_explorer.py")
     with open(path, "w") as f:
@@ -46,7 +46,7 @@ def main() -> None:
     ap.add_argument("--reduce", default="auto", help="the model's reductions (none: unreduced)")
     args = ap.parse_args()
     from pccl.api import make_model
-    from pccl.explorer import Explorer
+    from pccl.search.explorer import Explorer
     m = make_model(os.path.join(ROOT, "programs/fischer.pccl"),
                    overrides={"k": args.k, "d": args.d}, reduce=args.reduce)
     cache: dict = {}

@@ -105,7 +105,7 @@ def round_trip(rounds: int = 300) -> None:
     workers, one forked) and through a local Ray instance (2 actors)."""
     sys.path.insert(0, ROOT)
     from pccl.api import make_model
-    from pccl import parallel as P
+    from pccl.search import parallel as P
     m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "0"})
     m.prepare()
     transports = [("pipes, 2 workers", lambda: P._Pipes(2))]

@@ -95,7 +95,7 @@ if code:   # import that tree, not the (editable) install
     sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in type(f).__module__]
 from pccl.api import make_model, explore_model
 try:
-    from pccl.memory import peak_rss_bytes
+    from pccl.search.memory import peak_rss_bytes
 except ImportError:   # an older tree: Linux units
     import resource
     def peak_rss_bytes():

@@ -14,7 +14,7 @@ import inspect
 import os
 import sys
 
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from .base import Blackbox, Motion, Outcome
 from .instant import INSTANT, Instant

@@ -64,7 +64,7 @@ import math
 from dataclasses import dataclass
 from enum import IntEnum
 
-from pccl.errors import PcclError, install_hint
+from pccl.lang.errors import PcclError, install_hint
 
 from ._geometry import EMPTY, obstacles_of
 from .base import Outcome

@@ -7,7 +7,7 @@
     >>> [step["rule"] for step in r.trace][:3]
 
 ``program`` may be a path, source text (with ``source=True``) or an
-:class:`~pccl.ast.Program`; ``world`` a path or a :class:`~pccl.world.World`;
+:class:`~pccl.lang.ast.Program`; ``world`` a path or a :class:`~pccl.lang.world.World`;
 ``blackbox`` a registry name, ``module:attribute`` or a blackbox object.
 """
 
@@ -19,17 +19,17 @@ import random
 from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
-from . import ast as A
-from .engine import Model
-from .explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
-from . import validate as V
-from .errors import ArgumentError, OptionError
-from .options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
+from pccl.lang import ast as A
+from pccl.model.engine import Model
+from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
+from pccl.model import validate as V
+from pccl.lang.errors import ArgumentError, OptionError
+from pccl.model.options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
                       conflict, model_choices)
-from .reduce import Reduced
-from .results import Finding, StateView, StepView
-from .runner import RunResult, run as _run
-from .memory import format_size
+from pccl.model.reduce import Reduced
+from pccl.output.results import Finding, StateView, StepView
+from pccl.tools.runner import RunResult, run as _run
+from pccl.search.memory import format_size
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
 #: model's (derived, so a new search option cannot be missing here).
@@ -38,7 +38,7 @@ SEARCH_OPTIONS = tuple(f.name for f in dataclasses.fields(ExploreOptions)
 
 
 def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
-    from .parser import parse_file, parse_program
+    from pccl.lang.parser import parse_file, parse_program
     if isinstance(program, A.Program):
         return program
     if source:
@@ -47,7 +47,7 @@ def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = 
 
 
 def load_world_arg(world):
-    from .world import World, load_world
+    from pccl.lang.world import World, load_world
     if world is None or isinstance(world, World):
         return world
     return load_world(os.fspath(world))
@@ -56,7 +56,7 @@ def load_world_arg(world):
 def apply_overrides(prog: A.Program, overrides) -> A.Program:
     """Replace the initialisers of shared variables: ``{"k": "2"}`` (TLC-style
     constants).  Values are PCCL expressions."""
-    from .parser import parse_property
+    from pccl.lang.parser import parse_property
     if not overrides:
         return prog
     overrides = dict(overrides)
@@ -76,8 +76,8 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
 def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Random] = None,
                **options) -> Reduced:
     """Build a :class:`Model`, seen through its reductions (a
-    :class:`~pccl.reduce.Reduced`, with the model's interface).  ``options`` are those of
-    :class:`~pccl.options.ModelOptions` (world, blackbox, agents, delta, n0,
+    :class:`~pccl.model.reduce.Reduced`, with the model's interface).  ``options`` are those of
+    :class:`~pccl.model.options.ModelOptions` (world, blackbox, agents, delta, n0,
     rates, events, collisions, overrides, invariants, max_time,
     abstract_time, reduce, functions, rand_policy, source).  With ``seed`` or
     ``rng`` (run mode), rand is sampled from the generator instead of
@@ -158,7 +158,7 @@ def fixed_timing_note(model) -> Optional[str]:
     bb = model.blackbox
     det = getattr(bb, "deterministic", None)
     if det is None:
-        from .blackboxes import BLACKBOXES
+        from pccl.blackboxes import BLACKBOXES
         name = getattr(bb, "name", None)
         det = name in DETERMINISTIC_BLACKBOXES and BLACKBOXES.get(name) is bb
     if not det or not program_moves(model.program):
@@ -193,7 +193,7 @@ def not_covered_note(model) -> Optional[str]:
     physical blackboxes' behaviours the search does not cover, for the
     header of ``pccl explore``: ``positions in mid-motion not covered
     (getPosition() at line 29)``; None when nothing is left out."""
-    from .blackboxes import BLACKBOXES
+    from pccl.blackboxes import BLACKBOXES
     bb = model.blackbox
     name = getattr(bb, "name", None)
     if name not in COVERING_BLACKBOXES or BLACKBOXES.get(name) is not bb:
@@ -207,10 +207,10 @@ def not_covered_note(model) -> Optional[str]:
 @dataclass(repr=False)
 class ExploreResult:
     """What :func:`explore` found.  ``violation``/``violations`` are
-    :class:`~pccl.results.Finding` objects (each with its ``trace`` of
-    :class:`~pccl.results.StepView` and its violating ``state``, a
-    :class:`~pccl.results.StateView`); ``bounds`` are the
-    :class:`~pccl.explorer.Bound` members that cut the search and
+    :class:`~pccl.output.results.Finding` objects (each with its ``trace`` of
+    :class:`~pccl.output.results.StepView` and its violating ``state``, a
+    :class:`~pccl.output.results.StateView`); ``bounds`` are the
+    :class:`~pccl.search.explorer.Bound` members that cut the search and
     ``bound_labels`` how the CLI spells them (``--max-states 100``)."""
     status: str                       # violation | exhaustive | bounded | interrupted
     verdict: str                      # the one-line verdict
@@ -237,7 +237,7 @@ class ExploreResult:
     bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
     #: what the covering blackbox leaves out of straight's and pymunk's behaviours
     not_covered: Optional[str] = None
-    #: what the verdict covers (:class:`~pccl.checked.Checked`: properties and
+    #: what the verdict covers (:class:`~pccl.output.checked.Checked`: properties and
     #: their outcomes, built-in checks, blackbox, bounds, reductions, events
     #: that never fired, notes); ``.to_json()`` is ``"checked"`` of the JSON
     checked: Any = None
@@ -256,7 +256,7 @@ class ExploreResult:
 
 def explore(program, **options) -> ExploreResult:
     """Explore ``program`` breadth-first.  ``options`` are the fields of
-    :class:`~pccl.options.ExploreOptions`, spelt like ``pccl explore``'s
+    :class:`~pccl.model.options.ExploreOptions`, spelt like ``pccl explore``'s
     flags (``max_states`` is ``--max-states``).  ``reduce``: ``"auto"`` (every
     reduction sound for this program, blackbox and properties), ``"none"``,
     or a list such as ``["merge"]`` (docs/reductions.md)."""
@@ -271,7 +271,7 @@ DEFAULT_MEMORY_FRACTION = 0.8
 
 
 def default_max_memory() -> int:
-    from .explorer import physical_memory
+    from pccl.search.explorer import physical_memory
     return int(physical_memory() * DEFAULT_MEMORY_FRACTION)
 
 
@@ -283,7 +283,7 @@ def memory_bound(max_memory) -> Optional[int]:
 def require_ray():
     """The ``ray`` module for ``ray=``/``--ray``, or an :class:`ArgumentError`
     saying ``pip install 'pccl[ray]'``."""
-    from .parallel import RayUnavailable, import_ray
+    from pccl.search.parallel import RayUnavailable, import_ray
     try:
         return import_ray()
     except RayUnavailable as e:
@@ -293,7 +293,7 @@ def require_ray():
 def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOptions] = None,
                   **search) -> ExploreResult:
     """Explore ``model``.  The search options are those of
-    :class:`~pccl.options.ExploreOptions` (given as ``options=`` or as
+    :class:`~pccl.model.options.ExploreOptions` (given as ``options=`` or as
     keywords): ``max_memory`` is bytes of peak resident memory at which the
     search stops with the bound ``--max-memory`` (``"default"``: 80 % of
     physical memory; ``None``: no limit); ``workers`` processes (an int >= 1,
@@ -333,11 +333,11 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     if coverage:
         if "coverage" not in model.reduce_uses:
             model = model.with_uses(("coverage",))
-        from .coverage import CoverageModel
+        from pccl.output.coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
     if workers == "auto":
-        from .parallel import available_workers
+        from pccl.search.parallel import available_workers
         nworkers = None if ray is not None else available_workers()
     else:
         assert isinstance(workers, int), workers        # validated by ExploreOptions
@@ -349,9 +349,9 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
                 exact=exact, progress=progress, max_memory=max_memory,
                 progress_interval=progress_interval)
-    from . import liveness as L
+    from pccl.search import liveness as L
     skipped: list = []
-    # the workers record the state graph too (pccl/parallel.py): the same
+    # the workers record the state graph too (pccl/search/parallel.py): the same
     # time-lock and temporal analysis runs on the same graph, whatever the backend
     rec = L.make_recorder(model, timelock, stall)
     # the distinct labels of the transitions taken: the events that fired
@@ -359,7 +359,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     runaways: list = []
 
     def on_runaway(info: dict) -> None:
-        from .stall import runaway_note
+        from pccl.model.stall import runaway_note
         msg = runaway_note(model, info)
         runaways.append(msg)
         note = getattr(progress, "note", None)     # the CLI's reporter: at once, on stderr
@@ -372,14 +372,14 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             on_runaway({**info, "state": native.decode(info["state"])})
         ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels, **opts)
     elif ray is not None:
-        from .parallel import ParallelExplorer
+        from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
         ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
     elif nworkers is not None and nworkers > 1:
-        from .parallel import ParallelExplorer
+        from pccl.search.parallel import ParallelExplorer
         ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
     elif fastest:
-        from .fastest import FastestExplorer
+        from pccl.search.fastest import FastestExplorer
         ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
     else:
         ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels,
@@ -392,7 +392,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                 if f.trace is not None:
                     f.trace = native.decode_trace(f.trace)
     except RuntimeError as e:
-        from .native import NativeOverflow
+        from pccl.model.native import NativeOverflow
         if isinstance(e, NativeOverflow):
             # a value the vectors cannot hold: the Python engine, from the start
             model.engine_used, model.engine_reason = (
@@ -402,7 +402,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             ex = Explorer(model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
             sr = ex.run()
         else:
-            from .parallel import RayUnavailable
+            from pccl.search.parallel import RayUnavailable
             if isinstance(e, RayUnavailable):       # Ray could not be started or reached
                 raise ArgumentError(str(e), filename="pccl --ray") from None
             raise
@@ -413,7 +413,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     complete = sr.status == "exhaustive" or (
         find_all and sr.status == "violation" and not sr.bounds_hit)
     if getattr(model, "merger", None) is not None:
-        from .reduce import expand_trace
+        from pccl.model.reduce import expand_trace
         for f in sr.found:
             f.trace = expand_trace(model, f.trace, f.violation)
     lv = None
@@ -484,7 +484,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                         cov.report() if cov is not None else None, witnesses,
                         list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
                         timelock, stall, bound_names, not_covered_note(model))
-    from .checked import for_explore
+    from pccl.output.checked import for_explore
     configured = ([f"--depth {depth}"] if depth is not None else []) + \
         ([f"--max-states {max_states}"] if max_states is not None else []) + \
         ([f"--max-time {model.max_time}"] if model.max_time is not None else []) + \
@@ -499,14 +499,14 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
 
 
 def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool):
-    """The native model for this search (pccl/native.py), or None for the
+    """The native model for this search (pccl/model/native.py), or None for the
     Python engine; sets ``model.engine_used`` and ``model.engine_reason``
     (why not native) for the header."""
     model.engine_asked = o.engine != "auto"
     if o.engine == "python":
         model.engine_used, model.engine_reason = "python", None
         return None
-    from . import native as NV
+    from pccl.model import native as NV
     why = NV.unsupported(model, recorder=recorder, parallel=not one)
     if why is None and o.coverage:
         why = "--coverage counts guards in Python"
@@ -525,11 +525,11 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool)
 
 
 def _checkpointer(model, o: ExploreOptions):
-    """The :class:`~pccl.checkpoint.Checkpointer` of ``--checkpoint`` /
+    """The :class:`~pccl.search.checkpoint.Checkpointer` of ``--checkpoint`` /
     ``--resume`` (None without them)."""
     if o.checkpoint is None and o.resume is None:
         return None
-    from .checkpoint import Checkpointer, search_identity
+    from pccl.search.checkpoint import Checkpointer, search_identity
     ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
                       interval=o.checkpoint_interval, resume=o.resume,
                       identity=search_identity(model, o),
@@ -581,7 +581,7 @@ def parse_size(text: str) -> int:
 
 
 def violation_data(model, found: Counterexample) -> Finding:
-    """A counterexample as a typed :class:`~pccl.results.Finding` (its trace
+    """A counterexample as a typed :class:`~pccl.output.results.Finding` (its trace
     rendered step by step; ``.to_json()`` for the JSON)."""
     v = found.violation
     # every counterexample carries its trace, but "unreachable" (a failed
@@ -590,7 +590,7 @@ def violation_data(model, found: Counterexample) -> Finding:
     assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
     if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
-        from .reduce import expand_trace
+        from pccl.model.reduce import expand_trace
         tr = expand_trace(model, tr, v)
     steps = () if tr is None else tuple(
         StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
@@ -607,7 +607,7 @@ def violation_data(model, found: Counterexample) -> Finding:
 
 def run(program, **options) -> RunResult:
     """Execute ``program`` once.  ``options`` are the fields of
-    :class:`~pccl.options.RunOptions`, spelt like ``pccl run``'s flags
+    :class:`~pccl.model.options.RunOptions`, spelt like ``pccl run``'s flags
     (``seed``, ``max_steps``, ``max_time``, ``invariants``, ``stall_steps``,
     ...) plus ``record_trace``.  ``stall_steps``: stop (status ``stalled``,
     exit status 1) when no variable, position or flag changed for this many
@@ -631,8 +631,8 @@ def run(program, **options) -> RunResult:
 
 def check(program, *, world=None, source: bool = False):
     """Parse and statically check ``program`` (``pccl check``); the names of
-    ``world``'s functions may be called.  Returns the :class:`~pccl.checker.CheckedProgram`."""
-    from .checker import check_program
+    ``world``'s functions may be called.  Returns the :class:`~pccl.lang.checker.CheckedProgram`."""
+    from pccl.lang.checker import check_program
     V.program("check", program, source)
     V.world("check", world)
     prog = load_program(program, source=source)

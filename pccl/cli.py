@@ -8,11 +8,11 @@ import sys
 
 import click
 
-from . import display as D
-from .checked import NO_PROPERTY_NOTE
-from .errors import PcclError, flag
-from .layout import AGS, POS, STATUS, TIME
-from .options import ExploreOptions, ModelOptions, RunOptions, conflict
+from pccl.output import display as D
+from pccl.output.checked import NO_PROPERTY_NOTE
+from pccl.lang.errors import PcclError, flag
+from pccl.model.layout import AGS, POS, STATUS, TIME
+from pccl.model.options import ExploreOptions, ModelOptions, RunOptions, conflict
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, nondet-fail, pymunk, or "
                  "module:attribute for your own [default: straight; explore: nondet for a "
@@ -168,8 +168,8 @@ def _interrupted_status(code: int) -> int:
 
 def _exit_status(code: int, kinds, mode: str) -> int:
     """The status to exit with: 143 for SIGTERM, and under ``--exit-codes
-    detailed`` a violation's status by its kind (pccl/exitcodes.py)."""
-    from .exitcodes import status
+    detailed`` a violation's status by its kind (pccl/tools/exitcodes.py)."""
+    from pccl.tools.exitcodes import status
     return status(_interrupted_status(code), kinds, mode)
 
 
@@ -191,7 +191,7 @@ class _Main(click.Group):
             sys.exit(_interrupted_status(130))
         except MemoryError:
             # what the command held is released with its frames by now
-            from .memory import peak_rss_bytes
+            from pccl.search.memory import peak_rss_bytes
             click.echo(f"pccl {ctx.invoked_subcommand or ''}: out of memory: the process could "
                        f"not allocate more (peak memory {peak_rss_bytes() / 2**20:,.1f} MiB; a "
                        f"limit such as ulimit -v, or the machine's memory); give --max-memory "
@@ -233,8 +233,8 @@ def main():
               help="world file whose uninterpreted functions the program may use")
 def check(program, world):
     """Parse and statically check PROGRAM; print nothing else on success."""
-    from .api import load_program, load_world_arg
-    from .checker import check_program
+    from pccl.api import load_program, load_world_arg
+    from pccl.lang.checker import check_program
     try:
         prog = load_program(program)
         w = load_world_arg(world)
@@ -290,9 +290,9 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
         exit_codes, plot, html, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
-    from .api import build_model, memory_bound
-    from .runner import run as run_model
-    from . import traces as T
+    from pccl.api import build_model, memory_bound
+    from pccl.tools.runner import run as run_model
+    from pccl.output import traces as T
     if plot:
         _check_plot_output(plot)
     if trace_out:
@@ -311,7 +311,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     except PcclError as e:
         _fail(e)
     m = res.model
-    from .checked import for_run
+    from pccl.output.checked import for_run
     checked = for_run(m, res, opts)
     doc = None
     if record:
@@ -339,7 +339,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                    f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
         if view:
-            from . import views
+            from pccl.output import views
             click.echo(views.render(view, m, _run_path(res), full=full))
         elif trace:
             click.echo("trace:")
@@ -422,8 +422,8 @@ def _check_with_world(prog, world) -> None:
     reads them as (errors at the world file's line), the team and its start
     positions (the world file's checks: inside the arena, off obstacles and
     apart), the initial state."""
-    from .engine import Model
-    from .options import RunOptions
+    from pccl.model.engine import Model
+    from pccl.model.options import RunOptions
     model = Model(prog, RunOptions(world=world, blackbox="instant"))
     next(iter(model.init_states()), None)
 
@@ -444,7 +444,7 @@ def _check_output(path, option):
 
 
 def _write_trace(doc, path, *, quiet=False):
-    from . import traces as T
+    from pccl.output import traces as T
     try:
         T.write(doc, path)
     except PcclError as e:      # the verdict stands: report, keep its exit status
@@ -475,9 +475,9 @@ def _step_summary(m, prev, s) -> str:
 def _plot_module():
     import importlib
     try:
-        plot = importlib.import_module(".plot", __package__)
+        plot = importlib.import_module("pccl.output.plot")
     except ImportError as e:  # matplotlib missing
-        from .errors import install_hint
+        from pccl.lang.errors import install_hint
         click.echo(f"pccl: --plot needs matplotlib: {install_hint('plot')} ({e})", err=True)
         sys.exit(2)
     return plot
@@ -613,8 +613,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             checkpoint, checkpoint_interval, resume):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
-    from .api import build_model, explore_model
-    from . import traces as T
+    from pccl.api import build_model, explore_model
+    from pccl.output import traces as T
     if plot:
         _check_plot_output(plot)
     if trace_out:
@@ -622,7 +622,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     if html:
         _check_output(html, "--html")
     if ray is not None:
-        from .api import require_ray
+        from pccl.api import require_ray
         try:
             require_ray()
         except PcclError as e:
@@ -734,7 +734,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
     and world are found by the recorded path, the path relative to FILE or the
     absolute path (the one with the recorded hash); --program/--world override.
     On a terminal the steps are shown (--view steps) unless --view says otherwise."""
-    from .replay import replay as do_replay
+    from pccl.tools.replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
     if html:
@@ -753,7 +753,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
     for w in res.warnings:
         click.echo(w)
     if view and res.states:
-        from . import views
+        from pccl.output import views
         click.echo(views.render(view, m, (res.states, res.labels), full=full))
     click.echo(f"replayed {len(res.labels)} of {res.steps_total} steps")
     click.echo(res.message)
@@ -775,7 +775,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
 def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False):
     """Write the HTML viewer of ``doc``; the states' pending computations
     are kept only when they are the document's whole path."""
-    from . import viewer
+    from pccl.output import viewer
     if states is not None and len(states) != len(doc["steps"]) + 1:
         states = None
     try:
@@ -809,8 +809,8 @@ def view(trace_file, output, blackbox):
     animated step by step.  The trace is replayed when its program can be
     found (to show every agent's pending computation exactly); a trace that
     cannot be replayed is shown as recorded, with a note saying why."""
-    from . import tracecheck as TC
-    from .replay import replay as do_replay
+    from pccl.output import tracecheck as TC
+    from pccl.tools.replay import replay as do_replay
     _check_output(output, "--output")
     try:
         doc = TC.load(trace_file)
@@ -849,9 +849,9 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     back, jump to a visited state, load a trace file, run a bounded search from
     the current state.  The model is explore's (same options), unreduced.  The
     server listens on 127.0.0.1 only; stop it with Ctrl-C."""
-    from .api import build_model
-    from . import serve as S
-    from . import traces as T
+    from pccl.api import build_model
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     _check_repeats(rates, overrides)
     opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
     try:
@@ -878,7 +878,7 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
 
 def _world_of(doc):
     """The world a trace names, when its file can still be read (else None)."""
-    from .world import load_world
+    from pccl.lang.world import load_world
     rec = (doc.get("config") or {}).get("world")
     if not rec:
         return None
@@ -906,9 +906,9 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     states: states as nodes (violating ones in red), transitions as edges labelled
     with agent, rule, line and changes, one colour per agent."""
     import os
-    from .api import build_model
-    from . import graph as G
-    from . import traces as T
+    from pccl.api import build_model
+    from pccl.output import graph as G
+    from pccl.output import traces as T
     ext = os.path.splitext(output)[1].lower()
     if ext not in (".dot", ".gv", ".json"):
         _fail(PcclError(f"cannot tell the format of {output}: use a .dot, .gv or .json file",
@@ -921,7 +921,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
         model = build_model(program, opts)
         g = G.build(model, max_states=max_states, deadlock=not no_deadlock)
         if g.out_of_memory:
-            from .memory import peak_rss_bytes
+            from pccl.search.memory import peak_rss_bytes
             click.echo(f"pccl graph {program}: out of memory after {len(g.states):,} states and "
                        f"{len(g.edges):,} transitions (peak memory "
                        f"{peak_rss_bytes() / 2**20:,.1f} MiB); nothing written to {output}: "
@@ -983,9 +983,9 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     their frequencies (95% confidence intervals), the times, the first violating run's
     trace, and the pccl run command that reproduces each outcome."""
     import random
-    from .api import build_model
-    from . import simulate as S
-    from . import traces as T
+    from pccl.api import build_model
+    from pccl.tools import simulate as S
+    from pccl.output import traces as T
     if runs is not None and runs_n is not None:
         raise click.UsageError("give the number of runs once: --runs (or the deprecated -n)")
     if runs_n is not None:
@@ -1131,7 +1131,7 @@ def _workers(value):
 
 
 def _interval(value):
-    from .checkpoint import parse_interval
+    from pccl.search.checkpoint import parse_interval
     try:
         return parse_interval(value)
     except ValueError as e:
@@ -1141,7 +1141,7 @@ def _interval(value):
 def _size(value):
     if value is None:
         return None
-    from .api import parse_size
+    from pccl.api import parse_size
     try:
         return parse_size(value)
     except ValueError as e:
@@ -1291,7 +1291,7 @@ def _explore_header(program, m) -> str:
     it was chosen, when by default), options."""
     reason = getattr(m, "blackbox_reason", None)
     why = f" ({reason})" if reason else ""
-    from .api import not_covered_note
+    from pccl.api import not_covered_note
     uncovered = not_covered_note(m)
     if uncovered:
         why += f", {uncovered}"
@@ -1338,7 +1338,7 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
         else:
             click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
-            from . import views
+            from pccl.output import views
             click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
         else:
             for st in tr.steps:
@@ -1412,7 +1412,7 @@ def fmt_cmd(files, check, show_diff):
     input and writes the result to standard output."""
     import difflib
 
-    from .fmt import FormatterBug, format_source
+    from pccl.tools.fmt import FormatterBug, format_source
     changed = []
     for path in files:
         try:
@@ -1460,11 +1460,11 @@ def lsp():
         import lsprotocol  # noqa: F401
         import pygls  # noqa: F401
     except ImportError as e:
-        from .errors import install_hint
+        from pccl.lang.errors import install_hint
         click.echo(f"pccl lsp: error: {e.name or 'pygls'} is not installed; "
                    f"{install_hint('lsp')}", err=True)
         sys.exit(2)
-    from .lsp import serve
+    from pccl.tools.lsp import serve
     serve()
 
 

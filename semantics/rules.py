@@ -5,7 +5,7 @@ Each agent rule has the signature ``rule(m, st, i, ag, head, out)``: ``m`` is
 the model, read only through :class:`RuleContext`; ``st`` the configuration,
 ``i`` the agent id, ``ag`` its agent cell, ``head`` the decoded head of its
 ``k`` cell (a :class:`KHead`, built once per pc by
-:class:`pccl.compiled.Control`), and ``out`` a list to which the rule appends
+:class:`pccl.model.compiled.Control`), and ``out`` a list to which the rule appends
 ``(label, successor)`` pairs, one per way it applies.  A rule that does not
 apply appends nothing.  Global rules take ``(m, st, out)``.
 
@@ -16,7 +16,7 @@ labelled rules ``[assign]``, ``[if]``, ``[while]``), all labelled
 
 A configuration is meaningful only together with the model that made it:
 ``pc`` is an interned k cell and a stuck status a key of
-``CompiledProgram.stuck_reasons``.  Its layout is :mod:`pccl.layout`'s::
+``CompiledProgram.stuck_reasons``.  Its layout is :mod:`pccl.model.layout`'s::
 
     state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
     agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
@@ -32,9 +32,9 @@ from __future__ import annotations
 from typing import Any, Optional, Protocol
 from collections.abc import Callable, Sequence
 
-from pccl.errors import PcclRuntimeError
-from pccl.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING,  # noqa: F401
-                         put_agent, with_pc, with_status)
+from pccl.lang.errors import PcclRuntimeError
+from pccl.model.layout import (DISCRETE, DYNAMIC, EXITED, IDLE, LOCK, REQUEST, RUNNING,  # noqa: F401
+                               put_agent, with_pc, with_status)
 
 # k-cell head kinds (KHead.kind)
 K_EMPTY, K_END, K_AEND, K_ACQ, K_SIMPLE, K_IF, K_WHILE, K_ATOMIC, \
@@ -49,14 +49,14 @@ RUNTIME_ERRORS = (PcclRuntimeError, ZeroDivisionError, OverflowError,
 
 
 class KCells(Protocol):
-    """The interned k cells a rule may jump to (:class:`pccl.compiled.Control`)."""
+    """The interned k cells a rule may jump to (:class:`pccl.model.compiled.Control`)."""
     empty_pc: int              # ·  (the top of the event block)
     idle_pc: int               # endEventBlock
     event_pcs: Sequence[int]   # event e's effect ~> endEventBlock
 
 
 class RuleContext(Protocol):
-    """Exactly what a rule may read from the model (:class:`pccl.engine.Model`
+    """Exactly what a rule may read from the model (:class:`pccl.model.engine.Model`
     implements it).  tests/test_kernel.py checks that the rules read nothing
     else."""
     rho: Sequence[int]         # the rate map ρ: counter increment per agent
@@ -76,7 +76,7 @@ class RuleContext(Protocol):
 
 class KHead:
     """The decoded head of a k cell: what the rules need of ``k(pc)``,
-    built once per pc and cached (:meth:`pccl.compiled.Control.info`).
+    built once per pc and cached (:meth:`pccl.model.compiled.Control.info`).
 
     Each kind sets the fields it has (the others are None):
 
@@ -565,7 +565,7 @@ def time_advance(m, st, out, enabled=None):
 
     Rule: at least one agent running; every agent that has not exited has
     counter + ρ(i) > n0; and time + δ ≤ --max-time.  The clock holds exact
-    multiples n·δ (see :meth:`pccl.engine.Model.next_time`).
+    multiples n·δ (see :meth:`pccl.model.engine.Model.next_time`).
 
     ``enabled``, if given, is :func:`time_advance_enabled` already computed
     by the caller (``Model.successors`` gathers it while visiting the agents).

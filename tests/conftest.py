@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from pccl.api import make_model
-from pccl.parser import parse_program
+from pccl.lang.parser import parse_program
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -67,10 +67,10 @@ def reachable(m, limit=5000) -> list:
     return out
 
 
-# the configuration's cells and values (pccl.layout), for the tests to read states by name
-from pccl.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402
-                         IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
-                         RUNNING, SH, STATUS, T0, TARGET, TIME)
+# the configuration's cells and values (pccl.model.layout), for the tests to read states by name
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL,  # noqa: F401,E402
+                               IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
+                               RUNNING, SH, STATUS, T0, TARGET, TIME)
 
 
 def model_of(src: str, *, blackbox="instant", agents=2, filename="t.pccl", **kw):

@@ -3,7 +3,7 @@
 This module is a *test oracle*.  It is written from the product contract
 (docs/language.md §10-§12: the configuration, the rules, and "state identity,
 precisely") and deliberately shares nothing with the engine
-(``pccl.engine``, ``pccl.compile``, ``pccl.values``, ``semantics.*``): only
+(``pccl.model.engine``, ``pccl.model.compile``, ``pccl.lang.values``, ``semantics.*``): only
 the AST produced by the shared parser is used.  It is a plain tree-walking
 interpreter over immutable tuples, written for clarity, not speed.
 
@@ -47,7 +47,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Optional
 from collections.abc import Callable
 
-from pccl import ast as A
+from pccl.lang import ast as A
 
 END = "endEventBlock"
 AEND = "atomicEnd"

@@ -23,7 +23,7 @@ import re
 import sys
 
 from pccl.api import explore, make_model
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 HEADER = """Agent::Attack
 

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from pccl.explorer import Bound
-from pccl.results import StepView
+from pccl.search.explorer import Bound
+from pccl.output.results import StepView
 
 from pccl.api import explore as _explore, make_model
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from conftest import (FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, TEST_PROGRAMS, var)
 

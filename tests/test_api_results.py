@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pccl import display as D
-from pccl import traces as T
+from pccl.output import display as D
+from pccl.output import traces as T
 from pccl.api import explore, run
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -1,4 +1,4 @@
-"""pccl.ast.children: the one traversal of the AST, checked against a
+"""pccl.lang.ast.children: the one traversal of the AST, checked against a
 reflective walk over every dataclass field (the two must agree on every
 shipped program), and the walkers built on it."""
 
@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from pccl import ast
-from pccl.compile import has_rand
-from pccl.parser import parse_program, parse_property
+from pccl.lang import ast
+from pccl.model.compile import has_rand
+from pccl.lang.parser import parse_program, parse_property
 
 ROOT = Path(__file__).resolve().parent.parent
 SOURCES = sorted((ROOT / "programs").glob("*.pccl")) + sorted((ROOT / "tests" / "programs").glob("*.pccl"))

@@ -12,8 +12,8 @@ import shapely
 from pccl.blackboxes import (BLACKBOXES, INSTANT, NONDET, PYMUNK, STRAIGHT,
                              load_blackbox)
 from pccl.blackboxes.base import Motion, Outcome
-from pccl.errors import PcclError
-from pccl.world import World
+from pccl.lang.errors import PcclError
+from pccl.lang.world import World
 
 SQUARE = ((1.5, -1.0), (2.5, -1.0), (2.5, 1.0), (1.5, 1.0))   # between 0 and 4
 

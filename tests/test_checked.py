@@ -1,4 +1,4 @@
-"""What a verdict covers (pccl/checked.py): the ``checked`` section of
+"""What a verdict covers (pccl/output/checked.py): the ``checked`` section of
 ``pccl explore`` (text and JSON) and ``pccl run`` (JSON), the vacuity notes,
 and the events that never fired in an exhaustive search -- the same under
 every reduction as without any (the soundness test)."""
@@ -14,7 +14,7 @@ import pytest
 
 from conftest import RACE, RACE_WORLD, ROOT, cli
 from pccl.api import explore, run
-from pccl.checked import NO_PROPERTY_NOTE
+from pccl.output.checked import NO_PROPERTY_NOTE
 
 SCHEMA = json.loads((ROOT / "docs" / "trace-format.schema.json").read_text())
 

@@ -1,4 +1,4 @@
-"""Tests of the static checker (pccl.checker) and the built-in table.
+"""Tests of the static checker (pccl.lang.checker) and the built-in table.
 
 Every error message is pinned by a golden test of the full rendered text:
 ``file:line:col: error: message``, the source line and the caret; the cases
@@ -14,13 +14,13 @@ from pathlib import Path
 
 import pytest
 
-from pccl import ast
-from pccl.ast import Span
-from pccl.builtins import BUILTINS, READONLY_FLAGS, STATEMENTS, EXPRESSIONS, UNINTERPRETED
-from pccl.checker import CheckedProgram, check_program, check_property
-from pccl.types import ANY, BOOL, FLOAT, INT, OBSTACLES, POS, Ty, array_of, enum_ty, list_of
-from pccl.errors import PcclError
-from pccl.parser import parse_program, parse_property
+from pccl.lang import ast
+from pccl.lang.ast import Span
+from pccl.lang.builtins import BUILTINS, READONLY_FLAGS, STATEMENTS, EXPRESSIONS, UNINTERPRETED
+from pccl.lang.checker import CheckedProgram, check_program, check_property
+from pccl.lang.types import ANY, BOOL, FLOAT, INT, OBSTACLES, POS, Ty, array_of, enum_ty, list_of
+from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_program, parse_property
 
 PROGRAMS = Path(__file__).resolve().parent.parent / "programs"
 SHIPPED = sorted(PROGRAMS.glob("*.pccl"))

@@ -1,6 +1,6 @@
 """Checkpoint and resume (``pccl explore --checkpoint DIR`` / ``--resume DIR``):
 a search interrupted at any point and resumed gives exactly the result of
-an uninterrupted one (pccl/checkpoint.py)."""
+an uninterrupted one (pccl/search/checkpoint.py)."""
 
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ import time
 import pytest
 
 from pccl import api
-from pccl import checkpoint as C
-from pccl.fingerprint import fingerprint
+from pccl.search import checkpoint as C
+from pccl.search.fingerprint import fingerprint
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROG = os.path.join(ROOT, "programs")

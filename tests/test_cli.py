@@ -466,7 +466,7 @@ def test_exit_codes_table_is_documented():
     """Every detailed status is in the exit-code table of the README and of
     docs/language.md."""
     from pathlib import Path
-    from pccl.exitcodes import DETAILED, TABLE
+    from pccl.tools.exitcodes import DETAILED, TABLE
     root = Path(__file__).resolve().parent.parent
     assert {c for c, _ in TABLE} == set(DETAILED.values())
     for doc in ("README.md", "docs/language.md"):

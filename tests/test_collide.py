@@ -1,4 +1,4 @@
-"""Collision checking (pccl.collide) and the swap programs that exercise it:
+"""Collision checking (pccl.model.collide) and the swap programs that exercise it:
 programs/collide.pccl collides, programs/collide_fixed.pccl does not."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from pccl.api import explore
-from pccl.collide import EPS, collisions, contacts
-from pccl.world import World, load_world, parse_world
+from pccl.model.collide import EPS, collisions, contacts
+from pccl.lang.world import World, load_world, parse_world
 from conftest import cli
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -216,7 +216,7 @@ def test_fixed_swap_needs_the_atomic_test_and_set():
     assert "    atomic:\n" in src
     broken = src.replace("    atomic:\n", "    if (true):\n", 1)
     from pccl.api import explore_model, make_model
-    from pccl.parser import parse_program
+    from pccl.lang.parser import parse_program
     prog = parse_program(broken, "broken.pccl")
     res = explore_model(make_model(prog, world=WORLD, collisions=True))
     assert res.status == "violation"

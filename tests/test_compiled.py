@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import pytest
 
-from pccl.compiled import CompiledProgram
-from pccl.engine import Model
-from pccl.errors import OptionError
-from pccl.explorer import Explorer
-from pccl.layout import AGS, EXITED, RUNNING, SH, STATUS
-from pccl.options import check_model_values
+from pccl.model.compiled import CompiledProgram
+from pccl.model.engine import Model
+from pccl.lang.errors import OptionError
+from pccl.search.explorer import Explorer
+from pccl.model.layout import AGS, EXITED, RUNNING, SH, STATUS
+from pccl.model.options import check_model_values
 from pccl.semantics import rules as R
-from pccl.types import indexes_agent
+from pccl.lang.types import indexes_agent
 
 from conftest import FISCHER, model_of, set_agent
 from pccl.api import make_model
@@ -127,7 +127,7 @@ def test_the_configuration_kernel_is_public():
     import re
     from pathlib import Path
     src = Path(__file__).resolve().parent.parent / "pccl"
-    for f in sorted(src.glob("*.py")):
+    for f in sorted(src.rglob("*.py")):
         assert not re.search(r"\bR\._", f.read_text()), f.name
     err = R.Err.of(ZeroDivisionError("x"))
     assert err.reason == "division by zero" == R.describe_error(ZeroDivisionError())

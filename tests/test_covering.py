@@ -21,8 +21,8 @@ import pytest
 from pccl import api
 from pccl.blackboxes import load_blackbox
 from pccl.blackboxes.base import Motion
-from pccl.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
-from pccl.world import parse_world
+from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
+from pccl.lang.world import parse_world
 
 from conftest import PROGRAMS, TEST_PROGRAMS
 

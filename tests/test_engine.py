@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from pccl import display as D
+from pccl.output import display as D
 from pccl.api import explore_model, make_model, run
-from pccl.engine import Model
+from pccl.model.engine import Model
 
 from conftest import (AGS, DISCRETE, EXITED, FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD, STATUS,
                       TEST_PROGRAMS, model_of, shared, var)
-from pccl.layout import PHASE, POS, TIME, with_agents, with_counter, with_pc, with_status
+from pccl.model.layout import PHASE, POS, TIME, with_agents, with_counter, with_pc, with_status
 
 LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
 ASSERT_PROG = str(TEST_PROGRAMS / "eng_assert.pccl")
@@ -277,7 +277,7 @@ def test_run_with_rates_runs_event_block_per_rate():
           eff:
             n = n + 1;
         """
-    from pccl.runner import run as run_model
+    from pccl.tools.runner import run as run_model
     import random
     m = model_of(prog, n0=2, rates={1: 2}, max_time=5, abstract_time=False,
                  rand_policy=lambda n, a, s: 0)
@@ -325,7 +325,7 @@ def test_key_hashable_and_stable_and_abstracts_time():
 
 
 def test_time_abstraction_refused_when_property_reads_time():
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     with pytest.raises(PcclError):
         make_model(RACE, world=RACE_WORLD, abstract_time=True, invariants=["time < 100"])
     m = make_model(RACE, world=RACE_WORLD, invariants=["time < 100"])
@@ -377,7 +377,7 @@ def test_deadlock_violation_names_waiting_agents():
 
 
 def test_model_rejects_bad_parameters():
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     for kw in (dict(agents=0), dict(delta=0), dict(n0=0), dict(events="some")):
         with pytest.raises(PcclError):
             make_model(RACE, world=RACE_WORLD, **kw)

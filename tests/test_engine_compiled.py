@@ -8,7 +8,7 @@ import os
 import pytest
 
 from pccl.api import make_model
-from pccl.engine import Model
+from pccl.model.engine import Model
 
 from conftest import reachable
 

@@ -10,9 +10,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from pccl.api import explore, explore_model, make_model, parse_size, format_size
-from pccl.explorer import (Bound, ExactTable, Explorer, FingerprintTable, Model,
-                           ReplayError, Trace)
-from pccl.fingerprint import fingerprint
+from pccl.search.explorer import Bound, ExactTable, Explorer, FingerprintTable, Model, ReplayError, Trace
+from pccl.search.fingerprint import fingerprint
 
 
 @dataclass(frozen=True)

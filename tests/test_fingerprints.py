@@ -7,7 +7,7 @@ never expanded and whatever only it leads to is silently missed.  Python's
 hash(-2.0), hash(1) == hash(1.0) == hash(True), hash(0) == hash(2**61 - 1),
 and a tuple's hash only depends on its items' hashes.  This file is the
 guard for its replacement (xxh3_128 over a canonical encoding of the key,
-:mod:`pccl.fingerprint`) and for canonical values (a float slot always holds
+:mod:`pccl.search.fingerprint`) and for canonical values (a float slot always holds
 a float):
 
 1. differential: every shipped program (programs/*.pccl, with its world) and
@@ -17,7 +17,7 @@ a float):
 2. the same over small random programs (hypothesis);
 3. hand-made programs whose distinct states collide under ``hash()``: the
    violation must be reported with and without ``exact``;
-4. unit tests of ``pccl.fingerprint.encode`` / ``fingerprint``.
+4. unit tests of ``pccl.search.fingerprint.encode`` / ``fingerprint``.
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 
-from pccl import display as D
+from pccl.output import display as D
 from pccl.api import explore as _explore, make_model, run
-from pccl.values import UNDEF
+from pccl.lang.values import UNDEF
 
 from conftest import PROGRAMS, ROOT, SH, TEST_PROGRAMS, reachable
 
@@ -691,19 +691,19 @@ def test_list_of_float_int_literal_same_space_as_float_literal():
 
 
 # ---------------------------------------------------------------------------
-# 4. pccl.fingerprint
+# 4. pccl.search.fingerprint
 # ---------------------------------------------------------------------------
 
-# pccl.fingerprint comes with the xxh3 change; imported inside each test so
+# pccl.search.fingerprint comes with the xxh3 change; imported inside each test so
 # that sections 1-3 run without it.
 
 def encode(key) -> bytes:
-    from pccl.fingerprint import encode as enc
+    from pccl.search.fingerprint import encode as enc
     return enc(key)
 
 
 def fingerprint(key) -> bytes:
-    from pccl.fingerprint import fingerprint as fp
+    from pccl.search.fingerprint import fingerprint as fp
     return fp(key)
 
 
@@ -824,7 +824,7 @@ def test_fingerprint_stable_across_processes():
     """Not derived from hash() of anything (str hashes are salted per process,
     UNDEF's by address): another interpreter computes the same bytes."""
     key = (0, (UNDEF, -1, -2.0, True, (M61, "s")), ())
-    code = ("from pccl.fingerprint import fingerprint; "
+    code = ("from pccl.search.fingerprint import fingerprint; "
             "print(fingerprint((0, (..., -1, -2.0, True, (2**61 - 1, 's')), ())).hex())")
     env = dict(os.environ, PYTHONHASHSEED="123")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

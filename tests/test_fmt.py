@@ -1,4 +1,4 @@
-"""``pccl fmt`` (pccl/fmt.py): the canonical layout never changes a
+"""``pccl fmt`` (pccl/tools/fmt.py): the canonical layout never changes a
 program's meaning (the formatted text parses to the same AST), keeps every
 comment, is idempotent and does not depend on the white space written."""
 
@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 
-from pccl import ast as A
-from pccl.errors import PcclError
-from pccl.fmt import COMMENT, BCOMMENT, NL, WS, format_source, tokenize
-from pccl.parser import parse_program
+from pccl.lang import ast as A
+from pccl.lang.errors import PcclError
+from pccl.tools.fmt import COMMENT, BCOMMENT, NL, WS, format_source, tokenize
+from pccl.lang.parser import parse_program
 
 import symattack
 from test_fingerprints import programs

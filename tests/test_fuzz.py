@@ -127,8 +127,8 @@ def test_fuzz_corpus_is_varied():
     for _ in range(40):
         _, t = mutate(text, rng)
         try:
-            from pccl.checker import check_program
-            from pccl.parser import parse_program
+            from pccl.lang.checker import check_program
+            from pccl.lang.parser import parse_program
             check_program(parse_program(t, "m.pccl"))
             ok += 1
         except Exception as exc:           # PcclError expected
@@ -239,7 +239,7 @@ def api_cases(n=80):
 def test_fuzzed_api_arguments(fn, kw):
     import time
     from pccl import api
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     base = {"overrides": {"k": "1", "cstime": "0"}}
     if fn == "explore":
         base.update(max_states=300, depth=40)

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from conftest import FISCHER, RACE, RACE_WORLD
 from conftest import cli
@@ -303,7 +303,7 @@ def test_target_near_the_float_limit(cmd, tmp_path):
 # ---------------------------------------------------------------------------
 
 from pccl import api  # noqa: E402
-from pccl.errors import ArgumentError  # noqa: E402
+from pccl.lang.errors import ArgumentError  # noqa: E402
 
 
 @pytest.mark.parametrize("func, kw, phrase", [
@@ -405,12 +405,12 @@ def test_unwritable_plot_path_is_rejected_before_the_search(cmd, where, tmp_path
 
 def test_plot_failure_keeps_the_violation_status(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
-    import pccl.plot
+    import pccl.output.plot
 
     def fail(*a, **k):
         raise PcclError("cannot write plot: disk full", filename=str(tmp_path / "x.png"))
-    monkeypatch.setattr(pccl.plot, "plot_trace", fail)
-    monkeypatch.setattr(pccl.plot, "plot_run", fail)
+    monkeypatch.setattr(pccl.output.plot, "plot_trace", fail)
+    monkeypatch.setattr(pccl.output.plot, "plot_run", fail)
     res = cli("explore", FISCHER, *SMALL, "--invariant", "count(inCs) <= 1",
               "--plot", tmp_path / "x.png")
     assert res.exit_code == 1, res.output
@@ -421,11 +421,11 @@ def test_plot_failure_keeps_the_violation_status(tmp_path, monkeypatch):
 
 
 def test_ctrl_c_during_run_exits_130(monkeypatch):
-    import pccl.runner
+    import pccl.tools.runner
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
-    monkeypatch.setattr(pccl.runner, "run", interrupted)
+    monkeypatch.setattr(pccl.tools.runner, "run", interrupted)
     res = cli("run", FISCHER)
     assert res.exit_code == 130 and "interrupted" in res.stderr
     assert "Aborted" not in res.output

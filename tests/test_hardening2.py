@@ -8,10 +8,10 @@ import json
 
 import pytest
 
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from conftest import FISCHER, model_of
-from pccl.layout import AGS, LOC
+from pccl.model.layout import AGS, LOC
 from conftest import cli
 
 
@@ -197,9 +197,9 @@ def test_non_finite_time_options(args, tmp_path):
 @pytest.mark.parametrize("kw", [{"delta": float("inf")}, {"delta": float("nan")},
                                 {"max_time": float("nan")}, {"max_time": float("inf")}])
 def test_model_refuses_non_finite_time(kw):
-    from pccl.engine import Model
-    from pccl.options import ModelOptions
-    from pccl.parser import parse_program
+    from pccl.model.engine import Model
+    from pccl.model.options import ModelOptions
+    from pccl.lang.parser import parse_program
     with pytest.raises(PcclError):
         Model(parse_program(TICK), ModelOptions(**kw))
 
@@ -353,7 +353,7 @@ def test_rand_with_too_many_outcomes_in_a_statement_is_a_limit_of_the_tool(tmp_p
     (a ToolLimitError with the line), not as a stuck agent (a violation of
     the program) -- docs/decisions.md."""
     from pccl.api import explore
-    from pccl.errors import ToolLimitError
+    from pccl.lang.errors import ToolLimitError
     p = tmp_path / "big.pccl"
     p.write_text("loc:\n  int x = 0;\n\nGo():\n  pre(x == 0);\n  eff:\n    x = rand(100000000) + 1;\n")
     with pytest.raises(ToolLimitError) as e:
@@ -369,7 +369,7 @@ def test_rand_with_too_many_outcomes_in_a_statement_is_a_limit_of_the_tool(tmp_p
 def test_long_run_summary_is_bounded(monkeypatch, tmp_path):
     """A run of many time steps keeps an evenly thinned summary, not one
     state per time step."""
-    from pccl import runner
+    from pccl.tools import runner
     from pccl.api import run
     monkeypatch.setattr(runner, "SUMMARY_LIMIT", 50)
     p = tmp_path / "tick.pccl"

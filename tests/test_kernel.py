@@ -11,8 +11,8 @@ import pytest
 
 from conftest import FISCHER, PROGRAMS, model_of
 from pccl.api import load_program, make_model
-from pccl.layout import AGS, PC
-from pccl.world import load_world
+from pccl.model.layout import AGS, PC
+from pccl.lang.world import load_world
 from pccl.semantics import rules as R
 
 ROOT = Path(__file__).resolve().parent.parent

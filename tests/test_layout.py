@@ -1,6 +1,6 @@
-"""The configuration's layout (pccl.layout): one module owns it.
+"""The configuration's layout (pccl.model.layout): one module owns it.
 
-* No module outside pccl/layout.py and the rule kernel (semantics/rules.py)
+* No module outside pccl/model/layout.py and the rule kernel (semantics/rules.py)
   reads a configuration cell by number — not even inside generated code.
 * The views, the constants and the let-style helpers agree with each other on
   real states of shipped programs.
@@ -15,15 +15,15 @@ from pathlib import Path
 import pytest
 
 from conftest import FISCHER, RACE, RACE_WORLD, model_of
-from pccl import layout as L
+from pccl.model import layout as L
 from pccl.api import load_program, make_model
-from pccl.world import load_world
+from pccl.lang.world import load_world
 
 ROOT = Path(__file__).resolve().parent.parent
 
 #: Where numeric subscripts of configurations are allowed: the layout module
 #: itself, and the rule kernel (named constants cost 1.5-3 % there).
-ALLOWED = {"pccl/layout.py", "semantics/rules.py"}
+ALLOWED = {"pccl/model/layout.py", "semantics/rules.py"}
 
 #: Names that hold a configuration, an agent cell or a reach cell somewhere in
 #: the code (``st``, ``ag``, ``s2``, ``before``, ``res.final``, ...).
@@ -60,7 +60,7 @@ def test_no_numeric_subscripts_of_configurations_outside_the_layout():
                 continue
             found += [f"{rel}:{n}: {line}" for n, line in numeric_subscripts(f.read_text())]
     assert not found, ("configuration cells read by number; use the constants of "
-                       "pccl/layout.py (st[AGS], ag[STATUS], ...):\n" + "\n".join(found))
+                       "pccl/model/layout.py (st[AGS], ag[STATUS], ...):\n" + "\n".join(found))
 
 
 def test_no_numeric_subscripts_of_configurations_in_the_tests():

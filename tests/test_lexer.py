@@ -1,4 +1,4 @@
-"""Highlighting: the Pygments lexer (pccl/lexer.py, entry point ``pccl``)
+"""Highlighting: the Pygments lexer (pccl/tools/lexer.py, entry point ``pccl``)
 and the TextMate grammar of the VS Code extension
 (editors/vscode/syntaxes/pccl.tmLanguage.json), on every shipped, test and
 docs program.  Each is compared with the formatter's tokeniser, which
@@ -16,8 +16,8 @@ import pytest
 from pygments.lexers import get_lexer_by_name, get_lexer_for_filename
 from pygments.token import Comment, Error, Keyword, Name, Number, Whitespace
 
-from pccl.fmt import BCOMMENT, COMMENT, HDR, NUM, WORD, tokenize
-from pccl.lexer import PcclLexer
+from pccl.tools.fmt import BCOMMENT, COMMENT, HDR, NUM, WORD, tokenize
+from pccl.tools.lexer import PcclLexer
 
 ROOT = Path(__file__).resolve().parent.parent
 FILES = sorted([*(ROOT / "programs").glob("*.pccl"), *(ROOT / "tests" / "programs").glob("*.pccl"),

@@ -1,4 +1,4 @@
-"""``pccl lsp`` (pccl/lsp.py): a real client (pygls's LanguageClient) starts
+"""``pccl lsp`` (pccl/tools/lsp.py): a real client (pygls's LanguageClient) starts
 ``python -m pccl.cli lsp`` and speaks JSON-RPC to it over stdio; the
 analysis behind the handlers is also tested on its own."""
 
@@ -18,13 +18,13 @@ from lsprotocol import types as T  # noqa: E402
 from pygls.lsp.client import LanguageClient  # noqa: E402
 from pygls.uris import from_fs_path  # noqa: E402
 
-from pccl import ast as A  # noqa: E402
-from pccl import lsp as L  # noqa: E402
-from pccl.builtins import BUILTINS, READONLY_FLAGS  # noqa: E402
-from pccl.checker import check_program  # noqa: E402
-from pccl.errors import PcclError  # noqa: E402
-from pccl.fmt import format_source  # noqa: E402
-from pccl.parser import parse_program  # noqa: E402
+from pccl.lang import ast as A  # noqa: E402
+from pccl.tools import lsp as L  # noqa: E402
+from pccl.lang.builtins import BUILTINS, READONLY_FLAGS  # noqa: E402
+from pccl.lang.checker import check_program  # noqa: E402
+from pccl.lang.errors import PcclError  # noqa: E402
+from pccl.tools.fmt import format_source  # noqa: E402
+from pccl.lang.parser import parse_program  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PROPERTY_NAMES = {"time", "N", "pos", "exited", "stuck", "running"}

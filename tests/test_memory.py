@@ -102,7 +102,7 @@ def test_initial_states_of_many_declarations_are_those_of_few():
     """The mutable path builds the same configuration as the declarations
     evaluated one by one: every slot holds its initialiser's value."""
     from pccl.api import make_model
-    from pccl.layout import AGS, LOC
+    from pccl.model.layout import AGS, LOC
     m = make_model(declarations(300), agents=2, source=True)
     (st,) = list(m.init_states())
     for ag in st[AGS]:
@@ -143,8 +143,8 @@ def test_initial_states_with_rand_errors_and_init_against_a_direct_enumeration(t
     with Init's outcome (s + 1 when its rand is 1)."""
     import itertools
     from pccl.api import make_model
-    from pccl.display import status_text
-    from pccl.layout import AGS, AR, LOC, SH, STATUS
+    from pccl.output.display import status_text
+    from pccl.model.layout import AGS, AR, LOC, SH, STATUS
     m = make_model(write(tmp_path, INIT_MIXED), agents=2)
     got = set()
     for st in m.init_states():
@@ -188,7 +188,7 @@ def test_ten_thousand_declarations_build_their_initial_states_under_200_mib(tmp_
     prog = write(tmp_path, declarations(10_000))
     r = _python(textwrap.dedent(f"""\
         from pccl.api import make_model
-        from pccl.memory import peak_rss_bytes
+        from pccl.search.memory import peak_rss_bytes
         m = make_model({prog!r}, agents=1)
         assert len(list(m.init_states())) == 1
         print(peak_rss_bytes())
@@ -206,9 +206,9 @@ def test_run_summary_holds_a_bounded_number_of_list_elements(monkeypatch, tmp_pa
     """A list that grows each time step: one state per time step was
     quadratic; the summary is thinned once its states hold more than
     SUMMARY_BUDGET list elements of their own."""
-    from pccl import runner
+    from pccl.tools import runner
     from pccl.api import run
-    from pccl.layout import AGS, LOC
+    from pccl.model.layout import AGS, LOC
     monkeypatch.setattr(runner, "SUMMARY_BUDGET", 2_000)
     r = run(write(tmp_path, GROW), agents=1, max_time=300)
     assert r.status == "bounded" and len(r.final[AGS][0][LOC][0]) == 301
@@ -272,13 +272,13 @@ def test_run_cli_max_memory(tmp_path):
 
 def test_run_max_memory_api_checks_its_value():
     from pccl.api import run
-    from pccl.errors import ArgumentError
+    from pccl.lang.errors import ArgumentError
     with pytest.raises(ArgumentError, match="max_memory must be an integer >= 1"):
         run(GROW, source=True, max_memory=0)
 
 
 def test_short_values_in_the_run_summary():
-    from pccl.display import short_value
+    from pccl.output.display import short_value
     assert short_value(tuple(range(5))) == "[0, 1, 2, 3, 4]"
     assert short_value(tuple(range(1000))) == "[0, 1, 2, 3, 4, 5, 6, 7, …, 998, 999] (1,000 elements)"
     assert short_value((tuple(range(20)),)) == \
@@ -291,7 +291,7 @@ def test_short_values_in_the_run_summary():
 
 def _baseline_vm() -> int:
     """The address space of a fresh interpreter that has imported pccl."""
-    r = _python("import pccl.cli, pccl.api, pccl.explorer, pccl.liveness, click, rich\n"
+    r = _python("import pccl.cli, pccl.api, pccl.search.explorer, pccl.search.liveness, click, rich\n"
                 "print(open('/proc/self/status').read().split('VmPeak:')[1].split()[0])")
     assert r.returncode == 0, r.stderr
     return int(r.stdout) * 1024
@@ -333,7 +333,7 @@ def test_out_of_memory_is_a_clean_result(command, tmp_path):
 
 def test_memory_error_in_any_command_is_one_line(monkeypatch, tmp_path):
     """A MemoryError the command does not handle itself: one line, exit 2."""
-    from pccl import replay as R
+    from pccl.tools import replay as R
 
     def boom(path, **kw):
         raise MemoryError
@@ -346,7 +346,7 @@ def test_memory_error_in_any_command_is_one_line(monkeypatch, tmp_path):
 def test_explorer_memory_error_keeps_the_statistics(monkeypatch, tmp_path):
     """The search's figures so far survive a MemoryError (the API's result
     has status out-of-memory, exit status 2)."""
-    from pccl import explorer as E
+    from pccl.search import explorer as E
     from pccl.api import explore
     calls = {"n": 0}
     real = E._Admission.flush
@@ -394,7 +394,7 @@ def test_no_runtime_error_shows_python_text():
     """Every exception compiled code may raise (RUNTIME_ERRORS) is described
     in PCCL's terms: no Python class name, no Python message."""
     from pccl.semantics.rules import RUNTIME_ERRORS, describe_error
-    from pccl.values import PcclRuntimeError
+    from pccl.lang.values import PcclRuntimeError
     samples = {ZeroDivisionError: ZeroDivisionError("float division by zero"),
                OverflowError: OverflowError("int too large to convert to float"),
                TypeError: TypeError("unsupported operand type(s) for +: 'int' and 'tuple'"),
@@ -484,7 +484,7 @@ def test_shared_initialiser_error_is_an_error_of_the_initialiser(command, tmp_pa
 
 def test_shared_initialiser_error_in_the_api_and_per_agent_errors_stay_stuck_agents(tmp_path):
     from pccl.api import explore
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     with pytest.raises(PcclError, match="the initialiser of `d` at line 5: division by zero"):
         explore(write(tmp_path, SHARED_ERR))
     # a rand outcome of a shared initialiser that fails: the same error
@@ -515,7 +515,7 @@ def test_graph_max_states_bounds_the_initial_states(tmp_path):
 
 
 def test_graph_initial_states_below_the_bound_are_all_there(tmp_path):
-    from pccl import graph as G
+    from pccl.output import graph as G
     from pccl.api import make_model
     m = make_model(FISCHER, agents=1, reduce="none")
     n_init = len(list(m.init_states()))

@@ -1,7 +1,7 @@
-"""The model split of issue 22: properties (pccl/properties.py), the
-Init-block search (pccl/initstates.py), the world, blackbox and clock
-(pccl/environment.py) and the reductions as a wrapper around the model
-(pccl/reduce.py's Reduced), each checked against the engine it came from."""
+"""The model split of issue 22: properties (pccl/model/properties.py), the
+Init-block search (pccl/model/initstates.py), the world, blackbox and clock
+(pccl/model/environment.py) and the reductions as a wrapper around the model
+(pccl/model/reduce.py's Reduced), each checked against the engine it came from."""
 
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ from collections import deque
 import pytest
 
 from pccl.api import explore_model, make_model
-from pccl.engine import Model
-from pccl.errors import PcclError
-from pccl.initstates import InitSearch
-from pccl.options import ModelOptions
-from pccl.parser import parse_file
-from pccl.properties import sources
-from pccl.reduce import Reduced, unreduced
+from pccl.model.engine import Model
+from pccl.lang.errors import PcclError
+from pccl.model.initstates import InitSearch
+from pccl.model.options import ModelOptions
+from pccl.lang.parser import parse_file
+from pccl.model.properties import sources
+from pccl.model.reduce import Reduced, unreduced
 
 from conftest import FISCHER, RACE, RACE_WORLD
 
@@ -80,7 +80,7 @@ def test_a_bare_model_is_explored_with_the_reductions_its_options_ask_for():
     (RACE, {"world": RACE_WORLD, "invariants": ["size(dests) >= 2"]}),
     (FISCHER, {"invariants": [MUTEX, "reqid == -1"], "overrides": {"k": "0"}, "collisions": True})])
 def test_fast_violations_agree_with_the_readable_ones(prog, kw):
-    """The compiled fast path and pccl.properties' violations give the same
+    """The compiled fast path and pccl.model.properties' violations give the same
     violations on every reachable state (two ways of one result)."""
     m = make_model(prog, reduce="none", **kw)
     base = m.model

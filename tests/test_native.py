@@ -1,4 +1,4 @@
-"""The native engine (pccl/native.py) against the Python engine: for every
+"""The native engine (pccl/model/native.py) against the Python engine: for every
 program it serves, equal states, transitions, depth, time, verdicts,
 violations and counterexample traces (labels and configurations), on the
 shipped and test programs and on generated ones (tests/symattack.py's
@@ -10,10 +10,10 @@ import os
 
 import pytest
 
-from pccl import native as NV
+from pccl.model import native as NV
 from pccl.api import explore, make_model
-from pccl.layout import AGS, PC
-from pccl.errors import ArgumentError
+from pccl.model.layout import AGS, PC
+from pccl.lang.errors import ArgumentError
 
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as hs

@@ -1,7 +1,7 @@
 """One options object for the CLI and the API, and typed API results.
 
 Every option of ``pccl run``/``pccl explore`` is a field of
-:class:`~pccl.options.RunOptions`/:class:`~pccl.options.ExploreOptions` and
+:class:`~pccl.model.options.RunOptions`/:class:`~pccl.model.options.ExploreOptions` and
 the other way round; the CLI and the API build equal option objects for the
 same request; results are typed views whose text and JSON are what the CLI
 prints."""
@@ -15,12 +15,12 @@ import click
 import pytest
 
 import pccl.api as api
-from pccl import options as O
+from pccl.model import options as O
 from pccl.cli import main
-from pccl.errors import ArgumentError
-from pccl.explorer import Bound
-from pccl.layout import TIME
-from pccl.results import AgentView, Finding, StateView, StepView
+from pccl.lang.errors import ArgumentError
+from pccl.search.explorer import Bound
+from pccl.model.layout import TIME
+from pccl.output.results import AgentView, Finding, StateView, StepView
 
 from conftest import FISCHER, RACE, RACE_NONATOMIC, RACE_WORLD
 from conftest import cli

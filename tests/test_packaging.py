@@ -1,5 +1,5 @@
 """Packaging: pymunk is an extra (``pccl[physics]``) imported only by the
-pymunk blackbox; memory figures are portable (pccl.memory)."""
+pymunk blackbox; memory figures are portable (pccl.search.memory)."""
 
 from __future__ import annotations
 
@@ -45,13 +45,13 @@ def test_pymunk_blackbox_without_pymunk_says_how_to_install(monkeypatch):
     for cmd in ("run", "explore"):
         res = CliRunner().invoke(main, [cmd, RACE, "--world", RACE_WORLD, "-b", "pymunk"])
         assert res.exit_code == 2, res.output
-        from pccl.errors import install_hint
+        from pccl.lang.errors import install_hint
         assert res.stderr.strip() == ("--blackbox: error: the pymunk blackbox needs pymunk: "
                                       + install_hint("physics"))
     # the object itself, passed through the API, says the same (init_env)
     from pccl.api import explore
     from pccl.blackboxes import PYMUNK
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     with pytest.raises(PcclError, match=r"pip install -e '.*\[physics\]'"):
         explore(RACE, world=RACE_WORLD, blackbox=PYMUNK)
 
@@ -60,7 +60,7 @@ def test_install_hint_names_this_checkout():
     """pccl is not on the package index: the hint installs from the
     checkout this pccl runs from, a path that exists."""
     from pathlib import Path
-    from pccl.errors import install_hint
+    from pccl.lang.errors import install_hint
     hint = install_hint("physics")
     root = Path(__file__).resolve().parent.parent
     assert hint == f"pip install -e '{root}[physics]'"
@@ -84,7 +84,7 @@ def test_packaging_metadata_makes_pymunk_an_extra():
 # ---------------------------------------------------------------------------
 
 def test_peak_memory_units_per_platform():
-    from pccl import memory
+    from pccl.search import memory
     fake = types.SimpleNamespace(RUSAGE_SELF=0,
                                  getrusage=lambda who: types.SimpleNamespace(ru_maxrss=1000))
     assert memory._maxrss_bytes(fake, "linux") == 1000 * 1024      # KiB on Linux
@@ -93,8 +93,8 @@ def test_peak_memory_units_per_platform():
 
 def test_peak_memory_without_resource_uses_psutil(monkeypatch):
     import psutil
-    from pccl import memory
-    from pccl.explorer import peak_rss_bytes
+    from pccl.search import memory
+    from pccl.search.explorer import peak_rss_bytes
     monkeypatch.setattr(memory, "_resource", None)                 # as on Windows
     monkeypatch.setattr(memory, "_vmhwm_bytes", lambda: 0)         # (no /proc there)
     rss = psutil.Process().memory_info().rss
@@ -105,7 +105,7 @@ def test_peak_memory_without_resource_uses_psutil(monkeypatch):
 
 def test_peak_memory_is_plausible():
     import psutil
-    from pccl.explorer import peak_rss_bytes
+    from pccl.search.explorer import peak_rss_bytes
     assert peak_rss_bytes() >= psutil.Process().memory_info().rss * 0.9
 
 
@@ -145,3 +145,54 @@ def test_clean_install_without_extras_explores(tmp_path):
                          capture_output=True, text=True, timeout=120, cwd=str(tmp_path))
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert "pip install -e '" in res.stderr and "[ray]'" in res.stderr
+
+
+@pytest.mark.slow
+def test_a_built_wheel_ships_every_module_and_runs_outside_the_checkout(tmp_path):
+    """`pip wheel .`: the wheel holds every module of the source tree (the subpackages of
+    pccl/, semantics/ and blackboxes/ under pccl/ as package-dir maps them), the grammar and
+    the viewer's assets; installed into a fresh venv (the checkout not on sys.path), `pccl
+    explore` and `pccl check` run from it."""
+    import zipfile
+    wheels = tmp_path / "wheels"
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheels), str(ROOT)],
+                           capture_output=True, text=True, timeout=600)
+    if built.returncode != 0 and any(s in built.stderr for s in _OFFLINE):
+        pytest.skip("no package index reachable for the build backend: " + built.stderr.strip()[-300:])
+    assert built.returncode == 0, built.stderr
+    [wheel] = wheels.glob("pccl-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    # every module of the source tree, whether or not pyproject.toml lists its package
+    expected = {"pccl/" + f.relative_to(ROOT / "pccl").as_posix() for f in (ROOT / "pccl").rglob("*.py")
+                if "__pycache__" not in f.parts}
+    for top in ("semantics", "blackboxes"):
+        expected |= {f"pccl/{top}/{f.name}" for f in (ROOT / top).glob("*.py")}
+    assert len(expected) > 60 and "pccl/model/engine.py" in expected
+    assert expected <= names, sorted(expected - names)
+    assert "pccl/lang/grammar.lark" in names
+    assets = {n for n in names if "/viewer_assets/" in n}
+    assert assets == {"pccl/output/viewer_assets/" + p.name for p in (ROOT / "pccl/output/viewer_assets").iterdir()}
+
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    bindir = venv / ("Scripts" if os.name == "nt" else "bin")
+    subprocess.run([str(bindir / "python"), "-m", "pip", "install", "-q", "--no-deps", str(wheel)],
+                   check=True, capture_output=True, timeout=300)
+    # the dependencies from this interpreter's site-packages (no .pth runs from PYTHONPATH,
+    # so an editable install of the checkout stays out); the checkout is not on the path
+    import sysconfig
+    env = dict(os.environ, PYTHONPATH=sysconfig.get_paths()["purelib"])
+    where = subprocess.run([str(bindir / "python"), "-c", "import pccl.api, pccl.semantics.rules as r; "
+                            "import pccl; print(pccl.__file__); print(r.__file__)"],
+                           capture_output=True, text=True, timeout=120, cwd=str(tmp_path), env=env)
+    assert where.returncode == 0, where.stderr
+    for line in where.stdout.split():
+        assert line.startswith(str(venv)), where.stdout
+    res = subprocess.run([str(bindir / "pccl"), "explore", FISCHER, "--invariant", "count(inCs) <= 1", *SMALL],
+                         capture_output=True, text=True, timeout=300, cwd=str(tmp_path), env=env)
+    assert res.returncode == 1, res.stderr
+    assert "violation: invariant 'count(inCs) <= 1' violated" in res.stdout
+    res = subprocess.run([str(bindir / "pccl"), "check", RACE, "--world", RACE_WORLD],
+                         capture_output=True, text=True, timeout=300, cwd=str(tmp_path), env=env)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.startswith(f"{RACE}: ok ("), res.stdout

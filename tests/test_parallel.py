@@ -7,8 +7,8 @@ import sys
 import pytest
 
 from pccl.api import explore, make_model
-from pccl.explorer import Explorer
-from pccl.parallel import ParallelExplorer, available_workers
+from pccl.search.explorer import Explorer
+from pccl.search.parallel import ParallelExplorer, available_workers
 
 FISCHER = "programs/fischer.pccl"
 RACE_WORLD = "programs/race.toml"
@@ -77,7 +77,7 @@ def test_owner_keeps_the_smallest_key_of_equal_fingerprints():
     distinct fingerprints that share their low word (which the merge sorts
     by first) both stay."""
     import numpy as np
-    from pccl import parallel as P
+    from pccl.search import parallel as P
     m = make_model(FISCHER, overrides={"k": "0"})
     w = P._Worker(m, 0, 2, True, False)
     # mine (kept by the step, never sent): fingerprints A and B
@@ -98,7 +98,7 @@ def test_owner_keeps_the_smallest_key_of_equal_fingerprints():
 
 def test_discarded_states_are_freed():
     """States the pipes transport frees while waiting do not outlive the search."""
-    from pccl import parallel as P
+    from pccl.search import parallel as P
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
     r = ParallelExplorer(m, workers=2).run()
     assert r.stats.states > 1000 and P._LITTER == []
@@ -139,7 +139,7 @@ def test_pipes_exchange_large_levels_without_deadlock():
 
 
 def test_exact_needs_one_process():
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     with pytest.raises(PcclError, match="one process"):
         explore(FISCHER, overrides={"k": "0"}, exact=True, workers=2)
 
@@ -236,7 +236,7 @@ def test_ray_missing_says_how_to_install():
     assert "pip install -e '" in r.stderr and "[ray]'" in r.stderr and "Traceback" not in r.stderr
     code_api = ("import sys; sys.modules['ray'] = None\n"
                 "from pccl.api import explore\n"
-                "from pccl.errors import PcclError\n"
+                "from pccl.lang.errors import PcclError\n"
                 "try:\n    explore('programs/fischer.pccl', ray='local')\n"
                 "except PcclError as e:\n    print(e)\n")
     r = subprocess.run([sys.executable, "-c", code_api], capture_output=True, text=True)
@@ -244,7 +244,7 @@ def test_ray_missing_says_how_to_install():
 
 
 def test_bad_ray_argument_is_named():
-    from pccl.errors import ArgumentError
+    from pccl.lang.errors import ArgumentError
     with pytest.raises(ArgumentError, match="ray must be"):
         explore(FISCHER, overrides={"k": "0"}, ray=3)
     with pytest.raises(ArgumentError, match="one process"):
@@ -331,7 +331,7 @@ def test_workers_hand_over_the_graph_the_one_process_search_records():
     the same edges (as a multiset per source, in successor order) and the
     same per-state columns."""
     import numpy as np
-    from pccl import liveness as L
+    from pccl.search import liveness as L
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"},
                    properties=["reachable count(inCs) == 1"])
     graphs = []
@@ -365,7 +365,7 @@ def _parent_links(m):
 
 
 def test_fastest_still_needs_one_process():
-    from pccl.errors import PcclError
+    from pccl.lang.errors import PcclError
     with pytest.raises(PcclError, match="fastest=True searches in one process"):
         explore(FISCHER, overrides={"k": "0"}, fastest=True, workers=2)
 
@@ -375,7 +375,7 @@ def test_ray_address_where_nothing_listens_fails_at_once():
     what to do, instead of ray.init retrying for ever (probed before Ray is
     imported into the search)."""
     import socket
-    from pccl.parallel import RayUnavailable, probe_ray_address
+    from pccl.search.parallel import RayUnavailable, probe_ray_address
     s = socket.socket()
     s.bind(("127.0.0.1", 0))
     port = s.getsockname()[1]

@@ -1,4 +1,4 @@
-"""Tests for pccl.parser: every surface construct, spans, sids, properties,
+"""Tests for pccl.lang.parser: every surface construct, spans, sids, properties,
 error messages (golden text) and robustness on truncated/mutated input."""
 
 from __future__ import annotations
@@ -9,12 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from pccl import ast
-from pccl.ast import (Assign, Atomic, Binary, BoolLit, Call, CallStmt, EnumDecl,
-                      Field, FloatLit, If, Index, IntLit, ListLit, Name, Quant,
-                      Skip, Span, TypeRef, Unary, VarDecl, While, walk_stmts)
-from pccl.errors import PcclError
-from pccl.parser import parse_file, parse_program, parse_property
+from pccl.lang import ast
+from pccl.lang.ast import (Assign, Atomic, Binary, BoolLit, Call, CallStmt, EnumDecl, Field, FloatLit, If, Index,
+                           IntLit, ListLit, Name, Quant, Skip, Span, TypeRef, Unary, VarDecl, While, walk_stmts)
+from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_file, parse_program, parse_property
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"
@@ -855,7 +854,7 @@ def test_indented_first_line_rejected():
 
 def test_too_deeply_nested():
     # the parser builds any depth (iteratively); the checker refuses it, located
-    from pccl.checker import check_program
+    from pccl.lang.checker import check_program
     src = "loc:\n  int x = 0;\n\nE():\n  pre(true);\n  eff:\n    x = " + "-" * 5000 + "1\n"
     with pytest.raises(PcclError, match="nested too deeply") as info:
         check_program(parse_program(src, "t.pccl"))

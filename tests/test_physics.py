@@ -9,7 +9,7 @@ from shapely.geometry import Point, Polygon
 
 from pccl import api
 from pccl.blackboxes import load_blackbox
-from pccl.layout import AGS, FAIL, POS, REACH, SH
+from pccl.model.layout import AGS, FAIL, POS, REACH, SH
 
 ROOT = Path(__file__).resolve().parent.parent
 PROG = ROOT / "programs"

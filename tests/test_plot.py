@@ -142,7 +142,7 @@ def test_plot_svg_extension_follows_format(tmp_path):
 
 def test_plot_trace_api_and_title(tmp_path):
     from pccl.api import explore
-    from pccl.plot import plot_trace
+    from pccl.output.plot import plot_trace
     r = explore(str(COLLIDE), world=str(COLLIDE_WORLD), collisions=True)
     raw = list(r.counterexamples[0].trace)
     assert raw[0][0] is None
@@ -158,7 +158,7 @@ def test_plot_trace_api_and_title(tmp_path):
 
 def test_plot_trace_of_only_the_initial_state(tmp_path):
     from pccl.api import make_model
-    from pccl.plot import plot_trace
+    from pccl.output.plot import plot_trace
     m = make_model(str(FISCHER))
     out = tmp_path / "init.png"
     plot_trace(m, [(None, next(iter(m.init_states())))], out, title="initial state")
@@ -167,7 +167,7 @@ def test_plot_trace_of_only_the_initial_state(tmp_path):
 
 def test_plot_run_api_without_trace(tmp_path):
     from pccl.api import run
-    from pccl.plot import plot_run
+    from pccl.output.plot import plot_run
     res = run(str(FIXED), world=str(COLLIDE_WORLD), collisions=True)
     assert res.status == "final" and res.trace == []
     out = tmp_path / "r.png"
@@ -178,8 +178,8 @@ def test_plot_run_api_without_trace(tmp_path):
 
 def test_plot_to_unwritable_path_is_a_pccl_error(tmp_path):
     from pccl.api import run
-    from pccl.errors import PcclError
-    from pccl.plot import plot_run
+    from pccl.lang.errors import PcclError
+    from pccl.output.plot import plot_run
     res = run(str(FIXED), world=str(COLLIDE_WORLD))
     with pytest.raises(PcclError, match="cannot write plot: No such file"):
         plot_run(res.model, res, tmp_path / "no" / "such" / "dir" / "x.png")
@@ -188,7 +188,7 @@ def test_plot_to_unwritable_path_is_a_pccl_error(tmp_path):
 def test_importing_plot_leaves_pyplot_backend_alone():
     import matplotlib
     before = matplotlib.get_backend() if "matplotlib.pyplot" in sys.modules else None
-    import pccl.plot  # noqa: F401
+    import pccl.output.plot  # noqa: F401
     if before is not None:
         assert matplotlib.get_backend() == before
 
@@ -203,7 +203,7 @@ def no_matplotlib(monkeypatch):
         if name == "matplotlib" or name.startswith("matplotlib."):
             monkeypatch.setitem(sys.modules, name, None)
     monkeypatch.setitem(sys.modules, "matplotlib", None)
-    monkeypatch.delitem(sys.modules, "pccl.plot", raising=False)
+    monkeypatch.delitem(sys.modules, "pccl.output.plot", raising=False)
     import builtins
     real_import = builtins.__import__
 
@@ -214,7 +214,7 @@ def no_matplotlib(monkeypatch):
 
     monkeypatch.setattr(builtins, "__import__", fake_import)
     yield
-    monkeypatch.delitem(sys.modules, "pccl.plot", raising=False)
+    monkeypatch.delitem(sys.modules, "pccl.output.plot", raising=False)
 
 
 def test_run_plot_without_matplotlib(no_matplotlib, tmp_path):

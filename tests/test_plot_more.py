@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("matplotlib")
 import matplotlib.image as mpimg  # noqa: E402
 
-from pccl import plot as P  # noqa: E402
+from pccl.output import plot as P  # noqa: E402
 from pccl.api import explore, make_model  # noqa: E402
 from conftest import cli
 

@@ -13,10 +13,10 @@ import pytest
 from click.testing import CliRunner
 
 from pccl import api
-from pccl import display as D
-from pccl.checker import check_program
+from pccl.output import display as D
+from pccl.lang.checker import check_program
 from pccl.cli import main as cli
-from pccl.parser import parse_file, parse_program
+from pccl.lang.parser import parse_file, parse_program
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"

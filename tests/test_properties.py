@@ -29,7 +29,7 @@ from pccl.api import make_model as _make_model, run
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, FISCHER, LCK, LOCK, PC, RACE,
                       RACE_NONATOMIC, RACE_WORLD, REQUEST, STATUS, TEST_PROGRAMS)
-from pccl.layout import LQ, PHASE, TIME
+from pccl.model.layout import LQ, PHASE, TIME
 
 LOCK_PROG = str(TEST_PROGRAMS / "eng_lock.pccl")
 

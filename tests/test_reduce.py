@@ -1,4 +1,4 @@
-"""Evidence that the state-space reductions (pccl/reduce.py) are sound.
+"""Evidence that the state-space reductions (pccl/model/reduce.py) are sound.
 
 1. every shipped and test program, explored as tests/test_fingerprints.py
    explores it, under every combination of reductions: the verdict (status
@@ -24,13 +24,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 
-from pccl import reduce as RD
+from pccl.model import reduce as RD
 from pccl.api import explore, make_model
-from pccl.engine import Model
-from pccl.errors import PcclError
+from pccl.model.engine import Model
+from pccl.lang.errors import PcclError
 
 from conftest import PROGRAMS, ROOT
-from pccl.layout import AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, SH, STATUS, TIME
+from pccl.model.layout import AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, SH, STATUS, TIME
 from test_fingerprints import PINNED, SHIPPED, SLOW, TESTPROGS, programs
 
 MUTEX = "count(inCs) <= 1"
@@ -66,7 +66,7 @@ def check_counterexamples(res):
             assert Model.successors(m, last)
             continue
         if v["kind"] in ("liveness", "timelock", "response"):
-            # temporal (pccl/liveness.py): a lasso closes its cycle (up to the
+            # temporal (pccl/search/liveness.py): a lasso closes its cycle (up to the
             # reduced identity: a permutation of the agents under symmetry)
             if cx.cycle_start is not None:
                 assert m.key(tr.states[cx.cycle_start]) == m.key(last)

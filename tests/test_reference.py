@@ -26,11 +26,11 @@ from pathlib import Path
 
 import pytest
 
-from pccl import ast as A
+from pccl.lang import ast as A
 from pccl.api import explore as _explore, make_model
-from pccl.explorer import Explorer
-from pccl.parser import parse_file
-from pccl.world import World
+from pccl.search.explorer import Explorer
+from pccl.lang.parser import parse_file
+from pccl.lang.world import World
 
 from reference import ReferenceModel, bfs, shortest_violation
 
@@ -196,7 +196,7 @@ Go():
   eff:
     x = x + 1 + rand(2) / 3;
 """
-    from pccl.parser import parse_program
+    from pccl.lang.parser import parse_program
     prog = parse_program(src, "<dup>")
     opts = dict(blackbox="instant", delta=2, max_time=5, abstract_time=False)
     ref = oracle_counts(prog, 2, **opts)

@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from conftest import cli
-from pccl import traces as T
-from pccl.errors import PcclError
-from pccl.replay import replay as api_replay
+from pccl.output import traces as T
+from pccl.lang.errors import PcclError
+from pccl.tools.replay import replay as api_replay
 
 ROOT = Path(__file__).resolve().parent.parent
 PROGRAMS = ROOT / "programs"

@@ -170,7 +170,7 @@ def is_real_path(doc: dict) -> bool:
     state to its final state: a second, plain implementation (every step's
     whole record compared at once) for the rare mutant that replay accepts
     though its steps changed (two independent steps swapped, say)."""
-    from pccl import traces as T
+    from pccl.output import traces as T
     from pccl.api import make_model
     c = doc["config"]
     m = make_model(c["program"]["path"], world=(c["world"] or {}).get("path"),
@@ -231,7 +231,7 @@ def test_mutated_trace_files_exit_0_1_or_2_and_never_reproduce_a_changed_path(
             if doc is None:
                 assert res.exit_code == 2, where
             elif not SCHEMA.is_valid(doc):
-                # the hand-written checks of pccl/tracecheck.py and the schema
+                # the hand-written checks of pccl/output/tracecheck.py and the schema
                 # agree: a file the schema refuses is refused
                 assert res.exit_code == 2, where
                 assert "reproduced:" not in res.output, where

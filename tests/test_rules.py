@@ -12,14 +12,14 @@ import itertools
 
 import pytest
 
-from pccl import display as D
-from pccl.layout import AEND, END, acq
-from pccl.errors import PcclError
+from pccl.output import display as D
+from pccl.model.layout import AEND, END, acq
+from pccl.lang.errors import PcclError
 
 from conftest import (AGS, CNT, DISCRETE, DYNAMIC, EXITED, IDLE, LCK, LOCK, PC, POS, REACH,
                       REQUEST, RUNNING, STATUS, agent_rules, k_of, k_pc, labels, model_of, only,
                       set_agent, set_state, sid, succ, var)
-from pccl.layout import DONE, LQ, PHASE, T0, TARGET, TIME
+from pccl.model.layout import DONE, LQ, PHASE, T0, TARGET, TIME
 
 # Every statement form, each on a line of its own with unique text, so that
 # `sid(m, text)` finds it.

@@ -9,7 +9,7 @@ import shlex
 from pathlib import Path
 
 
-from pccl.layout import TIME
+from pccl.model.layout import TIME
 import conftest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -64,7 +64,7 @@ def test_simulate_clean_program_exits_0():
 def test_each_simulated_run_is_the_run_of_its_seed():
     import random
     from pccl.api import make_model, run
-    from pccl.simulate import simulate
+    from pccl.tools.simulate import simulate
     prog, world = str(ROOT / "programs/race_nonatomic.pccl"), str(ROOT / "programs/race.toml")
     rng = random.Random(0)
     model = make_model(prog, world=world, blackbox="nondet", agents=3, rng=rng, max_time=100,
@@ -168,7 +168,7 @@ def test_simulate_runs_flag_and_deprecated_n():
 
 
 def test_wilson_interval():
-    from pccl.simulate import wilson
+    from pccl.tools.simulate import wilson
     lo, hi = wilson(0, 10)
     assert lo == 0 and abs(hi - 0.2775) < 1e-3          # the textbook value
     lo, hi = wilson(5, 10)

@@ -1,9 +1,9 @@
-"""The stall check of ``pccl explore`` (pccl/stall.py, pccl/liveness.py) and
-the zero-time runaway note (pccl/explorer.py's ``on_runaway``).
+"""The stall check of ``pccl explore`` (pccl/model/stall.py, pccl/search/liveness.py) and
+the zero-time runaway note (pccl/search/explorer.py's ``on_runaway``).
 
 The verdicts are checked against an independent brute-force search over the
 unreduced rules: from the counterexample's last state, every reachable
-transition keeps ``pccl run``'s signature (pccl/runner.py) and time still
+transition keeps ``pccl run``'s signature (pccl/tools/runner.py) and time still
 advances; from the state before it, some transition changes it.
 """
 
@@ -15,11 +15,11 @@ import textwrap
 import pytest
 
 from pccl.api import explore, make_model
-from pccl.engine import Model
-from pccl.runner import _signature
+from pccl.model.engine import Model
+from pccl.tools.runner import _signature
 
 from conftest import TEST_PROGRAMS, cli
-from pccl.layout import AGS, REACH, FAIL, RUNNING, STATUS, TIME
+from pccl.model.layout import AGS, REACH, FAIL, RUNNING, STATUS, TIME
 
 RDV = str(TEST_PROGRAMS / "rdv_meet.pccl")
 WALL = str(TEST_PROGRAMS / "rdv_wall.toml")
@@ -125,7 +125,7 @@ def test_cli_stall_and_no_stall():
 def test_api_stall_false_and_bad_value():
     res = explore(RDV, world=WALL, blackbox="straight", stall=False)
     assert res.exit_status == 0 and not res.stall
-    from pccl.errors import ArgumentError
+    from pccl.lang.errors import ArgumentError
     with pytest.raises(ArgumentError, match="stall"):
         explore(RDV, world=WALL, blackbox="straight", stall="yes")
 
@@ -143,7 +143,7 @@ def test_stall_trace_replays(tmp_path):
 @pytest.mark.parametrize("case", ["rdv-wall", "rdv-open", "race-safe-sym", "take-turns-sym"])
 def test_workers_find_the_same_stalls(case, workers):
     """The workers decide each expanded state's change on its actual
-    successors (pccl/parallel.py), so the stall verdict, its counterexample
+    successors (pccl/search/parallel.py), so the stall verdict, its counterexample
     and the figures are those of one process (issue 20: one verdict on every
     backend), under symmetry too."""
     program, kw = {
@@ -272,11 +272,11 @@ def test_a_change_into_a_renamed_representative_is_a_change():
     decides a transition's change on the actual successor.  turn 0 -> 1
     reaches the representative of its own orbit (agents swapped), which has
     the source's signature; the actual successor does not."""
-    from pccl.liveness import GraphRecorder
+    from pccl.search.liveness import GraphRecorder
     import numpy as np
     m = make_model(TAKE_TURNS, source=True, blackbox="instant", agents=2, reduce="symmetry")
     s = next(s2 for s2 in (t for _, t in m.successors(next(iter(m.init_states())))))
-    from pccl.layout import SH, with_shared
+    from pccl.model.layout import SH, with_shared
     a = with_shared(s, (0,) + tuple(s[SH][1:]))
     b = with_shared(s, (1,) + tuple(s[SH][1:]))
     rec = GraphRecorder(m, stall=True)

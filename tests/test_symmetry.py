@@ -1,8 +1,8 @@
 """The symmetry reduction cannot lie (issue 20): agent ids as a type.
 
 1. the issue's examples, each a false "exhaustive" (or a false refusal) on
-   the analysis before pccl/scalarset.py;
-2. the type rules one by one (pccl.scalarset.IdTypes);
+   the analysis before pccl/lang/scalarset.py;
+2. the type rules one by one (pccl.lang.scalarset.IdTypes);
 3. the attack: 2,000 generated programs that try to tell agents apart
    (tests/symattack.py); wherever the analysis keeps symmetry on, the
    symmetry key is a bisimulation that respects the properties, and the
@@ -18,9 +18,9 @@ import textwrap
 import pytest
 
 import symattack
-from pccl import scalarset as SS
+from pccl.lang import scalarset as SS
 from pccl.api import explore, make_model
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from conftest import cli
 
@@ -401,7 +401,7 @@ def test_moving_robots_keep_symmetry_soundly(tmp_path):
 @pytest.mark.slow
 def test_the_moving_attack_catches_a_key_without_positions(tmp_path, monkeypatch):
     """Positions left out of the key while robots move: caught."""
-    from pccl import reduce as RD
+    from pccl.model import reduce as RD
     orig = RD.symmetry_problem
 
     def weak(m):
@@ -422,7 +422,7 @@ def test_race_safe_is_symmetric_with_positions_in_the_key():
     st = next(iter(m.init_states()))
     # the start positions differ, so the initial state is its own orbit's
     # only member up to the permutation that moves the positions with it
-    from pccl.layout import AGS, POS
+    from pccl.model.layout import AGS, POS
     assert len({a[POS] for a in st[AGS]}) == 3
     assert symattack.orbits_agree(open("programs/race_safe.pccl").read(), None, [], limit=3000,
                                   world="programs/race.toml", blackbox="nondet")

@@ -13,7 +13,7 @@ import json
 import pytest
 
 from pccl.api import explore, make_model
-from pccl.layout import AGS, DISCRETE, EXITED, FAIL, LOC, PHASE, REACH, STATUS, TIME
+from pccl.model.layout import AGS, DISCRETE, EXITED, FAIL, LOC, PHASE, REACH, STATUS, TIME
 
 from conftest import FISCHER, TEST_PROGRAMS
 from conftest import cli
@@ -208,7 +208,7 @@ def test_temporal_forms_are_not_program_expressions(tmp_path):
 
 
 def test_api_properties_argument_is_validated():
-    from pccl.errors import ArgumentError
+    from pccl.lang.errors import ArgumentError
     with pytest.raises(ArgumentError, match="properties"):
         explore(RING, properties="eventually has[0]")
     with pytest.raises(ArgumentError, match="timelock"):
@@ -467,7 +467,7 @@ def test_graph_reachability_agrees_with_a_plain_search(seed):
     """Graph.can_reach (relaxation rounds, then the reversed graph) and
     Graph.reach agree with a dict-based backward search on random graphs."""
     import numpy as np
-    from pccl.liveness import Graph
+    from pccl.search.liveness import Graph
     rng = np.random.default_rng(seed)
     n, e = 200, 400
     src = np.sort(rng.integers(0, n, e)).astype(np.uint32)
@@ -512,18 +512,18 @@ def test_run_stops_a_stalled_team():
     assert r.waiting[1][1] == "waits for Wait (line 24: `met` is false — met = false)"
     assert r.message.endswith("nothing changed since t = 1 (no variable, position or flag for "
                               "20 time steps) while agents still run")
-    # explore's stall check names the same causes (pccl/stall.py, one code)
-    from pccl.stall import waiting
+    # explore's stall check names the same causes (pccl/model/stall.py, one code)
+    from pccl.model.stall import waiting
     assert r.waiting == waiting(r.model, r.final)
     # nothing changed in the state between t = 1 and the end, but the clock
-    from pccl.runner import _signature
+    from pccl.tools.runner import _signature
     sigs = {_signature(s) for t, s in r.summary if t >= 1}
     assert len(sigs) == 1
 
 
 def test_run_stall_steps_option():
     from pccl.api import run
-    from pccl.errors import ArgumentError
+    from pccl.lang.errors import ArgumentError
     r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=5)
     assert r.status == "stalled" and r.final[TIME] == 6
     r = run(RDV, world=RDV_WALL, blackbox="straight", stall_steps=0, max_time=30)

@@ -1,4 +1,4 @@
-"""pccl.tomlpos: where keys, headers and array elements are written in TOML
+"""pccl.lang.tomlpos: where keys, headers and array elements are written in TOML
 text.  The positions are checked against tomllib itself: the text at a
 located value, decoded on its own, is the value tomllib decoded from the
 whole document."""
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from pccl.tomlpos import TomlSource, Where, decode_error_location, long_integer_location
+from pccl.lang.tomlpos import TomlSource, Where, decode_error_location, long_integer_location
 
 ROOT = Path(__file__).resolve().parent.parent
 WORLDS = sorted((ROOT / "programs").glob("*.toml")) + sorted((ROOT / "docs" / "examples").glob("*.toml"))

@@ -163,10 +163,10 @@ def test_a_run_trace_records_stall_steps(tmp_path):
 
 
 def test_trace_format_doc_lists_every_violation_kind():
-    """Issue 27: the documented kinds are the ones pccl/tracecheck.py accepts."""
+    """Issue 27: the documented kinds are the ones pccl/output/tracecheck.py accepts."""
     import re
     from pathlib import Path
-    from pccl.tracecheck import VIOLATION_KINDS
+    from pccl.output.tracecheck import VIOLATION_KINDS
     doc = (Path(__file__).resolve().parent.parent / "docs" / "trace-format.md").read_text()
     row = next(ln for ln in doc.splitlines() if ln.startswith("| `result` |"))
     part = row.split("its `kind` is", 1)[1]

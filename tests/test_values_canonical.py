@@ -15,9 +15,9 @@ import textwrap
 
 import pytest
 
-from pccl import display as D
+from pccl.output import display as D
 from pccl.api import explore
-from pccl.errors import PcclError
+from pccl.lang.errors import PcclError
 
 from conftest import AGS, STATUS, model_of, shared
 

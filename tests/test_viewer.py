@@ -1,4 +1,4 @@
-"""The HTML viewer (pccl/viewer.py) and the explorer server (pccl/serve.py)
+"""The HTML viewer (pccl/output/viewer.py) and the explorer server (pccl/tools/serve.py)
 without a browser: what the page embeds, the CLI options, the JSON API.
 tests/test_viewer_browser.py drives both in headless Chromium."""
 
@@ -156,14 +156,15 @@ def test_view_bad_input(tmp_path):
 
 def fischer_session():
     from pccl.api import make_model
-    from pccl import serve as S, traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
     return S.Session(m, T.config("explore", m, program=FISCHER, overrides={"k": "1"},
                                  invariants=("count(inCs) <= 1",)))
 
 
 def test_session_steps_back_and_visits():
-    from pccl.serve import BadRequest
+    from pccl.tools.serve import BadRequest
     s = fischer_session()
     p = s.payload()
     assert p["explorer"]["depth"] == 0 and p["view"]["trace"]["steps"] == []
@@ -217,7 +218,7 @@ def test_session_search_agrees_with_explore(fischer_files):
 
 
 def test_session_load_refuses_a_trace_of_another_model(tmp_path):
-    from pccl.serve import BadRequest
+    from pccl.tools.serve import BadRequest
     trace = tmp_path / "k2.json"
     r = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD, "--trace-out", str(trace))
     assert r.exit_code == 0, r.output
@@ -231,7 +232,7 @@ def test_session_load_refuses_a_trace_of_another_model(tmp_path):
 
 
 def test_http_api_bad_requests_never_stop_the_server():
-    from pccl import serve as S
+    from pccl.tools import serve as S
     srv = S.make_server(fischer_session(), 0)
     assert srv.server_address[0] == "127.0.0.1"
     th = threading.Thread(target=srv.serve_forever, daemon=True)
@@ -275,15 +276,16 @@ def test_serve_cli_bad_input(tmp_path):
 
 
 def test_wheel_carries_the_viewer_assets():
-    """Every file of pccl/viewer_assets is package data, and the page is
+    """Every file of pccl/output/viewer_assets is package data, and the page is
     built from the installed resources."""
     import fnmatch
     import tomllib
     from pathlib import Path
-    from pccl import viewer
+    from pccl.output import viewer
     root = Path(__file__).resolve().parent.parent
-    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["pccl"]
-    assets = sorted(p.relative_to(root / "pccl").as_posix() for p in (root / "pccl" / "viewer_assets").iterdir())
+    pkg = root / "pccl" / "output"
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["pccl.output"]
+    assets = sorted(p.relative_to(pkg).as_posix() for p in (pkg / "viewer_assets").iterdir())
     assert {"viewer_assets/viewer.html", "viewer_assets/viewer.js", "viewer_assets/viewer.css"} <= set(assets)
     for a in assets:
         assert any(fnmatch.fnmatch(a, g) for g in globs), a

@@ -37,7 +37,7 @@ def shot(browser, name):
 
 
 def cell_names(step):
-    from pccl.traces import cell_name
+    from pccl.output.traces import cell_name
     return sorted(cell_name(ch["cell"]) for ch in step["changes"])
 
 
@@ -218,7 +218,8 @@ def test_long_trace_stays_responsive(browser, tmp_path):
 @pytest.fixture
 def fischer_server():
     from pccl.api import make_model
-    from pccl import serve as S, traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
     cfg = T.config("explore", m, program=FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",))
     session = S.Session(m, cfg)
@@ -232,7 +233,8 @@ def fischer_server():
 
 def test_serve_reaches_two_agents_in_cs_by_clicking(browser, fischer_server):
     from pccl.api import make_model
-    from pccl import serve as S, traces as T
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
     srv, _ = fischer_server
     # the indices of the transitions to choose, from a second session's search
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from pccl.errors import PcclError
-from pccl.world import World, default_world, load_world, parse_world
+from pccl.lang.errors import PcclError
+from pccl.lang.world import World, default_world, load_world, parse_world
 
 PROGRAMS = Path(__file__).resolve().parent.parent / "programs"
 

@@ -1,0 +1,1 @@
+"""The model: compiled program, configuration layout, transition system, options, reductions."""

@@ -1,0 +1,708 @@
+"""The native engine: a model's successor function and its fast violation
+check generated as C, compiled at run time with the system C compiler into
+a CPython extension module (cached by the hash of its source, as SPIN
+compiles ``pan.c``), for programs whose configuration is a fixed vector of
+integers.
+
+A configuration is then a ``bytes`` object: int64 slots, native byte order::
+
+    time, phase, lockQueue (N slots, agent ids, -1 unused), shared scalars,
+    per agent: pc, counter, lockState, status, locals, allread
+
+(positions, reach cells and the blackbox's environment never change in the
+programs served, so they are not in the vector; :meth:`NativeModel.decode`
+puts them back).  Undefined is INT64_MIN.  :class:`NativeModel` offers the
+explorer's model protocol over these vectors: ``successors`` is one C call
+per state (the rules of ``semantics/rules.py``, for each pc of the program,
+in the same order, with the same labels); ``violations`` one C call that
+returns ``[]`` when no agent is stuck and every invariant holds, otherwise
+the Python model's own violations of the decoded configuration; ``key``
+drops the clock under time abstraction.  The explorer, its fingerprint table
+(xxh3-128 of the marshalled key: an injective encoding, so the collision
+bound is the same) and the replay of counterexamples are the Python
+engine's, unchanged; traces are decoded to configurations afterwards.  So
+states, transitions, depth, verdicts and counterexamples equal the Python
+engine's by construction of the same BFS order (tests/test_native.py checks
+it).
+
+Served (:func:`unsupported` says why not otherwise): variables of type int,
+bool or enum, scalars; statements: assignment, skip, if, while, atomic,
+assert, exit; expressions: literals, variables, enum members, ``+ - *``,
+comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
+``getNumAgents()``; invariants: the same over shared variables, ``count(v)``
+of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
+quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
+lists, floats or positions; the built-in blackboxes; ``--reduce none``; no
+time-lock, stall or temporal checks (they record the state graph in
+Python); int δ.  An int that leaves 64 bits at run time stops the native
+search (:class:`NativeOverflow`); the API then runs the Python engine.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import importlib.util
+from array import array
+from typing import Any, Optional
+
+from pccl.lang import ast as A
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC,
+                               PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, TIME)
+from pccl.semantics.rules import K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_EMPTY, K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE
+from pccl.lang.types import indexes_agent
+
+#: The native state vector's own layout (not a configuration): the clock and
+#: the phase first, then the lock queue, shared, and the agents (see encode).
+V_TIME, V_PHASE = 0, 1
+
+UNDEF_C = "INT64_MIN"
+MAX_AGENTS = 16
+SCALAR = ("int", "bool", "enum")
+
+
+class NativeOverflow(RuntimeError):
+    """The native search met what it does not model (an int beyond 64 bits, a
+    division by zero, an agent index out of range, a read of an undefined
+    variable: the runtime errors that get an agent stuck): the Python engine
+    must run."""
+
+
+class Unsupported(Exception):
+    pass
+
+
+def cache_dir() -> str:
+    return os.environ.get("PCCL_CACHE") or os.path.join(
+        os.path.expanduser("~"), ".cache", "pccl")
+
+
+def compiler() -> Optional[str]:
+    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
+
+
+def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
+                parallel: bool = False) -> Optional[str]:
+    """Why the native engine cannot serve this model and search (None: it can)."""
+    if compiler() is None:
+        return "no C compiler (cc) found"
+    if sysconfig.get_paths().get("include") is None or not os.path.exists(
+            os.path.join(sysconfig.get_paths()["include"], "Python.h")):
+        return "Python.h (the Python development headers) not found"
+    if reduce_on or model.reduction.on:
+        return "a reduction is on (the native engine serves --reduce none)"
+    if recorder:
+        return "the time-lock, stall or temporal checks record the state graph in Python " \
+               "(--no-timelock --no-stall)"
+    if parallel:
+        return "a parallel search (the native engine runs in one process)"
+    try:
+        Generator(model).source()
+    except Unsupported as e:
+        return str(e)
+    return None
+
+
+# ---------------------------------------------------------------------------
+# C generation
+# ---------------------------------------------------------------------------
+
+class Generator:
+    """The C source of one model's native module."""
+
+    def __init__(self, model):
+        self.m = model
+        c = model.compiled
+        self.c = c
+        self.lay = c.layout
+        self.N = model.N
+        self.labels: list = []
+        self.label_ids: dict = {}
+
+    # -- layout ------------------------------------------------------------------
+    @property
+    def L(self) -> int:
+        return len(self.lay.local)
+
+    @property
+    def R(self) -> int:
+        return len(self.lay.allread)
+
+    @property
+    def A(self) -> int:
+        return 4 + self.L + self.R
+
+    @property
+    def LQ0(self) -> int:
+        return 2
+
+    @property
+    def SH0(self) -> int:
+        return 2 + self.N
+
+    @property
+    def AG0(self) -> int:
+        return self.SH0 + len(self.lay.shared)
+
+    @property
+    def NS(self) -> int:
+        return self.AG0 + self.N * self.A
+
+    def ag(self, j, field: int) -> str:
+        return f"s[{self.AG0 + j * self.A + field}]"
+
+    # -- support -----------------------------------------------------------------
+    def check(self) -> None:
+        m = self.m
+        if self.N > MAX_AGENTS:
+            raise Unsupported(f"more than {MAX_AGENTS} agents")
+        if m.collisions:
+            raise Unsupported("collision checking")
+        if m.temporal:
+            raise Unsupported("a temporal property")
+        if type(m.delta) is not int:
+            raise Unsupported("a non-integer δ")
+        from pccl.blackboxes import BLACKBOXES
+        if not any(m.blackbox is bb for bb in BLACKBOXES.values()):
+            raise Unsupported(f"the blackbox '{getattr(m.blackbox, 'name', '?')}' is not built in")
+        for vs in self.lay.vars.values():
+            if vs.ty.kind not in SCALAR:
+                raise Unsupported(f"variable '{vs.name}' has type {vs.ty} (the native engine "
+                                  "holds int, bool and enum scalars)")
+        if m.guards_rand:
+            raise Unsupported("rand() in a guard")
+        for s in self.c.stmts.values():
+            self.stmt_ok(s)
+        for ev in self.c.program.events:
+            self.expr(ev.guard, 0)
+        for p in m.properties:
+            if p.expr is None:
+                raise Unsupported(f"invariant '{p.name}' has no expression")
+            self.pexpr(p.expr, {})
+        self.env_constant()
+
+    def stmt_ok(self, s) -> None:
+        from pccl.model.compile import has_rand
+        if has_rand(s) and not isinstance(s, (A.Atomic,)):
+            raise Unsupported(f"rand() in a statement (line {s.span.line})")
+        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert"):
+            raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
+        if isinstance(s, A.Assign) and not isinstance(s.target, A.Name):
+            raise Unsupported(f"an indexed assignment (line {s.span.line})")
+
+    def env_constant(self) -> None:
+        """DOREACH INVOKE must leave positions, reach cells and env as they
+        are (no doReach): checked on the initial state, with every agent
+        running, exited and stuck."""
+        m = self.m
+        st = next(iter(m.init_states()), None)
+        if st is None:
+            return
+        for status in (RUNNING, EXITED, STUCK):
+            ags = tuple(a[:STATUS] + (status,) + a[STATUS + 1:] for a in st[AGS])
+            s2 = st[:AGS] + (ags,) + st[AGS + 1:]
+            outs = m.environment_step(s2)
+            want = (tuple(a[POS] for a in ags), tuple(a[REACH][DONE] for a in ags),
+                    tuple(a[REACH][FAIL] for a in ags), s2[ENV])
+            if len(outs) != 1 or tuple(outs[0]) != want:
+                raise Unsupported("the blackbox moves agents (the program calls doReach)")
+
+    # -- labels --------------------------------------------------------------------
+    def lab(self, label) -> int:
+        k = self.label_ids.get(label)
+        if k is None:
+            k = self.label_ids[label] = len(self.labels)
+            self.labels.append(label)
+        return k
+
+    # -- expressions ----------------------------------------------------------------
+    def var_ref(self, vs, j) -> str:
+        """The slot of variable ``vs`` (of agent ``j``: an int or a C expression)."""
+        if vs.section == "allwrite":
+            return f"s[{self.SH0 + vs.slot}]"
+        off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
+        if isinstance(j, int):
+            return self.ag(j, off)
+        return f"s[{self.AG0 + off} + {self.A} * ({j})]"
+
+    def read(self, ref: str, vs) -> str:
+        if vs.may_undef:
+            return f"U({ref})"
+        return ref
+
+    def binop(self, op, a, b) -> str:
+        if op == "&&":
+            return f"({a} && {b})"
+        if op == "||":
+            return f"({a} || {b})"
+        if op == "->":
+            return f"(!{a} || {b})"
+        if op == "+":
+            return f"ADD({a}, {b})"
+        if op == "-":
+            return f"SUB({a}, {b})"
+        if op == "*":
+            return f"MUL({a}, {b})"
+        if op == "/":
+            return f"DIV({a}, {b})"
+        if op == "%":
+            return f"MOD({a}, {b})"
+        if op in ("<", "<=", ">", ">=", "==", "!="):
+            return f"((V)({a} {op} {b}))"
+        raise Unsupported(f"the operator '{op}'")
+
+    def expr(self, e, i) -> str:
+        """C for an agent expression of agent ``i``."""
+        if isinstance(e, A.BoolLit):
+            return "1" if e.value else "0"
+        if isinstance(e, A.IntLit):
+            if not -(1 << 62) < e.value < (1 << 62):
+                raise Unsupported("an int literal beyond 62 bits")
+            return f"((V){e.value}LL)"
+        if isinstance(e, A.Name):
+            vs = self.lay.vars.get(e.name)
+            if vs is not None:
+                return self.read(self.var_ref(vs, i), vs)
+            if e.name in self.lay.members:
+                return str(self.lay.members[e.name][1])
+            raise Unsupported(f"the name '{e.name}'")
+        if isinstance(e, A.Unary):
+            x = self.expr(e.operand, i)
+            return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
+        if isinstance(e, A.Binary):
+            return self.binop(e.op, self.expr(e.left, i), self.expr(e.right, i))
+        if isinstance(e, A.Index) and isinstance(e.base, A.Name):
+            vs = self.lay.vars.get(e.base.name)
+            if vs is not None and indexes_agent(vs.section, False, 1, in_property=False):
+                return self.read(self.var_ref(vs, f"AIX({self.expr(e.index, i)})"), vs)
+        if isinstance(e, A.Call) and not e.args and e.name == "getAgentIndex":
+            return f"((V){i})"
+        if isinstance(e, A.Call) and not e.args and e.name == "getNumAgents":
+            return f"((V){self.N})"
+        what = f"{e.name}()" if isinstance(e, A.Call) else type(e).__name__.lower()
+        span = getattr(e, "span", None)
+        raise Unsupported(f"the expression {what}" + (f" at line {span.line}:{span.column}"
+                                                     if span is not None else ""))
+
+    def pexpr(self, e, bound: dict) -> str:
+        """C for a property expression (``bound``: quantified name -> agent)."""
+        if isinstance(e, (A.BoolLit, A.IntLit)):
+            return self.expr(e, 0)
+        if isinstance(e, A.Name):
+            if e.name in bound:
+                return f"((V){bound[e.name]})"
+            if e.name == "N":
+                return f"((V){self.N})"
+            if e.name == "time":
+                return f"s[{V_TIME}]"
+            vs = self.lay.vars.get(e.name)
+            if vs is not None and vs.section == "allwrite":
+                return self.read(self.var_ref(vs, 0), vs)
+            if e.name in self.lay.members and vs is None:
+                return str(self.lay.members[e.name][1])
+            raise Unsupported(f"the name '{e.name}' in a property")
+        if isinstance(e, A.Unary):
+            x = self.pexpr(e.operand, bound)
+            return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
+        if isinstance(e, A.Binary):
+            return self.binop(e.op, self.pexpr(e.left, bound), self.pexpr(e.right, bound))
+        if isinstance(e, A.Quant):
+            terms = [self.pexpr(e.body, {**bound, e.var: q}) for q in range(self.N)]
+            op = " && " if e.kind == "forall" else " || "
+            return "((V)(" + op.join(f"({t})" for t in terms) + "))"
+        if isinstance(e, A.Call) and e.name == "count" and len(e.args) == 1 \
+                and isinstance(e.args[0], A.Name):
+            vs = self.lay.vars.get(e.args[0].name)
+            if vs is None or vs.section == "allwrite" or vs.ty.kind != "bool":
+                raise Unsupported("count() of something other than a per-agent bool")
+            # Python counts values that are True: undefined counts as not True
+            return "((V)(" + " + ".join(f"({self.var_ref(vs, j)} == 1)"
+                                        for j in range(self.N)) + "))"
+        if isinstance(e, A.Index) and isinstance(e.base, A.Name):
+            vs = self.lay.vars.get(e.base.name)
+            if vs is not None and indexes_agent(vs.section, False, 1, in_property=True):
+                if isinstance(e.index, A.Name) and e.index.name in bound:
+                    return self.read(self.var_ref(vs, bound[e.index.name]), vs)
+                return self.read(self.var_ref(vs, f"AIX({self.pexpr(e.index, bound)})"), vs)
+        raise Unsupported("a property expression beyond the native subset")
+
+    # -- rules ---------------------------------------------------------------------
+    def emit(self, lines: list, label, sets: list, ind: str) -> None:
+        """Append code that copies the state, applies ``sets`` and emits."""
+        lines.append(f"{ind}{{ V t[NS]; memcpy(t, s, sizeof t);")
+        for x in sets:
+            lines.append(f"{ind}  {x};")
+        lines.append(f"{ind}  if (EMIT({self.lab(label)}, t)) return -1; }}")
+
+    def agent_code(self, i: int) -> list:
+        m, c, ctl = self.m, self.c, self.m.ctl
+        A_ = self.AG0 + i * self.A
+        PC, CNT, LCK, ST = A_, A_ + 1, A_ + 2, A_ + 3
+        rho, n0 = m.rho[i], m.n0
+        out = [f"static int agent{i}(PyObject *out, const V *s) {{",
+               f"  int spent = s[{CNT}] + {rho} > {n0};",
+               f"  switch (s[{PC}]) {{"]
+        for pc in range(len(ctl.cells)):
+            h = ctl.info(pc)
+            out.append(f"  case {pc}: {{")
+            ind = "    "
+            k = h.kind
+            if k == K_EMPTY:
+                out.append(f"{ind}if (spent) break;")
+                evs = c.program.events
+                for e, ev in enumerate(evs):
+                    out.append(f"{ind}V g{e} = {self.expr(ev.guard, i)};")
+                out.append(f"{ind}if (ovf) return -1;")
+                out.append(f"{ind}int any = 0;")
+                for e in range(len(evs)):
+                    out.append(f"{ind}if (g{e}{' && !any' if m.first_only else ''}) {{ any = 1;")
+                    self.emit(out, ("EVENT SELECT", i, e), [f"t[{PC}] = {ctl.event_pcs[e]}"],
+                              ind + "  ")
+                    out.append(f"{ind}}}")
+                out.append(f"{ind}if (!any)")
+                self.emit(out, ("IDLE", i, None), [f"t[{PC}] = {ctl.idle_pc}"], ind + "  ")
+            elif k == K_END:
+                out.append(f"{ind}if (spent) break;")
+                self.emit(out, ("COUNTER ADVANCE", i, None),
+                          [f"t[{PC}] = {ctl.empty_pc}", f"t[{CNT}] = s[{CNT}] + {rho}"], ind)
+            elif k == K_AEND:
+                out.append(f"{ind}if (s[{LCK}] != {LOCK}) break;")
+                self.emit(out, ("LOCK RELEASE", i, None),
+                          [f"t[{PC}] = {h.next_pc}", f"t[{LCK}] = {IDLE}",
+                           f"lq_remove(t, {i})"], ind)
+            elif k == K_ACQ:
+                head = f"(s[{self.LQ0}] == {i})"
+                out.append(f"{ind}if (s[{LCK}] == {REQUEST} && {head})")
+                self.emit(out, ("ATOMIC EXECUTION", i, h.sid),
+                          [f"t[{PC}] = {h.body_pc}", f"t[{LCK}] = {LOCK}"], ind + "  ")
+                out.append(f"{ind}if (!spent && s[{LCK}] == {REQUEST} && !{head})")
+                self.emit(out, ("ATOMIC WAIT", i, h.sid), [f"t[{CNT}] = s[{CNT}] + {rho}"],
+                          ind + "  ")
+            elif k == K_SIMPLE:
+                s = c.stmts[h.sid]
+                sets = [f"t[{PC}] = {h.next_pc}"]
+                if isinstance(s, A.Assign):
+                    if not isinstance(s.target, A.Name):
+                        raise Unsupported(f"an indexed assignment (line {s.span.line})")
+                    vs = self.lay.vars[s.target.name]
+                    out.append(f"{ind}V v = {self.expr(s.value, i)};")
+                    out.append(f"{ind}if (ovf) return -1;")
+                    sets.append(f"t[{self.var_ref(vs, i)[2:-1]}] = v")
+                elif not isinstance(s, A.Skip):
+                    raise Unsupported(f"the statement at line {s.span.line}")
+                self.emit(out, ("STATEMENT", i, h.sid), sets, ind)
+            elif k == K_IF:
+                s = c.stmts[h.sid]
+                out.append(f"{ind}V pc2 = {h.branch_pcs[-1]};")
+                chain = ""
+                for b, (cond, _) in enumerate(s.branches):
+                    chain += f"{ind}{'else ' if b else ''}if ({self.expr(cond, i)}) pc2 = {h.branch_pcs[b]};\n"
+                out.append(chain.rstrip("\n"))
+                out.append(f"{ind}if (ovf) return -1;")
+                self.emit(out, ("STATEMENT", i, h.sid), [f"t[{PC}] = pc2"], ind)
+            elif k == K_WHILE:
+                s = c.stmts[h.sid]
+                out.append(f"{ind}V b = {self.expr(s.cond, i)};")
+                out.append(f"{ind}if (ovf) return -1;")
+                self.emit(out, ("STATEMENT", i, h.sid),
+                          [f"t[{PC}] = b ? {h.body_pc} : {h.next_pc}"], ind)
+            elif k == K_ASSERT:
+                s = c.stmts[h.sid]
+                code = m.stuck_code("assert", "assertion failed", h.sid)
+                out.append(f"{ind}V b = {self.expr(s.args[0], i)};")
+                out.append(f"{ind}if (ovf) return -1;")
+                self.emit(out, ("STATEMENT", i, h.sid),
+                          [f"if (b) t[{PC}] = {h.next_pc}; else t[{ST}] = {code}"], ind)
+            elif k == K_ATOMIC:
+                out.append(f"{ind}if (s[{LCK}] == {IDLE})")
+                self.emit(out, ("LOCK REQUEST", i, h.sid),
+                          [f"t[{PC}] = {h.request_pc}", f"t[{LCK}] = {REQUEST}",
+                           f"lq_append(t, {i})"], ind + "  ")
+                out.append(f"{ind}if (s[{LCK}] == {LOCK})")
+                self.emit(out, ("STATEMENT", i, h.sid), [f"t[{PC}] = {h.body_pc}"], ind + "  ")
+            elif k == K_EXIT:
+                self.emit(out, ("EXIT", i, h.sid),
+                          [f"t[{PC}] = {ctl.empty_pc}", f"t[{ST}] = {EXITED}"], ind)
+            else:
+                raise Unsupported("doReach")
+            out.append("    break; }")
+        out.append("  default: PyErr_SetString(PyExc_ValueError, \"unknown pc\"); return -1;")
+        out.append("  }")
+        out.append("  return 0;")
+        out.append("}")
+        return out
+
+    def source(self) -> str:
+        m = self.m
+        m.prepare()                 # every k cell interned
+        self.check()
+        N, NS = self.N, self.NS
+        agents = []
+        for i in range(N):
+            agents += self.agent_code(i)
+        ta = self.lab(("TIME ADVANCE", None, None))
+        dr = self.lab(("DOREACH INVOKE", None, 0))
+        blocked = []
+        running = []
+        for i in range(N):
+            A_ = self.AG0 + i * self.A
+            cap = m.n0 - m.rho[i]
+            running.append(f"s[{A_ + 3}] == {RUNNING}")
+            blocked.append(f"(s[{A_ + 3}] != {EXITED} && s[{A_ + 1}] <= {cap})")
+        max_ticks = m.max_ticks
+        tcheck = ("1" if max_ticks is None
+                  else f"(s[{V_TIME}] / {m.delta} + 1 <= {max_ticks}LL)")
+        oks = [f"s[{self.AG0 + i * self.A + 3}] < {STUCK}" for i in range(N)]
+        lq_ok = " && ".join(
+            f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
+            for i in range(N))
+        props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
+        agent_calls = "\n".join(
+            f"    if (s[{self.AG0 + i * self.A + 3}] == {RUNNING} && agent{i}(out, s)) goto fail;"
+            for i in range(N))
+        return f"""/* pccl native engine: generated by pccl/model/native.py */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <stdint.h>
+#include <string.h>
+typedef int64_t V;
+#define NS {NS}
+#define NAG {N}
+#define LQ0 {self.LQ0}
+static int ovf;
+static PyObject *LABELS, *OverflowExc;
+static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
+static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
+static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
+static inline V NEG(V a) {{ if (a == INT64_MIN) ovf = 1; return -a; }}
+static inline V DIV(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a / b; }}
+static inline V MOD(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a % b; }}
+static inline V AIX(V j) {{ if (j < 0 || j >= NAG) {{ ovf = 1; return 0; }} return j; }}
+static inline V U(V a) {{ if (a == INT64_MIN) ovf = 1; return a; }}
+static void lq_append(V *t, V i) {{ for (int k = 0; k < NAG; k++) if (t[LQ0 + k] < 0) {{ t[LQ0 + k] = i; return; }} }}
+static void lq_remove(V *t, V i) {{
+  int w = 0;
+  for (int k = 0; k < NAG; k++) if (t[LQ0 + k] >= 0 && t[LQ0 + k] != i) t[LQ0 + w++] = t[LQ0 + k];
+  for (; w < NAG; w++) t[LQ0 + w] = -1;
+}}
+static PyObject *OUT;
+static int EMIT(int lab, const V *t) {{
+  PyObject *b = PyBytes_FromStringAndSize((const char *)t, sizeof(V) * NS);
+  if (!b) return -1;
+  PyObject *l = PyTuple_GET_ITEM(LABELS, lab);
+  Py_INCREF(l);
+  PyObject *p = PyTuple_New(2);
+  if (!p) {{ Py_DECREF(b); Py_DECREF(l); return -1; }}
+  PyTuple_SET_ITEM(p, 0, l);
+  PyTuple_SET_ITEM(p, 1, b);
+  int r = PyList_Append(OUT, p);
+  Py_DECREF(p);
+  return r;
+}}
+{chr(10).join(agents)}
+static const V *arg_state(PyObject *arg) {{
+  if (!PyBytes_Check(arg) || PyBytes_GET_SIZE(arg) != (Py_ssize_t)(sizeof(V) * NS)) {{
+    PyErr_SetString(PyExc_TypeError, "not a native state of this model");
+    return NULL;
+  }}
+  return (const V *)PyBytes_AS_STRING(arg);
+}}
+static PyObject *successors(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  PyObject *out = PyList_New(0);
+  if (!out) return NULL;
+  OUT = out; ovf = 0;
+  if (s[{V_PHASE}] == {DISCRETE}) {{
+{agent_calls}
+    if (({' || '.join(running)}) && !({' || '.join(blocked)}) && {tcheck}) {{
+      V t[NS]; memcpy(t, s, sizeof t);
+      t[{V_TIME}] = ADD(s[{V_TIME}], {m.delta}); t[{V_PHASE}] = {DYNAMIC};
+      if (EMIT({ta}, t)) goto fail;
+    }}
+  }} else {{
+    V t[NS]; memcpy(t, s, sizeof t);
+    t[1] = {DISCRETE};
+    for (int j = 0; j < NAG; j++) t[{self.AG0 + 1} + {self.A} * j] = 0;
+    if (EMIT({dr}, t)) goto fail;
+  }}
+  if (ovf) goto fail;
+  return out;
+fail:
+  Py_DECREF(out);
+  if (ovf && !PyErr_Occurred())
+    PyErr_SetString(OverflowExc, "an int beyond 64 bits, a division by zero or an undefined value");
+  return NULL;
+}}
+static PyObject *ok(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  ovf = 0;
+  int r = {' && '.join(oks)} && ({lq_ok}) && ({props});
+  if (ovf) r = 0;
+  return PyBool_FromLong(r);
+}}
+static PyObject *clock_(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  return PyLong_FromLongLong(s[{V_TIME}]);
+}}
+static PyObject *setup(PyObject *self, PyObject *args) {{
+  PyObject *labels, *exc;
+  if (!PyArg_ParseTuple(args, "O!O", &PyTuple_Type, &labels, &exc)) return NULL;
+  Py_XDECREF(LABELS); Py_XDECREF(OverflowExc);
+  Py_INCREF(labels); Py_INCREF(exc);
+  LABELS = labels; OverflowExc = exc;
+  Py_RETURN_NONE;
+}}
+static PyMethodDef methods[] = {{
+  {{"successors", successors, METH_O, "labelled successors of a state"}},
+  {{"ok", ok, METH_O, "no stuck agent, the lock fine, every invariant holds"}},
+  {{"clock", clock_, METH_O, "the state's time"}},
+  {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
+  {{NULL, NULL, 0, NULL}}
+}};
+static struct PyModuleDef mod = {{PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods}};
+PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
+"""
+
+
+# ---------------------------------------------------------------------------
+# Building and loading
+# ---------------------------------------------------------------------------
+
+def build(src: str):
+    """Compile ``src`` into an extension module (cached by the hash of the
+    source and the Python ABI); the module."""
+    tag = sysconfig.get_config_var("SOABI") or sys.implementation.cache_tag
+    digest = hashlib.sha256((src + tag).encode()).hexdigest()[:20]
+    name = f"pccl_native_{digest}"
+    ext = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    d = cache_dir()
+    os.makedirs(d, exist_ok=True)
+    path = os.path.join(d, name + ext)
+    if not os.path.exists(path):
+        cc = compiler()
+        assert cc is not None
+        full = f"#define MODNAME \"{name}\"\n#define INITFN PyInit_{name}\n" + src
+        with tempfile.TemporaryDirectory(dir=d) as tmp:
+            c_path = os.path.join(tmp, name + ".c")
+            with open(c_path, "w") as f:
+                f.write(full)
+            out = os.path.join(tmp, name + ext)
+            inc = sysconfig.get_paths()["include"]
+            p = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-w", f"-I{inc}", "-o", out,
+                                c_path], capture_output=True, text=True)
+            if p.returncode != 0:
+                raise RuntimeError(f"the C compiler failed on the native module:\n{p.stderr[-2000:]}")
+            os.replace(out, path)
+    spec = importlib.util.spec_from_file_location(name, path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+class NativeModel:
+    """The explorer's model over native state vectors (see the module's doc);
+    ``py`` is the Python :class:`~pccl.model.engine.Model` it was generated from."""
+
+    def __init__(self, py):
+        self.py = py
+        gen = Generator(py)
+        src = gen.source()
+        self.lib = build(src)
+        self.lib.setup(tuple(gen.labels), NativeOverflow)
+        self.gen = gen
+        self.successors = self.lib.successors
+        self.clock = self.lib.clock
+        self._ok = self.lib.ok
+        self.key = (lambda b: b[8:]) if py.abstract_time else (lambda b: b)
+        if py.abstract_time:
+            import operator
+            self.key = operator.itemgetter(slice(8, None))
+        st0 = next(iter(py.init_states()))
+        # the constant parts of a configuration: positions, reach cells, env
+        self._pos = tuple(a[POS] for a in st0[AGS])
+        self._reach = tuple(a[REACH] for a in st0[AGS])
+        self._env = st0[ENV]
+        lay = py.compiled.layout
+        self._kinds = ([v.ty.kind for v in lay.shared], [v.ty.kind for v in lay.local],
+                       [v.ty.kind for v in lay.allread])
+
+    # -- encoding ----------------------------------------------------------------
+    @staticmethod
+    def _v(x) -> int:
+        from pccl.lang.values import UNDEF
+        if x is UNDEF:
+            return -(1 << 63)
+        return int(x)
+
+    def encode(self, st) -> bytes:
+        g = self.gen
+        v = [self._v(st[TIME]), st[PHASE]]
+        lq = list(st[LQ])
+        v += lq + [-1] * (g.N - len(lq))
+        v += [self._v(x) for x in st[SH]]
+        for a in st[AGS]:
+            v += [a[PC], a[CNT], a[LCK], a[STATUS]]
+            v += [self._v(x) for x in a[LOC]]
+            v += [self._v(x) for x in a[AR]]
+        return array("q", v).tobytes()
+
+    @staticmethod
+    def _dec(x: int, kind: str):
+        from pccl.lang.values import UNDEF
+        if x == -(1 << 63):
+            return UNDEF
+        return bool(x) if kind == "bool" else x
+
+    def decode(self, b: bytes) -> tuple:
+        g = self.gen
+        v = array("q")
+        v.frombytes(b)
+        sk, lk, rk = self._kinds
+        lq = tuple(x for x in v[2:2 + g.N] if x >= 0)
+        sh = tuple(self._dec(x, k) for x, k in zip(v[g.SH0:g.AG0], sk))
+        ags = []
+        for i in range(g.N):
+            o = g.AG0 + i * g.A
+            loc = tuple(self._dec(x, k) for x, k in zip(v[o + 4:o + 4 + g.L], lk))
+            ar = tuple(self._dec(x, k) for x, k in zip(v[o + 4 + g.L:o + g.A], rk))
+            ags.append((v[o], v[o + 1], v[o + 2], v[o + 3], loc, ar, self._pos[i],
+                        self._reach[i]))
+        return (v[0], v[1], lq, sh, tuple(ags), self._env)
+
+    # -- the explorer's protocol -------------------------------------------------------
+    def init_states(self):
+        return map(self.encode, self.py.init_states())
+
+    def violations(self, b):
+        if self._ok(b):
+            return []
+        return self.py.violations(self.decode(b))
+
+    def terminal_kind(self, b) -> str:
+        return self.py.terminal_kind(self.decode(b))
+
+    def deadlock_violation(self, b):
+        return self.py.deadlock_violation(self.decode(b))
+
+    def decode_trace(self, trace):
+        from pccl.search.explorer import Trace
+        return Trace(tuple(map(self.decode, trace.states)), trace.labels)
+
+
+def describe(model) -> str:
+    """The engine line of the header: what ran and why not native."""
+    eng = getattr(model, "engine_used", "python")
+    why = getattr(model, "engine_reason", None)
+    return f"engine {eng}" + (f" ({why})" if why else "")
+
+
+_ = Any

@@ -1,0 +1,794 @@
+"""State-space reductions behind the explorer's ``Model`` protocol.
+
+Two reductions, each either a different ``successors`` or a different ``key``
+(docs/reductions.md has the soundness arguments):
+
+``merge``
+    statement merging (SPIN's statement merging, Lipton reduction): after a
+    transition of agent i, the statements that follow and touch only i's own
+    ``loc:`` variables that no property reads (and i's COUNTER ADVANCE) run in
+    the same transition.  :meth:`Merger.successors` wraps the unreduced
+    successors; a merged transition's label is ``(rule, i, detail, idx0,
+    choices)`` and :meth:`Merger.expand` re-executes it step by step.
+
+``symmetry``
+    agents are interchangeable: :func:`make_symmetric_key` returns a
+    canonical representative of a state's orbit under permutations of the
+    agent ids (cells sorted, id-valued data renamed).  Successors are still
+    computed from the actual state, so replay yields real states.
+
+:func:`plan` decides which reductions are sound for a model and why the
+others are off.
+"""
+
+from __future__ import annotations
+
+import itertools
+import marshal
+from dataclasses import dataclass, field
+from typing import Any, Optional
+from collections.abc import Callable
+
+from pccl.lang import ast as A
+from pccl.lang.errors import PcclError
+from pccl.semantics import rules as R
+from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, REACH, RUNNING, SH, STATUS,
+                               TIME)
+from pccl.semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
+
+#: The reductions, in the order they are reported.
+ALL = ("merge", "symmetry", "por")
+
+#: At most this many statements run in one merged transition.
+MERGE_LIMIT = 1000
+
+#: Built-in expressions that read nothing but their arguments (and the
+#: agent's own id); getPosition reads the position, which the environment
+#: writes.
+PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition", "dist",
+                        "head", "isEmpty", "size", "contains"})
+
+#: Blackboxes known to treat agents alike and to keep an agent without a
+#: target where it is.
+SYMMETRIC_BLACKBOXES = frozenset({"instant", "straight", "nondet", "nondet-fail"})
+
+
+@dataclass
+class Plan:
+    """Which reductions are on, and why the others are off."""
+    on: tuple = ()
+    off: dict = field(default_factory=dict)      # name -> reason
+    requested: str = "auto"
+
+    def describe(self) -> str:
+        """``merge+symmetry`` / ``none``, then ``; X off: reason``."""
+        text = "+".join(self.on) if self.on else "none"
+        by_reason: dict = {}
+        for name, why in self.off.items():
+            by_reason.setdefault(why, []).append(name)
+        for why, names in by_reason.items():
+            text += f"; {', '.join(names)} off: {why}"
+        return text
+
+    def as_dict(self) -> dict:
+        return {"requested": self.requested, "on": list(self.on), "off": dict(self.off)}
+
+
+def parse_request(reduce) -> Optional[tuple]:
+    """``"auto"`` -> None (every sound one), ``"none"`` -> (), a list or
+    ``"merge,symmetry"`` -> that tuple; unknown names are errors."""
+    if reduce is None or reduce == "auto":
+        return None
+    if reduce == "none":
+        return ()
+    if isinstance(reduce, str):
+        names = [x.strip() for x in reduce.split(",") if x.strip()]
+    else:
+        names = list(reduce)
+    bad = [n for n in names if n not in ALL]
+    if bad or not names:
+        raise PcclError(f"unknown reduction {', '.join(map(repr, bad)) or repr(reduce)}; "
+                        f"use auto, none or a comma-separated list of {', '.join(ALL)}",
+                        filename="--reduce")
+    return tuple(n for n in ALL if n in names)
+
+
+# ---------------------------------------------------------------------------
+# static information
+# ---------------------------------------------------------------------------
+
+def _stmt_exprs(s) -> list:
+    """The expressions a statement evaluates in its own transition."""
+    if isinstance(s, A.Assign):
+        return [s.target, s.value]
+    if isinstance(s, A.If):
+        return [c for c, _ in s.branches]
+    if isinstance(s, A.While):
+        return [s.cond]
+    if isinstance(s, A.CallStmt):
+        return list(s.args)
+    return []
+
+
+def property_names(m) -> set:
+    names = set()
+    for p in m.property_exprs:
+        for e in A.walk_expr(p):
+            if isinstance(e, A.Name):
+                names.add(e.name)
+    return names
+
+
+def mergeable_sids(m) -> set:
+    """Statements that touch only the agent's own invisible ``loc:`` variables."""
+    lay = m.compiled.layout
+    visible = property_names(m)
+    funcs = set(m.compiled.functions)
+    ok = set()
+    for sid, s in m.compiled.stmts.items():
+        if not isinstance(s, (A.Assign, A.If, A.While, A.Skip, A.CallStmt)):
+            continue
+        if isinstance(s, A.CallStmt) and s.name not in ("add", "remove"):
+            continue
+        good = True
+        for x in _stmt_exprs(s):
+            for e in A.walk_expr(x):
+                if isinstance(e, A.Name):
+                    vs = lay.vars.get(e.name)
+                    if vs is None:
+                        if e.name not in lay.members:
+                            good = False
+                    elif vs.section != "loc" or e.name in visible:
+                        good = False
+                elif isinstance(e, A.Call):
+                    if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                        good = False
+                elif isinstance(e, A.Quant):
+                    good = False
+                if not good:
+                    break
+            if not good:
+                break
+        if good:
+            ok.add(sid)
+    return ok
+
+
+def positions_read(m) -> Optional[str]:
+    """Why positions (and the doReach cell) matter, or None."""
+    if m.collisions:
+        return "--collisions"
+    for s in m.compiled.stmts.values():
+        if isinstance(s, A.CallStmt) and s.name == "doReach":
+            return f"doReach at line {s.span.line}"
+    exprs = [d.init for d in m.program.decls if isinstance(d, A.VarDecl) and d.init is not None]
+    exprs += [x for s in m.compiled.stmts.values() for x in _stmt_exprs(s)]
+    exprs += [ev.guard for ev in m.program.events]
+    for x in exprs:
+        for e in A.walk_expr(x):
+            if isinstance(e, A.Call) and e.name == "getPosition":
+                return f"getPosition() at line {e.span.line}"
+            if isinstance(e, A.Name) and e.name in ("doReach_done", "doReach_fail"):
+                return f"{e.name} at line {e.span.line}"
+    for p in list(m.properties) + list(getattr(m, "temporal", ())):
+        for e in A.walk_expr(p.expr):
+            if isinstance(e, A.Name) and e.name in ("pos", "doReach_done", "doReach_fail"):
+                return f"{e.name} in property `{p.text}`"
+    return None
+
+
+def symmetry_problem(m) -> tuple:
+    """(reason symmetry is unsound or None, id slots)."""
+    if m.N < 2:
+        return "one agent", None
+    if len(set(m.rho)) > 1:
+        return "agents have different rates", None
+    bb = getattr(m.blackbox, "name", None)
+    from pccl.blackboxes import load_blackbox
+    try:
+        builtin = bb in SYMMETRIC_BLACKBOXES and load_blackbox(bb) is m.blackbox
+    except PcclError:
+        builtin = False
+    if not builtin:
+        return f"blackbox {bb} may treat agents differently", None
+    # positions, targets and reach flags move with their agent under the
+    # permutation (issue 23): the built-in blackboxes treat robots alike and
+    # keep no per-robot env; when nothing reads positions they leave the key
+    motion = positions_read(m) is not None
+    if motion and m.blackbox.init_env(m.world, m.N) is not None:
+        return f"blackbox {bb} keeps an environment state that is not permuted", None
+    info = IdTypes(m.compiled.layout, m.program, m.compiled.stmts.values(),
+                   [(p.expr, p.text) for p in list(m.properties) + list(m.temporal)])
+    if info.reason:
+        return info.reason, None
+    lay = m.compiled.layout
+    slots = ([vs.slot for vs in lay.local if vs.name in info.ids],
+             [vs.slot for vs in lay.allread if vs.name in info.ids],
+             [vs.slot for vs in lay.shared if vs.name in info.ids])
+    # per-agent id variables that only ever hold the agent's own id (or a
+    # sentinel) need no renaming: the fast canonical form applies
+    self_only = all(all(is_sentinel(e) or is_own_id(e) for e in info.defs.get(vs.name, ()))
+                    for vs in lay.local + lay.allread if vs.name in info.ids)
+    return None, slots + (self_only, motion)
+
+
+#: Uses of a search that some reductions cannot serve: use -> {reduction:
+#: reason}.  A use is named by the caller of :func:`plan` (``--coverage``;
+#: a property kind such as ``"liveness"`` can be added here with the
+#: reductions that are unsound for it).
+USE_LIMITS: dict = {
+    "coverage": {name: "--coverage counts the unreduced transitions" for name in ALL},
+}
+
+
+def use_limits(uses) -> dict:
+    """{reduction: reason} of the reductions that ``uses`` rule out (the
+    first reason given wins)."""
+    out: dict = {}
+    for u in uses or ():
+        for name, why in USE_LIMITS.get(u, {}).items():
+            out.setdefault(name, why)
+    return out
+
+
+def _needs_two(name: str) -> PcclError:
+    """Asked for by name, a reduction that has nothing to reduce with one
+    agent is an error, not a silent no-op (as an unsound one is)."""
+    return PcclError(f"{name} reduction needs two or more agents (the team has one); "
+                     f"drop it from --reduce", filename="--reduce")
+
+
+def plan(m, reduce, uses=()) -> tuple:
+    """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
+    sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
+    the others are off.  Asking explicitly for one that is not sound is an
+    error."""
+    want = parse_request(reduce)
+    p = Plan(requested=reduce if isinstance(reduce, str) else ",".join(reduce))
+    on = []
+    slots = None
+    if m.oracle.policy is not None:          # run mode: no reduction
+        return Plan(requested="none"), None
+    limits = use_limits(uses)
+    for name in (want if want is not None else ()):
+        if name in limits:
+            raise PcclError(f"{name} reduction cannot be used here: {limits[name]}; "
+                            f"drop it from --reduce", filename="--reduce")
+    if want is None:
+        p.off.update({n: why for n, why in limits.items() if n in ALL})
+    if "merge" not in limits and (want is None or "merge" in want):
+        on.append("merge")
+    if "symmetry" not in limits and (want is None or "symmetry" in want):
+        why, slots = symmetry_problem(m)
+        live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
+        if why is None and live:
+            # a cycle of the quotient is a real run only up to a permutation of
+            # the agents: a lasso would not return to its own entry state
+            why = f"liveness property `{live[0]}` needs real cycles for its lassos"
+        if why is None:
+            on.append("symmetry")
+        elif want is not None and m.N < 2:
+            raise _needs_two("symmetry")
+        elif want is not None:
+            raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
+                            filename="--reduce")
+        elif m.N >= 2:
+            p.off["symmetry"] = why
+    if "por" not in limits and (want is None or "por" in want):
+        temporal = [t.text for t in getattr(m, "temporal", ())]
+        if temporal:
+            # the ample-set conditions here are proven for state properties
+            # only (docs/reductions.md); paths need a stronger cycle proviso
+            why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
+            if want is not None:
+                raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
+                                filename="--reduce")
+            p.off["por"] = why
+        elif m.N >= 2:
+            on.append("por")
+        elif want is not None:
+            raise _needs_two("por")
+    p.on = tuple(on)
+    return p, slots
+
+
+# ---------------------------------------------------------------------------
+# the reduced model
+# ---------------------------------------------------------------------------
+
+#: What a :class:`Reduced` holds itself; every other attribute is the model's.
+_OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
+                  "merger", "por"})
+
+
+class Reduced:
+    """Model ``model`` seen through the reductions ``reduce`` asks for (see
+    :func:`plan`; ``uses`` names uses of the search that rule some out):
+    what the explorer searches, with the model's interface.  ``successors``
+    is the merged and/or partial-order reduced relation, ``key`` the
+    canonical one under symmetry, ``violations`` the model's fast path; with
+    no reduction on they are the model's own generated functions.
+    :attr:`reduction` says which are on and why the others are off.  Every
+    other attribute is read from (and written to) the model, like
+    :class:`pccl.output.coverage.CoverageModel` wrapping it; the model itself is
+    never changed, its methods stay the unreduced semantics."""
+
+    successors: Callable[[Any], list]
+    key: Callable[[Any], Any]
+    violations: Callable[[Any], list]
+
+    def __init__(self, model, reduce="auto", uses=()):
+        model = unreduced(model)
+        d = self.__dict__
+        d["model"] = model
+        d["reduce_uses"] = tuple(uses)
+        p, slots = plan(model, reduce, self.reduce_uses)
+        d["reduction"] = p
+        d["successors"], d["key"] = model.plain_successors, model.plain_key
+        d["violations"] = model.fast_violations
+        d["merger"] = d["por"] = None
+        base = None
+        if "por" in p.on:
+            d["por"] = Por(model)
+            d["successors"] = base = self.por.successors
+        if "merge" in p.on:
+            d["merger"] = Merger(model, base)
+            d["successors"] = self.merger.successors
+        if "symmetry" in p.on:
+            d["key"] = make_symmetric_key(model, slots)
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        try:
+            model = self.__dict__["model"]
+        except KeyError:            # unpickling: no model yet
+            raise AttributeError(name) from None
+        return getattr(model, name)
+
+    def __setattr__(self, name, value) -> None:
+        if name in _OWN:
+            self.__dict__[name] = value
+        else:
+            setattr(self.__dict__["model"], name, value)
+
+    def __repr__(self) -> str:
+        return f"<Reduced {self.reduction.describe()} of {self.model!r}>"
+
+    def with_uses(self, uses) -> "Reduced":
+        """The same model, reduced as asked, for these uses of the search."""
+        return Reduced(self.model, self.reduction.requested, uses)
+
+    @property
+    def reduced(self) -> bool:
+        return bool(self.reduction.on)
+
+    def expand(self, before, label) -> list:
+        """The unreduced steps ``[(label, state), ...]`` of a transition."""
+        if self.merger is None:
+            for lab, s in self.model.successors(before):
+                if lab == label:
+                    return [(lab, s)]
+            raise ValueError(f"label {label!r} is not enabled")
+        return self.merger.expand(before, label)
+
+
+def unreduced(m):
+    """The model behind ``m`` (``m`` itself when it is not :class:`Reduced`)."""
+    return m.model if isinstance(m, Reduced) else m
+
+
+# ---------------------------------------------------------------------------
+# statement merging
+# ---------------------------------------------------------------------------
+
+class Merger:
+    """The merged successor relation of a model, and its expansion.
+    ``base``: the successor function chains start from (the rules', or the
+    partial-order reduced one)."""
+
+    def __init__(self, m, base=None):
+        self.m = m
+        sids = mergeable_sids(m)
+        self.sids = sids
+        self.ok: dict = {}
+        if base is None:
+            base = m.plain_successors
+        self.plain = base
+
+    def pc_ok(self, pc) -> bool:
+        r = self.ok.get(pc)
+        if r is None:
+            info = self.m.ctl.info(pc)
+            k = info.kind
+            r = k == K_END or (k in (K_SIMPLE, K_IF, K_WHILE) and info.sid in self.sids)
+            self.ok[pc] = r
+        return r
+
+    def micro(self, st, i, ag) -> list:
+        m = self.m
+        info = m.ctl.info(ag[PC])
+        out: list = []
+        m.oracle.agent = i
+        for rule in info.rules:
+            rule(m, st, i, ag, info, out)
+        return out
+
+    def successors(self, st) -> list:
+        out = self.plain(st)
+        if st[PHASE] != DISCRETE:
+            return out
+        m = self.m
+        rho, n0 = m.rho, m.n0
+        ok = self.ok
+        res: list = []
+        for idx0, (lab, s2) in enumerate(out):
+            i = lab[1]
+            if i is not None:
+                ag = s2[AGS][i]
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                    r = ok.get(ag[PC])
+                    if r is None:
+                        r = self.pc_ok(ag[PC])
+                    if r:
+                        self._chain(lab, idx0, s2, i, res)
+                        continue
+            res.append((lab, s2))
+        return res
+
+    def _chain(self, lab, idx0, s, i, res):
+        m = self.m
+        rho, n0 = m.rho[i], m.n0
+        ok, ctl = self.ok, m.ctl
+        infos = ctl.infos
+        statement, counter_advance = R.statement, R.counter_advance
+        oracle = m.oracle
+        stack: list[tuple[Any, tuple[int, ...]]] = [(s, ())]
+        seen = None
+        while stack:
+            s, ch = stack.pop()
+            while True:
+                ag = s[AGS][i]
+                pc = ag[PC]
+                r = ok.get(pc)
+                if r is None:
+                    r = self.pc_ok(pc)
+                n = len(ch)
+                if not r or ag[STATUS] != RUNNING or ag[CNT] + rho > n0 or n >= MERGE_LIMIT:
+                    break
+                if n >= 32:
+                    # a long chain may be a local loop: stop where it revisits
+                    ident = (pc, ag[CNT], ag[LOC])
+                    if seen is None:
+                        seen = set()
+                    elif ident in seen:
+                        break
+                    seen.add(ident)
+                info = infos[pc]
+                if info is None:
+                    info = ctl.info(pc)
+                out: list = []
+                oracle.agent = i
+                if info.kind == K_END:
+                    counter_advance(m, s, i, ag, info, out)
+                else:
+                    statement(m, s, i, ag, info, out)
+                if not out:
+                    break
+                for c in range(len(out) - 1, 0, -1):      # rand: branches
+                    stack.append((out[c][1], ch + (c,)))
+                s = out[0][1]
+                ch = ch + (0,)
+            res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
+
+    def expand(self, before, label) -> list:
+        """``[(micro_label, state), ...]``: the unreduced steps of a merged
+        transition (one step for an unmerged label)."""
+        if len(label) <= 3:
+            for lab, s in self.plain(before):
+                if lab == label:
+                    return [(lab, s)]
+            raise ValueError(f"label {label!r} is not enabled")
+        idx0, ch = label[3], label[4]
+        lab, s = self.plain(before)[idx0]
+        steps = [(lab, s)]
+        i = lab[1]
+        for c in ch:
+            lab, s = self.micro(s, i, s[AGS][i])[c]
+            steps.append((lab, s))
+        return steps
+
+
+def expand_trace(m, trace, violation=None):
+    """The trace with every merged transition replaced by its steps; with
+    ``violation`` (not a deadlock), cut at the first state that has it (a
+    merged transition may run invisible steps after the violating one)."""
+    from pccl.search.explorer import Trace
+    merger = getattr(m, "merger", None)
+    if merger is None or trace is None:
+        return trace
+    states, labels = [trace.states[0]], []
+    for st in trace.steps:
+        if len(st.label) > 3:
+            steps = merger.expand(st.before, st.label)
+            assert steps[-1][1] == st.after, "a merged transition did not re-execute"
+            for lab, s in steps:
+                labels.append(lab)
+                states.append(s)
+        else:
+            labels.append(st.label)
+            states.append(st.after)
+    if violation is not None and getattr(violation, "kind", None) != "deadlock":
+        want = violation.identity
+        for n, s in enumerate(states):
+            if any(v.identity == want for v in unreduced(m).violations(s)):
+                states, labels = states[:n + 1], labels[:n]
+                break
+    return Trace(tuple(states), tuple(labels))
+
+
+# ---------------------------------------------------------------------------
+# partial-order reduction
+# ---------------------------------------------------------------------------
+
+def _loop_sids(m) -> set:
+    """Statements that are a ``while`` or inside one: the only ones an agent
+    can execute twice in one event execution."""
+    out: set = set()
+    for s in m.compiled.stmts.values():
+        if isinstance(s, A.While):
+            out.update(x.sid for x in A.walk_stmts([s]))
+    return out
+
+
+def local_guards(m) -> bool:
+    """Whether every event guard reads only the agent's own ``loc:``
+    variables (any of them: reading a property's variable is invisible),
+    enum members and pure calls: then EVENT SELECT and IDLE touch only the
+    agent's own k cell."""
+    lay = m.compiled.layout
+    funcs = set(m.compiled.functions)
+    for ev in m.program.events:
+        for e in A.walk_expr(ev.guard):
+            if isinstance(e, A.Name):
+                vs = lay.vars.get(e.name)
+                if vs is None:
+                    if e.name not in lay.members:
+                        return False
+                elif vs.section != "loc":
+                    return False
+            elif isinstance(e, A.Call):
+                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                    return False
+            elif isinstance(e, A.Quant):
+                return False
+    return True
+
+
+class Por:
+    """Partial-order reduction with ample sets (docs/reductions.md).
+
+    In a DISCRETE state, the first agent i (by index) that is running, has
+    an execution left (counter + ρ(i) ≤ n0, so TIME ADVANCE is disabled
+    until i itself advances its counter) and whose next step is *local* --
+    EVENT SELECT / IDLE when every guard reads only the agent's own
+    variables, COUNTER ADVANCE, or a statement of :func:`mergeable_sids`
+    outside every ``while`` -- gets ample set = all of i's enabled
+    transitions, provided each keeps i running (a runtime error is visible).
+    Otherwise the state is fully expanded.  Local steps of i read and write
+    only i's k cell, counter and invisible locals, which no other agent's
+    rule reads (C1) and no property reads (C2); each one is a step of i's
+    progress inside the current time step (an event body without loops is
+    run once per execution, the counter only grows until TIME ADVANCE), and
+    the states where TIME ADVANCE is enabled (every agent spent) are fully
+    expanded, so every cycle of the reduced graph passes a fully expanded
+    state (C3, whatever the search order)."""
+
+    def __init__(self, m):
+        self.m = m
+        self.sids = mergeable_sids(m) - _loop_sids(m)
+        self.guards = local_guards(m)
+        self.ok: dict = {}
+        self.plain = m.plain_successors
+
+    def pc_ok(self, pc) -> bool:
+        r = self.ok.get(pc)
+        if r is None:
+            info = self.m.ctl.info(pc)
+            k = info.kind
+            r = (k == K_END or (k == K_EMPTY and self.guards)
+                 or (k in (K_SIMPLE, K_IF) and info.sid in self.sids))
+            self.ok[pc] = r
+        return r
+
+    def successors(self, st) -> list:
+        if st[PHASE] == DISCRETE:
+            m = self.m
+            rho, n0, ok = m.rho, m.n0, self.ok
+            ctl = m.ctl
+            i = 0
+            for ag in st[AGS]:
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                    pc = ag[PC]
+                    r = ok.get(pc)
+                    if r is None:
+                        r = self.pc_ok(pc)
+                    if r:
+                        info = ctl.infos[pc]
+                        if info is None:
+                            info = ctl.info(pc)
+                        out: list = []
+                        m.oracle.agent = i
+                        for rule in info.rules:
+                            rule(m, st, i, ag, info, out)
+                        if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                            return out
+                i += 1
+        return self.plain(st)
+
+
+# ---------------------------------------------------------------------------
+# symmetry
+# ---------------------------------------------------------------------------
+
+def make_symmetric_key(m, slots):
+    """A key function returning a canonical representative of the state's
+    orbit under permutations of agent ids."""
+    loc_s, ar_s, sh_s, self_only, motion = slots
+    dumps = marshal.dumps
+    if self_only:
+        return _self_only_key(m, loc_s, ar_s, sh_s, motion)
+    abstract = m.abstract_time
+    N = m.N
+    has_ids = bool(loc_s or ar_s or sh_s)
+
+    def mask(vals, idx, j):
+        v = list(vals)
+        other = False
+        for k in idx:
+            x = v[k]
+            if type(x) is int and x >= 0:
+                if x == j:
+                    v[k] = "s"
+                else:
+                    v[k] = "o"
+                    other = True
+        return tuple(v), other
+
+    def ren(vals, idx, r):
+        v = list(vals)
+        for k in idx:
+            x = v[k]
+            if type(x) is int and x >= 0:
+                v[k] = r[x]
+        return tuple(v)
+
+    def build(st, order):
+        r = [0] * N
+        for new, old in enumerate(order):
+            r[old] = new
+        ags = st[AGS]
+        if has_ids:
+            cells = tuple((a[PC], a[CNT], a[LCK], a[STATUS],
+                           ren(a[LOC], loc_s, r) if loc_s else a[LOC],
+                           ren(a[AR], ar_s, r) if ar_s else a[AR])
+                          + ((a[POS], a[REACH]) if motion else ())
+                          for a in (ags[o] for o in order))
+            sh = ren(st[SH], sh_s, r) if sh_s else st[SH]
+        else:
+            # the whole cell moves with its agent; unread positions leave the key
+            cells = tuple(ags[o] if motion else ags[o][:POS] for o in order)
+            sh = st[SH]
+        lq = tuple(r[x] for x in st[LQ])
+        if abstract:
+            return (st[PHASE], lq, sh, cells, st[ENV])
+        return (st[TIME], st[PHASE], lq, sh, cells, st[ENV])
+
+    def key(st):
+        ags = st[AGS]
+        lq = st[LQ]
+        sh = st[SH]
+        sk = []
+        any_other = False
+        for j, a in enumerate(ags):
+            if has_ids:
+                lv, o1 = mask(a[LOC], loc_s, j) if loc_s else (a[LOC], False)
+                av, o2 = mask(a[AR], ar_s, j) if ar_s else (a[AR], False)
+                any_other = any_other or o1 or o2
+                refs = tuple(sh[k] == j for k in sh_s)
+            else:
+                lv, av, refs = a[LOC], a[AR], ()
+            sk.append(dumps(((a[PC], a[CNT], a[LCK], a[STATUS], lv, av)
+                             + ((a[POS], a[REACH]) if motion else ()), refs,
+                             lq.index(j) if j in lq else -1), 2))
+        order = sorted(range(N), key=sk.__getitem__)
+        if not any_other:
+            return build(st, order)
+        # agents referring to others: ties must be tried in every order
+        groups = [list(g) for _, g in itertools.groupby(order, key=sk.__getitem__)]
+        if all(len(g) == 1 for g in groups):
+            return build(st, order)
+        best = bestb = None
+        for combo in itertools.product(*(itertools.permutations(g) for g in groups)):
+            k = build(st, [x for g in combo for x in g])
+            b = dumps(k, 2)
+            if bestb is None or b < bestb:
+                best, bestb = k, b
+        return best
+
+    return key
+
+
+#: Stands for "this agent's own id" in a canonical cell: a float, so it
+#: sorts among ints and encodes differently from every int.
+SELF = float("-inf")
+
+
+def _self_only_key(m, loc_s, ar_s, sh_s, motion):
+    """The canonical key when per-agent id variables hold only the agent's
+    own id or a sentinel: such a value is replaced by :data:`SELF` (its
+    renamed value is the cell's place, so nothing is lost); agents are
+    sorted by (masked cell, which shared id variables name it, its place in
+    the lock queue).  Agents that tie are identical in the key whatever
+    their order, so no tie needs breaking."""
+    dumps = marshal.dumps
+    abstract = m.abstract_time
+    N = m.N
+
+    l1 = loc_s[0] if len(loc_s) == 1 else None
+    s1 = sh_s[0] if len(sh_s) == 1 else None
+
+    def key(st):
+        ags = st[AGS]
+        lq = st[LQ]
+        sh = st[SH]
+        items = []
+        j = 0
+        for a in ags:
+            loc = a[LOC]
+            if l1 is not None:
+                if loc[l1] == j:
+                    loc = loc[:l1] + (SELF,) + loc[l1 + 1:]
+            elif loc_s:
+                loc = list(loc)
+                for k in loc_s:
+                    if loc[k] == j:
+                        loc[k] = SELF
+                loc = tuple(loc)
+            ar = a[AR]
+            if ar_s:
+                ar = list(ar)
+                for k in ar_s:
+                    if ar[k] == j:
+                        ar[k] = SELF
+                ar = tuple(ar)
+            items.append(((a[PC], a[CNT], a[LCK], a[STATUS], loc, ar)
+                          + ((a[POS], a[REACH]) if motion else ()),
+                          (sh[s1] == j,) if s1 is not None else
+                          tuple([sh[k] == j for k in sh_s]) if sh_s else (),
+                          lq.index(j) if j in lq else -1, j))
+            j += 1
+        try:
+            items.sort()
+        except TypeError:          # undefined (Ellipsis) against a number
+            items.sort(key=lambda t: dumps(t[:3], 2))
+        if lq or sh_s:
+            r = [0] * N
+            for new, t in enumerate(items):
+                r[t[3]] = new
+            if lq:
+                lq = tuple([r[x] for x in lq])
+            if sh_s:
+                sh = list(sh)
+                for k in sh_s:
+                    x = sh[k]
+                    if type(x) is int and x >= 0:
+                        sh[k] = r[x]
+                sh = tuple(sh)
+        cells = tuple([t[0] for t in items])
+        if abstract:
+            return (st[PHASE], lq, sh, cells, st[ENV])
+        return (st[TIME], st[PHASE], lq, sh, cells, st[ENV])
+
+    return key

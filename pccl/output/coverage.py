@@ -1,0 +1,124 @@
+"""``explore --coverage``: which events fired, which statements never ran.
+
+The explorer keeps no states, so coverage is tallied on the way: a
+:class:`CoverageModel` wraps the model (it satisfies the explorer's ``Model``
+protocol) and counts the labels of the successors of every state the search
+expands.  Counts are per expanded state: "fired 12" means that 12 expanded
+states had a transition selecting the event (one per ``rand`` outcome).
+The rebuilding of counterexamples after the search is not counted (it starts
+with a second call of ``init_states``).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+from pccl.output import display as D
+from pccl.model.layout import AGS, SH
+
+_STMT_RULES = ("STATEMENT", "EXIT", "DOREACH UPDATE", "LOCK REQUEST", "ATOMIC EXECUTION",
+               "ATOMIC WAIT")
+
+
+class CoverageModel:
+    """A model that tallies the transitions the search takes."""
+
+    def __init__(self, model):
+        self.model = model
+        self.key = model.key
+        self.violations = model.violations
+        self.terminal_kind = model.terminal_kind
+        self.deadlock_violation = model.deadlock_violation
+        self.held: Counter = Counter()      # event -> expanded (state, agent) where its guard held
+        self.fired: Counter = Counter()     # event -> EVENT SELECT transitions
+        self.executed: Counter = Counter()  # statement id -> transitions
+        self.rules: Counter = Counter()
+        self.expanded = 0
+        self._inits = 0
+        self.counting = True
+
+    def init_states(self):
+        self._inits += 1
+        if self._inits > 1:          # the counterexample replay: not part of the search
+            self.counting = False
+        return self.model.init_states()
+
+    def successors(self, st):
+        out = self.model.successors(st)
+        if not self.counting:
+            return out
+        self.expanded += 1
+        selecting = set()
+        for (rule, agent, detail), _ in out:
+            self.rules[rule] += 1
+            if rule == "EVENT SELECT" and detail is not None:
+                self.fired[detail] += 1
+                selecting.add(agent)
+            elif rule == "IDLE":
+                selecting.add(agent)
+            elif rule in _STMT_RULES and detail is not None:
+                self.executed[detail] += 1
+        m = self.model
+        if selecting and not m.guards_rand:
+            sh, ags = st[SH], st[AGS]
+            for i in selecting:
+                ag = ags[i]
+                for e, g in enumerate(m.compiled.guards):
+                    try:
+                        if g(i, ag, sh, ags):
+                            self.held[e] += 1
+                    except Exception:       # the agent gets stuck; reported as a violation
+                        pass
+        return out
+
+    def report(self) -> "CoverageReport":
+        m = self.model
+        rep = CoverageReport(expanded=self.expanded, filename=m.program.filename,
+                             guards_exact=not m.guards_rand)
+        for e, ev in enumerate(m.program.events):
+            fired = self.fired.get(e, 0)
+            held = self.held.get(e, 0) if not m.guards_rand else fired
+            rep.events.append({"event": ev.name, "line": ev.guard.span.line,
+                               "guard_held": held, "fired": fired})
+        for sid, s in sorted(m.compiled.stmts.items(), key=lambda kv: (kv[1].span.line, kv[1].span.column)):
+            ev = m.compiled.stmt_event.get(sid)
+            if ev is None:           # Init runs before the search, outside it
+                continue
+            if not self.executed.get(sid):
+                rep.unexecuted.append({"event": m.program.events[ev].name, "line": s.span.line,
+                                       "column": s.span.column, "source": D.source_line(m, s.span)})
+        return rep
+
+
+@dataclass
+class CoverageReport:
+    expanded: int
+    filename: str
+    guards_exact: bool = True
+    events: list = field(default_factory=list)
+    unexecuted: list = field(default_factory=list)
+
+    @property
+    def never_fired(self) -> list:
+        return [e["event"] for e in self.events if e["fired"] == 0]
+
+    def as_dict(self) -> dict:
+        return {"states_expanded": self.expanded, "events": self.events,
+                "never_fired": self.never_fired, "unexecuted": self.unexecuted}
+
+    def lines(self) -> list:
+        out = [f"coverage ({self.expanded:,} states expanded; Init is not counted):"]
+        w = max([len(e["event"]) for e in self.events] + [5])
+        out.append(f"  {'event':<{w}}  {'line':>5}  {'guard held':>10}  {'fired':>10}")
+        for e in self.events:
+            flag = "  never fired" if e["fired"] == 0 else ""
+            out.append(f"  {e['event']:<{w}}  {e['line']:>5}  {e['guard_held']:>10,}  "
+                       f"{e['fired']:>10,}{flag}")
+        if self.unexecuted:
+            out.append("statements never executed:")
+            for s in self.unexecuted:
+                out.append(f"  {self.filename}:{s['line']}: [{s['event']}] {s['source']}")
+        else:
+            out.append("statements never executed: none")
+        return out

@@ -1,0 +1,136 @@
+"""A self-contained HTML viewer of a trace (``--html FILE``, ``pccl view``).
+
+The page is one file: the template ``viewer_assets/viewer.html`` with the
+style sheet ``viewer.css``, the script ``viewer.js`` and the data inlined, so
+it opens from disk with no network access.  The data is the *trace document*
+of :mod:`pccl.output.traces` (the same object ``--trace-out`` writes: one encoder),
+plus what the document does not hold and a picture needs:
+
+* ``source``: the program's text (``{"path", "text"}``, or ``null``);
+* ``world``: the arena, obstacles, start positions and robot radius;
+* ``motion``: whether the program can move a robot (else the page draws a
+  per-agent timeline instead of the arena);
+* ``at``: per state (initial, then after each step), every agent's pending
+  computation as ``describe_k`` says it, when the states are known (a
+  ``view`` of a file that cannot be replayed derives it from the next step).
+
+The script rebuilds every state from ``initial`` and the steps' typed
+changes, exactly as a reader of a trace file would.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+from importlib import resources
+from typing import Any, Optional
+
+from pccl.lang.errors import PcclError
+
+ASSETS = "viewer_assets"
+
+
+def _asset(name: str) -> str:
+    return resources.files("pccl.output").joinpath(ASSETS, name).read_text(encoding="utf-8")
+
+
+def world_data(world) -> dict:
+    """The parts of a :class:`~pccl.lang.world.World` the arena draws."""
+    if world is None:
+        return {"arena": None, "obstacles": [], "starts": [], "radius": 0.25}
+    return {"arena": None if world.arena is None else [list(p) for p in world.arena],
+            "obstacles": [[[float(c) for c in p[:2]] for p in poly] for poly in world.obstacles],
+            "starts": [[float(c) for c in p[:2]] for p in world.starts],
+            "radius": float(world.radius)}
+
+
+def _read_source(path) -> Optional[str]:
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.read()
+    except (OSError, UnicodeDecodeError, TypeError):
+        return None
+
+
+def source_data(model=None, doc: Optional[dict] = None) -> Optional[dict]:
+    """The program's text: the model's (it was parsed from it), else the file
+    the trace names."""
+    prog = getattr(model, "program", None)
+    if prog is not None and prog.source:
+        return {"path": prog.filename, "text": prog.source}
+    rec = ((doc or {}).get("config") or {}).get("program")
+    if rec and rec.get("path"):
+        text = _read_source(rec["path"])
+        if text is not None:
+            return {"path": rec["path"], "text": text}
+    return None
+
+
+def motion_of(model=None, doc: Optional[dict] = None) -> bool:
+    """Whether to draw an arena: the program calls doReach (known from the
+    model), else the trace moves somebody or sends somebody somewhere."""
+    if model is not None:
+        from pccl.api import program_moves
+        return program_moves(model.program)
+    for st in (doc or {}).get("steps") or []:
+        if st.get("rule") == "DOREACH INVOKE":
+            return True
+        for ch in st.get("changes") or []:
+            if ch["cell"].get("cell") in ("position", "target"):
+                return True
+    return False
+
+
+def data(doc: dict, *, model=None, states=None, world=None, title: Optional[str] = None,
+         notes: Optional[list] = None) -> dict:
+    """The object the page reads (``window.PCCL_DATA``)."""
+    if world is None and model is not None:
+        world = model.world
+    from pccl.model.layout import AGS, PC
+    at = None
+    if model is not None and states:
+        at = [[model.compiled.describe_k(ag[PC]) for ag in st[AGS]] for st in states]
+    src = source_data(model, doc)
+    return {"trace": doc, "source": src, "world": world_data(world), "motion": motion_of(model, doc),
+            "at": at, "title": title or _title(doc, src), "notes": list(notes or [])}
+
+
+def _title(doc: dict, src) -> str:
+    cfg = doc.get("config") or {}
+    path = (src or {}).get("path") or (cfg.get("program") or {}).get("path") or "trace"
+    return f"pccl {cfg.get('command', 'trace')} {os.path.basename(str(path))}"
+
+
+def _script_json(obj: Any) -> str:
+    """JSON safe inside a <script> element: no ``</`` and no ``<!--``."""
+    text = json.dumps(obj, default=str, separators=(",", ":"), allow_nan=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026") \
+        .replace("\u2028", "\\u2028").replace("\u2029", "\\u2029")
+
+
+def page(data_obj: Optional[dict], *, mode: str = "static", title: str = "pccl") -> str:
+    """The HTML page: ``mode`` ``static`` (a trace, data inline) or ``serve``
+    (the interactive explorer of :mod:`pccl.tools.serve`, data from its API)."""
+    tpl = _asset("viewer.html")
+    boot = {"mode": mode, "data": data_obj}
+    return (tpl.replace("{{TITLE}}", html.escape(title))
+            .replace("/*{{CSS}}*/", _asset("viewer.css"))
+            .replace("/*{{BOOT}}*/", "window.PCCL_BOOT = " + _script_json(boot) + ";")
+            .replace("/*{{JS}}*/", _asset("viewer.js")))
+
+
+def html_of(doc: dict, **kw) -> str:
+    d = data(doc, **kw)
+    return page(d, mode="static", title=d["title"])
+
+
+def write(path, doc: dict, **kw) -> None:
+    """Write the viewer of ``doc`` to ``path`` (a :class:`PcclError` naming
+    the file when it cannot be written)."""
+    text = html_of(doc, **kw)
+    try:
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as e:
+        raise PcclError(f"cannot write viewer: {e.strerror or e}", filename=os.fspath(path)) from None

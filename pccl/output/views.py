@@ -1,0 +1,169 @@
+"""Text views of a trace (``--view steps|swimlane`` in run, explore, replay).
+
+``steps``
+    The initial state first, then one line per step as the default trace
+    prints it, with the branch an ``if``/``while`` took; runs of steps that
+    change nothing (and take no branch) are folded into one line unless
+    ``full``.
+``swimlane``
+    One column per agent and one for the shared variables; a block per time
+    step; one row per step, in the column of the agent that made it, saying
+    what it did (the event it selected, the branch it took, what it
+    changed).  The width follows the terminal (:func:`shutil.get_terminal_size`).
+"""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+
+from pccl.output import display as D
+from pccl.output import traces as T
+from pccl.model.layout import AGS, POS, TIME
+from pccl.lang.values import format_value
+
+
+def render(view, model, path, *, full=False, width=None) -> str:
+    states, labels = path
+    if view == "swimlane":
+        return swimlane(model, states, labels, full=full, width=width)
+    return steps(model, states, labels, full=full, width=width)
+
+
+def terminal_width(width=None) -> int:
+    if width is not None:
+        return width
+    return max(40, shutil.get_terminal_size((100, 24)).columns)
+
+
+def _visible_changes(model, a, b) -> list:
+    return [c for c in D.diff(model, a, b) if c[0] != "transitionState"]
+
+
+# ---------------------------------------------------------------------------
+# steps
+# ---------------------------------------------------------------------------
+
+def steps(model, states, labels, *, full=False, width=None) -> str:
+    w = terminal_width(width)
+    out = ["initial state:", D.format_state(model, states[0])]
+    folded: list = []
+
+    def flush():
+        if not folded:
+            return
+        first, last = folded[0][0], folded[-1][0]
+        num = f"{first:>4}." if first == last else f"{first:>4}–{last}."
+        what = ", ".join(D.short_label(model, lab, a) for _, lab, a, _ in folded)
+        line = f"{num} no change: {what}"
+        out.append(line if len(line) <= w else line[:w - 1] + "…")
+        folded.clear()
+
+    for n, lab in enumerate(labels):
+        a, b = states[n], states[n + 1]
+        br = T.branch_taken(model, lab, a, b)
+        if not full and not br and not _visible_changes(model, a, b):
+            folded.append((n + 1, lab, a, b))
+            continue
+        flush()
+        text = D.format_step(model, n + 1, lab, a, b)
+        if br:
+            head, sep, rest = text.partition("\n")
+            text = f"{head}  {T.branch_text(br)}{sep}{rest}"
+        out.append(text)
+    flush()
+    return "\n".join(out)
+
+
+
+
+# ---------------------------------------------------------------------------
+# swimlane
+# ---------------------------------------------------------------------------
+
+_RULE_WORDS = {"IDLE": "idle (no guard holds)", "LOCK REQUEST": "requests the lock",
+               "ATOMIC WAIT": "waits for the lock", "ATOMIC EXECUTION": "takes the lock",
+               "LOCK RELEASE": "releases the lock", "EXIT": "exit()",
+               "COUNTER ADVANCE": "end of event block"}
+
+
+def _agent_change_text(model, name, i, old, new) -> str:
+    base = name[:-len(f"[{i}]")] if name.endswith(f"[{i}]") else name
+    return f"{base}={new}"
+
+
+def swimlane(model, states, labels, *, full=False, width=None) -> str:
+    N = model.N
+    W = terminal_width(width)
+    ncol = N + 1
+    sep = " │ "
+    colw = max(10, (W - len(sep) * (ncol - 1)) // ncol)
+
+    def row(cells) -> list:
+        wrapped = [textwrap.wrap(c, colw) or [""] if c else [""] for c in cells]
+        h = max(len(x) for x in wrapped)
+        lines = []
+        for k in range(h):
+            parts = [(x[k] if k < len(x) else "").ljust(colw) for x in wrapped]
+            lines.append(sep.join(parts).rstrip())
+        return lines
+
+    def rule_line(text) -> str:
+        text = f"── {text} "
+        total = colw * ncol + len(sep) * (ncol - 1)
+        return text + "─" * max(0, total - len(text))
+
+    out = row([f"agent {i}" for i in range(N)] + ["shared"])
+    # initial state: every agent's variables, shared variables beside
+    s0 = states[0]
+    out.append(rule_line(f"initial state, t={D.fmt_time(s0[TIME])}"))
+    cells = []
+    for i in range(N):
+        ag = s0[AGS][i]
+        vs = ", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.agent_vars(model, s0, i))
+        cells.append(f"pos {D.fmt_pos(ag[POS])}" + (f"; {vs}" if vs else ""))
+    cells.append(", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.shared_vars(model, s0)))
+    out += row(cells)
+    out.append(rule_line(f"t={D.fmt_time(s0[TIME])}"))
+    for n, lab in enumerate(labels):
+        a, b = states[n], states[n + 1]
+        rule, i, detail = lab
+        ch = _visible_changes(model, a, b)
+        shared_names = {v.name for v in model.compiled.layout.shared}
+        shared = [f"{c}={nw}" for c, o, nw in ch if c in shared_names or c == "lockQueue"]
+        if rule == "TIME ADVANCE":
+            out.append(rule_line(f"t={D.fmt_time(b[TIME])}"))
+            continue
+        if rule == "DOREACH INVOKE":
+            cells = []
+            for k in range(N):
+                mine = [f"{c.split('[')[0]}={nw}" for c, o, nw in ch if c.endswith(f"[{k}]")]
+                cells.append("moves: " + ", ".join(mine) if mine else "")
+            if any(cells) or full:
+                out += row(cells + [""])
+            continue
+        info = D.label_info(model, lab, a)
+        br = T.branch_taken(model, lab, a, b)
+        own = [_agent_change_text(model, c, i, o, nw) for c, o, nw in ch
+               if c not in shared_names and c != "lockQueue" and not c.startswith("lockState[")]
+        if rule == "EVENT SELECT" and detail is not None:
+            text = f"{info['event']}()"
+        elif rule == "STATEMENT" and br:
+            src = info["source"] or ""
+            word = "while" if br["kind"] == "while" else "if"
+            arrow = T.branch_text(br).split(" (line")[0]
+            text = f"L{info['line']} {src.rstrip(':') if src else word} {arrow}"
+        elif rule in ("STATEMENT", "DOREACH UPDATE"):
+            if not own and not shared and not full:
+                continue
+            text = f"L{info['line']}" + (f" {info['source']}" if full or not (own or shared) else "")
+        elif rule == "COUNTER ADVANCE" and not full:
+            continue
+        else:
+            text = _RULE_WORDS.get(rule, rule)
+        if own:
+            text += ": " + ", ".join(own)
+        cells = ["" for _ in range(N)] + [", ".join(shared)]
+        cells[i] = text
+        out += row(cells)
+    return "\n".join(out)

@@ -1,0 +1,1 @@
+"""The search family: breadth-first, fastest, parallel and liveness searches and their tables."""

@@ -1,0 +1,1009 @@
+"""Breadth-first state-space exploration with shortest counterexamples.
+
+The checker knows nothing of PCCL.  It explores any :class:`Model` (the
+split between model and checker is stateright's), breadth-first from all
+initial states, so the first counterexample found for a property is a
+shortest one.
+
+State identity
+    Each state's :meth:`Model.key` is encoded canonically and hashed to a
+    128-bit fingerprint (:mod:`pccl.search.fingerprint`).  ``exact=True`` stores the
+    canonical encodings themselves instead (no collision possible; more
+    memory; for tests and small models).
+
+Visited storage (:class:`FingerprintTable`)
+    Fingerprints and parent links live in numpy arrays indexed by state
+    number (16 + 4 bytes per state), with an open-addressing index of
+    ``uint32`` state numbers over them (4 bytes per slot, at most half
+    full).  Successors are admitted a batch at a time with vectorised
+    lookups, so the visited set holds no Python object per state.  Only the
+    current and next BFS levels hold full states.
+
+Counterexamples
+    A violating state's chain of parent links is turned back into states by
+    *replaying* the model from an initial state, choosing at each step the
+    successor whose fingerprint has the recorded state number (as TLC and
+    stateright do).  This is why the model must be deterministic: a replay
+    that cannot find the recorded successor raises :class:`ReplayError`
+    saying which step diverged.
+"""
+
+from __future__ import annotations
+
+import enum
+import gc
+import itertools
+import marshal
+import mmap
+import operator
+import os
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from typing import (Any, Optional, Protocol, runtime_checkable)
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
+
+import numpy as np
+
+import xxhash
+
+from pccl.search.fingerprint import collision_bound, encode, fingerprint
+
+__all__ = ["Model", "ViolationLike", "Bound", "Stats", "Step", "Trace", "Counterexample",
+           "SearchResult", "Explorer", "ReplayError", "FingerprintTable", "ExactTable"]
+
+
+# ---------------------------------------------------------------------------
+# The contract between a model and the checker
+# ---------------------------------------------------------------------------
+
+@runtime_checkable
+class ViolationLike(Protocol):
+    """What the checker needs of a violation: an identity, so that ``--all``
+    reports each distinct violation (property and location) once."""
+
+    @property
+    def identity(self) -> Hashable: ...
+
+
+@runtime_checkable
+class Model(Protocol):
+    """A transition system the explorer can search.
+
+    **Determinism contract.**  Every method is a pure function of its
+    arguments: called twice on equal states, :meth:`successors` returns the
+    same labelled successors *in the same order*, :meth:`init_states` the
+    same states in the same order, :meth:`key` equal keys.  The explorer
+    relies on it twice: to identify states (equal keys are one state) and to
+    rebuild a counterexample by replaying from the initial state.  A model
+    that breaks it (consults a clock, a global random generator, mutable
+    caches that change results) makes the verdict meaningless and the replay
+    fail with :class:`ReplayError`.
+
+    **Keys.**  :meth:`key` returns the part of a state that identifies it
+    (a model may leave out what cannot influence the future or the
+    properties, e.g. an abstracted clock).  It must be built from ints,
+    floats, bools, ``None``, ``Ellipsis``, strings, bytes and tuples (see
+    :mod:`pccl.search.fingerprint`), and two keys must be equal exactly when the
+    states are indistinguishable to the model and its properties.
+    """
+
+    def init_states(self) -> Iterable[Any]:
+        """The initial states (duplicates allowed; the explorer merges them)."""
+
+    def successors(self, state) -> Sequence[tuple[Any, Any]]:
+        """The enabled transitions of ``state`` as ``(label, successor)``."""
+
+    def key(self, state) -> Hashable:
+        """State identity, canonically encodable."""
+
+    def violations(self, state) -> Sequence[ViolationLike]:
+        """The properties ``state`` violates (empty when it satisfies all)."""
+
+    def terminal_kind(self, state) -> str:
+        """For a state without successors: ``"final"``, ``"bounded"`` (the
+        model's own horizon stopped it; see :attr:`Bound.MODEL`) or
+        ``"deadlock"``."""
+
+    def deadlock_violation(self, state) -> Optional[ViolationLike]:
+        """The violation to report for a deadlocked state (or ``None``)."""
+
+    # Optional: ``clock(state)``, the state's model time: the statistics and
+    # progress show the largest one reached, and a search that goes
+    # ``runaway_levels`` levels without it growing reports a runaway.
+    #
+    # Optional: ``prepare()``, called by the parallel search before it forks
+    # its workers.  A model that builds tables lazily which its states refer
+    # to (PCCL interns k cells as small ints) must build them there, so that
+    # every process numbers them alike.
+
+
+#: The status of a search stopped by a ``MemoryError`` (the process could not
+#: allocate, e.g. under ``ulimit -v`` below ``--max-memory``): the figures so
+#: far and the violations found, not exhaustive.
+OUT_OF_MEMORY = "out-of-memory"
+
+
+class Bound(enum.Enum):
+    """What cut a search short.  The explorer never spells CLI flags; the
+    front ends render these (``pccl explore`` as ``--depth 10`` etc.)."""
+
+    DEPTH = "depth"              # states at the depth limit were not expanded
+    MAX_STATES = "max_states"    # the state budget was used up
+    MODEL = "model"              # the model's own horizon (PCCL: --max-time)
+    MAX_MEMORY = "max_memory"    # the process reached its memory budget
+
+
+# ---------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------
+
+@dataclass
+class Stats:
+    initial_states: int = 0
+    states: int = 0
+    transitions: int = 0
+    max_depth: int = 0
+    seconds: float = 0.0
+    peak_memory: int = 0          # bytes, peak resident set size of the process
+    frontier: int = 0
+    #: the largest model time of an admitted state (models with ``clock``)
+    max_time: Any = None
+
+    @property
+    def states_per_second(self) -> float:
+        return self.states / self.seconds if self.seconds > 0 else 0.0
+
+    def as_dict(self) -> dict:
+        return {"initial_states": self.initial_states, "states": self.states,
+                "transitions": self.transitions, "max_depth": self.max_depth,
+                "seconds": round(self.seconds, 3),
+                "states_per_second": round(self.states_per_second, 1),
+                "peak_memory_bytes": self.peak_memory, "max_time": self.max_time}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One transition of a trace: the model's label and the states around it."""
+    number: int                   # 1-based
+    label: Any
+    before: Any
+    after: Any
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A path of the model: an initial state and the labelled steps from it.
+
+    Iterating yields ``(label, state)`` pairs starting with
+    ``(None, initial)``; :attr:`steps` gives :class:`Step` objects;
+    ``len(trace)`` is the number of steps.
+    """
+    states: tuple
+    labels: tuple                 # len(labels) == len(states) - 1
+
+    @property
+    def initial(self):
+        return self.states[0]
+
+    @property
+    def last(self):
+        return self.states[-1]
+
+    @property
+    def steps(self) -> list:
+        s = self.states
+        return [Step(n + 1, lab, s[n], s[n + 1]) for n, lab in enumerate(self.labels)]
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def __iter__(self) -> Iterator[tuple]:
+        yield (None, self.states[0])
+        yield from zip(self.labels, self.states[1:])
+
+    def to_json(self, step_json: Callable[[Step], dict]) -> list:
+        """The steps as JSON-ready dicts; ``step_json`` renders one step (the
+        model's display, which the checker does not know)."""
+        return [step_json(st) for st in self.steps]
+
+
+@dataclass
+class Counterexample:
+    """A violation and a shortest path that reaches it."""
+    violation: Any
+    index: int                     # state number in the search
+    depth: int
+    trace: Optional[Trace] = None  # filled by the replay
+    #: a lasso (temporal properties, pccl/search/liveness.py): the path's state
+    #: numbers, and the step after which the repeated cycle starts
+    chain: Optional[list] = None
+    cycle_start: Optional[int] = None
+
+
+@dataclass
+class SearchResult:
+    status: str                    # violation | exhaustive | bounded | interrupted | out-of-memory
+    found: list = field(default_factory=list)       # [Counterexample]
+    bounds_hit: list = field(default_factory=list)  # [Bound]
+    stats: Stats = field(default_factory=Stats)
+    collision_probability: float = 0.0              # 0 when exact
+    exact: bool = False
+
+
+class ReplayError(RuntimeError):
+    """A counterexample could not be rebuilt: the model is not deterministic."""
+
+
+def peak_rss_bytes() -> int:
+    from pccl.search.memory import peak_rss_bytes as peak   # portable: units per platform, psutil fallback
+    return peak()
+
+
+# ---------------------------------------------------------------------------
+# Visited storage
+# ---------------------------------------------------------------------------
+
+_EMPTY = np.uint32(0xFFFF_FFFF)
+_MAX_STATES = 0xFFFF_FFFE
+
+
+def physical_memory() -> int:
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - non-POSIX
+        return 1 << 34
+
+
+def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
+    """An array over a reserved, lazily committed anonymous mapping: only the
+    pages written count towards memory, and it never has to grow by copying.
+    ``None`` where the platform cannot do that."""
+    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    try:
+        flags = mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | getattr(
+            mmap, "MAP_NORESERVE", 0x4000 if sys.platform.startswith("linux") else 0)
+        buf = mmap.mmap(-1, nbytes, flags=flags)
+    except (OSError, ValueError, AttributeError, TypeError):
+        return None
+    return np.frombuffer(buf, dtype=dtype).reshape(shape)
+
+
+class FingerprintTable:
+    """The visited set as arrays: 128-bit fingerprints and parent links by
+    state number, plus an open-addressing index (linear probing, load at
+    most 1/2) of ``uint32`` state numbers keyed by the fingerprint's low
+    64 bits.
+
+    The two per-state arrays are reserved up front for as many states as
+    the machine's memory could hold (virtual address space only: pages are
+    committed as they are written), so they never grow by copying; where
+    that is not available they grow by doubling.  The index is rebuilt from
+    the fingerprint array when it passes half full, after the old one is
+    freed.
+    """
+
+    key_of = staticmethod(fingerprint)
+
+    def __init__(self, capacity: Optional[int] = None):
+        self.n = 0
+        if capacity is None:
+            capacity = min(_MAX_STATES, physical_memory() // 20)
+            fps, parents = _reserve((capacity, 2), np.uint64), _reserve((capacity,), np.uint32)
+            if fps is None or parents is None:
+                fps, parents = None, None
+                capacity = 1 << 12
+        else:
+            fps = parents = None
+        self.fps = fps if fps is not None else np.empty((capacity, 2), dtype=np.uint64)
+        self.parents = parents if parents is not None else np.empty(capacity, dtype=np.uint32)
+        self._new_index(1 << 13)
+        self._batch: Any = None         # (fingerprints, positions) of the last batch
+        #: state numbers of the last batch's first occurrences (-1: new)
+        self.found: Any = None
+
+    # -- index --------------------------------------------------------------
+    def _new_index(self, size: int) -> None:
+        self.slots: Any = None
+        self.slots = np.full(size, _EMPTY, dtype=np.uint32)
+        self.mask = np.uint64(size - 1)
+
+    def _place(self, idx: np.ndarray) -> None:
+        """Index state numbers ``idx`` (distinct, absent fingerprints)."""
+        slots, mask = self.slots, self.mask
+        pos = (self.fps[idx, 1] & mask).astype(np.int64)
+        m = int(mask)
+        while idx.size:
+            free = slots[pos] == _EMPTY
+            if free.any():
+                slots[pos[free]] = idx[free]          # among equal slots one write wins
+                won = free & (slots[pos] == idx)
+                keep = ~won
+                idx, pos = idx[keep], pos[keep]
+            pos = (pos + 1) & m
+
+    def lookup(self, q: np.ndarray) -> np.ndarray:
+        """State numbers of the fingerprints ``q`` (shape (k, 2)); -1 where absent."""
+        slots, fps, m = self.slots, self.fps, int(self.mask)
+        out = np.full(len(q), -1, dtype=np.int64)
+        act = np.arange(len(q))
+        pos = (q[:, 1] & self.mask).astype(np.int64)
+        while act.size:
+            e = slots[pos]
+            occupied = e != _EMPTY
+            act, pos, e = act[occupied], pos[occupied], e[occupied]
+            hit = (fps[e, 1] == q[act, 1]) & (fps[e, 0] == q[act, 0])
+            out[act[hit]] = e[hit]
+            miss = ~hit
+            act, pos = act[miss], (pos[miss] + 1) & m
+        return out
+
+    # -- batches ------------------------------------------------------------
+    def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
+        """Of the batch ``keys`` (fingerprints), the positions ``first``
+        (first occurrences, ascending) whose state is not yet visited."""
+        q = np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2)[first]
+        self.found = found = self.lookup(q)
+        new = found < 0
+        self._batch = (q[new], first[new])
+        return first[new]
+
+    def add(self, count: int, parents: np.ndarray) -> None:
+        """Admit the first ``count`` of the last :meth:`new_positions`, with
+        their parents' state numbers."""
+        q = self._batch[0][:count]
+        self._batch = None
+        n, k = self.n, len(q)
+        if n + k > _MAX_STATES:
+            raise MemoryError("more than 2**32 - 2 states")
+        if n + k > len(self.parents):
+            cap = max(n + k, len(self.parents) * 2)
+            if self.fps.base is not None:
+                raise MemoryError(f"more states than the reserved {len(self.parents):,}")
+            self.fps.resize((cap, 2), refcheck=False)
+            self.parents.resize(cap, refcheck=False)
+        self.fps[n:n + k] = q
+        self.parents[n:n + k] = parents
+        self.n = n + k
+        if 2 * self.n > len(self.slots):
+            size = len(self.slots)
+            while 2 * self.n > size:
+                size *= 2
+            self._new_index(size)
+            step = 1 << 18          # re-index in slices: bounded temporaries
+            for a in range(0, self.n, step):
+                self._place(np.arange(a, min(self.n, a + step), dtype=np.uint32))
+        else:
+            self._place(np.arange(n, n + k, dtype=np.uint32))
+
+    def dump(self, n: int) -> dict:
+        """The first ``n`` states' arrays (a checkpoint)."""
+        return {"fps": self.fps[:n], "parents": self.parents[:n]}
+
+    def load(self, arrays: dict) -> None:
+        """Fill an empty table from :meth:`dump`'s arrays."""
+        fps, parents = arrays["fps"], arrays["parents"]
+        if fps.dtype != np.uint64 or fps.ndim != 2 or fps.shape[1:] != (2,) \
+                or parents.dtype != np.uint32 or parents.shape != (len(fps),):
+            raise ValueError("the fingerprint arrays have the wrong shape or type")
+        self._batch = (np.ascontiguousarray(fps), None)
+        self.add(len(fps), parents)
+
+    def insert(self, q: np.ndarray, values: np.ndarray) -> None:
+        """Admit fingerprints ``q`` (distinct, absent) with ``values`` stored
+        in the parent slot (the parallel search stores global state numbers)."""
+        self._batch = (q, None)
+        self.add(len(q), values)
+
+    def index_of(self, key: bytes) -> int:
+        return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
+
+    def lookup_keys(self, keys: list) -> np.ndarray:
+        """State numbers of a batch of fingerprints (-1 where absent)."""
+        return self.lookup(np.frombuffer(b"".join(keys), dtype=np.uint64).reshape(-1, 2))
+
+    def parent(self, idx: int) -> int:
+        p = int(self.parents[idx])
+        return -1 if p == 0xFFFF_FFFF else p
+
+
+class ExactTable:
+    """The visited set as a dict of canonical encodings (``--exact``)."""
+
+    key_of = staticmethod(encode)
+
+    def __init__(self):
+        self.n = 0
+        self.ids: dict = {}
+        self.parents: list = []
+        self._batch = None
+        self.found: Any = None
+
+    def new_positions(self, keys: list, first: np.ndarray) -> np.ndarray:
+        ids = self.ids
+        self.found = found = np.fromiter(map(ids.get, [keys[p] for p in first.tolist()],
+                                             itertools.repeat(-1)),
+                                         dtype=np.int64, count=len(first))
+        new = first[found < 0]
+        self._batch = [keys[p] for p in new.tolist()]
+        return new
+
+    def add(self, count: int, parents: np.ndarray) -> None:
+        ids = self.ids
+        for key in self._batch[:count]:
+            ids[key] = len(ids)
+        self._batch = None
+        self.parents.extend(parents.tolist())
+        self.n = len(ids)
+
+    def dump(self, n: int) -> dict:
+        return {"keys": list(itertools.islice(self.ids, n)), "parents": self.parents[:n]}
+
+    def load(self, data: dict) -> None:
+        self.ids = dict(zip(data["keys"], itertools.count()))
+        self.parents = list(data["parents"])
+        self.n = len(self.ids)
+
+    def index_of(self, key: bytes) -> int:
+        return self.ids.get(key, -1)
+
+    def lookup_keys(self, keys: list) -> np.ndarray:
+        ids = self.ids
+        return np.fromiter((ids.get(k, -1) for k in keys), dtype=np.int64, count=len(keys))
+
+    def parent(self, idx: int) -> int:
+        p = self.parents[idx]
+        return -1 if p == 0xFFFF_FFFF else p
+
+
+# ---------------------------------------------------------------------------
+# The search
+# ---------------------------------------------------------------------------
+
+_NO_PARENT = 0xFFFF_FFFF
+
+
+class Explorer:
+    """Breadth-first search of a :class:`Model`.
+
+    Options: ``max_depth`` (do not expand states at this depth),
+    ``max_states`` (admit at most this many states), ``deadlock`` (report
+    states without successors that are not final), ``find_all`` (keep going
+    and report each distinct violation once), ``exact`` (store canonical
+    encodings instead of fingerprints), ``max_memory`` (stop, as a bound,
+    once the process's peak resident memory passes this many bytes; checked
+    after every admitted batch), ``progress`` (called about every
+    ``progress_interval`` seconds with a dict of figures), ``batch``
+    (successors admitted per vectorised step), ``recorder`` (an object with
+    ``states(list)`` and ``edges(src, dst)``, told the states admitted and
+    every transition's state numbers: :mod:`pccl.search.liveness` records the graph
+    with it; a recorder whose ``wants_candidates`` is true gets the
+    successor states as a third argument, aligned with ``dst``),
+    ``on_runaway`` (called once with ``{"depth", "levels", "max_time",
+    "state"}`` when ``runaway_levels`` levels pass without the model's
+    ``clock`` growing: a zero-time loop that keeps making new states;
+    ``state`` is one of the deepest level's),
+    ``labels`` (a set: every distinct label of a transition taken
+    out of a reachable state is added to it; one C-level update per chunk),
+    ``checkpoint`` (a :class:`pccl.search.checkpoint.Checkpointer`: write the
+    search's state at level boundaries every so often and when interrupted,
+    and resume from a checkpoint; the result is the uninterrupted search's).
+    """
+
+    def __init__(self, model: Model, *, max_depth: Optional[int] = None,
+                 max_states: Optional[int] = None, deadlock: bool = True,
+                 find_all: bool = False, exact: bool = False,
+                 progress: Optional[Callable[[dict], None]] = None,
+                 progress_interval: float = 0.5, batch: int = 4096,
+                 max_memory: Optional[int] = None, recorder=None,
+                 runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None,
+                 labels: Optional[set] = None, checkpoint=None):
+        self.model = model
+        #: a :class:`pccl.search.checkpoint.Checkpointer` (or None): where the search
+        #: writes checkpoints at level boundaries, and what it resumes from
+        self.checkpoint = checkpoint
+        self._mark: Optional[dict] = None
+        self._runaway_info: Optional[dict] = None
+        self._peak_before = 0       # peak memory of the search before the checkpoint resumed
+        self.runaway_levels = runaway_levels
+        self.on_runaway = on_runaway
+        self.recorder = recorder
+        self.labels = labels
+        self.max_memory = max_memory
+        self.max_depth = max_depth
+        self.max_states = max_states
+        self.deadlock = deadlock
+        self.find_all = find_all
+        self.exact = exact
+        self.progress = progress
+        self.progress_interval = progress_interval
+        self.batch = batch
+        self.table: Any = None
+
+    # ------------------------------------------------------------------
+    def run(self) -> SearchResult:
+        # States are acyclic tuples: the cyclic garbage collector would only
+        # re-traverse the millions of frontier tuples (measured: 40% of the
+        # time at 4M states).  Reference counting still frees everything.
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return self._run()
+        finally:
+            if enabled:
+                gc.enable()
+
+    def _run(self) -> SearchResult:
+        t_start = _time.perf_counter()
+        self.table = ExactTable() if self.exact else FingerprintTable()
+        res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
+        adm = _Admission(self, res)
+        ck = self.checkpoint
+        self._mark = None
+        try:
+            start = None
+            if ck is not None and ck.resume_dir is not None:
+                state, arrays = ck.load()
+                try:
+                    start = self._restore(adm, res, state, arrays)
+                except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+                    raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                                  f"--checkpoint") from None
+                del state, arrays       # the mapped files: copied into the table by now
+                t_start -= start["seconds"]
+                stop = False
+            else:
+                stop = self._initial_states(adm)
+            self._levels(adm, t_start, stop, start)
+        except KeyboardInterrupt:
+            res.status = "interrupted"
+            if ck is not None and ck.dir is not None and self._mark is not None:
+                self._save(adm, res)
+        except MemoryError:
+            # the process could not allocate (a limit below --max-memory):
+            # drop the frontier, keep the figures and what was found
+            adm.out_of_memory()
+            res.status = OUT_OF_MEMORY
+        return self._result(res, adm, t_start)
+
+    def _initial_states(self, adm: "_Admission") -> bool:
+        """Admit the initial states, as batches of successors of nobody;
+        True to stop."""
+        cs, stop = adm.cs, False
+        batch = self.batch
+        for s in self.model.init_states():
+            cs.append(s)
+            if len(cs) >= batch or len(cs) > adm.budget:     # never build far beyond the budget
+                adm.par_idx.append(_NO_PARENT)
+                adm.par_n.append(len(cs))
+                stop = adm.flush(0)
+                adm.stats.transitions = 0
+                if stop:
+                    break
+        if not stop and cs:
+            adm.par_idx.append(_NO_PARENT)
+            adm.par_n.append(len(cs))
+            stop = adm.flush(0)
+        adm.stats.transitions = 0
+        adm.stats.initial_states = self.table.n
+        return stop
+
+    def _levels(self, adm: "_Admission", t_start: float, stop: bool,
+                start: Optional[dict] = None) -> None:
+        """The breadth-first level loop: expand each state of a level, queue
+        its successors for admission (a batch at a time); a state without
+        successors is final, bounded or a deadlock.  (``stop``: the initial
+        states already stopped the search; ``start``: the level, depth and
+        runaway detector of a checkpoint resumed.)"""
+        m = self.model
+        succ_fn = m.successors
+        max_depth = self.max_depth
+        batch = self.batch
+        table = self.table
+        stats = adm.stats
+        flush = adm.flush
+        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
+        second = operator.itemgetter(1)
+        labels = self.labels
+        first = operator.itemgetter(0)
+        depth = 0
+        if start is not None:
+            depth = start["depth"]
+            level, level_idx = start["level"], start["level_idx"]
+        else:
+            level, level_idx = adm.take_level()
+        ck = self.checkpoint
+        next_report = _time.perf_counter() + self.progress_interval
+
+        def report(left):
+            nonlocal next_report
+            if self.progress is None:
+                return
+            now = _time.perf_counter()
+            if now >= next_report:
+                next_report = now + self.progress_interval
+                self.progress({"states": table.n, "frontier": left + len(adm.nxt),
+                               "depth": depth, "seconds": now - t_start,
+                               "memory": peak_rss_bytes(), "max_time": stats.max_time})
+
+        def expand_one(succs: list, c0: int, at_bound: bool) -> bool:
+            """The chunk of the level at ``c0`` (its successor lists
+            ``succs``) state by state: terminal states, the depth bound.
+            True to stop."""
+            for j, succ in enumerate(succs):
+                pos = c0 + j
+                if not succ:
+                    s = level[pos]
+                    kind = m.terminal_kind(s)
+                    if kind == "bounded":
+                        flags.setdefault(Bound.MODEL, level_idx[pos])
+                    elif kind == "deadlock" and self.deadlock:
+                        # the pending successors of earlier states come first
+                        if flush(depth + 1):
+                            return True
+                        v = m.deadlock_violation(s)
+                        if v is not None and adm.record([v], level_idx[pos], depth):
+                            return True
+                    continue
+                if at_bound:
+                    flags.setdefault(Bound.DEPTH, level_idx[pos])
+                    continue
+                par_idx.append(level_idx[pos])
+                par_n.append(len(succ))
+                cs.extend(map(second, succ))     # labels are dropped now
+                if len(cs) >= batch:
+                    if flush(depth + 1):
+                        return True
+                    report(len(level) - pos)
+            return False
+
+        chain = itertools.chain.from_iterable
+        chunk = max(1, batch // 4)
+        # zero-time runaways: the depth at which the largest time last grew
+        time_depth, last_time, warned = 0, stats.max_time, self.on_runaway is None
+        if start is not None:
+            time_depth, last_time, warned = start["runaway"]
+            warned = warned or self.on_runaway is None
+        while level and not stop:
+            if ck is not None:
+                # what a checkpoint of this level's start holds (a level
+                # interrupted half way is expanded again on resume)
+                self._mark = self._level_mark(adm, depth, level, level_idx, t_start,
+                                              (time_depth, last_time, warned))
+                if ck.due() and ck.last_saved != (depth, table.n):
+                    self._save(adm, adm.res)
+            at_bound = max_depth is not None and depth >= max_depth
+            for c0 in range(0, len(level), chunk):
+                # a chunk of the level expanded with C-level map()s: no
+                # bytecode per state unless the chunk holds a terminal
+                # state or the depth bound is reached
+                succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                if labels is not None:
+                    labels.update(map(first, chain(succs)))
+                ns = list(map(len, succs))
+                if not at_bound and 0 not in ns:
+                    par_idx.extend(level_idx[c0:c0 + chunk])
+                    par_n.extend(ns)
+                    cs.extend(map(second, chain(succs)))     # labels are dropped now
+                    del succs
+                    if len(cs) >= batch:
+                        if flush(depth + 1):
+                            stop = True
+                            break
+                        report(len(level) - c0 - len(ns))
+                    continue
+                if expand_one(succs, c0, at_bound):
+                    stop = True
+                    break
+            if not stop and flush(depth + 1):
+                stop = True
+            report(0)
+            level, level_idx = adm.take_level()
+            if level:
+                depth += 1
+                stats.max_depth = depth
+                if stats.max_time != last_time:
+                    time_depth, last_time = depth, stats.max_time
+                elif not warned and last_time is not None \
+                        and depth - time_depth >= self.runaway_levels:
+                    warned = True
+                    assert self.on_runaway is not None
+                    self._runaway_info = {"depth": depth, "levels": depth - time_depth,
+                                          "max_time": last_time, "state": level[-1]}
+                    self.on_runaway(self._runaway_info)
+        stats.frontier = len(level)
+
+    # -- checkpoints (pccl/search/checkpoint.py) -----------------------------------
+    def _level_mark(self, adm: "_Admission", depth: int, level: list, level_idx: list,
+                    t_start: float, runaway: tuple) -> dict:
+        """The search as it stands at the start of a level: what a checkpoint
+        holds besides the arrays (which are cut at ``n`` when written: the
+        table and the recorded graph only grow)."""
+        stats, rec = adm.stats, self.recorder
+        first = level_idx[0] if level_idx else self.table.n
+        assert not level_idx or level_idx[-1] - first + 1 == len(level_idx) == self.table.n - first
+        return {"depth": depth, "n": self.table.n, "level": level, "first": first,
+                "transitions": stats.transitions, "max_time": stats.max_time,
+                "max_depth": stats.max_depth, "initial_states": stats.initial_states,
+                "budget": adm.budget, "bounds": [b.value for b in adm.bounds],
+                "nfound": len(adm.res.found),
+                "labels": None if self.labels is None else set(self.labels),
+                "runaway": runaway, "runaway_info": self._runaway_info,
+                "seconds": _time.perf_counter() - t_start,
+                "edges": None if rec is None else rec.src.n,
+                "rec_complete": None if rec is None else rec.complete}
+
+    def _save(self, adm: "_Admission", res: SearchResult) -> None:
+        """Write the checkpoint of the current level's start."""
+        mark = self._mark
+        assert mark is not None and self.checkpoint is not None
+        n = mark["n"]
+        state = {k: v for k, v in mark.items() if k not in ("nfound",)}
+        state["found"] = [(f.violation, f.index, f.depth) for f in res.found[:mark["nfound"]]]
+        state["peak_memory"] = peak_rss_bytes()
+        tables = getattr(self.model, "checkpoint_tables", None)
+        state["tables"] = tables() if tables is not None else None
+        arrays: dict = {}
+        if self.exact:
+            state["exact"] = self.table.dump(n)
+        else:
+            arrays.update(self.table.dump(n))
+        if self.recorder is not None:
+            arrays.update({f"rec_{k}": v for k, v in
+                           self.recorder.dump(n, mark["edges"]).items()})
+        try:
+            self.checkpoint.write(state, arrays)
+        except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
+            self.checkpoint.failed(e)
+
+    def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:
+        """Put the search back where the checkpoint ``state``/``arrays`` left it;
+        returns what :meth:`_levels` starts from."""
+        tables = getattr(self.model, "restore_tables", None)
+        if tables is not None and state.get("tables") is not None:
+            tables(state["tables"])
+        if self.exact != ("exact" in state):
+            raise ValueError("the checkpoint's state identity (--exact or not) differs")
+        self.table.load(state["exact"] if self.exact else arrays)
+        n, first = state["n"], state["first"]
+        if self.table.n != n or len(state["level"]) != n - first:
+            raise ValueError("the checkpoint's table and level do not agree")
+        stats = adm.stats
+        stats.transitions, stats.max_time = state["transitions"], state["max_time"]
+        stats.max_depth, stats.initial_states = state["max_depth"], state["initial_states"]
+        stats.peak_memory = state["peak_memory"]
+        self._peak_before = state["peak_memory"]
+        adm.budget = state["budget"]
+        adm.bounds.update(Bound(b) for b in state["bounds"])
+        for v, idx, d in state["found"]:
+            res.found.append(Counterexample(v, idx, d))
+            adm.reported.add(v.identity)
+        if self.labels is not None and state["labels"] is not None:
+            self.labels.update(state["labels"])
+        if self.recorder is not None:
+            self.recorder.load({k[4:]: v for k, v in arrays.items() if k.startswith("rec_")},
+                               state["rec_complete"])
+        self._runaway_info = info = state["runaway_info"]
+        if info is not None and self.on_runaway is not None:
+            self.on_runaway(info)        # the note of the search before the checkpoint
+        return {"depth": state["depth"], "level": state["level"],
+                "level_idx": list(range(first, n)), "runaway": state["runaway"],
+                "seconds": state["seconds"]}
+
+    def _result(self, res: SearchResult, adm: "_Admission", t_start: float) -> SearchResult:
+        """The search's figures and verdict, and a trace per violation found."""
+        stats, bounds, found = res.stats, adm.bounds, res.found
+        stats.states = self.table.n
+        stats.seconds = _time.perf_counter() - t_start
+        stats.peak_memory = max(peak_rss_bytes(), getattr(self, "_peak_before", 0))
+        if not self.exact:
+            res.collision_probability = collision_bound(stats.states)
+        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
+        if res.status not in ("interrupted", OUT_OF_MEMORY):
+            if found:
+                res.status = "violation"
+            elif bounds:
+                res.status = "bounded"
+            else:
+                res.status = "exhaustive"
+        for f in found:
+            f.trace = self.replay(f.index)
+        return res
+
+    def _recorder(self, found: list, reported: set):
+        """``record(violations, state number, depth) -> stop?``: appends each
+        violation not reported before (by identity) to ``found``; True at the
+        first one unless ``find_all``."""
+        find_all = self.find_all
+
+        def record(viols, idx, d) -> bool:
+            for v in viols:
+                ident = v.identity
+                if ident in reported:
+                    continue
+                reported.add(ident)
+                found.append(Counterexample(v, idx, d))
+                if not find_all:
+                    return True
+            return False
+        return record
+
+    def peak_memory(self) -> int:
+        """Peak resident memory of the search so far (bytes)."""
+        return peak_rss_bytes()
+
+    # ------------------------------------------------------------------
+    def replay(self, idx: int) -> Trace:
+        """Rebuild the path to state number ``idx`` by replaying the model
+        from an initial state along the recorded state numbers."""
+        table = self.table
+        chain = []
+        while idx != -1:
+            chain.append(idx)
+            idx = table.parent(idx)
+        chain.reverse()
+        return self.replay_chain(chain)
+
+    def replay_chain(self, chain: list) -> Trace:
+        """Rebuild the path through the state numbers ``chain`` (from an
+        initial state; a lasso may visit a state twice)."""
+        m, table = self.model, self.table
+        key, key_of = m.key, table.key_of
+        state = None
+        for s in m.init_states():
+            if table.index_of(key_of(key(s))) == chain[0]:
+                state = s
+                break
+        if state is None:
+            raise ReplayError(
+                f"counterexample replay diverged at its initial state: no initial state of the "
+                f"model has the recorded identity (state #{chain[0]}); the model must be "
+                f"deterministic (init_states() must return the same states on every call)")
+        states, labels = [state], []
+        for step, want in enumerate(chain[1:], 1):
+            succ = m.successors(state)
+            for label, s2 in succ:
+                if table.index_of(key_of(key(s2))) == want:
+                    state = s2
+                    states.append(s2)
+                    labels.append(label)
+                    break
+            else:
+                raise ReplayError(
+                    f"counterexample replay diverged at step {step} of {len(chain) - 1}: none "
+                    f"of the {len(succ)} successors of the state reached after step {step - 1} "
+                    f"is the recorded state #{want}; the model must be deterministic "
+                    f"(successors() of equal states must be equal, in the same order)")
+        return Trace(tuple(states), tuple(labels))
+
+
+class _Admission:
+    """The pending batch of one search and its admission (:meth:`flush`).
+
+    The batch holds candidate states and, per expanded parent, its state
+    number and successor count.  Their keys are computed at admission with
+    one map() chain: no Python bytecode per transition.  Admitted states go
+    to the next level (:meth:`take_level`)."""
+
+    def __init__(self, ex: "Explorer", res: SearchResult):
+        self.ex = ex
+        self.table = ex.table
+        self.stats = res.stats
+        self.cs: list = []
+        self.par_idx: list = []
+        self.par_n: list = []
+        self.flags: dict = {}       # Bound -> first state number that met it, since the last flush
+        self.nxt: list = []         # the next level's states, in admission order
+        self.nxt_idx: list = []     # ... and their state numbers
+        self.bounds: set = set()
+        self.budget = ex.max_states if ex.max_states is not None else _MAX_STATES
+        self.res = res
+        #: identities of the violations reported (``--all`` reports each once)
+        self.reported: set = set()
+        self.record = ex._recorder(res.found, self.reported)
+        self.clock = getattr(ex.model, "clock", None)
+        key = ex.model.key
+        dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
+        twos = itertools.repeat(2)
+        if ex.exact:
+            def keys_of(states):
+                return map(dumps, map(key, states), twos)
+        else:
+            def keys_of(states):
+                return map(xxh, map(dumps, map(key, states), twos))
+        self.keys_of = keys_of
+
+    def out_of_memory(self) -> None:
+        """A MemoryError stopped the search: free the pending states."""
+        self.cs.clear()
+        self.nxt, self.nxt_idx = [], []
+
+    def take_level(self) -> tuple[list, list]:
+        """The states admitted since the last call, and their numbers."""
+        level, idx = self.nxt, self.nxt_idx
+        self.nxt, self.nxt_idx = [], []
+        return level, idx
+
+    def flush(self, d) -> bool:
+        """Admit the pending batch (successors at depth ``d``); True to stop."""
+        cs, par_idx, par_n, flags = self.cs, self.par_idx, self.par_n, self.flags
+        bounds, table, stats = self.bounds, self.table, self.stats
+        if not cs:
+            bounds.update(flags)
+            flags.clear()
+            return False
+        budget = self.budget
+        ck = list(self.keys_of(cs))   # one map() chain for the whole batch
+        n = len(ck)
+        # first occurrence of each key, in batch order (C-level dict build)
+        first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
+        first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
+        first.sort()
+        new = table.new_positions(ck, first).tolist()
+        base = table.n
+        cut = len(new)
+        halt = False
+        stop_at = None      # batch position of the candidate the search stops at
+        if cut > budget:
+            cut = budget
+            bounds.add(Bound.MAX_STATES)
+            halt = True
+            stop_at = new[budget]       # the first state that does not fit
+        states = [cs[p] for p in new[:cut]]
+        clock = self.clock
+        if clock is not None and cut:
+            t = max(map(clock, states[:cut]))
+            if stats.max_time is None or t > stats.max_time:
+                stats.max_time = t
+        viols = list(map(self.ex.model.violations, states))     # no bytecode per state
+        for j in itertools.compress(range(cut), viols):
+            if self.record(viols[j], base + j, d):
+                cut = j + 1
+                halt = True
+                stop_at = new[j]
+                break
+        owners = np.repeat(np.arange(len(par_n)), par_n)
+        rec = self.ex.recorder
+        if cut:
+            kept = np.asarray(new[:cut], dtype=np.int64)
+            pidx = np.asarray(par_idx, dtype=np.int64)
+            table.add(cut, pidx[owners[kept]])
+            self.nxt.extend(states[:cut] if cut < len(states) else states)
+            self.nxt_idx.extend(range(base, base + cut))
+            if rec is not None:
+                rec.states(states[:cut])
+        if rec is not None:
+            # each candidate's state number, from its key's first
+            # occurrence (looked up once, in new_positions): no second
+            # lookup of the batch in the table
+            num = table.found
+            num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
+            dst = num[np.searchsorted(first, np.fromiter(
+                map(first_of.__getitem__, ck), dtype=np.int64, count=n))]
+            src = np.asarray(par_idx, dtype=np.int64)[owners]
+            keep = src != _NO_PARENT
+            if getattr(rec, "wants_candidates", False):
+                # the successor states too (before the batch is cleared)
+                cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
+                rec.edges(src[keep], dst[keep], cands)
+            else:
+                rec.edges(src[keep], dst[keep])
+        self.budget = budget - cut
+        if stop_at is not None:
+            # the search stops right after expanding the parent of the
+            # candidate it stops at (as if parents were expanded one by one)
+            stop_parent = int(owners[stop_at])
+            stats.transitions += sum(par_n[:stop_parent + 1])
+            bounds.update(b for b, g in flags.items() if g <= par_idx[stop_parent])
+        else:
+            stats.transitions += n
+            bounds.update(flags)
+        flags.clear()
+        max_memory = self.ex.max_memory
+        if max_memory is not None and not halt and peak_rss_bytes() > max_memory:
+            bounds.add(Bound.MAX_MEMORY)
+            halt = True
+        cs.clear()
+        par_idx.clear()
+        par_n.clear()
+        return halt

@@ -1,0 +1,891 @@
+"""Temporal properties over the stored state graph (spec section 9).
+
+The breadth-first search (:class:`pccl.search.explorer.Explorer`) stays as it is;
+when a temporal property or the time-lock check asks for it, a
+:class:`GraphRecorder` rides along and keeps, in numpy arrays,
+
+* per transition: source and target state numbers (``uint32`` each: 8 bytes
+  per transition);
+* per state: whether it is a *dynamic* state (the phase after TIME ADVANCE:
+  an edge into a dynamic state is exactly a TIME ADVANCE, 1 byte), and only
+  when there are temporal properties a bit per predicate P, Q (``uint64``:
+  8 bytes) and, under ``nondet``, the agents whose ``doReach`` is still
+  under way (``uint64``, fair arrival).
+
+After the search everything is decided on these arrays, vectorised where it
+can be (breadth-first frontiers over CSR arrays), with an iterative Tarjan
+only over the part of the graph a liveness property can use:
+
+time-lock
+    states from which no dynamic state and no terminal state can be reached
+    (backward reachability over the reversed edges): from them time never
+    advances again, and some agent has not exited.  Zero-time cycles that
+    can be left reach a dynamic or terminal state, so they are not locks.
+``eventually P`` / ``P ~> Q``
+    a start state (an initial state, resp. a reachable state where P holds)
+    where Q (resp. P) is false, from which the states where it stays false
+    lead either to a terminal state or to a *fair accepting* cycle: a
+    strongly connected component of those states that contains a TIME
+    ADVANCE (zero-time cycles are time-locks, not liveness counterexamples)
+    and, for every agent, a state where that agent is not waiting for
+    ``nondet`` to let it arrive (fair arrival).  A component passes that
+    test exactly when it contains a fair cycle (walk it all).
+``P ~> Q within T``
+    a breadth-first search over (state, monitor clock) pairs, the clock
+    counting the time steps since the oldest P that Q has not answered yet
+    (0..T/δ); a larger clock dominates a smaller one, so each state keeps
+    only the largest clock it was reached with.  Exact in real time: the
+    clock is part of the searched state, so time abstraction stays sound.
+``reachable P``
+    the first state in breadth-first order where P holds (a shortest
+    witness), from the per-state bits.
+"""
+
+from __future__ import annotations
+
+import itertools
+import operator
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+import numpy as np
+
+from pccl.search.explorer import Counterexample
+from pccl.model.layout import AGS, DISCRETE, DONE, FAIL, PHASE, POS, REACH, TARGET
+
+__all__ = ["GraphRecorder", "analyse", "LivenessResult"]
+
+_CHUNK = 1 << 16
+
+
+class _Grow:
+    """A growable 1-D numpy array.  Like the explorer's visited table it
+    lives in a reserved, lazily committed mapping (only the pages written
+    count, and it never grows by copying); where that is not available it
+    grows by doubling."""
+
+    def __init__(self, dtype, cap: Optional[int] = None):
+        from pccl.search.explorer import _reserve, physical_memory
+        a = None
+        if cap is None:
+            cap = max(_CHUNK, physical_memory() // np.dtype(dtype).itemsize)
+            a = _reserve((cap,), dtype)
+        self.a = a if a is not None else np.empty(_CHUNK, dtype=dtype)
+        self.n = 0
+
+    def extend(self, x: np.ndarray) -> None:
+        k = len(x)
+        if self.n + k > len(self.a):
+            cap = max(self.n + k, 2 * len(self.a))
+            b = np.empty(cap, dtype=self.a.dtype)
+            b[:self.n] = self.a[:self.n]
+            self.a = b
+        self.a[self.n:self.n + k] = x
+        self.n += k
+
+    def view(self) -> np.ndarray:
+        return self.a[:self.n]
+
+    def release(self) -> None:
+        self.a = np.empty(0, dtype=self.a.dtype)
+        self.n = 0
+
+
+_phase = operator.itemgetter(PHASE)
+
+
+def _pending_mask(st) -> int:
+    """Agents whose doReach is under way (nondet may still let them arrive)."""
+    m = 0
+    for i, ag in enumerate(st[AGS]):
+        reach = ag[REACH]
+        t, pos = reach[TARGET], ag[POS]
+        if (t is not None and not reach[DONE] and not reach[FAIL]
+                and (pos[0] != t[0] or pos[1] != t[1])):
+            m |= 1 << i
+    return m
+
+
+class StateColumns:
+    """The per-state part of the graph, as a pure function of the states:
+    ``columns(states)`` returns one array per recorded column (dynamic or
+    not; the property bits, with temporal properties; the pending
+    doReach agents, under fair arrival).  Small and picklable (the
+    properties' closures travel as the model does), so that the workers of
+    the parallel search compute the columns of the states they hold."""
+
+    def __init__(self, props=(), fairness: bool = False, sig_of=None):
+        self.props = list(props)
+        self.fairness = fairness
+        #: the stall check's signature hash (pccl/model/stall.py), or None
+        self.sig_of = sig_of
+
+    def dtypes(self) -> list:
+        return [np.uint8] + ([np.uint64] if self.props else []) + \
+            ([np.uint64] if self.fairness else []) + ([np.int64] if self.sig_of else [])
+
+    def changed(self, st, succ_states) -> bool:
+        """Does some transition out of ``st`` (to the actual successor
+        states, before any renaming) change the stall signature?"""
+        sig = self.sig_of
+        here = sig(st)
+        return any(sig(t) != here for t in succ_states)
+
+    def __call__(self, states: list) -> list:
+        n = len(states)
+        phase = np.fromiter(map(_phase, states), dtype=np.int64, count=n)
+        cols = [(phase != DISCRETE).astype(np.uint8)]
+        if self.props:
+            vals = np.zeros(n, dtype=np.uint64)
+            for k, p in enumerate(self.props):
+                for fn, b in ((p.p, 2 * k), (p.q, 2 * k + 1)):
+                    if fn is None:
+                        continue
+                    col = np.fromiter((_holds(fn, s) for s in states), dtype=bool, count=n)
+                    vals |= col.astype(np.uint64) << np.uint64(b)
+            cols.append(vals)
+        if self.fairness:
+            cols.append(np.fromiter(map(_pending_mask, states), dtype=np.uint64, count=n))
+        if self.sig_of is not None:
+            cols.append(np.fromiter(map(self.sig_of, states), dtype=np.int64, count=n))
+        return cols
+
+
+class GraphRecorder:
+    """Collects the state graph during a search (see the module docstring)."""
+
+    def __init__(self, model, props=(), fairness: bool = False, stall: bool = False):
+        self.model = model
+        self.props = list(props)
+        if 2 * len(self.props) > 64:
+            raise ValueError("at most 32 temporal properties at a time")
+        self.fairness = fairness and model.N <= 64
+        sig_of = None
+        if stall:
+            from pccl.model.stall import signature_fn
+            sig_of = signature_fn(model)
+        #: the per-state columns (the parallel search runs it in its workers)
+        self.columns = StateColumns(self.props, self.fairness, sig_of)
+        self.src = _Grow(np.uint32)
+        self.dst = _Grow(np.uint32)
+        self.dyn = _Grow(np.uint8)
+        self.bits = _Grow(np.uint64) if self.props else None
+        self.pend = _Grow(np.uint64) if self.fairness else None
+        self.complete = True
+        # the stall check (pccl/model/stall.py): per state its signature's hash and
+        # whether some transition out of it changes the signature
+        self.sig_of: Any = None
+        self.sig: Optional[_Grow] = None
+        self.chg: Optional[_Grow] = None
+        #: edges() wants the successor states themselves: under symmetry a
+        #: state number stands for a renamed state, so a transition's change
+        #: is decided on the actual successor
+        self.wants_candidates = False
+        #: the parallel search computes the changes in its workers
+        #: (:meth:`put_changes`), not from the edges
+        self.changes_given = False
+        if stall:
+            self.sig_of = sig_of
+            self.sig = _Grow(np.int64)
+            self.chg = _Grow(np.uint8)
+            red = getattr(model, "reduction", None)
+            self.wants_candidates = "symmetry" in getattr(red, "on", ())
+
+    def _grows(self) -> list:
+        return [g for g in (self.dyn, self.bits, self.pend, self.sig) if g is not None]
+
+    def put_changes(self, n: int, idx: list, flags: list) -> None:
+        """The stall check's per-state "some transition changes the team"
+        flags, computed where the states were expanded (the workers)."""
+        if self.chg is None:
+            return
+        full = np.zeros(n, dtype=np.uint8)
+        for ix, fl in zip(idx, flags):
+            full[ix] = fl
+        self.chg.release()
+        self.chg.extend(full)
+
+    # -- called by the explorer -------------------------------------------------
+    def states(self, states: list) -> None:
+        """The states just admitted, in state-number order."""
+        for grow, col in zip(self._grows(), self.columns(states)):
+            grow.extend(col)
+        if self.chg is not None:
+            self.chg.extend(np.zeros(len(states), dtype=np.uint8))
+
+    def put_states(self, n: int, idx: list, cols: list) -> None:
+        """The columns of all ``n`` states at once, in any order: ``idx[j]``
+        the state numbers whose columns are ``cols[j]`` (the parallel search:
+        one part per worker).  A state no part names stays 0."""
+        for c, (grow, dtype) in enumerate(zip(self._grows(), self.columns.dtypes())):
+            full = np.zeros(n, dtype=dtype)
+            for ix, cs in zip(idx, cols):
+                full[ix] = cs[c]
+            grow.release()
+            grow.extend(full)
+
+    def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None) -> None:
+        """Transitions by state number (``dst`` -1: a successor not admitted);
+        ``cands``: the successor states, when :attr:`wants_candidates`."""
+        ok = (dst >= 0) & (src >= 0)
+        if not ok.all():
+            if (dst < 0).any():
+                self.complete = False
+            src, dst = src[ok], dst[ok]
+            if cands is not None:
+                cands = list(itertools.compress(cands, ok.tolist()))
+        if self.sig is not None and self.chg is not None and len(src) and not self.changes_given:
+            sig = self.sig.view()
+            if self.wants_candidates:
+                assert cands is not None, "the recorder needs the successor states"
+                to = np.fromiter(map(self.sig_of, cands), dtype=np.int64, count=len(cands))
+            else:
+                to = sig[dst]
+            changed = to != sig[src]
+            if changed.any():
+                self.chg.view()[src[changed]] = 1
+        self.src.extend(src.astype(np.uint32))
+        self.dst.extend(dst.astype(np.uint32))
+
+    # -- checkpoints (pccl/search/checkpoint.py) -------------------------------------------
+    def _columns(self) -> dict:
+        return {name: g for name, g in (("dyn", self.dyn), ("bits", self.bits),
+                                        ("pend", self.pend), ("sig", self.sig),
+                                        ("chg", self.chg)) if g is not None}
+
+    def dump(self, n: int, edges: int) -> dict:
+        """The graph as it stood when a level was about to be expanded: ``n``
+        states, ``edges`` transitions.  (The stall check's change flags a
+        partial expansion of that level set are kept: the resumed search
+        expands the level again and sets exactly those.)"""
+        out = {"src": self.src.view()[:edges], "dst": self.dst.view()[:edges]}
+        for name, g in self._columns().items():
+            out[name] = g.view()[:n]
+        return out
+
+    def load(self, arrays: dict, complete: bool) -> None:
+        """Fill an empty recorder from :meth:`dump`'s arrays."""
+        want = {"src", "dst", *self._columns()}
+        if set(arrays) != want:
+            raise ValueError(f"the recorded graph holds {', '.join(sorted(arrays)) or 'nothing'}, "
+                             f"this search records {', '.join(sorted(want))}")
+        self.src.extend(arrays["src"])
+        self.dst.extend(arrays["dst"])
+        for name, g in self._columns().items():
+            if arrays[name].dtype != g.a.dtype:
+                raise ValueError(f"the recorded column {name} has the wrong type")
+            g.extend(arrays[name])
+        self.complete = bool(complete)
+
+    # -- the graph ---------------------------------------------------------------
+    def freeze(self, n: int) -> "Graph":
+        """The graph in CSR form (no copy when the edges came by source, as
+        the breadth-first search records them)."""
+        src, dst = self.src.view(), self.dst.view()
+        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
+            order = np.argsort(src, kind="stable")
+            src, dst = src[order], dst[order]
+            del order
+        return Graph(n, None, dst, src, self.dyn.view()[:n].astype(bool),
+                     None if self.bits is None else self.bits.view()[:n],
+                     None if self.pend is None else self.pend.view()[:n])
+
+
+def _holds(fn, st) -> bool:
+    try:
+        return bool(fn(st))
+    except Exception:        # a runtime error in a property: it does not hold
+        return False
+
+
+class Graph:
+    """The recorded graph in CSR form (forward, and reversed on demand)."""
+
+    def __init__(self, n, fptr, fdst, esrc, dyn, bits, pend):
+        self.n = n
+        self._fptr, self.fdst = fptr, fdst
+        self.esrc = esrc                  # the source of each edge, aligned with fdst
+        self._rev = None
+        self.dyn = dyn
+        self.bits = bits
+        self.pend = pend
+        self.terminal = np.ones(n, dtype=bool)
+        self.terminal[esrc] = False
+
+    @property
+    def fptr(self) -> np.ndarray:
+        """Forward CSR offsets (8 bytes per state), built on first use: the
+        time-lock check alone does not need them."""
+        if self._fptr is None:
+            fptr = np.zeros(self.n + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.esrc, minlength=self.n), out=fptr[1:])
+            self._fptr = fptr
+        return self._fptr
+
+    def bit(self, b: int) -> np.ndarray:
+        return ((self.bits >> np.uint64(b)) & np.uint64(1)).astype(bool)
+
+    def rev(self):
+        """The reversed CSR arrays, built on first use (an argsort: 8 bytes
+        per transition while it runs, 4 kept)."""
+        if self._rev is None:
+            order = np.argsort(self.fdst, kind="stable")
+            rsrc = self.esrc[order]
+            del order
+            rptr = np.zeros(self.n + 1, dtype=np.int64)
+            np.cumsum(np.bincount(self.fdst, minlength=self.n), out=rptr[1:])
+            self._rev = (rptr, rsrc)
+        return self._rev
+
+    def can_reach(self, goal: np.ndarray, rounds: int = 64) -> np.ndarray:
+        """The states from which some state of ``goal`` can be reached.  A few
+        vectorised relaxation rounds over the edge arrays (no reversed graph:
+        about 3 bytes per transition while it runs) settle it when every
+        state is close to the goal, as within a time step; otherwise the
+        rest is a backward search over the reversed graph."""
+        can = goal.copy()
+        src, dst = self.esrc, self.fdst
+        for _ in range(rounds):
+            hit = can[dst]
+            hit &= ~can[src]
+            if not hit.any():
+                return can
+            can[src[hit]] = True
+        return self.reach(np.flatnonzero(can), backward=True)
+
+    def succ(self, v: int) -> np.ndarray:
+        return self.fdst[self.fptr[v]:self.fptr[v + 1]]
+
+    @staticmethod
+    def _gather(ptr, targets, frontier):
+        starts = ptr[frontier]
+        counts = ptr[frontier + 1] - starts
+        total = int(counts.sum())
+        if not total:
+            return np.empty(0, dtype=np.int64), counts
+        offs = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(total)
+        return targets[offs].astype(np.int64), counts
+
+    def reach(self, seeds: np.ndarray, allowed: Optional[np.ndarray] = None, *,
+              backward: bool = False) -> np.ndarray:
+        """States reachable from ``seeds`` (forward, or backward: that can
+        reach them) through ``allowed`` states only."""
+        ptr, tgt = self.rev() if backward else (self.fptr, self.fdst)
+        seen = np.zeros(self.n, dtype=bool)
+        seeds = np.asarray(seeds, dtype=np.int64)
+        if allowed is not None:
+            seeds = seeds[allowed[seeds]]
+        seen[seeds] = True
+        frontier = np.unique(seeds)
+        while frontier.size:
+            nxt, _ = self._gather(ptr, tgt, frontier)
+            if allowed is not None:
+                nxt = nxt[allowed[nxt]]
+            nxt = nxt[~seen[nxt]]
+            nxt = np.unique(nxt)
+            seen[nxt] = True
+            frontier = nxt
+        return seen
+
+    def path(self, start: int, goal: np.ndarray, allowed: np.ndarray) -> list:
+        """A shortest path ``[start, ..., g]`` through ``allowed`` states to a
+        state of ``goal`` (boolean mask); ``start`` itself counts."""
+        if goal[start]:
+            return [start]
+        parent = {start: -1}
+        frontier = [start]
+        while frontier:
+            nxt = []
+            for v in frontier:
+                for w in self.succ(v).tolist():
+                    if w in parent or not allowed[w]:
+                        continue
+                    parent[w] = v
+                    if goal[w]:
+                        out = [w]
+                        while parent[out[-1]] != -1:
+                            out.append(parent[out[-1]])
+                        return out[::-1]
+                    nxt.append(w)
+            frontier = nxt
+        return []
+
+    def sccs(self, nodes: np.ndarray, allowed: np.ndarray) -> tuple:
+        """Strongly connected components of the subgraph induced by
+        ``allowed``, for the states ``nodes`` (iterative Tarjan).  Returns
+        ``(comp, nontrivial)``: the component id per state (-1 outside) and
+        per component whether it has a cycle."""
+        n = self.n
+        index = np.full(n, -1, dtype=np.int64)
+        low = np.zeros(n, dtype=np.int64)
+        comp = np.full(n, -1, dtype=np.int64)
+        onstack = np.zeros(n, dtype=bool)
+        stack: list = []
+        nontrivial: list = []
+        counter = 0
+        fptr, fdst = self.fptr, self.fdst
+        for root in nodes.tolist():
+            if index[root] >= 0:
+                continue
+            work = [(root, int(fptr[root]))]
+            index[root] = low[root] = counter
+            counter += 1
+            stack.append(root)
+            onstack[root] = True
+            while work:
+                v, e = work[-1]
+                end = int(fptr[v + 1])
+                descended = False
+                while e < end:
+                    w = int(fdst[e])
+                    e += 1
+                    if not allowed[w]:
+                        continue
+                    if index[w] < 0:
+                        work[-1] = (v, e)
+                        index[w] = low[w] = counter
+                        counter += 1
+                        stack.append(w)
+                        onstack[w] = True
+                        work.append((w, int(fptr[w])))
+                        descended = True
+                        break
+                    if onstack[w] and index[w] < low[v]:
+                        low[v] = index[w]
+                if descended:
+                    continue
+                work.pop()
+                if work:
+                    u = work[-1][0]
+                    if low[v] < low[u]:
+                        low[u] = low[v]
+                if low[v] == index[v]:
+                    cid = len(nontrivial)
+                    size = 0
+                    while True:
+                        w = stack.pop()
+                        onstack[w] = False
+                        comp[w] = cid
+                        size += 1
+                        if w == v:
+                            break
+                    cyc = size > 1
+                    if not cyc:
+                        s = self.succ(v)
+                        cyc = bool((s == v).any())
+                    nontrivial.append(cyc)
+        return comp, np.asarray(nontrivial, dtype=bool)
+
+    def cycle_through(self, c: int, comp: np.ndarray, musts: list) -> list:
+        """A cycle ``[c, ..., c]`` inside c's component visiting, in order, a
+        state of each mask in ``musts``."""
+        inside = comp == comp[c]
+        out = [c]
+        cur = c
+        for mask in musts:
+            goal = mask & inside
+            if goal[cur]:
+                continue
+            p = self.path(cur, goal, inside)
+            out.extend(p[1:])
+            cur = out[-1]
+        # back to c: a path of at least one step
+        best = None
+        for w in self.succ(cur).tolist():
+            if not inside[w]:
+                continue
+            goal = np.zeros(self.n, dtype=bool)
+            goal[c] = True
+            p = self.path(w, goal, inside)
+            if p and (best is None or len(p) < len(best)):
+                best = p
+        out.extend(best or [])
+        return out
+
+
+# ---------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TemporalViolation:
+    """A temporal verdict that fails: ``kind`` is ``liveness``, ``response``,
+    ``unreachable``, ``timelock`` or ``stall``."""
+    kind: str
+    name: str
+    message: str
+    agent: Optional[int] = None
+    span: object = None
+    loops: tuple = ()            # time-lock: (agent, (lines...)) per looping agent
+    waits: tuple = ()            # stall: (agent, what it waits on) per running agent
+
+    @property
+    def identity(self):
+        return (self.kind, self.name)
+
+
+@dataclass
+class LivenessResult:
+    found: list = field(default_factory=list)        # [Counterexample] (with cycle_start)
+    witnesses: list = field(default_factory=list)    # [(property, Counterexample)]
+    holds: list = field(default_factory=list)        # names of properties that hold
+    notes: list = field(default_factory=list)        # what could not be decided, and why
+
+
+#: Blackboxes under which a robot may stay under way at every step; liveness
+#: assumes it settles (arrives or fails) eventually, as physical robots do.
+FAIR_ARRIVAL_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
+
+
+def wants_graph(model, timelock: bool, stall: bool = False) -> bool:
+    return timelock or stall or bool(getattr(model, "temporal", ()))
+
+
+def make_recorder(model, timelock: bool, stall: bool = False) -> Optional[GraphRecorder]:
+    if not wants_graph(model, timelock, stall):
+        return None
+    props = list(model.temporal)
+    fair = (getattr(model.blackbox, "name", None) in FAIR_ARRIVAL_BLACKBOXES
+            and any(p.liveness for p in props))
+    return GraphRecorder(model, props, fairness=fair, stall=stall)
+
+
+def _chain_to(table, idx: int) -> list:
+    chain = []
+    while idx != -1:
+        chain.append(idx)
+        idx = table.parent(idx)
+    return chain[::-1]
+
+
+def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
+            find_all: bool = False, stall: bool = False) -> LivenessResult:
+    """Decide the temporal properties, the time-lock check and the stall
+    check on the graph ``rec`` recorded during the search ``sr``."""
+    from pccl.search.explorer import Bound
+    out = LivenessResult()
+    table = explorer.table
+    n = table.n
+    complete = rec.complete and sr.status in ("exhaustive", "bounded") and all(
+        b in (Bound.MODEL,) for b in sr.bounds_hit)
+    depth_only = rec.complete and sr.status == "bounded" and all(
+        b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
+    if sr.status in ("violation", "interrupted", "out-of-memory"):
+        if rec.props:
+            out.notes.append("temporal properties not checked: the search stopped at "
+                             + {"violation": "a violation", "interrupted": "an interrupt",
+                                "out-of-memory": "out of memory"}[sr.status])
+        return out
+    g = rec.freeze(n)
+    n_init = sr.stats.initial_states
+    props = rec.props
+
+    def lasso(prefix_chain: list, cycle: Optional[list]):
+        chain = prefix_chain + (cycle[1:] if cycle else [])
+        start = len(prefix_chain) - 1 if cycle else None
+        return chain, start
+
+    def record(v, chain, cycle_start):
+        cx = Counterexample(v, chain[-1] if chain else -1, max(0, len(chain) - 1))
+        cx.chain = chain
+        cx.cycle_start = cycle_start
+        out.found.append(cx)
+
+    # -- reachable: witnesses from the bits (BFS order: shortest) ----------------
+    for k, p in enumerate(props):
+        if p.kind != "reachable":
+            continue
+        hits = np.flatnonzero(g.bit(2 * k))
+        if hits.size:
+            cx = Counterexample(None, int(hits[0]), 0)
+            cx.chain = _chain_to(table, int(hits[0]))
+            cx.depth = len(cx.chain) - 1
+            cx.cycle_start = None
+            out.witnesses.append((p, cx))
+            out.holds.append(p.name)
+        else:
+            where = "" if complete else " within the bounds (the search was not exhaustive)"
+            v = TemporalViolation("unreachable", p.name,
+                                  f"unreachable: no reachable state satisfies `{p.text}`{where}",
+                                  None, p.span)
+            record(v, [], None)
+
+    # -- P ~> Q within T: (state, clock) search ----------------------------------
+    for k, p in enumerate(props):
+        if p.kind != "within":
+            continue
+        res = _bounded_response(g, table, n_init, g.bit(2 * k), g.bit(2 * k + 1), p.ticks)
+        if res is None:
+            out.holds.append(p.name)
+        else:
+            v = TemporalViolation("response", p.name,
+                                  f"bounded response `{p.name}` violated: more than "
+                                  f"{_fmt(p.bound)} time units pass after P without Q",
+                                  None, p.span)
+            record(v, res[0], None)
+            out.found[-1].p_at = res[1]
+            if not find_all:
+                return out
+
+    # -- liveness ----------------------------------------------------------------
+    live = [(k, p) for k, p in enumerate(props) if p.liveness]
+    if live and not (complete or depth_only):
+        out.notes.append("liveness properties not checked: the search did not finish "
+                         "(" + ", ".join(b.value for b in sr.bounds_hit) + ")")
+        live = []
+    elif live and not complete:
+        out.notes.append("liveness properties not checked: the search was bounded by --depth")
+        live = []
+    for k, p in live:
+        qmask = g.bit(2 * k) if p.kind == "eventually" else g.bit(2 * k + 1)
+        if p.kind == "eventually":
+            starts = np.zeros(n, dtype=bool)
+            starts[:n_init] = True
+        else:
+            starts = g.bit(2 * k)
+        res = _leadsto(g, starts, qmask, model.N if rec.fairness else 0)
+        if res is None:
+            out.holds.append(p.name)
+            continue
+        s, path, cycle, terminal = res
+        prefix = _chain_to(table, s)[:-1] + path
+        chain, cstart = lasso(prefix, cycle)
+        what = "P" if p.kind == "leadsto" else ""
+        if terminal:
+            tail = "a run ends (terminal state) without it ever holding"
+        else:
+            tail = "a run loops forever, time advancing, without it ever holding"
+        if p.kind == "eventually":
+            msg = f"liveness `{p.name}` violated: {tail}"
+        else:
+            msg = (f"leads-to `{p.name}` violated: P holds at step {len(_chain_to(table, s)) - 1}, "
+                   f"then Q never holds ({'the run ends' if terminal else 'the run loops forever'})")
+        del what
+        v = TemporalViolation("liveness", p.name, msg, None, p.span)
+        record(v, chain, cstart)
+        if not find_all:
+            return out
+
+    # -- time-lock -------------------------------------------------------------------
+    if timelock and (complete or depth_only):
+        escape = g.dyn | g.terminal
+        can = g.can_reach(escape)
+        locked = ~can
+        if locked.any():
+            s = int(np.flatnonzero(locked)[0])
+            comp, nontrivial = g.sccs(g.reach(np.asarray([s]), locked).nonzero()[0], locked)
+            in_cycle = np.zeros(n, dtype=bool)
+            ok = comp >= 0
+            in_cycle[ok] = nontrivial[comp[ok]]
+            path = g.path(s, in_cycle, locked)
+            c = path[-1]
+            cycle = g.cycle_through(c, comp, [])
+            chain, cstart = lasso(_chain_to(table, s)[:-1] + path, cycle)
+            v = TemporalViolation("timelock", "time-lock",
+                                  "time-lock: time can never advance again, though not every "
+                                  "agent has exited (a zero-time cycle that cannot be left)")
+            record(v, chain, cstart)
+
+    # -- stall -----------------------------------------------------------------------
+    if stall and rec.chg is not None and (complete or depth_only) \
+            and (find_all or not out.found):
+        s = _first_stalled(g, rec.chg.view()[:n].astype(bool))
+        if s is not None:
+            v = TemporalViolation("stall", "stall", STALL_MESSAGE)
+            record(v, _chain_to(table, s), None)
+    return out
+
+
+#: The verdict of a stall, before attach_traces adds what each agent waits on.
+STALL_MESSAGE = ("stall: the team can never change again (no variable, position or flag), "
+                 "though not every agent has exited and time goes on")
+
+
+def _first_stalled(g: "Graph", changes: np.ndarray) -> Optional[int]:
+    """The first stalled state in search order (breadth-first: a shortest
+    path): a state that reaches no transition changing the signature
+    (``changes``: the states with such a transition out), no terminal state
+    and no state from which time can never advance (a time-lock, reported as
+    such), or None.  Every state it reaches is stalled too, and, the graph
+    being finite, it reaches a cycle through TIME ADVANCE."""
+    bad = g.terminal | changes
+    bad |= ~g.can_reach(g.dyn)
+    stalled = ~g.can_reach(bad)
+    hits = np.flatnonzero(stalled)
+    return int(hits[0]) if hits.size else None
+
+
+def _fmt(x) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int):
+    """A counterexample to ``starts ~> Q``: ``(s, path, cycle, terminal)``
+    with ``path`` from s through not-Q states to a bad state (a terminal one,
+    or the entry of a fair accepting cycle ``cycle``), or None."""
+    allowed = ~qmask
+    seeds = np.flatnonzero(starts & allowed)
+    if not seeds.size:
+        return None
+    region = g.reach(seeds, allowed)                 # not-Q states reachable from a start
+    nodes = np.flatnonzero(region)
+    comp, nontrivial = g.sccs(nodes, region)
+    ncomp = len(nontrivial)
+    ok = comp >= 0
+    accepting = nontrivial.copy()
+    if ncomp:
+        has_dyn = np.zeros(ncomp, dtype=bool)
+        np.logical_or.at(has_dyn, comp[ok], g.dyn[ok])
+        accepting &= has_dyn
+        fair_masks = []
+        for a in range(n_fair):
+            idle = ((g.pend >> np.uint64(a)) & np.uint64(1)) == 0
+            has_idle = np.zeros(ncomp, dtype=bool)
+            np.logical_or.at(has_idle, comp[ok], idle[ok])
+            accepting &= has_idle
+            fair_masks.append(idle)
+    bad_cycle = np.zeros(g.n, dtype=bool)
+    bad_cycle[ok] = accepting[comp[ok]]
+    bad = bad_cycle | (region & g.terminal)
+    if not bad.any():
+        return None
+    coreach = g.reach(np.flatnonzero(bad), region, backward=True)
+    cand = np.flatnonzero(starts & coreach)
+    if not cand.size:
+        return None
+    s = int(cand[0])
+    path = g.path(s, bad, region)
+    b = path[-1]
+    if g.terminal[b] and not bad_cycle[b]:
+        return s, path, None, True
+    musts = [g.dyn] + [m for m in fair_masks]
+    cycle = g.cycle_through(b, comp, musts)
+    return s, path, cycle, False
+
+
+def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):
+    """A shortest path violating ``P ~> Q within T`` (T = ticks time steps):
+    ``(chain, index of the P step)`` or None.  Breadth-first over (state,
+    clock); clock -1 is idle, 0..ticks the time steps since the oldest
+    unanswered P; a state keeps the largest clock it was reached with."""
+    n = g.n
+    best = np.full(n, -2, dtype=np.int64)
+    init = np.arange(n_init, dtype=np.int64)
+    ids: Any
+    c0 = np.where(pmask[init] & ~qmask[init], 0, -1)
+    node_state = [init]
+    node_clock = [c0]
+    node_parent = [np.full(n_init, -1, dtype=np.int64)]
+    best[init] = c0
+    base = 0
+    front_s, front_c, front_id = init, c0, np.arange(n_init, dtype=np.int64)
+    total = n_init
+    while front_s.size:
+        dst, counts = g._gather(g.fptr, g.fdst, front_s)
+        if not dst.size:
+            break
+        c = np.repeat(front_c, counts)
+        par = np.repeat(front_id, counts)
+        tick = g.dyn[dst]
+        c = np.where((c >= 0) & tick, c + 1, c)
+        viol = c > ticks
+        if viol.any():
+            j = int(np.flatnonzero(viol)[0])
+            ids = [int(par[j])]
+            states = np.concatenate(node_state)
+            parents = np.concatenate(node_parent)
+            clocks = np.concatenate(node_clock)
+            while parents[ids[-1]] >= 0:
+                ids.append(int(parents[ids[-1]]))
+            ids.reverse()
+            chain_states = [int(states[i]) for i in ids] + [int(dst[j])]
+            # the step at which the unanswered P began: the last idle -> 0
+            p_at = 0
+            for pos, i in enumerate(ids):
+                if clocks[i] == 0 and (pos == 0 or clocks[ids[pos - 1]] == -1):
+                    p_at = pos
+            prefix = _chain_to(table, chain_states[0])[:-1]
+            return prefix + chain_states, len(prefix) + p_at
+        c = np.where(qmask[dst], -1, c)
+        c = np.where((c == -1) & pmask[dst] & ~qmask[dst], 0, c)
+        better = c > best[dst]
+        dst, c, par = dst[better], c[better], par[better]
+        if not dst.size:
+            break
+        # one node per state: the largest clock (first such in order)
+        order = np.lexsort((np.arange(len(dst)), -c, dst))
+        dst, c, par = dst[order], c[order], par[order]
+        first = np.ones(len(dst), dtype=bool)
+        first[1:] = dst[1:] != dst[:-1]
+        dst, c, par = dst[first], c[first], par[first]
+        best[dst] = c
+        ids = np.arange(total, total + len(dst), dtype=np.int64)
+        total += len(dst)
+        node_state.append(dst)
+        node_clock.append(c)
+        node_parent.append(par)
+        front_s, front_c, front_id = dst, c, ids
+    del base
+    return None
+
+
+def loops_of(model, steps) -> list:
+    """For a cycle's steps: ``[(agent, [source lines])]`` of the agents that
+    take steps in it."""
+    from pccl.output.display import label_info
+    by: dict = {}
+    for st in steps:
+        info = label_info(model, st.label, st.before)
+        a = info["agent"]
+        if a is None:
+            continue
+        lines = by.setdefault(a, [])
+        if info["line"] and info["line"] not in lines:
+            lines.append(info["line"])
+    return sorted((a, sorted(ls)) for a, ls in by.items())
+
+
+def attach_traces(model, explorer, lv: LivenessResult) -> None:
+    """Replay the recorded state numbers of every counterexample and witness
+    into real traces (statement by statement under statement merging)."""
+    import dataclasses
+    from pccl.search.explorer import Trace
+    from pccl.model.reduce import expand_trace
+
+    def replay(chain):
+        tr = explorer.replay_chain(chain)
+        return expand_trace(model, tr) if getattr(model, "merger", None) else tr
+
+    for cx in lv.found:
+        if not cx.chain:
+            cx.trace = None
+            continue
+        tr = replay(cx.chain)
+        if cx.cycle_start is not None:
+            pre = replay(cx.chain[:cx.cycle_start + 1])
+            cx.cycle_start = len(pre)
+            if cx.violation.kind == "timelock":
+                loops = loops_of(model, tr.steps[cx.cycle_start:])
+                parts = [f"agent {a} (line{'s' if len(ls) > 1 else ''} "
+                         f"{', '.join(map(str, ls))})" for a, ls in loops]
+                loop = (tuple((a, tuple(ls)) for a, ls in loops))
+                cx.violation = dataclasses.replace(
+                    cx.violation, loops=loop,
+                    message=cx.violation.message + "; looping: " + ", ".join(parts),
+                    agent=loops[0][0] if loops else None)
+        if cx.violation.kind == "stall":
+            from pccl.model.stall import waiting, waiting_text
+            waits = waiting(model, tr.last)
+            cx.violation = dataclasses.replace(
+                cx.violation, waits=tuple(waits),
+                message=cx.violation.message + ("; " + waiting_text(waits) if waits else ""),
+                agent=waits[0][0] if waits else None)
+        cx.trace = Trace(tr.states, tr.labels)
+        cx.depth = len(tr)
+    for _, cx in lv.witnesses:
+        cx.trace = replay(cx.chain)
+        cx.depth = len(cx.trace)
+
+
+__all__ += ["TemporalViolation", "make_recorder", "wants_graph", "loops_of"]
+_ = operator

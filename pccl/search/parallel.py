@@ -1,0 +1,1089 @@
+"""Parallel breadth-first search: ``--workers N`` processes on one machine,
+or ``--ray ADDRESS`` actors on a Ray cluster.
+
+The design (TLC's and PReach's, adapted to CPython processes):
+
+* **Partitioned fingerprints.**  Worker ``w`` owns the fingerprints whose
+  low 64 bits are ``w`` modulo ``N`` (fingerprints are canonical, so every
+  process agrees on owners) in its own :class:`FingerprintTable`, storing
+  the *global* state number in the table's parent slot.
+* **States stay where they were generated.**  Each worker expands its share
+  of the current level and keeps the new states it generated; only
+  fingerprints and 8-byte ordering keys travel, never states (except the
+  initial states, handed out once).
+* **Level-synchronous, with the serial order.**  A candidate successor's key
+  is ``(parent number << 24) | position among the parent's successors``:
+  the order in which the one-process search meets it.  An owner keeps, of
+  equal fingerprints, the smallest key; the coordinator sorts the new
+  states' keys, which numbers them exactly as the one-process search does.
+  Stop events (a violation, a deadlock, the ``--max-states`` budget) are
+  ordered by the same keys, so states, transitions, depth, verdict and the
+  very counterexample equal those of ``workers=1``.
+
+Per level the coordinator makes two rounds with every worker:
+
+1. ``step``: *commit* the previous level (owners record the numbers of the
+   states they own; generators keep the states they won as their level),
+   then *expand* it: successors, their fingerprints, deduplicated locally
+   (and, for the fingerprints a worker owns itself, filtered against its
+   own table), grouped by owner, and the keys of the candidates that
+   violate a property (checked once per distinct fingerprint: equal keys
+   have equal violations).  The candidates a worker owns itself stay with
+   it; only the others travel.
+2. ``decide``: owners answer which candidates are new (smallest key first).
+
+The coordinator then numbers the new states, orders the stop events and
+sends each worker its share of the decision with the next ``step``.
+
+The partitioning code (:class:`_Worker`, the coordinator loop) is
+engine-neutral; a *transport* moves the two rounds:
+
+* :class:`_Pipes` (``--workers N``): worker 0 runs inside the coordinator
+  process, workers 1..N-1 are forked processes behind
+  :mod:`multiprocessing` pipes.  The two rounds of a level are pipelined
+  (an owner's ``decide`` goes out as soon as the coordinator holds the
+  other generators' candidates for it: with two workers, right after
+  worker 0's step); a process polls for its next message for a while
+  before it blocks, and frees the states it discarded while it waits.
+* :class:`_RayTransport` (``--ray``): one Ray actor per partition; the
+  arguments and replies of a round travel through Ray's object store, and
+  the candidates go from their generator to their owner as object
+  references (actor to actor; the coordinator fetches only the small part
+  of each reply).
+
+The coordinator holds the global parent links (4 bytes per state) and
+replays counterexamples, asking owners for state numbers.
+
+With a recorder (the time-lock check, temporal properties: see
+:mod:`pccl.search.liveness`) each worker also records the transitions it
+generated (source number, target fingerprint) and the recorder's columns of
+the states it held; after an exhaustive or bounded search the coordinator
+gathers them (:meth:`ParallelExplorer._gather_graph`), so that the analysis
+runs on the graph the one-process search records.
+
+Signals: the workers ignore SIGINT and SIGTERM and die with the
+coordinator (:func:`_serve`); the coordinator acts on a signal between
+levels (:class:`_Signals`).
+"""
+
+from __future__ import annotations
+
+import gc
+import itertools
+import marshal
+import multiprocessing
+import operator
+import os
+import signal
+import time as _time
+from typing import Any, Optional
+
+import numpy as np
+import xxhash
+
+from pccl.search.explorer import (Bound, Explorer, FingerprintTable, SearchResult, Stats, _MAX_STATES, _reserve,
+                                  collision_bound, fingerprint, peak_rss_bytes)
+
+__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "import_ray"]
+
+_SHIFT = 24                     # successors per state < 2**24
+_NONE = 0xFFFF_FFFF
+
+#: The message when ``--ray`` is asked for without Ray installed.
+def _ray_hint() -> str:
+    """pccl.lang.errors.install_hint("ray"), spelt here: this module imports only
+    generic modules (tests/test_architecture.py)."""
+    import os
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    if os.path.isfile(os.path.join(root, "pyproject.toml")):
+        return f"pip install -e '{root}[ray]'"
+    return "pip install -e '.[ray]' in the pccl checkout"
+
+
+RAY_MISSING = "--ray needs Ray, an optional extra: " + _ray_hint()
+
+
+def available_workers() -> int:
+    """The number of cores this process may use (``--workers auto``)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):   # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _owner_split(fps: np.ndarray, keys: np.ndarray, n: int) -> list:
+    """Candidates grouped by owning worker: [(fps, keys)] * n."""
+    if n == 1:
+        return [(fps, keys)]
+    owner = (fps[:, 1] % np.uint64(n)).astype(np.int64) if len(fps) else np.zeros(0, np.int64)
+    return [(fps[owner == w], keys[owner == w]) for w in range(n)]
+
+
+# ---------------------------------------------------------------------------
+# A worker: one partition of the visited set, and the states it generated
+# ---------------------------------------------------------------------------
+
+class _Worker:
+    """Engine-neutral: the transports call these methods in a process of
+    their own (or, for worker 0 of :class:`_Pipes`, in the coordinator's)."""
+
+    def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool,
+                 columns=None):
+        self.m, self.wid, self.n = model, wid, n
+        self.deadlock, self.find_all = deadlock, find_all
+        self.table = FingerprintTable()
+        self.level: list = []          # states of the current level I hold
+        self.level_idx: list = []      # ... their global numbers, ascending
+        self.cand: list = []           # candidate successors of the level
+        self.cand_keys: Any = None     # their keys (ascending)
+        self.pending: Any = None       # owner side: (fps, keys) of new states
+        self.defer_free = False        # see _discard
+        self.own: Any = None           # my candidates that I own myself (never sent)
+        self.par_idx: Any = None       # the parents I expanded last, their numbers
+        self.par_n: Any = None         # ... and successor counts
+        key = model.key
+        twos = itertools.repeat(2)
+        dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
+        self.keys_of = lambda states: map(xxh, map(dumps, map(key, states), twos))
+        # The state graph, when a recorder rides along (time-lock check,
+        # temporal properties): per expanded level the sources' numbers and
+        # the targets' fingerprints of every transition, and per admitted
+        # state its number and ``columns(states)`` (see :meth:`graph`).
+        self.columns = columns
+        self.g_src: list = []
+        self.g_fps: list = []
+        self.g_idx: list = []
+        self.g_cols: list = []
+        # the stall check: per expanded state whether a transition changes
+        # the team's signature (decided here, on the actual successors)
+        self.g_chg_idx: list = []
+        self.g_chg: list = []
+
+    def _note_states(self, idx, states: list) -> None:
+        """The states admitted to my level (numbers ``idx``): their columns."""
+        if self.columns is not None and states:
+            self.g_idx.append(np.asarray(idx, dtype=np.int64))
+            self.g_cols.append(self.columns(states))
+
+    def _discard(self, states: list) -> None:
+        """States no longer needed: freed now, or (``defer_free``, set by
+        the pipes transport) while this process waits for its next message
+        (:func:`_recv`), off the critical path."""
+        if self.defer_free and states:
+            _LITTER.append(states)
+
+    def ready(self) -> int:
+        """Called once by :class:`_RayTransport` in the actor's process."""
+        gc.disable()            # as in the one-process search: states are acyclic
+        return self.wid
+
+    def expand(self, at_bound: bool):
+        """Successors of my share of the level.  Returns the candidates
+        grouped by owner (first occurrences only, my own already-visited
+        ones dropped), per expanded parent its number and successor count,
+        deadlocks ``[(number, violation)]``, the first numbers that met the
+        depth and model bounds, the violating candidates ``[(key,
+        violations)]`` and my peak memory."""
+        m, succ_fn = self.m, self.m.successors
+        second = operator.itemgetter(1)
+        cs: list = []
+        par_idx: list = []
+        par_n: list = []
+        dead: list = []
+        depth_min = model_min = None
+        cols = self.columns
+        chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
+        for g, s in zip(self.level_idx, self.level):
+            succ = succ_fn(s)
+            if not succ:
+                kind = m.terminal_kind(s)
+                if kind == "bounded":
+                    model_min = g if model_min is None else model_min
+                elif kind == "deadlock" and self.deadlock:
+                    v = m.deadlock_violation(s)
+                    if v is not None:
+                        dead.append((g, v))
+                continue
+            if at_bound:
+                depth_min = g if depth_min is None else depth_min
+                continue
+            par_idx.append(g)
+            par_n.append(len(succ))
+            cs.extend(map(second, succ))
+            if chg_of is not None:
+                self.g_chg_idx.append(g)
+                self.g_chg.append(chg_of(s, list(map(second, succ))))
+        self._discard(self.level)
+        self.level = []
+        total = len(cs)
+        pi = np.asarray(par_idx, dtype=np.uint64)
+        pn = np.asarray(par_n, dtype=np.int64)
+        viol: list = []
+        if total:
+            ck = list(self.keys_of(cs))
+            starts = np.repeat(np.cumsum(pn) - pn, pn)
+            keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
+                    + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
+            fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+            if self.columns is not None:
+                self.g_src.append(np.repeat(pi, pn).astype(np.uint32))
+                self.g_fps.append(fps)
+            # first occurrence of each fingerprint (the smallest key: keys ascend)
+            first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
+                                dtype=np.int64, count=-1)
+            first.sort()
+            f, k = fps[first], keys[first]
+            if self.n > 1:
+                mine = (f[:, 1] % np.uint64(self.n)) == np.uint64(self.wid)
+            else:
+                mine = np.ones(len(k), dtype=bool)
+            seen = np.zeros(len(k), dtype=bool)
+            if mine.any() and self.table.n:
+                seen[mine] = self.table.lookup(f[mine]) >= 0
+            keep = ~seen
+            first, f, k = first[keep], f[keep], k[keep]
+            viol_fn = self.m.violations
+            vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
+            if any(vs):
+                kl = k.tolist()
+                viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
+        else:
+            keys = np.zeros(0, np.uint64)
+            f, k = np.zeros((0, 2), np.uint64), keys
+        self.cand, self.cand_keys = cs, keys
+        self.par_idx, self.par_n = pi, pn
+        return (_owner_split(f, k, self.n), total, dead, depth_min, model_min, viol,
+                peak_rss_bytes())
+
+    def transitions_upto(self, parent: int) -> int:
+        """Of the level I expanded last, the successors of the parents
+        numbered ``parent`` or less (where the search stopped)."""
+        return int(self.par_n[self.par_idx <= np.uint64(parent)].sum())
+
+    def decide(self, *parts):
+        """Owner side: of the candidates sent to me (one ``(fps, keys)`` part
+        per generator; ``None`` for mine, which stayed here and were checked
+        against my table by :meth:`expand`), the new ones (smallest key per
+        fingerprint); their keys go back to the coordinator."""
+        own, self.own = self.own, None
+        others = [p for p in parts if p is not None and len(p[1])]
+        if others:
+            f = np.concatenate([p[0] for p in others]) if len(others) > 1 else others[0][0]
+            k = np.concatenate([p[1] for p in others]) if len(others) > 1 else others[0][1]
+            if self.table.n:
+                new = self.table.lookup(f) < 0
+                f, k = f[new], k[new]
+            if own is not None and len(own[1]):
+                f, k = np.concatenate([own[0], f]), np.concatenate([own[1], k])
+            return self._decided(f, k, False)
+        if own is None:
+            own = (np.zeros((0, 2), np.uint64), np.zeros(0, np.uint64))
+        return self._decided(own[0], own[1], True)
+
+    def decide_initial(self, part):
+        """:meth:`decide` for a chunk of initial states (which may repeat)."""
+        f, k = part
+        if self.table.n:
+            new = self.table.lookup(f) < 0
+            f, k = f[new], k[new]
+        return self._decided(f, k, False)
+
+    def _decided(self, f, k, distinct: bool):
+        """Keep the new candidates ``(f, k)`` (none in my table) until the
+        coordinator's decision; answer their keys.  Unless ``distinct``,
+        equal fingerprints (from several generators: rare) keep the smallest
+        key: sorting by the low word alone finds them, and only then the
+        full sort runs."""
+        if not distinct and len(k) > 1:
+            lo = np.sort(f[:, 1])
+            if (lo[1:] == lo[:-1]).any():
+                order = np.lexsort((k, f[:, 1], f[:, 0]))
+                f, k = f[order], k[order]
+                first = np.ones(len(k), dtype=bool)
+                first[1:] = (f[1:] != f[:-1]).any(axis=1)
+                f, k = f[first], k[first]
+        self.pending = (f, k)
+        return k
+
+    def commit(self, decision):
+        """Record the coordinator's decision on the last level: ``(base,
+        cut, owner_ranks, won_keys, won_ranks)`` -- the first new state's
+        number, how many new states are admitted, the ranks of the keys my
+        :meth:`decide` returned, and the keys (ascending) and ranks of the
+        admitted states I generated."""
+        if decision is None:
+            return peak_rss_bytes()
+        base, cut, owner_ranks, won_keys, won_ranks = decision
+        if self.cand_keys is not None:
+            pos = np.searchsorted(self.cand_keys, won_keys).tolist()
+            cs = self.cand
+            self.level = [cs[p] for p in pos]
+            self.level_idx = (won_ranks + base).tolist()
+            self._note_states(self.level_idx, self.level)
+            self._discard(cs)
+            del cs
+            self.cand, self.cand_keys = [], None
+        if self.pending is not None:
+            f, _ = self.pending
+            self.pending = None
+            keep = owner_ranks < cut
+            if keep.any():
+                self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
+        return peak_rss_bytes()
+
+    def step(self, decision, at_bound: bool):
+        """One round: commit the last level, expand the next.  Returns the
+        candidates for each owner, then the rest of :meth:`expand`'s reply,
+        as ``n + 1`` values (so that Ray can hand each part to its owner
+        without the coordinator fetching it)."""
+        self.commit(decision)
+        r = self.expand(at_bound)
+        parts = list(r[0])
+        self.own, parts[self.wid] = parts[self.wid], None     # mine stay here
+        return (*parts, r[1:])
+
+    def adopt(self, idx, states):
+        self.level_idx.extend(idx)
+        self.level.extend(states)
+        self._note_states(idx, states)
+
+    def graph(self):
+        """What this worker knows of the state graph, handed over once at the
+        end of the search: my partition of the visited set (fingerprints and
+        their state numbers), the transitions I generated (source numbers,
+        target fingerprints: the coordinator numbers the targets) and the
+        columns of the states I held."""
+        t = self.table
+        src = np.concatenate(self.g_src) if self.g_src else np.zeros(0, np.uint32)
+        fps = np.concatenate(self.g_fps) if self.g_fps else np.zeros((0, 2), np.uint64)
+        self.g_src, self.g_fps = [], []
+        idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
+        cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
+        self.g_idx, self.g_cols = [], []
+        chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
+        self.g_chg_idx, self.g_chg = [], []
+        return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes(), chg)
+
+    def index_of(self, fp: bytes) -> int:
+        local = self.table.index_of(fp)
+        return -1 if local < 0 else int(self.table.parents[local])
+
+
+# ---------------------------------------------------------------------------
+# Transports: how the rounds reach the workers
+# ---------------------------------------------------------------------------
+
+def _spin_seconds(default: float = 0.05) -> float:
+    """Seconds a process polls for a message before it blocks (see
+    :func:`_recv`): ``PCCL_SPIN`` in the environment (``0``: block at once),
+    else 50 ms."""
+    try:
+        return max(0.0, float(os.environ.get("PCCL_SPIN", default)))
+    except ValueError:
+        return default
+
+
+_SPIN = _spin_seconds()
+
+
+#: Lists of states to free while waiting (:meth:`_Worker._discard`).
+_LITTER: list = []
+
+
+def _recv(conn):
+    """``conn.recv()``, first freeing discarded states (a slice at a time,
+    while no message is there: freeing a level's candidates costs about as
+    much as a tenth of expanding it) and polling for up to :data:`_SPIN`
+    seconds.  A process that blocks gives up its core; when its message
+    arrives it waits for the scheduler (on a busy machine, behind other jobs
+    for a time slice; on an idle virtual machine, for the core to wake up),
+    twice per BFS level.  The wait between rounds is short (the other
+    workers' share of a level), so polling through it keeps the core."""
+    poll = conn.poll
+    while _LITTER and not poll(0):
+        states = _LITTER[-1]
+        if states:
+            del states[-2048:]
+        else:
+            _LITTER.pop()
+    if _SPIN > 0 and not poll(0):
+        clock, pass_turn = _time.perf_counter, getattr(os, "sched_yield", lambda: None)
+        end = clock() + _SPIN
+        while not poll(0) and clock() < end:
+            pass_turn()     # a process waiting for a core (my partner?) gets this one
+    return conn.recv()
+
+
+#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int) -> None:
+    """Ask the kernel to kill this process when its parent dies (Linux:
+    ``prctl(PR_SET_PDEATHSIG, SIGKILL)``); a parent already gone by now
+    means exit at once.  ``PCCL_PDEATHSIG=0`` in the environment skips the
+    ``prctl`` (the tests use it to check the portable fallback: the pipe to
+    the parent closes, and :func:`_serve` returns)."""
+    if os.environ.get("PCCL_PDEATHSIG") == "0" or not hasattr(os, "getppid"):
+        return
+    try:
+        import ctypes
+        import ctypes.util
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):       # not Linux: the closed pipe tells
+        return
+    if os.getppid() != parent:              # died before the prctl
+        os._exit(0)
+
+
+def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
+           inherited=()):
+    # The coordinator alone handles Ctrl-C and SIGTERM (sent to the whole
+    # process group by a terminal or a job control): a worker ignores both
+    # and stops when the coordinator says so, or when its pipe closes.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for c in inherited:     # the coordinator's ends of the pipes: else its death is no EOF
+        c.close()
+    if parent is not None:
+        _die_with_parent(parent)
+    gc.disable()
+    w = _Worker(model, wid, n, deadlock, find_all, columns)
+    w.defer_free = True
+    while True:
+        try:
+            cmd, args = _recv(conn)
+        except EOFError:
+            return
+        if cmd == "stop":
+            return
+        try:
+            reply = ("ok", getattr(w, cmd)(*args))
+        except BaseException as exc:         # report, do not hang the coordinator
+            reply = ("error", exc)
+        try:
+            conn.send(reply)
+        except (OSError, BrokenPipeError):
+            return
+
+
+#: A message this small is sent without waiting for the receiver to read
+#: (the socket buffers hold ~200 KB; see :meth:`_Pipes.level`).
+_EARLY = 64 * 1024
+
+
+def _dumps(obj) -> bytes:
+    """What ``Connection.send`` would write."""
+    from multiprocessing.reduction import ForkingPickler
+    return bytes(ForkingPickler.dumps(obj))
+
+
+class _Pipes:
+    """Worker 0 in this process; workers 1..n-1 forked, behind pipes.  A
+    round sends to the forked workers first, runs worker 0 meanwhile, then
+    collects the replies."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.conns: list = []
+        self.procs: list = []
+        self.outstanding = [0] * n
+        self.local: Optional[_Worker] = None
+
+    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+        ctx = multiprocessing.get_context("fork")
+        me = os.getpid()
+        for w in range(1, self.n):
+            a, b = ctx.Pipe()
+            p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all,
+                                                 columns, me, [*self.conns, a]),
+                            daemon=True)
+            p.start()
+            b.close()
+            self.conns.append(a)
+            self.procs.append(p)
+        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns)
+        self.local.defer_free = self.n > 1     # freed while waiting for the others
+
+    def stop(self) -> None:
+        for c in self.conns:
+            try:
+                c.send(("stop", ()))
+            except (OSError, BrokenPipeError):
+                pass
+            c.close()
+        for p in self.procs:
+            p.join(timeout=5)
+            if p.is_alive():
+                p.kill()
+                p.join()
+        self.conns, self.procs, self.local = [], [], None
+        _LITTER.clear()
+
+    def _result(self, w):
+        status, value = _recv(self.conns[w - 1])
+        self.outstanding[w] -= 1
+        if status == "error":
+            raise value
+        return value
+
+    def all(self, cmd: str, per_worker: list) -> list:
+        for w in range(1, self.n):
+            self.conns[w - 1].send((cmd, per_worker[w]))
+            self.outstanding[w] += 1
+        mine = getattr(self.local, cmd)(*per_worker[0])
+        return [mine] + [self._result(w) for w in range(1, self.n)]
+
+    def level(self, per_worker: list):
+        """One level: the *step* round, then the *decide* round, pipelined:
+        an owner's *decide* is sent as soon as the coordinator holds the
+        candidates of every other generator for it (``--workers 2``: right
+        after worker 0's step, so the forked worker decides straight after
+        its step, without waiting for the coordinator to read its reply).
+        Returns (the rest of each step reply, each owner's new keys)."""
+        n, local = self.n, self.local
+        assert local is not None, "start() first"
+        for w in range(1, n):
+            self.conns[w - 1].send(("step", per_worker[w]))
+            self.outstanding[w] += 1
+        parts: list = [None] * n            # parts[g]: generator g's candidates by owner
+        parts[0] = local.step(*per_worker[0])
+        sent = [False] * n
+        ready: list = [None] * n            # pickled decide messages not sent yet
+
+        def send_ready():
+            for o in range(1, n):
+                if sent[o]:
+                    continue
+                if ready[o] is None and all(parts[g] is not None for g in range(n) if g != o):
+                    ready[o] = _dumps(("decide", tuple(
+                        None if g == o else parts[g][o] for g in range(n))))
+                # Worker o may itself be writing its (large) step reply: a
+                # message larger than what the socket buffers could block
+                # both writers.  So early only if small, else once o's reply is in.
+                if ready[o] is not None and (len(ready[o]) <= _EARLY or parts[o] is not None):
+                    self.conns[o - 1].send_bytes(ready[o])
+                    self.outstanding[o] += 1
+                    sent[o], ready[o] = True, None
+        send_ready()
+        for w in range(1, n):
+            parts[w] = self._result(w)
+            send_ready()
+        mine = local.decide(*(parts[g][0] for g in range(n)))
+        return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
+
+    def call(self, w: int, cmd: str, *args):
+        if w == 0:
+            return getattr(self.local, cmd)(*args)
+        self.conns[w - 1].send((cmd, args))
+        self.outstanding[w] += 1
+        return self._result(w)
+
+    def drain(self) -> None:
+        """After an interrupt: collect the replies still on their way."""
+        for w in range(1, self.n):
+            while self.outstanding[w] > 0:
+                try:
+                    self._result(w)
+                except Exception:
+                    pass
+
+
+#: seconds to wait for a Ray head's port to answer before giving up
+RAY_CONNECT_TIMEOUT = 10.0
+
+
+def probe_ray_address(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
+    """Raise :class:`RayUnavailable` unless something accepts a TCP
+    connection at ``address`` (``HOST:PORT`` or ``ray://HOST:PORT``; other
+    forms, such as ``auto``, are left to Ray).  Without this, ``ray.init``
+    keeps retrying an address where nothing listens."""
+    import socket
+    rest = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return
+    host = host.strip("[]")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise RayUnavailable(
+            f"--ray {address}: nothing answers at {host}:{port} ({why}); start the head "
+            f"there with `ray start --head --port {port}`, or use --ray local") from None
+
+
+class RayUnavailable(RuntimeError):
+    """Ray is not installed, or cannot be started or reached (the front
+    ends turn this into their own error message)."""
+
+
+def import_ray():
+    """The ``ray`` module, or :class:`RayUnavailable` saying how to install it."""
+    try:
+        import ray
+    except ImportError:
+        raise RayUnavailable(RAY_MISSING) from None
+    return ray
+
+
+class _RayTransport:
+    """One Ray actor per partition.  ``address``: ``"local"`` starts a Ray
+    instance on this machine (stopped again after the search); anything
+    else is passed to ``ray.init(address=...)`` (``"auto"``, ``HOST:PORT``,
+    ``ray://HOST:PORT``).  If this process is already connected to Ray
+    (``ray.is_initialized()``), that connection is used and left open."""
+
+    def __init__(self, n: Optional[int], address: str):
+        self.n: Any = n                # None until start(): one per CPU of the cluster
+        self.address = address
+        self.actors: list = []
+        self.owned = False
+        self.ray = import_ray()
+
+    @staticmethod
+    def connect(ray, address: str, cpus: int) -> bool:
+        """Connect to Ray; True when this call started (and must stop) it."""
+        import logging
+        if ray.is_initialized():
+            return False
+        quiet = dict(include_dashboard=False, logging_level=logging.WARNING,
+                     log_to_driver=False, configure_logging=True)
+        if address != "local":
+            probe_ray_address(address)      # ray.init retries an address that never answers
+        try:
+            if address == "local":
+                ray.init(num_cpus=cpus, **quiet)
+            else:
+                ray.init(address=address, **quiet)
+        except Exception as exc:
+            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}") from None
+        return True
+
+    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+        ray = self.ray
+        self.owned = self.connect(ray, self.address, self.n or available_workers())
+        cpus = ray.cluster_resources().get("CPU", 0)
+        if self.n is None:          # workers="auto": one per CPU of the cluster
+            self.n = max(1, int(cpus))
+        per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
+        actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_Worker)
+        ref = ray.put(model)
+        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns)
+                       for w in range(self.n)]
+        self._get([a.ready.remote() for a in self.actors])
+
+    def _get(self, refs):
+        ray = self.ray
+        try:
+            return ray.get(refs)
+        except ray.exceptions.RayTaskError as exc:
+            cause = getattr(exc, "cause", None)
+            if isinstance(cause, Exception):    # as the pipes transport: the worker's own error
+                raise cause from None
+            raise
+
+    def all(self, cmd: str, per_worker: list) -> list:
+        return self._get([getattr(a, cmd).remote(*args)
+                          for a, args in zip(self.actors, per_worker)])
+
+    def level(self, per_worker: list):
+        """One level: the *step* round, then the *decide* round.  Only the
+        small part of each step reply comes to the coordinator; the
+        candidates stay in the object store as references, which the
+        *decide* calls pass to their owners (Ray moves them actor to actor,
+        and starts an owner's *decide* once its inputs exist)."""
+        n = self.n
+        refs = [a.step.options(num_returns=n + 1).remote(*args)
+                for a, args in zip(self.actors, per_worker)]
+        decided = [a.decide.remote(*(refs[g][o] for g in range(n)))
+                   for o, a in enumerate(self.actors)]
+        return self._get([r[n] for r in refs]), self._get(decided)
+
+    def call(self, w: int, cmd: str, *args):
+        return self._get(getattr(self.actors[w], cmd).remote(*args))
+
+    def drain(self) -> None:
+        pass            # the actors are killed by stop()
+
+    def stop(self) -> None:
+        ray = self.ray
+        for a in self.actors:
+            try:
+                ray.kill(a)
+            except Exception:
+                pass
+        self.actors = []
+        if self.owned:
+            ray.shutdown()
+            self.owned = False
+
+
+# ---------------------------------------------------------------------------
+# The coordinator
+# ---------------------------------------------------------------------------
+
+class _Signals:
+    """Ctrl-C and SIGTERM during a parallel search, handled between levels.
+
+    Raised at an arbitrary point, the ``KeyboardInterrupt`` that Python's
+    handlers raise can cut a message to a worker in half, or land while the
+    coordinator collects the replies of an interrupted round, and the search
+    then has no consistent figures to print.  So while the search runs, a
+    handler only notes the signal; :meth:`check`, called before each round
+    (and before each chunk of initial states), runs the handler that was
+    there before (the command line's: it raises ``KeyboardInterrupt`` and
+    remembers SIGTERM for the exit status), where nothing is in flight.  A
+    signal stops the search within one level's work.  Further signals are
+    noted and dropped: the search reports once.  A signal whose handler is
+    not a Python function (ignored, or the default action of SIGTERM) is
+    left alone; the workers ignore both signals (:func:`_serve`)."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self):
+        import threading
+        self.saved: dict = {}
+        self.pending: Optional[tuple] = None
+        self.fired = False
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for name in self.SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is None:
+                continue
+            prev = signal.getsignal(sig)
+            if callable(prev):
+                self.saved[sig] = prev
+                signal.signal(sig, self._note)
+
+    def _note(self, signum, frame) -> None:
+        if self.pending is None and not self.fired:
+            self.pending = (signum, frame)
+
+    def check(self) -> None:
+        """Run the handler of a signal noted since the last check (once)."""
+        if self.pending is not None:
+            signum, frame = self.pending
+            self.pending, self.fired = None, True
+            self.saved[signum](signum, frame)
+
+    def restore(self) -> None:
+        for sig, prev in self.saved.items():
+            signal.signal(sig, prev)
+        self.saved = {}
+
+
+class _RemoteTable:
+    """What :meth:`Explorer.replay` needs, answered by the owners."""
+
+    key_of = staticmethod(fingerprint)
+
+    def __init__(self, coord: "ParallelExplorer"):
+        self.c = coord
+        self.n = 0          # the states admitted, once the search is over
+
+    def index_of(self, fp: bytes) -> int:
+        lo = int(np.frombuffer(fp, dtype=np.uint64)[1])
+        return self.c.transport.call(lo % self.c.workers, "index_of", fp)
+
+    def parent(self, idx: int) -> int:
+        p = int(self.c.parents[idx])
+        return -1 if p == _NONE else p
+
+
+class ParallelExplorer(Explorer):
+    """:class:`Explorer` over ``workers`` partitions.
+
+    ``ray=None``: processes on this machine (fork start method; worker 0
+    runs in the calling process).  ``ray="local"`` or an address: one Ray
+    actor per partition (needs ``pip install 'pccl[ray]'``; ``workers=None``:
+    one per CPU of the cluster).
+
+    Same options and results as :class:`Explorer` (``exact`` is not
+    supported: canonical encodings would have to travel instead of
+    fingerprints).  ``max_memory`` applies to the sum of the processes' peak
+    resident memory, checked once per level.
+    """
+
+    def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
+                 **options):
+        if options.get("exact"):
+            raise ValueError("exact state storage runs in one process (workers=1)")
+        super().__init__(model, **options)
+        self.workers: Any = workers    # an int once the transport has started
+        self.ray = ray
+        self.transport: Any
+        if ray is not None:
+            self.transport = _RayTransport(workers, ray)
+        else:
+            assert workers is not None, "workers=None (one per cluster CPU) needs ray"
+            self.transport = _Pipes(workers)
+
+    # -- the search ---------------------------------------------------------
+    def run(self) -> SearchResult:
+        prepare = getattr(self.model, "prepare", None)
+        if prepare is not None:
+            prepare()       # lazily built tables that states refer to, before the fork
+        enabled = gc.isenabled()
+        gc.disable()
+        rec = self.recorder
+        columns = getattr(rec, "columns", None) if rec is not None else None
+        # installed before the fork: a worker never runs a handler that raises
+        self.signals = _Signals()
+        try:
+            self.transport.start(self.model, self.deadlock, self.find_all, columns)
+            self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
+            return self._run()
+        finally:
+            try:
+                self.transport.stop()
+            finally:
+                self.signals.restore()
+                if enabled:
+                    gc.enable()
+
+    def _run(self) -> SearchResult:
+        m, T = self.model, self.transport
+        n: int = self.workers
+        key = m.key
+        t_start = _time.perf_counter()
+        stats = Stats()
+        res = SearchResult("exhaustive", stats=stats)
+        found, bounds = res.found, set()
+        reported: set = set()
+        budget = self.max_states if self.max_states is not None else _MAX_STATES
+        cap = min(_MAX_STATES, budget + 1)
+        self.parents: Any = _reserve((cap,), np.uint32)
+        if self.parents is None:
+            self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
+        self.table = _RemoteTable(self)
+        total = 0
+        peak_workers = [0] * n
+        empty_u64 = np.zeros(0, np.uint64)
+        empty_i64 = np.zeros(0, np.int64)
+
+        record = self._recorder(found, reported)
+
+        def put_parents(base, values):
+            nonlocal total
+            need = base + len(values)
+            if need > len(self.parents):
+                if self.parents.base is not None:
+                    raise MemoryError("more states than reserved")
+                self.parents.resize(max(need, 2 * len(self.parents)), refcheck=False)
+            self.parents[base:need] = values
+            total = need
+
+        def note_peaks(peaks):
+            for w, p in enumerate(peaks):
+                peak_workers[w] = max(peak_workers[w], p)
+
+        stop = False
+        depth = 0
+        decisions: Any = None   # per worker: the decision on the last level, sent with the next step
+        try:
+            # -- initial states: numbered here in chunks, handed out round-robin
+            it = iter(m.init_states())
+            while not stop:
+                self.signals.check()
+                chunk = list(itertools.islice(it, min(self.batch, budget - total + 1)))
+                if not chunk:
+                    break
+                fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
+                                    dtype=np.uint64).reshape(-1, 2)
+                keys = np.arange(len(chunk), dtype=np.uint64)
+                new_keys = T.all("decide_initial", [(p,) for p in _owner_split(fps, keys, n)])
+                order = np.sort(np.concatenate(new_keys))
+                base = total
+                cut = len(order)
+                if cut > budget - base:
+                    cut = budget - base
+                    bounds.add(Bound.MAX_STATES)
+                    stop = True
+                for r in range(cut):
+                    v = m.violations(chunk[int(order[r])])
+                    if v and record(v, base + r, 0):
+                        cut, stop = r + 1, True
+                        break
+                ranks = np.searchsorted(order, np.concatenate(new_keys)) if len(order) \
+                    else empty_i64
+                owner_ranks, a = [], 0
+                for nk in new_keys:
+                    owner_ranks.append(ranks[a:a + len(nk)])
+                    a += len(nk)
+                note_peaks(T.all("commit", [((base, cut, orr, empty_u64, empty_i64),)
+                                            for orr in owner_ranks]))
+                for w in range(n):
+                    idx = [g for g in range(base, base + cut) if g % n == w]
+                    T.call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
+                put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
+            cut = total
+            stats.initial_states = total
+            level_size = cut
+            holder = np.arange(cut, dtype=np.int64) % n      # who holds each state of the level
+            level_base = 0
+            next_report = _time.perf_counter() + self.progress_interval
+            while level_size and not stop:
+                self.signals.check()
+                at_bound = self.max_depth is not None and depth >= self.max_depth
+                replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
+                                             for w in range(n)])
+                decisions = None
+                # replies[w]: (successors generated, deadlocks, first number at
+                # the depth bound, ... at the model bound, violating candidates,
+                # peak memory)
+                note_peaks([r[5] for r in replies])
+                allk = np.concatenate(new_keys)
+                order = np.argsort(allk, kind="stable")
+                sorted_keys = allk[order]
+                ranks = np.empty(len(allk), dtype=np.int64)
+                ranks[order] = np.arange(len(allk))
+                owner_ranks, a = [], 0
+                for nk in new_keys:
+                    owner_ranks.append(ranks[a:a + len(nk)])
+                    a += len(nk)
+                # the stop events, in the serial search's order (by key)
+                events = []                  # (key, kind, payload)
+                for r in replies:
+                    for g, v in r[1]:
+                        events.append((g << _SHIFT, 0, (g, v)))
+                    for k, v in r[4]:        # violating candidates: those that are new
+                        pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
+                        if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
+                            events.append((k, 1, (pos, v)))
+                limit = len(sorted_keys)
+                budget_key = None
+                if limit > budget - total:
+                    limit = budget - total
+                    budget_key = int(sorted_keys[limit])
+                events.sort(key=lambda e: (e[0], e[1]))
+                stop_key = None
+                cut = limit
+                for ek, kind, payload in events:
+                    if budget_key is not None and ek >= budget_key:
+                        break
+                    if kind == 0:
+                        g, v = payload
+                        # states admitted before the deadlocked parent's turn
+                        before = int(np.searchsorted(sorted_keys, np.uint64(ek)))
+                        if record([v], g, depth):
+                            cut, stop_key = min(cut, before), ek
+                            break
+                    else:
+                        r, v = payload
+                        if record(v, total + r, depth + 1):
+                            cut, stop_key = r + 1, ek
+                            break
+                if stop_key is None and budget_key is not None:
+                    stop_key = budget_key
+                    bounds.add(Bound.MAX_STATES)
+                # transitions: parents expanded up to the stop
+                if stop_key is None:
+                    stats.transitions += sum(r[0] for r in replies)
+                else:
+                    stats.transitions += sum(T.all("transitions_upto",
+                                                   [(stop_key >> _SHIFT,)] * n))
+                    stop = True
+                # bounds met before the stop
+                for r in replies:
+                    for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
+                        if g is not None and (stop_key is None or g <= stop_key >> _SHIFT):
+                            bounds.add(b)
+                base = total
+                # who generated each admitted state: its parent's holder
+                gen = holder[(sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
+                             - level_base] if cut else empty_i64
+                decisions = []
+                for w in range(n):
+                    sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
+                    decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
+                put_parents(base, (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.uint32))
+                holder = gen
+                level_base, level_size = base, cut
+                if cut:
+                    depth += 1
+                    stats.max_depth = depth
+                stats.frontier = cut
+                if self.max_memory is not None and not stop and \
+                        self._memory(peak_workers) > self.max_memory:
+                    bounds.add(Bound.MAX_MEMORY)
+                    stop = True
+                if self.progress is not None:
+                    now = _time.perf_counter()
+                    if now >= next_report:
+                        next_report = now + self.progress_interval
+                        self.progress({"states": total, "frontier": cut, "depth": depth,
+                                       "seconds": now - t_start,
+                                       "memory": self._memory(peak_workers)})
+            if decisions:       # the last level's decision: owners record its states
+                note_peaks(T.all("commit", [(d,) for d in decisions]))
+                decisions = None
+        except KeyboardInterrupt:
+            res.status = "interrupted"
+            T.drain()
+            if decisions and found:     # the owners must know the states to replay
+                try:
+                    T.all("commit", [(d,) for d in decisions])
+                except Exception:
+                    found.clear()
+        stats.states = total
+        self.table.n = total
+        stats.seconds = _time.perf_counter() - t_start
+        stats.peak_memory = self._memory(peak_workers)
+        res.collision_probability = collision_bound(stats.states)
+        res.bounds_hit = sorted(bounds, key=lambda b: b.value)
+        if res.status != "interrupted":
+            res.status = "violation" if found else "bounded" if bounds else "exhaustive"
+        for f in found:
+            f.trace = self.replay(f.index)
+        self.peak_workers = peak_workers
+        if self.recorder is not None and res.status in ("exhaustive", "bounded"):
+            self._gather_graph(total)
+        return res
+
+    def _gather_graph(self, total: int) -> None:
+        """Hand the state graph to the recorder, as the one-process search
+        records it: every worker sends its partition of the visited set and
+        the transitions it generated; here the partitions become one
+        :class:`FingerprintTable` numbered as the search numbered the states
+        (which then also replays counterexamples, after the workers are
+        gone), the transitions' targets get their numbers from it, and the
+        states' columns are put in number order.  The recorder's analysis
+        (:func:`pccl.search.liveness.analyse`) then runs on exactly the graph the
+        one-process search records."""
+        rec, n = self.recorder, self.workers
+        parts = self.transport.all("graph", [()] * n)
+        fps = np.zeros((total, 2), dtype=np.uint64)
+        for p in parts:
+            fps[p[1]] = p[0]
+        table = FingerprintTable()
+        if total:
+            table.insert(fps, self.parents[:total])
+        del fps
+        self.peak_workers = [max(a, p[6]) for a, p in zip(self.peak_workers, parts)]
+        idx = [p[4] for p in parts if p[5] is not None]
+        cols = [p[5] for p in parts if p[5] is not None]
+        chg = [p[7] for p in parts]
+        rec.changes_given = True
+        step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
+        while parts:
+            _, _, src, tfps, *_ = parts.pop(0)
+            for a in range(0, len(src), step):
+                rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
+            del src, tfps
+        rec.put_states(total, idx, cols)
+        rec.put_changes(total, [c[0] for c in chg], [c[1] for c in chg])
+        self.table = table
+
+    def peak_memory(self) -> int:
+        """Peak memory of the search so far, summed over its processes."""
+        return self._memory(getattr(self, "peak_workers", [0] * int(self.workers or 1)))
+
+    def _memory(self, peak_workers) -> int:
+        """Peak memory summed over the processes: with pipes worker 0 is
+        this process; with Ray every worker is an actor of its own."""
+        if self.ray is None:
+            return peak_rss_bytes() + sum(peak_workers[1:])
+        return peak_rss_bytes() + sum(peak_workers)

@@ -1,0 +1,626 @@
+"""``pccl lsp``: a Language Server Protocol server for PCCL, over stdio
+(pygls, lsprotocol: the ``lsp`` extra).
+
+What it offers (docs/editors.md): diagnostics on open and on change (the
+parse or check error the CLI reports, with its exact range and its
+did-you-mean hint; the errors of a world file ``NAME.toml`` beside
+``NAME.pccl``), hover, go to definition, find references, document
+symbols, completion, formatting (:mod:`pccl.tools.fmt`) and a quick fix for a
+did-you-mean.
+
+The analysis (:class:`Analysis`, :func:`analyse`) knows nothing of the
+protocol and is tested on its own; the handlers only translate.  The names
+of a PCCL program are global (one name, one meaning), so hover and the
+definitions work by the name under the cursor, against the last text that
+parsed: a half-typed program keeps its last good symbols.  No handler lets
+an exception out: a request that fails answers nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+from dataclasses import dataclass, field
+from typing import Any, Optional
+from urllib.parse import unquote, urlparse
+
+from pccl.lang import ast as A
+from pccl.lang.builtins import BUILTINS, READONLY_FLAGS, Builtin
+from pccl.lang.checker import CheckedProgram, check_program
+from pccl.lang.errors import PcclError
+from pccl.tools.fmt import HDR, tokenize
+
+log = logging.getLogger("pccl.tools.lsp")
+
+#: Reserved words and section headers offered by completion.
+KEYWORDS = ("if", "else", "while", "atomic", "skip", "enum", "pre", "eff", "true", "false",
+            "forall", "exists", "eventually", "reachable", "within")
+HEADERS = ("allwrite:", "allread:", "loc:", "Init:", "invariant:")
+TYPES = ("int", "bool", "float", "ItemPosition", "ObstacleList", "List")
+_SECTION_WORD = {"allwrite": "shared (allwrite)", "allread": "allread (each agent's own, read by all)",
+                 "loc": "local"}
+_DID_YOU_MEAN = re.compile(r"\(did you mean '([A-Za-z_]\w*)'\?\)")
+_WORD = re.compile(r"[A-Za-z_]\w*")
+
+
+# --------------------------------------------------------------------------
+# The analysis (no protocol here)
+# --------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Range:
+    """0-based, end exclusive (LSP's convention)."""
+    line: int
+    col: int
+    end_line: int
+    end_col: int
+
+    @staticmethod
+    def of(span: A.Span) -> "Range":
+        return Range(span.line - 1, span.column - 1, span.end_line - 1, span.end_column - 1)
+
+
+@dataclass(frozen=True)
+class Diag:
+    path: str               # the file it is about (the program or its world file)
+    range: Range
+    message: str
+    severity: str = "error"     # error | warning
+    suggestion: Optional[str] = None   # the did-you-mean name, if any
+
+
+@dataclass
+class Symbol:
+    name: str
+    kind: str               # variable | enum | member | event | invariant | flag
+    decl: Any               # the AST node that declares it (None for flags)
+    range: Range            # where the name is declared
+
+
+@dataclass
+class Analysis:
+    path: str
+    source: str
+    diagnostics: list[Diag] = field(default_factory=list)
+    program: Optional[A.Program] = None
+    info: Optional[CheckedProgram] = None
+    symbols: dict[str, Symbol] = field(default_factory=dict)
+    #: every written occurrence of a name: (name, range), declarations included
+    occurrences: list[tuple[str, Range]] = field(default_factory=list)
+    world_path: Optional[str] = None
+
+
+def world_beside(path: str) -> Optional[str]:
+    """The world file of a program: ``NAME.toml`` in the program's folder,
+    else that of a variant's base name (``race_safe.pccl`` -> ``race.toml``)."""
+    stem, ext = os.path.splitext(path)
+    if ext != ".pccl":
+        return None
+    folder, name = os.path.split(stem)
+    while name:
+        cand = os.path.join(folder, name + ".toml")
+        if os.path.isfile(cand):
+            return cand
+        name = name.rpartition("_")[0]
+    return None
+
+
+def _error_diag(e: PcclError, path: str, source: str) -> Diag:
+    lines = source.split("\n")
+    line = max(1, e.line or 1)
+    col = max(1, e.column or 1)
+    text = lines[line - 1] if line <= len(lines) else ""
+    if e.end_column and e.end_column > col:
+        end = e.end_column
+    else:                          # a word, or one character
+        m = _WORD.match(text, col - 1)
+        end = m.end() + 1 if m else col + 1
+    m = _DID_YOU_MEAN.search(e.message)
+    return Diag(e.filename if e.filename not in (None, "<input>") else path,
+                Range(line - 1, col - 1, line - 1, end - 1), e.message,
+                suggestion=m.group(1) if m else None)
+
+
+def analyse(source: str, path: str, *, world_source: Optional[str] = None,
+            previous: Optional[Analysis] = None) -> Analysis:
+    """Parse and check ``source`` (the text of ``path``); load the world file
+    beside it (``world_source``: its editor text, if open).  A program that
+    does not parse keeps ``previous``'s symbols."""
+    from pccl.lang.parser import parse_program
+    from pccl.lang.world import load_world, parse_world
+    an = Analysis(path, source)
+    functions: frozenset[str] = frozenset()
+    wpath = world_beside(path)
+    if wpath is not None or world_source is not None:
+        an.world_path = wpath or os.path.splitext(path)[0] + ".toml"
+        try:
+            w = (parse_world(world_source, an.world_path) if world_source is not None
+                 else load_world(an.world_path))
+            functions = frozenset(dict(w.functions).keys())
+        except PcclError as e:
+            d = _error_diag(e, an.world_path, world_source or _read(an.world_path))
+            an.diagnostics.append(Diag(an.world_path, d.range, d.message))
+            an.diagnostics.append(Diag(path, Range(0, 0, 0, 0), f"the world file beside this program, "
+                                       f"{os.path.basename(an.world_path)}, has an error: {e.message}",
+                                       severity="warning"))
+        except Exception as e:      # noqa: BLE001 - an editor must not die of a world file
+            log.exception("world file")
+            an.diagnostics.append(Diag(path, Range(0, 0, 0, 0), f"cannot read the world file: {e}",
+                                       severity="warning"))
+    try:
+        an.program = parse_program(source, path)
+    except PcclError as e:
+        an.diagnostics.append(_error_diag(e, path, source))
+    except RecursionError:
+        an.diagnostics.append(Diag(path, Range(0, 0, 0, 1), "program is nested too deeply"))
+    if an.program is not None:
+        try:
+            an.info = check_program(an.program, functions=functions)
+        except PcclError as e:
+            an.diagnostics.append(_error_diag(e, path, source))
+        except RecursionError:
+            an.diagnostics.append(Diag(path, Range(0, 0, 0, 1), "program is nested too deeply"))
+        _index(an)
+    elif previous is not None:
+        an.program, an.info = previous.program, previous.info
+        an.symbols, an.occurrences = previous.symbols, previous.occurrences
+    return an
+
+
+def _read(path: str) -> str:
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            return fh.read()
+    except OSError:
+        return ""
+
+
+def _name_range(span: A.Span, name: str) -> Range:
+    """The range of a name written at the start of ``span`` (a call)."""
+    return Range(span.line - 1, span.column - 1, span.line - 1, span.column - 1 + len(name))
+
+
+def _index(an: Analysis) -> None:
+    """The declarations and every occurrence of each name."""
+    prog = an.program
+    assert prog is not None
+    sym, occ = an.symbols, an.occurrences
+    enums = {d.name for d in prog.decls if isinstance(d, A.EnumDecl)}
+
+    def declare(name: str, kind: str, decl: Any, span: A.Span) -> None:
+        if span.line > 0:
+            r = Range.of(span)
+            sym.setdefault(name, Symbol(name, kind, decl, r))
+            occ.append((name, r))
+
+    for d in prog.decls:
+        if isinstance(d, A.EnumDecl):
+            declare(d.name, "enum", d, d.name_span)
+            for m, ms in zip(d.members, d.member_spans):
+                declare(m, "member", d, ms)
+        else:
+            declare(d.name, "variable", d, d.name_span)
+            t: Optional[A.TypeRef] = d.type
+            while t is not None:
+                if t.name in enums and t.span.line > 0:
+                    occ.append((t.name, _name_range(t.span, t.name) if t.elem is None
+                                else Range.of(t.span)))
+                t = t.elem
+    for ev in prog.events:
+        declare(ev.name, "event", ev, ev.name_span)
+    for inv in prog.invariants:
+        if inv.name:
+            declare(inv.name, "invariant", inv, inv.name_span)
+    for node in A.walk(prog):
+        if isinstance(node, A.Name) and node.span.line > 0:
+            occ.append((node.name, Range.of(node.span)))
+        elif isinstance(node, (A.Call, A.CallStmt)) and node.span.line > 0:
+            occ.append((node.name, _name_range(node.span, node.name)))
+
+
+def word_at(source: str, line: int, col: int) -> Optional[tuple[str, Range]]:
+    """The identifier at (0-based) ``line``/``col``, and its range."""
+    lines = source.split("\n")
+    if not 0 <= line < len(lines):
+        return None
+    text = lines[line]
+    for m in _WORD.finditer(text):
+        if m.start() <= col <= m.end():
+            return m.group(), Range(line, m.start(), line, m.end())
+    return None
+
+
+def _slice(source: str, span: Optional[A.Span]) -> Optional[str]:
+    """The source text of a span (lines joined), if it has one."""
+    if span is None or span.line < 1:
+        return None
+    lines = source.split("\n")
+    if span.end_line > len(lines):
+        return None
+    if span.line == span.end_line:
+        return lines[span.line - 1][span.column - 1:span.end_column - 1]
+    parts = [lines[span.line - 1][span.column - 1:]]
+    parts += lines[span.line:span.end_line - 1]
+    parts.append(lines[span.end_line - 1][:span.end_column - 1])
+    return " ".join(p.strip() for p in parts)
+
+
+def signature(b: Builtin) -> str:
+    params = ", ".join(b.params[:max(b.arities)]) if b.arities else ""
+    if len(b.arities) > 1:
+        params += f"  ({b.arity_text()} arguments)"
+    res = f" -> {b.result}" if b.result else ""
+    return f"{b.name}({params}){res}"
+
+
+def hover_text(an: Analysis, name: str) -> Optional[str]:
+    """Markdown for the name: a variable's declaration and type, an event's
+    guard, an enum, a built-in's signature and doc."""
+    s = an.symbols.get(name)
+    src = an.program.source if an.program is not None else an.source
+    if s is not None and s.kind == "variable":
+        d: A.VarDecl = s.decl
+        ty = str(an.info.variables[name].type) if an.info and name in an.info.variables else str(d.type)
+        written = f"{d.type} {d.name}"
+        if d.size is not None:
+            written += f"[{_slice(src, d.size.span) or '…'}]"
+        if d.init is not None:
+            written += f" = {_slice(src, d.init.span) or '…'}"
+        return (f"```pccl\n{written};\n```\n{_SECTION_WORD.get(d.section, d.section)} variable "
+                f"of type `{ty}`, declared at line {s.range.line + 1}")
+    if s is not None and s.kind == "event":
+        ev: A.Event = s.decl
+        guard = _slice(src, ev.guard.span) or "…"
+        return (f"```pccl\n{ev.name}():\n  pre({guard});\n```\nevent, {len(ev.body)} "
+                f"statement{'s' if len(ev.body) != 1 else ''} in its effect, line {s.range.line + 1}")
+    if s is not None and s.kind in ("enum", "member"):
+        e: A.EnumDecl = s.decl
+        text = f"```pccl\nenum {e.name} {{ {', '.join(e.members)} }};\n```\n"
+        if s.kind == "member":
+            return text + f"member {e.members.index(name)} of enum `{e.name}`"
+        return text + f"enum type, declared at line {s.range.line + 1}"
+    if s is not None and s.kind == "invariant":
+        inv: A.Invariant = s.decl
+        return f"```pccl\n{name}: {_slice(src, inv.expr.span) or '…'}\n```\ninvariant"
+    if name in BUILTINS:
+        b = BUILTINS[name]
+        where = {"statement": "statement", "expression": "function",
+                 "uninterpreted": "uninterpreted function (value from the world file)",
+                 "property": "property function"}[b.kind]
+        return f"```pccl\n{signature(b)}\n```\nbuilt-in {where}: {b.doc}"
+    if name in READONLY_FLAGS:
+        return (f"```pccl\n{READONLY_FLAGS[name]} {name}\n```\nread-only flag set by the controller "
+                f"after doReach")
+    if an.info is not None and name in an.info.functions:
+        return f"```pccl\n{name}() -> any\n```\nuninterpreted function given by the world file"
+    return None
+
+
+def definition(an: Analysis, name: str) -> Optional[Range]:
+    s = an.symbols.get(name)
+    return s.range if s is not None else None
+
+
+def references(an: Analysis, name: str, include_declaration: bool = True) -> list[Range]:
+    decl = definition(an, name)
+    return sorted({r for n, r in an.occurrences
+                   if n == name and (include_declaration or r != decl)},
+                  key=lambda r: (r.line, r.col))
+
+
+@dataclass
+class Outline:
+    name: str
+    kind: str               # section | variable | enum | event | invariant
+    range: Range
+    selection: Range
+    children: list["Outline"] = field(default_factory=list)
+
+
+def outline(an: Analysis) -> list[Outline]:
+    """Sections with their declarations, the events, the invariants."""
+    if an.program is None:
+        return []
+    src = an.program.source
+    lines = src.split("\n")
+    heads = [(t.line - 1, t) for t in tokenize(src) if t.kind == HDR and t.col == 0]
+    out: list[Outline] = []
+    event_lines = [ev.span.line - 1 for ev in an.program.events]
+    bounds = sorted({h for h, _ in heads} | set(event_lines) | {len(lines)})
+    for line, t in heads:
+        end = next(b for b in bounds if b > line) - 1
+        word = re.match(r"[A-Za-z]+", t.text)
+        name = (word.group() if word else t.text) + (":" if not t.text.endswith("::") else "")
+        if t.text.endswith("::"):
+            m = _WORD.match(lines[line], len(t.text))
+            name = t.text.replace(" ", "") + (m.group() if m else "")
+        r = Range(line, 0, end, len(lines[end]) if end < len(lines) else 0)
+        sel = Range(line, 0, line, len(t.text))
+        node = Outline(name, "section", r, sel)
+        for d in an.program.decls:
+            if line <= d.span.line - 1 <= end:
+                node.children.append(Outline(d.name, "enum" if isinstance(d, A.EnumDecl) else "variable",
+                                             Range.of(d.span), Range.of(d.name_span)))
+        for inv in an.program.invariants:
+            if line <= inv.span.line - 1 <= end:
+                node.children.append(Outline(inv.name or (_slice(src, inv.expr.span) or "invariant"),
+                                             "invariant", Range.of(inv.span),
+                                             Range.of(inv.name_span if inv.name else inv.expr.span)))
+        out.append(node)
+    for ev in an.program.events:
+        out.append(Outline(f"{ev.name}()", "event", Range.of(ev.span), Range.of(ev.name_span)))
+    out.sort(key=lambda o: (o.range.line, o.range.col))
+    return out
+
+
+def completions(an: Analysis) -> list[tuple[str, str, str]]:
+    """(label, kind, detail): the program's names, built-ins, keywords, types."""
+    out: list[tuple[str, str, str]] = []
+    for name, s in an.symbols.items():
+        if s.kind == "event":
+            continue
+        detail = s.kind
+        if s.kind == "variable" and an.info is not None and name in an.info.variables:
+            v = an.info.variables[name]
+            detail = f"{v.type} ({_SECTION_WORD.get(v.section, v.section)})"
+        out.append((name, s.kind, detail))
+    for name, b in BUILTINS.items():
+        out.append((name, "function", signature(b)))
+    for name in (an.info.functions if an.info is not None else ()):
+        out.append((name, "function", f"{name}() -> any (world file)"))
+    for name, ty in READONLY_FLAGS.items():
+        out.append((name, "flag", f"{ty} (read-only)"))
+    out += [(k, "keyword", "keyword") for k in KEYWORDS]
+    out += [(h, "keyword", "section") for h in HEADERS]
+    out += [(t, "type", "type") for t in TYPES]
+    return out
+
+
+def format_text(source: str, path: str) -> Optional[str]:
+    """The formatted text, or None when the program does not parse."""
+    from pccl.tools.fmt import FormatterBug, format_source
+    try:
+        return format_source(source, path)
+    except (PcclError, FormatterBug, RecursionError):
+        return None
+
+
+# --------------------------------------------------------------------------
+# The server (pygls)
+# --------------------------------------------------------------------------
+
+def uri_to_path(uri: str) -> str:
+    p = urlparse(uri)
+    return unquote(p.path) if p.scheme == "file" else uri
+
+
+def make_server():   # noqa: C901 - one place that lists every handler
+    from lsprotocol import types as T
+    from pygls.lsp.server import LanguageServer
+    from pygls.uris import from_fs_path
+
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        ver = version("pccl")
+    except PackageNotFoundError:      # pragma: no cover - a source checkout
+        ver = "0"
+    server = LanguageServer("pccl", ver)
+    analyses: dict[str, Analysis] = {}
+
+    def rng(r: Range) -> Any:
+        return T.Range(start=T.Position(line=r.line, character=r.col),
+                       end=T.Position(line=r.end_line, character=r.end_col))
+
+    def doc_text(uri: str) -> Optional[str]:
+        try:
+            return server.workspace.get_text_document(uri).source
+        except Exception:       # noqa: BLE001
+            return None
+
+    def open_world_text(path: str) -> Optional[str]:
+        wpath = world_beside(path) or os.path.splitext(path)[0] + ".toml"
+        uri = from_fs_path(wpath) or wpath
+        if uri in server.workspace.text_documents:
+            return server.workspace.text_documents[uri].source
+        return None
+
+    def refresh(uri: str) -> None:
+        """Analyse a program and publish its diagnostics (and its world file's)."""
+        path = uri_to_path(uri)
+        if path.endswith(".toml"):
+            sibling = os.path.splitext(path)[0] + ".pccl"
+            suri = from_fs_path(sibling) or sibling
+            if suri in server.workspace.text_documents:
+                refresh(suri)
+            elif uri in server.workspace.text_documents:
+                from pccl.lang.world import parse_world
+                diags = []
+                try:
+                    parse_world(server.workspace.text_documents[uri].source, path)
+                except PcclError as e:
+                    d = _error_diag(e, path, server.workspace.text_documents[uri].source)
+                    diags.append(T.Diagnostic(range=rng(d.range), message=d.message, source="pccl",
+                                              severity=T.DiagnosticSeverity.Error))
+                except Exception:       # noqa: BLE001
+                    log.exception("world file")
+                server.text_document_publish_diagnostics(
+                    T.PublishDiagnosticsParams(uri=uri, diagnostics=diags))
+            return
+        source = doc_text(uri)
+        if source is None:
+            return
+        version = server.workspace.get_text_document(uri).version
+        try:
+            an = analyse(source, path, world_source=open_world_text(path), previous=analyses.get(uri))
+        except Exception as e:          # noqa: BLE001 - the server must survive any text
+            log.exception("analyse")
+            an = Analysis(path, source, [Diag(path, Range(0, 0, 0, 1), f"pccl: internal error: {e}")])
+        analyses[uri] = an
+        by_file: dict[str, list] = {path: []}
+        if an.world_path:
+            by_file.setdefault(an.world_path, [])
+        for d in an.diagnostics:
+            data = {"replace": d.suggestion} if d.suggestion else None
+            by_file.setdefault(d.path, []).append(T.Diagnostic(
+                range=rng(d.range), message=d.message, source="pccl", data=data,
+                severity=T.DiagnosticSeverity.Error if d.severity == "error"
+                else T.DiagnosticSeverity.Warning))
+        # the world file's first: a client that saw the program's has both
+        for p, diags in sorted(by_file.items(), key=lambda kv: kv[0] == path):
+            server.text_document_publish_diagnostics(T.PublishDiagnosticsParams(
+                uri=uri if p == path else (from_fs_path(p) or p), diagnostics=diags,
+                version=version if p == path else None))
+
+    def current(uri: str) -> Optional[Analysis]:
+        an = analyses.get(uri)
+        if an is None or an.source != doc_text(uri):
+            refresh(uri)
+            an = analyses.get(uri)
+        return an
+
+    def guarded(default: Any = None):
+        def wrap(f):
+            def handler(ls, params):
+                try:
+                    return f(params)
+                except Exception:       # noqa: BLE001 - a failed request answers nothing
+                    log.exception("handler %s", f.__name__)
+                    return default
+            handler.__name__ = f.__name__
+            return handler
+        return wrap
+
+    @server.feature(T.TEXT_DOCUMENT_DID_OPEN)
+    @guarded()
+    def did_open(params: T.DidOpenTextDocumentParams) -> None:
+        refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
+    @guarded()
+    def did_change(params: T.DidChangeTextDocumentParams) -> None:
+        refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_SAVE)
+    @guarded()
+    def did_save(params: T.DidSaveTextDocumentParams) -> None:
+        refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
+    @guarded()
+    def did_close(params: T.DidCloseTextDocumentParams) -> None:
+        analyses.pop(params.text_document.uri, None)
+
+    def at(params: Any) -> Optional[tuple[Analysis, str, Range]]:
+        uri = params.text_document.uri
+        an = current(uri)
+        source = doc_text(uri)
+        if an is None or source is None:
+            return None
+        w = word_at(source, params.position.line, params.position.character)
+        return None if w is None else (an, w[0], w[1])
+
+    @server.feature(T.TEXT_DOCUMENT_HOVER)
+    @guarded()
+    def hover(params: T.HoverParams) -> Optional[T.Hover]:
+        found = at(params)
+        if found is None:
+            return None
+        an, name, r = found
+        text = hover_text(an, name)
+        if text is None:
+            return None
+        return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text), range=rng(r))
+
+    @server.feature(T.TEXT_DOCUMENT_DEFINITION)
+    @guarded()
+    def goto_definition(params: T.DefinitionParams) -> Optional[T.Location]:
+        found = at(params)
+        if found is None:
+            return None
+        r = definition(found[0], found[1])
+        return None if r is None else T.Location(uri=params.text_document.uri, range=rng(r))
+
+    @server.feature(T.TEXT_DOCUMENT_REFERENCES)
+    @guarded(default=[])
+    def find_references(params: T.ReferenceParams) -> list[T.Location]:
+        found = at(params)
+        if found is None:
+            return []
+        return [T.Location(uri=params.text_document.uri, range=rng(r))
+                for r in references(found[0], found[1], params.context.include_declaration)]
+
+    kinds = {"section": T.SymbolKind.Namespace, "variable": T.SymbolKind.Variable,
+             "enum": T.SymbolKind.Enum, "event": T.SymbolKind.Event,
+             "invariant": T.SymbolKind.Boolean}
+
+    def to_symbol(o: Outline) -> T.DocumentSymbol:
+        return T.DocumentSymbol(name=o.name, kind=kinds[o.kind], range=rng(o.range),
+                                selection_range=rng(o.selection),
+                                children=[to_symbol(c) for c in o.children])
+
+    @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
+    @guarded(default=[])
+    def document_symbols(params: T.DocumentSymbolParams) -> list[T.DocumentSymbol]:
+        an = current(params.text_document.uri)
+        return [] if an is None else [to_symbol(o) for o in outline(an)]
+
+    ckinds = {"variable": T.CompletionItemKind.Variable, "enum": T.CompletionItemKind.Enum,
+              "member": T.CompletionItemKind.EnumMember, "invariant": T.CompletionItemKind.Property,
+              "function": T.CompletionItemKind.Function, "flag": T.CompletionItemKind.Variable,
+              "keyword": T.CompletionItemKind.Keyword, "type": T.CompletionItemKind.Class}
+
+    @server.feature(T.TEXT_DOCUMENT_COMPLETION)
+    @guarded()
+    def complete(params: T.CompletionParams) -> Optional[T.CompletionList]:
+        an = current(params.text_document.uri)
+        if an is None:
+            return None
+        items = [T.CompletionItem(label=label, kind=ckinds.get(kind, T.CompletionItemKind.Text),
+                                  detail=detail) for label, kind, detail in completions(an)]
+        return T.CompletionList(is_incomplete=False, items=items)
+
+    @server.feature(T.TEXT_DOCUMENT_FORMATTING)
+    @guarded(default=[])
+    def formatting(params: T.DocumentFormattingParams) -> list[T.TextEdit]:
+        uri = params.text_document.uri
+        source = doc_text(uri)
+        if source is None:
+            return []
+        out = format_text(source, uri_to_path(uri))
+        if out is None or out == source:
+            return []
+        n = source.count("\n")
+        last = len(source) - (source.rfind("\n") + 1)
+        return [T.TextEdit(range=T.Range(start=T.Position(line=0, character=0),
+                                         end=T.Position(line=n, character=last)), new_text=out)]
+
+    @server.feature(T.TEXT_DOCUMENT_CODE_ACTION,
+                    T.CodeActionOptions(code_action_kinds=[T.CodeActionKind.QuickFix]))
+    @guarded(default=[])
+    def code_actions(params: T.CodeActionParams) -> list[T.CodeAction]:
+        out = []
+        for d in params.context.diagnostics:
+            data = d.data if isinstance(d.data, dict) else {}
+            new = data.get("replace")
+            if not new:
+                m = _DID_YOU_MEAN.search(d.message)
+                new = m.group(1) if m else None
+            if not new:
+                continue
+            edit = T.WorkspaceEdit(changes={params.text_document.uri: [T.TextEdit(range=d.range,
+                                                                                   new_text=new)]})
+            out.append(T.CodeAction(title=f"Change to '{new}'", kind=T.CodeActionKind.QuickFix,
+                                    diagnostics=[d], edit=edit, is_preferred=True))
+        return out
+
+    return server
+
+
+def serve() -> None:
+    """Run the server on stdin/stdout until the client exits."""
+    make_server().start_io()
+
+
+__all__ = ["analyse", "Analysis", "Diag", "Range", "hover_text", "definition", "references",
+           "outline", "completions", "format_text", "word_at", "make_server", "serve"]

@@ -1,0 +1,641 @@
+"""``pccl replay FILE``: re-execute a trace file through the interpreter.
+
+A trace file is data (from colleagues, CI artefacts, bug reports): reading
+one never runs code it names.  :mod:`pccl.output.tracecheck` parses and checks it
+first (every malformed file is one error naming the field); the blackbox is
+a shipped one named in the file, or the one the user gives (``--blackbox``,
+or ``blackbox=`` here), checked against the file's name for it
+(:func:`resolve_blackbox`).
+
+The model is rebuilt from the recorded configuration; the replay starts
+from the initial state of the model equal to the recorded one and applies
+each recorded step: its (rule, agent, event, line, column, outcome) must be
+among the enabled transitions, and the transition must make the recorded
+changes (and have the recorded time and branch).  The first step where that
+fails is the divergence.  The end is re-derived, not trusted: a run's end
+status by the runner itself, steered along the recorded steps; a violation
+by the model's checks on the last state; a lasso must close and its cycle
+must be one the property's verdict needs; a ``reachable P`` witness must end
+in a P-state.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import sys
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from pccl.output import tracecheck as TC
+from pccl.output import traces as T
+from pccl.lang.errors import ArgumentError, OptionError, PcclError
+from pccl.model.options import ModelOptions
+
+
+@dataclass
+class ReplayResult:
+    #: violation | clean | witness | diverged | empty | unreachable
+    status: str
+    #: 1 a violation reproduced; 0 a clean run or a witness reproduced (or
+    #: nothing to replay); 2 diverged, or a verdict no trace can reproduce
+    exit_status: int
+    message: str
+    warnings: list = field(default_factory=list)
+    model: object = None
+    states: list = field(default_factory=list)
+    labels: list = field(default_factory=list)
+    diverged_at: Optional[int] = None      # step index (0: the initial state)
+    steps_total: int = 0
+    doc: Optional[dict] = None
+
+
+def load(path) -> dict:
+    """The trace document in ``path``, parsed and checked (:mod:`pccl.output.tracecheck`)."""
+    return TC.load(path)
+
+
+def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> Optional[str]:
+    """The file a trace's ``config.program``/``config.world`` names.
+    ``override`` (``--program``/``--world``) wins; otherwise the first of the
+    recorded path (from the working directory), the path relative to the
+    trace file and the absolute path whose bytes have the recorded SHA-256,
+    else the first that exists (with a warning that it changed)."""
+    if override is not None:
+        p = os.fspath(override)
+        if not os.path.isfile(p):
+            raise PcclError(f"--{what}: no such file: {p}")
+        if rec is None:
+            warnings.append(f"warning: the trace was recorded without a {what}; using {p}")
+            return p
+        now = T.sha256_of(p) or ""
+        if rec.get("sha256") and now != rec["sha256"]:
+            warnings.append(f"warning: {what} {p} (--{what}) is not the recorded {what} "
+                            f"{rec['path']}: sha256 {now[:12]}… here, {rec['sha256'][:12]}… "
+                            f"recorded; the replay diverges where they differ")
+        return p
+    if rec is None:
+        return None
+    here = os.path.dirname(os.path.abspath(os.fspath(trace_path)))
+    cands = [rec["path"]]
+    if rec.get("relative"):
+        cands.append(os.path.join(here, rec["relative"]))
+    if rec.get("absolute"):
+        cands.append(rec["absolute"])
+    cands.append(os.path.join(here, rec["path"]))    # older files: next to the trace
+    seen, found = [], []
+    for c in cands:
+        if c in seen:
+            continue
+        seen.append(c)
+        if os.path.isfile(c):
+            found.append((c, T.sha256_of(c)))
+    if not found:
+        raise PcclError(f"config.{what}.path: the {what} {rec['path']} recorded in the trace "
+                        f"does not exist (looked for {', '.join(seen)}); give it with "
+                        f"--{what} FILE", filename=os.fspath(trace_path))
+    want = rec.get("sha256")
+    for c, sha in found:
+        if not want or sha == want:
+            return c
+    p, got = found[0]
+    want, now = want or "", got or ""
+    warnings.append(f"warning: {what} {p} has changed since the trace was recorded "
+                    f"(sha256 {want[:12]}… recorded, {now[:12]}… now); the replay diverges "
+                    f"where they differ (--{what} FILE replays against another file)")
+    return p
+
+
+# ---------------------------------------------------------------------------
+# the blackbox: never one the file would make us import
+# ---------------------------------------------------------------------------
+
+def _names_object(spec: str, obj) -> bool:
+    """Whether ``module:attr`` names ``obj`` (or its class) among the modules
+    already imported; nothing is imported here."""
+    modname, _, attr = spec.rpartition(":")
+    mod = sys.modules.get(modname)
+    if mod is None and (modname.endswith(".py") or "/" in modname or os.sep in modname):
+        stem = os.path.splitext(os.path.basename(modname))[0]
+        mod = sys.modules.get("_pccl_user_blackbox_" + stem)
+    if mod is None:
+        return False
+    x: Any = mod
+    for part in attr.split("."):
+        x = getattr(x, part, None)
+        if x is None:
+            return False
+    return x is obj or (isinstance(x, type) and isinstance(obj, x))
+
+
+def resolve_blackbox(recorded: str, given, trace_name: str):
+    """The blackbox to replay a trace with.  ``recorded`` is the file's
+    ``config.blackbox``; ``given`` the user's choice (None, a ``--blackbox``
+    spec, or a blackbox object).  A shipped blackbox is taken by name; a
+    user's one only when given, and then it must be the one the file names.
+    Nothing the file names is ever imported."""
+    from pccl.blackboxes import BLACKBOXES, load_blackbox
+    rec = recorded.strip()
+    shipped = ":" not in rec and rec.lower() in BLACKBOXES
+
+    def fail(msg: str):
+        raise PcclError(f"config.blackbox: {msg}", filename=trace_name)
+
+    def load(spec: str):
+        try:
+            return load_blackbox(spec)
+        except PcclError as e:
+            if e.filename is None:
+                e.filename = "--blackbox"
+            raise
+
+    if given is None:
+        if shipped:
+            return load(rec)
+        if ":" in rec:
+            fail(f"the trace names the user blackbox '{rec}'; replay does not import code a "
+                 f"trace file names: if you trust it, pass --blackbox {rec}")
+        fail(f"the trace names the blackbox '{rec}', which is not a shipped one "
+             f"({', '.join(sorted(BLACKBOXES))}): pass the one it was recorded with "
+             f"(--blackbox module:attr)")
+    if isinstance(given, str):
+        g = given.strip()
+        if g == rec or (shipped and g.lower() == rec.lower()):
+            return load(g)
+        if not shipped and ":" not in rec and ":" in g:
+            bb = load(g)                # the file has an object's name (the API wrote it)
+            if bb.name == rec:
+                return bb
+            fail(f"the trace was recorded with blackbox '{rec}', but --blackbox {g} is "
+                 f"'{bb.name}'")
+        fail(f"the trace was recorded with blackbox '{rec}', but --blackbox gives '{g}'")
+    name = getattr(given, "name", None)
+    if name == rec or (":" in rec and _names_object(rec, given)):
+        return given
+    fail(f"the trace was recorded with blackbox '{rec}', but the blackbox given is "
+         f"'{name}'")
+
+
+def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None, program=None,
+                      world=None):
+    """The model a (checked) trace configuration describes; ``blackbox``:
+    the object :func:`resolve_blackbox` chose (default: the file's name,
+    which must then be a shipped blackbox)."""
+    from pccl.api import build_model
+    name = os.fspath(trace_path)
+    if blackbox is None:
+        blackbox = resolve_blackbox(cfg["blackbox"], None, name)
+    prog = _resolve(cfg["program"], trace_path, "program", warnings, program)
+    world = _resolve(cfg.get("world"), trace_path, "world", warnings, world)
+    if cfg.get("pccl_version") not in (None, T.pccl_version()):
+        warnings.append(f"warning: the trace was written by pccl {cfg['pccl_version']}, "
+                        f"this is pccl {T.pccl_version()}")
+    try:
+        opts = _options_of(cfg).replace(world=world, blackbox=blackbox, agents=cfg["agents"],
+                                        reduce="none")  # a trace records unreduced steps
+    except (TypeError, ValueError) as e:
+        raise PcclError(f"config.options: {e}", filename=name) from None
+    try:
+        opts.check("replay")
+        return build_model(prog, opts)
+    except OptionError as e:
+        raise PcclError(f"config.{e.option}: {e.message}", filename=name) from None
+    except ArgumentError as e:
+        raise PcclError(f"config: {e.message}", filename=name) from None
+
+
+def _options_of(cfg: dict) -> ModelOptions:
+    """The model options of a trace's configuration: its ``options`` (the
+    options whole, :meth:`~pccl.model.options.CommonOptions.from_dict`) with the
+    time abstraction it ran with; a file without them (written before the
+    options travelled whole) from its flat keys."""
+    if "options" in cfg:
+        return ModelOptions.from_dict(cfg["options"]).replace(
+            abstract_time=bool(cfg.get("abstract_time")))
+    rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
+    return ModelOptions(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
+                        collisions=cfg["collisions"],
+                        overrides=dict(cfg.get("overrides") or {}),
+                        invariants=tuple(cfg.get("invariants") or ()),
+                        properties=tuple(cfg.get("property_options") or ()),
+                        max_time=cfg.get("max_time"),
+                        abstract_time=bool(cfg.get("abstract_time")))
+
+
+_IDENTITY = ("rule", "agent", "event", "line", "column", "source")
+
+
+def _identity(rec: dict) -> tuple:
+    return tuple(rec.get(k) for k in _IDENTITY) + (rec.get("outcome"),)
+
+
+def describe(rec: dict) -> str:
+    who = f"agent {rec['agent']}" if rec.get("agent") is not None else "system"
+    s = f"{who} {rec['rule']}"
+    if rec.get("event"):
+        s += f" [{rec['event']}]"
+    if rec.get("line"):
+        s += f" line {rec['line']}"
+        if rec.get("source"):
+            s += f": {rec['source']}"
+    if rec.get("outcome") is not None:
+        s += f" outcome {rec['outcome']}"
+    return s
+
+
+def _changes_text(chs: list) -> str:
+    if not chs:
+        return "no change"
+    return ", ".join(f"{T.cell_name(c['cell'])} {json.dumps(c['old'])} -> {json.dumps(c['new'])}"
+                     for c in chs)
+
+
+def _state_difference(a, b, prefix: str = "") -> str:
+    """The first place where two typed states differ (for messages)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in list(a) + [k for k in b if k not in a]:
+            if not _same(a.get(k), b.get(k)):
+                return _state_difference(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else k)
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for n, (x, y) in enumerate(zip(a, b)):
+            if not _same(x, y):
+                return _state_difference(x, y, f"{prefix}[{n}]")
+    return f"{prefix}: recorded {json.dumps(a)}, replayed {json.dumps(b)}"
+
+
+def _same(a, b) -> bool:
+    """Equal as JSON text: 1 is not 1.0, false is not 0."""
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+def _typed(m, st) -> dict:
+    return T.normal(T.state_typed(m, st))
+
+
+def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
+    """Replay the trace file ``path``.  ``blackbox``: the user's blackbox (a
+    ``module:attr`` spec or an object) when the file names one of its own;
+    a shipped one is taken from the file.  ``program``/``world``: replay
+    against these files instead of the recorded ones (checked by hash)."""
+    name = os.fspath(path)
+    doc = TC.load(path)
+    cfg = doc["config"]
+    warnings: list = []
+    bb = resolve_blackbox(cfg["blackbox"], blackbox, name)
+    m = model_from_config(cfg, path, warnings, bb, program=program, world=world)
+    steps = doc["steps"]
+    result = doc["result"]
+    recorded = result["violation"]
+    res = ReplayResult("empty", 0, "", warnings, m, steps_total=len(steps), doc=doc)
+    if doc["initial"] is None:
+        if recorded is not None:         # (tracecheck: only an unreachable verdict)
+            res.status, res.exit_status = "unreachable", 2
+            res.message = (f"nothing to replay: the recorded verdict ({recorded['message']}) is "
+                           f"about every run of the model, and no trace can reproduce it "
+                           f"(pccl explore decides it again)")
+            return res
+        res.message = (f"nothing to replay: the recorded {cfg['command']} found no "
+                       f"counterexample ({result.get('message')})")
+        return res
+
+    def diverge(at: int, message: str) -> ReplayResult:
+        res.status, res.exit_status, res.diverged_at = "diverged", 2, at
+        res.message = message
+        return res
+
+    want0 = doc["initial"]
+    inits = []
+    state = None
+    for s in m.init_states():      # a generator: stop at the recorded state
+        inits.append(s)
+        if _same(_typed(m, s), want0):
+            state = s
+            break
+    if state is None:
+        closest = _state_difference(want0, _typed(m, inits[0])) if inits else ""
+        return diverge(0, f"diverged at the initial state: none of the model's {len(inits)} "
+                          f"initial states equals the recorded one (first difference from "
+                          f"initial state 1: {closest})")
+    res.states = [state]
+    picks: list = []            # per step: (index among the successors, how many)
+    for rec in steps:
+        n = rec["index"]
+        succ = m.successors(state)
+        ident = _identity(rec)
+        want = rec["changes"]
+        same_label, found, other = [], None, None
+        for j, (label, nxt) in enumerate(succ):
+            got = T.normal(T.step_record(m, n, label, state, nxt))
+            if _identity(got) != ident:
+                continue
+            if not _same(got["changes"], want):
+                same_label.append(got["changes"])
+                continue
+            bad = [k for k in ("time", "branch") if not _same(got[k], rec[k])]
+            if bad:
+                other = (bad[0], got[bad[0]])
+                continue
+            found = (j, label, nxt)
+            break
+        if found is None:
+            where = f"diverged at step {n} of {len(steps)} ({describe(rec)})"
+            if other is not None:
+                return diverge(n, f"{where}: the transition is enabled and makes the recorded "
+                                  f"changes, but its {other[0]} differs: recorded "
+                                  f"{json.dumps(rec[other[0]])}, replayed "
+                                  f"{json.dumps(other[1])}")
+            if same_label:
+                return diverge(n, f"{where}: the transition is enabled but its changes differ: "
+                                  f"recorded {_changes_text(rec['changes'])}; replayed "
+                                  f"{_changes_text(same_label[0])}")
+            recs = [T.step_record(m, n, lab, state, nxt) for lab, nxt in succ]
+            moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
+            if moved:
+                return diverge(n, f"{where}: the program differs here: line {rec['line']} now "
+                                  f"reads '{moved[0]['source']}'")
+            enabled = sorted({describe(r) for r in recs})
+            return diverge(n, f"{where}: that transition is not enabled; enabled here: "
+                              + ("; ".join(enabled) if enabled else "none"))
+        picks.append((found[0], len(succ)))
+        res.labels.append(found[1])
+        state = found[2]
+        res.states.append(state)
+    last = _typed(m, state)
+    if not _same(last, doc["final"]):
+        return diverge(len(steps), f"diverged at the end: every step reproduced, but the "
+                                   f"recorded final state is not the last state (final."
+                                   f"{_state_difference(doc['final'], last)})")
+    if cfg["command"] == "run":
+        return _end_of_run(m, cfg, doc, res, picks, diverge)
+    if recorded is None:
+        return _end_of_witness(m, result["witness"], res, diverge)
+    if recorded["kind"] in ("liveness", "timelock", "response"):
+        return _end_of_temporal(m, cfg, recorded, result.get("cycle_start"), res, diverge)
+    if recorded["kind"] == "stall":
+        return _end_of_stall(m, recorded, result.get("cycle_start"), res, diverge)
+    # a safety violation of explore: the model's own checks on the last state
+    viols = list(m.violations(state))
+    if not viols and cfg.get("deadlock", True) and not m.successors(state) \
+            and m.terminal_kind(state) == "deadlock":
+        viols = [m.deadlock_violation(state)]
+    match = [v for v in viols if _same(T.normal(T.violation_record(m, v)), recorded)]
+    if match:
+        res.status, res.exit_status = "violation", 1
+        res.message = f"reproduced: {match[0].message} (after {len(steps)} steps)"
+        return res
+    seen = "; ".join(v.message for v in viols) or "no violation"
+    return diverge(len(steps), f"diverged at the end: every step reproduced, but the recorded "
+                               f"violation ({recorded['message']}) is not: {seen}")
+
+
+# ---------------------------------------------------------------------------
+# the end of a run: what the runner itself says, steered along the steps
+# ---------------------------------------------------------------------------
+
+class _Beyond(Exception):
+    """The run would go on past the last recorded step."""
+
+
+class _Steer(random.Random):
+    """A generator that makes :func:`pccl.tools.runner.run` take the recorded
+    initial state and the recorded successor at each step."""
+
+    def __init__(self, first, picks: list):
+        super().__init__(0)
+        self.first = first
+        self.picks = picks
+        self.n = 0
+
+    def choice(self, seq):
+        for s in seq:
+            if s == self.first:
+                return s
+        raise _Beyond()          # pragma: no cover - the replay found it among them
+
+    def randrange(self, start, stop=None, step=1):
+        if self.n >= len(self.picks):
+            raise _Beyond()
+        j, k = self.picks[self.n]
+        assert stop is None and start == k, (start, k)
+        return j
+
+    def step(self, label, before, after) -> None:
+        self.n += 1
+        if self.n > len(self.picks):
+            raise _Beyond()
+
+
+def _end_of_run(m, cfg, doc, res, picks, diverge):
+    from pccl.tools.runner import run as run_model
+    result = doc["result"]
+    n = len(picks)
+    steer = _Steer(res.states[0], picks)
+    stall = cfg.get("stall_steps")
+    try:
+        rr = run_model(m, max_steps=cfg.get("max_steps") or 100_000, rng=steer,
+                       on_step=steer.step, stall_steps=20 if stall is None else stall)
+    except _Beyond:
+        rr = None
+    if rr is None:
+        if result["status"] == "interrupted":
+            res.status, res.exit_status = "clean", 0
+            res.message = (f"reproduced: interrupted — every step re-executes, and the run can "
+                           f"go on from there (after {n} steps)")
+            return res
+        k = len(m.successors(res.states[-1]))
+        return diverge(n, f"diverged at the end: every step reproduced, but the recorded run "
+                          f"ends here ({result['status']}: {result['message']}) and the "
+                          f"replayed one goes on ({k} transition{'s' if k != 1 else ''} "
+                          f"enabled, no violation)")
+    if rr.steps < n:
+        return diverge(rr.steps, f"diverged at step {rr.steps} of {n}: the run stops there "
+                                 f"({rr.status}: {rr.message}), but the trace goes on")
+    v = rr.violations[0] if rr.violations else None
+    got = {"status": rr.status, "message": rr.message,
+           "violation": T.normal(T.violation_record(m, v))}
+    want = {k: result[k] for k in got}
+    if not _same(got, want):
+        return diverge(n, f"diverged at the end: every step reproduced, but the recorded "
+                          f"result ({want['status']}: {want['message']}) does not match the "
+                          f"replayed run's ({got['status']}: {got['message']})")
+    if rr.exit_status == 1:
+        res.status, res.exit_status = "violation", 1
+        res.message = f"reproduced: {rr.message} (after {n} steps)"
+    else:
+        res.status, res.exit_status = "clean", 0
+        res.message = f"reproduced: {rr.status} — {rr.message} (after {n} steps)"
+    return res
+
+
+# ---------------------------------------------------------------------------
+# the end of a temporal counterexample, and of a witness
+# ---------------------------------------------------------------------------
+
+def _holds(fn, st) -> bool:
+    try:
+        return bool(fn(st))
+    except Exception:        # noqa: BLE001 - a runtime error in a property is "false"
+        return False
+
+
+def _end_of_witness(m, w, res, diverge):
+    n = len(res.labels)
+    props = [p for p in m.temporal if p.kind == "reachable" and p.name == w["name"]]
+    if not props:
+        return diverge(n, f"diverged at the end: the witness's property ({w['name']}) is not "
+                          f"a 'reachable P' of config.property_options")
+    p = props[0]
+    if not _holds(p.p, res.states[-1]):
+        return diverge(n, f"diverged at the end: every step reproduced, but `{p.text}` does "
+                          f"not hold in the last state, so the path is no witness")
+    res.status, res.exit_status = "witness", 0
+    res.message = f"reproduced: witness — `{p.text}` holds after {n} steps"
+    return res
+
+
+#: How many states the time-lock check visits from the cycle at most.
+TIMELOCK_LIMIT = 100_000
+
+
+def _end_of_stall(m, recorded, cycle_start, res, diverge):
+    """The last state is stalled (pccl/model/stall.py, docs/temporal.md): from it
+    no reachable transition changes the team's visible state, no run ends,
+    time advances, and not every agent has exited; the message (with what
+    each agent waits on) is made again from the state."""
+    from pccl.model.layout import AGS, EXITED, STATUS
+    from pccl.search.liveness import STALL_MESSAGE
+    from pccl.model.stall import signature_fn, waiting, waiting_text
+    n = len(res.labels)
+
+    def bad(why: str):
+        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
+
+    if cycle_start is not None:
+        return bad("a stall counterexample is not a lasso")
+    last = res.states[-1]
+    if all(ag[STATUS] == EXITED for ag in last[AGS]):
+        return bad("every agent has exited at the recorded stall")
+    sig = signature_fn(m)
+    want = sig(last)
+    seen, todo, advances = {m.key(last)}, [last], False
+    while todo:
+        st = todo.pop()
+        succ = m.successors(st)
+        if not succ:
+            return bad("a run can end from the recorded stall")
+        for lab, nxt in succ:
+            advances = advances or lab[0] == "TIME ADVANCE"
+            if sig(nxt) != want:
+                return bad(f"the team can still change from the recorded stall ({lab[0]})")
+            k = m.key(nxt)
+            if k not in seen:
+                seen.add(k)
+                todo.append(nxt)
+        if len(seen) > TIMELOCK_LIMIT:
+            res.warnings.append(f"warning: the stall was checked on the first "
+                                f"{TIMELOCK_LIMIT:,} states reachable from it only")
+            break
+    if not advances and not todo:
+        return bad("time never advances from the recorded stall (a time-lock, not a stall)")
+    waits = waiting(m, last)
+    message = STALL_MESSAGE + ("; " + waiting_text(waits) if waits else "")
+    if message != recorded["message"]:
+        return bad(f"the recorded stall message is not the state's: {message}")
+    res.status, res.exit_status = "violation", 1
+    res.message = f"reproduced: {message} (after {n} steps)"
+    return res
+
+
+def _end_of_temporal(m, cfg, recorded, cycle_start, res, diverge):
+    from pccl.model.layout import AGS, DISCRETE, EXITED, PHASE, STATUS
+    from pccl.search.liveness import _pending_mask
+    from pccl.tools.runner import _Monitor
+    states, labels = res.states, res.labels
+    n = len(labels)
+    kind = recorded["kind"]
+
+    def bad(why: str):
+        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
+
+    def closes() -> bool:
+        return m.key(states[-1]) == m.key(states[cycle_start])
+
+    cyc_labels = labels[cycle_start:] if cycle_start is not None else []
+    advances = any(lab[0] == "TIME ADVANCE" for lab in cyc_labels)
+    if kind == "timelock":
+        if cycle_start is None:
+            return bad("a time-lock counterexample is a lasso, and result.cycle_start is missing")
+        if not closes():
+            return bad(f"the cycle does not close: the last state is not the state after step "
+                       f"{cycle_start}")
+        if advances:
+            return bad("time advances in the recorded time-lock cycle")
+        if all(ag[STATUS] == EXITED for ag in states[-1][AGS]):
+            return bad("every agent has exited at the recorded time-lock")
+        seen, todo = {m.key(states[-1])}, [states[-1]]
+        while todo:
+            st = todo.pop()
+            succ = m.successors(st)
+            if not succ or st[PHASE] != DISCRETE:
+                return bad("time can advance again (or the run end) from the recorded "
+                           "time-lock cycle")
+            for _, nxt in succ:
+                k = m.key(nxt)
+                if k not in seen:
+                    seen.add(k)
+                    todo.append(nxt)
+            if len(seen) > TIMELOCK_LIMIT:
+                res.warnings.append(f"warning: the time-lock was checked on the first "
+                                    f"{TIMELOCK_LIMIT:,} states reachable from its cycle only")
+                break
+    else:
+        props = [p for p in m.temporal if p.name == recorded["name"]]
+        want = {"liveness": ("eventually", "leadsto"), "response": ("within",)}[kind]
+        props = [p for p in props if p.kind in want]
+        if not props:
+            return bad(f"no {kind} property named `{recorded['name']}` is among "
+                       f"config.property_options")
+        p = props[0]
+        if kind == "response":
+            if cycle_start is not None:
+                return bad("a bounded-response counterexample is not a lasso")
+            mon = _Monitor([p])
+            if not any(mon.observe(st, k) for k, st in enumerate(states)):
+                return bad(f"on this path `{p.text}` is never violated: no premise goes "
+                           f"unanswered for more than {p.bound} time units")
+        else:
+            if p.kind == "eventually":
+                hit = [k for k, st in enumerate(states) if _holds(p.p, st)]
+                if hit:
+                    return bad(f"`{p.text}` holds after step {hit[0]}")
+            else:
+                qs = [k for k, st in enumerate(states) if _holds(p.q, st)]
+                after = qs[-1] + 1 if qs else 0
+                if cycle_start is not None and after > cycle_start:
+                    return bad(f"Q holds in the cycle (after step {qs[-1]})")
+                if not any(_holds(p.p, st) for st in states[after:]):
+                    return bad("P never holds without Q holding then or later")
+            if cycle_start is None:
+                k = len(m.successors(states[-1]))
+                if k:
+                    return bad(f"the path does not end in a terminal state ({k} transitions "
+                               f"enabled) and is no lasso (no result.cycle_start)")
+            else:
+                if not closes():
+                    return bad(f"the cycle does not close: the last state is not the state "
+                               f"after step {cycle_start}")
+                if not advances:
+                    return bad("time never advances in the cycle (a zero-time cycle is a "
+                               "time-lock, not a liveness counterexample)")
+                if getattr(m.blackbox, "name", None) == "nondet":
+                    cyc = states[cycle_start:]
+                    for a in range(m.N):
+                        if all(_pending_mask(st) >> a & 1 for st in cyc):
+                            return bad(f"the cycle is unfair: agent {a}'s doReach is under "
+                                       f"way throughout, and nondet lets it arrive")
+    res.status, res.exit_status = "violation", 1
+    shape = (f"a lasso: the cycle from step {cycle_start} closes" if cycle_start is not None
+             else "a path")
+    res.message = f"reproduced: {recorded['message']} (after {n} steps; {shape})"
+    return res
