@@ -323,9 +323,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                             filename="pccl.api.explore_model")
     o = options
     depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
-    find_all, exact, progress, coverage = o.find_all, o.exact, o.progress, o.coverage
-    max_memory, workers, progress_interval = o.max_memory, o.workers, o.progress_interval
-    ray = o.ray
+    find_all, progress, coverage = o.find_all, o.progress, o.coverage
+    max_memory, workers, ray = o.max_memory, o.workers, o.ray
     timelock, fastest, stall = o.timelock, o.fastest, o.stall
     if max_memory == "default":
         max_memory = default_max_memory()
@@ -346,9 +345,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     if c is not None:
         raise ArgumentError(c.message(api_spelling), filename="pccl.api.explore_model")
     one = ray is None and nworkers == 1
-    opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
-                exact=exact, progress=progress, max_memory=max_memory,
-                progress_interval=progress_interval)
+    sopts = o.search_options(max_memory)
+    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
     from pccl.search import liveness as L
     skipped: list = []
     # the workers record the state graph too (pccl/search/parallel.py): the same
@@ -370,7 +368,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels, **opts)
+        ex: Any = Explorer(native, sopts, on_runaway=on_runaway_native, labels=labels)
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -380,10 +378,10 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
     elif fastest:
         from pccl.search.fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
+        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
     else:
-        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels,
-                      checkpoint=_checkpointer(model, o), **opts)
+        ex = Explorer(cov or model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels,
+                      checkpoint=_checkpointer(model, o))
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -399,7 +397,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             labels = set()
-            ex = Explorer(model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
+            ex = Explorer(model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels)
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable

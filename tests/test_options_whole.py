@@ -123,3 +123,19 @@ def test_the_cli_spells_a_conflict_with_flags():
     assert "exact=True" not in res.stderr
     with pytest.raises(api.ArgumentError, match="exact=True runs in one process"):
         api.explore(RACE, exact=True, workers=2)
+
+
+def test_the_explorer_takes_its_options_whole():
+    from pccl.search.explorer import Explorer, SearchOptions
+    o = ExploreOptions(depth=4, max_states=500, deadlock=False, find_all=True, reduce="none")
+    s = o.search_options(max_memory=1 << 30)
+    assert s == SearchOptions(max_depth=4, max_states=500, deadlock=False, find_all=True,
+                              max_memory=1 << 30)
+    m = api.make_model(FISCHER, reduce="none")
+    ex = Explorer(m, s)
+    assert ex.options is s and (ex.max_depth, ex.max_states, ex.deadlock) == (4, 500, False)
+    # keywords still work, and agree with the options whole
+    a = Explorer(m, s).run().stats.states
+    b = Explorer(m, max_depth=4, max_states=500, deadlock=False, find_all=True,
+                 max_memory=1 << 30).run().stats.states
+    assert a == b and a <= 500

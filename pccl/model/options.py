@@ -245,6 +245,16 @@ class ExploreOptions(ModelOptions):
             raise ArgumentError(c.message(api_spelling), filename=f"pccl.api.{func}")
 
 
+    def search_options(self, max_memory: Optional[int] = None):
+        """The search's options (:class:`pccl.search.explorer.SearchOptions`),
+        ``max_memory`` resolved to bytes by the caller."""
+        from pccl.search.explorer import SearchOptions
+        return SearchOptions(max_depth=self.depth, max_states=self.max_states,
+                             deadlock=self.deadlock, find_all=self.find_all, exact=self.exact,
+                             progress=self.progress, progress_interval=self.progress_interval,
+                             max_memory=max_memory)
+
+
 @dataclass(frozen=True)
 class Conflict:
     """Search options that do not go together.  ``option`` is the one the
