@@ -139,3 +139,11 @@ def test_the_explorer_takes_its_options_whole():
     b = Explorer(m, max_depth=4, max_states=500, deadlock=False, find_all=True,
                  max_memory=1 << 30).run().stats.states
     assert a == b and a <= 500
+
+
+def test_options_and_the_keys_that_repeat_them_must_agree(tmp_path):
+    out, doc = _trace(tmp_path)
+    doc["config"]["invariants"] = ["k >= 0"]          # edited by hand, the options not
+    out.write_text(json.dumps(doc))
+    res = cli("replay", str(out))
+    assert res.exit_code == 2 and "config.options: options.invariants" in res.stderr, res.output

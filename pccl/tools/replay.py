@@ -205,14 +205,25 @@ def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None, prog
         raise PcclError(f"config: {e.message}", filename=name) from None
 
 
+#: config keys that repeat an option (for readers of the file): they must agree
+_MIRRORED = (("invariants", "invariants"), ("property_options", "properties"),
+             ("overrides", "overrides"))
+
+
 def _options_of(cfg: dict) -> ModelOptions:
     """The model options of a trace's configuration: its ``options`` (the
     options whole, :meth:`~pccl.model.options.CommonOptions.from_dict`) with the
     time abstraction it ran with; a file without them (written before the
     options travelled whole) from its flat keys."""
     if "options" in cfg:
-        return ModelOptions.from_dict(cfg["options"]).replace(
-            abstract_time=bool(cfg.get("abstract_time")))
+        opts = ModelOptions.from_dict(cfg["options"])
+        for key, field in _MIRRORED:
+            mine = [str(x) for x in getattr(opts, field)] if field != "overrides" else \
+                {k: str(v) for k, v in opts.overrides.items()}
+            flat = cfg.get(key, mine)
+            if (list(flat) if isinstance(flat, (list, tuple)) else flat) != mine:
+                raise ValueError(f"options.{field} {mine!r} disagree with {key} {flat!r}")
+        return opts.replace(abstract_time=bool(cfg.get("abstract_time")))
     rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
     return ModelOptions(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
                         collisions=cfg["collisions"],
