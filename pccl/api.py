@@ -475,6 +475,9 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
         skipped.extend(_checkpoint_notes(ck))
+    transport: Any = getattr(ex, "transport", None)
+    if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
+        skipped.append(transport.placement_note())
     res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,

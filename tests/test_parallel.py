@@ -259,7 +259,8 @@ def test_bad_ray_argument_is_named():
 def full_signature(r):
     """Everything a verdict shows: the search's figures, the violations with
     their traces (lassos included), what holds, the notes, the witnesses."""
-    return (signature(r), r.verdict, r.notes, r.holds,
+    notes = [n for n in r.notes if not n.startswith("Ray: ")]   # --ray: where its actors ran
+    return (signature(r), r.verdict, notes, r.holds,
             [(w["name"], w["depth"], w["trace"]) for w in r.witnesses],
             [cx.cycle_start for cx in r.counterexamples])
 

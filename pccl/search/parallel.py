@@ -84,7 +84,8 @@ import xxhash
 from pccl.search.explorer import (Bound, Explorer, FingerprintTable, SearchResult, Stats, _MAX_STATES, _reserve,
                                   collision_bound, fingerprint, peak_rss_bytes)
 
-__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "import_ray"]
+__all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "RayWorkerLost",
+           "import_ray"]
 
 _SHIFT = 24                     # successors per state < 2**24
 _NONE = 0xFFFF_FFFF
@@ -628,17 +629,64 @@ def import_ray():
     return ray
 
 
+class RayWorkerLost(RayUnavailable):
+    """A Ray actor (a worker) died, or its node did, during the search: its
+    partition of the visited states is gone, so the search cannot go on and
+    has no verdict.  The message names the worker, its node and Ray's reason
+    (the front ends report it with exit status 2, as Ray's other failures)."""
+
+
+class _RayWorker(_Worker):
+    """A worker as a Ray actor: :meth:`ready` also says where it runs."""
+
+    def ready(self):
+        super().ready()
+        import ray
+        return (self.wid, ray.get_runtime_context().get_node_id(),
+                ray.util.get_node_ip_address(), os.getpid())
+
+
+#: seconds between two looks at the cluster (are the actors' nodes alive?)
+#: while a round waits for the actors' replies
+RAY_POLL = 5.0
+
+
+def _env_seconds(name: str, default: float) -> float:
+    """A number of seconds from the environment (``default`` when unset)."""
+    text = os.environ.get(name)
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0 or value == float("inf"):
+        raise RayUnavailable(f"{name}={text}: expected a number of seconds above 0")
+    return value
+
+
 class _RayTransport:
     """One Ray actor per partition.  ``address``: ``"local"`` starts a Ray
     instance on this machine (stopped again after the search); anything
     else is passed to ``ray.init(address=...)`` (``"auto"``, ``HOST:PORT``,
     ``ray://HOST:PORT``).  If this process is already connected to Ray
-    (``ray.is_initialized()``), that connection is used and left open."""
+    (``ray.is_initialized()``), that connection is used and left open.
+
+    The actors are spread over the cluster's nodes (``SPREAD``); each says
+    where it runs (:attr:`placement`, in the result's notes).  An actor that
+    dies, or whose node does, stops the search with :class:`RayWorkerLost`
+    naming it: Ray reports the death to a waiting call, and while a round
+    waits the transport also looks every :data:`RAY_POLL` seconds whether
+    the actors' nodes are still alive, so a lost node never leaves the
+    search waiting.  Actors that cannot be placed (a cluster without room)
+    fail after ``PCCL_RAY_START_TIMEOUT`` seconds (default 300)."""
 
     def __init__(self, n: Optional[int], address: str):
         self.n: Any = n                # None until start(): one per CPU of the cluster
         self.address = address
         self.actors: list = []
+        self.actor_ids: dict = {}      # actor id (hex) -> worker number
+        self.placement: list = []      # per worker: (node id, node address, pid)
         self.owned = False
         self.ray = import_ray()
 
@@ -658,31 +706,98 @@ class _RayTransport:
             else:
                 ray.init(address=address, **quiet)
         except Exception as exc:
-            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}") from None
+            hint = ""
+            if address != "local" and "RAY_AUTH_MODE" not in os.environ:
+                hint = ("; if the cluster uses token authentication (recent Ray turns it on "
+                        "for a new head), set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the "
+                        "head's token (its ~/.ray/auth_token)")
+            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}{hint}") from None
         return True
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
         ray = self.ray
+        limit = _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
         self.owned = self.connect(ray, self.address, self.n or available_workers())
         cpus = ray.cluster_resources().get("CPU", 0)
         if self.n is None:          # workers="auto": one per CPU of the cluster
             self.n = max(1, int(cpus))
         per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
-        actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_Worker)
+        actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_RayWorker)
         ref = ray.put(model)
         self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns)
                        for w in range(self.n)]
-        self._get([a.ready.remote() for a in self.actors])
+        self.actor_ids = {a._actor_id.hex(): w for w, a in enumerate(self.actors)}
+        refs = [a.ready.remote() for a in self.actors]
+        _, pending = ray.wait(refs, num_returns=len(refs), timeout=limit)
+        if pending:
+            waiting = [w for w, r in enumerate(refs) if r in pending]
+            raise RayUnavailable(
+                f"--ray {self.address}: {len(waiting)} of the {self.n} actors (worker"
+                f"{'s' if len(waiting) > 1 else ''} {', '.join(map(str, waiting))}) did not "
+                f"start within {limit:g} s (the cluster has {cpus:g} CPUs); give fewer "
+                f"--workers or add nodes (PCCL_RAY_START_TIMEOUT=SECONDS waits longer)")
+        self.placement = [tuple(r[1:]) for r in self._get(refs)]
+
+    def placement_note(self) -> str:
+        """Where the actors ran, for the result's notes: ``Ray: 2 actors on
+        2 nodes: worker 0 on node 1a2b3c4d (10.0.0.1, pid 123); ...``."""
+        k, nodes = len(self.placement), len({p[0] for p in self.placement})
+        where = "; ".join(f"worker {w} on node {node[:8]} ({ip}, pid {pid})"
+                          for w, (node, ip, pid) in enumerate(self.placement))
+        return (f"Ray: {k} actor{'s' if k != 1 else ''} on {nodes} "
+                f"node{'s' if nodes != 1 else ''}: {where}")
+
+    def _who(self, w: int) -> str:
+        if w < len(self.placement):
+            node, ip, pid = self.placement[w]
+            return f"worker {w} of {self.n} (the Ray actor on node {node[:8]} at {ip}, pid {pid})"
+        return f"worker {w} of {self.n}"
+
+    def _lost(self, exc: BaseException, workers=()) -> "RayWorkerLost":
+        """The error for a lost actor: which one (from Ray's error, or the
+        nodes the cluster reports dead), and Ray's reason."""
+        w = self.actor_ids.get(getattr(exc, "actor_id", None) or "")
+        lost = [w] if w is not None else list(workers) or self._on_dead_nodes()
+        who = " and ".join(self._who(v) for v in lost) if lost else "a worker (a Ray actor)"
+        reason = " ".join(str(exc).split())
+        if len(reason) > 300:
+            reason = reason[:300] + "…"
+        return RayWorkerLost(
+            f"--ray {self.address}: {who} was lost during the search ({type(exc).__name__}: "
+            f"{reason}). Its part of the visited states is gone: the search stops without a "
+            f"verdict; start it again (checkpoints do not cover --ray)")
+
+    def _on_dead_nodes(self) -> list:
+        """The workers whose node the cluster reports dead (none if the
+        cluster cannot be asked)."""
+        try:
+            dead = {n["NodeID"] for n in self.ray.nodes() if not n.get("Alive", True)}
+        except Exception:
+            return []
+        return [w for w, p in enumerate(self.placement) if p[0] in dead]
 
     def _get(self, refs):
         ray = self.ray
-        try:
-            return ray.get(refs)
-        except ray.exceptions.RayTaskError as exc:
-            cause = getattr(exc, "cause", None)
-            if isinstance(cause, Exception):    # as the pipes transport: the worker's own error
-                raise cause from None
-            raise
+        errors = ray.exceptions
+        lost_kinds = (errors.RayActorError, errors.ObjectLostError, errors.NodeDiedError,
+                      errors.WorkerCrashedError)
+        while True:
+            try:
+                return ray.get(refs, timeout=RAY_POLL)
+            except errors.GetTimeoutError:
+                lost = self._on_dead_nodes()
+                if lost:
+                    raise self._lost(errors.NodeDiedError(
+                        "the cluster reports the node dead"), lost) from None
+            except errors.RayTaskError as exc:
+                cause = getattr(exc, "cause", None)
+                if isinstance(cause, lost_kinds):       # an input from a lost actor
+                    raise self._lost(cause) from None
+                if isinstance(cause, Exception):    # as the pipes transport: the worker's own error
+                    raise cause from None
+                raise
+            except lost_kinds as exc:
+                raise self._lost(exc) from None
 
     def all(self, cmd: str, per_worker: list) -> list:
         return self._get([getattr(a, cmd).remote(*args)
