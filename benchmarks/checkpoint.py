@@ -29,7 +29,7 @@ import tempfile
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SAME = ("status", "verdict", "violations", "bounds", "checked")
+SAME = ("status", "message", "violations", "bounds", "checked")
 STATS = ("initial_states", "states", "transitions", "max_depth", "max_time")
 
 

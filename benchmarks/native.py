@@ -1,48 +1,93 @@
-"""The native engine against the Python engine at equal work (``--reduce
-none --no-timelock --no-stall``) on Fischer's protocol, in one run.
+"""The native engine at equal work (``--reduce none --no-timelock
+--no-stall``) on Fischer's protocol, in one run: beside SPIN BFS (where
+``spin`` and a C compiler are installed), beside a baseline checkout of pccl
+(``--baseline DIR``, e.g. ``git worktree add /tmp/base <commit>``), and
+beside the Python engine (``--python``).
 
     python benchmarks/native.py [--cases 2,2,2 2,1,2 0,2,3] [--repeat 1]
+                                [--baseline DIR] [--python]
 
 Each case is ``k,d,N``.  Each search runs in its own process (``pccl
-explore``, start-up and the native module's compilation included; the
-module is cached, so only a first run compiles); the two engines alternate.
-Prints states, transitions and depth (which must be equal: a mismatch exits
-1) and CPU seconds, median of --repeat, and the speed-up.
+explore``, start-up included); the native module is compiled by an untimed
+warm-up run first (it is cached, as SPIN's compilation of pan.c is not
+counted).  The runs alternate.  Prints states, transitions and depth (which
+must be equal: a mismatch exits 1), CPU seconds (median of --repeat) and
+the ratio of the native engine to SPIN BFS.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
-import os
+import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from spin import run_pccl  # noqa: E402
+import spin  # noqa: E402
+
+
+def one(col: str, k: int, d: int, n: int, exe, baseline) -> tuple:
+    """One timed run of column ``col``: (pccl's counts, CPU seconds)."""
+    if col == "spin BFS":
+        st, cpu = spin.run_pan(exe, bfs=True, n=n)
+        return spin.spin_counts(st, spin.n_initial(k, n)), cpu
+    root = baseline if col == "baseline native" else None
+    eng = "python" if col == "python" else "native"
+    return spin.run_pccl(k, d, n, unreduced=True, engine=eng, root=root)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["2,2,2", "2,1,2", "0,2,3"])
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--baseline", default=None, help="a checkout of pccl to compare with")
+    ap.add_argument("--python", action="store_true", help="the Python engine too")
+    ap.add_argument("--no-spin", action="store_true", help="no SPIN column")
     args = ap.parse_args(argv)
-    print(f"CPU seconds, median of {args.repeat}")
-    print(f"{'case':<14} {'states':>12} {'transitions':>13} {'depth':>6} {'python':>8} "
-          f"{'native':>8} {'speed-up':>9}")
+    why = None if not args.no_spin else "--no-spin"
+    why = why or spin.missing_tools()
+    if why:
+        print(f"SPIN skipped: {why}")
+    cols = ["spin BFS"] if why is None else []
+    if args.baseline:
+        cols.append("baseline native")
+    cols.append("native")
+    if args.python:
+        cols.append("python")
+    print(f"CPU seconds, median of {args.repeat}; load average at the start "
+          f"{os.getloadavg()[0]:.1f}", flush=True)
+    print(f"{'case':<14} {'states':>12} {'transitions':>13} {'depth':>6} "
+          + " ".join(f"{c:>16}" for c in cols)
+          + (f" {'native/SPIN':>11}" if "spin BFS" in cols else ""), flush=True)
+    work = tempfile.mkdtemp(prefix="pccl-native-")
     for case in args.cases:
         k, d, n = (int(x) for x in case.split(","))
-        runs: dict = {"python": [], "native": []}
+        exe = None
+        if "spin BFS" in cols:
+            exe = spin.build(k, d, n, os.path.join(work, f"k{k}d{d}n{n}"), bfs=True)
+
+        for col in cols:        # the warm-up: the native modules compiled
+            if col in ("baseline native", "native"):
+                spin.run_pccl(k, d, n, unreduced=True, engine="native",
+                              root=args.baseline if col == "baseline native" else None,
+                              extra=("--max-states", "10"))
+        runs: dict = {c: [] for c in cols}
         for _ in range(args.repeat):
-            for eng in ("python", "native"):
-                runs[eng].append(run_pccl(k, d, n, unreduced=True, engine=eng))
-        a, b = runs["python"][0][0], runs["native"][0][0]
-        if a != b:
-            print(f"MISMATCH k={k} d={d} N={n}: python {a} native {b}")
-            return 1
-        tp = statistics.median(c for _, c in runs["python"])
-        tn = statistics.median(c for _, c in runs["native"])
-        print(f"k={k} d={d} N={n:<4} {a['states']:>12,} {a['transitions']:>13,} {a['depth']:>6} "
-              f"{tp:>8.2f} {tn:>8.2f} {tp / tn:>8.1f}x", flush=True)
+            for col in cols:
+                runs[col].append(one(col, k, d, n, exe, args.baseline))
+        ref = runs["native"][0][0]
+        for col in cols:
+            if runs[col][0][0] != ref:
+                print(f"MISMATCH k={k} d={d} N={n}: {col} {runs[col][0][0]} native {ref}")
+                return 1
+        med = {c: statistics.median(cpu for _, cpu in runs[c]) for c in cols}
+        line = (f"k={k} d={d} N={n:<4} {ref['states']:>12,} {ref['transitions']:>13,} "
+                f"{ref['depth']:>6} " + " ".join(f"{med[c]:>16.2f}" for c in cols))
+        if "spin BFS" in cols:
+            line += f" {med['native'] / med['spin BFS']:>10.1f}x"
+        print(line, flush=True)
+    print(f"load average at the end {os.getloadavg()[0]:.1f}")
     return 0
 
 

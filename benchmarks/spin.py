@@ -85,10 +85,10 @@ def build(k: int, d: int, n: int, workdir: str, *, bfs: bool) -> str:
     return exe
 
 
-def _cpu_run(cmd, cwd=None) -> tuple[str, float]:
+def _cpu_run(cmd, cwd=None, env=None) -> tuple[str, float]:
     """Run ``cmd``; its output and the CPU seconds it took (user + system)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=env)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return p.stdout + p.stderr, cpu
@@ -137,15 +137,19 @@ def parse_pccl(out: str) -> dict:
             "depth": num("max depth")}
 
 
-def run_pccl(k: int, d: int, n: int, *, unreduced: bool, engine: Optional[str] = None
-             ) -> tuple[dict, float]:
+def run_pccl(k: int, d: int, n: int, *, unreduced: bool, engine: Optional[str] = None,
+             root: Optional[str] = None, extra: tuple = ()) -> tuple[dict, float]:
+    """``pccl explore`` of the case: its statistics and CPU seconds.  ``root``:
+    another checkout of pccl to run instead of this one (a baseline)."""
+    root = root or ROOT
     cmd = [sys.executable, "-m", "pccl.cli", "explore", PROGRAM, "--set", f"k={k}",
-           "--set", f"d={d}", "-n", str(n)]
+           "--set", f"d={d}", "-n", str(n), *extra]
     if unreduced:
         cmd += ["--reduce", "none", "--no-timelock", "--no-stall"]
     if engine:
         cmd += ["--engine", engine]
-    out, cpu = _cpu_run(cmd, cwd=ROOT)
+    env = dict(os.environ, PYTHONPATH=root + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out, cpu = _cpu_run(cmd, cwd=root, env=env)
     return parse_pccl(out), cpu
 
 

@@ -76,20 +76,20 @@ class Nondet:
         return None
 
     def step(self, world, motions, env, time, delta):
-        options = []      # per agent: the (position, done, fail) it may end with
+        options: list[list[tuple]] = []   # per agent: the (position, done, fail) it may end with
         moving = []       # agents that move this step
         wobs = world.obstacles
         for i, m in enumerate(motions):
             p, t = m.position, m.target
             held = settled(m)
             if held is not None:
-                options.append(((p, held[0], held[1]),))
+                options.append([(p, held[0], held[1])])
                 continue
             if obstacles_of(wobs, m.obstacles).contains_point(float(t[0]), float(t[1])):
-                options.append(((p, False, True),))
+                options.append([(p, False, True)])
                 continue
             if p[0] == t[0] and p[1] == t[1]:
-                options.append(((p, True, False),))
+                options.append([(p, True, False)])
                 continue
             z = float(p[2]) if len(p) > 2 else 0.0
             options.append([(p, False, False), ((float(t[0]), float(t[1]), z), True, False)])

@@ -368,7 +368,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, sopts, on_runaway=on_runaway_native, labels=labels)
+        ex: Any = Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
+                           on_runaway=on_runaway_native, labels=labels)
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -471,6 +472,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                           for st in cx.trace.steps)
             witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
                               "trace": steps, "state": StateView.of(model, cx.trace.last),
+                              "initial": StateView.of(model, cx.trace.initial),
                               "_trace": cx.trace})
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
@@ -590,16 +592,15 @@ def violation_data(model, found: Counterexample) -> Finding:
     tr: Optional[Trace] = found.trace
     assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
-    if tr is not None and reduced and any(len(lab) > 3 for lab in tr.labels):
-        from pccl.model.reduce import expand_trace
-        tr = expand_trace(model, tr, v)
+    # merged labels were expanded where the traces were made (explore_model,
+    # liveness.attach_traces: reduce.expand_trace), not again here
     steps = () if tr is None else tuple(
         StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
     return Finding(v.kind, v.name, v.message, v.agent,
                    v.span.line if v.span else None, v.span.column if v.span else None,
                    found.depth, "under the reductions" if reduced else "yes",
                    steps, None if tr is None else StateView.of(model, tr.last),
-                   found.cycle_start)
+                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial))
 
 
 # ---------------------------------------------------------------------------

@@ -182,9 +182,9 @@ class _Main(click.Group):
         import threading
         previous = None
         _signal["term"] = False
-        if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGTERM, _on_sigterm)
         try:
+            if threading.current_thread() is threading.main_thread():
+                previous = signal.signal(signal.SIGTERM, _on_sigterm)
             return super().invoke(ctx)
         except KeyboardInterrupt:
             click.echo("pccl: interrupted", err=True)
@@ -318,22 +318,20 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         cfg = T.config("run", m, program=program)
         doc = T.run_document(res, cfg)
     if fmt == "json":
-        out = {"program": program, "blackbox": m.blackbox.name, "agents": m.N, "seed": seed,
-               "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-               "status": res.status,
-               "result": res.status,        # the same as status (older name, kept)
-               "message": res.message,
-               "exit_status": _exit_status(res.exit_status,
-                                           [v.kind for v in res.violations] + [res.status],
-                                           exit_codes),
-               "steps": res.steps,
-               "summary": [{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
-                           for t, s in res.summary],
-               "final": D.state_json(m, res.final),
-               "properties": [{"name": o.name, "kind": o.kind, "outcome": o.outcome,
-                               "detail": o.detail} for o in res.properties],
-               "checked": checked.to_json()}
-        out["trace"] = doc
+        from pccl.output.codec import encode_state, output
+        out = output(
+            "run", status=res.status, message=res.message,
+            exit_status=_exit_status(res.exit_status,
+                                     [v.kind for v in res.violations] + [res.status],
+                                     exit_codes),
+            program=program, blackbox=m.blackbox.name, agents=m.N, seed=seed,
+            delta=m.delta, n0=m.n0, rates=list(m.rho), steps=res.steps,
+            summary=[{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
+                     for t, s in res.summary],
+            final=encode_state(m, res.final),
+            properties=[{"name": o.name, "kind": o.kind, "outcome": o.outcome,
+                         "detail": o.detail} for o in res.properties],
+            checked=checked.to_json(), trace=doc)
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
@@ -343,8 +341,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
             click.echo(views.render(view, m, _run_path(res), full=full))
         elif trace:
             click.echo("trace:")
-            for n, (lab, a, b) in enumerate(res.trace):
-                click.echo(D.format_step(m, n + 1, lab, a, b))
+            for st in _run_path(res).steps:
+                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
         click.echo("time steps:")
         for ln in _collapsed_summary(m, res.summary):
             click.echo(ln)
@@ -377,7 +375,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
-        _write_html(html, doc, model=m, states=_run_path(res)[0], quiet=(fmt == "json"))
+        _write_html(html, doc, model=m, states=list(_run_path(res).states),
+                    quiet=(fmt == "json"))
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
                           exit_codes))
 
@@ -410,10 +409,9 @@ def _collapsed_summary(m, summary) -> list:
 
 
 def _run_path(res):
-    """A run's path as (states, labels)."""
-    if res.trace:
-        return [res.trace[0][1]] + [b for _, _, b in res.trace], [lab for lab, _, _ in res.trace]
-    return [res.final], []
+    """A run's path (its recorded trace, else its last state alone)."""
+    from pccl.search.explorer import Trace
+    return res.trace if res.trace is not None else Trace((res.final,), ())
 
 
 def _check_with_world(prog, world) -> None:
@@ -665,7 +663,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         _write_trace(doc, trace_out, quiet=(fmt == "json"))
     if plot and res.violations:
         try:
-            _plot_module().plot_trace(model, list(res.counterexamples[0].trace), plot,
+            _plot_module().plot_trace(model, res.counterexamples[0].trace, plot,
                                       title=res.violations[0].message)
             click.echo(f"plot written to {plot}", err=(fmt == "json"))
         except PcclError as e:  # the violation stands: report, keep exit status 1
@@ -726,7 +724,11 @@ def _resume_hint(res, directory) -> None:
               help="draw the replayed trajectories to this PNG (needs matplotlib)")
 @click.option("--html", type=click.Path(dir_okay=False), default=None,
               help="write a self-contained HTML viewer of the trace to this file")
-def replay(trace_file, blackbox, program_file, world_file, view, full, plot, html):
+@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text",
+              show_default=True,
+              help="json: the verdict and the replayed trace, in the vocabulary of run and "
+                   "explore (docs/trace-format.md)")
+def replay(trace_file, blackbox, program_file, world_file, view, full, plot, html, fmt):
     """Re-execute the trace FILE (written by --trace-out) through the interpreter:
     check the file, rebuild the model from the recorded configuration, start
     from the recorded initial state, check that every recorded step is enabled
@@ -739,7 +741,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         _check_plot_output(plot)
     if html:
         _check_output(html, "--html")
-    if view is None and _stdout_is_terminal():
+    if view is None and _stdout_is_terminal() and fmt == "text":
         view = "steps"
     try:
         res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file)
@@ -747,6 +749,17 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         _fail(e)
     cfg = res.doc["config"]
     m = res.model
+    if fmt == "json":
+        from pccl.output.codec import output
+        from pccl.tools.replay import replayed_document
+        click.echo(json.dumps(output(
+            "replay", status=res.status, message=res.message, exit_status=res.exit_status,
+            trace=replayed_document(res),
+            **{"file": str(trace_file), "recorded_version": res.doc["version"],
+               "recorded_command": cfg["command"], "steps_replayed": len(res.labels),
+               "steps_total": res.steps_total, "diverged_at": res.diverged_at,
+               "warnings": list(res.warnings)}), indent=2, default=str))
+        sys.exit(res.exit_status)
     click.echo(f"pccl replay {trace_file}: {cfg['command']} of {cfg['program']['path']}, "
                f"{m.N} agents, blackbox {m.blackbox.name}, δ={D.fmt_time(m.delta)}, "
                f"n0={m.n0}{_rates_text(m)}" + (f", seed {cfg['seed']}" if "seed" in cfg else ""))
@@ -754,17 +767,16 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         click.echo(w)
     if view and res.states:
         from pccl.output import views
-        click.echo(views.render(view, m, (res.states, res.labels), full=full))
+        click.echo(views.render(view, m, res.trace, full=full))
     click.echo(f"replayed {len(res.labels)} of {res.steps_total} steps")
     click.echo(res.message)
     if plot and res.states:
         try:
-            _plot_module().plot_trace(m, [(None, res.states[0])] + list(zip(res.labels, res.states[1:])),
-                                      plot, title=res.message)
+            _plot_module().plot_trace(m, res.trace, plot, title=res.message)
             click.echo(f"plot written to {plot}")
         except PcclError as e:
             click.echo(e.render(), err=True)
-    if html and res.doc is not None and res.doc["initial"] is not None:
+    if html and res.doc.get("initial") is not None:
         _write_html(html, res.doc, model=m, states=res.states,
                     notes=[res.message] if res.status == "diverged" else [])
     elif html:
@@ -865,6 +877,8 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     except OSError as e:
         _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
     host, real_port = srv.server_address[:2]
+    if isinstance(host, bytes):         # typeshed: an AF_UNIX address; never for this server
+        host = host.decode()
     click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
                f"open http://{host}:{real_port}/ (Ctrl-C stops)")
     try:
@@ -1027,14 +1041,19 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
     n_bad = len(bad_times)
     doc = None
-    if first_bad is not None and trace_out:
+    if first_bad is not None and (trace_out or fmt == "json"):
         cfg = T.config("run", model, program=program,
                        seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)))
         doc = T.run_document(first_bad, cfg)
     if fmt == "json":
+        from pccl.output.codec import output
         lo, hi = S.wilson(n_bad, done_runs)
-        click.echo(json.dumps({
-            "program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
+        status = "out-of-memory" if code == 2 else "violation" if n_bad else "clean"
+        message = (f"violations: {S.frequency(n_bad, done_runs)}" if n_bad else
+                   f"violations: none in {done_runs} runs")
+        click.echo(json.dumps(output(
+            "simulate", status=status, message=message, exit_status=code, trace=doc,
+            **{"program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
             "blackbox": model.blackbox.name,
             "invariants": list(invariants), "properties": list(properties),
             "outcomes": [{"outcome": o.label, "count": len(o.seeds),
@@ -1053,9 +1072,9 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
                                                   "mean": sum(bad_times) / n_bad,
                                                   "max": max(bad_times)} if bad_times else None),
                            "first_seed": first_bad and min(
-                               o.first_seed for o in outcomes.values() if S.is_bad(o))},
-            "exit_status": code}, indent=2, default=str))
-        if doc is not None:
+                               o.first_seed for o in outcomes.values() if S.is_bad(o))}}),
+            indent=2, default=str))
+        if doc is not None and trace_out:
             _write_trace(doc, trace_out, quiet=True)
         sys.exit(code)
     click.echo(f"pccl simulate {program}: {done_runs} runs (seeds {seed}–{seed + done_runs - 1}), "
@@ -1086,13 +1105,13 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     if first_bad is not None:
         s0 = min(o.first_seed for o in outcomes.values() if S.is_bad(o))
         click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
-        n_steps = len(first_bad.trace)
+        path = _run_path(first_bad)
+        n_steps = len(path)
         skip = 0 if trace else max(0, n_steps - SIM_TAIL)
         click.echo(f"trace ({n_steps} steps" + (f"; the last {n_steps - skip}, --trace for all"
                                                 if skip else "") + "):")
-        for k, (lab, a, b) in enumerate(first_bad.trace):
-            if k >= skip:
-                click.echo(D.format_step(model, k + 1, lab, a, b))
+        for st in path.steps[skip:]:
+            click.echo(D.format_step(model, st.number, st.label, st.before, st.after))
     if doc is not None:
         _write_trace(doc, trace_out)
     sys.exit(code)
@@ -1339,7 +1358,7 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
             click.echo(f"counterexample ({len(tr)} steps{note}):")
         if view:
             from pccl.output import views
-            click.echo(views.render(view, m, (list(tr.states), list(tr.labels)), full=full))
+            click.echo(views.render(view, m, tr, full=full))
         else:
             for st in tr.steps:
                 if loop is not None and st.number == loop + 1:
@@ -1380,10 +1399,13 @@ def _steps(n: int) -> str:
 
 
 def _explore_json(program, res) -> dict:
+    from pccl.output.codec import output
+    from pccl.output.results import path_json
     m = res.model
-    return {"program": program, "blackbox": res.blackbox, "agents": m.N,
+    return output(
+        "explore", status=res.status, message=res.verdict, exit_status=res.exit_status,
+        **{"program": program, "blackbox": res.blackbox, "agents": m.N,
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
-            "status": res.status, "verdict": res.verdict, "exit_status": res.exit_status,
             "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(),
             "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
@@ -1391,12 +1413,12 @@ def _explore_json(program, res) -> dict:
             "fingerprints": "exact" if res.search.exact else "xxh3_128",
             "violations": [v.to_json() for v in res.violations],
             "witnesses": [{"name": w["name"], "text": w["text"], "depth": w["depth"],
-                           "trace": [s.to_json() for s in w["trace"]],
-                           "state": w["state"].to_json()} for w in res.witnesses],
+                           "trace": path_json(w["initial"], w["trace"], w["state"])}
+                          for w in res.witnesses],
             "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
             "not_covered": res.not_covered,
             "stall_check": res.stall,
-            "checked": res.checked.to_json()}
+            "checked": res.checked.to_json()})
 
 
 @main.command(name="fmt", short_help="Format programs in the canonical layout.")

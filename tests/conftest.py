@@ -32,6 +32,44 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
+def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
+    """Run ``python -m pccl.cli ARGS`` and send it ``sig`` (a name, such as
+    ``"SIGTERM"``); ``(status, stdout, stderr)``.
+
+    With ``ready``, the signal goes as soon as a line of standard error
+    contains that text (a progress line: the search is under way).  Without,
+    it goes after ``delay`` seconds; a process that dies of the signal
+    itself (status ``-signum``) had not installed its handlers yet — a
+    loaded machine spent the delay importing — which says nothing of pccl,
+    so the run is tried again with twice the delay, up to ``attempts``
+    times."""
+    import select
+    import signal
+    import subprocess
+    import sys
+    import time
+    signum = getattr(signal, sig)
+    for attempt in range(attempts):
+        p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)], cwd=cwd,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        seen: list = []
+        if ready is None:
+            time.sleep(delay * 2 ** attempt)
+        else:
+            deadline = time.monotonic() + 300
+            while not any(ready in line for line in seen):
+                assert p.poll() is None, ("exited before it was ready", seen)
+                assert time.monotonic() < deadline, ("never ready", seen)
+                if select.select([p.stderr], [], [], 1.0)[0]:
+                    seen.append(p.stderr.readline())
+        p.send_signal(signum)
+        out, err = p.communicate(timeout=120)
+        err = "".join(seen) + err
+        if p.returncode != -signum or ready is not None:
+            break
+    return p.returncode, out, err
+
+
 def cli(*args, cwd=None, **kw):
     """Run ``pccl ARGS`` in-process with click's CliRunner (``kw`` to
     ``invoke``: ``env``, ``input``...; ``cwd`` to run from a directory).

@@ -64,7 +64,7 @@ def check_fischer_violation(res):
     # no earlier state of the counterexample violates the property
     assert not any(var(m, s, 0, "inCs") and var(m, s, 1, "inCs") for _, s in raw[:-1])
     # the trace is the path: numbered steps, consecutive, replayable
-    assert [s["step"] for s in res.trace] == list(range(1, len(raw)))
+    assert [s["index"] for s in res.trace] == list(range(1, len(raw)))
     assert len(res.trace) == res.violation["depth"]
     st = raw[0][1]
     assert st in m.init_states()
@@ -76,7 +76,8 @@ def check_fischer_violation(res):
             "LOCK REQUEST", "ATOMIC EXECUTION", "LOCK RELEASE"} <= rules
     last = res.trace[-1]
     assert last["rule"] == "STATEMENT" and last["source"] == "inCs = true;"
-    assert {"cell": f"inCs[{last['agent']}]", "old": "false", "new": "true"} in last["changes"]
+    assert {"cell": {"agent": last["agent"], "var": "inCs"}, "old": False, "new": True} \
+        in last["changes"]
 
 
 def test_fischer_mutex_violation_found(fischer_any):
@@ -210,8 +211,8 @@ def test_race_nonatomic_stuck_on_remove(blackbox, agents):
     v = res.violation
     assert v["kind"] == "stuck" and "remove" in v["message"]
     assert v["line"] == line_of(RACE_NONATOMIC, "remove(dests, currentDest);")
-    end = res.final_state["agents"][v["agent"]]
-    assert end["status"] == "stuck" and end["line"] == v["line"]
+    end = res.final_state["agents"][v["agent"]]        # the trace format's state (version 2)
+    assert end["status"]["status"] == "stuck" and end["status"]["line"] == v["line"]
     assert f"[blackbox {blackbox}]" in res.verdict
 
 
@@ -366,7 +367,7 @@ def test_deadlock_detected_and_can_be_turned_off():
     assert [v["kind"] for v in on.violations] == ["assert", "deadlock"]
     dl = on.violations[1]
     assert "deadlock" in dl["message"] and "agent 0" in dl["message"]
-    assert dl["depth"] == len(dl["trace"]) > on.violations[0]["depth"]
+    assert dl["depth"] == len(dl.trace) > on.violations[0]["depth"]
     off = explore(ASSERT_PROG, blackbox="instant", find_all=True, deadlock=False)
     assert [v["kind"] for v in off.violations] == ["assert"]
     assert off.status == "violation"
@@ -555,7 +556,9 @@ def test_counterexample_steps_have_the_promised_fields():
     res = explore(RACE_NONATOMIC, world=RACE_WORLD, blackbox="nondet")
     for n, s in enumerate(res.trace, 1):
         assert s.step == n
-        assert {"step", "time", "agent", "rule", "event", "line", "source", "changes"} == set(s.to_json())
+        # the trace format's step (version 2: index for step, plus column and branch)
+        assert {"index", "time", "agent", "rule", "event", "line", "column", "source", "branch",
+                "changes"} == set(s.to_json()) - {"outcome"}
         assert isinstance(s, StepView)
         if s.rule in ("TIME ADVANCE", "DOREACH INVOKE"):
             assert s.agent is None

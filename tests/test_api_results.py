@@ -37,11 +37,14 @@ def test_step_changes_are_data_and_agree_with_the_text_and_the_trace_file():
         # the printed text: what pccl explore prints for the step
         printed = [(c, o, nw) for c, o, nw in D.diff(m, before, after)]
         assert [(c.cell, c.old_text, c.new_text) for c in step.changes] == printed
-        # the data: the trace file's typed changes (without counter and env)
+        # the data: the trace file's typed changes (without counter, env
+        # and, since version 2, k, t0 and obstacles: cells the text does not
+        # print)
         typed = [c for c in T.changes(m, before, after)
-                 if c["cell"].get("cell") not in ("counter", "env")]
+                 if c["cell"].get("cell") not in ("counter", "env", "k", "t0", "obstacles")]
         assert [(dict(c.path), c.old, c.new) for c in step.changes] == \
                [(c["cell"], c["old"], c["new"]) for c in typed]
-        # the CLI's JSON keeps the printed form
-        assert step.to_json()["changes"] == [{"cell": c, "old": o, "new": nw}
-                                             for c, o, nw in printed]
+        # the CLI's JSON is the trace format's step (vocabulary version 2; it
+        # was the printed form): every changed cell, typed
+        assert step.to_json()["changes"] == T.changes(m, before, after)
+        assert step.to_json() == T.step_record(m, n + 1, cx.labels[n], before, after)

@@ -19,6 +19,7 @@ import pytest
 from pccl import api
 from pccl.search import checkpoint as C
 from pccl.search.fingerprint import fingerprint
+from conftest import interrupted
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROG = os.path.join(ROOT, "programs")
@@ -363,24 +364,20 @@ def test_interval_spellings():
 
 def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     d = str(tmp_path / "ck")
-    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--no-progress",
-            "--format", "json"]
-    proc = subprocess.Popen([sys.executable, "-m", "pccl.cli", *args, "--checkpoint", d],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    # wait until the search is under way (its first checkpoint needs a level)
-    time.sleep(1.5)
-    proc.send_signal(signal.SIGTERM)
-    out, err = proc.communicate(timeout=60)
-    if proc.returncode == 0:            # the machine was fast: nothing to resume
+    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--progress",
+            "--progress-interval", "0.2", "--format", "json"]
+    # signal once the search is under way (a progress line with its frontier)
+    rc, out, err = interrupted([*args, "--checkpoint", d], "SIGTERM", cwd=ROOT, ready="frontier")
+    if rc == 0:            # the machine was fast: nothing to resume
         pytest.skip("the search ended before the signal")
-    assert proc.returncode == 143, err
+    assert rc == 143, err
     assert json.loads(out)["status"] == "interrupted"
     assert f"pccl: checkpoint written to {d}; resume with: pccl explore programs/fischer.pccl " \
-           f"--set k=2 --no-progress --format json --resume {d}" in err
+           f"--set k=2 --progress --progress-interval 0.2 --format json --resume {d}" in err
     p = _cli(*args, "--resume", d)
     q = _cli(*args)
     a, b = json.loads(p.stdout), json.loads(q.stdout)
-    for k in ("status", "verdict", "violations", "bounds", "checked"):
+    for k in ("status", "message", "violations", "bounds", "checked"):
         assert a[k] == b[k]
     for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
         assert a["statistics"][k] == b["statistics"][k]

@@ -125,10 +125,10 @@ def test_run_json():
     res = cli("run", RACE, "--world", RACE_WORLD, "--format", "json", "--seed", "4")
     assert res.exit_code == 0
     data = json.loads(res.stdout)
-    assert data["result"] == "final" and data["exit_status"] == 0 and data["seed"] == 4
-    final = data["final"]
+    assert data["status"] == "final" and data["exit_status"] == 0 and data["seed"] == 4
+    final = data["final"]               # a state as the trace format writes one
     assert final["shared"]["dests"] == []
-    assert [a["status"] for a in final["agents"]] == ["exited", "exited"]
+    assert [a["status"]["status"] for a in final["agents"]] == ["exited", "exited"]
     assert data["summary"][0]["time"] == 0
 
 
@@ -245,8 +245,9 @@ def test_explore_json():
     assert data["status"] == "violation" and data["exit_status"] == 1
     assert data["blackbox"] == "straight" and data["agents"] == 2
     (v,) = data["violations"]
-    assert v["kind"] == "invariant" and v["trace"] and v["state"]
-    assert all(a["variables"]["inCs"] for a in v["state"]["agents"])
+    # its path as the trace format writes one (version 2): initial, steps, final
+    assert v["kind"] == "invariant" and v["trace"]["steps"] and v["trace"]["initial"]
+    assert all(a["variables"]["inCs"] for a in v["trace"]["final"]["agents"])
     assert {"states", "transitions", "max_depth"} <= set(data["statistics"])
     ok = json.loads(cli("explore", RACE, "--world", RACE_WORLD, "-b", "straight",
                         "--format", "json").stdout)
@@ -397,8 +398,8 @@ def test_explore_run_json_stuck_status():
         if res.exit_code == 1:
             break
     data = json.loads(res.stdout)
-    assert data["result"] == "violation" and data["exit_status"] == 1
-    stuck = [a for a in data["final"]["agents"] if a["status"] == "stuck"]
+    assert data["status"] == "violation" and data["exit_status"] == 1
+    stuck = [a["status"] for a in data["final"]["agents"] if a["status"]["status"] == "stuck"]
     assert len(stuck) == 1 and stuck[0]["line"] == 35 and "remove" in stuck[0]["reason"]
 
 
@@ -480,7 +481,9 @@ def test_detailed_exit_status_in_json():
               "--exit-codes", "detailed", "--format", "json")
     data = json.loads(res.output)
     assert res.exit_code == data["exit_status"] == 12
-    assert data["status"] == data["result"] == "violation"      # explore's word, and the old one
+    # one vocabulary (version 2): explore's word; run's older "result" is gone
+    assert data["status"] == "violation" and "result" not in data
+    assert (data["format"], data["version"], data["command"]) == ("pccl-output", 2, "run")
 
 
 def test_run_format_k_prints_the_final_configuration_in_k():

@@ -52,6 +52,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import pytest
 
@@ -137,7 +138,13 @@ def session(block: Block) -> list[tuple[str, list[str]]]:
 # Running and comparing
 # --------------------------------------------------------------------------
 
-def run_command(cmd: str) -> tuple[int, list[str]]:
+def run_command(cmd: str, tmp: Optional[Path] = None) -> tuple[int, list[str]]:
+    """Run one ``$`` command.  With ``tmp``, the docs' ``/tmp/`` paths become
+    that private folder (and back again in the output), so that two blocks
+    run at once (pytest -n 2, or two checkouts on one machine) never share a
+    file."""
+    if tmp is not None:
+        cmd = cmd.replace("/tmp/", f"{tmp}/")
     env = dict(os.environ)
     env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
     env.update(PYTHONUNBUFFERED="1", PYTHONIOENCODING="utf-8", COLUMNS="80",
@@ -145,7 +152,10 @@ def run_command(cmd: str) -> tuple[int, list[str]]:
     env.pop("PCCL_REGEN_DOCS", None)
     p = subprocess.run(["bash", "-c", cmd], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, timeout=TIMEOUT)
-    return p.returncode, p.stdout.decode("utf-8", "replace").split("\n")
+    out = p.stdout.decode("utf-8", "replace")
+    if tmp is not None:
+        out = out.replace(f"{tmp}/", "/tmp/")
+    return p.returncode, out.split("\n")
 
 
 def normalise(lines: list[str]) -> list[str]:
@@ -239,13 +249,29 @@ DOCTESTS = _ids(lambda b: b.lang == "python" and not b.file
 LISTINGS = _ids(lambda b: b.file is not None)
 
 
-@pytest.mark.parametrize("block", CONSOLE, ids=lambda b: b.id)
-def test_console_block(block: Block):
+def _documents(blocks) -> dict:
+    """The console blocks of each document, in order.  One document's blocks
+    form one shell session (a later block reads the files an earlier one
+    wrote), so they run in one test, in order: under ``pytest -n`` two
+    workers never split a document.  (xdist's ``--dist loadgroup`` would do
+    it per block, but it does not group under pytest 9.)"""
+    docs: dict = {}
+    for b in blocks:
+        docs.setdefault(str(b.path.relative_to(ROOT)), []).append(b)
+    return docs
+
+
+CONSOLE_DOCS = _documents(CONSOLE)
+
+
+def run_block(block: Block, tmp: Path) -> list[str]:
+    """Run one console block's commands; its failures (regenerated in place
+    with PCCL_REGEN_DOCS=1, except a failing command)."""
     steps = session(block)
     assert steps, f"{block.id}: a console block without a `$ ` command"
     new_body, failures, statuses = [], [], []
     for cmd, expected in steps:
-        status, actual = run_command(cmd)
+        status, actual = run_command(cmd, tmp)
         if status != 0 and "$?" not in cmd:
             statuses.append(f"$ {cmd}\nexited {status}: show the status in the doc "
                             f"(`{cmd}; echo \"exit $?\"`) or fix the command\n"
@@ -259,8 +285,16 @@ def test_console_block(block: Block):
     if REGEN and failures:
         rewrite(block, new_body)
         failures = []
-    failures += statuses              # regenerating cannot fix a failing command
-    assert not failures, f"{block.id}:\n" + "\n\n".join(failures)
+    return [f"{block.id}:\n" + "\n\n".join(failures + statuses)] if failures or statuses else []
+
+
+@pytest.mark.parametrize("doc", sorted(CONSOLE_DOCS))
+def test_console_blocks(doc: str, tmp_path: Path):
+    """Every console block of one document, in order, in one session; the
+    docs' ``/tmp/`` is this test's own folder (two runs at once on one
+    machine never share a file)."""
+    failures = [f for block in CONSOLE_DOCS[doc] for f in run_block(block, tmp_path)]
+    assert not failures, "\n\n".join(failures)
 
 
 DOCTEST_FILES = sorted({b.path for b in DOCTESTS})

@@ -190,7 +190,7 @@ def test_fischer_paper_shortest_schedule_by_search():
 # ---------------------------------------------------------------------------
 
 def trace_of(res):
-    return [(l, a, b) for l, a, b in res.trace]
+    return [(st.label, st.before, st.after) for st in res.trace.steps]
 
 
 @pytest.mark.parametrize("program, kw", [
@@ -212,7 +212,7 @@ def test_different_seeds_can_differ():
     for seed in range(8):
         res = run(RACE, world=RACE_WORLD, seed=seed, record_trace=True)
         assert res.status == "final"
-        traces.add(tuple(l for l, _, _ in res.trace))
+        traces.add(res.trace.labels)
     assert len(traces) > 1
 
 
@@ -284,7 +284,8 @@ def test_run_with_rates_runs_event_block_per_rate():
     res = run_model(m, seed=1, record_trace=True, rng=random.Random(1))
     assert res.status == "bounded"
     per = {}
-    for l, before, _ in res.trace:
+    for st in res.trace.steps:
+        l, before = st.label, st.before
         if l[0] == "EVENT SELECT":
             per.setdefault((before[TIME], l[1]), 0)
             per[(before[TIME], l[1])] += 1

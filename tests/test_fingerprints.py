@@ -32,7 +32,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as hs
 
-from pccl.output import display as D
+from pccl.output import codec as C
 from pccl.api import explore as _explore, make_model, run
 from pccl.lang.values import UNDEF
 
@@ -77,7 +77,7 @@ def summary(res) -> dict:
         # violation is found at the same depth, with the same trace
         "found": [(v["kind"], v["name"], v["line"], v["column"], v["depth"])
                   for v in res.violations],
-        "traces": [[(s["rule"], s["agent"]) for s in v["trace"]] for v in res.violations],
+        "traces": [[(s["rule"], s["agent"]) for s in v.trace] for v in res.violations],
     }
 
 
@@ -656,7 +656,7 @@ def test_float_slot_holding_one_halves_to_one_half(decl, stmts, expr):
     prog = half_program(decl, stmts, expr)
     res = run(prog, source=True, blackbox="instant", agents=1)
     assert res.status == "final", res.message
-    state = D.state_json(res.model, res.final)
+    state = C.encode_state(res.model, res.final)
     assert state["shared"]["r"] == 0.5
     assert_found_both_ways(prog, "r != 0.5", source=True, blackbox="instant", agents=1)
 

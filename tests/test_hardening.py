@@ -9,7 +9,7 @@ import pytest
 
 from pccl.lang.errors import PcclError
 
-from conftest import FISCHER, RACE, RACE_WORLD
+from conftest import FISCHER, RACE, RACE_WORLD, interrupted
 from conftest import cli
 
 SMALL = ["--set", "k=1", "--set", "cstime=0"]
@@ -433,16 +433,8 @@ def test_ctrl_c_during_run_exits_130(monkeypatch):
 
 @pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
 def test_signals_stop_explore_with_their_status(sig, code):
-    import signal
-    import subprocess
-    import sys
-    import time
-    p = subprocess.Popen([sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--no-progress"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
-    p.send_signal(getattr(signal, sig))
-    out, err = p.communicate(timeout=60)
-    assert p.returncode == code, (out, err)
+    rc, out, err = interrupted(["explore", FISCHER, "--no-progress"], sig)
+    assert rc == code, (out, err)
     assert "interrupted" in out and "statistics:" in out
     assert "Traceback" not in out + err
 

@@ -10,7 +10,7 @@ import pytest
 
 from pccl.lang.errors import PcclError
 
-from conftest import FISCHER, model_of
+from conftest import FISCHER, interrupted, model_of
 from pccl.model.layout import AGS, LOC
 from conftest import cli
 
@@ -319,18 +319,10 @@ def test_long_effect_costs_linear_memory():
 # 12. signals at any moment: run and initial-state generation too
 # ---------------------------------------------------------------------------
 
-def _signalled(args, sig, delay=3):
-    import signal
-    import subprocess
-    import sys
-    import time
-    p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(delay)
-    p.send_signal(getattr(signal, sig))
-    out, err = p.communicate(timeout=60)
+def _signalled(args, sig):
+    rc, out, err = interrupted(args, sig)
     assert "Traceback" not in out + err
-    return p.returncode, out, err
+    return rc, out, err
 
 
 @pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])

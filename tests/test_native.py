@@ -160,3 +160,138 @@ def test_header_names_the_engine(tmp_path):
     assert head(out).endswith("reductions none, engine python")
     out = CliRunner().invoke(main, args[:-2]).output     # auto, time-lock check on
     assert head(out).endswith("reductions none")
+
+
+# -- the batch hooks: one C call per chunk of a level, fingerprints in C -------
+
+def reachable(nm, limit=20_000) -> list:
+    """Native states of a breadth-first search (per-state successors()), with
+    repeats: every successor met, admitted or not."""
+    seen, level, out = set(), list(nm.init_states()), []
+    out += level
+    while level and len(out) < limit:
+        nxt = []
+        for s in level:
+            for _, s2 in nm.successors(s):
+                out.append(s2)
+                if nm.key(s2) not in seen:
+                    seen.add(nm.key(s2))
+                    nxt.append(s2)
+        level = nxt
+    return out
+
+
+CASES = [("programs/fischer.pccl", dict(overrides={"k": "1", "d": "1"})),
+         ("programs/fischer.pccl", dict(overrides={"k": "0", "d": "1"}, agents=3,
+                                        abstract_time=False, max_time=2)),
+         ("programs/leader.pccl", {}),
+         ("tests/programs/ref_mutex_bad.pccl", {})]
+
+
+@pytest.mark.parametrize("program, kw", CASES)
+def test_c_fingerprints_are_pccl_fingerprints(program, kw):
+    """fingerprint_batch's keys are pccl.fingerprint's (xxh3-128 of marshal v2
+    of the key, with and without the clock), and its first occurrences those
+    of the explorer's own dict."""
+    from pccl.search.fingerprint import fingerprint
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), reduce="none", **kw))
+    states = reachable(nm)
+    assert len(states) > 100
+    for lo in range(0, len(states), 5000):
+        batch = states[lo:lo + 5000]
+        ck, first = nm.fingerprint_batch(batch)
+        want = [fingerprint(nm.key(s)) for s in batch]
+        assert ck == [b"".join(want)]
+        first_of = dict(zip(reversed(want), range(len(want) - 1, -1, -1)))
+        assert first.tolist() == sorted(first_of.values())
+        assert len(first) < len(batch)      # repeats were met and dropped
+
+
+@pytest.mark.parametrize("program, kw", CASES)
+def test_successor_batch_equals_successors(program, kw):
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), reduce="none", **kw))
+    states = reachable(nm, 5_000)
+    for lo in range(0, len(states), 1000):
+        chunk = states[lo:lo + 1000]
+        ns, flat, labs = nm.successor_batch(chunk)
+        one = [nm.successors(s) for s in chunk]
+        assert ns == [len(x) for x in one]
+        assert flat == [b for x in one for _, b in x]
+        assert sorted(labs, key=repr) == sorted({lab for x in one for lab, _ in x}, key=repr)
+
+
+@pytest.mark.parametrize("program, kw", [
+    ("tests/programs/ref_mutex_bad.pccl", dict(invariants=("count(inCs) <= 1",))),
+    ("tests/programs/eng_assert.pccl", {})])
+def test_c_violations_are_the_python_models(program, kw):
+    """violations(state) in C: [] exactly where the Python model finds none,
+    otherwise the Python model's own."""
+    py = make_model(os.path.join(ROOT, program), reduce="none", **kw)
+    nm = NV.NativeModel(py)
+    states = reachable(nm, 5_000)
+    bad = 0
+    for s in states:
+        got = [v.identity for v in nm.violations(s)]
+        assert got == [v.identity for v in py.violations(nm.decode(s))]
+        bad += bool(got)
+    assert bad > 0
+
+
+@pytest.mark.slow
+def test_hooks_off_gives_the_same_search():
+    """The explorer with the batch hooks and without them (per-state
+    successors, Python's marshal and xxh3): the same search, at several
+    batch sizes and a state budget that stops it mid-level."""
+    from pccl.search.explorer import Explorer
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+
+    class Plain:
+        """nm without its batch hooks."""
+        def __init__(self, nm):
+            self.nm = nm
+
+        def __getattr__(self, name):
+            if name in ("successor_batch", "fingerprint_batch"):
+                raise AttributeError(name)
+            return getattr(self.nm, name)
+
+    def run(model, batch, **kw):
+        r = Explorer(model, batch=batch, labels=set(), **kw).run()
+        return (r.status, r.stats.states, r.stats.transitions, r.stats.max_depth,
+                [(f.violation.identity, f.trace.labels, f.trace.states) for f in r.found])
+
+    for inv, kw in ((None, {}), (None, {"max_states": 7_777}), ("count(inCs) <= 1", {})):
+        nm = NV.NativeModel(make_model(path, reduce="none", overrides={"k": "0", "d": "1"},
+                                       invariants=(inv,) if inv else ()))
+        want = run(Plain(nm), 4096, **kw)
+        assert want[0] == ("violation" if inv else "bounded" if kw else "exhaustive")
+        assert want[1] == 7_777 if kw else want[1] > 7_777
+        for batch in (1000, NV.NativeModel.BATCH):
+            assert run(nm, batch, **kw) == want
+
+
+def test_without_xxhash_symbol_the_explorer_hashes_in_python(monkeypatch):
+    """Where xxhash's module does not export XXH3_128bits the fingerprint hook
+    is off, and the search is the same."""
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+    kw = dict(overrides={"k": "0", "d": "0"}, **UNREDUCED)
+    want = summary(explore(path, engine="native", **kw))
+    monkeypatch.setattr(NV, "_xxh3_128_address", lambda: None)
+    assert NV.NativeModel(make_model(path, reduce="none")).fingerprint_batch is None
+    got = explore(path, engine="native", **kw)
+    assert got.model.engine_used == "native" and summary(got) == want
+
+
+def test_models_with_and_without_the_clock_in_the_key_side_by_side():
+    """Two models of one program, the clock in the key and not: each one's C
+    fingerprints are of its own key, whichever was built last (the key's
+    form is a constant of the generated source, not a module global)."""
+    from pccl.search.fingerprint import fingerprint
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+    kw = dict(reduce="none", overrides={"k": "0", "d": "0"})
+    a = NV.NativeModel(make_model(path, abstract_time=True, **kw))
+    b = NV.NativeModel(make_model(path, abstract_time=False, **kw))
+    for nm in (a, b, a):
+        states = reachable(nm, 3_000)
+        assert nm.fingerprint_batch(states)[0] == [b"".join(fingerprint(nm.key(s))
+                                                            for s in states)]

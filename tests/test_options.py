@@ -134,7 +134,8 @@ def test_explore_result_is_typed_and_matches_the_cli_json():
               "--format", "json")
     data = json.loads(out.output)
     assert data["violations"][0] == r.violation.to_json()
-    assert data["violations"][0]["state"]["agents"][0]["variables"] == \
+    # the finding's path as the trace format writes one: {initial, steps, final}
+    assert data["violations"][0]["trace"]["final"]["agents"][0]["variables"] == \
         dict(r.final_state.agents[0].variables)
 
 

@@ -106,7 +106,7 @@ def test_discarded_states_are_freed():
 
 LARGE_LEVEL = r"""
 import numpy as np
-from pccl import parallel as P
+from pccl.search import parallel as P
 from pccl.api import make_model
 m = make_model("programs/fischer.pccl", overrides={"k": "0"})
 m.prepare()

@@ -68,7 +68,7 @@ def test_pymunk_run_is_deterministic():
     a = api.run(RACE, world=OBST, blackbox="pymunk", seed=4, record_trace=True)
     b = api.run(RACE, world=OBST, blackbox="pymunk", seed=4, record_trace=True)
     assert a.status == b.status == "final"
-    assert [x[2] for x in a.trace] == [x[2] for x in b.trace]   # identical states
+    assert a.trace.states == b.trace.states   # identical states
     assert a.final == b.final
 
 

@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from pccl import api
-from pccl.output import display as D
+from pccl.output import codec as C
 from pccl.lang.checker import check_program
 from pccl.cli import main as cli
 from pccl.lang.parser import parse_file, parse_program
@@ -47,8 +47,8 @@ def variant_text(prog, old: str, new: str):
 def assert_final(res, n_agents: int):
     assert res.status == "final", res.message
     assert res.exit_status == 0
-    state = D.state_json(res.model, res.final)
-    assert [a["status"] for a in state["agents"]] == ["exited"] * n_agents
+    state = C.encode_state(res.model, res.final)
+    assert [a["status"]["status"] for a in state["agents"]] == ["exited"] * n_agents
     return state
 
 
@@ -222,10 +222,10 @@ def test_rendezvous_detours_under_straight():
     res = api.run(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox="straight", agents=3, seed=0,
                   record_trace=True, overrides={"maxPrio": "0"})
     assert_final(res, 3)
-    rules = [(label[0], label[1]) for label, _, _ in res.trace]
+    rules = [(label[0], label[1]) for label in res.trace.labels]
     assert ("DOREACH INVOKE", None) in rules
-    stages = {D.state_json(res.model, after)["agents"][0]["variables"]["stage"]
-              for _, _, after in res.trace}
+    stages = {C.encode_state(res.model, after)["agents"][0]["variables"]["stage"]
+              for after in res.trace.states[1:]}
     assert {"DETOUR", "FINAL", "THERE"} <= stages
 
 
@@ -271,6 +271,5 @@ def test_rendezvous_check_outside_lock_is_caught():
     assert res.status == "violation" and res.exit_status == 1
     assert violation_names(res) == {"maximal"}
     # the shortest counterexample shows the lost update: top goes down
-    writes = [(int(c["old"]), int(c["new"])) for step in res.trace
-              for c in step["changes"] if c["cell"] == "top"]
+    writes = [(c.old, c.new) for step in res.trace for c in step.changes if c.cell == "top"]
     assert any(new < old for old, new in writes), writes

@@ -55,7 +55,7 @@ def check_counterexamples(res):
         if tr is None:              # reachable P found unreachable: no path
             assert v["kind"] == "unreachable"
             continue
-        assert len(tr) == len(v["trace"])
+        assert len(tr) == len(v.trace)
         for step in tr.steps:
             assert len(step.label) == 3, "an unexpanded merged label in a trace"
             succ = Model.successors(m, step.before)

@@ -88,7 +88,7 @@ def engine_violation(prog, agents, *, invariants=(), **opts):
         assert r.status == "exhaustive", r.verdict
         return None
     v = r.violations[0]
-    return v["kind"], len(v["trace"])
+    return v["kind"], len(v.trace)
 
 
 # Race worlds: two robots, starts as in programs/race.toml, no obstacles.

@@ -13,6 +13,7 @@ import itertools
 import pytest
 
 from pccl.output import display as D
+from pccl.output import codec as C
 from pccl.model.layout import AEND, END, acq
 from pccl.lang.errors import PcclError
 
@@ -827,7 +828,7 @@ def test_runtime_error_gets_agent_stuck_with_reason_and_line(body, reason):
     # the stuck agent takes no further step; the other agent is unaffected
     assert succ(mm, st, agent=0) == []
     assert st[AGS][1][STATUS] == RUNNING
-    assert D.status_json(mm, ag[STATUS])["line"] == line
+    assert C.encode_status(mm, ag[STATUS])["line"] == line
 
 
 def test_runtime_error_in_guard_gets_agent_stuck_at_guard():

@@ -64,7 +64,11 @@ def test_typed_values_and_cell_paths(fischer_trace):
     assert a0["position"] == [0.0, 0.0, 0.0]
     assert d["initial"]["shared"] == {"reqid": -1, "k": 1, "d": 2}
     last = d["steps"][-1]
-    assert last["changes"] == [{"cell": {"agent": 0, "var": "inCs"}, "old": False, "new": True}]
+    # version 2 records the pending computation k as a change too (the
+    # statement ids left to run): the last statement of the event block ran
+    assert last["changes"] == [{"cell": {"agent": 0, "var": "inCs"}, "old": False, "new": True},
+                               {"cell": {"agent": 0, "cell": "k"}, "old": [20, "end"],
+                                "new": ["end"]}]
     assert (last["line"], last["column"], last["rule"]) == (68, 9, "STATEMENT")
     times = [ch for s in d["steps"] for ch in s["changes"] if ch["cell"] == {"cell": "time"}]
     assert times and all(isinstance(ch["new"], int) for ch in times)
@@ -82,7 +86,7 @@ def test_explore_json_carries_the_trace():
     res = cli(*FISCHER_ARGS, "--format", "json")
     data = json.loads(res.output)
     validate(data["trace"])
-    assert len(data["trace"]["steps"]) == len(data["violations"][0]["trace"])
+    assert data["trace"]["steps"] == data["violations"][0]["trace"]["steps"]
 
 
 def test_explore_without_violation_writes_an_empty_trace(tmp_path):

@@ -37,8 +37,11 @@ def shot(browser, name):
 
 
 def cell_names(step):
-    from pccl.output.traces import cell_name
-    return sorted(cell_name(ch["cell"]) for ch in step["changes"])
+    """The cells the page shows as changed: every change but the agent
+    cells it does not print (k, t0, obstacles: codec.INTERNAL_CELLS)."""
+    from pccl.output.codec import INTERNAL_CELLS, cell_name
+    return sorted(cell_name(ch["cell"]) for ch in step["changes"]
+                  if not ("agent" in ch["cell"] and ch["cell"].get("cell") in INTERNAL_CELLS))
 
 
 def page_state(b) -> dict:

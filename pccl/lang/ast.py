@@ -21,8 +21,9 @@ The compiler (``pccl.model.compile``) turns them into closures.  Traversals use
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Optional, Union
+from typing import Any, Optional, Union
 
 
 @dataclass(frozen=True)
@@ -297,49 +298,46 @@ Node = Union[Expr, Stmt, VarDecl, EnumDecl, Event, Invariant, Program]
 STMT_TYPES = (Assign, If, While, Atomic, CallStmt, Skip)
 
 
+def _if_children(node: If) -> tuple:
+    out: list = []
+    for cond, body in node.branches:
+        out.append(cond)
+        out.extend(body)
+    return (*out, *node.orelse)
+
+
+#: node class -> its direct sub-nodes, in source order (read by ``children``)
+_CHILDREN: dict[type, Callable[[Any], tuple]] = {
+    **{k: lambda n: () for k in (IntLit, FloatLit, BoolLit, Name, Skip, TypeRef, EnumDecl)},
+    ListLit: lambda n: n.items,
+    Index: lambda n: (n.base, n.index),
+    Field: lambda n: (n.base,),
+    Call: lambda n: n.args,
+    CallStmt: lambda n: n.args,
+    Unary: lambda n: (n.operand,),
+    Binary: lambda n: (n.left, n.right),
+    Quant: lambda n: (n.body,),
+    Temporal: lambda n: tuple(x for x in (n.p, n.q, n.bound) if x is not None),
+    Assign: lambda n: (n.target, n.value),
+    If: _if_children,
+    While: lambda n: (n.cond, *n.body),
+    Atomic: lambda n: n.body,
+    VarDecl: lambda n: tuple(e for e in (n.size, n.init) if e is not None),
+    Event: lambda n: (n.guard, *n.body),
+    Invariant: lambda n: (n.expr,),
+    Program: lambda n: (*n.decls, *n.init, *n.events, *n.invariants),
+}
+
+
 def children(node) -> tuple:
     """The direct sub-nodes of ``node`` in source order: expressions and
     statements, never types or spans.  Every traversal of the AST is built
     on this one function (as pyk's ``map_inner``), so a new node kind is
-    added here and nowhere else."""
-    if isinstance(node, (IntLit, FloatLit, BoolLit, Name, Skip, TypeRef, EnumDecl)):
-        return ()
-    if isinstance(node, ListLit):
-        return node.items
-    if isinstance(node, Index):
-        return (node.base, node.index)
-    if isinstance(node, Field):
-        return (node.base,)
-    if isinstance(node, (Call, CallStmt)):
-        return node.args
-    if isinstance(node, Unary):
-        return (node.operand,)
-    if isinstance(node, Binary):
-        return (node.left, node.right)
-    if isinstance(node, Quant):
-        return (node.body,)
-    if isinstance(node, Temporal):
-        return tuple(x for x in (node.p, node.q, node.bound) if x is not None)
-    if isinstance(node, Assign):
-        return (node.target, node.value)
-    if isinstance(node, If):
-        out: list = []
-        for cond, body in node.branches:
-            out.append(cond)
-            out.extend(body)
-        return (*out, *node.orelse)
-    if isinstance(node, While):
-        return (node.cond, *node.body)
-    if isinstance(node, Atomic):
-        return node.body
-    if isinstance(node, VarDecl):
-        return tuple(e for e in (node.size, node.init) if e is not None)
-    if isinstance(node, Event):
-        return (node.guard, *node.body)
-    if isinstance(node, Invariant):
-        return (node.expr,)
-    if isinstance(node, Program):
-        return (*node.decls, *node.init, *node.events, *node.invariants)
+    added here (in ``_CHILDREN``) and nowhere else."""
+    for cls in type(node).__mro__:
+        sub = _CHILDREN.get(cls)
+        if sub is not None:
+            return sub(node)
     raise TypeError(f"not an AST node: {node!r}")
 
 

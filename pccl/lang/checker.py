@@ -482,39 +482,44 @@ class _Checker:
             self.fail(f"'{b.name}' takes {b.arity_text()} {plural}, got {n}", call.span)
         elem = ANY
         for k, (a, p) in enumerate(zip(call.args, b.params), start=1):
-            what = f"argument {k} of '{b.name}'"
-            if p == "list-var":
-                if not isinstance(a, (ast.Name, ast.Index)):
-                    self.value(a)
-                    self.fail(f"{what} must be a List variable (it is rewritten in "
-                              f"place), not an expression", a.span)
-                t = self.lvalue(a)
-                if t.kind != "list" and t.kind != "any":
-                    self.fail(f"{what} must be a List variable, got {t}", a.span)
-                elem = t.item if t.kind == "list" else ANY
-                continue
-            t = self.value(a)
-            if p == "list":
-                if t.kind not in ("list", "any"):
-                    self.fail(f"{what} must be a List, got {t}", a.span)
-                elem = t.item if t.kind == "list" else ANY
-            elif p == "elem":
-                if not assignable(elem, t):
-                    self.fail(f"{what} must be {elem} (the list's element type), "
-                              f"got {t}", a.span)
-            elif p == "float":
-                if not (t.is_number or t.kind == "any"):
-                    self.fail(f"{what} must be a number, got {t}", a.span)
-            elif p == "bool" and b.name == "assert":
-                if t.kind not in ("bool", "any"):
-                    self.fail(f"condition of 'assert' must be bool, got {t}", a.span)
-            else:
-                want = _DESCRIPTORS[p]
-                if not assignable(want, t):
-                    self.fail(f"{what} must be {want}, got {t}", a.span)
+            elem = self.arg(b, k, a, p, elem)
         if b.result is None:
             return ANY
         return elem if b.result == "elem" else _DESCRIPTORS[b.result]
+
+    def arg(self, b: Builtin, k: int, a: ast.Expr, p: str, elem: Ty) -> Ty:
+        """Check argument ``k`` (``a``, described as ``p`` in the table) of a
+        call of ``b``; the element type of the call's list so far."""
+        what = f"argument {k} of '{b.name}'"
+        if p == "list-var":
+            if not isinstance(a, (ast.Name, ast.Index)):
+                self.value(a)
+                self.fail(f"{what} must be a List variable (it is rewritten in "
+                          f"place), not an expression", a.span)
+            t = self.lvalue(a)
+            if t.kind != "list" and t.kind != "any":
+                self.fail(f"{what} must be a List variable, got {t}", a.span)
+            return t.item if t.kind == "list" else ANY
+        t = self.value(a)
+        if p == "list":
+            if t.kind not in ("list", "any"):
+                self.fail(f"{what} must be a List, got {t}", a.span)
+            return t.item if t.kind == "list" else ANY
+        if p == "elem":
+            if not assignable(elem, t):
+                self.fail(f"{what} must be {elem} (the list's element type), "
+                          f"got {t}", a.span)
+        elif p == "float":
+            if not (t.is_number or t.kind == "any"):
+                self.fail(f"{what} must be a number, got {t}", a.span)
+        elif p == "bool" and b.name == "assert":
+            if t.kind not in ("bool", "any"):
+                self.fail(f"condition of 'assert' must be bool, got {t}", a.span)
+        else:
+            want = _DESCRIPTORS[p]
+            if not assignable(want, t):
+                self.fail(f"{what} must be {want}, got {t}", a.span)
+        return elem
 
     # ---- expressions -----------------------------------------------------
 
@@ -544,36 +549,17 @@ class _Checker:
         if isinstance(e, ast.BoolLit):
             return BOOL
         if isinstance(e, ast.ListLit):
-            t = ANY
-            for x in e.items:
-                u = self.value(x)
-                j = join(t, u)
-                if j is None:
-                    self.fail(f"list elements disagree: {u} after {t}", x.span)
-                t = j
-            return list_of(t)
+            return self.list_lit(e)
         if isinstance(e, ast.Name):
             return self.name(e)
         if isinstance(e, ast.Index):
             return self.index(e)
         if isinstance(e, ast.Field):
-            t = self.value(e.base)
-            if t.kind not in ("pos", "any"):
-                self.fail(f"field '.{e.name}' needs an ItemPosition, got {t}", e.span)
-            if e.name not in ("x", "y", "z"):
-                self.fail(f"ItemPosition has no field '.{e.name}' (only .x, .y, .z)",
-                          e.span)
-            return FLOAT
+            return self.field(e)
         if isinstance(e, ast.Call):
             return self.call(e)
         if isinstance(e, ast.Unary):
-            t = self.value(e.operand)
-            if e.op == "!":
-                if t.kind not in ("bool", "any"):
-                    self.fail(f"operand of '!' must be bool, got {t}", e.operand.span)
-                return BOOL
-            self.arith_operand(e.op, t, e.operand, "operand")
-            return t
+            return self.unary(e)
         if isinstance(e, ast.Binary):
             return self.binary(e)
         if isinstance(e, ast.Temporal):
@@ -581,17 +567,48 @@ class _Checker:
             self.fail(f"'{word}' must stand at the top of a property (under 'forall' at "
                       f"most): it is not a value", e.span)
         if isinstance(e, ast.Quant):
-            if self.mode != "property":
-                self.fail(f"'{e.kind}' is only allowed in properties", e.span)
-            saved = dict(self.bound)
-            self.bound[e.var] = 1
-            t = self.value(e.body)
-            if t.kind not in ("bool", "any"):
-                self.fail(f"the body of '{e.kind}' must be bool, got {t}", e.body.span)
-            self.bound = saved
-            return BOOL
+            return self.quant(e)
         self.fail(f"unexpected expression {type(e).__name__}",  # pragma: no cover
                   getattr(e, "span", None))
+
+    def list_lit(self, e: ast.ListLit) -> Ty:
+        t = ANY
+        for x in e.items:
+            u = self.value(x)
+            j = join(t, u)
+            if j is None:
+                self.fail(f"list elements disagree: {u} after {t}", x.span)
+            t = j
+        return list_of(t)
+
+    def field(self, e: ast.Field) -> Ty:
+        t = self.value(e.base)
+        if t.kind not in ("pos", "any"):
+            self.fail(f"field '.{e.name}' needs an ItemPosition, got {t}", e.span)
+        if e.name not in ("x", "y", "z"):
+            self.fail(f"ItemPosition has no field '.{e.name}' (only .x, .y, .z)",
+                      e.span)
+        return FLOAT
+
+    def unary(self, e: ast.Unary) -> Ty:
+        t = self.value(e.operand)
+        if e.op == "!":
+            if t.kind not in ("bool", "any"):
+                self.fail(f"operand of '!' must be bool, got {t}", e.operand.span)
+            return BOOL
+        self.arith_operand(e.op, t, e.operand, "operand")
+        return t
+
+    def quant(self, e: ast.Quant) -> Ty:
+        if self.mode != "property":
+            self.fail(f"'{e.kind}' is only allowed in properties", e.span)
+        saved = dict(self.bound)
+        self.bound[e.var] = 1
+        t = self.value(e.body)
+        if t.kind not in ("bool", "any"):
+            self.fail(f"the body of '{e.kind}' must be bool, got {t}", e.body.span)
+        self.bound = saved
+        return BOOL
 
     def arith_operand(self, op: str, t: Ty, node, operands: str = "operands") -> None:
         if t.kind == "any":

@@ -177,6 +177,9 @@ class _ToAst(Transformer):
     """Builds ast nodes.  Statements get sid -1 here; ``_number`` assigns
     the real sids in source order afterwards."""
 
+    def transform(self, tree):
+        return _transform_iteratively(self, tree)
+
     # ---- expressions -----------------------------------------------------
 
     def name(self, meta, children):
@@ -387,7 +390,7 @@ class _ToAst(Transformer):
 def _transform_iteratively(self, tree):
     """Transformer.transform without recursion: a chain of 3,000 operators
     is a tree 3,000 levels deep, beyond Python's recursion limit."""
-    stack = [(tree, iter(tree.children), [])]
+    stack: list[tuple[Tree, Iterator, list]] = [(tree, iter(tree.children), [])]
     while True:
         node, it, acc = stack[-1]
         for c in it:
@@ -407,7 +410,6 @@ def _transform_iteratively(self, tree):
                 stack[-1][2].append(res)
 
 
-_ToAst.transform = _transform_iteratively  # type: ignore[method-assign]
 _TRANSFORMER = _ToAst()
 
 

@@ -139,71 +139,11 @@ class TomlSource:
             starts.append(starts[-1] + len(t) + 1)
         # work on the lines as rendered (splitlines() drops \r)
         text = "\n".join(self.lines) + "\n"
-        pos = starts[line - 1] + col - 1
-        n = len(text)
-
-        def skip_blank(i):
-            while i < n:
-                if text[i] in " \t\r\n":
-                    i += 1
-                elif text[i] == "#":
-                    while i < n and text[i] != "\n":
-                        i += 1
-                else:
-                    break
-            return i
-
-        def skip_value(i):
-            if i >= n:
-                return i
-            if text[i] in "\"'":
-                q = text[i]
-                i += 1
-                while i < n and text[i] != q and text[i] != "\n":
-                    i += 2 if (text[i] == "\\" and q == '"') else 1
-                return i + 1
-            if text[i] in "[{":
-                depth = 0
-                while i < n:
-                    ch = text[i]
-                    if ch in "\"'":
-                        i = skip_value(i)
-                        continue
-                    if ch == "#":
-                        i = skip_blank(i)
-                        continue
-                    if ch in "[{":
-                        depth += 1
-                    elif ch in "]}":
-                        depth -= 1
-                        if depth == 0:
-                            return i + 1
-                    i += 1
-                return i
-            while i < n and text[i] not in ",]}\n#":
-                i += 1
-            while i > 0 and text[i - 1] in " \t":
-                i -= 1
-            return i
-
-        for idx in path:
-            if pos >= n or text[pos] != "[":
-                return None
-            pos += 1
-            count = 0
-            while True:
-                pos = skip_blank(pos)
-                if pos >= n or text[pos] == "]":
-                    return None
-                if count == idx:
-                    break
-                pos = skip_blank(skip_value(pos))
-                if pos < n and text[pos] == ",":
-                    pos += 1
-                    count += 1
-                else:
-                    return None
-        end = skip_value(pos)
+        at = _nth_element(text, starts[line - 1] + col - 1, path)
+        if at is None:
+            return None
+        pos = at
+        end = _skip_value(text, pos)
         ln = bisect.bisect_right(starts, pos)
         c = pos - starts[ln - 1] + 1
         eln = bisect.bisect_right(starts, max(pos, end - 1))
@@ -226,6 +166,85 @@ class TomlSource:
                 break
         return col + len(rest.rstrip())
 
+
+def _skip_blank(text: str, i: int) -> int:
+    """The first offset from ``i`` not blank nor in a comment."""
+    n = len(text)
+    while i < n:
+        if text[i] in " \t\r\n":
+            i += 1
+        elif text[i] == "#":
+            while i < n and text[i] != "\n":
+                i += 1
+        else:
+            break
+    return i
+
+
+def _skip_value(text: str, i: int) -> int:
+    """The offset just after the TOML value starting at ``i``."""
+    n = len(text)
+    if i >= n:
+        return i
+    if text[i] in "\"'":
+        q = text[i]
+        i += 1
+        while i < n and text[i] != q and text[i] != "\n":
+            i += 2 if (text[i] == "\\" and q == '"') else 1
+        return i + 1
+    if text[i] in "[{":
+        return _skip_brackets(text, i)
+    while i < n and text[i] not in ",]}\n#":
+        i += 1
+    while i > 0 and text[i - 1] in " \t":
+        i -= 1
+    return i
+
+
+def _skip_brackets(text: str, i: int) -> int:
+    """The offset just after the array or inline table starting at ``i``."""
+    n = len(text)
+    depth = 0
+    while i < n:
+        ch = text[i]
+        if ch in "\"'":
+            i = _skip_value(text, i)
+            continue
+        if ch == "#":
+            i = _skip_blank(text, i)
+            continue
+        if ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+            if depth == 0:
+                return i + 1
+        i += 1
+    return i
+
+
+def _nth_element(text: str, pos: int, path: tuple) -> Optional[int]:
+    """The offset of the element at ``path`` (indices into nested arrays)
+    inside the value at offset ``pos``, or None."""
+    n = len(text)
+    for idx in path:
+        if pos >= n or text[pos] != "[":
+            return None
+        pos += 1
+        count = 0
+        while True:
+            pos = _skip_blank(text, pos)
+            if pos >= n or text[pos] == "]":
+                return None
+            if count == idx:
+                break
+            pos = _skip_blank(text, _skip_value(text, pos))
+            if pos < n and text[pos] == ",":
+                pos += 1
+                count += 1
+            else:
+                return None
+    return pos
 
 
 _LOC = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")

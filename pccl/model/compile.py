@@ -99,40 +99,59 @@ def coerce(value, ty: Ty):
             raise ValueError(f"expected a bool, got {value!r}")
         return value
     if k == "enum":
-        members = ty.members or ()
-        if isinstance(value, str) and value in members:
-            return members.index(value)
-        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(members):
-            return value
-        raise ValueError(f"expected one of {', '.join(members)}, got {value!r}")
+        return _coerce_enum(value, ty)
     if k == "pos":
-        if (isinstance(value, (tuple, list)) and len(value) in (2, 3)
-                and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in value)):
-            return tuple(coerce(c, _FLOAT) for c in value) + (0.0,) * (3 - len(value))
-        raise ValueError(f"expected a position [x, y] or [x, y, z], got {value!r}")
+        return _coerce_pos(value)
     if k == "obstacles":
-        if not isinstance(value, (tuple, list)):
-            raise ValueError(f"expected a list of polygons, got {value!r}")
-        polys = []
-        for poly in value:
-            if not isinstance(poly, (tuple, list)) or len(poly) < 3:
-                raise ValueError(f"expected a polygon (at least 3 points), got {poly!r}")
-            pts = []
-            for p in poly:
-                if not (isinstance(p, (tuple, list)) and len(p) >= 2
-                        and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)):
-                    raise ValueError(f"expected a point [x, y], got {p!r}")
-                pts.append((coerce(p[0], _FLOAT), coerce(p[1], _FLOAT)))
-            polys.append(tuple(pts))
-        return tuple(polys)
+        return _coerce_obstacles(value)
     if k in ("list", "array"):
-        if not isinstance(value, (tuple, list)):
-            raise ValueError(f"expected a list, got {value!r}")
-        out = tuple(coerce(x, ty.item) for x in value)
-        if k == "array" and len(out) != ty.size:
-            raise ValueError(f"expected {ty.size} elements, got {len(out)}")
-        return out
+        return _coerce_sequence(value, ty)
     return value
+
+
+def _is_number(c) -> bool:
+    return isinstance(c, (int, float)) and not isinstance(c, bool)
+
+
+def _coerce_enum(value, ty: Ty) -> int:
+    members = ty.members or ()
+    if isinstance(value, str) and value in members:
+        return members.index(value)
+    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < len(members):
+        return value
+    raise ValueError(f"expected one of {', '.join(members)}, got {value!r}")
+
+
+def _coerce_pos(value) -> tuple:
+    if isinstance(value, (tuple, list)) and len(value) in (2, 3) and all(_is_number(c) for c in value):
+        return tuple(coerce(c, _FLOAT) for c in value) + (0.0,) * (3 - len(value))
+    raise ValueError(f"expected a position [x, y] or [x, y, z], got {value!r}")
+
+
+def _coerce_obstacles(value) -> tuple:
+    if not isinstance(value, (tuple, list)):
+        raise ValueError(f"expected a list of polygons, got {value!r}")
+    polys = []
+    for poly in value:
+        if not isinstance(poly, (tuple, list)) or len(poly) < 3:
+            raise ValueError(f"expected a polygon (at least 3 points), got {poly!r}")
+        pts = []
+        for p in poly:
+            if not (isinstance(p, (tuple, list)) and len(p) >= 2 and all(_is_number(c) for c in p)):
+                raise ValueError(f"expected a point [x, y], got {p!r}")
+            pts.append((coerce(p[0], _FLOAT), coerce(p[1], _FLOAT)))
+        polys.append(tuple(pts))
+    return tuple(polys)
+
+
+def _coerce_sequence(value, ty: Ty) -> tuple:
+    """A List or an array (``ty.kind``) of ``ty.item``."""
+    if not isinstance(value, (tuple, list)):
+        raise ValueError(f"expected a list, got {value!r}")
+    out = tuple(coerce(x, ty.item) for x in value)
+    if ty.kind == "array" and len(out) != ty.size:
+        raise ValueError(f"expected {ty.size} elements, got {len(out)}")
+    return out
 
 
 _FLOAT = FLOAT
@@ -389,10 +408,7 @@ class Compiler:
         if isinstance(e, A.Name):
             return self.name(e, prop, bound)
         if isinstance(e, A.Field):
-            k = {"x": 0, "y": 1, "z": 2}.get(e.name)
-            if k is None:
-                self.impossible(f"unknown field '{e.name}'", e)
-            return f"{ex(e.base)}[{k}]"
+            return self.field(e, ex)
         if isinstance(e, A.Index):
             return self.index(e, prop, bound)
         if isinstance(e, A.Unary):
@@ -406,6 +422,13 @@ class Compiler:
         if isinstance(e, A.Call):
             return self.call(e, prop, bound, want)
         self.error("unsupported expression", e)  # pragma: no cover
+
+    def field(self, e: A.Field, ex) -> str:
+        """``p.x``: a component of a position, by index."""
+        k = {"x": 0, "y": 1, "z": 2}.get(e.name)
+        if k is None:
+            self.impossible(f"unknown field '{e.name}'", e)
+        return f"{ex(e.base)}[{k}]"
 
     def quant(self, e: A.Quant, prop: bool, bound) -> str:
         """``forall``/``exists`` over the agents.  The number of agents is
@@ -549,26 +572,30 @@ class Compiler:
         terms = " + ".join(f"(ags[{j}]{cell} is True)" for j in range(self.N))
         return f"({terms})" if self.N > 1 else f"(0 + {terms})"
 
+    def count_call(self, e: A.Call) -> str:
+        """``count(v)`` in a property: how many agents have ``v`` true."""
+        a = e.args[0]
+        if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
+                and a.name not in self.lay.vars:
+            k = DONE if a.name == "doReach_done" else FAIL
+            return self._count(f"[{REACH}][{k}]")
+        vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
+        if vs is None and isinstance(a, A.Name) and a.name in _STATUS_TEST:
+            test = _STATUS_TEST[a.name]
+            if self.N > 64:
+                return f"sum(1 for _a in ags if _a[3] {test})"
+            terms = " + ".join(f"(ags[{j}][3] {test})" for j in range(self.N))
+            return f"(0 + {terms})"
+        if vs is None or vs.section == "allwrite":
+            self.impossible("count(v) needs a per-agent boolean variable", e)
+        slot = LOC if vs.section == "loc" else AR
+        return self._count(f"[{slot}][{vs.slot}]")
+
     def call(self, e: A.Call, prop: bool, bound, want) -> str:
         ex = lambda x: self.expr(x, prop=prop, bound=bound)  # noqa: E731
         n, args = e.name, e.args
         if prop and n == "count":
-            a = args[0]
-            if isinstance(a, A.Name) and a.name in ("doReach_done", "doReach_fail") \
-                    and a.name not in self.lay.vars:
-                k = DONE if a.name == "doReach_done" else FAIL
-                return self._count(f"[{REACH}][{k}]")
-            vs = self.lay.vars.get(a.name) if isinstance(a, A.Name) else None
-            if vs is None and isinstance(a, A.Name) and a.name in _STATUS_TEST:
-                test = _STATUS_TEST[a.name]
-                if self.N > 64:
-                    return f"sum(1 for _a in ags if _a[3] {test})"
-                terms = " + ".join(f"(ags[{j}][3] {test})" for j in range(self.N))
-                return f"(0 + {terms})"
-            if vs is None or vs.section == "allwrite":
-                self.impossible("count(v) needs a per-agent boolean variable", e)
-            slot = LOC if vs.section == "loc" else AR
-            return self._count(f"[{slot}][{vs.slot}]")
+            return self.count_call(e)
         if n == "getAgentIndex":
             return "i"
         if n == "getNumAgents":

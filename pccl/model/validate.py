@@ -126,6 +126,30 @@ def overrides(func, v):
                         f"(a string), got {_show(x)}")
 
 
+def rates(func, v):
+    if v is None:
+        return
+    if not isinstance(v, Mapping):
+        _fail(func, f"rates must map agent indexes to rates (e.g. {{1: 2}}), "
+                    f"got {_show(v)}")
+    for a, r in v.items():
+        integer(func, "rates: an agent index", a, minimum=0)
+        integer(func, f"rates: the rate of agent {a}", r, minimum=1)
+
+
+def reduce_(func, r):
+    if not (isinstance(r, str) or (isinstance(r, (list, tuple))
+                                   and all(isinstance(x, str) for x in r))):
+        _fail(func, f"reduce must be 'auto', 'none' or a list of reduction names, "
+                    f"got {_show(r)}")
+    from pccl.model.reduce import parse_request
+    from pccl.lang.errors import PcclError
+    try:
+        parse_request(r)
+    except PcclError as e:
+        _fail(func, e.message if hasattr(e, "message") else str(e))
+
+
 def model_options(func, options: dict):
     unknown = sorted(set(options) - set(MODEL_OPTIONS))
     if unknown:
@@ -135,14 +159,7 @@ def model_options(func, options: dict):
         number(func, "delta", options["delta"], positive=True)
     if "n0" in options:
         integer(func, "n0", options["n0"], minimum=1)
-    rates = options.get("rates")
-    if rates is not None:
-        if not isinstance(rates, Mapping):
-            _fail(func, f"rates must map agent indexes to rates (e.g. {{1: 2}}), "
-                        f"got {_show(rates)}")
-        for a, r in rates.items():
-            integer(func, "rates: an agent index", a, minimum=0)
-            integer(func, f"rates: the rate of agent {a}", r, minimum=1)
+    rates(func, options.get("rates"))
     if "events" in options and options["events"] not in ("any", "first"):
         _fail(func, f"events must be 'any' or 'first', got {_show(options['events'])}")
     if "max_time" in options:
@@ -152,17 +169,7 @@ def model_options(func, options: dict):
     if "collisions" in options:
         boolean(func, "collisions", options["collisions"])
     if "reduce" in options:
-        r = options["reduce"]
-        if not (isinstance(r, str) or (isinstance(r, (list, tuple))
-                                       and all(isinstance(x, str) for x in r))):
-            _fail(func, f"reduce must be 'auto', 'none' or a list of reduction names, "
-                        f"got {_show(r)}")
-        from pccl.model.reduce import parse_request
-        from pccl.lang.errors import PcclError
-        try:
-            parse_request(r)
-        except PcclError as e:
-            _fail(func, e.message if hasattr(e, "message") else str(e))
+        reduce_(func, options["reduce"])
     if "invariants" in options:
         texts(func, "invariants", options["invariants"])
     if "properties" in options:

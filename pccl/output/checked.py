@@ -258,6 +258,66 @@ def _source(p) -> str:
     return "program" if getattr(p, "span", None) is not None else "option"
 
 
+def _explore_scope(status: str, complete: bool, stopped: str) -> tuple[str, Optional[str]]:
+    """What "held" means for an invariant the search did not violate."""
+    if complete:
+        return HELD, None
+    if status == "bounded":
+        return HELD_WITHIN_BOUNDS, f"stopped by {stopped}"
+    if status == "interrupted":
+        return HELD_EXPLORED, "interrupted"
+    return HELD_EXPLORED, "the search stopped at the first violation"
+
+
+def _temporal_outcome(p, violated: set, holds: set, status: str, complete: bool,
+                      why: Optional[str], stopped: str) -> tuple[str, Optional[str]]:
+    """The outcome of temporal property ``p`` and the reason for it."""
+    if (False, p.name) in violated:
+        return VIOLATED, None
+    if p.name in holds:
+        if p.kind == "reachable":
+            return HELD, "a witness reaches it"
+        return (HELD, None) if complete else (HELD_WITHIN_BOUNDS, why)
+    if status == "violation" and not complete:
+        return NOT_CHECKED, "the search stopped at the first violation"
+    if status == "interrupted":
+        return NOT_CHECKED, "interrupted"
+    if status == "bounded":
+        return NOT_CHECKED, f"the search did not finish (stopped by {stopped})"
+    return NOT_CHECKED, "the analysis stopped at the first violation"
+
+
+def _explore_builtin(model, res, options) -> list:
+    """The built-in checks of an explore run: (name, on, why not)."""
+    tl_on = bool(res.timelock)
+    tl_why = None
+    if not tl_on:
+        tl_why = ("--no-timelock" if not options.timelock
+                  else "needs the state graph of one process")
+    stall_on, stall_why = stall_check("explore", options)
+    if stall_on and not res.stall:
+        stall_on, stall_why = False, "needs the state graph of one process"
+    return [("assertions", True, None), ("stuck agents", True, None),
+            ("deadlock", bool(options.deadlock), None if options.deadlock else "--no-deadlock"),
+            ("stall", stall_on, stall_why),
+            ("time-lock", tl_on, tl_why),
+            ("collisions", bool(model.collisions),
+             None if model.collisions else "--collisions not given")]
+
+
+def _never_fired(model, labels: Optional[set], complete: bool, status: str,
+                 labels_reason: Optional[str]) -> tuple[Optional[list], Optional[str]]:
+    """The events no transition fired (None when unknown) and why unknown."""
+    if labels is not None and complete:
+        fired = {lab[2] for lab in labels if lab[0] == "EVENT SELECT" and lab[2] is not None}
+        return [e for k, e in enumerate(event_list(model)) if k not in fired], labels_reason
+    if labels is not None:
+        return None, ("a bound stopped the search" if status == "bounded" else
+                      "interrupted" if status == "interrupted" else
+                      "the search stopped at the first violation")
+    return None, labels_reason
+
+
 def for_explore(model, res, options, *, complete: bool, labels: Optional[set],
                 labels_reason: Optional[str] = None, bounds: tuple = ()) -> Checked:
     """``checked`` of an :class:`~pccl.api.ExploreResult` ``res`` searched
@@ -269,61 +329,18 @@ def for_explore(model, res, options, *, complete: bool, labels: Optional[set],
     violated = {(v.kind == "invariant", v.name) for v in res.violations}
     status = res.status
     stopped = ", ".join(res.bound_labels)
-    if complete:
-        scope, why = HELD, None
-    elif status == "bounded":
-        scope, why = HELD_WITHIN_BOUNDS, f"stopped by {stopped}"
-    elif status == "interrupted":
-        scope, why = HELD_EXPLORED, "interrupted"
-    else:
-        scope, why = HELD_EXPLORED, "the search stopped at the first violation"
+    scope, why = _explore_scope(status, complete, stopped)
     props = []
     for p in model.properties:
         out, r = (VIOLATED, None) if (True, p.name) in violated else (scope, why)
         props.append(PropertyCheck("invariant", p.name, p.text, _source(p), out, r))
     holds = set(res.holds)
     for p in model.temporal:
-        if (False, p.name) in violated:
-            out, r = VIOLATED, None
-        elif p.name in holds:
-            if p.kind == "reachable":
-                out, r = HELD, "a witness reaches it"
-            elif complete:
-                out, r = HELD, None
-            else:
-                out, r = HELD_WITHIN_BOUNDS, why
-        elif status == "violation" and not complete:
-            out, r = NOT_CHECKED, "the search stopped at the first violation"
-        elif status == "interrupted":
-            out, r = NOT_CHECKED, "interrupted"
-        elif status == "bounded":
-            out, r = NOT_CHECKED, f"the search did not finish (stopped by {stopped})"
-        else:
-            out, r = NOT_CHECKED, "the analysis stopped at the first violation"
+        out, r = _temporal_outcome(p, violated, holds, status, complete, why, stopped)
         props.append(PropertyCheck(p.kind, p.name, p.text, _source(p), out, r))
-    tl_on = bool(res.timelock)
-    tl_why = None
-    if not tl_on:
-        tl_why = ("--no-timelock" if not options.timelock
-                  else "needs the state graph of one process")
-    stall_on, stall_why = stall_check("explore", options)
-    if stall_on and not res.stall:
-        stall_on, stall_why = False, "needs the state graph of one process"
-    builtin = [("assertions", True, None), ("stuck agents", True, None),
-               ("deadlock", bool(options.deadlock), None if options.deadlock else "--no-deadlock"),
-               ("stall", stall_on, stall_why),
-               ("time-lock", tl_on, tl_why),
-               ("collisions", bool(model.collisions),
-                None if model.collisions else "--collisions not given")]
+    builtin = _explore_builtin(model, res, options)
     bound_list = _explore_bounds(res, list(bounds))
-    never, reason = None, labels_reason
-    if labels is not None and complete:
-        fired = {lab[2] for lab in labels if lab[0] == "EVENT SELECT" and lab[2] is not None}
-        never = [e for k, e in enumerate(event_list(model)) if k not in fired]
-    elif labels is not None:
-        reason = ("a bound stopped the search" if status == "bounded" else
-                  "interrupted" if status == "interrupted" else
-                  "the search stopped at the first violation")
+    never, reason = _never_fired(model, labels, complete, status, labels_reason)
     clean = not res.violations and status in ("exhaustive", "bounded")
     return build(model, command="explore", properties=props, builtin=builtin,
                  bounds=bound_list, never_fired=never, events_reason=reason, clean=clean)

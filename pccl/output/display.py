@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from typing import Optional
 
-from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC, PHASE, POS,
-                               REACH, REQUEST, RUNNING, SH, STATUS, T0, TARGET, TIME, acquire_sid, is_acquire)
-from pccl.lang.values import UNDEF, format_number, format_value, to_json
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK,
+                               LQ, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, TARGET,
+                               TIME, acquire_sid, is_acquire)
+from pccl.lang.values import UNDEF, format_number, format_value
 
 LOCK_NAMES = {IDLE: "idle", REQUEST: "request", LOCK: "lock"}
 
@@ -35,17 +36,6 @@ def status_text(model, code) -> str:
     if kind == "assert":
         return f"stuck(assertion failed{loc})"
     return f"stuck({reason}{loc})"
-
-
-def status_json(model, code):
-    if code == RUNNING:
-        return {"status": "running"}
-    if code == EXITED:
-        return {"status": "exited"}
-    kind, reason, where = model.compiled.stuck_reasons[code]
-    span = model.compiled.span_of(where)
-    return {"status": "stuck", "kind": kind, "reason": reason,
-            "line": span.line if span else None, "column": span.column if span else None}
 
 
 def agent_vars(model, st, i) -> list:
@@ -211,13 +201,6 @@ def format_step(model, n, label, before, after, *, show_diff=True) -> str:
     return text
 
 
-def step_json(model, n, label, before, after) -> dict:
-    info = label_info(model, label, before)
-    return {"step": n, "time": before[TIME], "agent": info["agent"], "rule": info["rule"],
-            "event": info["event"], "line": info["line"], "source": info["source"],
-            "changes": [{"cell": c, "old": o, "new": nw} for c, o, nw in diff(model, before, after)]}
-
-
 # ---------------------------------------------------------------------------
 # configurations
 # ---------------------------------------------------------------------------
@@ -239,22 +222,6 @@ def format_state(model, st, *, indent="  ") -> str:
         if av:
             lines.append(indent + "  " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in av))
     return "\n".join(lines)
-
-
-def state_json(model, st) -> dict:
-    agents = []
-    for i, ag in enumerate(st[AGS]):
-        r = ag[REACH]
-        d = {"id": i, **status_json(model, ag[STATUS]), "counter": ag[CNT],
-             "lockState": LOCK_NAMES[ag[LCK]], "position": list(ag[POS]),
-             "k": model.compiled.describe_k(ag[PC]),
-             "reach": {"target": None if r[TARGET] is None else list(r[TARGET]), "t0": r[T0],
-                       "doReach_done": r[DONE], "doReach_fail": r[FAIL]},
-             "variables": {n: to_json(v, t) for n, t, v in agent_vars(model, st, i)}}
-        agents.append(d)
-    return {"time": st[TIME], "transitionState": _phase(st[PHASE]), "lockQueue": list(st[LQ]),
-            "shared": {n: to_json(v, t) for n, t, v in shared_vars(model, st)},
-            "agents": agents}
 
 
 def format_state_k(model, st) -> str:

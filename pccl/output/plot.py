@@ -1,7 +1,7 @@
 """Pictures of the physical world (``--plot FILE`` in ``run`` and ``explore``).
 
 :func:`plot_run` draws one execution (a :class:`~pccl.tools.runner.RunResult`),
-:func:`plot_trace` a counterexample (``[(label or None, state)]`` from an
+:func:`plot_trace` a counterexample (a :class:`~pccl.search.explorer.Trace`, from an
 initial state, as the explorer rebuilds it).  Both draw, in world
 coordinates with equal aspect:
 
@@ -76,7 +76,8 @@ def plot_run(model, run_result, path) -> None:
     if not states:
         raise ValueError("plot_run: the run result has no state to draw")
     frames = _frames_from_states(states)
-    scan = [s for _, _, s in (getattr(run_result, "trace", None) or [])] or states
+    trace = getattr(run_result, "trace", None)
+    scan = list(trace.states[1:]) if trace is not None and len(trace) else states
     status = getattr(run_result, "status", "")
     message = getattr(run_result, "message", "")
     bad = status not in ("final", "bounded", "")
@@ -88,19 +89,18 @@ def plot_run(model, run_result, path) -> None:
                          deadlock=status == "deadlock")
     head = f"{_program_name(model)} — run, blackbox {model.blackbox.name}: {status}"
     sub = message if bad else (message or None)
-    steps = getattr(run_result, "trace", None) or []
-    if not has_motion(model) and steps:
-        path_ = [(None, steps[0][1])] + [(lab, b) for lab, _, b in steps]
-        _draw_timeline(model, path_, path, head.replace(f", blackbox {model.blackbox.name}", ""),
-                       sub, bad, ring)
+    if not has_motion(model) and trace is not None and len(trace):
+        _draw_timeline(model, list(trace), path,
+                       head.replace(f", blackbox {model.blackbox.name}", ""), sub, bad, ring)
         return
     _draw(model, states[0], frames, scan, last, path, head, sub, bad, ring)
 
 
 def plot_trace(model, trace, path, title: Optional[str] = None) -> None:
-    """Draw a counterexample ``trace`` (``[(label or None, state)]`` from an
-    initial state) to ``path``; ``title`` (the violation message) is shown in
-    red and the agents involved at the last state are ringed in red."""
+    """Draw a counterexample ``trace`` (a :class:`pccl.search.explorer.Trace`) to
+    ``path``; ``title`` (the violation message) is shown in red and the
+    agents involved at the last state are ringed in red."""
+    trace = list(trace)         # [(None, initial), (label, state), ...]
     if not trace:
         raise ValueError("plot_trace: empty trace")
     states = [s for _, s in trace]

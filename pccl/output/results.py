@@ -2,10 +2,12 @@
 
 The CLI prints these same views: ``str(view)`` is the text ``pccl run`` and
 ``pccl explore`` print for a state, and ``view.to_json()`` the JSON of
-``--format json``.  Every view is frozen; values are as the JSON shows them
-(numbers, booleans, strings, lists; positions as ``(x, y, z)``).  A view is
-also readable by the JSON key (``step["source"]``), which keeps scripts
-written against the JSON working.
+``--format json``: the one encoding of :mod:`pccl.output.codec` (the trace
+format's states and steps).  A view is built from the configuration itself
+(the model's cells and types), never from JSON.  Every view is frozen;
+values are data (numbers, booleans, enum member names, lists; positions as
+``(x, y, z)``).  A view is also readable by the JSON key
+(``step["source"]``).
 
     >>> from pccl.api import explore
     >>> r = explore("programs/race.pccl", world="programs/race.toml", blackbox="instant")
@@ -22,7 +24,11 @@ from types import MappingProxyType
 from typing import Any, Optional
 from collections.abc import Mapping
 
+from pccl.output import codec as C
 from pccl.output import display as D
+from pccl.model.layout import (AGS, CNT, DISCRETE, DONE, FAIL, LCK, LQ, PC, PHASE, POS, REACH,
+                               STATUS, T0, TARGET, TIME)
+from pccl.lang.values import to_json
 
 
 class _Keyed:
@@ -74,10 +80,26 @@ class AgentView(_Keyed):
     doReach_fail: Any
     variables: Mapping[str, Any]
     stuck: Optional[Stuck] = None
-    _json: dict = field(default_factory=dict, repr=False, compare=False)
+    _model: Any = field(default=None, repr=False, compare=False)
+    _state: Any = field(default=None, repr=False, compare=False)
+
+    @classmethod
+    def of(cls, model, st, i) -> "AgentView":
+        """The view of agent ``i`` of the configuration ``st`` of ``model``."""
+        ag = st[AGS][i]
+        code = ag[STATUS]
+        status = C.encode_status(model, code)
+        stuck = (Stuck(status["kind"], status["reason"], status["line"], status["column"])
+                 if status["status"] == "stuck" else None)
+        r = ag[REACH]
+        return cls(i, status["status"], model.compiled.describe_k(ag[PC]), ag[CNT],
+                   D.LOCK_NAMES[ag[LCK]], tuple(ag[POS]),
+                   None if r[TARGET] is None else tuple(r[TARGET]), r[T0], r[DONE], r[FAIL],
+                   _frozen({n: to_json(v, t) for n, t, v in D.agent_vars(model, st, i)}),
+                   stuck, model, st)
 
     def to_json(self) -> dict:
-        return self._json
+        return C.encode_agent(self._model, self._state, self.id)
 
 
 @dataclass(frozen=True)
@@ -90,31 +112,26 @@ class StateView(_Keyed):
     lock_queue: tuple
     shared: Mapping[str, Any]
     agents: tuple
-    _json: dict = field(default_factory=dict, repr=False, compare=False)
-    _text: str = field(default="", repr=False, compare=False)
+    _model: Any = field(default=None, repr=False, compare=False)
+    _state: Any = field(default=None, repr=False, compare=False)
 
     @classmethod
     def of(cls, model, st) -> "StateView":
         """The view of the configuration ``st`` of ``model``."""
-        data = D.state_json(model, st)
-        agents = []
-        for a in data["agents"]:
-            r = a["reach"]
-            stuck = (Stuck(a["kind"], a["reason"], a["line"], a["column"])
-                     if a["status"] == "stuck" else None)
-            agents.append(AgentView(
-                a["id"], a["status"], a["k"], a["counter"], a["lockState"],
-                tuple(a["position"]), None if r["target"] is None else tuple(r["target"]),
-                r["t0"], r["doReach_done"], r["doReach_fail"], _frozen(a["variables"]),
-                stuck, a))
-        return cls(data["time"], data["transitionState"], tuple(data["lockQueue"]),
-                   _frozen(data["shared"]), tuple(agents), data, D.format_state(model, st))
+        return cls(st[TIME], "discrete" if st[PHASE] == DISCRETE else "dynamic", tuple(st[LQ]),
+                   _frozen({n: to_json(v, t) for n, t, v in D.shared_vars(model, st)}),
+                   tuple(AgentView.of(model, st, i) for i in range(len(st[AGS]))), model, st)
+
+    @property
+    def state(self):
+        """The configuration itself (the model's plain tuple)."""
+        return self._state
 
     def to_json(self) -> dict:
-        return self._json
+        return C.encode_state(self._model, self._state)
 
     def __str__(self) -> str:
-        return self._text
+        return D.format_state(self._model, self._state)
 
 
 @dataclass(frozen=True)
@@ -126,8 +143,8 @@ class Change(_Keyed):
     for a shared or global cell), ``old`` and ``new`` the values as data
     (numbers, booleans, strings, lists; a position is ``[x, y, z]``; a
     status ``"running"`` or ``{"status": "stuck", ...}``), and
-    ``old_text``/``new_text`` as the trace prints them.  ``to_json()`` (the
-    CLI's JSON) keeps the printed form."""
+    ``old_text``/``new_text`` as the trace prints them.  ``to_json()`` is
+    the change as the trace format writes it (:func:`pccl.output.codec.encode_changes`)."""
     cell: str
     old: Any
     new: Any
@@ -140,7 +157,7 @@ class Change(_Keyed):
         return self.path.get("agent")
 
     def to_json(self) -> dict:
-        return {"cell": self.cell, "old": self.old_text, "new": self.new_text}
+        return {"cell": dict(self.path), "old": self.old, "new": self.new}
 
 
 _TEXT_NAME = {"phase": "transitionState"}
@@ -149,11 +166,10 @@ _TEXT_NAME = {"phase": "transitionState"}
 def _changes(model, before, after) -> tuple:
     """The typed changes of a step (pccl/output/traces.py), with the printed text
     of each (pccl/output/display.py); the cells the trace prints, in its order."""
-    from pccl.output import traces as T
     texts = {c: (o, n) for c, o, n in D.diff(model, before, after)}
     out = []
-    for c in T.changes(model, before, after):
-        name = T.cell_name(c["cell"])
+    for c in C.encode_changes(model, before, after):
+        name = C.cell_name(c["cell"])
         name = _TEXT_NAME.get(name, name)
         if name not in texts:           # counter, env: not printed
             continue
@@ -175,17 +191,19 @@ class StepView(_Keyed):
     line: Optional[int]
     source: Optional[str]
     changes: tuple
+    _model: Any = field(default=None, repr=False, compare=False)
+    _step: Any = field(default=None, repr=False, compare=False)     # (label, before, after)
 
     @classmethod
     def of(cls, model, n, label, before, after) -> "StepView":
-        d = D.step_json(model, n, label, before, after)
-        return cls(d["step"], d["time"], d["agent"], d["rule"], d["event"], d["line"],
-                   d["source"], _changes(model, before, after))
+        info = D.label_info(model, label, before)
+        return cls(n, before[TIME], info["agent"], info["rule"], info["event"], info["line"],
+                   info["source"], _changes(model, before, after), model, (label, before, after))
 
     def to_json(self) -> dict:
-        return {"step": self.step, "time": self.time, "agent": self.agent, "rule": self.rule,
-                "event": self.event, "line": self.line, "source": self.source,
-                "changes": [c.to_json() for c in self.changes]}
+        """The step as the trace format writes it (:func:`pccl.output.codec.encode_step`)."""
+        label, before, after = self._step
+        return C.encode_step(self._model, self.step, label, before, after)
 
     def __str__(self) -> str:
         where = f"line {self.line}: {self.source}" if self.line else ""
@@ -214,13 +232,25 @@ class Finding(_Keyed):
     state: Optional[StateView]          # None for "unreachable" (no path)
     #: a lasso (temporal properties): the steps after this many repeat forever
     cycle_start: Optional[int] = None
+    #: the path's initial state (None for "unreachable")
+    initial: Optional[StateView] = field(default=None, repr=False)
 
     def to_json(self) -> dict:
+        """The finding; its path as the trace format writes one
+        (``{"initial", "steps", "final"}``, :func:`path_json`), or null."""
         out = {"kind": self.kind, "name": self.name, "message": self.message,
                "agent": self.agent, "line": self.line, "column": self.column,
                "depth": self.depth, "shortest": self.shortest,
-               "trace": [s.to_json() for s in self.trace],
-               "state": None if self.state is None else self.state.to_json()}
+               "trace": path_json(self.initial, self.trace, self.state)}
         if self.cycle_start is not None:
             out["cycle_start"] = self.cycle_start
         return out
+
+
+def path_json(initial: Optional[StateView], steps, final: Optional[StateView]) -> Optional[dict]:
+    """A path as every JSON output writes one: the trace format's
+    ``initial``, ``steps`` and ``final`` (null without a path)."""
+    if initial is None or final is None:
+        return None
+    return {"initial": initial.to_json(), "steps": [s.to_json() for s in steps],
+            "final": final.to_json()}

@@ -44,7 +44,9 @@ VIOLATION_KINDS = ("invariant", "assert", "stuck", "deadlock", "collision", "liv
 LASSO_KINDS = ("liveness", "timelock")
 STATE_CELLS = ("time", "phase", "lockQueue", "env")
 AGENT_CELLS = ("counter", "position", "lockState", "status", "target", "doReach_done",
-               "doReach_fail")
+               "doReach_fail",
+               # version 2 (pccl/output/codec.py): the pending computation, doReach's t0 and obstacles
+               "k", "t0", "obstacles")
 
 
 class _Bad(Exception):
@@ -285,7 +287,7 @@ def _position(v, path, null=False):
         _number(x, f"{path}[{n}]")
 
 
-def _state(s, path, n_agents: int):
+def _state(s, path, n_agents: int, version: int = 2):
     _obj(s, path, ("time", "phase", "lockQueue", "shared", "agents", "env"))
     _number(s["time"], f"{path}.time", lo=0)
     _enum(s["phase"], f"{path}.phase", ("discrete", "dynamic"))
@@ -300,7 +302,13 @@ def _state(s, path, n_agents: int):
     for i, a in enumerate(ags):
         ap = f"{path}.agents[{i}]"
         _obj(a, ap, ("id", "status", "at", "counter", "lockState", "position", "target",
-                     "doReach_done", "doReach_fail", "variables"))
+                     "doReach_done", "doReach_fail", "variables")
+             + (("k", "t0", "obstacles") if version >= 2 else ()))
+        if version >= 2:
+            _list(a["k"], f"{ap}.k")
+            if a["t0"] is not None:
+                _number(a["t0"], f"{ap}.t0")
+            _value(a["obstacles"], f"{ap}.obstacles")
         if a["id"] != i or not _is_int(a["id"]):
             _fail(f"{ap}.id", f"{i}", a["id"])
         st = _obj(a["status"], f"{ap}.status", ("status",))
@@ -420,13 +428,17 @@ def check(doc: Any, name: str) -> dict:
     """The trace document ``doc`` (parsed JSON) if its structure is that of
     a trace file; else a PcclError naming the first bad field."""
     from pccl.output import traces as T
-    if isinstance(doc, dict) and isinstance(doc.get("trace"), dict) and "format" not in doc:
-        doc = doc["trace"]        # the output of --format json
+    if isinstance(doc, dict) and isinstance(doc.get("trace"), dict) and \
+            doc.get("format") in (None, "pccl-output"):
+        doc = doc["trace"]        # the output of --format json (older ones had no "format")
     if not isinstance(doc, dict) or doc.get("format") != T.FORMAT:
         raise PcclError("not a pccl trace file (no \"format\": \"pccl-trace\")", filename=name)
-    if not _is_int(doc.get("version")) or doc.get("version") != T.VERSION:
-        raise PcclError(f"trace format version {_show(doc.get('version'))} is not supported "
-                        f"(this pccl reads version {T.VERSION})", filename=name)
+    from pccl.output.codec import READS
+    version = doc.get("version")
+    if not _is_int(version) or version not in READS:
+        raise PcclError(f"trace format version {_show(version)} is not supported "
+                        f"(this pccl reads versions {', '.join(map(str, READS))})",
+                        filename=name)
     try:
         _obj(doc, "", ("config", "initial", "steps", "result", "final"))
         cfg = _config(doc["config"])
@@ -434,11 +446,11 @@ def check(doc: Any, name: str) -> dict:
         steps = _list(doc["steps"], "steps")
         has_path = doc["initial"] is not None
         if has_path:
-            _state(doc["initial"], "initial", n)
+            _state(doc["initial"], "initial", n, version)
         for k, s in enumerate(steps):
             _step(s, f"steps[{k}]", k + 1, n)
         if doc["final"] is not None:
-            _state(doc["final"], "final", n)
+            _state(doc["final"], "final", n, version)
         if has_path != (doc["final"] is not None):
             raise _Bad("final", "null exactly when initial is null")
         if not has_path and steps:

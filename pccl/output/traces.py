@@ -21,13 +21,10 @@ import json
 import os
 from typing import Optional
 
-from pccl.output import display as D
-from pccl.model.layout import AGS, CNT, DONE, ENV, FAIL, LCK, LQ, PC, PHASE, POS, REACH, SH, STATUS, TARGET, TIME
-from pccl.semantics.rules import K_IF, K_WHILE
-from pccl.lang.values import to_json
+from pccl.output import codec as C
 
-FORMAT = "pccl-trace"
-VERSION = 1
+FORMAT = C.FORMAT
+VERSION = C.VERSION
 
 
 def pccl_version() -> str:
@@ -117,118 +114,15 @@ def config(command: str, model, *, program, seed=None, deadlock=None) -> dict:
 
 
 # ---------------------------------------------------------------------------
-# typed states and changes
+# typed states and changes: the one encoding, pccl/output/codec.py
 # ---------------------------------------------------------------------------
 
-def _status(model, code):
-    return D.status_json(model, code)
-
-
-def state_typed(model, st) -> dict:
-    """A configuration as typed JSON data (without the pending computation k,
-    which ``at`` describes)."""
-    agents = []
-    for i, ag in enumerate(st[AGS]):
-        r = ag[REACH]
-        agents.append({
-            "id": i, "status": _status(model, ag[STATUS]), "at": model.compiled.describe_k(ag[PC]),
-            "counter": ag[CNT], "lockState": D.LOCK_NAMES[ag[LCK]],
-            "position": list(ag[POS]),
-            "target": None if r[TARGET] is None else list(r[TARGET]),
-            "doReach_done": r[DONE], "doReach_fail": r[FAIL],
-            "variables": {n: to_json(v, t) for n, t, v in D.agent_vars(model, st, i)}})
-    return {"time": st[TIME], "phase": D._phase(st[PHASE]), "lockQueue": list(st[LQ]),
-            "shared": {n: to_json(v, t) for n, t, v in D.shared_vars(model, st)},
-            "agents": agents, "env": to_json(st[ENV])}
-
-
-def changes(model, a, b) -> list:
-    """Typed changes between two configurations: [{"cell", "old", "new"}]."""
-    out = []
-
-    def add(cell, old, new):
-        out.append({"cell": cell, "old": old, "new": new})
-
-    if a[TIME] != b[TIME]:
-        add({"cell": "time"}, a[TIME], b[TIME])
-    if a[PHASE] != b[PHASE]:
-        add({"cell": "phase"}, D._phase(a[PHASE]), D._phase(b[PHASE]))
-    if a[LQ] != b[LQ]:
-        add({"cell": "lockQueue"}, list(a[LQ]), list(b[LQ]))
-    if a[SH] is not b[SH]:
-        for (n, ty, va), (_, _, vb) in zip(D.shared_vars(model, a), D.shared_vars(model, b)):
-            if va != vb:
-                add({"var": n}, to_json(va, ty), to_json(vb, ty))
-    for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
-        if ga is gb:
-            continue
-        for (n, ty, va), (_, _, vb) in zip(D.agent_vars(model, a, i), D.agent_vars(model, b, i)):
-            if va != vb:
-                add({"agent": i, "var": n}, to_json(va, ty), to_json(vb, ty))
-        if ga[CNT] != gb[CNT]:
-            add({"agent": i, "cell": "counter"}, ga[CNT], gb[CNT])
-        if ga[POS] != gb[POS]:
-            add({"agent": i, "cell": "position"}, list(ga[POS]), list(gb[POS]))
-        if ga[LCK] != gb[LCK]:
-            add({"agent": i, "cell": "lockState"}, D.LOCK_NAMES[ga[LCK]], D.LOCK_NAMES[gb[LCK]])
-        if ga[STATUS] != gb[STATUS]:
-            add({"agent": i, "cell": "status"}, _status(model, ga[STATUS]), _status(model, gb[STATUS]))
-        ra, rb = ga[REACH], gb[REACH]
-        if ra[TARGET] != rb[TARGET]:
-            add({"agent": i, "cell": "target"}, None if ra[TARGET] is None else list(ra[TARGET]),
-                None if rb[TARGET] is None else list(rb[TARGET]))
-        if ra[DONE] != rb[DONE]:
-            add({"agent": i, "cell": "doReach_done"}, ra[DONE], rb[DONE])
-        if ra[FAIL] != rb[FAIL]:
-            add({"agent": i, "cell": "doReach_fail"}, ra[FAIL], rb[FAIL])
-    if a[ENV] != b[ENV]:
-        add({"cell": "env"}, to_json(a[ENV]), to_json(b[ENV]))
-    return out
-
-
-def cell_name(cell: dict) -> str:
-    """``waitTime[0]``, ``reqid``, ``pos[1]``, ``time``: as the text views print cells."""
-    c = str(cell.get("cell"))
-    name = cell.get("var") or {"position": "pos"}.get(c, c)
-    return f"{name}[{cell['agent']}]" if "agent" in cell else name
-
-
-def branch_taken(model, label, before, after) -> Optional[dict]:
-    """For an ``if`` or ``while`` step: which branch was taken, derived from
-    the agent's pending computation before and after (None otherwise, and
-    when the agent got stuck evaluating the condition)."""
-    rule, i, sid = label
-    if rule != "STATEMENT" or i is None:
-        return None
-    ag, ag2 = before[AGS][i], after[AGS][i]
-    if ag2[STATUS] != ag[STATUS]:
-        return None
-    info = model.ctl.info(ag[PC])
-    if info.kind == K_IF:
-        pcs = info.branch_pcs
-        stmt = model.compiled.stmts[info.sid]
-        try:
-            k = pcs.index(ag2[PC])
-        except ValueError:
-            return None
-        n = len(stmt.branches)
-        if k == n:
-            taken = "else" if stmt.orelse else "none"
-        elif k == 0:
-            taken = "then"
-        else:
-            taken = f"else if #{k}"
-        if k < n:
-            span = stmt.branches[k][1][0].span if stmt.branches[k][1] else None
-        else:
-            span = stmt.orelse[0].span if stmt.orelse else None
-        return {"kind": "if", "index": k, "taken": taken,
-                "line": span.line if span else None}
-    if info.kind == K_WHILE:
-        body = ag2[PC] == info.body_pc
-        return {"kind": "while", "index": 0 if body else 1, "taken": "body" if body else "exit",
-                "line": None}
-    return None
+state_typed = C.encode_state
+changes = C.encode_changes
+step_record = C.encode_step
+violation_record = C.encode_violation
+cell_name = C.cell_name
+branch_taken = C.branch_taken
 
 
 def branch_text(br: Optional[dict]) -> str:
@@ -242,45 +136,16 @@ def branch_text(br: Optional[dict]) -> str:
     return "→ loop body" if br["taken"] == "body" else "→ loop exit"
 
 
-def step_record(model, n, label, before, after) -> dict:
-    info = D.label_info(model, label, before)
-    rule, agent, detail = label
-    column = None
-    if rule == "EVENT SELECT" and detail is not None:
-        column = model.program.events[detail].guard.span.column
-    elif info["line"] is not None and isinstance(detail, int) and rule not in ("DOREACH INVOKE",):
-        sp = model.compiled.stmt_span(detail)
-        column = sp.column if sp else None
-    rec = {"index": n, "time": before[TIME], "agent": agent, "rule": info["rule"],
-           "event": info["event"], "line": info["line"], "column": column,
-           "source": info["source"] or None,
-           "branch": branch_taken(model, label, before, after),
-           "changes": changes(model, before, after)}
-    if rule == "DOREACH INVOKE":
-        rec["outcome"] = detail
-    return rec
-
-
-def violation_record(model, v) -> Optional[dict]:
-    if v is None:
-        return None
-    span = getattr(v, "span", None)
-    return {"kind": v.kind, "name": v.name, "message": v.message, "agent": v.agent,
-            "line": span.line if span else None, "column": span.column if span else None}
-
-
-def document(model, cfg: dict, states: list, labels: list, *, status: str,
-             violation=None, message: Optional[str] = None) -> dict:
-    """The trace document of a path (``states[0]`` initial; ``labels[k]`` leads
-    from ``states[k]`` to ``states[k + 1]``)."""
-    steps = [step_record(model, n + 1, lab, states[n], states[n + 1])
-             for n, lab in enumerate(labels)]
+def document(model, cfg: dict, trace, *, status: str, violation=None,
+             message: Optional[str] = None) -> dict:
+    """The trace document of a path (a :class:`pccl.search.explorer.Trace`, or
+    None: no path): the path as :func:`pccl.output.codec.encode_path` writes it."""
+    path = C.encode_path(model, trace)
     return {"format": FORMAT, "version": VERSION, "config": cfg,
-            "initial": state_typed(model, states[0]) if states else None,
-            "steps": steps,
+            "initial": path["initial"], "steps": path["steps"],
             "result": {"status": status, "message": message,
                        "violation": violation_record(model, violation)},
-            "final": state_typed(model, states[-1]) if states else None}
+            "final": path["final"]}
 
 
 def explore_document(res, cfg: dict) -> dict:
@@ -292,32 +157,29 @@ def explore_document(res, cfg: dict) -> dict:
         cx = res.counterexamples[0]
         tr = cx.trace
         if tr is None:          # reachable P found unreachable: no path
-            return document(m, cfg, [], [], status=res.status, violation=cx.violation,
+            return document(m, cfg, None, status=res.status, violation=cx.violation,
                             message=res.verdict)
-        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                       violation=cx.violation, message=res.verdict)
+        doc = document(m, cfg, tr, status=res.status, violation=cx.violation,
+                       message=res.verdict)
         if cx.cycle_start is not None:
             doc["result"]["cycle_start"] = cx.cycle_start
         return doc
     if res.witnesses:           # reachable P holds: its (shortest) witness path
         w = res.witnesses[0]
         tr = w["_trace"]
-        doc = document(m, cfg, list(tr.states), list(tr.labels), status=res.status,
-                       message=res.verdict)
+        doc = document(m, cfg, tr, status=res.status, message=res.verdict)
         doc["result"]["witness"] = {"name": w["name"], "text": w["text"]}
         return doc
-    return document(m, cfg, [], [], status=res.status, message=res.verdict)
+    return document(m, cfg, None, status=res.status, message=res.verdict)
 
 
 def run_document(res, cfg: dict) -> dict:
-    m = res.model
-    if res.trace:
-        states = [res.trace[0][1]] + [b for _, _, b in res.trace]
-        labels = [lab for lab, _, _ in res.trace]
-    else:
-        states, labels = [res.final], []
+    """The trace document of a :class:`~pccl.tools.runner.RunResult`: its
+    recorded path (else its last state alone)."""
+    from pccl.search.explorer import Trace
+    tr = res.trace if res.trace is not None else Trace((res.final,), ())
     v = res.violations[0] if res.violations else None
-    return document(m, cfg, states, labels, status=res.status, violation=v, message=res.message)
+    return document(res.model, cfg, tr, status=res.status, violation=v, message=res.message)
 
 
 def write(doc: dict, path) -> None:

@@ -23,8 +23,9 @@ from pccl.model.layout import AGS, POS, TIME
 from pccl.lang.values import format_value
 
 
-def render(view, model, path, *, full=False, width=None) -> str:
-    states, labels = path
+def render(view, model, trace, *, full=False, width=None) -> str:
+    """The text view ``view`` of a path (a :class:`pccl.search.explorer.Trace`)."""
+    states, labels = trace.states, trace.labels
     if view == "swimlane":
         return swimlane(model, states, labels, full=full, width=width)
     return steps(model, states, labels, full=full, width=width)

@@ -617,6 +617,7 @@ class Explorer:
         runaway detector of a checkpoint resumed.)"""
         m = self.model
         succ_fn = m.successors
+        expand = getattr(m, "successor_batch", None)
         max_depth = self.max_depth
         batch = self.batch
         table = self.table
@@ -697,21 +698,32 @@ class Explorer:
                 # a chunk of the level expanded with C-level map()s: no
                 # bytecode per state unless the chunk holds a terminal
                 # state or the depth bound is reached
-                succs = list(map(succ_fn, level[c0:c0 + chunk]))
-                if labels is not None:
-                    labels.update(map(first, chain(succs)))
-                ns = list(map(len, succs))
+                if expand is not None:
+                    # the model's batch hook (pccl/model/native.py): one call per
+                    # chunk, the successors flat, the labels met
+                    ns, flat, labs = expand(level[c0:c0 + chunk])
+                    if labels is not None:
+                        labels.update(labs)
+                else:
+                    succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                    if labels is not None:
+                        labels.update(map(first, chain(succs)))
+                    ns = list(map(len, succs))
+                    flat = map(second, chain(succs))     # labels are dropped now
                 if not at_bound and 0 not in ns:
                     par_idx.extend(level_idx[c0:c0 + chunk])
                     par_n.extend(ns)
-                    cs.extend(map(second, chain(succs)))     # labels are dropped now
-                    del succs
+                    cs.extend(flat)
+                    del flat
+                    succs = []
                     if len(cs) >= batch:
                         if flush(depth + 1):
                             stop = True
                             break
                         report(len(level) - c0 - len(ns))
                     continue
+                if expand is not None:
+                    succs = list(map(succ_fn, level[c0:c0 + chunk]))
                 if expand_one(succs, c0, at_bound):
                     stop = True
                     break
@@ -932,6 +944,10 @@ class _Admission:
             def keys_of(states):
                 return map(xxh, map(dumps, map(key, states), twos))
         self.keys_of = keys_of
+        #: the model's batch hook (pccl/model/native.py): a batch's fingerprints and
+        #: first occurrences in one call (not for --exact or a recorder)
+        self.fp_batch = (getattr(ex.model, "fingerprint_batch", None)
+                         if not ex.exact and ex.recorder is None else None)
 
     def out_of_memory(self) -> None:
         """A MemoryError stopped the search: free the pending states."""
@@ -953,12 +969,16 @@ class _Admission:
             flags.clear()
             return False
         budget = self.budget
-        ck = list(self.keys_of(cs))   # one map() chain for the whole batch
-        n = len(ck)
-        # first occurrence of each key, in batch order (C-level dict build)
-        first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
-        first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
-        first.sort()
+        if self.fp_batch is not None:
+            ck, first = self.fp_batch(cs)
+            n = len(cs)
+        else:
+            ck = list(self.keys_of(cs))   # one map() chain for the whole batch
+            n = len(ck)
+            # first occurrence of each key, in batch order (C-level dict build)
+            first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
+            first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
+            first.sort()
         new = table.new_positions(ck, first).tolist()
         base = table.n
         cut = len(new)

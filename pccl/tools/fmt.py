@@ -176,17 +176,28 @@ def _layout(source: str) -> str:
     text = source.replace("\r\n", "\n").replace("\r", "\n")
     if text.startswith("\ufeff"):
         text = text[1:]
-    # Physical lines of tokens; a multi-line block comment belongs to the
-    # line where it starts, and the lines it covers are not lines of their own.
+    lines = _physical_lines(text)
+    infos = _line_infos(lines)
+    levels, stacks = _block_levels(infos)
+    rows = _rows(lines, infos, levels, stacks, _next_code(len(lines), levels))
+    return _blank_lines(_place_comments(rows), levels)
+
+
+def _physical_lines(text: str) -> list[list[Tok]]:
+    """Physical lines of tokens; a multi-line block comment belongs to the
+    line where it starts, and the lines it covers are not lines of their own."""
     lines: list[list[Tok]] = [[]]
     for t in tokenize(text):
         if t.kind == NL:
             lines.append([])
         else:
             lines[-1].append(t)
+    return lines
 
-    # Pass 1: per line, its indent width, whether it holds code, and the
-    # bracket depth at its start (a line inside brackets is a continuation).
+
+def _line_infos(lines: list[list[Tok]]) -> list[tuple[int, bool, int]]:
+    """Pass 1: per line, its indent width, whether it holds code, and the
+    bracket depth at its start (a line inside brackets is a continuation)."""
     infos: list[tuple[int, bool, int]] = []
     depth = 0
     for lt in lines:
@@ -198,9 +209,12 @@ def _layout(source: str) -> str:
                 depth += 1
             elif t.text in (")", "]", "}"):
                 depth = max(0, depth - 1)
+    return infos
 
-    # Pass 2: block levels of the lines that start a logical line, as the
-    # parser's indenter computes them; the open widths after each.
+
+def _block_levels(infos: list[tuple[int, bool, int]]) -> tuple[dict[int, int], dict[int, list[int]]]:
+    """Pass 2: block levels of the lines that start a logical line, as the
+    parser's indenter computes them; the open widths after each line."""
     levels: dict[int, int] = {}
     stacks: dict[int, list[int]] = {}
     stack = [0]
@@ -213,14 +227,25 @@ def _layout(source: str) -> str:
                     stack.pop()
             levels[k] = len(stack) - 1
         stacks[k] = list(stack)
+    return levels, stacks
+
+
+def _next_code(n: int, levels: dict[int, int]) -> dict[int, int]:
+    """Per line, the next line that starts a logical line (-1: none)."""
     next_code: dict[int, int] = {}
     nxt = -1
-    for k in range(len(lines) - 1, -1, -1):
+    for k in range(n - 1, -1, -1):
         next_code[k] = nxt
         if k in levels:
             nxt = k
+    return next_code
 
-    # (line index, text, trailing comment's offset from the indentation, the comment)
+
+def _rows(lines: list[list[Tok]], infos: list[tuple[int, bool, int]], levels: dict[int, int],
+          stacks: dict[int, list[int]], next_code: dict[int, int]
+          ) -> list[tuple[int, str, Optional[int], Optional[str]]]:
+    """Each line re-indented and formatted: (line index, text, trailing
+    comment's offset from the indentation, the comment)."""
     rows: list[tuple[int, str, Optional[int], Optional[str]]] = []
     in_decls = False
     open_cols: list[int] = []   # per open bracket: the column its continuation lines start at
@@ -235,11 +260,7 @@ def _layout(source: str) -> str:
         elif is_code or depth > 0:          # a continuation inside brackets
             new_indent = " " * (open_cols[-1] if open_cols else len(INDENT) * 2)
         else:                               # a comment-only line
-            open_widths = list(stacks[k])
-            j = next_code[k]
-            if j >= 0 and infos[j][0] > open_widths[-1]:
-                open_widths.append(infos[j][0])
-            new_indent = INDENT * _level_of(indent, open_widths)
+            new_indent = INDENT * _comment_level(indent, stacks[k], infos, next_code[k])
         first = body[0]
         if first.kind == HDR:
             in_decls = re.match(r"(?i:allwrite|mw|allread|sw|local|loc)\b", first.text) is not None
@@ -255,7 +276,16 @@ def _layout(source: str) -> str:
             offset = c.col - lead if c.line == lt[0].line else c.col
         rows.append((k, new_indent + text, offset, comment))
         _track_brackets(new_indent + text, open_cols)
-    return _blank_lines(_place_comments(rows), levels)
+    return rows
+
+
+def _comment_level(indent: int, stack: list[int], infos: list[tuple[int, bool, int]], j: int) -> int:
+    """The block level of a comment-only line of width ``indent``, with the
+    open widths ``stack`` and the next line of code ``j`` (-1: none)."""
+    open_widths = list(stack)
+    if j >= 0 and infos[j][0] > open_widths[-1]:
+        open_widths.append(infos[j][0])
+    return _level_of(indent, open_widths)
 
 
 def _track_brackets(line: str, open_cols: list[int]) -> None:

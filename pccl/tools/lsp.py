@@ -395,159 +395,210 @@ def uri_to_path(uri: str) -> str:
     return unquote(p.path) if p.scheme == "file" else uri
 
 
-def make_server():   # noqa: C901 - one place that lists every handler
+def _rng(r: Range) -> Any:
     from lsprotocol import types as T
-    from pygls.lsp.server import LanguageServer
-    from pygls.uris import from_fs_path
+    return T.Range(start=T.Position(line=r.line, character=r.col),
+                   end=T.Position(line=r.end_line, character=r.end_col))
 
-    from importlib.metadata import PackageNotFoundError, version
-    try:
-        ver = version("pccl")
-    except PackageNotFoundError:      # pragma: no cover - a source checkout
-        ver = "0"
-    server = LanguageServer("pccl", ver)
-    analyses: dict[str, Analysis] = {}
 
-    def rng(r: Range) -> Any:
-        return T.Range(start=T.Position(line=r.line, character=r.col),
-                       end=T.Position(line=r.end_line, character=r.end_col))
+def _guarded(default: Any = None):
+    """A handler ``f(params)`` as pygls calls it, ``handler(ls, params)``,
+    that answers ``default`` when ``f`` raises."""
+    def wrap(f):
+        def handler(ls, params):
+            try:
+                return f(params)
+            except Exception:       # noqa: BLE001 - a failed request answers nothing
+                log.exception("handler %s", f.__name__)
+                return default
+        handler.__name__ = f.__name__
+        return handler
+    return wrap
 
-    def doc_text(uri: str) -> Optional[str]:
+
+class _Session:
+    """What the handlers share: the pygls server (its workspace holds the
+    open documents) and the last analysis of each program."""
+
+    def __init__(self, server) -> None:
+        self.server = server
+        self.analyses: dict[str, Analysis] = {}
+
+    def doc_text(self, uri: str) -> Optional[str]:
         try:
-            return server.workspace.get_text_document(uri).source
+            return self.server.workspace.get_text_document(uri).source
         except Exception:       # noqa: BLE001
             return None
 
-    def open_world_text(path: str) -> Optional[str]:
-        wpath = world_beside(path) or os.path.splitext(path)[0] + ".toml"
-        uri = from_fs_path(wpath) or wpath
-        if uri in server.workspace.text_documents:
-            return server.workspace.text_documents[uri].source
-        return None
+    def open_text(self, path: str) -> Optional[str]:
+        """The text of ``path`` if the client has it open, else None."""
+        from pygls.uris import from_fs_path
+        uri = from_fs_path(path) or path
+        docs = self.server.workspace.text_documents
+        return docs[uri].source if uri in docs else None
 
-    def refresh(uri: str) -> None:
+    def open_world_text(self, path: str) -> Optional[str]:
+        return self.open_text(world_beside(path) or os.path.splitext(path)[0] + ".toml")
+
+    def publish(self, uri: str, diagnostics: list, version: Optional[int] = None) -> None:
+        from lsprotocol import types as T
+        self.server.text_document_publish_diagnostics(
+            T.PublishDiagnosticsParams(uri=uri, diagnostics=diagnostics, version=version))
+
+    def refresh(self, uri: str) -> None:
         """Analyse a program and publish its diagnostics (and its world file's)."""
         path = uri_to_path(uri)
         if path.endswith(".toml"):
-            sibling = os.path.splitext(path)[0] + ".pccl"
-            suri = from_fs_path(sibling) or sibling
-            if suri in server.workspace.text_documents:
-                refresh(suri)
-            elif uri in server.workspace.text_documents:
-                from pccl.lang.world import parse_world
-                diags = []
-                try:
-                    parse_world(server.workspace.text_documents[uri].source, path)
-                except PcclError as e:
-                    d = _error_diag(e, path, server.workspace.text_documents[uri].source)
-                    diags.append(T.Diagnostic(range=rng(d.range), message=d.message, source="pccl",
-                                              severity=T.DiagnosticSeverity.Error))
-                except Exception:       # noqa: BLE001
-                    log.exception("world file")
-                server.text_document_publish_diagnostics(
-                    T.PublishDiagnosticsParams(uri=uri, diagnostics=diags))
+            self.refresh_world(uri, path)
+        else:
+            self.refresh_program(uri, path)
+
+    def refresh_world(self, uri: str, path: str) -> None:
+        """A world file changed: its program's diagnostics cover it; alone,
+        its own parse error."""
+        from lsprotocol import types as T
+        from pygls.uris import from_fs_path
+        sibling = os.path.splitext(path)[0] + ".pccl"
+        suri = from_fs_path(sibling) or sibling
+        docs = self.server.workspace.text_documents
+        if suri in docs:
+            self.refresh(suri)
             return
-        source = doc_text(uri)
+        if uri not in docs:
+            return
+        from pccl.lang.world import parse_world
+        diags = []
+        try:
+            parse_world(docs[uri].source, path)
+        except PcclError as e:
+            d = _error_diag(e, path, docs[uri].source)
+            diags.append(T.Diagnostic(range=_rng(d.range), message=d.message, source="pccl",
+                                      severity=T.DiagnosticSeverity.Error))
+        except Exception:       # noqa: BLE001
+            log.exception("world file")
+        self.publish(uri, diags)
+
+    def refresh_program(self, uri: str, path: str) -> None:
+        from lsprotocol import types as T
+        from pygls.uris import from_fs_path
+        source = self.doc_text(uri)
         if source is None:
             return
-        version = server.workspace.get_text_document(uri).version
+        version = self.server.workspace.get_text_document(uri).version
         try:
-            an = analyse(source, path, world_source=open_world_text(path), previous=analyses.get(uri))
+            an = analyse(source, path, world_source=self.open_world_text(path),
+                         previous=self.analyses.get(uri))
         except Exception as e:          # noqa: BLE001 - the server must survive any text
             log.exception("analyse")
             an = Analysis(path, source, [Diag(path, Range(0, 0, 0, 1), f"pccl: internal error: {e}")])
-        analyses[uri] = an
+        self.analyses[uri] = an
         by_file: dict[str, list] = {path: []}
         if an.world_path:
             by_file.setdefault(an.world_path, [])
         for d in an.diagnostics:
             data = {"replace": d.suggestion} if d.suggestion else None
             by_file.setdefault(d.path, []).append(T.Diagnostic(
-                range=rng(d.range), message=d.message, source="pccl", data=data,
+                range=_rng(d.range), message=d.message, source="pccl", data=data,
                 severity=T.DiagnosticSeverity.Error if d.severity == "error"
                 else T.DiagnosticSeverity.Warning))
         # the world file's first: a client that saw the program's has both
         for p, diags in sorted(by_file.items(), key=lambda kv: kv[0] == path):
-            server.text_document_publish_diagnostics(T.PublishDiagnosticsParams(
-                uri=uri if p == path else (from_fs_path(p) or p), diagnostics=diags,
-                version=version if p == path else None))
+            self.publish(uri if p == path else (from_fs_path(p) or p), diags,
+                         version if p == path else None)
 
-    def current(uri: str) -> Optional[Analysis]:
-        an = analyses.get(uri)
-        if an is None or an.source != doc_text(uri):
-            refresh(uri)
-            an = analyses.get(uri)
+    def current(self, uri: str) -> Optional[Analysis]:
+        an = self.analyses.get(uri)
+        if an is None or an.source != self.doc_text(uri):
+            self.refresh(uri)
+            an = self.analyses.get(uri)
         return an
 
-    def guarded(default: Any = None):
-        def wrap(f):
-            def handler(ls, params):
-                try:
-                    return f(params)
-                except Exception:       # noqa: BLE001 - a failed request answers nothing
-                    log.exception("handler %s", f.__name__)
-                    return default
-            handler.__name__ = f.__name__
-            return handler
-        return wrap
-
-    @server.feature(T.TEXT_DOCUMENT_DID_OPEN)
-    @guarded()
-    def did_open(params: T.DidOpenTextDocumentParams) -> None:
-        refresh(params.text_document.uri)
-
-    @server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
-    @guarded()
-    def did_change(params: T.DidChangeTextDocumentParams) -> None:
-        refresh(params.text_document.uri)
-
-    @server.feature(T.TEXT_DOCUMENT_DID_SAVE)
-    @guarded()
-    def did_save(params: T.DidSaveTextDocumentParams) -> None:
-        refresh(params.text_document.uri)
-
-    @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
-    @guarded()
-    def did_close(params: T.DidCloseTextDocumentParams) -> None:
-        analyses.pop(params.text_document.uri, None)
-
-    def at(params: Any) -> Optional[tuple[Analysis, str, Range]]:
+    def at(self, params: Any) -> Optional[tuple[Analysis, str, Range]]:
+        """The analysis and the name (and its range) under the cursor."""
         uri = params.text_document.uri
-        an = current(uri)
-        source = doc_text(uri)
+        an = self.current(uri)
+        source = self.doc_text(uri)
         if an is None or source is None:
             return None
         w = word_at(source, params.position.line, params.position.character)
         return None if w is None else (an, w[0], w[1])
 
+
+def make_server():
+    """A pygls server with every handler registered (pygls is imported here:
+    the rest of the module works without it)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from pygls.lsp.server import LanguageServer
+    try:
+        ver = version("pccl")
+    except PackageNotFoundError:      # pragma: no cover - a source checkout
+        ver = "0"
+    server = LanguageServer("pccl", ver)
+    session = _Session(server)
+    _register_documents(server, session)
+    _register_navigation(server, session)
+    _register_edits(server, session)
+    return server
+
+
+def _register_documents(server, s: _Session) -> None:
+    """Open, change, save, close: analyse and publish diagnostics."""
+    from lsprotocol import types as T
+
+    @server.feature(T.TEXT_DOCUMENT_DID_OPEN)
+    @_guarded()
+    def did_open(params: T.DidOpenTextDocumentParams) -> None:
+        s.refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
+    @_guarded()
+    def did_change(params: T.DidChangeTextDocumentParams) -> None:
+        s.refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_SAVE)
+    @_guarded()
+    def did_save(params: T.DidSaveTextDocumentParams) -> None:
+        s.refresh(params.text_document.uri)
+
+    @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
+    @_guarded()
+    def did_close(params: T.DidCloseTextDocumentParams) -> None:
+        s.analyses.pop(params.text_document.uri, None)
+
+
+def _register_navigation(server, s: _Session) -> None:
+    """Hover, go to definition, find references, document symbols."""
+    from lsprotocol import types as T
+
     @server.feature(T.TEXT_DOCUMENT_HOVER)
-    @guarded()
+    @_guarded()
     def hover(params: T.HoverParams) -> Optional[T.Hover]:
-        found = at(params)
+        found = s.at(params)
         if found is None:
             return None
         an, name, r = found
         text = hover_text(an, name)
         if text is None:
             return None
-        return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text), range=rng(r))
+        return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text), range=_rng(r))
 
     @server.feature(T.TEXT_DOCUMENT_DEFINITION)
-    @guarded()
+    @_guarded()
     def goto_definition(params: T.DefinitionParams) -> Optional[T.Location]:
-        found = at(params)
+        found = s.at(params)
         if found is None:
             return None
         r = definition(found[0], found[1])
-        return None if r is None else T.Location(uri=params.text_document.uri, range=rng(r))
+        return None if r is None else T.Location(uri=params.text_document.uri, range=_rng(r))
 
     @server.feature(T.TEXT_DOCUMENT_REFERENCES)
-    @guarded(default=[])
+    @_guarded(default=[])
     def find_references(params: T.ReferenceParams) -> list[T.Location]:
-        found = at(params)
+        found = s.at(params)
         if found is None:
             return []
-        return [T.Location(uri=params.text_document.uri, range=rng(r))
+        return [T.Location(uri=params.text_document.uri, range=_rng(r))
                 for r in references(found[0], found[1], params.context.include_declaration)]
 
     kinds = {"section": T.SymbolKind.Namespace, "variable": T.SymbolKind.Variable,
@@ -555,15 +606,20 @@ def make_server():   # noqa: C901 - one place that lists every handler
              "invariant": T.SymbolKind.Boolean}
 
     def to_symbol(o: Outline) -> T.DocumentSymbol:
-        return T.DocumentSymbol(name=o.name, kind=kinds[o.kind], range=rng(o.range),
-                                selection_range=rng(o.selection),
+        return T.DocumentSymbol(name=o.name, kind=kinds[o.kind], range=_rng(o.range),
+                                selection_range=_rng(o.selection),
                                 children=[to_symbol(c) for c in o.children])
 
     @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
-    @guarded(default=[])
+    @_guarded(default=[])
     def document_symbols(params: T.DocumentSymbolParams) -> list[T.DocumentSymbol]:
-        an = current(params.text_document.uri)
+        an = s.current(params.text_document.uri)
         return [] if an is None else [to_symbol(o) for o in outline(an)]
+
+
+def _register_edits(server, s: _Session) -> None:
+    """Completion, formatting and the did-you-mean quick fix."""
+    from lsprotocol import types as T
 
     ckinds = {"variable": T.CompletionItemKind.Variable, "enum": T.CompletionItemKind.Enum,
               "member": T.CompletionItemKind.EnumMember, "invariant": T.CompletionItemKind.Property,
@@ -571,9 +627,9 @@ def make_server():   # noqa: C901 - one place that lists every handler
               "keyword": T.CompletionItemKind.Keyword, "type": T.CompletionItemKind.Class}
 
     @server.feature(T.TEXT_DOCUMENT_COMPLETION)
-    @guarded()
+    @_guarded()
     def complete(params: T.CompletionParams) -> Optional[T.CompletionList]:
-        an = current(params.text_document.uri)
+        an = s.current(params.text_document.uri)
         if an is None:
             return None
         items = [T.CompletionItem(label=label, kind=ckinds.get(kind, T.CompletionItemKind.Text),
@@ -581,10 +637,10 @@ def make_server():   # noqa: C901 - one place that lists every handler
         return T.CompletionList(is_incomplete=False, items=items)
 
     @server.feature(T.TEXT_DOCUMENT_FORMATTING)
-    @guarded(default=[])
+    @_guarded(default=[])
     def formatting(params: T.DocumentFormattingParams) -> list[T.TextEdit]:
         uri = params.text_document.uri
-        source = doc_text(uri)
+        source = s.doc_text(uri)
         if source is None:
             return []
         out = format_text(source, uri_to_path(uri))
@@ -597,24 +653,25 @@ def make_server():   # noqa: C901 - one place that lists every handler
 
     @server.feature(T.TEXT_DOCUMENT_CODE_ACTION,
                     T.CodeActionOptions(code_action_kinds=[T.CodeActionKind.QuickFix]))
-    @guarded(default=[])
+    @_guarded(default=[])
     def code_actions(params: T.CodeActionParams) -> list[T.CodeAction]:
-        out = []
-        for d in params.context.diagnostics:
-            data = d.data if isinstance(d.data, dict) else {}
-            new = data.get("replace")
-            if not new:
-                m = _DID_YOU_MEAN.search(d.message)
-                new = m.group(1) if m else None
-            if not new:
-                continue
-            edit = T.WorkspaceEdit(changes={params.text_document.uri: [T.TextEdit(range=d.range,
-                                                                                   new_text=new)]})
-            out.append(T.CodeAction(title=f"Change to '{new}'", kind=T.CodeActionKind.QuickFix,
-                                    diagnostics=[d], edit=edit, is_preferred=True))
-        return out
+        return [a for d in params.context.diagnostics
+                if (a := _quick_fix(params.text_document.uri, d)) is not None]
 
-    return server
+
+def _quick_fix(uri: str, d: Any) -> Any:
+    """The did-you-mean fix of diagnostic ``d`` (a CodeAction), or None."""
+    from lsprotocol import types as T
+    data = d.data if isinstance(d.data, dict) else {}
+    new = data.get("replace")
+    if not new:
+        m = _DID_YOU_MEAN.search(d.message)
+        new = m.group(1) if m else None
+    if not new:
+        return None
+    edit = T.WorkspaceEdit(changes={uri: [T.TextEdit(range=d.range, new_text=new)]})
+    return T.CodeAction(title=f"Change to '{new}'", kind=T.CodeActionKind.QuickFix,
+                        diagnostics=[d], edit=edit, is_preferred=True)
 
 
 def serve() -> None:

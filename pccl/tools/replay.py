@@ -28,9 +28,11 @@ import sys
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from pccl.output import codec as C
 from pccl.output import tracecheck as TC
 from pccl.output import traces as T
 from pccl.lang.errors import ArgumentError, OptionError, PcclError
+from pccl.model.layout import TIME
 from pccl.model.options import ModelOptions
 
 
@@ -43,12 +45,33 @@ class ReplayResult:
     exit_status: int
     message: str
     warnings: list = field(default_factory=list)
-    model: object = None
+    model: Any = None
     states: list = field(default_factory=list)
     labels: list = field(default_factory=list)
     diverged_at: Optional[int] = None      # step index (0: the initial state)
     steps_total: int = 0
-    doc: Optional[dict] = None
+    doc: dict = field(default_factory=dict)     # the trace document replayed
+
+    @property
+    def trace(self):
+        """The replayed path (:class:`pccl.search.explorer.Trace`; to the divergence
+        when it diverged), or None before the initial state was found."""
+        from pccl.search.explorer import Trace
+        return Trace(tuple(self.states), tuple(self.labels)) if self.states else None
+
+
+def replayed_document(res: ReplayResult) -> Optional[dict]:
+    """The trace document of a reproduced replay, written anew by this
+    pccl (the current version, whatever the file's): the recorded
+    configuration and result, the replayed states and steps.  None when
+    the replay diverged or had nothing to replay."""
+    if res.status not in ("violation", "clean", "witness") or not res.states:
+        return None
+    doc = res.doc
+    out = T.document(res.model, doc["config"], res.trace,
+                     status=doc["result"]["status"], message=doc["result"].get("message"))
+    out["result"] = dict(doc["result"])
+    return out
 
 
 def load(path) -> dict:
@@ -255,17 +278,22 @@ def describe(rec: dict) -> str:
     return s
 
 
-def _changes_text(chs: list) -> str:
-    if not chs:
+def _changes_text(chs: list, every: bool = False) -> str:
+    """The changes as text; without ``every``, those the text views print
+    (not the pending computation ``k``, ``t0``, the obstacles)."""
+    shown = [c for c in chs if every or not isinstance(c, dict) or not isinstance(
+        c.get("cell"), dict) or c["cell"].get("cell") not in C.INTERNAL_CELLS]
+    if not shown:
         return "no change"
-    return ", ".join(f"{T.cell_name(c['cell'])} {json.dumps(c['old'])} -> {json.dumps(c['new'])}"
-                     for c in chs)
+    return ", ".join(f"{C.cell_name(c['cell'])} {json.dumps(c['old'])} -> "
+                     f"{json.dumps(c['new'])}" for c in shown)
 
 
 def _state_difference(a, b, prefix: str = "") -> str:
-    """The first place where two typed states differ (for messages)."""
+    """The first place where a recorded typed state differs from a replayed
+    one (for messages; keys an older file lacks are not compared)."""
     if isinstance(a, dict) and isinstance(b, dict):
-        for k in list(a) + [k for k in b if k not in a]:
+        for k in a:
             if not _same(a.get(k), b.get(k)):
                 return _state_difference(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else k)
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
@@ -278,10 +306,6 @@ def _state_difference(a, b, prefix: str = "") -> str:
 def _same(a, b) -> bool:
     """Equal as JSON text: 1 is not 1.0, false is not 0."""
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
-
-
-def _typed(m, st) -> dict:
-    return T.normal(T.state_typed(m, st))
 
 
 def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
@@ -315,68 +339,36 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         res.message = message
         return res
 
-    want0 = doc["initial"]
-    inits = []
-    state = None
-    for s in m.init_states():      # a generator: stop at the recorded state
-        inits.append(s)
-        if _same(_typed(m, s), want0):
-            state = s
-            break
+    # an edited program (another hash): its statement ids may have moved, so
+    # a recorded pending computation that names none of them is not compared
+    # (the steps' lines and sources still are: the first that moved is named)
+    rec_prog = cfg.get("program") or {}
+    lenient = bool(rec_prog.get("sha256")) and \
+        T.sha256_of(m.program.filename) != rec_prog.get("sha256")
+    state, why = _initial_state(m, doc, lenient)
     if state is None:
-        closest = _state_difference(want0, _typed(m, inits[0])) if inits else ""
-        return diverge(0, f"diverged at the initial state: none of the model's {len(inits)} "
-                          f"initial states equals the recorded one (first difference from "
-                          f"initial state 1: {closest})")
+        return diverge(0, why)
     res.states = [state]
     picks: list = []            # per step: (index among the successors, how many)
-    for rec in steps:
-        n = rec["index"]
+    for k, rec in enumerate(steps):
         succ = m.successors(state)
-        ident = _identity(rec)
-        want = rec["changes"]
-        same_label, found, other = [], None, None
-        for j, (label, nxt) in enumerate(succ):
-            got = T.normal(T.step_record(m, n, label, state, nxt))
-            if _identity(got) != ident:
-                continue
-            if not _same(got["changes"], want):
-                same_label.append(got["changes"])
-                continue
-            bad = [k for k in ("time", "branch") if not _same(got[k], rec[k])]
-            if bad:
-                other = (bad[0], got[bad[0]])
-                continue
-            found = (j, label, nxt)
-            break
-        if found is None:
-            where = f"diverged at step {n} of {len(steps)} ({describe(rec)})"
-            if other is not None:
-                return diverge(n, f"{where}: the transition is enabled and makes the recorded "
-                                  f"changes, but its {other[0]} differs: recorded "
-                                  f"{json.dumps(rec[other[0]])}, replayed "
-                                  f"{json.dumps(other[1])}")
-            if same_label:
-                return diverge(n, f"{where}: the transition is enabled but its changes differ: "
-                                  f"recorded {_changes_text(rec['changes'])}; replayed "
-                                  f"{_changes_text(same_label[0])}")
-            recs = [T.step_record(m, n, lab, state, nxt) for lab, nxt in succ]
-            moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
-            if moved:
-                return diverge(n, f"{where}: the program differs here: line {rec['line']} now "
-                                  f"reads '{moved[0]['source']}'")
-            enabled = sorted({describe(r) for r in recs})
-            return diverge(n, f"{where}: that transition is not enabled; enabled here: "
-                              + ("; ".join(enabled) if enabled else "none"))
+        found = _recorded_step(m, state, succ, rec, f"steps[{k}].changes", doc["version"],
+                               lenient)
+        if isinstance(found, str):
+            return diverge(rec["index"], f"diverged at step {rec['index']} of {len(steps)} "
+                                         f"({describe(rec)}): {found}")
         picks.append((found[0], len(succ)))
         res.labels.append(found[1])
         state = found[2]
         res.states.append(state)
-    last = _typed(m, state)
-    if not _same(last, doc["final"]):
+    try:
+        last_ok = C.matches(C.decode_state(m, doc["final"], "final", lenient), state)
+    except C.DecodeError:
+        last_ok = False
+    if not last_ok:
         return diverge(len(steps), f"diverged at the end: every step reproduced, but the "
                                    f"recorded final state is not the last state (final."
-                                   f"{_state_difference(doc['final'], last)})")
+                                   f"{_state_difference(doc['final'], C.encode_state(m, state))})")
     if cfg["command"] == "run":
         return _end_of_run(m, cfg, doc, res, picks, diverge)
     if recorded is None:
@@ -385,7 +377,80 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
         return _end_of_temporal(m, cfg, recorded, result.get("cycle_start"), res, diverge)
     if recorded["kind"] == "stall":
         return _end_of_stall(m, recorded, result.get("cycle_start"), res, diverge)
-    # a safety violation of explore: the model's own checks on the last state
+    return _end_of_safety(m, cfg, recorded, res, diverge)
+
+
+def _initial_state(m, doc: dict, lenient: bool):
+    """(the model's initial state the file records, None), or (None, why not)."""
+    try:
+        want = C.decode_state(m, doc["initial"], "initial", lenient)
+    except C.DecodeError as e:
+        return None, (f"diverged at the initial state: no state of this model is the "
+                      f"recorded one: {e.message}")
+    inits = []
+    for s in m.init_states():      # a generator: stop at the recorded state
+        inits.append(s)
+        if C.matches(want, s):
+            return s, None
+    closest = _state_difference(doc["initial"], C.encode_state(m, inits[0])) if inits else ""
+    return None, (f"diverged at the initial state: none of the model's {len(inits)} initial "
+                  f"states equals the recorded one (first difference from initial state 1: "
+                  f"{closest})")
+
+
+def _recorded_step(m, state, succ: list, rec: dict, path: str, version: int, lenient: bool):
+    """The successor ``(index, label, state)`` among ``succ`` that the step
+    ``rec`` records: same rule, agent, event, statement and outcome, its
+    decoded changes made to ``state``, same time and branch.  Else why
+    not (the text after "diverged at step n (...): ")."""
+    n = rec["index"]
+    ident = _identity(rec)
+    try:
+        want = C.apply_changes(m, state, rec["changes"], path, version, lenient)
+        undecodable = None
+    except C.DecodeError as e:
+        want, undecodable = None, e.message
+    same_label: list = []
+    other = None
+    for j, (label, nxt) in enumerate(succ):
+        head = C.encode_step_head(m, n, label, state, nxt)
+        if _identity(head) != ident:
+            continue
+        if want is None or not C.matches(want, nxt):
+            same_label.append(nxt)
+        elif not C.matches(rec["time"], state[TIME]):
+            other = ("time", head["time"])
+        elif not _same(head["branch"], rec["branch"]):
+            other = ("branch", head["branch"])
+        else:
+            return j, label, nxt
+    if other is not None:
+        return (f"the transition is enabled and makes the recorded changes, but its "
+                f"{other[0]} differs: recorded {json.dumps(rec[other[0]])}, replayed "
+                f"{json.dumps(other[1])}")
+    if same_label:
+        got = C.encode_changes(m, state, same_label[0])
+        recorded_text, got_text = _changes_text(rec["changes"]), _changes_text(got)
+        if recorded_text == got_text:
+            recorded_text, got_text = (_changes_text(rec["changes"], every=True),
+                                       _changes_text(got, every=True))
+        if undecodable:
+            recorded_text += f" ({undecodable})"
+        return (f"the transition is enabled but its changes differ: recorded {recorded_text}; "
+                f"replayed {got_text}")
+    recs = [C.encode_step_head(m, n, lab, state, nxt) for lab, nxt in succ]
+    moved = [r for r in recs if _identity(r)[:5] == ident[:5]]
+    if moved:
+        return f"the program differs here: line {rec['line']} now reads '{moved[0]['source']}'"
+    enabled = sorted({describe(r) for r in recs})
+    return ("that transition is not enabled; enabled here: "
+            + ("; ".join(enabled) if enabled else "none"))
+
+
+def _end_of_safety(m, cfg, recorded, res, diverge):
+    """A safety violation of explore: the model's own checks on the last state."""
+    state = res.states[-1]
+    n = len(res.labels)
     viols = list(m.violations(state))
     if not viols and cfg.get("deadlock", True) and not m.successors(state) \
             and m.terminal_kind(state) == "deadlock":
@@ -393,11 +458,11 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
     match = [v for v in viols if _same(T.normal(T.violation_record(m, v)), recorded)]
     if match:
         res.status, res.exit_status = "violation", 1
-        res.message = f"reproduced: {match[0].message} (after {len(steps)} steps)"
+        res.message = f"reproduced: {match[0].message} (after {n} steps)"
         return res
     seen = "; ".join(v.message for v in viols) or "no violation"
-    return diverge(len(steps), f"diverged at the end: every step reproduced, but the recorded "
-                               f"violation ({recorded['message']}) is not: {seen}")
+    return diverge(n, f"diverged at the end: every step reproduced, but the recorded "
+                      f"violation ({recorded['message']}) is not: {seen}")
 
 
 # ---------------------------------------------------------------------------

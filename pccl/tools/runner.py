@@ -27,7 +27,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS, TARGET, TIME
+from pccl.search.explorer import Trace
+from pccl.model.layout import (AGS, AR, DONE, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
+                               TARGET, TIME)
 
 
 @dataclass(repr=False)
@@ -38,7 +40,9 @@ class RunResult:
     exit_status: int
     final: tuple                # the last configuration
     steps: int
-    trace: list = field(default_factory=list)     # [(label, before, after)] if recorded
+    #: the run's path (:class:`pccl.search.explorer.Trace`: the initial state and
+    #: every step) when recorded (``record_trace``), else None
+    trace: Optional[Trace] = None
     summary: list = field(default_factory=list)   # [(time, state)] after each environment step
     violations: list = field(default_factory=list)
     looping_agent: Optional[int] = None
@@ -95,10 +99,12 @@ class _Monitor:
     (``pccl explore`` decides them over every run).  A runtime error in P or
     Q counts as false, as in explore."""
 
-    def __init__(self, props):
+    def __init__(self, props) -> None:
         self.props = list(props)
-        self.seen = [None] * len(self.props)        # eventually/reachable: (step, time) of P
-        self.pending = [None] * len(self.props)     # ~>: (step, time) of the oldest open P
+        #: eventually/reachable: (step, time) of P
+        self.seen: list[Optional[tuple[int, Any]]] = [None] * len(self.props)
+        #: ~>: (step, time) of the oldest open P
+        self.pending: list[Optional[tuple[int, Any]]] = [None] * len(self.props)
         self.violated: list = [None] * len(self.props)  # within: the message, once violated
 
     @staticmethod
@@ -121,13 +127,13 @@ class _Monitor:
                 self.pending[k] = None
             elif self.pending[k] is None and self._holds(p.p, st) and not self._holds(p.q, st):
                 self.pending[k] = (step, t)
-            if p.kind == "within" and self.pending[k] is not None \
-                    and t - self.pending[k][1] > p.bound:
-                self.violated[k] = (f"the premise held at t = {_t(self.pending[k][1])} "
+            pend = self.pending[k]
+            if p.kind == "within" and pend is not None and t - pend[1] > p.bound:
+                self.violated[k] = (f"the premise held at t = {_t(pend[1])} "
                                     f"and the response did not follow within {_t(p.bound)} "
                                     f"time units (t = {_t(t)})")
-                return p, (f"{p.name}: the premise held at t = {_t(self.pending[k][1])} "
-                           f"(after {self.pending[k][0]} transitions) and the response did not "
+                return p, (f"{p.name}: the premise held at t = {_t(pend[1])} "
+                           f"(after {pend[0]} transitions) and the response did not "
                            f"follow within {_t(p.bound)} time units (t = {_t(t)})")
         return None
 
@@ -136,21 +142,22 @@ class _Monitor:
         (so eventually/leads-to are decided), ``why`` names how it ended."""
         out = []
         for k, p in enumerate(self.props):
+            seen = self.seen[k]
             if self.violated[k] is not None:
                 out.append(PropertyOutcome(p.name, p.kind, "violated", self.violated[k]))
             elif p.kind == "reachable":
-                if self.seen[k] is not None:
+                if seen is not None:
                     out.append(PropertyOutcome(p.name, p.kind, "witnessed",
-                                               f"reached after {self.seen[k][0]} transitions, "
-                                               f"t = {_t(self.seen[k][1])}"))
+                                               f"reached after {seen[0]} transitions, "
+                                               f"t = {_t(seen[1])}"))
                 else:
                     out.append(PropertyOutcome(p.name, p.kind, "not reached",
                                                f"not in this run ({why}); pccl explore decides"))
             elif p.kind == "eventually":
-                if self.seen[k] is not None:
+                if seen is not None:
                     out.append(PropertyOutcome(p.name, p.kind, "holds",
-                                               f"held after {self.seen[k][0]} transitions, "
-                                               f"t = {_t(self.seen[k][1])}"))
+                                               f"held after {seen[0]} transitions, "
+                                               f"t = {_t(seen[1])}"))
                 elif ended:
                     out.append(PropertyOutcome(p.name, p.kind, "violated",
                                                f"never held, and the run ended ({why})"))
@@ -204,7 +211,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     if len(inits) > 1:          # no rand policy: every outcome is an initial state
         inits.extend(gen)
     st = inits[0] if len(inits) == 1 else rng.choice(inits)
-    trace: list = []
+    states: list = [st]         # the recorded path (record_trace): its states and labels
+    labels: list = []
     summary = [(st[TIME], st)]
     weights = [0]               # per summary entry: the list/array values it added
     budget = SUMMARY_BUDGET
@@ -218,6 +226,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     mon = _Monitor(temporal) if temporal else None
 
     def finish(status, message, code, **kw):
+        trace = Trace(tuple(states), tuple(labels)) if record_trace and states else None
         res = RunResult(status, message, code, st, steps, trace, summary, **kw,
                         peak_memory=peak_rss_bytes(), max_memory=max_memory)
         if mon is not None:
@@ -255,7 +264,8 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 return finish("deadlock", dv.message, 1, violations=[dv])
             label, nxt = succ[0] if len(succ) == 1 else succ[rng.randrange(len(succ))]
             if record_trace:
-                trace.append((label, st, nxt))
+                labels.append(label)
+                states.append(nxt)
             if on_step is not None:
                 on_step(label, st, nxt)
             steps += 1
@@ -319,8 +329,10 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     except MemoryError:
         # the frames that failed are gone; the recorded trace, the likely
         # culprit, is dropped so that the result can be shown
-        dropped = f"; the recorded trace ({len(trace):,} transitions) was dropped" if trace else ""
-        trace.clear()
+        dropped = (f"; the recorded trace ({len(labels):,} transitions) was dropped"
+                   if labels else "")
+        labels.clear()
+        states.clear()
         return finish("out-of-memory",
                       f"out of memory after {steps} transitions: the process could not "
                       f"allocate more (a limit such as ulimit -v, or the machine's memory); "

@@ -36,9 +36,11 @@ from collections import deque
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any, Optional
 
+from pccl.output import codec as C
 from pccl.output import display as D
 from pccl.output import traces as T
 from pccl.lang.errors import PcclError
+from pccl.search.explorer import Trace
 from pccl.model.layout import TIME
 
 MAX_BODY = 64 * 2**20          # a loaded trace file, at most
@@ -126,19 +128,32 @@ class Session:
             raise BadRequest(e.message) from None
         if doc["initial"] is None:
             raise BadRequest("the trace holds no path")
+        # the trace's states decoded (pccl/output/codec.py) and compared with the
+        # model's own, as replay does
         m = self.model
-        init = doc["initial"]
-        i = next((j for j, s in enumerate(self.initials) if T.normal(T.state_typed(m, s)) == init), None)
+        version = doc["version"]
+        try:
+            init = C.decode_state(m, doc["initial"], "initial")
+            why = None
+        except C.DecodeError as e:
+            init, why = None, e.message
+        i = None if init is None else next(
+            (j for j, s in enumerate(self.initials) if C.matches(init, s)), None)
         if i is None:
             raise BadRequest("the trace's initial state is not an initial state of this model "
-                             "(another program, world or --set?)")
+                             "(another program, world or --set?)" + (f": {why}" if why else ""))
         states, labels = [self.initials[i]], []
-        keys = ("rule", "agent", "event", "line", "column", "outcome", "changes")
-        for rec in doc["steps"]:
+        keys = ("rule", "agent", "event", "line", "column", "outcome")
+        for k, rec in enumerate(doc["steps"]):
             st = states[-1]
+            try:
+                want = C.apply_changes(m, st, rec["changes"], f"steps[{k}].changes", version)
+            except C.DecodeError:
+                want = None
             for lab, nxt in m.successors(st):
-                r = T.normal(T.step_record(m, rec["index"], lab, st, nxt))
-                if all(r.get(k) == rec.get(k) for k in keys):
+                r = C.encode_step_head(m, rec["index"], lab, st, nxt)
+                if want is not None and all(r.get(x) == rec.get(x) for x in keys) \
+                        and C.matches(want, nxt):
                     states.append(nxt)
                     labels.append(lab)
                     break
@@ -259,7 +274,7 @@ class Session:
             if terminal == "deadlock" and not vs:
                 vs = [m.deadlock_violation(st)]
                 checks.append({"name": "deadlock", "holds": False, "message": vs[0].message})
-        doc = T.document(m, self.cfg, self.states, self.labels,
+        doc = T.document(m, self.cfg, Trace(tuple(self.states), tuple(self.labels)),
                          status="violation" if vs else "exploring",
                          violation=vs[0] if vs else None,
                          message=vs[0].message if vs else f"exploring: depth {len(self.labels)}")

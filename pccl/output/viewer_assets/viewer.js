@@ -20,6 +20,11 @@
     return cell.agent !== undefined && cell.agent !== null ? name + "[" + cell.agent + "]" : name;
   }
 
+  var INTERNAL = { k: true, t0: true, obstacles: true };   /* codec.INTERNAL_CELLS: not shown as changes */
+  function shown(changes) {
+    return changes.filter(function (ch) { return !(ch.cell.agent !== undefined && INTERNAL[ch.cell.cell]); });
+  }
+
   function applyChanges(s, changes) {    /* a new state; unchanged parts shared with s */
     var n = Object.assign({}, s), agents = null, copied = {};
     for (var j = 0; j < changes.length; j++) {
@@ -145,7 +150,7 @@
   };
   Trace.prototype.changedKeys = function (k) {
     if (k <= 0) return [];
-    return this.doc.steps[k - 1].changes.map(function (ch) { return cellKey(ch.cell); });
+    return shown(this.doc.steps[k - 1].changes).map(function (ch) { return cellKey(ch.cell); });
   };
   Trace.prototype.trailUpTo = function (i, k) {   /* points of agent i's path until state k */
     var t = this.trails[i], lo = 0, hi = t.length;
@@ -155,7 +160,7 @@
   Trace.prototype.stepText = function (k, i) {    /* swimlane cell of agent i (or null: shared) at step k */
     var st = this.doc.steps[k - 1];
     var own = [], shared = [];
-    st.changes.forEach(function (ch) {
+    shown(st.changes).forEach(function (ch) {
       var c = ch.cell, txt = cellKey(c).replace(/\[\d+\]$/, "") + "=" + fmt(ch["new"]);
       if (c.agent !== undefined) { if (c.agent === i) own.push(txt); }
       else if (c.cell !== "time" && c.cell !== "phase") shared.push(txt);
@@ -239,7 +244,7 @@
 
   var V = { k: 0, trace: null, playing: false, mode: BOOT.mode };
   window.pcclViewer = V;
-  V.cellKey = cellKey; V.applyChanges = applyChanges; V.buildStates = buildStates; V.fmt = fmt;
+  V.cellKey = cellKey; V.shown = shown; V.applyChanges = applyChanges; V.buildStates = buildStates; V.fmt = fmt;
 
   V.load = function (data) {
     V.data = data;
@@ -560,7 +565,7 @@
   function drawInspector(k) {
     var T = V.trace, st = T.states[k], box = $("inspector");
     var changed = {}, old = {};
-    if (k > 0) T.doc.steps[k - 1].changes.forEach(function (ch) { changed[cellKey(ch.cell)] = true; old[cellKey(ch.cell)] = ch.old; });
+    if (k > 0) shown(T.doc.steps[k - 1].changes).forEach(function (ch) { changed[cellKey(ch.cell)] = true; old[cellKey(ch.cell)] = ch.old; });
     if (k > 0) for (var a = 0; a < T.N; a++) {
       if (T.at(k, a) !== T.at(k - 1, a)) { changed["at[" + a + "]"] = true; old["at[" + a + "]"] = T.at(k - 1, a); }
     }
@@ -619,7 +624,7 @@
       (st.line ? "  line " + st.line + ": " + (st.source || "") : "");
     if (st.outcome !== undefined) t += "  outcome " + st.outcome;
     if (st.branch) t += "  → " + st.branch.taken;
-    var ch = st.changes.map(function (c) { return "\n   " + cellKey(c.cell) + " " + fmt(c.old) + " → " + fmt(c["new"]); });
+    var ch = shown(st.changes).map(function (c) { return "\n   " + cellKey(c.cell) + " " + fmt(c.old) + " → " + fmt(c["new"]); });
     box.textContent = t + ch.join("");
   }
 
