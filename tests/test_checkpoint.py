@@ -411,7 +411,7 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
     p = _cli(*args, "--resume", d) if os.path.exists(os.path.join(d, C.MANIFEST)) \
         else _cli(*args)
     a = json.loads(p.stdout)
-    for k in ("status", "verdict", "violations", "bounds", "checked"):
+    for k in ("status", "message", "violations", "bounds", "checked"):
         assert a[k] == full[k]
     for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
         assert a["statistics"][k] == full["statistics"][k]

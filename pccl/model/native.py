@@ -55,6 +55,7 @@ import tempfile
 import importlib.util
 from array import array
 from typing import Any, Optional
+from collections.abc import Callable
 
 from pccl.lang import ast as A
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC,
@@ -765,8 +766,8 @@ class NativeModel:
         if py.abstract_time:
             import operator
             self.key = operator.itemgetter(slice(8, None))
-        if xxh is None:
-            self.fingerprint_batch = None
+        #: the explorer's batch hook, None when xxhash's symbol is not there
+        self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
         st0 = next(iter(py.init_states()))
         # the constant parts of a configuration: positions, reach cells, env
         self._pos = tuple(a[POS] for a in st0[AGS])
@@ -826,7 +827,7 @@ class NativeModel:
     def _violations(self, b):
         return self.py.violations(self.decode(b))
 
-    def fingerprint_batch(self, states: list):
+    def _fingerprint_batch(self, states: list):
         """The fingerprints of the keys of ``states`` (:func:`pccl.search.fingerprint.fingerprint`'s,
         computed in C) as a one-item list of their concatenation, and the
         positions of each key's first occurrence (ascending): the explorer's
