@@ -93,6 +93,27 @@ def test_the_compiled_program_knows_nothing_of_the_search():
     assert "pccl.model.compiled" in GRAPH["pccl.model.engine"]
 
 
+def test_the_engine_gets_its_properties_parsed():
+    """The engine imports no parser: properties come parsed and checked
+    from pccl.model.properties (issue 22), the initial states from
+    pccl.model.initstates, the world, blackbox and clock from
+    pccl.model.environment."""
+    assert "pccl.lang.parser" not in GRAPH["pccl.model.engine"]
+    assert {"pccl.model.properties", "pccl.model.initstates",
+            "pccl.model.environment"} <= GRAPH["pccl.model.engine"]
+    for mod in ("pccl.model.initstates", "pccl.model.environment"):
+        assert not (_reach(mod) & {"pccl.lang.parser", "pccl.model.engine", "pccl.search.explorer",
+                                   "pccl.api"}), mod
+
+
+def test_the_model_class_stays_small():
+    """engine.Model under 300 lines (issue 22): properties, the Init-block
+    search, the environment and the reductions live in their own modules."""
+    tree = ast.parse(MODULES["pccl.model.engine"].read_text())
+    cls = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Model")
+    assert cls.end_lineno - cls.lineno + 1 < 300
+
+
 def test_nothing_imports_the_command_line():
     assert [m for m in GRAPH if "pccl.cli" in GRAPH[m]] == []
 
