@@ -1,8 +1,10 @@
-# pccl.semantics and pccl.blackboxes live in the top-level semantics/ and
-# blackboxes/ folders (pyproject.toml's package-dir).  In the editable install
-# the README gives (editable_mode=strict), they are reached through setuptools'
-# link tree build/__editable__.pccl-*/pccl/, which this line adds to the
-# package's path when pccl itself is imported from the checkout (the current
-# directory is first on sys.path there).  A wheel has one pccl folder, which
-# this leaves alone.
-__path__ = __import__("pkgutil").extend_path(__path__, __name__)
+# pccl.semantics and pccl.blackboxes are the top-level folders semantics/ and
+# blackboxes/ (pyproject.toml's package-dir).  The README's editable install
+# (editable_mode=strict) reaches them through setuptools' link tree,
+# build/__editable__.pccl-*/pccl/, which is on sys.path after the checkout
+# when Python runs from the checkout: the pkgutil idiom below then adds the
+# link tree's pccl/ to this package's path.  In a wheel, or without a link
+# tree, there is one pccl/ folder and this changes nothing.
+from pkgutil import extend_path
+
+__path__ = extend_path(__path__, __name__)
