@@ -28,8 +28,8 @@ NOQA_C901 = re.compile(r"#\s*noqa:[^#]*\bC901\b")
 
 def _source_files(root: Path = ROOT) -> list[str]:
     """The package's .py files, relative to ``root``, '/'-separated; a
-    symbolic link to a directory (pccl/semantics) is not followed, so no file
-    is counted twice."""
+    symbolic link to a directory is not followed, so no file is counted
+    twice."""
     out = []
     for top in SOURCES:
         for d, dirs, files in os.walk(root / top):
