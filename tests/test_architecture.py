@@ -118,16 +118,22 @@ def test_nothing_imports_the_command_line():
     assert [m for m in GRAPH if "pccl.cli" in GRAPH[m]] == []
 
 
-def test_the_source_tree_has_the_installed_layout():
-    """pccl/semantics and pccl/blackboxes link to the directories that
-    pyproject.toml's package-dir maps them from: mypy, which does not read
-    that mapping, and a plain checkout then see pccl.semantics.rules."""
-    import tomllib
-    mapping = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+def test_the_source_tree_has_no_links_and_the_mapped_packages_import_from_the_top():
+    """No symbolic link in the package's source (issue 22: semantics/ and blackboxes/
+    stay at the top, mapped by pyproject.toml's package-dir, not linked into pccl/), so
+    a tool that reads paths sees them once, where they are; the installed
+    pccl.semantics and pccl.blackboxes are those folders' files."""
+    import importlib
+    links = [p.relative_to(ROOT).as_posix() for top in ("pccl", "semantics", "blackboxes")
+             for p in (ROOT / top).rglob("*") if p.is_symlink()]
+    assert links == []
+    assert not (ROOT / "pccl" / "semantics").exists() and not (ROOT / "pccl" / "blackboxes").exists()
+    mapping = _SETUP["package-dir"]
+    assert {pkg for pkg in mapping if pkg != "pccl"} == {"pccl.semantics", "pccl.blackboxes"}
     for pkg, d in mapping.items():
-        if pkg != "pccl":
-            link = ROOT / pkg.replace(".", "/")
-            assert link.is_symlink() and link.resolve() == (ROOT / d).resolve(), pkg
+        mod = importlib.import_module(pkg)
+        assert mod.__file__ is not None
+        assert Path(mod.__file__).resolve() == (ROOT / d / "__init__.py").resolve(), pkg
 
 
 _layer = archdoc.layer
