@@ -5,9 +5,11 @@ see only what they are given."""
 
 from __future__ import annotations
 
+import ast
 import re
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -15,6 +17,7 @@ import pytest
 from pccl.tools import archdoc
 
 ROOT = Path(__file__).resolve().parent.parent
+_SETUP = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
 #: package name -> source directory: pyproject.toml's package list and its package-dir mapping
 #: (pccl.semantics and pccl.blackboxes come from the top-level semantics/ and blackboxes/)
 PACKAGES = archdoc.packages(ROOT)

@@ -197,11 +197,11 @@ def test_mypy_checks_the_top_level_folders_and_types_the_engine_rules_boundary(t
     with open(copy / "blackboxes" / "straight.py", "a") as f:
         f.write('\nBAD_BOX: int = "x"\n')
     (copy / "pccl" / "probe.py").write_text(
-        "from pccl.model import engine\n"
+        "from pccl.model import engine, environment\n"
         "from pccl.semantics import rules\n"
         "reveal_type(engine.R.describe_error)\n"
         "reveal_type(rules.describe_error)\n"
-        "reveal_type(engine.Motion)\n"
+        "reveal_type(environment.Motion)\n"
         "n: int = engine.R.describe_error(ValueError())\n")
     res = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "cache")],
                          cwd=copy, capture_output=True, text=True, timeout=900)
