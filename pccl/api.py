@@ -24,7 +24,9 @@ from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from pccl.model import validate as V
 from pccl.lang.errors import ArgumentError, OptionError
-from pccl.model.options import ExploreOptions, ModelOptions, RunOptions
+from pccl.model.options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
+                      conflict, model_choices)
+from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
 from pccl.search.memory import format_size
@@ -72,8 +74,9 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
 
 
 def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Random] = None,
-               **options) -> Model:
-    """Build a :class:`Model`.  ``options`` are those of
+               **options) -> Reduced:
+    """Build a :class:`Model`, seen through its reductions (a
+    :class:`~pccl.model.reduce.Reduced`, with the model's interface).  ``options`` are those of
     :class:`~pccl.model.options.ModelOptions` (world, blackbox, agents, delta, n0,
     rates, events, collisions, overrides, invariants, max_time,
     abstract_time, reduce, functions, rand_policy, source).  With ``seed`` or
@@ -91,7 +94,7 @@ def make_model(program, *, seed: Optional[int] = None, rng: Optional[random.Rand
     return _api_model("make_model", program, opts, rng=rng)
 
 
-def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
+def _api_model(func: str, program, opts: CommonOptions, **kw) -> Reduced:
     """:func:`build_model` for the API: a bad option value the model finds is
     an :class:`ArgumentError` of ``func`` that names the keyword."""
     try:
@@ -100,21 +103,21 @@ def _api_model(func: str, program, opts: ModelOptions, **kw) -> Model:
         raise e.for_api(func) from None
 
 
-def build_model(program, opts: ModelOptions, *, rng: Optional[random.Random] = None,
-                explore: bool = False) -> Model:
-    """The model ``opts`` describe (already checked).  ``explore``: choose the
-    blackbox as ``pccl explore`` does when none is given (:func:`explore_blackbox`)."""
+def build_model(program, opts: CommonOptions, *, rng: Optional[random.Random] = None,
+                explore: bool = False) -> Reduced:
+    """The model ``opts`` describe (already checked), seen through the
+    reductions they ask for.  ``explore``: choose the blackbox as ``pccl
+    explore`` does when none is given (:func:`explore_blackbox`)."""
     prog = apply_overrides(load_program(program, source=opts.source), opts.overrides)
     blackbox, reason = (explore_blackbox(prog, opts.blackbox) if explore
                         else (opts.blackbox, None))
-    kw = opts.model_kwargs()
-    if rng is not None and "rand_policy" not in kw:
-        kw["rand_policy"] = lambda n, agent, span: rng.randint(0, n)
-    model = Model(prog, world=load_world_arg(opts.world), blackbox=blackbox,
-                  n_agents=opts.agents, **kw)
+    opts = opts.replace(blackbox=blackbox)
+    if rng is not None and opts.rand_policy is None:
+        opts = opts.replace(rand_policy=lambda n, agent, span: rng.randint(0, n))
+    model = Model(prog, opts)
     model.blackbox_reason = reason
     model.world_given = opts.world is not None      # read by the checked section's notes
-    return model
+    return Reduced(model, model_choices(opts)[1])
 
 
 # ---------------------------------------------------------------------------
@@ -287,7 +290,7 @@ def require_ray():
         raise ArgumentError(str(e), filename="pccl --ray") from None
 
 
-def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
+def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOptions] = None,
                   **search) -> ExploreResult:
     """Explore ``model``.  The search options are those of
     :class:`~pccl.model.options.ExploreOptions` (given as ``options=`` or as
@@ -302,7 +305,9 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     (if given) is called about every
     ``progress_interval`` seconds with a dict: states, frontier, depth,
     seconds, memory (bytes)."""
-    if not isinstance(model, Model):
+    if isinstance(model, Model) and not isinstance(model, Reduced):
+        model = Reduced(model, model_choices(model.options)[1])     # the reductions it asks for
+    if not isinstance(model, Reduced):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
     if options is None:
@@ -318,16 +323,15 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                             filename="pccl.api.explore_model")
     o = options
     depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
-    find_all, exact, progress, coverage = o.find_all, o.exact, o.progress, o.coverage
-    max_memory, workers, progress_interval = o.max_memory, o.workers, o.progress_interval
-    ray = o.ray
+    find_all, progress, coverage = o.find_all, o.progress, o.coverage
+    max_memory, workers, ray = o.max_memory, o.workers, o.ray
     timelock, fastest, stall = o.timelock, o.fastest, o.stall
     if max_memory == "default":
         max_memory = default_max_memory()
     cov = None
     if coverage:
-        if "coverage" not in getattr(model, "reduce_uses", ()):
-            model.set_reduce(model.reduction.requested, uses=("coverage",))
+        if "coverage" not in model.reduce_uses:
+            model = model.with_uses(("coverage",))
         from pccl.output.coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
@@ -337,16 +341,12 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     else:
         assert isinstance(workers, int), workers        # validated by ExploreOptions
         nworkers = workers
-    if (ray is not None or (nworkers is not None and nworkers > 1)) and (exact or coverage):
-        raise ArgumentError(f"{'exact' if exact else 'coverage'}=True runs in one process: "
-                            f"use workers=1 without ray", filename="pccl.api.explore_model")
+    c = conflict(o.replace(workers="auto" if nworkers is None else nworkers))     # as resolved
+    if c is not None:
+        raise ArgumentError(c.message(api_spelling), filename="pccl.api.explore_model")
     one = ray is None and nworkers == 1
-    if not one and fastest:
-        raise ArgumentError("fastest=True searches in one process: use workers=1",
-                            filename="pccl.api.explore_model")
-    opts = dict(max_depth=depth, max_states=max_states, deadlock=deadlock, find_all=find_all,
-                exact=exact, progress=progress, max_memory=max_memory,
-                progress_interval=progress_interval)
+    sopts = o.search_options(max_memory)
+    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
     from pccl.search import liveness as L
     skipped: list = []
     # the workers record the state graph too (pccl/search/parallel.py): the same
@@ -368,8 +368,8 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, on_runaway=on_runaway_native, labels=labels,
-                           batch=native.BATCH, **opts)
+        ex: Any = Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
+                           on_runaway=on_runaway_native, labels=labels)
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -379,10 +379,10 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
         ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
     elif fastest:
         from pccl.search.fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, recorder=rec, labels=labels, **opts)
+        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
     else:
-        ex = Explorer(cov or model, recorder=rec, on_runaway=on_runaway, labels=labels,
-                      checkpoint=_checkpointer(model, o), **opts)
+        ex = Explorer(cov or model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels,
+                      checkpoint=_checkpointer(model, o))
     saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
     try:
         sr = ex.run()
@@ -398,7 +398,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             labels = set()
-            ex = Explorer(model, recorder=rec, on_runaway=on_runaway, labels=labels, **opts)
+            ex = Explorer(model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels)
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
@@ -501,7 +501,7 @@ def explore_model(model: Model, *, options: Optional[ExploreOptions] = None,
     return res
 
 
-def _choose_engine(model: Model, o: ExploreOptions, recorder: bool, one: bool):
+def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool):
     """The native model for this search (pccl/model/native.py), or None for the
     Python engine; sets ``model.engine_used`` and ``model.engine_reason``
     (why not native) for the header."""

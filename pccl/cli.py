@@ -10,9 +10,9 @@ import click
 
 from pccl.output import display as D
 from pccl.output.checked import NO_PROPERTY_NOTE
-from pccl.lang.errors import PcclError
+from pccl.lang.errors import PcclError, flag
 from pccl.model.layout import AGS, POS, STATUS, TIME
-from pccl.model.options import ExploreOptions, ModelOptions, RunOptions
+from pccl.model.options import ExploreOptions, ModelOptions, RunOptions, conflict
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, nondet-fail, pymunk, or "
                  "module:attribute for your own [default: straight; explore: nondet for a "
@@ -129,6 +129,13 @@ def _check_repeats(rates, overrides):
         if twice:
             raise click.BadParameter(f"{what} {', '.join(twice)} given more than once",
                                      param_hint=f"'{opt}'")
+
+
+def _flag_spelling(name: str, value) -> str:
+    """An option as the command line spells it: ``--fastest``, ``--workers 1``
+    (for :meth:`pccl.options.Conflict.message`)."""
+    f = flag(name)
+    return f if value in (None, "True") else f"{f} {value}"
 
 
 def _fail(err: PcclError):
@@ -308,10 +315,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     checked = for_run(m, res, opts)
     doc = None
     if record:
-        cfg = T.config("run", m, program=program, world=world, blackbox=blackbox,
-                       overrides=dict(overrides), invariants=invariants, seed=seed,
-                       max_steps=max_steps, property_texts=properties,
-                       stall_steps=stall_steps)
+        cfg = T.config("run", m, program=program)
         doc = T.run_document(res, cfg)
     if fmt == "json":
         from pccl.output.codec import encode_state, output
@@ -418,9 +422,7 @@ def _check_with_world(prog, world) -> None:
     apart), the initial state."""
     from pccl.model.engine import Model
     from pccl.model.options import RunOptions
-    kw = RunOptions().model_kwargs()
-    kw.pop("blackbox", None)
-    model = Model(prog, world=world, blackbox="instant", **kw)
+    model = Model(prog, RunOptions(world=world, blackbox="instant"))
     next(iter(model.init_states()), None)
 
 
@@ -628,14 +630,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         model = build_model(program, opts, explore=True)
         if coverage:
-            model.set_reduce(opts.reduce, uses=("coverage",))
-        if (opts.workers != 1 or opts.ray is not None) and fastest:
-            raise PcclError("--fastest searches in one process: use --workers 1 (without --ray)",
-                            filename="--workers")
-        from pccl.model.options import checkpoint_refusal
-        why = checkpoint_refusal(opts, cli=True)
-        if why is not None:
-            raise PcclError(why, filename="--checkpoint" if checkpoint else "--resume")
+            model = model.with_uses(("coverage",))
+        c = conflict(opts)
+        if c is not None:
+            raise PcclError(c.message(_flag_spelling), filename=flag(c.option))
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
@@ -649,9 +647,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     finally:
         if reporter is not None:
             reporter.close()
-    cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
-                   overrides=dict(overrides), invariants=invariants, deadlock=deadlock,
-                   property_texts=properties)
+    cfg = T.config("explore", model, program=program)
     doc = T.explore_document(res, cfg)
     if fmt == "json":
         out = _explore_json(program, res)
@@ -872,8 +868,7 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
     try:
         model = build_model(program, opts, explore=True)
-        cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
-                       overrides=dict(overrides), invariants=invariants)
+        cfg = T.config("explore", model, program=program)
         session = S.Session(model, cfg)
     except PcclError as e:
         _fail(e)
@@ -947,9 +942,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
                        f"give a smaller --max-states", err=True)
             sys.exit(2)
         if ext == ".json":
-            cfg = T.config("explore", model, program=program, world=world, blackbox=blackbox,
-                           overrides=dict(overrides), invariants=invariants,
-                           deadlock=not no_deadlock)
+            cfg = T.config("explore", model, program=program, deadlock=not no_deadlock)
             text = G.dumps(G.to_json(model, g, cfg, max_states))
         else:
             text = G.to_dot(model, g, name=os.path.basename(program))
@@ -1049,11 +1042,8 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     n_bad = len(bad_times)
     doc = None
     if first_bad is not None and (trace_out or fmt == "json"):
-        cfg = T.config("run", model, program=program, world=world, blackbox=blackbox,
-                       overrides=dict(overrides), invariants=invariants,
-                       seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)),
-                       max_steps=max_steps, property_texts=properties,
-                       stall_steps=stall_steps)
+        cfg = T.config("run", model, program=program,
+                       seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)))
         doc = T.run_document(first_bad, cfg)
     if fmt == "json":
         from pccl.output.codec import output

@@ -198,9 +198,10 @@ def test_non_finite_time_options(args, tmp_path):
                                 {"max_time": float("nan")}, {"max_time": float("inf")}])
 def test_model_refuses_non_finite_time(kw):
     from pccl.model.engine import Model
+    from pccl.model.options import ModelOptions
     from pccl.lang.parser import parse_program
     with pytest.raises(PcclError):
-        Model(parse_program(TICK), **kw)
+        Model(parse_program(TICK), ModelOptions(**kw))
 
 
 def test_clock_beyond_float_range_is_an_error(tmp_path):

@@ -196,3 +196,19 @@ def test_a_built_wheel_ships_every_module_and_runs_outside_the_checkout(tmp_path
                          capture_output=True, text=True, timeout=300, cwd=str(tmp_path), env=env)
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith(f"{RACE}: ok ("), res.stdout
+
+
+def test_install_hints_name_the_checkout_when_run_from_elsewhere(tmp_path):
+    """Run outside the checkout, the README's editable install imports pccl through
+    setuptools' link tree (build/__editable__.pccl-*/, links to the checkout's files):
+    the --ray hint (spelt in pccl.search.parallel) and install_hint still name the
+    checkout, and agree."""
+    code = ("from pccl.search.parallel import RAY_MISSING\n"
+            "from pccl.lang.errors import install_hint\n"
+            "print(RAY_MISSING); print(install_hint('ray'))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, cwd=str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    ray, hint = out.stdout.splitlines()
+    assert hint == f"pip install -e '{ROOT}[ray]'"
+    assert ray == "--ray needs Ray, an optional extra: " + hint

@@ -426,6 +426,7 @@ def test_a_lasso_must_be_a_counterexample_of_its_property(lasso_trace):
     # the same lasso claimed for a property it does not violate
     def other(d):
         d["config"]["property_options"] = ["eventually met || !met"]
+        d["config"]["options"]["properties"] = ["eventually met || !met"]   # the options whole
         d["result"]["violation"]["name"] = "eventually met || !met"
     res = cli("replay", rewrite(lasso_trace, other))
     assert res.exit_code == 2, res.output

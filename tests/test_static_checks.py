@@ -28,8 +28,8 @@ NOQA_C901 = re.compile(r"#\s*noqa:[^#]*\bC901\b")
 
 def _source_files(root: Path = ROOT) -> list[str]:
     """The package's .py files, relative to ``root``, '/'-separated; a
-    symbolic link to a directory (pccl/semantics) is not followed, so no file
-    is counted twice."""
+    symbolic link to a directory is not followed, so no file is counted
+    twice."""
     out = []
     for top in SOURCES:
         for d, dirs, files in os.walk(root / top):
@@ -175,3 +175,47 @@ def test_the_globs_are_ruffs():
     assert [bool(r.match(p)) for p in ("pccl/api.py", "pccl/cli/api.py", "pccl/a/b/api.py",
                                        "pccl/xapi.py", "pccl/api.pyc")] == [True, True, True, False, False]
     assert _glob_regex("tests/*.py").match("tests/a.py") and not _glob_regex("tests/*.py").match("tests/a/b.py")
+
+
+@pytest.mark.slow
+def test_mypy_checks_the_top_level_folders_and_types_the_engine_rules_boundary(tmp_path):
+    """`python -m mypy` as pyproject.toml configures it, run in a copy of the source with
+    one type error put in semantics/ and one in blackboxes/ and a probe module in pccl/:
+    both errors are reported (the top-level folders are checked), and the rules the engine
+    imports (pccl.semantics, found through the README's editable install: docs/
+    architecture.md, "Packaging") have their real types, not Any, so a type error across
+    the engine <-> rules boundary is reported too."""
+    import shutil
+    import subprocess
+    import sys
+    copy = tmp_path / "checkout"
+    for top in SOURCES:
+        shutil.copytree(ROOT / top, copy / top, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", copy)
+    with open(copy / "semantics" / "rules.py", "a") as f:
+        f.write('\nBAD_RULE: int = "x"\n')
+    with open(copy / "blackboxes" / "straight.py", "a") as f:
+        f.write('\nBAD_BOX: int = "x"\n')
+    (copy / "pccl" / "probe.py").write_text(
+        "from pccl.model import engine, environment\n"
+        "from pccl.semantics import rules\n"
+        "reveal_type(engine.R.describe_error)\n"
+        "reveal_type(rules.describe_error)\n"
+        "reveal_type(environment.Motion)\n"
+        "n: int = engine.R.describe_error(ValueError())\n")
+    res = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "cache")],
+                         cwd=copy, capture_output=True, text=True, timeout=900)
+    out = [ln for ln in res.stdout.splitlines() if "annotation-unchecked" not in ln]
+    assert res.returncode == 1, res.stdout + res.stderr
+    assert not [ln for ln in out if "import-" in ln], (   # import-not-found / import-untyped
+        "mypy finds pccl.semantics only in the README's install (pip install -e '.[test]' "
+        "--config-settings editable_mode=strict)", out)
+    revealed = {int(ln.split(":")[1]): ln.split('Revealed type is "', 1)[1][:-1]
+                for ln in out if ln.startswith("pccl/probe.py") and "Revealed type" in ln}
+    assert revealed[3] == revealed[4] == "def (exc: Any) -> str", out
+    assert revealed[5].endswith("-> pccl.blackboxes.base.Motion"), out
+    errors = sorted(ln.split(": error:")[0] for ln in out if ": error:" in ln)
+    line_rules = len((copy / "semantics" / "rules.py").read_text().splitlines())
+    line_box = len((copy / "blackboxes" / "straight.py").read_text().splitlines())
+    assert errors == [f"blackboxes/straight.py:{line_box}", "pccl/probe.py:6",
+                      f"semantics/rules.py:{line_rules}"], out

@@ -159,8 +159,7 @@ def fischer_session():
     from pccl.tools import serve as S
     from pccl.output import traces as T
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
-    return S.Session(m, T.config("explore", m, program=FISCHER, overrides={"k": "1"},
-                                 invariants=("count(inCs) <= 1",)))
+    return S.Session(m, T.config("explore", m, program=FISCHER))     # the model's options
 
 
 def test_session_steps_back_and_visits():

@@ -224,7 +224,7 @@ def fischer_server():
     from pccl.tools import serve as S
     from pccl.output import traces as T
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",), reduce="none")
-    cfg = T.config("explore", m, program=FISCHER, overrides={"k": "1"}, invariants=("count(inCs) <= 1",))
+    cfg = T.config("explore", m, program=FISCHER)        # overrides, invariants: the model's options
     session = S.Session(m, cfg)
     srv = S.make_server(session, 0)
     th = threading.Thread(target=srv.serve_forever, daemon=True)

@@ -34,6 +34,9 @@ from pccl.lang.errors import FLAGS, ArgumentError, OptionError, flag  # noqa: F4
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
                       "record_trace"})
 
+#: The version of the options' JSON form (:meth:`CommonOptions.to_dict`).
+OPTIONS_VERSION = 1
+
 #: Command-line parameters that choose how a result is shown, per command.
 PRESENTATION = {
     "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full", "exit_codes"}),
@@ -97,6 +100,62 @@ class CommonOptions:
     def replace(self, **changes):
         return dataclasses.replace(self, **changes)
 
+    def to_dict(self) -> dict:
+        """The options as JSON data, versioned (:data:`OPTIONS_VERSION`): a
+        trace file's ``config["options"]``.  What a command line cannot
+        express (:data:`API_ONLY`: callables, objects) is left out; a
+        blackbox object is given by its name, a world object as None (the
+        trace records the world's file)."""
+        out: dict[str, Any] = {"version": OPTIONS_VERSION}
+        for f in dataclasses.fields(self):
+            if f.name in API_ONLY:
+                continue
+            v = getattr(self, f.name)
+            if f.name == "world":
+                v = os.fspath(v) if isinstance(v, (str, os.PathLike)) else None
+            elif f.name == "blackbox" and v is not None and not isinstance(v, str):
+                v = getattr(v, "name", None)
+            elif f.name == "rates":
+                v = {str(a): r for a, r in dict(v or {}).items()}
+            elif isinstance(v, Mapping):
+                v = dict(v)
+            elif isinstance(v, (tuple, list)):
+                v = list(v)
+            elif isinstance(v, os.PathLike):
+                v = os.fspath(v)
+            out[f.name] = v
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]):
+        """Options from :meth:`to_dict`'s form.  The fields of other option
+        classes (a search's options, read for a model) are skipped; a name
+        no options class has, or another version, is a :class:`ValueError`."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"options must be an object, got {type(data).__name__}")
+        if data.get("version") != OPTIONS_VERSION:
+            raise ValueError(f"options version {data.get('version')!r} is not "
+                             f"{OPTIONS_VERSION}, the one this pccl reads")
+        known = {f.name for c in (ExploreOptions, RunOptions) for f in dataclasses.fields(c)}
+        unknown = sorted(set(data) - known - {"version"})
+        if unknown:
+            raise ValueError(f"unknown option{'s' if len(unknown) > 1 else ''} "
+                             f"{', '.join(unknown)}")
+        mine = {f.name for f in dataclasses.fields(cls)} - API_ONLY
+        kw = {k: v for k, v in data.items() if k in mine}
+        try:
+            if "rates" in kw:
+                kw["rates"] = {int(a): r for a, r in dict(kw["rates"] or {}).items()}
+            for k in ("overrides",):
+                if k in kw:
+                    kw[k] = dict(kw[k] or {})
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"rates and overrides must be objects: {e}") from None
+        for k in ("invariants", "properties"):
+            if k in kw:
+                kw[k] = tuple(kw[k] or ())
+        return cls(**kw)
+
     def check(self, func: str) -> None:
         """Raise :class:`ArgumentError` naming the first bad option."""
         V.boolean(func, "source", self.source)
@@ -108,20 +167,6 @@ class CommonOptions:
         V.model_options(func, {k: v for k, v in raw.items()
                                if v is not None or k in ("max_time", "abstract_time")})
 
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        """The keyword arguments of :class:`pccl.model.engine.Model` (besides the
-        program, world, blackbox and team size)."""
-        kw: dict[str, Any] = dict(delta=self.delta, n0=self.n0, rates=dict(self.rates or {}), events=self.events,
-                  invariants=tuple(self.invariants), collisions=self.collisions,
-                  properties=tuple(self.properties))
-        if with_max_time:
-            kw["max_time"] = self.max_time
-        if self.functions is not None:
-            kw["functions"] = self.functions
-        if self.rand_policy is not None:
-            kw["rand_policy"] = self.rand_policy
-        return kw
-
 
 @dataclass(frozen=True)
 class ModelOptions(CommonOptions):
@@ -129,11 +174,6 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
-
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        kw = super().model_kwargs(with_max_time=with_max_time)
-        kw.update(abstract_time=self.abstract_time, reduce=self.reduce)
-        return kw
 
 
 @dataclass(frozen=True)
@@ -194,40 +234,80 @@ class ExploreOptions(ModelOptions):
         if r is not None and (not isinstance(r, str) or not r.strip()):
             raise ArgumentError(f"ray must be None, 'local' or a Ray address such as "
                                 f"'HOST:PORT', got {r!r}", filename=f"pccl.api.{func}")
-        if (r is not None or (w != 1 and w != "auto")) and (self.exact or self.coverage):
-            raise ArgumentError(f"{'exact' if self.exact else 'coverage'}=True runs in one "
-                                f"process: use workers=1 without ray",
-                                filename=f"pccl.api.{func}")
-        if (r is not None or w != 1) and self.fastest:
-            raise ArgumentError("fastest=True searches in one process: use workers=1",
-                                filename=f"pccl.api.{func}")
         for name in ("checkpoint", "resume"):
             v = getattr(self, name)
             if v is not None and (not isinstance(v, (str, os.PathLike)) or not os.fspath(v)):
                 raise ArgumentError(f"{name} must be a directory path, got {v!r}",
                                     filename=f"pccl.api.{func}")
         V.number(func, "checkpoint_interval", self.checkpoint_interval, minimum=0)
-        why = checkpoint_refusal(self)
-        if why is not None:
-            raise ArgumentError(why, filename=f"pccl.api.{func}")
+        c = conflict(self)
+        if c is not None:
+            raise ArgumentError(c.message(api_spelling), filename=f"pccl.api.{func}")
 
 
-def checkpoint_refusal(o: "ExploreOptions", *, cli: bool = False) -> Optional[str]:
+    def search_options(self, max_memory: Optional[int] = None):
+        """The search's options (:class:`pccl.search.explorer.SearchOptions`),
+        ``max_memory`` resolved to bytes by the caller."""
+        from pccl.search.explorer import SearchOptions
+        return SearchOptions(max_depth=self.depth, max_states=self.max_states,
+                             deadlock=self.deadlock, find_all=self.find_all, exact=self.exact,
+                             progress=self.progress, progress_interval=self.progress_interval,
+                             max_memory=max_memory)
+
+
+@dataclass(frozen=True)
+class Conflict:
+    """Search options that do not go together.  ``option`` is the one the
+    error is reported at; ``text`` names options as placeholders, spelt by
+    the caller (:meth:`message`): ``{fastest}`` is the option itself,
+    ``{workers=1}`` the option with that value.  The API spells them
+    ``fastest``/``workers=1`` (:func:`api_spelling`), the command line as
+    its flags."""
+    option: str
+    text: str
+
+    def message(self, spell: Callable[[str, Optional[str]], str]) -> str:
+        def one(key: str) -> str:
+            name, eq, value = key.partition("=")
+            return spell(name, value if eq else None)
+        import re
+        return re.sub(r"\{([a-z_]+(?:=[^}]*)?)\}", lambda mo: one(mo.group(1)), self.text)
+
+
+def api_spelling(name: str, value: Optional[str]) -> str:
+    """An option as the API's keyword (``workers=1``)."""
+    return name if value is None else f"{name}={value}"
+
+
+def conflict(o: "ExploreOptions") -> Optional[Conflict]:
+    """The first search options of ``o`` that do not go together (None: they
+    do): every cross-option check of a search, for the API and the CLI."""
+    w, r = o.workers, o.ray
+    if (r is not None or (w != 1 and w != "auto")) and (o.exact or o.coverage):
+        return Conflict("workers", f"{{{'exact' if o.exact else 'coverage'}=True}} runs in one "
+                                   "process: use {workers=1} without {ray}")
+    if (r is not None or w != 1) and o.fastest:
+        return Conflict("workers", "{fastest=True} searches in one process: use {workers=1} "
+                                   "without {ray}")
+    return checkpoint_conflict(o)
+
+
+def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     """Why ``o`` cannot checkpoint or resume (None: it can)."""
     if o.checkpoint is None and o.resume is None:
         return None
-    what = ("--resume" if o.checkpoint is None else "--checkpoint") if cli else \
-        ("resume" if o.checkpoint is None else "checkpoint")
+    what = "resume" if o.checkpoint is None else "checkpoint"
     if o.ray is not None or o.workers != 1:
-        return (f"{what} runs in one process for now: use "
-                f"{'--workers 1 without --ray' if cli else 'workers=1 without ray'}")
+        return Conflict(what, f"{{{what}}} runs in one process for now: use {{workers=1}} "
+                              "without {ray}")
     if o.fastest:
-        return f"{what} does not run with {'--fastest' if cli else 'fastest=True'} yet"
+        return Conflict(what, f"{{{what}}} does not run with {{fastest=True}} yet")
     if o.coverage:
-        return f"{what} does not run with {'--coverage' if cli else 'coverage=True'} yet"
+        return Conflict(what, f"{{{what}}} does not run with {{coverage=True}} yet")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
-            return f"{what} does not run with {name}= (a Python object is not checkpointed)"
+            return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "
+                                  "not checkpointed)")
     return None
 
 
@@ -275,10 +355,14 @@ class RunOptions(CommonOptions):
         if self.max_memory != "default":
             V.integer(func, "max_memory", self.max_memory, minimum=1, optional=True)
 
-    def model_kwargs(self, *, with_max_time: bool = True) -> dict:
-        kw = super().model_kwargs(with_max_time=with_max_time)
-        kw["abstract_time"] = False
-        return kw
+
+def model_choices(opts: CommonOptions) -> tuple:
+    """``(abstract_time, reduce)`` of the model ``opts`` describe: a
+    :class:`ModelOptions`' own; a run's (:data:`NOT_FOR_RUN`) keeps the clock
+    and executes the unreduced semantics."""
+    if isinstance(opts, ModelOptions):
+        return opts.abstract_time, opts.reduce
+    return False, "none"
 
 
 def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> list:

@@ -26,7 +26,8 @@ from __future__ import annotations
 import itertools
 import marshal
 from dataclasses import dataclass, field
-from typing import Optional
+from typing import Any, Optional
+from collections.abc import Callable
 
 from pccl.lang import ast as A
 from pccl.lang.errors import PcclError
@@ -293,6 +294,98 @@ def plan(m, reduce, uses=()) -> tuple:
 
 
 # ---------------------------------------------------------------------------
+# the reduced model
+# ---------------------------------------------------------------------------
+
+#: What a :class:`Reduced` holds itself; every other attribute is the model's.
+_OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
+                  "merger", "por"})
+
+
+class Reduced:
+    """Model ``model`` seen through the reductions ``reduce`` asks for (see
+    :func:`plan`; ``uses`` names uses of the search that rule some out):
+    what the explorer searches, with the model's interface.  ``successors``
+    is the merged and/or partial-order reduced relation, ``key`` the
+    canonical one under symmetry, ``violations`` the model's fast path; with
+    no reduction on they are the model's own generated functions.
+    :attr:`reduction` says which are on and why the others are off.  Every
+    other attribute is read from (and written to) the model, like
+    :class:`pccl.output.coverage.CoverageModel` wrapping it; the model itself is
+    never changed, its methods stay the unreduced semantics."""
+
+    successors: Callable[[Any], list]
+    key: Callable[[Any], Any]
+    violations: Callable[[Any], list]
+
+    def __init__(self, model, reduce="auto", uses=()):
+        model = unreduced(model)
+        d = self.__dict__
+        d["model"] = model
+        d["reduce_uses"] = tuple(uses)
+        p, slots = plan(model, reduce, self.reduce_uses)
+        d["reduction"] = p
+        d["successors"], d["key"] = model.plain_successors, model.plain_key
+        d["violations"] = model.fast_violations
+        d["merger"] = d["por"] = None
+        base = None
+        if "por" in p.on:
+            d["por"] = Por(model)
+            d["successors"] = base = self.por.successors
+        if "merge" in p.on:
+            d["merger"] = Merger(model, base)
+            d["successors"] = self.merger.successors
+        if "symmetry" in p.on:
+            d["key"] = make_symmetric_key(model, slots)
+
+    def expand_trace(self, trace):
+        """The trace with every merged transition replaced by its steps (for
+        the search family: :func:`pccl.model.search_view.expand_trace` on this
+        wrapper, which holds the merger)."""
+        return expand_trace(self, trace) if self.merger is not None else trace
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        try:
+            model = self.__dict__["model"]
+        except KeyError:            # unpickling: no model yet
+            raise AttributeError(name) from None
+        return getattr(model, name)
+
+    def __setattr__(self, name, value) -> None:
+        if name in _OWN:
+            self.__dict__[name] = value
+        else:
+            setattr(self.__dict__["model"], name, value)
+
+    def __repr__(self) -> str:
+        return f"<Reduced {self.reduction.describe()} of {self.model!r}>"
+
+    def with_uses(self, uses) -> "Reduced":
+        """The same model, reduced as asked, for these uses of the search."""
+        return Reduced(self.model, self.reduction.requested, uses)
+
+    @property
+    def reduced(self) -> bool:
+        return bool(self.reduction.on)
+
+    def expand(self, before, label) -> list:
+        """The unreduced steps ``[(label, state), ...]`` of a transition."""
+        if self.merger is None:
+            for lab, s in self.model.successors(before):
+                if lab == label:
+                    return [(lab, s)]
+            raise ValueError(f"label {label!r} is not enabled")
+        return self.merger.expand(before, label)
+
+
+def unreduced(m):
+    """The model behind ``m`` (``m`` itself when it is not :class:`Reduced`)."""
+    return m.model if isinstance(m, Reduced) else m
+
+
+# ---------------------------------------------------------------------------
 # statement merging
 # ---------------------------------------------------------------------------
 
@@ -357,7 +450,7 @@ class Merger:
         infos = ctl.infos
         statement, counter_advance = R.statement, R.counter_advance
         oracle = m.oracle
-        stack = [(s, ())]
+        stack: list[tuple[Any, tuple[int, ...]]] = [(s, ())]
         seen = None
         while stack:
             s, ch = stack.pop()
@@ -435,7 +528,7 @@ def expand_trace(m, trace, violation=None):
     if violation is not None and getattr(violation, "kind", None) != "deadlock":
         want = violation.identity
         for n, s in enumerate(states):
-            if any(v.identity == want for v in type(m).violations(m, s)):
+            if any(v.identity == want for v in unreduced(m).violations(s)):
                 states, labels = states[:n + 1], labels[:n]
                 break
     return Trace(tuple(states), tuple(labels))

@@ -67,36 +67,49 @@ def _relative_to(doc: dict, trace_path) -> None:
                 pass
 
 
-def config(command: str, model, *, program, world=None, blackbox="straight", agents=None,
-           overrides=None, invariants=(), seed=None, max_time=None, max_steps=None,
-           deadlock=True, abstract_time=None, property_texts=(), stall_steps=None) -> dict:
-    """The configuration of a ``run``/``explore`` command, enough to rebuild
-    its model (:func:`model_from_config`)."""
+def config(command: str, model, *, program, seed=None, deadlock=None) -> dict:
+    """The configuration of a ``run``/``explore`` command: the files it read,
+    the model as resolved (team, rates per agent, properties, reductions,
+    time abstraction: what readers of the trace show) and, under
+    ``"options"``, the options whole as :meth:`pccl.model.options.CommonOptions.to_dict`
+    writes them, from which replay rebuilds the model
+    (:func:`pccl.tools.replay.model_from_config`).  ``seed`` and ``deadlock``
+    replace the options' (``simulate`` records its first bad seed; ``graph``
+    its deadlock check)."""
     m = model
+    o = m.options
+    world = o.world if isinstance(o.world, (str, os.PathLike)) else None
+    options = o.to_dict()
+    if seed is not None and "seed" in options:
+        options["seed"] = seed
+    if deadlock is None:
+        deadlock = getattr(o, "deadlock", True)
+    elif "deadlock" in options:
+        options["deadlock"] = bool(deadlock)
     cfg = {"command": command,
            "program": _file(program),
            "world": _file(world),
-           "blackbox": blackbox if isinstance(blackbox, str) else m.blackbox.name,
+           "blackbox": o.blackbox if isinstance(o.blackbox, str) else m.blackbox.name,
            "agents": m.N,
            "delta": m.delta,
            "n0": m.n0,
            "rates": list(m.rho),
            "events": m.events_policy,
            "collisions": bool(m.collisions),
-           "overrides": {k: str(v) for k, v in dict(overrides or {}).items()},
-           "invariants": list(invariants),
-           "property_options": list(property_texts),
+           "overrides": {k: str(v) for k, v in dict(o.overrides or {}).items()},
+           "invariants": list(o.invariants),
+           "property_options": list(o.properties),
            "properties": [p.name for p in m.properties],
            "reductions": list(m.reduction.on),
            "max_time": m.max_time,
            "abstract_time": m.abstract_time,
            "deadlock": bool(deadlock),
-           "pccl_version": pccl_version()}
+           "pccl_version": pccl_version(),
+           "options": options}
     if command == "run":
-        cfg["seed"] = seed
-        cfg["max_steps"] = max_steps
-        if stall_steps is not None:
-            cfg["stall_steps"] = stall_steps
+        cfg["seed"] = options.get("seed") if seed is None else seed
+        cfg["max_steps"] = options.get("max_steps")
+        cfg["stall_steps"] = options.get("stall_steps")
     return cfg
 
 

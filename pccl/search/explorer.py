@@ -540,9 +540,28 @@ class _Runaway:
                                 "max_time": self.last_time, "state": level[-1]}
             ex.on_runaway(ex._runaway_info)
 
+@dataclass(frozen=True)
+class SearchOptions:
+    """The options of a search, whole (:class:`Explorer`'s second argument;
+    :meth:`pccl.model.options.ExploreOptions.search_options` makes them from
+    ``pccl explore``'s).  What each means: :class:`Explorer`."""
+    max_depth: Optional[int] = None
+    max_states: Optional[int] = None
+    deadlock: bool = True
+    find_all: bool = False
+    exact: bool = False
+    progress: Optional[Callable[[dict], None]] = None
+    progress_interval: float = 0.5
+    batch: int = 4096
+    max_memory: Optional[int] = None
+    runaway_levels: int = 500
+
 
 class Explorer:
     """Breadth-first search of a :class:`Model`.
+
+    ``Explorer(model, SearchOptions(...))``; the options may also be given
+    as keywords (``Explorer(model, max_depth=3)``).
 
     Options: ``max_depth`` (do not expand states at this depth),
     ``max_states`` (admit at most this many states), ``deadlock`` (report
@@ -568,34 +587,34 @@ class Explorer:
     and resume from a checkpoint; the result is the uninterrupted search's).
     """
 
-    def __init__(self, model: Model, *, max_depth: Optional[int] = None,
-                 max_states: Optional[int] = None, deadlock: bool = True,
-                 find_all: bool = False, exact: bool = False,
-                 progress: Optional[Callable[[dict], None]] = None,
-                 progress_interval: float = 0.5, batch: int = 4096,
-                 max_memory: Optional[int] = None, recorder=None,
-                 runaway_levels: int = 500, on_runaway: Optional[Callable[[dict], None]] = None,
-                 labels: Optional[set] = None, checkpoint=None):
+    def __init__(self, model: Model, options: Optional[SearchOptions] = None, *, recorder=None,
+                 on_runaway: Optional[Callable[[dict], None]] = None,
+                 labels: Optional[set] = None, checkpoint=None, **search):
+        o = options if options is not None else SearchOptions()
+        if search:
+            import dataclasses
+            o = dataclasses.replace(o, **search)
         self.model = model
+        self.options = o
         #: a :class:`pccl.search.checkpoint.Checkpointer` (or None): where the search
         #: writes checkpoints at level boundaries, and what it resumes from
         self.checkpoint = checkpoint
         self._mark: Optional[dict] = None
         self._runaway_info: Optional[dict] = None
         self._peak_before = 0       # peak memory of the search before the checkpoint resumed
-        self.runaway_levels = runaway_levels
+        self.runaway_levels = o.runaway_levels
         self.on_runaway = on_runaway
         self.recorder = recorder
         self.labels = labels
-        self.max_memory = max_memory
-        self.max_depth = max_depth
-        self.max_states = max_states
-        self.deadlock = deadlock
-        self.find_all = find_all
-        self.exact = exact
-        self.progress = progress
-        self.progress_interval = progress_interval
-        self.batch = batch
+        self.max_memory = o.max_memory
+        self.max_depth = o.max_depth
+        self.max_states = o.max_states
+        self.deadlock = o.deadlock
+        self.find_all = o.find_all
+        self.exact = o.exact
+        self.progress = o.progress
+        self.progress_interval = o.progress_interval
+        self.batch = o.batch
         self.table: Any = None
 
     # ------------------------------------------------------------------

@@ -93,9 +93,10 @@ _NONE = 0xFFFF_FFFF
 #: The message when ``--ray`` is asked for without Ray installed.
 def _ray_hint() -> str:
     """pccl.lang.errors.install_hint("ray"), spelt here: this module imports only
-    generic modules (tests/test_architecture.py)."""
+    generic modules (tests/test_architecture.py).  realpath: from the editable install's
+    link tree (build/__editable__.pccl-*/), this file is a link to the checkout's."""
     import os
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
     if os.path.isfile(os.path.join(root, "pyproject.toml")):
         return f"pip install -e '{root}[ray]'"
     return "pip install -e '.[ray]' in the pccl checkout"

@@ -33,6 +33,7 @@ from pccl.output import tracecheck as TC
 from pccl.output import traces as T
 from pccl.lang.errors import ArgumentError, OptionError, PcclError
 from pccl.model.layout import TIME
+from pccl.model.options import ModelOptions
 
 
 @dataclass
@@ -204,29 +205,56 @@ def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None, prog
     """The model a (checked) trace configuration describes; ``blackbox``:
     the object :func:`resolve_blackbox` chose (default: the file's name,
     which must then be a shipped blackbox)."""
-    from pccl.api import make_model
+    from pccl.api import build_model
     name = os.fspath(trace_path)
     if blackbox is None:
         blackbox = resolve_blackbox(cfg["blackbox"], None, name)
     prog = _resolve(cfg["program"], trace_path, "program", warnings, program)
     world = _resolve(cfg.get("world"), trace_path, "world", warnings, world)
-    rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
-    opts = dict(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
-                collisions=cfg["collisions"], overrides=dict(cfg.get("overrides") or {}),
-                invariants=tuple(cfg.get("invariants") or ()),
-                properties=tuple(cfg.get("property_options") or ()),
-                max_time=cfg.get("max_time"),
-                abstract_time=bool(cfg.get("abstract_time")),
-                reduce="none")      # a trace records unreduced steps
     if cfg.get("pccl_version") not in (None, T.pccl_version()):
         warnings.append(f"warning: the trace was written by pccl {cfg['pccl_version']}, "
                         f"this is pccl {T.pccl_version()}")
     try:
-        return make_model(prog, world=world, blackbox=blackbox, agents=cfg["agents"], **opts)
+        opts = _options_of(cfg).replace(world=world, blackbox=blackbox, agents=cfg["agents"],
+                                        reduce="none")  # a trace records unreduced steps
+    except (TypeError, ValueError) as e:
+        raise PcclError(f"config.options: {e}", filename=name) from None
+    try:
+        opts.check("replay")
+        return build_model(prog, opts)
     except OptionError as e:
         raise PcclError(f"config.{e.option}: {e.message}", filename=name) from None
     except ArgumentError as e:
         raise PcclError(f"config: {e.message}", filename=name) from None
+
+
+#: config keys that repeat an option (for readers of the file): they must agree
+_MIRRORED = (("invariants", "invariants"), ("property_options", "properties"),
+             ("overrides", "overrides"))
+
+
+def _options_of(cfg: dict) -> ModelOptions:
+    """The model options of a trace's configuration: its ``options`` (the
+    options whole, :meth:`~pccl.model.options.CommonOptions.from_dict`) with the
+    time abstraction it ran with; a file without them (written before the
+    options travelled whole) from its flat keys."""
+    if "options" in cfg:
+        opts = ModelOptions.from_dict(cfg["options"])
+        for key, field in _MIRRORED:
+            mine = [str(x) for x in getattr(opts, field)] if field != "overrides" else \
+                {k: str(v) for k, v in opts.overrides.items()}
+            flat = cfg.get(key, mine)
+            if (list(flat) if isinstance(flat, (list, tuple)) else flat) != mine:
+                raise ValueError(f"options.{field} {mine!r} disagree with {key} {flat!r}")
+        return opts.replace(abstract_time=bool(cfg.get("abstract_time")))
+    rates = {i: r for i, r in enumerate(cfg.get("rates") or []) if r != 1}
+    return ModelOptions(delta=cfg["delta"], n0=cfg["n0"], rates=rates, events=cfg["events"],
+                        collisions=cfg["collisions"],
+                        overrides=dict(cfg.get("overrides") or {}),
+                        invariants=tuple(cfg.get("invariants") or ()),
+                        properties=tuple(cfg.get("property_options") or ()),
+                        max_time=cfg.get("max_time"),
+                        abstract_time=bool(cfg.get("abstract_time")))
 
 
 _IDENTITY = ("rule", "agent", "event", "line", "column", "source")
