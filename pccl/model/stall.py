@@ -177,17 +177,7 @@ def waiting(model, st) -> list:
             continue
         blocked, enabled = [], []
         for ev in model.program.events:
-            false = []
-            for c in _conjuncts(ev.guard):
-                fn = cache.get(id(c))
-                if fn is None:
-                    fn = cache[id(c)] = comp.comp.make_expr(c)
-                try:
-                    ok = bool(fn(i, ag, sh, ags))
-                except Exception:       # noqa: BLE001 - a guard error: it does not hold
-                    ok = False
-                if not ok:
-                    false.append(c)
+            false = _false_conjuncts(comp, cache, ev.guard, i, ag, sh, ags)
             if not false:
                 enabled.append(ev.name)
                 continue
@@ -199,18 +189,40 @@ def waiting(model, st) -> list:
             blocked.append(f"{ev.name} (line {ev.guard.span.line}: {conds})")
         if any("doReach_done" in _names(ev.guard) for ev in model.program.events):
             failed = ""             # said at the guard that reads doReach_done
-        if enabled:
-            out.append((i, f"runs {', '.join(enabled)} but changes nothing"
-                        + (f", and waits for {' or '.join(blocked)}" if blocked else "")
-                        + failed))
-        elif blocked:
-            out.append((i, "waits for " + " or ".join(blocked) + failed))
-        elif model.program.events:
-            out.append((i, "waits for nothing: no event of it can ever be enabled again"
-                        + failed))
-        else:
-            out.append((i, "has no event"))
+        out.append((i, _wait_text(model, enabled, blocked, failed)))
     return out
+
+
+def _false_conjuncts(comp, cache: dict, guard, i, ag, sh, ags) -> list:
+    """Step of :func:`waiting`: the conjuncts of ``guard`` that do not hold
+    for agent ``i`` (a guard that raises does not hold); ``cache`` keeps
+    the compiled conjuncts."""
+    false = []
+    for c in _conjuncts(guard):
+        fn = cache.get(id(c))
+        if fn is None:
+            fn = cache[id(c)] = comp.comp.make_expr(c)
+        try:
+            ok = bool(fn(i, ag, sh, ags))
+        except Exception:       # noqa: BLE001 - a guard error: it does not hold
+            ok = False
+        if not ok:
+            false.append(c)
+    return false
+
+
+def _wait_text(model, enabled: list, blocked: list, failed: str) -> str:
+    """Step of :func:`waiting`: what an agent at the top of its event block
+    waits on, from the events it runs and those it waits for."""
+    if enabled:
+        return (f"runs {', '.join(enabled)} but changes nothing"
+                + (f", and waits for {' or '.join(blocked)}" if blocked else "")
+                + failed)
+    if blocked:
+        return "waits for " + " or ".join(blocked) + failed
+    if model.program.events:
+        return "waits for nothing: no event of it can ever be enabled again" + failed
+    return "has no event"
 
 
 def waiting_text(waits: list) -> str:
