@@ -293,12 +293,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     from pccl.api import build_model, memory_bound
     from pccl.tools.runner import run as run_model
     from pccl.output import traces as T
-    if plot:
-        _check_plot_output(plot)
-    if trace_out:
-        _check_output(trace_out, "--trace-out")
-    if html:
-        _check_output(html, "--html")
+    _check_outputs(plot, trace_out, html)
     record = bool(trace or plot or trace_out or fmt == "json" or view or html)
     _check_repeats(rates, overrides)
     opts = RunOptions.from_cli(click.get_current_context().params).replace(record_trace=record)
@@ -318,67 +313,96 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         cfg = T.config("run", m, program=program)
         doc = T.run_document(res, cfg)
     if fmt == "json":
-        from pccl.output.codec import encode_state, output
-        out = output(
-            "run", status=res.status, message=res.message,
-            exit_status=_exit_status(res.exit_status,
-                                     [v.kind for v in res.violations] + [res.status],
-                                     exit_codes),
-            program=program, blackbox=m.blackbox.name, agents=m.N, seed=seed,
-            delta=m.delta, n0=m.n0, rates=list(m.rho), steps=res.steps,
-            summary=[{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
-                     for t, s in res.summary],
-            final=encode_state(m, res.final),
-            properties=[{"name": o.name, "kind": o.kind, "outcome": o.outcome,
-                         "detail": o.detail} for o in res.properties],
-            checked=checked.to_json(), trace=doc)
-        click.echo(json.dumps(out, indent=2, default=str))
+        _print_run_json(program, seed, res, checked, doc, exit_codes)
     else:
-        click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
-                   f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
-        if view:
-            from pccl.output import views
-            click.echo(views.render(view, m, _run_path(res), full=full))
-        elif trace:
-            click.echo("trace:")
-            for st in _run_path(res).steps:
-                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
-        click.echo("time steps:")
-        for ln in _collapsed_summary(m, res.summary):
-            click.echo(ln)
-        mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
-               if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
-               else "")
-        click.echo(f"result: {res.status} — {res.message} "
-                   f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions{mem})")
-        for v in res.violations:
-            if v.span is not None:
-                click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
-                           f"{D.source_line(m, v.span)}")
-        if res.properties:
-            click.echo("properties on this run:")
-            for o in res.properties:
-                click.echo(f"  {o.name}: {o.outcome} — {o.detail}")
-        for note in checked.notes:
-            if note != NO_PROPERTY_NOTE:       # a run is one execution, not a proof
-                click.echo(f"note: {note}")
-        click.echo("final configuration:")
-        click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
+        _print_run_text(program, seed, res, checked, fmt, view, full, trace)
+    _write_run_files(res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
+                          exit_codes))
+
+
+def _check_outputs(plot, trace_out, html) -> None:
+    """Step of run and explore: the output files given can be written."""
+    if plot:
+        _check_plot_output(plot)
+    if trace_out:
+        _check_output(trace_out, "--trace-out")
+    if html:
+        _check_output(html, "--html")
+
+
+def _print_run_json(program, seed, res, checked, doc, exit_codes) -> None:
+    """Step of run: the result as JSON (--format json)."""
+    m = res.model
+    from pccl.output.codec import encode_state, output
+    out = output(
+        "run", status=res.status, message=res.message,
+        exit_status=_exit_status(res.exit_status,
+                                 [v.kind for v in res.violations] + [res.status],
+                                 exit_codes),
+        program=program, blackbox=m.blackbox.name, agents=m.N, seed=seed,
+        delta=m.delta, n0=m.n0, rates=list(m.rho), steps=res.steps,
+        summary=[{"time": t, "positions": [list(ag[POS]) for ag in s[AGS]]}
+                 for t, s in res.summary],
+        final=encode_state(m, res.final),
+        properties=[{"name": o.name, "kind": o.kind, "outcome": o.outcome,
+                     "detail": o.detail} for o in res.properties],
+        checked=checked.to_json(), trace=doc)
+    click.echo(json.dumps(out, indent=2, default=str))
+
+
+def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None:
+    """Step of run: the result as text."""
+    m = res.model
+    click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
+               f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
+    if view:
+        from pccl.output import views
+        click.echo(views.render(view, m, _run_path(res), full=full))
+    elif trace:
+        click.echo("trace:")
+        for st in _run_path(res).steps:
+            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+    click.echo("time steps:")
+    for ln in _collapsed_summary(m, res.summary):
+        click.echo(ln)
+    mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
+           if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
+           else "")
+    click.echo(f"result: {res.status} — {res.message} "
+               f"(t={D.fmt_time(res.final[TIME])}, {res.steps} transitions{mem})")
+    for v in res.violations:
+        if v.span is not None:
+            click.echo(f"  at {m.program.filename}:{v.span.line}:{v.span.column}: "
+                       f"{D.source_line(m, v.span)}")
+    if res.properties:
+        click.echo("properties on this run:")
+        for o in res.properties:
+            click.echo(f"  {o.name}: {o.outcome} — {o.detail}")
+    for note in checked.notes:
+        if note != NO_PROPERTY_NOTE:       # a run is one execution, not a proof
+            click.echo(f"note: {note}")
+    click.echo("final configuration:")
+    click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
+
+
+def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+    """Step of run: the trace file, the plot and the viewer asked for (none
+    of a run out of memory, whose trace was dropped)."""
+    m = res.model
     if trace_out and res.status == "out-of-memory":     # its trace was dropped
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {trace_out}", err=True)
     elif trace_out:
-        _write_trace(doc, trace_out, quiet=(fmt == "json"))
+        _write_trace(doc, trace_out, quiet=quiet)
     if plot:
-        _plot_run(m, res, plot, quiet=(fmt == "json"))
+        _plot_run(m, res, plot, quiet=quiet)
     if html and res.status == "out-of-memory":
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
         _write_html(html, doc, model=m, states=list(_run_path(res).states),
-                    quiet=(fmt == "json"))
-    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
-                          exit_codes))
+                    quiet=quiet)
 
 
 def _collapsed_summary(m, summary) -> list:
@@ -613,12 +637,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     violation with a shortest counterexample."""
     from pccl.api import build_model, explore_model
     from pccl.output import traces as T
-    if plot:
-        _check_plot_output(plot)
-    if trace_out:
-        _check_output(trace_out, "--trace-out")
-    if html:
-        _check_output(html, "--html")
+    _check_outputs(plot, trace_out, html)
     if ray is not None:
         from pccl.api import require_ray
         try:
@@ -659,24 +678,30 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
+    _write_explore_files(model, res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    if res.status == "interrupted" and (checkpoint or resume):
+        _resume_hint(res, checkpoint or resume)
+    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
+
+
+def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+    """Step of explore: the trace file, the plot and the viewer asked for
+    (the plot and the viewer only of a counterexample)."""
     if trace_out:
-        _write_trace(doc, trace_out, quiet=(fmt == "json"))
+        _write_trace(doc, trace_out, quiet=quiet)
     if plot and res.violations:
         try:
             _plot_module().plot_trace(model, res.counterexamples[0].trace, plot,
                                       title=res.violations[0].message)
-            click.echo(f"plot written to {plot}", err=(fmt == "json"))
+            click.echo(f"plot written to {plot}", err=quiet)
         except PcclError as e:  # the violation stands: report, keep exit status 1
             click.echo(e.render(), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     if html and doc["initial"] is not None:
-        _write_html(html, doc, model=model, states=_explore_states(res), quiet=(fmt == "json"))
+        _write_html(html, doc, model=model, states=_explore_states(res), quiet=quiet)
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
-    if res.status == "interrupted" and (checkpoint or resume):
-        _resume_hint(res, checkpoint or resume)
-    sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
 
 
 def _resume_hint(res, directory) -> None:
@@ -997,22 +1022,60 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     their frequencies (95% confidence intervals), the times, the first violating run's
     trace, and the pccl run command that reproduces each outcome."""
     import random
-    from pccl.api import build_model
     from pccl.tools import simulate as S
     from pccl.output import traces as T
-    if runs is not None and runs_n is not None:
-        raise click.UsageError("give the number of runs once: --runs (or the deprecated -n)")
-    if runs_n is not None:
-        click.echo("pccl simulate: -n is deprecated (in run and explore -n is the number of "
-                   "agents); use --runs", err=True)
-        runs = runs_n
-    runs = 100 if runs is None else runs
+    runs = _runs_count(runs, runs_n)
     if trace_out:
         _check_output(trace_out, "--trace-out")
     rng = random.Random(seed)
     _check_repeats(rates, overrides)
     # the runs of pccl run, one per seed
     opts = RunOptions.from_cli(click.get_current_context().params)
+    model, outcomes, first_bad = _simulate_runs(program, opts, rng, runs, seed, max_steps,
+                                                stall_steps)
+
+    def command(s):
+        return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
+                             delta=_delta(delta), n0=n0, rates=rates, events=events,
+                             collisions=collisions, overrides=overrides,
+                             max_time=_delta(max_time), max_steps=max_steps,
+                             invariants=invariants, properties=properties,
+                             stall_steps=stall_steps)
+    bad = any(S.is_bad(o) for o in outcomes.values())
+    # a run out of memory is a limit of the tool, not a verdict (exit 2)
+    code = 2 if ("out-of-memory",) in outcomes else 1 if bad else 0
+    doc = None
+    if first_bad is not None and (trace_out or fmt == "json"):
+        cfg = T.config("run", model, program=program, seed=_first_bad_seed(outcomes))
+        doc = T.run_document(first_bad, cfg)
+    if fmt == "json":
+        _print_simulate_json(program, model, outcomes, first_bad, seed, code, doc, command,
+                             invariants, properties)
+        if doc is not None and trace_out:
+            _write_trace(doc, trace_out, quiet=True)
+        sys.exit(code)
+    _print_simulate_text(program, model, outcomes, first_bad, seed, command, trace)
+    if doc is not None:
+        _write_trace(doc, trace_out)
+    sys.exit(code)
+
+
+def _runs_count(runs, runs_n) -> int:
+    """Step of simulate: the number of runs, from --runs or the deprecated -n."""
+    if runs is not None and runs_n is not None:
+        raise click.UsageError("give the number of runs once: --runs (or the deprecated -n)")
+    if runs_n is not None:
+        click.echo("pccl simulate: -n is deprecated (in run and explore -n is the number of "
+                   "agents); use --runs", err=True)
+        runs = runs_n
+    return 100 if runs is None else runs
+
+
+def _simulate_runs(program, opts, rng, runs, seed, max_steps, stall_steps) -> tuple:
+    """Step of simulate: (model, outcomes, the first violating run replayed
+    with its trace or None)."""
+    from pccl.api import build_model
+    from pccl.tools import simulate as S
     first_bad = None
     try:
         model = build_model(program, opts, rng=rng)
@@ -1026,57 +1089,57 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
             first_bad.model = model
     except PcclError as e:
         _fail(e)
+    return model, outcomes, first_bad
 
-    def command(s):
-        return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
-                             delta=_delta(delta), n0=n0, rates=rates, events=events,
-                             collisions=collisions, overrides=overrides,
-                             max_time=_delta(max_time), max_steps=max_steps,
-                             invariants=invariants, properties=properties,
-                             stall_steps=stall_steps)
-    bad = any(S.is_bad(o) for o in outcomes.values())
-    # a run out of memory is a limit of the tool, not a verdict (exit 2)
-    code = 2 if ("out-of-memory",) in outcomes else 1 if bad else 0
+
+def _first_bad_seed(outcomes) -> int:
+    """The first seed of a violating outcome (there is one)."""
+    from pccl.tools import simulate as S
+    return min(o.first_seed for o in outcomes.values() if S.is_bad(o))
+
+
+def _print_simulate_json(program, model, outcomes, first_bad, seed, code, doc, command,
+                         invariants, properties) -> None:
+    """Step of simulate: the outcomes as JSON (--format json)."""
+    from pccl.tools import simulate as S
+    from pccl.output.codec import output
     done_runs = sum(len(o.seeds) for o in outcomes.values())
     bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
     n_bad = len(bad_times)
-    doc = None
-    if first_bad is not None and (trace_out or fmt == "json"):
-        cfg = T.config("run", model, program=program,
-                       seed=min(o.first_seed for o in outcomes.values() if S.is_bad(o)))
-        doc = T.run_document(first_bad, cfg)
-    if fmt == "json":
-        from pccl.output.codec import output
-        lo, hi = S.wilson(n_bad, done_runs)
-        status = "out-of-memory" if code == 2 else "violation" if n_bad else "clean"
-        message = (f"violations: {S.frequency(n_bad, done_runs)}" if n_bad else
-                   f"violations: none in {done_runs} runs")
-        click.echo(json.dumps(output(
-            "simulate", status=status, message=message, exit_status=code, trace=doc,
-            **{"program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
-            "blackbox": model.blackbox.name,
-            "invariants": list(invariants), "properties": list(properties),
-            "outcomes": [{"outcome": o.label, "count": len(o.seeds),
-                          "frequency": len(o.seeds) / done_runs,
-                          "ci95": list(S.wilson(len(o.seeds), done_runs)),
-                          "first_seed": o.first_seed,
-                          "seeds": o.seeds[:100], "example": o.example,
-                          "times": {"min": min(o.times), "median": statistics_median(o.times),
-                                    "mean": sum(o.times) / len(o.times),
-                                    "max": max(o.times)},
-                          "violation": S.is_bad(o),
-                          "command": command(o.first_seed)} for o in outcomes.values()],
-            "violations": {"count": n_bad, "frequency": n_bad / done_runs, "ci95": [lo, hi],
-                           "time_to_violation": ({"min": min(bad_times),
-                                                  "median": statistics_median(bad_times),
-                                                  "mean": sum(bad_times) / n_bad,
-                                                  "max": max(bad_times)} if bad_times else None),
-                           "first_seed": first_bad and min(
-                               o.first_seed for o in outcomes.values() if S.is_bad(o))}}),
-            indent=2, default=str))
-        if doc is not None and trace_out:
-            _write_trace(doc, trace_out, quiet=True)
-        sys.exit(code)
+    lo, hi = S.wilson(n_bad, done_runs)
+    status = "out-of-memory" if code == 2 else "violation" if n_bad else "clean"
+    message = (f"violations: {S.frequency(n_bad, done_runs)}" if n_bad else
+               f"violations: none in {done_runs} runs")
+    click.echo(json.dumps(output(
+        "simulate", status=status, message=message, exit_status=code, trace=doc,
+        **{"program": program, "runs": done_runs, "first_seed": seed, "agents": model.N,
+        "blackbox": model.blackbox.name,
+        "invariants": list(invariants), "properties": list(properties),
+        "outcomes": [{"outcome": o.label, "count": len(o.seeds),
+                      "frequency": len(o.seeds) / done_runs,
+                      "ci95": list(S.wilson(len(o.seeds), done_runs)),
+                      "first_seed": o.first_seed,
+                      "seeds": o.seeds[:100], "example": o.example,
+                      "times": {"min": min(o.times), "median": statistics_median(o.times),
+                                "mean": sum(o.times) / len(o.times),
+                                "max": max(o.times)},
+                      "violation": S.is_bad(o),
+                      "command": command(o.first_seed)} for o in outcomes.values()],
+        "violations": {"count": n_bad, "frequency": n_bad / done_runs, "ci95": [lo, hi],
+                       "time_to_violation": ({"min": min(bad_times),
+                                              "median": statistics_median(bad_times),
+                                              "mean": sum(bad_times) / n_bad,
+                                              "max": max(bad_times)} if bad_times else None),
+                       "first_seed": first_bad and _first_bad_seed(outcomes)}}),
+        indent=2, default=str))
+
+
+def _print_simulate_text(program, model, outcomes, first_bad, seed, command, trace) -> None:
+    """Step of simulate: the outcomes as text."""
+    from pccl.tools import simulate as S
+    done_runs = sum(len(o.seeds) for o in outcomes.values())
+    bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
+    n_bad = len(bad_times)
     click.echo(f"pccl simulate {program}: {done_runs} runs (seeds {seed}–{seed + done_runs - 1}), "
                f"{model.N} agents, blackbox {model.blackbox.name}, δ={D.fmt_time(model.delta)}, "
                f"n0={model.n0}{_rates_text(model)}")
@@ -1103,18 +1166,21 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
         for ln in S.histogram(done):
             click.echo(ln)
     if first_bad is not None:
-        s0 = min(o.first_seed for o in outcomes.values() if S.is_bad(o))
-        click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
-        path = _run_path(first_bad)
-        n_steps = len(path)
-        skip = 0 if trace else max(0, n_steps - SIM_TAIL)
-        click.echo(f"trace ({n_steps} steps" + (f"; the last {n_steps - skip}, --trace for all"
-                                                if skip else "") + "):")
-        for st in path.steps[skip:]:
-            click.echo(D.format_step(model, st.number, st.label, st.before, st.after))
-    if doc is not None:
-        _write_trace(doc, trace_out)
-    sys.exit(code)
+        _print_first_bad(model, outcomes, first_bad, trace)
+
+
+def _print_first_bad(model, outcomes, first_bad, trace) -> None:
+    """Step of simulate: the first violating run and the tail of its trace
+    (all of it with --trace)."""
+    s0 = _first_bad_seed(outcomes)
+    click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
+    path = _run_path(first_bad)
+    n_steps = len(path)
+    skip = 0 if trace else max(0, n_steps - SIM_TAIL)
+    click.echo(f"trace ({n_steps} steps" + (f"; the last {n_steps - skip}, --trace for all"
+                                            if skip else "") + "):")
+    for st in path.steps[skip:]:
+        click.echo(D.format_step(model, st.number, st.label, st.before, st.after))
 
 
 def _property_names(model) -> list:
@@ -1335,43 +1401,7 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     click.echo(_explore_header(program, m))
     click.echo(res.verdict)
     for v, cx in zip(res.violations, res.counterexamples):
-        click.echo("")
-        click.echo(v.message)
-        if v.line:
-            click.echo(f"  at {m.program.filename}:{v.line}:{v.column}")
-        tr = cx.trace
-        if tr is None:          # reachable P: unreachable has no path to show
-            continue
-        note = ", shortest under the reductions" if m.reduction.on else ""
-        depth = getattr(cx, "depth", None)
-        if m.reduction.on and depth is not None and depth != len(tr):
-            # --depth counts transitions of the reduced graph, the steps shown
-            # are the rules' (expanded): say both, so --depth can be read here
-            note += f"; depth {depth} in the reduced graph, as --depth counts"
-        if res.search is not None and getattr(res.search, "fastest", False):
-            note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
-        loop = cx.cycle_start
-        if loop is not None:
-            click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
-                       f"{_steps(len(tr) - loop)} repeated forever{note}):")
-        else:
-            click.echo(f"counterexample ({len(tr)} steps{note}):")
-        if view:
-            from pccl.output import views
-            click.echo(views.render(view, m, tr, full=full))
-        else:
-            for st in tr.steps:
-                if loop is not None and st.number == loop + 1:
-                    click.echo("  -- cycle: the steps below repeat forever --")
-                click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
-            if loop is not None:
-                click.echo(f"  -- back to the state after step {loop} --")
-        click.echo("state at the end of the cycle (= its start):" if loop is not None
-                   else "violating state:")
-        if k_style:
-            click.echo(D.format_state_k(m, tr.last))
-        else:
-            click.echo(D.format_state(m, tr.last))
+        _print_counterexample(res, v, cx, k_style=k_style, view=view, full=full)
     for w in res.witnesses:
         click.echo("")
         click.echo(f"reachable: `{w['text']}` is reached; witness ({len(w['_trace'])} steps):")
@@ -1392,6 +1422,49 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
     if res.coverage is not None:
         for ln in res.coverage.lines():
             click.echo(ln)
+
+
+def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -> None:
+    """Step of :func:`_print_explore_text`: violation ``v`` and its
+    counterexample ``cx``."""
+    m = res.model
+    click.echo("")
+    click.echo(v.message)
+    if v.line:
+        click.echo(f"  at {m.program.filename}:{v.line}:{v.column}")
+    tr = cx.trace
+    if tr is None:          # reachable P: unreachable has no path to show
+        return
+    note = ", shortest under the reductions" if m.reduction.on else ""
+    depth = getattr(cx, "depth", None)
+    if m.reduction.on and depth is not None and depth != len(tr):
+        # --depth counts transitions of the reduced graph, the steps shown
+        # are the rules' (expanded): say both, so --depth can be read here
+        note += f"; depth {depth} in the reduced graph, as --depth counts"
+    if res.search is not None and getattr(res.search, "fastest", False):
+        note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
+    loop = cx.cycle_start
+    if loop is not None:
+        click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
+                   f"{_steps(len(tr) - loop)} repeated forever{note}):")
+    else:
+        click.echo(f"counterexample ({len(tr)} steps{note}):")
+    if view:
+        from pccl.output import views
+        click.echo(views.render(view, m, tr, full=full))
+    else:
+        for st in tr.steps:
+            if loop is not None and st.number == loop + 1:
+                click.echo("  -- cycle: the steps below repeat forever --")
+            click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+        if loop is not None:
+            click.echo(f"  -- back to the state after step {loop} --")
+    click.echo("state at the end of the cycle (= its start):" if loop is not None
+               else "violating state:")
+    if k_style:
+        click.echo(D.format_state_k(m, tr.last))
+    else:
+        click.echo(D.format_state(m, tr.last))
 
 
 def _steps(n: int) -> str:

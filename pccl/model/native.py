@@ -54,7 +54,7 @@ import sysconfig
 import tempfile
 import importlib.util
 from array import array
-from typing import Any, Optional
+from typing import Any, NamedTuple, Optional
 from collections.abc import Callable
 
 from pccl.lang import ast as A
@@ -117,6 +117,16 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
 # ---------------------------------------------------------------------------
 # C generation
 # ---------------------------------------------------------------------------
+
+class _Regs(NamedTuple):
+    """Where an agent's control cells are in a native state: its pc, counter,
+    lock state and status, and its rate."""
+    PC: int
+    CNT: int
+    LCK: int
+    ST: int
+    rho: Any
+
 
 class Generator:
     """The C source of one model's native module."""
@@ -300,18 +310,7 @@ class Generator:
         if isinstance(e, (A.BoolLit, A.IntLit)):
             return self.expr(e, 0)
         if isinstance(e, A.Name):
-            if e.name in bound:
-                return f"((V){bound[e.name]})"
-            if e.name == "N":
-                return f"((V){self.N})"
-            if e.name == "time":
-                return f"s[{V_TIME}]"
-            vs = self.lay.vars.get(e.name)
-            if vs is not None and vs.section == "allwrite":
-                return self.read(self.var_ref(vs, 0), vs)
-            if e.name in self.lay.members and vs is None:
-                return str(self.lay.members[e.name][1])
-            raise Unsupported(f"the name '{e.name}' in a property")
+            return self.pname(e, bound)
         if isinstance(e, A.Unary):
             x = self.pexpr(e.operand, bound)
             return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
@@ -323,12 +322,7 @@ class Generator:
             return "((V)(" + op.join(f"({t})" for t in terms) + "))"
         if isinstance(e, A.Call) and e.name == "count" and len(e.args) == 1 \
                 and isinstance(e.args[0], A.Name):
-            vs = self.lay.vars.get(e.args[0].name)
-            if vs is None or vs.section == "allwrite" or vs.ty.kind != "bool":
-                raise Unsupported("count() of something other than a per-agent bool")
-            # Python counts values that are True: undefined counts as not True
-            return "((V)(" + " + ".join(f"({self.var_ref(vs, j)} == 1)"
-                                        for j in range(self.N)) + "))"
+            return self.pcount(e.args[0])
         if isinstance(e, A.Index) and isinstance(e.base, A.Name):
             vs = self.lay.vars.get(e.base.name)
             if vs is not None and indexes_agent(vs.section, False, 1, in_property=True):
@@ -336,6 +330,30 @@ class Generator:
                     return self.read(self.var_ref(vs, bound[e.index.name]), vs)
                 return self.read(self.var_ref(vs, f"AIX({self.pexpr(e.index, bound)})"), vs)
         raise Unsupported("a property expression beyond the native subset")
+
+    def pname(self, e, bound: dict) -> str:
+        """Step of :meth:`pexpr`: C for a name in a property."""
+        if e.name in bound:
+            return f"((V){bound[e.name]})"
+        if e.name == "N":
+            return f"((V){self.N})"
+        if e.name == "time":
+            return f"s[{V_TIME}]"
+        vs = self.lay.vars.get(e.name)
+        if vs is not None and vs.section == "allwrite":
+            return self.read(self.var_ref(vs, 0), vs)
+        if e.name in self.lay.members and vs is None:
+            return str(self.lay.members[e.name][1])
+        raise Unsupported(f"the name '{e.name}' in a property")
+
+    def pcount(self, arg) -> str:
+        """Step of :meth:`pexpr`: C for ``count(arg)`` of a per-agent bool."""
+        vs = self.lay.vars.get(arg.name)
+        if vs is None or vs.section == "allwrite" or vs.ty.kind != "bool":
+            raise Unsupported("count() of something other than a per-agent bool")
+        # Python counts values that are True: undefined counts as not True
+        return "((V)(" + " + ".join(f"({self.var_ref(vs, j)} == 1)"
+                                    for j in range(self.N)) + "))"
 
     # -- rules ---------------------------------------------------------------------
     def emit(self, lines: list, label, sets: list, ind: str) -> None:
@@ -346,102 +364,118 @@ class Generator:
         lines.append(f"{ind}  if (EMIT({self.lab(label)}, t)) return -1; }}")
 
     def agent_code(self, i: int) -> list:
-        m, c, ctl = self.m, self.c, self.m.ctl
+        m, ctl = self.m, self.m.ctl
         A_ = self.AG0 + i * self.A
-        PC, CNT, LCK, ST = A_, A_ + 1, A_ + 2, A_ + 3
-        rho, n0 = m.rho[i], m.n0
+        r = _Regs(A_, A_ + 1, A_ + 2, A_ + 3, m.rho[i])
         out = [f"static int agent{i}(PyObject *out, const V *s) {{",
-               f"  int spent = s[{CNT}] + {rho} > {n0};",
-               f"  switch (s[{PC}]) {{"]
+               f"  int spent = s[{r.CNT}] + {r.rho} > {m.n0};",
+               f"  switch (s[{r.PC}]) {{"]
+        cases = {K_EMPTY: self.case_empty, K_END: self.case_end, K_AEND: self.case_aend,
+                 K_ACQ: self.case_acq, K_SIMPLE: self.case_simple, K_IF: self.case_if,
+                 K_WHILE: self.case_while, K_ASSERT: self.case_assert,
+                 K_ATOMIC: self.case_atomic, K_EXIT: self.case_exit}
         for pc in range(len(ctl.cells)):
             h = ctl.info(pc)
             out.append(f"  case {pc}: {{")
-            ind = "    "
-            k = h.kind
-            if k == K_EMPTY:
-                out.append(f"{ind}if (spent) break;")
-                evs = c.program.events
-                for e, ev in enumerate(evs):
-                    out.append(f"{ind}V g{e} = {self.expr(ev.guard, i)};")
-                out.append(f"{ind}if (ovf) return -1;")
-                out.append(f"{ind}int any = 0;")
-                for e in range(len(evs)):
-                    out.append(f"{ind}if (g{e}{' && !any' if m.first_only else ''}) {{ any = 1;")
-                    self.emit(out, ("EVENT SELECT", i, e), [f"t[{PC}] = {ctl.event_pcs[e]}"],
-                              ind + "  ")
-                    out.append(f"{ind}}}")
-                out.append(f"{ind}if (!any)")
-                self.emit(out, ("IDLE", i, None), [f"t[{PC}] = {ctl.idle_pc}"], ind + "  ")
-            elif k == K_END:
-                out.append(f"{ind}if (spent) break;")
-                self.emit(out, ("COUNTER ADVANCE", i, None),
-                          [f"t[{PC}] = {ctl.empty_pc}", f"t[{CNT}] = s[{CNT}] + {rho}"], ind)
-            elif k == K_AEND:
-                out.append(f"{ind}if (s[{LCK}] != {LOCK}) break;")
-                self.emit(out, ("LOCK RELEASE", i, None),
-                          [f"t[{PC}] = {h.next_pc}", f"t[{LCK}] = {IDLE}",
-                           f"lq_remove(t, {i})"], ind)
-            elif k == K_ACQ:
-                head = f"(s[{self.LQ0}] == {i})"
-                out.append(f"{ind}if (s[{LCK}] == {REQUEST} && {head})")
-                self.emit(out, ("ATOMIC EXECUTION", i, h.sid),
-                          [f"t[{PC}] = {h.body_pc}", f"t[{LCK}] = {LOCK}"], ind + "  ")
-                out.append(f"{ind}if (!spent && s[{LCK}] == {REQUEST} && !{head})")
-                self.emit(out, ("ATOMIC WAIT", i, h.sid), [f"t[{CNT}] = s[{CNT}] + {rho}"],
-                          ind + "  ")
-            elif k == K_SIMPLE:
-                s = c.stmts[h.sid]
-                sets = [f"t[{PC}] = {h.next_pc}"]
-                if isinstance(s, A.Assign):
-                    if not isinstance(s.target, A.Name):
-                        raise Unsupported(f"an indexed assignment (line {s.span.line})")
-                    vs = self.lay.vars[s.target.name]
-                    out.append(f"{ind}V v = {self.expr(s.value, i)};")
-                    out.append(f"{ind}if (ovf) return -1;")
-                    sets.append(f"t[{self.var_ref(vs, i)[2:-1]}] = v")
-                elif not isinstance(s, A.Skip):
-                    raise Unsupported(f"the statement at line {s.span.line}")
-                self.emit(out, ("STATEMENT", i, h.sid), sets, ind)
-            elif k == K_IF:
-                s = c.stmts[h.sid]
-                out.append(f"{ind}V pc2 = {h.branch_pcs[-1]};")
-                chain = ""
-                for b, (cond, _) in enumerate(s.branches):
-                    chain += f"{ind}{'else ' if b else ''}if ({self.expr(cond, i)}) pc2 = {h.branch_pcs[b]};\n"
-                out.append(chain.rstrip("\n"))
-                out.append(f"{ind}if (ovf) return -1;")
-                self.emit(out, ("STATEMENT", i, h.sid), [f"t[{PC}] = pc2"], ind)
-            elif k == K_WHILE:
-                s = c.stmts[h.sid]
-                out.append(f"{ind}V b = {self.expr(s.cond, i)};")
-                out.append(f"{ind}if (ovf) return -1;")
-                self.emit(out, ("STATEMENT", i, h.sid),
-                          [f"t[{PC}] = b ? {h.body_pc} : {h.next_pc}"], ind)
-            elif k == K_ASSERT:
-                s = c.stmts[h.sid]
-                code = m.stuck_code("assert", "assertion failed", h.sid)
-                out.append(f"{ind}V b = {self.expr(s.args[0], i)};")
-                out.append(f"{ind}if (ovf) return -1;")
-                self.emit(out, ("STATEMENT", i, h.sid),
-                          [f"if (b) t[{PC}] = {h.next_pc}; else t[{ST}] = {code}"], ind)
-            elif k == K_ATOMIC:
-                out.append(f"{ind}if (s[{LCK}] == {IDLE})")
-                self.emit(out, ("LOCK REQUEST", i, h.sid),
-                          [f"t[{PC}] = {h.request_pc}", f"t[{LCK}] = {REQUEST}",
-                           f"lq_append(t, {i})"], ind + "  ")
-                out.append(f"{ind}if (s[{LCK}] == {LOCK})")
-                self.emit(out, ("STATEMENT", i, h.sid), [f"t[{PC}] = {h.body_pc}"], ind + "  ")
-            elif k == K_EXIT:
-                self.emit(out, ("EXIT", i, h.sid),
-                          [f"t[{PC}] = {ctl.empty_pc}", f"t[{ST}] = {EXITED}"], ind)
-            else:
+            case = cases.get(h.kind)
+            if case is None:
                 raise Unsupported("doReach")
+            case(out, i, h, r, "    ")
             out.append("    break; }")
         out.append("  default: PyErr_SetString(PyExc_ValueError, \"unknown pc\"); return -1;")
         out.append("  }")
         out.append("  return 0;")
         out.append("}")
         return out
+
+    # the cases of agent_code, one per kind of control cell: each appends to
+    # ``out`` the C of agent ``i`` at cell ``h`` (``r``: its cells in a state)
+    def case_empty(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        m, ctl = self.m, self.m.ctl
+        out.append(f"{ind}if (spent) break;")
+        evs = self.c.program.events
+        for e, ev in enumerate(evs):
+            out.append(f"{ind}V g{e} = {self.expr(ev.guard, i)};")
+        out.append(f"{ind}if (ovf) return -1;")
+        out.append(f"{ind}int any = 0;")
+        for e in range(len(evs)):
+            out.append(f"{ind}if (g{e}{' && !any' if m.first_only else ''}) {{ any = 1;")
+            self.emit(out, ("EVENT SELECT", i, e), [f"t[{r.PC}] = {ctl.event_pcs[e]}"],
+                      ind + "  ")
+            out.append(f"{ind}}}")
+        out.append(f"{ind}if (!any)")
+        self.emit(out, ("IDLE", i, None), [f"t[{r.PC}] = {ctl.idle_pc}"], ind + "  ")
+
+    def case_end(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        out.append(f"{ind}if (spent) break;")
+        self.emit(out, ("COUNTER ADVANCE", i, None),
+                  [f"t[{r.PC}] = {self.m.ctl.empty_pc}", f"t[{r.CNT}] = s[{r.CNT}] + {r.rho}"], ind)
+
+    def case_aend(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        out.append(f"{ind}if (s[{r.LCK}] != {LOCK}) break;")
+        self.emit(out, ("LOCK RELEASE", i, None),
+                  [f"t[{r.PC}] = {h.next_pc}", f"t[{r.LCK}] = {IDLE}",
+                   f"lq_remove(t, {i})"], ind)
+
+    def case_acq(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        head = f"(s[{self.LQ0}] == {i})"
+        out.append(f"{ind}if (s[{r.LCK}] == {REQUEST} && {head})")
+        self.emit(out, ("ATOMIC EXECUTION", i, h.sid),
+                  [f"t[{r.PC}] = {h.body_pc}", f"t[{r.LCK}] = {LOCK}"], ind + "  ")
+        out.append(f"{ind}if (!spent && s[{r.LCK}] == {REQUEST} && !{head})")
+        self.emit(out, ("ATOMIC WAIT", i, h.sid), [f"t[{r.CNT}] = s[{r.CNT}] + {r.rho}"],
+                  ind + "  ")
+
+    def case_simple(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        s = self.c.stmts[h.sid]
+        sets = [f"t[{r.PC}] = {h.next_pc}"]
+        if isinstance(s, A.Assign):
+            if not isinstance(s.target, A.Name):
+                raise Unsupported(f"an indexed assignment (line {s.span.line})")
+            vs = self.lay.vars[s.target.name]
+            out.append(f"{ind}V v = {self.expr(s.value, i)};")
+            out.append(f"{ind}if (ovf) return -1;")
+            sets.append(f"t[{self.var_ref(vs, i)[2:-1]}] = v")
+        elif not isinstance(s, A.Skip):
+            raise Unsupported(f"the statement at line {s.span.line}")
+        self.emit(out, ("STATEMENT", i, h.sid), sets, ind)
+
+    def case_if(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        s = self.c.stmts[h.sid]
+        out.append(f"{ind}V pc2 = {h.branch_pcs[-1]};")
+        chain = ""
+        for b, (cond, _) in enumerate(s.branches):
+            chain += f"{ind}{'else ' if b else ''}if ({self.expr(cond, i)}) pc2 = {h.branch_pcs[b]};\n"
+        out.append(chain.rstrip("\n"))
+        out.append(f"{ind}if (ovf) return -1;")
+        self.emit(out, ("STATEMENT", i, h.sid), [f"t[{r.PC}] = pc2"], ind)
+
+    def case_while(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        s = self.c.stmts[h.sid]
+        out.append(f"{ind}V b = {self.expr(s.cond, i)};")
+        out.append(f"{ind}if (ovf) return -1;")
+        self.emit(out, ("STATEMENT", i, h.sid),
+                  [f"t[{r.PC}] = b ? {h.body_pc} : {h.next_pc}"], ind)
+
+    def case_assert(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        s = self.c.stmts[h.sid]
+        code = self.m.stuck_code("assert", "assertion failed", h.sid)
+        out.append(f"{ind}V b = {self.expr(s.args[0], i)};")
+        out.append(f"{ind}if (ovf) return -1;")
+        self.emit(out, ("STATEMENT", i, h.sid),
+                  [f"if (b) t[{r.PC}] = {h.next_pc}; else t[{r.ST}] = {code}"], ind)
+
+    def case_atomic(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        out.append(f"{ind}if (s[{r.LCK}] == {IDLE})")
+        self.emit(out, ("LOCK REQUEST", i, h.sid),
+                  [f"t[{r.PC}] = {h.request_pc}", f"t[{r.LCK}] = {REQUEST}",
+                   f"lq_append(t, {i})"], ind + "  ")
+        out.append(f"{ind}if (s[{r.LCK}] == {LOCK})")
+        self.emit(out, ("STATEMENT", i, h.sid), [f"t[{r.PC}] = {h.body_pc}"], ind + "  ")
+
+    def case_exit(self, out: list, i: int, h, r: "_Regs", ind: str) -> None:
+        self.emit(out, ("EXIT", i, h.sid),
+                  [f"t[{r.PC}] = {self.m.ctl.empty_pc}", f"t[{r.ST}] = {EXITED}"], ind)
 
     def source(self) -> str:
         m = self.m

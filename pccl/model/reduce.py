@@ -120,6 +120,19 @@ def property_names(m) -> set:
     return names
 
 
+def _expr_is_local(e, lay, visible: set, funcs: set) -> bool:
+    """Whether the node ``e`` (of a statement's expression) reads only the
+    agent's own invisible ``loc:`` variables, members and pure calls."""
+    if isinstance(e, A.Name):
+        vs = lay.vars.get(e.name)
+        if vs is None:
+            return e.name in lay.members
+        return vs.section == "loc" and e.name not in visible
+    if isinstance(e, A.Call):
+        return e.name in PURE_CALLS or (e.name in funcs and not e.args)
+    return not isinstance(e, A.Quant)
+
+
 def mergeable_sids(m) -> set:
     """Statements that touch only the agent's own invisible ``loc:`` variables."""
     lay = m.compiled.layout
@@ -131,26 +144,7 @@ def mergeable_sids(m) -> set:
             continue
         if isinstance(s, A.CallStmt) and s.name not in ("add", "remove"):
             continue
-        good = True
-        for x in _stmt_exprs(s):
-            for e in A.walk_expr(x):
-                if isinstance(e, A.Name):
-                    vs = lay.vars.get(e.name)
-                    if vs is None:
-                        if e.name not in lay.members:
-                            good = False
-                    elif vs.section != "loc" or e.name in visible:
-                        good = False
-                elif isinstance(e, A.Call):
-                    if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
-                        good = False
-                elif isinstance(e, A.Quant):
-                    good = False
-                if not good:
-                    break
-            if not good:
-                break
-        if good:
+        if all(_expr_is_local(e, lay, visible, funcs) for x in _stmt_exprs(s) for e in A.walk_expr(x)):
             ok.add(sid)
     return ok
 
@@ -239,6 +233,45 @@ def _needs_two(name: str) -> PcclError:
                      f"drop it from --reduce", filename="--reduce")
 
 
+def _plan_symmetry(m, want, p: "Plan", on: list):
+    """Step of :func:`plan`: turn symmetry on (returning its slots) if it is
+    sound, else say why it is off, or raise if it was asked for."""
+    why, slots = symmetry_problem(m)
+    live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
+    if why is None and live:
+        # a cycle of the quotient is a real run only up to a permutation of
+        # the agents: a lasso would not return to its own entry state
+        why = f"liveness property `{live[0]}` needs real cycles for its lassos"
+    if why is None:
+        on.append("symmetry")
+    elif want is not None and m.N < 2:
+        raise _needs_two("symmetry")
+    elif want is not None:
+        raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
+                        filename="--reduce")
+    elif m.N >= 2:
+        p.off["symmetry"] = why
+    return slots
+
+
+def _plan_por(m, want, p: "Plan", on: list) -> None:
+    """Step of :func:`plan`: turn partial-order reduction on if it is sound,
+    else say why it is off, or raise if it was asked for."""
+    temporal = [t.text for t in getattr(m, "temporal", ())]
+    if temporal:
+        # the ample-set conditions here are proven for state properties
+        # only (docs/reductions.md); paths need a stronger cycle proviso
+        why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
+        if want is not None:
+            raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
+                            filename="--reduce")
+        p.off["por"] = why
+    elif m.N >= 2:
+        on.append("por")
+    elif want is not None:
+        raise _needs_two("por")
+
+
 def plan(m, reduce, uses=()) -> tuple:
     """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
     sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
@@ -246,7 +279,7 @@ def plan(m, reduce, uses=()) -> tuple:
     error."""
     want = parse_request(reduce)
     p = Plan(requested=reduce if isinstance(reduce, str) else ",".join(reduce))
-    on = []
+    on: list = []
     slots = None
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
@@ -260,35 +293,9 @@ def plan(m, reduce, uses=()) -> tuple:
     if "merge" not in limits and (want is None or "merge" in want):
         on.append("merge")
     if "symmetry" not in limits and (want is None or "symmetry" in want):
-        why, slots = symmetry_problem(m)
-        live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
-        if why is None and live:
-            # a cycle of the quotient is a real run only up to a permutation of
-            # the agents: a lasso would not return to its own entry state
-            why = f"liveness property `{live[0]}` needs real cycles for its lassos"
-        if why is None:
-            on.append("symmetry")
-        elif want is not None and m.N < 2:
-            raise _needs_two("symmetry")
-        elif want is not None:
-            raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
-                            filename="--reduce")
-        elif m.N >= 2:
-            p.off["symmetry"] = why
+        slots = _plan_symmetry(m, want, p, on)
     if "por" not in limits and (want is None or "por" in want):
-        temporal = [t.text for t in getattr(m, "temporal", ())]
-        if temporal:
-            # the ample-set conditions here are proven for state properties
-            # only (docs/reductions.md); paths need a stronger cycle proviso
-            why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
-            if want is not None:
-                raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
-                                filename="--reduce")
-            p.off["por"] = why
-        elif m.N >= 2:
-            on.append("por")
-        elif want is not None:
-            raise _needs_two("por")
+        _plan_por(m, want, p, on)
     p.on = tuple(on)
     return p, slots
 
@@ -642,33 +649,44 @@ def make_symmetric_key(m, slots):
     """A key function returning a canonical representative of the state's
     orbit under permutations of agent ids."""
     loc_s, ar_s, sh_s, self_only, motion = slots
-    dumps = marshal.dumps
     if self_only:
         return _self_only_key(m, loc_s, ar_s, sh_s, motion)
+    return _permuting_key(m, loc_s, ar_s, sh_s, motion)
+
+
+def _mask_ids(vals, idx, j):
+    """``vals`` with the ids at ``idx`` masked: agent ``j``'s own as "s",
+    another's as "o"; and whether another's was there."""
+    v = list(vals)
+    other = False
+    for k in idx:
+        x = v[k]
+        if type(x) is int and x >= 0:
+            if x == j:
+                v[k] = "s"
+            else:
+                v[k] = "o"
+                other = True
+    return tuple(v), other
+
+
+def _rename_ids(vals, idx, r):
+    """``vals`` with the ids at ``idx`` renamed by ``r``."""
+    v = list(vals)
+    for k in idx:
+        x = v[k]
+        if type(x) is int and x >= 0:
+            v[k] = r[x]
+    return tuple(v)
+
+
+def _permuting_build(m, loc_s, ar_s, sh_s, motion):
+    """The function ``build(st, order)`` of :func:`_permuting_key`: the key
+    of ``st`` with its agents put in ``order`` and their ids renamed."""
     abstract = m.abstract_time
     N = m.N
     has_ids = bool(loc_s or ar_s or sh_s)
-
-    def mask(vals, idx, j):
-        v = list(vals)
-        other = False
-        for k in idx:
-            x = v[k]
-            if type(x) is int and x >= 0:
-                if x == j:
-                    v[k] = "s"
-                else:
-                    v[k] = "o"
-                    other = True
-        return tuple(v), other
-
-    def ren(vals, idx, r):
-        v = list(vals)
-        for k in idx:
-            x = v[k]
-            if type(x) is int and x >= 0:
-                v[k] = r[x]
-        return tuple(v)
+    ren = _rename_ids
 
     def build(st, order):
         r = [0] * N
@@ -690,6 +708,20 @@ def make_symmetric_key(m, slots):
         if abstract:
             return (st[PHASE], lq, sh, cells, st[ENV])
         return (st[TIME], st[PHASE], lq, sh, cells, st[ENV])
+
+    return build
+
+
+def _permuting_key(m, loc_s, ar_s, sh_s, motion):
+    """The canonical key when agents may name other agents: agents are
+    sorted by their masked cells, and ties among them are tried in every
+    order (the per-state function is one closure; only its construction is
+    split into steps)."""
+    dumps = marshal.dumps
+    N = m.N
+    has_ids = bool(loc_s or ar_s or sh_s)
+    mask = _mask_ids
+    build = _permuting_build(m, loc_s, ar_s, sh_s, motion)
 
     def key(st):
         ags = st[AGS]
@@ -731,7 +763,7 @@ def make_symmetric_key(m, slots):
 SELF = float("-inf")
 
 
-def _self_only_key(m, loc_s, ar_s, sh_s, motion):
+def _self_only_key(m, loc_s, ar_s, sh_s, motion):  # noqa: C901
     """The canonical key when per-agent id variables hold only the agent's
     own id or a sentinel: such a value is replaced by :data:`SELF` (its
     renamed value is the cell's place, so nothing is lost); agents are
@@ -745,7 +777,9 @@ def _self_only_key(m, loc_s, ar_s, sh_s, motion):
     l1 = loc_s[0] if len(loc_s) == 1 else None
     s1 = sh_s[0] if len(sh_s) == 1 else None
 
-    def key(st):
+    # one closure on purpose: the key of every state of a reduced search
+    # (a documented exception to the size bounds, docs/architecture.md)
+    def key(st):  # noqa: C901
         ags = st[AGS]
         lq = st[LQ]
         sh = st[SH]

@@ -150,25 +150,32 @@ def diff(model, a, b, fmt=format_value) -> list:
         if va != vb:
             out.append((n, fmt(va, ty), fmt(vb, ty)))
     for i, (ga, gb) in enumerate(zip(a[AGS], b[AGS])):
-        if ga is gb:
-            continue
-        for (n, ty, va), (_, _, vb) in zip(agent_vars(model, a, i), agent_vars(model, b, i)):
-            if va != vb:
-                out.append((f"{n}[{i}]", fmt(va, ty), fmt(vb, ty)))
-        if ga[POS] != gb[POS]:
-            out.append((f"pos[{i}]", fmt_pos(ga[POS]), fmt_pos(gb[POS])))
-        if ga[LCK] != gb[LCK]:
-            out.append((f"lockState[{i}]", LOCK_NAMES[ga[LCK]], LOCK_NAMES[gb[LCK]]))
-        if ga[STATUS] != gb[STATUS]:
-            out.append((f"status[{i}]", status_text(model, ga[STATUS]),
-                        status_text(model, gb[STATUS])))
-        ra, rb = ga[REACH], gb[REACH]
-        if ra[TARGET] != rb[TARGET]:
-            out.append((f"target[{i}]", _opt_pos(ra[TARGET]), _opt_pos(rb[TARGET])))
-        if ra[DONE] != rb[DONE]:
-            out.append((f"doReach_done[{i}]", format_value(ra[DONE]), format_value(rb[DONE])))
-        if ra[FAIL] != rb[FAIL]:
-            out.append((f"doReach_fail[{i}]", format_value(ra[FAIL]), format_value(rb[FAIL])))
+        if ga is not gb:
+            out += _agent_diff(model, a, b, i, fmt)
+    return out
+
+
+def _agent_diff(model, a, b, i, fmt) -> list:
+    """Step of :func:`diff`: what changed in agent ``i``'s cell."""
+    out = []
+    ga, gb = a[AGS][i], b[AGS][i]
+    for (n, ty, va), (_, _, vb) in zip(agent_vars(model, a, i), agent_vars(model, b, i)):
+        if va != vb:
+            out.append((f"{n}[{i}]", fmt(va, ty), fmt(vb, ty)))
+    if ga[POS] != gb[POS]:
+        out.append((f"pos[{i}]", fmt_pos(ga[POS]), fmt_pos(gb[POS])))
+    if ga[LCK] != gb[LCK]:
+        out.append((f"lockState[{i}]", LOCK_NAMES[ga[LCK]], LOCK_NAMES[gb[LCK]]))
+    if ga[STATUS] != gb[STATUS]:
+        out.append((f"status[{i}]", status_text(model, ga[STATUS]),
+                    status_text(model, gb[STATUS])))
+    ra, rb = ga[REACH], gb[REACH]
+    if ra[TARGET] != rb[TARGET]:
+        out.append((f"target[{i}]", _opt_pos(ra[TARGET]), _opt_pos(rb[TARGET])))
+    if ra[DONE] != rb[DONE]:
+        out.append((f"doReach_done[{i}]", format_value(ra[DONE]), format_value(rb[DONE])))
+    if ra[FAIL] != rb[FAIL]:
+        out.append((f"doReach_fail[{i}]", format_value(ra[FAIL]), format_value(rb[FAIL])))
     return out
 
 

@@ -511,6 +511,57 @@ def _draw_titles(fig, cv: _Canvas, head, sub, bad) -> None:
                  color="red" if bad else "#333333")
 
 
+def _timeline_blocks(trace, events: list) -> dict:
+    """Step of :func:`_draw_timeline`: {(agent, time): [event name, None for
+    an idle step, or WAIT]} of the trace's event blocks."""
+    blocks: dict = {}
+    for label, st in trace[1:]:
+        if label is None:
+            continue
+        rule, i = label[0], label[1]
+        if rule == "EVENT SELECT" and label[2] is not None:
+            blocks.setdefault((i, float(st[TIME])), []).append(events[label[2]])
+        elif rule == "IDLE":
+            blocks.setdefault((i, float(st[TIME])), []).append(None)
+        elif rule == "ATOMIC WAIT":
+            blocks.setdefault((i, float(st[TIME])), []).append(WAIT)
+    return blocks
+
+
+def _draw_blocks(ax, blocks: dict, ecol: dict, delta: float) -> set:
+    """Step of :func:`_draw_timeline`: a bar per event block; the names of
+    the events drawn."""
+    used = set()
+    for (i, t), names in blocks.items():
+        w = delta / len(names)
+        for k, name in enumerate(names):
+            x = t + k * w
+            if name is None or name is WAIT:
+                ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors="#eeeeee",
+                               edgecolors="#bbbbbb", linewidth=0.5, zorder=2,
+                               hatch="///" if name is WAIT else None)
+                continue
+            used.add(name)
+            ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors=ecol[name],
+                           edgecolors="#333333", linewidth=0.5, zorder=2)
+            if w >= delta * 0.5 and len(blocks) <= 60:
+                ax.text(x + w * 0.46, i, name, ha="center", va="center", fontsize=6, zorder=3)
+    return used
+
+
+def _draw_exits(ax, states: list, delta: float) -> None:
+    """Step of :func:`_draw_timeline`: a mark where each agent exited, a
+    cross at the end for each stuck one."""
+    last = states[-1]
+    t_end = float(last[TIME])
+    for i, ag in enumerate(last[AGS]):
+        if ag[STATUS] == EXITED:
+            t_exit = next((float(st[TIME]) for st in states if st[AGS][i][STATUS] == EXITED), t_end)
+            ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
+        elif ag[STATUS] != RUNNING:
+            ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
+
+
 def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
     """For programs without motion: one lane per agent, the events each agent
     ran over time (a bar per event block, coloured by event), exits and stuck
@@ -532,41 +583,12 @@ def _draw_timeline(model, trace, path, head, sub, bad, ring) -> None:
     ax.tick_params(labelsize=7)
     # event blocks: EVENT SELECT at time t opens a block of agent i; within one
     # time step an agent may run several (n0 > 1): they share the step's width
-    blocks: dict = {}
-    for label, st in trace[1:]:
-        if label is None:
-            continue
-        rule, i = label[0], label[1]
-        if rule == "EVENT SELECT" and label[2] is not None:
-            blocks.setdefault((i, float(st[TIME])), []).append(events[label[2]])
-        elif rule == "IDLE":
-            blocks.setdefault((i, float(st[TIME])), []).append(None)
-        elif rule == "ATOMIC WAIT":
-            blocks.setdefault((i, float(st[TIME])), []).append(WAIT)
-    used = set()
-    for (i, t), names in blocks.items():
-        w = delta / len(names)
-        for k, name in enumerate(names):
-            x = t + k * w
-            if name is None or name is WAIT:
-                ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors="#eeeeee",
-                               edgecolors="#bbbbbb", linewidth=0.5, zorder=2,
-                               hatch="///" if name is WAIT else None)
-                continue
-            used.add(name)
-            ax.broken_barh([(x, w * 0.92)], (i - 0.3, 0.6), facecolors=ecol[name],
-                           edgecolors="#333333", linewidth=0.5, zorder=2)
-            if w >= delta * 0.5 and len(blocks) <= 60:
-                ax.text(x + w * 0.46, i, name, ha="center", va="center", fontsize=6, zorder=3)
+    blocks = _timeline_blocks(trace, events)
+    used = _draw_blocks(ax, blocks, ecol, delta)
     # exits and stuck agents
     last = states[-1]
     t_end = float(last[TIME])
-    for i, ag in enumerate(last[AGS]):
-        if ag[STATUS] == EXITED:
-            t_exit = next((float(st[TIME]) for st in states if st[AGS][i][STATUS] == EXITED), t_end)
-            ax.plot([t_exit + delta], [i], marker="|", markersize=16, color="black", zorder=4)
-        elif ag[STATUS] != RUNNING:
-            ax.plot([t_end + delta * 0.5], [i], marker="X", markersize=11, color="red", zorder=5)
+    _draw_exits(ax, states, delta)
     handles: list = [Patch(facecolor=ecol[e], edgecolor="#333333", label=e)
                      for e in events if e in used]
     if any(None in v for v in blocks.values()):

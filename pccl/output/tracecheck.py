@@ -397,20 +397,36 @@ def _result(r, cfg: dict, n_steps: int, has_path: bool):
             raise _Bad(f"{p}.violation", f"expected null: result.status is "
                                          f"{json.dumps(r['status'])}")
     if "cycle_start" in r:
-        cs = r["cycle_start"]
-        _integer(cs, f"{p}.cycle_start", 0, max(0, n_steps - 1))
-        if kind not in LASSO_KINDS:
-            raise _Bad(f"{p}.cycle_start", "only a liveness or time-lock counterexample is a "
-                                           "lasso")
-        if run:
-            raise _Bad(f"{p}.cycle_start", "a run is not a lasso")
+        _cycle_start(r["cycle_start"], f"{p}.cycle_start", n_steps, kind, run)
     w = r.get("witness")
     if w is not None:
-        _obj(w, f"{p}.witness", ("name", "text"))
-        _string(w["name"], f"{p}.witness.name")
-        _string(w["text"], f"{p}.witness.text")
-        if run or v is not None:
-            raise _Bad(f"{p}.witness", "only an explore without a violation records a witness")
+        _witness(w, f"{p}.witness", run or v is not None)
+    _result_path(has_path, run, v, kind, w)
+
+
+def _cycle_start(cs, path: str, n_steps: int, kind, run: bool) -> None:
+    """Step of :func:`_result`: a lasso's ``cycle_start``."""
+    _integer(cs, path, 0, max(0, n_steps - 1))
+    if kind not in LASSO_KINDS:
+        raise _Bad(path, "only a liveness or time-lock counterexample is a "
+                         "lasso")
+    if run:
+        raise _Bad(path, "a run is not a lasso")
+
+
+def _witness(w, path: str, misplaced: bool) -> None:
+    """Step of :func:`_result`: the ``witness`` of an explore without a
+    violation (``misplaced``: a run's, or one beside a violation)."""
+    _obj(w, path, ("name", "text"))
+    _string(w["name"], f"{path}.name")
+    _string(w["text"], f"{path}.text")
+    if misplaced:
+        raise _Bad(path, "only an explore without a violation records a witness")
+
+
+def _result_path(has_path: bool, run: bool, v, kind, w) -> None:
+    """Step of :func:`_result`: whether the result's kind agrees with the
+    presence of a path (``initial`` not null)."""
     if kind == "unreachable" and has_path:
         raise _Bad("steps", "an unreachable verdict has no path (initial null, no steps)")
     if not has_path:

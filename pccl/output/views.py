@@ -93,6 +93,41 @@ def _agent_change_text(model, name, i, old, new) -> str:
     return f"{base}={new}"
 
 
+def _initial_cells(model, s0) -> list:
+    """Step of :func:`swimlane`: the initial state's cells, every agent's
+    position and variables, and the shared variables."""
+    cells = []
+    for i in range(model.N):
+        ag = s0[AGS][i]
+        vs = ", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.agent_vars(model, s0, i))
+        cells.append(f"pos {D.fmt_pos(ag[POS])}" + (f"; {vs}" if vs else ""))
+    cells.append(", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.shared_vars(model, s0)))
+    return cells
+
+
+def _step_text(model, lab, a, b, changes: bool, full: bool) -> str | None:
+    """Step of :func:`swimlane`: the text of an agent's step ``lab`` from
+    ``a`` to ``b`` in its lane, without its changes (``changes``: whether it
+    has visible ones), or None when the step is not shown."""
+    rule, _, detail = lab
+    info = D.label_info(model, lab, a)
+    br = T.branch_taken(model, lab, a, b)
+    if rule == "EVENT SELECT" and detail is not None:
+        return f"{info['event']}()"
+    if rule == "STATEMENT" and br:
+        src = info["source"] or ""
+        word = "while" if br["kind"] == "while" else "if"
+        arrow = T.branch_text(br).split(" (line")[0]
+        return f"L{info['line']} {src.rstrip(':') if src else word} {arrow}"
+    if rule in ("STATEMENT", "DOREACH UPDATE"):
+        if not changes and not full:
+            return None
+        return f"L{info['line']}" + (f" {info['source']}" if full or not changes else "")
+    if rule == "COUNTER ADVANCE" and not full:
+        return None
+    return _RULE_WORDS.get(rule, rule)
+
+
 def swimlane(model, states, labels, *, full=False, width=None) -> str:
     N = model.N
     W = terminal_width(width)
@@ -118,13 +153,7 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
     # initial state: every agent's variables, shared variables beside
     s0 = states[0]
     out.append(rule_line(f"initial state, t={D.fmt_time(s0[TIME])}"))
-    cells = []
-    for i in range(N):
-        ag = s0[AGS][i]
-        vs = ", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.agent_vars(model, s0, i))
-        cells.append(f"pos {D.fmt_pos(ag[POS])}" + (f"; {vs}" if vs else ""))
-    cells.append(", ".join(f"{n}={format_value(v, t)}" for n, t, v in D.shared_vars(model, s0)))
-    out += row(cells)
+    out += row(_initial_cells(model, s0))
     out.append(rule_line(f"t={D.fmt_time(s0[TIME])}"))
     for n, lab in enumerate(labels):
         a, b = states[n], states[n + 1]
@@ -143,25 +172,11 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
             if any(cells) or full:
                 out += row(cells + [""])
             continue
-        info = D.label_info(model, lab, a)
-        br = T.branch_taken(model, lab, a, b)
         own = [_agent_change_text(model, c, i, o, nw) for c, o, nw in ch
                if c not in shared_names and c != "lockQueue" and not c.startswith("lockState[")]
-        if rule == "EVENT SELECT" and detail is not None:
-            text = f"{info['event']}()"
-        elif rule == "STATEMENT" and br:
-            src = info["source"] or ""
-            word = "while" if br["kind"] == "while" else "if"
-            arrow = T.branch_text(br).split(" (line")[0]
-            text = f"L{info['line']} {src.rstrip(':') if src else word} {arrow}"
-        elif rule in ("STATEMENT", "DOREACH UPDATE"):
-            if not own and not shared and not full:
-                continue
-            text = f"L{info['line']}" + (f" {info['source']}" if full or not (own or shared) else "")
-        elif rule == "COUNTER ADVANCE" and not full:
+        text = _step_text(model, lab, a, b, bool(own or shared), full)
+        if text is None:
             continue
-        else:
-            text = _RULE_WORDS.get(rule, rule)
         if own:
             text += ": " + ", ".join(own)
         cells = ["" for _ in range(N)] + [", ".join(shared)]

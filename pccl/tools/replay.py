@@ -624,93 +624,132 @@ def _end_of_stall(m, recorded, cycle_start, res, diverge):
 
 
 def _end_of_temporal(m, cfg, recorded, cycle_start, res, diverge):
-    from pccl.model.layout import AGS, DISCRETE, EXITED, PHASE, STATUS
-    from pccl.tools.runner import _Monitor
     states, labels = res.states, res.labels
     n = len(labels)
-    kind = recorded["kind"]
-
-    def bad(why: str):
-        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
-
-    def closes() -> bool:
-        return m.key(states[-1]) == m.key(states[cycle_start])
-
-    cyc_labels = labels[cycle_start:] if cycle_start is not None else []
-    advances = any(lab[0] == "TIME ADVANCE" for lab in cyc_labels)
-    if kind == "timelock":
-        if cycle_start is None:
-            return bad("a time-lock counterexample is a lasso, and result.cycle_start is missing")
-        if not closes():
-            return bad(f"the cycle does not close: the last state is not the state after step "
-                       f"{cycle_start}")
-        if advances:
-            return bad("time advances in the recorded time-lock cycle")
-        if all(ag[STATUS] == EXITED for ag in states[-1][AGS]):
-            return bad("every agent has exited at the recorded time-lock")
-        seen, todo = {m.key(states[-1])}, [states[-1]]
-        while todo:
-            st = todo.pop()
-            succ = m.successors(st)
-            if not succ or st[PHASE] != DISCRETE:
-                return bad("time can advance again (or the run end) from the recorded "
-                           "time-lock cycle")
-            for _, nxt in succ:
-                k = m.key(nxt)
-                if k not in seen:
-                    seen.add(k)
-                    todo.append(nxt)
-            if len(seen) > TIMELOCK_LIMIT:
-                res.warnings.append(f"warning: the time-lock was checked on the first "
-                                    f"{TIMELOCK_LIMIT:,} states reachable from its cycle only")
-                break
+    if recorded["kind"] == "timelock":
+        why = _timelock_problem(m, states, labels, cycle_start, res)
     else:
-        props = [p for p in m.temporal if p.name == recorded["name"]]
-        want = {"liveness": ("eventually", "leadsto"), "response": ("within",)}[kind]
-        props = [p for p in props if p.kind in want]
-        if not props:
-            return bad(f"no {kind} property named `{recorded['name']}` is among "
-                       f"config.property_options")
-        p = props[0]
-        if kind == "response":
-            if cycle_start is not None:
-                return bad("a bounded-response counterexample is not a lasso")
-            mon = _Monitor([p])
-            if not any(mon.observe(st, k) for k, st in enumerate(states)):
-                return bad(f"on this path `{p.text}` is never violated: no premise goes "
-                           f"unanswered for more than {p.bound} time units")
-        else:
-            if p.kind == "eventually":
-                hit = [k for k, st in enumerate(states) if _holds(p.p, st)]
-                if hit:
-                    return bad(f"`{p.text}` holds after step {hit[0]}")
-            else:
-                qs = [k for k, st in enumerate(states) if _holds(p.q, st)]
-                after = qs[-1] + 1 if qs else 0
-                if cycle_start is not None and after > cycle_start:
-                    return bad(f"Q holds in the cycle (after step {qs[-1]})")
-                if not any(_holds(p.p, st) for st in states[after:]):
-                    return bad("P never holds without Q holding then or later")
-            if cycle_start is None:
-                k = len(m.successors(states[-1]))
-                if k:
-                    return bad(f"the path does not end in a terminal state ({k} transitions "
-                               f"enabled) and is no lasso (no result.cycle_start)")
-            else:
-                if not closes():
-                    return bad(f"the cycle does not close: the last state is not the state "
-                               f"after step {cycle_start}")
-                if not advances:
-                    return bad("time never advances in the cycle (a zero-time cycle is a "
-                               "time-lock, not a liveness counterexample)")
-                if getattr(m.blackbox, "name", None) == "nondet":
-                    cyc = states[cycle_start:]
-                    for a in range(m.N):
-                        if all(m.arrival_pending(st) >> a & 1 for st in cyc):
-                            return bad(f"the cycle is unfair: agent {a}'s doReach is under "
-                                       f"way throughout, and nondet lets it arrive")
+        why = _temporal_problem(m, recorded, states, labels, cycle_start)
+    if why is not None:
+        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
     res.status, res.exit_status = "violation", 1
     shape = (f"a lasso: the cycle from step {cycle_start} closes" if cycle_start is not None
              else "a path")
     res.message = f"reproduced: {recorded['message']} (after {n} steps; {shape})"
     return res
+
+
+def _closes(m, states, cycle_start) -> bool:
+    """Whether the recorded cycle closes: the last state is (up to the
+    model's key) the state after step ``cycle_start``."""
+    return m.key(states[-1]) == m.key(states[cycle_start])
+
+
+def _advances(labels, cycle_start) -> bool:
+    """Whether time advances in the recorded cycle (none: False)."""
+    cyc_labels = labels[cycle_start:] if cycle_start is not None else []
+    return any(lab[0] == "TIME ADVANCE" for lab in cyc_labels)
+
+
+def _timelock_problem(m, states, labels, cycle_start, res) -> Optional[str]:
+    """Step of :func:`_end_of_temporal`: why the replayed path is not the
+    recorded time-lock, or None."""
+    from pccl.model.layout import AGS, EXITED, STATUS
+    if cycle_start is None:
+        return "a time-lock counterexample is a lasso, and result.cycle_start is missing"
+    if not _closes(m, states, cycle_start):
+        return (f"the cycle does not close: the last state is not the state after step "
+                f"{cycle_start}")
+    if _advances(labels, cycle_start):
+        return "time advances in the recorded time-lock cycle"
+    if all(ag[STATUS] == EXITED for ag in states[-1][AGS]):
+        return "every agent has exited at the recorded time-lock"
+    return _timelock_escape(m, states[-1], res)
+
+
+def _timelock_escape(m, last, res) -> Optional[str]:
+    """Step of :func:`_timelock_problem`: whether time can advance again (or
+    the run end) from a state reachable from the time-lock's last state;
+    searched up to TIMELOCK_LIMIT states (with a warning in ``res``)."""
+    from pccl.model.layout import DISCRETE, PHASE
+    seen, todo = {m.key(last)}, [last]
+    while todo:
+        st = todo.pop()
+        succ = m.successors(st)
+        if not succ or st[PHASE] != DISCRETE:
+            return ("time can advance again (or the run end) from the recorded "
+                    "time-lock cycle")
+        for _, nxt in succ:
+            k = m.key(nxt)
+            if k not in seen:
+                seen.add(k)
+                todo.append(nxt)
+        if len(seen) > TIMELOCK_LIMIT:
+            res.warnings.append(f"warning: the time-lock was checked on the first "
+                                f"{TIMELOCK_LIMIT:,} states reachable from its cycle only")
+            break
+    return None
+
+
+def _temporal_problem(m, recorded, states, labels, cycle_start) -> Optional[str]:
+    """Step of :func:`_end_of_temporal`: why the replayed path is not the
+    recorded liveness or response counterexample, or None."""
+    from pccl.tools.runner import _Monitor
+    kind = recorded["kind"]
+    props = [p for p in m.temporal if p.name == recorded["name"]]
+    want = {"liveness": ("eventually", "leadsto"), "response": ("within",)}[kind]
+    props = [p for p in props if p.kind in want]
+    if not props:
+        return (f"no {kind} property named `{recorded['name']}` is among "
+                f"config.property_options")
+    p = props[0]
+    if kind != "response":
+        return _liveness_problem(m, p, states, labels, cycle_start)
+    if cycle_start is not None:
+        return "a bounded-response counterexample is not a lasso"
+    mon = _Monitor([p])
+    if not any(mon.observe(st, k) for k, st in enumerate(states)):
+        return (f"on this path `{p.text}` is never violated: no premise goes "
+                f"unanswered for more than {p.bound} time units")
+    return None
+
+
+def _liveness_problem(m, p, states, labels, cycle_start) -> Optional[str]:
+    """Step of :func:`_temporal_problem`: why the path does not violate the
+    liveness property ``p``, or None."""
+    if p.kind == "eventually":
+        hit = [k for k, st in enumerate(states) if _holds(p.p, st)]
+        if hit:
+            return f"`{p.text}` holds after step {hit[0]}"
+    else:
+        qs = [k for k, st in enumerate(states) if _holds(p.q, st)]
+        after = qs[-1] + 1 if qs else 0
+        if cycle_start is not None and after > cycle_start:
+            return f"Q holds in the cycle (after step {qs[-1]})"
+        if not any(_holds(p.p, st) for st in states[after:]):
+            return "P never holds without Q holding then or later"
+    if cycle_start is None:
+        k = len(m.successors(states[-1]))
+        if k:
+            return (f"the path does not end in a terminal state ({k} transitions "
+                    f"enabled) and is no lasso (no result.cycle_start)")
+        return None
+    return _lasso_problem(m, states, labels, cycle_start)
+
+
+def _lasso_problem(m, states, labels, cycle_start) -> Optional[str]:
+    """Step of :func:`_liveness_problem`: why the recorded cycle is not a
+    fair, time-advancing lasso, or None."""
+    if not _closes(m, states, cycle_start):
+        return (f"the cycle does not close: the last state is not the state "
+                f"after step {cycle_start}")
+    if not _advances(labels, cycle_start):
+        return ("time never advances in the cycle (a zero-time cycle is a "
+                "time-lock, not a liveness counterexample)")
+    if getattr(m.blackbox, "name", None) == "nondet":
+        cyc = states[cycle_start:]
+        for a in range(m.N):
+            if all(m.arrival_pending(st) >> a & 1 for st in cyc):
+                return (f"the cycle is unfair: agent {a}'s doReach is under "
+                        f"way throughout, and nondet lets it arrive")
+    return None

@@ -114,6 +114,16 @@ class _Monitor:
         except Exception:       # noqa: BLE001 - a runtime error in a property is "false"
             return False
 
+    def violations(self, st, step: int) -> list:
+        """The violation of a property at ``st`` (after ``step`` transitions),
+        as a list (empty: none)."""
+        hit = self.observe(st, step)
+        if hit is None:
+            return []
+        from pccl.model.engine import Violation
+        p, msg = hit
+        return [Violation(p.kind, p.name, msg, None, p.span)]
+
     def observe(self, st, step: int):
         """Update on state ``st`` (reached after ``step`` transitions); a
         violated ``within`` property as ``(property, message)``, else None."""
@@ -206,66 +216,36 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
     (checked every :data:`MEMORY_CHECK` transitions; None: never)."""
     from pccl.search.memory import peak_rss_bytes
     rng = rng or random.Random(seed)
-    gen = iter(model.init_states())
-    inits = list(itertools.islice(gen, 2))
-    if len(inits) > 1:          # no rand policy: every outcome is an initial state
-        inits.extend(gen)
-    st = inits[0] if len(inits) == 1 else rng.choice(inits)
+    st = _initial_state(model, rng)
     states: list = [st]         # the recorded path (record_trace): its states and labels
     labels: list = []
-    summary = [(st[TIME], st)]
-    weights = [0]               # per summary entry: the list/array values it added
-    budget = SUMMARY_BUDGET
+    on_step = _recording(states, labels, on_step) if record_trace else on_step
+    watch = _TimeSteps(st, stall_steps)
     steps = 0
-    n_env, stride = 0, 1
     since_time = 0
     per_agent: Counter = Counter()
-    last_sig, still, since = _signature(st), 0, st[TIME]
 
     temporal = getattr(model, "temporal", None)
     mon = _Monitor(temporal) if temporal else None
 
     def finish(status, message, code, **kw):
         trace = Trace(tuple(states), tuple(labels)) if record_trace and states else None
-        res = RunResult(status, message, code, st, steps, trace, summary, **kw,
+        res = RunResult(status, message, code, st, steps, trace, watch.summary, **kw,
                         peak_memory=peak_rss_bytes(), max_memory=max_memory)
-        if mon is not None:
-            res.properties = mon.outcomes(status in ("final", "deadlock", "stalled"),
-                                          "every agent exited" if status == "final" else status)
-            bad = [o for o in res.properties if o.outcome == "violated"]
-            if bad and code == 0:
-                from pccl.model.engine import Violation
-                res.status, res.exit_status = "violation", 1
-                res.message = "; ".join(f"{o.name}: {o.detail}" for o in bad)
-                res.violations = [Violation(o.kind, o.name, f"{o.name}: {o.detail}")
-                                  for o in bad]
-        return res
+        return _with_properties(res, mon, code)
 
     try:
         while True:
             v = model.violations(st)
+            if not v and mon is not None:
+                v = mon.violations(st, steps)
             if v:
                 return finish("violation", "; ".join(x.message for x in v), 1, violations=v)
-            if mon is not None:
-                hit = mon.observe(st, steps)
-                if hit is not None:
-                    from pccl.model.engine import Violation
-                    p, msg = hit
-                    return finish("violation", msg, 1,
-                                  violations=[Violation(p.kind, p.name, msg, None, p.span)])
             succ = model.successors(st)
             if not succ:
-                kind = model.terminal_kind(st)
-                if kind == "final":
-                    return finish("final", "every agent exited", 0)
-                if kind == "bounded":
-                    return finish("bounded", f"stopped at --max-time {model.max_time}", 0)
-                dv = model.deadlock_violation(st)
-                return finish("deadlock", dv.message, 1, violations=[dv])
+                status, message, code, kw = _terminal(model, st)
+                return finish(status, message, code, **kw)
             label, nxt = succ[0] if len(succ) == 1 else succ[rng.randrange(len(succ))]
-            if record_trace:
-                labels.append(label)
-                states.append(nxt)
             if on_step is not None:
                 on_step(label, st, nxt)
             steps += 1
@@ -280,63 +260,151 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                 since_time = 0
                 per_agent.clear()
             elif rule == "DOREACH INVOKE":
-                sig = _signature(nxt)
-                if sig == last_sig:
-                    still += 1
-                else:
-                    last_sig, still, since = sig, 0, nxt[TIME]
-                if stall_steps and still >= stall_steps and any(ag[STATUS] == RUNNING for ag in nxt[AGS]):
+                if watch.env_step(nxt):
                     st = nxt
-                    summary.append((nxt[TIME], nxt))
-                    from pccl.output.display import fmt_time
-                    from pccl.model.stall import waiting, waiting_text
-                    waits = waiting(model, st)
-                    # the cause first (what blocks each waiting agent: only
-                    # guards that can still hold for it, the flag behind them)
-                    return finish("stalled",
-                                  (waiting_text(waits) + "; " if waits else "")
-                                  + f"nothing changed since t = {fmt_time(since)} (no variable, "
-                                  f"position or flag for {still} time steps) while agents "
-                                  f"still run",
-                                  1, stalled_since=since, waiting=waits)
-                n_env += 1
-                if n_env % stride == 0:
-                    w = _weight(nxt, summary[-1][1])
-                    summary.append((nxt[TIME], nxt))
-                    weights.append(w)
-                    budget -= w
-                    if len(summary) > SUMMARY_LIMIT or budget < 0:  # bounded memory:
-                        summary[1:] = summary[2::2]     # keep every other one, and
-                        weights[1:] = weights[2::2]
-                        stride *= 2                     # record half as often from now on
-                        budget = SUMMARY_BUDGET - sum(weights)
+                    message, kw = watch.stalled(model, nxt)
+                    return finish("stalled", message, 1, **kw)
             else:
                 since_time += 1
                 if agent is not None:
                     per_agent[agent] += 1
                 if since_time > max_steps:
                     st = nxt
-                    from pccl.model.stall import looping_agent
-                    looping = looping_agent(model, st, per_agent)
-                    return finish("max-steps",
-                                  f"agent {looping} runs more than {max_steps} transitions without "
-                                  f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
-                                  f"raise --max-steps if this is intended",
-                                  1, looping_agent=looping)
+                    message, kw = _looping(model, st, per_agent, max_steps)
+                    return finish("max-steps", message, 1, **kw)
             st = nxt
     except KeyboardInterrupt:   # Ctrl-C or SIGTERM: the run so far, status 130
         return finish("interrupted", f"interrupted after {steps} transitions", 130)
     except MemoryError:
-        # the frames that failed are gone; the recorded trace, the likely
-        # culprit, is dropped so that the result can be shown
-        dropped = (f"; the recorded trace ({len(labels):,} transitions) was dropped"
-                   if labels else "")
-        labels.clear()
-        states.clear()
-        return finish("out-of-memory",
-                      f"out of memory after {steps} transitions: the process could not "
-                      f"allocate more (a limit such as ulimit -v, or the machine's memory); "
-                      f"give --max-memory below that limit to stop as a bound{dropped}", 2)
+        return finish("out-of-memory", _out_of_memory(states, labels, steps), 2)
+
+
+def _out_of_memory(states: list, labels: list, steps: int) -> str:
+    """Step of :func:`run`: the message of a run out of memory.  The frames
+    that failed are gone; the recorded trace, the likely culprit, is dropped
+    so that the result can be shown."""
+    dropped = (f"; the recorded trace ({len(labels):,} transitions) was dropped"
+               if labels else "")
+    labels.clear()
+    states.clear()
+    return (f"out of memory after {steps} transitions: the process could not "
+            f"allocate more (a limit such as ulimit -v, or the machine's memory); "
+            f"give --max-memory below that limit to stop as a bound{dropped}")
+
+
+def _initial_state(model, rng):
+    """Step of :func:`run`: the initial state (one picked by ``rng`` when
+    the model has no rand policy and every outcome is an initial state)."""
+    gen = iter(model.init_states())
+    inits = list(itertools.islice(gen, 2))
+    if len(inits) > 1:          # no rand policy: every outcome is an initial state
+        inits.extend(gen)
+    return inits[0] if len(inits) == 1 else rng.choice(inits)
+
+
+def _recording(states: list, labels: list, on_step):
+    """Step of :func:`run` (``record_trace``): an ``on_step`` that records
+    each step's label and state, then calls ``on_step`` (if any)."""
+    def record(label, st, nxt):
+        labels.append(label)
+        states.append(nxt)
+        if on_step is not None:
+            on_step(label, st, nxt)
+    return record
+
+
+def _with_properties(res: RunResult, mon, code: int) -> RunResult:
+    """Step of :func:`run`: the run's temporal property outcomes (``mon``)
+    in ``res``; a violated one makes a successful run a violation."""
+    if mon is None:
+        return res
+    status = res.status
+    res.properties = mon.outcomes(status in ("final", "deadlock", "stalled"),
+                                  "every agent exited" if status == "final" else status)
+    bad = [o for o in res.properties if o.outcome == "violated"]
+    if bad and code == 0:
+        from pccl.model.engine import Violation
+        res.status, res.exit_status = "violation", 1
+        res.message = "; ".join(f"{o.name}: {o.detail}" for o in bad)
+        res.violations = [Violation(o.kind, o.name, f"{o.name}: {o.detail}")
+                          for o in bad]
+    return res
+
+
+def _terminal(model, st) -> tuple:
+    """Step of :func:`run`: (status, message, exit status, extra fields) of
+    a state without successors."""
+    kind = model.terminal_kind(st)
+    if kind == "final":
+        return "final", "every agent exited", 0, {}
+    if kind == "bounded":
+        return "bounded", f"stopped at --max-time {model.max_time}", 0, {}
+    dv = model.deadlock_violation(st)
+    return "deadlock", dv.message, 1, {"violations": [dv]}
+
+
+def _looping(model, st, per_agent: Counter, max_steps: int) -> tuple:
+    """Step of :func:`run`: (message, extra fields) of a run stopped by
+    ``max_steps`` transitions without a time step."""
+    from pccl.model.stall import looping_agent
+    looping = looping_agent(model, st, per_agent)
+    return (f"agent {looping} runs more than {max_steps} transitions without "
+            f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
+            f"raise --max-steps if this is intended", {"looping_agent": looping})
+
+
+class _TimeSteps:
+    """Step of :func:`run`: what it keeps per time step (each DOREACH
+    INVOKE): the summary of the run, thinned to bounded memory, and whether
+    the run stalls (nothing changed for ``stall_steps`` time steps)."""
+
+    def __init__(self, st, stall_steps: int) -> None:
+        self.summary = [(st[TIME], st)]
+        self.weights = [0]          # per summary entry: the list/array values it added
+        self.budget = SUMMARY_BUDGET
+        self.n_env, self.stride = 0, 1
+        self.stall_steps = stall_steps
+        self.last_sig, self.still, self.since = _signature(st), 0, st[TIME]
+
+    def env_step(self, nxt) -> bool:
+        """Record the time step to ``nxt``; whether the run stalls there."""
+        sig = _signature(nxt)
+        if sig == self.last_sig:
+            self.still += 1
+        else:
+            self.last_sig, self.still, self.since = sig, 0, nxt[TIME]
+        if self.stall_steps and self.still >= self.stall_steps \
+                and any(ag[STATUS] == RUNNING for ag in nxt[AGS]):
+            return True
+        self.n_env += 1
+        if self.n_env % self.stride == 0:
+            self._add(nxt)
+        return False
+
+    def _add(self, nxt) -> None:
+        summary, weights = self.summary, self.weights
+        w = _weight(nxt, summary[-1][1])
+        summary.append((nxt[TIME], nxt))
+        weights.append(w)
+        self.budget -= w
+        if len(summary) > SUMMARY_LIMIT or self.budget < 0:  # bounded memory:
+            summary[1:] = summary[2::2]     # keep every other one, and
+            weights[1:] = weights[2::2]
+            self.stride *= 2                # record half as often from now on
+            self.budget = SUMMARY_BUDGET - sum(weights)
+
+    def stalled(self, model, st) -> tuple:
+        """(message, extra fields) of a run that stalls at ``st``."""
+        self.summary.append((st[TIME], st))
+        from pccl.output.display import fmt_time
+        from pccl.model.stall import waiting, waiting_text
+        waits = waiting(model, st)
+        # the cause first (what blocks each waiting agent: only
+        # guards that can still hold for it, the flag behind them)
+        return ((waiting_text(waits) + "; " if waits else "")
+                + f"nothing changed since t = {fmt_time(self.since)} (no variable, "
+                f"position or flag for {self.still} time steps) while agents "
+                f"still run", {"stalled_since": self.since, "waiting": waits})
 
 
 #: The most time steps a run's summary keeps; a longer run's summary is
