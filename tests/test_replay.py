@@ -58,6 +58,7 @@ def test_a_property_option_violation_is_recorded_and_reproduced(tmp_path):
     # a file written before these fields existed still replays (they are optional)
     old = json.loads(t.read_text())
     del old["config"]["property_options"], old["config"]["reductions"]
+    del old["config"]["options"]            # written later still (issue 22)
     old["config"]["invariants"] = ["count(inCs) <= 1"]
     (tmp_path / "old.json").write_text(json.dumps(old))
     res = cli("replay", tmp_path / "old.json")
