@@ -21,7 +21,7 @@ from hypothesis import strategies as hs
 from conftest import cli
 from pccl.output import codec as C
 from pccl.api import make_model
-from pccl.model.layout import AGS, PC, REACH, T0
+from pccl.model.layout import AGS, PC, REACH, STATUS, T0
 from pccl.tools.replay import replay as api_replay
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -114,7 +114,7 @@ def test_the_searches_cover_the_cells_the_codec_adds():
             for ag in st[AGS]:
                 for item in C.encode_k(m, ag[PC]):
                     seen.add(type(item).__name__ if not isinstance(item, str) else item)
-                if C.encode_status(m, ag[3]).get("code"):
+                if C.encode_status(m, ag[STATUS]).get("code"):
                     seen.add("stuck")
                 if ag[REACH][T0] is not None:
                     seen.add("t0")

@@ -51,13 +51,13 @@ class Grid:
     def key(self, s):
         return s
 
-    def violations(self, s):
-        return [Bad("goal")] if s[0] == self.goal else []
+    def violations(self, xt):
+        return [Bad("goal")] if xt[0] == self.goal else []
 
-    def terminal_kind(self, s):
-        if s[0] == self.wall:
+    def terminal_kind(self, xt):
+        if xt[0] == self.wall:
             return "deadlock"
-        return "bounded" if s[0] + 1 >= self.width else "final"
+        return "bounded" if xt[0] + 1 >= self.width else "final"
 
     def deadlock_violation(self, s):
         return Bad("deadlock")
@@ -82,7 +82,7 @@ class TimedGrid(Grid):
 
     @staticmethod
     def time_costs(states):
-        return [s[2] for s in states]
+        return [xt[2] for xt in states]
 
 
 def _run(cls, model, **kw):
@@ -129,9 +129,9 @@ class Shortcut(TimedGrid):
     """From x = 0 a "jump" reaches the goal x = 3 in one step that costs a
     time step; three "move"s reach it in no time."""
 
-    def successors(self, s):
-        out = TimedGrid.successors(self, s)
-        return out + [("jump", (3, s[1], 1))] if s[0] == 0 else out
+    def successors(self, xt):
+        out = TimedGrid.successors(self, xt)
+        return out + [("jump", (3, xt[1], 1))] if xt[0] == 0 else out
 
 
 def test_fastest_orders_on_the_models_time_cost():

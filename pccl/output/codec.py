@@ -268,11 +268,11 @@ def encode_path(model, trace) -> dict:
     steps without a path)."""
     if trace is None:
         return {"initial": None, "steps": [], "final": None}
-    s = trace.states
-    return {"initial": encode_state(model, s[0]),
-            "steps": [encode_step(model, n + 1, lab, s[n], s[n + 1])
+    states = trace.states
+    return {"initial": encode_state(model, states[0]),
+            "steps": [encode_step(model, n + 1, lab, states[n], states[n + 1])
                       for n, lab in enumerate(trace.labels)],
-            "final": encode_state(model, s[-1])}
+            "final": encode_state(model, states[-1])}
 
 
 def encode_violation(model, v) -> Optional[dict]:
