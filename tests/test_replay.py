@@ -437,6 +437,73 @@ def test_a_lasso_must_be_a_counterexample_of_its_property(lasso_trace):
     assert "the path does not end in a terminal state" in res.output
 
 
+TL_SPIN = TESTS / "programs" / "tl_spin.pccl"
+TL_SPIN_LEAVE = TESTS / "programs" / "tl_spin_leave.pccl"
+
+
+def _zero_time_lasso(m):
+    """A path of ``m`` (breadth-first from an initial state) to a state
+    that two steps, neither a time advance, lead back to (up to the key):
+    (states, labels, cycle_start)."""
+    from collections import deque
+    init = next(iter(m.init_states()))
+    parent: dict = {m.key(init): None}
+    todo = deque([init])
+    while todo:
+        s = todo.popleft()
+        for l1, n1 in m.successors(s):
+            for l2, n2 in m.successors(n1):
+                if m.key(n2) == m.key(s) and "TIME ADVANCE" not in (l1[0], l2[0]):
+                    states, labels, k = [s], [], m.key(s)
+                    while parent[k] is not None:
+                        prev, lab = parent[k]
+                        states.insert(0, prev)
+                        labels.insert(0, lab)
+                        k = m.key(prev)
+                    return states + [n1, n2], labels + [l1, l2], len(labels)
+        for lab, nxt in m.successors(s):
+            if m.key(nxt) not in parent:
+                parent[m.key(nxt)] = (s, lab)
+                todo.append(nxt)
+    raise AssertionError("no zero-time cycle")
+
+
+def test_a_time_lock_replays_and_a_false_one_does_not(tmp_path):
+    # the time-lock end of a trace: a real one is reproduced (the cycle
+    # closes, time never advances in it nor from anything reachable) ...
+    t = record(tmp_path, "explore", TL_SPIN, "--reduce", "none", name="tl.json")
+    d = json.loads(t.read_text())
+    assert d["result"]["violation"]["kind"] == "timelock"
+    cs = d["result"]["cycle_start"]
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: time-lock: time can never advance again" in res.output
+    assert f"a lasso: the cycle from step {cs} closes" in res.output
+    # ... a time-lock is a lasso ...
+    res = cli("replay", rewrite(t, lambda d: d["result"].pop("cycle_start")))
+    assert res.exit_code == 2, res.output
+    assert "a time-lock counterexample is a lasso" in res.output
+    # ... and a zero-time cycle that can be left is no time-lock: in
+    # tl_spin_leave agent 0 spins until agent 1 sets go (a real path of the
+    # model, whose cycle closes, claimed as a time-lock)
+    v = record(tmp_path, "explore", TL_SPIN_LEAVE, "--reduce", "none", "--invariant", "!go",
+               name="leave.json")
+    m = api_replay(v).model
+    states, labels, start = _zero_time_lasso(m)
+    from pccl.search.explorer import Trace
+    forged = T.document(m, json.loads(v.read_text())["config"],
+                        Trace(tuple(states), tuple(labels)), status="violation",
+                        message=d["result"]["message"])
+    forged["result"]["violation"] = d["result"]["violation"]
+    forged["result"]["cycle_start"] = start
+    (tmp_path / "forged.json").write_text(json.dumps(forged))
+    res = cli("replay", tmp_path / "forged.json")
+    assert res.exit_code == 2, res.output
+    assert f"replayed {len(labels)} of {len(labels)} steps" in res.output
+    assert ("every step reproduced, but time can advance again (or the run end) from the "
+            "recorded time-lock cycle") in res.output
+
+
 def test_an_unreachable_verdict_is_not_replayed_as_a_clean_run(tmp_path):
     # the issue: it replayed with exit 0
     t = record(tmp_path, "explore", PROGRAMS / "fischer.pccl", "--set", "k=0", "--property",
