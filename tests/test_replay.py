@@ -292,6 +292,18 @@ MALFORMED = {
                                  "steps[2].changes[0].cell: expected an object, got a string"),
     "an agent index of the wrong type": (lambda d: d["initial"].__setitem__("agents", "two"),
                                          "initial.agents: expected a list, got a string"),
+    # every kind of JSON value named in the message (pccl/lang/data.py)
+    "a null config": (lambda d: d.__setitem__("config", None), "config: expected an object, got null"),
+    "a result that is a list": (lambda d: d.__setitem__("result", []),
+                                "result: expected an object, got a list"),
+    "steps that are a boolean": (lambda d: d.__setitem__("steps", True),
+                                 "steps: expected a list, got a boolean true"),
+    "steps that are a number": (lambda d: d.__setitem__("steps", 1.5),
+                                "steps: expected a list, got a number 1.5"),
+    "agents that are a boolean": (lambda d: d["config"].__setitem__("agents", True),
+                                  "config.agents: expected an integer, got a boolean true"),
+    "an infinite delta": (lambda text: text.replace('"delta": 1,', '"delta": 1e999,', 1),
+                          "config.delta: expected a finite number, got a number Infinity"),
 }
 
 
