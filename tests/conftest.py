@@ -266,6 +266,14 @@ def chdir_root(monkeypatch):
 # the quick subset: python -m pytest -m "not slow" (README, "Tests")
 # ---------------------------------------------------------------------------
 
+def portable_id(nodeid: str) -> str:
+    """A test id as tests/slow_tests.txt writes it: a parameter that is the
+    absolute path of a file of this checkout (``[/work/x/programs/a.pccl]``)
+    relative to its root (``[programs/a.pccl]``), so that the id is the same
+    in every clone."""
+    return nodeid.replace(str(ROOT) + os.sep, "")
+
+
 def _slow_ids() -> frozenset:
     path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "slow_tests.txt")
     with open(path, encoding="utf-8") as f:
@@ -280,5 +288,5 @@ def pytest_collection_modifyitems(config, items):
     more each) as ``slow``, so that ``-m "not slow"`` is a quick subset."""
     import pytest
     for item in items:
-        if item.nodeid in SLOW_TESTS:
+        if portable_id(item.nodeid) in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
