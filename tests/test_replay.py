@@ -495,18 +495,45 @@ def test_a_time_lock_replays_and_a_false_one_does_not(tmp_path):
     res = cli("replay", rewrite(t, lambda d: d["result"].pop("cycle_start")))
     assert res.exit_code == 2, res.output
     assert "a time-lock counterexample is a lasso" in res.output
-    # ... and a zero-time cycle that can be left is no time-lock: in
-    # tl_spin_leave agent 0 spins until agent 1 sets go (a real path of the
-    # model, whose cycle closes, claimed as a time-lock)
-    v = record(tmp_path, "explore", TL_SPIN_LEAVE, "--reduce", "none", "--invariant", "!go",
-               name="leave.json")
+
+
+#: agent 0 spins in zero time until agent 1 sets go, then both run their
+#: event again and again: no run ends, but time advances
+SPIN_THEN_TIME = """allwrite:
+  bool go = false;
+loc:
+  int id = getAgentIndex();
+Run():
+  pre(true);
+  eff:
+    if (id == 0):
+      while (!go):
+        skip;
+    else:
+      go = true;
+"""
+
+
+@pytest.mark.parametrize("how", ["the run can end", "time can advance"])
+def test_a_zero_time_cycle_that_can_be_left_is_no_time_lock(tmp_path, how):
+    # a real path of the model, whose zero-time cycle closes, claimed as a
+    # time-lock: in tl_spin_leave every run can end; in SPIN_THEN_TIME none
+    # can, but time advances once agent 1 has set go
+    if how == "the run can end":
+        program = TL_SPIN_LEAVE
+    else:
+        program = tmp_path / "spin_then_time.pccl"
+        program.write_text(SPIN_THEN_TIME)
+    tl = json.loads(record(tmp_path, "explore", TL_SPIN, name="tl.json").read_text())
+    v = record(tmp_path, "explore", program, "--reduce", "none", "--invariant", "!go",
+               name="v.json")
     m = api_replay(v).model
     states, labels, start = _zero_time_lasso(m)
     from pccl.search.explorer import Trace
     forged = T.document(m, json.loads(v.read_text())["config"],
                         Trace(tuple(states), tuple(labels)), status="violation",
-                        message=d["result"]["message"])
-    forged["result"]["violation"] = d["result"]["violation"]
+                        message=tl["result"]["message"])
+    forged["result"]["violation"] = tl["result"]["violation"]
     forged["result"]["cycle_start"] = start
     (tmp_path / "forged.json").write_text(json.dumps(forged))
     res = cli("replay", tmp_path / "forged.json")
