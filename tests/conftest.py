@@ -32,39 +32,60 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
+def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=300):
+    """Start ``python -m pccl.cli ARGS`` (standard output and error piped)
+    and, with ``ready``, wait until its standard error says that text (a
+    progress line: the search is under way); ``(process, standard error so
+    far)``.  ``env``: variables set besides this one's; ``new_session``: in
+    a session of its own (its own process group, as a terminal's job).  The
+    process is the caller's to end (``communicate`` reads the rest of its
+    output)."""
+    import select
+    import subprocess
+    import sys
+    import time
+    p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)], cwd=cwd,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=None if env is None else {**os.environ, **env},
+                         start_new_session=new_session)
+    # read the descriptor itself: lines read ahead into the text buffer of
+    # p.stderr would never make it readable again for select
+    fd, seen = p.stderr.fileno(), b""
+    deadline = time.monotonic() + timeout
+    while ready is not None and ready.encode() not in seen:
+        if time.monotonic() > deadline:
+            p.kill()
+            raise AssertionError(("never ready", seen.decode(errors="replace")))
+        if select.select([fd], [], [], 1.0)[0]:
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                p.wait()
+                raise AssertionError(("exited before it was ready", p.returncode,
+                                      seen.decode(errors="replace")))
+            seen += chunk
+    return p, seen.decode(errors="replace")
+
+
 def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
     """Run ``python -m pccl.cli ARGS`` and send it ``sig`` (a name, such as
     ``"SIGTERM"``); ``(status, stdout, stderr)``.
 
-    With ``ready``, the signal goes as soon as a line of standard error
-    contains that text (a progress line: the search is under way).  Without,
-    it goes after ``delay`` seconds; a process that dies of the signal
-    itself (status ``-signum``) had not installed its handlers yet — a
-    loaded machine spent the delay importing — which says nothing of pccl,
-    so the run is tried again with twice the delay, up to ``attempts``
-    times."""
-    import select
+    With ``ready``, the signal goes as soon as standard error says that
+    text (:func:`started`).  Without, it goes after ``delay`` seconds; a
+    process that dies of the signal itself (status ``-signum``) had not
+    installed its handlers yet — a loaded machine spent the delay importing
+    — which says nothing of pccl, so the run is tried again with twice the
+    delay, up to ``attempts`` times."""
     import signal
-    import subprocess
-    import sys
     import time
     signum = getattr(signal, sig)
     for attempt in range(attempts):
-        p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)], cwd=cwd,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        seen: list = []
+        p, seen = started(args, ready, cwd=cwd)
         if ready is None:
             time.sleep(delay * 2 ** attempt)
-        else:
-            deadline = time.monotonic() + 300
-            while not any(ready in line for line in seen):
-                assert p.poll() is None, ("exited before it was ready", seen)
-                assert time.monotonic() < deadline, ("never ready", seen)
-                if select.select([p.stderr], [], [], 1.0)[0]:
-                    seen.append(p.stderr.readline())
         p.send_signal(signum)
         out, err = p.communicate(timeout=120)
-        err = "".join(seen) + err
+        err = seen + err
         if p.returncode != -signum or ready is not None:
             break
     return p.returncode, out, err
@@ -245,6 +266,14 @@ def chdir_root(monkeypatch):
 # the quick subset: python -m pytest -m "not slow" (README, "Tests")
 # ---------------------------------------------------------------------------
 
+def portable_id(nodeid: str) -> str:
+    """A test id as tests/slow_tests.txt writes it: a parameter that is the
+    absolute path of a file of this checkout (``[/work/x/programs/a.pccl]``)
+    relative to its root (``[programs/a.pccl]``), so that the id is the same
+    in every clone."""
+    return nodeid.replace(str(ROOT) + os.sep, "")
+
+
 def _slow_ids() -> frozenset:
     path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "slow_tests.txt")
     with open(path, encoding="utf-8") as f:
@@ -259,5 +288,5 @@ def pytest_collection_modifyitems(config, items):
     more each) as ``slow``, so that ``-m "not slow"`` is a quick subset."""
     import pytest
     for item in items:
-        if item.nodeid in SLOW_TESTS:
+        if portable_id(item.nodeid) in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)

@@ -19,7 +19,7 @@ import pytest
 from pccl import api
 from pccl.search import checkpoint as C
 from pccl.search.fingerprint import fingerprint
-from conftest import interrupted
+from conftest import TEST_PROGRAMS, interrupted
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROG = os.path.join(ROOT, "programs")
@@ -117,30 +117,18 @@ def test_interrupted_and_resumed_search_equals_uninterrupted(tmp_path, name, pro
     assert any(n.startswith("resumed from") for n in r.notes)
 
 
-RUNAWAY = """Agent::Count
-
-loc:
-  int x = 0;
-
-Count():
-  pre(true);
-  eff:
-    while (true):
-      x = x + 1;
-"""
+RUNAWAY = str(TEST_PROGRAMS / "runaway.pccl")     # x grows for ever in zero time
 
 
 def test_runaway_note_survives_a_resume(tmp_path):
     """A zero-time runaway noted before the checkpoint is in the resumed
     result too; one noted after it, once."""
-    p = tmp_path / "runaway.pccl"
-    p.write_text(RUNAWAY)
     opts = dict(agents=1, reduce="none", max_states=1200)
-    full = api.explore(str(p), **opts)
+    full = api.explore(RUNAWAY, **opts)
     assert sum("zero-time runaway" in n for n in full.notes) == 1
-    calls = _calls(str(p), opts)
+    calls = _calls(RUNAWAY, opts)
     for k in (calls // 10, calls // 2, calls - 3):
-        r, resumed = interrupted_run(str(p), opts, str(tmp_path / f"ck{k}"), [k])
+        r, resumed = interrupted_run(RUNAWAY, opts, str(tmp_path / f"ck{k}"), [k])
         assert resumed == 1 and summary(r) == summary(full), k
 
 

@@ -6,6 +6,7 @@ import sys
 
 import pytest
 
+from conftest import started
 from pccl.api import explore, make_model
 from pccl.search.explorer import Explorer
 from pccl.search.parallel import ParallelExplorer, available_workers
@@ -405,26 +406,14 @@ def test_ray_address_where_nothing_listens_fails_at_once():
 # Signals and the death of the coordinator
 # ---------------------------------------------------------------------------
 
-LONG_SEARCH = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--workers", "2",
-               "--progress", "--progress-interval", "0.1"]
+LONG_SEARCH = ["explore", FISCHER, "--workers", "2", "--progress", "--progress-interval", "0.1"]
 
 
 def _start_long_search(env=None):
     """``pccl explore`` on fischer (k=10: minutes) with two workers, in a
     session of its own (its own process group, as a terminal's job), once
     its first progress line is out: the search is under way."""
-    import os
-    p = subprocess.Popen(LONG_SEARCH, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True,
-                         env=None if env is None else {**os.environ, **env})
-    seen = []
-    while True:
-        line = p.stderr.readline()
-        seen.append(line)
-        if not line or "states " in line:
-            break
-    assert line, "".join(seen)
-    return p, "".join(seen)
+    return started(LONG_SEARCH, "states ", env=env, new_session=True)
 
 
 def _gone(pids, timeout):

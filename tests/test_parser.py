@@ -948,3 +948,102 @@ def test_declared_names_carry_their_span(path):
     assert named
     for name, span in named:
         assert text(span) == name
+
+
+# ---------------------------------------------------------------------------
+# the grammar's tables, cached between runs ($PCCL_CACHE, else ~/.cache/pccl)
+# ---------------------------------------------------------------------------
+
+@pytest.fixture
+def fresh_grammar(monkeypatch, tmp_path):
+    """The parser built anew, its cache in a directory of this test's own;
+    ``builds`` counts the times lark analyses a grammar (not a load from
+    the cache)."""
+    import lark
+    from pccl.lang import parser
+    monkeypatch.setattr(parser, "_LARK", None)
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path / "cache"))
+    builds = []
+    real = lark.Lark._build_parser
+
+    def counted(self):
+        builds.append(1)
+        return real(self)
+    monkeypatch.setattr(lark.Lark, "_build_parser", counted)
+
+    def again():
+        monkeypatch.setattr(parser, "_LARK", None)
+        return parser._get_lark()
+    return parser, builds, again
+
+
+FISCHER_TEXT = (Path(__file__).resolve().parent.parent / "programs" / "fischer.pccl").read_text()
+
+
+def test_the_grammar_tables_are_cached_and_used(fresh_grammar, tmp_path):
+    parser, builds, again = fresh_grammar
+    want = parse_program(FISCHER_TEXT, "f.pccl")        # the cache directory is made
+    assert builds == [1] and len(list((tmp_path / "cache").glob("lark-*.cache"))) == 1
+    again()
+    assert builds == [1]                                # loaded, not built
+    assert parse_program(FISCHER_TEXT, "f.pccl") == want
+
+
+@pytest.mark.slow          # builds the tables three times
+def test_a_stale_or_broken_cache_is_not_used(fresh_grammar, tmp_path):
+    from lark import Lark
+    parser, builds, again = fresh_grammar
+    with open(parser._GRAMMAR_PATH, encoding="utf-8") as f:
+        grammar = f.read()
+    edited = grammar.replace('SKIP: "skip"', 'SKIP: "pass"')
+    assert edited != grammar
+    # an edited grammar has a cache file of its own ...
+    path = parser._lark_cache(grammar)
+    assert parser._lark_cache(edited) != path
+    # ... and the tables of the edited grammar under the name of the real
+    # one (as a stale file would be) are not used: lark checks the file's hash
+    Lark(edited, parser="lalr", lexer="basic", start=["program", "property"],
+         postlex=parser._PcclIndenter(), propagate_positions=True, maybe_placeholders=False,
+         cache=path)
+    builds.clear()
+    again()
+    assert builds == [1]
+    assert isinstance(stmt("skip;"), ast.Skip)
+    again()                                             # rewritten: loaded now
+    assert builds == [1]
+    # a half-written file is built again too
+    with open(path, "rb") as f:
+        data = f.read()
+    with open(path, "wb") as f:
+        f.write(data[: len(data) // 2])
+    again()
+    assert builds == [1, 1]
+    assert isinstance(stmt("skip;"), ast.Skip)
+
+
+@pytest.mark.slow          # builds the tables three times
+def test_a_cache_directory_that_cannot_be_made_or_written_is_no_error(fresh_grammar, tmp_path,
+                                                                         monkeypatch):
+    import lark.utils
+    parser, builds, again = fresh_grammar
+    # cannot be made: its parent is a file
+    (tmp_path / "file").write_text("")
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path / "file" / "cache"))
+    assert parser._lark_cache("x") is None
+    again()
+    assert isinstance(stmt("skip;"), ast.Skip)
+    # cannot be written (a read-only disk, a full one): every write fails
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path / "ro"))
+    real_open = lark.utils.FS.open
+
+    def no_writes(name, mode="r", **kw):
+        if "w" in mode:
+            raise PermissionError(13, "Permission denied", name)
+        return real_open(name, mode, **kw)
+    monkeypatch.setattr(lark.utils.FS, "open", staticmethod(no_writes))
+    builds.clear()
+    again()
+    again()
+    assert builds == [1, 1]                             # built each time, never failing
+    assert list((tmp_path / "ro").iterdir()) == []
+    assert isinstance(stmt("skip;"), ast.Skip)

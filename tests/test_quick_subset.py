@@ -8,6 +8,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 import conftest
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -24,7 +26,7 @@ def test_the_slow_list_names_existing_tests():
 
 def test_listed_tests_are_marked_slow(request):
     """The hook marks every listed test that this session collected."""
-    items = [i for i in request.session.items if i.nodeid in conftest.SLOW_TESTS]
+    items = [i for i in request.session.items if conftest.portable_id(i.nodeid) in conftest.SLOW_TESTS]
     assert all(i.get_closest_marker("slow") for i in items)
 
 
@@ -33,3 +35,29 @@ def test_readme_states_both_durations():
     assert 'python -m pytest -m "not slow"' in text
     section = text.split('python -m pytest -m "not slow"', 1)[1][:1500]
     assert re.search(r"\d+ s", section) and "minutes" in section
+
+
+def test_the_slow_list_holds_no_path_of_a_checkout():
+    """A parameter that is a path is written relative to the repository
+    (conftest.portable_id): an id holding one clone's absolute path
+    (``[/work/h-polish/programs/...]``) never matched in another, and the
+    test it named ran in the quick subset."""
+    assert conftest.portable_id(f"t.py::f[{ROOT}/programs/a.pccl-kw0]") == \
+        "t.py::f[programs/a.pccl-kw0]"
+    assert not [nid for nid in conftest.SLOW_TESTS if re.search(r"[\[-]/", nid)]
+
+
+@pytest.mark.slow
+def test_every_listed_parametrized_test_is_collected():
+    """Each listed id with parameters is the id of a collected test (as
+    conftest.portable_id writes it), so the hook marks it."""
+    import subprocess
+    import sys
+    listed = {nid for nid in conftest.SLOW_TESTS if "[" in nid}
+    files = sorted({nid.split("::", 1)[0] for nid in listed})
+    r = subprocess.run([sys.executable, "-m", "pytest", "--collect-only", "-q",
+                        "-p", "no:cacheprovider", *files], cwd=ROOT, capture_output=True,
+                       text=True, timeout=900)
+    collected = {conftest.portable_id(ln.strip()) for ln in r.stdout.splitlines() if "::" in ln}
+    assert len(collected) > len(listed), r.stdout[-2000:] + r.stderr[-2000:]
+    assert sorted(listed - collected) == []

@@ -27,6 +27,8 @@ import time
 
 import pytest
 
+from conftest import started
+
 FISCHER = "programs/fischer.pccl"
 MUTEX = "count(inCs) <= 1"
 PCCL = [sys.executable, "-m", "pccl.cli", "explore"]
@@ -170,18 +172,9 @@ def _placement(notes) -> list:
 def _long_search(c: Cluster):
     """fischer k=4 (396,840 states, tens of seconds on Ray here) on the
     cluster, once its first progress line is out: the search is under way."""
-    p = subprocess.Popen(PCCL + [FISCHER, "--set", "k=4", "--ray", c.address, "--workers", "2",
-                                 "--progress", "--progress-interval", "0.2"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=c.env,
-                         start_new_session=True)
-    seen = []
-    while True:
-        line = p.stderr.readline()
-        seen.append(line)
-        if not line or "states " in line:
-            break
-    assert line, "".join(seen)
-    return p, "".join(seen)
+    return started(["explore", FISCHER, "--set", "k=4", "--ray", c.address, "--workers", "2",
+                    "--progress", "--progress-interval", "0.2"], "states ", env=c.env,
+                   new_session=True)
 
 
 def _lost_outcome(p, t_kill: float, node_id: str, head_lines: str):

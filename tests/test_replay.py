@@ -292,6 +292,18 @@ MALFORMED = {
                                  "steps[2].changes[0].cell: expected an object, got a string"),
     "an agent index of the wrong type": (lambda d: d["initial"].__setitem__("agents", "two"),
                                          "initial.agents: expected a list, got a string"),
+    # every kind of JSON value named in the message (pccl/lang/data.py)
+    "a null config": (lambda d: d.__setitem__("config", None), "config: expected an object, got null"),
+    "a result that is a list": (lambda d: d.__setitem__("result", []),
+                                "result: expected an object, got a list"),
+    "steps that are a boolean": (lambda d: d.__setitem__("steps", True),
+                                 "steps: expected a list, got a boolean true"),
+    "steps that are a number": (lambda d: d.__setitem__("steps", 1.5),
+                                "steps: expected a list, got a number 1.5"),
+    "agents that are a boolean": (lambda d: d["config"].__setitem__("agents", True),
+                                  "config.agents: expected an integer, got a boolean true"),
+    "an infinite delta": (lambda text: text.replace('"delta": 1,', '"delta": 1e999,', 1),
+                          "config.delta: expected a finite number, got a number Infinity"),
 }
 
 
@@ -435,6 +447,100 @@ def test_a_lasso_must_be_a_counterexample_of_its_property(lasso_trace):
     res = cli("replay", rewrite(lasso_trace, lambda d: d["result"].pop("cycle_start")))
     assert res.exit_code == 2
     assert "the path does not end in a terminal state" in res.output
+
+
+TL_SPIN = TESTS / "programs" / "tl_spin.pccl"
+TL_SPIN_LEAVE = TESTS / "programs" / "tl_spin_leave.pccl"
+
+
+def _zero_time_lasso(m):
+    """A path of ``m`` (breadth-first from an initial state) to a state
+    that two steps, neither a time advance, lead back to (up to the key):
+    (states, labels, cycle_start)."""
+    from collections import deque
+    init = next(iter(m.init_states()))
+    parent: dict = {m.key(init): None}
+    todo = deque([init])
+    while todo:
+        s = todo.popleft()
+        for l1, n1 in m.successors(s):
+            for l2, n2 in m.successors(n1):
+                if m.key(n2) == m.key(s) and "TIME ADVANCE" not in (l1[0], l2[0]):
+                    states, labels, k = [s], [], m.key(s)
+                    while parent[k] is not None:
+                        prev, lab = parent[k]
+                        states.insert(0, prev)
+                        labels.insert(0, lab)
+                        k = m.key(prev)
+                    return states + [n1, n2], labels + [l1, l2], len(labels)
+        for lab, nxt in m.successors(s):
+            if m.key(nxt) not in parent:
+                parent[m.key(nxt)] = (s, lab)
+                todo.append(nxt)
+    raise AssertionError("no zero-time cycle")
+
+
+def test_a_time_lock_replays_and_a_false_one_does_not(tmp_path):
+    # the time-lock end of a trace: a real one is reproduced (the cycle
+    # closes, time never advances in it nor from anything reachable) ...
+    t = record(tmp_path, "explore", TL_SPIN, "--reduce", "none", name="tl.json")
+    d = json.loads(t.read_text())
+    assert d["result"]["violation"]["kind"] == "timelock"
+    cs = d["result"]["cycle_start"]
+    res = cli("replay", t)
+    assert res.exit_code == 1, res.output
+    assert "reproduced: time-lock: time can never advance again" in res.output
+    assert f"a lasso: the cycle from step {cs} closes" in res.output
+    # ... a time-lock is a lasso ...
+    res = cli("replay", rewrite(t, lambda d: d["result"].pop("cycle_start")))
+    assert res.exit_code == 2, res.output
+    assert "a time-lock counterexample is a lasso" in res.output
+
+
+#: agent 0 spins in zero time until agent 1 sets go, then both run their
+#: event again and again: no run ends, but time advances
+SPIN_THEN_TIME = """allwrite:
+  bool go = false;
+loc:
+  int id = getAgentIndex();
+Run():
+  pre(true);
+  eff:
+    if (id == 0):
+      while (!go):
+        skip;
+    else:
+      go = true;
+"""
+
+
+@pytest.mark.parametrize("how", ["the run can end", "time can advance"])
+def test_a_zero_time_cycle_that_can_be_left_is_no_time_lock(tmp_path, how):
+    # a real path of the model, whose zero-time cycle closes, claimed as a
+    # time-lock: in tl_spin_leave every run can end; in SPIN_THEN_TIME none
+    # can, but time advances once agent 1 has set go
+    if how == "the run can end":
+        program = TL_SPIN_LEAVE
+    else:
+        program = tmp_path / "spin_then_time.pccl"
+        program.write_text(SPIN_THEN_TIME)
+    tl = json.loads(record(tmp_path, "explore", TL_SPIN, name="tl.json").read_text())
+    v = record(tmp_path, "explore", program, "--reduce", "none", "--invariant", "!go",
+               name="v.json")
+    m = api_replay(v).model
+    states, labels, start = _zero_time_lasso(m)
+    from pccl.search.explorer import Trace
+    forged = T.document(m, json.loads(v.read_text())["config"],
+                        Trace(tuple(states), tuple(labels)), status="violation",
+                        message=tl["result"]["message"])
+    forged["result"]["violation"] = tl["result"]["violation"]
+    forged["result"]["cycle_start"] = start
+    (tmp_path / "forged.json").write_text(json.dumps(forged))
+    res = cli("replay", tmp_path / "forged.json")
+    assert res.exit_code == 2, res.output
+    assert f"replayed {len(labels)} of {len(labels)} steps" in res.output
+    assert ("every step reproduced, but time can advance again (or the run end) from the "
+            "recorded time-lock cycle") in res.output
 
 
 def test_an_unreachable_verdict_is_not_replayed_as_a_clean_run(tmp_path):

@@ -301,29 +301,18 @@ def test_a_time_lock_is_not_a_stall():
 # zero-time runaways, and the largest model time
 # ---------------------------------------------------------------------------
 
-RUNAWAY = src("""
-    loc:
-      int x = 0;
-
-    Count():
-      pre(true);
-      eff:
-        while (true):
-          x = x + 1;
-    """)
+RUNAWAY = str(TEST_PROGRAMS / "runaway.pccl")     # x grows for ever in zero time
 
 
-def test_zero_time_runaway_note(tmp_path):
-    p = tmp_path / "runaway.pccl"
-    p.write_text(RUNAWAY)
-    r = cli("explore", p, "--agents", "1", "--reduce", "none", "--max-states", "1200")
+def test_zero_time_runaway_note():
+    r = cli("explore", RUNAWAY, "--agents", "1", "--reduce", "none", "--max-states", "1200")
     assert r.exit_code == 0
     note = [ln for ln in r.stderr.splitlines() if "zero-time runaway" in ln]
     assert note, r.stderr
-    assert "agent 0 keeps time from advancing (at line 8: x = x + 1;)" in note[0]
+    assert "agent 0 keeps time from advancing (at line 9: x = x + 1;)" in note[0]
     assert "max time         0" in r.stdout
     assert "note: zero-time runaway" in r.stdout
-    res = explore(str(p), agents=1, reduce="none", max_states=1200)
+    res = explore(RUNAWAY, agents=1, reduce="none", max_states=1200)
     assert res.stats.max_time == 0
     assert any("zero-time runaway" in n for n in res.notes)
 

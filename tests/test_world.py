@@ -53,6 +53,16 @@ polygon = [[5, 0], [6, 0], [6, 1], [5, 1]]
 """
 
 
+@pytest.mark.parametrize("value, name", [("true", "boolean"), ("2.0", "float"), ('"two"', "string"),
+                                         ("[2]", "array"), ("{ n = 2 }", "table"),
+                                         ("1979-05-27", "date/time")])
+def test_a_value_of_another_type_is_named_in_toml_words(value, name):
+    # every kind of TOML value, named as TOML names it (pccl/lang/data.py)
+    with pytest.raises(PcclError) as e:
+        parse_world(f"agents = {value}\n", "w.toml")
+    assert e.value.message == f"'agents' must be an integer, got {name}"
+
+
 def test_full_file_parses():
     w = parse_world(FULL, "full.toml")
     assert w.n_agents == 3

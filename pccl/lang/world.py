@@ -52,6 +52,7 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, NoReturn, Optional
 
+from pccl.lang.data import TOML_NAMES, is_finite_number, is_integer, is_number, kind
 from pccl.lang.errors import PcclError
 from pccl.lang.tomlpos import TomlSource, decode_error_location, long_integer_location
 
@@ -202,23 +203,7 @@ def parse_world(source: str, filename: Optional[str] = None) -> World:
 
 
 def _type_name(v: Any) -> str:
-    if isinstance(v, bool):
-        return "boolean"
-    if isinstance(v, int):
-        return "integer"
-    if isinstance(v, float):
-        return "float"
-    if isinstance(v, str):
-        return "string"
-    if isinstance(v, list):
-        return "array"
-    if isinstance(v, dict):
-        return "table"
-    return "date/time"
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    return TOML_NAMES[kind(v)]
 
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
@@ -255,7 +240,7 @@ class WorldChecker:
         kw: dict = {}
         if "agents" in data:
             v = data["agents"]
-            if not isinstance(v, int) or isinstance(v, bool):
+            if not is_integer(v):
                 self.error(f"'agents' must be an integer, got {_type_name(v)}",
                            key="agents")
             if v < 1:
@@ -312,7 +297,7 @@ class WorldChecker:
                                    f"obstacle {k + 1}", key="start", path=(i,))
 
     def positive(self, v: Any, key: str) -> float:
-        if not _is_number(v):
+        if not is_number(v):
             self.error(f"'{key}' must be a number, got {_type_name(v)}", key=key)
         if not math.isfinite(v):
             self.error(f"'{key}' must be a finite number, got {v}", key=key)
@@ -323,7 +308,7 @@ class WorldChecker:
     def point(self, v: Any, dims=(2,)) -> Optional[tuple]:
         if not isinstance(v, list) or len(v) not in dims:
             return None
-        if not all(_is_number(c) and math.isfinite(c) for c in v):
+        if not all(is_finite_number(c) for c in v):
             return None
         return tuple(float(c) for c in v)
 

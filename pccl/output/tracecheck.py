@@ -16,10 +16,10 @@ indexes in order, one state per agent, cells of agents that exist, a
 from __future__ import annotations
 
 import json
-import math
 import os
 from typing import Any, NoReturn
 
+from pccl.lang.data import JSON_NAMES, is_finite_number, is_integer, kind
 from pccl.lang.errors import PcclError
 from pccl.lang.world import MAX_AGENTS
 
@@ -105,21 +105,7 @@ def parse_bytes(data: bytes, name: str) -> Any:
 # ---------------------------------------------------------------------------
 
 def _what(v) -> str:
-    if v is None:
-        return "null"
-    if isinstance(v, bool):
-        return "a boolean"
-    if isinstance(v, int):
-        return "an integer"
-    if isinstance(v, float):
-        return "a number"
-    if isinstance(v, str):
-        return "a string"
-    if isinstance(v, list):
-        return "a list"
-    if isinstance(v, dict):
-        return "an object"
-    return type(v).__name__          # pragma: no cover - not from JSON
+    return JSON_NAMES.get(kind(v)) or type(v).__name__     # (the last: not from JSON)
 
 
 def _fail(path: str, expected: str, v=None, *, got: bool = True) -> NoReturn:
@@ -148,14 +134,10 @@ def _obj(v, path, required=()) -> dict:
     return v
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
 def _integer(v, path, lo=None, hi=None, null=False):
     if v is None and null:
         return
-    if not _is_int(v):
+    if not is_integer(v):
         _fail(path, "an integer" + (" or null" if null else ""), v)
     if lo is not None and v < lo:
         _fail(path, f"an integer >= {lo}", v)
@@ -166,7 +148,7 @@ def _integer(v, path, lo=None, hi=None, null=False):
 def _number(v, path, lo=None, positive=False, null=False):
     if v is None and null:
         return
-    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+    if not is_finite_number(v):
         _fail(path, "a finite number" + (" or null" if null else ""), v)
     if positive and not v > 0:
         _fail(path, "a positive number", v)
@@ -309,7 +291,7 @@ def _state(s, path, n_agents: int, version: int = 2):
             if a["t0"] is not None:
                 _number(a["t0"], f"{ap}.t0")
             _value(a["obstacles"], f"{ap}.obstacles")
-        if a["id"] != i or not _is_int(a["id"]):
+        if a["id"] != i or not is_integer(a["id"]):
             _fail(f"{ap}.id", f"{i}", a["id"])
         st = _obj(a["status"], f"{ap}.status", ("status",))
         _enum(st["status"], f"{ap}.status.status", ("running", "exited", "stuck"))
@@ -344,7 +326,7 @@ def _cell(c, path, n_agents: int):
 def _step(s, path, n: int, n_agents: int):
     _obj(s, path, ("index", "time", "agent", "rule", "event", "line", "column", "source",
                    "branch", "changes"))
-    if not _is_int(s["index"]) or s["index"] != n:
+    if not is_integer(s["index"]) or s["index"] != n:
         _fail(f"{path}.index", f"{n} (steps are numbered from 1, in order)", s["index"])
     _number(s["time"], f"{path}.time", lo=0)
     _integer(s["agent"], f"{path}.agent", 0, n_agents - 1, null=True)
@@ -451,7 +433,7 @@ def check(doc: Any, name: str) -> dict:
         raise PcclError("not a pccl trace file (no \"format\": \"pccl-trace\")", filename=name)
     from pccl.output.codec import READS
     version = doc.get("version")
-    if not _is_int(version) or version not in READS:
+    if not is_integer(version) or version not in READS:
         raise PcclError(f"trace format version {_show(version)} is not supported "
                         f"(this pccl reads versions {', '.join(map(str, READS))})",
                         filename=name)

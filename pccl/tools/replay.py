@@ -570,8 +570,42 @@ def _end_of_witness(m, w, res, diverge):
     return res
 
 
-#: How many states the time-lock check visits from the cycle at most.
+#: How many states the time-lock and stall checks visit from the last state at most.
 TIMELOCK_LIMIT = 100_000
+
+
+class _BoundedReach:
+    """The states reachable from ``start`` (itself included), depth-first,
+    each once (up to the model's key), with their successors: iterating
+    yields ``(state, successors)``; the successors are followed after the
+    loop body has seen them.  It stops after TIMELOCK_LIMIT states (a
+    warning in ``res.warnings`` says that ``what`` was checked on the
+    states reachable from ``source`` only); ``finished`` tells afterwards
+    whether every reachable state was yielded."""
+
+    def __init__(self, m, start, res: ReplayResult, what: str, source: str):
+        self.m, self.start, self.res = m, start, res
+        self.what, self.source = what, source
+        self.finished = False
+
+    def __iter__(self):
+        m = self.m
+        seen, todo = {m.key(self.start)}, [self.start]
+        while todo:
+            if len(seen) > TIMELOCK_LIMIT:
+                self.res.warnings.append(f"warning: {self.what} was checked on the first "
+                                         f"{TIMELOCK_LIMIT:,} states reachable from "
+                                         f"{self.source} only")
+                return
+            st = todo.pop()
+            succ = m.successors(st)
+            yield st, succ
+            for _, nxt in succ:
+                k = m.key(nxt)
+                if k not in seen:
+                    seen.add(k)
+                    todo.append(nxt)
+        self.finished = True
 
 
 def _end_of_stall(m, recorded, cycle_start, res, diverge):
@@ -594,25 +628,16 @@ def _end_of_stall(m, recorded, cycle_start, res, diverge):
         return bad("every agent has exited at the recorded stall")
     sig = signature_fn(m)
     want = sig(last)
-    seen, todo, advances = {m.key(last)}, [last], False
-    while todo:
-        st = todo.pop()
-        succ = m.successors(st)
+    advances = False
+    reach = _BoundedReach(m, last, res, "the stall", "it")
+    for _, succ in reach:
         if not succ:
             return bad("a run can end from the recorded stall")
         for lab, nxt in succ:
             advances = advances or lab[0] == "TIME ADVANCE"
             if sig(nxt) != want:
                 return bad(f"the team can still change from the recorded stall ({lab[0]})")
-            k = m.key(nxt)
-            if k not in seen:
-                seen.add(k)
-                todo.append(nxt)
-        if len(seen) > TIMELOCK_LIMIT:
-            res.warnings.append(f"warning: the stall was checked on the first "
-                                f"{TIMELOCK_LIMIT:,} states reachable from it only")
-            break
-    if not advances and not todo:
+    if not advances and reach.finished:
         return bad("time never advances from the recorded stall (a time-lock, not a stall)")
     waits = waiting(m, last)
     message = STALL_MESSAGE + ("; " + waiting_text(waits) if waits else "")
@@ -672,22 +697,10 @@ def _timelock_escape(m, last, res) -> Optional[str]:
     the run end) from a state reachable from the time-lock's last state;
     searched up to TIMELOCK_LIMIT states (with a warning in ``res``)."""
     from pccl.model.layout import DISCRETE, PHASE
-    seen, todo = {m.key(last)}, [last]
-    while todo:
-        st = todo.pop()
-        succ = m.successors(st)
+    for st, succ in _BoundedReach(m, last, res, "the time-lock", "its cycle"):
         if not succ or st[PHASE] != DISCRETE:
             return ("time can advance again (or the run end) from the recorded "
                     "time-lock cycle")
-        for _, nxt in succ:
-            k = m.key(nxt)
-            if k not in seen:
-                seen.add(k)
-                todo.append(nxt)
-        if len(seen) > TIMELOCK_LIMIT:
-            res.warnings.append(f"warning: the time-lock was checked on the first "
-                                f"{TIMELOCK_LIMIT:,} states reachable from its cycle only")
-            break
     return None
 
 
