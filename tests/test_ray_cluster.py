@@ -82,7 +82,12 @@ class Cluster:
         self.address = f"127.0.0.1:{self.port}"
         self.root = tempfile.mkdtemp(prefix="pccl-ray-")   # short: Ray's socket paths
         self.env = {**os.environ, "RAY_AUTH_MODE": "token",
-                    "RAY_AUTH_TOKEN": secrets.token_hex(16), "RAY_USAGE_STATS_ENABLED": "0"}
+                    "RAY_AUTH_TOKEN": secrets.token_hex(16), "RAY_USAGE_STATS_ENABLED": "0",
+                    # the head's health checks of the nodes: every 1 s, 3 s to answer, dead
+                    # after 5 misses (Ray's defaults 3 s, 10 s, 5: a frozen node took ~65 s
+                    # to be declared dead, a minute of the suite)
+                    "RAY_health_check_period_ms": "1000", "RAY_health_check_timeout_ms": "3000",
+                    "RAY_health_check_failure_threshold": "5"}
         self.nodes: dict = {}          # "node_a"/"node_b" -> the ray start process
         self.ids: dict = {}            # "node_a"/"node_b" -> Ray's node id
 
@@ -230,7 +235,8 @@ def test_a_node_lost_mid_search_is_named_and_ends_the_search(cluster, how):
     """The machine of node_b dies (SIGKILL to its raylet, its actor,
     everything: seconds until the error) or freezes (SIGSTOP: its sockets
     stay open and nothing answers, as behind a broken network; the cluster
-    marks it dead when its health checks fail, about a minute here)."""
+    marks it dead when its health checks fail: about 20 s with this
+    cluster's settings, about a minute with Ray's defaults)."""
     p, lines = _long_search(cluster)
     node_b = _session(cluster.nodes["node_b"].pid)
     assert any("raylet" in (q.info["name"] or "") for q in node_b)
