@@ -295,7 +295,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     """Explore ``model``.  The search options are those of
     :class:`~pccl.model.options.ExploreOptions` (given as ``options=`` or as
     keywords): ``max_memory`` is bytes of peak resident memory at which the
-    search stops with the bound ``--max-memory`` (``"default"``: 80 % of
+    search stops with the bound ``max_memory`` (``"default"``: 80 % of
     physical memory; ``None``: no limit); ``workers`` processes (an int >= 1,
     or ``"auto"`` for the usable cores), with results identical for every
     number of workers; ``ray``: ``None`` (processes on this machine),
@@ -304,12 +304,39 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     CPU of the cluster; needs ``pip install 'pccl[ray]'``); ``progress``
     (if given) is called about every
     ``progress_interval`` seconds with a dict: states, frontier, depth,
-    seconds, memory (bytes)."""
+    seconds, memory (bytes).
+
+    The steps: resolve the model and the options (:func:`_explore_target`,
+    :func:`_explore_options`), plan the search (:func:`_plan_search`: memory,
+    coverage, workers, the recorder), pick the searcher and the engine
+    (:func:`_make_searcher`), run it (:func:`_run_search`), expand and
+    analyse the traces (:func:`_analyse`) and assemble the result
+    (:func:`_assemble`)."""
+    plan = _plan_search(_explore_target(model), _explore_options(options, search))
+    ex, native = _make_searcher(plan)
+    ex, sr = _run_search(plan, ex, native)
+    # every reachable state was expanded (before the graph analysis, which
+    # may turn an exhaustive search into a violation)
+    complete = sr.status == "exhaustive" or (
+        plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
+    lv = _analyse(plan, ex, sr)
+    return _assemble(plan, ex, sr, lv, complete)
+
+
+def _explore_target(model) -> Reduced:
+    """Step of :func:`explore_model`: the model seen through the reductions
+    it asks for (an :class:`ArgumentError` for anything but a model)."""
     if isinstance(model, Model) and not isinstance(model, Reduced):
         model = Reduced(model, model_choices(model.options)[1])     # the reductions it asks for
     if not isinstance(model, Reduced):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
+    return model
+
+
+def _explore_options(options: Optional[ExploreOptions], search: dict) -> ExploreOptions:
+    """Step of :func:`explore_model`: the search options, given whole or as
+    keywords (checked)."""
     if options is None:
         unknown = sorted(set(search) - set(SEARCH_OPTIONS))
         if unknown:
@@ -321,69 +348,100 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     elif search:
         raise ArgumentError("give the search options either as options= or as keywords",
                             filename="pccl.api.explore_model")
-    o = options
-    depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
-    find_all, progress, coverage = o.find_all, o.progress, o.coverage
-    max_memory, workers, ray = o.max_memory, o.workers, o.ray
-    timelock, fastest, stall = o.timelock, o.fastest, o.stall
-    if max_memory == "default":
-        max_memory = default_max_memory()
+    return options
+
+
+@dataclass
+class _SearchPlan:
+    """What :func:`explore_model` resolved before searching: the model (with
+    coverage's uses), the options, the memory bound in bytes, the number of
+    workers (None: one per CPU of the Ray cluster), the search's options,
+    the state-graph recorder, the labels taken and the runaway notes."""
+    model: Reduced
+    o: ExploreOptions
+    cov: Any
+    max_memory: Optional[int]
+    nworkers: Optional[int]
+    one: bool
+    sopts: Any
+    rec: Any
+    labels: Optional[set]
+    runaways: list = field(default_factory=list)
+
+    def on_runaway(self, info: dict) -> None:
+        from pccl.model.stall import runaway_note
+        msg = runaway_note(self.model, info)
+        self.runaways.append(msg)
+        note = getattr(self.o.progress, "note", None)     # the CLI's reporter: at once, on stderr
+        if note is not None:
+            note(msg)
+
+
+def _plan_search(model: Reduced, o: ExploreOptions) -> _SearchPlan:
+    """Step of :func:`explore_model`: resolve the memory bound, coverage and
+    the workers; check the options as resolved; make the recorder."""
+    max_memory = default_max_memory() if o.max_memory == "default" else o.max_memory
     cov = None
-    if coverage:
+    if o.coverage:
         if "coverage" not in model.reduce_uses:
             model = model.with_uses(("coverage",))
         from pccl.output.coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
-    if workers == "auto":
+    if o.workers == "auto":
         from pccl.search.parallel import available_workers
-        nworkers = None if ray is not None else available_workers()
+        nworkers = None if o.ray is not None else available_workers()
     else:
-        assert isinstance(workers, int), workers        # validated by ExploreOptions
-        nworkers = workers
+        assert isinstance(o.workers, int), o.workers        # validated by ExploreOptions
+        nworkers = o.workers
     c = conflict(o.replace(workers="auto" if nworkers is None else nworkers))     # as resolved
     if c is not None:
         raise ArgumentError(c.message(api_spelling), filename="pccl.api.explore_model")
-    one = ray is None and nworkers == 1
-    sopts = o.search_options(max_memory)
-    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
+    one = o.ray is None and nworkers == 1
     from pccl.search import liveness as L
-    skipped: list = []
     # the workers record the state graph too (pccl/search/parallel.py): the same
     # time-lock and temporal analysis runs on the same graph, whatever the backend
-    rec = L.make_recorder(model, timelock, stall)
+    rec = L.make_recorder(model, o.timelock, o.stall)
     # the distinct labels of the transitions taken: the events that fired
     labels: Optional[set] = set() if one else None
-    runaways: list = []
+    return _SearchPlan(model, o, cov, max_memory, nworkers, one, o.search_options(max_memory),
+                       rec, labels)
 
-    def on_runaway(info: dict) -> None:
-        from pccl.model.stall import runaway_note
-        msg = runaway_note(model, info)
-        runaways.append(msg)
-        note = getattr(progress, "note", None)     # the CLI's reporter: at once, on stderr
-        if note is not None:
-            note(msg)
 
-    native = _choose_engine(model, o, rec is not None, one)
+def _make_searcher(plan: _SearchPlan) -> tuple:
+    """Step of :func:`explore_model`: the searcher (plain, native, fastest,
+    parallel processes or Ray actors) and the native model (or None)."""
+    model, o, sopts = plan.model, plan.o, plan.sopts
+    native = _choose_engine(model, o, plan.rec is not None, plan.one)
     if native is not None:
         def on_runaway_native(info: dict) -> None:
-            on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
-                           on_runaway=on_runaway_native, labels=labels)
-    elif ray is not None:
+            plan.on_runaway({**info, "state": native.decode(info["state"])})
+        return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
+                         on_runaway=on_runaway_native, labels=plan.labels), native)
+    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
+    if o.ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
-    elif nworkers is not None and nworkers > 1:
+        return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
+                                **opts), None
+    if plan.nworkers is not None and plan.nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
-    elif fastest:
+        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, **opts), None
+    if o.fastest:
         from pccl.search.fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
-    else:
-        ex = Explorer(cov or model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels,
-                      checkpoint=_checkpointer(model, o))
-    saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
+        return FastestExplorer(plan.cov or model, sopts, recorder=plan.rec,
+                               labels=plan.labels), None
+    return Explorer(plan.cov or model, sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
+                    labels=plan.labels, checkpoint=_checkpointer(model, o)), None
+
+
+def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
+    """Step of :func:`explore_model`: run ``ex`` (deadlocks checked as the
+    options say); a native search that meets a value its vectors cannot
+    hold starts again on the Python engine.  Returns the searcher that ran
+    and its :class:`SearchResult`."""
+    model = plan.model
+    saved, model.lock_deadlocks = model.lock_deadlocks, plan.o.deadlock
     try:
         sr = ex.run()
         if native is not None:
@@ -397,8 +455,9 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             model.engine_used, model.engine_reason = (
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
-            labels = set()
-            ex = Explorer(model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels)
+            plan.labels = set()
+            ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
+                          labels=plan.labels)
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
@@ -407,44 +466,50 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             raise
     finally:
         model.lock_deadlocks = saved
-    # every reachable state was expanded (before the graph analysis, which
-    # may turn an exhaustive search into a violation)
-    complete = sr.status == "exhaustive" or (
-        find_all and sr.status == "violation" and not sr.bounds_hit)
+    return ex, sr
+
+
+def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
+    """Step of :func:`explore_model`: expand merged labels in the traces
+    found; with a recorder, the graph analysis (time-locks, stalls, temporal
+    properties), whose findings join the search's.  Returns the analysis
+    (None without a recorder)."""
+    model = plan.model
     if getattr(model, "merger", None) is not None:
         from pccl.model.reduce import expand_trace
         for f in sr.found:
             f.trace = expand_trace(model, f.trace, f.violation)
-    lv = None
-    if rec is not None:
-        import time as _time
-        t0 = _time.perf_counter()
-        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all, stall=stall)
-        L.attach_traces(model, ex, lv)
-        # the figures include the analysis of the graph
-        sr.stats.seconds += _time.perf_counter() - t0
-        sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
-        if lv.found and sr.status != "interrupted":
-            sr.found.extend(lv.found)
-            sr.status = "violation"
-    bb = model.blackbox.name
-    bound_names = [bound_label(b, model, depth=depth, max_states=max_states,
-                               max_memory=max_memory) for b in sr.bounds_hit]
-    violations = [violation_data(model, f) for f in sr.found]
+    if plan.rec is None:
+        return None
+    import time as _time
+    from pccl.search import liveness as L
+    t0 = _time.perf_counter()
+    lv = L.analyse(model, ex, sr, plan.rec, timelock=plan.o.timelock,
+                   find_all=plan.o.find_all, stall=plan.o.stall)
+    L.attach_traces(model, ex, lv)
+    # the figures include the analysis of the graph
+    sr.stats.seconds += _time.perf_counter() - t0
+    sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
+    if lv.found and sr.status != "interrupted":
+        sr.found.extend(lv.found)
+        sr.status = "violation"
+    return lv
+
+
+def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int]) -> tuple:
+    """Step of :func:`explore_model`: the one-line verdict (without the
+    blackbox) and the exit status."""
     n = len(sr.found)
     if sr.status == "violation":
-        v = sr.found[0].violation
-        verdict = f"violation: {v.message}"
+        verdict = f"violation: {sr.found[0].violation.message}"
         if n > 1:
             verdict += f" (and {n - 1} more distinct violation(s))"
-        code = 1
-    elif sr.status == "exhaustive":
-        verdict = "no violation — exhaustive"
-        code = 0
-    elif sr.status == "bounded":
-        verdict = "no violation within bounds — stopped by " + ", ".join(bound_names)
-        code = 0
-    elif sr.status == OUT_OF_MEMORY:
+        return verdict, 1
+    if sr.status == "exhaustive":
+        return "no violation — exhaustive", 0
+    if sr.status == "bounded":
+        return "no violation within bounds — stopped by " + ", ".join(bound_names), 0
+    if sr.status == OUT_OF_MEMORY:
         verdict = (f"out of memory — the process could not allocate more after "
                    f"{sr.stats.states:,} states (not exhaustive; a limit such as ulimit -v is "
                    f"below --max-memory {format_size(max_memory) if max_memory else 'none'}: "
@@ -452,51 +517,72 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         if n:
             verdict += (f"; {n} distinct violation(s) found so far, first: "
                         f"{sr.found[0].violation.message}")
-        code = 1 if n else 2
-    elif n:
-        verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
-                   f"so far (not exhaustive); first: {sr.found[0].violation.message}")
-        code = 1
-    else:
-        verdict = "interrupted — no violation found in the states explored so far (not exhaustive)"
-        code = 130
+        return verdict, 1 if n else 2
+    if n:
+        return (f"interrupted — {n} distinct violation(s) found in the states explored "
+                f"so far (not exhaustive); first: {sr.found[0].violation.message}"), 1
+    return "interrupted — no violation found in the states explored so far (not exhaustive)", 130
+
+
+def _witnesses(model, lv) -> list:
+    """Step of :func:`explore_model`: the witnesses of the reachable
+    properties, as :attr:`ExploreResult.witnesses`."""
+    out = []
+    for p, cx in (lv.witnesses if lv is not None else ()):
+        steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
+                      for st in cx.trace.steps)
+        out.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
+                    "trace": steps, "state": StateView.of(model, cx.trace.last),
+                    "initial": StateView.of(model, cx.trace.initial),
+                    "_trace": cx.trace})
+    return out
+
+
+def _search_notes(ex: Any) -> list:
+    """Step of :func:`explore_model`: the searcher's notes (checkpoints
+    written or resumed; with Ray, each actor's node)."""
+    notes: list = []
+    ck = getattr(ex, "checkpoint", None)
+    if ck is not None:
+        notes.extend(_checkpoint_notes(ck))
+    transport: Any = getattr(ex, "transport", None)
+    if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
+        notes.append(transport.placement_note())
+    return notes
+
+
+def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) -> ExploreResult:
+    """Step of :func:`explore_model`: the :class:`ExploreResult`, its verdict
+    and its ``checked`` section."""
+    model, o, max_memory = plan.model, plan.o, plan.max_memory
+    bb = model.blackbox.name
+    bound_names = [bound_label(b, model, depth=o.depth, max_states=o.max_states,
+                               max_memory=max_memory) for b in sr.bounds_hit]
+    violations = [violation_data(model, f) for f in sr.found]
+    verdict, code = _verdict(sr, bound_names, max_memory)
     verdict += f" [blackbox {bb}]"
     note = fixed_timing_note(model) if not violations else None
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
-    witnesses = []
-    if lv is not None:
-        for p, cx in lv.witnesses:
-            steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
-                          for st in cx.trace.steps)
-            witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
-                              "trace": steps, "state": StateView.of(model, cx.trace.last),
-                              "initial": StateView.of(model, cx.trace.initial),
-                              "_trace": cx.trace})
-    ck = getattr(ex, "checkpoint", None)
-    if ck is not None:
-        skipped.extend(_checkpoint_notes(ck))
-    transport: Any = getattr(ex, "transport", None)
-    if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
-        skipped.append(transport.placement_note())
     res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,
                         sr.collision_probability, model, sr, list(sr.found),
-                        cov.report() if cov is not None else None, witnesses,
-                        list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
-                        timelock, stall, bound_names, not_covered_note(model))
+                        plan.cov.report() if plan.cov is not None else None,
+                        _witnesses(model, lv), list(lv.holds) if lv else [],
+                        (list(lv.notes) if lv else []) + _search_notes(ex) + plan.runaways,
+                        o.timelock, o.stall, bound_names, not_covered_note(model))
     from pccl.output.checked import for_explore
-    configured = ([f"--depth {depth}"] if depth is not None else []) + \
-        ([f"--max-states {max_states}"] if max_states is not None else []) + \
+    configured = ([f"--depth {o.depth}"] if o.depth is not None else []) + \
+        ([f"--max-states {o.max_states}"] if o.max_states is not None else []) + \
         ([f"--max-time {model.max_time}"] if model.max_time is not None else []) + \
         (["--max-memory 80% of RAM"] if o.max_memory == "default" else
          [f"--max-memory {format_size(max_memory)}"] if max_memory is not None else [])
-    where = "Ray actors" if ray is not None else f"{nworkers} worker processes"
+    where = "Ray actors" if o.ray is not None else f"{plan.nworkers} worker processes"
     res.checked = for_explore(
-        model, res, o, complete=complete, labels=labels, bounds=tuple(configured),
-        labels_reason=None if labels is not None else
+        model, res, o, complete=complete, labels=plan.labels, bounds=tuple(configured),
+        labels_reason=None if plan.labels is not None else
         f"the transitions are taken in {where}; use --workers 1")
     return res
 
