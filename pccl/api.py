@@ -24,8 +24,8 @@ from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from pccl.model import validate as V
 from pccl.lang.errors import ArgumentError, OptionError
-from pccl.model.options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
-                      conflict, model_choices)
+from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
+                                api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
@@ -621,7 +621,7 @@ def _checkpointer(model, o: ExploreOptions):
     from pccl.search.checkpoint import Checkpointer, search_identity
     ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
                       interval=o.checkpoint_interval, resume=o.resume,
-                      identity=search_identity(model, o),
+                      identity=search_identity(model, o, IDENTITY_OPTIONS),
                       note=getattr(o.progress, "note", None))
     if o.checkpoint is not None or os.path.isdir(o.resume or ""):
         ck.prepare_dir()

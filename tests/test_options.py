@@ -231,3 +231,65 @@ def test_run_property_cut_run_is_undecided_and_reachable_is_reported():
 def test_run_property_typo_is_a_user_error():
     out = cli("run", FISCHER, "--property", "eventualy count(inCs) == 1")
     assert out.exit_code == 2 and "^" in out.stderr
+
+
+# ---------------------------------------------------------------------------
+# the lists of option names are derived from the dataclasses
+# ---------------------------------------------------------------------------
+
+#: a bad value for every model option validate.model_options checks, and the
+#: message's start: a new model option needs its line here (the test below
+#: fails until it has one), so its check cannot be forgotten
+BAD_MODEL_VALUES = {
+    "delta": (0, "delta must be positive"), "n0": (0, "n0 must be an integer >= 1"),
+    "rates": ([1], "rates must map agent indexes"), "events": ("all", "events must be 'any' or 'first'"),
+    "collisions": ("yes", "collisions must be True or False"),
+    "invariants": ("x > 0", "invariants must be a list of strings"),
+    "properties": ("x > 0", "properties must be a list of strings"),
+    "max_time": (-1, "max_time must be >= 0"), "functions": ([1], "functions must map names"),
+    "rand_policy": (3, "rand_policy must be callable"),
+    "abstract_time": ("on", "abstract_time must be True or False"),
+    "reduce": (3, "reduce must be 'auto', 'none' or a list"),
+}
+
+
+def test_the_model_options_checked_are_the_dataclass_fields():
+    """``MODEL_OPTIONS`` is ModelOptions' fields but those checked on their
+    own, and each is checked: a bad value is an error naming it."""
+    fields = [f.name for f in dataclasses.fields(O.ModelOptions)]
+    assert O.CHECKED_ALONE <= set(fields)
+    assert O.MODEL_OPTIONS == tuple(n for n in fields if n not in O.CHECKED_ALONE)
+    assert set(BAD_MODEL_VALUES) == set(O.MODEL_OPTIONS)
+    for name, (value, message) in BAD_MODEL_VALUES.items():
+        with pytest.raises(ArgumentError, match=r"pccl\.api\.make_model: error: " + message):
+            api.make_model(FISCHER, **{name: value})
+
+
+def test_a_new_field_is_seen_by_the_derived_lists():
+    """A field added to the options dataclasses joins the model options
+    checked and the identity of a checkpointed search (unless excluded)."""
+    M2 = dataclasses.make_dataclass("M2", [("brand_new", int, 0)], bases=(O.ModelOptions,), frozen=True)
+    E2 = dataclasses.make_dataclass("E2", [("brand_new", int, 0)], bases=(O.ExploreOptions,), frozen=True)
+    assert O.model_option_names(M2) == O.MODEL_OPTIONS + ("brand_new",)
+    assert O.identity_option_names(E2) == O.IDENTITY_OPTIONS + ("brand_new",)
+
+
+def test_the_checkpoint_identity_is_every_search_option_but_the_resources():
+    fields = {f.name for f in dataclasses.fields(O.ExploreOptions)}
+    assert (O.NOT_IDENTITY - O.API_ONLY) <= fields
+    assert set(O.IDENTITY_OPTIONS) == fields - O.NOT_IDENTITY
+    # the list this replaced (kept by hand in pccl/search/checkpoint.py): the same options
+    assert set(O.IDENTITY_OPTIONS) == {
+        "agents", "blackbox", "delta", "n0", "rates", "events", "collisions", "overrides",
+        "invariants", "properties", "max_time", "abstract_time", "reduce", "depth", "max_states",
+        "deadlock", "find_all", "exact", "timelock", "stall", "coverage", "fastest"}
+
+
+def test_the_conversions_are_derived_from_the_field_defaults():
+    assert O.MAPPING_OPTIONS == ("rates", "overrides")
+    assert O.LIST_OPTIONS == ("invariants", "properties")
+    assert O.TIME_OPTIONS == ("delta", "max_time")
+    # and they convert: the CLI's pairs and tuples, a JSON form's string agent keys
+    o = O.ExploreOptions.from_cli({"rates": ((1, 2),), "invariants": ["x"], "delta": 2.0})
+    assert o.rates == {1: 2} and o.invariants == ("x",) and o.delta == 2 and isinstance(o.delta, int)
+    assert O.ExploreOptions.from_dict(o.to_dict()) == o

@@ -86,13 +86,13 @@ class CommonOptions:
         ignored).  Repeated flags arrive as tuples of pairs."""
         names = {f.name for f in dataclasses.fields(cls)} - API_ONLY
         kw = {k: v for k, v in params.items() if k in names}
-        for k in ("rates", "overrides"):
+        for k in MAPPING_OPTIONS:
             if k in kw:
                 kw[k] = dict(kw[k])
-        for k in ("invariants", "properties"):
+        for k in LIST_OPTIONS:
             if k in kw:
                 kw[k] = tuple(kw[k])
-        for k in ("delta", "max_time"):
+        for k in TIME_OPTIONS:
             if kw.get(k) is not None:
                 kw[k] = integral(kw[k])
         return cls(**kw)
@@ -144,14 +144,12 @@ class CommonOptions:
         mine = {f.name for f in dataclasses.fields(cls)} - API_ONLY
         kw = {k: v for k, v in data.items() if k in mine}
         try:
-            if "rates" in kw:
-                kw["rates"] = {int(a): r for a, r in dict(kw["rates"] or {}).items()}
-            for k in ("overrides",):
-                if k in kw:
-                    kw[k] = dict(kw[k] or {})
+            for k in MAPPING_OPTIONS:
+                if k in kw:     # JSON keys are strings: the agents of rates are ints
+                    kw[k] = {(int(a) if k == "rates" else a): r for a, r in dict(kw[k] or {}).items()}
         except (TypeError, ValueError) as e:
-            raise ValueError(f"rates and overrides must be objects: {e}") from None
-        for k in ("invariants", "properties"):
+            raise ValueError(f"{' and '.join(MAPPING_OPTIONS)} must be objects: {e}") from None
+        for k in LIST_OPTIONS:
             if k in kw:
                 kw[k] = tuple(kw[k] or ())
         return cls(**kw)
@@ -163,9 +161,22 @@ class CommonOptions:
         V.blackbox(func, self.blackbox)
         V.integer(func, "agents", self.agents, minimum=1, optional=True)
         V.overrides(func, self.overrides)
-        raw = {k: getattr(self, k, None) for k in V.MODEL_OPTIONS}
+        raw = {k: getattr(self, k, None) for k in MODEL_OPTIONS}
         V.model_options(func, {k: v for k, v in raw.items()
-                               if v is not None or k in ("max_time", "abstract_time")})
+                               if v is not None or k in ("max_time", "abstract_time")},
+                        MODEL_OPTIONS)
+
+
+#: The options that map keys to values (``--rate 1=2``, ``--set k=2``): the
+#: fields whose default is an empty dict (derived).
+MAPPING_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions) if f.default_factory is dict)
+#: The options that list texts (``--invariant``, ``--property``): the fields
+#: whose default is the empty tuple (derived).
+LIST_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions) if f.default == ())
+#: The options that are times (written back as the user wrote them,
+#: :func:`integral`): the common fields typed ``Union[int, float]`` (derived).
+TIME_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions)
+                     if "Union[int, float]" in str(f.type))
 
 
 @dataclass(frozen=True)
@@ -174,6 +185,20 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
+
+
+#: Model options with checks of their own in :meth:`CommonOptions.check` (the
+#: source flag, the world, the blackbox, the team size, the overrides).
+CHECKED_ALONE = frozenset({"source", "world", "blackbox", "agents", "overrides"})
+#: The model options :func:`pccl.model.validate.model_options` checks: the
+#: fields of :class:`ModelOptions` but :data:`CHECKED_ALONE` (derived, so a new
+#: model option cannot be missing).
+def model_option_names(cls: Optional[type] = None) -> tuple:
+    """The fields of ``cls`` (:class:`ModelOptions`) that :func:`pccl.model.validate.model_options` checks."""
+    return tuple(f.name for f in dataclasses.fields(cls or ModelOptions) if f.name not in CHECKED_ALONE)
+
+
+MODEL_OPTIONS = model_option_names()
 
 
 @dataclass(frozen=True)
@@ -253,6 +278,24 @@ class ExploreOptions(ModelOptions):
                              deadlock=self.deadlock, find_all=self.find_all, exact=self.exact,
                              progress=self.progress, progress_interval=self.progress_interval,
                              max_memory=max_memory)
+
+
+#: Search options a resumed search may change (pccl/search/checkpoint.py): the
+#: resources (memory, workers, Ray), the engine, progress and where the
+#: checkpoints go; the hooks a checkpoint cannot hold (API-only); and the world,
+#: identified by its file's hash instead.
+NOT_IDENTITY = frozenset({"world", "max_memory", "workers", "ray", "engine", "progress",
+                          "progress_interval", "checkpoint", "checkpoint_interval", "resume"}) | API_ONLY
+#: The options that define a search, in the order a checkpoint's mismatch is
+#: reported: a resumed search must be the same search (derived from
+#: :class:`ExploreOptions`, so a new option is part of the identity unless
+#: :data:`NOT_IDENTITY` says otherwise).
+def identity_option_names(cls: Optional[type] = None) -> tuple:
+    """The fields of ``cls`` (:class:`ExploreOptions`) that define a search."""
+    return tuple(f.name for f in dataclasses.fields(cls or ExploreOptions) if f.name not in NOT_IDENTITY)
+
+
+IDENTITY_OPTIONS = identity_option_names()
 
 
 @dataclass(frozen=True)

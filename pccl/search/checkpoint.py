@@ -54,13 +54,6 @@ MANIFEST = "checkpoint.json"
 #: Seconds between checkpoints by default (TLC's 30 minutes).
 DEFAULT_INTERVAL = 1800.0
 
-#: The options that define the search, in the order a mismatch is reported:
-#: a resumed search must be the same search.  (``max_memory``, ``workers``,
-#: ``progress`` and where the checkpoints go may differ.)
-IDENTITY_OPTIONS = ("agents", "blackbox", "delta", "n0", "rates", "events", "collisions",
-                    "overrides", "invariants", "properties", "max_time", "abstract_time",
-                    "reduce", "depth", "max_states", "deadlock", "find_all", "exact",
-                    "timelock", "stall", "coverage", "fastest")
 
 
 def parse_interval(text) -> float:
@@ -112,9 +105,11 @@ def _jsonable(v):
     return getattr(v, "name", None) or repr(v)
 
 
-def search_identity(model, options) -> dict:
+def search_identity(model, options, names) -> dict:
     """What a checkpoint must match to be resumed: the program's source and
-    the world file (hashes) and the options that define the search."""
+    the world file (hashes) and the options that define the search:
+    ``names``, in the order a mismatch is reported (the caller's
+    :data:`pccl.model.options.IDENTITY_OPTIONS`)."""
     prog = model.program
     world = options.world
     if world is None:
@@ -128,7 +123,7 @@ def search_identity(model, options) -> dict:
     else:
         world_hash = _text_hash(repr(getattr(world, "source", None) or getattr(world, "path", "")))
     opts = {}
-    for name in IDENTITY_OPTIONS:
+    for name in names:
         v = getattr(options, name, None)
         if name == "agents":
             v = model.N
@@ -376,7 +371,7 @@ class Checkpointer:
             raise self._bad(f"the checkpoint was written with a different world (hash "
                             f"{got.get('world')}; this run: {want.get('world')})")
         go, wo = got.get("options") or {}, want.get("options") or {}
-        for name in IDENTITY_OPTIONS:
+        for name in [*wo, *(k for k in go if k not in wo)]:     # this search's order
             if go.get(name) != wo.get(name):
                 raise self._bad(f"the checkpoint was written with {describe_option(name, go.get(name))}, "
                                 f"this run has {describe_option(name, wo.get(name))}")
