@@ -16,7 +16,7 @@ import pytest
 
 import pccl.api as api
 from pccl.model import options as O
-from pccl.cli import main
+from pccl.cli import cli_spelling, flag as cli_flag, main
 from pccl.lang.errors import ArgumentError
 from pccl.search.explorer import Bound
 from pccl.model.layout import TIME
@@ -43,7 +43,7 @@ def test_every_field_is_spelt_as_its_flag(command):
     cmd = main.commands[command]
     by_name = {p.name: p for p in cmd.params}
     for name in O.cli_fields(COMMANDS[command]):
-        assert O.flag(name) in by_name[name].opts, (name, by_name[name].opts)
+        assert cli_flag(name) in by_name[name].opts, (name, by_name[name].opts)
 
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
@@ -159,12 +159,23 @@ def test_views_read_by_json_key_like_the_json():
     assert r.violation["message"] == r.violation.message
 
 
-def test_bounds_are_the_enum_and_labels_the_flags():
+def test_bounds_are_the_enum_and_labels_the_keywords_or_the_flags():
+    """The API labels a bound with its keyword, the CLI with its flag."""
     r = api.explore(FISCHER, max_states=50, depth=1000)
     assert r.status == "bounded"
-    assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["--max-states 50"]
-    out = cli("explore", FISCHER, "--max-states", "50", "--format", "json")
-    assert json.loads(out.output)["bounds"] == r.bound_labels
+    assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["max_states=50"]
+    assert r.verdict.startswith("no violation within bounds — stopped by max_states=50 [")
+    assert [b["bound"] for b in r.checked["bounds"]] == ["depth=1000", "max_states=50",
+                                                         "max_memory=80% of RAM"]
+    out = cli("explore", FISCHER, "--max-states", "50", "--depth", "1000", "--format", "json")
+    data = json.loads(out.output)
+    assert data["bounds"] == ["--max-states 50"]
+    assert data["message"].startswith("no violation within bounds — stopped by --max-states 50 [")
+    assert [b["bound"] for b in data["checked"]["bounds"]] == ["--depth 1000", "--max-states 50",
+                                                               "--max-memory 80% of RAM"]
+    # the same bounds stopped the search
+    assert [b["stopped"] for b in data["checked"]["bounds"]] == \
+        [b["stopped"] for b in r.checked["bounds"]] == [False, True, False]
 
 
 @pytest.mark.parametrize("kw, flag, keyword", [
@@ -181,8 +192,10 @@ def test_model_option_errors_name_the_keyword_in_the_api_and_the_flag_in_the_cli
     out = cli("explore", FISCHER, *flag)
     assert out.exit_code == 2
     assert out.stderr.startswith(f"{flag[0]}: error: ")
-    # the same message after the prefix
-    assert out.stderr.strip().split(": error: ", 1)[1] == api_text.split(f"{keyword}: ", 1)[1]
+    # the same message after the prefix, the options it names spelt each way
+    api_msg, cli_msg = api_text.split(f"{keyword}: ", 1)[1], out.stderr.strip().split(": error: ", 1)[1]
+    assert "--" not in api_msg
+    assert cli_msg == api_msg.replace("(n0=5 rates={1: 5})", "(--n0 5 --rate 1=5)")
 
 
 # ---------------------------------------------------------------------------

@@ -4,7 +4,7 @@
 ``pccl.api.explore(..., max_states=100, overrides={"k": "2"})`` build the same
 :class:`ExploreOptions`; ``pccl run`` and ``pccl.api.run`` the same
 :class:`RunOptions`.  A field is spelt like its command-line flag
-(``max_states`` is ``--max-states``) except where :data:`FLAGS` says
+(``max_states`` is ``--max-states``) except where ``pccl.cli.FLAGS`` says
 otherwise, and a test checks that every field is a flag of its command and
 every flag of the command is a field or a presentation option
 (:data:`PRESENTATION`: how the result is shown, not what is computed).
@@ -14,7 +14,9 @@ Fields in :data:`API_ONLY` are hooks a command line cannot express
 Checks run once, in :meth:`~ModelOptions.check`, with messages that name the
 option as the API spells it (``max_states must be an integer >= 1, got 0``);
 the CLI's own parameter types reject the same values earlier with the flag's
-name.
+name.  A text below the CLI that names an option writes a placeholder
+(``{workers=1}``, :func:`pccl.lang.errors.spell`): the API spells it as its
+keyword (:func:`api_spelling`), the CLI as its flag; no module here writes a flag.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from collections.abc import Callable, Mapping
 
 from pccl.model import validate as V
 from pccl.lang.world import MAX_AGENTS
-from pccl.lang.errors import FLAGS, ArgumentError, OptionError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
+from pccl.lang.errors import ArgumentError, OptionError, Spelling, keyword_spelling, spell
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -309,17 +311,20 @@ class Conflict:
     option: str
     text: str
 
-    def message(self, spell: Callable[[str, Optional[str]], str]) -> str:
-        def one(key: str) -> str:
-            name, eq, value = key.partition("=")
-            return spell(name, value if eq else None)
-        import re
-        return re.sub(r"\{([a-z_]+(?:=[^}]*)?)\}", lambda mo: one(mo.group(1)), self.text)
+    def message(self, spelling: Spelling) -> str:
+        return spell(self.text, spelling)
 
 
-def api_spelling(name: str, value: Optional[str]) -> str:
-    """An option as the API's keyword (``workers=1``)."""
-    return name if value is None else f"{name}={value}"
+def option_names() -> frozenset:
+    """Every option of ``run`` and ``explore``: the fields of the options dataclasses."""
+    return frozenset(f.name for c in (ExploreOptions, RunOptions) for f in dataclasses.fields(c))
+
+
+def api_spelling(name: str, value: Optional[str]) -> Optional[str]:
+    """An option as the API's keyword (``workers=1``, ``rates={1: 2}``:
+    :func:`~pccl.lang.errors.keyword_spelling`); None for a name that is no
+    option (the text is left as written)."""
+    return keyword_spelling(name, value) if name in OPTION_NAMES else None
 
 
 def conflict(o: "ExploreOptions") -> Optional[Conflict]:
@@ -441,11 +446,15 @@ def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> 
             raise OptionError(
                 "rates", f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
                 f"would never run an event (it runs while counter + rate ≤ n0); "
-                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
+                f"use a rate of at most {n0}, or raise n0 ({{n0={r}}} {{rates={a}={r}}})")
         rho[a] = r
     if events not in ("any", "first"):
         raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
     return rho
+
+
+#: Every option's name (:func:`option_names`).
+OPTION_NAMES = option_names()
 
 
 def integral(x):

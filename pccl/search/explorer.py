@@ -645,7 +645,7 @@ class Explorer:
                     start = self._restore(adm, res, state, arrays)
                 except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
                     raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
-                                  f"--checkpoint") from None
+                                  "{checkpoint}") from None
                 del state, arrays       # the mapped files: copied into the table by now
                 t_start -= start["seconds"]
                 stop = False
