@@ -889,7 +889,7 @@ def view(trace_file, output, blackbox):
         if res.status == "diverged":
             notes.append(f"the trace does not replay: {res.message}")
     except PcclError as e:
-        notes.append(f"not replayed ({e.message}): shown as recorded")
+        notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
         world = _world_of(doc)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
