@@ -363,8 +363,10 @@ def test_explore_json_checked_is_the_api_s(never):
     kw = explore(never, invariants=["x <= 1"], depth=4).checked.to_json()
     assert kw["bounds"] == [{"bound": "depth=4", "stopped": True},
                             {"bound": "max_memory=80% of RAM", "stopped": False}]
-    assert {k: v for k, v in kw.items() if k not in ("bounds", "properties")} == \
-        {k: v for k, v in api.items() if k not in ("bounds", "properties")}
+    assert kw["builtin"][-1] == {"check": "collisions", "on": False, "detail": "collisions not given"}
+    spelt = ("bounds", "properties", "builtin")      # the texts that name options
+    assert {k: v for k, v in kw.items() if k not in spelt} == \
+        {k: v for k, v in api.items() if k not in spelt}
 
 
 def test_schema_rejects_a_bad_checked(never):

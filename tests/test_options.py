@@ -16,7 +16,7 @@ import pytest
 
 import pccl.api as api
 from pccl.model import options as O
-from pccl.cli import cli_spelling, flag as cli_flag, main
+from pccl.cli import flag as cli_flag, main
 from pccl.lang.errors import ArgumentError
 from pccl.search.explorer import Bound
 from pccl.model.layout import TIME

@@ -125,6 +125,9 @@ def test_the_two_spellings_of_a_placeholder():
     # a name that is no option, and a program's block, are left as written
     assert spell("{x} and { y = 1; } and {1, 2}", api_spelling) == "{x} and { y = 1; } and {1, 2}"
     assert spell("{x} and { y = 1; }", cli_spelling) == "{x} and { y = 1; }"
+    # program text quoted in backticks is left alone, even a placeholder's look-alike
+    assert spell("property `{depth}` needs {depth}", cli_spelling) == "property `{depth}` needs --depth"
+    assert spell("property `{depth}` needs {depth}", keyword_spelling) == "property `{depth}` needs depth"
     # an error's location: the option, then its place
     assert spell("{invariants} #1", location_spelling(cli_spelling)) == "--invariant #1"
     assert spell("{invariants} #1", location_spelling(api_spelling)) == "invariants #1"

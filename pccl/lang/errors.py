@@ -95,15 +95,19 @@ class ArgumentError(PcclError, ValueError):
 Spelling = Callable[[str, Optional[str]], Optional[str]]
 
 #: An option in a text: ``{fastest}``, ``{workers=1}``, ``{rates=1=2}``
-#: (lowercase names only: ``{ x = 1; }`` of a program's block is not one).
-_PLACEHOLDER = re.compile(r"\{([a-z][a-z0-9_]*)(?:=([^{}]*))?\}")
+#: (lowercase names only: ``{ x = 1; }`` of a program's block is not one); or
+#: a span quoted in backticks (a property's text), which is left alone.
+_PLACEHOLDER = re.compile(r"`[^`]*`|\{([a-z][a-z0-9_]*)(?:=([^{}]*))?\}")
 
 
 def spell(text: str, spelling: Spelling) -> str:
     """``text`` with its option placeholders written by ``spelling``
     (``{workers=1}``: ``workers=1`` for the API, ``--workers 1`` for the
-    CLI); placeholders ``spelling`` does not know stay as they are."""
+    CLI); placeholders ``spelling`` does not know, and anything quoted in
+    backticks (program text), stay as they are."""
     def one(m: re.Match) -> str:
+        if m.group(1) is None:
+            return m.group(0)
         out = spelling(m.group(1), m.group(2))
         return m.group(0) if out is None else out
     return _PLACEHOLDER.sub(one, text)

@@ -30,7 +30,7 @@ from typing import Any, Optional
 from collections.abc import Callable
 
 from pccl.lang import ast as A
-from pccl.lang.errors import PcclError, Spelling, spell
+from pccl.lang.errors import PcclError, Spelling, keyword_spelling, spell
 from pccl.semantics import rules as R
 from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, REACH, RUNNING, SH, STATUS,
@@ -75,9 +75,9 @@ class Plan:
 
     def off_reasons(self, spelling: Optional[Spelling] = None) -> dict:
         """``off`` with the options its reasons name (placeholders such as
-        ``{collisions}``) spelt by ``spelling`` (default: the API's keywords)."""
-        from pccl.model.options import api_spelling
-        return {name: spell(why, spelling or api_spelling) for name, why in self.off.items()}
+        ``{collisions}``) spelt by ``spelling`` (default: the API's keywords;
+        the properties a reason quotes are in backticks, left alone)."""
+        return {name: spell(why, spelling or keyword_spelling) for name, why in self.off.items()}
 
     def as_dict(self, spelling: Optional[Spelling] = None) -> dict:
         return {"requested": self.requested, "on": list(self.on), "off": self.off_reasons(spelling)}
