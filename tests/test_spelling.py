@@ -253,3 +253,19 @@ def test_checkpoint_mismatch_names_the_option(tmp_path):
     out = cli("explore", FISCHER, "--set", "k=2", "--resume", d)
     assert out.exit_code == 2 and out.stderr.startswith("--resume: error: ")
     assert "written with --set k=1, this run has --set k=2" in out.stderr
+
+
+def test_the_checkers_world_hint():
+    src = "loc:\n  int c = getCount();\n"
+    with pytest.raises(PcclError) as e:
+        api.check(src, source=True)
+    assert "a function the world provides needs world=FILE defining getCount" in e.value.message
+    e.value.respell(cli_spelling)
+    assert "needs --world FILE defining getCount" in e.value.message
+
+
+def test_a_liveness_note_under_a_depth_bound():
+    r = api.explore(FISCHER, properties=["eventually inCs[0]"], depth=3)
+    assert "liveness properties not checked: the search was bounded by depth" in r.notes
+    out = cli("explore", FISCHER, "--property", "eventually inCs[0]", "--depth", "3")
+    assert "note: liveness properties not checked: the search was bounded by --depth" in out.output
