@@ -297,15 +297,15 @@ def test_no_property_note_only_on_clean_verdicts(never):
 
 
 def test_world_note_in_explore(chdir_root):
-    r = explore(RACE)
-    notes = [n for n in r.checked.notes if n.startswith("no --world given")]
-    assert notes == ["no --world given, so the defaults are used: getInput() = [] (read at "
+    r = explore(RACE)          # the API names the option as its keyword (the CLI: --world)
+    notes = [n for n in r.checked.notes if n.startswith("no world given")]
+    assert notes == ["no world given, so the defaults are used: getInput() = [] (read at "
                      "line 7); getObs() = [], no obstacles (read at line 12); the robots start "
                      "on a line at (0.0, 0.0, 0.0), (0.75, 0.0, 0.0) (doReach at line 25)"]
-    assert not any(n.startswith("no --world") for n in explore(RACE, world=RACE_WORLD)
+    assert not any(n.startswith("no world") for n in explore(RACE, world=RACE_WORLD)
                    .checked.notes)
     # a program that reads nothing of the world needs no world
-    assert not any(n.startswith("no --world") for n in
+    assert not any(n.startswith("no world") for n in
                    explore("programs/fischer.pccl", overrides={"k": "0"}).checked.notes)
 
 
