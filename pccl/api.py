@@ -23,9 +23,9 @@ from pccl.lang import ast as A
 from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from pccl.model import validate as V
-from pccl.lang.errors import ArgumentError, OptionError
-from pccl.model.options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
-                      conflict, model_choices)
+from pccl.lang.errors import ArgumentError, OptionError, Spelling, spell
+from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
+                                api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
@@ -64,7 +64,7 @@ def apply_overrides(prog: A.Program, overrides) -> A.Program:
     for d in prog.decls:
         if isinstance(d, A.VarDecl) and d.name in overrides:
             text = overrides.pop(d.name)
-            expr = parse_property(str(text), filename=f"--set {d.name}")
+            expr = parse_property(str(text), filename=f"{{overrides}} {d.name}")
             d = dataclasses.replace(d, init=expr)
         decls.append(d)
     if overrides:
@@ -152,9 +152,10 @@ def explore_blackbox(prog: A.Program, blackbox=None):
     return None, None
 
 
-def fixed_timing_note(model) -> Optional[str]:
+def fixed_timing_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     """For a program that moves explored with a deterministic blackbox: the
-    note that travel times were fixed (None otherwise)."""
+    note that travel times were fixed (None otherwise); the option it names
+    spelt by ``spelling``."""
     bb = model.blackbox
     det = getattr(bb, "deterministic", None)
     if det is None:
@@ -163,7 +164,8 @@ def fixed_timing_note(model) -> Optional[str]:
         det = name in DETERMINISTIC_BLACKBOXES and BLACKBOXES.get(name) is bb
     if not det or not program_moves(model.program):
         return None
-    return f"travel times fixed by {bb.name}; -b {EXPLORE_MOVING_DEFAULT} explores every timing"
+    return spell(f"travel times fixed by {bb.name}; {{blackbox={EXPLORE_MOVING_DEFAULT}}} explores "
+                 "every timing", spelling)
 
 #: Shipped blackboxes that cover straight and pymunk except for positions in
 #: mid-motion (docs/blackboxes.md, "What each blackbox covers").
@@ -173,10 +175,11 @@ COVERING_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
 def positions_read_in_motion(model) -> Optional[str]:
     """Where ``model`` reads robots' positions, which a covering blackbox
     (``nondet``) does not enumerate in mid-motion: the first
-    ``getPosition()``, ``pos`` in a property, or ``--collisions``; None if
-    the program observes motion only through the doReach flags."""
+    ``getPosition()``, ``pos`` in a property, or ``{collisions}`` (the option,
+    for the caller to spell); None if the program observes motion only
+    through the doReach flags."""
     if model.collisions:
-        return "--collisions"
+        return "{collisions}"
     lines = [e.span.line for e in A.walk(model.program)
              if isinstance(e, A.Call) and e.name == "getPosition"]
     if lines:
@@ -188,11 +191,12 @@ def positions_read_in_motion(model) -> Optional[str]:
     return None
 
 
-def not_covered_note(model) -> Optional[str]:
+def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     """Under a covering blackbox (``nondet``, ``nondet-fail``), what of the
     physical blackboxes' behaviours the search does not cover, for the
     header of ``pccl explore``: ``positions in mid-motion not covered
-    (getPosition() at line 29)``; None when nothing is left out."""
+    (getPosition() at line 29)``; None when nothing is left out.  The
+    option it may name (collisions) spelt by ``spelling``."""
     from pccl.blackboxes import BLACKBOXES
     bb = model.blackbox
     name = getattr(bb, "name", None)
@@ -201,7 +205,7 @@ def not_covered_note(model) -> Optional[str]:
     if not program_moves(model.program):
         return None
     why = positions_read_in_motion(model)
-    return f"positions in mid-motion not covered ({why})" if why else None
+    return f"positions in mid-motion not covered ({spell(why, spelling)})" if why else None
 
 
 @dataclass(repr=False)
@@ -211,7 +215,9 @@ class ExploreResult:
     :class:`~pccl.output.results.StepView` and its violating ``state``, a
     :class:`~pccl.output.results.StateView`); ``bounds`` are the
     :class:`~pccl.search.explorer.Bound` members that cut the search and
-    ``bound_labels`` how the CLI spells them (``--max-states 100``)."""
+    ``bound_labels`` how the caller spells them: ``max_states=100`` in the
+    API, ``--max-states 100`` on the command line (the ``spelling`` of
+    :func:`explore_model`).  Every text of the result names options so."""
     status: str                       # violation | exhaustive | bounded | interrupted
     verdict: str                      # the one-line verdict
     blackbox: str
@@ -234,7 +240,7 @@ class ExploreResult:
     notes: list = field(default_factory=list)
     timelock: bool = False            # whether the time-lock check ran
     stall: bool = False               # whether the stall check ran
-    bound_labels: list = field(default_factory=list)  # the bounds as the CLI spells them
+    bound_labels: list = field(default_factory=list)  # the bounds as the caller spells them
     #: what the covering blackbox leaves out of straight's and pymunk's behaviours
     not_covered: Optional[str] = None
     #: what the verdict covers (:class:`~pccl.output.checked.Checked`: properties and
@@ -281,21 +287,27 @@ def memory_bound(max_memory) -> Optional[int]:
 
 
 def require_ray():
-    """The ``ray`` module for ``ray=``/``--ray``, or an :class:`ArgumentError`
+    """The ``ray`` module for the option ``ray``, or an :class:`ArgumentError`
     saying ``pip install 'pccl[ray]'``."""
     from pccl.search.parallel import RayUnavailable, import_ray
     try:
         return import_ray()
     except RayUnavailable as e:
-        raise ArgumentError(str(e), filename="pccl --ray") from None
+        raise _ray_error(e) from None
+
+
+def _ray_error(e: Exception) -> ArgumentError:
+    """Ray missing, unreachable or lost (:class:`~pccl.search.parallel.RayUnavailable`,
+    whose text names options as placeholders) as an error of the option ``ray``."""
+    return ArgumentError(str(e), where="pccl {ray}", template=True)
 
 
 def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOptions] = None,
-                  **search) -> ExploreResult:
+                  spelling: Spelling = api_spelling, **search) -> ExploreResult:
     """Explore ``model``.  The search options are those of
     :class:`~pccl.model.options.ExploreOptions` (given as ``options=`` or as
     keywords): ``max_memory`` is bytes of peak resident memory at which the
-    search stops with the bound ``--max-memory`` (``"default"``: 80 % of
+    search stops with the bound ``max_memory`` (``"default"``: 80 % of
     physical memory; ``None``: no limit); ``workers`` processes (an int >= 1,
     or ``"auto"`` for the usable cores), with results identical for every
     number of workers; ``ray``: ``None`` (processes on this machine),
@@ -304,12 +316,42 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     CPU of the cluster; needs ``pip install 'pccl[ray]'``); ``progress``
     (if given) is called about every
     ``progress_interval`` seconds with a dict: states, frontier, depth,
-    seconds, memory (bytes)."""
+    seconds, memory (bytes).  ``spelling`` writes the options the result's
+    texts name (verdict, bounds, notes, reasons, ``checked``): the API's
+    keywords (``max_states=100``) by default; ``pccl explore`` passes its
+    flags' (``--max-states 100``).
+
+    The steps: resolve the model and the options (:func:`_explore_target`,
+    :func:`_explore_options`), plan the search (:func:`_plan_search`: memory,
+    coverage, workers, the recorder), pick the searcher and the engine
+    (:func:`_make_searcher`), run it (:func:`_run_search`), expand and
+    analyse the traces (:func:`_analyse`) and assemble the result
+    (:func:`_assemble`)."""
+    plan = _plan_search(_explore_target(model), _explore_options(options, search), spelling)
+    ex, native = _make_searcher(plan)
+    ex, sr = _run_search(plan, ex, native)
+    # every reachable state was expanded (before the graph analysis, which
+    # may turn an exhaustive search into a violation)
+    complete = sr.status == "exhaustive" or (
+        plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
+    lv = _analyse(plan, ex, sr)
+    return _assemble(plan, ex, sr, lv, complete)
+
+
+def _explore_target(model) -> Reduced:
+    """Step of :func:`explore_model`: the model seen through the reductions
+    it asks for (an :class:`ArgumentError` for anything but a model)."""
     if isinstance(model, Model) and not isinstance(model, Reduced):
         model = Reduced(model, model_choices(model.options)[1])     # the reductions it asks for
     if not isinstance(model, Reduced):
         raise ArgumentError(f"model must be a Model (from make_model), got "
                             f"{type(model).__name__}", filename="pccl.api.explore_model")
+    return model
+
+
+def _explore_options(options: Optional[ExploreOptions], search: dict) -> ExploreOptions:
+    """Step of :func:`explore_model`: the search options, given whole or as
+    keywords (checked)."""
     if options is None:
         unknown = sorted(set(search) - set(SEARCH_OPTIONS))
         if unknown:
@@ -321,69 +363,101 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     elif search:
         raise ArgumentError("give the search options either as options= or as keywords",
                             filename="pccl.api.explore_model")
-    o = options
-    depth, max_states, deadlock = o.depth, o.max_states, o.deadlock
-    find_all, progress, coverage = o.find_all, o.progress, o.coverage
-    max_memory, workers, ray = o.max_memory, o.workers, o.ray
-    timelock, fastest, stall = o.timelock, o.fastest, o.stall
-    if max_memory == "default":
-        max_memory = default_max_memory()
+    return options
+
+
+@dataclass
+class _SearchPlan:
+    """What :func:`explore_model` resolved before searching: the model (with
+    coverage's uses), the options, the memory bound in bytes, the number of
+    workers (None: one per CPU of the Ray cluster), the search's options,
+    the state-graph recorder, the labels taken and the runaway notes."""
+    model: Reduced
+    o: ExploreOptions
+    cov: Any
+    max_memory: Optional[int]
+    nworkers: Optional[int]
+    one: bool
+    sopts: Any
+    rec: Any
+    labels: Optional[set]
+    spelling: Spelling = api_spelling
+    runaways: list = field(default_factory=list)
+
+    def on_runaway(self, info: dict) -> None:
+        from pccl.model.stall import runaway_note
+        msg = spell(runaway_note(self.model, info), self.spelling)
+        self.runaways.append(msg)
+        note = getattr(self.o.progress, "note", None)     # the CLI's reporter: at once, on stderr
+        if note is not None:
+            note(msg)
+
+
+def _plan_search(model: Reduced, o: ExploreOptions, spelling: Spelling) -> _SearchPlan:
+    """Step of :func:`explore_model`: resolve the memory bound, coverage and
+    the workers; check the options as resolved; make the recorder."""
+    max_memory = default_max_memory() if o.max_memory == "default" else o.max_memory
     cov = None
-    if coverage:
+    if o.coverage:
         if "coverage" not in model.reduce_uses:
             model = model.with_uses(("coverage",))
         from pccl.output.coverage import CoverageModel
         cov = CoverageModel(model)
     nworkers: Optional[int]         # None: with Ray, one per CPU of the cluster
-    if workers == "auto":
+    if o.workers == "auto":
         from pccl.search.parallel import available_workers
-        nworkers = None if ray is not None else available_workers()
+        nworkers = None if o.ray is not None else available_workers()
     else:
-        assert isinstance(workers, int), workers        # validated by ExploreOptions
-        nworkers = workers
+        assert isinstance(o.workers, int), o.workers        # validated by ExploreOptions
+        nworkers = o.workers
     c = conflict(o.replace(workers="auto" if nworkers is None else nworkers))     # as resolved
     if c is not None:
         raise ArgumentError(c.message(api_spelling), filename="pccl.api.explore_model")
-    one = ray is None and nworkers == 1
-    sopts = o.search_options(max_memory)
-    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
+    one = o.ray is None and nworkers == 1
     from pccl.search import liveness as L
-    skipped: list = []
     # the workers record the state graph too (pccl/search/parallel.py): the same
     # time-lock and temporal analysis runs on the same graph, whatever the backend
-    rec = L.make_recorder(model, timelock, stall)
+    rec = L.make_recorder(model, o.timelock, o.stall)
     # the distinct labels of the transitions taken: the events that fired
     labels: Optional[set] = set() if one else None
-    runaways: list = []
+    return _SearchPlan(model, o, cov, max_memory, nworkers, one, o.search_options(max_memory),
+                       rec, labels, spelling)
 
-    def on_runaway(info: dict) -> None:
-        from pccl.model.stall import runaway_note
-        msg = runaway_note(model, info)
-        runaways.append(msg)
-        note = getattr(progress, "note", None)     # the CLI's reporter: at once, on stderr
-        if note is not None:
-            note(msg)
 
-    native = _choose_engine(model, o, rec is not None, one)
+def _make_searcher(plan: _SearchPlan) -> tuple:
+    """Step of :func:`explore_model`: the searcher (plain, native, fastest,
+    parallel processes or Ray actors) and the native model (or None)."""
+    model, o, sopts = plan.model, plan.o, plan.sopts
+    native = _choose_engine(model, o, plan.rec is not None, plan.one, plan.spelling)
     if native is not None:
         def on_runaway_native(info: dict) -> None:
-            on_runaway({**info, "state": native.decode(info["state"])})
-        ex: Any = Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
-                           on_runaway=on_runaway_native, labels=labels)
-    elif ray is not None:
+            plan.on_runaway({**info, "state": native.decode(info["state"])})
+        return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
+                         on_runaway=on_runaway_native, labels=plan.labels), native)
+    opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
+    if o.ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
-    elif nworkers is not None and nworkers > 1:
+        return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
+                                **opts), None
+    if plan.nworkers is not None and plan.nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
-    elif fastest:
+        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, **opts), None
+    if o.fastest:
         from pccl.search.fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
-    else:
-        ex = Explorer(cov or model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels,
-                      checkpoint=_checkpointer(model, o))
-    saved, model.lock_deadlocks = model.lock_deadlocks, deadlock
+        return FastestExplorer(plan.cov or model, sopts, recorder=plan.rec,
+                               labels=plan.labels), None
+    return Explorer(plan.cov or model, sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
+                    labels=plan.labels, checkpoint=_checkpointer(model, o)), None
+
+
+def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
+    """Step of :func:`explore_model`: run ``ex`` (deadlocks checked as the
+    options say); a native search that meets a value its vectors cannot
+    hold starts again on the Python engine.  Returns the searcher that ran
+    and its :class:`SearchResult`."""
+    model = plan.model
+    saved, model.lock_deadlocks = model.lock_deadlocks, plan.o.deadlock
     try:
         sr = ex.run()
         if native is not None:
@@ -397,114 +471,156 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             model.engine_used, model.engine_reason = (
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
-            labels = set()
-            ex = Explorer(model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels)
+            plan.labels = set()
+            ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
+                          labels=plan.labels)
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
             if isinstance(e, RayUnavailable):       # Ray could not be started or reached
-                raise ArgumentError(str(e), filename="pccl --ray") from None
+                raise _ray_error(e) from None
             raise
     finally:
         model.lock_deadlocks = saved
-    # every reachable state was expanded (before the graph analysis, which
-    # may turn an exhaustive search into a violation)
-    complete = sr.status == "exhaustive" or (
-        find_all and sr.status == "violation" and not sr.bounds_hit)
+    return ex, sr
+
+
+def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
+    """Step of :func:`explore_model`: expand merged labels in the traces
+    found; with a recorder, the graph analysis (time-locks, stalls, temporal
+    properties), whose findings join the search's.  Returns the analysis
+    (None without a recorder)."""
+    model = plan.model
     if getattr(model, "merger", None) is not None:
         from pccl.model.reduce import expand_trace
         for f in sr.found:
             f.trace = expand_trace(model, f.trace, f.violation)
-    lv = None
-    if rec is not None:
-        import time as _time
-        t0 = _time.perf_counter()
-        lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all, stall=stall)
-        L.attach_traces(model, ex, lv)
-        # the figures include the analysis of the graph
-        sr.stats.seconds += _time.perf_counter() - t0
-        sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
-        if lv.found and sr.status != "interrupted":
-            sr.found.extend(lv.found)
-            sr.status = "violation"
-    bb = model.blackbox.name
-    bound_names = [bound_label(b, model, depth=depth, max_states=max_states,
-                               max_memory=max_memory) for b in sr.bounds_hit]
-    violations = [violation_data(model, f) for f in sr.found]
+    if plan.rec is None:
+        return None
+    import time as _time
+    from pccl.search import liveness as L
+    t0 = _time.perf_counter()
+    lv = L.analyse(model, ex, sr, plan.rec, timelock=plan.o.timelock,
+                   find_all=plan.o.find_all, stall=plan.o.stall)
+    L.attach_traces(model, ex, lv)
+    # the figures include the analysis of the graph
+    sr.stats.seconds += _time.perf_counter() - t0
+    sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
+    if lv.found and sr.status != "interrupted":
+        sr.found.extend(lv.found)
+        sr.status = "violation"
+    return lv
+
+
+def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int],
+             spelling: Spelling) -> tuple:
+    """Step of :func:`explore_model`: the one-line verdict (without the
+    blackbox) and the exit status; ``bound_names`` are spelt already, the
+    other options it names by ``spelling``."""
     n = len(sr.found)
     if sr.status == "violation":
-        v = sr.found[0].violation
-        verdict = f"violation: {v.message}"
+        verdict = f"violation: {sr.found[0].violation.message}"
         if n > 1:
             verdict += f" (and {n - 1} more distinct violation(s))"
-        code = 1
-    elif sr.status == "exhaustive":
-        verdict = "no violation — exhaustive"
-        code = 0
-    elif sr.status == "bounded":
-        verdict = "no violation within bounds — stopped by " + ", ".join(bound_names)
-        code = 0
-    elif sr.status == OUT_OF_MEMORY:
-        verdict = (f"out of memory — the process could not allocate more after "
-                   f"{sr.stats.states:,} states (not exhaustive; a limit such as ulimit -v is "
-                   f"below --max-memory {format_size(max_memory) if max_memory else 'none'}: "
-                   f"give a smaller --max-memory to stop as a bound)")
+        return verdict, 1
+    if sr.status == "exhaustive":
+        return "no violation — exhaustive", 0
+    if sr.status == "bounded":
+        return "no violation within bounds — stopped by " + ", ".join(bound_names), 0
+    if sr.status == OUT_OF_MEMORY:
+        size = format_size(max_memory) if max_memory else "none"
+        verdict = spell(f"out of memory — the process could not allocate more after "
+                        f"{sr.stats.states:,} states (not exhaustive; a limit such as ulimit -v is "
+                        f"below {{max_memory={size}}}: give a smaller {{max_memory}} to stop as "
+                        f"a bound)", spelling)
         if n:
             verdict += (f"; {n} distinct violation(s) found so far, first: "
                         f"{sr.found[0].violation.message}")
-        code = 1 if n else 2
-    elif n:
-        verdict = (f"interrupted — {n} distinct violation(s) found in the states explored "
-                   f"so far (not exhaustive); first: {sr.found[0].violation.message}")
-        code = 1
-    else:
-        verdict = "interrupted — no violation found in the states explored so far (not exhaustive)"
-        code = 130
+        return verdict, 1 if n else 2
+    if n:
+        return (f"interrupted — {n} distinct violation(s) found in the states explored "
+                f"so far (not exhaustive); first: {sr.found[0].violation.message}"), 1
+    return "interrupted — no violation found in the states explored so far (not exhaustive)", 130
+
+
+def _witnesses(model, lv) -> list:
+    """Step of :func:`explore_model`: the witnesses of the reachable
+    properties, as :attr:`ExploreResult.witnesses`."""
+    out = []
+    for p, cx in (lv.witnesses if lv is not None else ()):
+        steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
+                      for st in cx.trace.steps)
+        out.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
+                    "trace": steps, "state": StateView.of(model, cx.trace.last),
+                    "initial": StateView.of(model, cx.trace.initial),
+                    "_trace": cx.trace})
+    return out
+
+
+def _search_notes(ex: Any) -> list:
+    """Step of :func:`explore_model`: the searcher's notes (checkpoints
+    written or resumed; with Ray, each actor's node)."""
+    notes: list = []
+    ck = getattr(ex, "checkpoint", None)
+    if ck is not None:
+        notes.extend(_checkpoint_notes(ck))
+    transport: Any = getattr(ex, "transport", None)
+    if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
+        notes.append(transport.placement_note())
+    return notes
+
+
+def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) -> ExploreResult:
+    """Step of :func:`explore_model`: the :class:`ExploreResult`, its verdict
+    and its ``checked`` section."""
+    model, o, max_memory, spelling = plan.model, plan.o, plan.max_memory, plan.spelling
+    bb = model.blackbox.name
+    bound_names = [bound_label(b, model, depth=o.depth, max_states=o.max_states,
+                               max_memory=max_memory, spelling=spelling) for b in sr.bounds_hit]
+    violations = [violation_data(model, f) for f in sr.found]
+    verdict, code = _verdict(sr, bound_names, max_memory, spelling)
     verdict += f" [blackbox {bb}]"
-    note = fixed_timing_note(model) if not violations else None
+    note = fixed_timing_note(model, spelling) if not violations else None
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
-    witnesses = []
-    if lv is not None:
-        for p, cx in lv.witnesses:
-            steps = tuple(StepView.of(model, st.number, st.label, st.before, st.after)
-                          for st in cx.trace.steps)
-            witnesses.append({"name": p.name, "text": p.text, "depth": len(cx.trace),
-                              "trace": steps, "state": StateView.of(model, cx.trace.last),
-                              "initial": StateView.of(model, cx.trace.initial),
-                              "_trace": cx.trace})
-    ck = getattr(ex, "checkpoint", None)
-    if ck is not None:
-        skipped.extend(_checkpoint_notes(ck))
-    transport: Any = getattr(ex, "transport", None)
-    if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
-        skipped.append(transport.placement_note())
     res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,
                         sr.collision_probability, model, sr, list(sr.found),
-                        cov.report() if cov is not None else None, witnesses,
-                        list(lv.holds) if lv else [], (list(lv.notes) if lv else []) + skipped + runaways,
-                        timelock, stall, bound_names, not_covered_note(model))
+                        plan.cov.report() if plan.cov is not None else None,
+                        _witnesses(model, lv), list(lv.holds) if lv else [],
+                        [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)]
+                        + plan.runaways, o.timelock, o.stall, bound_names,
+                        not_covered_note(model, spelling))
     from pccl.output.checked import for_explore
-    configured = ([f"--depth {depth}"] if depth is not None else []) + \
-        ([f"--max-states {max_states}"] if max_states is not None else []) + \
-        ([f"--max-time {model.max_time}"] if model.max_time is not None else []) + \
-        (["--max-memory 80% of RAM"] if o.max_memory == "default" else
-         [f"--max-memory {format_size(max_memory)}"] if max_memory is not None else [])
-    where = "Ray actors" if ray is not None else f"{nworkers} worker processes"
+    hit = {BOUND_OPTIONS.get(b) for b in sr.bounds_hit}
+    configured = [(spelling(name, value), name in hit) for name, value in _bounds_in_force(plan)]
+    where = "Ray actors" if o.ray is not None else f"{plan.nworkers} worker processes"
     res.checked = for_explore(
-        model, res, o, complete=complete, labels=labels, bounds=tuple(configured),
-        labels_reason=None if labels is not None else
-        f"the transitions are taken in {where}; use --workers 1")
+        model, res, o, complete=complete, labels=plan.labels, bounds=tuple(configured),
+        labels_reason=None if plan.labels is not None else
+        spell(f"the transitions are taken in {where}; use {{workers=1}}", spelling),
+        spelling=spelling)
     return res
 
 
-def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool):
+def _bounds_in_force(plan: _SearchPlan) -> list:
+    """The bounds of the search as ``(option, value)`` (the default memory
+    bound as ``80% of RAM``)."""
+    o, model, max_memory = plan.o, plan.model, plan.max_memory
+    return ([("depth", str(o.depth))] if o.depth is not None else []) + \
+        ([("max_states", str(o.max_states))] if o.max_states is not None else []) + \
+        ([("max_time", str(model.max_time))] if model.max_time is not None else []) + \
+        ([("max_memory", "80% of RAM")] if o.max_memory == "default" else
+         [("max_memory", format_size(max_memory))] if max_memory is not None else [])
+
+
+def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
+                   spelling: Spelling = api_spelling):
     """The native model for this search (pccl/model/native.py), or None for the
     Python engine; sets ``model.engine_used`` and ``model.engine_reason``
-    (why not native) for the header."""
+    (why not native, the options it names spelt by ``spelling``) for the header."""
     model.engine_asked = o.engine != "auto"
     if o.engine == "python":
         model.engine_used, model.engine_reason = "python", None
@@ -512,16 +628,16 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool)
     from pccl.model import native as NV
     why = NV.unsupported(model, recorder=recorder, parallel=not one)
     if why is None and o.coverage:
-        why = "--coverage counts guards in Python"
+        why = "{coverage} counts guards in Python"
     if why is None and o.fastest:
-        why = "--fastest orders the search in Python"
+        why = "{fastest} orders the search in Python"
     if why is None and (o.checkpoint is not None or o.resume is not None):
-        why = "--checkpoint and --resume save the Python engine's states"
+        why = "{checkpoint} and {resume} save the Python engine's states"
     if why is not None:
         if o.engine == "native":
             raise ArgumentError(f"the native engine cannot run this search: {why}",
-                                filename="--engine")
-        model.engine_used, model.engine_reason = "python", why
+                                where="{engine}", template=True)
+        model.engine_used, model.engine_reason = "python", spell(why, spelling)
         return None
     model.engine_used, model.engine_reason = "native", None
     return NV.NativeModel(model)
@@ -535,7 +651,7 @@ def _checkpointer(model, o: ExploreOptions):
     from pccl.search.checkpoint import Checkpointer, search_identity
     ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
                       interval=o.checkpoint_interval, resume=o.resume,
-                      identity=search_identity(model, o),
+                      identity=search_identity(model, o, IDENTITY_OPTIONS),
                       note=getattr(o.progress, "note", None))
     if o.checkpoint is not None or os.path.isdir(o.resume or ""):
         ck.prepare_dir()
@@ -557,17 +673,27 @@ def _checkpoint_notes(ck) -> list:
     return out
 
 
-def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None) -> str:
-    """How ``pccl explore`` spells a bound that cut the search."""
-    if bound is Bound.DEPTH:
-        return f"--depth {depth}"
-    if bound is Bound.MAX_STATES:
-        return f"--max-states {max_states}"
-    if bound is Bound.MODEL:
-        return f"--max-time {model.max_time}"
-    if bound is Bound.MAX_MEMORY:
-        return f"--max-memory {format_size(max_memory)}"
-    return str(bound)
+#: The option of each bound that can cut a search.
+BOUND_OPTIONS = {Bound.DEPTH: "depth", Bound.MAX_STATES: "max_states", Bound.MODEL: "max_time",
+                 Bound.MAX_MEMORY: "max_memory"}
+
+
+def bound_option(bound: Bound, model, *, depth=None, max_states=None,
+                 max_memory=None) -> Optional[tuple]:
+    """A bound that cut the search as ``(option, value)`` (``("depth", "10")``;
+    None for a bound no option sets)."""
+    values = {Bound.DEPTH: depth, Bound.MAX_STATES: max_states, Bound.MODEL: model.max_time,
+              Bound.MAX_MEMORY: format_size(max_memory) if bound is Bound.MAX_MEMORY else None}
+    name = BOUND_OPTIONS.get(bound)
+    return None if name is None else (name, str(values[bound]))
+
+
+def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=None,
+                spelling: Spelling = api_spelling) -> str:
+    """A bound that cut the search as ``spelling`` writes it: ``depth=10``
+    (the API's keyword), ``--depth 10`` (``pccl explore``)."""
+    opt = bound_option(bound, model, depth=depth, max_states=max_states, max_memory=max_memory)
+    return str(bound) if opt is None else (spelling(*opt) or str(bound))
 
 
 def parse_size(text: str) -> int:

@@ -10,9 +10,45 @@ import click
 
 from pccl.output import display as D
 from pccl.output.checked import NO_PROPERTY_NOTE
-from pccl.lang.errors import PcclError, flag
+from pccl.lang.errors import PcclError
 from pccl.model.layout import AGS, POS, STATUS, TIME
-from pccl.model.options import ExploreOptions, ModelOptions, RunOptions, conflict
+from pccl.model.options import OPTION_NAMES, ExploreOptions, ModelOptions, RunOptions, conflict
+
+#: Options whose flag is not ``--`` + the name with ``-`` for ``_``.  The flags
+#: are spelt here only: the engine, the API and the outputs name options by
+#: placeholders (``{depth=10}``, :func:`pccl.lang.errors.spell`) that the API
+#: writes as keywords and the CLI as flags (:func:`cli_spelling`).
+FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
+         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
+         "properties": "--property", "timelock": "--no-timelock",
+         "stall": "--no-stall"}
+#: Options written with their short flag when given with a value (as the
+#: verdict's note has always said it: ``-b nondet explores every timing``).
+SHORT_FLAGS = {"blackbox": "-b"}
+
+
+def flag(name: str) -> str:
+    """The command-line flag of the option ``name``."""
+    return FLAGS.get(name, "--" + name.replace("_", "-"))
+
+
+def cli_spelling(name: str, value) -> "str | None":
+    """An option as the command line spells it: ``--fastest``, ``--workers 1``,
+    ``--no-timelock`` for ``timelock=False``, ``--rate 1=2`` (for
+    :func:`pccl.lang.errors.spell`); None for a name that is no option."""
+    if name not in OPTION_NAMES:
+        return None
+    if value is not None and name in SHORT_FLAGS:
+        return f"{SHORT_FLAGS[name]} {value}"
+    f = flag(name)
+    if value is None or value == "True" or (value == "False" and f.startswith("--no-")):
+        return f
+    return f"{f} {value}"
+
+
+def _render(err: PcclError) -> str:
+    """``err`` as the command line says it: its options as flags."""
+    return err.respell(cli_spelling).render()
 
 BLACKBOX_HELP = ("environment model: instant, straight, nondet, nondet-fail, pymunk, or "
                  "module:attribute for your own [default: straight; explore: nondet for a "
@@ -131,15 +167,8 @@ def _check_repeats(rates, overrides):
                                      param_hint=f"'{opt}'")
 
 
-def _flag_spelling(name: str, value) -> str:
-    """An option as the command line spells it: ``--fastest``, ``--workers 1``
-    (for :meth:`pccl.options.Conflict.message`)."""
-    f = flag(name)
-    return f if value in (None, "True") else f"{f} {value}"
-
-
 def _fail(err: PcclError):
-    click.echo(err.render(), err=True)
+    click.echo(_render(err), err=True)
     sys.exit(2)
 
 
@@ -307,7 +336,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _fail(e)
     m = res.model
     from pccl.output.checked import for_run
-    checked = for_run(m, res, opts)
+    checked = for_run(m, res, opts, cli_spelling)
     doc = None
     if record:
         cfg = T.config("run", m, program=program)
@@ -470,7 +499,7 @@ def _write_trace(doc, path, *, quiet=False):
     try:
         T.write(doc, path)
     except PcclError as e:      # the verdict stands: report, keep its exit status
-        click.echo(e.render(), err=True)
+        click.echo(_render(e), err=True)
         return
     click.echo(f"trace written to {path}", err=quiet)
 
@@ -537,7 +566,7 @@ def _plot_run(m, res, path, *, quiet=False):
     try:
         _plot_module().plot_run(m, res, path)
     except PcclError as e:      # the run's verdict stands: report, keep its exit status
-        click.echo(e.render(), err=True)
+        click.echo(_render(e), err=True)
         return
     click.echo(f"plot written to {path}", err=quiet)
 
@@ -652,13 +681,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             model = model.with_uses(("coverage",))
         c = conflict(opts)
         if c is not None:
-            raise PcclError(c.message(_flag_spelling), filename=flag(c.option))
+            raise PcclError(c.message(cli_spelling), filename=flag(c.option))
     except PcclError as e:
         _fail(e)
     reporter = _progress_printer(_explore_header(program, model), progress, progress_interval)
     try:
         res = explore_model(model, options=opts.replace(
-            progress=reporter, progress_interval=min(0.5, progress_interval)))
+            progress=reporter, progress_interval=min(0.5, progress_interval)), spelling=cli_spelling)
     except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
         if reporter is not None:
             reporter.close()    # erase the live display before the message
@@ -695,7 +724,7 @@ def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool)
                                       title=res.violations[0].message)
             click.echo(f"plot written to {plot}", err=quiet)
         except PcclError as e:  # the violation stands: report, keep exit status 1
-            click.echo(e.render(), err=True)
+            click.echo(_render(e), err=True)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     if html and doc["initial"] is not None:
@@ -800,7 +829,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
             _plot_module().plot_trace(m, res.trace, plot, title=res.message)
             click.echo(f"plot written to {plot}")
         except PcclError as e:
-            click.echo(e.render(), err=True)
+            click.echo(_render(e), err=True)
     if html and res.doc.get("initial") is not None:
         _write_html(html, res.doc, model=m, states=res.states,
                     notes=[res.message] if res.status == "diverged" else [])
@@ -818,7 +847,7 @@ def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), qui
     try:
         viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes))
     except PcclError as e:      # the verdict stands: report, keep its exit status
-        click.echo(e.render(), err=True)
+        click.echo(_render(e), err=True)
         return
     click.echo(f"viewer written to {path}", err=quiet)
 
@@ -860,7 +889,7 @@ def view(trace_file, output, blackbox):
         if res.status == "diverged":
             notes.append(f"the trace does not replay: {res.message}")
     except PcclError as e:
-        notes.append(f"not replayed ({e.message}): shown as recorded")
+        notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
         world = _world_of(doc)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
@@ -1377,13 +1406,13 @@ def _explore_header(program, m) -> str:
     reason = getattr(m, "blackbox_reason", None)
     why = f" ({reason})" if reason else ""
     from pccl.api import not_covered_note
-    uncovered = not_covered_note(m)
+    uncovered = not_covered_note(m, cli_spelling)
     if uncovered:
         why += f", {uncovered}"
     return (f"pccl explore {program}: {m.N} agents, blackbox {m.blackbox.name}{why}, "
             f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, events {m.events_policy}, "
             f"time abstraction {'on' if m.abstract_time else 'off'}, "
-            f"reductions {m.reduction.describe()}{_engine_text(m)}")
+            f"reductions {m.reduction.describe(cli_spelling)}{_engine_text(m)}")
 
 
 def _engine_text(m) -> str:
@@ -1480,7 +1509,7 @@ def _explore_json(program, res) -> dict:
         **{"program": program, "blackbox": res.blackbox, "agents": m.N,
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
-            "reductions": m.reduction.as_dict(),
+            "reductions": m.reduction.as_dict(cli_spelling),
             "statistics": {**res.stats.as_dict(), "reduced": bool(m.reduction.on)},
             "collision_probability": res.collision_probability,
             "fingerprints": "exact" if res.search.exact else "xxh3_128",

@@ -136,7 +136,7 @@ def test_race_no_violation_exhaustive_straight(agents):
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
     assert res.verdict == ("no violation — exhaustive [blackbox straight] (travel times fixed "
-                           "by straight; -b nondet explores every timing)")
+                           "by straight; blackbox=nondet explores every timing)")
     assert res.model.N == agents
 
 
@@ -273,11 +273,11 @@ def test_time_abstraction_makes_fischer_finite():
     assert on.status == "exhaustive" and on.exit_status == 0 and on.bounds == []
     off = explore(FISCHER, abstract_time=False, max_states=40_000, **kw)
     assert off.status == "bounded" and off.exit_status == 0
-    assert off.bound_labels == ["--max-states 40000"] and "--max-states 40000" in off.verdict
+    assert off.bound_labels == ["max_states=40000"] and "max_states=40000" in off.verdict
     assert off.bounds == [Bound.MAX_STATES]
     assert off.stats.states > on.stats.states
     off2 = explore(FISCHER, abstract_time=False, depth=on.stats.max_depth + 50, **kw)
-    assert off2.status == "bounded" and "--depth" in off2.verdict
+    assert off2.status == "bounded" and "depth=" in off2.verdict
 
 
 def test_traces_show_real_time_under_abstraction():
@@ -295,7 +295,7 @@ def test_depth_bound():
     res = explore(RACE, world=RACE_WORLD, depth=10)
     assert res.status == "bounded" and res.exit_status == 0
     assert res.bounds == [Bound.DEPTH]
-    assert res.bound_labels == ["--depth 10"] and "--depth 10" in res.verdict
+    assert res.bound_labels == ["depth=10"] and "depth=10" in res.verdict
     assert res.stats.max_depth == 10
     assert "exhaustive" not in res.verdict
 
@@ -309,7 +309,7 @@ def test_depth_zero_explores_initial_states_only():
 def test_max_states_bound():
     res = explore(RACE, world=RACE_WORLD, agents=3, max_states=100)
     assert res.status == "bounded" and res.exit_status == 0
-    assert res.bound_labels == ["--max-states 100"] and "--max-states 100" in res.verdict
+    assert res.bound_labels == ["max_states=100"] and "max_states=100" in res.verdict
     assert 100 <= res.stats.states < 130
 
 
@@ -318,7 +318,7 @@ def test_max_time_bound():
     assert res.model.abstract_time is False
     assert res.status == "bounded" and res.exit_status == 0
     assert res.bounds == [Bound.MODEL]
-    assert res.bound_labels == ["--max-time 3"] and "--max-time 3" in res.verdict
+    assert res.bound_labels == ["max_time=3"] and "max_time=3" in res.verdict
     res2 = explore(FISCHER, overrides=SMALL, max_time=3, invariants=["time <= 2"])
     assert res2.status == "violation" and res2.final_state["time"] == 3
 

@@ -129,7 +129,7 @@ def test_never_fired_not_computed_when_bounded(never):
     assert r.checked.events_reason == "a bound stopped the search"
     j = r.checked.to_json()
     assert j["events"]["never_fired"] is None
-    assert {"bound": "--depth 3", "stopped": True} in j["bounds"]
+    assert {"bound": "depth=3", "stopped": True} in j["bounds"]
 
 
 def test_never_fired_after_a_violation_only_with_all(never):
@@ -153,7 +153,7 @@ def test_never_fired_not_computed_with_workers(never):
     r = explore(never, workers=2)
     assert r.status == "exhaustive"
     assert r.checked.never_fired is None
-    assert "--workers 1" in r.checked.events_reason
+    assert "workers=1" in r.checked.events_reason
 
 
 # ---------------------------------------------------------------------------
@@ -234,8 +234,8 @@ def test_property_outcomes(never):
     r = explore(never, invariants=["x <= 1"], properties=["eventually x == 1"], depth=3)
     assert r.status == "bounded"
     assert _outcomes(r) == {
-        "x <= 1": ("held within bounds", "stopped by --depth 3"),
-        "eventually x == 1": ("not checked", "the search did not finish (stopped by --depth 3)")}
+        "x <= 1": ("held within bounds", "stopped by depth=3"),
+        "eventually x == 1": ("not checked", "the search did not finish (stopped by depth=3)")}
     r = explore(never, invariants=["x == 0", "n[0] < 5"])
     assert r.status == "violation"
     assert _outcomes(r) == {
@@ -297,15 +297,15 @@ def test_no_property_note_only_on_clean_verdicts(never):
 
 
 def test_world_note_in_explore(chdir_root):
-    r = explore(RACE)
-    notes = [n for n in r.checked.notes if n.startswith("no --world given")]
-    assert notes == ["no --world given, so the defaults are used: getInput() = [] (read at "
+    r = explore(RACE)          # the API names the option as its keyword (the CLI: --world)
+    notes = [n for n in r.checked.notes if n.startswith("no world given")]
+    assert notes == ["no world given, so the defaults are used: getInput() = [] (read at "
                      "line 7); getObs() = [], no obstacles (read at line 12); the robots start "
                      "on a line at (0.0, 0.0, 0.0), (0.75, 0.0, 0.0) (doReach at line 25)"]
-    assert not any(n.startswith("no --world") for n in explore(RACE, world=RACE_WORLD)
+    assert not any(n.startswith("no world") for n in explore(RACE, world=RACE_WORLD)
                    .checked.notes)
     # a program that reads nothing of the world needs no world
-    assert not any(n.startswith("no --world") for n in
+    assert not any(n.startswith("no world") for n in
                    explore("programs/fischer.pccl", overrides={"k": "0"}).checked.notes)
 
 
@@ -347,12 +347,26 @@ def test_explore_json_checked_is_the_api_s(never):
     res = cli("explore", never, "--format", "json", "--invariant", "x <= 1", "--depth", "4")
     out = json.loads(res.output)
     valid_checked(out["checked"])
-    api = explore(never, invariants=["x <= 1"], depth=4).checked.to_json()
+    # the API's, spelt with the CLI's flags as pccl explore does
+    from pccl.api import build_model, explore_model
+    from pccl.cli import cli_spelling
+    from pccl.model.options import ExploreOptions
+    opts = ExploreOptions(invariants=("x <= 1",), depth=4)
+    api = explore_model(build_model(never, opts, explore=True), options=opts,
+                        spelling=cli_spelling).checked.to_json()
     assert out["checked"] == api
     assert out["checked"]["properties"][0]["outcome"] == "held within bounds"
     assert out["checked"]["bounds"][0] == {"bound": "--depth 4", "stopped": True}
     assert out["checked"]["bounds"][-1] == {"bound": "--max-memory 80% of RAM",
                                             "stopped": False}
+    # pccl.api.explore: the same, the options spelt as its keywords
+    kw = explore(never, invariants=["x <= 1"], depth=4).checked.to_json()
+    assert kw["bounds"] == [{"bound": "depth=4", "stopped": True},
+                            {"bound": "max_memory=80% of RAM", "stopped": False}]
+    assert kw["builtin"][-1] == {"check": "collisions", "on": False, "detail": "collisions not given"}
+    spelt = ("bounds", "properties", "builtin")      # the texts that name options
+    assert {k: v for k, v in kw.items() if k not in spelt} == \
+        {k: v for k, v in api.items() if k not in spelt}
 
 
 def test_schema_rejects_a_bad_checked(never):

@@ -19,6 +19,7 @@ from pccl.lang.ast import Span
 from pccl.lang.builtins import BUILTINS, READONLY_FLAGS, STATEMENTS, EXPRESSIONS, UNINTERPRETED
 from pccl.lang.checker import CheckedProgram, check_program, check_property
 from pccl.lang.types import ANY, BOOL, FLOAT, INT, OBSTACLES, POS, Ty, array_of, enum_ty, list_of
+from pccl.cli import cli_spelling
 from pccl.lang.errors import PcclError
 from pccl.lang.parser import parse_program, parse_property
 
@@ -34,7 +35,7 @@ def check_error(src: str, **kw) -> str:
     prog = parse_program(src, "t.pccl")
     with pytest.raises(PcclError) as ei:
         check_program(prog, **kw)
-    return ei.value.render()
+    return ei.value.respell(cli_spelling).render()      # as pccl prints it
 
 
 def prop(text: str, info: CheckedProgram) -> None:
@@ -45,7 +46,7 @@ def prop(text: str, info: CheckedProgram) -> None:
 def prop_error(text: str, info: CheckedProgram) -> str:
     with pytest.raises(PcclError) as ei:
         prop(text, info)
-    return ei.value.render()
+    return ei.value.respell(cli_spelling).render()      # as pccl prints it
 
 
 # --------------------------------------------------------------------------
@@ -342,7 +343,7 @@ loc:
 def _render(prog: ast.Program) -> str:
     with pytest.raises(PcclError) as ei:
         check_program(prog)
-    return ei.value.render()
+    return ei.value.respell(cli_spelling).render()      # as pccl prints it
 
 
 def test_field_assignment_is_rejected():
@@ -542,7 +543,8 @@ t.pccl:5:10: error: 'c' is per-agent: write c[i]
 # --------------------------------------------------------------------------
 # Golden messages: tests/golden/checker/NAME.pccl (a program, read as t.pccl)
 # and tests/golden/properties/NAME.prop (an --invariant against PROPS_PROGRAM),
-# each with NAME.err, the whole rendered message.  To add a case, add the
+# each with NAME.err, the whole rendered message as pccl prints it (the
+# options it names spelt as flags, pccl.cli.cli_spelling).  To add a case, add the
 # source file and run with PCCL_REGEN_GOLDEN=1, which (re)writes every .err
 # that differs from the checker's output; review the diff before committing.
 # --------------------------------------------------------------------------

@@ -342,7 +342,7 @@ def test_header_says_positions_in_motion_not_covered():
     assert r.not_covered == "positions in mid-motion not covered (pos in property " \
                             "`forall i: pos[i].x <= 3`)"
     r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True)
-    assert r.not_covered == "positions in mid-motion not covered (--collisions)"
+    assert r.not_covered == "positions in mid-motion not covered (collisions)"     # the keyword
     # a deterministic blackbox has nothing to say
     r = api.explore(_path("rendezvous.pccl"), world=_path("rendezvous.toml"), agents=2,
                     blackbox="straight")

@@ -183,8 +183,8 @@ def test_max_memory_is_an_honest_bound():
     r = explore("programs/fischer.pccl", overrides={"k": "2"}, max_memory=1)
     assert r.status == "bounded" and r.exit_status == 0
     assert r.search.bounds_hit == [Bound.MAX_MEMORY]
-    assert r.bound_labels == ["--max-memory 1"]
-    assert "stopped by --max-memory" in r.verdict and r.stats.states > 0
+    assert r.bound_labels == ["max_memory=1"]
+    assert "stopped by max_memory=1" in r.verdict and r.stats.states > 0
 
 
 def test_sizes_round_trip():

@@ -11,7 +11,8 @@ import pytest
 
 from pccl.api import explore_model, make_model
 from pccl.model.engine import Model
-from pccl.lang.errors import PcclError
+from pccl.cli import cli_spelling
+from pccl.lang.errors import PcclError, location_spelling, spell
 from pccl.model.initstates import InitSearch
 from pccl.model.options import ModelOptions
 from pccl.lang.parser import parse_file
@@ -113,13 +114,19 @@ def test_the_init_search_is_the_model_s_initial_states():
 def test_property_sources_keep_their_order_and_names():
     prog = parse_file(FISCHER)
     got = list(sources(prog, ["k  >= 0"], [" eventually inCs[0]", "d >= 0"]))
+    # where each was given: the option as a placeholder, spelt by the front end
     assert [(s.name, s.temporal, s.filename) for s in got[-3:]] == [
-        ("k  >= 0", False, "--invariant #1"), ("eventually inCs[0]", True, "--property #1"),
-        ("d >= 0", False, "--property #2")]
+        ("k  >= 0", False, "{invariants} #1"), ("eventually inCs[0]", True, "{properties} #1"),
+        ("d >= 0", False, "{properties} #2")]
+    assert [spell(s.filename, location_spelling(cli_spelling)) for s in got[-3:]] == [
+        "--invariant #1", "--property #1", "--property #2"]
 
 
 def test_a_temporal_invariant_text_is_refused_by_the_properties_module():
     prog = parse_file(FISCHER)
     with pytest.raises(PcclError) as e:
         list(sources(prog, ["eventually inCs[0]"]))
+    # the API's spelling, then the command line's
+    assert e.value.filename == "invariants #1" and "goes with properties" in e.value.message
+    e.value.respell(cli_spelling)
     assert e.value.filename == "--invariant #1" and "goes with --property" in e.value.message

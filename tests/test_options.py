@@ -16,7 +16,7 @@ import pytest
 
 import pccl.api as api
 from pccl.model import options as O
-from pccl.cli import main
+from pccl.cli import flag as cli_flag, main
 from pccl.lang.errors import ArgumentError
 from pccl.search.explorer import Bound
 from pccl.model.layout import TIME
@@ -43,7 +43,7 @@ def test_every_field_is_spelt_as_its_flag(command):
     cmd = main.commands[command]
     by_name = {p.name: p for p in cmd.params}
     for name in O.cli_fields(COMMANDS[command]):
-        assert O.flag(name) in by_name[name].opts, (name, by_name[name].opts)
+        assert cli_flag(name) in by_name[name].opts, (name, by_name[name].opts)
 
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
@@ -159,12 +159,23 @@ def test_views_read_by_json_key_like_the_json():
     assert r.violation["message"] == r.violation.message
 
 
-def test_bounds_are_the_enum_and_labels_the_flags():
+def test_bounds_are_the_enum_and_labels_the_keywords_or_the_flags():
+    """The API labels a bound with its keyword, the CLI with its flag."""
     r = api.explore(FISCHER, max_states=50, depth=1000)
     assert r.status == "bounded"
-    assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["--max-states 50"]
-    out = cli("explore", FISCHER, "--max-states", "50", "--format", "json")
-    assert json.loads(out.output)["bounds"] == r.bound_labels
+    assert r.bounds == [Bound.MAX_STATES] and r.bound_labels == ["max_states=50"]
+    assert r.verdict.startswith("no violation within bounds — stopped by max_states=50 [")
+    assert [b["bound"] for b in r.checked["bounds"]] == ["depth=1000", "max_states=50",
+                                                         "max_memory=80% of RAM"]
+    out = cli("explore", FISCHER, "--max-states", "50", "--depth", "1000", "--format", "json")
+    data = json.loads(out.output)
+    assert data["bounds"] == ["--max-states 50"]
+    assert data["message"].startswith("no violation within bounds — stopped by --max-states 50 [")
+    assert [b["bound"] for b in data["checked"]["bounds"]] == ["--depth 1000", "--max-states 50",
+                                                               "--max-memory 80% of RAM"]
+    # the same bounds stopped the search
+    assert [b["stopped"] for b in data["checked"]["bounds"]] == \
+        [b["stopped"] for b in r.checked["bounds"]] == [False, True, False]
 
 
 @pytest.mark.parametrize("kw, flag, keyword", [
@@ -181,8 +192,10 @@ def test_model_option_errors_name_the_keyword_in_the_api_and_the_flag_in_the_cli
     out = cli("explore", FISCHER, *flag)
     assert out.exit_code == 2
     assert out.stderr.startswith(f"{flag[0]}: error: ")
-    # the same message after the prefix
-    assert out.stderr.strip().split(": error: ", 1)[1] == api_text.split(f"{keyword}: ", 1)[1]
+    # the same message after the prefix, the options it names spelt each way
+    api_msg, cli_msg = api_text.split(f"{keyword}: ", 1)[1], out.stderr.strip().split(": error: ", 1)[1]
+    assert "--" not in api_msg
+    assert cli_msg == api_msg.replace("(n0=5 rates={1: 5})", "(--n0 5 --rate 1=5)")
 
 
 # ---------------------------------------------------------------------------
@@ -231,3 +244,65 @@ def test_run_property_cut_run_is_undecided_and_reachable_is_reported():
 def test_run_property_typo_is_a_user_error():
     out = cli("run", FISCHER, "--property", "eventualy count(inCs) == 1")
     assert out.exit_code == 2 and "^" in out.stderr
+
+
+# ---------------------------------------------------------------------------
+# the lists of option names are derived from the dataclasses
+# ---------------------------------------------------------------------------
+
+#: a bad value for every model option validate.model_options checks, and the
+#: message's start: a new model option needs its line here (the test below
+#: fails until it has one), so its check cannot be forgotten
+BAD_MODEL_VALUES = {
+    "delta": (0, "delta must be positive"), "n0": (0, "n0 must be an integer >= 1"),
+    "rates": ([1], "rates must map agent indexes"), "events": ("all", "events must be 'any' or 'first'"),
+    "collisions": ("yes", "collisions must be True or False"),
+    "invariants": ("x > 0", "invariants must be a list of strings"),
+    "properties": ("x > 0", "properties must be a list of strings"),
+    "max_time": (-1, "max_time must be >= 0"), "functions": ([1], "functions must map names"),
+    "rand_policy": (3, "rand_policy must be callable"),
+    "abstract_time": ("on", "abstract_time must be True or False"),
+    "reduce": (3, "reduce must be 'auto', 'none' or a list"),
+}
+
+
+def test_the_model_options_checked_are_the_dataclass_fields():
+    """``MODEL_OPTIONS`` is ModelOptions' fields but those checked on their
+    own, and each is checked: a bad value is an error naming it."""
+    fields = [f.name for f in dataclasses.fields(O.ModelOptions)]
+    assert O.CHECKED_ALONE <= set(fields)
+    assert O.MODEL_OPTIONS == tuple(n for n in fields if n not in O.CHECKED_ALONE)
+    assert set(BAD_MODEL_VALUES) == set(O.MODEL_OPTIONS)
+    for name, (value, message) in BAD_MODEL_VALUES.items():
+        with pytest.raises(ArgumentError, match=r"pccl\.api\.make_model: error: " + message):
+            api.make_model(FISCHER, **{name: value})
+
+
+def test_a_new_field_is_seen_by_the_derived_lists():
+    """A field added to the options dataclasses joins the model options
+    checked and the identity of a checkpointed search (unless excluded)."""
+    M2 = dataclasses.make_dataclass("M2", [("brand_new", int, 0)], bases=(O.ModelOptions,), frozen=True)
+    E2 = dataclasses.make_dataclass("E2", [("brand_new", int, 0)], bases=(O.ExploreOptions,), frozen=True)
+    assert O.model_option_names(M2) == O.MODEL_OPTIONS + ("brand_new",)
+    assert O.identity_option_names(E2) == O.IDENTITY_OPTIONS + ("brand_new",)
+
+
+def test_the_checkpoint_identity_is_every_search_option_but_the_resources():
+    fields = {f.name for f in dataclasses.fields(O.ExploreOptions)}
+    assert (O.NOT_IDENTITY - O.API_ONLY) <= fields
+    assert set(O.IDENTITY_OPTIONS) == fields - O.NOT_IDENTITY
+    # the list this replaced (kept by hand in pccl/search/checkpoint.py): the same options
+    assert set(O.IDENTITY_OPTIONS) == {
+        "agents", "blackbox", "delta", "n0", "rates", "events", "collisions", "overrides",
+        "invariants", "properties", "max_time", "abstract_time", "reduce", "depth", "max_states",
+        "deadlock", "find_all", "exact", "timelock", "stall", "coverage", "fastest"}
+
+
+def test_the_conversions_are_derived_from_the_field_defaults():
+    assert O.MAPPING_OPTIONS == ("rates", "overrides")
+    assert O.LIST_OPTIONS == ("invariants", "properties")
+    assert O.TIME_OPTIONS == ("delta", "max_time")
+    # and they convert: the CLI's pairs and tuples, a JSON form's string agent keys
+    o = O.ExploreOptions.from_cli({"rates": ((1, 2),), "invariants": ["x"], "delta": 2.0})
+    assert o.rates == {1: 2} and o.invariants == ("x",) and o.delta == 2 and isinstance(o.delta, int)
+    assert O.ExploreOptions.from_dict(o.to_dict()) == o

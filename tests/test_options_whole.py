@@ -110,11 +110,11 @@ def test_a_bad_options_part_is_one_clear_error(tmp_path):
      "--resume does not run with --coverage yet"),
 ])
 def test_a_cross_option_check_is_written_once_and_spelt_twice(opts, api_text, cli_text):
-    from pccl.cli import _flag_spelling
+    from pccl.cli import cli_spelling
     c = conflict(opts)
     assert c is not None
     assert c.message(api_spelling).startswith(api_text)
-    assert c.message(_flag_spelling).startswith(cli_text)
+    assert c.message(cli_spelling).startswith(cli_text)
 
 
 def test_the_cli_spells_a_conflict_with_flags():

@@ -218,9 +218,11 @@ class _Checker:
 
     # ---- reporting -------------------------------------------------------
 
-    def fail(self, message: str, span: Optional[Span]) -> NoReturn:
+    def fail(self, message: str, span: Optional[Span], template: bool = False) -> NoReturn:
+        """Raise the error ``message`` at ``span``; ``template``: the message
+        names options as placeholders (:func:`pccl.lang.errors.spell`)."""
         raise PcclError(message, filename=self.filename, source=self.source,
-                        span=span)
+                        span=span, template=template)
 
     def text(self, node, default: str) -> str:
         """The source text of a one-line node, else ``default``."""
@@ -811,9 +813,9 @@ class _Checker:
             hint = self.suggest_function(e.name)
             if not hint and self.mode == "program" and not e.args:
                 # a zero-argument call the world could define (uninterpreted)
-                hint = (f": not a built-in; a function the world provides needs --world FILE "
+                hint = (f": not a built-in; a function the world provides needs {{world=FILE}} "
                         f"defining {e.name} under [functions]")
-            self.fail(f"unknown function '{e.name}'{hint}", self.name_span(e))
+            self.fail(f"unknown function '{e.name}'{hint}", self.name_span(e), template=bool(hint))
         if b.is_statement:
             self.fail(f"'{e.name}' is a statement, not a value", self.name_span(e))
         if self.mode == "property":

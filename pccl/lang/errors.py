@@ -13,6 +13,8 @@ Format (pylox style)::
 
 from __future__ import annotations
 
+import re
+from collections.abc import Callable
 from typing import Optional
 
 from pccl.lang.ast import Span
@@ -26,12 +28,21 @@ class PcclError(Exception):
     def __init__(self, message: str, *, filename: Optional[str] = None,
                  source: Optional[str] = None, span: Optional[Span] = None,
                  line: Optional[int] = None, column: Optional[int] = None,
-                 end_column: Optional[int] = None):
+                 end_column: Optional[int] = None, template: bool = False,
+                 where: Optional[str] = None):
         super().__init__(message)
         if span is not None and getattr(span, "origin", None) is not None:
             filename, source = span.origin   # type: ignore[misc] # an option's text, not the program's
+        #: the message and the location as written, with option placeholders
+        #: (:func:`spell`): the message only when ``template``; the location
+        #: given as ``where`` (``pccl {ray}``), or a filename that starts with
+        #: one (``{invariants} #1``: an option's text)
+        self.template = message if template else None
+        if where is None and filename is not None and filename.startswith("{"):
+            where = filename
+        self.where = where
         self.message = message
-        self.filename = filename
+        self.filename = filename if where is None else where
         self.source = source
         if span is not None and span.line > 0:
             line = span.line if line is None else line
@@ -41,6 +52,19 @@ class PcclError(Exception):
         self.line = line
         self.column = column
         self.end_column = end_column
+        self.respell(keyword_spelling)
+
+    def respell(self, spelling: "Spelling") -> "PcclError":
+        """Write the options this error names as ``spelling`` does (its
+        message's placeholders and its location): as the API's keywords
+        when made (:func:`keyword_spelling`); the CLI respells it as flags
+        before rendering it.  Returns the error."""
+        if self.template is not None:
+            self.message = spell(self.template, spelling)
+            self.args = (self.message,)
+        if self.where is not None:
+            self.filename = spell(self.where, location_spelling(spelling))
+        return self
 
     def render(self) -> str:
         return render_message(self.message, filename=self.filename,
@@ -63,30 +87,66 @@ class ArgumentError(PcclError, ValueError):
     its ``filename`` is the function, e.g. ``pccl.api.explore``."""
 
 
-#: Options whose flag is not ``--`` + the name with ``-`` for ``_`` (the
-#: options are :mod:`pccl.model.options`; the spelling lives here, with the error
-#: that renders it, so that this module imports nothing above it).
-FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
-         "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
-         "properties": "--property", "timelock": "--no-timelock",
-         "stall": "--no-stall"}
+#: How a front end writes an option named in a text: ``spelling(name, value)``
+#: with ``value`` None for the option itself, else its value as text; None
+#: for a name it does not know (the placeholder is left as written).  The API
+#: writes keywords (:func:`keyword_spelling`), the CLI its flags
+#: (``pccl.cli.cli_spelling``): no module below the CLI writes a flag.
+Spelling = Callable[[str, Optional[str]], Optional[str]]
+
+#: An option in a text: ``{fastest}``, ``{workers=1}``, ``{rates=1=2}``
+#: (lowercase names only: ``{ x = 1; }`` of a program's block is not one); or
+#: a span quoted in backticks (a property's text), which is left alone.
+_PLACEHOLDER = re.compile(r"`[^`]*`|\{([a-z][a-z0-9_]*)(?:=([^{}]*))?\}")
 
 
-def flag(name: str) -> str:
-    """The command-line flag of the option ``name``."""
-    return FLAGS.get(name, "--" + name.replace("_", "-"))
+def spell(text: str, spelling: Spelling) -> str:
+    """``text`` with its option placeholders written by ``spelling``
+    (``{workers=1}``: ``workers=1`` for the API, ``--workers 1`` for the
+    CLI); placeholders ``spelling`` does not know, and anything quoted in
+    backticks (program text), stay as they are."""
+    def one(m: re.Match) -> str:
+        if m.group(1) is None:
+            return m.group(0)
+        out = spelling(m.group(1), m.group(2))
+        return m.group(0) if out is None else out
+    return _PLACEHOLDER.sub(one, text)
+
+
+def keyword_spelling(name: str, value: Optional[str]) -> str:
+    """An option as the API's keyword: ``fastest``, ``workers=1``; a pair of
+    ``rates`` or ``overrides`` as the dict the keyword takes
+    (``rates={1: 2}``, ``overrides={'k': '2'}``)."""
+    if value is None:
+        return name
+    key, eq, v = value.partition("=")
+    if eq and name == "rates":
+        return f"rates={{{key}: {v}}}"
+    if eq and name == "overrides":
+        return f"overrides={{{key!r}: {v!r}}}"
+    return f"{name}={value}"
+
+
+def location_spelling(spelling: Spelling) -> Spelling:
+    """``spelling`` for an error's location (an option's text): the option
+    alone, its value being the text's place (``{invariants=#1}`` is
+    ``--invariant #1`` on the command line, ``invariants #1`` in the API)."""
+    def spell_at(name: str, value: Optional[str]) -> Optional[str]:
+        out = spelling(name, None)
+        return out if out is None or value is None else f"{out} {value}"
+    return spell_at
 
 
 class OptionError(PcclError):
     """A bad value of an option, found where its meaning is known (the model:
     an agent's rate above n0, a δ the clock cannot add).  ``option`` is the
-    option's name as the API spells it (``rates``); the message names no
-    flag.  Rendered as the CLI spells the option (``--rate: error: ...``);
-    the API re-raises it as an :class:`ArgumentError` of the function that
-    was called (``pccl.api.explore: error: rates: ...``)."""
+    option's name as the API spells it (``rates``); the message names other
+    options as placeholders (``{n0=2}``).  Rendered by the CLI with its flags
+    (``--rate: error: ...``); the API re-raises it as an :class:`ArgumentError`
+    of the function that was called (``pccl.api.explore: error: rates: ...``)."""
 
     def __init__(self, option: str, message: str):
-        super().__init__(message, filename=flag(option))
+        super().__init__(message, filename="{" + option + "}", template=True)
         self.option = option
 
     def for_api(self, func: str) -> "ArgumentError":

@@ -383,10 +383,10 @@ class Compiler:
             hint = ""
             if raw == ():
                 hint = (f" ({name}() is the empty list unless the world gives it a value: "
-                        f"needs --world FILE with {name} under [functions])")
+                        f"needs {{world=FILE}} with {name} under [functions])")
             err = FunctionValueError(f"value of {name}() does not fit {ty}: {exc}{hint}",
                                      filename=self.program.filename, source=self.program.source,
-                                     span=getattr(node, "span", None))
+                                     span=getattr(node, "span", None), template=bool(hint))
             err.function, err.detail = name, f"does not fit {ty}: {exc}"
             raise err from None
 

@@ -15,7 +15,7 @@ import math
 from typing import Any, NoReturn, Optional
 
 from pccl.blackboxes.base import Motion
-from pccl.lang.errors import OptionError, PcclError
+from pccl.lang.errors import OptionError, PcclError, keyword_spelling
 from pccl.search.fingerprint import check_canonical
 from pccl.model.layout import AGS, ENV, POS, REACH, RUNNING, STATUS, TIME
 
@@ -93,7 +93,8 @@ def load_blackbox_arg(blackbox):
         return blackbox
     except PcclError as e:
         if e.filename is None:
-            e.filename = "--blackbox"
+            e.where = "{blackbox}"          # the option, spelt by the front end
+            e.respell(keyword_spelling)
         raise
 
 

@@ -101,10 +101,10 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
             os.path.join(sysconfig.get_paths()["include"], "Python.h")):
         return "Python.h (the Python development headers) not found"
     if reduce_on or model.reduction.on:
-        return "a reduction is on (the native engine serves --reduce none)"
+        return "a reduction is on (the native engine serves {reduce=none})"
     if recorder:
         return "the time-lock, stall or temporal checks record the state graph in Python " \
-               "(--no-timelock --no-stall)"
+               "({timelock=False} {stall=False})"
     if parallel:
         return "a parallel search (the native engine runs in one process)"
     try:

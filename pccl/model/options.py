@@ -4,7 +4,7 @@
 ``pccl.api.explore(..., max_states=100, overrides={"k": "2"})`` build the same
 :class:`ExploreOptions`; ``pccl run`` and ``pccl.api.run`` the same
 :class:`RunOptions`.  A field is spelt like its command-line flag
-(``max_states`` is ``--max-states``) except where :data:`FLAGS` says
+(``max_states`` is ``--max-states``) except where ``pccl.cli.FLAGS`` says
 otherwise, and a test checks that every field is a flag of its command and
 every flag of the command is a field or a presentation option
 (:data:`PRESENTATION`: how the result is shown, not what is computed).
@@ -14,7 +14,9 @@ Fields in :data:`API_ONLY` are hooks a command line cannot express
 Checks run once, in :meth:`~ModelOptions.check`, with messages that name the
 option as the API spells it (``max_states must be an integer >= 1, got 0``);
 the CLI's own parameter types reject the same values earlier with the flag's
-name.
+name.  A text below the CLI that names an option writes a placeholder
+(``{workers=1}``, :func:`pccl.lang.errors.spell`): the API spells it as its
+keyword (:func:`api_spelling`), the CLI as its flag; no module here writes a flag.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from collections.abc import Callable, Mapping
 
 from pccl.model import validate as V
 from pccl.lang.world import MAX_AGENTS
-from pccl.lang.errors import FLAGS, ArgumentError, OptionError, flag  # noqa: F401  (FLAGS, flag: defined with OptionError)
+from pccl.lang.errors import ArgumentError, OptionError, Spelling, keyword_spelling, spell
 
 #: Fields a command line cannot express: callables, objects, source text.
 API_ONLY = frozenset({"functions", "rand_policy", "source", "progress", "progress_interval",
@@ -86,13 +88,13 @@ class CommonOptions:
         ignored).  Repeated flags arrive as tuples of pairs."""
         names = {f.name for f in dataclasses.fields(cls)} - API_ONLY
         kw = {k: v for k, v in params.items() if k in names}
-        for k in ("rates", "overrides"):
+        for k in MAPPING_OPTIONS:
             if k in kw:
                 kw[k] = dict(kw[k])
-        for k in ("invariants", "properties"):
+        for k in LIST_OPTIONS:
             if k in kw:
                 kw[k] = tuple(kw[k])
-        for k in ("delta", "max_time"):
+        for k in TIME_OPTIONS:
             if kw.get(k) is not None:
                 kw[k] = integral(kw[k])
         return cls(**kw)
@@ -144,14 +146,12 @@ class CommonOptions:
         mine = {f.name for f in dataclasses.fields(cls)} - API_ONLY
         kw = {k: v for k, v in data.items() if k in mine}
         try:
-            if "rates" in kw:
-                kw["rates"] = {int(a): r for a, r in dict(kw["rates"] or {}).items()}
-            for k in ("overrides",):
-                if k in kw:
-                    kw[k] = dict(kw[k] or {})
+            for k in MAPPING_OPTIONS:
+                if k in kw:     # JSON keys are strings: the agents of rates are ints
+                    kw[k] = {(int(a) if k == "rates" else a): r for a, r in dict(kw[k] or {}).items()}
         except (TypeError, ValueError) as e:
-            raise ValueError(f"rates and overrides must be objects: {e}") from None
-        for k in ("invariants", "properties"):
+            raise ValueError(f"{' and '.join(MAPPING_OPTIONS)} must be objects: {e}") from None
+        for k in LIST_OPTIONS:
             if k in kw:
                 kw[k] = tuple(kw[k] or ())
         return cls(**kw)
@@ -163,9 +163,22 @@ class CommonOptions:
         V.blackbox(func, self.blackbox)
         V.integer(func, "agents", self.agents, minimum=1, optional=True)
         V.overrides(func, self.overrides)
-        raw = {k: getattr(self, k, None) for k in V.MODEL_OPTIONS}
+        raw = {k: getattr(self, k, None) for k in MODEL_OPTIONS}
         V.model_options(func, {k: v for k, v in raw.items()
-                               if v is not None or k in ("max_time", "abstract_time")})
+                               if v is not None or k in ("max_time", "abstract_time")},
+                        MODEL_OPTIONS)
+
+
+#: The options that map keys to values (``--rate 1=2``, ``--set k=2``): the
+#: fields whose default is an empty dict (derived).
+MAPPING_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions) if f.default_factory is dict)
+#: The options that list texts (``--invariant``, ``--property``): the fields
+#: whose default is the empty tuple (derived).
+LIST_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions) if f.default == ())
+#: The options that are times (written back as the user wrote them,
+#: :func:`integral`): the common fields typed ``Union[int, float]`` (derived).
+TIME_OPTIONS = tuple(f.name for f in dataclasses.fields(CommonOptions)
+                     if "Union[int, float]" in str(f.type))
 
 
 @dataclass(frozen=True)
@@ -174,6 +187,20 @@ class ModelOptions(CommonOptions):
     time abstraction (None: on when sound) and the reductions."""
     abstract_time: Optional[bool] = None
     reduce: Any = "auto"
+
+
+#: Model options with checks of their own in :meth:`CommonOptions.check` (the
+#: source flag, the world, the blackbox, the team size, the overrides).
+CHECKED_ALONE = frozenset({"source", "world", "blackbox", "agents", "overrides"})
+#: The model options :func:`pccl.model.validate.model_options` checks: the
+#: fields of :class:`ModelOptions` but :data:`CHECKED_ALONE` (derived, so a new
+#: model option cannot be missing).
+def model_option_names(cls: Optional[type] = None) -> tuple:
+    """The fields of ``cls`` (:class:`ModelOptions`) that :func:`pccl.model.validate.model_options` checks."""
+    return tuple(f.name for f in dataclasses.fields(cls or ModelOptions) if f.name not in CHECKED_ALONE)
+
+
+MODEL_OPTIONS = model_option_names()
 
 
 @dataclass(frozen=True)
@@ -255,6 +282,24 @@ class ExploreOptions(ModelOptions):
                              max_memory=max_memory)
 
 
+#: Search options a resumed search may change (pccl/search/checkpoint.py): the
+#: resources (memory, workers, Ray), the engine, progress and where the
+#: checkpoints go; the hooks a checkpoint cannot hold (API-only); and the world,
+#: identified by its file's hash instead.
+NOT_IDENTITY = frozenset({"world", "max_memory", "workers", "ray", "engine", "progress",
+                          "progress_interval", "checkpoint", "checkpoint_interval", "resume"}) | API_ONLY
+#: The options that define a search, in the order a checkpoint's mismatch is
+#: reported: a resumed search must be the same search (derived from
+#: :class:`ExploreOptions`, so a new option is part of the identity unless
+#: :data:`NOT_IDENTITY` says otherwise).
+def identity_option_names(cls: Optional[type] = None) -> tuple:
+    """The fields of ``cls`` (:class:`ExploreOptions`) that define a search."""
+    return tuple(f.name for f in dataclasses.fields(cls or ExploreOptions) if f.name not in NOT_IDENTITY)
+
+
+IDENTITY_OPTIONS = identity_option_names()
+
+
 @dataclass(frozen=True)
 class Conflict:
     """Search options that do not go together.  ``option`` is the one the
@@ -266,17 +311,20 @@ class Conflict:
     option: str
     text: str
 
-    def message(self, spell: Callable[[str, Optional[str]], str]) -> str:
-        def one(key: str) -> str:
-            name, eq, value = key.partition("=")
-            return spell(name, value if eq else None)
-        import re
-        return re.sub(r"\{([a-z_]+(?:=[^}]*)?)\}", lambda mo: one(mo.group(1)), self.text)
+    def message(self, spelling: Spelling) -> str:
+        return spell(self.text, spelling)
 
 
-def api_spelling(name: str, value: Optional[str]) -> str:
-    """An option as the API's keyword (``workers=1``)."""
-    return name if value is None else f"{name}={value}"
+def option_names() -> frozenset:
+    """Every option of ``run`` and ``explore``: the fields of the options dataclasses."""
+    return frozenset(f.name for c in (ExploreOptions, RunOptions) for f in dataclasses.fields(c))
+
+
+def api_spelling(name: str, value: Optional[str]) -> Optional[str]:
+    """An option as the API's keyword (``workers=1``, ``rates={1: 2}``:
+    :func:`~pccl.lang.errors.keyword_spelling`); None for a name that is no
+    option (the text is left as written)."""
+    return keyword_spelling(name, value) if name in OPTION_NAMES else None
 
 
 def conflict(o: "ExploreOptions") -> Optional[Conflict]:
@@ -398,11 +446,15 @@ def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> 
             raise OptionError(
                 "rates", f"rate {r} of agent {a} is above n0 = {n0}, so agent {a} "
                 f"would never run an event (it runs while counter + rate ≤ n0); "
-                f"use a rate of at most {n0}, or raise n0 (--n0 {r} --rate {a}={r})")
+                f"use a rate of at most {n0}, or raise n0 ({{n0={r}}} {{rates={a}={r}}})")
         rho[a] = r
     if events not in ("any", "first"):
         raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
     return rho
+
+
+#: Every option's name (:func:`option_names`).
+OPTION_NAMES = option_names()
 
 
 def integral(x):

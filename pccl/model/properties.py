@@ -83,7 +83,8 @@ class Source:
     """A property as written and parsed, not yet checked: its expression,
     the name it is reported under, its text, and where it was written
     (``span`` in the program, or None for a command-line text whose
-    ``filename`` is ``--invariant #1``)."""
+    ``filename`` is ``{invariants} #1``: the option as a placeholder, spelt
+    ``--invariant #1`` by the CLI, ``invariants #1`` by the API)."""
     expr: A.Expr
     name: str
     text: str
@@ -107,18 +108,19 @@ def sources(program: A.Program, invariants: Iterable[str] = (),
         yield Source(inv.expr, inv.name or text, text, inv.span, program.filename,
                      program.source)
     for k, text in enumerate(invariants):
-        fname = f"--invariant #{k + 1}"
+        fname = f"{{invariants}} #{k + 1}"
         expr = parse_property(text, filename=fname)
         if is_temporal(expr):
-            raise PcclError("--invariant takes a state property; a temporal property "
-                            "(eventually, ~>, within, reachable) goes with --property",
-                            filename=fname, source=text, span=top_temporal(expr).span)
+            raise PcclError("{invariants} takes a state property; a temporal property "
+                            "(eventually, ~>, within, reachable) goes with {properties}",
+                            filename=fname, source=text, span=top_temporal(expr).span,
+                            template=True)
         yield Source(expr, text, text, None, fname, text)
     for k, text in enumerate(properties):
         if not isinstance(text, str):
             raise PcclError(f"a property must be text, got {type(text).__name__}",
-                            filename="--property")
-        fname = f"--property #{k + 1}"
+                            filename="{properties}")
+        fname = f"{{properties}} #{k + 1}"
         expr = parse_property(text, filename=fname)
         if is_temporal(expr):
             yield Source(expr, text.strip(), text.strip(), None, fname, text)

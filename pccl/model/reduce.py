@@ -30,7 +30,7 @@ from typing import Any, Optional
 from collections.abc import Callable
 
 from pccl.lang import ast as A
-from pccl.lang.errors import PcclError
+from pccl.lang.errors import PcclError, Spelling, keyword_spelling, spell
 from pccl.semantics import rules as R
 from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, REACH, RUNNING, SH, STATUS,
@@ -61,18 +61,26 @@ class Plan:
     off: dict = field(default_factory=dict)      # name -> reason
     requested: str = "auto"
 
-    def describe(self) -> str:
-        """``merge+symmetry`` / ``none``, then ``; X off: reason``."""
+    def describe(self, spelling: Optional[Spelling] = None) -> str:
+        """``merge+symmetry`` / ``none``, then ``; X off: reason``; the
+        options the reasons name spelt by ``spelling`` (the API's keywords
+        by default)."""
         text = "+".join(self.on) if self.on else "none"
         by_reason: dict = {}
-        for name, why in self.off.items():
+        for name, why in self.off_reasons(spelling).items():
             by_reason.setdefault(why, []).append(name)
         for why, names in by_reason.items():
             text += f"; {', '.join(names)} off: {why}"
         return text
 
-    def as_dict(self) -> dict:
-        return {"requested": self.requested, "on": list(self.on), "off": dict(self.off)}
+    def off_reasons(self, spelling: Optional[Spelling] = None) -> dict:
+        """``off`` with the options its reasons name (placeholders such as
+        ``{collisions}``) spelt by ``spelling`` (default: the API's keywords;
+        the properties a reason quotes are in backticks, left alone)."""
+        return {name: spell(why, spelling or keyword_spelling) for name, why in self.off.items()}
+
+    def as_dict(self, spelling: Optional[Spelling] = None) -> dict:
+        return {"requested": self.requested, "on": list(self.on), "off": self.off_reasons(spelling)}
 
 
 def parse_request(reduce) -> Optional[tuple]:
@@ -90,7 +98,7 @@ def parse_request(reduce) -> Optional[tuple]:
     if bad or not names:
         raise PcclError(f"unknown reduction {', '.join(map(repr, bad)) or repr(reduce)}; "
                         f"use auto, none or a comma-separated list of {', '.join(ALL)}",
-                        filename="--reduce")
+                        filename="{reduce}")
     return tuple(n for n in ALL if n in names)
 
 
@@ -152,7 +160,7 @@ def mergeable_sids(m) -> set:
 def positions_read(m) -> Optional[str]:
     """Why positions (and the doReach cell) matter, or None."""
     if m.collisions:
-        return "--collisions"
+        return "{collisions}"
     for s in m.compiled.stmts.values():
         if isinstance(s, A.CallStmt) and s.name == "doReach":
             return f"doReach at line {s.span.line}"
@@ -212,7 +220,7 @@ def symmetry_problem(m) -> tuple:
 #: a property kind such as ``"liveness"`` can be added here with the
 #: reductions that are unsound for it).
 USE_LIMITS: dict = {
-    "coverage": {name: "--coverage counts the unreduced transitions" for name in ALL},
+    "coverage": {name: "{coverage} counts the unreduced transitions" for name in ALL},
 }
 
 
@@ -230,7 +238,7 @@ def _needs_two(name: str) -> PcclError:
     """Asked for by name, a reduction that has nothing to reduce with one
     agent is an error, not a silent no-op (as an unsound one is)."""
     return PcclError(f"{name} reduction needs two or more agents (the team has one); "
-                     f"drop it from --reduce", filename="--reduce")
+                     "drop it from {reduce}", filename="{reduce}", template=True)
 
 
 def _plan_symmetry(m, want, p: "Plan", on: list):
@@ -247,8 +255,8 @@ def _plan_symmetry(m, want, p: "Plan", on: list):
     elif want is not None and m.N < 2:
         raise _needs_two("symmetry")
     elif want is not None:
-        raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from --reduce",
-                        filename="--reduce")
+        raise PcclError(f"symmetry reduction is unsound here: {why}; drop it from {{reduce}}",
+                        filename="{reduce}", template=True)
     elif m.N >= 2:
         p.off["symmetry"] = why
     return slots
@@ -263,8 +271,8 @@ def _plan_por(m, want, p: "Plan", on: list) -> None:
         # only (docs/reductions.md); paths need a stronger cycle proviso
         why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
         if want is not None:
-            raise PcclError(f"por reduction is unsound here: {why}; drop it from --reduce",
-                            filename="--reduce")
+            raise PcclError(f"por reduction is unsound here: {why}; drop it from {{reduce}}",
+                            filename="{reduce}", template=True)
         p.off["por"] = why
     elif m.N >= 2:
         on.append("por")
@@ -287,7 +295,7 @@ def plan(m, reduce, uses=()) -> tuple:
     for name in (want if want is not None else ()):
         if name in limits:
             raise PcclError(f"{name} reduction cannot be used here: {limits[name]}; "
-                            f"drop it from --reduce", filename="--reduce")
+                            "drop it from {reduce}", filename="{reduce}", template=True)
     if want is None:
         p.off.update({n: why for n, why in limits.items() if n in ALL})
     if "merge" not in limits and (want is None or "merge" in want):

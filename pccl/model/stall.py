@@ -251,7 +251,7 @@ def runaway_note(model, info: dict) -> str:
             f"{info['depth']}) found new states without the model time passing "
             f"t = {fmt_time(info['max_time'])}; agent {i} keeps time from advancing "
             f"({where}); a zero-time loop makes new states for ever: bound the search "
-            f"(--max-states, --depth, --max-memory) or let time advance in the loop")
+            f"({{max_states}}, {{depth}}, {{max_memory}}) or let time advance in the loop")
 
 
 def looping_agent(model, st, per_agent) -> int:

@@ -16,11 +16,6 @@ from collections.abc import Iterable, Mapping
 
 from pccl.lang.errors import ArgumentError
 
-#: The keyword options make_model passes on to the Model.
-MODEL_OPTIONS = ("delta", "n0", "rates", "events", "max_time", "abstract_time",
-                 "invariants", "functions", "rand_policy", "collisions", "reduce",
-                 "properties")
-
 
 def _fail(func: str, message: str):
     raise ArgumentError(message, filename=f"pccl.api.{func}")
@@ -150,11 +145,14 @@ def reduce_(func, r):
         _fail(func, e.message if hasattr(e, "message") else str(e))
 
 
-def model_options(func, options: dict):
-    unknown = sorted(set(options) - set(MODEL_OPTIONS))
+def model_options(func, options: dict, names: Iterable[str]):
+    """Check the model's ``options`` (a dict of some of ``names``: the
+    options this check knows, :data:`pccl.model.options.MODEL_OPTIONS`)."""
+    names = tuple(names)
+    unknown = sorted(set(options) - set(names))
     if unknown:
         _fail(func, f"unknown option{'s' if len(unknown) > 1 else ''} "
-                    f"{', '.join(unknown)}; options are {', '.join(MODEL_OPTIONS)}")
+                    f"{', '.join(unknown)}; options are {', '.join(names)}")
     if "delta" in options:
         number(func, "delta", options["delta"], positive=True)
     if "n0" in options:
@@ -179,27 +177,6 @@ def model_options(func, options: dict):
     fs = options.get("functions")
     if fs is not None and not isinstance(fs, Mapping):
         _fail(func, f"functions must map names to values, got {_show(fs)}")
-
-
-def model_args(func, program_, *, world_, blackbox_, agents, seed=None, overrides_=None,
-               source=False, options=None):
-    program(func, program_, source)
-    world(func, world_)
-    blackbox(func, blackbox_)
-    integer(func, "agents", agents, minimum=1, optional=True)
-    integer(func, "seed", seed, optional=True)
-    overrides(func, overrides_)
-    model_options(func, options or {})
-
-
-def call_args(func, program_, *, world_, blackbox_, agents, seed=None, options):
-    """make_model's checks for explore and run, whose ``**model_options``
-    also carry make_model's ``overrides`` and ``source``."""
-    options = dict(options)
-    overrides_ = options.pop("overrides", None)
-    source = options.pop("source", False)
-    model_args(func, program_, world_=world_, blackbox_=blackbox_, agents=agents, seed=seed,
-               overrides_=overrides_, source=source, options=options)
 
 
 def search_args(func, *, depth, max_states, deadlock, find_all, exact, progress,

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from typing import Optional
 
 from pccl.lang import ast as A
+from pccl.lang.errors import Spelling, spell
+from pccl.model.options import api_spelling
 
 #: Outcomes of a property (``Checked.properties[k].outcome``).
 HELD = "held"                                  # exhaustive search: holds in every run
@@ -185,12 +187,12 @@ def world_note(model, *, run_result=None) -> Optional[str]:
         starts = ", ".join(fmt_pos(p) for p in model.world.start_positions(model.N))
         what, line = reads["positions"]
         parts.append(f"the robots start on a line at {starts} ({what} at line {line})")
-    note = "no --world given, so the defaults are used: " + "; ".join(parts)
+    note = "no {world} given, so the defaults are used: " + "; ".join(parts)
     if run_result is not None and "input" in reads and run_result.status == "final":
         from pccl.model.layout import TIME
         if run_result.final[TIME] == 0:
             note += ("; the run ended at t=0 because getInput() is the empty list "
-                     "(give the world with --world FILE)")
+                     "(give the world with {world=FILE})")
     return note
 
 
@@ -221,13 +223,14 @@ def blackbox_covers(model) -> str:
 
 def stall_check(command: str, options) -> tuple:
     """``(on, detail)`` of the stall check.  The one place that knows the
-    stall options: ``pccl run --stall-steps N`` (0: off); ``pccl explore
-    --no-stall`` (``stall``)."""
+    stall options: ``stall_steps`` of a run (0: off); ``stall`` of explore.
+    The detail names the option as a placeholder (``{stall=False}``), spelt
+    by :func:`build`."""
     if command == "run":
         n = getattr(options, "stall_steps", 0) or 0
-        return (n > 0, f"--stall-steps {n}" if n else "--stall-steps 0")
+        return (n > 0, f"{{stall_steps={n}}}")
     on = bool(options.stall)
-    return on, None if on else "--no-stall"
+    return on, None if on else "{stall=False}"
 
 
 def event_list(model) -> list:
@@ -236,18 +239,23 @@ def event_list(model) -> list:
 
 def build(model, *, command: str, properties: list, builtin: list, bounds: list,
           never_fired: Optional[list], events_reason: Optional[str], clean: bool,
-          run_result=None) -> Checked:
+          run_result=None, spelling: Spelling = api_spelling) -> Checked:
     """The one constructor of :class:`Checked`: the parts the front ends
-    computed, plus what the model says (blackbox, reductions, notes)."""
+    computed, plus what the model says (blackbox, reductions, notes).  The
+    options the texts name (placeholders such as ``{stall=False}``) are
+    spelt by ``spelling``: the API's keywords, or the CLI's flags."""
     red = getattr(model, "reduction", None)
     on = tuple(red.on) if red is not None and command == "explore" else ()
-    off = tuple(red.off.items()) if red is not None and command == "explore" else ()
+    off = tuple(red.off_reasons(spelling).items()) if red is not None and command == "explore" else ()
+    builtin = [(c, ok, None if d is None else spell(d, spelling)) for c, ok, d in builtin]
+    bounds = [(spell(b, spelling), s) for b, s in bounds]
+    events_reason = None if events_reason is None else spell(events_reason, spelling)
     notes = []
     if clean and not properties:
         notes.append(NO_PROPERTY_NOTE)
     w = world_note(model, run_result=run_result)
     if w:
-        notes.append(w)
+        notes.append(spell(w, spelling))
     return Checked(command, tuple(properties), tuple(builtin), model.blackbox.name,
                    blackbox_covers(model), tuple(bounds), on, off,
                    None if never_fired is None else tuple(never_fired), events_reason,
@@ -292,17 +300,17 @@ def _explore_builtin(model, res, options) -> list:
     tl_on = bool(res.timelock)
     tl_why = None
     if not tl_on:
-        tl_why = ("--no-timelock" if not options.timelock
+        tl_why = ("{timelock=False}" if not options.timelock
                   else "needs the state graph of one process")
     stall_on, stall_why = stall_check("explore", options)
     if stall_on and not res.stall:
         stall_on, stall_why = False, "needs the state graph of one process"
     return [("assertions", True, None), ("stuck agents", True, None),
-            ("deadlock", bool(options.deadlock), None if options.deadlock else "--no-deadlock"),
+            ("deadlock", bool(options.deadlock), None if options.deadlock else "{deadlock=False}"),
             ("stall", stall_on, stall_why),
             ("time-lock", tl_on, tl_why),
             ("collisions", bool(model.collisions),
-             None if model.collisions else "--collisions not given")]
+             None if model.collisions else "{collisions} not given")]
 
 
 def _never_fired(model, labels: Optional[set], complete: bool, status: str,
@@ -319,13 +327,14 @@ def _never_fired(model, labels: Optional[set], complete: bool, status: str,
 
 
 def for_explore(model, res, options, *, complete: bool, labels: Optional[set],
-                labels_reason: Optional[str] = None, bounds: tuple = ()) -> Checked:
+                labels_reason: Optional[str] = None, bounds: tuple = (),
+                spelling: Spelling = api_spelling) -> Checked:
     """``checked`` of an :class:`~pccl.api.ExploreResult` ``res`` searched
     with ``options``.  ``complete``: the search visited every reachable
-    state (exhaustive, or ``--all`` without a bound); ``labels``: the
+    state (exhaustive, or ``find_all`` without a bound); ``labels``: the
     distinct transition labels it took (None when not collected, then
-    ``labels_reason`` says why); ``bounds``: the labels of the bounds in
-    force."""
+    ``labels_reason`` says why); ``bounds``: ``(label, stopped)`` of the
+    bounds in force; ``spelling``: how the texts write options."""
     violated = {(v.kind == "invariant", v.name) for v in res.violations}
     status = res.status
     stopped = ", ".join(res.bound_labels)
@@ -339,22 +348,14 @@ def for_explore(model, res, options, *, complete: bool, labels: Optional[set],
         out, r = _temporal_outcome(p, violated, holds, status, complete, why, stopped)
         props.append(PropertyCheck(p.kind, p.name, p.text, _source(p), out, r))
     builtin = _explore_builtin(model, res, options)
-    bound_list = _explore_bounds(res, list(bounds))
     never, reason = _never_fired(model, labels, complete, status, labels_reason)
     clean = not res.violations and status in ("exhaustive", "bounded")
     return build(model, command="explore", properties=props, builtin=builtin,
-                 bounds=bound_list, never_fired=never, events_reason=reason, clean=clean)
+                 bounds=list(bounds), never_fired=never, events_reason=reason, clean=clean,
+                 spelling=spelling)
 
 
-def _explore_bounds(res, configured: list) -> list:
-    """``(label, stopped)`` per bound in force; ``configured`` are their
-    labels (``--max-memory 80% of RAM`` for the default memory bound)."""
-    hit = set(res.bound_labels)
-    mem_hit = any(b.startswith("--max-memory") for b in hit)
-    return [(b, b in hit or (b.startswith("--max-memory") and mem_hit)) for b in configured]
-
-
-def for_run(model, res, options) -> Checked:
+def for_run(model, res, options, spelling: Spelling = api_spelling) -> Checked:
     """``checked`` of a :class:`~pccl.tools.runner.RunResult` of ``pccl run``."""
     from pccl.output.display import fmt_time
     bad = {v.name for v in res.violations if v.kind == "invariant"}
@@ -377,13 +378,13 @@ def for_run(model, res, options) -> Checked:
                ("deadlock", True, None), ("stall", stall_on, stall_why),
                ("time-lock", False, "explore only"),
                ("collisions", bool(model.collisions),
-                None if model.collisions else "--collisions not given")]
+                None if model.collisions else "{collisions} not given")]
     bounds = []
     if model.max_time is not None:
-        bounds.append((f"--max-time {fmt_time(model.max_time)}", res.status == "bounded"))
-    bounds.append((f"--max-steps {options.max_steps}", res.status == "max-steps"))
+        bounds.append((f"{{max_time={fmt_time(model.max_time)}}}", res.status == "bounded"))
+    bounds.append((f"{{max_steps={options.max_steps}}}", res.status == "max-steps"))
     clean = res.exit_status == 0
     return build(model, command="run", properties=props, builtin=builtin, bounds=bounds,
                  never_fired=None, events_reason="one run is not a search", clean=clean,
-                 run_result=res)
+                 run_result=res, spelling=spelling)
 

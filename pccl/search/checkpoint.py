@@ -43,7 +43,7 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
-from pccl.lang.errors import PcclError, flag
+from pccl.lang.errors import PcclError
 
 __all__ = ["FORMAT", "MANIFEST", "Checkpointer", "parse_interval", "search_identity",
            "DEFAULT_INTERVAL"]
@@ -54,13 +54,6 @@ MANIFEST = "checkpoint.json"
 #: Seconds between checkpoints by default (TLC's 30 minutes).
 DEFAULT_INTERVAL = 1800.0
 
-#: The options that define the search, in the order a mismatch is reported:
-#: a resumed search must be the same search.  (``max_memory``, ``workers``,
-#: ``progress`` and where the checkpoints go may differ.)
-IDENTITY_OPTIONS = ("agents", "blackbox", "delta", "n0", "rates", "events", "collisions",
-                    "overrides", "invariants", "properties", "max_time", "abstract_time",
-                    "reduce", "depth", "max_states", "deadlock", "find_all", "exact",
-                    "timelock", "stall", "coverage", "fastest")
 
 
 def parse_interval(text) -> float:
@@ -112,9 +105,11 @@ def _jsonable(v):
     return getattr(v, "name", None) or repr(v)
 
 
-def search_identity(model, options) -> dict:
+def search_identity(model, options, names) -> dict:
     """What a checkpoint must match to be resumed: the program's source and
-    the world file (hashes) and the options that define the search."""
+    the world file (hashes) and the options that define the search:
+    ``names``, in the order a mismatch is reported (the caller's
+    :data:`pccl.model.options.IDENTITY_OPTIONS`)."""
     prog = model.program
     world = options.world
     if world is None:
@@ -128,7 +123,7 @@ def search_identity(model, options) -> dict:
     else:
         world_hash = _text_hash(repr(getattr(world, "source", None) or getattr(world, "path", "")))
     opts = {}
-    for name in IDENTITY_OPTIONS:
+    for name in names:
         v = getattr(options, name, None)
         if name == "agents":
             v = model.N
@@ -143,21 +138,21 @@ def search_identity(model, options) -> dict:
 
 
 def describe_option(name: str, value) -> str:
-    """An option's value as the command line spells it (``--set k=2``)."""
-    f = flag(name)
+    """An option's value as a text with the option as a placeholder, for a
+    front end to spell (``{overrides=k=2}``: ``--set k=2`` on the command line)."""
     if name in ("deadlock", "timelock", "stall"):          # flags that turn a check off
-        return f if value is False else f"no {f}"
+        return f"{{{name}=False}}" if value is False else f"no {{{name}=False}}"
     if isinstance(value, bool):
-        return f if value else f"no {f}"
+        return f"{{{name}}}" if value else f"no {{{name}}}"
     if name == "reduce":
         return f"reductions {'+'.join(value) if value else 'none'}"
     if value is None:
-        return f"no {f}" if name != "abstract_time" else "--abstract-time by default"
+        return f"no {{{name}}}" if name != "abstract_time" else f"{{{name}}} by default"
     if isinstance(value, dict):
-        return " ".join(f"{f} {k}={v}" for k, v in value.items()) if value else f"no {f}"
+        return " ".join(f"{{{name}={k}={v}}}" for k, v in value.items()) if value else f"no {{{name}}}"
     if isinstance(value, list):
-        return " ".join(f"{f} {v!r}" for v in value) if value else f"no {f}"
-    return f"{f} {value}"
+        return " ".join(f"{{{name}={v!r}}}" for v in value) if value else f"no {{{name}}}"
+    return f"{{{name}={value}}}"
 
 
 class CheckpointError(PcclError):
@@ -214,7 +209,7 @@ class Checkpointer:
             probe.close()
         except OSError as e:
             raise CheckpointError(f"cannot write checkpoints to {self.dir}: "
-                                  f"{e.strerror or e}", filename="--checkpoint") from None
+                                  f"{e.strerror or e}", filename="{checkpoint}") from None
         # a checkpoint already there stays valid until this search's first
         # manifest replaces it: number the generations after it
         try:
@@ -286,7 +281,7 @@ class Checkpointer:
 
     # -- reading ---------------------------------------------------------------
     def _bad(self, why: str) -> CheckpointError:
-        return CheckpointError(f"{self.resume_dir}: {why}", filename="--resume")
+        return CheckpointError(f"{self.resume_dir}: {why}", filename="{resume}", template=True)
 
     def load(self) -> tuple[dict, dict]:
         """The checkpoint in :attr:`resume_dir`: ``(state, arrays)``, after
@@ -311,7 +306,7 @@ class Checkpointer:
         if not os.path.isdir(d):
             raise self._bad("no such directory")
         if not os.path.exists(path):
-            raise self._bad(f"no checkpoint here (no {MANIFEST}); write one with --checkpoint DIR")
+            raise self._bad(f"no checkpoint here (no {MANIFEST}); write one with {{checkpoint=DIR}}")
         try:
             with open(path, encoding="utf-8") as f:
                 man = json.load(f)
@@ -361,7 +356,7 @@ class Checkpointer:
                 raise ValueError("state.pkl holds no search state")
         except Exception as e:          # a missing, truncated or altered file
             raise self._bad(f"the checkpoint is corrupt ({e}); write a new one with "
-                            f"--checkpoint") from None
+                            "{checkpoint}") from None
         return state, arrays
 
     def _check_identity(self, got) -> None:
@@ -376,7 +371,7 @@ class Checkpointer:
             raise self._bad(f"the checkpoint was written with a different world (hash "
                             f"{got.get('world')}; this run: {want.get('world')})")
         go, wo = got.get("options") or {}, want.get("options") or {}
-        for name in IDENTITY_OPTIONS:
+        for name in [*wo, *(k for k in go if k not in wo)]:     # this search's order
             if go.get(name) != wo.get(name):
                 raise self._bad(f"the checkpoint was written with {describe_option(name, go.get(name))}, "
                                 f"this run has {describe_option(name, wo.get(name))}")

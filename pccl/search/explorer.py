@@ -645,7 +645,7 @@ class Explorer:
                     start = self._restore(adm, res, state, arrays)
                 except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
                     raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
-                                  f"--checkpoint") from None
+                                  "{checkpoint}") from None
                 del state, arrays       # the mapped files: copied into the table by now
                 t_start -= start["seconds"]
                 stop = False
@@ -892,7 +892,7 @@ class Explorer:
         if tables is not None and state.get("tables") is not None:
             tables(state["tables"])
         if self.exact != ("exact" in state):
-            raise ValueError("the checkpoint's state identity (--exact or not) differs")
+            raise ValueError("the checkpoint's state identity ({exact} or not) differs")
         self.table.load(state["exact"] if self.exact else arrays)
         n, first = state["n"], state["first"]
         if self.table.n != n or len(state["level"]) != n - first:

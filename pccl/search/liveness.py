@@ -655,7 +655,7 @@ class _Analysis:
                              "(" + ", ".join(b.value for b in sr.bounds_hit) + ")")
             return False
         if live and not self.complete:
-            out.notes.append("liveness properties not checked: the search was bounded by --depth")
+            out.notes.append("liveness properties not checked: the search was bounded by {depth}")
             return False
         for k, p in live:
             qmask = g.bit(2 * k) if p.kind == "eventually" else g.bit(2 * k + 1)

@@ -102,7 +102,7 @@ def _ray_hint() -> str:
     return "pip install -e '.[ray]' in the pccl checkout"
 
 
-RAY_MISSING = "--ray needs Ray, an optional extra: " + _ray_hint()
+RAY_MISSING = "{ray} needs Ray, an optional extra: " + _ray_hint()
 
 
 def available_workers() -> int:
@@ -619,8 +619,8 @@ def probe_ray_address(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> Non
     except OSError as exc:
         why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
         raise RayUnavailable(
-            f"--ray {address}: nothing answers at {host}:{port} ({why}); start the head "
-            f"there with `ray start --head --port {port}`, or use --ray local") from None
+            f"{{ray={address}}}: nothing answers at {host}:{port} ({why}); start the head "
+            f"there with `ray start --head --port {port}`, or use {{ray=local}}") from None
 
 
 class RayUnavailable(RuntimeError):
@@ -719,7 +719,7 @@ class _RayTransport:
                 hint = ("; if the cluster uses token authentication (recent Ray turns it on "
                         "for a new head), set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN to the "
                         "head's token (its ~/.ray/auth_token)")
-            raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}{hint}") from None
+            raise RayUnavailable(f"{{ray={address}}}: cannot start or reach Ray: {exc}{hint}") from None
         return True
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
@@ -740,10 +740,10 @@ class _RayTransport:
         if pending:
             waiting = [w for w, r in enumerate(refs) if r in pending]
             raise RayUnavailable(
-                f"--ray {self.address}: {len(waiting)} of the {self.n} actors (worker"
+                f"{{ray={self.address}}}: {len(waiting)} of the {self.n} actors (worker"
                 f"{'s' if len(waiting) > 1 else ''} {', '.join(map(str, waiting))}) did not "
                 f"start within {limit:g} s (the cluster has {cpus:g} CPUs); give fewer "
-                f"--workers or add nodes (PCCL_RAY_START_TIMEOUT=SECONDS waits longer)")
+                f"{{workers}} or add nodes (PCCL_RAY_START_TIMEOUT=SECONDS waits longer)")
         self.placement = [tuple(r[1:]) for r in self._get(refs)]
 
     def placement_note(self) -> str:
@@ -771,9 +771,9 @@ class _RayTransport:
         if len(reason) > 300:
             reason = reason[:300] + "…"
         return RayWorkerLost(
-            f"--ray {self.address}: {who} was lost during the search ({type(exc).__name__}: "
+            f"{{ray={self.address}}}: {who} was lost during the search ({type(exc).__name__}: "
             f"{reason}). Its part of the visited states is gone: the search stops without a "
-            f"verdict; start it again (checkpoints do not cover --ray)")
+            f"verdict; start it again (checkpoints do not cover {{ray}})")
 
     def _on_dead_nodes(self) -> list:
         """The workers whose node the cluster reports dead (none if the
