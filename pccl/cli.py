@@ -330,7 +330,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
         res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
-                        stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory))
+                        stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory),
+                        spelling=cli_spelling)
         res.model = model
     except PcclError as e:
         _fail(e)
@@ -798,7 +799,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
     if view is None and _stdout_is_terminal() and fmt == "text":
         view = "steps"
     try:
-        res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file)
+        res = do_replay(trace_file, blackbox=blackbox, program=program_file, world=world_file, spelling=cli_spelling)
     except PcclError as e:
         _fail(e)
     cfg = res.doc["config"]
@@ -884,7 +885,7 @@ def view(trace_file, output, blackbox):
         _fail(e)
     notes, model, states, world = [], None, None, None
     try:
-        res = do_replay(trace_file, blackbox=blackbox)
+        res = do_replay(trace_file, blackbox=blackbox, spelling=cli_spelling)
         model, states = res.model, res.states
         if res.status == "diverged":
             notes.append(f"the trace does not replay: {res.message}")
@@ -1109,12 +1110,12 @@ def _simulate_runs(program, opts, rng, runs, seed, max_steps, stall_steps) -> tu
     try:
         model = build_model(program, opts, rng=rng)
         outcomes = S.simulate(model, rng, runs=runs, seed=seed, max_steps=max_steps,
-                              stall_steps=stall_steps)
+                              stall_steps=stall_steps, spelling=cli_spelling)
         bad_seeds = [o.first_seed for o in outcomes.values() if S.is_bad(o)
                      and o.key[0] != "out-of-memory"]
         if bad_seeds:
             first_bad = S.replay_run(model, rng, seed=min(bad_seeds), max_steps=max_steps,
-                                     stall_steps=stall_steps)
+                                     stall_steps=stall_steps, spelling=cli_spelling)
             first_bad.model = model
     except PcclError as e:
         _fail(e)

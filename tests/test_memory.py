@@ -252,7 +252,7 @@ def test_run_max_memory_stops_as_a_bound(tmp_path):
     from pccl.api import run
     r = run(write(tmp_path, GROW), agents=1, max_time=100_000, max_memory=1)
     assert r.status == "bounded" and r.exit_status == 0
-    assert r.message.startswith("stopped at --max-memory 1:")
+    assert r.message.startswith("stopped at max_memory=1:")
     assert r.steps == 256 and r.peak_memory > 1     # checked every MEMORY_CHECK transitions
 
 

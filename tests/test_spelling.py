@@ -18,7 +18,9 @@ from pccl.cli import FLAGS, cli_spelling, flag, main
 from pccl.lang.errors import ArgumentError, PcclError, keyword_spelling, location_spelling, spell
 from pccl.model.options import OPTION_NAMES, api_spelling
 
-from conftest import FISCHER, RACE, RACE_WORLD, cli
+from conftest import FISCHER, RACE, RACE_WORLD, TEST_PROGRAMS, cli
+
+LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -26,20 +28,16 @@ ROOT = Path(__file__).resolve().parent.parent
 #: command line they serve.  cli.py is ``pccl``; simulate.py prints the
 #: ``pccl run ...`` command that reproduces an outcome; exitcodes.py is the
 #: table of ``--exit-codes detailed`` in the CLI's help; archdoc.py has its
-#: own command line (``python -m pccl.tools.archdoc --check``).
+#: own command line (``python -m pccl.tools.archdoc --check``); replay.py is
+#: ``pccl replay`` (its errors name its own --program/--world/--blackbox; the
+#: API offers no replay); serve.py is the viewer's server, answering the page
+#: in the terms of the ``pccl view`` command that started it.
 FRONT_ENDS = {"pccl/cli.py", "pccl/tools/simulate.py", "pccl/tools/exitcodes.py",
-              "pccl/tools/archdoc.py"}
+              "pccl/tools/archdoc.py", "pccl/tools/replay.py", "pccl/tools/serve.py"}
 #: Modules that still write flags, and why (docs/architecture.md, "Flag
 #: spelling").  An entry is deleted when its flags go; the test below then
 #: keeps them out.
-PENDING = {
-    # its messages are recorded in trace files and compared by pccl replay:
-    # they move together with replay.py
-    "pccl/tools/runner.py": "run results recorded in trace files, compared by replay",
-    "pccl/tools/replay.py": "pccl replay's messages (being rewritten by the replay work)",
-    # the viewer's server (pccl view) answers its page in the terms of the command that started it
-    "pccl/tools/serve.py": "the viewer's server speaks of the command line that started it",
-}
+PENDING: dict = {}
 
 
 #: Other programs' flags that are spelt like one of pccl's: the C compiler's
@@ -269,3 +267,41 @@ def test_a_liveness_note_under_a_depth_bound():
     assert "liveness properties not checked: the search was bounded by depth" in r.notes
     out = cli("explore", FISCHER, "--property", "eventually inCs[0]", "--depth", "3")
     assert "note: liveness properties not checked: the search was bounded by --depth" in out.output
+
+
+# ---------------------------------------------------------------------------
+# a run's messages (tools/runner.py): keywords from the API, flags from pccl run,
+# and pccl replay accepts a file written either way
+# ---------------------------------------------------------------------------
+
+def test_a_run_bounded_by_max_time_names_the_option_in_each_spelling(tmp_path):
+    from pccl.api import run
+    from pccl.output import traces as T
+    res = run(FISCHER, max_time=3, seed=1, record_trace=True)
+    assert res.status == "bounded"
+    assert res.message == "stopped at max_time=3", res.message
+    out = cli("run", FISCHER, "--max-time", "3", "--seed", "1", "--trace-out", str(tmp_path / "cli.json"))
+    assert "stopped at --max-time 3" in out.output, out.output
+    # the API's file and the CLI's file both replay: the message is compared in either spelling
+    T.write(T.run_document(res, T.config("run", res.model, program=FISCHER, seed=1)),
+            tmp_path / "api.json")
+    for name in ("api.json", "cli.json"):
+        rep = cli("replay", str(tmp_path / name))
+        assert rep.exit_code == 0, (name, rep.output)
+        assert "reproduced" in rep.output, rep.output
+    # a file whose message names another bound does not
+    doc = json.loads((tmp_path / "cli.json").read_text())
+    doc["result"]["message"] = "stopped at --max-time 4"
+    (tmp_path / "bad.json").write_text(json.dumps(doc))
+    rep = cli("replay", str(tmp_path / "bad.json"))
+    assert rep.exit_code == 2 and "does not match" in rep.output, rep.output
+
+
+def test_a_run_past_max_steps_names_the_option_in_each_spelling():
+    from pccl.api import run
+    res = run(LOOP, blackbox="instant", max_steps=300)
+    assert res.status == "max-steps", res.status
+    assert res.message.endswith("raise max_steps if this is intended"), res.message
+    assert "--" not in res.message
+    out = cli("run", LOOP, "-b", "instant", "--max-steps", "300")
+    assert "raise --max-steps if this is intended" in out.output, out.output

@@ -31,7 +31,7 @@ from typing import Any, Optional
 from pccl.output import codec as C
 from pccl.output import tracecheck as TC
 from pccl.output import traces as T
-from pccl.lang.errors import ArgumentError, OptionError, PcclError
+from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, keyword_spelling, spell
 from pccl.model.layout import TIME
 from pccl.model.options import ModelOptions
 
@@ -308,11 +308,16 @@ def _same(a, b) -> bool:
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
+def replay(path, *, blackbox=None, program=None, world=None,
+           spelling: Spelling = keyword_spelling) -> ReplayResult:
     """Replay the trace file ``path``.  ``blackbox``: the user's blackbox (a
     ``module:attr`` spec or an object) when the file names one of its own;
     a shipped one is taken from the file.  ``program``/``world``: replay
-    against these files instead of the recorded ones (checked by hash)."""
+    against these files instead of the recorded ones (checked by hash).
+    ``spelling``: how the caller writes options (``pccl replay`` its flags):
+    a recorded run's message naming an option (``stopped at --max-time 100``)
+    matches when it is the replayed run's message in this spelling or the
+    API's (a file written by ``pccl run`` or by :func:`pccl.api.run`)."""
     name = os.fspath(path)
     doc = TC.load(path)
     cfg = doc["config"]
@@ -370,7 +375,7 @@ def replay(path, *, blackbox=None, program=None, world=None) -> ReplayResult:
                                    f"recorded final state is not the last state (final."
                                    f"{_state_difference(doc['final'], C.encode_state(m, state))})")
     if cfg["command"] == "run":
-        return _end_of_run(m, cfg, doc, res, picks, diverge)
+        return _end_of_run(m, cfg, doc, res, picks, diverge, (spelling, keyword_spelling))
     if recorded is None:
         return _end_of_witness(m, result["witness"], res, diverge)
     if recorded["kind"] in ("liveness", "timelock", "response"):
@@ -502,15 +507,16 @@ class _Steer(random.Random):
             raise _Beyond()
 
 
-def _end_of_run(m, cfg, doc, res, picks, diverge):
-    from pccl.tools.runner import run as run_model
+def _end_of_run(m, cfg, doc, res, picks, diverge, spellings):
+    from pccl.tools.runner import run as run_model, unspelt
     result = doc["result"]
     n = len(picks)
     steer = _Steer(res.states[0], picks)
     stall = cfg.get("stall_steps")
     try:
         rr = run_model(m, max_steps=cfg.get("max_steps") or 100_000, rng=steer,
-                       on_step=steer.step, stall_steps=20 if stall is None else stall)
+                       on_step=steer.step, stall_steps=20 if stall is None else stall,
+                       spelling=unspelt)
     except _Beyond:
         rr = None
     if rr is None:
@@ -524,6 +530,8 @@ def _end_of_run(m, cfg, doc, res, picks, diverge):
                           f"ends here ({result['status']}: {result['message']}) and the "
                           f"replayed one goes on ({k} transition{'s' if k != 1 else ''} "
                           f"enabled, no violation)")
+    said = [spell(rr.message, s) for s in spellings]
+    rr.message = result.get("message") if result.get("message") in said else said[0]
     if rr.steps < n:
         return diverge(rr.steps, f"diverged at step {rr.steps} of {n}: the run stops there "
                                  f"({rr.status}: {rr.message}), but the trace goes on")

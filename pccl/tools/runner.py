@@ -27,6 +27,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
+from pccl.lang.errors import Spelling, keyword_spelling, spell
 from pccl.search.explorer import Trace
 from pccl.model.layout import (AGS, AR, DONE, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS,
                                TARGET, TIME)
@@ -204,16 +205,24 @@ def _signature(st) -> tuple:
                                    ag[REACH][DONE], ag[REACH][FAIL]) for ag in st[AGS]))
 
 
+def unspelt(name: str, value: Optional[str]) -> None:
+    """A spelling that writes no option: the message keeps its placeholders."""
+    return None
+
+
 def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = False,
         rng: Optional[random.Random] = None, on_step=None, stall_steps: int = 20,
-        max_memory: Optional[int] = None) -> RunResult:
+        max_memory: Optional[int] = None, spelling: Spelling = keyword_spelling) -> RunResult:
     """Execute ``model`` once.  ``model`` must have been built with a
     ``rand_policy`` if rand should be sampled (see :func:`pccl.api.make_model`);
     otherwise all rand outcomes are successors and one is picked at random.
     ``stall_steps``: stop when nothing changed for this many time steps
     while an agent still runs (0: never).  ``max_memory``: stop, as
     bounded, once the process's peak resident memory passes this many bytes
-    (checked every :data:`MEMORY_CHECK` transitions; None: never)."""
+    (checked every :data:`MEMORY_CHECK` transitions; None: never).
+    ``spelling`` writes the options a message names (``max_time=100`` for the
+    API, the default; ``pccl run`` passes its flags; :func:`unspelt` keeps
+    the ``{max_time=100}`` placeholders, for replay to compare)."""
     from pccl.search.memory import peak_rss_bytes
     rng = rng or random.Random(seed)
     st = _initial_state(model, rng)
@@ -230,7 +239,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
 
     def finish(status, message, code, **kw):
         trace = Trace(tuple(states), tuple(labels)) if record_trace and states else None
-        res = RunResult(status, message, code, st, steps, trace, watch.summary, **kw,
+        res = RunResult(status, spell(message, spelling), code, st, steps, trace, watch.summary, **kw,
                         peak_memory=peak_rss_bytes(), max_memory=max_memory)
         return _with_properties(res, mon, code)
 
@@ -253,7 +262,7 @@ def run(model, *, seed: int = 0, max_steps: int = 100_000, record_trace: bool = 
                     and peak_rss_bytes() > max_memory:
                 st = nxt
                 from pccl.search.memory import format_size
-                return finish("bounded", f"stopped at --max-memory {format_size(max_memory)}: "
+                return finish("bounded", f"stopped at {{max_memory={format_size(max_memory)}}}: "
                               f"the process's peak memory passed it", 0)
             rule, agent = label[0], label[1]
             if rule == "TIME ADVANCE":
@@ -289,7 +298,7 @@ def _out_of_memory(states: list, labels: list, steps: int) -> str:
     states.clear()
     return (f"out of memory after {steps} transitions: the process could not "
             f"allocate more (a limit such as ulimit -v, or the machine's memory); "
-            f"give --max-memory below that limit to stop as a bound{dropped}")
+            f"give {{max_memory}} below that limit to stop as a bound{dropped}")
 
 
 def _initial_state(model, rng):
@@ -338,7 +347,7 @@ def _terminal(model, st) -> tuple:
     if kind == "final":
         return "final", "every agent exited", 0, {}
     if kind == "bounded":
-        return "bounded", f"stopped at --max-time {model.max_time}", 0, {}
+        return "bounded", f"stopped at {{max_time={model.max_time}}}", 0, {}
     dv = model.deadlock_violation(st)
     return "deadlock", dv.message, 1, {"violations": [dv]}
 
@@ -350,7 +359,7 @@ def _looping(model, st, per_agent: Counter, max_steps: int) -> tuple:
     looping = looping_agent(model, st, per_agent)
     return (f"agent {looping} runs more than {max_steps} transitions without "
             f"letting time advance ({model.compiled.describe_k(st[AGS][looping][PC])}); "
-            f"raise --max-steps if this is intended", {"looping_agent": looping})
+            f"raise {{max_steps}} if this is intended", {"looping_agent": looping})
 
 
 class _TimeSteps:

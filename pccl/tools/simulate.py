@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from pccl.output import display as D
 from pccl.model.layout import TIME
+from pccl.lang.errors import Spelling, keyword_spelling
 from pccl.tools.runner import run as _run
 
 
@@ -33,13 +34,13 @@ class Outcome:
 
 
 def replay_run(model, rng: random.Random, *, seed: int, max_steps: int = 100_000,
-                stall_steps: int = 20):
+                stall_steps: int = 20, spelling: Spelling = keyword_spelling):
     """Run ``seed`` again, recording its trace: the same run as the one
     :func:`simulate` made with that seed (rand and choices from ``rng``
     seeded afresh)."""
     rng.seed(seed)
     return _run(model, seed=seed, max_steps=max_steps, rng=rng, stall_steps=stall_steps,
-                record_trace=True)
+                record_trace=True, spelling=spelling)
 
 
 def outcome_of(model, res) -> tuple:
@@ -58,13 +59,16 @@ def outcome_of(model, res) -> tuple:
 
 
 def simulate(model, rng: random.Random, *, runs: int, seed: int = 0, max_steps: int = 100_000,
-             on_run=None, stall_steps: int = 20) -> "OrderedDict[tuple, Outcome]":
-    """``model`` must draw rand from ``rng`` (make_model(..., rng=rng))."""
+             on_run=None, stall_steps: int = 20,
+             spelling: Spelling = keyword_spelling) -> "OrderedDict[tuple, Outcome]":
+    """``model`` must draw rand from ``rng`` (make_model(..., rng=rng)); ``spelling``
+    writes the options the runs' messages name (:func:`pccl.tools.runner.run`)."""
     out: "OrderedDict[tuple, Outcome]" = OrderedDict()
     for k in range(runs):
         s = seed + k
         rng.seed(s)
-        res = _run(model, seed=s, max_steps=max_steps, rng=rng, stall_steps=stall_steps)
+        res = _run(model, seed=s, max_steps=max_steps, rng=rng, stall_steps=stall_steps,
+                   spelling=spelling)
         key, label, example = outcome_of(model, res)
         o = out.get(key)
         if o is None:
