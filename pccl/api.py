@@ -477,6 +477,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
         skipped.extend(_checkpoint_notes(ck))
+    if getattr(ex, "spiller", None) is not None:
+        skipped.append(ex.spiller.note())
     transport: Any = getattr(ex, "transport", None)
     if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
         skipped.append(transport.placement_note())

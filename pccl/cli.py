@@ -628,11 +628,15 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--resume", "resume", metavar="DIR", default=None,
               help="continue the search from the checkpoint in DIR (same program and "
                    "options; it keeps writing checkpoints there)")
+@click.option("--spill", "spill", metavar="DIR", default=None,
+              help="when the search's memory nears --max-memory, move the visited states "
+                   "and the frontier to files under DIR instead of stopping (one process; "
+                   "the files are removed at the end)")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
-            checkpoint, checkpoint_interval, resume):
+            checkpoint, checkpoint_interval, resume, spill):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from pccl.api import build_model, explore_model
