@@ -559,9 +559,6 @@ class SearchOptions:
     #: a directory: move the visited set and the frontier to files there
     #: instead of passing ``max_memory`` (pccl/search/spill.py)
     spill: Optional[str] = None
-    #: with ``spill``: also spill whenever this many states are in memory
-    #: (tests: many spills on a small search)
-    spill_states: Optional[int] = None
 
 
 class Explorer:
@@ -645,7 +642,7 @@ class Explorer:
             if self.exact or self.checkpoint is not None:
                 raise ValueError("spill stores fingerprints (not exact) and takes no checkpoint")
             from pccl.search.spill import Spiller
-            self.spiller = Spiller(self.options.spill, self.max_memory, self.options.spill_states)
+            self.spiller = Spiller(self.options.spill, self.max_memory)
             self.table = self.spiller.table
         else:
             self.table = ExactTable() if self.exact else FingerprintTable()

@@ -236,7 +236,7 @@ class DiskSet:
                 for part in self._merged(new):
                     firsts.append(part["k0"][(-written) % self.PAGE::self.PAGE].copy())
                     written += len(part)
-                    part.tofile(f)
+                    _tofile(part, f)
                     del part
             fd = os.open(path, os.O_RDONLY)
         except OSError as e:
@@ -279,6 +279,10 @@ class DiskSet:
     def close(self) -> None:
         self._drop()
         self.n = 0
+
+
+def _tofile(arr: np.ndarray, f) -> None:
+    arr.tofile(f)
 
 
 def _merge2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -450,15 +454,18 @@ class Spiller:
     """When and what a search with ``--spill`` moves to disk (see the
     module's docstring): :meth:`relieve` after every admitted batch.
 
-    ``max_memory``: the search's bound in bytes (None: none); ``states``:
-    spill whenever the buffer or the next level holds that many states (for
-    tests: many spills on a small search; None: decided by the memory)."""
+    ``max_memory``: the search's bound in bytes (None: none, and nothing is
+    spilled unless :attr:`STATES` says so)."""
 
     #: spill everything that can go once the resident memory passes this
     #: fraction of ``max_memory``
     PRESSURE = 0.75
+    #: spill whenever the buffer or the next level holds this many states
+    #: (tests set it: many spills and merges on a small search)
+    STATES: Optional[int] = None
 
-    def __init__(self, parent: str, max_memory: Optional[int], states: Optional[int] = None):
+    def __init__(self, parent: str, max_memory: Optional[int]):
+        states = self.STATES
         import weakref
         self.dir = SpillDir(parent)
         self.table = SpillTable(self.dir)
