@@ -19,7 +19,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from conftest import FISCHER, TEST_PROGRAMS
-from pccl.api import explore, explore_model, make_model
+from pccl.api import explore, make_model
 from pccl.lang.errors import ArgumentError
 from pccl.search import spill as S
 from pccl.search.explorer import Explorer

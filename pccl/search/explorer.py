@@ -1020,7 +1020,7 @@ class _Frontier:
     :class:`pccl.search.spill.LevelFile`, with ``spill``; else None), then
     ``states`` in memory, numbered ``idx``."""
 
-    def __init__(self, disk: Any, states: list, idx: Sequence[int]):
+    def __init__(self, disk: Any, states: list, idx: Any):
         self.disk, self.states, self.idx = disk, states, idx
         self.count = (disk.count if disk is not None else 0) + len(states)
 
@@ -1031,8 +1031,9 @@ class _Frontier:
             return self.states[-1]
         return self.disk.last if self.disk is not None else None
 
-    def segments(self) -> Iterator[tuple[list, Sequence[int]]]:
-        """The states and their numbers, in order, a segment at a time."""
+    def segments(self) -> Iterator[tuple[list, Any]]:
+        """The states and their numbers (a list or a range), in order, a
+        segment at a time."""
         if self.disk is not None:
             yield from self.disk.segments()
         if self.states:

@@ -133,6 +133,9 @@ class DiskSet:
         #: merges done, pages read
         self.merges = 0
         self.reads = 0
+        #: a Bloom filter of the file's fingerprints (:meth:`maybe`): most
+        #: new states are never looked up on disk
+        self.bloom = np.zeros(0, dtype=np.uint8)
 
     # -- lookups ---------------------------------------------------------------
     def lookup(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
@@ -141,20 +144,55 @@ class DiskSet:
         out = np.full(len(q0), -1, dtype=np.int64)
         if not self.n:
             return out
+        cand = np.flatnonzero(self.maybe(q0, q1))
+        q0, q1 = q0[cand], q1[cand]
         step = self.QUERIES
         try:
             for s in range(0, len(q0), step):
-                out[s:s + step] = self._lookup(q0[s:s + step], q1[s:s + step])
+                out[cand[s:s + step]] = self._lookup(q0[s:s + step], q1[s:s + step])
         except OSError as e:
             raise self.dir.fail(e) from None
         return out
+
+    # -- the Bloom filter ------------------------------------------------------
+    #: bits of the filter per entry (at least), and probes: about 1 % false positives
+    BLOOM_BITS = 10
+    BLOOM_PROBES = 4
+
+    def _probes(self, q0: np.ndarray, q1: np.ndarray) -> Iterator[np.ndarray]:
+        """The filter's bit numbers of each fingerprint, a probe at a time
+        (double hashing on the fingerprint's halves, already uniform)."""
+        mask = np.uint64(len(self.bloom) * 8 - 1)
+        for i in range(self.BLOOM_PROBES):
+            yield (q1 + q0 * np.uint64(i)) & mask
+
+    def maybe(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """False where the fingerprint is certainly not in the set."""
+        bloom = self.bloom
+        out = np.ones(len(q0), dtype=bool)
+        for h in self._probes(q0, q1):
+            out &= (bloom[h >> np.uint64(3)] >> (h & np.uint64(7)).astype(np.uint8)) & 1 == 1
+        return out
+
+    def _bloom_add(self, q0: np.ndarray, q1: np.ndarray) -> None:
+        for h in self._probes(q0, q1):
+            np.bitwise_or.at(self.bloom, h >> np.uint64(3),
+                             np.left_shift(1, (h & np.uint64(7)).astype(np.uint8)).astype(np.uint8))
+
+    def _bloom_size(self, n: int) -> int:
+        """Bytes of a filter for ``n`` entries (a power of two)."""
+        size = 64
+        while size * 8 < n * self.BLOOM_BITS:
+            size *= 2
+        return size
 
     def _read(self, start: int, count: int, into: np.ndarray) -> int:
         """Entries ``start ..`` (at most ``count``) into ``into``; how many."""
         count = min(count, self.n - start)
         if count <= 0:
             return 0
-        view = memoryview(into).cast("B")[:count * RECORD.itemsize]
+        assert self._fd is not None
+        view = into.reshape(-1).view(np.uint8).data[:count * RECORD.itemsize]
         got = os.preadv(self._fd, [view], start * RECORD.itemsize)
         if got != count * RECORD.itemsize:
             raise OSError(errno.EIO, "short read of the spilled fingerprints")
@@ -170,8 +208,9 @@ class DiskSet:
         buf = np.empty((len(pages), width), dtype=RECORD)
         size = RECORD.itemsize
         rb = width * size
-        mv = memoryview(buf.reshape(-1).view(np.uint8))
+        mv = buf.reshape(-1).view(np.uint8).data
         fd, preadv = self._fd, os.preadv
+        assert fd is not None
         got = [preadv(fd, [mv[o:o + rb]], at)
                for o, at in zip(range(0, len(pages) * rb, rb), (pages * (page * size)).tolist())]
         del mv
@@ -231,11 +270,19 @@ class DiskSet:
         path = self.dir.file(f"fingerprints.{self.gen}")
         firsts: list = []
         written = 0
+        size = self._bloom_size(self.n + len(new))
+        grow = size != len(self.bloom)
+        if grow:                # a larger filter, of every entry (the old one is dropped)
+            self.bloom = np.zeros(size, dtype=np.uint8)
+        else:
+            self._bloom_add(new["k0"], new["k1"])
         try:
             with open(path, "wb") as f:
                 for part in self._merged(new):
                     firsts.append(part["k0"][(-written) % self.PAGE::self.PAGE].copy())
                     written += len(part)
+                    if grow:
+                        self._bloom_add(part["k0"], part["k1"])
                     _tofile(part, f)
                     del part
             fd = os.open(path, os.O_RDONLY)
