@@ -23,13 +23,14 @@ from pccl.lang import ast as A
 from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from pccl.model import validate as V
-from pccl.lang.errors import ArgumentError, OptionError
+from pccl.lang.errors import ArgumentError, OptionError, PcclError
 from pccl.model.options import (CommonOptions, ExploreOptions, ModelOptions, RunOptions, api_spelling,
                       conflict, model_choices)
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
 from pccl.search.memory import format_size
+from pccl.search.spill import SpillError
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
 #: model's (derived, so a new search option cannot be missing here).
@@ -390,6 +391,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             for f in sr.found:
                 if f.trace is not None:
                     f.trace = native.decode_trace(f.trace)
+    except SpillError as e:        # the spill directory: unwritable, the disk full
+        raise PcclError(str(e), filename=e.option) from None
     except RuntimeError as e:
         from pccl.model.native import NativeOverflow
         if isinstance(e, NativeOverflow):

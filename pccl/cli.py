@@ -641,6 +641,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     violation with a shortest counterexample."""
     from pccl.api import build_model, explore_model
     from pccl.output import traces as T
+    from pccl.search.spill import SpillError
     _check_outputs(plot, trace_out, html)
     if ray is not None:
         from pccl.api import require_ray
@@ -663,10 +664,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         res = explore_model(model, options=opts.replace(
             progress=reporter, progress_interval=min(0.5, progress_interval)))
-    except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
-        if reporter is not None:
+    except (PcclError, SpillError) as e:   # found only while exploring (a blackbox, a world
+        if reporter is not None:            # value, a full disk with --spill, ...)
             reporter.close()    # erase the live display before the message
-        _fail(e)
+        _fail(e if isinstance(e, PcclError) else PcclError(str(e), filename=e.option))
     finally:
         if reporter is not None:
             reporter.close()

@@ -20,7 +20,7 @@ from hypothesis import given, settings, strategies as st
 
 from conftest import FISCHER, TEST_PROGRAMS
 from pccl.api import explore, make_model
-from pccl.lang.errors import ArgumentError
+from pccl.lang.errors import ArgumentError, PcclError
 from pccl.search import spill as S
 from pccl.search.explorer import Explorer
 
@@ -234,7 +234,7 @@ def test_full_disk_while_spilling_is_one_message(tmp_path, monkeypatch, many_spi
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(self, f, *a, **k)
     monkeypatch.setattr(S, "_tofile", tofile)
-    with pytest.raises(S.SpillError) as e:
+    with pytest.raises(PcclError) as e:
         explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path))
     assert e.value.render() == (f"--spill: error: the search could not go on spilling to "
                                 f"{tmp_path}: the disk is full")

@@ -9,14 +9,15 @@ goes on, the way TLC's disk-based fingerprint set and disk queue do:
   last spill stay in an in-memory :class:`~pccl.search.explorer.FingerprintTable`
   (the buffer); a spill sorts the buffer's fingerprints on their first
   64 bits and merges them, with their state numbers, into one sorted file
-  on disk (:class:`DiskSet`: three column files, written afresh by a
-  streaming merge, the old ones deleted).  A batch of candidates is looked
-  up in the buffer first and the rest in the file: an in-memory index of
-  every page's first key (:data:`DiskSet.PAGE` keys) narrows each candidate
-  to one page, a vectorised binary search (``numpy`` indexing of the mapped
-  file) finishes it, all candidates of the batch at once.  The mapped
-  pages are dropped from the process after every batch (``madvise``), so
-  they do not count towards its resident memory.
+  on disk (:class:`DiskSet`: written afresh by a streaming merge, the old
+  one deleted).  A batch of candidates is looked up in the buffer first;
+  the rest go through a Bloom filter of the file's fingerprints (10 bits
+  each, in memory: most new states stop there), and those it cannot rule
+  out are found in the file: an in-memory index of every page's first key
+  (a page: :data:`DiskSet.PAGE` entries) names each candidate's page, which
+  is read with ``pread`` (once per page for the whole batch) and searched,
+  all candidates at once with numpy.  The file is never mapped (mapped
+  pages would count towards the process's resident memory).
 * **Parent links** of spilled states go to an append-only file (4 bytes a
   state), read back only to rebuild a counterexample.
 * **The next BFS level** (:class:`LevelFile`): admitted states are written,
@@ -47,7 +48,6 @@ from typing import Any, Optional
 
 import numpy as np
 
-from pccl.lang.errors import PcclError
 from pccl.search.fingerprint import fingerprint
 
 __all__ = ["SpillError", "SpillDir", "DiskSet", "SpillTable", "LevelFile", "Spiller"]
@@ -57,12 +57,13 @@ _NO_PARENT = 0xFFFF_FFFF
 STATE_BYTES = 36
 
 
-class SpillError(PcclError):
+class SpillError(Exception):
     """The spill directory cannot be written (absent and not creatable, not
-    writable, the disk full): one message naming ``--spill``, exit 2."""
+    writable, the disk full).  The front ends report it as one message
+    naming ``--spill`` (``pccl.api`` raises it as a ``PcclError``), exit 2."""
 
-    def __init__(self, message: str):
-        super().__init__(message, filename="--spill")
+    #: the option a report names
+    option = "--spill"
 
 
 def _why(e: OSError) -> str:
