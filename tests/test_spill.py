@@ -22,7 +22,7 @@ from conftest import FISCHER, TEST_PROGRAMS
 from pccl.api import explore, make_model
 from pccl.lang.errors import ArgumentError, PcclError
 from pccl.search import spill as S
-from pccl.search.explorer import Explorer
+from pccl.search.explorer import Explorer, FingerprintTable
 
 MUTEX = "count(inCs) <= 1"
 RACE_WORLD = "programs/race.toml"
@@ -161,7 +161,7 @@ def test_spill_table_agrees_with_a_dict(tmp_path_factory, ops):
     in between: lookups and parents as a dict of the admitted says."""
     from pccl.search.fingerprint import fingerprint
     d = S.SpillDir(str(tmp_path_factory.mktemp("st")))
-    t = S.SpillTable(d)
+    t = S.SpillTable(d, FingerprintTable)
     ref: dict = {}
     parents: list = []
     try:

@@ -642,7 +642,7 @@ class Explorer:
             if self.exact or self.checkpoint is not None:
                 raise ValueError("spill stores fingerprints (not exact) and takes no checkpoint")
             from pccl.search.spill import Spiller
-            self.spiller = Spiller(self.options.spill, self.max_memory)
+            self.spiller = Spiller(self.options.spill, self.max_memory, FingerprintTable)
             self.table = self.spiller.table
         else:
             self.table = ExactTable() if self.exact else FingerprintTable()
@@ -708,7 +708,7 @@ class Explorer:
         progress = Progress(self.progress, self.progress_interval, t_start)
 
         def report(left: int) -> None:
-            progress(lambda secs: {"states": table.n, "frontier": left + len(adm.nxt),
+            progress(lambda secs: {"states": table.n, "frontier": left + adm.pending(),
                                    "depth": depth, "seconds": secs,
                                    "memory": peak_rss_bytes(), "max_time": stats.max_time})
 
@@ -1095,6 +1095,10 @@ class _Admission:
         if self.spilled is not None:
             self.spilled.discard()
             self.spilled = None
+
+    def pending(self) -> int:
+        """States admitted to the next level so far (on disk too)."""
+        return len(self.nxt) + (self.spilled.count if self.spilled is not None else 0)
 
     def take_frontier(self) -> "_Frontier":
         """The level admitted since the last call: its states written to

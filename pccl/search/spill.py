@@ -43,7 +43,7 @@ import os
 import pickle
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any, Optional
 
 import numpy as np
@@ -354,16 +354,16 @@ class SpillTable:
     ``lookup_keys``, ``parent``), over an in-memory buffer of the states
     admitted since the last :meth:`spill` and a :class:`DiskSet` of the
     others.  State numbers are global: the buffer's state ``i`` is
-    ``base + i``."""
+    ``base + i``.  ``new_buffer()`` makes an empty buffer (the explorer's
+    ``FingerprintTable``)."""
 
     key_of = staticmethod(fingerprint)
 
-    def __init__(self, directory: SpillDir):
-        from pccl.search.explorer import FingerprintTable
-        self._new_buffer = FingerprintTable
+    def __init__(self, directory: SpillDir, new_buffer: Callable[[], Any]):
+        self._new_buffer = new_buffer
         self.dir = directory
         self.disk = DiskSet(directory)
-        self.mem = FingerprintTable()
+        self.mem = new_buffer()
         self.base = 0           # states on disk (numbered 0 .. base - 1)
         self.n = 0
         self._batch: Any = None
@@ -503,7 +503,8 @@ class Spiller:
     module's docstring): :meth:`relieve` after every admitted batch.
 
     ``max_memory``: the search's bound in bytes (None: none, and nothing is
-    spilled unless :attr:`STATES` says so)."""
+    spilled unless :attr:`STATES` says so); ``new_buffer``: as
+    :class:`SpillTable`'s."""
 
     #: spill everything that can go once the resident memory passes this
     #: fraction of ``max_memory``
@@ -512,11 +513,11 @@ class Spiller:
     #: (tests set it: many spills and merges on a small search)
     STATES: Optional[int] = None
 
-    def __init__(self, parent: str, max_memory: Optional[int]):
+    def __init__(self, parent: str, max_memory: Optional[int], new_buffer: Callable[[], Any]):
         states = self.STATES
         import weakref
         self.dir = SpillDir(parent)
-        self.table = SpillTable(self.dir)
+        self.table = SpillTable(self.dir, new_buffer)
         # the files go with the table (a counterexample's replay and the
         # graph analyses read it after the search), at the latest at exit
         weakref.finalize(self.table, self.dir.close)
