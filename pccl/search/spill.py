@@ -26,10 +26,12 @@ goes on, the way TLC's disk-based fingerprint set and disk queue do:
 
 When to spill (:class:`Spiller`): after every admitted batch, when the
 buffer holds :attr:`Spiller.table_limit` states (a quarter of
-``--max-memory`` at 36 bytes a state), or when the process's resident
-memory (psutil) passes three quarters of ``--max-memory`` (then the next
-level's states go too).  If the memory still passes ``--max-memory`` the
-bound stops the search as without ``--spill``.
+``--max-memory`` at 36 bytes a state); and once the process's resident
+memory (psutil) passes three quarters of ``--max-memory``, the buffer when
+it holds an eighth of that and a quarter of the states on disk, and the
+next level's states when :attr:`Spiller.LEVEL_MIN` of them are in memory.
+If the memory still passes ``--max-memory`` the bound stops the search as
+without ``--spill``.
 
 The result is the in-memory search's: the same state numbers in the same
 order, hence the same states, transitions, depth, verdict and
@@ -176,9 +178,14 @@ class DiskSet:
         return out
 
     def _bloom_add(self, q0: np.ndarray, q1: np.ndarray) -> None:
+        if not len(q0):
+            return
         for h in self._probes(q0, q1):
-            np.bitwise_or.at(self.bloom, h >> np.uint64(3),
-                             np.left_shift(1, (h & np.uint64(7)).astype(np.uint8)).astype(np.uint8))
+            h.sort()            # the bits of one byte together: OR-ed by reduceat
+            byte = h >> np.uint64(3)
+            bits = np.left_shift(np.uint8(1), (h & np.uint64(7)).astype(np.uint8))
+            starts = np.flatnonzero(np.r_[True, byte[1:] != byte[:-1]])
+            self.bloom[byte[starts]] |= np.bitwise_or.reduceat(bits, starts)
 
     def _bloom_size(self, n: int) -> int:
         """Bytes of a filter for ``n`` entries (a power of two)."""
@@ -512,6 +519,8 @@ class Spiller:
     #: spill whenever the buffer or the next level holds this many states
     #: (tests set it: many spills and merges on a small search)
     STATES: Optional[int] = None
+    #: pressed, the next level's states go to disk once this many are in memory
+    LEVEL_MIN = 4096
 
     def __init__(self, parent: str, max_memory: Optional[int], new_buffer: Callable[[], Any]):
         states = self.STATES
@@ -544,10 +553,13 @@ class Spiller:
         table = self.table
         pressed = self.threshold is not None and self.rss() > self.threshold
         lim = self.table_limit
-        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
+        if lim is not None and (table.buffered >= lim or (
+                pressed and table.buffered >= max(lim // 8, min(lim, table.base // 4)))):
+            # pressed, a merge rewrites the file only once the buffer holds
+            # a quarter of it: the merges' cost stays n log n, not n squared
             table.spill()
-        if adm.nxt and (pressed or (self.level_limit is not None
-                                    and len(adm.nxt) >= self.level_limit)):
+        level_min = self.level_limit if self.level_limit is not None else self.LEVEL_MIN
+        if len(adm.nxt) >= level_min and (pressed or self.level_limit is not None):
             if adm.spilled is None:
                 adm.spilled = LevelFile(self.dir, f"level.{self.levels}")
                 self.levels += 1
