@@ -427,8 +427,8 @@ class SpillTable:
             raise self.dir.fail(e) from None
         fps = mem.fps[:m]
         self.disk.merge(fps[:, 0], fps[:, 1], np.arange(self.base, self.base + m, dtype=np.uint32))
-        del fps
-        self.mem = mem = None   # type: ignore[assignment]
+        del fps, mem
+        self.mem = None         # the old buffer freed before the new one is made
         self.mem = self._new_buffer()
         self.base += m
 
