@@ -58,17 +58,27 @@ CASES = {
 }
 
 
+class Spills(list):
+    """The sizes of the merges done (a list), and the level segments written."""
+    segments = 0
+
+
 @pytest.fixture
 def many_spills(monkeypatch):
     monkeypatch.setattr(S.Spiller, "STATES", 300)
-    merges = []
-    orig = S.DiskSet.merge
+    spills = Spills()
+    merge, write = S.DiskSet.merge, S.LevelFile.write
 
-    def merge(self, *a):
-        merges.append(len(a[0]))
-        return orig(self, *a)
-    monkeypatch.setattr(S.DiskSet, "merge", merge)
-    return merges
+    def counted_merge(self, *a):
+        spills.append(len(a[0]))
+        return merge(self, *a)
+
+    def counted_write(self, *a):
+        spills.segments += 1
+        return write(self, *a)
+    monkeypatch.setattr(S.DiskSet, "merge", counted_merge)
+    monkeypatch.setattr(S.LevelFile, "write", counted_write)
+    return spills
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -79,6 +89,8 @@ def test_spilled_search_gives_the_in_memory_result(name, tmp_path, many_spills):
     assert signature(disk) == signature(mem)
     if mem.stats.states > 600:
         assert len(many_spills) >= 2, "the search never merged to disk twice"
+    if mem.stats.states > 5000:
+        assert many_spills.segments >= 2, "no level was written to disk"
     assert any(n.startswith(f"--spill {tmp_path}") for n in disk.notes)
 
 

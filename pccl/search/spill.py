@@ -28,8 +28,9 @@ When to spill (:class:`Spiller`): after every admitted batch, when the
 buffer holds :attr:`Spiller.table_limit` states (a quarter of
 ``--max-memory`` at 36 bytes a state); and once the process's resident
 memory (psutil) passes three quarters of ``--max-memory``, the buffer when
-it holds an eighth of that and a quarter of the states on disk, and the
-next level's states when :attr:`Spiller.LEVEL_MIN` of them are in memory.
+it holds an eighth of that, and the next level's states.  (Measured: a
+laxer rule under pressure, merging only once the buffer held a quarter of
+the file, let fischer k=2 d=2 pass ``--max-memory 70M``.)
 If the memory still passes ``--max-memory`` the bound stops the search as
 without ``--spill``.
 
@@ -519,8 +520,6 @@ class Spiller:
     #: spill whenever the buffer or the next level holds this many states
     #: (tests set it: many spills and merges on a small search)
     STATES: Optional[int] = None
-    #: pressed, the next level's states go to disk once this many are in memory
-    LEVEL_MIN = 4096
 
     def __init__(self, parent: str, max_memory: Optional[int], new_buffer: Callable[[], Any]):
         states = self.STATES
@@ -553,13 +552,10 @@ class Spiller:
         table = self.table
         pressed = self.threshold is not None and self.rss() > self.threshold
         lim = self.table_limit
-        if lim is not None and (table.buffered >= lim or (
-                pressed and table.buffered >= max(lim // 8, min(lim, table.base // 4)))):
-            # pressed, a merge rewrites the file only once the buffer holds
-            # a quarter of it: the merges' cost stays n log n, not n squared
+        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
             table.spill()
-        level_min = self.level_limit if self.level_limit is not None else self.LEVEL_MIN
-        if len(adm.nxt) >= level_min and (pressed or self.level_limit is not None):
+        if adm.nxt and (pressed or (self.level_limit is not None
+                                    and len(adm.nxt) >= self.level_limit)):
             if adm.spilled is None:
                 adm.spilled = LevelFile(self.dir, f"level.{self.levels}")
                 self.levels += 1
