@@ -51,7 +51,7 @@ CASES = {
     "fischer-depth": (FISCHER, dict(overrides={"k": "1", "d": "1"}, depth=15)),
     "race-nonatomic-stuck": ("programs/race_nonatomic.pccl",
                              dict(world=RACE_WORLD, blackbox="nondet", agents=3)),
-    "leader": ("programs/leader.pccl", dict(agents=3, max_states=20_000)),
+    "leader": ("programs/leader.pccl", dict(agents=3, max_states=8_000)),
     "liveness": (str(TEST_PROGRAMS / "token_ring.pccl"),
                  dict(agents=3, properties=["forall i: want[i] ~> has[i]"])),
     "timelock": (str(TEST_PROGRAMS / "tl_spin.pccl"), dict()),
@@ -61,6 +61,10 @@ CASES = {
 class Spills(list):
     """The sizes of the merges done (a list), and the level segments written."""
     segments = 0
+
+
+#: cases whose levels hold more than 300 states (so they are written to disk)
+WIDE = {"fischer-native", "leader"}
 
 
 @pytest.fixture
@@ -89,7 +93,7 @@ def test_spilled_search_gives_the_in_memory_result(name, tmp_path, many_spills):
     assert signature(disk) == signature(mem)
     if mem.stats.states > 600:
         assert len(many_spills) >= 2, "the search never merged to disk twice"
-    if mem.stats.states > 5000:
+    if name in WIDE:
         assert many_spills.segments >= 2, "no level was written to disk"
     assert any(n.startswith(f"--spill {tmp_path}") for n in disk.notes)
 

@@ -588,7 +588,10 @@ class Explorer:
     out of a reachable state is added to it; one C-level update per chunk),
     ``checkpoint`` (a :class:`pccl.search.checkpoint.Checkpointer`: write the
     search's state at level boundaries every so often and when interrupted,
-    and resume from a checkpoint; the result is the uninterrupted search's).
+    and resume from a checkpoint; the result is the uninterrupted search's),
+    ``spill`` (a directory: as the memory nears ``max_memory``, move the
+    visited set and the next level to files there instead of stopping,
+    :mod:`pccl.search.spill`; the result is the in-memory search's).
     """
 
     def __init__(self, model: Model, options: Optional[SearchOptions] = None, *, recorder=None,
