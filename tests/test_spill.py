@@ -71,16 +71,16 @@ WIDE = {"fischer-native", "leader"}
 def many_spills(monkeypatch):
     monkeypatch.setattr(S.Spiller, "STATES", 300)
     spills = Spills()
-    merge, write = S.DiskSet.merge, S.LevelFile.write
+    merge, write = S.DiskSet.merge_sorted, S.LevelFile.write
 
-    def counted_merge(self, *a):
-        spills.append(len(a[0]))
-        return merge(self, *a)
+    def counted_merge(self, new):
+        spills.append(len(new))
+        return merge(self, new)
 
     def counted_write(self, *a):
         spills.segments += 1
         return write(self, *a)
-    monkeypatch.setattr(S.DiskSet, "merge", counted_merge)
+    monkeypatch.setattr(S.DiskSet, "merge_sorted", counted_merge)
     monkeypatch.setattr(S.LevelFile, "write", counted_write)
     return spills
 

@@ -179,8 +179,11 @@ class DiskSet:
         return out
 
     def _bloom_add(self, q0: np.ndarray, q1: np.ndarray) -> None:
-        if not len(q0):
-            return
+        step = self.CHUNK      # bounded temporaries
+        for s in range(0, len(q0), step):
+            self._bloom_add_slice(q0[s:s + step], q1[s:s + step])
+
+    def _bloom_add_slice(self, q0: np.ndarray, q1: np.ndarray) -> None:
         for h in self._probes(q0, q1):
             h.sort()            # the bits of one byte together: OR-ed by reduceat
             byte = h >> np.uint64(3)
@@ -269,12 +272,21 @@ class DiskSet:
     # -- merges ----------------------------------------------------------------
     def merge(self, k0: np.ndarray, k1: np.ndarray, num: np.ndarray) -> None:
         """Add the entries ``(k0, k1) -> num`` (fingerprints not in the set,
-        distinct; any order): a sorted merge into a new file, the old one
-        read a chunk at a time, the page index built on the way."""
+        distinct; any order)."""
+        self.merge_sorted(self.sort_entries(k0, k1, num))
+
+    @staticmethod
+    def sort_entries(k0: np.ndarray, k1: np.ndarray, num: np.ndarray) -> np.ndarray:
+        """The entries as :data:`RECORD` entries sorted on ``k0``."""
         new = np.empty(len(k0), dtype=RECORD)
         order = np.argsort(k0, kind="stable")
         new["k0"], new["k1"], new["num"] = k0[order], k1[order], num[order]
-        del order
+        return new
+
+    def merge_sorted(self, new: np.ndarray) -> None:
+        """Add the entries ``new`` (from :meth:`sort_entries`): a sorted merge
+        into a new file, the old one read a chunk at a time, the page index
+        and the Bloom filter built on the way."""
         self.gen += 1
         path = self.dir.file(f"fingerprints.{self.gen}")
         firsts: list = []
@@ -319,7 +331,8 @@ class DiskSet:
             yield _merge2(a, new[taken:upto])
             taken = upto
         if not n_old:
-            yield new
+            for s in range(0, len(new), self.CHUNK):
+                yield new[s:s + self.CHUNK]
 
     def _drop(self) -> None:
         if self._fd is not None:
@@ -416,20 +429,23 @@ class SpillTable:
     def spill(self) -> None:
         """Move the buffer to disk: its parent links appended to the parents
         file, its fingerprints merged into the sorted file."""
-        mem, m = self.mem, self.mem.n
+        m = self.mem.n
         if not m:
             return
-        mem.slots = None        # the buffer's index first: room for the sort
+        self.mem.slots = None   # the buffer's index first: room for the sort
         try:
             self._parents.seek(0, os.SEEK_END)
-            self._parents.write(mem.parents[:m].tobytes())
+            self._parents.write(self.mem.parents[:m].tobytes())
             self._parents.flush()
         except OSError as e:
             raise self.dir.fail(e) from None
-        fps = mem.fps[:m]
-        self.disk.merge(fps[:, 0], fps[:, 1], np.arange(self.base, self.base + m, dtype=np.uint32))
-        del fps, mem
-        self.mem = None         # the old buffer freed before the new one is made
+        fps = self.mem.fps[:m]
+        new = self.disk.sort_entries(fps[:, 0], fps[:, 1],
+                                     np.arange(self.base, self.base + m, dtype=np.uint32))
+        del fps
+        self.mem = None         # the buffer freed before the merge, the new one after
+        self.disk.merge_sorted(new)
+        del new
         self.mem = self._new_buffer()
         self.base += m
 
