@@ -9,6 +9,7 @@ memory decides, ``test_cli_spill_keeps_the_search_under_max_memory``)."""
 from __future__ import annotations
 
 import errno
+import gc
 import json
 import os
 import subprocess
@@ -96,6 +97,9 @@ def test_spilled_search_gives_the_in_memory_result(name, tmp_path, many_spills):
     if name in WIDE:
         assert many_spills.segments >= 2, "no level was written to disk"
     assert any(n.startswith(f"--spill {tmp_path}") for n in disk.notes)
+    del disk
+    gc.collect()
+    assert os.listdir(tmp_path) == [], "the search's files outlived it"
 
 
 def test_spill_files_are_removed_with_the_search(tmp_path, many_spills):
