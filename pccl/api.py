@@ -23,13 +23,14 @@ from pccl.lang import ast as A
 from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
 from pccl.model import validate as V
-from pccl.lang.errors import ArgumentError, OptionError, Spelling, spell
+from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, spell
 from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
                                 api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
 from pccl.search.memory import format_size
+from pccl.search.spill import SpillError
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
 #: model's (derived, so a new search option cannot be missing here).
@@ -464,6 +465,8 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             for f in sr.found:
                 if f.trace is not None:
                     f.trace = native.decode_trace(f.trace)
+    except SpillError as e:        # the spill directory: unwritable, the disk full
+        raise PcclError(str(e), filename=e.option, template=True) from None
     except RuntimeError as e:
         from pccl.model.native import NativeOverflow
         if isinstance(e, NativeOverflow):
@@ -564,6 +567,8 @@ def _search_notes(ex: Any) -> list:
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
         notes.extend(_checkpoint_notes(ck))
+    if getattr(ex, "spiller", None) is not None:
+        notes.append(ex.spiller.note())
     transport: Any = getattr(ex, "transport", None)
     if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
         notes.append(transport.placement_note())

@@ -658,15 +658,20 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--resume", "resume", metavar="DIR", default=None,
               help="continue the search from the checkpoint in DIR (same program and "
                    "options; it keeps writing checkpoints there)")
+@click.option("--spill", "spill", metavar="DIR", default=None,
+              help="when the search's memory nears --max-memory, move the visited states "
+                   "and the frontier to files under DIR instead of stopping (one process; "
+                   "the files are removed at the end)")
 def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
-            checkpoint, checkpoint_interval, resume):
+            checkpoint, checkpoint_interval, resume, spill):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from pccl.api import build_model, explore_model
     from pccl.output import traces as T
+    from pccl.search.spill import SpillError
     _check_outputs(plot, trace_out, html)
     if ray is not None:
         from pccl.api import require_ray
@@ -689,10 +694,10 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
     try:
         res = explore_model(model, options=opts.replace(
             progress=reporter, progress_interval=min(0.5, progress_interval)), spelling=cli_spelling)
-    except PcclError as e:      # found only while exploring (a blackbox, a world value, ...)
-        if reporter is not None:
+    except (PcclError, SpillError) as e:   # found only while exploring (a blackbox, a world
+        if reporter is not None:            # value, a full disk with --spill, ...)
             reporter.close()    # erase the live display before the message
-        _fail(e)
+        _fail(e if isinstance(e, PcclError) else PcclError(str(e), filename=e.option, template=True))
     finally:
         if reporter is not None:
             reporter.close()

@@ -230,6 +230,10 @@ class ExploreOptions(ModelOptions):
     #: resume the search from the checkpoint in this directory (and keep
     #: writing checkpoints there unless checkpoint names another)
     resume: Optional[str] = None
+    #: when the search's memory nears max_memory, move the visited set and
+    #: the frontier to files under this directory instead of stopping
+    #: (pccl/search/spill.py)
+    spill: Optional[str] = None
 
     @classmethod
     def from_cli(cls, params: Mapping[str, Any]):
@@ -261,7 +265,7 @@ class ExploreOptions(ModelOptions):
         if r is not None and (not isinstance(r, str) or not r.strip()):
             raise ArgumentError(f"ray must be None, 'local' or a Ray address such as "
                                 f"'HOST:PORT', got {r!r}", filename=f"pccl.api.{func}")
-        for name in ("checkpoint", "resume"):
+        for name in ("checkpoint", "resume", "spill"):
             v = getattr(self, name)
             if v is not None and (not isinstance(v, (str, os.PathLike)) or not os.fspath(v)):
                 raise ArgumentError(f"{name} must be a directory path, got {v!r}",
@@ -279,14 +283,14 @@ class ExploreOptions(ModelOptions):
         return SearchOptions(max_depth=self.depth, max_states=self.max_states,
                              deadlock=self.deadlock, find_all=self.find_all, exact=self.exact,
                              progress=self.progress, progress_interval=self.progress_interval,
-                             max_memory=max_memory)
+                             max_memory=max_memory, spill=self.spill)
 
 
 #: Search options a resumed search may change (pccl/search/checkpoint.py): the
 #: resources (memory, workers, Ray), the engine, progress and where the
 #: checkpoints go; the hooks a checkpoint cannot hold (API-only); and the world,
 #: identified by its file's hash instead.
-NOT_IDENTITY = frozenset({"world", "max_memory", "workers", "ray", "engine", "progress",
+NOT_IDENTITY = frozenset({"world", "max_memory", "spill", "workers", "ray", "engine", "progress",
                           "progress_interval", "checkpoint", "checkpoint_interval", "resume"}) | API_ONLY
 #: The options that define a search, in the order a checkpoint's mismatch is
 #: reported: a resumed search must be the same search (derived from
@@ -337,7 +341,22 @@ def conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if (r is not None or w != 1) and o.fastest:
         return Conflict("workers", "{fastest=True} searches in one process: use {workers=1} "
                                    "without {ray}")
-    return checkpoint_conflict(o)
+    return spill_conflict(o) or checkpoint_conflict(o)
+
+
+def spill_conflict(o: "ExploreOptions") -> Optional[Conflict]:
+    """Why ``o`` cannot spill to disk (None: it can, or does not ask to)."""
+    if o.spill is None:
+        return None
+    if o.ray is not None or o.workers != 1:
+        return Conflict("spill", "{spill} runs in one process for now: use {workers=1} "
+                                 "without {ray}")
+    for name, why in (("exact", "it stores fingerprints"), ("fastest", "not yet"),
+                      ("checkpoint", "not yet"), ("resume", "not yet")):
+        v = getattr(o, name)
+        if v is not None and v is not False:
+            return Conflict("spill", f"{{spill}} does not run with {{{name}}} ({why})")
+    return None
 
 
 def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:

@@ -527,8 +527,9 @@ class _Runaway:
         """What a checkpoint keeps of it."""
         return self.time_depth, self.last_time, self.warned
 
-    def level(self, depth: int, max_time: Any, level: list) -> None:
-        """A new level at ``depth``, the largest time so far ``max_time``."""
+    def level(self, depth: int, max_time: Any, last: Any) -> None:
+        """A new level at ``depth``, the largest time so far ``max_time``,
+        ``last`` its last state."""
         if max_time != self.last_time:
             self.time_depth, self.last_time = depth, max_time
         elif not self.warned and self.last_time is not None \
@@ -537,7 +538,7 @@ class _Runaway:
             ex = self.ex
             assert ex.on_runaway is not None
             ex._runaway_info = {"depth": depth, "levels": depth - self.time_depth,
-                                "max_time": self.last_time, "state": level[-1]}
+                                "max_time": self.last_time, "state": last}
             ex.on_runaway(ex._runaway_info)
 
 @dataclass(frozen=True)
@@ -555,6 +556,9 @@ class SearchOptions:
     batch: int = 4096
     max_memory: Optional[int] = None
     runaway_levels: int = 500
+    #: a directory: move the visited set and the frontier to files there
+    #: instead of passing ``max_memory`` (pccl/search/spill.py)
+    spill: Optional[str] = None
 
 
 class Explorer:
@@ -584,7 +588,10 @@ class Explorer:
     out of a reachable state is added to it; one C-level update per chunk),
     ``checkpoint`` (a :class:`pccl.search.checkpoint.Checkpointer`: write the
     search's state at level boundaries every so often and when interrupted,
-    and resume from a checkpoint; the result is the uninterrupted search's).
+    and resume from a checkpoint; the result is the uninterrupted search's),
+    ``spill`` (a directory: as the memory nears ``max_memory``, move the
+    visited set and the next level to files there instead of stopping,
+    :mod:`pccl.search.spill`; the result is the in-memory search's).
     """
 
     def __init__(self, model: Model, options: Optional[SearchOptions] = None, *, recorder=None,
@@ -616,6 +623,8 @@ class Explorer:
         self.progress_interval = o.progress_interval
         self.batch = o.batch
         self.table: Any = None
+        #: with ``spill``: the :class:`pccl.search.spill.Spiller` of the last run
+        self.spiller: Any = None
 
     # ------------------------------------------------------------------
     def run(self) -> SearchResult:
@@ -632,7 +641,14 @@ class Explorer:
 
     def _run(self) -> SearchResult:
         t_start = _time.perf_counter()
-        self.table = ExactTable() if self.exact else FingerprintTable()
+        if self.options.spill is not None:
+            if self.exact or self.checkpoint is not None:
+                raise ValueError("spill stores fingerprints (not exact) and takes no checkpoint")
+            from pccl.search.spill import Spiller
+            self.spiller = Spiller(self.options.spill, self.max_memory, FingerprintTable)
+            self.table = self.spiller.table
+        else:
+            self.table = ExactTable() if self.exact else FingerprintTable()
         res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
         adm = _Admission(self, res)
         ck = self.checkpoint
@@ -689,34 +705,45 @@ class Explorer:
         depth = 0
         if start is not None:
             depth = start["depth"]
-            level, level_idx = start["level"], start["level_idx"]
+            front = _Frontier(None, start["level"], start["level_idx"])
         else:
-            level, level_idx = adm.take_level()
+            front = adm.take_frontier()
         progress = Progress(self.progress, self.progress_interval, t_start)
 
         def report(left: int) -> None:
-            progress(lambda secs: {"states": table.n, "frontier": left + len(adm.nxt),
+            progress(lambda secs: {"states": table.n, "frontier": left + adm.pending(),
                                    "depth": depth, "seconds": secs,
                                    "memory": peak_rss_bytes(), "max_time": stats.max_time})
 
         runaway = _Runaway(self, stats.max_time, start)
-        while level and not stop:
+        while front.count and not stop:
             if ck is not None:
                 # what a checkpoint of this level's start holds (a level
-                # interrupted half way is expanded again on resume)
-                self._mark = self._level_mark(adm, depth, level, level_idx, t_start,
+                # interrupted half way is expanded again on resume; a search
+                # with a checkpoint keeps its levels in memory)
+                self._mark = self._level_mark(adm, depth, front.states, front.idx, t_start,
                                               runaway.state())
                 if ck.due() and ck.last_saved != (depth, table.n):
                     self._save(adm, adm.res)
-            stop = self._expand_level(adm, level, level_idx, depth, report) \
-                or adm.flush(depth + 1)
+            stop = self._expand_frontier(adm, front, depth, report) or adm.flush(depth + 1)
             report(0)
-            level, level_idx = adm.take_level()
-            if level:
+            front.discard()
+            front = adm.take_frontier()
+            if front.count:
                 depth += 1
                 stats.max_depth = depth
-                runaway.level(depth, stats.max_time, level)
-        stats.frontier = len(level)
+                runaway.level(depth, stats.max_time, front.last)
+        stats.frontier = front.count
+        front.discard()
+
+    def _expand_frontier(self, adm: "_Admission", front: "_Frontier", depth: int,
+                         report: Callable[[int], None]) -> bool:
+        """Expand a level, a segment at a time (with ``spill`` its first
+        segments are on disk).  True to stop."""
+        for level, level_idx in front.segments():
+            if self._expand_level(adm, level, level_idx, depth, report):
+                return True
+        return False
 
     def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
                       report: Callable[[int], None]) -> bool:
@@ -991,6 +1018,36 @@ class Explorer:
         return Trace(tuple(states), tuple(labels))
 
 
+class _Frontier:
+    """A breadth-first level: its states written to ``disk`` (a
+    :class:`pccl.search.spill.LevelFile`, with ``spill``; else None), then
+    ``states`` in memory, numbered ``idx``."""
+
+    def __init__(self, disk: Any, states: list, idx: Any):
+        self.disk, self.states, self.idx = disk, states, idx
+        self.count = (disk.count if disk is not None else 0) + len(states)
+
+    @property
+    def last(self) -> Any:
+        """The level's last state (None when it is empty)."""
+        if self.states:
+            return self.states[-1]
+        return self.disk.last if self.disk is not None else None
+
+    def segments(self) -> Iterator[tuple[list, Any]]:
+        """The states and their numbers (a list or a range), in order, a
+        segment at a time."""
+        if self.disk is not None:
+            yield from self.disk.segments()
+        if self.states:
+            yield self.states, self.idx
+
+    def discard(self) -> None:
+        """Delete the level's file (expanded, or never to be)."""
+        if self.disk is not None:
+            self.disk.discard()
+
+
 class _Admission:
     """The pending batch of one search and its admission (:meth:`flush`).
 
@@ -1009,6 +1066,9 @@ class _Admission:
         self.flags: dict = {}       # Bound -> first state number that met it, since the last flush
         self.nxt: list = []         # the next level's states, in admission order
         self.nxt_idx: list = []     # ... and their state numbers
+        #: with ``spill``: the next level's states written to disk before ``nxt``
+        #: (a :class:`pccl.search.spill.LevelFile`)
+        self.spilled: Any = None
         self.bounds: set = set()
         self.budget = ex._budget()
         self.res = res
@@ -1035,6 +1095,20 @@ class _Admission:
         """A MemoryError stopped the search: free the pending states."""
         self.cs.clear()
         self.nxt, self.nxt_idx = [], []
+        if self.spilled is not None:
+            self.spilled.discard()
+            self.spilled = None
+
+    def pending(self) -> int:
+        """States admitted to the next level so far (on disk too)."""
+        return len(self.nxt) + (self.spilled.count if self.spilled is not None else 0)
+
+    def take_frontier(self) -> "_Frontier":
+        """The level admitted since the last call: its states written to
+        disk (``spill``), then those in memory."""
+        front = _Frontier(self.spilled, self.nxt, self.nxt_idx)
+        self.nxt, self.nxt_idx, self.spilled = [], [], None
+        return front
 
     def take_level(self) -> tuple[list, list]:
         """The states admitted since the last call, and their numbers."""
@@ -1108,6 +1182,8 @@ class _Admission:
             bounds.update(flags)
         flags.clear()
         ex = self.ex
+        if ex.spiller is not None and not halt:
+            ex.spiller.relieve(self)        # memory pressed: to disk, instead of the bound
         if not halt and ex.max_memory is not None and ex._memory_bound(bounds, peak_rss_bytes()):
             halt = True
         cs.clear()
