@@ -368,8 +368,10 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             on_runaway({**info, "state": native.decode(info["state"])})
+        if rec is not None:         # the graph of the native states
+            rec = L.make_recorder(native, timelock, stall)
         ex: Any = Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
-                           on_runaway=on_runaway_native, labels=labels)
+                           recorder=rec, on_runaway=on_runaway_native, labels=labels)
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
@@ -398,6 +400,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             labels = set()
+            native = None
+            rec = L.make_recorder(model, timelock, stall)
             ex = Explorer(model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels)
             sr = ex.run()
         else:
@@ -420,7 +424,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         import time as _time
         t0 = _time.perf_counter()
         lv = L.analyse(model, ex, sr, rec, timelock=timelock, find_all=find_all, stall=stall)
-        L.attach_traces(model, ex, lv)
+        L.attach_traces(model, ex if native is None else native.decoding(ex), lv)
         # the figures include the analysis of the graph
         sr.stats.seconds += _time.perf_counter() - t0
         sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())
