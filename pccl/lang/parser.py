@@ -22,6 +22,7 @@ import difflib
 import math
 import os
 import re
+import sys
 from typing import Optional
 from collections.abc import Iterator
 
@@ -115,11 +116,41 @@ def _get_lark() -> Lark:
     if _LARK is None:
         with open(_GRAMMAR_PATH, encoding="utf-8") as f:
             grammar = f.read()
-        _LARK = Lark(grammar, parser="lalr", lexer="basic",
-                     start=["program", "property"],
-                     postlex=_PcclIndenter(), propagate_positions=True,
-                     maybe_placeholders=False)
+        kw = dict(parser="lalr", lexer="basic", start=["program", "property"],
+                  postlex=_PcclIndenter(), propagate_positions=True, maybe_placeholders=False)
+        path = _lark_cache(grammar)
+        if path is not None and os.path.exists(path):
+            _LARK = Lark(grammar, cache=path, **kw)
+        elif path is not None:
+            # built once into a file of this process's own, then moved into
+            # place whole: a reader never meets half a file
+            tmp = f"{path}.{os.getpid()}.tmp"
+            _LARK = Lark(grammar, cache=tmp, **kw)
+            try:
+                os.replace(tmp, path)
+            except OSError:
+                pass
+        else:
+            _LARK = Lark(grammar, **kw)
     return _LARK
+
+
+def _lark_cache(grammar: str) -> Optional[str]:
+    """Where the LALR tables of the grammar are cached (lark's own cache, 10x
+    faster than building them at every start): pccl's cache directory
+    (``$PCCL_CACHE`` or ``~/.cache/pccl``), the file named by the grammar,
+    lark's version and Python's; None where the directory is not writable."""
+    import hashlib
+    import lark
+    d = os.environ.get("PCCL_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "pccl")
+    try:
+        os.makedirs(d, exist_ok=True)
+    except OSError:
+        return None
+    if not os.access(d, os.W_OK):
+        return None
+    tag = f"{grammar}\0{lark.__version__}\0{sys.version_info[:2]}"
+    return os.path.join(d, f"lark-{hashlib.sha256(tag.encode()).hexdigest()[:20]}.cache")
 
 
 # --------------------------------------------------------------------------

@@ -22,8 +22,24 @@ when a model has them: ``successor_batch`` expands a chunk of a level in one
 C call (successor counts, the successors flat, the labels met), and
 ``fingerprint_batch`` computes a batch's fingerprints (the very function of
 :mod:`pccl.search.fingerprint`, xxh3-128 of the marshalled key, by xxhash's
-own exported ``XXH3_128bits``) and the first occurrence of each key in one C
-call.  The explorer, its fingerprint table (an injective encoding, so the
+own exported ``XXH3_128bits``), the first occurrence of each key and each
+state's first occurrence (the graph recorder's edges) in one C call.
+
+The reductions of :mod:`pccl.model.reduce` run in C too, with the Python
+wrapper's own tables: ``rstep`` is the ample set of partial-order reduction
+(the first agent, by index, whose next step :meth:`Por.pc_ok` calls local,
+all of its successors keeping it running), else every successor, then each
+successor's statement-merging chain (:meth:`Merger.pc_ok`'s pcs, one step
+at a time, the same 32-step revisit test and limit), with the merged label
+``(rule, agent, detail, idx0, (0,) * steps)``; under symmetry the key is the
+canonical vector of the state's orbit (agent blocks sorted by their blocks
+with ids masked, which shared ids name them and their place in the lock
+queue; agents naming others tried in every order among equals, the least
+vector wins; ids renamed), a canonical form as reduce.py's key is, so the
+two identify the same states.  For the time-lock and stall checks the
+graph recorder (:mod:`pccl.search.liveness`) reads ``time_costs`` (one C
+call per batch) and ``stall_signature`` (a hash of the fields of
+:func:`pccl.model.stall.signature_fn`, one C call per state).  The explorer, its fingerprint table (an injective encoding, so the
 collision bound is the same) and the replay of counterexamples are the
 Python engine's; traces are decoded to configurations afterwards.  So
 states, transitions, depth, verdicts and counterexamples equal the Python
@@ -37,9 +53,9 @@ comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
 ``getNumAgents()``; invariants: the same over shared variables, ``count(v)``
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
 quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
-lists, floats or positions; the built-in blackboxes; ``--reduce none``; no
-time-lock, stall or temporal checks (they record the state graph in
-Python); int δ.  An int that leaves 64 bits at run time stops the native
+lists, floats or positions; the built-in blackboxes; every reduction
+(merge, symmetry, por); the time-lock and stall checks; no temporal
+property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
 """
 
@@ -104,10 +120,16 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     if parallel:
         return "a parallel search (the native engine runs in one process)"
     try:
-        Generator(model).source()
+        gen = Generator(model)
+        _LAST[:] = [model, gen, gen.source()]
     except Unsupported as e:
         return str(e)
     return None
+
+
+#: [model, generator, source] of the last model :func:`unsupported` accepted:
+#: :class:`NativeModel` of that model does not generate its source again
+_LAST: list = [None, None, None]
 
 
 # ---------------------------------------------------------------------------
@@ -785,6 +807,7 @@ static PyObject *phases(PyObject *self, PyObject *arg) {{
 }}
 /* fingerprints(states): (the 16-byte fingerprints of their keys, in order,
    as one bytes object; the positions, ascending, of each key's first
+   occurrence, as int64s; per state the position of its key's first
    occurrence, as int64s).  A fingerprint is pccl.search.fingerprint's: xxh3_128 of
    marshal version 2 of the key (a bytes object: 's', its length as a
    little-endian int32, its bytes), in xxhash's canonical (big-endian) form */
@@ -799,12 +822,14 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
   uint32_t *tab = calloc(size, sizeof(uint32_t));
   PyObject *blob = PyBytes_FromStringAndSize(NULL, 16 * n);
   PyObject *first = PyBytes_FromStringAndSize(NULL, 8 * n);
-  if (!tab || !blob || !first) goto fail;
+  PyObject *occ = PyBytes_FromStringAndSize(NULL, 8 * n);
+  if (!tab || !blob || !first || !occ) goto fail;
   unsigned char buf[5 + sizeof(V) * NS];
   buf[0] = 's';
   buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
   unsigned char *out = (unsigned char *)PyBytes_AS_STRING(blob);
   int64_t *fo = (int64_t *)PyBytes_AS_STRING(first);
+  int64_t *oc = (int64_t *)PyBytes_AS_STRING(occ);
   for (Py_ssize_t i = 0; i < n; i++) {{
     const V *s = arg_state(PyList_GET_ITEM(arg, i));
     if (!s) goto fail;
@@ -821,17 +846,17 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
     size_t slot = (size_t)(h.lo ^ h.hi) & (size - 1);
     for (;;) {{
       uint32_t e = tab[slot];
-      if (!e) {{ tab[slot] = (uint32_t)i + 1; fo[m++] = i; break; }}
-      if (!memcmp(out + 16 * (e - 1), out + 16 * i, 16)) break;
+      if (!e) {{ tab[slot] = (uint32_t)i + 1; fo[m++] = i; oc[i] = i; break; }}
+      if (!memcmp(out + 16 * (e - 1), out + 16 * i, 16)) {{ oc[i] = e - 1; break; }}
       slot = (slot + 1) & (size - 1);
     }}
   }}
   free(tab);
-  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); return NULL; }}
-  return Py_BuildValue("(NN)", blob, first);
+  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); Py_DECREF(occ); return NULL; }}
+  return Py_BuildValue("(NNN)", blob, first, occ);
 fail:
   free(tab);
-  Py_XDECREF(blob); Py_XDECREF(first);
+  Py_XDECREF(blob); Py_XDECREF(first); Py_XDECREF(occ);
   return NULL;
 }}
 static inline int okstate(const V *s) {{
@@ -1090,8 +1115,12 @@ class NativeModel:
 
     def __init__(self, py):
         self.py = py
-        gen = Generator(py)
-        src = gen.source()
+        if _LAST[0] is py:
+            gen, src = _LAST[1], _LAST[2]
+        else:
+            gen = Generator(py)
+            src = gen.source()
+        _LAST[:] = [None, None, None]
         self.lib = build(src)
         xxh = _xxh3_128_address()
         self.lib.setup(tuple(gen.labels), NativeOverflow, self._violations,
@@ -1185,11 +1214,12 @@ class NativeModel:
     def _fingerprint_batch(self, states: list):
         """The fingerprints of the keys of ``states`` (:func:`pccl.search.fingerprint.fingerprint`'s,
         computed in C) as a one-item list of their concatenation, and the
-        positions of each key's first occurrence (ascending): the explorer's
-        batch hook for its admission."""
+        positions of each key's first occurrence (ascending), and per state
+        the position of its key's first occurrence (for the graph recorder's
+        edges): the explorer's batch hook for its admission."""
         import numpy as np
-        blob, first = self.lib.fingerprints(states)
-        return [blob], np.frombuffer(first, dtype=np.int64)
+        blob, first, occ = self.lib.fingerprints(states)
+        return [blob], np.frombuffer(first, dtype=np.int64), np.frombuffer(occ, dtype=np.int64)
 
     def terminal_kind(self, b) -> str:
         return self.py.terminal_kind(self.decode(b))
