@@ -920,29 +920,39 @@ PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
 _REDUCED_C = r"""
 /* statement merging: run agent i's following mergeable steps in the
    successor at BUF[k] (Merger._chain: one successor per step, a chain
-   stops where it revisits (pc, counter, locals) after 32 steps) */
-static V SEEN[(MERGE_LIMIT + 1) * (2 + NLOC)];
+   stops where it revisits (pc, counter, locals) after 32 steps: those
+   identities kept in SEEN, found through the open-addressing table SLOT) */
+#define IDW (2 + NLOC)
+#define NSLOT 4096
+static V SEEN[(MERGE_LIMIT + 1) * IDW];
+static int16_t SLOT[NSLOT];
+static uint64_t idhash(const V *id) {
+  uint64_t h = 0x9E3779B97F4A7C15ULL;
+  for (int q = 0; q < IDW; q++) { h ^= (uint64_t)id[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
+  return h;
+}
 static int chain(Py_ssize_t k, int i) {
   V cur[NS];
   memcpy(cur, BUF + NS * k, sizeof cur);
   const int a0 = AG0 + AW * i;
-  int n = 0, nseen = 0, seeding = 1;
+  int n = 0, nseen = 0;
   for (;;) {
     V pc = cur[a0];
     if ((uint64_t)pc >= NPC || !MERGEOK[pc] || cur[a0 + 3] != @RUNNING@
         || cur[a0 + 1] + RHO[i] > KEEPN0 || n >= MERGE_LIMIT) break;
     if (n >= 32) {
-      V *id = SEEN + (2 + NLOC) * nseen;
+      V *id = SEEN + IDW * nseen;
       id[0] = pc; id[1] = cur[a0 + 1];
       memcpy(id + 2, cur + a0 + 4, sizeof(V) * NLOC);
-      if (!seeding) {
-        int hit = 0;
-        for (int q = 0; q < nseen && !hit; q++)
-          hit = !memcmp(SEEN + (2 + NLOC) * q, id, sizeof(V) * (2 + NLOC));
-        if (hit) break;
+      if (!nseen) memset(SLOT, -1, sizeof SLOT);
+      size_t sl = idhash(id) & (NSLOT - 1);
+      int hit = 0;
+      while (SLOT[sl] >= 0) {
+        if (!memcmp(SEEN + IDW * SLOT[sl], id, sizeof(V) * IDW)) { hit = 1; break; }
+        sl = (sl + 1) & (NSLOT - 1);
       }
-      seeding = 0;
-      nseen++;
+      if (hit) break;
+      SLOT[sl] = (int16_t)nseen++;
     }
     Py_ssize_t b = BN;
     if (agent_of(i, cur)) return -1;
