@@ -8,7 +8,7 @@ time-lock and stall checks) beside SPIN DFS with its partial-order
 reduction (``-DSAFETY``), the ratio native / SPIN DFS.
 
     python benchmarks/native.py [--cases 2,2,2 2,1,2 0,2,3] [--repeat 1]
-                                [--baseline DIR] [--python] [--default]
+                                [--baseline DIR] [--python] [--default] [--bytecode]
 
 Each case is ``k,d,N``.  Each search runs in its own process (``pccl
 explore``, start-up included); the native module is compiled by an untimed
@@ -57,7 +57,12 @@ def main(argv=None) -> int:
     ap.add_argument("--no-spin", action="store_true", help="no SPIN column")
     ap.add_argument("--default", action="store_true",
                     help="pccl's default search against SPIN DFS (its POR on)")
+    ap.add_argument("--bytecode", action="store_true",
+                    help="let pccl's processes cache their bytecode (unset "
+                         "PYTHONDONTWRITEBYTECODE: an installed package has its .pyc files)")
     args = ap.parse_args(argv)
+    if args.bytecode:
+        os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
     global DEFAULT
     DEFAULT = args.default
     sp = "spin DFS" if DEFAULT else "spin BFS"
@@ -72,7 +77,8 @@ def main(argv=None) -> int:
     if args.python:
         cols.append("python")
     print(f"CPU seconds, median of {args.repeat}; load average at the start "
-          f"{os.getloadavg()[0]:.1f}", flush=True)
+          f"{os.getloadavg()[0]:.1f}; bytecode cached: "
+          f"{'no' if os.environ.get('PYTHONDONTWRITEBYTECODE') else 'yes'}", flush=True)
     print(f"{'case':<14} {'states':>12} {'transitions':>13} {'depth':>6} "
           + " ".join(f"{c:>16}" for c in cols)
           + (f" {'native/SPIN':>11}" if sp in cols else "")

@@ -39,7 +39,9 @@ vector wins; ids renamed), a canonical form as reduce.py's key is, so the
 two identify the same states.  For the time-lock and stall checks the
 graph recorder (:mod:`pccl.search.liveness`) reads ``time_costs`` (one C
 call per batch) and ``stall_signature`` (a hash of the fields of
-:func:`pccl.model.stall.signature_fn`, one C call per state).  The explorer, its fingerprint table (an injective encoding, so the
+:func:`pccl.model.stall.signature_fn`, one C call per state).
+
+The explorer, its fingerprint table (an injective encoding, so the
 collision bound is the same) and the replay of counterexamples are the
 Python engine's; traces are decoded to configurations afterwards.  So
 states, transitions, depth, verdicts and counterexamples equal the Python
