@@ -538,6 +538,8 @@ class Generator:
         them), the canonical key ``canon`` (symmetry) and the stall
         signature ``sigstall``."""
         m, N, A_ = self.m, self.N, self.A
+        if any(type(x) is not int for x in (*m.rho, m.n0)):
+            raise Unsupported("a rate or n0 that is not an integer")
         por, merge, sym = self.reductions()
         npc = len(m.ctl.cells)
         labag = [(-1 if lab[1] is None else lab[1]) for lab in self.labels]
