@@ -371,6 +371,7 @@ def test_equal_default_results_on_served_programs(program):
     assert nat == py
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("k, d, inv, n", [(1, 1, "count(inCs) <= 1", 2), (2, 1, None, 2),
                                           (0, 1, None, 3),
                                           (1, 2, "forall i: inCs[i] -> reqid == i", 2)])
@@ -496,6 +497,7 @@ def test_reduced_successors_are_the_python_ones():
         assert merged > 0
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                  HealthCheck.filter_too_much])
