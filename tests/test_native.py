@@ -510,3 +510,21 @@ def test_equal_default_results_on_generated_programs(prog, agents, blackbox):
     assume(NV.unsupported(make_model(text, **kw)) is None)
     py, nat = both(text, find_all=True, max_states=2_000, **kw)
     assert nat == py
+
+
+def test_a_replaced_successor_function_runs_in_python():
+    """A caller's own successors (a wrapper that counts or interrupts) is what
+    the search runs: the native engine declines, saying why."""
+    from pccl.api import explore_model
+    m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "0", "d": "0"})
+    real, calls = m.successors, [0]
+
+    def successors(s):
+        calls[0] += 1
+        return real(s)
+
+    m.successors = successors
+    r = explore_model(m)
+    assert r.model.engine_used == "python" and calls[0] == r.stats.states
+    assert r.model.engine_reason == ("the model's successors function was replaced "
+                                     "(the Python engine runs it)")

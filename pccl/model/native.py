@@ -121,11 +121,31 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
         return "Python.h (the Python development headers) not found"
     if parallel:
         return "a parallel search (the native engine runs in one process)"
+    why = _replaced(model)
+    if why is not None:
+        return why
     try:
         gen = Generator(model)
         _LAST[:] = [model, gen, gen.source()]
     except Unsupported as e:
         return str(e)
+    return None
+
+
+def _replaced(model) -> Optional[str]:
+    """Why not native when the model's ``successors``, ``violations`` or
+    (without symmetry) ``key`` are not the ones :class:`~pccl.model.reduce.Reduced`
+    set up (a caller's own wrapper: the Python engine runs it), else None."""
+    from pccl.model.reduce import Reduced
+    if not isinstance(model, Reduced):
+        return None
+    d, base = model.__dict__, model.model
+    want = (model.merger.successors if model.merger is not None
+            else model.por.successors if model.por is not None else base.plain_successors)
+    for name, fn in (("successors", want), ("violations", base.fast_violations),
+                     ("key", None if "symmetry" in model.reduction.on else base.plain_key)):
+        if fn is not None and d.get(name) != fn:
+            return f"the model's {name} function was replaced (the Python engine runs it)"
     return None
 
 
