@@ -12,9 +12,20 @@ from __future__ import annotations
 
 import heapq
 import math
-from typing import Optional
+from typing import Any, Optional
 
-import shapely
+
+class _LazyShapely:
+    """``shapely``, imported at its first use (a world with obstacles): a
+    search of a world without them does not pay for the import at start-up."""
+
+    def __getattr__(self, name: str) -> Any:
+        import shapely as real
+        globals()["shapely"] = real
+        return getattr(real, name)
+
+
+shapely: Any = _LazyShapely()
 
 _CACHE_LIMIT = 256          # obstacle sets kept
 _RESULT_CACHE_LIMIT = 200_000   # per-set memoised segment/point/path queries

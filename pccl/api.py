@@ -384,6 +384,8 @@ class _SearchPlan:
     labels: Optional[set]
     spelling: Spelling = api_spelling
     runaways: list = field(default_factory=list)
+    #: the native model searched (None: the Python engine)
+    native: Any = None
 
     def on_runaway(self, info: dict) -> None:
         from pccl.model.stall import runaway_note
@@ -433,7 +435,11 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
     if native is not None:
         def on_runaway_native(info: dict) -> None:
             plan.on_runaway({**info, "state": native.decode(info["state"])})
-        return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH),
+        if plan.rec is not None:        # the graph of the native states
+            from pccl.search import liveness as L
+            plan.rec = L.make_recorder(native, o.timelock, o.stall)
+        plan.native = native
+        return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH), recorder=plan.rec,
                          on_runaway=on_runaway_native, labels=plan.labels), native)
     opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
     if o.ray is not None:
@@ -474,7 +480,9 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             model.engine_used, model.engine_reason = (
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
-            plan.labels = set()
+            from pccl.search import liveness as L
+            plan.labels, plan.native = set(), None
+            plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
             ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
                           labels=plan.labels)
             sr = ex.run()
@@ -505,7 +513,7 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     t0 = _time.perf_counter()
     lv = L.analyse(model, ex, sr, plan.rec, timelock=plan.o.timelock,
                    find_all=plan.o.find_all, stall=plan.o.stall)
-    L.attach_traces(model, ex, lv)
+    L.attach_traces(model, ex if plan.native is None else plan.native.decoding(ex), lv)
     # the figures include the analysis of the graph
     sr.stats.seconds += _time.perf_counter() - t0
     sr.stats.peak_memory = max(sr.stats.peak_memory, ex.peak_memory())

@@ -1422,12 +1422,14 @@ def _explore_header(program, m) -> str:
 
 
 def _engine_text(m) -> str:
-    """The header's engine: named when the native engine ran or an engine was
-    asked for (``--engine``), with the reason when it is not native."""
+    """The header's engine: named when the native engine ran, when an engine
+    was asked for (``--engine``), and under ``--engine auto`` when Python runs
+    because the native engine cannot, with the reason."""
     used = getattr(m, "engine_used", None)
-    if used is None or (used == "python" and not getattr(m, "engine_asked", False)):
-        return ""
     why = getattr(m, "engine_reason", None)
+    if used is None or (used == "python" and why is None
+                        and not getattr(m, "engine_asked", False)):
+        return ""
     return f", engine {used}" + (f" ({why})" if why else "")
 
 

@@ -120,9 +120,10 @@ def test_equal_results_on_generated_programs(prog, agents, blackbox):
 
 
 def test_auto_falls_back_with_the_reason():
-    r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1"})
+    r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1"},
+                properties=("eventually inCs[0]",), max_states=100)
     assert r.model.engine_used == "python"
-    assert "reduction" in r.model.engine_reason
+    assert "temporal property" in r.model.engine_reason
     r = explore(os.path.join(ROOT, "programs/race.pccl"), reduce="none", timelock=False,
                 stall=False, max_states=100)
     assert r.model.engine_used == "python" and "List<ItemPosition>" in r.model.engine_reason
@@ -132,8 +133,8 @@ def test_auto_falls_back_with_the_reason():
 
 
 def test_native_asked_for_an_unsupported_search_is_an_error():
-    with pytest.raises(ArgumentError, match="native engine cannot run this search: .*time-lock"):
-        explore(os.path.join(ROOT, "programs/fischer.pccl"), reduce="none", engine="native")
+    with pytest.raises(ArgumentError, match="native engine cannot run this search: .*coverage"):
+        explore(os.path.join(ROOT, "programs/fischer.pccl"), coverage=True, engine="native")
 
 
 def test_overflow_falls_back_to_python():
@@ -159,7 +160,14 @@ def test_header_names_the_engine(tmp_path):
     out = CliRunner().invoke(main, args[:-2] + ["--engine", "python"]).output
     assert head(out).endswith("reductions none, engine python")
     out = CliRunner().invoke(main, args[:-2]).output     # auto, time-lock check on
-    assert head(out).endswith("reductions none")
+    assert head(out).endswith("reductions none, engine native")
+    out = CliRunner().invoke(main, args[:7]).output     # the defaults
+    assert head(out).endswith("reductions merge+symmetry+por, engine native")
+    # auto where the native engine cannot: the header says why
+    out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/race.pccl"),
+                                    "--no-progress", "--max-states", "50"]).output
+    assert head(out).endswith("engine python (variable 'dests' has type List<ItemPosition> "
+                              "(the native engine holds int, bool and enum scalars))")
 
 
 # -- the batch hooks: one C call per chunk of a level, fingerprints in C -------
@@ -182,6 +190,7 @@ def reachable(nm, limit=20_000) -> list:
 
 
 CASES = [("programs/fischer.pccl", dict(overrides={"k": "1", "d": "1"})),
+         ("programs/fischer.pccl", dict(overrides={"k": "1", "d": "1"}, reduce="auto")),
          ("programs/fischer.pccl", dict(overrides={"k": "0", "d": "1"}, agents=3,
                                         abstract_time=False, max_time=2)),
          ("programs/leader.pccl", {}),
@@ -194,22 +203,23 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
     of the key, with and without the clock), and its first occurrences those
     of the explorer's own dict."""
     from pccl.search.fingerprint import fingerprint
-    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), reduce="none", **kw))
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw}))
     states = reachable(nm)
     assert len(states) > 100
     for lo in range(0, len(states), 5000):
         batch = states[lo:lo + 5000]
-        ck, first = nm.fingerprint_batch(batch)
+        ck, first, occ = nm.fingerprint_batch(batch)
         want = [fingerprint(nm.key(s)) for s in batch]
         assert ck == [b"".join(want)]
         first_of = dict(zip(reversed(want), range(len(want) - 1, -1, -1)))
         assert first.tolist() == sorted(first_of.values())
+        assert occ.tolist() == [first_of[k] for k in want]
         assert len(first) < len(batch)      # repeats were met and dropped
 
 
 @pytest.mark.parametrize("program, kw", CASES)
 def test_successor_batch_equals_successors(program, kw):
-    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), reduce="none", **kw))
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw}))
     states = reachable(nm, 5_000)
     for lo in range(0, len(states), 1000):
         chunk = states[lo:lo + 1000]
@@ -217,7 +227,8 @@ def test_successor_batch_equals_successors(program, kw):
         one = [nm.successors(s) for s in chunk]
         assert ns == [len(x) for x in one]
         assert flat == [b for x in one for _, b in x]
-        assert sorted(labs, key=repr) == sorted({lab for x in one for lab, _ in x}, key=repr)
+        # the labels met: a merged transition's rule label (the events fired)
+        assert sorted(labs, key=repr) == sorted({lab[:3] for x in one for lab, _ in x}, key=repr)
 
 
 @pytest.mark.parametrize("program, kw", [
@@ -295,3 +306,225 @@ def test_models_with_and_without_the_clock_in_the_key_side_by_side():
         states = reachable(nm, 3_000)
         assert nm.fingerprint_batch(states)[0] == [b"".join(fingerprint(nm.key(s))
                                                             for s in states)]
+
+
+# -- the default search: reductions, the time-lock and stall checks (issue 23) --
+
+#: agents that name one another (a shared owner, a local peer copied from it):
+#: symmetry's canonical key tries tied agents in every order
+PEERS = """Agent::Peers
+
+allwrite:
+  int owner = -1;
+  int turns = 0;
+
+allread:
+
+loc:
+  int id = getAgentIndex();
+  int peer = -1;
+  int c = rand(1);
+  bool want = true;
+
+Init:
+
+Claim():
+  pre(want && owner == -1);
+  eff:
+    atomic:
+      owner = id;
+    c = c + 1;
+    want = false;
+
+Watch():
+  pre(!want && peer == -1);
+  eff:
+    peer = owner;
+    if (peer == id):
+      c = 0;
+
+Give():
+  pre(owner == id && peer != -1);
+  eff:
+    atomic:
+      owner = -1;
+      turns = turns + 1;
+    peer = -1;
+    if (turns < 3):
+      want = true;
+"""
+
+
+def test_the_default_search_runs_native():
+    r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1"})
+    assert r.model.engine_used == "native" and r.model.engine_reason is None
+    assert set(r.model.reduction.on) == {"merge", "symmetry", "por"} and r.timelock and r.stall
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+def test_equal_default_results_on_served_programs(program):
+    """Reductions, time-lock and stall checks on (the defaults): the same
+    search, verdicts and counterexamples (merged labels included)."""
+    # (a merged chain runs up to 1,000 steps: eng_loop's spin costs both
+    # engines that much per state)
+    py, nat = both(os.path.join(ROOT, program), max_states=3_000, find_all=True)
+    assert nat == py
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("k, d, inv, n", [(1, 1, "count(inCs) <= 1", 2), (2, 1, None, 2),
+                                          (0, 1, None, 3),
+                                          (1, 2, "forall i: inCs[i] -> reqid == i", 2)])
+def test_fischer_default_equal(k, d, inv, n):
+    kw = dict(overrides={"k": str(k), "d": str(d)}, agents=n)
+    if inv:
+        kw["invariants"] = (inv,)
+    py, nat = both(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
+    assert nat == py
+    assert py["states"] > 2_000
+    if inv == "count(inCs) <= 1":
+        assert py["status"] == "violation"
+
+
+@pytest.mark.parametrize("reduce", ["merge", "por", "symmetry", "merge,por", "symmetry,por"])
+def test_each_reduction_alone_equal(reduce):
+    kw = dict(overrides={"k": "1", "d": "1"}, reduce=reduce,
+              invariants=("count(inCs) <= 1",), find_all=True)
+    py, nat = both(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
+    assert nat == py and py["status"] == "violation"
+
+
+@pytest.mark.parametrize("agents", [2, 3])
+def test_agents_naming_each_other_equal(agents):
+    """Symmetry where agents hold other agents' ids (the permuting key), with
+    a time-lock-free, stall-checked search."""
+    m = make_model(PEERS, source=True, agents=agents)
+    assert "symmetry" in m.reduction.on and NV.unsupported(m) is None
+    py, nat = both(PEERS, source=True, agents=agents, find_all=True)
+    assert nat == py and py["states"] > 50
+
+
+def test_time_lock_and_stall_counterexamples_equal():
+    for name in ("tl_spin.pccl", "tl_spin_leave.pccl", "token_keep.pccl"):
+        path = os.path.join(ROOT, "tests", "programs", name)
+        if NV.unsupported(make_model(path)) is not None:
+            continue
+        for stall in (True, False):
+            py, nat = both(path, find_all=True, stall=stall)
+            assert nat == py
+
+
+def orbit_pairs(nm, py, states):
+    """Whether the native key and the Python key identify the same states."""
+    by_nat: dict = {}
+    by_py: dict = {}
+    for s in states:
+        a, b = nm.key(s), py.key(nm.decode(s))
+        by_nat.setdefault(a, b)
+        by_py.setdefault(b, a)
+        assert by_nat[a] == b and by_py[b] == a
+
+
+@pytest.mark.parametrize("text, kw", [
+    (os.path.join(ROOT, "programs/fischer.pccl"), dict(overrides={"k": "1", "d": "1"})),
+    (os.path.join(ROOT, "programs/fischer.pccl"), dict(overrides={"k": "0", "d": "1"}, agents=3)),
+    (PEERS, dict(source=True, agents=3))])
+def test_canonical_keys_identify_the_same_states(text, kw):
+    """The C canonical key and reduce.py's identify exactly the same states
+    (both are canonical forms of an orbit): a bijection between the two sets
+    of keys, over every successor met; and permuting the agents of a state
+    leaves the C key as it is."""
+    import itertools
+    from array import array
+    py = make_model(text, reduce="symmetry", **kw)
+    nm = NV.NativeModel(py)
+    states = reachable(nm, 8_000)
+    orbit_pairs(nm, py, states)
+    g = nm.gen
+    bid, shid = g.reductions()[2]
+    moved = 0
+    for s in states[::37]:
+        v = array("q")
+        v.frombytes(s)
+        for perm in itertools.permutations(range(g.N)):
+            r = [0] * g.N
+            for new, old in enumerate(perm):
+                r[old] = new
+            w = array("q", v)
+            ren = r
+            for new, old in enumerate(perm):
+                blk = v[g.AG0 + old * g.A:g.AG0 + (old + 1) * g.A]
+                for q in bid:
+                    blk[q] = ren[blk[q]] if 0 <= blk[q] < g.N else blk[q]
+                w[g.AG0 + new * g.A:g.AG0 + (new + 1) * g.A] = blk
+            for q in list(shid) + list(range(g.LQ0, g.LQ0 + g.N)):
+                w[q] = ren[v[q]] if 0 <= v[q] < g.N else v[q]
+            t = w.tobytes()
+            moved += t != s
+            assert nm.key(t) == nm.key(s)
+            assert py.key(nm.decode(t)) == py.key(nm.decode(s))
+    assert moved > 0
+
+
+@pytest.mark.parametrize("program, kw", CASES + [("programs/fischer.pccl", dict(overrides={"k": "1"}, reduce="auto"))])
+def test_reduced_successor_batch_equals_successors(program, kw):
+    kw = {"reduce": "auto", **kw}
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **kw))
+    states = reachable(nm, 5_000)
+    for lo in range(0, len(states), 1000):
+        chunk = states[lo:lo + 1000]
+        ns, flat, labs = nm.successor_batch(chunk)
+        one = [nm.successors(s) for s in chunk]
+        assert ns == [len(x) for x in one]
+        assert flat == [b for x in one for _, b in x]
+        assert {lab[:3] for x in one for lab, _ in x} == set(labs)
+
+
+def test_reduced_successors_are_the_python_ones():
+    """State by state: the native reduced successors (labels and decoded
+    configurations) are the Reduced wrapper's."""
+    for kw in (dict(overrides={"k": "1", "d": "1"}), dict(overrides={"k": "0", "d": "1"}, agents=3)):
+        py = make_model(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
+        nm = NV.NativeModel(py)
+        states = reachable(nm, 4_000)
+        merged = 0
+        for s in states[::7]:
+            want = py.successors(nm.decode(s))
+            got = nm.successors(s)
+            assert [lab for lab, _ in got] == [lab for lab, _ in want]
+            assert [canonical(py, nm.decode(b)) for _, b in got] == [canonical(py, t) for _, t in want]
+            merged += sum(len(lab) == 5 for lab, _ in got)
+        assert merged > 0
+
+
+@pytest.mark.slow
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                                 HealthCheck.filter_too_much])
+@given(prog=programs(), agents=hs.integers(1, 3), blackbox=hs.sampled_from(["instant", "straight"]))
+def test_equal_default_results_on_generated_programs(prog, agents, blackbox):
+    """The generated programs under the default search (every sound
+    reduction, the time-lock and stall checks)."""
+    text, invariants = prog
+    kw = dict(source=True, agents=agents, blackbox=blackbox, invariants=invariants)
+    assume(NV.unsupported(make_model(text, **kw)) is None)
+    py, nat = both(text, find_all=True, max_states=2_000, **kw)
+    assert nat == py
+
+
+def test_a_replaced_successor_function_runs_in_python():
+    """A caller's own successors (a wrapper that counts or interrupts) is what
+    the search runs: the native engine declines, saying why."""
+    from pccl.api import explore_model
+    m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "0", "d": "0"})
+    real, calls = m.successors, [0]
+
+    def successors(s):
+        calls[0] += 1
+        return real(s)
+
+    m.successors = successors
+    r = explore_model(m)
+    assert r.model.engine_used == "python" and calls[0] == r.stats.states
+    assert r.model.engine_reason == ("the model's successors function was replaced "
+                                     "(the Python engine runs it)")

@@ -179,11 +179,11 @@ def test_builtin_checks_turned_off():
 
 
 def test_engine_reason():
-    r = api.explore(FISCHER, depth=2)
+    r = api.explore(FISCHER, depth=2, fastest=True)
     why = r.model.engine_reason
-    assert r.model.engine_used == "python" and why and "--" not in why
-    out = cli("explore", FISCHER, "--depth", "2", "--engine", "python", "--format", "json")
-    assert out.exit_code == 0
+    assert r.model.engine_used == "python" and why == "fastest orders the search in Python"
+    out = cli("explore", FISCHER, "--depth", "2", "--fastest")
+    assert out.exit_code == 0 and "(--fastest orders the search in Python)" in out.output, out.output
     with pytest.raises(ArgumentError) as e:
         api.explore(FISCHER, depth=2, engine="native", coverage=True)
     assert e.value.filename == "engine" and "--" not in e.value.message

@@ -22,8 +22,26 @@ when a model has them: ``successor_batch`` expands a chunk of a level in one
 C call (successor counts, the successors flat, the labels met), and
 ``fingerprint_batch`` computes a batch's fingerprints (the very function of
 :mod:`pccl.search.fingerprint`, xxh3-128 of the marshalled key, by xxhash's
-own exported ``XXH3_128bits``) and the first occurrence of each key in one C
-call.  The explorer, its fingerprint table (an injective encoding, so the
+own exported ``XXH3_128bits``), the first occurrence of each key and each
+state's first occurrence (the graph recorder's edges) in one C call.
+
+The reductions of :mod:`pccl.model.reduce` run in C too, with the Python
+wrapper's own tables: ``rstep`` is the ample set of partial-order reduction
+(the first agent, by index, whose next step :meth:`Por.pc_ok` calls local,
+all of its successors keeping it running), else every successor, then each
+successor's statement-merging chain (:meth:`Merger.pc_ok`'s pcs, one step
+at a time, the same 32-step revisit test and limit), with the merged label
+``(rule, agent, detail, idx0, (0,) * steps)``; under symmetry the key is the
+canonical vector of the state's orbit (agent blocks sorted by their blocks
+with ids masked, which shared ids name them and their place in the lock
+queue; agents naming others tried in every order among equals, the least
+vector wins; ids renamed), a canonical form as reduce.py's key is, so the
+two identify the same states.  For the time-lock and stall checks the
+graph recorder (:mod:`pccl.search.liveness`) reads ``time_costs`` (one C
+call per batch) and ``stall_signature`` (a hash of the fields of
+:func:`pccl.model.stall.signature_fn`, one C call per state).
+
+The explorer, its fingerprint table (an injective encoding, so the
 collision bound is the same) and the replay of counterexamples are the
 Python engine's; traces are decoded to configurations afterwards.  So
 states, transitions, depth, verdicts and counterexamples equal the Python
@@ -37,9 +55,9 @@ comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
 ``getNumAgents()``; invariants: the same over shared variables, ``count(v)``
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
 quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
-lists, floats or positions; the built-in blackboxes; ``--reduce none``; no
-time-lock, stall or temporal checks (they record the state graph in
-Python); int δ.  An int that leaves 64 bits at run time stops the native
+lists, floats or positions; the built-in blackboxes; every reduction
+(merge, symmetry, por); the time-lock and stall checks; no temporal
+property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
 """
 
@@ -62,6 +80,7 @@ from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITE
                                PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, TIME)
 from pccl.semantics.rules import K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_EMPTY, K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE
 from pccl.lang.types import indexes_agent
+from pccl.model.reduce import MERGE_LIMIT
 
 #: The native state vector's own layout (not a configuration): the clock and
 #: the phase first, then the lock queue, shared, and the agents (see encode).
@@ -100,18 +119,39 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     if sysconfig.get_paths().get("include") is None or not os.path.exists(
             os.path.join(sysconfig.get_paths()["include"], "Python.h")):
         return "Python.h (the Python development headers) not found"
-    if reduce_on or model.reduction.on:
-        return "a reduction is on (the native engine serves {reduce=none})"
-    if recorder:
-        return "the time-lock, stall or temporal checks record the state graph in Python " \
-               "({timelock=False} {stall=False})"
     if parallel:
         return "a parallel search (the native engine runs in one process)"
+    why = _replaced(model)
+    if why is not None:
+        return why
     try:
-        Generator(model).source()
+        gen = Generator(model)
+        _LAST[:] = [model, gen, gen.source()]
     except Unsupported as e:
         return str(e)
     return None
+
+
+def _replaced(model) -> Optional[str]:
+    """Why not native when the model's ``successors``, ``violations`` or
+    (without symmetry) ``key`` are not the ones :class:`~pccl.model.reduce.Reduced`
+    set up (a caller's own wrapper: the Python engine runs it), else None."""
+    from pccl.model.reduce import Reduced
+    if not isinstance(model, Reduced):
+        return None
+    d, base = model.__dict__, model.model
+    want = (model.merger.successors if model.merger is not None
+            else model.por.successors if model.por is not None else base.plain_successors)
+    for name, fn in (("successors", want), ("violations", base.fast_violations),
+                     ("key", None if "symmetry" in model.reduction.on else base.plain_key)):
+        if fn is not None and d.get(name) != fn:
+            return f"the model's {name} function was replaced (the Python engine runs it)"
+    return None
+
+
+#: [model, generator, source] of the last model :func:`unsupported` accepted:
+#: :class:`NativeModel` of that model does not generate its source again
+_LAST: list = [None, None, None]
 
 
 # ---------------------------------------------------------------------------
@@ -367,7 +407,7 @@ class Generator:
         m, ctl = self.m, self.m.ctl
         A_ = self.AG0 + i * self.A
         r = _Regs(A_, A_ + 1, A_ + 2, A_ + 3, m.rho[i])
-        out = [f"static int agent{i}(PyObject *out, const V *s) {{",
+        out = [f"static int agent{i}(const V *s) {{",
                f"  int spent = s[{r.CNT}] + {r.rho} > {m.n0};",
                f"  switch (s[{r.PC}]) {{"]
         cases = {K_EMPTY: self.case_empty, K_END: self.case_end, K_AEND: self.case_aend,
@@ -477,6 +517,97 @@ class Generator:
         self.emit(out, ("EXIT", i, h.sid),
                   [f"t[{r.PC}] = {self.m.ctl.empty_pc}", f"t[{r.ST}] = {EXITED}"], ind)
 
+    # -- the reductions (docs/reductions.md), natively --------------------------------
+    def reductions(self) -> tuple:
+        """(por, merge, symmetry slots or None) of the model's reductions: the
+        ample-set and merge tests of :class:`pccl.model.reduce.Por` and
+        :class:`~pccl.model.reduce.Merger` asked per pc (so the tables are
+        theirs), the id slots of :func:`~pccl.model.reduce.symmetry_problem`."""
+        from pccl.model import reduce as RD
+        on = getattr(getattr(self.m, "reduction", None), "on", ())
+        base = RD.unreduced(self.m)
+        npc = len(self.m.ctl.cells)
+        por = merge = None
+        if "por" in on:
+            p = RD.Por(base)
+            por = [bool(p.pc_ok(pc)) for pc in range(npc)]
+        if "merge" in on:
+            mg = RD.Merger(base)
+            merge = [bool(mg.pc_ok(pc)) for pc in range(npc)]
+        sym = None
+        if "symmetry" in on:
+            why, slots = RD.symmetry_problem(base)
+            if why is not None or slots is None:
+                raise Unsupported(f"symmetry: {why}")
+            loc_s, ar_s, sh_s, _self_only, motion = slots
+            if motion:
+                raise Unsupported("symmetry over positions (the program moves)")
+            sym = ([4 + k for k in loc_s] + [4 + self.L + k for k in ar_s],
+                   [self.SH0 + k for k in sh_s])
+        return por, merge, sym
+
+    @staticmethod
+    def c_array(name: str, ctype: str, vals: list) -> str:
+        """A C constant array (one dummy element when ``vals`` is empty)."""
+        body = ", ".join(str(int(v)) for v in vals) or "0"
+        return f"static const {ctype} {name}[] = {{{body}}};"
+
+    def reduced_c(self) -> str:
+        """C of the reduced step ``rstep`` (partial-order reduction, then
+        statement merging, as :class:`pccl.model.reduce.Reduced` composes
+        them), the canonical key ``canon`` (symmetry) and the stall
+        signature ``sigstall``."""
+        m, N, A_ = self.m, self.N, self.A
+        if any(type(x) is not int for x in (*m.rho, m.n0)):
+            raise Unsupported("a rate or n0 that is not an integer")
+        por, merge, sym = self.reductions()
+        npc = len(m.ctl.cells)
+        labag = [(-1 if lab[1] is None else lab[1]) for lab in self.labels]
+        out = [f"#define NPC {npc}", f"#define AG0 {self.AG0}", f"#define AW {A_}",
+               f"#define NLOC {self.L}", f"#define KEEPN0 {m.n0}",
+               f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
+               f"#define SYM {int(sym is not None)}",
+               f"#define MERGE_LIMIT {MERGE_LIMIT}",
+               self.c_array("LABAG", "int", labag),
+               self.c_array("POROK", "unsigned char", por or []),
+               self.c_array("MERGEOK", "unsigned char", merge or []),
+               self.c_array("RHO", "V", list(m.rho)),
+               self.c_array("BID", "int", sym[0] if sym else []),
+               self.c_array("SHID", "int", sym[1] if sym else []),
+               f"#define NBID {len(sym[0]) if sym else 0}",
+               f"#define NSHID {len(sym[1]) if sym else 0}",
+               "static int agent_of(int i, const V *s) {", "  switch (i) {"]
+        out += [f"  case {i}: return agent{i}(s);" for i in range(N)]
+        out += ["  }", "  return 0;", "}"]
+        # the ample set: the first agent whose next step is local (Por.successors)
+        ample = []
+        for i in range(N):
+            a0 = self.AG0 + i * A_
+            ample.append(
+                f"    if (s[{a0 + 3}] == {RUNNING} && s[{a0 + 1}] <= {m.n0 - m.rho[i]} "
+                f"&& (uint64_t)s[{a0}] < NPC && POROK[s[{a0}]]) {{\n"
+                f"      if (agent{i}(s)) return -1;\n"
+                f"      int all = BN > b0;\n"
+                f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
+                f"      if (all) goto chains;\n"
+                f"      BN = b0;\n"
+                f"    }}")
+        out.append(_REDUCED_C.replace("@AMPLE@", "\n".join(ample))
+                   .replace("@RUNNING@", str(RUNNING)).replace("@DISCRETE@", str(DISCRETE)))
+        # the stall signature (pccl/model/stall.py): the lock queue, shared,
+        # and per agent its status, allread and the loc: variables a property reads
+        from pccl.model.stall import _visible_locals
+        from pccl.model.reduce import unreduced
+        vis = _visible_locals(unreduced(m))
+        slots = list(range(self.LQ0, self.AG0))
+        for i in range(N):
+            a0 = self.AG0 + i * A_
+            slots += [a0 + 3] + [a0 + 4 + k for k in vis] + \
+                [a0 + 4 + self.L + k for k in range(self.R)]
+        out.append(self.c_array("SIGSLOTS", "int", slots))
+        out.append(f"#define NSIGSLOTS {len(slots)}")
+        return "\n".join(out)
+
     def source(self) -> str:
         m = self.m
         m.prepare()                 # every k cell interned
@@ -502,8 +633,9 @@ class Generator:
             f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
             for i in range(N))
         props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
+        reduced = self.reduced_c()
         agent_calls = "\n".join(
-            f"    if (s[{self.AG0 + i * self.A + 3}] == {RUNNING} && agent{i}(OUT, s)) return -1;"
+            f"    if (s[{self.AG0 + i * self.A + 3}] == {RUNNING} && agent{i}(s)) return -1;"
             for i in range(N))
         return f"""/* pccl native engine: generated by pccl/model/native.py */
 #define PY_SSIZE_T_CLEAN
@@ -515,6 +647,9 @@ typedef int64_t V;
 #define NS {NS}
 #define NAG {N}
 #define LQ0 {self.LQ0}
+/* the key: the vector without the clock under time abstraction (a constant
+   of the source: one module per key) */
+#define KEYSKIP {8 if m.abstract_time else 0}
 static int ovf;
 static PyObject *LABELS, *OverflowExc;
 static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
@@ -531,30 +666,34 @@ static void lq_remove(V *t, V i) {{
   for (int k = 0; k < NAG; k++) if (t[LQ0 + k] >= 0 && t[LQ0 + k] != i) t[LQ0 + w++] = t[LQ0 + k];
   for (; w < NAG; w++) t[LQ0 + w] = -1;
 }}
-static PyObject *OUT;
-/* FLAT: expand() collects successors as one flat list of states and marks
-   the labels met in LABSEEN; otherwise (successors()) (label, state) pairs */
-static int FLAT;
+/* the successor buffer: step() and rstep() append each successor's vector,
+   its label, its place in the unmerged relation and its merged chain length */
+static V *BUF;
+static int32_t *BLAB, *BIDX, *BCH;
+static Py_ssize_t BN, BCAP;
 static unsigned char *LABSEEN;
 static Py_ssize_t NLABELS;
-static int EMIT(int lab, const V *t) {{
-  PyObject *b = PyBytes_FromStringAndSize((const char *)t, sizeof(V) * NS);
-  if (!b) return -1;
-  if (FLAT) {{
-    LABSEEN[lab] = 1;
-    int r = PyList_Append(OUT, b);
-    Py_DECREF(b);
-    return r;
+static int grow(void) {{
+  Py_ssize_t cap = BCAP ? 2 * BCAP : 1024;
+  V *b = realloc(BUF, sizeof(V) * NS * cap);
+  if (!b) {{ PyErr_NoMemory(); return -1; }}
+  BUF = b;
+  int32_t *x[3] = {{BLAB, BIDX, BCH}};
+  for (int q = 0; q < 3; q++) {{
+    int32_t *y = realloc(x[q], sizeof(int32_t) * cap);
+    if (!y) {{ PyErr_NoMemory(); return -1; }}
+    x[q] = y;
   }}
-  PyObject *l = PyTuple_GET_ITEM(LABELS, lab);
-  Py_INCREF(l);
-  PyObject *p = PyTuple_New(2);
-  if (!p) {{ Py_DECREF(b); Py_DECREF(l); return -1; }}
-  PyTuple_SET_ITEM(p, 0, l);
-  PyTuple_SET_ITEM(p, 1, b);
-  int r = PyList_Append(OUT, p);
-  Py_DECREF(p);
-  return r;
+  BLAB = x[0]; BIDX = x[1]; BCH = x[2];
+  BCAP = cap;
+  return 0;
+}}
+static inline int EMIT(int lab, const V *t) {{
+  if (BN == BCAP && grow()) return -1;
+  memcpy(BUF + NS * BN, t, sizeof(V) * NS);
+  BLAB[BN] = lab; BIDX[BN] = 0; BCH[BN] = 0;
+  BN++;
+  return 0;
 }}
 {chr(10).join(agents)}
 static const V *arg_state(PyObject *arg) {{
@@ -585,13 +724,31 @@ static void overflowed(void) {{
   if (ovf && !PyErr_Occurred())
     PyErr_SetString(OverflowExc, "an int beyond 64 bits, a division by zero or an undefined value");
 }}
+{reduced}
+/* the label of buffer entry k: the rule's, or (rule, agent, detail, idx0,
+   (0,) * chain length) for a merged transition (reduce.Merger's) */
+static PyObject *label_of(Py_ssize_t k) {{
+  PyObject *l = PyTuple_GET_ITEM(LABELS, BLAB[k]);
+  if (!BCH[k]) {{ Py_INCREF(l); return l; }}
+  PyObject *ch = PyTuple_New(BCH[k]);
+  if (!ch) return NULL;
+  for (Py_ssize_t q = 0; q < BCH[k]; q++) PyTuple_SET_ITEM(ch, q, PyLong_FromLong(0));
+  return Py_BuildValue("(OOOiN)", PyTuple_GET_ITEM(l, 0), PyTuple_GET_ITEM(l, 1),
+                       PyTuple_GET_ITEM(l, 2), (int)BIDX[k], ch);
+}}
 static PyObject *successors(PyObject *self, PyObject *arg) {{
   const V *s = arg_state(arg);
   if (!s) return NULL;
-  PyObject *out = PyList_New(0);
+  BN = 0; ovf = 0;
+  if (rstep(s)) {{ overflowed(); return NULL; }}
+  PyObject *out = PyList_New(BN);
   if (!out) return NULL;
-  OUT = out; ovf = 0; FLAT = 0;
-  if (step(s)) {{ Py_DECREF(out); overflowed(); return NULL; }}
+  for (Py_ssize_t k = 0; k < BN; k++) {{
+    PyObject *b = PyBytes_FromStringAndSize((const char *)(BUF + NS * k), sizeof(V) * NS);
+    PyObject *l = label_of(k);
+    if (!b || !l) {{ Py_XDECREF(b); Py_XDECREF(l); Py_DECREF(out); return NULL; }}
+    PyList_SET_ITEM(out, k, Py_BuildValue("(NN)", l, b));
+  }}
   return out;
 }}
 /* expand(states): (successor counts, the successors of all in order, the
@@ -602,17 +759,24 @@ static PyObject *expand(PyObject *self, PyObject *arg) {{
   PyObject *ns = PyList_New(n), *flat = PyList_New(0), *labs = NULL;
   if (!ns || !flat) goto fail;
   memset(LABSEEN, 0, NLABELS);
-  OUT = flat; ovf = 0; FLAT = 1;
+  ovf = 0;
   for (Py_ssize_t i = 0; i < n; i++) {{
     const V *s = arg_state(PyList_GET_ITEM(arg, i));
     if (!s) goto fail;
-    Py_ssize_t before = PyList_GET_SIZE(flat);
-    if (step(s)) goto fail;
-    PyObject *c = PyLong_FromSsize_t(PyList_GET_SIZE(flat) - before);
+    BN = 0;
+    if (rstep(s)) goto fail;
+    for (Py_ssize_t k = 0; k < BN; k++) {{
+      PyObject *b = PyBytes_FromStringAndSize((const char *)(BUF + NS * k), sizeof(V) * NS);
+      if (!b) goto fail;
+      int r = PyList_Append(flat, b);
+      Py_DECREF(b);
+      if (r) goto fail;
+      LABSEEN[BLAB[k]] = 1;
+    }}
+    PyObject *c = PyLong_FromSsize_t(BN);
     if (!c) goto fail;
     PyList_SET_ITEM(ns, i, c);
   }}
-  FLAT = 0;
   for (Py_ssize_t k = 0; k < NLABELS; k++) seen += LABSEEN[k];
   labs = PyTuple_New(seen);
   if (!labs) goto fail;
@@ -624,22 +788,56 @@ static PyObject *expand(PyObject *self, PyObject *arg) {{
     }}
   return Py_BuildValue("(NNN)", ns, flat, labs);
 fail:
-  FLAT = 0;
   Py_XDECREF(ns); Py_XDECREF(flat);
   overflowed();
   return NULL;
 }}
+/* key(state): the state's identity: the canonical vector (symmetry), without
+   the clock under time abstraction */
+static PyObject *key(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  V c[NS];
+  canon(s, c);
+  return PyBytes_FromStringAndSize((const char *)c + KEYSKIP, sizeof(V) * NS - KEYSKIP);
+}}
+/* sig(state): the stall signature's hash (pccl/model/stall.py's fields) */
+static PyObject *sig(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  uint64_t h = 0x9E3779B97F4A7C15ULL;
+  for (int q = 0; q < NSIGSLOTS; q++) {{
+    uint64_t z = (uint64_t)s[SIGSLOTS[q]] + 0x9E3779B97F4A7C15ULL * (uint64_t)(q + 1);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    h = (h ^ (z ^ (z >> 31))) * 0x100000001B3ULL;
+    h ^= h >> 29;
+  }}
+  return PyLong_FromLongLong((long long)h);
+}}
+/* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
+static PyObject *phases(PyObject *self, PyObject *arg) {{
+  if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
+  Py_ssize_t n = PyList_GET_SIZE(arg);
+  PyObject *out = PyBytes_FromStringAndSize(NULL, n);
+  if (!out) return NULL;
+  char *o = PyBytes_AS_STRING(out);
+  for (Py_ssize_t i = 0; i < n; i++) {{
+    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    if (!s) {{ Py_DECREF(out); return NULL; }}
+    o[i] = s[{V_PHASE}] != {DISCRETE};
+  }}
+  return out;
+}}
 /* fingerprints(states): (the 16-byte fingerprints of their keys, in order,
    as one bytes object; the positions, ascending, of each key's first
+   occurrence, as int64s; per state the position of its key's first
    occurrence, as int64s).  A fingerprint is pccl.search.fingerprint's: xxh3_128 of
    marshal version 2 of the key (a bytes object: 's', its length as a
    little-endian int32, its bytes), in xxhash's canonical (big-endian) form */
 typedef struct {{ uint64_t lo, hi; }} H128;
 typedef H128 (*xxh128_fn)(const void *, size_t);
 static xxh128_fn XXH;
-/* the key: the vector without the clock under time abstraction (a constant
-   of the source: one module per key) */
-#define KEYSKIP {8 if m.abstract_time else 0}
 static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg) || !XXH) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg), m = 0;
@@ -648,16 +846,20 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
   uint32_t *tab = calloc(size, sizeof(uint32_t));
   PyObject *blob = PyBytes_FromStringAndSize(NULL, 16 * n);
   PyObject *first = PyBytes_FromStringAndSize(NULL, 8 * n);
-  if (!tab || !blob || !first) goto fail;
+  PyObject *occ = PyBytes_FromStringAndSize(NULL, 8 * n);
+  if (!tab || !blob || !first || !occ) goto fail;
   unsigned char buf[5 + sizeof(V) * NS];
   buf[0] = 's';
   buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
   unsigned char *out = (unsigned char *)PyBytes_AS_STRING(blob);
   int64_t *fo = (int64_t *)PyBytes_AS_STRING(first);
+  int64_t *oc = (int64_t *)PyBytes_AS_STRING(occ);
   for (Py_ssize_t i = 0; i < n; i++) {{
     const V *s = arg_state(PyList_GET_ITEM(arg, i));
     if (!s) goto fail;
-    memcpy(buf + 5, (const char *)s + KEYSKIP, klen);
+    V c[NS];
+    canon(s, c);
+    memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
     H128 h = XXH(buf, 5 + klen);
 #if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
     uint64_t be[2] = {{ h.hi, h.lo }};
@@ -668,17 +870,17 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
     size_t slot = (size_t)(h.lo ^ h.hi) & (size - 1);
     for (;;) {{
       uint32_t e = tab[slot];
-      if (!e) {{ tab[slot] = (uint32_t)i + 1; fo[m++] = i; break; }}
-      if (!memcmp(out + 16 * (e - 1), out + 16 * i, 16)) break;
+      if (!e) {{ tab[slot] = (uint32_t)i + 1; fo[m++] = i; oc[i] = i; break; }}
+      if (!memcmp(out + 16 * (e - 1), out + 16 * i, 16)) {{ oc[i] = e - 1; break; }}
       slot = (slot + 1) & (size - 1);
     }}
   }}
   free(tab);
-  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); return NULL; }}
-  return Py_BuildValue("(NN)", blob, first);
+  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); Py_DECREF(occ); return NULL; }}
+  return Py_BuildValue("(NNN)", blob, first, occ);
 fail:
   free(tab);
-  Py_XDECREF(blob); Py_XDECREF(first);
+  Py_XDECREF(blob); Py_XDECREF(first); Py_XDECREF(occ);
   return NULL;
 }}
 static inline int okstate(const V *s) {{
@@ -727,11 +929,177 @@ static PyMethodDef methods[] = {{
   {{"fingerprints", fingerprints, METH_O, "fingerprints and first occurrences of a list of states"}},
   {{"violations", violations, METH_O, "[] or the Python model's violations"}},
   {{"clock", clock_, METH_O, "the state's time"}},
+  {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
+  {{"sig", sig, METH_O, "the stall signature's hash"}},
+  {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
   {{NULL, NULL, 0, NULL}}
 }};
 static struct PyModuleDef mod = {{PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods}};
 PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
+"""
+
+
+#: C of the reduced step, the canonical key (see Generator.reduced_c)
+_REDUCED_C = r"""
+/* statement merging: run agent i's following mergeable steps in the
+   successor at BUF[k] (Merger._chain: one successor per step, a chain
+   stops where it revisits (pc, counter, locals) after 32 steps: those
+   identities kept in SEEN, found through the open-addressing table SLOT) */
+#define IDW (2 + NLOC)
+#define NSLOT 4096
+static V SEEN[(MERGE_LIMIT + 1) * IDW];
+static int16_t SLOT[NSLOT];
+static uint64_t idhash(const V *id) {
+  uint64_t h = 0x9E3779B97F4A7C15ULL;
+  for (int q = 0; q < IDW; q++) { h ^= (uint64_t)id[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
+  return h;
+}
+static int chain(Py_ssize_t k, int i) {
+  V cur[NS];
+  memcpy(cur, BUF + NS * k, sizeof cur);
+  const int a0 = AG0 + AW * i;
+  int n = 0, nseen = 0;
+  for (;;) {
+    V pc = cur[a0];
+    if ((uint64_t)pc >= NPC || !MERGEOK[pc] || cur[a0 + 3] != @RUNNING@
+        || cur[a0 + 1] + RHO[i] > KEEPN0 || n >= MERGE_LIMIT) break;
+    if (n >= 32) {
+      V *id = SEEN + IDW * nseen;
+      id[0] = pc; id[1] = cur[a0 + 1];
+      memcpy(id + 2, cur + a0 + 4, sizeof(V) * NLOC);
+      if (!nseen) memset(SLOT, -1, sizeof SLOT);
+      size_t sl = idhash(id) & (NSLOT - 1);
+      int hit = 0;
+      while (SLOT[sl] >= 0) {
+        if (!memcmp(SEEN + IDW * SLOT[sl], id, sizeof(V) * IDW)) { hit = 1; break; }
+        sl = (sl + 1) & (NSLOT - 1);
+      }
+      if (hit) break;
+      SLOT[sl] = (int16_t)nseen++;
+    }
+    Py_ssize_t b = BN;
+    if (agent_of(i, cur)) return -1;
+    if (BN == b) break;
+    memcpy(cur, BUF + NS * b, sizeof cur);
+    BN = b;
+    n++;
+  }
+  if (n) { memcpy(BUF + NS * k, cur, sizeof cur); BCH[k] = n; }
+  return 0;
+}
+/* the reduced successors of s appended to the buffer: the ample set of
+   partial-order reduction (else every successor), each merged */
+static int rstep(const V *s) {
+  Py_ssize_t b0 = BN;
+#if POR
+  if (s[1] == @DISCRETE@) {
+@AMPLE@
+  }
+#endif
+  if (step(s)) return -1;
+  goto chains;
+chains:
+#if MERGE
+  if (s[1] == @DISCRETE@)
+    for (Py_ssize_t k = b0; k < BN; k++) {
+      BIDX[k] = (int32_t)(k - b0);
+      int i = LABAG[BLAB[k]];
+      if (i >= 0 && chain(k, i)) return -1;
+    }
+#endif
+  return ovf ? -1 : 0;
+}
+/* symmetry: the canonical representative of s's orbit under permutations
+   of the agents (each agent's whole block moves; id-valued slots BID of a
+   block and SHID of shared, and the lock queue, renamed).  Agents are
+   sorted by their blocks with ids masked (own id, another's), which shared
+   id variables name them and their place in the lock queue; agents that
+   name others are tried in every order among equals, the least vector
+   wins.  A canonical form of the orbit, as reduce.py's key is: the two
+   keys identify the same states. */
+#define SIGW (AW + NSHID + 1)
+#define MSELF (INT64_MIN + 1)
+#define MOTHER (INT64_MIN + 2)
+static int vcmp(const V *a, const V *b, int n) {
+  for (int q = 0; q < n; q++) if (a[q] != b[q]) return a[q] < b[q] ? -1 : 1;
+  return 0;
+}
+static void build(const V *s, const int *order, V *out) {
+  int r[NAG];
+  for (int p = 0; p < NAG; p++) r[order[p]] = p;
+  memcpy(out, s, sizeof(V) * AG0);
+  for (int k = 0; k < NAG; k++) if (out[LQ0 + k] >= 0 && out[LQ0 + k] < NAG) out[LQ0 + k] = r[out[LQ0 + k]];
+  for (int q = 0; q < NSHID; q++) {
+    V x = out[SHID[q]];
+    if (x >= 0 && x < NAG) out[SHID[q]] = r[x];
+  }
+  for (int p = 0; p < NAG; p++) {
+    V *b = out + AG0 + AW * p;
+    memcpy(b, s + AG0 + AW * order[p], sizeof(V) * AW);
+    for (int q = 0; q < NBID; q++) {
+      V x = b[BID[q]];
+      if (x >= 0 && x < NAG) b[BID[q]] = r[x];
+    }
+  }
+}
+static int next_perm(int *a, int n) {
+  int i = n - 2;
+  while (i >= 0 && a[i] >= a[i + 1]) i--;
+  if (i < 0) { for (int l = 0, h = n - 1; l < h; l++, h--) { int t = a[l]; a[l] = a[h]; a[h] = t; } return 0; }
+  int j = n - 1;
+  while (a[j] <= a[i]) j--;
+  int t = a[i]; a[i] = a[j]; a[j] = t;
+  for (int l = i + 1, h = n - 1; l < h; l++, h--) { t = a[l]; a[l] = a[h]; a[h] = t; }
+  return 1;
+}
+static void canon(const V *s, V *out) {
+#if SYM
+  V g[NAG][SIGW];
+  int order[NAG], other = 0;
+  for (int j = 0; j < NAG; j++) {
+    V *x = g[j];
+    memcpy(x, s + AG0 + AW * j, sizeof(V) * AW);
+    for (int q = 0; q < NBID; q++) {
+      V v = x[BID[q]];
+      if (v >= 0) { if (v == j) x[BID[q]] = MSELF; else { x[BID[q]] = MOTHER; other = 1; } }
+    }
+    for (int q = 0; q < NSHID; q++) x[AW + q] = s[SHID[q]] == j;
+    V p = -1;
+    for (int k = 0; k < NAG; k++) if (s[LQ0 + k] == j) { p = k; break; }
+    x[AW + NSHID] = p;
+    order[j] = j;
+  }
+  for (int a = 1; a < NAG; a++) {          /* stable insertion sort */
+    int t = order[a], b = a;
+    while (b > 0 && vcmp(g[order[b - 1]], g[t], SIGW) > 0) { order[b] = order[b - 1]; b--; }
+    order[b] = t;
+  }
+  int ties = 0;
+  if (other)
+    for (int a = 1; a < NAG; a++) if (!vcmp(g[order[a - 1]], g[order[a]], SIGW)) { ties = 1; break; }
+  build(s, order, out);
+  if (!ties) return;
+  /* the groups of equal agents, each tried in every order */
+  int start[NAG], len[NAG], ng = 0;
+  for (int a = 0; a < NAG; ) {
+    int b = a + 1;
+    while (b < NAG && !vcmp(g[order[a]], g[order[b]], SIGW)) b++;
+    start[ng] = a; len[ng] = b - a; ng++;
+    a = b;
+  }
+  V tmp[NS];
+  for (;;) {
+    int gi = ng - 1;
+    while (gi >= 0 && !next_perm(order + start[gi], len[gi])) gi--;
+    if (gi < 0) break;
+    build(s, order, tmp);
+    if (vcmp(tmp, out, NS) < 0) memcpy(out, tmp, sizeof tmp);
+  }
+#else
+  memcpy(out, s, sizeof(V) * NS);
+#endif
+}
 """
 
 
@@ -781,8 +1149,12 @@ class NativeModel:
 
     def __init__(self, py):
         self.py = py
-        gen = Generator(py)
-        src = gen.source()
+        if _LAST[0] is py:
+            gen, src = _LAST[1], _LAST[2]
+        else:
+            gen = Generator(py)
+            src = gen.source()
+        _LAST[:] = [None, None, None]
         self.lib = build(src)
         xxh = _xxh3_128_address()
         self.lib.setup(tuple(gen.labels), NativeOverflow, self._violations,
@@ -800,6 +1172,18 @@ class NativeModel:
         if py.abstract_time:
             import operator
             self.key = operator.itemgetter(slice(8, None))
+        #: the reductions of the model it serves (pccl/model/reduce.py's plan)
+        self.reduction = getattr(py, "reduction", None)
+        on = getattr(self.reduction, "on", ())
+        if "symmetry" in on:
+            #: the canonical vector (one C call), the identity of the state's orbit
+            self.key = self.lib.key
+        #: what the graph recorder reads (pccl/search/liveness.py): no
+        #: temporal property is served
+        self.N = py.N
+        self.temporal = ()
+        self.blackbox = py.blackbox
+        self._sig = self.lib.sig
         #: the explorer's batch hook, None when xxhash's symbol is not there
         self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
         st0 = next(iter(py.init_states()))
@@ -864,14 +1248,28 @@ class NativeModel:
     def _fingerprint_batch(self, states: list):
         """The fingerprints of the keys of ``states`` (:func:`pccl.search.fingerprint.fingerprint`'s,
         computed in C) as a one-item list of their concatenation, and the
-        positions of each key's first occurrence (ascending): the explorer's
-        batch hook for its admission."""
+        positions of each key's first occurrence (ascending), and per state
+        the position of its key's first occurrence (for the graph recorder's
+        edges): the explorer's batch hook for its admission."""
         import numpy as np
-        blob, first = self.lib.fingerprints(states)
-        return [blob], np.frombuffer(first, dtype=np.int64)
+        blob, first, occ = self.lib.fingerprints(states)
+        return [blob], np.frombuffer(first, dtype=np.int64), np.frombuffer(occ, dtype=np.int64)
 
     def terminal_kind(self, b) -> str:
         return self.py.terminal_kind(self.decode(b))
+
+    # -- what the graph recorder of the time-lock and stall checks reads -----------------
+    def time_costs(self, states: list) -> bytes:
+        """1 into a dynamic state (a TIME ADVANCE), else 0: one C call."""
+        return self.lib.phases(states)
+
+    def stall_signature(self) -> Callable:
+        """``sig(state) -> int`` with the equalities of
+        :func:`pccl.model.stall.signature_fn`'s (the same fields hashed)."""
+        return self._sig
+
+    def arrival_pending(self, b) -> int:
+        return 0            # no doReach in the programs served
 
     def deadlock_violation(self, b):
         return self.py.deadlock_violation(self.decode(b))
@@ -879,6 +1277,24 @@ class NativeModel:
     def decode_trace(self, trace):
         from pccl.search.explorer import Trace
         return Trace(tuple(map(self.decode, trace.states)), trace.labels)
+
+    def decoding(self, explorer) -> "_Decoding":
+        """``explorer`` whose replays return configurations (for the graph
+        analysis's counterexamples, :func:`pccl.search.liveness.attach_traces`)."""
+        return _Decoding(explorer, self)
+
+
+class _Decoding:
+    """An explorer of a :class:`NativeModel` whose ``replay_chain`` decodes."""
+
+    def __init__(self, ex, native: NativeModel):
+        self.ex, self.native = ex, native
+
+    def replay_chain(self, chain: list):
+        return self.native.decode_trace(self.ex.replay_chain(chain))
+
+    def __getattr__(self, name):
+        return getattr(self.ex, name)
 
 
 def _xxh3_128_address() -> Optional[int]:

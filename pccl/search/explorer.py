@@ -1086,10 +1086,11 @@ class _Admission:
             def keys_of(states):
                 return map(xxh, map(dumps, map(key, states), twos))
         self.keys_of = keys_of
-        #: the model's batch hook (pccl/model/native.py): a batch's fingerprints and
-        #: first occurrences in one call (not for --exact or a recorder)
+        #: the model's batch hook (pccl/model/native.py): a batch's fingerprints,
+        #: first occurrences and each one's first occurrence in one call (not for
+        #: --exact)
         self.fp_batch = (getattr(ex.model, "fingerprint_batch", None)
-                         if not ex.exact and ex.recorder is None else None)
+                         if not ex.exact else None)
 
     def out_of_memory(self) -> None:
         """A MemoryError stopped the search: free the pending states."""
@@ -1125,8 +1126,9 @@ class _Admission:
             flags.clear()
             return False
         budget = self.budget
+        first_of: Any = None
         if self.fp_batch is not None:
-            ck, first = self.fp_batch(cs)
+            ck, first, first_of = self.fp_batch(cs)
             n = len(cs)
         else:
             ck = list(self.keys_of(cs))   # one map() chain for the whole batch
@@ -1191,16 +1193,19 @@ class _Admission:
         par_n.clear()
         return halt
 
-    def _record_edges(self, rec, ck: list, first_of: dict, first: np.ndarray,
+    def _record_edges(self, rec, ck: list, first_of: Any, first: np.ndarray,
                       owners: np.ndarray, base: int, cut: int) -> None:
         """Tell the recorder every transition of the batch (``ck``: the
-        candidates' keys) as state numbers."""
+        candidates' keys; ``first_of``: a dict from key to the position of its
+        first occurrence, or that position per candidate as an array) as
+        state numbers."""
         # each candidate's state number, from its key's first occurrence
         # (looked up once, in new_positions): no second lookup of the batch
         num = self.table.found
         num[np.flatnonzero(num < 0)[:cut]] = np.arange(base, base + cut)
-        dst = num[np.searchsorted(first, np.fromiter(
-            map(first_of.__getitem__, ck), dtype=np.int64, count=len(ck)))]
+        occ = first_of if isinstance(first_of, np.ndarray) else np.fromiter(
+            map(first_of.__getitem__, ck), dtype=np.int64, count=len(ck))
+        dst = num[np.searchsorted(first, occ)]
         src = np.asarray(self.par_idx, dtype=np.int64)[owners]
         keep = src != _NO_PARENT
         if getattr(rec, "wants_candidates", False):
