@@ -373,10 +373,12 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts,
+                              checkpoint=_checkpointer(model, o))
     elif nworkers is not None and nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts,
+                              checkpoint=_checkpointer(model, o))
     elif fastest:
         from pccl.search.fastest import FastestExplorer
         ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
