@@ -32,12 +32,13 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
-def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
+def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None, after=0.0):
     """Run ``python -m pccl.cli ARGS`` and send it ``sig`` (a name, such as
     ``"SIGTERM"``); ``(status, stdout, stderr)``.
 
     With ``ready``, the signal goes as soon as a line of standard error
-    contains that text (a progress line: the search is under way).  Without,
+    contains that text (a progress line: the search is under way), or
+    ``after`` seconds later (a random point of the search).  Without,
     it goes after ``delay`` seconds; a process that dies of the signal
     itself (status ``-signum``) had not installed its handlers yet — a
     loaded machine spent the delay importing — which says nothing of pccl,
@@ -62,6 +63,7 @@ def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
                 assert time.monotonic() < deadline, ("never ready", seen)
                 if select.select([p.stderr], [], [], 1.0)[0]:
                     seen.append(p.stderr.readline())
+            time.sleep(after)
         p.send_signal(signum)
         out, err = p.communicate(timeout=120)
         err = "".join(seen) + err

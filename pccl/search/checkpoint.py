@@ -319,10 +319,15 @@ class Checkpointer:
         self.generation = int(gen[4:])
         self.resumed = {"depth": state["depth"], "states": state["n"]}
         self.last_saved = (state["depth"], state["n"])
-        if self.note is not None:
-            self.note(f"resumed from {d} at depth {state['depth']}, {state['n']:,} states")
+        if not parallel:            # the parallel search: once the partitions are read too
+            self.say_resumed()
         self.last_write = _time.monotonic()
         return state, arrays
+
+    def say_resumed(self) -> None:
+        if self.note is not None and self.resumed is not None:
+            self.note(f"resumed from {self.resume_dir} at depth {self.resumed['depth']}, "
+                      f"{self.resumed['states']:,} states")
 
     def _manifest(self, d: str) -> dict:
         """The manifest of the checkpoint in ``d``, checked: format,
@@ -510,6 +515,10 @@ def worker_snapshot(w, depth: int) -> tuple[dict, dict]:
     arrays = {"fps": t.fps[:t.n], "parents": t.parents[:t.n]}
     state = {"depth": depth, "wid": w.wid, "workers": w.n, "level_idx": list(w.level_idx),
              "level": w.level, "columns": w.columns is not None, "ncols": 0}
+    # the model's lazily interned tables as this worker has them: the states it
+    # holds may refer to entries only this process made (a stuck agent's reason)
+    tables = getattr(w.m, "checkpoint_tables", None)
+    state["tables"] = tables() if tables is not None else None
     if w.columns is not None:
         for name in _ARRAYS:         # joined once: the next snapshot joins only what is new
             joined = _joined(getattr(w, name), name)
@@ -535,6 +544,10 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     that number.  Returns how many states its table holds."""
     n, wid = w.n, w.wid
     fps, parents, level = [], [], []
+    restore = getattr(w.m, "restore_tables", None)
+    for state, _ in pieces:
+        if restore is not None and state.get("tables") is not None:
+            restore(state["tables"])
     for state, arrays in pieces:
         if state.get("columns") != (w.columns is not None):
             raise ValueError("the checkpoint's recorded graph does not match this search's")
@@ -684,6 +697,7 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
         ex._reported.add(v.identity)
     if same:
         ex.peak_workers = list(state["peak_workers"])
+    ck.say_resumed()
     return {"depth": state["depth"], "level_base": base,
             "holder": np.array(holder, dtype=np.int64) if same else
             np.arange(base, total, dtype=np.int64) % n,
