@@ -381,7 +381,8 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
                               checkpoint=_checkpointer(model, o))
     elif fastest:
         from pccl.search.fastest import FastestExplorer
-        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)
+        ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels,
+                             checkpoint=_checkpointer(model, o))
     else:
         ex = Explorer(cov or model, sopts, recorder=rec, on_runaway=on_runaway, labels=labels,
                       checkpoint=_checkpointer(model, o))

@@ -338,13 +338,13 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     assert want in p.stderr
 
 
-def test_checkpoint_refused_with_fastest_coverage():
-    for extra, want in ((["--fastest"], "--checkpoint does not run with --fastest yet"),
-                        (["--coverage"], "--checkpoint does not run with --coverage yet")):
-        p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/nonexistent/ck", *extra)
-        assert p.returncode == 2 and want in p.stderr and "Traceback" not in p.stderr, p.stderr
-    with pytest.raises(api.ArgumentError, match="checkpoint does not run with fastest"):
-        api.explore(f"{PROG}/fischer.pccl", checkpoint="x", fastest=True)
+def test_checkpoint_refused_with_coverage(tmp_path):
+    p = _cli("explore", "programs/fischer.pccl", "--checkpoint", str(tmp_path / "ck"),
+             "--coverage")
+    assert p.returncode == 2 and "--checkpoint does not run with --coverage yet" in p.stderr
+    assert "Traceback" not in p.stderr and not os.path.exists(tmp_path / "ck"), p.stderr
+    with pytest.raises(api.ArgumentError, match="checkpoint does not run with coverage"):
+        api.explore(f"{PROG}/fischer.pccl", checkpoint="x", coverage=True)
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
@@ -677,3 +677,61 @@ def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch,
     monkeypatch.undo()
     assert r.status == "interrupted"
     assert par_summary(api.explore(program, workers=3, ray="auto", resume=d2, **opts)) == full
+
+
+# ---------------------------------------------------------------------------
+# --fastest: the buckets are the frontier
+# ---------------------------------------------------------------------------
+
+FASTEST_CASES = [
+    ("fischer-k1", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=20)),
+    ("race-nondet-none", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", reduce="none")),
+    ("race-nondet-all", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", find_all=True, max_states=900)),
+    ("tl-spin", f"{TPROG}/tl_spin.pccl", dict()),
+]
+
+
+@pytest.mark.parametrize("name,program,opts", FASTEST_CASES, ids=[c[0] for c in FASTEST_CASES])
+def test_fastest_interrupted_mid_bucket_and_resumed_equals_uninterrupted(tmp_path, monkeypatch,
+                                                                        name, program, opts):
+    """Interrupted in the middle of a bucket (a state's expansion) at random
+    points, three times, and resumed: the uninterrupted --fastest result
+    (the checkpoint is the bucket's start: the states queued since are
+    dropped, the bucket is expanded again)."""
+    from pccl.search import fastest as F
+    opts = dict(opts, fastest=True)
+    full = summary(api.explore(program, **opts))
+    orig, count = F._Buckets._expand, [0]
+
+    def counting(self, *a):
+        count[0] += 1
+        if count[0] == cut[0]:
+            raise KeyboardInterrupt
+        return orig(self, *a)
+    monkeypatch.setattr(F._Buckets, "_expand", counting)
+    cut = [0]
+    api.explore(program, **opts)
+    expansions = count[0]
+    rng = random.Random(name)
+    d = str(tmp_path / "ck")
+    resumed = 0
+    for i in range(4):
+        kw = dict(opts, checkpoint=d)
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        count[0], cut[0] = 0, rng.randint(1, max(1, expansions // 3)) if i < 3 else 0
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            break
+    assert summary(r) == full
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
+
+
+def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
+    d = _checkpoint_of(tmp_path)
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written with no --fastest, this run has --fastest" in p.stderr
