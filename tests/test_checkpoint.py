@@ -338,13 +338,25 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     assert want in p.stderr
 
 
-def test_checkpoint_refused_with_coverage(tmp_path):
-    p = _cli("explore", "programs/fischer.pccl", "--checkpoint", str(tmp_path / "ck"),
-             "--coverage")
-    assert p.returncode == 2 and "--checkpoint does not run with --coverage yet" in p.stderr
-    assert "Traceback" not in p.stderr and not os.path.exists(tmp_path / "ck"), p.stderr
-    with pytest.raises(api.ArgumentError, match="checkpoint does not run with coverage"):
-        api.explore(f"{PROG}/fischer.pccl", checkpoint="x", coverage=True)
+@pytest.mark.parametrize("fastest", [False, True], ids=["bfs", "fastest"])
+def test_coverage_interrupted_and_resumed_counts_as_uninterrupted(tmp_path, fastest):
+    """--coverage tallies every expansion: a checkpoint holds the tallies of
+    its mark (a level's or bucket's start), so the expansions the resumed
+    search repeats are not counted twice, nor the counterexample's replay."""
+    program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
+                                                         blackbox="nondet", find_all=True,
+                                                         coverage=True, fastest=fastest)
+    full = api.explore(program, **opts)
+    calls = _calls(program, opts)
+    for cuts in ([calls // 3], [2, calls // 2, 3]):
+        r, resumed = interrupted_run(program, opts, str(tmp_path / f"ck{len(cuts)}"), cuts)
+        assert resumed == len(cuts)
+        assert summary(r) == summary(full)
+        assert r.coverage.as_dict() == full.coverage.as_dict()
+    assert full.coverage.expanded > 100
+
+
+def test_checkpoint_options_checked():
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")

@@ -297,8 +297,6 @@ def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if o.checkpoint is None and o.resume is None:
         return None
     what = "resume" if o.checkpoint is None else "checkpoint"
-    if o.coverage:
-        return Conflict(what, f"{{{what}}} does not run with {{coverage=True}} yet")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
             return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "

@@ -543,7 +543,9 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     modulo the number of workers, and the graphs of partitions ``w`` modulo
     that number.  Returns how many states its table holds."""
     n, wid = w.n, w.wid
-    fps, parents, level = [], [], []
+    fps: list = []
+    parents: list = []
+    level: list = []
     restore = getattr(w.m, "restore_tables", None)
     for state, _ in pieces:
         if restore is not None and state.get("tables") is not None:

@@ -232,6 +232,9 @@ class _Buckets:
         and the buckets (:meth:`at_mark`, when written)."""
         ex, stats, rec = self.ex, self.stats, self.rec
         self.current = None
+        model_mark = getattr(self.m, "checkpoint_mark", None)
+        if model_mark is not None:      # a model with state of its own (the coverage tallies)
+            model_mark()
         return {"kind": "fastest", "depth": stats.max_depth, "n": self.table.n,
                 "transitions": stats.transitions, "max_depth": stats.max_depth,
                 "initial_states": stats.initial_states, "max_time": stats.max_time,

@@ -942,6 +942,11 @@ class ParallelExplorer(Explorer):
     resident memory, checked once per level.
     """
 
+    #: checkpoints (pccl/search/checkpoint.py): the checkpoint read before the
+    #: workers start, and the level boundary a checkpoint is taken at
+    _resume: Optional[tuple] = None
+    _ck_mark: Optional[dict] = None
+
     def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
                  **options):
         if options.get("exact"):
