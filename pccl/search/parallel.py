@@ -785,7 +785,8 @@ class _RayTransport:
         return RayWorkerLost(
             f"--ray {self.address}: {who} was lost during the search ({type(exc).__name__}: "
             f"{reason}). Its part of the visited states is gone: the search stops without a "
-            f"verdict; start it again (checkpoints do not cover --ray)")
+            f"verdict; resume it from its last checkpoint with --resume DIR if it ran with "
+            f"--checkpoint DIR, else start it again")
 
     def _on_dead_nodes(self) -> list:
         """The workers whose node the cluster reports dead (none if the
