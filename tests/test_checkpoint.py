@@ -345,15 +345,16 @@ def test_coverage_interrupted_and_resumed_counts_as_uninterrupted(tmp_path, fast
     search repeats are not counted twice, nor the counterexample's replay."""
     program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
                                                          blackbox="nondet", find_all=True,
-                                                         coverage=True, fastest=fastest)
+                                                         coverage=True, fastest=fastest,
+                                                         max_states=700)
     full = api.explore(program, **opts)
     calls = _calls(program, opts)
-    for cuts in ([calls // 3], [2, calls // 2, 3]):
+    for cuts in ([2, calls // 2, 3],):
         r, resumed = interrupted_run(program, opts, str(tmp_path / f"ck{len(cuts)}"), cuts)
         assert resumed == len(cuts)
         assert summary(r) == summary(full)
         assert r.coverage.as_dict() == full.coverage.as_dict()
-    assert full.coverage.expanded > 100
+    assert full.coverage.expanded > 100 and full.bound_labels
 
 
 def test_checkpoint_options_checked():
@@ -435,7 +436,7 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
 
 #: the cases the parallel search runs (--exact is one process's), kept small
 PAR_CASES = [
-    ("fischer-k1-depth", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=90)),
+    ("fischer-k1-depth", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=60)),
     ("fischer-max-states", f"{PROG}/fischer.pccl",
      dict(overrides={"k": "1"}, max_states=6_000)),
     *[c for c in CASES if c[0] in ("race-nondet-all", "tl-spin", "rdv-stall")],
@@ -530,14 +531,14 @@ def test_workers_crash_while_writing_leaves_the_previous_checkpoint(tmp_path, mo
     """The coordinator dies after the partitions, before the manifest; a
     worker's partition write fails (a full disk): the previous checkpoint
     stays and resumes to the uninterrupted result."""
-    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=60, workers=2)
+    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=40, workers=2)
     full = par_summary(api.explore(program, **opts))
     d = str(tmp_path / "ck")
-    r = api.explore(program, checkpoint=d, progress=_Interrupt(30), progress_interval=1e-9,
+    r = api.explore(program, checkpoint=d, progress=_Interrupt(20), progress_interval=1e-9,
                     **opts)
     assert r.status == "interrupted"
     before = json.load(open(os.path.join(d, C.MANIFEST)))
-    assert before["depth"] == 30        # the level after the 30th
+    assert before["depth"] == 20        # the level after the 20th
 
     def die(*a, **k):
         raise SystemExit("killed while writing")
@@ -566,11 +567,10 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     workers with several (or Ray): otherwise exit 2 saying so; a damaged
     partition exits 2 too."""
     d1 = _checkpoint_of(tmp_path)
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--workers", "2",
-             "--resume", d1)
-    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
-    assert f"--resume: error: {d1}: the checkpoint was written by one process (--workers 1); " \
-           f"resume it with --workers 1 without --ray" in p.stderr
+    with pytest.raises(C.CheckpointError) as e:
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, workers=2, resume=d1)
+    assert f"{d1}: the checkpoint was written by one process (--workers 1); resume it with " \
+           f"--workers 1 without --ray" in str(e.value)
     d2 = str(tmp_path / "ck2")
     r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d2, progress=_Interrupt(5),
                     progress_interval=1e-9, overrides={"k": "1"}, workers=3)
@@ -589,9 +589,8 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert p.stderr.startswith(f"--resume: error: {d2}: the checkpoint is corrupt (")
     assert "w002/fps.npy does not match its digest" in p.stderr
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=2", "--workers", "2",
-             "--resume", d2)
-    assert p.returncode == 2 and "with --set k=1, this run has --set k=2" in p.stderr
+    with pytest.raises(C.CheckpointError, match="with --set k=1, this run has --set k=2"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "2"}, workers=2, resume=d2)
 
 
 _FISCHER_K1 = ["explore", "programs/fischer.pccl", "--set", "k=1", "--format", "json"]
@@ -605,6 +604,7 @@ def _json_summary(text: str) -> dict:
                                                    "max_depth")]}
 
 
+@pytest.mark.slow
 def test_workers_sigterm_and_sigkill_at_random_points_then_resume(tmp_path):
     """``pccl explore --workers 2 --checkpoint DIR`` sent SIGTERM (it writes
     the checkpoint and prints the resume command) and then SIGKILL twice
