@@ -1,5 +1,5 @@
-"""Checkpoints of a one-process search, and resuming from them (``--checkpoint DIR``,
-``--resume DIR``).
+"""Checkpoints of a search, and resuming from them (``--checkpoint DIR``, ``--resume
+DIR``): one process (breadth first or ``--fastest``), ``--workers N`` and ``--ray``.
 
 A checkpoint is taken at a breadth-first level boundary: the visited table
 (fingerprints and parent links, numpy ``.npy`` files), the graph the
@@ -26,6 +26,11 @@ A generation is written into ``DIR/tmp-*``, its files fsynced, renamed to
 fsynced temporary file): a crash at any point leaves the previous manifest
 naming the previous, complete generation.  Older generations are removed
 after the new manifest is in place.
+
+The parallel search's checkpoints (``--workers N``, ``--ray``) hold the
+coordinator's part at the top of a generation and one partition per worker
+in ``wNNN/``: see "The parallel search" below.  ``--fastest`` keeps its
+bucket queue as the frontier (pccl/search/fastest.py).
 """
 
 from __future__ import annotations
