@@ -3,6 +3,7 @@
 
     python benchmarks/checkpoint.py                     # the target (minutes)
     python benchmarks/checkpoint.py -n 2 --set k=2      # a quick one
+    python benchmarks/checkpoint.py --workers 2         # the same with two workers
 
 1. The uninterrupted search, timed (``pccl explore ... --format json``).
 2. The cost of checkpoints: the uninterrupted search with ``--checkpoint DIR
@@ -81,6 +82,7 @@ def main():
                     help="--checkpoint-interval of the killed runs [default: 1/20 of the "
                          "uninterrupted time]")
     ap.add_argument("--program", default="programs/fischer.pccl")
+    ap.add_argument("--workers", default=None, help="--workers of every run")
     ap.add_argument("--no-cost", action="store_true", help="skip the cost measurement (2.)")
     ap.add_argument("--baseline", metavar="FILE", default=None,
                     help="the uninterrupted run's time and result: read from FILE if it "
@@ -88,7 +90,11 @@ def main():
     a = ap.parse_args()
     sets = a.sets if a.sets is not None else ["k=2", "d=2"]
     args = [a.program, "-n", a.agents] + [x for s in sets for x in ("--set", s)]
+    if a.workers:
+        args += ["--workers", a.workers]
     print(f"pccl explore {' '.join(args)}")
+    print(f"{time.strftime('%H:%M:%S', time.gmtime())} UTC, load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if a.baseline and os.path.exists(a.baseline):
         with open(a.baseline) as f:
             t_full, full = json.load(f)
@@ -130,6 +136,8 @@ def main():
         print(f"killed {kills} times and resumed (--checkpoint-interval {interval}): "
               f"{total:.1f} s wall in all, {total / t_full:.2f}x the uninterrupted run; "
               f"same result: {same(res, full)}")
+        print(f"{time.strftime('%H:%M:%S', time.gmtime())} UTC, load average "
+              f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -446,14 +446,15 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
         return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
-                                **opts), None
+                                **opts, checkpoint=_checkpointer(model, o)), None
     if plan.nworkers is not None and plan.nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, **opts), None
+        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, **opts,
+                                checkpoint=_checkpointer(model, o)), None
     if o.fastest:
         from pccl.search.fastest import FastestExplorer
         return FastestExplorer(plan.cov or model, sopts, recorder=plan.rec,
-                               labels=plan.labels), None
+                               labels=plan.labels, checkpoint=_checkpointer(model, o)), None
     return Explorer(plan.cov or model, sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
                     labels=plan.labels, checkpoint=_checkpointer(model, o)), None
 

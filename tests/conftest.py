@@ -66,12 +66,13 @@ def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=
     return p, seen.decode(errors="replace")
 
 
-def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
+def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None, after=0.0):
     """Run ``python -m pccl.cli ARGS`` and send it ``sig`` (a name, such as
     ``"SIGTERM"``); ``(status, stdout, stderr)``.
 
     With ``ready``, the signal goes as soon as standard error says that
-    text (:func:`started`).  Without, it goes after ``delay`` seconds; a
+    text (:func:`started`), or ``after`` seconds later (a random point of
+    the search).  Without, it goes after ``delay`` seconds; a
     process that dies of the signal itself (status ``-signum``) had not
     installed its handlers yet — a loaded machine spent the delay importing
     — which says nothing of pccl, so the run is tried again with twice the
@@ -83,6 +84,8 @@ def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None):
         p, seen = started(args, ready, cwd=cwd)
         if ready is None:
             time.sleep(delay * 2 ** attempt)
+        else:
+            time.sleep(after)
         p.send_signal(signum)
         out, err = p.communicate(timeout=120)
         err = seen + err

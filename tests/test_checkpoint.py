@@ -326,15 +326,26 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     assert want in p.stderr
 
 
-def test_checkpoint_refused_with_workers_ray_fastest_coverage():
-    for extra, want in ((["--workers", "2"], "--checkpoint runs in one process for now: use "
-                                             "--workers 1"),
-                        (["--fastest"], "--checkpoint does not run with --fastest yet"),
-                        (["--coverage"], "--checkpoint does not run with --coverage yet")):
-        p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/nonexistent/ck", *extra)
-        assert p.returncode == 2 and want in p.stderr and "Traceback" not in p.stderr, p.stderr
-    with pytest.raises(api.ArgumentError, match="checkpoint runs in one process"):
-        api.explore(f"{PROG}/fischer.pccl", checkpoint="x", workers=2)
+@pytest.mark.parametrize("fastest", [False, True], ids=["bfs", "fastest"])
+def test_coverage_interrupted_and_resumed_counts_as_uninterrupted(tmp_path, fastest):
+    """--coverage tallies every expansion: a checkpoint holds the tallies of
+    its mark (a level's or bucket's start), so the expansions the resumed
+    search repeats are not counted twice, nor the counterexample's replay."""
+    program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
+                                                         blackbox="nondet", find_all=True,
+                                                         coverage=True, fastest=fastest,
+                                                         max_states=700)
+    full = api.explore(program, **opts)
+    calls = _calls(program, opts)
+    for cuts in ([2, calls // 2, 3],):
+        r, resumed = interrupted_run(program, opts, str(tmp_path / f"ck{len(cuts)}"), cuts)
+        assert resumed == len(cuts)
+        assert summary(r) == summary(full)
+        assert r.coverage.as_dict() == full.coverage.as_dict()
+    assert full.coverage.expanded > 100 and full.bound_labels
+
+
+def test_checkpoint_options_checked():
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
     p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
@@ -404,3 +415,323 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
     for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
         assert a["statistics"][k] == full["statistics"][k]
     assert kills >= 1
+
+
+# ---------------------------------------------------------------------------
+# Several workers (--workers N) and Ray (--ray): the partitions at a level
+# boundary, the coordinator's manifest last; N workers resume with M
+# ---------------------------------------------------------------------------
+
+#: the cases the parallel search runs (--exact is one process's), kept small
+PAR_CASES = [
+    ("fischer-k1-depth", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=60)),
+    ("fischer-max-states", f"{PROG}/fischer.pccl",
+     dict(overrides={"k": "1"}, max_states=6_000)),
+    *[c for c in CASES if c[0] in ("race-nondet-all", "tl-spin", "rdv-stall")],
+]
+
+
+def par_summary(r) -> dict:
+    """:func:`summary`, without what says which backend ran (where the Ray
+    actors were, "the transitions are taken in 3 worker processes")."""
+    s = summary(r)
+    s["notes"] = [n for n in s["notes"] if not n.startswith("Ray:")]
+    s["checked"]["notes"] = [n for n in s["checked"]["notes"] if not n.startswith("Ray:")]
+    ev = s["checked"].get("events")
+    if ev and ev.get("reason"):
+        ev["reason"] = "taken elsewhere"
+    return s
+
+
+@pytest.mark.parametrize("name,program,opts", PAR_CASES, ids=[c[0] for c in PAR_CASES])
+def test_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, name, program, opts):
+    """Interrupted at random level ends three times, resumed with 2, 3 and
+    2 workers (a checkpoint of N workers resumes with M): the uninterrupted
+    result of 2 workers; its figures and verdict are one process's."""
+    full = par_summary(api.explore(program, workers=2, **opts))
+    one = summary(api.explore(program, **opts))
+    for k in ("status", "verdict", "exit", "bounds", "violations", "witnesses", "holds",
+              "timelock", "stall"):
+        assert full[k] == one[k], k
+    assert full["stats"][:4] == one["stats"][:4]
+    calls = full["stats"][3] + 1         # a level end each
+    rng = random.Random(name)
+    cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
+    d = str(tmp_path / "ck")
+    resumed = 0
+    for i, k in enumerate([*cuts, None]):
+        kw = dict(opts, checkpoint=d, workers=(2, 3)[i % 2], progress_interval=1e-9)
+        if k is not None:
+            kw["progress"] = _Interrupt(k - (cuts[i - 1] if i else 0))
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            break
+    assert par_summary(r) == full
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
+
+
+def test_workers_every_level_checkpoint_resumes_with_any_number_of_workers(tmp_path):
+    """--checkpoint-interval 0 with 2 workers: the checkpoint of every level
+    (a crash leaves any of them) resumes, with 2 or 3 workers, to the same
+    result."""
+    program, opts = f"{TPROG}/rdv_meet.pccl", dict(world=f"{TPROG}/rdv_wall.toml",
+                                                    blackbox="straight", reduce="none")
+    full = par_summary(api.explore(program, workers=2, **opts))
+    d = str(tmp_path / "every")
+    saved = []
+    orig = C.Checkpointer.write_generation
+
+    def spy(self, fill, state, extra=None):
+        orig(self, fill, state, extra)
+        snap = str(tmp_path / f"gen{len(saved)}")
+        shutil.copytree(self.dir, snap)
+        saved.append((state["depth"], snap))
+
+    C.Checkpointer.write_generation = spy
+    try:
+        api.explore(program, checkpoint=d, checkpoint_interval=0, workers=2, **opts)
+    finally:
+        C.Checkpointer.write_generation = orig
+    depths = [dep for dep, _ in saved]
+    assert depths == list(range(len(depths))) and len(depths) >= 10
+    for i, (_, snap) in enumerate(saved):
+        man = json.load(open(os.path.join(snap, C.MANIFEST)))
+        assert man["partitions"] == 2
+        assert {f.split("/")[0] for f in man["files"] if "/" in f} == {"w000", "w001"}
+        assert par_summary(api.explore(program, resume=snap, workers=2 + i % 2, **opts)) == full
+
+
+_worker_save = C.worker_save
+
+
+def _full_disk_in_worker_1(w, tmp, w_out, depth):
+    """:func:`C.worker_save`, but worker 1's disk is full (module level: the
+    function travels to the worker by name)."""
+    if w.wid == 1:
+        raise OSError(28, "No space left on device")
+    return _worker_save(w, tmp, w_out, depth)
+
+
+def test_workers_crash_while_writing_leaves_the_previous_checkpoint(tmp_path, monkeypatch):
+    """The coordinator dies after the partitions, before the manifest; a
+    worker's partition write fails (a full disk): the previous checkpoint
+    stays and resumes to the uninterrupted result."""
+    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=40, workers=2)
+    full = par_summary(api.explore(program, **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(program, checkpoint=d, progress=_Interrupt(20), progress_interval=1e-9,
+                    **opts)
+    assert r.status == "interrupted"
+    before = json.load(open(os.path.join(d, C.MANIFEST)))
+    assert before["depth"] == 20        # the level after the 20th
+
+    def die(*a, **k):
+        raise SystemExit("killed while writing")
+    monkeypatch.setattr(C.os, "replace", die)
+    with pytest.raises(SystemExit):
+        api.explore(program, resume=d, checkpoint_interval=0, **opts)
+    monkeypatch.undo()
+    assert json.load(open(os.path.join(d, C.MANIFEST))) == before
+    half = [e for e in os.listdir(d) if e not in (C.MANIFEST, before["generation"])]
+    assert half and any(os.path.isdir(os.path.join(d, e, "w001")) for e in half)
+    assert par_summary(api.explore(program, resume=d, **opts)) == full
+
+    # worker 1 (a forked process: it writes its own partition) finds the disk full
+    monkeypatch.setattr(C, "worker_save", _full_disk_in_worker_1)
+    r = api.explore(program, resume=d, checkpoint_interval=0, **opts)
+    monkeypatch.undo()
+    assert par_summary(r) == full                   # the search went on
+    assert f"checkpoint not written to {d}: No space left on device; the previous one " \
+           f"stays" in r.notes
+    assert json.load(open(os.path.join(d, C.MANIFEST))) == before
+    assert par_summary(api.explore(program, resume=d, **opts)) == full
+
+
+def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
+    """A checkpoint of one process resumes in one process, one of several
+    workers with several (or Ray): otherwise exit 2 saying so; a damaged
+    partition exits 2 too."""
+    d1 = _checkpoint_of(tmp_path)
+    with pytest.raises(C.CheckpointError) as e:
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, workers=2, resume=d1)
+    assert f"{d1}: the checkpoint was written by one process (workers=1); resume it with " \
+           f"workers=1 without ray" in str(e.value)                # the API's spelling
+    d2 = str(tmp_path / "ck2")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d2, progress=_Interrupt(5),
+                    progress_interval=1e-9, overrides={"k": "1"}, workers=3)
+    assert r.status == "interrupted"
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d2)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert f"--resume: error: {d2}: the checkpoint was written by 3 workers; resume it with " \
+           f"--workers N (N of 2 or more, not necessarily 3) or --ray" in p.stderr
+    man = json.load(open(os.path.join(d2, C.MANIFEST)))
+    part = os.path.join(d2, man["generation"], "w002", "fps.npy")
+    data = bytearray(open(part, "rb").read())
+    data[-3] ^= 0xFF
+    open(part, "wb").write(bytes(data))
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--workers", "2",
+             "--resume", d2)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert p.stderr.startswith(f"--resume: error: {d2}: the checkpoint is corrupt (")
+    assert "w002/fps.npy does not match its digest" in p.stderr
+    with pytest.raises(C.CheckpointError, match=r"with overrides=\{'k': '1'\}, this run has overrides=\{'k': '2'\}"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "2"}, workers=2, resume=d2)
+
+
+_FISCHER_K1 = ["explore", "programs/fischer.pccl", "--set", "k=1", "--format", "json"]
+
+
+def _json_summary(text: str) -> dict:
+    a = json.loads(text)
+    return {"status": a["status"], "message": a["message"], "violations": a["violations"],
+            "bounds": a["bounds"],
+            "stats": [a["statistics"][k] for k in ("initial_states", "states", "transitions",
+                                                   "max_depth")]}
+
+
+@pytest.mark.slow
+def test_workers_sigterm_and_sigkill_at_random_points_then_resume(tmp_path):
+    """``pccl explore --workers 2 --checkpoint DIR`` sent SIGTERM (it writes
+    the checkpoint and prints the resume command) and then SIGKILL twice
+    (the periodic checkpoints, and partitions half written) at random points
+    of the search, each time resumed: the uninterrupted result."""
+    d = str(tmp_path / "ck")
+    args = [*_FISCHER_K1, "--workers", "2", "--progress", "--progress-interval", "0.1",
+            "--checkpoint-interval", "0.2"]
+    full = _json_summary(_cli(*_FISCHER_K1, "--workers", "2", "--no-progress").stdout)
+    rng = random.Random(25)
+    rc, out, err = interrupted([*args, "--checkpoint", d], "SIGTERM", cwd=ROOT,
+                               ready="frontier", after=rng.uniform(0, 1))
+    assert rc in (0, 143), err
+    if rc == 143:
+        assert json.loads(out)["status"] == "interrupted"
+        assert f"pccl: checkpoint written to {d}; resume with: pccl explore " \
+               f"programs/fischer.pccl --set k=1 --format json --workers 2" in err and \
+               err.rstrip().endswith(f"--resume {d}")
+        for _ in range(2):
+            rc, out, err = interrupted([*args, "--resume", d], "SIGKILL", cwd=ROOT,
+                                       ready="resumed from", after=rng.uniform(0.3, 1.5))
+            assert rc in (0, -9), err
+            if rc == 0:
+                break
+        p = _cli(*args, "--resume", d)
+        assert p.returncode == 0, p.stderr
+        out = p.stdout
+    assert _json_summary(out) == full
+
+
+# -- Ray ----------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def local_ray():
+    """A Ray instance on this machine for the module's tests (as in test_parallel)."""
+    import logging
+    ray = pytest.importorskip("ray")
+    if ray.is_initialized():
+        ray.shutdown()
+    ray.init(num_cpus=2, include_dashboard=False, logging_level=logging.WARNING,
+             log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+def _cut_at(monkeypatch, k: int) -> None:
+    """Interrupt the parallel search at its ``k``-th level end (in the
+    coordinator: a progress callback would travel to the actors with the model)."""
+    from pccl.search import parallel as P
+    orig, calls = P.ParallelExplorer._report, [0]
+
+    def report(self, *a):
+        calls[0] += 1
+        if calls[0] == k:
+            raise KeyboardInterrupt
+        return orig(self, *a)
+    monkeypatch.setattr(P.ParallelExplorer, "_report", report)
+
+
+@pytest.mark.slow
+def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch, local_ray):
+    """Ray actors send their partitions to the coordinator, which writes
+    them (actors on other machines do not see DIR) and reads them back on
+    resume: interrupted twice, resumed with Ray, then with forked workers
+    (3 instead of 2), the uninterrupted result; and a checkpoint of forked
+    workers resumes with Ray."""
+    program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
+                                                         blackbox="nondet", find_all=True)
+    full = par_summary(api.explore(program, workers=2, **opts))
+    d = str(tmp_path / "ck")
+    for k, resume in ((7, False), (20, True)):
+        _cut_at(monkeypatch, k)
+        r = api.explore(program, workers=2, ray="auto", checkpoint=d,
+                        **(dict(resume=d) if resume else {}), **opts)
+        monkeypatch.undo()
+        assert r.status == "interrupted"
+    assert par_summary(api.explore(program, workers=3, resume=d, **opts)) == full
+    assert par_summary(api.explore(program, workers=2, ray="auto", resume=d, **opts)) == full
+    d2 = str(tmp_path / "ck2")
+    _cut_at(monkeypatch, 12)
+    r = api.explore(program, workers=2, checkpoint=d2, **opts)
+    monkeypatch.undo()
+    assert r.status == "interrupted"
+    assert par_summary(api.explore(program, workers=3, ray="auto", resume=d2, **opts)) == full
+
+
+# ---------------------------------------------------------------------------
+# --fastest: the buckets are the frontier
+# ---------------------------------------------------------------------------
+
+FASTEST_CASES = [
+    ("fischer-k1", f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, depth=20)),
+    ("race-nondet-none", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", reduce="none")),
+    ("race-nondet-all", f"{PROG}/race_nonatomic.pccl",
+     dict(world=f"{PROG}/race.toml", blackbox="nondet", find_all=True, max_states=900)),
+    ("tl-spin", f"{TPROG}/tl_spin.pccl", dict()),
+]
+
+
+@pytest.mark.parametrize("name,program,opts", FASTEST_CASES, ids=[c[0] for c in FASTEST_CASES])
+def test_fastest_interrupted_mid_bucket_and_resumed_equals_uninterrupted(tmp_path, monkeypatch,
+                                                                        name, program, opts):
+    """Interrupted in the middle of a bucket (a state's expansion) at random
+    points, three times, and resumed: the uninterrupted --fastest result
+    (the checkpoint is the bucket's start: the states queued since are
+    dropped, the bucket is expanded again)."""
+    from pccl.search import fastest as F
+    opts = dict(opts, fastest=True)
+    full = summary(api.explore(program, **opts))
+    orig, count = F._Buckets._expand, [0]
+
+    def counting(self, *a):
+        count[0] += 1
+        if count[0] == cut[0]:
+            raise KeyboardInterrupt
+        return orig(self, *a)
+    monkeypatch.setattr(F._Buckets, "_expand", counting)
+    cut = [0]
+    api.explore(program, **opts)
+    expansions = count[0]
+    rng = random.Random(name)
+    d = str(tmp_path / "ck")
+    resumed = 0
+    for i in range(4):
+        kw = dict(opts, checkpoint=d)
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        count[0], cut[0] = 0, rng.randint(1, max(1, expansions // 3)) if i < 3 else 0
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            break
+    assert summary(r) == full
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
+
+
+def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
+    d = _checkpoint_of(tmp_path)
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written with no --fastest, this run has --fastest" in p.stderr

@@ -106,8 +106,8 @@ def test_a_bad_options_part_is_one_clear_error(tmp_path):
      "--fastest searches in one process: use --workers 1"),
     (ExploreOptions(exact=True, ray="local"), "exact=True runs in one process: use workers=1 "
      "without ray", "--exact runs in one process: use --workers 1 without --ray"),
-    (ExploreOptions(resume="d", coverage=True), "resume does not run with coverage=True yet",
-     "--resume does not run with --coverage yet"),
+    (ExploreOptions(resume="d", functions={"getInput": ()}), "resume does not run with "
+     "functions= (a Python object", "--resume does not run with functions= (a Python object"),
 ])
 def test_a_cross_option_check_is_written_once_and_spelt_twice(opts, api_text, cli_text):
     from pccl.cli import cli_spelling

@@ -364,13 +364,6 @@ def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if o.checkpoint is None and o.resume is None:
         return None
     what = "resume" if o.checkpoint is None else "checkpoint"
-    if o.ray is not None or o.workers != 1:
-        return Conflict(what, f"{{{what}}} runs in one process for now: use {{workers=1}} "
-                              "without {ray}")
-    if o.fastest:
-        return Conflict(what, f"{{{what}}} does not run with {{fastest=True}} yet")
-    if o.coverage:
-        return Conflict(what, f"{{{what}}} does not run with {{coverage=True}} yet")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
             return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "

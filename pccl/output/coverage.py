@@ -73,6 +73,43 @@ class CoverageModel:
                         pass
         return out
 
+    # -- checkpoints (pccl/search/checkpoint.py) ---------------------------------------
+    _COUNTS = ("held", "fired", "executed", "rules")
+
+    def checkpoint_mark(self) -> None:
+        """The search is where a checkpoint may be taken (a level's or a
+        bucket's start): the tallies as they stand, which
+        :meth:`checkpoint_tables` reports (a checkpoint written later, on
+        an interrupt, must not count the expansions the resumed search
+        repeats)."""
+        self._marked = ({name: Counter(getattr(self, name)) for name in self._COUNTS},
+                        self.expanded)
+
+    def checkpoint_tables(self) -> dict:
+        inner = getattr(self.model, "checkpoint_tables", None)
+        marked = getattr(self, "_marked", None)
+        if marked is None:
+            self.checkpoint_mark()
+            marked = self._marked
+        return {"model": inner() if inner is not None else None,
+                "coverage": {"counts": {k: dict(v) for k, v in marked[0].items()},
+                             "expanded": marked[1]}}
+
+    def restore_tables(self, data: dict) -> None:
+        inner = getattr(self.model, "restore_tables", None)
+        if inner is not None and data.get("model") is not None:
+            inner(data["model"])
+        cov = data["coverage"]
+        for name in self._COUNTS:
+            setattr(self, name, Counter(cov["counts"][name]))
+        self.expanded = int(cov["expanded"])
+        self._inits = max(self._inits, 1)   # the search's own call: a later one is a replay
+
+    def prepare(self) -> None:
+        inner = getattr(self.model, "prepare", None)
+        if inner is not None:
+            inner()
+
     def report(self) -> "CoverageReport":
         m = self.model
         rep = CoverageReport(expanded=self.expanded, filename=m.program.filename,

@@ -1,5 +1,5 @@
-"""Checkpoints of a one-process search, and resuming from them (``--checkpoint DIR``,
-``--resume DIR``).
+"""Checkpoints of a search, and resuming from them (``--checkpoint DIR``, ``--resume
+DIR``): one process (breadth first or ``--fastest``), ``--workers N`` and ``--ray``.
 
 A checkpoint is taken at a breadth-first level boundary: the visited table
 (fingerprints and parent links, numpy ``.npy`` files), the graph the
@@ -26,6 +26,11 @@ A generation is written into ``DIR/tmp-*``, its files fsynced, renamed to
 fsynced temporary file): a crash at any point leaves the previous manifest
 naming the previous, complete generation.  Older generations are removed
 after the new manifest is in place.
+
+The parallel search's checkpoints (``--workers N``, ``--ray``) hold the
+coordinator's part at the top of a generation and one partition per worker
+in ``wNNN/``: see "The parallel search" below.  ``--fastest`` keeps its
+bucket queue as the frontier (pccl/search/fastest.py).
 """
 
 from __future__ import annotations
@@ -222,27 +227,20 @@ class Checkpointer:
     def write(self, state: dict, arrays: dict) -> None:
         """Write a generation: ``arrays`` (name -> numpy array) and ``state``
         (pickled), then the manifest naming them."""
+        self.write_generation(lambda tmp: write_part(tmp, "", state, arrays), state)
+
+    def write_generation(self, fill, state: dict, extra: Optional[dict] = None) -> None:
+        """Write a generation: ``fill(tmp)`` writes its files into the
+        temporary directory ``tmp`` and returns their ``{name: {"bytes",
+        "xxh3"}}`` (:func:`write_part`; the parallel search's workers write
+        their partitions there too); then the manifest (with ``extra``)
+        names them.  ``state`` gives the depth and states it reports."""
         assert self.dir is not None
         t0 = _time.perf_counter()
         d = self.dir
         os.makedirs(d, exist_ok=True)
         tmp = tempfile.mkdtemp(prefix="tmp-", dir=d)
-        files: dict = {}
-        for name, arr in arrays.items():
-            arr = np.ascontiguousarray(arr)
-            fname = f"{name}.npy"
-            with open(os.path.join(tmp, fname), "wb") as f:
-                np.save(f, arr, allow_pickle=False)
-                f.flush()
-                os.fsync(f.fileno())
-                size = f.tell()
-            files[fname] = {"bytes": size, "xxh3": _array_digest(arr)}
-        blob = pickle.dumps(state, protocol=5)
-        with open(os.path.join(tmp, "state.pkl"), "wb") as f:
-            f.write(blob)
-            f.flush()
-            os.fsync(f.fileno())
-        files["state.pkl"] = {"bytes": len(blob), "xxh3": _digest(blob)}
+        files = fill(tmp)
         _fsync_dir(tmp)
         self.generation += 1
         gen = f"gen-{self.generation:06d}"
@@ -254,7 +252,7 @@ class Checkpointer:
         manifest = {"format": FORMAT, "pccl": _pccl_version(), "generation": gen,
                     "written": _time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                     "depth": state["depth"], "states": state["n"],
-                    "identity": self.identity, "files": files}
+                    "identity": self.identity, **(extra or {}), "files": files}
         fd, mtmp = tempfile.mkstemp(prefix="tmp-manifest-", dir=d)
         with os.fdopen(fd, "w") as mf:
             json.dump(manifest, mf, indent=1)
@@ -279,25 +277,57 @@ class Checkpointer:
         self.write_seconds += _time.perf_counter() - t0
         self.bytes = sum(f["bytes"] for f in files.values())
 
+    # -- the parallel search (below: parallel.py imports no checkpoint code) ----
+    def save_parallel(self, ex) -> None:
+        parallel_save(ex)
+
+    def load_parallel(self, ex) -> tuple[dict, dict]:
+        return parallel_load(ex)
+
+    def restore_parallel(self, ex, state: dict, arrays: dict) -> dict:
+        return parallel_restore(ex, state, arrays)
+
     # -- reading ---------------------------------------------------------------
     def _bad(self, why: str) -> CheckpointError:
         return CheckpointError(f"{self.resume_dir}: {why}", filename="{resume}", template=True)
 
-    def load(self) -> tuple[dict, dict]:
+    def load(self, parallel: bool = False) -> tuple[dict, dict]:
         """The checkpoint in :attr:`resume_dir`: ``(state, arrays)``, after
-        checking that it is whole and that it was written for this search."""
+        checking that it is whole and that it was written for this search.
+        ``parallel``: the search resuming is the parallel one (``--workers
+        N``, ``--ray``), whose checkpoints hold partitions: their files are
+        read later, by :func:`read_part` (:attr:`parts`: per partition its
+        files in the manifest; :attr:`gen_dir`: where they are)."""
         d = self.resume_dir
         assert d is not None
         man = self._manifest(d)
         gen, files = man["generation"], man["files"]
-        state, arrays = self._read_generation(os.path.join(d, gen), gen, files)
+        parts = man.get("partitions", 0)
+        if parallel and not parts:
+            raise self._bad("the checkpoint was written by one process ({workers=1}); resume "
+                            "it with {workers=1} without {ray}")
+        if parts and not parallel:
+            raise self._bad(f"the checkpoint was written by {parts} workers; resume it with "
+                            f"{{workers=N}} (N of 2 or more, not necessarily {parts}) or {{ray}}")
+        top = {k: v for k, v in files.items() if "/" not in k}
+        self.gen_dir = os.path.join(d, gen)
+        self.parts = [{k[len(p) + 1:]: v for k, v in files.items() if k.startswith(p + "/")}
+                      for p in map(part_name, range(parts))]
+        if any(not p for p in self.parts):
+            raise self._bad(f"the checkpoint is corrupt ({MANIFEST} lacks a partition)")
+        state, arrays = self._read_generation(self.gen_dir, gen, top)
         self.generation = int(gen[4:])
         self.resumed = {"depth": state["depth"], "states": state["n"]}
         self.last_saved = (state["depth"], state["n"])
-        if self.note is not None:
-            self.note(f"resumed from {d} at depth {state['depth']}, {state['n']:,} states")
+        if not parallel:            # the parallel search: once the partitions are read too
+            self.say_resumed()
         self.last_write = _time.monotonic()
         return state, arrays
+
+    def say_resumed(self) -> None:
+        if self.note is not None and self.resumed is not None:
+            self.note(f"resumed from {self.resume_dir} at depth {self.resumed['depth']}, "
+                      f"{self.resumed['states']:,} states")
 
     def _manifest(self, d: str) -> dict:
         """The manifest of the checkpoint in ``d``, checked: format,
@@ -330,34 +360,11 @@ class Checkpointer:
     def _read_generation(self, gdir: str, gen: str, files: dict) -> tuple[dict, dict]:
         """The generation's state and arrays, every file checked against
         its size and digest in the manifest."""
-        arrays: dict = {}
-        state: Any = None
         try:
-            for fname, info in files.items():
-                p = os.path.join(gdir, fname)
-                size = os.path.getsize(p)
-                if size != info["bytes"]:
-                    raise ValueError(f"{gen}/{fname} has {size:,} bytes, the manifest "
-                                     f"says {info['bytes']:,}")
-                if fname == "state.pkl":
-                    with open(p, "rb") as f:
-                        data = f.read()
-                    if _digest(data) != info["xxh3"]:
-                        raise ValueError(f"{gen}/{fname} does not match its digest")
-                    state = pickle.loads(data)
-                    del data
-                else:
-                    # mapped, not read: the table is copied once, into the search's
-                    arr = np.load(p, mmap_mode="r", allow_pickle=False)
-                    if _array_digest(arr) != info["xxh3"]:
-                        raise ValueError(f"{gen}/{fname} does not match its digest")
-                    arrays[fname[:-4]] = arr
-            if not isinstance(state, dict) or "depth" not in state:
-                raise ValueError("state.pkl holds no search state")
-        except Exception as e:          # a missing, truncated or altered file
+            return read_part(gdir, files, gen)
+        except ValueError as e:          # a missing, truncated or altered file
             raise self._bad(f"the checkpoint is corrupt ({e}); write a new one with "
                             "{checkpoint}") from None
-        return state, arrays
 
     def _check_identity(self, got) -> None:
         want = self.identity
@@ -377,6 +384,77 @@ class Checkpointer:
                                 f"this run has {describe_option(name, wo.get(name))}")
 
 
+def part_name(w: int) -> str:
+    """The subdirectory of a generation holding partition ``w`` of a
+    parallel search."""
+    return f"w{w:03d}"
+
+
+def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
+    """Write ``arrays`` (name -> numpy array, as ``.npy``) and ``state``
+    (``state.pkl``) into ``tmp/prefix``, each file fsynced; their
+    ``{"prefix/name": {"bytes", "xxh3"}}`` for the manifest.  (Called in a
+    worker's process too: it writes its own partition.)"""
+    where = os.path.join(tmp, prefix) if prefix else tmp
+    os.makedirs(where, exist_ok=True)
+    pre = prefix + "/" if prefix else ""
+    files: dict = {}
+    for name, arr in arrays.items():
+        arr = np.ascontiguousarray(arr)
+        fname = f"{name}.npy"
+        with open(os.path.join(where, fname), "wb") as f:
+            np.save(f, arr, allow_pickle=False)
+            f.flush()
+            os.fsync(f.fileno())
+            size = f.tell()
+        files[pre + fname] = {"bytes": size, "xxh3": _array_digest(arr)}
+    blob = pickle.dumps(state, protocol=5)
+    with open(os.path.join(where, "state.pkl"), "wb") as f:
+        f.write(blob)
+        f.flush()
+        os.fsync(f.fileno())
+    files[pre + "state.pkl"] = {"bytes": len(blob), "xxh3": _digest(blob)}
+    if prefix:
+        _fsync_dir(where)
+    return files
+
+
+def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
+    """The state and arrays of the files ``files`` (names relative to
+    ``gdir``, as :func:`write_part` returned them), each checked against
+    its size and digest; ValueError saying what is wrong."""
+    arrays: dict = {}
+    state: Any = None
+    label = f"{gen}/" if gen else ""
+    try:
+        for fname, info in files.items():
+            p = os.path.join(gdir, fname)
+            size = os.path.getsize(p)
+            if size != info["bytes"]:
+                raise ValueError(f"{label}{fname} has {size:,} bytes, the manifest "
+                                 f"says {info['bytes']:,}")
+            if fname == "state.pkl":
+                with open(p, "rb") as f:
+                    data = f.read()
+                if _digest(data) != info["xxh3"]:
+                    raise ValueError(f"{label}{fname} does not match its digest")
+                state = pickle.loads(data)
+                del data
+            else:
+                # mapped, not read: the table is copied once, into the search's
+                arr = np.load(p, mmap_mode="r", allow_pickle=False)
+                if _array_digest(arr) != info["xxh3"]:
+                    raise ValueError(f"{label}{fname} does not match its digest")
+                arrays[fname[:-4]] = arr
+        if not isinstance(state, dict) or "depth" not in state:
+            raise ValueError(f"{label}state.pkl holds no search state")
+    except ValueError:
+        raise
+    except Exception as e:
+        raise ValueError(f"{label}: {type(e).__name__}: {e}") from None
+    return state, arrays
+
+
 def _fsync_dir(path: str) -> None:
     try:
         fd = os.open(path, os.O_RDONLY)
@@ -388,3 +466,241 @@ def _fsync_dir(path: str) -> None:
         pass
     finally:
         os.close(fd)
+
+
+# ---------------------------------------------------------------------------
+# The parallel search (pccl/search/parallel.py): --workers N and --ray
+# ---------------------------------------------------------------------------
+#
+# A checkpoint is taken at a level boundary, the workers' synchronisation
+# point, once the coordinator's decision on the last level is committed
+# (every owner has recorded its new states, every generator holds the states
+# it won): the coordinator writes its part (the global parent links, who
+# holds each state of the level, the statistics, the violations, the
+# bounds), each worker its partition (fingerprints and state numbers of the
+# states it owns, the states of the level it holds, the graph it recorded)
+# into ``tmp-*/wNNN/``, and the manifest, naming every file, is replaced
+# last (:meth:`Checkpointer.write_generation`).  With ``--workers N`` the
+# workers write their partitions themselves (one machine); with ``--ray``
+# they send them to the coordinator, which writes them (the actors may be on
+# machines that do not see ``DIR``), and it reads them back on resume.
+#
+# Owners are decided by fingerprints (the low word modulo the number of
+# workers), so a checkpoint of N workers resumes with M: every new worker
+# reads every partition and keeps the fingerprints it owns now and the
+# states of the level numbered ``w`` modulo M.  (With M = N each reads its
+# own partition only, and the level stays where it was.)
+
+#: The arrays of a worker's recorded graph (see ``_Worker.graph``): lists of
+#: arrays, and lists of numbers.
+_ARRAYS = ("g_src", "g_fps", "g_idx")
+_SCALARS = ("g_chg_idx", "g_chg")
+_GRAPH_TYPES = {"g_src": (np.uint32, (0,)), "g_fps": (np.uint64, (0, 2)),
+                "g_idx": (np.int64, (0,)), "g_chg_idx": (np.int64, (0,)),
+                "g_chg": (np.uint8, (0,))}
+
+
+def _joined(parts: list, name: str) -> np.ndarray:
+    dtype, shape = _GRAPH_TYPES[name]
+    if not parts:
+        return np.zeros(shape, dtype=dtype)
+    return np.concatenate([np.asarray(p, dtype=dtype) for p in parts])
+
+
+def worker_snapshot(w, depth: int) -> tuple[dict, dict]:
+    """Worker ``w``'s partition (a ``parallel._Worker`` whose last decision
+    is committed): ``(state, arrays)``."""
+    assert w.pending is None and w.cand_keys is None, "a level boundary, decision committed"
+    t = w.table
+    arrays = {"fps": t.fps[:t.n], "parents": t.parents[:t.n]}
+    state = {"depth": depth, "wid": w.wid, "workers": w.n, "level_idx": list(w.level_idx),
+             "level": w.level, "columns": w.columns is not None, "ncols": 0}
+    # the model's lazily interned tables as this worker has them: the states it
+    # holds may refer to entries only this process made (a stuck agent's reason)
+    tables = getattr(w.m, "checkpoint_tables", None)
+    state["tables"] = tables() if tables is not None else None
+    if w.columns is not None:
+        for name in _ARRAYS:         # joined once: the next snapshot joins only what is new
+            joined = _joined(getattr(w, name), name)
+            setattr(w, name, [joined] if len(joined) else [])
+            arrays[name] = joined
+        for name in _SCALARS:        # per expanded state, kept as lists of numbers
+            dtype, _ = _GRAPH_TYPES[name]
+            arrays[name] = np.asarray(getattr(w, name), dtype=dtype)
+        cols = [np.concatenate(c) for c in zip(*w.g_cols)] if w.g_cols else []
+        w.g_cols = [tuple(cols)] if cols else []
+        state["ncols"] = len(cols)
+        for i, c in enumerate(cols):
+            arrays[f"g_col{i}"] = c
+    return state, arrays
+
+
+def worker_restore(w, pieces: list, same: bool) -> int:
+    """Fill the fresh worker ``w`` from partitions ``pieces`` (``(state,
+    arrays)`` of :func:`worker_snapshot`): with ``same`` (as many workers as
+    wrote them) its own partition, whole; else every partition, of which it
+    keeps the fingerprints it owns and the level's states numbered ``w``
+    modulo the number of workers, and the graphs of partitions ``w`` modulo
+    that number.  Returns how many states its table holds."""
+    n, wid = w.n, w.wid
+    fps: list = []
+    parents: list = []
+    level: list = []
+    restore = getattr(w.m, "restore_tables", None)
+    for state, _ in pieces:
+        if restore is not None and state.get("tables") is not None:
+            restore(state["tables"])
+    for state, arrays in pieces:
+        if state.get("columns") != (w.columns is not None):
+            raise ValueError("the checkpoint's recorded graph does not match this search's")
+        f, p = arrays["fps"], arrays["parents"]
+        if f.dtype != np.uint64 or f.ndim != 2 or f.shape[1:] != (2,) \
+                or p.dtype != np.uint32 or p.shape != (len(f),):
+            raise ValueError("the fingerprint arrays have the wrong shape or type")
+        if not same:
+            mine = (f[:, 1] % np.uint64(n)) == np.uint64(wid)
+            f, p = f[mine], p[mine]
+        fps.append(np.array(f))
+        parents.append(np.array(p))
+        idx, states = state["level_idx"], state["level"]
+        if len(idx) != len(states):
+            raise ValueError("a partition's level and its numbers do not agree")
+        level.extend(zip(idx, states) if same else
+                     ((g, s) for g, s in zip(idx, states) if g % n == wid))
+        if w.columns is not None and (same or state["wid"] % n == wid):
+            for name in _ARRAYS:
+                a = np.array(arrays[name])
+                if len(a):
+                    getattr(w, name).append(a)
+            for name in _SCALARS:
+                getattr(w, name).extend(np.asarray(arrays[name]).tolist())
+            cols = tuple(np.array(arrays[f"g_col{i}"]) for i in range(state["ncols"]))
+            if cols and len(cols[0]):
+                w.g_cols.append(cols)
+    if fps:
+        f = np.concatenate(fps) if len(fps) > 1 else fps[0]
+        p = np.concatenate(parents) if len(parents) > 1 else parents[0]
+        del fps, parents
+        if len(f):
+            w.table.insert(f, p)
+    level.sort(key=lambda gs: gs[0])
+    w.level_idx = [g for g, _ in level]
+    w.level = [s for _, s in level]
+    return int(w.table.n)
+
+
+def worker_save(w, tmp: str, w_out: int, depth: int) -> dict:
+    """A worker writes its partition into ``tmp`` itself (``--workers N``)."""
+    state, arrays = worker_snapshot(w, depth)
+    return write_part(tmp, part_name(w_out), state, arrays)
+
+
+def worker_load(w, gdir: str, parts: list, same: bool) -> int:
+    """A worker reads the partitions ``parts`` (``[(name, files)]``) from
+    the generation ``gdir`` itself, then :func:`worker_restore`."""
+    pieces = [read_part(os.path.join(gdir, name), files, f"{os.path.basename(gdir)}/{name}")
+              for name, files in parts]
+    return worker_restore(w, pieces, same)
+
+
+def parallel_save(ex) -> None:
+    """Write the checkpoint of the parallel search ``ex`` (a
+    ``ParallelExplorer``) at the level boundary of its mark."""
+    ck, mark, T, n = ex.checkpoint, ex._ck_mark, ex.transport, ex.workers
+    assert ck is not None and mark is not None
+    if ex._decisions:           # the owners record the last level's states first
+        ex._note_peaks(T.all("commit", [(d,) for d in ex._decisions]))
+        ex._decisions = None
+    res, total, depth = ex._res, ex._total, mark["depth"]
+    stats = res.stats
+    tables = getattr(ex.model, "checkpoint_tables", None)
+    state = {"kind": "parallel", "workers": n, "depth": depth, "n": total,
+             "level_base": mark["level_base"],
+             "transitions": stats.transitions, "max_depth": stats.max_depth,
+             "initial_states": stats.initial_states, "frontier": stats.frontier,
+             "bounds": [b.value for b in ex._bounds],
+             "found": [(f.violation, f.index, f.depth) for f in res.found],
+             "peak_workers": list(ex.peak_workers),
+             "seconds": _time.perf_counter() - ex._t_start,
+             "tables": tables() if tables is not None else None}
+    arrays = {"parents": ex.parents[:total], "holder": np.asarray(mark["holder"], np.int64)}
+
+    def fill(tmp: str) -> dict:
+        files = write_part(tmp, "", state, arrays)
+        if getattr(T, "shared_files", False):      # the workers write their own
+            for f in T.all("checkpoint", [(worker_save, tmp, w, depth) for w in range(n)]):
+                files.update(f)
+        else:                                       # Ray: sent here, one at a time
+            for w in range(n):
+                wstate, warrays = T.call(w, "checkpoint", worker_snapshot, depth)
+                files.update(write_part(tmp, part_name(w), wstate, warrays))
+                del wstate, warrays
+        return files
+    try:
+        ck.write_generation(fill, state, {"partitions": n})
+    except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
+        ck.failed(e)
+
+
+def parallel_load(ex) -> tuple[dict, dict]:
+    """Read the coordinator's part of the checkpoint ``ex`` resumes from and
+    restore the model's tables (before the workers start)."""
+    ck = ex.checkpoint
+    state, arrays = ck.load(parallel=True)
+    try:
+        if state.get("kind") != "parallel" or "parents" not in arrays or "holder" not in arrays:
+            raise ValueError("the coordinator's state is not a parallel search's")
+        restore = getattr(ex.model, "restore_tables", None)
+        if restore is not None and state.get("tables") is not None:
+            restore(state["tables"])
+    except (ValueError, KeyError, TypeError) as e:
+        raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                      "{checkpoint}") from None
+    return state, arrays
+
+
+def parallel_restore(ex, state: dict, arrays: dict) -> dict:
+    """Put the parallel search ``ex`` (its workers started) back where the
+    checkpoint left it; returns where its level loop starts
+    (``depth``, ``level_base``, ``holder``)."""
+    from pccl.search.explorer import Bound, Counterexample
+    ck, T, n = ex.checkpoint, ex.transport, ex.workers
+    old = len(ck.parts)
+    same = old == n
+    try:
+        total, base = int(state["n"]), int(state["level_base"])
+        parents, holder = arrays["parents"], arrays["holder"]
+        if len(parents) != total or len(holder) != total - base or not 0 <= base <= total:
+            raise ValueError("the coordinator's arrays and figures do not agree")
+        names = [(part_name(w), ck.parts[w]) for w in range(old)]
+        if getattr(T, "shared_files", False):
+            counts = T.all("checkpoint", [(worker_load, ck.gen_dir, [names[w]] if same else names, same)
+                                    for w in range(n)])
+        else:
+            pieces = [read_part(os.path.join(ck.gen_dir, name), files,
+                                f"{os.path.basename(ck.gen_dir)}/{name}")
+                      for name, files in names]
+            counts = [T.call(w, "checkpoint", worker_restore, [pieces[w]] if same else pieces, same)
+                      for w in range(n)]
+            del pieces
+        if sum(counts) != total:
+            raise ValueError(f"the partitions hold {sum(counts):,} states, the coordinator "
+                             f"{total:,}")
+    except (ValueError, KeyError, TypeError, IndexError) as e:
+        raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                      "{checkpoint}") from None
+    ex._put_parents(0, np.asarray(parents, dtype=np.uint32))
+    res, stats = ex._res, ex._res.stats
+    stats.transitions, stats.max_depth = state["transitions"], state["max_depth"]
+    stats.initial_states, stats.frontier = state["initial_states"], state["frontier"]
+    ex._bounds.update(Bound(b) for b in state["bounds"])
+    for v, idx, d in state["found"]:
+        res.found.append(Counterexample(v, idx, d))
+        ex._reported.add(v.identity)
+    if same:
+        ex.peak_workers = list(state["peak_workers"])
+    ck.say_resumed()
+    return {"depth": state["depth"], "level_base": base,
+            "holder": np.array(holder, dtype=np.int64) if same else
+            np.arange(base, total, dtype=np.int64) % n,
+            "seconds": state["seconds"]}

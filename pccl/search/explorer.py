@@ -876,6 +876,9 @@ class Explorer:
         holds besides the arrays (which are cut at ``n`` when written: the
         table and the recorded graph only grow)."""
         stats, rec = adm.stats, self.recorder
+        mark = getattr(self.model, "checkpoint_mark", None)
+        if mark is not None:        # a model with state of its own (the coverage tallies)
+            mark()
         first = level_idx[0] if level_idx else self.table.n
         assert not level_idx or level_idx[-1] - first + 1 == len(level_idx) == self.table.n - first
         return {"depth": depth, "n": self.table.n, "level": level, "first": first,

@@ -32,7 +32,7 @@ from typing import Any, Protocol, cast
 import numpy as np
 import xxhash
 
-from pccl.search.explorer import (OUT_OF_MEMORY, Bound, Explorer, Model, ExactTable, FingerprintTable,
+from pccl.search.explorer import (OUT_OF_MEMORY, Bound, Counterexample, Explorer, Model, ExactTable, FingerprintTable,
                        Progress, SearchResult, Stats, _NO_PARENT, peak_rss_bytes, terminal)
 
 __all__ = ["FastestExplorer", "TimedModel"]
@@ -70,13 +70,22 @@ class FastestExplorer(Explorer):
         res = SearchResult("exhaustive", stats=stats, exact=self.exact)
         t_start = _time.perf_counter()
         fr = _Buckets(self, res)
-        progress = Progress(self.progress, self.progress_interval, t_start)
+        ck = self.checkpoint
+        self._mark = None
         try:
-            for chunk in self._initial_chunks(lambda: fr.budget):
-                fr.push_new(chunk, 0, 0, _NO_PARENT, [0] * len(chunk))
-            stats.initial_states = self.table.n
+            if ck is not None and ck.resume_dir is not None:
+                t_start -= self._resume(fr, res)
+            else:
+                for chunk in self._initial_chunks(lambda: fr.budget):
+                    fr.push_new(chunk, 0, 0, _NO_PARENT, [0] * len(chunk))
+                stats.initial_states = self.table.n
+            progress = Progress(self.progress, self.progress_interval, t_start)
             stop = False
             while fr.heap and not stop:
+                if ck is not None:
+                    self._mark = fr.mark(t_start)
+                    if ck.due() and ck.last_saved != (stats.max_depth, self.table.n):
+                        self._save_buckets(fr, res)
                 stop = fr.expand_bucket()
                 if not stop and self.max_memory is not None:
                     stop = self._memory_bound(fr.bounds, peak_rss_bytes())
@@ -85,11 +94,52 @@ class FastestExplorer(Explorer):
                                        "memory": peak_rss_bytes(), "max_time": None})
         except KeyboardInterrupt:
             res.status = "interrupted"
+            if ck is not None and ck.dir is not None and self._mark is not None:
+                self._save_buckets(fr, res)
         except MemoryError:                 # as Explorer: the figures so far
             fr.buckets.clear()
             res.status = OUT_OF_MEMORY
         stats.frontier = fr.waiting()
-        return self._finish(res, fr.bounds, t_start, peak_rss_bytes())
+        return self._finish(res, fr.bounds, t_start, max(peak_rss_bytes(), self._peak_before))
+
+    # -- checkpoints (pccl/search/checkpoint.py): the buckets are the frontier ------
+    def _save_buckets(self, fr: "_Buckets", res: SearchResult) -> None:
+        """Write the checkpoint of the search as it stood at the mark (the
+        start of the bucket under way: :meth:`_Buckets.at_mark`)."""
+        assert self._mark is not None
+        self._mark["buckets"] = fr.at_mark(self._mark["n"])
+        try:
+            self._save(cast(Any, None), res)      # (no admission batch: the buckets)
+        finally:
+            self._mark["buckets"] = None
+
+    def _resume(self, fr: "_Buckets", res: SearchResult) -> float:
+        """Put the search back where the checkpoint left it; the seconds
+        spent before it."""
+        ck = self.checkpoint
+        state, arrays = ck.load()
+        try:
+            if state.get("kind") != "fastest":
+                raise ValueError("it was not written by a {fastest} search")
+            tables = getattr(self.model, "restore_tables", None)
+            if tables is not None and state.get("tables") is not None:
+                tables(state["tables"])
+            if self.exact != ("exact" in state):
+                raise ValueError("the checkpoint's state identity ({exact} or not) differs")
+            self.table.load(state["exact"] if self.exact else arrays)
+            if self.table.n != state["n"]:
+                raise ValueError("the checkpoint's table and figures do not agree")
+            fr.restore(state, res)
+            if self.recorder is not None:
+                self.recorder.load({k[4:]: v for k, v in arrays.items() if k.startswith("rec_")},
+                                   state["rec_complete"])
+        except (ValueError, KeyError, TypeError, IndexError, AttributeError) as e:
+            raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                          "{checkpoint}") from None
+        self._peak_before = state["peak_memory"]
+        if self.labels is not None and state["labels"] is not None:
+            self.labels.update(state["labels"])
+        return state["seconds"]
 
 
 class _Buckets:
@@ -111,11 +161,15 @@ class _Buckets:
         self.table = ex.table
         self.rec = ex.recorder
         self.stats = res.stats
-        self.record = ex._recorder(res.found, set())
+        self.found = res.found
+        self.reported: set = set()
+        self.record = ex._recorder(res.found, self.reported)
         self.bounds: set = set()
         self.budget = ex._budget()
         self.buckets: dict = {}
         self.heap: list = []
+        #: the bucket taken off the heap since the last :meth:`mark`
+        self.current: Any = None
 
     def waiting(self) -> int:
         return sum(len(b) for b in self.buckets.values())
@@ -165,10 +219,58 @@ class _Buckets:
         k = heapq.heappop(self.heap)
         ticks, depth = k
         self.stats.max_depth = max(self.stats.max_depth, depth)
-        for s, idx in self.buckets.pop(k):
+        self.current = (k, self.buckets.pop(k))
+        for s, idx in self.current[1]:
             if self._expand(s, idx, ticks, depth):
                 return True
         return False
+
+    # -- checkpoints --------------------------------------------------------------
+    def mark(self, t_start: float) -> dict:
+        """The search between two buckets: what a checkpoint holds besides
+        the table and the graph (cut at ``n`` when written: they only grow)
+        and the buckets (:meth:`at_mark`, when written)."""
+        ex, stats, rec = self.ex, self.stats, self.rec
+        self.current = None
+        model_mark = getattr(self.m, "checkpoint_mark", None)
+        if model_mark is not None:      # a model with state of its own (the coverage tallies)
+            model_mark()
+        return {"kind": "fastest", "depth": stats.max_depth, "n": self.table.n,
+                "transitions": stats.transitions, "max_depth": stats.max_depth,
+                "initial_states": stats.initial_states, "max_time": stats.max_time,
+                "budget": self.budget, "bounds": [b.value for b in self.bounds],
+                "nfound": len(self.found),
+                "labels": None if ex.labels is None else set(ex.labels),
+                "runaway": None, "runaway_info": None,
+                "seconds": _time.perf_counter() - t_start,
+                "edges": None if rec is None else rec.src.n,
+                "rec_complete": None if rec is None else rec.complete, "buckets": None}
+
+    def at_mark(self, n: int) -> list:
+        """The buckets as they stood at the mark, when ``n`` states were
+        visited: the states queued since (numbered ``n`` or more) dropped,
+        the bucket under way put back (it is expanded again on resume;
+        nothing queued since went into it: its successors are one
+        transition deeper).  ``[(key, [(state, number)])]``."""
+        out = {k: [e for e in b if e[1] < n] for k, b in self.buckets.items()}
+        if self.current is not None:
+            k, b = self.current
+            out[k] = b
+        return [(k, b) for k, b in sorted(out.items()) if b]
+
+    def restore(self, state: dict, res: SearchResult) -> None:
+        """The buckets and figures of a checkpoint (:meth:`mark`)."""
+        stats = self.stats
+        stats.transitions, stats.max_depth = state["transitions"], state["max_depth"]
+        stats.initial_states, stats.max_time = state["initial_states"], state["max_time"]
+        self.budget = state["budget"]
+        self.bounds.update(Bound(b) for b in state["bounds"])
+        for v, idx, d in state["found"]:
+            res.found.append(Counterexample(v, idx, d))
+            self.reported.add(v.identity)
+        self.buckets = {tuple(k): list(b) for k, b in state["buckets"]}
+        self.heap = list(self.buckets)
+        heapq.heapify(self.heap)
 
     def _expand(self, s, idx: int, ticks: int, depth: int) -> bool:
         """Check and expand one state; True to stop."""

@@ -377,6 +377,11 @@ class _Worker:
         local = self.table.index_of(fp)
         return -1 if local < 0 else int(self.table.parents[local])
 
+    def checkpoint(self, fn, *args):
+        """Checkpoints (pccl/search/checkpoint.py): ``fn(self, *args)`` here,
+        in the worker's process (save or load my partition)."""
+        return fn(self, *args)
+
 
 # ---------------------------------------------------------------------------
 # Transports: how the rounds reach the workers
@@ -492,6 +497,9 @@ class _Pipes:
     """Worker 0 in this process; workers 1..n-1 forked, behind pipes.  A
     round sends to the forked workers first, runs worker 0 meanwhile, then
     collects the replies."""
+
+    #: the workers see the coordinator's files (they write their checkpoint partitions)
+    shared_files = True
 
     def __init__(self, n: int):
         self.n = n
@@ -689,6 +697,10 @@ class _RayTransport:
     search waiting.  Actors that cannot be placed (a cluster without room)
     fail after ``PCCL_RAY_START_TIMEOUT`` seconds (default 300)."""
 
+    #: actors may run on machines that do not see the coordinator's files:
+    #: their checkpoint partitions travel to the coordinator, which writes them
+    shared_files = False
+
     def __init__(self, n: Optional[int], address: str):
         self.n: Any = n                # None until start(): one per CPU of the cluster
         self.address = address
@@ -773,7 +785,8 @@ class _RayTransport:
         return RayWorkerLost(
             f"{{ray={self.address}}}: {who} was lost during the search ({type(exc).__name__}: "
             f"{reason}). Its part of the visited states is gone: the search stops without a "
-            f"verdict; start it again (checkpoints do not cover {{ray}})")
+            f"verdict; resume it from its last checkpoint with {{resume=DIR}} if it ran with "
+            f"{{checkpoint=DIR}}, else start it again")
 
     def _on_dead_nodes(self) -> list:
         """The workers whose node the cluster reports dead (none if the
@@ -930,6 +943,11 @@ class ParallelExplorer(Explorer):
     resident memory, checked once per level.
     """
 
+    #: checkpoints (pccl/search/checkpoint.py): the checkpoint read before the
+    #: workers start, and the level boundary a checkpoint is taken at
+    _resume: Optional[tuple] = None
+    _ck_mark: Optional[dict] = None
+
     def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
                  **options):
         if options.get("exact"):
@@ -946,6 +964,11 @@ class ParallelExplorer(Explorer):
 
     # -- the search ---------------------------------------------------------
     def run(self) -> SearchResult:
+        ck = self.checkpoint
+        # checkpoints: the coordinator's part read (and the model's tables
+        # restored) before the workers start
+        self._resume = ck.load_parallel(self) \
+            if ck is not None and ck.resume_dir is not None else None
         prepare = getattr(self.model, "prepare", None)
         if prepare is not None:
             prepare()       # lazily built tables that states refer to, before the fork
@@ -975,7 +998,8 @@ class ParallelExplorer(Explorer):
         res = SearchResult("exhaustive", stats=Stats())
         self._res = res
         self._bounds: set = set()
-        self._record = self._recorder(res.found, set())
+        self._reported: set = set()
+        self._record = self._recorder(res.found, self._reported)
         self._budget_all = budget = self._budget()
         cap = min(_MAX_STATES, budget + 1)
         self.parents: Any = _reserve((cap,), np.uint32)
@@ -986,13 +1010,22 @@ class ParallelExplorer(Explorer):
         self.peak_workers = [0] * n
         #: per worker: the decision on the last level, sent with the next step
         self._decisions: Any = None
+        ck, self._ck_mark, self._t_start = self.checkpoint, None, t_start
         try:
-            stop = self._initial_rounds()
-            res.stats.initial_states = self._total
-            self._level_rounds(t_start, stop)
+            if self._resume is not None:        # from a checkpoint (pccl/search/checkpoint.py)
+                start = ck.restore_parallel(self, *self._resume)
+                self._resume = None
+                self._t_start = t_start = t_start - start["seconds"]
+                self._level_rounds(t_start, False, start)
+            else:
+                stop = self._initial_rounds()
+                res.stats.initial_states = self._total
+                self._level_rounds(t_start, stop)
         except KeyboardInterrupt:
             res.status = "interrupted"
             self.transport.drain()
+            if ck is not None and ck.dir is not None and self._ck_mark is not None:
+                ck.save_parallel(self)          # the level under way is expanded again
             if self._decisions and res.found:     # the owners must know the states to replay
                 try:
                     self.transport.all("commit", [(d,) for d in self._decisions])
@@ -1054,19 +1087,25 @@ class ParallelExplorer(Explorer):
                 return True
         return False
 
-    def _level_rounds(self, t_start: float, stop: bool) -> None:
+    def _level_rounds(self, t_start: float, stop: bool, start: Optional[dict] = None) -> None:
         """Level by level: every worker expands its share (and commits the
         last decision), the coordinator orders the new states and the stop
-        events by key (:meth:`_stop_events`) and decides (:meth:`_decide`)."""
+        events by key (:meth:`_stop_events`) and decides (:meth:`_decide`).
+        (``start``: where a checkpoint resumed left it.)"""
         n, T, stats = self.workers, self.transport, self._res.stats
         cut = self._total
         holder = np.arange(cut, dtype=np.int64) % n      # who holds each state of the level
         level_base, level_size, depth = 0, cut, 0
+        if start is not None:
+            depth, level_base, holder = start["depth"], start["level_base"], start["holder"]
+            level_size = self._total - level_base
         progress = Progress(self.progress, self.progress_interval, t_start)
         while level_size and not stop:
+            self._ck_level(depth, level_base, holder)
             self.signals.check()
             at_bound = self._at_depth_bound(depth)
             decisions, self._decisions = self._decisions, None
+            self._ck_mark = None        # mid-level: no checkpoint until the next boundary
             replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
                                          for w in range(n)])
             # replies[w]: (successors generated, deadlocks, first number at
@@ -1099,10 +1138,22 @@ class ParallelExplorer(Explorer):
             stats.frontier = cut
             if not stop and self.max_memory is not None:
                 stop = self._memory_bound(self._bounds, self._memory(self.peak_workers))
+            if not stop and self.checkpoint is not None:
+                self._ck_mark = {"depth": depth, "level_base": level_base, "holder": holder}
             self._report(progress, cut, depth)
         if self._decisions:       # the last level's decision: owners record its states
             self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
             self._decisions = None
+
+    def _ck_level(self, depth: int, level_base: int, holder: np.ndarray) -> None:
+        """Checkpoints: at a level boundary (the mark an interrupt saves),
+        written when due (pccl/search/checkpoint.py)."""
+        ck = self.checkpoint
+        if ck is None:
+            return
+        self._ck_mark = {"depth": depth, "level_base": level_base, "holder": holder}
+        if ck.due() and ck.last_saved != (depth, self._total):
+            ck.save_parallel(self)
 
     def _report(self, progress: Progress, frontier: int, depth: int) -> None:
         progress(lambda secs: {"states": self._total, "frontier": frontier, "depth": depth,
