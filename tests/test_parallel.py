@@ -24,6 +24,15 @@ def signature(r):
             [v["trace"] for v in r.violations])
 
 
+def result_signature(r):
+    """The same for a :class:`SearchResult` (Explorer.run)."""
+    s = r.stats
+    return (r.status, s.states, s.transitions, s.max_depth, s.initial_states, s.frontier,
+            sorted(map(str, r.bounds_hit)),
+            [(f.violation.kind, f.index, f.depth, f.trace and tuple(f.trace.labels))
+             for f in r.found])
+
+
 CASES = {
     "fischer-exhaustive": (FISCHER, dict(overrides={"k": "0", "d": "1"})),
     "fischer-violation": (FISCHER, dict(overrides={"k": "1"}, invariants=[MUTEX])),
@@ -104,6 +113,49 @@ def test_discarded_states_are_freed():
     assert r.stats.states > 1000 and P._LITTER == []
 
 
+class _SlowIn:
+    """A model whose successors take ``delay`` seconds longer in the
+    coordinator's process (``coordinator=True``) or in the forked workers':
+    one worker slowed down, as by another job on its core."""
+
+    def __init__(self, model, coordinator: bool, delay: float):
+        import os
+        self.model, self.pid, self.coordinator, self.delay = model, os.getpid(), coordinator, delay
+
+    def __getattr__(self, name):
+        return getattr(self.model, name)
+
+    def successors(self, s):
+        import os
+        import time
+        if (os.getpid() == self.pid) == self.coordinator:
+            time.sleep(self.delay)
+        return self.model.successors(s)
+
+
+@pytest.mark.parametrize("slow, workers", [("coordinator", 2), ("forked", 2), ("forked", 3)])
+def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, monkeypatch):
+    """Balanced levels: when one worker is slow, the others expand part of
+    its share (and hold the successors).  Every figure, the violations and
+    the counterexamples stay those of one process, and the states did move
+    (both ways: the coordinator's worker hands work to a hungry forked
+    worker, and steals from a slow one).  Small chunks, for these small
+    levels (forked workers inherit them)."""
+    from pccl.search import parallel as P
+    monkeypatch.setattr(P, "_CHUNK", 4)
+    monkeypatch.setattr(P, "_MIN_GIVE", 2)
+    for opts in (dict(overrides={"k": "0", "d": "1"}, max_states=3000),
+                 dict(overrides={"k": "1"}, invariants=[MUTEX], find_all=True, max_states=4000)):
+        m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()))
+        run = {k: v for k, v in opts.items() if k in ("max_states", "find_all")}
+        one = Explorer(m, **run).run()
+        e = ParallelExplorer(_SlowIn(m, slow == "coordinator", 0.0005), workers=workers, **run)
+        many = e.run()
+        assert e.moved > 10, e.moved
+        assert result_signature(many) == result_signature(one)
+        assert one.found or one.status == "bounded"
+
+
 LARGE_LEVEL = r"""
 import numpy as np
 from pccl.search import parallel as P
@@ -112,13 +164,18 @@ m = make_model("programs/fischer.pccl", overrides={"k": "0"})
 m.prepare()
 big = 300_000                   # 7 MB of candidates each way, beyond any socket buffer
 
-def step(self, decision, at_bound):
+def finish_step(self):
     f = np.arange(2 * big, dtype=np.uint64).reshape(-1, 2) * np.uint64(2) + np.uint64(self.wid)
     k = np.arange(big, dtype=np.uint64)
     self.own = (f[:0], k[:0])
-    return (*[None if o == self.wid else (f, k) for o in range(self.n)], (big, [], None, None, [], 0))
+    return (*[None if o == self.wid else (f, k) for o in range(self.n)],
+            (big, [], None, None, [], 0, np.zeros(0, np.int64)))
 
-P._Worker.step = step
+def step(self, decision, at_bound):
+    return finish_step(self)
+
+P._Worker.step = step               # PCCL_BALANCE=0
+P._Worker.finish_step = finish_step     # balanced levels
 t = P._Pipes(2)
 t.start(m, True, False)
 try:
@@ -129,11 +186,14 @@ finally:
 """
 
 
-def test_pipes_exchange_large_levels_without_deadlock():
+@pytest.mark.parametrize("balance", ["1", "0"])
+def test_pipes_exchange_large_levels_without_deadlock(balance):
     """Two workers whose candidates for each other exceed the socket
-    buffers: the pipelined level must not leave both writing at once."""
+    buffers: the pipelined level must not leave both writing at once
+    (balanced levels, and with ``PCCL_BALANCE=0``)."""
+    import os
     r = subprocess.run([sys.executable, "-c", LARGE_LEVEL], capture_output=True, text=True,
-                       timeout=120)
+                       timeout=120, env=dict(os.environ, PCCL_BALANCE=balance))
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["300000", "300000", "300000"]
 

@@ -72,6 +72,7 @@ import gc
 import itertools
 import marshal
 import multiprocessing
+import multiprocessing.connection
 import operator
 import os
 import signal
@@ -191,51 +192,132 @@ class _Worker:
     def expand(self, at_bound: bool):
         """Successors of my share of the level.  Returns the candidates
         grouped by owner (first occurrences only, my own already-visited
-        ones dropped), per expanded parent its number and successor count,
-        deadlocks ``[(number, violation)]``, the first numbers that met the
-        depth and model bounds, the violating candidates ``[(key,
-        violations)]`` and my peak memory."""
-        m, succ_fn = self.m, self.m.successors
+        ones dropped), the number of successors generated, deadlocks
+        ``[(number, violation)]``, the smallest numbers that met the depth
+        and model bounds, the violating candidates ``[(key, violations)]``,
+        my peak memory and the numbers of the parents I expanded for
+        another worker (:meth:`take`).
+
+        The same as :meth:`begin`, :meth:`expand_some` until nothing is
+        left, :meth:`finish`: a transport that balances the level (the
+        pipes) expands it a chunk at a time and lets an idle worker take
+        part of what is left (:meth:`give`, :meth:`take`)."""
+        self.begin(at_bound)
+        self.expand_some(None)
+        return self.finish()
+
+    def begin(self, at_bound: bool) -> None:
+        """Start expanding my share of the level (see :meth:`expand`)."""
+        # the work: blocks [numbers, states, position, foreign], expanded
+        # from the front, given away (:meth:`give`) from the back
+        self.work: list = [[self.level_idx, self.level, 0, False]] if self.level else []
+        self.level, self.level_idx = [], []
+        self.x_bound = at_bound
+        self.x_cs: list = []
+        self.x_par_idx: list = []
+        self.x_par_n: list = []
+        self.x_dead: list = []
+        self.x_depth_min: Optional[int] = None
+        self.x_model_min: Optional[int] = None
+        self.x_moved: list = []
+
+    def remaining(self) -> int:
+        """States of the level not expanded (nor given away) yet."""
+        return sum(len(b[1]) - b[2] for b in self.work)
+
+    def expand_some(self, limit: Optional[int]) -> int:
+        """Expand up to ``limit`` (None: all) of the states left; returns how
+        many are left."""
+        m, succ_fn, at_bound = self.m, self.m.successors, self.x_bound
         second = operator.itemgetter(1)
-        cs: list = []
-        par_idx: list = []
-        par_n: list = []
-        dead: list = []
-        depth_min = model_min = None
+        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
         cols = self.columns
         chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
-        for g, s in zip(self.level_idx, self.level):
-            succ = succ_fn(s)
-            if not succ:
-                bound, v = terminal(m, s, self.deadlock)
-                if bound is not None:
-                    model_min = g if model_min is None else model_min
-                elif v is not None:
-                    dead.append((g, v))
-                continue
-            if at_bound:
-                depth_min = g if depth_min is None else depth_min
-                continue
-            par_idx.append(g)
-            par_n.append(len(succ))
-            cs.extend(map(second, succ))
-            if chg_of is not None:
-                self.g_chg_idx.append(g)
-                self.g_chg.append(chg_of(s, list(map(second, succ))))
-        self._discard(self.level)
-        self.level = []
+        work = self.work
+        while work and (limit is None or limit > 0):
+            blk = work[0]
+            nums, states, pos, foreign = blk
+            end = len(states) if limit is None else min(len(states), pos + limit)
+            for g, s in zip(nums[pos:end], states[pos:end]):
+                succ = succ_fn(s)
+                if not succ:
+                    bound, v = terminal(m, s, self.deadlock)
+                    if bound is not None:
+                        if self.x_model_min is None or g < self.x_model_min:
+                            self.x_model_min = g
+                    elif v is not None:
+                        dead.append((g, v))
+                    continue
+                if at_bound:
+                    if self.x_depth_min is None or g < self.x_depth_min:
+                        self.x_depth_min = g
+                    continue
+                par_idx.append(g)
+                par_n.append(len(succ))
+                cs.extend(map(second, succ))
+                if chg_of is not None:
+                    self.g_chg_idx.append(g)
+                    self.g_chg.append(chg_of(s, list(map(second, succ))))
+            if foreign:
+                self.x_moved.extend(nums[pos:end])
+            if limit is not None:
+                limit -= end - pos
+            if end < len(states):
+                blk[2] = end
+            else:
+                work.pop(0)
+                self._discard(states)
+        return self.remaining()
+
+    def give(self, most: int):
+        """Hand over up to ``most`` of the states left, from the back (for
+        another worker to expand: :meth:`take`): ``(numbers, states)``, or
+        None when there is nothing to give."""
+        nums: list = []
+        states: list = []
+        while self.work and len(nums) < most:
+            blk = self.work[-1]
+            k = min(most - len(nums), len(blk[1]) - blk[2])
+            cut = len(blk[1]) - k
+            nums[:0], states[:0] = blk[0][cut:], blk[1][cut:]
+            del blk[0][cut:], blk[1][cut:]
+            if cut <= blk[2]:
+                self.work.pop()
+                self._discard(blk[1])
+        return (nums, states) if nums else None
+
+    def take(self, nums: list, states: list) -> None:
+        """States of the level handed over by another worker (:meth:`give`),
+        to expand after mine: their successors are mine (I hold those that
+        are admitted), and :meth:`finish` names them (the coordinator's
+        record of who holds which state)."""
+        if nums:
+            self.work.append([nums, states, 0, True])
+
+    def finish(self):
+        """The reply of :meth:`expand`, once the level is expanded."""
+        assert not self.work, "finish() before the level is expanded"
+        cs, par_idx, par_n = self.x_cs, self.x_par_idx, self.x_par_n
+        self.x_cs = self.x_par_idx = self.x_par_n = []
         total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
+        moved = np.asarray(self.x_moved, dtype=np.int64)
         viol: list = []
         if total:
-            ck = list(self.keys_of(cs))
             starts = np.repeat(np.cumsum(pn) - pn, pn)
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
+            if len(pi) > 1 and not bool((pi[1:] > pi[:-1]).all()):
+                # parents handed over by others (:meth:`take`): back in key order
+                order = np.argsort(keys, kind="stable")
+                keys = keys[order]
+                cs = [cs[p] for p in order.tolist()]
+                del order
+            ck = list(self.keys_of(cs))
             fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
             if self.columns is not None:
-                self.g_src.append(np.repeat(pi, pn).astype(np.uint32))
+                self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
                 self.g_fps.append(fps)
             # first occurrence of each fingerprint (the smallest key: keys ascend)
             first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
@@ -261,8 +343,9 @@ class _Worker:
             f, k = np.zeros((0, 2), np.uint64), keys
         self.cand, self.cand_keys = cs, keys
         self.par_idx, self.par_n = pi, pn
-        return (_owner_split(f, k, self.n), total, dead, depth_min, model_min, viol,
-                peak_rss_bytes())
+        dead, self.x_dead = self.x_dead, []
+        return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
+                viol, peak_rss_bytes(), moved)
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -346,7 +429,14 @@ class _Worker:
         as ``n + 1`` values (so that Ray can hand each part to its owner
         without the coordinator fetching it)."""
         self.commit(decision)
-        r = self.expand(at_bound)
+        self.begin(at_bound)
+        self.expand_some(None)
+        return self.finish_step()
+
+    def finish_step(self):
+        """:meth:`step`'s reply, once the level is expanded (for a transport
+        that expands it a chunk at a time)."""
+        r = self.finish()
         parts = list(r[0])
         self.own, parts[self.wid] = parts[self.wid], None     # mine stay here
         return (*parts, r[1:])
@@ -393,6 +483,8 @@ def _spin_seconds(default: float = 0.05) -> float:
 
 
 _SPIN = _spin_seconds()
+#: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
+_BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
 
 
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
@@ -408,19 +500,80 @@ def _recv(conn):
     for a time slice; on an idle virtual machine, for the core to wake up),
     twice per BFS level.  The wait between rounds is short (the other
     workers' share of a level), so polling through it keeps the core."""
-    poll = conn.poll
-    while _LITTER and not poll(0):
+    return _ready([conn]).recv()
+
+
+def _ready(conns: list):
+    """The first of ``conns`` with a message waiting (see :func:`_recv`:
+    frees discarded states, polls, then blocks)."""
+    def first():
+        for c in conns:
+            if c.poll(0):
+                return c
+        return None
+    c = first()
+    while _LITTER and c is None:
         states = _LITTER[-1]
         if states:
             del states[-2048:]
         else:
             _LITTER.pop()
-    if _SPIN > 0 and not poll(0):
+        c = first()
+    if _SPIN > 0 and c is None:
         clock, pass_turn = _time.perf_counter, getattr(os, "sched_yield", lambda: None)
         end = clock() + _SPIN
-        while not poll(0) and clock() < end:
+        while c is None and clock() < end:
             pass_turn()     # a process waiting for a core (my partner?) gets this one
-    return conn.recv()
+            c = first()
+    if c is None:
+        c = multiprocessing.connection.wait(conns)[0]
+    return c
+
+
+#: States a worker expands between two looks for another worker's request
+#: (:func:`_balanced_step`, :meth:`_Pipes._balance`): ~0.2-0.5 ms of work.
+_CHUNK = 64
+#: A worker asked for work hands over half of what it has left, if that is
+#: at least this many states (moving a state costs about as much as
+#: expanding it: pickled, sent, unpickled).
+_MIN_GIVE = 32
+
+
+def _half(left: int) -> int:
+    return left // 2 if left >= _MIN_GIVE else 0
+
+
+def _balanced_step(w: "_Worker", conn, decision, at_bound: bool):
+    """A forked worker's side of a balanced level (:meth:`_Pipes.level`):
+    commit the decision, expand my share a chunk at a time, answering the
+    coordinator's requests for work (``("steal", None)`` -> ``("loot",
+    (numbers, states) or None)``) in between; then say ``("hungry", None)``
+    and expand the states the coordinator hands over (``("work", (numbers,
+    states))``) until it says ``("finish", decide_parts)``.  Returns the
+    parts to decide right away (None: a ``decide`` message follows)."""
+    w.commit(decision)
+    w.begin(at_bound)
+    poll, recv, send = conn.poll, conn.recv, conn.send
+
+    def expand_all():
+        while w.expand_some(_CHUNK):
+            while poll(0):
+                kind, _ = recv()
+                assert kind == "steal", kind
+                send(("loot", w.give(_half(w.remaining()))))
+    expand_all()
+    while True:
+        send(("hungry", None))
+        kind, value = _recv(conn)
+        while kind == "steal":          # asked before my "hungry" arrived
+            send(("loot", None))
+            kind, value = _recv(conn)
+        if kind == "work":
+            w.take(*value)
+            expand_all()
+            continue
+        assert kind == "finish", kind
+        return value
 
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
@@ -467,12 +620,23 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
             return
         if cmd == "stop":
             return
+        decide = None
         try:
-            reply = ("ok", getattr(w, cmd)(*args))
+            if cmd == "lstep":
+                decide = _balanced_step(w, conn, *args)
+                reply = ("ok", w.finish_step())
+            else:
+                reply = ("ok", getattr(w, cmd)(*args))
         except BaseException as exc:         # report, do not hang the coordinator
-            reply = ("error", exc)
+            reply, decide = ("error", exc), None
         try:
             conn.send(reply)
+            if decide is not None:          # the decide round, sent with "finish"
+                try:
+                    reply = ("ok", w.decide(*decide))
+                except BaseException as exc:
+                    reply = ("error", exc)
+                conn.send(reply)
         except (OSError, BrokenPipeError):
             return
 
@@ -547,18 +711,45 @@ class _Pipes:
     def level(self, per_worker: list):
         """One level: the *step* round, then the *decide* round, pipelined:
         an owner's *decide* is sent as soon as the coordinator holds the
-        candidates of every other generator for it (``--workers 2``: right
-        after worker 0's step, so the forked worker decides straight after
+        candidates of every other generator for it (``--workers 2``: with
+        the message that ends worker 1's step, so it decides straight after
         its step, without waiting for the coordinator to read its reply).
+
+        The step is *balanced* (:meth:`_balance`): the workers expand their
+        shares a chunk at a time, and one that runs out of work gets half of
+        what another has left, so that a worker slowed down (by another job
+        on its core) does not hold the level up.  The moved states' successors
+        stay with the worker that expanded them (it holds those admitted),
+        so the shares of the next level follow the workers' speeds and
+        states move again only when the speeds change.  Results do not depend
+        on who expanded what: candidates are ordered by their keys.
+        ``PCCL_BALANCE=0`` in the environment expands each share where it
+        lies, as before (for comparison).
+
         Returns (the rest of each step reply, each owner's new keys)."""
         n, local = self.n, self.local
         assert local is not None, "start() first"
-        for w in range(1, n):
-            self.conns[w - 1].send(("step", per_worker[w]))
-            self.outstanding[w] += 1
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
-        parts[0] = local.step(*per_worker[0])
         sent = [False] * n
+        if n > 1 and _BALANCE:
+            for w in range(1, n):
+                self.conns[w - 1].send(("lstep", per_worker[w]))
+                self.outstanding[w] += 1
+            local.commit(per_worker[0][0])
+            local.begin(per_worker[0][1])
+            self._balance()
+            parts[0] = local.finish_step()
+            for o in range(1, n):           # every forked worker waits for this
+                early = n == 2              # worker 1's decide needs only worker 0's parts
+                self.conns[o - 1].send(("finish", (parts[0][o], None) if early else None))
+                if early:
+                    self.outstanding[o] += 1
+                    sent[o] = True
+        else:
+            for w in range(1, n):
+                self.conns[w - 1].send(("step", per_worker[w]))
+                self.outstanding[w] += 1
+            parts[0] = local.step(*per_worker[0])
         ready: list = [None] * n            # pickled decide messages not sent yet
 
         def send_ready():
@@ -581,6 +772,68 @@ class _Pipes:
             send_ready()
         mine = local.decide(*(parts[g][0] for g in range(n)))
         return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
+
+    def _balance(self) -> None:
+        """Worker 0's side of a balanced step, in this process: expand its
+        share a chunk at a time; between chunks hand half of what is left to
+        a forked worker that says it is ``hungry``; once its own share is
+        done, ask the busy workers for work (``steal``, one request at a
+        time) and expand what they hand over, until every forked worker is
+        hungry and nothing is left (see :func:`_balanced_step`)."""
+        n, local, conns = self.n, self.local, self.conns
+        assert local is not None
+        hungry = [True] + [False] * (n - 1)
+        asked = [False] * n         # a steal request is on its way to worker o
+        dry = [False] * n           # ... and o had too little to hand over
+        turn = 0
+
+        def handle(o: int, msg) -> None:
+            kind, value = msg
+            if kind == "hungry":
+                hungry[o] = True
+            elif kind == "loot":
+                asked[o] = False
+                if value is None:
+                    dry[o] = True
+                else:
+                    local.take(*value)
+            elif kind == "error":
+                self.outstanding[o] -= 1
+                raise value
+            else:                   # pragma: no cover - a protocol error
+                raise RuntimeError(f"worker {o}: unexpected {kind!r} during a level")
+
+        def pump() -> None:
+            for o in range(1, n):
+                c = conns[o - 1]
+                while c.poll(0):
+                    handle(o, c.recv())
+            for o in range(1, n):   # feed the hungry, from what I have left
+                if hungry[o]:
+                    loot = local.give(_half(local.remaining()))
+                    if loot is None:
+                        break
+                    conns[o - 1].send(("work", loot))
+                    hungry[o], dry[o] = False, False
+
+        while True:
+            if local.expand_some(_CHUNK):
+                pump()
+                continue
+            pump()
+            if local.remaining():
+                continue
+            if all(hungry) and not any(asked):
+                return
+            if not any(asked):
+                for i in range(1, n):
+                    o = 1 + (turn + i) % (n - 1) if n > 2 else 1
+                    if not hungry[o] and not dry[o]:
+                        conns[o - 1].send(("steal", None))
+                        asked[o], turn = True, o
+                        break
+            c = _ready(conns)
+            handle(conns.index(c) + 1, c.recv())
 
     def call(self, w: int, cmd: str, *args):
         if w == 0:
@@ -983,6 +1236,8 @@ class ParallelExplorer(Explorer):
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)
         self._total = 0
+        #: states expanded by another worker than the one that generated them
+        self.moved = 0
         self.peak_workers = [0] * n
         #: per worker: the decision on the last level, sent with the next step
         self._decisions: Any = None
@@ -1071,8 +1326,12 @@ class ParallelExplorer(Explorer):
                                          for w in range(n)])
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
-            # peak memory)
+            # peak memory, the parents it expanded for other workers)
             self._note_peaks([r[5] for r in replies])
+            for w, r in enumerate(replies):     # moved: their successors are w's
+                if len(r[6]):
+                    holder[r[6] - level_base] = w
+                    self.moved += len(r[6])
             allk = np.concatenate(new_keys)
             order = np.argsort(allk, kind="stable")
             sorted_keys = allk[order]
