@@ -373,10 +373,11 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     elif ray is not None:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
-        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, ray=ray, recorder=rec, fastest=fastest,
+                              **opts)
     elif nworkers is not None and nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, **opts)
+        ex = ParallelExplorer(model, workers=nworkers, recorder=rec, fastest=fastest, **opts)
     elif fastest:
         from pccl.search.fastest import FastestExplorer
         ex = FastestExplorer(cov or model, sopts, recorder=rec, labels=labels)

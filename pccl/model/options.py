@@ -286,9 +286,6 @@ def conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if (r is not None or (w != 1 and w != "auto")) and (o.exact or o.coverage):
         return Conflict("workers", f"{{{'exact' if o.exact else 'coverage'}=True}} runs in one "
                                    "process: use {workers=1} without {ray}")
-    if (r is not None or w != 1) and o.fastest:
-        return Conflict("workers", "{fastest=True} searches in one process: use {workers=1} "
-                                   "without {ray}")
     return checkpoint_conflict(o)
 
 

@@ -140,9 +140,15 @@ class _Worker:
     their own (or, for worker 0 of :class:`_Pipes`, in the coordinator's)."""
 
     def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool,
-                 columns=None):
+                 columns=None, fastest: bool = False):
         self.m, self.wid, self.n = model, wid, n
         self.deadlock, self.find_all = deadlock, find_all
+        # the fastest search (pccl/search/fastest.py): the states I hold wait
+        # in buckets keyed by (time steps, transitions); a bucket is a level
+        self.fastest = fastest
+        self.buckets: dict = {}         # (ticks, depth) -> [numbers, states]
+        self.x_bucket: Any = None       # the bucket expanded last
+        self.cand_cost: Any = None      # time cost of each candidate (fastest)
         self.table = FingerprintTable()
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
@@ -234,11 +240,16 @@ class _Worker:
         cols = self.columns
         chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
         work = self.work
+        viol_fn = m.violations if self.fastest else None
         while work and (limit is None or limit > 0):
             blk = work[0]
             nums, states, pos, foreign = blk
             end = len(states) if limit is None else min(len(states), pos + limit)
             for g, s in zip(nums[pos:end], states[pos:end]):
+                if viol_fn is not None:     # the fastest search: checked when expanded
+                    vs = viol_fn(s)
+                    if vs:
+                        dead.append((g, vs))
                 succ = succ_fn(s)
                 if not succ:
                     bound, v = terminal(m, s, self.deadlock)
@@ -246,7 +257,7 @@ class _Worker:
                         if self.x_model_min is None or g < self.x_model_min:
                             self.x_model_min = g
                     elif v is not None:
-                        dead.append((g, v))
+                        dead.append((g, [v]))
                     continue
                 if at_bound:
                     if self.x_depth_min is None or g < self.x_depth_min:
@@ -304,6 +315,7 @@ class _Worker:
         pn = np.asarray(par_n, dtype=np.int64)
         moved = np.asarray(self.x_moved, dtype=np.int64)
         viol: list = []
+        self.cand_cost = np.zeros(total, dtype=np.int64) if self.fastest else None
         if total:
             starts = np.repeat(np.cumsum(pn) - pn, pn)
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
@@ -333,11 +345,18 @@ class _Worker:
                 seen[mine] = self.table.lookup(f[mine]) >= 0
             keep = ~seen
             first, f, k = first[keep], f[keep], k[keep]
-            viol_fn = self.m.violations
-            vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
-            if any(vs):
-                kl = k.tolist()
-                viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
+            if self.fastest:            # violations: when expanded; the time costs instead
+                costs = np.fromiter(self.m.time_costs([cs[p] for p in first.tolist()]),
+                                    dtype=np.int64, count=len(first))
+                self.cand_cost[first] = costs
+                timed = costs != 0
+                viol = [(k[timed], costs[timed])]
+            else:
+                viol_fn = self.m.violations
+                vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
+                if any(vs):
+                    kl = k.tolist()
+                    viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
         else:
             keys = np.zeros(0, np.uint64)
             f, k = np.zeros((0, 2), np.uint64), keys
@@ -412,6 +431,9 @@ class _Worker:
             self.level = [cs[p] for p in pos]
             self.level_idx = (won_ranks + base).tolist()
             self._note_states(self.level_idx, self.level)
+            if self.fastest:
+                self._file(self.level_idx, self.level, self.cand_cost[pos].tolist())
+                self.level, self.level_idx, self.cand_cost = [], [], None
             self._discard(cs)
             del cs
             self.cand, self.cand_keys = [], None
@@ -423,13 +445,32 @@ class _Worker:
                 self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
         return peak_rss_bytes()
 
-    def step(self, decision, at_bound: bool):
+    def _file(self, idx: list, states: list, costs: list) -> None:
+        """The fastest search: new states (numbers ``idx``, ascending), each
+        into the bucket of the one expanded last plus its time cost."""
+        ticks, depth = self.x_bucket
+        for g, st, c in zip(idx, states, costs):
+            b = self.buckets.get((ticks + c, depth + 1))
+            if b is None:
+                b = self.buckets[ticks + c, depth + 1] = [[], []]
+            b[0].append(g)
+            b[1].append(st)
+
+    def start_level(self, decision, at_bound: bool, bucket=None) -> None:
+        """Commit the last level's decision and begin expanding the next:
+        my share of the level, or (the fastest search) of ``bucket``."""
+        self.commit(decision)
+        if bucket is not None:
+            self.level_idx, self.level = self.buckets.pop(bucket, ([], []))
+            self.x_bucket = bucket
+        self.begin(at_bound)
+
+    def step(self, decision, at_bound: bool, bucket=None):
         """One round: commit the last level, expand the next.  Returns the
         candidates for each owner, then the rest of :meth:`expand`'s reply,
         as ``n + 1`` values (so that Ray can hand each part to its owner
         without the coordinator fetching it)."""
-        self.commit(decision)
-        self.begin(at_bound)
+        self.start_level(decision, at_bound, bucket)
         self.expand_some(None)
         return self.finish_step()
 
@@ -442,8 +483,13 @@ class _Worker:
         return (*parts, r[1:])
 
     def adopt(self, idx, states):
-        self.level_idx.extend(idx)
-        self.level.extend(states)
+        if self.fastest:        # initial states: bucket (0, 0)
+            b = self.buckets.setdefault((0, 0), [[], []])
+            b[0].extend(idx)
+            b[1].extend(states)
+        else:
+            self.level_idx.extend(idx)
+            self.level.extend(states)
         self._note_states(idx, states)
 
     def graph(self):
@@ -543,7 +589,7 @@ def _half(left: int) -> int:
     return left // 2 if left >= _MIN_GIVE else 0
 
 
-def _balanced_step(w: "_Worker", conn, decision, at_bound: bool):
+def _balanced_step(w: "_Worker", conn, *args):
     """A forked worker's side of a balanced level (:meth:`_Pipes.level`):
     commit the decision, expand my share a chunk at a time, answering the
     coordinator's requests for work (``("steal", None)`` -> ``("loot",
@@ -551,8 +597,7 @@ def _balanced_step(w: "_Worker", conn, decision, at_bound: bool):
     and expand the states the coordinator hands over (``("work", (numbers,
     states))``) until it says ``("finish", decide_parts)``.  Returns the
     parts to decide right away (None: a ``decide`` message follows)."""
-    w.commit(decision)
-    w.begin(at_bound)
+    w.start_level(*args)
     poll, recv, send = conn.poll, conn.recv, conn.send
 
     def expand_all():
@@ -600,7 +645,7 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
-           inherited=()):
+           inherited=(), fastest=False):
     # The coordinator alone handles Ctrl-C and SIGTERM (sent to the whole
     # process group by a terminal or a job control): a worker ignores both
     # and stops when the coordinator says so, or when its pipe closes.
@@ -611,7 +656,7 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
     if parent is not None:
         _die_with_parent(parent)
     gc.disable()
-    w = _Worker(model, wid, n, deadlock, find_all, columns)
+    w = _Worker(model, wid, n, deadlock, find_all, columns, fastest)
     w.defer_free = True
     while True:
         try:
@@ -664,19 +709,20 @@ class _Pipes:
         self.outstanding = [0] * n
         self.local: Optional[_Worker] = None
 
-    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None,
+              fastest: bool = False) -> None:
         ctx = multiprocessing.get_context("fork")
         me = os.getpid()
         for w in range(1, self.n):
             a, b = ctx.Pipe()
             p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all,
-                                                 columns, me, [*self.conns, a]),
+                                                 columns, me, [*self.conns, a], fastest),
                             daemon=True)
             p.start()
             b.close()
             self.conns.append(a)
             self.procs.append(p)
-        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns)
+        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns, fastest)
         self.local.defer_free = self.n > 1     # freed while waiting for the others
 
     def stop(self) -> None:
@@ -735,8 +781,7 @@ class _Pipes:
             for w in range(1, n):
                 self.conns[w - 1].send(("lstep", per_worker[w]))
                 self.outstanding[w] += 1
-            local.commit(per_worker[0][0])
-            local.begin(per_worker[0][1])
+            local.start_level(*per_worker[0])
             self._balance()
             parts[0] = local.finish_step()
             for o in range(1, n):           # every forked worker waits for this
@@ -975,7 +1020,8 @@ class _RayTransport:
             raise RayUnavailable(f"--ray {address}: cannot start or reach Ray: {exc}{hint}") from None
         return True
 
-    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None,
+              fastest: bool = False) -> None:
         ray = self.ray
         limit = _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
         self.owned = self.connect(ray, self.address, self.n or available_workers())
@@ -985,7 +1031,7 @@ class _RayTransport:
         per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
         actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_RayWorker)
         ref = ray.put(model)
-        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns)
+        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns, fastest)
                        for w in range(self.n)]
         self.actor_ids = {a._actor_id.hex(): w for w, a in enumerate(self.actors)}
         refs = [a.ready.remote() for a in self.actors]
@@ -1184,12 +1230,15 @@ class ParallelExplorer(Explorer):
     """
 
     def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
-                 **options):
+                 fastest: bool = False, **options):
         if options.get("exact"):
             raise ValueError("exact state storage runs in one process (workers=1)")
         super().__init__(model, **options)
         self.workers: Any = workers    # an int once the transport has started
         self.ray = ray
+        #: the fastest search (:class:`~pccl.search.fastest.FastestExplorer`'s
+        #: order): time buckets, each expanded as a level (:meth:`_bucket_rounds`)
+        self.fastest = fastest
         self.transport: Any
         if ray is not None:
             self.transport = _RayTransport(workers, ray)
@@ -1209,7 +1258,8 @@ class ParallelExplorer(Explorer):
         # installed before the fork: a worker never runs a handler that raises
         self.signals = _Signals()
         try:
-            self.transport.start(self.model, self.deadlock, self.find_all, columns)
+            self.transport.start(self.model, self.deadlock, self.find_all, columns,
+                                 fastest=self.fastest)
             self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
             return self._run()
         finally:
@@ -1236,6 +1286,7 @@ class ParallelExplorer(Explorer):
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)
         self._total = 0
+        self._waiting: dict = {}       # the fastest search: states waiting per bucket
         #: states expanded by another worker than the one that generated them
         self.moved = 0
         self.peak_workers = [0] * n
@@ -1244,7 +1295,10 @@ class ParallelExplorer(Explorer):
         try:
             stop = self._initial_rounds()
             res.stats.initial_states = self._total
-            self._level_rounds(t_start, stop)
+            if self.fastest:
+                self._bucket_rounds(t_start)
+            else:
+                self._level_rounds(t_start, stop)
         except KeyboardInterrupt:
             res.status = "interrupted"
             self.transport.drain()
@@ -1254,6 +1308,9 @@ class ParallelExplorer(Explorer):
                 except Exception:
                     res.found.clear()
         self.table.n = self._total
+        if self.fastest:
+            res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
+            res.stats.frontier = sum(self._waiting.values())
         self._finish(res, self._bounds, t_start, self._memory(self.peak_workers))
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
@@ -1290,9 +1347,10 @@ class ParallelExplorer(Explorer):
             base = self._total
             cut, stop = len(order), False
             if cut > budget - base:
-                cut, stop = budget - base, True
+                # the fastest search admits no more states, and goes on
+                cut, stop = budget - base, not self.fastest
                 self._bounds.add(Bound.MAX_STATES)
-            for r in range(cut):
+            for r in range(0 if self.fastest else cut):    # fastest: when expanded
                 v = m.violations(chunk[int(order[r])])
                 if v and self._record(v, base + r, 0):
                     cut, stop = r + 1, True
@@ -1363,6 +1421,125 @@ class ParallelExplorer(Explorer):
             self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
             self._decisions = None
 
+    def _bucket_rounds(self, t_start: float) -> None:
+        """The fastest search (:mod:`pccl.search.fastest`'s order): the
+        states wait in buckets keyed by (time steps, transitions), held by
+        the workers that generated them; the coordinator knows how many
+        each bucket holds and expands the smallest one as a level.  Within
+        a bucket the one-process search expands the states in number order
+        (a bucket fills in admission order), so the keys order the
+        candidates as it meets them, and the new states are numbered as it
+        numbers them; its stop events (a violation, checked when a state is
+        expanded; a deadlock) are ordered by parent.  A new state's bucket
+        is its parent's plus its time cost (the generators report the keys
+        of the candidates that cost time)."""
+        import heapq
+        n, T, stats = self.workers, self.transport, self._res.stats
+        total = self._total
+        self._held = (np.arange(max(total, 1024), dtype=np.int64) % n).astype(np.uint16)
+        #: states waiting, per bucket (the serial search's frontier)
+        self._waiting: dict = {(0, 0): total} if total else {}
+        heap = list(self._waiting)
+        progress = Progress(self.progress, self.progress_interval, t_start)
+        stop = False
+        while heap and not stop:
+            self.signals.check()
+            bucket = heapq.heappop(heap)
+            ticks, depth = bucket
+            self._waiting.pop(bucket)
+            stats.max_depth = max(stats.max_depth, depth)
+            decisions, self._decisions = self._decisions, None
+            replies, new_keys = T.level([(decisions[w] if decisions else None,
+                                          self._at_depth_bound(depth), bucket)
+                                         for w in range(n)])
+            self._note_peaks([r[5] for r in replies])
+            for w, r in enumerate(replies):     # moved: their successors are w's
+                if len(r[6]):
+                    self._held[r[6]] = w
+                    self.moved += len(r[6])
+            allk = np.concatenate(new_keys)
+            order = np.argsort(allk, kind="stable")
+            sorted_keys = allk[order]
+            ranks = np.empty(len(allk), dtype=np.int64)
+            ranks[order] = np.arange(len(allk))
+            cut, stop_key = self._stop_events_fastest(replies, sorted_keys, depth)
+            upto = None if stop_key is None else (stop_key >> _SHIFT) - 1
+            if upto is None:
+                stats.transitions += sum(r[0] for r in replies)
+            else:                   # the stopping state is not expanded
+                stats.transitions += sum(T.all("transitions_upto", [(upto,)] * n))
+                stop = True
+            for r in replies:
+                for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
+                    if g is not None and (upto is None or g <= upto):
+                        self._bounds.add(b)
+            self._decide_fastest(sorted_keys, _split_like(ranks, new_keys), cut,
+                                 [r[4][0] for r in replies if r[4]], bucket, heap)
+            if not stop and self.max_memory is not None:
+                stop = self._memory_bound(self._bounds, self._memory(self.peak_workers))
+            self._report(progress, sum(self._waiting.values()), stats.max_depth)
+        if self._decisions:       # the last decision: owners record its states
+            self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
+            self._decisions = None
+
+    def _stop_events_fastest(self, replies: list, sorted_keys: np.ndarray, depth: int) -> tuple:
+        """:meth:`_stop_events` for the fastest search: the events are the
+        expanded states' violations and deadlocks (the one-process search
+        checks a state when it expands it, and stops before its successors);
+        the state budget admits no more states but does not stop it."""
+        events = [(g << _SHIFT, (g, vs)) for r in replies for g, vs in r[1]]
+        events.sort(key=lambda e: e[0])     # stable: a state's violations before its deadlock
+        room = self._budget_all - self._total
+        stop_key = None
+        for ek, (g, vs) in events:
+            if self._record(vs, g, depth):
+                stop_key = ek
+                break
+        new = len(sorted_keys) if stop_key is None else \
+            int(np.searchsorted(sorted_keys, np.uint64(stop_key)))
+        if new > room:
+            self._bounds.add(Bound.MAX_STATES)
+        return min(new, room), stop_key
+
+    def _decide_fastest(self, sorted_keys: np.ndarray, owner_ranks: list, cut: int,
+                        timed: list, bucket: tuple, heap: list) -> None:
+        """:meth:`_decide` for the fastest search: the new states' holders
+        (their parents' expanders) from the global record, and the counts of
+        the buckets they go to (``timed``: per worker, the keys and time
+        costs of the candidates that cost time)."""
+        import heapq
+        n, base = self.workers, self._total
+        parents = (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
+        gen = self._held[parents].astype(np.int64)
+        decisions = []
+        for w in range(n):
+            sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
+            decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
+        self._decisions = decisions
+        self._put_parents(base, parents.astype(np.uint32))
+        if len(self._held) < base + cut:
+            grown = np.zeros(max(base + cut, 2 * len(self._held)), dtype=np.uint16)
+            grown[:len(self._held)] = self._held
+            self._held = grown
+        self._held[base:base + cut] = gen
+        costs = np.zeros(cut, dtype=np.int64)
+        if timed and cut:
+            tk = np.concatenate([t[0] for t in timed])
+            tc = np.concatenate([t[1] for t in timed])
+            o = np.argsort(tk)
+            tk, tc = tk[o], tc[o]
+            pos = np.minimum(np.searchsorted(tk, sorted_keys[:cut]), max(len(tk) - 1, 0))
+            if len(tk):
+                hit = tk[pos] == sorted_keys[:cut]
+                costs[hit] = tc[pos[hit]]
+        ticks, depth = bucket
+        for c, k in zip(*np.unique(costs, return_counts=True)):
+            b = (ticks + int(c), depth + 1)
+            if b not in self._waiting:
+                self._waiting[b] = 0
+                heapq.heappush(heap, b)
+            self._waiting[b] += int(k)
+
     def _report(self, progress: Progress, frontier: int, depth: int) -> None:
         progress(lambda secs: {"states": self._total, "frontier": frontier, "depth": depth,
                                "seconds": secs, "memory": self._memory(self.peak_workers)})
@@ -1374,8 +1551,8 @@ class ParallelExplorer(Explorer):
         (None: it goes on)."""
         events = []                  # (key, kind, payload)
         for r in replies:
-            for g, v in r[1]:
-                events.append((g << _SHIFT, 0, (g, v)))
+            for g, vs in r[1]:
+                events.append((g << _SHIFT, 0, (g, vs)))
             for k, v in r[4]:        # violating candidates: those that are new
                 pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
                 if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
@@ -1391,9 +1568,9 @@ class ParallelExplorer(Explorer):
             if budget_key is not None and ek >= budget_key:
                 break
             if kind == 0:
-                g, v = payload
+                g, vs = payload
                 # states admitted before the deadlocked parent's turn
-                if self._record([v], g, depth):
+                if self._record(vs, g, depth):
                     return min(cut, int(np.searchsorted(sorted_keys, np.uint64(ek)))), ek
             else:
                 r, v = payload
