@@ -6,6 +6,7 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --baseline REV       # the "old" code [default: c8a9cb9]
     python benchmarks/workers.py --no-baseline        # this checkout only
     python benchmarks/workers.py --static             # also new code with PCCL_BALANCE=0
+    python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).  Every
@@ -62,6 +63,8 @@ def main() -> None:
     ap.add_argument("--baseline", default=BASELINE, metavar="REV",
                     help=f"git revision of the old code [default: {BASELINE}]")
     ap.add_argument("--no-baseline", action="store_true", help="this checkout only")
+    ap.add_argument("--new", metavar="REV",
+                    help="the new code from this git revision [default: the working tree]")
     ap.add_argument("--static", action="store_true",
                     help="also the new code with PCCL_BALANCE=0 (each share expanded where it lies)")
     args = ap.parse_args()
@@ -69,11 +72,12 @@ def main() -> None:
                 reduce="none")
     print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; "
           f"fischer k={args.k} d=2, unreduced", flush=True)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
         old = None if args.no_baseline else checkout(args.baseline, tmp)
-        configs = [("1 worker", 1, None, None), ("2 workers", 2, None, None)]
+        new = None if args.new is None else checkout(args.new, tmp_new)
+        configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
         if args.static:
-            configs.append(("2 workers, PCCL_BALANCE=0", 2, None, {"PCCL_BALANCE": "0"}))
+            configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
         if old is not None:
             configs.append((f"2 workers, old {args.baseline}", 2, old, None))
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}
