@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from pccl.api import explore, make_model
+from pccl.model.layout import TIME
 from pccl.search.explorer import Explorer
 from pccl.search.parallel import ParallelExplorer, available_workers
 
@@ -133,8 +134,11 @@ class _SlowIn:
         return self.model.successors(s)
 
 
-@pytest.mark.parametrize("slow, workers", [("coordinator", 2), ("forked", 2), ("forked", 3)])
-def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, monkeypatch):
+@pytest.mark.parametrize("slow, workers, fastest", [("coordinator", 2, False),
+                                                     ("forked", 2, False), ("forked", 3, False),
+                                                     ("forked", 2, True)])
+def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fastest,
+                                                               monkeypatch):
     """Balanced levels: when one worker is slow, the others expand part of
     its share (and hold the successors).  Every figure, the violations and
     the counterexamples stay those of one process, and the states did move
@@ -148,8 +152,13 @@ def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, mo
                  dict(overrides={"k": "1"}, invariants=[MUTEX], find_all=True, max_states=4000)):
         m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()))
         run = {k: v for k, v in opts.items() if k in ("max_states", "find_all")}
-        one = Explorer(m, **run).run()
-        e = ParallelExplorer(_SlowIn(m, slow == "coordinator", 0.0005), workers=workers, **run)
+        if fastest:
+            from pccl.search.fastest import FastestExplorer
+            one = FastestExplorer(m, **run).run()
+        else:
+            one = Explorer(m, **run).run()
+        e = ParallelExplorer(_SlowIn(m, slow == "coordinator", 0.0005), workers=workers,
+                             fastest=fastest, **run)
         many = e.run()
         assert e.moved > 10, e.moved
         assert result_signature(many) == result_signature(one)
@@ -256,6 +265,9 @@ def test_ray_actors_give_the_one_process_results(local_ray):
         one = signature(explore(program, **opts))
         assert signature(explore(program, ray="auto", workers=w, **opts)) == one, \
             f"{name}: ray with {w} actors"
+    program, opts = FASTEST_CASES["fischer-violation"]      # --fastest through the actors
+    assert fastest_signature(explore(program, ray="auto", workers=2, fastest=True, **opts)) == \
+        fastest_signature(explore(program, fastest=True, **opts))
     assert local_ray.is_initialized()        # a connection it did not open stays open
 
 
@@ -425,10 +437,68 @@ def _parent_links(m):
     return _LINKS["p"]
 
 
-def test_fastest_still_needs_one_process():
-    from pccl.lang.errors import PcclError
-    with pytest.raises(PcclError, match="fastest=True searches in one process"):
-        explore(FISCHER, overrides={"k": "0"}, fastest=True, workers=2)
+FAST_SLOW = "tests/programs/fast_slow.pccl"
+
+#: --fastest: the search ordered on (time steps, transitions), its buckets
+#: expanded as levels by the workers
+FASTEST_CASES = {
+    "fast-slow": (FAST_SLOW, dict(agents=1, reduce="none")),
+    "fischer-violation": (FISCHER, dict(overrides={"k": "0"}, invariants=[MUTEX])),
+    "fischer-exhaustive": CASES["fischer-exhaustive"],
+    "fischer-all": CASES["fischer-all"],
+    "fischer-max-states": CASES["fischer-max-states"],
+    "fischer-depth": CASES["fischer-depth"],
+    "race-nonatomic-stuck": CASES["race-nonatomic-stuck"],
+    "race-nonatomic-all": CASES["race-nonatomic-all"],
+    "leader": CASES["leader"],
+}
+
+
+def fastest_signature(r):
+    cxs = r.counterexamples
+    return (signature(r), r.stats.frontier, [cx.trace and cx.trace.last[TIME] for cx in cxs])
+
+
+@pytest.mark.parametrize("name", sorted(FASTEST_CASES))
+def test_fastest_with_workers_gives_the_one_process_results(name):
+    """--fastest with 2 and 3 workers: the one-process fastest search's
+    figures (states, transitions, depth, the frontier left), verdict and
+    very counterexample (the same states, the same time).  Before, refused."""
+    program, opts = FASTEST_CASES[name]
+    one = explore(program, fastest=True, **opts)
+    for w in (2, 3):
+        assert fastest_signature(explore(program, fastest=True, workers=w, **opts)) == \
+            fastest_signature(one), f"workers={w}"
+
+
+def test_fastest_with_workers_is_the_fastest_not_the_shortest():
+    """fast_slow: breadth-first finds the violation at time 2, the fastest
+    search at time 0 (a longer path); so do the workers, and the command
+    line says so."""
+    from pccl.cli import main
+    from click.testing import CliRunner
+    bfs = explore(FAST_SLOW, agents=1, reduce="none", workers=2)
+    fast = explore(FAST_SLOW, agents=1, reduce="none", fastest=True, workers=2)
+    assert bfs.counterexamples[0].trace.last[TIME] == 2
+    assert fast.counterexamples[0].trace.last[TIME] == 0
+    assert len(fast.counterexamples[0].trace) > len(bfs.counterexamples[0].trace)
+    res = CliRunner().invoke(main, ["explore", FAST_SLOW, "-n", "1", "--fastest", "--workers",
+                                    "2", "--no-progress"])
+    assert res.exit_code == 1, res.output
+    assert "fastest: violation at t=0" in res.output
+
+
+@pytest.mark.parametrize("name", ["tl_spin.pccl-agents2", "tl_spin_leave.pccl-agents3",
+                                  "rdv-wall-lasso", "token-keep-leadsto", "token-ring-within",
+                                  "fischer-max-states-temporal"])
+def test_fastest_time_lock_and_temporal_verdicts_with_workers(name):
+    """The time-lock check and temporal properties on the graph the fastest
+    search records: the same verdicts with workers."""
+    program, opts = TEMPORAL_CASES[name]
+    one = full_signature(explore(program, fastest=True, **opts))
+    for w in (2, 3):
+        assert full_signature(explore(program, fastest=True, workers=w, **opts)) == one, \
+            f"workers={w}"
 
 
 def test_ray_address_where_nothing_listens_fails_at_once():
