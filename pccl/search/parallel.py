@@ -226,6 +226,7 @@ class _Worker:
         self.x_depth_min: Optional[int] = None
         self.x_model_min: Optional[int] = None
         self.x_moved: list = []
+        self.x_ck: list = []            # the candidates' fingerprints (bytes)
 
     def remaining(self) -> int:
         """States of the level not expanded (nor given away) yet."""
@@ -237,6 +238,7 @@ class _Worker:
         m, succ_fn, at_bound = self.m, self.m.successors, self.x_bound
         second = operator.itemgetter(1)
         cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        ck, keys_of = self.x_ck, self.keys_of
         cols = self.columns
         chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
         work = self.work
@@ -269,6 +271,7 @@ class _Worker:
                 if chg_of is not None:
                     self.g_chg_idx.append(g)
                     self.g_chg.append(chg_of(s, list(map(second, succ))))
+            ck.extend(keys_of(cs[len(ck):]))     # hashed here: part of the balanced work
             if foreign:
                 self.x_moved.extend(nums[pos:end])
             if limit is not None:
@@ -308,8 +311,8 @@ class _Worker:
     def finish(self):
         """The reply of :meth:`expand`, once the level is expanded."""
         assert not self.work, "finish() before the level is expanded"
-        cs, par_idx, par_n = self.x_cs, self.x_par_idx, self.x_par_n
-        self.x_cs = self.x_par_idx = self.x_par_n = []
+        cs, par_idx, par_n, ck = self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck
+        self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck = [], [], [], []
         total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
@@ -324,9 +327,9 @@ class _Worker:
                 # parents handed over by others (:meth:`take`): back in key order
                 order = np.argsort(keys, kind="stable")
                 keys = keys[order]
-                cs = [cs[p] for p in order.tolist()]
-                del order
-            ck = list(self.keys_of(cs))
+                ol = order.tolist()
+                cs, ck = [cs[p] for p in ol], [ck[p] for p in ol]
+                del order, ol
             fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
             if self.columns is not None:
                 self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
@@ -783,13 +786,9 @@ class _Pipes:
                 self.outstanding[w] += 1
             local.start_level(*per_worker[0])
             self._balance()
-            parts[0] = local.finish_step()
             for o in range(1, n):           # every forked worker waits for this
-                early = n == 2              # worker 1's decide needs only worker 0's parts
-                self.conns[o - 1].send(("finish", (parts[0][o], None) if early else None))
-                if early:
-                    self.outstanding[o] += 1
-                    sent[o] = True
+                self.conns[o - 1].send(("finish", None))
+            parts[0] = local.finish_step()  # meanwhile they finish theirs
         else:
             for w in range(1, n):
                 self.conns[w - 1].send(("step", per_worker[w]))
@@ -819,66 +818,10 @@ class _Pipes:
         return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
 
     def _balance(self) -> None:
-        """Worker 0's side of a balanced step, in this process: expand its
-        share a chunk at a time; between chunks hand half of what is left to
-        a forked worker that says it is ``hungry``; once its own share is
-        done, ask the busy workers for work (``steal``, one request at a
-        time) and expand what they hand over, until every forked worker is
-        hungry and nothing is left (see :func:`_balanced_step`)."""
-        n, local, conns = self.n, self.local, self.conns
-        assert local is not None
-        hungry = [True] + [False] * (n - 1)
-        asked = [False] * n         # a steal request is on its way to worker o
-        dry = [False] * n           # ... and o had too little to hand over
-        turn = 0
-
-        def handle(o: int, msg) -> None:
-            kind, value = msg
-            if kind == "hungry":
-                hungry[o] = True
-            elif kind == "loot":
-                asked[o] = False
-                if value is None:
-                    dry[o] = True
-                else:
-                    local.take(*value)
-            elif kind == "error":
-                self.outstanding[o] -= 1
-                raise value
-            else:                   # pragma: no cover - a protocol error
-                raise RuntimeError(f"worker {o}: unexpected {kind!r} during a level")
-
-        def pump() -> None:
-            for o in range(1, n):
-                c = conns[o - 1]
-                while c.poll(0):
-                    handle(o, c.recv())
-            for o in range(1, n):   # feed the hungry, from what I have left
-                if hungry[o]:
-                    loot = local.give(_half(local.remaining()))
-                    if loot is None:
-                        break
-                    conns[o - 1].send(("work", loot))
-                    hungry[o], dry[o] = False, False
-
-        while True:
-            if local.expand_some(_CHUNK):
-                pump()
-                continue
-            pump()
-            if local.remaining():
-                continue
-            if all(hungry) and not any(asked):
-                return
-            if not any(asked):
-                for i in range(1, n):
-                    o = 1 + (turn + i) % (n - 1) if n > 2 else 1
-                    if not hungry[o] and not dry[o]:
-                        conns[o - 1].send(("steal", None))
-                        asked[o], turn = True, o
-                        break
-            c = _ready(conns)
-            handle(conns.index(c) + 1, c.recv())
+        """Worker 0's side of a balanced step, in this process
+        (:class:`_Balancer`)."""
+        assert self.local is not None
+        _Balancer(self.local, self.conns, self.outstanding).run()
 
     def call(self, w: int, cmd: str, *args):
         if w == 0:
@@ -895,6 +838,80 @@ class _Pipes:
                     self._result(w)
                 except Exception:
                     pass
+
+
+class _Balancer:
+    """Worker 0's side of a balanced step (:meth:`_Pipes.level`), in the
+    coordinator's process: expand its share a chunk at a time; between
+    chunks hand half of what is left to a forked worker that says it is
+    ``hungry``; once its own share is done, ask the busy workers for work
+    (``steal``, one request at a time) and expand what they hand over, until
+    every forked worker is hungry and nothing is left (the other side:
+    :func:`_balanced_step`)."""
+
+    def __init__(self, local: "_Worker", conns: list, outstanding: list):
+        self.local, self.conns, self.outstanding = local, conns, outstanding
+        n = len(conns) + 1
+        self.hungry = [True] + [False] * (n - 1)
+        self.asked = [False] * n        # a steal request is on its way to worker o
+        self.dry = [False] * n          # ... and o had too little to hand over
+        self.turn = 0
+
+    def run(self) -> None:
+        local, conns = self.local, self.conns
+        while True:
+            if local.expand_some(_CHUNK):
+                self.pump()
+                continue
+            self.pump()
+            if local.remaining():
+                continue
+            if all(self.hungry) and not any(self.asked):
+                return
+            if not any(self.asked):
+                self.ask()
+            c = _ready(conns)
+            self.handle(conns.index(c) + 1, c.recv())
+
+    def handle(self, o: int, msg) -> None:
+        kind, value = msg
+        if kind == "hungry":
+            self.hungry[o] = True
+        elif kind == "loot":
+            self.asked[o] = False
+            if value is None:
+                self.dry[o] = True
+            else:
+                self.local.take(*value)
+        elif kind == "error":
+            self.outstanding[o] -= 1
+            raise value
+        else:                   # pragma: no cover - a protocol error
+            raise RuntimeError(f"worker {o}: unexpected {kind!r} during a level")
+
+    def pump(self) -> None:
+        """Read what has come, and feed the hungry from what I have left."""
+        local, conns, hungry = self.local, self.conns, self.hungry
+        for o, c in enumerate(conns, 1):
+            while c.poll(0):
+                self.handle(o, c.recv())
+        for o, c in enumerate(conns, 1):
+            if hungry[o]:
+                loot = local.give(_half(local.remaining()))
+                if loot is None:
+                    break
+                c.send(("work", loot))
+                hungry[o], self.dry[o] = False, False
+
+    def ask(self) -> None:
+        """Ask a busy worker (the next in turn) for half of what it has left."""
+        m = len(self.conns)
+        for i in range(1, m + 1):
+            o = 1 + (self.turn + i) % m
+            if not self.hungry[o] and not self.dry[o]:
+                self.conns[o - 1].send(("steal", None))
+                self.asked[o], self.turn = True, o
+                return
 
 
 #: seconds to wait for a Ray head's port to answer before giving up
@@ -1438,7 +1455,7 @@ class ParallelExplorer(Explorer):
         total = self._total
         self._held = (np.arange(max(total, 1024), dtype=np.int64) % n).astype(np.uint16)
         #: states waiting, per bucket (the serial search's frontier)
-        self._waiting: dict = {(0, 0): total} if total else {}
+        self._waiting = {(0, 0): total} if total else {}
         heap = list(self._waiting)
         progress = Progress(self.progress, self.progress_interval, t_start)
         stop = False
