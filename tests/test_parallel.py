@@ -148,6 +148,7 @@ def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fa
     from pccl.search import parallel as P
     monkeypatch.setattr(P, "_CHUNK", 4)
     monkeypatch.setattr(P, "_MIN_GIVE", 2)
+    monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
     for opts in (dict(overrides={"k": "0", "d": "1"}, max_states=3000),
                  dict(overrides={"k": "1"}, invariants=[MUTEX], find_all=True, max_states=4000)):
         m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()))
@@ -163,6 +164,17 @@ def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fa
         assert e.moved > 10, e.moved
         assert result_signature(many) == result_signature(one)
         assert one.found or one.status == "bounded"
+
+
+def test_small_levels_are_not_balanced():
+    """Levels under _BALANCE_LEVEL states keep the static split (a request
+    for work costs a wait for the other worker): nothing moves, even with
+    one worker slowed down."""
+    from pccl.search import parallel as P
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    e = ParallelExplorer(_SlowIn(m, False, 0.0002), workers=2, max_states=2000)
+    assert e.run().stats.states == 2000
+    assert e.moved == 0 and P._BALANCE_LEVEL > 1000
 
 
 LARGE_LEVEL = r"""
@@ -188,7 +200,7 @@ P._Worker.finish_step = finish_step     # balanced levels
 t = P._Pipes(2)
 t.start(m, True, False)
 try:
-    rest, new = t.level([(None, False), (None, False)])
+    rest, new = t.level([(None, False), (None, False)], 1 << 20)
     print(len(new[0]), len(new[1]), rest[1][0])
 finally:
     t.stop()

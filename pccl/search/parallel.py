@@ -35,6 +35,18 @@ Per level the coordinator makes two rounds with every worker:
 The coordinator then numbers the new states, orders the stop events and
 sends each worker its share of the decision with the next ``step``.
 
+With :class:`_Pipes` the step is *balanced*: the workers expand their shares
+a chunk at a time, and one that runs out of work gets half of what another
+has left (:meth:`_Worker.give`, :meth:`_Worker.take`); the moved states'
+successors stay with the worker that expanded them, and the coordinator
+learns who that was from the step replies.  The keys do not depend on who
+expanded a state, so the results do not either.
+
+``fastest=True`` (``--fastest``): the states wait in buckets keyed by (time
+steps, transitions), held by their generators; the coordinator expands the
+smallest bucket as a level (:meth:`ParallelExplorer._bucket_rounds`), which
+gives the one-process fastest search's numbering and results.
+
 The partitioning code (:class:`_Worker`, the coordinator loop) is
 engine-neutral; a *transport* moves the two rounds:
 
@@ -534,6 +546,10 @@ def _spin_seconds(default: float = 0.05) -> float:
 _SPIN = _spin_seconds()
 #: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
 _BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
+#: ... for levels of at least this many states (~15 ms of work or more
+#: for one worker; measured: on a loaded machine, balancing fischer k=2's
+#: levels of ~1,600 states cost more than it gained)
+_BALANCE_LEVEL = 8192
 
 
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
@@ -757,7 +773,7 @@ class _Pipes:
         mine = getattr(self.local, cmd)(*per_worker[0])
         return [mine] + [self._result(w) for w in range(1, self.n)]
 
-    def level(self, per_worker: list):
+    def level(self, per_worker: list, size: int = 0):
         """One level: the *step* round, then the *decide* round, pipelined:
         an owner's *decide* is sent as soon as the coordinator holds the
         candidates of every other generator for it (``--workers 2``: with
@@ -772,15 +788,18 @@ class _Pipes:
         so the shares of the next level follow the workers' speeds and
         states move again only when the speeds change.  Results do not depend
         on who expanded what: candidates are ordered by their keys.
-        ``PCCL_BALANCE=0`` in the environment expands each share where it
-        lies, as before (for comparison).
+        Only a level of at least :data:`_BALANCE_LEVEL` states (``size``) is
+        balanced: a request for work waits for the other worker to be
+        running, and on a small level that wait costs more than the
+        imbalance.  ``PCCL_BALANCE=0`` in the environment expands each share
+        where it lies, as before (for comparison).
 
         Returns (the rest of each step reply, each owner's new keys)."""
         n, local = self.n, self.local
         assert local is not None, "start() first"
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
         sent = [False] * n
-        if n > 1 and _BALANCE:
+        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL:
             for w in range(1, n):
                 self.conns[w - 1].send(("lstep", per_worker[w]))
                 self.outstanding[w] += 1
@@ -1127,7 +1146,7 @@ class _RayTransport:
         return self._get([getattr(a, cmd).remote(*args)
                           for a, args in zip(self.actors, per_worker)])
 
-    def level(self, per_worker: list):
+    def level(self, per_worker: list, size: int = 0):
         """One level: the *step* round, then the *decide* round.  Only the
         small part of each step reply comes to the coordinator; the
         candidates stay in the object store as references, which the
@@ -1398,7 +1417,7 @@ class ParallelExplorer(Explorer):
             at_bound = self._at_depth_bound(depth)
             decisions, self._decisions = self._decisions, None
             replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
-                                         for w in range(n)])
+                                         for w in range(n)], level_size)
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
             # peak memory, the parents it expanded for other workers)
@@ -1463,12 +1482,12 @@ class ParallelExplorer(Explorer):
             self.signals.check()
             bucket = heapq.heappop(heap)
             ticks, depth = bucket
-            self._waiting.pop(bucket)
+            size = self._waiting.pop(bucket)
             stats.max_depth = max(stats.max_depth, depth)
             decisions, self._decisions = self._decisions, None
             replies, new_keys = T.level([(decisions[w] if decisions else None,
                                           self._at_depth_bound(depth), bucket)
-                                         for w in range(n)])
+                                         for w in range(n)], size)
             self._note_peaks([r[5] for r in replies])
             for w, r in enumerate(replies):     # moved: their successors are w's
                 if len(r[6]):
