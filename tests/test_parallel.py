@@ -177,6 +177,20 @@ def test_small_levels_are_not_balanced():
     assert e.moved == 0 and P._BALANCE_LEVEL > 1000
 
 
+def test_waiting_blocks_on_an_overloaded_machine(monkeypatch):
+    """A waiting process polls only while the load average is below the
+    cores it may use (read at most once a second)."""
+    import os
+    from pccl.search import parallel as P
+    cores = P.available_workers()
+    for load, want in ((cores + 5.0, True), (cores - 0.5, False)):
+        monkeypatch.setattr(os, "getloadavg", lambda load=load: (load, load, load))
+        monkeypatch.setattr(P, "_LOAD", [0.0, not want])
+        assert P._overloaded() is want
+        monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+        assert P._overloaded() is want          # cached within the second
+
+
 LARGE_LEVEL = r"""
 import numpy as np
 from pccl.search import parallel as P
