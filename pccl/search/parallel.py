@@ -628,14 +628,14 @@ def _half(left: int) -> int:
     return left // 2 if left >= _MIN_GIVE else 0
 
 
-def _balanced_step(w: "_Worker", conn, *args):
+def _balanced_step(w: "_Worker", conn, *args) -> None:
     """A forked worker's side of a balanced level (:meth:`_Pipes.level`):
     commit the decision, expand my share a chunk at a time, answering the
     coordinator's requests for work (``("steal", None)`` -> ``("loot",
     (numbers, states) or None)``) in between; then say ``("hungry", None)``
     and expand the states the coordinator hands over (``("work", (numbers,
-    states))``) until it says ``("finish", decide_parts)``.  Returns the
-    parts to decide right away (None: a ``decide`` message follows)."""
+    states))``) until it says ``("finish", None)``; the caller then finishes
+    the step (:meth:`_Worker.finish_step`), while worker 0 finishes its own."""
     w.start_level(*args)
     poll, recv, send = conn.poll, conn.recv, conn.send
 
@@ -657,7 +657,7 @@ def _balanced_step(w: "_Worker", conn, *args):
             expand_all()
             continue
         assert kind == "finish", kind
-        return value
+        return
 
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
@@ -704,23 +704,16 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
             return
         if cmd == "stop":
             return
-        decide = None
         try:
             if cmd == "lstep":
-                decide = _balanced_step(w, conn, *args)
+                _balanced_step(w, conn, *args)
                 reply = ("ok", w.finish_step())
             else:
                 reply = ("ok", getattr(w, cmd)(*args))
         except BaseException as exc:         # report, do not hang the coordinator
-            reply, decide = ("error", exc), None
+            reply = ("error", exc)
         try:
             conn.send(reply)
-            if decide is not None:          # the decide round, sent with "finish"
-                try:
-                    reply = ("ok", w.decide(*decide))
-                except BaseException as exc:
-                    reply = ("error", exc)
-                conn.send(reply)
         except (OSError, BrokenPipeError):
             return
 
