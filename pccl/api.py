@@ -446,10 +446,10 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
         return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
-                                **opts, checkpoint=_checkpointer(model, o)), None
+                                fastest=o.fastest, **opts, checkpoint=_checkpointer(model, o)), None
     if plan.nworkers is not None and plan.nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
-        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, **opts,
+        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, fastest=o.fastest, **opts,
                                 checkpoint=_checkpointer(model, o)), None
     if o.fastest:
         from pccl.search.fastest import FastestExplorer

@@ -102,8 +102,6 @@ def test_a_bad_options_part_is_one_clear_error(tmp_path):
 
 
 @pytest.mark.parametrize("opts, api_text, cli_text", [
-    (ExploreOptions(fastest=True, workers=2), "fastest=True searches in one process: use workers=1",
-     "--fastest searches in one process: use --workers 1"),
     (ExploreOptions(exact=True, ray="local"), "exact=True runs in one process: use workers=1 "
      "without ray", "--exact runs in one process: use --workers 1 without --ray"),
     (ExploreOptions(resume="d", functions={"getInput": ()}), "resume does not run with "

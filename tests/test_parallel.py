@@ -8,6 +8,7 @@ import pytest
 
 from conftest import started
 from pccl.api import explore, make_model
+from pccl.model.layout import TIME
 from pccl.search.explorer import Explorer
 from pccl.search.parallel import ParallelExplorer, available_workers
 
@@ -23,6 +24,15 @@ def signature(r):
             [cx.index for cx in r.counterexamples],
             [cx.trace and tuple(cx.trace.labels) for cx in r.counterexamples],
             [v["trace"] for v in r.violations])
+
+
+def result_signature(r):
+    """The same for a :class:`SearchResult` (Explorer.run)."""
+    s = r.stats
+    return (r.status, s.states, s.transitions, s.max_depth, s.initial_states, s.frontier,
+            sorted(map(str, r.bounds_hit)),
+            [(f.violation.kind, f.index, f.depth, f.trace and tuple(f.trace.labels))
+             for f in r.found])
 
 
 CASES = {
@@ -105,6 +115,83 @@ def test_discarded_states_are_freed():
     assert r.stats.states > 1000 and P._LITTER == []
 
 
+class _SlowIn:
+    """A model whose successors take ``delay`` seconds longer in the
+    coordinator's process (``coordinator=True``) or in the forked workers':
+    one worker slowed down, as by another job on its core."""
+
+    def __init__(self, model, coordinator: bool, delay: float):
+        import os
+        self.model, self.pid, self.coordinator, self.delay = model, os.getpid(), coordinator, delay
+
+    def __getattr__(self, name):
+        return getattr(self.model, name)
+
+    def successors(self, s):
+        import os
+        import time
+        if (os.getpid() == self.pid) == self.coordinator:
+            time.sleep(self.delay)
+        return self.model.successors(s)
+
+
+@pytest.mark.parametrize("slow, workers, fastest", [("coordinator", 2, False),
+                                                     ("forked", 2, False), ("forked", 3, False),
+                                                     ("forked", 2, True)])
+def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fastest,
+                                                               monkeypatch):
+    """Balanced levels: when one worker is slow, the others expand part of
+    its share (and hold the successors).  Every figure, the violations and
+    the counterexamples stay those of one process, and the states did move
+    (both ways: the coordinator's worker hands work to a hungry forked
+    worker, and steals from a slow one).  Small chunks, for these small
+    levels (forked workers inherit them)."""
+    from pccl.search import parallel as P
+    monkeypatch.setattr(P, "_CHUNK", 4)
+    monkeypatch.setattr(P, "_MIN_GIVE", 2)
+    monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
+    for opts in (dict(overrides={"k": "0", "d": "1"}, max_states=3000),
+                 dict(overrides={"k": "1"}, invariants=[MUTEX], find_all=True, max_states=4000)):
+        m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()))
+        run = {k: v for k, v in opts.items() if k in ("max_states", "find_all")}
+        if fastest:
+            from pccl.search.fastest import FastestExplorer
+            one = FastestExplorer(m, **run).run()
+        else:
+            one = Explorer(m, **run).run()
+        e = ParallelExplorer(_SlowIn(m, slow == "coordinator", 0.0005), workers=workers,
+                             fastest=fastest, **run)
+        many = e.run()
+        assert e.moved > 10, e.moved
+        assert result_signature(many) == result_signature(one)
+        assert one.found or one.status == "bounded"
+
+
+def test_small_levels_are_not_balanced():
+    """Levels under _BALANCE_LEVEL states keep the static split (a request
+    for work costs a wait for the other worker): nothing moves, even with
+    one worker slowed down."""
+    from pccl.search import parallel as P
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    e = ParallelExplorer(_SlowIn(m, False, 0.0002), workers=2, max_states=2000)
+    assert e.run().stats.states == 2000
+    assert e.moved == 0 and P._BALANCE_LEVEL > 1000
+
+
+def test_waiting_blocks_on_an_overloaded_machine(monkeypatch):
+    """A waiting process polls only while the load average is at most four times
+    the cores it may use (read at most once a second)."""
+    import os
+    from pccl.search import parallel as P
+    cores = P.available_workers()
+    for load, want in ((4 * cores + 0.5, True), (4 * cores - 0.5, False)):
+        monkeypatch.setattr(os, "getloadavg", lambda load=load: (load, load, load))
+        monkeypatch.setattr(P, "_LOAD", [0.0, not want])
+        assert P._overloaded() is want
+        monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+        assert P._overloaded() is want          # cached within the second
+
+
 LARGE_LEVEL = r"""
 import numpy as np
 from pccl.search import parallel as P
@@ -113,28 +200,36 @@ m = make_model("programs/fischer.pccl", overrides={"k": "0"})
 m.prepare()
 big = 300_000                   # 7 MB of candidates each way, beyond any socket buffer
 
-def step(self, decision, at_bound):
+def finish_step(self):
     f = np.arange(2 * big, dtype=np.uint64).reshape(-1, 2) * np.uint64(2) + np.uint64(self.wid)
     k = np.arange(big, dtype=np.uint64)
     self.own = (f[:0], k[:0])
-    return (*[None if o == self.wid else (f, k) for o in range(self.n)], (big, [], None, None, [], 0))
+    return (*[None if o == self.wid else (f, k) for o in range(self.n)],
+            (big, [], None, None, [], 0, np.zeros(0, np.int64)))
 
-P._Worker.step = step
+def step(self, decision, at_bound):
+    return finish_step(self)
+
+P._Worker.step = step               # PCCL_BALANCE=0
+P._Worker.finish_step = finish_step     # balanced levels
 t = P._Pipes(2)
 t.start(m, True, False)
 try:
-    rest, new = t.level([(None, False), (None, False)])
+    rest, new = t.level([(None, False), (None, False)], 1 << 20)
     print(len(new[0]), len(new[1]), rest[1][0])
 finally:
     t.stop()
 """
 
 
-def test_pipes_exchange_large_levels_without_deadlock():
+@pytest.mark.parametrize("balance", ["1", "0"])
+def test_pipes_exchange_large_levels_without_deadlock(balance):
     """Two workers whose candidates for each other exceed the socket
-    buffers: the pipelined level must not leave both writing at once."""
+    buffers: the pipelined level must not leave both writing at once
+    (balanced levels, and with ``PCCL_BALANCE=0``)."""
+    import os
     r = subprocess.run([sys.executable, "-c", LARGE_LEVEL], capture_output=True, text=True,
-                       timeout=120)
+                       timeout=120, env=dict(os.environ, PCCL_BALANCE=balance))
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["300000", "300000", "300000"]
 
@@ -197,6 +292,9 @@ def test_ray_actors_give_the_one_process_results(local_ray):
         one = signature(explore(program, **opts))
         assert signature(explore(program, ray="auto", workers=w, **opts)) == one, \
             f"{name}: ray with {w} actors"
+    program, opts = FASTEST_CASES["fischer-violation"]      # --fastest through the actors
+    assert fastest_signature(explore(program, ray="auto", workers=2, fastest=True, **opts)) == \
+        fastest_signature(explore(program, fastest=True, **opts))
     assert local_ray.is_initialized()        # a connection it did not open stays open
 
 
@@ -366,10 +464,68 @@ def _parent_links(m):
     return _LINKS["p"]
 
 
-def test_fastest_still_needs_one_process():
-    from pccl.lang.errors import PcclError
-    with pytest.raises(PcclError, match="fastest=True searches in one process"):
-        explore(FISCHER, overrides={"k": "0"}, fastest=True, workers=2)
+FAST_SLOW = "tests/programs/fast_slow.pccl"
+
+#: --fastest: the search ordered on (time steps, transitions), its buckets
+#: expanded as levels by the workers
+FASTEST_CASES = {
+    "fast-slow": (FAST_SLOW, dict(agents=1, reduce="none")),
+    "fischer-violation": (FISCHER, dict(overrides={"k": "0"}, invariants=[MUTEX])),
+    "fischer-exhaustive": CASES["fischer-exhaustive"],
+    "fischer-all": CASES["fischer-all"],
+    "fischer-max-states": CASES["fischer-max-states"],
+    "fischer-depth": CASES["fischer-depth"],
+    "race-nonatomic-stuck": CASES["race-nonatomic-stuck"],
+    "race-nonatomic-all": CASES["race-nonatomic-all"],
+    "leader": CASES["leader"],
+}
+
+
+def fastest_signature(r):
+    cxs = r.counterexamples
+    return (signature(r), r.stats.frontier, [cx.trace and cx.trace.last[TIME] for cx in cxs])
+
+
+@pytest.mark.parametrize("name", sorted(FASTEST_CASES))
+def test_fastest_with_workers_gives_the_one_process_results(name):
+    """--fastest with 2 and 3 workers: the one-process fastest search's
+    figures (states, transitions, depth, the frontier left), verdict and
+    very counterexample (the same states, the same time).  Before, refused."""
+    program, opts = FASTEST_CASES[name]
+    one = explore(program, fastest=True, **opts)
+    for w in (2, 3):
+        assert fastest_signature(explore(program, fastest=True, workers=w, **opts)) == \
+            fastest_signature(one), f"workers={w}"
+
+
+def test_fastest_with_workers_is_the_fastest_not_the_shortest():
+    """fast_slow: breadth-first finds the violation at time 2, the fastest
+    search at time 0 (a longer path); so do the workers, and the command
+    line says so."""
+    from pccl.cli import main
+    from click.testing import CliRunner
+    bfs = explore(FAST_SLOW, agents=1, reduce="none", workers=2)
+    fast = explore(FAST_SLOW, agents=1, reduce="none", fastest=True, workers=2)
+    assert bfs.counterexamples[0].trace.last[TIME] == 2
+    assert fast.counterexamples[0].trace.last[TIME] == 0
+    assert len(fast.counterexamples[0].trace) > len(bfs.counterexamples[0].trace)
+    res = CliRunner().invoke(main, ["explore", FAST_SLOW, "-n", "1", "--fastest", "--workers",
+                                    "2", "--no-progress"])
+    assert res.exit_code == 1, res.output
+    assert "fastest: violation at t=0" in res.output
+
+
+@pytest.mark.parametrize("name", ["tl_spin.pccl-agents2", "tl_spin_leave.pccl-agents3",
+                                  "rdv-wall-lasso", "token-keep-leadsto", "token-ring-within",
+                                  "fischer-max-states-temporal"])
+def test_fastest_time_lock_and_temporal_verdicts_with_workers(name):
+    """The time-lock check and temporal properties on the graph the fastest
+    search records: the same verdicts with workers."""
+    program, opts = TEMPORAL_CASES[name]
+    one = full_signature(explore(program, fastest=True, **opts))
+    for w in (2, 3):
+        assert full_signature(explore(program, fastest=True, workers=w, **opts)) == one, \
+            f"workers={w}"
 
 
 def test_ray_address_where_nothing_listens_fails_at_once():

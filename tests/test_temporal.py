@@ -445,10 +445,10 @@ def test_fastest_among_equal_times_is_shortest():
     assert len(tr) == len(b.counterexamples[0].trace)
 
 
-def test_workers_check_temporal_properties_and_refuse_fastest():
+def test_workers_check_temporal_properties_and_run_fastest():
     """With workers the temporal verdict is the one-process verdict
-    (tests/test_parallel.py compares them in full); --fastest, a search of
-    its own, still needs one process and says so."""
+    (tests/test_parallel.py compares them in full); --fastest with workers
+    gives the one-process result too (before: refused)."""
     one = cli("explore", RING, "--agents", "3", "--property", "forall i: want[i] ~> has[i]",
               "--no-progress", "--format", "json")
     two = cli("explore", RING, "--agents", "3", "--property", "forall i: want[i] ~> has[i]",
@@ -457,9 +457,13 @@ def test_workers_check_temporal_properties_and_refuse_fastest():
     a, b = json.loads(one.stdout), json.loads(two.stdout)
     assert a["holds"] == b["holds"] and len(a["holds"]) == 3
     assert a["statistics"]["states"] == b["statistics"]["states"]
-    res = cli("explore", RING, "--workers", "2", "--fastest")
-    assert res.exit_code == 2 and "--fastest searches in one process" in res.stderr
-    assert "Traceback" not in res.stderr
+    one = cli("explore", RING, "--agents", "3", "--fastest", "--no-progress", "--format", "json")
+    two = cli("explore", RING, "--agents", "3", "--fastest", "--no-progress", "--format", "json",
+              "--workers", "2")
+    assert one.exit_code == two.exit_code, two.stderr
+    assert json.loads(one.stdout)["statistics"]["states"] == \
+        json.loads(two.stdout)["statistics"]["states"]
+    assert "Traceback" not in two.stderr
 
 
 @pytest.mark.parametrize("seed", range(5))

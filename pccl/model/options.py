@@ -338,9 +338,6 @@ def conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if (r is not None or (w != 1 and w != "auto")) and (o.exact or o.coverage):
         return Conflict("workers", f"{{{'exact' if o.exact else 'coverage'}=True}} runs in one "
                                    "process: use {workers=1} without {ray}")
-    if (r is not None or w != 1) and o.fastest:
-        return Conflict("workers", "{fastest=True} searches in one process: use {workers=1} "
-                                   "without {ray}")
     return spill_conflict(o) or checkpoint_conflict(o)
 
 
@@ -364,6 +361,9 @@ def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if o.checkpoint is None and o.resume is None:
         return None
     what = "resume" if o.checkpoint is None else "checkpoint"
+    if o.fastest and (o.ray is not None or o.workers != 1):
+        return Conflict(what, f"{{{what}}} does not run with {{fastest=True}} and several "
+                              "workers yet: use {workers=1} without {ray}")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
             return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "

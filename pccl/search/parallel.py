@@ -35,6 +35,18 @@ Per level the coordinator makes two rounds with every worker:
 The coordinator then numbers the new states, orders the stop events and
 sends each worker its share of the decision with the next ``step``.
 
+With :class:`_Pipes` the step is *balanced*: the workers expand their shares
+a chunk at a time, and one that runs out of work gets half of what another
+has left (:meth:`_Worker.give`, :meth:`_Worker.take`); the moved states'
+successors stay with the worker that expanded them, and the coordinator
+learns who that was from the step replies.  The keys do not depend on who
+expanded a state, so the results do not either.
+
+``fastest=True`` (``--fastest``): the states wait in buckets keyed by (time
+steps, transitions), held by their generators; the coordinator expands the
+smallest bucket as a level (:meth:`ParallelExplorer._bucket_rounds`), which
+gives the one-process fastest search's numbering and results.
+
 The partitioning code (:class:`_Worker`, the coordinator loop) is
 engine-neutral; a *transport* moves the two rounds:
 
@@ -72,6 +84,7 @@ import gc
 import itertools
 import marshal
 import multiprocessing
+import multiprocessing.connection
 import operator
 import os
 import signal
@@ -139,9 +152,15 @@ class _Worker:
     their own (or, for worker 0 of :class:`_Pipes`, in the coordinator's)."""
 
     def __init__(self, model, wid: int, n: int, deadlock: bool, find_all: bool,
-                 columns=None):
+                 columns=None, fastest: bool = False):
         self.m, self.wid, self.n = model, wid, n
         self.deadlock, self.find_all = deadlock, find_all
+        # the fastest search (pccl/search/fastest.py): the states I hold wait
+        # in buckets keyed by (time steps, transitions); a bucket is a level
+        self.fastest = fastest
+        self.buckets: dict = {}         # (ticks, depth) -> [numbers, states]
+        self.x_bucket: Any = None       # the bucket expanded last
+        self.cand_cost: Any = None      # time cost of each candidate (fastest)
         self.table = FingerprintTable()
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
@@ -191,51 +210,141 @@ class _Worker:
     def expand(self, at_bound: bool):
         """Successors of my share of the level.  Returns the candidates
         grouped by owner (first occurrences only, my own already-visited
-        ones dropped), per expanded parent its number and successor count,
-        deadlocks ``[(number, violation)]``, the first numbers that met the
-        depth and model bounds, the violating candidates ``[(key,
-        violations)]`` and my peak memory."""
-        m, succ_fn = self.m, self.m.successors
+        ones dropped), the number of successors generated, deadlocks
+        ``[(number, violation)]``, the smallest numbers that met the depth
+        and model bounds, the violating candidates ``[(key, violations)]``,
+        my peak memory and the numbers of the parents I expanded for
+        another worker (:meth:`take`).
+
+        The same as :meth:`begin`, :meth:`expand_some` until nothing is
+        left, :meth:`finish`: a transport that balances the level (the
+        pipes) expands it a chunk at a time and lets an idle worker take
+        part of what is left (:meth:`give`, :meth:`take`)."""
+        self.begin(at_bound)
+        self.expand_some(None)
+        return self.finish()
+
+    def begin(self, at_bound: bool) -> None:
+        """Start expanding my share of the level (see :meth:`expand`)."""
+        # the work: blocks [numbers, states, position, foreign], expanded
+        # from the front, given away (:meth:`give`) from the back
+        self.work: list = [[self.level_idx, self.level, 0, False]] if self.level else []
+        self.level, self.level_idx = [], []
+        self.x_bound = at_bound
+        self.x_cs: list = []
+        self.x_par_idx: list = []
+        self.x_par_n: list = []
+        self.x_dead: list = []
+        self.x_depth_min: Optional[int] = None
+        self.x_model_min: Optional[int] = None
+        self.x_moved: list = []
+        self.x_ck: list = []            # the candidates' fingerprints (bytes)
+
+    def remaining(self) -> int:
+        """States of the level not expanded (nor given away) yet."""
+        return sum(len(b[1]) - b[2] for b in self.work)
+
+    def expand_some(self, limit: Optional[int]) -> int:
+        """Expand up to ``limit`` (None: all) of the states left; returns how
+        many are left."""
+        m, succ_fn, at_bound = self.m, self.m.successors, self.x_bound
         second = operator.itemgetter(1)
-        cs: list = []
-        par_idx: list = []
-        par_n: list = []
-        dead: list = []
-        depth_min = model_min = None
+        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        ck, keys_of = self.x_ck, self.keys_of
         cols = self.columns
         chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
-        for g, s in zip(self.level_idx, self.level):
-            succ = succ_fn(s)
-            if not succ:
-                bound, v = terminal(m, s, self.deadlock)
-                if bound is not None:
-                    model_min = g if model_min is None else model_min
-                elif v is not None:
-                    dead.append((g, v))
-                continue
-            if at_bound:
-                depth_min = g if depth_min is None else depth_min
-                continue
-            par_idx.append(g)
-            par_n.append(len(succ))
-            cs.extend(map(second, succ))
-            if chg_of is not None:
-                self.g_chg_idx.append(g)
-                self.g_chg.append(chg_of(s, list(map(second, succ))))
-        self._discard(self.level)
-        self.level = []
+        work = self.work
+        viol_fn = m.violations if self.fastest else None
+        while work and (limit is None or limit > 0):
+            blk = work[0]
+            nums, states, pos, foreign = blk
+            end = len(states) if limit is None else min(len(states), pos + limit)
+            for g, s in zip(nums[pos:end], states[pos:end]):
+                if viol_fn is not None:     # the fastest search: checked when expanded
+                    vs = viol_fn(s)
+                    if vs:
+                        dead.append((g, vs))
+                succ = succ_fn(s)
+                if not succ:
+                    bound, v = terminal(m, s, self.deadlock)
+                    if bound is not None:
+                        if self.x_model_min is None or g < self.x_model_min:
+                            self.x_model_min = g
+                    elif v is not None:
+                        dead.append((g, [v]))
+                    continue
+                if at_bound:
+                    if self.x_depth_min is None or g < self.x_depth_min:
+                        self.x_depth_min = g
+                    continue
+                par_idx.append(g)
+                par_n.append(len(succ))
+                cs.extend(map(second, succ))
+                if chg_of is not None:
+                    self.g_chg_idx.append(g)
+                    self.g_chg.append(chg_of(s, list(map(second, succ))))
+            ck.extend(keys_of(cs[len(ck):]))     # hashed here: part of the balanced work
+            if foreign:
+                self.x_moved.extend(nums[pos:end])
+            if limit is not None:
+                limit -= end - pos
+            if end < len(states):
+                blk[2] = end
+            else:
+                work.pop(0)
+                self._discard(states)
+        return self.remaining()
+
+    def give(self, most: int):
+        """Hand over up to ``most`` of the states left, from the back (for
+        another worker to expand: :meth:`take`): ``(numbers, states)``, or
+        None when there is nothing to give."""
+        nums: list = []
+        states: list = []
+        while self.work and len(nums) < most:
+            blk = self.work[-1]
+            k = min(most - len(nums), len(blk[1]) - blk[2])
+            cut = len(blk[1]) - k
+            nums[:0], states[:0] = blk[0][cut:], blk[1][cut:]
+            del blk[0][cut:], blk[1][cut:]
+            if cut <= blk[2]:
+                self.work.pop()
+                self._discard(blk[1])
+        return (nums, states) if nums else None
+
+    def take(self, nums: list, states: list) -> None:
+        """States of the level handed over by another worker (:meth:`give`),
+        to expand after mine: their successors are mine (I hold those that
+        are admitted), and :meth:`finish` names them (the coordinator's
+        record of who holds which state)."""
+        if nums:
+            self.work.append([nums, states, 0, True])
+
+    def finish(self):
+        """The reply of :meth:`expand`, once the level is expanded."""
+        assert not self.work, "finish() before the level is expanded"
+        cs, par_idx, par_n, ck = self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck
+        self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck = [], [], [], []
         total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
+        moved = np.asarray(self.x_moved, dtype=np.int64)
         viol: list = []
+        self.cand_cost = np.zeros(total, dtype=np.int64) if self.fastest else None
         if total:
-            ck = list(self.keys_of(cs))
             starts = np.repeat(np.cumsum(pn) - pn, pn)
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
+            if len(pi) > 1 and not bool((pi[1:] > pi[:-1]).all()):
+                # parents handed over by others (:meth:`take`): back in key order
+                order = np.argsort(keys, kind="stable")
+                keys = keys[order]
+                ol = order.tolist()
+                cs, ck = [cs[p] for p in ol], [ck[p] for p in ol]
+                del order, ol
             fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
             if self.columns is not None:
-                self.g_src.append(np.repeat(pi, pn).astype(np.uint32))
+                self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
                 self.g_fps.append(fps)
             # first occurrence of each fingerprint (the smallest key: keys ascend)
             first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
@@ -251,18 +360,26 @@ class _Worker:
                 seen[mine] = self.table.lookup(f[mine]) >= 0
             keep = ~seen
             first, f, k = first[keep], f[keep], k[keep]
-            viol_fn = self.m.violations
-            vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
-            if any(vs):
-                kl = k.tolist()
-                viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
+            if self.fastest:            # violations: when expanded; the time costs instead
+                costs = np.fromiter(self.m.time_costs([cs[p] for p in first.tolist()]),
+                                    dtype=np.int64, count=len(first))
+                self.cand_cost[first] = costs
+                timed = costs != 0
+                viol = [(k[timed], costs[timed])]
+            else:
+                viol_fn = self.m.violations
+                vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
+                if any(vs):
+                    kl = k.tolist()
+                    viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
         else:
             keys = np.zeros(0, np.uint64)
             f, k = np.zeros((0, 2), np.uint64), keys
         self.cand, self.cand_keys = cs, keys
         self.par_idx, self.par_n = pi, pn
-        return (_owner_split(f, k, self.n), total, dead, depth_min, model_min, viol,
-                peak_rss_bytes())
+        dead, self.x_dead = self.x_dead, []
+        return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
+                viol, peak_rss_bytes(), moved)
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -329,6 +446,9 @@ class _Worker:
             self.level = [cs[p] for p in pos]
             self.level_idx = (won_ranks + base).tolist()
             self._note_states(self.level_idx, self.level)
+            if self.fastest:
+                self._file(self.level_idx, self.level, self.cand_cost[pos].tolist())
+                self.level, self.level_idx, self.cand_cost = [], [], None
             self._discard(cs)
             del cs
             self.cand, self.cand_keys = [], None
@@ -340,20 +460,51 @@ class _Worker:
                 self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
         return peak_rss_bytes()
 
-    def step(self, decision, at_bound: bool):
+    def _file(self, idx: list, states: list, costs: list) -> None:
+        """The fastest search: new states (numbers ``idx``, ascending), each
+        into the bucket of the one expanded last plus its time cost."""
+        ticks, depth = self.x_bucket
+        for g, st, c in zip(idx, states, costs):
+            b = self.buckets.get((ticks + c, depth + 1))
+            if b is None:
+                b = self.buckets[ticks + c, depth + 1] = [[], []]
+            b[0].append(g)
+            b[1].append(st)
+
+    def start_level(self, decision, at_bound: bool, bucket=None) -> None:
+        """Commit the last level's decision and begin expanding the next:
+        my share of the level, or (the fastest search) of ``bucket``."""
+        self.commit(decision)
+        if bucket is not None:
+            self.level_idx, self.level = self.buckets.pop(bucket, ([], []))
+            self.x_bucket = bucket
+        self.begin(at_bound)
+
+    def step(self, decision, at_bound: bool, bucket=None):
         """One round: commit the last level, expand the next.  Returns the
         candidates for each owner, then the rest of :meth:`expand`'s reply,
         as ``n + 1`` values (so that Ray can hand each part to its owner
         without the coordinator fetching it)."""
-        self.commit(decision)
-        r = self.expand(at_bound)
+        self.start_level(decision, at_bound, bucket)
+        self.expand_some(None)
+        return self.finish_step()
+
+    def finish_step(self):
+        """:meth:`step`'s reply, once the level is expanded (for a transport
+        that expands it a chunk at a time)."""
+        r = self.finish()
         parts = list(r[0])
         self.own, parts[self.wid] = parts[self.wid], None     # mine stay here
         return (*parts, r[1:])
 
     def adopt(self, idx, states):
-        self.level_idx.extend(idx)
-        self.level.extend(states)
+        if self.fastest:        # initial states: bucket (0, 0)
+            b = self.buckets.setdefault((0, 0), [[], []])
+            b[0].extend(idx)
+            b[1].extend(states)
+        else:
+            self.level_idx.extend(idx)
+            self.level.extend(states)
         self._note_states(idx, states)
 
     def graph(self):
@@ -398,6 +549,34 @@ def _spin_seconds(default: float = 0.05) -> float:
 
 
 _SPIN = _spin_seconds()
+#: without ``PCCL_SPIN``, poll only while the machine is not overloaded
+_SPIN_AUTO = "PCCL_SPIN" not in os.environ
+_LOAD = [0.0, False]         # when last read, and whether overloaded then
+
+
+def _overloaded() -> bool:
+    """Whether the 1-minute load average exceeds four times the cores this
+    process may use (read at most once a second).  Then a waiting process
+    blocks at once instead of polling: measured on the shared machine at
+    load 11, fischer k=2 with 2 workers took 107.4 s polling and 53.5 s
+    blocking (1 worker: 85.6 s); at load 3.8, 15.0 s polling (the old code)
+    and 30.7 s blocking (1 worker: 22.2 s).  A process that wakes from a block is scheduled
+    ahead of the runnable ones; one that polls waits its turn among them,
+    which costs little while they are few."""
+    now = _time.monotonic()
+    if now - _LOAD[0] > 1.0:
+        _LOAD[0] = now
+        try:
+            _LOAD[1] = os.getloadavg()[0] > 4 * available_workers()
+        except (OSError, AttributeError):      # pragma: no cover - no load average
+            _LOAD[1] = False
+    return bool(_LOAD[1])
+#: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
+_BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
+#: ... for levels of at least this many states (~15 ms of work or more
+#: for one worker; measured: on a loaded machine, balancing fischer k=2's
+#: levels of ~1,600 states cost more than it gained)
+_BALANCE_LEVEL = 8192
 
 
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
@@ -413,19 +592,79 @@ def _recv(conn):
     for a time slice; on an idle virtual machine, for the core to wake up),
     twice per BFS level.  The wait between rounds is short (the other
     workers' share of a level), so polling through it keeps the core."""
-    poll = conn.poll
-    while _LITTER and not poll(0):
+    return _ready([conn]).recv()
+
+
+def _ready(conns: list):
+    """The first of ``conns`` with a message waiting (see :func:`_recv`:
+    frees discarded states, polls, then blocks)."""
+    def first():
+        for c in conns:
+            if c.poll(0):
+                return c
+        return None
+    c = first()
+    while _LITTER and c is None:
         states = _LITTER[-1]
         if states:
             del states[-2048:]
         else:
             _LITTER.pop()
-    if _SPIN > 0 and not poll(0):
+        c = first()
+    if _SPIN > 0 and c is None and not (_SPIN_AUTO and _overloaded()):
         clock, pass_turn = _time.perf_counter, getattr(os, "sched_yield", lambda: None)
         end = clock() + _SPIN
-        while not poll(0) and clock() < end:
+        while c is None and clock() < end:
             pass_turn()     # a process waiting for a core (my partner?) gets this one
-    return conn.recv()
+            c = first()
+    if c is None:
+        c = multiprocessing.connection.wait(conns)[0]
+    return c
+
+
+#: States a worker expands between two looks for another worker's request
+#: (:func:`_balanced_step`, :meth:`_Pipes._balance`): ~0.2-0.5 ms of work.
+_CHUNK = 64
+#: A worker asked for work hands over half of what it has left, if that is
+#: at least this many states (moving a state costs about as much as
+#: expanding it: pickled, sent, unpickled).
+_MIN_GIVE = 32
+
+
+def _half(left: int) -> int:
+    return left // 2 if left >= _MIN_GIVE else 0
+
+
+def _balanced_step(w: "_Worker", conn, *args) -> None:
+    """A forked worker's side of a balanced level (:meth:`_Pipes.level`):
+    commit the decision, expand my share a chunk at a time, answering the
+    coordinator's requests for work (``("steal", None)`` -> ``("loot",
+    (numbers, states) or None)``) in between; then say ``("hungry", None)``
+    and expand the states the coordinator hands over (``("work", (numbers,
+    states))``) until it says ``("finish", None)``; the caller then finishes
+    the step (:meth:`_Worker.finish_step`), while worker 0 finishes its own."""
+    w.start_level(*args)
+    poll, recv, send = conn.poll, conn.recv, conn.send
+
+    def expand_all():
+        while w.expand_some(_CHUNK):
+            while poll(0):
+                kind, _ = recv()
+                assert kind == "steal", kind
+                send(("loot", w.give(_half(w.remaining()))))
+    expand_all()
+    while True:
+        send(("hungry", None))
+        kind, value = _recv(conn)
+        while kind == "steal":          # asked before my "hungry" arrived
+            send(("loot", None))
+            kind, value = _recv(conn)
+        if kind == "work":
+            w.take(*value)
+            expand_all()
+            continue
+        assert kind == "finish", kind
+        return
 
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
@@ -452,7 +691,7 @@ def _die_with_parent(parent: int) -> None:
 
 
 def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
-           inherited=()):
+           inherited=(), fastest=False):
     # The coordinator alone handles Ctrl-C and SIGTERM (sent to the whole
     # process group by a terminal or a job control): a worker ignores both
     # and stops when the coordinator says so, or when its pipe closes.
@@ -463,7 +702,7 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
     if parent is not None:
         _die_with_parent(parent)
     gc.disable()
-    w = _Worker(model, wid, n, deadlock, find_all, columns)
+    w = _Worker(model, wid, n, deadlock, find_all, columns, fastest)
     w.defer_free = True
     while True:
         try:
@@ -473,7 +712,11 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
         if cmd == "stop":
             return
         try:
-            reply = ("ok", getattr(w, cmd)(*args))
+            if cmd == "lstep":
+                _balanced_step(w, conn, *args)
+                reply = ("ok", w.finish_step())
+            else:
+                reply = ("ok", getattr(w, cmd)(*args))
         except BaseException as exc:         # report, do not hang the coordinator
             reply = ("error", exc)
         try:
@@ -508,19 +751,20 @@ class _Pipes:
         self.outstanding = [0] * n
         self.local: Optional[_Worker] = None
 
-    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None,
+              fastest: bool = False) -> None:
         ctx = multiprocessing.get_context("fork")
         me = os.getpid()
         for w in range(1, self.n):
             a, b = ctx.Pipe()
             p = ctx.Process(target=_serve, args=(b, model, w, self.n, deadlock, find_all,
-                                                 columns, me, [*self.conns, a]),
+                                                 columns, me, [*self.conns, a], fastest),
                             daemon=True)
             p.start()
             b.close()
             self.conns.append(a)
             self.procs.append(p)
-        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns)
+        self.local = _Worker(model, 0, self.n, deadlock, find_all, columns, fastest)
         self.local.defer_free = self.n > 1     # freed while waiting for the others
 
     def stop(self) -> None:
@@ -552,21 +796,46 @@ class _Pipes:
         mine = getattr(self.local, cmd)(*per_worker[0])
         return [mine] + [self._result(w) for w in range(1, self.n)]
 
-    def level(self, per_worker: list):
+    def level(self, per_worker: list, size: int = 0):
         """One level: the *step* round, then the *decide* round, pipelined:
         an owner's *decide* is sent as soon as the coordinator holds the
-        candidates of every other generator for it (``--workers 2``: right
-        after worker 0's step, so the forked worker decides straight after
+        candidates of every other generator for it (``--workers 2``: with
+        the message that ends worker 1's step, so it decides straight after
         its step, without waiting for the coordinator to read its reply).
+
+        The step is *balanced* (:meth:`_balance`): the workers expand their
+        shares a chunk at a time, and one that runs out of work gets half of
+        what another has left, so that a worker slowed down (by another job
+        on its core) does not hold the level up.  The moved states' successors
+        stay with the worker that expanded them (it holds those admitted),
+        so the shares of the next level follow the workers' speeds and
+        states move again only when the speeds change.  Results do not depend
+        on who expanded what: candidates are ordered by their keys.
+        Only a level of at least :data:`_BALANCE_LEVEL` states (``size``) is
+        balanced: a request for work waits for the other worker to be
+        running, and on a small level that wait costs more than the
+        imbalance.  ``PCCL_BALANCE=0`` in the environment expands each share
+        where it lies, as before (for comparison).
+
         Returns (the rest of each step reply, each owner's new keys)."""
         n, local = self.n, self.local
         assert local is not None, "start() first"
-        for w in range(1, n):
-            self.conns[w - 1].send(("step", per_worker[w]))
-            self.outstanding[w] += 1
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
-        parts[0] = local.step(*per_worker[0])
         sent = [False] * n
+        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL:
+            for w in range(1, n):
+                self.conns[w - 1].send(("lstep", per_worker[w]))
+                self.outstanding[w] += 1
+            local.start_level(*per_worker[0])
+            self._balance()
+            for o in range(1, n):           # every forked worker waits for this
+                self.conns[o - 1].send(("finish", None))
+            parts[0] = local.finish_step()  # meanwhile they finish theirs
+        else:
+            for w in range(1, n):
+                self.conns[w - 1].send(("step", per_worker[w]))
+                self.outstanding[w] += 1
+            parts[0] = local.step(*per_worker[0])
         ready: list = [None] * n            # pickled decide messages not sent yet
 
         def send_ready():
@@ -590,6 +859,12 @@ class _Pipes:
         mine = local.decide(*(parts[g][0] for g in range(n)))
         return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
 
+    def _balance(self) -> None:
+        """Worker 0's side of a balanced step, in this process
+        (:class:`_Balancer`)."""
+        assert self.local is not None
+        _Balancer(self.local, self.conns, self.outstanding).run()
+
     def call(self, w: int, cmd: str, *args):
         if w == 0:
             return getattr(self.local, cmd)(*args)
@@ -605,6 +880,80 @@ class _Pipes:
                     self._result(w)
                 except Exception:
                     pass
+
+
+class _Balancer:
+    """Worker 0's side of a balanced step (:meth:`_Pipes.level`), in the
+    coordinator's process: expand its share a chunk at a time; between
+    chunks hand half of what is left to a forked worker that says it is
+    ``hungry``; once its own share is done, ask the busy workers for work
+    (``steal``, one request at a time) and expand what they hand over, until
+    every forked worker is hungry and nothing is left (the other side:
+    :func:`_balanced_step`)."""
+
+    def __init__(self, local: "_Worker", conns: list, outstanding: list):
+        self.local, self.conns, self.outstanding = local, conns, outstanding
+        n = len(conns) + 1
+        self.hungry = [True] + [False] * (n - 1)
+        self.asked = [False] * n        # a steal request is on its way to worker o
+        self.dry = [False] * n          # ... and o had too little to hand over
+        self.turn = 0
+
+    def run(self) -> None:
+        local, conns = self.local, self.conns
+        while True:
+            if local.expand_some(_CHUNK):
+                self.pump()
+                continue
+            self.pump()
+            if local.remaining():
+                continue
+            if all(self.hungry) and not any(self.asked):
+                return
+            if not any(self.asked):
+                self.ask()
+            c = _ready(conns)
+            self.handle(conns.index(c) + 1, c.recv())
+
+    def handle(self, o: int, msg) -> None:
+        kind, value = msg
+        if kind == "hungry":
+            self.hungry[o] = True
+        elif kind == "loot":
+            self.asked[o] = False
+            if value is None:
+                self.dry[o] = True
+            else:
+                self.local.take(*value)
+        elif kind == "error":
+            self.outstanding[o] -= 1
+            raise value
+        else:                   # pragma: no cover - a protocol error
+            raise RuntimeError(f"worker {o}: unexpected {kind!r} during a level")
+
+    def pump(self) -> None:
+        """Read what has come, and feed the hungry from what I have left."""
+        local, conns, hungry = self.local, self.conns, self.hungry
+        for o, c in enumerate(conns, 1):
+            while c.poll(0):
+                self.handle(o, c.recv())
+        for o, c in enumerate(conns, 1):
+            if hungry[o]:
+                loot = local.give(_half(local.remaining()))
+                if loot is None:
+                    break
+                c.send(("work", loot))
+                hungry[o], self.dry[o] = False, False
+
+    def ask(self) -> None:
+        """Ask a busy worker (the next in turn) for half of what it has left."""
+        m = len(self.conns)
+        for i in range(1, m + 1):
+            o = 1 + (self.turn + i) % m
+            if not self.hungry[o] and not self.dry[o]:
+                self.conns[o - 1].send(("steal", None))
+                self.asked[o], self.turn = True, o
+                return
 
 
 #: seconds to wait for a Ray head's port to answer before giving up
@@ -734,7 +1083,8 @@ class _RayTransport:
             raise RayUnavailable(f"{{ray={address}}}: cannot start or reach Ray: {exc}{hint}") from None
         return True
 
-    def start(self, model, deadlock: bool, find_all: bool, columns=None) -> None:
+    def start(self, model, deadlock: bool, find_all: bool, columns=None,
+              fastest: bool = False) -> None:
         ray = self.ray
         limit = _env_seconds("PCCL_RAY_START_TIMEOUT", 300.0)
         self.owned = self.connect(ray, self.address, self.n or available_workers())
@@ -744,7 +1094,7 @@ class _RayTransport:
         per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
         actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_RayWorker)
         ref = ray.put(model)
-        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns)
+        self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns, fastest)
                        for w in range(self.n)]
         self.actor_ids = {a._actor_id.hex(): w for w, a in enumerate(self.actors)}
         refs = [a.ready.remote() for a in self.actors]
@@ -824,7 +1174,7 @@ class _RayTransport:
         return self._get([getattr(a, cmd).remote(*args)
                           for a, args in zip(self.actors, per_worker)])
 
-    def level(self, per_worker: list):
+    def level(self, per_worker: list, size: int = 0):
         """One level: the *step* round, then the *decide* round.  Only the
         small part of each step reply comes to the coordinator; the
         candidates stay in the object store as references, which the
@@ -949,12 +1299,15 @@ class ParallelExplorer(Explorer):
     _ck_mark: Optional[dict] = None
 
     def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
-                 **options):
+                 fastest: bool = False, **options):
         if options.get("exact"):
             raise ValueError("exact state storage runs in one process (workers=1)")
         super().__init__(model, **options)
         self.workers: Any = workers    # an int once the transport has started
         self.ray = ray
+        #: the fastest search (:class:`~pccl.search.fastest.FastestExplorer`'s
+        #: order): time buckets, each expanded as a level (:meth:`_bucket_rounds`)
+        self.fastest = fastest
         self.transport: Any
         if ray is not None:
             self.transport = _RayTransport(workers, ray)
@@ -979,7 +1332,8 @@ class ParallelExplorer(Explorer):
         # installed before the fork: a worker never runs a handler that raises
         self.signals = _Signals()
         try:
-            self.transport.start(self.model, self.deadlock, self.find_all, columns)
+            self.transport.start(self.model, self.deadlock, self.find_all, columns,
+                                 fastest=self.fastest)
             self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
             return self._run()
         finally:
@@ -1007,6 +1361,9 @@ class ParallelExplorer(Explorer):
             self.parents = np.empty(min(cap, 1 << 26), dtype=np.uint32)
         self.table = _RemoteTable(self)
         self._total = 0
+        self._waiting: dict = {}       # the fastest search: states waiting per bucket
+        #: states expanded by another worker than the one that generated them
+        self.moved = 0
         self.peak_workers = [0] * n
         #: per worker: the decision on the last level, sent with the next step
         self._decisions: Any = None
@@ -1020,7 +1377,10 @@ class ParallelExplorer(Explorer):
             else:
                 stop = self._initial_rounds()
                 res.stats.initial_states = self._total
-                self._level_rounds(t_start, stop)
+                if self.fastest:
+                    self._bucket_rounds(t_start)
+                else:
+                    self._level_rounds(t_start, stop)
         except KeyboardInterrupt:
             res.status = "interrupted"
             self.transport.drain()
@@ -1032,6 +1392,9 @@ class ParallelExplorer(Explorer):
                 except Exception:
                     res.found.clear()
         self.table.n = self._total
+        if self.fastest:
+            res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
+            res.stats.frontier = sum(self._waiting.values())
         self._finish(res, self._bounds, t_start, self._memory(self.peak_workers))
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
@@ -1068,9 +1431,10 @@ class ParallelExplorer(Explorer):
             base = self._total
             cut, stop = len(order), False
             if cut > budget - base:
-                cut, stop = budget - base, True
+                # the fastest search admits no more states, and goes on
+                cut, stop = budget - base, not self.fastest
                 self._bounds.add(Bound.MAX_STATES)
-            for r in range(cut):
+            for r in range(0 if self.fastest else cut):    # fastest: when expanded
                 v = m.violations(chunk[int(order[r])])
                 if v and self._record(v, base + r, 0):
                     cut, stop = r + 1, True
@@ -1107,11 +1471,15 @@ class ParallelExplorer(Explorer):
             decisions, self._decisions = self._decisions, None
             self._ck_mark = None        # mid-level: no checkpoint until the next boundary
             replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
-                                         for w in range(n)])
+                                         for w in range(n)], level_size)
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
-            # peak memory)
+            # peak memory, the parents it expanded for other workers)
             self._note_peaks([r[5] for r in replies])
+            for w, r in enumerate(replies):     # moved: their successors are w's
+                if len(r[6]):
+                    holder[r[6] - level_base] = w
+                    self.moved += len(r[6])
             allk = np.concatenate(new_keys)
             order = np.argsort(allk, kind="stable")
             sorted_keys = allk[order]
@@ -1155,6 +1523,125 @@ class ParallelExplorer(Explorer):
         if ck.due() and ck.last_saved != (depth, self._total):
             ck.save_parallel(self)
 
+    def _bucket_rounds(self, t_start: float) -> None:
+        """The fastest search (:mod:`pccl.search.fastest`'s order): the
+        states wait in buckets keyed by (time steps, transitions), held by
+        the workers that generated them; the coordinator knows how many
+        each bucket holds and expands the smallest one as a level.  Within
+        a bucket the one-process search expands the states in number order
+        (a bucket fills in admission order), so the keys order the
+        candidates as it meets them, and the new states are numbered as it
+        numbers them; its stop events (a violation, checked when a state is
+        expanded; a deadlock) are ordered by parent.  A new state's bucket
+        is its parent's plus its time cost (the generators report the keys
+        of the candidates that cost time)."""
+        import heapq
+        n, T, stats = self.workers, self.transport, self._res.stats
+        total = self._total
+        self._held = (np.arange(max(total, 1024), dtype=np.int64) % n).astype(np.uint16)
+        #: states waiting, per bucket (the serial search's frontier)
+        self._waiting = {(0, 0): total} if total else {}
+        heap = list(self._waiting)
+        progress = Progress(self.progress, self.progress_interval, t_start)
+        stop = False
+        while heap and not stop:
+            self.signals.check()
+            bucket = heapq.heappop(heap)
+            ticks, depth = bucket
+            size = self._waiting.pop(bucket)
+            stats.max_depth = max(stats.max_depth, depth)
+            decisions, self._decisions = self._decisions, None
+            replies, new_keys = T.level([(decisions[w] if decisions else None,
+                                          self._at_depth_bound(depth), bucket)
+                                         for w in range(n)], size)
+            self._note_peaks([r[5] for r in replies])
+            for w, r in enumerate(replies):     # moved: their successors are w's
+                if len(r[6]):
+                    self._held[r[6]] = w
+                    self.moved += len(r[6])
+            allk = np.concatenate(new_keys)
+            order = np.argsort(allk, kind="stable")
+            sorted_keys = allk[order]
+            ranks = np.empty(len(allk), dtype=np.int64)
+            ranks[order] = np.arange(len(allk))
+            cut, stop_key = self._stop_events_fastest(replies, sorted_keys, depth)
+            upto = None if stop_key is None else (stop_key >> _SHIFT) - 1
+            if upto is None:
+                stats.transitions += sum(r[0] for r in replies)
+            else:                   # the stopping state is not expanded
+                stats.transitions += sum(T.all("transitions_upto", [(upto,)] * n))
+                stop = True
+            for r in replies:
+                for b, g in ((Bound.DEPTH, r[2]), (Bound.MODEL, r[3])):
+                    if g is not None and (upto is None or g <= upto):
+                        self._bounds.add(b)
+            self._decide_fastest(sorted_keys, _split_like(ranks, new_keys), cut,
+                                 [r[4][0] for r in replies if r[4]], bucket, heap)
+            if not stop and self.max_memory is not None:
+                stop = self._memory_bound(self._bounds, self._memory(self.peak_workers))
+            self._report(progress, sum(self._waiting.values()), stats.max_depth)
+        if self._decisions:       # the last decision: owners record its states
+            self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
+            self._decisions = None
+
+    def _stop_events_fastest(self, replies: list, sorted_keys: np.ndarray, depth: int) -> tuple:
+        """:meth:`_stop_events` for the fastest search: the events are the
+        expanded states' violations and deadlocks (the one-process search
+        checks a state when it expands it, and stops before its successors);
+        the state budget admits no more states but does not stop it."""
+        events = [(g << _SHIFT, (g, vs)) for r in replies for g, vs in r[1]]
+        events.sort(key=lambda e: e[0])     # stable: a state's violations before its deadlock
+        room = self._budget_all - self._total
+        stop_key = None
+        for ek, (g, vs) in events:
+            if self._record(vs, g, depth):
+                stop_key = ek
+                break
+        new = len(sorted_keys) if stop_key is None else \
+            int(np.searchsorted(sorted_keys, np.uint64(stop_key)))
+        if new > room:
+            self._bounds.add(Bound.MAX_STATES)
+        return min(new, room), stop_key
+
+    def _decide_fastest(self, sorted_keys: np.ndarray, owner_ranks: list, cut: int,
+                        timed: list, bucket: tuple, heap: list) -> None:
+        """:meth:`_decide` for the fastest search: the new states' holders
+        (their parents' expanders) from the global record, and the counts of
+        the buckets they go to (``timed``: per worker, the keys and time
+        costs of the candidates that cost time)."""
+        import heapq
+        n, base = self.workers, self._total
+        parents = (sorted_keys[:cut] >> np.uint64(_SHIFT)).astype(np.int64)
+        gen = self._held[parents].astype(np.int64)
+        decisions = []
+        for w in range(n):
+            sel = np.nonzero(gen == w)[0] if n > 1 else np.arange(cut)
+            decisions.append((base, cut, owner_ranks[w], sorted_keys[sel], sel))
+        self._decisions = decisions
+        self._put_parents(base, parents.astype(np.uint32))
+        if len(self._held) < base + cut:
+            grown = np.zeros(max(base + cut, 2 * len(self._held)), dtype=np.uint16)
+            grown[:len(self._held)] = self._held
+            self._held = grown
+        self._held[base:base + cut] = gen
+        costs = np.zeros(cut, dtype=np.int64)
+        if timed and cut:
+            tk = np.concatenate([t[0] for t in timed])
+            tc = np.concatenate([t[1] for t in timed])
+            o = np.argsort(tk)
+            tk, tc = tk[o], tc[o]
+            pos = np.minimum(np.searchsorted(tk, sorted_keys[:cut]), max(len(tk) - 1, 0))
+            if len(tk):
+                hit = tk[pos] == sorted_keys[:cut]
+                costs[hit] = tc[pos[hit]]
+        ticks, depth = bucket
+        for c, k in zip(*np.unique(costs, return_counts=True)):
+            b = (ticks + int(c), depth + 1)
+            if b not in self._waiting:
+                self._waiting[b] = 0
+                heapq.heappush(heap, b)
+            self._waiting[b] += int(k)
+
     def _report(self, progress: Progress, frontier: int, depth: int) -> None:
         progress(lambda secs: {"states": self._total, "frontier": frontier, "depth": depth,
                                "seconds": secs, "memory": self._memory(self.peak_workers)})
@@ -1166,8 +1653,8 @@ class ParallelExplorer(Explorer):
         (None: it goes on)."""
         events = []                  # (key, kind, payload)
         for r in replies:
-            for g, v in r[1]:
-                events.append((g << _SHIFT, 0, (g, v)))
+            for g, vs in r[1]:
+                events.append((g << _SHIFT, 0, (g, vs)))
             for k, v in r[4]:        # violating candidates: those that are new
                 pos = int(np.searchsorted(sorted_keys, np.uint64(k)))
                 if pos < len(sorted_keys) and int(sorted_keys[pos]) == k:
@@ -1183,9 +1670,9 @@ class ParallelExplorer(Explorer):
             if budget_key is not None and ek >= budget_key:
                 break
             if kind == 0:
-                g, v = payload
+                g, vs = payload
                 # states admitted before the deadlocked parent's turn
-                if self._record([v], g, depth):
+                if self._record(vs, g, depth):
                     return min(cut, int(np.searchsorted(sorted_keys, np.uint64(ek)))), ek
             else:
                 r, v = payload

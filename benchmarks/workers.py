@@ -1,0 +1,123 @@
+"""Two workers against one, on an idle machine and beside a competing
+CPU-bound job, new code against old, in one run.
+
+    python benchmarks/workers.py                      # fischer k=2 d=2, 2 rounds
+    python benchmarks/workers.py --k 4 --repeat 3     # fischer k=4 d=2
+    python benchmarks/workers.py --baseline REV       # the "old" code [default: c8a9cb9]
+    python benchmarks/workers.py --no-baseline        # this checkout only
+    python benchmarks/workers.py --static             # also new code with PCCL_BALANCE=0
+    python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
+
+The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
+d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).  Every
+run is a fresh process (benchmarks/parallel.py's).  Each round runs every
+configuration twice: first with nothing of ours beside it ("idle"), then
+beside a busy loop (``python -c 'while True: pass'``) that this script
+starts before and kills after the "busy" half of the round.  The speedup is
+computed within each half-round (1-worker seconds / 2-worker seconds, the
+search's own time) and shown as median (range).  The machine may be
+shared: the load average is printed before each half-round, so "idle" means
+"nothing of this benchmark's but the search"; other users' jobs count too.
+
+With a busy loop on a 2-core machine that is otherwise idle, one worker
+gets a core to itself and two workers share the two cores with the loop:
+4/3 of a core in all, so 1.33x is the ideal (less the protocol's own cost).
+CPU is the user + system time of the search's process and its forked
+workers, polling included.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from parallel import run_one  # noqa: E402  (one search in a fresh process)
+from run import checkout  # noqa: E402  (the git-archive checkout of another revision)
+
+#: main before balanced levels (branch levels)
+BASELINE = "c8a9cb9"
+
+
+def load() -> str:
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def busy_loop() -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"])
+
+
+def fmt(xs, spec=".2f") -> str:
+    return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--k", default="2", help="fischer's k [default: 2]")
+    ap.add_argument("--repeat", type=int, default=2, help="rounds [default: 2]")
+    ap.add_argument("--baseline", default=BASELINE, metavar="REV",
+                    help=f"git revision of the old code [default: {BASELINE}]")
+    ap.add_argument("--no-baseline", action="store_true", help="this checkout only")
+    ap.add_argument("--new", metavar="REV",
+                    help="the new code from this git revision [default: the working tree]")
+    ap.add_argument("--static", action="store_true",
+                    help="also the new code with PCCL_BALANCE=0 (each share expanded where it lies)")
+    args = ap.parse_args()
+    spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
+                reduce="none")
+    print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; "
+          f"fischer k={args.k} d=2, unreduced", flush=True)
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
+        old = None if args.no_baseline else checkout(args.baseline, tmp)
+        new = None if args.new is None else checkout(args.new, tmp_new)
+        configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
+        if args.static:
+            configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
+        if old is not None:
+            configs.append((f"2 workers, old {args.baseline}", 2, old, None))
+        runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}
+        loads: dict = {"idle": [], "busy": []}
+        for i in range(args.repeat):
+            for mode in ("idle", "busy"):
+                loop = busy_loop() if mode == "busy" else None
+                try:
+                    loads[mode].append(load())
+                    done = []
+                    for label, w, code, env in configs:
+                        r = run_one(dict(spec), w, code, None, env)
+                        runs[mode, label].append(r)
+                        done.append(f"{label} {r['seconds']:.2f} s")
+                finally:
+                    if loop is not None:
+                        loop.kill()
+                        loop.wait()
+                print(f"  round {i + 1}, {mode}, load {loads[mode][-1]}: {'; '.join(done)}",
+                      flush=True)
+    sig = {(r["status"], r["states"], r["transitions"], r["depth"])
+           for rs in runs.values() for r in rs}
+    assert len(sig) == 1, f"results differ between configurations: {sig}"
+    hdr = (f"{'':<5} {'configuration':<28} {'search s':>20} {'CPU s':>20} "
+           f"{'speedup vs 1 worker':>20}")
+    print(hdr)
+    print("-" * len(hdr))
+    for mode in ("idle", "busy"):
+        ref = runs[mode, "1 worker"]
+        for label, *_ in configs:
+            rs = runs[mode, label]
+            speed = [a["seconds"] / b["seconds"] for a, b in zip(ref, rs)]
+            print(f"{mode:<5} {label:<28} {fmt([r['seconds'] for r in rs]):>20} "
+                  f"{fmt([r['cpu'] for r in rs]):>20} {fmt(speed):>20}")
+        print(f"{'':<5} (load average before each round: {'; '.join(loads[mode])})")
+    status, states, transitions, depth = sig.pop()
+    print(f"results identical in every run: {status}, {states:,} states, "
+          f"{transitions:,} transitions, depth {depth}")
+    print(f"load average at the end: {load()}")
+
+
+if __name__ == "__main__":
+    main()
