@@ -42,7 +42,7 @@ from typing import Optional
 from pccl.lang import ast as A
 from pccl.model.layout import AEND, END, LCK, LOCK, REQUEST, is_acquire, acquire_sid
 from pccl.semantics.rules import (K_ACQ, K_AEND, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END, K_IF,
-                                  K_SIMPLE)
+                                  K_SIMPLE, K_WHILE)
 
 #: "may perform LOCK REQUEST" (in a rest or footprint's writes; a LOCK
 #: REQUEST step writes it): the one bit of the lock queue's tail.
@@ -239,7 +239,8 @@ class Independence:
             return (EXECUTE, 0, 0)
         if k == K_ATOMIC:
             return (REQUEST_LOCK, 0, LQ_BIT)
-        if k in (K_SIMPLE, K_IF, K_ASSERT, K_DOREACH):
+        if k in (K_SIMPLE, K_IF, K_WHILE, K_ASSERT, K_DOREACH):
+            # (a while is always in_loop: the rule above keeps it out)
             s = self.stmts[info.sid]
             if self._writes_visible(s):
                 return (NEVER, 0, 0)

@@ -419,6 +419,11 @@ class Merger:
         self.por = por
         self.sig = None
 
+    def __getstate__(self) -> dict:
+        d = dict(self.__dict__)
+        d["sig"] = None         # generated code: rebuilt where it is needed
+        return d
+
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)
         if r is None:
