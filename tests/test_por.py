@@ -92,9 +92,7 @@ WEAKENINGS = {
     # C1 for LOCK RELEASE: a waiter's ATOMIC WAIT ignored
     "may_wait": [(RD, "may_wait", _always)],
     # C1: every variable taken as lock-protected
-    "protected": [(I.Independence, "_all_bits", lambda self: -1)],
-    # C2: writes of a property's variable taken as invisible
-    "visible": [(I.Independence, "_writes_visible", _always)],
+    "protected": [(I.Independence, "_protected", lambda self, outside: self._all_bits())],
 }
 
 
@@ -113,6 +111,53 @@ def test_the_attack_catches_a_weakened_condition(monkeypatch, weak):
             caught.append(seed)
             break
     assert caught, f"weakening {weak} went unnoticed"
+
+
+TWO_FLAGS = src("""
+    Agent::Flags
+
+    allwrite:
+      int u = 0;
+      int v = 0;
+
+    loc:
+      bool done = false;
+
+    Init:
+
+    UpU():
+      pre(getAgentIndex() == 0 && !done);
+      eff:
+        u = 1;
+        u = 0;
+        done = true;
+
+    UpV():
+      pre(getAgentIndex() == 1 && !done);
+      eff:
+        v = 1;
+        v = 0;
+        done = true;
+""")
+
+
+def test_c2_a_write_a_property_reads_is_never_ample(monkeypatch):
+    # u and v are each written by one agent only, so the writes are
+    # independent; but the invariant reads them: only the interleaving
+    # u = 1, v = 1 violates it, and taking agent 0's writes as ample (they
+    # are visible) would run u = 1; u = 0 before agent 1 ever moves
+    kw = dict(source=True, agents=2, blackbox="instant", find_all=True,
+              invariants=["u + v < 2"])
+    base = explore(TWO_FLAGS, reduce="none", **kw)
+    assert base.violations
+    for combo in (["por"], ["merge", "por"], "auto"):
+        res = explore(TWO_FLAGS, reduce=combo, **kw)
+        assert verdict(res) == verdict(base)
+        check_counterexamples(res)
+    monkeypatch.setattr(I.Independence, "_writes_visible", _always)
+    weak = explore(TWO_FLAGS, reduce="por", **kw)
+    assert "invariant" in {v["kind"] for v in base.violations}
+    assert "invariant" not in {v["kind"] for v in weak.violations}
 
 
 LOOP_AND_ASSERT = src("""

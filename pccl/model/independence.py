@@ -103,7 +103,7 @@ class Independence:
         for d in m.program.decls:
             if isinstance(d, A.VarDecl) and d.init is not None:
                 outside |= self._expr_reads(d.init)
-        self.protected = self._all_bits() & ~outside
+        self.protected = self._protected(outside)
         # per statement id: the reads/writes of its whole subtree, and
         # whether an atomic is in it
         self.tree: dict = {}
@@ -147,6 +147,11 @@ class Independence:
         self.writers: set = set()
 
     # -- expressions and statements ----------------------------------------------------
+    def _protected(self, outside: int) -> int:
+        """The lock-protected variables: those not in ``outside`` (the
+        accesses outside atomic bodies, guards and initialisers)."""
+        return self._all_bits() & ~outside
+
     def _all_bits(self) -> int:
         out = 0
         for v in self.bit.values():
