@@ -600,16 +600,6 @@ def expand_trace(m, trace, violation=None):
 # partial-order reduction
 # ---------------------------------------------------------------------------
 
-def _loop_sids(m) -> set:
-    """Statements that are a ``while`` or inside one: the only ones an agent
-    can execute twice in one event execution."""
-    out: set = set()
-    for s in m.compiled.stmts.values():
-        if isinstance(s, A.While):
-            out.update(x.sid for x in A.walk_stmts([s]))
-    return out
-
-
 def local_guards(m) -> bool:
     """Whether every event guard reads only the agent's own ``loc:``
     variables (any of them: reading a property's variable is invisible),
