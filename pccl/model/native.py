@@ -27,10 +27,14 @@ state's first occurrence (the graph recorder's edges) in one C call.
 
 The reductions of :mod:`pccl.model.reduce` run in C too, with the Python
 wrapper's own tables: ``rstep`` is the ample set of partial-order reduction
-(the first agent, by index, whose next step :meth:`Por.pc_ok` calls local,
-all of its successors keeping it running), else every successor, then each
-successor's statement-merging chain (:meth:`Merger.pc_ok`'s pcs, one step
-at a time, the same 32-step revisit test and limit), with the merged label
+(the first agent, by index, whose next step :meth:`Por.eligible` finds
+independent of what the others can still do before the next TIME ADVANCE,
+decided per state over the bitmask tables of
+:class:`pccl.model.independence.Independence`, all of its successors
+keeping it running), else every successor, then each successor's
+statement-merging chain (:meth:`Merger.pc_ok`'s pcs and the steps
+:meth:`Por.movable` allows, one step at a time, the same 32-step revisit
+test and limit, cut as :meth:`Merger._cut` cuts), with the merged label
 ``(rule, agent, detail, idx0, (0,) * steps)``; under symmetry the key is the
 canonical vector of the state's orbit (agent blocks sorted by their blocks
 with ids masked, which shared ids name them and their place in the lock
