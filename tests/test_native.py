@@ -593,3 +593,16 @@ def test_per_state_por_equal(agents, n0, events):
     # the per-state rule matters here: without por the search is larger
     nopor = summary(explore(PORMIX, engine="native", reduce="merge", **kw))
     assert py["states"] < nopor["states"]
+
+
+def test_more_por_bits_than_a_mask_holds_runs_in_python():
+    """64 shared variables and the lock bit do not fit the C masks of the
+    per-state POR test: the native engine declines, naming why; without
+    por it serves the program."""
+    decls = "".join(f"  int v{k} = 0;\n" for k in range(64))
+    text = PORMIX.replace("  int seen = 0;\n", "  int seen = 0;\n" + decls)
+    m = make_model(text, source=True, agents=2)
+    assert "por" in m.reduction.on
+    assert "more than 63 shared and allread variables" in NV.unsupported(m)
+    assert NV.unsupported(make_model(text, source=True, agents=2, reduce="merge")) is None
+    assert NV.unsupported(make_model(PORMIX, source=True, agents=2)) is None

@@ -60,7 +60,7 @@ comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
 quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
 lists, floats or positions; the built-in blackboxes; every reduction
-(merge, symmetry, por); the time-lock and stall checks; no temporal
+(merge, symmetry, por: at most 63 shared and allread variables under por); the time-lock and stall checks; no temporal
 property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
 """
