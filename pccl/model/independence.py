@@ -58,6 +58,45 @@ NEVER, LOCAL, ACCESS, REQUEST_LOCK, RELEASE, EXECUTE = range(6)
 #: add no variable to a footprint.
 
 
+#: Built-in expressions that read nothing but their arguments (and the
+#: agent's own id); getPosition reads the position, which the environment
+#: writes.
+PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition", "dist",
+                        "head", "isEmpty", "size", "contains"})
+
+def property_names(m) -> set:
+    names = set()
+    for p in m.property_exprs:
+        for e in A.walk_expr(p):
+            if isinstance(e, A.Name):
+                names.add(e.name)
+    return names
+
+
+def local_guards(m) -> bool:
+    """Whether every event guard reads only the agent's own ``loc:``
+    variables (any of them: reading a property's variable is invisible),
+    enum members and pure calls: then EVENT SELECT and IDLE touch only the
+    agent's own k cell."""
+    lay = m.compiled.layout
+    funcs = set(m.compiled.functions)
+    for ev in m.program.events:
+        for e in A.walk_expr(ev.guard):
+            if isinstance(e, A.Name):
+                vs = lay.vars.get(e.name)
+                if vs is None:
+                    if e.name not in lay.members:
+                        return False
+                elif vs.section != "loc":
+                    return False
+            elif isinstance(e, A.Call):
+                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
+                    return False
+            elif isinstance(e, A.Quant):
+                return False
+    return True
+
+
 def _own_exprs(s) -> tuple:
     if isinstance(s, A.STMT_TYPES):
         return A.own_exprs(s)
@@ -75,7 +114,6 @@ class Independence:
     ``m`` (see the module docstring).  Plain data: picklable."""
 
     def __init__(self, m):
-        from pccl.model.reduce import property_names
         comp = m.compiled
         self.lay = lay = comp.layout
         self.stmts = comp.stmts
@@ -137,7 +175,6 @@ class Independence:
         #: and pure calls, without rand: the events an agent at the top of
         #: its block will select next are the ones enabled now (its locals
         #: change only by its own steps)
-        from pccl.model.reduce import local_guards
         self.guards_local = local_guards(m) and not comp.guards_rand
         self.doreach_visible = bool(self.visible & {"doReach_done", "doReach_fail"})
         self._rest: dict = {}
@@ -296,5 +333,6 @@ def holds_lock(ag) -> bool:
     return ag[LCK] == LOCK
 
 
-__all__ = ["Independence", "LQ_BIT", "NEVER", "LOCAL", "ACCESS", "REQUEST_LOCK", "RELEASE",
+__all__ = ["PURE_CALLS", "property_names", "local_guards",
+           "Independence", "LQ_BIT", "NEVER", "LOCAL", "ACCESS", "REQUEST_LOCK", "RELEASE",
            "EXECUTE", "may_wait", "holds_lock", "Optional"]

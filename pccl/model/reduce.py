@@ -36,20 +36,14 @@ from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LOCK, LQ, PC, PHASE, POS, REACH, RUNNING, SH,
                                STATUS, TIME)
 from pccl.semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
-from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, RELEASE, REQUEST_LOCK, Independence,
-                                      may_wait)
+from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, PURE_CALLS, RELEASE, REQUEST_LOCK,
+                                      Independence, may_wait, property_names)
 
 #: The reductions, in the order they are reported.
 ALL = ("merge", "symmetry", "por")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
-
-#: Built-in expressions that read nothing but their arguments (and the
-#: agent's own id); getPosition reads the position, which the environment
-#: writes.
-PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition", "dist",
-                        "head", "isEmpty", "size", "contains"})
 
 #: Blackboxes known to treat agents alike and to keep an agent without a
 #: target where it is.
@@ -119,15 +113,6 @@ def _stmt_exprs(s) -> list:
     if isinstance(s, A.CallStmt):
         return list(s.args)
     return []
-
-
-def property_names(m) -> set:
-    names = set()
-    for p in m.property_exprs:
-        for e in A.walk_expr(p):
-            if isinstance(e, A.Name):
-                names.add(e.name)
-    return names
 
 
 def _expr_is_local(e, lay, visible: set, funcs: set) -> bool:
@@ -607,30 +592,6 @@ def expand_trace(m, trace, violation=None):
 # ---------------------------------------------------------------------------
 # partial-order reduction
 # ---------------------------------------------------------------------------
-
-def local_guards(m) -> bool:
-    """Whether every event guard reads only the agent's own ``loc:``
-    variables (any of them: reading a property's variable is invisible),
-    enum members and pure calls: then EVENT SELECT and IDLE touch only the
-    agent's own k cell."""
-    lay = m.compiled.layout
-    funcs = set(m.compiled.functions)
-    for ev in m.program.events:
-        for e in A.walk_expr(ev.guard):
-            if isinstance(e, A.Name):
-                vs = lay.vars.get(e.name)
-                if vs is None:
-                    if e.name not in lay.members:
-                        return False
-                elif vs.section != "loc":
-                    return False
-            elif isinstance(e, A.Call):
-                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
-                    return False
-            elif isinstance(e, A.Quant):
-                return False
-    return True
-
 
 class Por:
     """Partial-order reduction with ample sets (docs/reductions.md).
