@@ -528,3 +528,81 @@ def test_a_replaced_successor_function_runs_in_python():
     assert r.model.engine_used == "python" and calls[0] == r.stats.states
     assert r.model.engine_reason == ("the model's successors function was replaced "
                                      "(the Python engine runs it)")
+
+
+#: Partial-order reduction beyond agent-local steps, decided per state
+#: (reduce.Por.eligible over independence.py's tables): local guards (an
+#: agent at the top of its block counts only the events enabled now), a
+#: shared variable only some agents write (``w``, those with k = 0), a read of one
+#: nobody writes in some states, a lock-protected variable, LOCK REQUEST /
+#: RELEASE / ATOMIC EXECUTION, and a write a property reads.
+PORMIX = """Agent::PorMix
+
+allwrite:
+  int s = 0;
+  int w = 0;
+  int prot = 0;
+  int seen = 0;
+
+allread:
+
+loc:
+  int k = rand(1);
+  int r = 0;
+  int n = 0;
+
+Init:
+
+Write():
+  pre(n == 0 && k == 0);
+  eff:
+    w = w + 1;
+    n = 1;
+
+Read():
+  pre(n < 2);
+  eff:
+    r = w;
+    r = r + s;
+    n = n + 2;
+
+Lock():
+  pre(n >= 2 && n < 4);
+  eff:
+    atomic:
+      prot = prot + 1;
+      r = prot;
+    n = 4;
+    if (r > 1):
+      seen = seen + 1;
+"""
+
+
+@pytest.mark.parametrize("agents, n0, events", [(2, 1, "any"), (3, 1, "any"), (2, 2, "any"),
+                                                 (3, 2, "first")])
+def test_per_state_por_equal(agents, n0, events):
+    """The native engine's ample sets are reduce.Por's, state by state: the
+    same search under the default options, with an invariant over ``seen``
+    (its write is never ample) and one that fails, all violations."""
+    kw = dict(source=True, agents=agents, n0=n0, events=events, find_all=True,
+              invariants=("seen <= 1", "prot <= 2"))
+    m = make_model(PORMIX, **{k: v for k, v in kw.items() if k != "find_all"})
+    assert "por" in m.reduction.on and NV.unsupported(m) is None
+    py, nat = both(PORMIX, **kw)
+    assert nat == py
+    # the per-state rule matters here: without por the search is larger
+    nopor = summary(explore(PORMIX, engine="native", reduce="merge", **kw))
+    assert py["states"] < nopor["states"]
+
+
+def test_more_por_bits_than_a_mask_holds_runs_in_python():
+    """64 shared variables and the lock bit do not fit the C masks of the
+    per-state POR test: the native engine declines, naming why; without
+    por it serves the program."""
+    decls = "".join(f"  int v{k} = 0;\n" for k in range(64))
+    text = PORMIX.replace("  int seen = 0;\n", "  int seen = 0;\n" + decls)
+    m = make_model(text, source=True, agents=2)
+    assert "por" in m.reduction.on
+    assert "more than 63 shared and allread variables" in NV.unsupported(m)
+    assert NV.unsupported(make_model(text, source=True, agents=2, reduce="merge")) is None
+    assert NV.unsupported(make_model(PORMIX, source=True, agents=2)) is None

@@ -27,10 +27,14 @@ state's first occurrence (the graph recorder's edges) in one C call.
 
 The reductions of :mod:`pccl.model.reduce` run in C too, with the Python
 wrapper's own tables: ``rstep`` is the ample set of partial-order reduction
-(the first agent, by index, whose next step :meth:`Por.pc_ok` calls local,
-all of its successors keeping it running), else every successor, then each
-successor's statement-merging chain (:meth:`Merger.pc_ok`'s pcs, one step
-at a time, the same 32-step revisit test and limit), with the merged label
+(the first agent, by index, whose next step :meth:`Por.eligible` finds
+independent of what the others can still do before the next TIME ADVANCE,
+decided per state over the bitmask tables of
+:class:`pccl.model.independence.Independence`, all of its successors
+keeping it running), else every successor, then each successor's
+statement-merging chain (:meth:`Merger.pc_ok`'s pcs and the steps
+:meth:`Por.movable` allows, one step at a time, the same 32-step revisit
+test and limit, cut as :meth:`Merger._cut` cuts), with the merged label
 ``(rule, agent, detail, idx0, (0,) * steps)``; under symmetry the key is the
 canonical vector of the state's orbit (agent blocks sorted by their blocks
 with ids masked, which shared ids name them and their place in the lock
@@ -56,7 +60,7 @@ comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
 quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
 lists, floats or positions; the built-in blackboxes; every reduction
-(merge, symmetry, por); the time-lock and stall checks; no temporal
+(merge, symmetry, por: at most 63 shared and allread variables under por); the time-lock and stall checks; no temporal
 property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
 """
@@ -529,8 +533,7 @@ class Generator:
         npc = len(self.m.ctl.cells)
         por = merge = None
         if "por" in on:
-            p = RD.Por(base)
-            por = [bool(p.pc_ok(pc)) for pc in range(npc)]
+            por = self.por_tables(base, npc)
         if "merge" in on:
             mg = RD.Merger(base)
             merge = [bool(mg.pc_ok(pc)) for pc in range(npc)]
@@ -545,6 +548,73 @@ class Generator:
             sym = ([4 + k for k in loc_s] + [4 + self.L + k for k in ar_s],
                    [self.SH0 + k for k in sh_s])
         return por, merge, sym
+
+    def por_tables(self, base, npc: int) -> dict:
+        """The tables of :class:`pccl.model.independence.Independence` (the
+        analysis :class:`pccl.model.reduce.Por` decides with), per pc: the
+        step's class, reads and writes, the rest's reads, writes and whether
+        it ends the event, whether the step writes the stall signature's
+        data; per event its reads and writes.  One bit per shared/allread
+        variable and the lock bit: at most 64."""
+        from pccl.model.independence import Independence
+        ind = Independence(base)
+        top = 1
+        for b in ind.bit.values():
+            top = max(top, b)
+        if top >= 1 << 64:
+            raise Unsupported("partial-order reduction over more than 63 shared and allread variables")
+        steps = [ind.step(pc) for pc in range(npc)]
+        rests = [ind.rest(pc) for pc in range(npc)]
+        return {"cls": [x[0] for x in steps], "sr": [x[1] for x in steps], "sw": [x[2] for x in steps],
+                "rr": [x[0] for x in rests], "rw": [x[1] for x in rests], "ends": [x[2] for x in rests],
+                "writer": [pc in ind.writers for pc in range(npc)],
+                "empty": [self.m.ctl.info(pc).kind == K_EMPTY for pc in range(npc)],
+                "evr": [x[0] for x in ind.event_fps], "evw": [x[1] for x in ind.event_fps],
+                "er": ind.events[0], "ew": ind.events[1], "gr": ind.guard_reads,
+                "local": bool(ind.guards_local)}
+
+    def por_c(self, por: Optional[dict]) -> list:
+        """C of the per-state ample test (reduce.Por.eligible, footprint,
+        movable; independence.may_wait) over the tables of :meth:`por_tables`."""
+        from pccl.model import independence as I
+        if por is None:
+            return ["static int eligible(const V *s, int i) { (void)s; (void)i; return 0; }",
+                    "static int movable(const V *s, int i) { (void)s; (void)i; return 0; }"]
+        m = self.m
+        u64 = "uint64_t"
+        out = [self.c_array("PCLS", "unsigned char", por["cls"]),
+               self.c_array("PSR", u64, por["sr"]).replace(",", "ULL,").replace("}", "ULL}"),
+               self.c_array("PSW", u64, por["sw"]).replace(",", "ULL,").replace("}", "ULL}"),
+               self.c_array("PRR", u64, por["rr"]).replace(",", "ULL,").replace("}", "ULL}"),
+               self.c_array("PRW", u64, por["rw"]).replace(",", "ULL,").replace("}", "ULL}"),
+               self.c_array("PENDS", "unsigned char", por["ends"]),
+               self.c_array("PWRITER", "unsigned char", por["writer"]),
+               self.c_array("PEMPTY", "unsigned char", por["empty"]),
+               f"#define EVR_ALL {por['er']}ULL", f"#define EVW_ALL {por['ew']}ULL",
+               f"#define GUARDR {por['gr']}ULL", f"#define GUARDS_LOCAL {int(por['local'])}",
+               f"#define TOP_PC {m.ctl.empty_pc}", f"#define LQ_BIT {I.LQ_BIT}ULL",
+               f"#define C_NEVER {I.NEVER}", f"#define C_LOCAL {I.LOCAL}", f"#define C_ACCESS {I.ACCESS}",
+               f"#define C_REQUEST {I.REQUEST_LOCK}", f"#define C_RELEASE {I.RELEASE}",
+               f"#define C_EXECUTE {I.EXECUTE}",
+               f"#define S_RUNNING {RUNNING}", f"#define L_LOCK {LOCK}", f"#define L_REQUEST {REQUEST}"]
+        # the events agent j at the top of its block selects next (local guards)
+        out.append("static void evfp(int j, const V *s, uint64_t *r, uint64_t *w) {")
+        out.append("  *r = GUARDR; *w = 0;")
+        if por["local"]:
+            out.append("  switch (j) {")
+            for j in range(self.N):
+                out.append(f"  case {j}: {{")
+                for e, ev in enumerate(self.c.program.events):
+                    hit = " return;" if m.first_only else ""
+                    out.append(f"    if ({self.expr(ev.guard, j)}) {{ *r |= {por['evr'][e]}ULL; "
+                               f"*w |= {por['evw'][e]}ULL;{hit} }}")
+                out.append("    break; }")
+            out.append("  }")
+        else:
+            out.append("  (void)j; (void)s;")
+        out.append("}")
+        out.append(_POR_C)
+        return out
 
     @staticmethod
     def c_array(name: str, ctype: str, vals: list) -> str:
@@ -569,7 +639,6 @@ class Generator:
                f"#define SYM {int(sym is not None)}",
                f"#define MERGE_LIMIT {MERGE_LIMIT}",
                self.c_array("LABAG", "int", labag),
-               self.c_array("POROK", "unsigned char", por or []),
                self.c_array("MERGEOK", "unsigned char", merge or []),
                self.c_array("RHO", "V", list(m.rho)),
                self.c_array("BID", "int", sym[0] if sym else []),
@@ -579,21 +648,21 @@ class Generator:
                "static int agent_of(int i, const V *s) {", "  switch (i) {"]
         out += [f"  case {i}: return agent{i}(s);" for i in range(N)]
         out += ["  }", "  return 0;", "}"]
-        # the ample set: the first agent whose next step is local (Por.successors)
+        out += self.por_c(por)
+        # the ample set: the first agent whose next step is independent of
+        # what the others can still do (Por.successors)
         ample = []
         for i in range(N):
             a0 = self.AG0 + i * A_
             ample.append(
                 f"    if (s[{a0 + 3}] == {RUNNING} && s[{a0 + 1}] <= {m.n0 - m.rho[i]} "
-                f"&& (uint64_t)s[{a0}] < NPC && POROK[s[{a0}]]) {{\n"
+                f"&& eligible(s, {i})) {{\n"
                 f"      if (agent{i}(s)) return -1;\n"
                 f"      int all = BN > b0;\n"
                 f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
                 f"      if (all) goto chains;\n"
                 f"      BN = b0;\n"
                 f"    }}")
-        out.append(_REDUCED_C.replace("@AMPLE@", "\n".join(ample))
-                   .replace("@RUNNING@", str(RUNNING)).replace("@DISCRETE@", str(DISCRETE)))
         # the stall signature (pccl/model/stall.py): the lock queue, shared,
         # and per agent its status, allread and the loc: variables a property reads
         from pccl.model.stall import _visible_locals
@@ -606,6 +675,8 @@ class Generator:
                 [a0 + 4 + self.L + k for k in range(self.R)]
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
+        out.append(_REDUCED_C.replace("@AMPLE@", "\n".join(ample))
+                   .replace("@RUNNING@", str(RUNNING)).replace("@DISCRETE@", str(DISCRETE)))
         return "\n".join(out)
 
     def source(self) -> str:
@@ -940,6 +1011,78 @@ PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
 """
 
 
+#: C of partial-order reduction's per-state test (see Generator.por_c):
+#: reduce.Por.footprint / eligible / movable, independence.may_wait
+_POR_C = r"""
+/* what running agent j may still do before the next TIME ADVANCE
+   (Por.footprint): at the top of its block with local guards, the events
+   enabled now; else the rest of its k cell, plus every event body if its
+   counter allows another EVENT SELECT (Independence.footprint) */
+static void ind_footprint(const V *b, int j, uint64_t *r, uint64_t *w) {
+  V pc = b[0];
+  *r = PRR[pc]; *w = PRW[pc];
+  if (b[1] + (PENDS[pc] ? 2 * RHO[j] : RHO[j]) <= KEEPN0) { *r |= EVR_ALL; *w |= EVW_ALL; }
+}
+static void footprint(const V *s, int j, uint64_t *r, uint64_t *w) {
+  const V *b = s + AG0 + AW * j;
+  if (GUARDS_LOCAL && b[0] == TOP_PC && b[1] + 2 * RHO[j] > KEEPN0) {
+    if (b[1] + RHO[j] > KEEPN0) { *r = 0; *w = 0; return; }
+    evfp(j, s, r, w);
+    return;
+  }
+  ind_footprint(b, j, r, w);
+}
+static int may_wait(const V *s, int j) {
+  const V *b = s + AG0 + AW * j;
+  if (b[1] + RHO[j] > KEEPN0) return 0;
+  if (b[2] == L_REQUEST) return 1;
+  uint64_t r, w;
+  ind_footprint(b, j, &r, &w);
+  return (w & LQ_BIT) != 0;
+}
+/* whether agent i's next step (i running, an execution left) is
+   independent of all the others can do in this time step (Por.eligible) */
+static int eligible(const V *s, int i) {
+  const V *ag = s + AG0 + AW * i;
+  V pc = ag[0];
+  if ((uint64_t)pc >= NPC) return 0;
+  int cls = PCLS[pc];
+  if (cls == C_LOCAL) return 1;
+  if (cls == C_NEVER) return 0;
+  if (cls == C_EXECUTE) return s[LQ0] == i;
+  if (cls == C_REQUEST && ag[2] == L_LOCK) return 1;
+  if (cls == C_RELEASE) {
+    for (int j = 0; j < NAG; j++)
+      if (j != i && s[AG0 + AW * j + 3] == S_RUNNING && may_wait(s, j)) return 0;
+    return 1;
+  }
+  uint64_t r = PSR[pc], w = PSW[pc];
+  if (!(r | w)) return 1;
+  for (int j = 0; j < NAG; j++)
+    if (j != i && s[AG0 + AW * j + 3] == S_RUNNING) {
+      uint64_t fr, fw;
+      footprint(s, j, &fr, &fw);
+      if ((w & (fr | fw)) || (r & fw)) return 0;
+    }
+  return 1;
+}
+/* whether merging may run agent i's next step (Por.movable): 0 no, 1 a
+   step the stall signature does not see, 2 one that writes its data */
+static int movable(const V *s, int i) {
+  const V *ag = s + AG0 + AW * i;
+  V pc = ag[0];
+  if ((uint64_t)pc >= NPC) return 0;
+  int cls = PCLS[pc];
+  if (cls == C_EXECUTE) return s[LQ0] == i;
+  if (cls == C_REQUEST && ag[2] == L_LOCK) return 1;
+  if (cls == C_ACCESS) { if (PEMPTY[pc]) return 0; }
+  else if (cls != C_REQUEST && cls != C_RELEASE) return 0;
+  if (!eligible(s, i)) return 0;
+  return (cls != C_ACCESS || PWRITER[pc]) ? 2 : 1;
+}
+"""
+
+
 #: C of the reduced step, the canonical key (see Generator.reduced_c)
 _REDUCED_C = r"""
 /* statement merging: run agent i's following mergeable steps in the
@@ -955,15 +1098,29 @@ static uint64_t idhash(const V *id) {
   for (int q = 0; q < IDW; q++) { h ^= (uint64_t)id[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
   return h;
 }
-static int chain(Py_ssize_t k, int i) {
-  V cur[NS];
+static int sigeq(const V *a, const V *b) {
+  for (int q = 0; q < NSIGSLOTS; q++) if (a[SIGSLOTS[q]] != b[SIGSLOTS[q]]) return 0;
+  return 1;
+}
+/* s0: the state the transition leaves.  A chain that ran a step writing
+   the stall signature's data (movable 2) and ends with the signature of
+   s0 is cut right after its first change (Merger._cut) */
+static int chain(const V *s0, Py_ssize_t k, int i) {
+  V cur[NS], cut[NS];
   memcpy(cur, BUF + NS * k, sizeof cur);
   const int a0 = AG0 + AW * i;
-  int n = 0, nseen = 0;
+  int n = 0, nseen = 0, marks = 0, ncut = -1;
+  if (POR && !sigeq(cur, s0)) { memcpy(cut, cur, sizeof cut); ncut = 0; }
   for (;;) {
     V pc = cur[a0];
-    if ((uint64_t)pc >= NPC || !MERGEOK[pc] || cur[a0 + 3] != @RUNNING@
+    if ((uint64_t)pc >= NPC || cur[a0 + 3] != @RUNNING@
         || cur[a0 + 1] + RHO[i] > KEEPN0 || n >= MERGE_LIMIT) break;
+    int mv = 0;
+    if (!MERGEOK[pc]) {
+      if (!POR) break;
+      mv = movable(cur, i);
+      if (!mv) break;
+    }
     if (n >= 32) {
       V *id = SEEN + IDW * nseen;
       id[0] = pc; id[1] = cur[a0 + 1];
@@ -984,7 +1141,12 @@ static int chain(Py_ssize_t k, int i) {
     memcpy(cur, BUF + NS * b, sizeof cur);
     BN = b;
     n++;
+    if (mv == 2) {
+      marks = 1;
+      if (ncut < 0 && !sigeq(cur, s0)) { memcpy(cut, cur, sizeof cut); ncut = n; }
+    }
   }
+  if (marks && ncut >= 0 && sigeq(cur, s0)) { memcpy(cur, cut, sizeof cur); n = ncut; }
   if (n) { memcpy(BUF + NS * k, cur, sizeof cur); BCH[k] = n; }
   return 0;
 }
@@ -1005,7 +1167,7 @@ chains:
     for (Py_ssize_t k = b0; k < BN; k++) {
       BIDX[k] = (int32_t)(k - b0);
       int i = LABAG[BLAB[k]];
-      if (i >= 0 && chain(k, i)) return -1;
+      if (i >= 0 && chain(s, k, i)) return -1;
     }
 #endif
   return ovf ? -1 : 0;

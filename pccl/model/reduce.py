@@ -33,21 +33,17 @@ from pccl.lang import ast as A
 from pccl.lang.errors import PcclError, Spelling, keyword_spelling, spell
 from pccl.semantics import rules as R
 from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
-from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LQ, PC, PHASE, POS, REACH, RUNNING, SH, STATUS,
-                               TIME)
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LOCK, LQ, PC, PHASE, POS, REACH, RUNNING, SH,
+                               STATUS, TIME)
 from pccl.semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
+from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, PURE_CALLS, RELEASE, REQUEST_LOCK,
+                                      Independence, may_wait, property_names)
 
 #: The reductions, in the order they are reported.
 ALL = ("merge", "symmetry", "por")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
-
-#: Built-in expressions that read nothing but their arguments (and the
-#: agent's own id); getPosition reads the position, which the environment
-#: writes.
-PURE_CALLS = frozenset({"rand", "getAgentIndex", "getNumAgents", "ItemPosition", "dist",
-                        "head", "isEmpty", "size", "contains"})
 
 #: Blackboxes known to treat agents alike and to keep an agent without a
 #: target where it is.
@@ -117,15 +113,6 @@ def _stmt_exprs(s) -> list:
     if isinstance(s, A.CallStmt):
         return list(s.args)
     return []
-
-
-def property_names(m) -> set:
-    names = set()
-    for p in m.property_exprs:
-        for e in A.walk_expr(p):
-            if isinstance(e, A.Name):
-                names.add(e.name)
-    return names
 
 
 def _expr_is_local(e, lay, visible: set, funcs: set) -> bool:
@@ -348,7 +335,7 @@ class Reduced:
             d["por"] = Por(model)
             d["successors"] = base = self.por.successors
         if "merge" in p.on:
-            d["merger"] = Merger(model, base)
+            d["merger"] = Merger(model, base, self.por)
             d["successors"] = self.merger.successors
         if "symmetry" in p.on:
             d["key"] = make_symmetric_key(model, slots)
@@ -404,12 +391,15 @@ def unreduced(m):
 # statement merging
 # ---------------------------------------------------------------------------
 
+#: The k heads whose step :func:`pccl.semantics.rules.statement` runs.
+_STATEMENT_KINDS = frozenset(R.STATEMENT_RULES) - {R.K_ATOMIC}
+
 class Merger:
     """The merged successor relation of a model, and its expansion.
     ``base``: the successor function chains start from (the rules', or the
     partial-order reduced one)."""
 
-    def __init__(self, m, base=None):
+    def __init__(self, m, base=None, por=None):
         self.m = m
         sids = mergeable_sids(m)
         self.sids = sids
@@ -417,6 +407,15 @@ class Merger:
         if base is None:
             base = m.plain_successors
         self.plain = base
+        #: with partial-order reduction, a chain also runs the steps it finds
+        #: movable in the current state (:meth:`Por.movable`)
+        self.por = por
+        self.sig = None
+
+    def __getstate__(self) -> dict:
+        d = dict(self.__dict__)
+        d["sig"] = None         # generated code: rebuilt where it is needed
+        return d
 
     def pc_ok(self, pc) -> bool:
         r = self.ok.get(pc)
@@ -452,23 +451,32 @@ class Merger:
                     r = ok.get(ag[PC])
                     if r is None:
                         r = self.pc_ok(ag[PC])
-                    if r:
-                        self._chain(lab, idx0, s2, i, res)
+                    if r or (self.por is not None and self.por.movable(s2, i, ag)):
+                        self._chain(lab, idx0, s2, i, res, st)
                         continue
             res.append((lab, s2))
         return res
 
-    def _chain(self, lab, idx0, s, i, res):
+    def _chain(self, lab, idx0, s, i, res, st0=None):  # noqa: C901
+        """Continue agent i's transition ``lab`` (from ``st0`` to ``s``)
+        with the steps merging may run, appending the merged transitions to
+        ``res``.  A chain that writes what the stall signature reads
+        (shared variables, the lock queue, a doReach) and ends where it
+        began, as the signature goes, is cut after its first change: the
+        stall check sees a change on a transition exactly when one of its
+        steps makes one."""
         m = self.m
         rho, n0 = m.rho[i], m.n0
         ok, ctl = self.ok, m.ctl
         infos = ctl.infos
         statement, counter_advance = R.statement, R.counter_advance
         oracle = m.oracle
-        stack: list[tuple[Any, tuple[int, ...]]] = [(s, ())]
+        por = self.por
+        s1 = s
+        stack: list[tuple[Any, tuple[int, ...], tuple]] = [(s, (), ())]
         seen = None
         while stack:
-            s, ch = stack.pop()
+            s, ch, marks = stack.pop()
             while True:
                 ag = s[AGS][i]
                 pc = ag[PC]
@@ -476,8 +484,15 @@ class Merger:
                 if r is None:
                     r = self.pc_ok(pc)
                 n = len(ch)
-                if not r or ag[STATUS] != RUNNING or ag[CNT] + rho > n0 or n >= MERGE_LIMIT:
+                if ag[STATUS] != RUNNING or ag[CNT] + rho > n0 or n >= MERGE_LIMIT:
                     break
+                mv = 0
+                if not r:
+                    if por is None:
+                        break
+                    mv = por.movable(s, i, ag)
+                    if not mv:
+                        break
                 if n >= 32:
                     # a long chain may be a local loop: stop where it revisits
                     ident = (pc, ag[CNT], ag[LOC])
@@ -491,17 +506,42 @@ class Merger:
                     info = ctl.info(pc)
                 out: list = []
                 oracle.agent = i
-                if info.kind == K_END:
+                k = info.kind
+                if k == K_END:
                     counter_advance(m, s, i, ag, info, out)
-                else:
+                elif k in _STATEMENT_KINDS:
                     statement(m, s, i, ag, info, out)
+                else:                    # a movable lock step or doReach
+                    for rule in info.rules:
+                        rule(m, s, i, ag, info, out)
                 if not out:
                     break
                 for c in range(len(out) - 1, 0, -1):      # rand: branches
-                    stack.append((out[c][1], ch + (c,)))
+                    chc = ch + (c,)
+                    stack.append((out[c][1], chc, marks + ((out[c][1], chc),) if mv == 2 else marks))
                 s = out[0][1]
                 ch = ch + (0,)
+                if mv == 2:
+                    marks = marks + ((s, ch),)
+            if marks and st0 is not None:
+                s, ch = self._cut(st0, s1, s, ch, marks)
             res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
+
+    def _cut(self, st0, s1, s, ch, marks) -> tuple:
+        """(state, choices) where a chain from ``st0`` that wrote signature
+        data ends: its end, unless the signature there is the one of ``st0``
+        although a step changed it; then right after the first change."""
+        sig = self.sig
+        if sig is None:
+            from pccl.model.stall import signature_fn
+            sig = self.sig = signature_fn(self.m)
+        base = sig(st0)
+        if sig(s) != base:
+            return s, ch
+        for sx, chx in ((s1, ()),) + marks:
+            if sig(sx) != base:
+                return sx, chx
+        return s, ch
 
     def expand(self, before, label) -> list:
         """``[(micro_label, state), ...]``: the unreduced steps of a merged
@@ -553,98 +593,129 @@ def expand_trace(m, trace, violation=None):
 # partial-order reduction
 # ---------------------------------------------------------------------------
 
-def _loop_sids(m) -> set:
-    """Statements that are a ``while`` or inside one: the only ones an agent
-    can execute twice in one event execution."""
-    out: set = set()
-    for s in m.compiled.stmts.values():
-        if isinstance(s, A.While):
-            out.update(x.sid for x in A.walk_stmts([s]))
-    return out
-
-
-def local_guards(m) -> bool:
-    """Whether every event guard reads only the agent's own ``loc:``
-    variables (any of them: reading a property's variable is invisible),
-    enum members and pure calls: then EVENT SELECT and IDLE touch only the
-    agent's own k cell."""
-    lay = m.compiled.layout
-    funcs = set(m.compiled.functions)
-    for ev in m.program.events:
-        for e in A.walk_expr(ev.guard):
-            if isinstance(e, A.Name):
-                vs = lay.vars.get(e.name)
-                if vs is None:
-                    if e.name not in lay.members:
-                        return False
-                elif vs.section != "loc":
-                    return False
-            elif isinstance(e, A.Call):
-                if e.name not in PURE_CALLS and not (e.name in funcs and not e.args):
-                    return False
-            elif isinstance(e, A.Quant):
-                return False
-    return True
-
-
 class Por:
     """Partial-order reduction with ample sets (docs/reductions.md).
 
     In a DISCRETE state, the first agent i (by index) that is running, has
     an execution left (counter + ρ(i) ≤ n0, so TIME ADVANCE is disabled
-    until i itself advances its counter) and whose next step is *local* --
-    EVENT SELECT / IDLE when every guard reads only the agent's own
-    variables, COUNTER ADVANCE, or a statement of :func:`mergeable_sids`
-    outside every ``while`` -- gets ample set = all of i's enabled
-    transitions, provided each keeps i running (a runtime error is visible).
-    Otherwise the state is fully expanded.  Local steps of i read and write
-    only i's k cell, counter and invisible locals, which no other agent's
-    rule reads (C1) and no property reads (C2); each one is a step of i's
-    progress inside the current time step (an event body without loops is
-    run once per execution, the counter only grows until TIME ADVANCE), and
-    the states where TIME ADVANCE is enabled (every agent spent) are fully
-    expanded, so every cycle of the reduced graph passes a fully expanded
-    state (C3, whatever the search order)."""
+    until i itself advances its counter) and whose next step is independent
+    of everything the other agents can still do before the next TIME
+    ADVANCE (:mod:`pccl.model.independence`: a local step, a read or write
+    of shared variables no other agent can still write, resp. touch, in
+    this time step, a lock step the queue makes independent, a doReach)
+    gets ample set = all of i's enabled transitions, provided each keeps i
+    running (a runtime error is visible).  Otherwise the state is fully
+    expanded.  An ample step writes no variable a property reads (C2); it
+    is outside every ``while``, so it is a step of i's progress inside the
+    current time step, and the states where TIME ADVANCE is enabled (every
+    agent spent) are fully expanded: every cycle of the reduced graph
+    passes a fully expanded state (C3, whatever the search order)."""
 
     def __init__(self, m):
         self.m = m
-        self.sids = mergeable_sids(m) - _loop_sids(m)
-        self.guards = local_guards(m)
-        self.ok: dict = {}
+        self.ind = Independence(m)
         self.plain = m.plain_successors
+        self.top_pc = m.ctl.empty_pc
+        self._next: dict = {}
 
-    def pc_ok(self, pc) -> bool:
-        r = self.ok.get(pc)
-        if r is None:
-            info = self.m.ctl.info(pc)
-            k = info.kind
-            r = (k == K_END or (k == K_EMPTY and self.guards)
-                 or (k in (K_SIMPLE, K_IF) and info.sid in self.sids))
-            self.ok[pc] = r
-        return r
+    def footprint(self, st, j, b) -> tuple:
+        """(reads, writes) of what running agent j (cell ``b``) may still
+        do before the next TIME ADVANCE; at the top of its block with local
+        guards, only the events enabled now can be selected next."""
+        ind = self.ind
+        m = self.m
+        rho, n0 = m.rho[j], m.n0
+        if b[PC] == self.top_pc and ind.guards_local and b[CNT] + 2 * rho > n0:
+            if b[CNT] + rho > n0:
+                return 0, 0                  # spent at the top: nothing left
+            key = (j, b[LOC])
+            got = self._next.get(key)
+            if got is None:
+                try:
+                    got = ind.next_events(m.enabled_events(j, b, st[SH], st[AGS]))
+                except R.RUNTIME_ERRORS:
+                    got = (ind.guard_reads, 0)   # EVENT SELECT gets j stuck
+                if len(self._next) > 200_000:
+                    self._next.clear()
+                self._next[key] = got
+            return got
+        return ind.footprint(b, rho, n0)
+
+    def eligible(self, st, i, ag) -> bool:
+        """Whether agent i's next step (i running, counter + ρ(i) ≤ n0) is
+        independent of all the other agents can do in this time step."""
+        ind = self.ind
+        cls, r, w = ind.step(ag[PC])
+        if cls == LOCAL:
+            return True
+        if cls == NEVER:
+            return False
+        if cls == EXECUTE:               # ATOMIC EXECUTION, or ATOMIC WAIT
+            lq = st[LQ]
+            return bool(lq) and lq[0] == i
+        if cls == REQUEST_LOCK and ag[LCK] == LOCK:
+            return True                  # a nested atomic: k only
+        m = self.m
+        rho, n0 = m.rho, m.n0
+        if cls == RELEASE:
+            for j, b in enumerate(st[AGS]):
+                if j != i and b[STATUS] == RUNNING and may_wait(ind, b, rho[j], n0):
+                    return False
+            return True
+        if not (r or w):
+            return True
+        for j, b in enumerate(st[AGS]):
+            if j != i and b[STATUS] == RUNNING:
+                fr, fw = self.footprint(st, j, b)
+                if w & (fr | fw) or r & fw:
+                    return False
+        return True
+
+    def movable(self, st, i, ag) -> int:
+        """Whether statement merging may run agent i's next step (i running
+        with an execution left) inside a chain: 0 no; 1 an eligible step that
+        changes nothing another agent, a property or the stall signature
+        sees (a read of shared variables, ATOMIC EXECUTION at the head of
+        the queue, a nested atomic); 2 an eligible step that writes shared
+        data (a shared variable, the lock queue, a doReach).  Every
+        eligible step but EVENT SELECT is: a left mover that no other
+        agent's step can disable and that no property sees
+        (docs/reductions.md)."""
+        pc = ag[PC]
+        ind = self.ind
+        cls = ind.step(pc)[0]
+        if cls == EXECUTE:
+            lq = st[LQ]
+            return 1 if lq and lq[0] == i else 0
+        if cls == REQUEST_LOCK and ag[LCK] == LOCK:
+            return 1
+        if cls == ACCESS:
+            if self.m.ctl.infos[pc].kind == K_EMPTY:
+                return 0
+        elif cls not in (REQUEST_LOCK, RELEASE):
+            return 0
+        if not self.eligible(st, i, ag):
+            return 0
+        return 2 if cls != ACCESS or pc in ind.writers else 1
 
     def successors(self, st) -> list:
         if st[PHASE] == DISCRETE:
             m = self.m
-            rho, n0, ok = m.rho, m.n0, self.ok
+            rho, n0 = m.rho, m.n0
             ctl = m.ctl
             i = 0
             for ag in st[AGS]:
-                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0 and self.eligible(st, i, ag):
                     pc = ag[PC]
-                    r = ok.get(pc)
-                    if r is None:
-                        r = self.pc_ok(pc)
-                    if r:
-                        info = ctl.infos[pc]
-                        if info is None:
-                            info = ctl.info(pc)
-                        out: list = []
-                        m.oracle.agent = i
-                        for rule in info.rules:
-                            rule(m, st, i, ag, info, out)
-                        if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
-                            return out
+                    info = ctl.infos[pc]
+                    if info is None:
+                        info = ctl.info(pc)
+                    out: list = []
+                    m.oracle.agent = i
+                    for rule in info.rules:
+                        rule(m, st, i, ag, info, out)
+                    if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                        return out
                 i += 1
         return self.plain(st)
 

@@ -30,7 +30,7 @@ __all__ = ["signature_fn", "waiting", "waiting_text"]
 
 def _visible_locals(model) -> list:
     """Slots of the ``loc:`` variables some property reads."""
-    from pccl.model.reduce import property_names
+    from pccl.model.independence import property_names
     names = property_names(model)
     return sorted(vs.slot for vs in model.compiled.layout.local if vs.name in names)
 
