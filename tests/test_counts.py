@@ -33,7 +33,7 @@ def test_fischer_timed_count_and_exact_agree():
     opts = dict(overrides={"k": "2", "d": "2"}, max_time=4, find_all=True, reduce="none")
     fp = explore(FISCHER, **opts)
     ex = explore(FISCHER, exact=True, **opts)
-    assert fp.status == ex.status == "bounded" and fp.bound_labels == ["--max-time 4"]
+    assert fp.status == ex.status == "bounded" and fp.bound_labels == ["max_time=4"]
     assert fp.stats.states == ex.stats.states == 85_932
     assert fp.stats.transitions == ex.stats.transitions
 

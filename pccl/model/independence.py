@@ -40,7 +40,7 @@ from __future__ import annotations
 from typing import Optional
 
 from pccl.lang import ast as A
-from pccl.model.layout import AEND, END, LCK, LOCK, REQUEST, is_acquire, acquire_sid
+from pccl.model.layout import AEND, CNT, END, LCK, LOCK, PC, REQUEST, is_acquire, acquire_sid
 from pccl.semantics.rules import (K_ACQ, K_AEND, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END, K_IF,
                                   K_SIMPLE, K_WHILE)
 
@@ -300,8 +300,8 @@ class Independence:
     def footprint(self, ag, rho: int, n0: int) -> tuple:
         """(reads, writes) of everything a running agent with cell ``ag``
         may still do before the next TIME ADVANCE."""
-        r, w, ends = self.rest(ag[0])
-        c = ag[1]
+        r, w, ends = self.rest(ag[PC])
+        c = ag[CNT]
         if c + (2 * rho if ends else rho) <= n0:
             er, ew = self.events
             r |= er
@@ -322,7 +322,7 @@ class Independence:
 def may_wait(ind: Independence, ag, rho: int, n0: int) -> bool:
     """Whether a running agent may still perform ATOMIC WAIT in this time
     step (it waits now, or can reach an atomic, and its counter allows)."""
-    if ag[1] + rho > n0:
+    if ag[CNT] + rho > n0:
         return False
     if ag[LCK] == REQUEST:
         return True

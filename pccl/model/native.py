@@ -133,6 +133,8 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
         _LAST[:] = [model, gen, gen.source()]
     except Unsupported as e:
         return str(e)
+    except RecursionError:      # a 3,000-deep chain: the generator recurses on expressions
+        return "an expression nested too deeply for the C generator"
     return None
 
 
@@ -596,7 +598,9 @@ class Generator:
                f"#define C_NEVER {I.NEVER}", f"#define C_LOCAL {I.LOCAL}", f"#define C_ACCESS {I.ACCESS}",
                f"#define C_REQUEST {I.REQUEST_LOCK}", f"#define C_RELEASE {I.RELEASE}",
                f"#define C_EXECUTE {I.EXECUTE}",
-               f"#define S_RUNNING {RUNNING}", f"#define L_LOCK {LOCK}", f"#define L_REQUEST {REQUEST}"]
+               f"#define S_RUNNING {RUNNING}", f"#define L_LOCK {LOCK}", f"#define L_REQUEST {REQUEST}",
+               # an agent's block of the vector: pc, counter, lock state, status, locals
+               "#define VA_PC 0", "#define VA_LCK 2"]
         # the events agent j at the top of its block selects next (local guards)
         out.append("static void evfp(int j, const V *s, uint64_t *r, uint64_t *w) {")
         out.append("  *r = GUARDR; *w = 0;")
@@ -676,7 +680,8 @@ class Generator:
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
         out.append(_REDUCED_C.replace("@AMPLE@", "\n".join(ample))
-                   .replace("@RUNNING@", str(RUNNING)).replace("@DISCRETE@", str(DISCRETE)))
+                   .replace("@RUNNING@", str(RUNNING)).replace("@DISCRETE@", str(DISCRETE))
+                   .replace("@V_PHASE@", str(V_PHASE)))
         return "\n".join(out)
 
     def source(self) -> str:
@@ -1044,13 +1049,13 @@ static int may_wait(const V *s, int j) {
    independent of all the others can do in this time step (Por.eligible) */
 static int eligible(const V *s, int i) {
   const V *ag = s + AG0 + AW * i;
-  V pc = ag[0];
+  V pc = ag[VA_PC];
   if ((uint64_t)pc >= NPC) return 0;
   int cls = PCLS[pc];
   if (cls == C_LOCAL) return 1;
   if (cls == C_NEVER) return 0;
   if (cls == C_EXECUTE) return s[LQ0] == i;
-  if (cls == C_REQUEST && ag[2] == L_LOCK) return 1;
+  if (cls == C_REQUEST && ag[VA_LCK] == L_LOCK) return 1;
   if (cls == C_RELEASE) {
     for (int j = 0; j < NAG; j++)
       if (j != i && s[AG0 + AW * j + 3] == S_RUNNING && may_wait(s, j)) return 0;
@@ -1070,11 +1075,11 @@ static int eligible(const V *s, int i) {
    step the stall signature does not see, 2 one that writes its data */
 static int movable(const V *s, int i) {
   const V *ag = s + AG0 + AW * i;
-  V pc = ag[0];
+  V pc = ag[VA_PC];
   if ((uint64_t)pc >= NPC) return 0;
   int cls = PCLS[pc];
   if (cls == C_EXECUTE) return s[LQ0] == i;
-  if (cls == C_REQUEST && ag[2] == L_LOCK) return 1;
+  if (cls == C_REQUEST && ag[VA_LCK] == L_LOCK) return 1;
   if (cls == C_ACCESS) { if (PEMPTY[pc]) return 0; }
   else if (cls != C_REQUEST && cls != C_RELEASE) return 0;
   if (!eligible(s, i)) return 0;
@@ -1155,7 +1160,7 @@ static int chain(const V *s0, Py_ssize_t k, int i) {
 static int rstep(const V *s) {
   Py_ssize_t b0 = BN;
 #if POR
-  if (s[1] == @DISCRETE@) {
+  if (s[@V_PHASE@] == @DISCRETE@) {
 @AMPLE@
   }
 #endif
@@ -1163,7 +1168,7 @@ static int rstep(const V *s) {
   goto chains;
 chains:
 #if MERGE
-  if (s[1] == @DISCRETE@)
+  if (s[@V_PHASE@] == @DISCRETE@)
     for (Py_ssize_t k = b0; k < BN; k++) {
       BIDX[k] = (int32_t)(k - b0);
       int i = LABAG[BLAB[k]];
