@@ -44,10 +44,15 @@ def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=
     import subprocess
     import sys
     import time
+    import signal
+    # SIGINT as a terminal's job has it, even when this suite was started from a
+    # background job of a non-interactive shell (which starts it ignored, and an
+    # ignored SIGINT is inherited: the signal tests would wait for ever)
     p = subprocess.Popen([sys.executable, "-m", "pccl.cli", *map(str, args)], cwd=cwd,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env=None if env is None else {**os.environ, **env},
-                         start_new_session=new_session)
+                         start_new_session=new_session,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     # read the descriptor itself: lines read ahead into the text buffer of
     # p.stderr would never make it readable again for select
     fd, seen = p.stderr.fileno(), b""
@@ -78,6 +83,7 @@ def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None, after
     — which says nothing of pccl, so the run is tried again with twice the
     delay, up to ``attempts`` times."""
     import signal
+    import subprocess
     import time
     signum = getattr(signal, sig)
     for attempt in range(attempts):
@@ -87,7 +93,12 @@ def interrupted(args, sig, *, delay=3.0, cwd=None, attempts=3, ready=None, after
         else:
             time.sleep(after)
         p.send_signal(signum)
-        out, err = p.communicate(timeout=120)
+        try:
+            out, err = p.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            p.kill()            # never left running after the test
+            p.communicate()
+            raise
         err = seen + err
         if p.returncode != -signum or ready is not None:
             break
