@@ -915,15 +915,20 @@ class Explorer:
         except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
             self.checkpoint.failed(e)
 
-    def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:
-        """Put the search back where the checkpoint ``state``/``arrays`` left it;
-        returns what :meth:`_levels` starts from."""
+    def _restore_table(self, state: dict, arrays: dict) -> None:
+        """From a checkpoint: the model's interned tables and the visited
+        table (a ValueError when the state identity differs)."""
         tables = getattr(self.model, "restore_tables", None)
         if tables is not None and state.get("tables") is not None:
             tables(state["tables"])
         if self.exact != ("exact" in state):
             raise ValueError("the checkpoint's state identity ({exact} or not) differs")
         self.table.load(state["exact"] if self.exact else arrays)
+
+    def _restore(self, adm: "_Admission", res: SearchResult, state: dict, arrays: dict) -> dict:
+        """Put the search back where the checkpoint ``state``/``arrays`` left it;
+        returns what :meth:`_levels` starts from."""
+        self._restore_table(state, arrays)
         n, first = state["n"], state["first"]
         if self.table.n != n or len(state["level"]) != n - first:
             raise ValueError("the checkpoint's table and level do not agree")

@@ -121,12 +121,7 @@ class FastestExplorer(Explorer):
         try:
             if state.get("kind") != "fastest":
                 raise ValueError("it was not written by a {fastest} search")
-            tables = getattr(self.model, "restore_tables", None)
-            if tables is not None and state.get("tables") is not None:
-                tables(state["tables"])
-            if self.exact != ("exact" in state):
-                raise ValueError("the checkpoint's state identity ({exact} or not) differs")
-            self.table.load(state["exact"] if self.exact else arrays)
+            self._restore_table(state, arrays)
             if self.table.n != state["n"]:
                 raise ValueError("the checkpoint's table and figures do not agree")
             fr.restore(state, res)

@@ -1475,16 +1475,7 @@ class ParallelExplorer(Explorer):
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
             # peak memory, the parents it expanded for other workers)
-            self._note_peaks([r[5] for r in replies])
-            for w, r in enumerate(replies):     # moved: their successors are w's
-                if len(r[6]):
-                    holder[r[6] - level_base] = w
-                    self.moved += len(r[6])
-            allk = np.concatenate(new_keys)
-            order = np.argsort(allk, kind="stable")
-            sorted_keys = allk[order]
-            ranks = np.empty(len(allk), dtype=np.int64)
-            ranks[order] = np.arange(len(allk))
+            sorted_keys, ranks = self._gather(replies, new_keys, holder, level_base)
             cut, stop_key = self._stop_events(replies, sorted_keys, depth)
             # transitions: parents expanded up to the stop
             if stop_key is None:
@@ -1512,6 +1503,22 @@ class ParallelExplorer(Explorer):
         if self._decisions:       # the last level's decision: owners record its states
             self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
             self._decisions = None
+
+    def _gather(self, replies: list, new_keys: list, holder: np.ndarray, base: int) -> tuple:
+        """A step's replies joined: the workers' peaks noted, the states each
+        expanded for another recorded as now held by it (``holder``, indexed
+        from ``base``), and the candidates' keys sorted: ``(sorted_keys,
+        ranks)``, ``ranks`` each candidate's place in the sorted order."""
+        self._note_peaks([r[5] for r in replies])
+        for w, r in enumerate(replies):     # moved: their successors are w's
+            if len(r[6]):
+                holder[r[6] - base] = w
+                self.moved += len(r[6])
+        allk = np.concatenate(new_keys)
+        order = np.argsort(allk, kind="stable")
+        ranks = np.empty(len(allk), dtype=np.int64)
+        ranks[order] = np.arange(len(allk))
+        return allk[order], ranks
 
     def _ck_level(self, depth: int, level_base: int, holder: np.ndarray) -> None:
         """Checkpoints: at a level boundary (the mark an interrupt saves),
@@ -1554,16 +1561,7 @@ class ParallelExplorer(Explorer):
             replies, new_keys = T.level([(decisions[w] if decisions else None,
                                           self._at_depth_bound(depth), bucket)
                                          for w in range(n)], size)
-            self._note_peaks([r[5] for r in replies])
-            for w, r in enumerate(replies):     # moved: their successors are w's
-                if len(r[6]):
-                    self._held[r[6]] = w
-                    self.moved += len(r[6])
-            allk = np.concatenate(new_keys)
-            order = np.argsort(allk, kind="stable")
-            sorted_keys = allk[order]
-            ranks = np.empty(len(allk), dtype=np.int64)
-            ranks[order] = np.arange(len(allk))
+            sorted_keys, ranks = self._gather(replies, new_keys, self._held, 0)
             cut, stop_key = self._stop_events_fastest(replies, sorted_keys, depth)
             upto = None if stop_key is None else (stop_key >> _SHIFT) - 1
             if upto is None:
