@@ -167,6 +167,9 @@ def main() -> None:
     ap.add_argument("--only", metavar="TEXT", help="run the cases whose name contains TEXT")
     ap.add_argument("--reduce", action="store_true",
                     help="the reduction cases: --reduce auto and none side by side")
+    ap.add_argument("--compare-all", action="store_true",
+                    help="run every case on the baseline too (with --reduce: each "
+                         "reduction's row old against new)")
     ap.add_argument("--no-timelock", action="store_true",
                     help="run this checkout without the time-lock check (timelock=False); "
                          "the baseline runs as it is")
@@ -184,6 +187,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         old_dir = None if args.no_baseline else checkout(args.baseline, tmp)
         for name, spec, compare in cases:
+            compare = compare or args.compare_all
             # The cases are the unreduced semantics (issue 8's figures): this
             # checkout runs with reduce="none", and so does a baseline that
             # has reductions (the default one predates them).
@@ -228,20 +232,29 @@ def reduce_main(args) -> None:
     if not args.json:
         print(hdr)
         print("-" * len(hdr))
-    for name, spec, reds in cases:
-        runs: dict = {r: [] for r in reds}
-        for _ in range(args.repeat if len(reds) > 1 else 1):
-            for red in reds:
-                runs[red].append(run_case({**spec, "reduce": red}))
-        for red in reds:
-            r = median_run(runs[red])
-            if args.json:
-                print(json.dumps({"case": name, "reduce": red,
-                                  "all_seconds": [x["seconds"] for x in runs[red]], **r}))
-                continue
-            print(f"{name:<36} {red:<14} {r['status']:<11} {r['states']:>11,} "
-                  f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['cpu']:>8.2f} "
-                  f"{r['sps']:>9,.0f} {r['peak'] / 2**20:>9,.0f}", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        old_dir = checkout(args.baseline, tmp) if args.compare_all else None
+        for name, spec, reds in cases:
+            # (row label, code tree, reduction): with --compare-all the
+            # baseline's row precedes each of this checkout's, alternating
+            rows = [(f"{red}", None, red) for red in reds]
+            if old_dir is not None:
+                rows = [row for red in reds
+                        for row in ((f"{red} old", old_dir, red), (f"{red} new", None, red))]
+            runs: dict = {label: [] for label, _, _ in rows}
+            for _ in range(args.repeat if len(rows) > 1 else 1):
+                for label, tree, red in rows:
+                    runs[label].append(run_case({**spec, "reduce": red}, tree))
+            for label, _, red in rows:
+                r = median_run(runs[label])
+                if args.json:
+                    print(json.dumps({"case": name, "reduce": red, "row": label,
+                                      "all_seconds": [x["seconds"] for x in runs[label]],
+                                      "all_cpu": [x["cpu"] for x in runs[label]], **r}))
+                    continue
+                print(f"{name:<36} {label:<14} {r['status']:<11} {r['states']:>11,} "
+                      f"{r['transitions']:>12,} {r['seconds']:>8.2f} {r['cpu']:>8.2f} "
+                      f"{r['sps']:>9,.0f} {r['peak'] / 2**20:>9,.0f}", flush=True)
 
 
 if __name__ == "__main__":
