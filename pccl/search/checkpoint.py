@@ -160,6 +160,10 @@ def describe_option(name: str, value) -> str:
     return f"{{{name}={value}}}"
 
 
+#: an engine's name in messages
+_ENGINE = {"native": "native", "python": "Python"}
+
+
 class CheckpointError(PcclError):
     """A checkpoint that cannot be resumed (absent, corrupt, another search)."""
 
@@ -190,6 +194,9 @@ class Checkpointer:
         self.bytes = 0
         #: why the last write failed (None: it did not)
         self.error: Optional[str] = None
+        #: why this search runs on the Python engine (the message when the
+        #: checkpoint resumed is the native engine's)
+        self.engine_reason: Optional[str] = None
 
     def failed(self, e: OSError) -> None:
         """A write failed (a full disk): the previous checkpoint stays; said
@@ -309,6 +316,7 @@ class Checkpointer:
         if parts and not parallel:
             raise self._bad(f"the checkpoint was written by {parts} workers; resume it with "
                             f"{{workers=N}} (N of 2 or more, not necessarily {parts}) or {{ray}}")
+        self._check_engine(man["identity"], self.identity)
         top = {k: v for k, v in files.items() if "/" not in k}
         self.gen_dir = os.path.join(d, gen)
         self.parts = [{k[len(p) + 1:]: v for k, v in files.items() if k.startswith(p + "/")}
@@ -382,6 +390,26 @@ class Checkpointer:
             if go.get(name) != wo.get(name):
                 raise self._bad(f"the checkpoint was written with {describe_option(name, go.get(name))}, "
                                 f"this run has {describe_option(name, wo.get(name))}")
+
+    def _check_engine(self, got: dict, want: dict) -> None:
+        """A checkpoint is continued by the engine that wrote it: its states
+        are that engine's (native vectors or Python configurations) and so
+        are the fingerprints of its table, which the other engine cannot
+        compute again (it holds no states but the level's).  A checkpoint
+        without an engine is the Python engine's."""
+        ge, we = got.get("engine", "python"), want.get("engine", "python")
+        if ge != we:
+            why = f" ({self.engine_reason})" if we == "python" and self.engine_reason else ""
+            hint = ("resume it where the native engine can run this search (a C compiler "
+                    "and Python's headers)" if ge == "native" else
+                    "resume it with {engine=python} or {engine=auto}")
+            raise self._bad(f"the checkpoint was written by the {_ENGINE.get(ge, ge)} engine, this run "
+                            f"uses the {_ENGINE.get(we, we)} engine{why}; a checkpoint's states and "
+                            f"fingerprints are its engine's: {hint}")
+        if ge == "native" and got.get("native") != want.get("native"):
+            raise self._bad(f"the checkpoint was written by the native engine from another "
+                            f"generated source (hash {got.get('native')}; this run: "
+                            f"{want.get('native')}): resume it with the pccl that wrote it")
 
 
 def part_name(w: int) -> str:
