@@ -646,15 +646,18 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         model.engine_used, model.engine_reason = "python", None
         return None
     from pccl.model import native as NV
-    why = NV.unsupported(model, recorder=recorder, parallel=not one)
+    why = None
+    if o.engine == "auto" and _resumed_engine(o) == "python":
+        # a checkpoint is continued by the engine that wrote it (its states
+        # and fingerprints are that engine's); first: the C generator interns
+        # k cells in its own order, which the checkpoint's tables must not meet
+        why = "{resume}: the checkpoint was written by the Python engine"
+    if why is None:
+        why = NV.unsupported(model, recorder=recorder, parallel=not one)
     if why is None and o.coverage:
         why = "{coverage} counts guards in Python"
     if why is None and o.fastest:
         why = "{fastest} orders the search in Python"
-    if why is None and o.engine == "auto" and _resumed_engine(o) == "python":
-        # a checkpoint is continued by the engine that wrote it (its states
-        # and fingerprints are that engine's)
-        why = "{resume}: the checkpoint was written by the Python engine"
     if why is not None:
         if o.engine == "native":
             raise ArgumentError(f"the native engine cannot run this search: {why}",

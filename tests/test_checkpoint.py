@@ -105,6 +105,8 @@ def _calls(program, opts) -> int:
 
 @pytest.mark.parametrize("name,program,opts", CASES, ids=[c[0] for c in CASES])
 def test_interrupted_and_resumed_search_equals_uninterrupted(tmp_path, name, program, opts):
+    # the Python engine (the native one: test_native_interrupted_and_resumed_...)
+    opts = dict(opts, engine="python")
     full = api.explore(program, **opts)
     calls = _calls(program, opts)
     rng = random.Random(name)
@@ -735,3 +737,147 @@ def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
     p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert "the checkpoint was written with no --fastest, this run has --fastest" in p.stderr
+
+
+# ---------------------------------------------------------------------------
+# The native engine (pccl/model/native.py): its vectors saved as they are; the
+# identity names the engine and the generated source; a checkpoint resumes on
+# the engine that wrote it
+# ---------------------------------------------------------------------------
+
+#: the cases of CASES the native engine serves (violations, bounds, the graph)
+NATIVE_CASES = [c for c in CASES if c[0] in ("fischer-k1", "fischer-k2-depth",
+                                             "fischer-none-depth", "fischer-max-states",
+                                             "tl-spin")]
+
+
+@pytest.mark.parametrize("name,program,opts", NATIVE_CASES, ids=[c[0] for c in NATIVE_CASES])
+def test_native_interrupted_and_resumed_equals_uninterrupted(tmp_path, name, program, opts):
+    """Interrupted at random points and resumed on the native engine: the
+    uninterrupted native result, which is the Python engine's too."""
+    full = api.explore(program, engine="native", **opts)
+    assert full.model.engine_used == "native"
+    assert summary(api.explore(program, engine="python", **opts)) == summary(full)
+    calls = _calls(program, opts)
+    rng = random.Random("native-" + name)
+    cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
+    cuts = [c - (cuts[i - 1] if i else 0) for i, c in enumerate(cuts)]
+    r, resumed = interrupted_run(program, opts, str(tmp_path / "ck"), cuts)
+    assert r.model.engine_used == "native"           # --checkpoint no longer sends it to Python
+    assert summary(r) == summary(full)
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
+
+
+def _native_checkpoint(tmp_path, engine="auto"):
+    d = str(tmp_path / f"ck-{engine}")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, progress=_Interrupt(5),
+                    progress_interval=1e-9, overrides={"k": "1"}, engine=engine)
+    assert r.status == "interrupted"
+    assert r.model.engine_used == ("python" if engine == "python" else "native")
+    return d
+
+
+def test_a_checkpoint_resumes_on_the_engine_that_wrote_it(tmp_path):
+    """A native checkpoint resumed on the Python engine (asked for, or no C
+    compiler) and a Python one on the native engine: exit 2 saying why; an
+    engine left to choose (auto) follows the checkpoint."""
+    full = summary(api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}))
+    dn = _native_checkpoint(tmp_path)
+    man = json.load(open(os.path.join(dn, C.MANIFEST)))
+    assert man["identity"]["engine"] == "native" and len(man["identity"]["native"]) == 16
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "python",
+             "--resume", dn)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert f"--resume: error: {dn}: the checkpoint was written by the native engine, this run " \
+           f"uses the Python engine (--engine python); a checkpoint's states and fingerprints " \
+           f"are its engine's: resume it where the native engine can run this search" in p.stderr
+    # no C compiler on the PATH (python is started by its full path)
+    env = {k: v for k, v in os.environ.items() if k != "CC"}
+    env["PATH"] = str(tmp_path)
+    p = subprocess.run([sys.executable, "-m", "pccl.cli", "explore", "programs/fischer.pccl",
+                        "--set", "k=1", "--resume", dn], capture_output=True, text=True,
+                       cwd=ROOT, timeout=120, env=env)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written by the native engine, this run uses the Python engine " \
+           "(no C compiler (cc) found)" in p.stderr
+    # a Python checkpoint: auto resumes it on Python (and says why), native refuses it
+    dp = _native_checkpoint(tmp_path, "python")
+    r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp)
+    assert r.model.engine_used == "python"
+    assert r.model.engine_reason == "resume: the checkpoint was written by the Python engine"
+    assert summary(r) == full
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "native",
+             "--resume", dp)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written by the Python engine, this run uses the native engine; " \
+           "a checkpoint's states and fingerprints are its engine's: resume it with --engine " \
+           "python or --engine auto" in p.stderr
+    # the native engine resumes its own
+    assert summary(api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dn)) == full
+
+
+def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_path):
+    """The generated source's hash is checked; a manifest naming no engine
+    (written before the native engine saved checkpoints) is the Python
+    engine's."""
+    dn = _native_checkpoint(tmp_path)
+    path = os.path.join(dn, C.MANIFEST)
+    man = json.load(open(path))
+    man["identity"]["native"] = "0123456789abcdef"
+    json.dump(man, open(path, "w"))
+    with pytest.raises(C.CheckpointError, match="written by the native engine from another "
+                       "generated source \\(hash 0123456789abcdef; this run: [0-9a-f]{16}\\)"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dn)
+    dp = _native_checkpoint(tmp_path, "python")
+    path = os.path.join(dp, C.MANIFEST)
+    man = json.load(open(path))
+    del man["identity"]["engine"]
+    json.dump(man, open(path, "w"))
+    r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp)
+    assert r.model.engine_used == "python" and r.status == "exhaustive"
+    with pytest.raises(C.CheckpointError, match="written by the Python engine, this run uses "
+                       "the native engine"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp, engine="native")
+
+
+#: native runs of a few seconds: a violation (every one: the search goes on to
+#: the end) and an exhaustive one
+_NATIVE_KILLED = [
+    ("violation", ["--set", "k=4", "--invariant", "count(inCs)<=1", "--all"]),
+    ("exhaustive", ["--set", "k=4"]),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,extra", _NATIVE_KILLED, ids=[c[0] for c in _NATIVE_KILLED])
+def test_native_sigkill_at_random_points_then_resume(tmp_path, name, extra):
+    """The issue's test on the native engine: killed with SIGKILL three times
+    at random points of the search (once it is under way), each time resumed
+    from the last periodic checkpoint: the uninterrupted result."""
+    d = str(tmp_path / "ck")
+    base = ["explore", "programs/fischer.pccl", *extra, "--format", "json"]
+    args = [*base, "--progress", "--progress-interval", "0.1", "--checkpoint-interval", "0.2"]
+    q = _cli(*base, "--no-progress")
+    full = json.loads(q.stdout)
+    assert full["status"] == name, q.stderr
+    rng = random.Random(name)
+    kills, seconds = 0, full["statistics"]["seconds"]
+    while kills < 3:
+        resume = os.path.exists(os.path.join(d, C.MANIFEST))
+        rc, out, err = interrupted([*args, *(["--resume", d] if resume else ["--checkpoint", d])],
+                                   "SIGKILL", cwd=ROOT, ready="frontier",
+                                   after=rng.uniform(0, seconds / 3))
+        if rc != -9:
+            break
+        kills += 1
+    assert kills >= 1
+    p = _cli(*args, "--resume", d)
+    assert p.returncode in (0, 1) and "Traceback" not in p.stderr, p.stderr
+    a = json.loads(p.stdout)
+    assert any(n.startswith("resumed from") for n in a["notes"])
+    # the native engine's checkpoint (a Python search refuses it)
+    assert json.load(open(os.path.join(d, C.MANIFEST)))["identity"]["engine"] == "native"
+    for k in ("status", "message", "violations", "bounds", "checked"):
+        assert a[k] == full[k], k
+    for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
+        assert a["statistics"][k] == full["statistics"][k], k
