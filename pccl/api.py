@@ -487,10 +487,11 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             plan.labels, plan.native = set(), None
             plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
             # a checkpoint of the native search cannot be continued here: the
-            # Python search writes its own (into --checkpoint DIR, if given)
+            # Python search writes its own (into the checkpoint directory, if any)
             ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
                           labels=plan.labels,
-                          checkpoint=_checkpointer(model, plan.o.replace(resume=None),
+                          checkpoint=_checkpointer(model, plan.o.replace(
+                              checkpoint=plan.o.checkpoint or plan.o.resume, resume=None),
                                                    why=model.engine_reason))
             sr = ex.run()
         else:

@@ -881,3 +881,22 @@ def test_native_sigkill_at_random_points_then_resume(tmp_path, name, extra):
         assert a[k] == full[k], k
     for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
         assert a["statistics"][k] == full["statistics"][k], k
+
+
+def test_native_overflow_with_a_checkpoint_writes_and_resumes_python_ones(tmp_path):
+    """A native search that meets an int beyond 64 bits starts again on the
+    Python engine; with a checkpoint directory that search writes Python
+    checkpoints there (replacing the native ones), which resume on Python."""
+    text = ("Agent::Grow\n\nallwrite:\n  int x = 1;\n\nallread:\n\nloc:\n\nInit:\n\n"
+            "Double():\n  pre(x > 0);\n  eff:\n    x = x * 1000000;\n")
+    opts = dict(source=True, max_states=200, reduce="none", timelock=False, stall=False)
+    py = summary(api.explore(text, engine="python", **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(text, checkpoint=d, checkpoint_interval=0, **opts)
+    assert r.model.engine_used == "python" and "64 bits" in r.model.engine_reason
+    assert summary(r) == py
+    man = json.load(open(os.path.join(d, C.MANIFEST)))
+    assert man["identity"]["engine"] == "python" and man["depth"] >= 1
+    r = api.explore(text, resume=d, **opts)
+    assert r.model.engine_used == "python" and summary(r) == py
+    assert any(n.startswith("resumed from") for n in r.notes)
