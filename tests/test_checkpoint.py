@@ -156,8 +156,8 @@ def test_checkpoint_every_level_then_resume_from_each(tmp_path):
     saved = []
     orig = C.Checkpointer.write
 
-    def spy(self, state, arrays):
-        orig(self, state, arrays)
+    def spy(self, state, arrays, **kw):
+        orig(self, state, arrays, **kw)
         snap = str(tmp_path / f"gen{len(saved)}")
         shutil.copytree(self.dir, snap)
         saved.append((state["depth"], snap))
@@ -223,6 +223,43 @@ def test_crash_while_writing_leaves_the_previous_checkpoint_usable(tmp_path, mon
     os.makedirs(half)
     open(os.path.join(half, "state.pkl"), "wb").write(b"\x80\x05junk")
     assert summary(api.explore(program, resume=d, **opts)) == full
+
+
+def test_checkpoints_append_the_rows_added_since_the_last(tmp_path):
+    """The table and the graph only grow: a checkpoint writes the rows added
+    since the last one and names the older generations' parts; the
+    generations it names stay, the others go; a part damaged in an older
+    generation is found; the result resumed from the last is the
+    uninterrupted one."""
+    opts = dict(overrides={"k": "1"}, max_states=20_000, engine="python")
+    full = summary(api.explore(f"{PROG}/fischer.pccl", **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, checkpoint_interval=0,
+                    progress=_Interrupt(40), progress_interval=1e-9, **opts)
+    assert r.status == "interrupted"
+    man = json.load(open(os.path.join(d, C.MANIFEST)))
+    seg = man["segments"]
+    assert set(seg) == {"fps", "parents", "rec_src", "rec_dst", "rec_dyn", "rec_sig"}
+    parts = seg["fps"]["parts"]
+    assert len(parts) >= 10 and parts[0]["start"] == 0 and parts[-1]["end"] == man["states"]
+    assert all(a["end"] == b["start"] for a, b in zip(parts, parts[1:]))
+    # each part holds the rows of its generation only: 16 bytes a state and the header
+    for p in parts:
+        size = os.path.getsize(os.path.join(d, p["gen"], p["file"]))
+        assert size == 16 * (p["end"] - p["start"]) + 128
+    named = {p["gen"] for s in seg.values() for p in s["parts"]} | {man["generation"]}
+    assert {e for e in os.listdir(d) if e.startswith("gen-")} == named
+    snap = str(tmp_path / "snap")
+    shutil.copytree(d, snap)
+    assert summary(api.explore(f"{PROG}/fischer.pccl", resume=d, **opts)) == full
+    # an older generation's part, damaged
+    old = os.path.join(snap, parts[1]["gen"], parts[1]["file"])
+    data = bytearray(open(old, "rb").read())
+    data[-3] ^= 0xFF
+    open(old, "wb").write(bytes(data))
+    with pytest.raises(C.CheckpointError, match=f"the checkpoint is corrupt \\(.*../{parts[1]['gen']}/"
+                       f"{parts[1]['file']} does not match its digest"):
+        api.explore(f"{PROG}/fischer.pccl", resume=snap, **opts)
 
 
 def test_a_failing_write_leaves_the_search_going_and_the_previous_checkpoint(tmp_path,
@@ -300,12 +337,12 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
         data = open(p, "rb").read()
         open(p, "wb").write(data[:len(data) // 2])
     elif damage == "flip":
-        p = os.path.join(gen, "fps.npy")
+        p = os.path.join(gen, "fps.0.npy")        # the first part (rows from 0)
         data = bytearray(open(p, "rb").read())
         data[-3] ^= 0xFF
         open(p, "wb").write(bytes(data))
     elif damage == "missing":
-        os.unlink(os.path.join(gen, "parents.npy"))
+        os.unlink(os.path.join(gen, "parents.0.npy"))
     elif damage == "format":
         man["format"] = 99
         json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
