@@ -448,17 +448,17 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         from pccl.search.parallel import ParallelExplorer
         require_ray()           # the install hint before anything else
         return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
-                                fastest=o.fastest, **opts, checkpoint=_checkpointer(model, o, why=model.engine_reason)), None
+                                fastest=o.fastest, **opts, checkpoint=_checkpointer(model, o)), None
     if plan.nworkers is not None and plan.nworkers > 1:
         from pccl.search.parallel import ParallelExplorer
         return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, fastest=o.fastest, **opts,
-                                checkpoint=_checkpointer(model, o, why=model.engine_reason)), None
+                                checkpoint=_checkpointer(model, o)), None
     if o.fastest:
         from pccl.search.fastest import FastestExplorer
         return FastestExplorer(plan.cov or model, sopts, recorder=plan.rec,
-                               labels=plan.labels, checkpoint=_checkpointer(model, o, why=model.engine_reason)), None
+                               labels=plan.labels, checkpoint=_checkpointer(model, o)), None
     return Explorer(plan.cov or model, sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
-                    labels=plan.labels, checkpoint=_checkpointer(model, o, why=model.engine_reason)), None
+                    labels=plan.labels, checkpoint=_checkpointer(model, o)), None
 
 
 def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
@@ -491,8 +491,7 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
                           labels=plan.labels,
                           checkpoint=_checkpointer(model, plan.o.replace(
-                              checkpoint=plan.o.checkpoint or plan.o.resume, resume=None),
-                                                   why=model.engine_reason))
+                              checkpoint=plan.o.checkpoint or plan.o.resume, resume=None)))
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
@@ -684,11 +683,11 @@ def _resumed_engine(o: ExploreOptions) -> Optional[str]:
         return None
 
 
-def _checkpointer(model, o: ExploreOptions, native: Any = None, why: Optional[str] = None):
+def _checkpointer(model, o: ExploreOptions, native: Any = None):
     """The :class:`~pccl.search.checkpoint.Checkpointer` of ``--checkpoint`` /
     ``--resume`` (None without them); ``native``: the native model searched
-    (its generated source is part of the identity), else ``why`` the
-    Python engine runs (for the message when the checkpoint is native's)."""
+    (its generated source is part of the identity), else the Python engine
+    runs, for ``model.engine_reason`` (said when the checkpoint is native's)."""
     if o.checkpoint is None and o.resume is None:
         return None
     from pccl.search.checkpoint import Checkpointer, search_identity
@@ -700,8 +699,10 @@ def _checkpointer(model, o: ExploreOptions, native: Any = None, why: Optional[st
     ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
                       interval=o.checkpoint_interval, resume=o.resume, identity=ident,
                       note=getattr(o.progress, "note", None))
-    ck.engine_reason = why if why is not None or native is not None else \
-        ("{engine=python}" if o.engine == "python" else None)
+    if native is None:
+        why = getattr(model, "engine_reason", None)
+        ck.engine_reason = why if why is not None else \
+            ("{engine=python}" if o.engine == "python" else None)
     if o.checkpoint is not None or os.path.isdir(o.resume or ""):
         ck.prepare_dir()
     return ck

@@ -249,6 +249,9 @@ def test_checkpoints_append_the_rows_added_since_the_last(tmp_path):
         assert size == 16 * (p["end"] - p["start"]) + 128
     named = {p["gen"] for s in seg.values() for p in s["parts"]} | {man["generation"]}
     assert {e for e in os.listdir(d) if e.startswith("gen-")} == named
+    for g in named - {man["generation"]}:        # of an older one, only the parts named
+        assert sorted(os.listdir(os.path.join(d, g))) == \
+            sorted(p["file"] for s in seg.values() for p in s["parts"] if p["gen"] == g)
     snap = str(tmp_path / "snap")
     shutil.copytree(d, snap)
     assert summary(api.explore(f"{PROG}/fischer.pccl", resume=d, **opts)) == full

@@ -305,8 +305,20 @@ class Checkpointer:
             os.fsync(mf.fileno())
         os.replace(mtmp, os.path.join(d, MANIFEST))
         _fsync_dir(d)
-        # older generations (but those whose files this one names), stale temporaries
-        keep = {gen} | {k.split("/")[1] for k in files if k.startswith("../")}
+        # older generations (but those whose files this one names: of those,
+        # the files it does not name), stale temporaries
+        named: dict = {}
+        for k in files:
+            if k.startswith("../"):
+                named.setdefault(k.split("/")[1], set()).add(k.split("/", 2)[2])
+        for old, keep_files in named.items():
+            try:
+                for f in os.listdir(os.path.join(d, old)):
+                    if f not in keep_files:
+                        os.unlink(os.path.join(d, old, f))
+            except OSError:
+                pass
+        keep = {gen, *named}
         for entry in os.listdir(d):
             if entry not in keep and (entry.startswith("gen-") or entry.startswith("tmp-")):
                 p = os.path.join(d, entry)
