@@ -940,3 +940,41 @@ def test_native_overflow_with_a_checkpoint_writes_and_resumes_python_ones(tmp_pa
     r = api.explore(text, resume=d, **opts)
     assert r.model.engine_used == "python" and summary(r) == py
     assert any(n.startswith("resumed from") for n in r.notes)
+
+
+# -- --fastest with several workers: the buckets are the frontier --------------
+
+FAST_PAR_CASES = [c for c in PAR_CASES if c[0] in ("fischer-k1-depth", "race-nondet-all",
+                                                   "tl-spin")]
+
+
+@pytest.mark.parametrize("name,program,opts", FAST_PAR_CASES, ids=[c[0] for c in FAST_PAR_CASES])
+def test_fastest_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, name, program,
+                                                                      opts):
+    """--fastest with workers, interrupted between buckets at random points
+    three times and resumed with 2, 3 and 2 workers: the uninterrupted
+    result (which is one process's --fastest result)."""
+    opts = dict(opts, fastest=True)
+    full = par_summary(api.explore(program, workers=2, **opts))
+    one = summary(api.explore(program, **opts))
+    for k in ("status", "verdict", "exit", "bounds", "violations", "witnesses", "timelock",
+              "stall"):
+        assert full[k] == one[k], k
+    counter = _Interrupt(0)
+    api.explore(program, workers=2, progress=counter, progress_interval=1e-9, **opts)
+    rng = random.Random("fastest-" + name)
+    cuts = sorted(rng.sample(range(1, counter.calls + 1), min(3, counter.calls)))
+    d = str(tmp_path / "ck")
+    resumed = 0
+    for i, k in enumerate([*cuts, None]):
+        kw = dict(opts, checkpoint=d, workers=(2, 3)[i % 2], progress_interval=1e-9)
+        if k is not None:
+            kw["progress"] = _Interrupt(k - (cuts[i - 1] if i else 0))
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            break
+    assert par_summary(r) == full
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)

@@ -650,6 +650,8 @@ def worker_snapshot(w, depth: int) -> tuple[dict, dict]:
     arrays = {"fps": t.fps[:t.n], "parents": t.parents[:t.n]}
     state = {"depth": depth, "wid": w.wid, "workers": w.n, "level_idx": list(w.level_idx),
              "level": w.level, "columns": w.columns is not None, "ncols": 0}
+    if w.fastest:               # the buckets I hold: (ticks, depth) -> [numbers, states]
+        state["buckets"] = {b: (list(ix), list(sts)) for b, (ix, sts) in w.buckets.items()}
     # the model's lazily interned tables as this worker has them: the states it
     # holds may refer to entries only this process made (a stuck agent's reason)
     tables = getattr(w.m, "checkpoint_tables", None)
@@ -681,6 +683,7 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     fps: list = []
     parents: list = []
     level: list = []
+    buckets: dict = {}
     restore = getattr(w.m, "restore_tables", None)
     for state, _ in pieces:
         if restore is not None and state.get("tables") is not None:
@@ -702,6 +705,11 @@ def worker_restore(w, pieces: list, same: bool) -> int:
             raise ValueError("a partition's level and its numbers do not agree")
         level.extend(zip(idx, states) if same else
                      ((g, s) for g, s in zip(idx, states) if g % n == wid))
+        for b, (bidx, bstates) in (state.get("buckets") or {}).items():
+            mine = list(zip(bidx, bstates)) if same else \
+                [(g, s) for g, s in zip(bidx, bstates) if g % n == wid]
+            if mine:
+                buckets.setdefault(b, []).extend(mine)
         if w.columns is not None and (same or state["wid"] % n == wid):
             for name in _ARRAYS:
                 a = np.array(arrays[name])
@@ -721,6 +729,9 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     level.sort(key=lambda gs: gs[0])
     w.level_idx = [g for g, _ in level]
     w.level = [s for _, s in level]
+    for b, items in buckets.items():    # a bucket is expanded in number order
+        items.sort(key=lambda gs: gs[0])
+        w.buckets[b] = [[g for g, _ in items], [s for _, s in items]]
     return int(w.table.n)
 
 
@@ -749,8 +760,9 @@ def parallel_save(ex) -> None:
     res, total, depth = ex._res, ex._total, mark["depth"]
     stats = res.stats
     tables = getattr(ex.model, "checkpoint_tables", None)
+    fastest = getattr(ex, "fastest", False)
     state = {"kind": "parallel", "workers": n, "depth": depth, "n": total,
-             "level_base": mark["level_base"],
+             "level_base": total if fastest else mark["level_base"],
              "transitions": stats.transitions, "max_depth": stats.max_depth,
              "initial_states": stats.initial_states, "frontier": stats.frontier,
              "bounds": [b.value for b in ex._bounds],
@@ -758,7 +770,11 @@ def parallel_save(ex) -> None:
              "peak_workers": list(ex.peak_workers),
              "seconds": _time.perf_counter() - ex._t_start,
              "tables": tables() if tables is not None else None}
-    arrays = {"parents": ex.parents[:total], "holder": np.asarray(mark["holder"], np.int64)}
+    arrays = {"parents": ex.parents[:total],
+              "holder": np.asarray(mark["holder"] if not fastest else (), np.int64)}
+    if fastest:     # between two buckets: the counts per bucket, who holds each state
+        state["waiting"] = dict(ex._waiting)
+        arrays["held"] = ex._held[:total]
 
     def fill(tmp: str) -> dict:
         files = write_part(tmp, "", state, arrays)
@@ -835,7 +851,13 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
     if same:
         ex.peak_workers = list(state["peak_workers"])
     ck.say_resumed()
-    return {"depth": state["depth"], "level_base": base,
+    held = None
+    if getattr(ex, "fastest", False):
+        # the waiting states of partitions dealt out again are numbered w modulo n
+        held = np.zeros(max(total, 1024), dtype=np.uint16)
+        held[:total] = np.asarray(arrays["held"]) if same else np.arange(total) % n
+    return {"depth": state["depth"], "level_base": base, "held": held,
+            "waiting": dict(state.get("waiting") or {}),
             "holder": np.array(holder, dtype=np.int64) if same else
             np.arange(base, total, dtype=np.int64) % n,
             "seconds": state["seconds"]}
