@@ -255,6 +255,16 @@ def test_checkpoints_append_the_rows_added_since_the_last(tmp_path):
     snap = str(tmp_path / "snap")
     shutil.copytree(d, snap)
     assert summary(api.explore(f"{PROG}/fischer.pccl", resume=d, **opts)) == full
+    # resumed from one directory, writing into another: whole there at first
+    other = str(tmp_path / "other")
+    r = api.explore(f"{PROG}/fischer.pccl", resume=snap, checkpoint=other, checkpoint_interval=0,
+                    progress=_Interrupt(3), progress_interval=1e-9, **opts)
+    assert r.status == "interrupted"
+    oman = json.load(open(os.path.join(other, C.MANIFEST)))
+    first = oman["segments"]["fps"]["parts"][0]
+    assert first["start"] == 0 and first["gen"] == sorted(
+        e for e in os.listdir(other) if e.startswith("gen-"))[0]
+    assert summary(api.explore(f"{PROG}/fischer.pccl", resume=other, **opts)) == full
     # an older generation's part, damaged
     old = os.path.join(snap, parts[1]["gen"], parts[1]["file"])
     data = bytearray(open(old, "rb").read())
@@ -695,14 +705,18 @@ def _cut_at(monkeypatch, k: int) -> None:
 
 
 @pytest.mark.slow
-def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch, local_ray):
+@pytest.mark.parametrize("fastest", [False, True], ids=["bfs", "fastest"])
+def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch, local_ray,
+                                                          fastest):
     """Ray actors send their partitions to the coordinator, which writes
     them (actors on other machines do not see DIR) and reads them back on
     resume: interrupted twice, resumed with Ray, then with forked workers
     (3 instead of 2), the uninterrupted result; and a checkpoint of forked
-    workers resumes with Ray."""
+    workers resumes with Ray.  Breadth first and --fastest (interrupted
+    between buckets)."""
     program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
-                                                         blackbox="nondet", find_all=True)
+                                                         blackbox="nondet", find_all=True,
+                                                         fastest=fastest)
     full = par_summary(api.explore(program, workers=2, **opts))
     d = str(tmp_path / "ck")
     for k, resume in ((7, False), (20, True)):
