@@ -683,7 +683,6 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     fps: list = []
     parents: list = []
     level: list = []
-    buckets: dict = {}
     restore = getattr(w.m, "restore_tables", None)
     for state, _ in pieces:
         if restore is not None and state.get("tables") is not None:
@@ -705,11 +704,6 @@ def worker_restore(w, pieces: list, same: bool) -> int:
             raise ValueError("a partition's level and its numbers do not agree")
         level.extend(zip(idx, states) if same else
                      ((g, s) for g, s in zip(idx, states) if g % n == wid))
-        for b, (bidx, bstates) in (state.get("buckets") or {}).items():
-            mine = list(zip(bidx, bstates)) if same else \
-                [(g, s) for g, s in zip(bidx, bstates) if g % n == wid]
-            if mine:
-                buckets.setdefault(b, []).extend(mine)
         if w.columns is not None and (same or state["wid"] % n == wid):
             for name in _ARRAYS:
                 a = np.array(arrays[name])
@@ -729,10 +723,26 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     level.sort(key=lambda gs: gs[0])
     w.level_idx = [g for g, _ in level]
     w.level = [s for _, s in level]
-    for b, items in buckets.items():    # a bucket is expanded in number order
+    _restore_buckets(w, pieces, same)
+    return int(w.table.n)
+
+
+def _restore_buckets(w, pieces: list, same: bool) -> None:
+    """The fastest search: worker ``w``'s buckets from the partitions
+    ``pieces`` (with ``same``, its own whole; else the waiting states
+    numbered ``w`` modulo the number of workers), each in number order
+    (the order a bucket is expanded in)."""
+    n, wid = w.n, w.wid
+    buckets: dict = {}
+    for state, _ in pieces:
+        for b, (bidx, bstates) in (state.get("buckets") or {}).items():
+            mine = list(zip(bidx, bstates)) if same else \
+                [(g, s) for g, s in zip(bidx, bstates) if g % n == wid]
+            if mine:
+                buckets.setdefault(b, []).extend(mine)
+    for b, items in buckets.items():
         items.sort(key=lambda gs: gs[0])
         w.buckets[b] = [[g for g, _ in items], [s for _, s in items]]
-    return int(w.table.n)
 
 
 def worker_save(w, tmp: str, w_out: int, depth: int) -> dict:
