@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import random
 from dataclasses import dataclass, field
@@ -440,7 +441,8 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
             plan.rec = L.make_recorder(native, o.timelock, o.stall)
         plan.native = native
         return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH), recorder=plan.rec,
-                         on_runaway=on_runaway_native, labels=plan.labels), native)
+                         on_runaway=on_runaway_native, labels=plan.labels,
+                         checkpoint=_checkpointer(model, o, native)), native)
     opts = {f.name: getattr(sopts, f.name) for f in dataclasses.fields(sopts)}  # as keywords
     if o.ray is not None:
         from pccl.search.parallel import ParallelExplorer
@@ -484,8 +486,12 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             from pccl.search import liveness as L
             plan.labels, plan.native = set(), None
             plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
+            # a checkpoint of the native search cannot be continued here: the
+            # Python search writes its own (into the checkpoint directory, if any)
             ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
-                          labels=plan.labels)
+                          labels=plan.labels,
+                          checkpoint=_checkpointer(model, plan.o.replace(
+                              checkpoint=plan.o.checkpoint or plan.o.resume, resume=None)))
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
@@ -640,13 +646,18 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         model.engine_used, model.engine_reason = "python", None
         return None
     from pccl.model import native as NV
-    why = NV.unsupported(model, recorder=recorder, parallel=not one)
+    why = None
+    if o.engine == "auto" and _resumed_engine(o) == "python":
+        # a checkpoint is continued by the engine that wrote it (its states
+        # and fingerprints are that engine's); first: the C generator interns
+        # k cells in its own order, which the checkpoint's tables must not meet
+        why = "{resume}: the checkpoint was written by the Python engine"
+    if why is None:
+        why = NV.unsupported(model, recorder=recorder, parallel=not one)
     if why is None and o.coverage:
         why = "{coverage} counts guards in Python"
     if why is None and o.fastest:
         why = "{fastest} orders the search in Python"
-    if why is None and (o.checkpoint is not None or o.resume is not None):
-        why = "{checkpoint} and {resume} save the Python engine's states"
     if why is not None:
         if o.engine == "native":
             raise ArgumentError(f"the native engine cannot run this search: {why}",
@@ -657,16 +668,41 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
     return NV.NativeModel(model)
 
 
-def _checkpointer(model, o: ExploreOptions):
+def _resumed_engine(o: ExploreOptions) -> Optional[str]:
+    """The engine that wrote the checkpoint ``o.resume`` ("native" or
+    "python"; None without ``resume`` or a readable manifest: the resume
+    reports what is wrong)."""
+    if o.resume is None:
+        return None
+    from pccl.search.checkpoint import MANIFEST
+    try:
+        with open(os.path.join(os.fspath(o.resume), MANIFEST), encoding="utf-8") as f:
+            ident = json.load(f).get("identity")
+        return str(ident.get("engine", "python"))
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _checkpointer(model, o: ExploreOptions, native: Any = None):
     """The :class:`~pccl.search.checkpoint.Checkpointer` of ``--checkpoint`` /
-    ``--resume`` (None without them)."""
+    ``--resume`` (None without them); ``native``: the native model searched
+    (its generated source is part of the identity), else the Python engine
+    runs, for ``model.engine_reason`` (said when the checkpoint is native's)."""
     if o.checkpoint is None and o.resume is None:
         return None
     from pccl.search.checkpoint import Checkpointer, search_identity
+    ident = search_identity(model, o, IDENTITY_OPTIONS)
+    if native is not None:
+        ident.update(engine="native", native=native.source_hash)
+    else:
+        ident["engine"] = "python"
     ck = Checkpointer(o.checkpoint if o.checkpoint is not None else o.resume,
-                      interval=o.checkpoint_interval, resume=o.resume,
-                      identity=search_identity(model, o, IDENTITY_OPTIONS),
+                      interval=o.checkpoint_interval, resume=o.resume, identity=ident,
                       note=getattr(o.progress, "note", None))
+    if native is None:
+        why = getattr(model, "engine_reason", None)
+        ck.engine_reason = why if why is not None else \
+            ("{engine=python}" if o.engine == "python" else None)
     if o.checkpoint is not None or os.path.isdir(o.resume or ""):
         ck.prepare_dir()
     return ck

@@ -105,6 +105,8 @@ def _calls(program, opts) -> int:
 
 @pytest.mark.parametrize("name,program,opts", CASES, ids=[c[0] for c in CASES])
 def test_interrupted_and_resumed_search_equals_uninterrupted(tmp_path, name, program, opts):
+    # the Python engine (the native one: test_native_interrupted_and_resumed_...)
+    opts = dict(opts, engine="python")
     full = api.explore(program, **opts)
     calls = _calls(program, opts)
     rng = random.Random(name)
@@ -154,8 +156,8 @@ def test_checkpoint_every_level_then_resume_from_each(tmp_path):
     saved = []
     orig = C.Checkpointer.write
 
-    def spy(self, state, arrays):
-        orig(self, state, arrays)
+    def spy(self, state, arrays, **kw):
+        orig(self, state, arrays, **kw)
         snap = str(tmp_path / f"gen{len(saved)}")
         shutil.copytree(self.dir, snap)
         saved.append((state["depth"], snap))
@@ -221,6 +223,56 @@ def test_crash_while_writing_leaves_the_previous_checkpoint_usable(tmp_path, mon
     os.makedirs(half)
     open(os.path.join(half, "state.pkl"), "wb").write(b"\x80\x05junk")
     assert summary(api.explore(program, resume=d, **opts)) == full
+
+
+def test_checkpoints_append_the_rows_added_since_the_last(tmp_path):
+    """The table and the graph only grow: a checkpoint writes the rows added
+    since the last one and names the older generations' parts; the
+    generations it names stay, the others go; a part damaged in an older
+    generation is found; the result resumed from the last is the
+    uninterrupted one."""
+    opts = dict(overrides={"k": "1"}, max_states=20_000, engine="python")
+    full = summary(api.explore(f"{PROG}/fischer.pccl", **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, checkpoint_interval=0,
+                    progress=_Interrupt(40), progress_interval=1e-9, **opts)
+    assert r.status == "interrupted"
+    man = json.load(open(os.path.join(d, C.MANIFEST)))
+    seg = man["segments"]
+    assert set(seg) == {"fps", "parents", "rec_src", "rec_dst", "rec_dyn", "rec_sig"}
+    parts = seg["fps"]["parts"]
+    assert len(parts) >= 10 and parts[0]["start"] == 0 and parts[-1]["end"] == man["states"]
+    assert all(a["end"] == b["start"] for a, b in zip(parts, parts[1:]))
+    # each part holds the rows of its generation only: 16 bytes a state and the header
+    for p in parts:
+        size = os.path.getsize(os.path.join(d, p["gen"], p["file"]))
+        assert size == 16 * (p["end"] - p["start"]) + 128
+    named = {p["gen"] for s in seg.values() for p in s["parts"]} | {man["generation"]}
+    assert {e for e in os.listdir(d) if e.startswith("gen-")} == named
+    for g in named - {man["generation"]}:        # of an older one, only the parts named
+        assert sorted(os.listdir(os.path.join(d, g))) == \
+            sorted(p["file"] for s in seg.values() for p in s["parts"] if p["gen"] == g)
+    snap = str(tmp_path / "snap")
+    shutil.copytree(d, snap)
+    assert summary(api.explore(f"{PROG}/fischer.pccl", resume=d, **opts)) == full
+    # resumed from one directory, writing into another: whole there at first
+    other = str(tmp_path / "other")
+    r = api.explore(f"{PROG}/fischer.pccl", resume=snap, checkpoint=other, checkpoint_interval=0,
+                    progress=_Interrupt(3), progress_interval=1e-9, **opts)
+    assert r.status == "interrupted"
+    oman = json.load(open(os.path.join(other, C.MANIFEST)))
+    first = oman["segments"]["fps"]["parts"][0]
+    assert first["start"] == 0 and first["gen"] == sorted(
+        e for e in os.listdir(other) if e.startswith("gen-"))[0]
+    assert summary(api.explore(f"{PROG}/fischer.pccl", resume=other, **opts)) == full
+    # an older generation's part, damaged
+    old = os.path.join(snap, parts[1]["gen"], parts[1]["file"])
+    data = bytearray(open(old, "rb").read())
+    data[-3] ^= 0xFF
+    open(old, "wb").write(bytes(data))
+    with pytest.raises(C.CheckpointError, match=f"the checkpoint is corrupt \\(.*../{parts[1]['gen']}/"
+                       f"{parts[1]['file']} does not match its digest"):
+        api.explore(f"{PROG}/fischer.pccl", resume=snap, **opts)
 
 
 def test_a_failing_write_leaves_the_search_going_and_the_previous_checkpoint(tmp_path,
@@ -298,12 +350,12 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
         data = open(p, "rb").read()
         open(p, "wb").write(data[:len(data) // 2])
     elif damage == "flip":
-        p = os.path.join(gen, "fps.npy")
+        p = os.path.join(gen, "fps.0.npy")        # the first part (rows from 0)
         data = bytearray(open(p, "rb").read())
         data[-3] ^= 0xFF
         open(p, "wb").write(bytes(data))
     elif damage == "missing":
-        os.unlink(os.path.join(gen, "parents.npy"))
+        os.unlink(os.path.join(gen, "parents.0.npy"))
     elif damage == "format":
         man["format"] = 99
         json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
@@ -653,14 +705,18 @@ def _cut_at(monkeypatch, k: int) -> None:
 
 
 @pytest.mark.slow
-def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch, local_ray):
+@pytest.mark.parametrize("fastest", [False, True], ids=["bfs", "fastest"])
+def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch, local_ray,
+                                                          fastest):
     """Ray actors send their partitions to the coordinator, which writes
     them (actors on other machines do not see DIR) and reads them back on
     resume: interrupted twice, resumed with Ray, then with forked workers
     (3 instead of 2), the uninterrupted result; and a checkpoint of forked
-    workers resumes with Ray."""
+    workers resumes with Ray.  Breadth first and --fastest (interrupted
+    between buckets)."""
     program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
-                                                         blackbox="nondet", find_all=True)
+                                                         blackbox="nondet", find_all=True,
+                                                         fastest=fastest)
     full = par_summary(api.explore(program, workers=2, **opts))
     d = str(tmp_path / "ck")
     for k, resume in ((7, False), (20, True)):
@@ -735,3 +791,204 @@ def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
     p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert "the checkpoint was written with no --fastest, this run has --fastest" in p.stderr
+
+
+# ---------------------------------------------------------------------------
+# The native engine (pccl/model/native.py): its vectors saved as they are; the
+# identity names the engine and the generated source; a checkpoint resumes on
+# the engine that wrote it
+# ---------------------------------------------------------------------------
+
+#: the cases of CASES the native engine serves (violations, bounds, the graph)
+NATIVE_CASES = [c for c in CASES if c[0] in ("fischer-k1", "fischer-k2-depth",
+                                             "fischer-none-depth", "fischer-max-states",
+                                             "tl-spin")]
+
+
+@pytest.mark.parametrize("name,program,opts", NATIVE_CASES, ids=[c[0] for c in NATIVE_CASES])
+def test_native_interrupted_and_resumed_equals_uninterrupted(tmp_path, name, program, opts):
+    """Interrupted at random points and resumed on the native engine: the
+    uninterrupted native result, which is the Python engine's too."""
+    full = api.explore(program, engine="native", **opts)
+    assert full.model.engine_used == "native"
+    assert summary(api.explore(program, engine="python", **opts)) == summary(full)
+    calls = _calls(program, opts)
+    rng = random.Random("native-" + name)
+    cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
+    cuts = [c - (cuts[i - 1] if i else 0) for i, c in enumerate(cuts)]
+    r, resumed = interrupted_run(program, opts, str(tmp_path / "ck"), cuts)
+    assert r.model.engine_used == "native"           # --checkpoint no longer sends it to Python
+    assert summary(r) == summary(full)
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
+
+
+def _native_checkpoint(tmp_path, engine="auto"):
+    d = str(tmp_path / f"ck-{engine}")
+    r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, progress=_Interrupt(5),
+                    progress_interval=1e-9, overrides={"k": "1"}, engine=engine)
+    assert r.status == "interrupted"
+    assert r.model.engine_used == ("python" if engine == "python" else "native")
+    return d
+
+
+def test_a_checkpoint_resumes_on_the_engine_that_wrote_it(tmp_path):
+    """A native checkpoint resumed on the Python engine (asked for, or no C
+    compiler) and a Python one on the native engine: exit 2 saying why; an
+    engine left to choose (auto) follows the checkpoint."""
+    full = summary(api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}))
+    dn = _native_checkpoint(tmp_path)
+    man = json.load(open(os.path.join(dn, C.MANIFEST)))
+    assert man["identity"]["engine"] == "native" and len(man["identity"]["native"]) == 16
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "python",
+             "--resume", dn)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert f"--resume: error: {dn}: the checkpoint was written by the native engine, this run " \
+           f"uses the Python engine (--engine python); a checkpoint's states and fingerprints " \
+           f"are its engine's: resume it where the native engine can run this search" in p.stderr
+    # no C compiler on the PATH (python is started by its full path)
+    env = {k: v for k, v in os.environ.items() if k != "CC"}
+    env["PATH"] = str(tmp_path)
+    p = subprocess.run([sys.executable, "-m", "pccl.cli", "explore", "programs/fischer.pccl",
+                        "--set", "k=1", "--resume", dn], capture_output=True, text=True,
+                       cwd=ROOT, timeout=120, env=env)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written by the native engine, this run uses the Python engine " \
+           "(no C compiler (cc) found)" in p.stderr
+    # a Python checkpoint: auto resumes it on Python (and says why), native refuses it
+    dp = _native_checkpoint(tmp_path, "python")
+    r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp)
+    assert r.model.engine_used == "python"
+    assert r.model.engine_reason == "resume: the checkpoint was written by the Python engine"
+    assert summary(r) == full
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "native",
+             "--resume", dp)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint was written by the Python engine, this run uses the native engine; " \
+           "a checkpoint's states and fingerprints are its engine's: resume it with --engine " \
+           "python or --engine auto" in p.stderr
+    # the native engine resumes its own
+    assert summary(api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dn)) == full
+
+
+def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_path):
+    """The generated source's hash is checked; a manifest naming no engine
+    (written before the native engine saved checkpoints) is the Python
+    engine's."""
+    dn = _native_checkpoint(tmp_path)
+    path = os.path.join(dn, C.MANIFEST)
+    man = json.load(open(path))
+    man["identity"]["native"] = "0123456789abcdef"
+    json.dump(man, open(path, "w"))
+    with pytest.raises(C.CheckpointError, match="written by the native engine from another "
+                       "generated source \\(hash 0123456789abcdef; this run: [0-9a-f]{16}\\)"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dn)
+    dp = _native_checkpoint(tmp_path, "python")
+    path = os.path.join(dp, C.MANIFEST)
+    man = json.load(open(path))
+    del man["identity"]["engine"]
+    json.dump(man, open(path, "w"))
+    r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp)
+    assert r.model.engine_used == "python" and r.status == "exhaustive"
+    with pytest.raises(C.CheckpointError, match="written by the Python engine, this run uses "
+                       "the native engine"):
+        api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp, engine="native")
+
+
+#: native runs of a few seconds: a violation (every one: the search goes on to
+#: the end) and an exhaustive one
+_NATIVE_KILLED = [
+    ("violation", ["--set", "k=4", "--invariant", "count(inCs)<=1", "--all"]),
+    ("exhaustive", ["--set", "k=4"]),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,extra", _NATIVE_KILLED, ids=[c[0] for c in _NATIVE_KILLED])
+def test_native_sigkill_at_random_points_then_resume(tmp_path, name, extra):
+    """The issue's test on the native engine: killed with SIGKILL three times
+    at random points of the search (once it is under way), each time resumed
+    from the last periodic checkpoint: the uninterrupted result."""
+    d = str(tmp_path / "ck")
+    base = ["explore", "programs/fischer.pccl", *extra, "--format", "json"]
+    args = [*base, "--progress", "--progress-interval", "0.1", "--checkpoint-interval", "0.2"]
+    q = _cli(*base, "--no-progress")
+    full = json.loads(q.stdout)
+    assert full["status"] == name, q.stderr
+    rng = random.Random(name)
+    kills, seconds = 0, full["statistics"]["seconds"]
+    while kills < 3:
+        resume = os.path.exists(os.path.join(d, C.MANIFEST))
+        rc, out, err = interrupted([*args, *(["--resume", d] if resume else ["--checkpoint", d])],
+                                   "SIGKILL", cwd=ROOT, ready="frontier",
+                                   after=rng.uniform(0, seconds / 3))
+        if rc != -9:
+            break
+        kills += 1
+    assert kills >= 1
+    p = _cli(*args, "--resume", d)
+    assert p.returncode in (0, 1) and "Traceback" not in p.stderr, p.stderr
+    a = json.loads(p.stdout)
+    assert any(n.startswith("resumed from") for n in a["notes"])
+    # the native engine's checkpoint (a Python search refuses it)
+    assert json.load(open(os.path.join(d, C.MANIFEST)))["identity"]["engine"] == "native"
+    for k in ("status", "message", "violations", "bounds", "checked"):
+        assert a[k] == full[k], k
+    for k in ("initial_states", "states", "transitions", "max_depth", "max_time"):
+        assert a["statistics"][k] == full["statistics"][k], k
+
+
+def test_native_overflow_with_a_checkpoint_writes_and_resumes_python_ones(tmp_path):
+    """A native search that meets an int beyond 64 bits starts again on the
+    Python engine; with a checkpoint directory that search writes Python
+    checkpoints there (replacing the native ones), which resume on Python."""
+    text = ("Agent::Grow\n\nallwrite:\n  int x = 1;\n\nallread:\n\nloc:\n\nInit:\n\n"
+            "Double():\n  pre(x > 0);\n  eff:\n    x = x * 1000000;\n")
+    opts = dict(source=True, max_states=200, reduce="none", timelock=False, stall=False)
+    py = summary(api.explore(text, engine="python", **opts))
+    d = str(tmp_path / "ck")
+    r = api.explore(text, checkpoint=d, checkpoint_interval=0, **opts)
+    assert r.model.engine_used == "python" and "64 bits" in r.model.engine_reason
+    assert summary(r) == py
+    man = json.load(open(os.path.join(d, C.MANIFEST)))
+    assert man["identity"]["engine"] == "python" and man["depth"] >= 1
+    r = api.explore(text, resume=d, **opts)
+    assert r.model.engine_used == "python" and summary(r) == py
+    assert any(n.startswith("resumed from") for n in r.notes)
+
+
+# -- --fastest with several workers: the buckets are the frontier --------------
+
+FAST_PAR_CASES = [c for c in PAR_CASES if c[0] in ("fischer-k1-depth", "race-nondet-all",
+                                                   "tl-spin")]
+
+
+@pytest.mark.parametrize("name,program,opts", FAST_PAR_CASES, ids=[c[0] for c in FAST_PAR_CASES])
+def test_fastest_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, name, program,
+                                                                      opts):
+    """--fastest with workers, interrupted between buckets at random points
+    three times and resumed with 2, 3 and 2 workers: the uninterrupted
+    result (which is one process's --fastest result)."""
+    opts = dict(opts, fastest=True)
+    full = par_summary(api.explore(program, workers=2, **opts))
+    one = summary(api.explore(program, **opts))
+    for k in ("status", "verdict", "exit", "bounds", "violations", "witnesses", "timelock",
+              "stall"):
+        assert full[k] == one[k], k
+    counter = _Interrupt(0)
+    api.explore(program, workers=2, progress=counter, progress_interval=1e-9, **opts)
+    rng = random.Random("fastest-" + name)
+    cuts = sorted(rng.sample(range(1, counter.calls + 1), min(3, counter.calls)))
+    d = str(tmp_path / "ck")
+    resumed = 0
+    for i, k in enumerate([*cuts, None]):
+        kw = dict(opts, checkpoint=d, workers=(2, 3)[i % 2], progress_interval=1e-9)
+        if k is not None:
+            kw["progress"] = _Interrupt(k - (cuts[i - 1] if i else 0))
+        if os.path.exists(os.path.join(d, C.MANIFEST)):
+            kw["resume"] = d
+            resumed += 1
+        r = api.explore(program, **kw)
+        if r.status != "interrupted":
+            break
+    assert par_summary(r) == full
+    assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)

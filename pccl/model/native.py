@@ -1323,6 +1323,9 @@ class NativeModel:
             src = gen.source()
         _LAST[:] = [None, None, None]
         self.lib = build(src)
+        #: the generated source's hash: part of a checkpoint's identity (its
+        #: states are this source's vectors, pccl/search/checkpoint.py)
+        self.source_hash = hashlib.sha256(src.encode()).hexdigest()[:16]
         xxh = _xxh3_128_address()
         self.lib.setup(tuple(gen.labels), NativeOverflow, self._violations,
                        xxh or 0)
@@ -1351,6 +1354,10 @@ class NativeModel:
         self.temporal = ()
         self.blackbox = py.blackbox
         self._sig = self.lib.sig
+        #: a checkpoint keeps the Python model's lazily interned tables (the
+        #: violations and traces are decoded through it)
+        self.checkpoint_tables = getattr(py, "checkpoint_tables", None)
+        self.restore_tables = getattr(py, "restore_tables", None)
         #: the explorer's batch hook, None when xxhash's symbol is not there
         self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
         st0 = next(iter(py.init_states()))

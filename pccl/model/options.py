@@ -361,9 +361,6 @@ def checkpoint_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     if o.checkpoint is None and o.resume is None:
         return None
     what = "resume" if o.checkpoint is None else "checkpoint"
-    if o.fastest and (o.ray is not None or o.workers != 1):
-        return Conflict(what, f"{{{what}}} does not run with {{fastest=True}} and several "
-                              "workers yet: use {workers=1} without {ray}")
     for name in ("functions", "rand_policy"):
         if getattr(o, name) is not None:
             return Conflict(what, f"{{{what}}} does not run with {name}= (a Python object is "

@@ -160,6 +160,10 @@ def describe_option(name: str, value) -> str:
     return f"{{{name}={value}}}"
 
 
+#: an engine's name in messages
+_ENGINE = {"native": "native", "python": "Python"}
+
+
 class CheckpointError(PcclError):
     """A checkpoint that cannot be resumed (absent, corrupt, another search)."""
 
@@ -190,6 +194,12 @@ class Checkpointer:
         self.bytes = 0
         #: why the last write failed (None: it did not)
         self.error: Optional[str] = None
+        #: why this search runs on the Python engine (the message when the
+        #: checkpoint resumed is the native engine's)
+        self.engine_reason: Optional[str] = None
+        #: the appended arrays of the last checkpoint in :attr:`dir` (written or
+        #: resumed): name -> {"rows", "dtype", "shape", "parts"} (see :meth:`write`)
+        self._segments: dict = {}
 
     def failed(self, e: OSError) -> None:
         """A write failed (a full disk): the previous checkpoint stays; said
@@ -224,10 +234,45 @@ class Checkpointer:
         except (OSError, ValueError, TypeError, AttributeError):
             pass
 
-    def write(self, state: dict, arrays: dict) -> None:
+    def write(self, state: dict, arrays: dict, appended=()) -> None:
         """Write a generation: ``arrays`` (name -> numpy array) and ``state``
-        (pickled), then the manifest naming them."""
-        self.write_generation(lambda tmp: write_part(tmp, "", state, arrays), state)
+        (pickled), then the manifest naming them.  The arrays named in
+        ``appended`` only grow (rows written before never change: the
+        fingerprints, the parent links, the recorded edges): of those only
+        the rows added since the last checkpoint in this directory are
+        written, and the manifest names the older generations' files that
+        hold the rest (``"segments"``; see "Appended arrays" below)."""
+        before = self._segments
+        after: dict = {}
+        gen = f"gen-{self.generation + 1:06d}"
+
+        def fill(tmp: str) -> dict:
+            whole = {k: v for k, v in arrays.items() if k not in appended}
+            files = write_part(tmp, "", state, whole)
+            for name in appended:
+                if name not in arrays:
+                    continue
+                arr = arrays[name]
+                prev = before.get(name)
+                if prev is not None and (prev["rows"] > len(arr) or len(prev["parts"]) >= MAX_PARTS
+                                         or prev["dtype"] != arr.dtype.str
+                                         or list(prev["shape"]) != list(arr.shape[1:])):
+                    prev = None             # written whole again (and the chain starts anew)
+                parts = [dict(p) for p in prev["parts"]] if prev is not None else []
+                start = prev["rows"] if prev is not None else 0
+                for p in parts:             # an older generation's file, named from this one's
+                    files[f"../{p['gen']}/{p['file']}"] = p["info"]
+                if start < len(arr) or not parts:
+                    fname = f"{name}.{start}.npy"
+                    info = write_part(tmp, "", None, {fname[:-4]: arr[start:]})[fname]
+                    files[fname] = info
+                    parts.append({"gen": gen, "file": fname, "start": start, "end": len(arr),
+                                  "info": info})
+                after[name] = {"rows": len(arr), "dtype": arr.dtype.str,
+                               "shape": list(arr.shape[1:]), "parts": parts}
+            return files
+        self.write_generation(fill, state, {"segments": after})     # filled by fill()
+        self._segments = after
 
     def write_generation(self, fill, state: dict, extra: Optional[dict] = None) -> None:
         """Write a generation: ``fill(tmp)`` writes its files into the
@@ -260,8 +305,22 @@ class Checkpointer:
             os.fsync(mf.fileno())
         os.replace(mtmp, os.path.join(d, MANIFEST))
         _fsync_dir(d)
-        for entry in os.listdir(d):         # older generations, stale temporaries
-            if entry != gen and (entry.startswith("gen-") or entry.startswith("tmp-")):
+        # older generations (but those whose files this one names: of those,
+        # the files it does not name), stale temporaries
+        named: dict = {}
+        for k in files:
+            if k.startswith("../"):
+                named.setdefault(k.split("/")[1], set()).add(k.split("/", 2)[2])
+        for old, keep_files in named.items():
+            try:
+                for f in os.listdir(os.path.join(d, old)):
+                    if f not in keep_files:
+                        os.unlink(os.path.join(d, old, f))
+            except OSError:
+                pass
+        keep = {gen, *named}
+        for entry in os.listdir(d):
+            if entry not in keep and (entry.startswith("gen-") or entry.startswith("tmp-")):
                 p = os.path.join(d, entry)
                 if os.path.isdir(p):
                     shutil.rmtree(p, ignore_errors=True)
@@ -309,13 +368,22 @@ class Checkpointer:
         if parts and not parallel:
             raise self._bad(f"the checkpoint was written by {parts} workers; resume it with "
                             f"{{workers=N}} (N of 2 or more, not necessarily {parts}) or {{ray}}")
-        top = {k: v for k, v in files.items() if "/" not in k}
+        self._check_engine(man["identity"], self.identity)
+        top = {k: v for k, v in files.items() if "/" not in k or k.startswith("../")}
         self.gen_dir = os.path.join(d, gen)
         self.parts = [{k[len(p) + 1:]: v for k, v in files.items() if k.startswith(p + "/")}
                       for p in map(part_name, range(parts))]
         if any(not p for p in self.parts):
             raise self._bad(f"the checkpoint is corrupt ({MANIFEST} lacks a partition)")
         state, arrays = self._read_generation(self.gen_dir, gen, top)
+        segments = man.get("segments") or {}
+        try:
+            arrays = joined_segments(arrays, segments, gen)
+        except (ValueError, KeyError, TypeError) as e:
+            raise self._bad(f"the checkpoint is corrupt ({e}); write a new one with "
+                            "{checkpoint}") from None
+        if self.dir is not None and os.path.realpath(self.dir) == os.path.realpath(d):
+            self._segments = segments       # the next checkpoint here appends to them
         self.generation = int(gen[4:])
         self.resumed = {"depth": state["depth"], "states": state["n"]}
         self.last_saved = (state["depth"], state["n"])
@@ -383,6 +451,71 @@ class Checkpointer:
                 raise self._bad(f"the checkpoint was written with {describe_option(name, go.get(name))}, "
                                 f"this run has {describe_option(name, wo.get(name))}")
 
+    def _check_engine(self, got: dict, want: dict) -> None:
+        """A checkpoint is continued by the engine that wrote it: its states
+        are that engine's (native vectors or Python configurations) and so
+        are the fingerprints of its table, which the other engine cannot
+        compute again (it holds no states but the level's).  A checkpoint
+        without an engine is the Python engine's."""
+        ge, we = got.get("engine", "python"), want.get("engine", "python")
+        if ge != we:
+            why = f" ({self.engine_reason})" if we == "python" and self.engine_reason else ""
+            hint = ("resume it where the native engine can run this search (a C compiler "
+                    "and Python's headers)" if ge == "native" else
+                    "resume it with {engine=python} or {engine=auto}")
+            raise self._bad(f"the checkpoint was written by the {_ENGINE.get(ge, ge)} engine, this run "
+                            f"uses the {_ENGINE.get(we, we)} engine{why}; a checkpoint's states and "
+                            f"fingerprints are its engine's: {hint}")
+        if ge == "native" and got.get("native") != want.get("native"):
+            raise self._bad(f"the checkpoint was written by the native engine from another "
+                            f"generated source (hash {got.get('native')}; this run: "
+                            f"{want.get('native')}): resume it with the pccl that wrote it")
+
+
+# Appended arrays
+# ---------------
+#
+# The visited table and the recorded graph only grow, and a checkpoint at 12
+# million states holds 450 MiB of them: written whole every interval, that
+# is seconds a checkpoint (measured: 1.4 s each at 12M states on the shared
+# machine, docs/scale-out.md).  So :meth:`Checkpointer.write` writes, of an
+# array that only grows, the rows added since the last checkpoint in the
+# same directory (``fps.1830030.npy``: rows from 1,830,030 on), and the
+# manifest's ``"segments"`` names per array its parts in order, each in the
+# generation that wrote it (``gen-000004/fps.0.npy``, then
+# ``gen-000007/fps.1830030.npy``, ...); ``"files"`` lists them too (as
+# ``../gen-000004/fps.0.npy``, with size and digest), so a resume checks
+# every byte as before.  A generation whose files a newer one names is kept
+# until no manifest names it.  After :data:`MAX_PARTS` parts, or when an
+# array is not a continuation of the last (another directory, a search
+# started anew), the array is written whole again.
+
+#: parts of an appended array before it is written whole again
+MAX_PARTS = 64
+
+
+def joined_segments(arrays: dict, segments: dict, gen: str) -> dict:
+    """The arrays read from generation ``gen``'s files (``arrays``: file
+    names without ``.npy``, as :func:`read_part` returns them; an older
+    generation's as ``../gen-NNNNNN/name``) with each appended array of
+    ``segments`` joined from its parts; ValueError when the parts do not
+    follow one another."""
+    out = {k: v for k, v in arrays.items() if not k.startswith("../") and "." not in k}
+    for name, seg in segments.items():
+        pieces, at = [], 0
+        for p in seg["parts"]:
+            fname = p["file"][:-4]
+            a = arrays.get(fname if p["gen"] == gen else f"../{p['gen']}/{fname}")
+            if a is None or p["start"] != at or p["end"] - p["start"] != len(a):
+                raise ValueError(f"the parts of {name} do not follow one another")
+            pieces.append(a)
+            at = p["end"]
+        if at != seg["rows"]:
+            raise ValueError(f"the parts of {name} hold {at:,} rows, the manifest says "
+                             f"{seg['rows']:,}")
+        out[name] = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)
+    return out
+
 
 def part_name(w: int) -> str:
     """The subdirectory of a generation holding partition ``w`` of a
@@ -408,6 +541,8 @@ def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
             os.fsync(f.fileno())
             size = f.tell()
         files[pre + fname] = {"bytes": size, "xxh3": _array_digest(arr)}
+    if state is None:           # arrays only (an appended array's new rows)
+        return files
     blob = pickle.dumps(state, protocol=5)
     with open(os.path.join(where, "state.pkl"), "wb") as f:
         f.write(blob)
@@ -515,6 +650,8 @@ def worker_snapshot(w, depth: int) -> tuple[dict, dict]:
     arrays = {"fps": t.fps[:t.n], "parents": t.parents[:t.n]}
     state = {"depth": depth, "wid": w.wid, "workers": w.n, "level_idx": list(w.level_idx),
              "level": w.level, "columns": w.columns is not None, "ncols": 0}
+    if w.fastest:               # the buckets I hold: (ticks, depth) -> [numbers, states]
+        state["buckets"] = {b: (list(ix), list(sts)) for b, (ix, sts) in w.buckets.items()}
     # the model's lazily interned tables as this worker has them: the states it
     # holds may refer to entries only this process made (a stuck agent's reason)
     tables = getattr(w.m, "checkpoint_tables", None)
@@ -586,7 +723,26 @@ def worker_restore(w, pieces: list, same: bool) -> int:
     level.sort(key=lambda gs: gs[0])
     w.level_idx = [g for g, _ in level]
     w.level = [s for _, s in level]
+    _restore_buckets(w, pieces, same)
     return int(w.table.n)
+
+
+def _restore_buckets(w, pieces: list, same: bool) -> None:
+    """The fastest search: worker ``w``'s buckets from the partitions
+    ``pieces`` (with ``same``, its own whole; else the waiting states
+    numbered ``w`` modulo the number of workers), each in number order
+    (the order a bucket is expanded in)."""
+    n, wid = w.n, w.wid
+    buckets: dict = {}
+    for state, _ in pieces:
+        for b, (bidx, bstates) in (state.get("buckets") or {}).items():
+            mine = list(zip(bidx, bstates)) if same else \
+                [(g, s) for g, s in zip(bidx, bstates) if g % n == wid]
+            if mine:
+                buckets.setdefault(b, []).extend(mine)
+    for b, items in buckets.items():
+        items.sort(key=lambda gs: gs[0])
+        w.buckets[b] = [[g for g, _ in items], [s for _, s in items]]
 
 
 def worker_save(w, tmp: str, w_out: int, depth: int) -> dict:
@@ -614,8 +770,9 @@ def parallel_save(ex) -> None:
     res, total, depth = ex._res, ex._total, mark["depth"]
     stats = res.stats
     tables = getattr(ex.model, "checkpoint_tables", None)
+    fastest = getattr(ex, "fastest", False)
     state = {"kind": "parallel", "workers": n, "depth": depth, "n": total,
-             "level_base": mark["level_base"],
+             "level_base": total if fastest else mark["level_base"],
              "transitions": stats.transitions, "max_depth": stats.max_depth,
              "initial_states": stats.initial_states, "frontier": stats.frontier,
              "bounds": [b.value for b in ex._bounds],
@@ -623,7 +780,11 @@ def parallel_save(ex) -> None:
              "peak_workers": list(ex.peak_workers),
              "seconds": _time.perf_counter() - ex._t_start,
              "tables": tables() if tables is not None else None}
-    arrays = {"parents": ex.parents[:total], "holder": np.asarray(mark["holder"], np.int64)}
+    arrays = {"parents": ex.parents[:total],
+              "holder": np.asarray(mark["holder"] if not fastest else (), np.int64)}
+    if fastest:     # between two buckets: the counts per bucket, who holds each state
+        state["waiting"] = dict(ex._waiting)
+        arrays["held"] = ex._held[:total]
 
     def fill(tmp: str) -> dict:
         files = write_part(tmp, "", state, arrays)
@@ -700,7 +861,13 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
     if same:
         ex.peak_workers = list(state["peak_workers"])
     ck.say_resumed()
-    return {"depth": state["depth"], "level_base": base,
+    held = None
+    if getattr(ex, "fastest", False):
+        # the waiting states of partitions dealt out again are numbered w modulo n
+        held = np.zeros(max(total, 1024), dtype=np.uint16)
+        held[:total] = np.asarray(arrays["held"]) if same else np.arange(total) % n
+    return {"depth": state["depth"], "level_base": base, "held": held,
+            "waiting": dict(state.get("waiting") or {}),
             "holder": np.array(holder, dtype=np.int64) if same else
             np.arange(base, total, dtype=np.int64) % n,
             "seconds": state["seconds"]}

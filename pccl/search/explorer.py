@@ -911,7 +911,10 @@ class Explorer:
             arrays.update({f"rec_{k}": v for k, v in
                            self.recorder.dump(n, mark["edges"]).items()})
         try:
-            self.checkpoint.write(state, arrays)
+            # the table and the graph only grow: each checkpoint writes what is
+            # new (the stall check's change flags are set as states are
+            # expanded, after their rows were written: written whole, a byte a state)
+            self.checkpoint.write(state, arrays, appended=[k for k in arrays if k != "rec_chg"])
         except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
             self.checkpoint.failed(e)
 

@@ -1373,7 +1373,10 @@ class ParallelExplorer(Explorer):
                 start = ck.restore_parallel(self, *self._resume)
                 self._resume = None
                 self._t_start = t_start = t_start - start["seconds"]
-                self._level_rounds(t_start, False, start)
+                if self.fastest:
+                    self._bucket_rounds(t_start, start)
+                else:
+                    self._level_rounds(t_start, False, start)
             else:
                 stop = self._initial_rounds()
                 res.stats.initial_states = self._total
@@ -1530,7 +1533,7 @@ class ParallelExplorer(Explorer):
         if ck.due() and ck.last_saved != (depth, self._total):
             ck.save_parallel(self)
 
-    def _bucket_rounds(self, t_start: float) -> None:
+    def _bucket_rounds(self, t_start: float, start: Optional[dict] = None) -> None:
         """The fastest search (:mod:`pccl.search.fastest`'s order): the
         states wait in buckets keyed by (time steps, transitions), held by
         the workers that generated them; the coordinator knows how many
@@ -1541,18 +1544,30 @@ class ParallelExplorer(Explorer):
         numbers them; its stop events (a violation, checked when a state is
         expanded; a deadlock) are ordered by parent.  A new state's bucket
         is its parent's plus its time cost (the generators report the keys
-        of the candidates that cost time)."""
+        of the candidates that cost time).  (``start``: where a checkpoint
+        resumed left it; checkpoints are taken between two buckets.)"""
         import heapq
         n, T, stats = self.workers, self.transport, self._res.stats
         total = self._total
-        self._held = (np.arange(max(total, 1024), dtype=np.int64) % n).astype(np.uint16)
-        #: states waiting, per bucket (the serial search's frontier)
-        self._waiting = {(0, 0): total} if total else {}
+        if start is None:
+            #: who holds each state (the generator of its bucket's entry)
+            self._held = (np.arange(max(total, 1024), dtype=np.int64) % n).astype(np.uint16)
+            #: states waiting, per bucket (the serial search's frontier)
+            self._waiting = {(0, 0): total} if total else {}
+        else:
+            self._held, self._waiting = start["held"], start["waiting"]
         heap = list(self._waiting)
+        heapq.heapify(heap)
         progress = Progress(self.progress, self.progress_interval, t_start)
         stop = False
+        ck = self.checkpoint
         while heap and not stop:
+            if ck is not None:          # between two buckets: the mark an interrupt saves
+                self._ck_mark = {"depth": stats.max_depth}
+                if ck.due() and ck.last_saved != (stats.max_depth, self._total):
+                    ck.save_parallel(self)
             self.signals.check()
+            self._ck_mark = None
             bucket = heapq.heappop(heap)
             ticks, depth = bucket
             size = self._waiting.pop(bucket)
@@ -1577,6 +1592,8 @@ class ParallelExplorer(Explorer):
                                  [r[4][0] for r in replies if r[4]], bucket, heap)
             if not stop and self.max_memory is not None:
                 stop = self._memory_bound(self._bounds, self._memory(self.peak_workers))
+            if not stop and ck is not None:
+                self._ck_mark = {"depth": stats.max_depth}
             self._report(progress, sum(self._waiting.values()), stats.max_depth)
         if self._decisions:       # the last decision: owners record its states
             self._note_peaks(T.all("commit", [(d,) for d in self._decisions]))
