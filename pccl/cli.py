@@ -256,6 +256,15 @@ def main():
     """
 
 
+#: ``--exit-codes`` of run and explore (one option, one help text)
+_EXIT_CODES = click.option(
+    "--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
+    default="default", show_default=True,
+    help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
+         "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
+         "(instead of 1)")
+
+
 @main.command(short_help="Parse and type-check a program.")
 @click.argument("program", type=click.Path(dir_okay=False))
 @click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
@@ -295,11 +304,7 @@ def check(program, world):
 @click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True,
               help="k: the final configuration as a K configuration, as explore --format k")
-@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
-              default="default", show_default=True,
-              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
-                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
-                   "(instead of 1)")
+@_EXIT_CODES
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the arena and trajectories to this PNG (needs matplotlib)")
 @click.option("--html", type=click.Path(dir_okay=False), default=None,
@@ -627,11 +632,7 @@ def _plot_run(m, res, path, *, quiet=False):
               help="store canonical state encodings instead of 128-bit fingerprints (more memory, no collisions)")
 @click.option("--format", "fmt", type=Choice(["text", "json", "k"]), default="text",
               show_default=True)
-@click.option("--exit-codes", "exit_codes", type=Choice(["default", "detailed"]),
-              default="default", show_default=True,
-              help="detailed: a violation exits 11 deadlock/stall, 12 invariant/collision, "
-                   "13 temporal property, 14 assertion/stuck, 15 time-lock, 16 --max-steps "
-                   "(instead of 1)")
+@_EXIT_CODES
 @click.option("--plot", type=click.Path(dir_okay=False), default=None,
               help="draw the counterexample's trajectories to this PNG (needs matplotlib)")
 @click.option("--progress/--no-progress", default=None,

@@ -27,6 +27,7 @@ import sys
 
 from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_program
 from pccl.model.engine import Model
 from pccl.model.layout import DISCRETE, PHASE
 
@@ -126,6 +127,9 @@ def check(seed: int, combos=(("por",), ("merge", "por"), "auto"), limit: int = 6
     text, invariants, agents, options = program(seed)
     kw = _kw(text, invariants, agents, options)
     try:
+        # parsed once: every search below is of this AST (what source=True
+        # would parse again for each)
+        text = parse_program(text, "<input>")
         base = explore(text, reduce="none", find_all=True, max_states=limit, **kw)
     except PcclError as e:
         return {"invalid": str(e)}

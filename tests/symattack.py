@@ -24,6 +24,7 @@ import sys
 
 from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_program
 
 HEADER = """Agent::Attack
 
@@ -182,6 +183,9 @@ def check(seed: int, reductions=("symmetry", "merge", "por")) -> dict:
     text, invariants, agents = program(seed)
     kw = dict(source=True, agents=agents, blackbox="instant", invariants=invariants)
     try:
+        # parsed once: every model below is built from this AST (what
+        # source=True would parse again for each)
+        text = parse_program(text, "<input>")
         plan = make_model(text, reduce="auto", **kw).reduction
     except PcclError as e:
         return {"invalid": str(e)}
@@ -207,11 +211,14 @@ def orbits_agree(text, agents, invariants, limit=5_000, **options) -> bool:
     the same set of successor keys and the same violations (kind, name,
     line).  This is the soundness argument itself, checked state by state:
     far finer than the verdict, it fails on a program that tells agents
-    apart even where no property happens to notice."""
+    apart even where no property happens to notice.  ``text``: the source
+    or its parsed Program."""
     kw = dict(source=True, agents=agents, blackbox="instant", invariants=invariants)
     kw.update(options)
     if agents is None:
         del kw["agents"]                # the world's count
+    if isinstance(text, str):
+        text = parse_program(text, "<input>")     # once for both models
     sym = make_model(text, reduce="symmetry", **kw)
     full = make_model(text, reduce="none", **kw)
     key = sym.key
@@ -317,6 +324,7 @@ def check_moving(seed: int, tmpdir) -> dict:
     world.write_text(world_text)
     kw = dict(source=True, world=str(world), blackbox=bb, invariants=invariants)
     try:
+        text = parse_program(text, "<input>")      # once, as in check()
         plan = make_model(text, reduce="auto", **kw).reduction
     except PcclError as e:
         return {"invalid": str(e)}

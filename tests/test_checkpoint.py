@@ -80,21 +80,38 @@ class _Interrupt:
             raise KeyboardInterrupt
 
 
-def interrupted_run(program, opts: dict, d: str, cuts: list) -> tuple:
-    """Run with checkpoints in ``d``, interrupted at each of ``cuts`` (progress
-    calls) and resumed; returns the final result and how often it resumed."""
+def resumed_until_done(program, opts: dict, d: str, rounds) -> tuple:
+    """Run with checkpoints in ``d`` once for each item of ``rounds`` (that run's
+    options: where it is interrupted, how many workers; read lazily, so a
+    generator may set up the round's interruption), each run after the first
+    checkpoint resuming from it, until a run is not interrupted; returns the
+    last result and how often it resumed."""
     resumed = 0
-    for k in cuts + [None]:
-        kw = dict(opts, checkpoint=d, progress_interval=1e-9)
-        if k is not None:
-            kw["progress"] = _Interrupt(k)
+    for extra in rounds:
+        kw = dict(opts, checkpoint=d, **extra)
         if os.path.exists(os.path.join(d, C.MANIFEST)):
             kw["resume"] = d
             resumed += 1
         r = api.explore(program, **kw)
         if r.status != "interrupted":
-            return r, resumed
+            break
     return r, resumed
+
+
+def interrupted_run(program, opts: dict, d: str, cuts: list, workers=None) -> tuple:
+    """Run with checkpoints in ``d``, interrupted at each of ``cuts`` (progress
+    calls since the run's start) and resumed (with ``workers[i % len]``
+    workers in the i-th run, if given); returns the final result and how
+    often it resumed."""
+    def rounds():
+        for i, k in enumerate(cuts + [None]):
+            kw: dict = dict(progress_interval=1e-9)
+            if workers:
+                kw["workers"] = workers[i % len(workers)]
+            if k is not None:
+                kw["progress"] = _Interrupt(k)
+            yield kw
+    return resumed_until_done(program, opts, d, rounds())
 
 
 def _calls(program, opts) -> int:
@@ -509,18 +526,8 @@ def test_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, name, pro
     calls = full["stats"][3] + 1         # a level end each
     rng = random.Random(name)
     cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
-    d = str(tmp_path / "ck")
-    resumed = 0
-    for i, k in enumerate([*cuts, None]):
-        kw = dict(opts, checkpoint=d, workers=(2, 3)[i % 2], progress_interval=1e-9)
-        if k is not None:
-            kw["progress"] = _Interrupt(k - (cuts[i - 1] if i else 0))
-        if os.path.exists(os.path.join(d, C.MANIFEST)):
-            kw["resume"] = d
-            resumed += 1
-        r = api.explore(program, **kw)
-        if r.status != "interrupted":
-            break
+    cuts = [c - (cuts[i - 1] if i else 0) for i, c in enumerate(cuts)]
+    r, resumed = interrupted_run(program, opts, str(tmp_path / "ck"), cuts, workers=(2, 3))
     assert par_summary(r) == full
     assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
 
@@ -771,17 +778,12 @@ def test_fastest_interrupted_mid_bucket_and_resumed_equals_uninterrupted(tmp_pat
     api.explore(program, **opts)
     expansions = count[0]
     rng = random.Random(name)
-    d = str(tmp_path / "ck")
-    resumed = 0
-    for i in range(4):
-        kw = dict(opts, checkpoint=d)
-        if os.path.exists(os.path.join(d, C.MANIFEST)):
-            kw["resume"] = d
-            resumed += 1
-        count[0], cut[0] = 0, rng.randint(1, max(1, expansions // 3)) if i < 3 else 0
-        r = api.explore(program, **kw)
-        if r.status != "interrupted":
-            break
+
+    def rounds():
+        for i in range(4):
+            count[0], cut[0] = 0, rng.randint(1, max(1, expansions // 3)) if i < 3 else 0
+            yield {}
+    r, resumed = resumed_until_done(program, opts, str(tmp_path / "ck"), rounds())
     assert summary(r) == full
     assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)
 

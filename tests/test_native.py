@@ -217,18 +217,23 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
         assert len(first) < len(batch)      # repeats were met and dropped
 
 
-@pytest.mark.parametrize("program, kw", CASES)
-def test_successor_batch_equals_successors(program, kw):
-    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw}))
-    states = reachable(nm, 5_000)
+def assert_batches_are_successors(nm, states) -> None:
+    """successor_batch over ``states`` in chunks of 1,000: the counts and
+    successors of nm.successors, state by state, and the labels met (a merged
+    transition's rule label, the events fired), each once."""
     for lo in range(0, len(states), 1000):
         chunk = states[lo:lo + 1000]
         ns, flat, labs = nm.successor_batch(chunk)
         one = [nm.successors(s) for s in chunk]
         assert ns == [len(x) for x in one]
         assert flat == [b for x in one for _, b in x]
-        # the labels met: a merged transition's rule label (the events fired)
         assert sorted(labs, key=repr) == sorted({lab[:3] for x in one for lab, _ in x}, key=repr)
+
+
+@pytest.mark.parametrize("program, kw", CASES)
+def test_successor_batch_equals_successors(program, kw):
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw}))
+    assert_batches_are_successors(nm, reachable(nm, 5_000))
 
 
 @pytest.mark.parametrize("program, kw", [
@@ -470,14 +475,7 @@ def test_canonical_keys_identify_the_same_states(text, kw):
 def test_reduced_successor_batch_equals_successors(program, kw):
     kw = {"reduce": "auto", **kw}
     nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **kw))
-    states = reachable(nm, 5_000)
-    for lo in range(0, len(states), 1000):
-        chunk = states[lo:lo + 1000]
-        ns, flat, labs = nm.successor_batch(chunk)
-        one = [nm.successors(s) for s in chunk]
-        assert ns == [len(x) for x in one]
-        assert flat == [b for x in one for _, b in x]
-        assert {lab[:3] for x in one for lab, _ in x} == set(labs)
+    assert_batches_are_successors(nm, reachable(nm, 5_000))
 
 
 def test_reduced_successors_are_the_python_ones():

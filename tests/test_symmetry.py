@@ -21,6 +21,7 @@ import symattack
 from pccl.lang import scalarset as SS
 from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_program
 
 from conftest import cli
 
@@ -448,6 +449,7 @@ def test_the_attack_catches_the_old_holes(monkeypatch, attr, weak):
     for seed in range(N_ATTACK):
         text, invariants, agents = symattack.program(seed)
         try:
+            text = parse_program(text, "<input>")      # once for both models
             p = make_model(text, source=True, agents=agents, blackbox="instant",
                            invariants=invariants, reduce="auto").reduction
         except PcclError:

@@ -22,6 +22,7 @@ from pccl.lang import ast as A
 from pccl.lang import values as V
 from pccl.lang.builtins import BUILTINS, STATEMENTS, UNINTERPRETED
 from pccl.lang.checker import CheckedProgram
+from pccl.lang.data import is_number
 from pccl.lang.errors import PcclError, ToolLimitError
 from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, N_AGENT_CELLS, POS, REACH, SH, TIME
 from pccl.lang.types import ANY, FLOAT, Ty, indexes_agent
@@ -109,10 +110,6 @@ def coerce(value, ty: Ty):
     return value
 
 
-def _is_number(c) -> bool:
-    return isinstance(c, (int, float)) and not isinstance(c, bool)
-
-
 def _coerce_enum(value, ty: Ty) -> int:
     members = ty.members or ()
     if isinstance(value, str) and value in members:
@@ -123,7 +120,7 @@ def _coerce_enum(value, ty: Ty) -> int:
 
 
 def _coerce_pos(value) -> tuple:
-    if isinstance(value, (tuple, list)) and len(value) in (2, 3) and all(_is_number(c) for c in value):
+    if isinstance(value, (tuple, list)) and len(value) in (2, 3) and all(is_number(c) for c in value):
         return tuple(coerce(c, _FLOAT) for c in value) + (0.0,) * (3 - len(value))
     raise ValueError(f"expected a position [x, y] or [x, y, z], got {value!r}")
 
@@ -137,7 +134,7 @@ def _coerce_obstacles(value) -> tuple:
             raise ValueError(f"expected a polygon (at least 3 points), got {poly!r}")
         pts = []
         for p in poly:
-            if not (isinstance(p, (tuple, list)) and len(p) >= 2 and all(_is_number(c) for c in p)):
+            if not (isinstance(p, (tuple, list)) and len(p) >= 2 and all(is_number(c) for c in p)):
                 raise ValueError(f"expected a point [x, y], got {p!r}")
             pts.append((coerce(p[0], _FLOAT), coerce(p[1], _FLOAT)))
         polys.append(tuple(pts))

@@ -109,6 +109,26 @@ def _root(t):
     return t
 
 
+def _written(s) -> Optional[str]:
+    """The variable statement ``s`` writes (an assignment's target, the set
+    of an ``add`` or ``remove``, down to its root), or None."""
+    t = None
+    if isinstance(s, A.Assign):
+        t = s.target
+    elif isinstance(s, A.CallStmt) and s.name in ("add", "remove") and s.args:
+        t = s.args[0]
+    t = _root(t)
+    return t.name if isinstance(t, A.Name) else None
+
+
+def _union(pairs, r: int = 0, w: int = 0) -> tuple:
+    """The union of (reads, writes) masks ``pairs``, and of ``r`` and ``w``."""
+    for pr, pw in pairs:
+        r |= pr
+        w |= pw
+    return r, w
+
+
 class Independence:
     """Footprints of the steps and of the rest of every k cell of model
     ``m`` (see the module docstring).  Plain data: picklable."""
@@ -146,13 +166,9 @@ class Independence:
         # whether an atomic is in it
         self.tree: dict = {}
         for sid, s in self.stmts.items():
-            r = w = 0
-            atomic = False
-            for x in A.walk_stmts([s]):
-                xr, xw = self._own_rw(x)
-                r |= xr
-                w |= xw
-                atomic = atomic or isinstance(x, A.Atomic)
+            sub = list(A.walk_stmts([s]))
+            r, w = _union(self._own_rw(x) for x in sub)
+            atomic = any(isinstance(x, A.Atomic) for x in sub)
             self.tree[sid] = (r, w | (LQ_BIT if atomic else 0))
         gr = 0
         for ev in m.program.events:
@@ -162,11 +178,7 @@ class Independence:
         #: per event: (reads, writes) of its guard and body
         self.event_fps: list = []
         for ev in m.program.events:
-            r0, w0 = gr, 0
-            for s in ev.body:
-                r, w = self.tree[s.sid]
-                r0 |= r
-                w0 |= w
+            r0, w0 = _union((self.tree[s.sid] for s in ev.body), gr)
             self.event_fps.append((r0, w0))
             er |= r0
             ew |= w0
@@ -208,25 +220,11 @@ class Independence:
         r = 0
         for e in _own_exprs(s):
             r |= self._expr_reads(e)
-        w = 0
-        t = None
-        if isinstance(s, A.Assign):
-            t = s.target
-        elif isinstance(s, A.CallStmt) and s.name in ("add", "remove") and s.args:
-            t = s.args[0]
-        t = _root(t)
-        if isinstance(t, A.Name):
-            w = self.bit.get(t.name, 0)
-        return r, w
+        name = _written(s)
+        return r, (0 if name is None else self.bit.get(name, 0))
 
     def _writes_visible(self, s) -> bool:
-        t = None
-        if isinstance(s, A.Assign):
-            t = s.target
-        elif isinstance(s, A.CallStmt) and s.name in ("add", "remove") and s.args:
-            t = s.args[0]
-        t = _root(t)
-        return isinstance(t, A.Name) and t.name in self.visible
+        return _written(s) in self.visible
 
     # -- k cells -------------------------------------------------------------------------
     def rest(self, pc) -> tuple:
@@ -236,19 +234,10 @@ class Independence:
         block or Init)."""
         got = self._rest.get(pc)
         if got is None:
-            r = w = 0
-            ends = False
-            for item in self.ctl.iter_k(pc):
-                if item == END:
-                    ends = True
-                    continue
-                if item == AEND:
-                    continue
-                sid = acquire_sid(item) if is_acquire(item) else item
-                tr, tw = self.tree[sid]
-                r |= tr
-                w |= tw
-            got = self._rest[pc] = (r, w, ends)
+            items = list(self.ctl.iter_k(pc))
+            r, w = _union(self.tree[acquire_sid(i) if is_acquire(i) else i]
+                          for i in items if i != END and i != AEND)
+            got = self._rest[pc] = (r, w, END in items)
         return got
 
     def in_loop(self, pc) -> bool:

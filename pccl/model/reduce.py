@@ -394,6 +394,35 @@ def unreduced(m):
 #: The k heads whose step :func:`pccl.semantics.rules.statement` runs.
 _STATEMENT_KINDS = frozenset(R.STATEMENT_RULES) - {R.K_ATOMIC}
 
+def _every_rule(m, st, i, ag, info, out) -> None:
+    """Every rule of the k head ``info`` (a movable lock step or doReach in a
+    merged chain)."""
+    for rule in info.rules:
+        rule(m, st, i, ag, info, out)
+
+
+def _visit(seen, ident) -> Optional[set]:
+    """``seen`` (the (pc, counter, locals) a chain met after its 32nd step,
+    a new set for None) with ``ident`` added; None when ``ident`` is in it
+    already: the chain revisits, a local loop."""
+    if seen is None:
+        return {ident}
+    if ident in seen:
+        return None
+    seen.add(ident)
+    return seen
+
+
+def _push_branches(stack, out, ch, marks, mark) -> None:
+    """The branches of a ``rand`` after the first (``out[1:]``), last first,
+    onto a chain's ``stack``: (state, choices, marks), the branch's state
+    and choices added to ``marks`` when ``mark`` (the step wrote the stall
+    signature)."""
+    for c in range(len(out) - 1, 0, -1):
+        chc = ch + (c,)
+        stack.append((out[c][1], chc, marks + ((out[c][1], chc),) if mark else marks))
+
+
 class Merger:
     """The merged successor relation of a model, and its expansion.
     ``base``: the successor function chains start from (the rules', or the
@@ -411,10 +440,13 @@ class Merger:
         #: movable in the current state (:meth:`Por.movable`)
         self.por = por
         self.sig = None
+        #: per pc: (info, the rule a chain runs there) (:meth:`_step_of`)
+        self.steps: dict = {}
 
     def __getstate__(self) -> dict:
         d = dict(self.__dict__)
         d["sig"] = None         # generated code: rebuilt where it is needed
+        d["steps"] = {}         # rebuilt where it is needed
         return d
 
     def pc_ok(self, pc) -> bool:
@@ -457,19 +489,20 @@ class Merger:
             res.append((lab, s2))
         return res
 
-    def _chain(self, lab, idx0, s, i, res, st0=None):  # noqa: C901
+    def _chain(self, lab, idx0, s, i, res, st0=None):
         """Continue agent i's transition ``lab`` (from ``st0`` to ``s``)
         with the steps merging may run, appending the merged transitions to
-        ``res``.  A chain that writes what the stall signature reads
-        (shared variables, the lock queue, a doReach) and ends where it
-        began, as the signature goes, is cut after its first change: the
-        stall check sees a change on a transition exactly when one of its
-        steps makes one."""
+        ``res`` (one a branch of the ``rand`` calls met).  A chain that
+        writes what the stall signature reads (shared variables, the lock
+        queue, a doReach) and ends where it began, as the signature goes, is
+        cut after its first change: the stall check sees a change on a
+        transition exactly when one of its steps makes one.  (One loop, the
+        hot path of a reduced search: the step run at a pc is
+        :meth:`_step_of`'s, the other branches of a ``rand`` go onto the
+        stack with :func:`_push_branches`.)"""
         m = self.m
         rho, n0 = m.rho[i], m.n0
-        ok, ctl = self.ok, m.ctl
-        infos = ctl.infos
-        statement, counter_advance = R.statement, R.counter_advance
+        ok, steps = self.ok, self.steps
         oracle = m.oracle
         por = self.por
         s1 = s
@@ -495,30 +528,20 @@ class Merger:
                         break
                 if n >= 32:
                     # a long chain may be a local loop: stop where it revisits
-                    ident = (pc, ag[CNT], ag[LOC])
+                    seen = _visit(seen, (pc, ag[CNT], ag[LOC]))
                     if seen is None:
-                        seen = set()
-                    elif ident in seen:
                         break
-                    seen.add(ident)
-                info = infos[pc]
-                if info is None:
-                    info = ctl.info(pc)
+                step = steps.get(pc)
+                if step is None:
+                    step = self._step_of(pc)
+                info, rule = step
                 out: list = []
                 oracle.agent = i
-                k = info.kind
-                if k == K_END:
-                    counter_advance(m, s, i, ag, info, out)
-                elif k in _STATEMENT_KINDS:
-                    statement(m, s, i, ag, info, out)
-                else:                    # a movable lock step or doReach
-                    for rule in info.rules:
-                        rule(m, s, i, ag, info, out)
+                rule(m, s, i, ag, info, out)
                 if not out:
                     break
-                for c in range(len(out) - 1, 0, -1):      # rand: branches
-                    chc = ch + (c,)
-                    stack.append((out[c][1], chc, marks + ((out[c][1], chc),) if mv == 2 else marks))
+                if len(out) > 1:
+                    _push_branches(stack, out, ch, marks, mv == 2)
                 s = out[0][1]
                 ch = ch + (0,)
                 if mv == 2:
@@ -526,6 +549,24 @@ class Merger:
             if marks and st0 is not None:
                 s, ch = self._cut(st0, s1, s, ch, marks)
             res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
+
+    def _step_of(self, pc) -> tuple:
+        """(info, rule) for the step at ``pc`` in a chain: TIME COUNTER
+        ADVANCE at the end of an event, the statement rule, or (a movable
+        lock step, a doReach) every rule of the k head."""
+        ctl = self.m.ctl
+        info = ctl.infos[pc]
+        if info is None:
+            info = ctl.info(pc)
+        k = info.kind
+        if k == K_END:
+            rule = R.counter_advance
+        elif k in _STATEMENT_KINDS:
+            rule = R.statement
+        else:
+            rule = _every_rule
+        got = self.steps[pc] = (info, rule)
+        return got
 
     def _cut(self, st0, s1, s, ch, marks) -> tuple:
         """(state, choices) where a chain from ``st0`` that wrote signature

@@ -14,6 +14,7 @@ import math
 import os
 from collections.abc import Iterable, Mapping
 
+from pccl.lang.data import is_integer, is_number
 from pccl.lang.errors import ArgumentError
 
 
@@ -26,18 +27,10 @@ def _show(v) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
 def integer(func, name, v, *, minimum=None, optional=False):
     if v is None and optional:
         return
-    if not _is_int(v):
+    if not is_integer(v):
         _fail(func, f"{name} must be an integer{' or None' if optional else ''}, got {_show(v)}")
     if minimum is not None and v < minimum:
         _fail(func, f"{name} must be an integer >= {minimum}, got {v}")
@@ -46,7 +39,7 @@ def integer(func, name, v, *, minimum=None, optional=False):
 def number(func, name, v, *, minimum=None, positive=False, optional=False):
     if v is None and optional:
         return
-    if not _is_number(v):
+    if not is_number(v):
         _fail(func, f"{name} must be a number{' or None' if optional else ''}, got {_show(v)}")
     if not math.isfinite(v):
         _fail(func, f"{name} must be a finite number, got {v}")

@@ -31,6 +31,7 @@ import math
 from typing import Optional
 
 from pccl.output import display as D
+from pccl.lang.data import is_integer
 from pccl.lang.errors import PcclError
 from pccl.semantics.rules import K_IF, K_WHILE
 from pccl.model.layout import (AEND, AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, END, ENV, EXITED, FAIL,
@@ -305,10 +306,6 @@ def _fail(path: str, want: str, got) -> DecodeError:
     return DecodeError(f"{path}: expected {want}, got {_kind(got)}")
 
 
-def _is_int(x) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
-
-
 def _float(x, path):
     if isinstance(x, float) and math.isfinite(x):
         return x + 0.0
@@ -321,7 +318,7 @@ def decode_value(j, ty, path: str):
         return UNDEF
     kind = getattr(ty, "kind", "any")
     if kind == "int":
-        if _is_int(j):
+        if is_integer(j):
             return j
         raise _fail(path, "an int", j)
     if kind == "float":
@@ -369,13 +366,13 @@ def _bool(j, path):
 
 
 def _int(j, path):
-    if _is_int(j):
+    if is_integer(j):
         return j
     raise _fail(path, "an integer", j)
 
 
 def _number(j, path):
-    if _is_int(j) or (isinstance(j, float) and math.isfinite(j)):
+    if is_integer(j) or (isinstance(j, float) and math.isfinite(j)):
         return j
     raise _fail(path, "a number", j)
 
@@ -437,9 +434,9 @@ def _decode_k(model, j, path: str) -> int:
             items.append(END)
         elif x == "atomicEnd":
             items.append(AEND)
-        elif _is_int(x) and x in stmts:
+        elif is_integer(x) and x in stmts:
             items.append(x)
-        elif isinstance(x, dict) and _is_int(x.get("acquire")) and x["acquire"] in stmts:
+        elif isinstance(x, dict) and is_integer(x.get("acquire")) and x["acquire"] in stmts:
             items.append(acq(x["acquire"]))
         else:
             raise _fail(f"{path}[{n}]", "a statement id, \"end\", \"atomicEnd\" or "
@@ -459,7 +456,7 @@ def _decode_k(model, j, path: str) -> int:
 
 
 def _lock_queue(j, path, n_agents) -> tuple:
-    if not isinstance(j, list) or not all(_is_int(x) and 0 <= x < n_agents for x in j):
+    if not isinstance(j, list) or not all(is_integer(x) and 0 <= x < n_agents for x in j):
         raise _fail(path, "a list of agent ids", j)
     return tuple(j)
 
@@ -530,7 +527,7 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
     lay = model.compiled.layout
     if "agent" in cell:
         i = cell["agent"]
-        if not _is_int(i) or not 0 <= i < model.N:
+        if not is_integer(i) or not 0 <= i < model.N:
             raise _fail(f"{path}.cell.agent", f"an agent id below {model.N}", i)
         if "var" in cell:
             for sec, decls in (("local", lay.local), ("allread", lay.allread)):
