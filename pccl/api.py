@@ -653,8 +653,12 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         model.engine_used, model.engine_reason = "python", None
         return None
     from pccl.model import native as NV
-    # --workers N (forked processes) runs natively; Ray actors do not
-    why = NV.unsupported(model, recorder=recorder, parallel=o.ray is not None)
+    why = NV.unsupported(model, recorder=recorder)
+    if why is None and o.ray is not None:
+        # --workers N (forked processes) runs natively: the workers inherit the
+        # module loaded here; an actor would have to generate and build it again
+        why = ("{ray}: the actors run the Python engine (the native module is built where "
+               "pccl runs and does not travel to them; --workers N runs it in forked processes)")
     if why is None and o.coverage:
         why = "{coverage} counts guards in Python"
     if why is None and o.fastest:

@@ -725,3 +725,17 @@ def test_header_names_the_native_engine_with_workers():
     assert "states" in out and "Traceback" not in out
     out = CliRunner().invoke(main, args + ["2", "--engine", "native"]).output
     assert head(out).endswith("engine native"), out
+
+
+def test_ray_declines_the_native_engine_with_the_reason():
+    """``--ray`` keeps the Python engine (the actors would have to build the
+    module again) and says so; ``--engine native`` with it is an error."""
+    from pccl import api
+    from pccl.model.options import ExploreOptions
+    m = make_model(FISCHER, overrides={"k": "0"})
+    assert api._choose_engine(m, ExploreOptions(ray="local"), True, False) is None
+    assert m.engine_used == "python" and m.engine_reason.startswith("ray: the actors run the Python")
+    with pytest.raises(ArgumentError, match="native engine cannot run this search: .*actors"):
+        api._choose_engine(m, ExploreOptions(ray="local", engine="native"), True, False)
+    assert isinstance(api._choose_engine(m, ExploreOptions(workers=2), True, False), NV.NativeModel)
+    assert m.engine_used == "native"
