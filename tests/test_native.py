@@ -739,3 +739,23 @@ def test_ray_declines_the_native_engine_with_the_reason():
         api._choose_engine(m, ExploreOptions(ray="local", engine="native"), True, False)
     assert isinstance(api._choose_engine(m, ExploreOptions(workers=2), True, False), NV.NativeModel)
     assert m.engine_used == "native"
+
+
+def test_native_workers_stall_changes_in_a_batch_equal_state_by_state():
+    """A native worker decides the stall check's per-state change for a chunk
+    at once (:meth:`_Worker._changes`); the same as asking each state
+    (``StateColumns.changed``) on the reachable states of a stalling program."""
+    from pccl.search import liveness as L
+    from pccl.search import parallel as P
+    path = os.path.join(ROOT, "tests/programs/token_keep.pccl")
+    m = make_model(path)
+    nm = NV.NativeModel(m)
+    cols = L.make_recorder(nm, True, True).columns
+    assert cols.sig_of is not None
+    states = [s for s in reachable(nm, 3000) if nm.successors(s)]
+    w = P._Worker(nm, 0, 1, True, False, cols)
+    ns, flat, _ = nm.successor_batch(states)
+    w._changes(list(range(len(states))), states, ns, flat)
+    want = [cols.changed(s, [t for _, t in nm.successors(s)]) for s in states]
+    assert w.g_chg == want and w.g_chg_idx == list(range(len(states)))
+    assert any(want) and not all(want)

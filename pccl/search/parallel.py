@@ -272,10 +272,12 @@ class _Worker:
                 # without the stall check's per-state look needs no bytecode
                 # per state
                 ns, flat, _ = batch(states[pos:end])
-                if not at_bound and chg_of is None and 0 not in ns:
+                if not at_bound and 0 not in ns:
                     par_idx.extend(nums[pos:end])
                     par_n.extend(ns)
                     cs.extend(flat)
+                    if chg_of is not None:
+                        self._changes(nums[pos:end], states[pos:end], ns, flat)
                 else:
                     self._expand_flat(nums[pos:end], states[pos:end], ns, flat, chg_of)
                 del flat
@@ -294,6 +296,20 @@ class _Worker:
                 work.pop(0)
                 self._discard(states)
         return self.remaining()
+
+    def _changes(self, nums: list, states: list, ns: list, flat: list) -> None:
+        """The stall check (:meth:`liveness.StateColumns.changed`) of a chunk
+        of states, none terminal, whose successors are ``flat`` (``ns`` per
+        state): whether some successor's signature differs from its
+        source's, for all at once."""
+        sig = self.columns.sig_of
+        here = np.fromiter(map(sig, states), dtype=np.int64, count=len(states))
+        there = np.fromiter(map(sig, flat), dtype=np.int64, count=len(flat))
+        counts = np.asarray(ns, dtype=np.int64)
+        diff = there != np.repeat(here, counts)
+        starts = np.cumsum(counts) - counts
+        self.g_chg_idx.extend(nums)
+        self.g_chg.extend(np.logical_or.reduceat(diff, starts).tolist())
 
     def _expand_flat(self, nums: list, states: list, ns: list, flat: list, chg_of) -> None:
         """:meth:`expand_some` of a chunk whose successors came from the batch
