@@ -688,6 +688,7 @@ def test_native_workers_balance_large_levels(workers, monkeypatch):
     from pccl.search import parallel as P
     from pccl.search.explorer import Explorer
     monkeypatch.setattr(P, "_CHUNK", 4)
+    monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
     monkeypatch.setattr(P, "_MIN_GIVE", 2)
     monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,))     # reduced: symmetry
