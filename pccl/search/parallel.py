@@ -179,7 +179,7 @@ class _Worker:
         # one C call per chunk of states for their successors, one per level
         # for the candidates' fingerprints and first occurrences
         self.succ_batch = getattr(model, "successor_batch", None) if not fastest else None
-        self.fp_batch = getattr(model, "fingerprint_batch", None)
+        self.fp_batch = getattr(model, "fingerprint_batch", None) if not fastest else None
         # The state graph, when a recorder rides along (time-lock check,
         # temporal properties): per expanded level the sources' numbers and
         # the targets' fingerprints of every transition, and per admitted
@@ -285,6 +285,7 @@ class _Worker:
                     ck.extend(keys_of(cs[len(ck):]))
             else:
                 self._expand_each(nums[pos:end], states[pos:end], succ_fn, viol_fn, chg_of)
+                assert ck is not None       # the Python engine has no fingerprint hook
                 ck.extend(keys_of(cs[len(ck):]))     # hashed here: part of the balanced work
             if foreign:
                 self.x_moved.extend(nums[pos:end])
@@ -421,6 +422,7 @@ class _Worker:
             if ck is None:
                 # the model's batch hook (native): the fingerprints and the
                 # first occurrence of each (ascending) in one C call
+                assert self.fp_batch is not None
                 blobs, first, _ = self.fp_batch(cs)
                 fps = np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2)
             else:
