@@ -7,6 +7,7 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --no-baseline        # this checkout only
     python benchmarks/workers.py --static             # also new code with PCCL_BALANCE=0
     python benchmarks/workers.py --block              # also new code with PCCL_SPIN=0
+    python benchmarks/workers.py --balance            # also new code with PCCL_BALANCE=1
     python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
     python benchmarks/workers.py --native --no-baseline   # the native engine, large levels:
                                                       # fischer 3 agents k=2 d=2, reduced
@@ -71,6 +72,8 @@ def main() -> None:
                     help="the new code from this git revision [default: the working tree]")
     ap.add_argument("--static", action="store_true",
                     help="also the new code with PCCL_BALANCE=0 (each share expanded where it lies)")
+    ap.add_argument("--balance", action="store_true",
+                    help="also the new code with PCCL_BALANCE=1 (native levels balanced too)")
     ap.add_argument("--block", action="store_true",
                     help="also the new code with PCCL_SPIN=0 (a waiting process blocks at once)")
     ap.add_argument("--native", action="store_true",
@@ -99,6 +102,8 @@ def main() -> None:
         configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
         if args.static:
             configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
+        if args.balance:
+            configs.append(("2 workers, PCCL_BALANCE=1", 2, new, {"PCCL_BALANCE": "1"}))
         if args.block:
             configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
         if old is not None:

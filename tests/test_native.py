@@ -681,14 +681,16 @@ class _SlowBatch:
 
 @pytest.mark.parametrize("workers", [2, 3])
 def test_native_workers_balance_large_levels(workers, monkeypatch):
-    """Balanced levels engage with native workers: states (native vectors)
-    move between the processes, and the figures and the counterexample stay
-    one native process's (small chunks and threshold: the forked workers
-    inherit them)."""
+    """Balanced levels engage with native workers when asked for
+    (``PCCL_BALANCE=1``): states (native vectors) move between the
+    processes, and the figures and the counterexample stay one native
+    process's (small chunks and threshold: the forked workers inherit
+    them); by default the native levels keep the static split."""
     from pccl.search import parallel as P
     from pccl.search.explorer import Explorer
     monkeypatch.setattr(P, "_CHUNK", 4)
     monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
+    monkeypatch.setattr(P, "_BALANCE_NATIVE", True)       # PCCL_BALANCE=1
     monkeypatch.setattr(P, "_MIN_GIVE", 2)
     monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,))     # reduced: symmetry
@@ -699,6 +701,10 @@ def test_native_workers_balance_large_levels(workers, monkeypatch):
                            max_states=20_000)
     many = e.run()
     assert e.moved > 10, e.moved
+    # by default (no PCCL_BALANCE=1) native levels keep the static split
+    monkeypatch.setattr(P, "_BALANCE_NATIVE", False)
+    static = P.ParallelExplorer(_SlowBatch(nm, 0.002), workers=workers, max_states=20_000)
+    assert static.run().stats.states == many.stats.states and static.moved == 0
     sig = [(r.status, r.stats.states, r.stats.transitions, r.stats.max_depth,
             [(f.violation.kind, f.index, f.depth, f.trace and tuple(f.trace.labels),
               f.trace and f.trace.states) for f in r.found]) for r in (one, many)]

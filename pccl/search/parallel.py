@@ -656,6 +656,12 @@ def _overloaded() -> bool:
     return bool(_LOAD[1])
 #: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
 _BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
+#: ... with the native engine only when asked for (``PCCL_BALANCE=1``): measured
+#: on fischer 3 agents k=2 (docs/scale-out.md, "Native workers"), the static
+#: split spent 15-20 % less CPU and was faster in 6 of 7 pairs, idle and beside
+#: a busy loop (moving native states and sorting the candidates back into key
+#: order cost more than the imbalance)
+_BALANCE_NATIVE = os.environ.get("PCCL_BALANCE") == "1"
 #: ... for levels of at least this many states (~15 ms of work or more
 #: for one worker; measured: on a loaded machine, balancing fischer k=2's
 #: levels of ~1,600 states cost more than it gained)
@@ -917,7 +923,8 @@ class _Pipes:
         assert local is not None, "start() first"
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
         sent = [False] * n
-        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL:
+        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL and (
+                local.succ_batch is None or _BALANCE_NATIVE):
             for w in range(1, n):
                 self.conns[w - 1].send(("lstep", per_worker[w]))
                 self.outstanding[w] += 1
