@@ -65,16 +65,19 @@ if code:   # import that tree, not the (editable) install
 from pccl.api import make_model, explore_model
 spec = json.loads(sys.argv[1])
 workers, ray = spec.pop("workers"), spec.pop("ray", None)
+extra = {k: spec.pop(k) for k in ("engine", "stall") if k in spec}
 m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None),
-               reduce=spec.pop("reduce", "none"))
+               reduce=spec.pop("reduce", "none"),
+               **({"agents": spec.pop("agents")} if spec.get("agents") else {}))
 r = explore_model(m, workers=workers, max_memory=None, timelock=False,
-                  **({"ray": ray} if ray else {}))
+                  **({"ray": ray} if ray else {}), **extra)
 s = r.stats
 me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
 print(json.dumps({"status": r.status, "states": s.states, "transitions": s.transitions,
                   "depth": s.max_depth, "seconds": s.seconds, "peak": s.peak_memory,
                   "cpu_self": me.ru_utime + me.ru_stime,
                   "cpu_children": kids.ru_utime + kids.ru_stime,
+                  "engine": getattr(m, "engine_used", "python"),
                   "code": __import__("pccl").__file__}))
 """
 

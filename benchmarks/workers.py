@@ -6,7 +6,12 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --baseline REV       # the "old" code [default: c8a9cb9]
     python benchmarks/workers.py --no-baseline        # this checkout only
     python benchmarks/workers.py --static             # also new code with PCCL_BALANCE=0
+    python benchmarks/workers.py --block              # also new code with PCCL_SPIN=0
+    python benchmarks/workers.py --balance            # also new code with PCCL_BALANCE=1
     python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
+    python benchmarks/workers.py --native --no-baseline   # the native engine, large levels:
+                                                      # fischer 3 agents k=2 d=2, reduced
+    python benchmarks/workers.py --native --k 1 --no-baseline   # ... k=1 (3.0 M states)
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).  Every
@@ -67,17 +72,40 @@ def main() -> None:
                     help="the new code from this git revision [default: the working tree]")
     ap.add_argument("--static", action="store_true",
                     help="also the new code with PCCL_BALANCE=0 (each share expanded where it lies)")
+    ap.add_argument("--balance", action="store_true",
+                    help="also the new code with PCCL_BALANCE=1 (native levels balanced too)")
+    ap.add_argument("--block", action="store_true",
+                    help="also the new code with PCCL_SPIN=0 (a waiting process blocks at once)")
+    ap.add_argument("--native", action="store_true",
+                    help="the native engine's case: fischer with 3 agents (--agents), d=2, the "
+                         "default reductions (merge+symmetry+por), no time-lock or stall check "
+                         "(`pccl explore programs/fischer.pccl --agents 3 --set k=K --set d=2 "
+                         "--no-timelock --no-stall --workers N`), --k 2 unless given")
+    ap.add_argument("--agents", type=int, default=None,
+                    help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
-    spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
-                reduce="none")
-    print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; "
-          f"fischer k={args.k} d=2, unreduced", flush=True)
+    if args.native:
+        k = args.k if "--k" in sys.argv else "2"
+        agents = args.agents or 3
+        spec = dict(program="programs/fischer.pccl", overrides={"k": k, "d": "2"},
+                    reduce="auto", agents=agents, engine="native", stall=False)
+        what = f"fischer {agents} agents k={k} d=2, reduced (merge+symmetry+por), native engine"
+    else:
+        spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
+                    reduce="none", **({"agents": args.agents} if args.agents else {}))
+        what = f"fischer k={args.k} d=2, unreduced"
+    print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; {what}",
+          flush=True)
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
         old = None if args.no_baseline else checkout(args.baseline, tmp)
         new = None if args.new is None else checkout(args.new, tmp_new)
         configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
         if args.static:
             configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
+        if args.balance:
+            configs.append(("2 workers, PCCL_BALANCE=1", 2, new, {"PCCL_BALANCE": "1"}))
+        if args.block:
+            configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
         if old is not None:
             configs.append((f"2 workers, old {args.baseline}", 2, old, None))
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}
@@ -91,7 +119,8 @@ def main() -> None:
                     for label, w, code, env in configs:
                         r = run_one(dict(spec), w, code, None, env)
                         runs[mode, label].append(r)
-                        done.append(f"{label} {r['seconds']:.2f} s")
+                        done.append(f"{label} {r['seconds']:.2f} s ({r['cpu']:.1f} CPU, "
+                                    f"engine {r.get('engine', '?')})")
                 finally:
                     if loop is not None:
                         loop.kill()
@@ -100,6 +129,7 @@ def main() -> None:
                       flush=True)
     sig = {(r["status"], r["states"], r["transitions"], r["depth"])
            for rs in runs.values() for r in rs}
+    engines = {r.get("engine") for rs in runs.values() for r in rs}
     assert len(sig) == 1, f"results differ between configurations: {sig}"
     hdr = (f"{'':<5} {'configuration':<28} {'search s':>20} {'CPU s':>20} "
            f"{'speedup vs 1 worker':>20}")
@@ -115,7 +145,7 @@ def main() -> None:
         print(f"{'':<5} (load average before each round: {'; '.join(loads[mode])})")
     status, states, transitions, depth = sig.pop()
     print(f"results identical in every run: {status}, {states:,} states, "
-          f"{transitions:,} transitions, depth {depth}")
+          f"{transitions:,} transitions, depth {depth}; engine {', '.join(map(str, sorted(engines, key=str)))}")
     print(f"load average at the end: {load()}")
 
 

@@ -440,6 +440,8 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
             from pccl.search import liveness as L
             plan.rec = L.make_recorder(native, o.timelock, o.stall)
         plan.native = native
+        if not plan.one:        # --workers N: forked workers over native vectors
+            return _parallel_searcher(plan, native), native
         return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH), recorder=plan.rec,
                          on_runaway=on_runaway_native, labels=plan.labels,
                          checkpoint=_checkpointer(model, o, native)), native)
@@ -450,15 +452,23 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         return ParallelExplorer(model, workers=plan.nworkers, ray=o.ray, recorder=plan.rec,
                                 fastest=o.fastest, **opts, checkpoint=_checkpointer(model, o)), None
     if plan.nworkers is not None and plan.nworkers > 1:
-        from pccl.search.parallel import ParallelExplorer
-        return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, fastest=o.fastest, **opts,
-                                checkpoint=_checkpointer(model, o)), None
+        return _parallel_searcher(plan, model), None
     if o.fastest:
         from pccl.search.fastest import FastestExplorer
         return FastestExplorer(plan.cov or model, sopts, recorder=plan.rec,
                                labels=plan.labels, checkpoint=_checkpointer(model, o)), None
     return Explorer(plan.cov or model, sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
                     labels=plan.labels, checkpoint=_checkpointer(model, o)), None
+
+
+def _parallel_searcher(plan: _SearchPlan, model) -> Any:
+    """The :class:`~pccl.search.parallel.ParallelExplorer` of ``--workers N``
+    (forked processes) over ``model``: the Python model or its native one."""
+    from pccl.search.parallel import ParallelExplorer
+    o = plan.o
+    opts = {f.name: getattr(plan.sopts, f.name) for f in dataclasses.fields(plan.sopts)}
+    return ParallelExplorer(model, workers=plan.nworkers, recorder=plan.rec, fastest=o.fastest,
+                            **opts, checkpoint=_checkpointer(plan.model, o))
 
 
 def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
@@ -484,14 +494,17 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
                 "python", "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             from pccl.search import liveness as L
-            plan.labels, plan.native = set(), None
+            plan.labels, plan.native = (set() if plan.one else None), None
             plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
-            # a checkpoint of the native search cannot be continued here: the
-            # Python search writes its own (into the checkpoint directory, if any)
-            ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
-                          labels=plan.labels,
-                          checkpoint=_checkpointer(model, plan.o.replace(
-                              checkpoint=plan.o.checkpoint or plan.o.resume, resume=None)))
+            if plan.one:
+                # a checkpoint of the native search cannot be continued here: the
+                # Python search writes its own (into the checkpoint directory, if any)
+                ex = Explorer(model, plan.sopts, recorder=plan.rec, on_runaway=plan.on_runaway,
+                              labels=plan.labels,
+                              checkpoint=_checkpointer(model, plan.o.replace(
+                                  checkpoint=plan.o.checkpoint or plan.o.resume, resume=None)))
+            else:       # --workers N: the Python engine's workers
+                ex = _parallel_searcher(plan, model)
             sr = ex.run()
         else:
             from pccl.search.parallel import RayUnavailable
@@ -653,7 +666,15 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         # k cells in its own order, which the checkpoint's tables must not meet
         why = "{resume}: the checkpoint was written by the Python engine"
     if why is None:
-        why = NV.unsupported(model, recorder=recorder, parallel=not one)
+        why = NV.unsupported(model, recorder=recorder)
+    if why is None and o.ray is not None:
+        # --workers N (forked processes) runs natively: the workers inherit the
+        # module loaded here; an actor would have to generate and build it again
+        why = ("{ray}: the actors run the Python engine (the native module is built where "
+               "pccl runs and does not travel to them; --workers N runs it in forked processes)")
+    if why is None and not one and (o.checkpoint is not None or o.resume is not None):
+        why = ("{checkpoint} and {resume} with several workers save the Python engine's "
+               "states (one process saves the native engine's)")
     if why is None and o.coverage:
         why = "{coverage} counts guards in Python"
     if why is None and o.fastest:

@@ -604,3 +604,163 @@ def test_more_por_bits_than_a_mask_holds_runs_in_python():
     assert "more than 63 shared and allread variables" in NV.unsupported(m)
     assert NV.unsupported(make_model(text, source=True, agents=2, reduce="merge")) is None
     assert NV.unsupported(make_model(PORMIX, source=True, agents=2)) is None
+
+
+# -- --workers N on the native engine: forked workers over native vectors ------
+
+FISCHER = os.path.join(ROOT, "programs/fischer.pccl")
+MUTEX = "count(inCs) <= 1"
+NATIVE_WORKER_CASES = {
+    "fischer-exhaustive": (FISCHER, dict(overrides={"k": "1", "d": "1"}, **UNREDUCED)),
+    "fischer-violation": (FISCHER, dict(overrides={"k": "1"}, invariants=(MUTEX,), **UNREDUCED)),
+    "fischer-all": (FISCHER, dict(overrides={"k": "0"}, invariants=(MUTEX,), find_all=True,
+                                  **UNREDUCED)),
+    "fischer-max-states": (FISCHER, dict(overrides={"k": "1", "d": "1"}, max_states=3000,
+                                         **UNREDUCED)),
+    "fischer-depth": (FISCHER, dict(overrides={"k": "1", "d": "1"}, depth=15, **UNREDUCED)),
+    # the defaults: merge+symmetry+por (the canonical key), time-lock and stall
+    # recorder (slow: 40 s, the Python engine's 377,321 states)
+    "fischer-3-agents-reduced": (FISCHER, dict(agents=3, overrides={"k": "0", "d": "1"})),
+    "fischer-reduced-violation": (FISCHER, dict(overrides={"k": "1"}, invariants=(MUTEX,))),
+    "fischer-recorder-depth": (FISCHER, dict(overrides={"k": "1", "d": "1"}, depth=40)),
+    "fischer-recorder-max-states": (FISCHER, dict(overrides={"k": "1", "d": "1"},
+                                                  max_states=2000)),
+    "tl_spin-stall": (os.path.join(ROOT, "tests/programs/tl_spin.pccl"),
+                      dict(find_all=True, stall=True)),
+    "tl_spin-no-stall": (os.path.join(ROOT, "tests/programs/tl_spin.pccl"),
+                         dict(find_all=True, stall=False)),
+    "tl_spin-3-agents": (os.path.join(ROOT, "tests/programs/tl_spin.pccl"),
+                         dict(agents=3, find_all=True)),
+    "token_keep-stall": (os.path.join(ROOT, "tests/programs/token_keep.pccl"),
+                         dict(find_all=True, stall=True)),
+    "token_keep-no-timelock": (os.path.join(ROOT, "tests/programs/token_keep.pccl"),
+                               dict(find_all=True, stall=True, timelock=False)),
+    "peers-symmetry": (PEERS, dict(source=True, agents=3, find_all=True)),
+}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if "3-agents-reduced" in n
+                                  else n for n in sorted(NATIVE_WORKER_CASES)])
+def test_native_workers_give_the_one_worker_results(name):
+    """``--workers 2`` and ``3`` run the native engine (not the Python one,
+    as before) and give one native worker's and the Python engine's
+    figures, verdict, violations and counterexamples (decoded), with the
+    time-lock/stall recorder on and off, violations and bounds."""
+    program, kw = NATIVE_WORKER_CASES[name]
+    py = explore(program, engine="python", **kw)
+    one = explore(program, engine="auto", **kw)
+    assert one.model.engine_used == "native", one.model.engine_reason
+    assert summary(one) == summary(py)
+    # the largest model time: not gathered from the workers (the Python
+    # engine's workers leave it out too)
+    want = {**summary(one), "max_time": None}
+    for w in (2, 3):
+        many = explore(program, engine="auto", workers=w, **kw)
+        assert many.model.engine_used == "native", (w, many.model.engine_reason)
+        assert summary(many) == want, f"workers={w}"
+
+
+class _SlowBatch:
+    """A native model whose batch of successors takes ``delay`` seconds longer
+    in the forked workers: a worker slowed down, as by another job on its core."""
+
+    def __init__(self, native, delay: float):
+        self.native, self.pid, self.delay = native, os.getpid(), delay
+
+    def __getattr__(self, name):
+        return getattr(self.native, name)
+
+    def successor_batch(self, states):
+        import time
+        if os.getpid() != self.pid:
+            time.sleep(self.delay)
+        return self.native.successor_batch(states)
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_native_workers_balance_large_levels(workers, monkeypatch):
+    """Balanced levels engage with native workers when asked for
+    (``PCCL_BALANCE=1``): states (native vectors) move between the
+    processes, and the figures and the counterexample stay one native
+    process's (small chunks and threshold: the forked workers inherit
+    them); by default the native levels keep the static split."""
+    from pccl.search import parallel as P
+    from pccl.search.explorer import Explorer
+    monkeypatch.setattr(P, "_CHUNK", 4)
+    monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
+    monkeypatch.setattr(P, "_BALANCE_NATIVE", True)       # PCCL_BALANCE=1
+    monkeypatch.setattr(P, "_MIN_GIVE", 2)
+    monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
+    m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,))     # reduced: symmetry
+    m.lock_deadlocks = True
+    nm = NV.NativeModel(m)
+    one = Explorer(nm, max_states=20_000).run()
+    e = P.ParallelExplorer(_SlowBatch(nm, 0.002), workers=workers,
+                           max_states=20_000)
+    many = e.run()
+    assert e.moved > 10, e.moved
+    # by default (no PCCL_BALANCE=1) native levels keep the static split
+    monkeypatch.setattr(P, "_BALANCE_NATIVE", False)
+    static = P.ParallelExplorer(_SlowBatch(nm, 0.002), workers=workers, max_states=20_000)
+    assert static.run().stats.states == many.stats.states and static.moved == 0
+    sig = [(r.status, r.stats.states, r.stats.transitions, r.stats.max_depth,
+            [(f.violation.kind, f.index, f.depth, f.trace and tuple(f.trace.labels),
+              f.trace and f.trace.states) for f in r.found]) for r in (one, many)]
+    assert sig[0] == sig[1] and one.found
+
+
+def test_native_workers_overflow_fall_back_to_python_workers():
+    """An int beyond 64 bits met by a native worker: the search runs again
+    on the Python engine, with the workers, and gives its result."""
+    text = ("Agent::Grow\n\nallwrite:\n  int x = 1;\n\nallread:\n\nloc:\n\nInit:\n\n"
+            "Double():\n  pre(x > 0);\n  eff:\n    x = x * 1000000;\n")
+    py = explore(text, source=True, engine="python", max_states=200, **UNREDUCED)
+    for w in (2, 3):
+        r = explore(text, source=True, engine="auto", workers=w, max_states=200, **UNREDUCED)
+        assert r.model.engine_used == "python" and "64 bits" in r.model.engine_reason
+        assert summary(r) == {**summary(py), "max_time": None}
+
+
+def test_header_names_the_native_engine_with_workers():
+    from click.testing import CliRunner
+    from pccl.cli import main
+    args = ["explore", FISCHER, "--set", "k=0", "--set", "d=0", "--no-progress", "--workers"]
+    out = CliRunner().invoke(main, args + ["2"]).output
+    assert head(out).endswith("reductions merge+symmetry+por, engine native"), out
+    assert "states" in out and "Traceback" not in out
+    out = CliRunner().invoke(main, args + ["2", "--engine", "native"]).output
+    assert head(out).endswith("engine native"), out
+
+
+def test_ray_declines_the_native_engine_with_the_reason():
+    """``--ray`` keeps the Python engine (the actors would have to build the
+    module again) and says so; ``--engine native`` with it is an error."""
+    from pccl import api
+    from pccl.model.options import ExploreOptions
+    m = make_model(FISCHER, overrides={"k": "0"})
+    assert api._choose_engine(m, ExploreOptions(ray="local"), True, False) is None
+    assert m.engine_used == "python" and m.engine_reason.startswith("ray: the actors run the Python")
+    with pytest.raises(ArgumentError, match="native engine cannot run this search: .*actors"):
+        api._choose_engine(m, ExploreOptions(ray="local", engine="native"), True, False)
+    assert isinstance(api._choose_engine(m, ExploreOptions(workers=2), True, False), NV.NativeModel)
+    assert m.engine_used == "native"
+
+
+def test_native_workers_stall_changes_in_a_batch_equal_state_by_state():
+    """A native worker decides the stall check's per-state change for a chunk
+    at once (:meth:`_Worker._changes`); the same as asking each state
+    (``StateColumns.changed``) on the reachable states of a stalling program."""
+    from pccl.search import liveness as L
+    from pccl.search import parallel as P
+    path = os.path.join(ROOT, "tests/programs/token_keep.pccl")
+    m = make_model(path)
+    nm = NV.NativeModel(m)
+    cols = L.make_recorder(nm, True, True).columns
+    assert cols.sig_of is not None
+    states = [s for s in reachable(nm, 3000) if nm.successors(s)]
+    w = P._Worker(nm, 0, 1, True, False, cols)
+    ns, flat, _ = nm.successor_batch(states)
+    w._changes(list(range(len(states))), states, ns, flat)
+    want = [cols.changed(s, [t for _, t in nm.successors(s)]) for s in states]
+    assert w.g_chg == want and w.g_chg_idx == list(range(len(states)))
+    assert any(want) and not all(want)

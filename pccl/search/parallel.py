@@ -175,6 +175,11 @@ class _Worker:
         twos = itertools.repeat(2)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         self.keys_of = lambda states: map(xxh, map(dumps, map(key, states), twos))
+        # the model's batch hooks (the native engine, pccl/model/native.py):
+        # one C call per chunk of states for their successors, one per level
+        # for the candidates' fingerprints and first occurrences
+        self.succ_batch = getattr(model, "successor_batch", None) if not fastest else None
+        self.fp_batch = getattr(model, "fingerprint_batch", None) if not fastest else None
         # The state graph, when a recorder rides along (time-lock check,
         # temporal properties): per expanded level the sources' numbers and
         # the targets' fingerprints of every transition, and per admitted
@@ -238,7 +243,9 @@ class _Worker:
         self.x_depth_min: Optional[int] = None
         self.x_model_min: Optional[int] = None
         self.x_moved: list = []
-        self.x_ck: list = []            # the candidates' fingerprints (bytes)
+        # the candidates' fingerprints (bytes), or None: computed by the
+        # model's batch hook once the level is expanded (:meth:`finish`)
+        self.x_ck: Optional[list] = [] if self.fp_batch is None else None
 
     def remaining(self) -> int:
         """States of the level not expanded (nor given away) yet."""
@@ -248,42 +255,38 @@ class _Worker:
         """Expand up to ``limit`` (None: all) of the states left; returns how
         many are left."""
         m, succ_fn, at_bound = self.m, self.m.successors, self.x_bound
-        second = operator.itemgetter(1)
-        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        cs, par_idx, par_n = self.x_cs, self.x_par_idx, self.x_par_n
         ck, keys_of = self.x_ck, self.keys_of
         cols = self.columns
         chg_of = cols.changed if cols is not None and cols.sig_of is not None else None
         work = self.work
         viol_fn = m.violations if self.fastest else None
+        batch = self.succ_batch
         while work and (limit is None or limit > 0):
             blk = work[0]
             nums, states, pos, foreign = blk
             end = len(states) if limit is None else min(len(states), pos + limit)
-            for g, s in zip(nums[pos:end], states[pos:end]):
-                if viol_fn is not None:     # the fastest search: checked when expanded
-                    vs = viol_fn(s)
-                    if vs:
-                        dead.append((g, vs))
-                succ = succ_fn(s)
-                if not succ:
-                    bound, v = terminal(m, s, self.deadlock)
-                    if bound is not None:
-                        if self.x_model_min is None or g < self.x_model_min:
-                            self.x_model_min = g
-                    elif v is not None:
-                        dead.append((g, [v]))
-                    continue
-                if at_bound:
-                    if self.x_depth_min is None or g < self.x_depth_min:
-                        self.x_depth_min = g
-                    continue
-                par_idx.append(g)
-                par_n.append(len(succ))
-                cs.extend(map(second, succ))
-                if chg_of is not None:
-                    self.g_chg_idx.append(g)
-                    self.g_chg.append(chg_of(s, list(map(second, succ))))
-            ck.extend(keys_of(cs[len(ck):]))     # hashed here: part of the balanced work
+            if batch is not None:
+                # the native engine: the chunk's successors in one C call; a
+                # chunk without terminal states, off the depth bound and
+                # without the stall check's per-state look needs no bytecode
+                # per state
+                ns, flat, _ = batch(states[pos:end])
+                if not at_bound and 0 not in ns:
+                    par_idx.extend(nums[pos:end])
+                    par_n.extend(ns)
+                    cs.extend(flat)
+                    if chg_of is not None:
+                        self._changes(nums[pos:end], states[pos:end], ns, flat)
+                else:
+                    self._expand_flat(nums[pos:end], states[pos:end], ns, flat, chg_of)
+                del flat
+                if ck is not None:
+                    ck.extend(keys_of(cs[len(ck):]))
+            else:
+                self._expand_each(nums[pos:end], states[pos:end], succ_fn, viol_fn, chg_of)
+                assert ck is not None       # the Python engine has no fingerprint hook
+                ck.extend(keys_of(cs[len(ck):]))     # hashed here: part of the balanced work
             if foreign:
                 self.x_moved.extend(nums[pos:end])
             if limit is not None:
@@ -294,6 +297,77 @@ class _Worker:
                 work.pop(0)
                 self._discard(states)
         return self.remaining()
+
+    def _changes(self, nums: list, states: list, ns: list, flat: list) -> None:
+        """The stall check (:meth:`liveness.StateColumns.changed`) of a chunk
+        of states, none terminal, whose successors are ``flat`` (``ns`` per
+        state): whether some successor's signature differs from its
+        source's, for all at once."""
+        sig = self.columns.sig_of
+        here = np.fromiter(map(sig, states), dtype=np.int64, count=len(states))
+        there = np.fromiter(map(sig, flat), dtype=np.int64, count=len(flat))
+        counts = np.asarray(ns, dtype=np.int64)
+        diff = there != np.repeat(here, counts)
+        starts = np.cumsum(counts) - counts
+        self.g_chg_idx.extend(nums)
+        self.g_chg.extend(np.logical_or.reduceat(diff, starts).tolist())
+
+    def _expand_flat(self, nums: list, states: list, ns: list, flat: list, chg_of) -> None:
+        """:meth:`expand_some` of a chunk whose successors came from the batch
+        hook (``ns`` per state, ``flat`` all of them), state by state."""
+        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        m, at_bound, a = self.m, self.x_bound, 0
+        for g, s, k in zip(nums, states, ns):
+            succ_states = flat[a:a + k]
+            a += k
+            if not k:
+                bound, v = terminal(m, s, self.deadlock)
+                if bound is not None:
+                    if self.x_model_min is None or g < self.x_model_min:
+                        self.x_model_min = g
+                elif v is not None:
+                    dead.append((g, [v]))
+                continue
+            if at_bound:
+                if self.x_depth_min is None or g < self.x_depth_min:
+                    self.x_depth_min = g
+                continue
+            par_idx.append(g)
+            par_n.append(k)
+            cs.extend(succ_states)
+            if chg_of is not None:
+                self.g_chg_idx.append(g)
+                self.g_chg.append(chg_of(s, succ_states))
+
+    def _expand_each(self, nums: list, states: list, succ_fn, viol_fn, chg_of) -> None:
+        """:meth:`expand_some` of a chunk, state by state (the Python engine)."""
+        m, at_bound = self.m, self.x_bound
+        second = operator.itemgetter(1)
+        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        for g, s in zip(nums, states):
+            if viol_fn is not None:     # the fastest search: checked when expanded
+                vs = viol_fn(s)
+                if vs:
+                    dead.append((g, vs))
+            succ = succ_fn(s)
+            if not succ:
+                bound, v = terminal(m, s, self.deadlock)
+                if bound is not None:
+                    if self.x_model_min is None or g < self.x_model_min:
+                        self.x_model_min = g
+                elif v is not None:
+                    dead.append((g, [v]))
+                continue
+            if at_bound:
+                if self.x_depth_min is None or g < self.x_depth_min:
+                    self.x_depth_min = g
+                continue
+            par_idx.append(g)
+            par_n.append(len(succ))
+            cs.extend(map(second, succ))
+            if chg_of is not None:
+                self.g_chg_idx.append(g)
+                self.g_chg.append(chg_of(s, list(map(second, succ))))
 
     def give(self, most: int):
         """Hand over up to ``most`` of the states left, from the back (for
@@ -324,7 +398,8 @@ class _Worker:
         """The reply of :meth:`expand`, once the level is expanded."""
         assert not self.work, "finish() before the level is expanded"
         cs, par_idx, par_n, ck = self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck
-        self.x_cs, self.x_par_idx, self.x_par_n, self.x_ck = [], [], [], []
+        self.x_cs, self.x_par_idx, self.x_par_n = [], [], []
+        self.x_ck = [] if self.fp_batch is None else None
         total = len(cs)
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
@@ -340,16 +415,25 @@ class _Worker:
                 order = np.argsort(keys, kind="stable")
                 keys = keys[order]
                 ol = order.tolist()
-                cs, ck = [cs[p] for p in ol], [ck[p] for p in ol]
+                cs = [cs[p] for p in ol]
+                if ck is not None:
+                    ck = [ck[p] for p in ol]
                 del order, ol
-            fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+            if ck is None:
+                # the model's batch hook (native): the fingerprints and the
+                # first occurrence of each (ascending) in one C call
+                assert self.fp_batch is not None
+                blobs, first, _ = self.fp_batch(cs)
+                fps = np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2)
+            else:
+                fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+                # first occurrence of each fingerprint (the smallest key: keys ascend)
+                first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
+                                    dtype=np.int64, count=-1)
+                first.sort()
             if self.columns is not None:
                 self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
                 self.g_fps.append(fps)
-            # first occurrence of each fingerprint (the smallest key: keys ascend)
-            first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
-                                dtype=np.int64, count=-1)
-            first.sort()
             f, k = fps[first], keys[first]
             if self.n > 1:
                 mine = (f[:, 1] % np.uint64(self.n)) == np.uint64(self.wid)
@@ -367,8 +451,7 @@ class _Worker:
                 timed = costs != 0
                 viol = [(k[timed], costs[timed])]
             else:
-                viol_fn = self.m.violations
-                vs = list(map(viol_fn, [cs[p] for p in first.tolist()]))
+                vs = list(map(self.m.violations, map(cs.__getitem__, first.tolist())))
                 if any(vs):
                     kl = k.tolist()
                     viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
@@ -573,6 +656,12 @@ def _overloaded() -> bool:
     return bool(_LOAD[1])
 #: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
 _BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
+#: ... with the native engine only when asked for (``PCCL_BALANCE=1``): measured
+#: on fischer 3 agents k=2 (docs/scale-out.md, "Native workers"), the static
+#: split spent 15-20 % less CPU and was faster in 6 of 7 pairs, idle and beside
+#: a busy loop (moving native states and sorting the candidates back into key
+#: order cost more than the imbalance)
+_BALANCE_NATIVE = os.environ.get("PCCL_BALANCE") == "1"
 #: ... for levels of at least this many states (~15 ms of work or more
 #: for one worker; measured: on a loaded machine, balancing fischer k=2's
 #: levels of ~1,600 states cost more than it gained)
@@ -625,6 +714,16 @@ def _ready(conns: list):
 #: States a worker expands between two looks for another worker's request
 #: (:func:`_balanced_step`, :meth:`_Pipes._balance`): ~0.2-0.5 ms of work.
 _CHUNK = 64
+#: ... times this for the native engine (a state costs ~0.5 us to expand there,
+#: against ~3.5 us in Python; a look costs a poll of the pipe: measured on
+#: fischer 3 agents k=1, 8.18 s of CPU with 8 times, 7.70 s with 32, 7.48 s
+#: unbalanced)
+_NATIVE_CHUNK = 32
+
+
+def _chunk(w: "_Worker") -> int:
+    """The states ``w`` expands between two looks for a request."""
+    return _CHUNK * _NATIVE_CHUNK if w.succ_batch is not None else _CHUNK
 #: A worker asked for work hands over half of what it has left, if that is
 #: at least this many states (moving a state costs about as much as
 #: expanding it: pickled, sent, unpickled).
@@ -646,8 +745,10 @@ def _balanced_step(w: "_Worker", conn, *args) -> None:
     w.start_level(*args)
     poll, recv, send = conn.poll, conn.recv, conn.send
 
+    chunk = _chunk(w)
+
     def expand_all():
-        while w.expand_some(_CHUNK):
+        while w.expand_some(chunk):
             while poll(0):
                 kind, _ = recv()
                 assert kind == "steal", kind
@@ -822,7 +923,8 @@ class _Pipes:
         assert local is not None, "start() first"
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
         sent = [False] * n
-        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL:
+        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL and (
+                local.succ_batch is None or _BALANCE_NATIVE):
             for w in range(1, n):
                 self.conns[w - 1].send(("lstep", per_worker[w]))
                 self.outstanding[w] += 1
@@ -901,8 +1003,9 @@ class _Balancer:
 
     def run(self) -> None:
         local, conns = self.local, self.conns
+        chunk = _chunk(local)
         while True:
-            if local.expand_some(_CHUNK):
+            if local.expand_some(chunk):
                 self.pump()
                 continue
             self.pump()
@@ -1322,7 +1425,10 @@ class ParallelExplorer(Explorer):
         # restored) before the workers start
         self._resume = ck.load_parallel(self) \
             if ck is not None and ck.resume_dir is not None else None
-        prepare = getattr(self.model, "prepare", None)
+        # (a native model: its Python model's, whose violations and terminal
+        # states it decodes to read)
+        prepare = getattr(self.model, "prepare", None) or getattr(
+            getattr(self.model, "py", None), "prepare", None)
         if prepare is not None:
             prepare()       # lazily built tables that states refer to, before the fork
         enabled = gc.isenabled()
