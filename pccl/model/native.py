@@ -590,6 +590,8 @@ class Generator:
             if not isinstance(s.target, A.Name):
                 raise Unsupported(f"an indexed assignment (line {s.span.line})")
             vs = self.lay.vars[s.target.name]
+            if vs.ty.kind not in SCALAR:
+                raise Unsupported(f"an assignment to the {vs.ty} variable '{vs.name}' in C")
             out.append(f"{ind}V v = {self.expr(s.value, i)};")
             out.append(f"{ind}if (ovf) return -1;")
             sets.append(f"t[{self.var_ref(vs, i)[2:-1]}] = v")
