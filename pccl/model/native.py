@@ -200,8 +200,10 @@ class Generator:
         #: whether the program moves (doReach, or a blackbox that moves the
         #: initial state): then positions, reach cells and env are slots of
         #: the vector, holding interned ids (:class:`NativeModel` owns the table)
+        from pccl.model.reduce import positions_read, unreduced
         self.moves = any(isinstance(s, A.CallStmt) and s.name == "doReach"
-                         for s in c.stmts.values())
+                         for s in c.stmts.values()) or (
+            not model.collisions and positions_read(unreduced(model)) is not None)
         #: the memo sites: (kind, agent, pc, read slots, written slots), kind
         #: "stmt" (a statement's rule run by Python on a miss) or "env"
         #: (DOREACH INVOKE, the blackbox's outcomes)
@@ -372,6 +374,8 @@ class Generator:
                 return self.read(self.var_ref(vs, i), vs)
             if e.name in self.lay.members:
                 return str(self.lay.members[e.name][1])
+            if self.moves and e.name in ("doReach_done", "doReach_fail"):
+                return self.ag(i, self.MV + (4 if e.name == "doReach_done" else 5))
             raise Unsupported(f"the name '{e.name}'")
         if isinstance(e, A.Unary):
             x = self.expr(e.operand, i)
