@@ -124,9 +124,9 @@ def test_auto_falls_back_with_the_reason():
                 properties=("eventually inCs[0]",), max_states=100)
     assert r.model.engine_used == "python"
     assert "temporal property" in r.model.engine_reason
-    r = explore(os.path.join(ROOT, "programs/race.pccl"), reduce="none", timelock=False,
-                stall=False, max_states=100)
-    assert r.model.engine_used == "python" and "List<ItemPosition>" in r.model.engine_reason
+    r = explore(os.path.join(ROOT, "programs/formation.pccl"), reduce="none", timelock=False,
+                world=os.path.join(ROOT, "programs/formation.toml"), stall=False, max_states=100)
+    assert r.model.engine_used == "python" and "property expression" in r.model.engine_reason
     r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1", "d": "1"},
                 **UNREDUCED)
     assert r.model.engine_used == "native" and r.model.engine_reason is None

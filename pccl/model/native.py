@@ -9,9 +9,34 @@ A configuration is then a ``bytes`` object: int64 slots, native byte order::
     time, phase, lockQueue (N slots, agent ids, -1 unused), shared scalars,
     per agent: pc, counter, lockState, status, locals, allread
 
-(positions, reach cells and the blackbox's environment never change in the
-programs served, so they are not in the vector; :meth:`NativeModel.decode`
-puts them back).  Undefined is INT64_MIN.  :class:`NativeModel` offers the
+In a program that does not move (no doReach, nothing reads a position)
+positions, reach cells and the blackbox's environment never change, so they
+are not in the vector (:meth:`NativeModel.decode` puts them back).  In a
+program that moves, the env is a slot after shared and each agent's block
+ends with its position, target, obstacles and t0 (interned ids) and
+doReach_done, doReach_fail.  Values that are not int, bool or enum scalars
+(positions, lists, obstacle lists, floats, arrays, None) are small ints
+interned in a table :class:`NativeModel` owns (value <-> id, two values
+one id when their marshal encodings, which the fingerprints read, are
+equal); ids follow discovery order, so equal states have equal vectors
+within one process only: a parallel search of such a program runs the
+Python engine.  Undefined is INT64_MIN.
+
+What C does not compute is memoised in C and computed by Python on a miss,
+so the semantics and the geometry stay in one place (semantics/rules.py,
+blackboxes/): a *memo site* is a statement C cannot compile (one over
+interned values: ``head``, ``remove``, ``contains``, ``getPosition()``,
+doReach, ...; an assignment to an interned variable) or DOREACH INVOKE of
+a program that moves.  Its key is the values of the slots its rule reads
+(a statement: the agent's block but its counter, shared, the slots of other
+agents it indexes, the clock for a doReach that records t0; DOREACH INVOKE:
+every agent's status, position and reach cells, the env, the clock if the
+blackbox reads it); its value the rule's successors: per successor the
+label and the values of the slots the site writes.  On a miss
+:meth:`NativeModel._miss` decodes the state, runs the Python rule (the
+blackbox's ``step`` for DOREACH INVOKE), interns what it returns and
+checks that no other slot changed (else the native search stops and Python
+runs).  :class:`NativeModel` offers the
 explorer's model protocol over these vectors: ``successors`` is one C call
 per state (the rules of ``semantics/rules.py``, for each pc of the program,
 in the same order, with the same labels); ``violations`` one C call that
@@ -40,7 +65,9 @@ canonical vector of the state's orbit (agent blocks sorted by their blocks
 with ids masked, which shared ids name them and their place in the lock
 queue; agents naming others tried in every order among equals, the least
 vector wins; ids renamed), a canonical form as reduce.py's key is, so the
-two identify the same states.  For the time-lock and stall checks the
+two identify the same states (in a program that moves the blocks hold
+positions as interned ids, whose order is discovery order: another
+representative than Python's, the same orbits).  For the time-lock and stall checks the
 graph recorder (:mod:`pccl.search.liveness`) reads ``time_costs`` (one C
 call per batch) and ``stall_signature`` (a hash of the fields of
 :func:`pccl.model.stall.signature_fn`, one C call per state).
@@ -56,10 +83,13 @@ Served (:func:`unsupported` says why not otherwise): variables of type int,
 bool or enum, scalars; statements: assignment, skip, if, while, atomic,
 assert, exit; expressions: literals, variables, enum members, ``+ - *``,
 comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
-``getNumAgents()``; invariants: the same over shared variables, ``count(v)``
+``getNumAgents()``, ``doReach_done``, ``doReach_fail``; statements over
+positions, lists, obstacle lists and floats, ``add``, ``remove`` and
+doReach through memo sites (guards and invariants over them are not
+served); invariants: the same over shared variables, ``count(v)``
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
-quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
-lists, floats or positions; the built-in blackboxes; every reduction
+quantified agent, ``N``; no ``rand`` outside declarations; the built-in
+blackboxes (nondet, nondet-fail, instant, straight); every reduction
 (merge, symmetry, por: at most 63 shared and allread variables under por); the time-lock and stall checks; no temporal
 property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
@@ -142,7 +172,11 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
         return why
     try:
         gen = Generator(model)
-        _LAST[:] = [model, gen, gen.source()]
+        src = gen.source()
+        if parallel and gen.moves:      # (kept should parallel searches run native)
+            return ("a parallel search of a program that moves (interned ids are "
+                    "numbered per process)")
+        _LAST[:] = [model, gen, src]
     except Unsupported as e:
         return str(e)
     except RecursionError:      # a 3,000-deep chain: the generator recurses on expressions
@@ -1231,9 +1265,14 @@ static const V *memo_miss(const V *s, const V *key, int kl) {
   PyObject *r = PyObject_CallFunction(MISS, "nN", (Py_ssize_t)key[0], st);
   if (!r) return NULL;
   PyObject *val = PyTuple_GetItem(r, 0);
-  if (!val || !PyBytes_Check(val)) { Py_DECREF(r); if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "memo miss"); return NULL; }
+  if (!val || !PyBytes_Check(val)) {
+    Py_DECREF(r);
+    if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "memo miss: not bytes");
+    return NULL;
+  }
   if (PyList_GET_SIZE(LABELS) > NLABELS && labels_grown()) { Py_DECREF(r); return NULL; }
-  const V *out = memo_put(key, kl, (const V *)PyBytes_AS_STRING(val), PyBytes_GET_SIZE(val) / (Py_ssize_t)sizeof(V));
+  const V *out = memo_put(key, kl, (const V *)PyBytes_AS_STRING(val),
+                          PyBytes_GET_SIZE(val) / (Py_ssize_t)sizeof(V));
   Py_DECREF(r);
   return out;
 }
@@ -1539,7 +1578,7 @@ def build(src: str):
                 f.write(full)
             out = os.path.join(tmp, name + ext)
             inc = sysconfig.get_paths()["include"]
-            p = subprocess.run([cc, *os.environ.get("PCCL_CFLAGS", "-O2").split(), "-shared", "-fPIC", "-w", f"-I{inc}", "-o", out,
+            p = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-w", f"-I{inc}", "-o", out,
                                 c_path], capture_output=True, text=True)
             if p.returncode != 0:
                 raise RuntimeError(f"the C compiler failed on the native module:\n{p.stderr[-2000:]}")
