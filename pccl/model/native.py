@@ -1614,6 +1614,8 @@ class NativeModel:
         #: equal vectors within one process only (no --workers, no --ray)
         self._vals: list = []
         self._ids: dict = {}
+        #: id() of a value of the table -> its id (the table keeps them alive)
+        self._byobj: dict = {}
         self._pending: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
@@ -1662,12 +1664,16 @@ class NativeModel:
         """The id of value ``x`` (interned on first sight).  Two values get
         one id when their canonical encodings (marshal, as the fingerprints
         read them) are equal: 1 and 1.0 stay apart, as in the Python engine."""
+        i = self._byobj.get(id(x))
+        if i is not None:       # one of the table's own objects (decode returns them)
+            return i
         import marshal
         k = marshal.dumps(x, 2)
         i = self._ids.get(k)
         if i is None:
             i = self._ids[k] = len(self._vals)
-            self._vals.append(x)
+            self._vals.append(x)        # kept alive: its id() names it for good
+            self._byobj[id(x)] = i
         return i
 
     def _v(self, x, kind: str = "int") -> int:
