@@ -314,7 +314,10 @@ class Generator:
         for p in m.properties:
             if p.expr is None:
                 raise Unsupported(f"invariant '{p.name}' has no expression")
-            self.pexpr(p.expr, {})
+            try:
+                self.pexpr(p.expr, {})
+            except Unsupported as e:
+                raise Unsupported(f"invariant '{p.name}': {e}") from None
         self.env_constant()
 
     def stmt_ok(self, s) -> None:
@@ -453,7 +456,8 @@ class Generator:
                 if isinstance(e.index, A.Name) and e.index.name in bound:
                     return self.read(self.var_ref(vs, bound[e.index.name]), vs)
                 return self.read(self.var_ref(vs, f"AIX({self.pexpr(e.index, bound)})"), vs)
-        raise Unsupported("a property expression beyond the native subset")
+        what = f"{e.name}()" if isinstance(e, A.Call) else type(e).__name__.lower()
+        raise Unsupported(f"the property expression {what} is beyond the native subset")
 
     def pname(self, e, bound: dict) -> str:
         """Step of :meth:`pexpr`: C for a name in a property."""
