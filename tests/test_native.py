@@ -124,9 +124,9 @@ def test_auto_falls_back_with_the_reason():
                 properties=("eventually inCs[0]",), max_states=100)
     assert r.model.engine_used == "python"
     assert "temporal property" in r.model.engine_reason
-    r = explore(os.path.join(ROOT, "programs/race.pccl"), reduce="none", timelock=False,
-                stall=False, max_states=100)
-    assert r.model.engine_used == "python" and "List<ItemPosition>" in r.model.engine_reason
+    r = explore(os.path.join(ROOT, "programs/formation.pccl"), reduce="none", timelock=False,
+                world=os.path.join(ROOT, "programs/formation.toml"), stall=False, max_states=100)
+    assert r.model.engine_used == "python" and "invariant" in r.model.engine_reason
     r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1", "d": "1"},
                 **UNREDUCED)
     assert r.model.engine_used == "native" and r.model.engine_reason is None
@@ -164,10 +164,15 @@ def test_header_names_the_engine(tmp_path):
     out = CliRunner().invoke(main, args[:7]).output     # the defaults
     assert head(out).endswith("reductions merge+symmetry+por, engine native")
     # auto where the native engine cannot: the header says why
+    out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/formation.pccl"),
+                                    "--world", os.path.join(ROOT, "programs/formation.toml"),
+                                    "--no-progress", "--max-states", "50"]).output
+    assert head(out).endswith("engine python (invariant 'flagMeansArrived': the property "
+                              "expression dist() is beyond the native subset)")
+    # a program that moves runs native
     out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/race.pccl"),
                                     "--no-progress", "--max-states", "50"]).output
-    assert head(out).endswith("engine python (variable 'dests' has type List<ItemPosition> "
-                              "(the native engine holds int, bool and enum scalars))")
+    assert head(out).endswith("reductions merge+symmetry+por, engine native")
 
 
 # -- the batch hooks: one C call per chunk of a level, fingerprints in C -------

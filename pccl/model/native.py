@@ -9,9 +9,34 @@ A configuration is then a ``bytes`` object: int64 slots, native byte order::
     time, phase, lockQueue (N slots, agent ids, -1 unused), shared scalars,
     per agent: pc, counter, lockState, status, locals, allread
 
-(positions, reach cells and the blackbox's environment never change in the
-programs served, so they are not in the vector; :meth:`NativeModel.decode`
-puts them back).  Undefined is INT64_MIN.  :class:`NativeModel` offers the
+In a program that does not move (no doReach, nothing reads a position)
+positions, reach cells and the blackbox's environment never change, so they
+are not in the vector (:meth:`NativeModel.decode` puts them back).  In a
+program that moves, the env is a slot after shared and each agent's block
+ends with its position, target, obstacles and t0 (interned ids) and
+doReach_done, doReach_fail.  Values that are not int, bool or enum scalars
+(positions, lists, obstacle lists, floats, arrays, None) are small ints
+interned in a table :class:`NativeModel` owns (value <-> id, two values
+one id when their marshal encodings, which the fingerprints read, are
+equal); ids follow discovery order, so equal states have equal vectors
+within one process only: a parallel search of such a program runs the
+Python engine.  Undefined is INT64_MIN.
+
+What C does not compute is memoised in C and computed by Python on a miss,
+so the semantics and the geometry stay in one place (semantics/rules.py,
+blackboxes/): a *memo site* is a statement C cannot compile (one over
+interned values: ``head``, ``remove``, ``contains``, ``getPosition()``,
+doReach, ...; an assignment to an interned variable) or DOREACH INVOKE of
+a program that moves.  Its key is the values of the slots its rule reads
+(a statement: the agent's block but its counter, shared, the slots of other
+agents it indexes, the clock for a doReach that records t0; DOREACH INVOKE:
+every agent's status, position and reach cells, the env, the clock if the
+blackbox reads it); its value the rule's successors: per successor the
+label and the values of the slots the site writes.  On a miss
+:meth:`NativeModel._miss` decodes the state, runs the Python rule (the
+blackbox's ``step`` for DOREACH INVOKE), interns what it returns and
+checks that no other slot changed (else the native search stops and Python
+runs).  :class:`NativeModel` offers the
 explorer's model protocol over these vectors: ``successors`` is one C call
 per state (the rules of ``semantics/rules.py``, for each pc of the program,
 in the same order, with the same labels); ``violations`` one C call that
@@ -40,7 +65,9 @@ canonical vector of the state's orbit (agent blocks sorted by their blocks
 with ids masked, which shared ids name them and their place in the lock
 queue; agents naming others tried in every order among equals, the least
 vector wins; ids renamed), a canonical form as reduce.py's key is, so the
-two identify the same states.  For the time-lock and stall checks the
+two identify the same states (in a program that moves the blocks hold
+positions as interned ids, whose order is discovery order: another
+representative than Python's, the same orbits).  For the time-lock and stall checks the
 graph recorder (:mod:`pccl.search.liveness`) reads ``time_costs`` (one C
 call per batch) and ``stall_signature`` (a hash of the fields of
 :func:`pccl.model.stall.signature_fn`, one C call per state).
@@ -56,10 +83,13 @@ Served (:func:`unsupported` says why not otherwise): variables of type int,
 bool or enum, scalars; statements: assignment, skip, if, while, atomic,
 assert, exit; expressions: literals, variables, enum members, ``+ - *``,
 comparisons, ``&& || -> !``, unary minus, ``getAgentIndex()``,
-``getNumAgents()``; invariants: the same over shared variables, ``count(v)``
+``getNumAgents()``, ``doReach_done``, ``doReach_fail``; statements over
+positions, lists, obstacle lists and floats, ``add``, ``remove`` and
+doReach through memo sites (guards and invariants over them are not
+served); invariants: the same over shared variables, ``count(v)``
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
-quantified agent, ``N``; no ``rand`` outside declarations, no doReach, no
-lists, floats or positions; the built-in blackboxes; every reduction
+quantified agent, ``N``; no ``rand`` outside declarations; the built-in
+blackboxes (nondet, nondet-fail, instant, straight); every reduction
 (merge, symmetry, por: at most 63 shared and allread variables under por); the time-lock and stall checks; no temporal
 property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
@@ -80,19 +110,31 @@ from typing import Any, NamedTuple, Optional
 from collections.abc import Callable
 
 from pccl.lang import ast as A
-from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ, PC,
-                               PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, TIME)
-from pccl.semantics.rules import K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_EMPTY, K_END, K_EXIT, K_IF, K_SIMPLE, K_WHILE
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ,
+                               OBSTACLES, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, T0, TARGET,
+                               TIME)
+from pccl.semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END, K_EXIT, K_IF,
+                                  K_SIMPLE, K_WHILE)
 from pccl.lang.types import indexes_agent
-from pccl.model.reduce import MERGE_LIMIT
+from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
 
 #: The native state vector's own layout (not a configuration): the clock and
 #: the phase first, then the lock queue, shared, and the agents (see encode).
 V_TIME, V_PHASE = 0, 1
 
 UNDEF_C = "INT64_MIN"
+#: the slots of a moving agent's block after its variables: position,
+#: target, obstacles, t0 (interned ids), doReach_done, doReach_fail
+MOVE_SLOTS = 6
+
 MAX_AGENTS = 16
+#: the kinds of control cell whose rule a memo site may run (one statement
+#: of one agent, no lock, no counter)
+MEMO_KINDS = (K_SIMPLE, K_IF, K_WHILE, K_ASSERT, K_DOREACH)
 SCALAR = ("int", "bool", "enum")
+#: kinds of values held as interned ids (value <-> small int, NativeModel's
+#: table); C compares them only for equality, Python computes on them
+INTERNED = ("pos", "list", "obstacles", "float", "array")
 
 
 class NativeOverflow(RuntimeError):
@@ -130,7 +172,11 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
         return why
     try:
         gen = Generator(model)
-        _LAST[:] = [model, gen, gen.source()]
+        src = gen.source()
+        if parallel and gen.moves:      # (kept should parallel searches run native)
+            return ("a parallel search of a program that moves (interned ids are "
+                    "numbered per process)")
+        _LAST[:] = [model, gen, src]
     except Unsupported as e:
         return str(e)
     except RecursionError:      # a 3,000-deep chain: the generator recurses on expressions
@@ -185,6 +231,17 @@ class Generator:
         self.N = model.N
         self.labels: list = []
         self.label_ids: dict = {}
+        #: whether the program moves (doReach, or a blackbox that moves the
+        #: initial state): then positions, reach cells and env are slots of
+        #: the vector, holding interned ids (:class:`NativeModel` owns the table)
+        from pccl.model.reduce import positions_read, unreduced
+        self.moves = any(isinstance(s, A.CallStmt) and s.name == "doReach"
+                         for s in c.stmts.values()) or (
+            not model.collisions and positions_read(unreduced(model)) is not None)
+        #: the memo sites: (kind, agent, pc, read slots, written slots), kind
+        #: "stmt" (a statement's rule run by Python on a miss) or "env"
+        #: (DOREACH INVOKE, the blackbox's outcomes)
+        self.sites: list = []
 
     # -- layout ------------------------------------------------------------------
     @property
@@ -197,7 +254,18 @@ class Generator:
 
     @property
     def A(self) -> int:
+        return 4 + self.L + self.R + (MOVE_SLOTS if self.moves else 0)
+
+    @property
+    def MV(self) -> int:
+        """The offset in an agent's block of its position id (then target,
+        obstacles, t0, done, fail): only when the program moves."""
         return 4 + self.L + self.R
+
+    @property
+    def ENVS(self) -> int:
+        """The slot of the blackbox's env id (only when the program moves)."""
+        return self.SH0 + len(self.lay.shared)
 
     @property
     def LQ0(self) -> int:
@@ -209,7 +277,7 @@ class Generator:
 
     @property
     def AG0(self) -> int:
-        return self.SH0 + len(self.lay.shared)
+        return self.SH0 + len(self.lay.shared) + (1 if self.moves else 0)
 
     @property
     def NS(self) -> int:
@@ -233,9 +301,10 @@ class Generator:
         if not any(m.blackbox is bb for bb in BLACKBOXES.values()):
             raise Unsupported(f"the blackbox '{getattr(m.blackbox, 'name', '?')}' is not built in")
         for vs in self.lay.vars.values():
-            if vs.ty.kind not in SCALAR:
+            if vs.ty.kind not in SCALAR and vs.ty.kind not in INTERNED:
                 raise Unsupported(f"variable '{vs.name}' has type {vs.ty} (the native engine "
-                                  "holds int, bool and enum scalars)")
+                                  "holds int, bool and enum scalars, and interns positions, "
+                                  "lists and obstacle lists)")
         if m.guards_rand:
             raise Unsupported("rand() in a guard")
         for s in self.c.stmts.values():
@@ -245,23 +314,30 @@ class Generator:
         for p in m.properties:
             if p.expr is None:
                 raise Unsupported(f"invariant '{p.name}' has no expression")
-            self.pexpr(p.expr, {})
+            try:
+                self.pexpr(p.expr, {})
+            except Unsupported as e:
+                raise Unsupported(f"invariant '{p.name}': {e}") from None
         self.env_constant()
 
     def stmt_ok(self, s) -> None:
         from pccl.model.compile import has_rand
         if has_rand(s) and not isinstance(s, (A.Atomic,)):
             raise Unsupported(f"rand() in a statement (line {s.span.line})")
-        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert"):
+        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert") and not (
+                s.name in ("doReach", "add", "remove") and self.memo_reads(s) is not None):
             raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
         if isinstance(s, A.Assign) and not isinstance(s.target, A.Name):
             raise Unsupported(f"an indexed assignment (line {s.span.line})")
 
     def env_constant(self) -> None:
-        """DOREACH INVOKE must leave positions, reach cells and env as they
-        are (no doReach): checked on the initial state, with every agent
-        running, exited and stuck."""
+        """A program without doReach whose DOREACH INVOKE leaves positions,
+        reach cells and env as they are (checked on the initial state, with
+        every agent running, exited and stuck) keeps them out of the vector;
+        otherwise the program moves (:attr:`moves`)."""
         m = self.m
+        if self.moves:
+            return
         st = next(iter(m.init_states()), None)
         if st is None:
             return
@@ -272,7 +348,8 @@ class Generator:
             want = (tuple(a[POS] for a in ags), tuple(a[REACH][DONE] for a in ags),
                     tuple(a[REACH][FAIL] for a in ags), s2[ENV])
             if len(outs) != 1 or tuple(outs[0]) != want:
-                raise Unsupported("the blackbox moves agents (the program calls doReach)")
+                self.moves = True
+                return
 
     # -- labels --------------------------------------------------------------------
     def lab(self, label) -> int:
@@ -293,6 +370,8 @@ class Generator:
         return f"s[{self.AG0 + off} + {self.A} * ({j})]"
 
     def read(self, ref: str, vs) -> str:
+        if vs.ty.kind not in SCALAR:
+            raise Unsupported(f"the {vs.ty} variable '{vs.name}' in C (interned: Python computes)")
         if vs.may_undef:
             return f"U({ref})"
         return ref
@@ -332,6 +411,8 @@ class Generator:
                 return self.read(self.var_ref(vs, i), vs)
             if e.name in self.lay.members:
                 return str(self.lay.members[e.name][1])
+            if self.moves and e.name in ("doReach_done", "doReach_fail"):
+                return self.ag(i, self.MV + (4 if e.name == "doReach_done" else 5))
             raise Unsupported(f"the name '{e.name}'")
         if isinstance(e, A.Unary):
             x = self.expr(e.operand, i)
@@ -375,7 +456,8 @@ class Generator:
                 if isinstance(e.index, A.Name) and e.index.name in bound:
                     return self.read(self.var_ref(vs, bound[e.index.name]), vs)
                 return self.read(self.var_ref(vs, f"AIX({self.pexpr(e.index, bound)})"), vs)
-        raise Unsupported("a property expression beyond the native subset")
+        what = f"{e.name}()" if isinstance(e, A.Call) else type(e).__name__.lower()
+        raise Unsupported(f"the property expression {what} is beyond the native subset")
 
     def pname(self, e, bound: dict) -> str:
         """Step of :meth:`pexpr`: C for a name in a property."""
@@ -424,15 +506,86 @@ class Generator:
             h = ctl.info(pc)
             out.append(f"  case {pc}: {{")
             case = cases.get(h.kind)
-            if case is None:
-                raise Unsupported("doReach")
-            case(out, i, h, r, "    ")
+            body: list = []
+            try:
+                if case is None:
+                    raise Unsupported("doReach")
+                case(body, i, h, r, "    ")
+            except Unsupported:
+                if h.kind not in MEMO_KINDS:
+                    raise
+                body = self.case_memo(i, pc, h, "    ")
+            out += body
             out.append("    break; }")
         out.append("  default: PyErr_SetString(PyExc_ValueError, \"unknown pc\"); return -1;")
         out.append("  }")
         out.append("  return 0;")
         out.append("}")
         return out
+
+    # -- memo sites: what C does not compute, Python does once per read values --------
+    def memo_reads(self, s) -> Optional[list]:
+        """The variables statement ``s``'s rule reads beyond the agent's own
+        block and shared ((name, every agent) for an agent-indexed read), or
+        None when it reads what a memo key cannot hold (rand)."""
+        from pccl.model.compile import has_rand
+        if has_rand(s):
+            return None
+        out: list = []
+        for x in _stmt_exprs(s):
+            for e in A.walk_expr(x):
+                if isinstance(e, A.Index):
+                    root, _chain = A.index_chain(e)
+                    if isinstance(root, A.Name) and root.name in self.lay.vars:
+                        vs = self.lay.vars[root.name]
+                        if vs.section != "allwrite":
+                            out.append(vs)
+        return out
+
+    def own_slots(self, i: int) -> list:
+        """Agent ``i``'s block without its counter (a statement never reads it)."""
+        a0 = self.AG0 + i * self.A
+        return [a0 + q for q in range(self.A) if q != 1]
+
+    def case_memo(self, i: int, pc: int, h, ind: str) -> list:
+        """C of a statement the generator does not compute: the rule's
+        successors looked up in the memo by the values of the slots it reads
+        (the agent's block but its counter, shared, the slots of other
+        agents it indexes, the clock for a doReach that records t0), run by
+        the Python rule on a miss (NativeModel._miss)."""
+        s = self.c.stmts[h.sid]
+        extra = self.memo_reads(s)
+        if extra is None:
+            raise Unsupported(f"rand() in a statement (line {s.span.line})")
+        shared = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
+        rs = self.own_slots(i) + shared
+        for vs in extra:
+            off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
+            rs += [self.AG0 + j * self.A + off for j in range(self.N)]
+        if h.kind == K_DOREACH and self.m.record_t0:
+            rs.append(V_TIME)
+        rs = sorted(set(rs))
+        ws = self.own_slots(i) + shared
+        return [f"{ind}{self.site_call('stmt', i, pc, rs, ws)}"]
+
+    def site_call(self, kind: str, i, pc, rs: list, ws: list) -> str:
+        k = len(self.sites)
+        self.sites.append((kind, i, pc, tuple(rs), tuple(ws)))
+        return (f"{{ static const int R_[] = {{{', '.join(map(str, rs)) or '0'}}}; "
+                f"static const int W_[] = {{{', '.join(map(str, ws)) or '0'}}}; "
+                f"if (memo_site(s, {k}, R_, {len(rs)}, W_, {len(ws)})) return -1; }}")
+
+    def env_site(self) -> str:
+        """C of DOREACH INVOKE for a program that moves: the blackbox's
+        outcomes memoised by every agent's status, position and reach cells
+        and the env (the clock too if the blackbox reads it)."""
+        rs = [self.ENVS] + ([V_TIME] if getattr(self.m.blackbox, "uses_time", False) else [])
+        ws = [V_PHASE, self.ENVS]
+        for j in range(self.N):
+            a0 = self.AG0 + j * self.A
+            rs += [a0 + 3] + [a0 + self.MV + q for q in range(MOVE_SLOTS)]
+            ws += [a0 + 1, a0 + self.MV, a0 + self.MV + 4, a0 + self.MV + 5]
+        return self.site_call("env", None, None, rs, ws)
 
     # the cases of agent_code, one per kind of control cell: each appends to
     # ``out`` the C of agent ``i`` at cell ``h`` (``r``: its cells in a state)
@@ -479,6 +632,8 @@ class Generator:
             if not isinstance(s.target, A.Name):
                 raise Unsupported(f"an indexed assignment (line {s.span.line})")
             vs = self.lay.vars[s.target.name]
+            if vs.ty.kind not in SCALAR:
+                raise Unsupported(f"an assignment to the {vs.ty} variable '{vs.name}' in C")
             out.append(f"{ind}V v = {self.expr(s.value, i)};")
             out.append(f"{ind}if (ovf) return -1;")
             sets.append(f"t[{self.var_ref(vs, i)[2:-1]}] = v")
@@ -545,8 +700,8 @@ class Generator:
             if why is not None or slots is None:
                 raise Unsupported(f"symmetry: {why}")
             loc_s, ar_s, sh_s, _self_only, motion = slots
-            if motion:
-                raise Unsupported("symmetry over positions (the program moves)")
+            if motion and not self.moves:
+                raise Unsupported("symmetry over positions that are not in the native vector")
             sym = ([4 + k for k in loc_s] + [4 + self.L + k for k in ar_s],
                    [self.SH0 + k for k in sh_s])
         return por, merge, sym
@@ -636,13 +791,11 @@ class Generator:
             raise Unsupported("a rate or n0 that is not an integer")
         por, merge, sym = self.reductions()
         npc = len(m.ctl.cells)
-        labag = [(-1 if lab[1] is None else lab[1]) for lab in self.labels]
         out = [f"#define NPC {npc}", f"#define AG0 {self.AG0}", f"#define AW {A_}",
                f"#define NLOC {self.L}", f"#define KEEPN0 {m.n0}",
                f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
                f"#define SYM {int(sym is not None)}",
                f"#define MERGE_LIMIT {MERGE_LIMIT}",
-               self.c_array("LABAG", "int", labag),
                self.c_array("MERGEOK", "unsigned char", merge or []),
                self.c_array("RHO", "V", list(m.rho)),
                self.c_array("BID", "int", sym[0] if sym else []),
@@ -677,6 +830,8 @@ class Generator:
             a0 = self.AG0 + i * A_
             slots += [a0 + 3] + [a0 + 4 + k for k in vis] + \
                 [a0 + 4 + self.L + k for k in range(self.R)]
+            if self.moves:      # position, target, done, fail
+                slots += [a0 + self.MV, a0 + self.MV + 1, a0 + self.MV + 4, a0 + self.MV + 5]
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
         out.append(_REDUCED_C.replace("@AMPLE@", "\n".join(ample))
@@ -710,6 +865,12 @@ class Generator:
             for i in range(N))
         props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
         reduced = self.reduced_c()
+        if self.moves:
+            envc = "    " + self.env_site()
+        else:
+            envc = (f"    V t[NS]; memcpy(t, s, sizeof t);\n    t[1] = {DISCRETE};\n"
+                    f"    for (int j = 0; j < NAG; j++) t[{self.AG0 + 1} + {self.A} * j] = 0;\n"
+                    f"    if (EMIT({dr}, t)) return -1;")
         agent_calls = "\n".join(
             f"    if (s[{self.AG0 + i * self.A + 3}] == {RUNNING} && agent{i}(s)) return -1;"
             for i in range(N))
@@ -727,7 +888,7 @@ typedef int64_t V;
    of the source: one module per key) */
 #define KEYSKIP {8 if m.abstract_time else 0}
 static int ovf;
-static PyObject *LABELS, *OverflowExc;
+static PyObject *OverflowExc;
 static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
 static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
 static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
@@ -747,8 +908,6 @@ static void lq_remove(V *t, V i) {{
 static V *BUF;
 static int32_t *BLAB, *BIDX, *BCH;
 static Py_ssize_t BN, BCAP;
-static unsigned char *LABSEEN;
-static Py_ssize_t NLABELS;
 static int grow(void) {{
   Py_ssize_t cap = BCAP ? 2 * BCAP : 1024;
   V *b = realloc(BUF, sizeof(V) * NS * cap);
@@ -771,6 +930,7 @@ static inline int EMIT(int lab, const V *t) {{
   BN++;
   return 0;
 }}
+{_MEMO_C}
 {chr(10).join(agents)}
 static const V *arg_state(PyObject *arg) {{
   if (!PyBytes_Check(arg) || PyBytes_GET_SIZE(arg) != (Py_ssize_t)(sizeof(V) * NS)) {{
@@ -789,10 +949,7 @@ static int step(const V *s) {{
       if (EMIT({ta}, t)) return -1;
     }}
   }} else {{
-    V t[NS]; memcpy(t, s, sizeof t);
-    t[1] = {DISCRETE};
-    for (int j = 0; j < NAG; j++) t[{self.AG0 + 1} + {self.A} * j] = 0;
-    if (EMIT({dr}, t)) return -1;
+{envc}
   }}
   return ovf ? -1 : 0;
 }}
@@ -804,7 +961,7 @@ static void overflowed(void) {{
 /* the label of buffer entry k: the rule's, or (rule, agent, detail, idx0,
    (0,) * chain length) for a merged transition (reduce.Merger's) */
 static PyObject *label_of(Py_ssize_t k) {{
-  PyObject *l = PyTuple_GET_ITEM(LABELS, BLAB[k]);
+  PyObject *l = PyList_GET_ITEM(LABELS, BLAB[k]);
   if (!BCH[k]) {{ Py_INCREF(l); return l; }}
   PyObject *ch = PyTuple_New(BCH[k]);
   if (!ch) return NULL;
@@ -858,7 +1015,7 @@ static PyObject *expand(PyObject *self, PyObject *arg) {{
   if (!labs) goto fail;
   for (Py_ssize_t k = 0, w = 0; k < NLABELS; k++)
     if (LABSEEN[k]) {{
-      PyObject *l = PyTuple_GET_ITEM(LABELS, k);
+      PyObject *l = PyList_GET_ITEM(LABELS, k);
       Py_INCREF(l);
       PyTuple_SET_ITEM(labs, w++, l);
     }}
@@ -978,23 +1135,25 @@ static PyObject *violations(PyObject *self, PyObject *arg) {{
   if (okstate(s)) return PyList_New(0);
   return PyObject_CallOneArg(SLOWVIOL, arg);
 }}
+static PyObject *memo_stats(PyObject *self, PyObject *unused) {{
+  return Py_BuildValue("(nnn)", (Py_ssize_t)MEMO_N, (Py_ssize_t)MEMO_MISS, (Py_ssize_t)MEMO_HIT);
+}}
 static PyObject *clock_(PyObject *self, PyObject *arg) {{
   const V *s = arg_state(arg);
   if (!s) return NULL;
   return PyLong_FromLongLong(s[{V_TIME}]);
 }}
 static PyObject *setup(PyObject *self, PyObject *args) {{
-  PyObject *labels, *exc, *slow;
+  PyObject *labels, *exc, *slow, *miss;
   unsigned long long xxh;
-  if (!PyArg_ParseTuple(args, "O!OOK", &PyTuple_Type, &labels, &exc, &slow, &xxh))
+  if (!PyArg_ParseTuple(args, "O!OOKO", &PyList_Type, &labels, &exc, &slow, &xxh, &miss))
     return NULL;
-  Py_XDECREF(LABELS); Py_XDECREF(OverflowExc); Py_XDECREF(SLOWVIOL);
-  Py_INCREF(labels); Py_INCREF(exc); Py_INCREF(slow);
-  LABELS = labels; OverflowExc = exc; SLOWVIOL = slow;
-  NLABELS = PyTuple_GET_SIZE(labels);
-  free(LABSEEN);
-  LABSEEN = calloc(NLABELS + 1, 1);
-  if (!LABSEEN) return PyErr_NoMemory();
+  Py_XDECREF(LABELS); Py_XDECREF(OverflowExc); Py_XDECREF(SLOWVIOL); Py_XDECREF(MISS);
+  Py_INCREF(labels); Py_INCREF(exc); Py_INCREF(slow); Py_INCREF(miss);
+  LABELS = labels; OverflowExc = exc; SLOWVIOL = slow; MISS = miss;
+  memo_clear();
+  NLABELS = 0;
+  if (labels_grown()) return NULL;
   XXH = (xxh128_fn)(uintptr_t)xxh;
   Py_RETURN_NONE;
 }}
@@ -1009,10 +1168,139 @@ static PyMethodDef methods[] = {{
   {{"sig", sig, METH_O, "the stall signature's hash"}},
   {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
+  {{"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"}},
   {{NULL, NULL, 0, NULL}}
 }};
 static struct PyModuleDef mod = {{PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods}};
 PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
+"""
+
+
+#: C of the memo sites (Generator.case_memo, env_site): a hash table from
+#: (site, the values of the slots the site reads) to its successors' labels
+#: and the values of the slots it writes, filled by NativeModel._miss
+_MEMO_C = r"""
+static PyObject *MISS, *LABELS;
+static unsigned char *LABSEEN;
+static Py_ssize_t NLABELS;
+/* per label its agent (-1: none): labels grow on memo misses */
+static int *LABAG;
+static int labels_grown(void) {
+  Py_ssize_t nl = PyList_GET_SIZE(LABELS);
+  unsigned char *x = realloc(LABSEEN, nl + 1);
+  if (!x) { PyErr_NoMemory(); return -1; }
+  LABSEEN = x;
+  int *y = realloc(LABAG, sizeof(int) * (nl + 1));
+  if (!y) { PyErr_NoMemory(); return -1; }
+  LABAG = y;
+  for (Py_ssize_t k = NLABELS; k < nl; k++) {
+    LABSEEN[k] = 0;
+    PyObject *a = PyTuple_GetItem(PyList_GET_ITEM(LABELS, k), 1);
+    if (!a) return -1;
+    LABAG[k] = a == Py_None ? -1 : (int)PyLong_AsLong(a);
+  }
+  NLABELS = nl;
+  return 0;
+}
+/* the arena: per entry [klen, vlen, key..., value...]; value = [n, then n
+   times (label, the written slots' values)] */
+static V *MA;
+static size_t MA_N, MA_CAP;
+static size_t *MSLOT, MSLOT_CAP, MEMO_N, MEMO_MISS, MEMO_HIT;
+static void memo_clear(void) {
+  free(MA); free(MSLOT);
+  MA = NULL; MSLOT = NULL; MA_N = MA_CAP = MSLOT_CAP = MEMO_N = MEMO_MISS = MEMO_HIT = 0;
+}
+static uint64_t mhash(const V *k, int n) {
+  uint64_t h = 0x9E3779B97F4A7C15ULL ^ (uint64_t)n;
+  for (int q = 0; q < n; q++) { h ^= (uint64_t)k[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
+  return h;
+}
+static const V *memo_find(const V *key, int kl) {
+  if (!MSLOT_CAP) return NULL;
+  size_t sl = mhash(key, kl) & (MSLOT_CAP - 1);
+  for (;;) {
+    size_t o = MSLOT[sl];
+    if (!o) return NULL;
+    const V *e = MA + (o - 1);
+    if (e[0] == kl && !memcmp(e + 2, key, sizeof(V) * kl)) return e + 2 + kl;
+    sl = (sl + 1) & (MSLOT_CAP - 1);
+  }
+}
+static int memo_rehash(void) {
+  size_t cap = MSLOT_CAP ? 2 * MSLOT_CAP : 4096;
+  size_t *t = calloc(cap, sizeof(size_t));
+  if (!t) { PyErr_NoMemory(); return -1; }
+  for (size_t o = 0; o < MA_N; ) {
+    const V *e = MA + o;
+    size_t sl = mhash(e + 2, (int)e[0]) & (cap - 1);
+    while (t[sl]) sl = (sl + 1) & (cap - 1);
+    t[sl] = o + 1;
+    o += 2 + e[0] + e[1];
+  }
+  free(MSLOT); MSLOT = t; MSLOT_CAP = cap;
+  return 0;
+}
+static const V *memo_put(const V *key, int kl, const V *val, Py_ssize_t vl) {
+  if (2 * (MEMO_N + 1) > MSLOT_CAP && memo_rehash()) return NULL;
+  size_t need = MA_N + 2 + kl + vl;
+  if (need > MA_CAP) {
+    size_t cap = MA_CAP ? MA_CAP : 65536;
+    while (cap < need) cap *= 2;
+    V *a = realloc(MA, sizeof(V) * cap);
+    if (!a) { PyErr_NoMemory(); return NULL; }
+    MA = a; MA_CAP = cap;
+  }
+  V *e = MA + MA_N;
+  e[0] = kl; e[1] = vl;
+  memcpy(e + 2, key, sizeof(V) * kl);
+  memcpy(e + 2 + kl, val, sizeof(V) * vl);
+  size_t sl = mhash(key, kl) & (MSLOT_CAP - 1);
+  while (MSLOT[sl]) sl = (sl + 1) & (MSLOT_CAP - 1);
+  MSLOT[sl] = MA_N + 1;
+  MA_N = need; MEMO_N++;
+  return e + 2 + kl;
+}
+/* a miss: MISS(site, state) -> (value as int64 bytes, the label list grew) */
+static const V *memo_miss(const V *s, const V *key, int kl) {
+  MEMO_MISS++;
+  PyObject *st = PyBytes_FromStringAndSize((const char *)s, sizeof(V) * NS);
+  if (!st) return NULL;
+  PyObject *r = PyObject_CallFunction(MISS, "nN", (Py_ssize_t)key[0], st);
+  if (!r) return NULL;
+  PyObject *val = PyTuple_GetItem(r, 0);
+  if (!val || !PyBytes_Check(val)) {
+    Py_DECREF(r);
+    if (!PyErr_Occurred()) PyErr_SetString(PyExc_TypeError, "memo miss: not bytes");
+    return NULL;
+  }
+  if (PyList_GET_SIZE(LABELS) > NLABELS && labels_grown()) { Py_DECREF(r); return NULL; }
+  const V *out = memo_put(key, kl, (const V *)PyBytes_AS_STRING(val),
+                          PyBytes_GET_SIZE(val) / (Py_ssize_t)sizeof(V));
+  Py_DECREF(r);
+  return out;
+}
+static int EMIT(int lab, const V *t);
+#define MEMO_KMAX (NS + 1)
+/* the successors of site k in state s: each a copy of s with the written
+   slots W_ set (the rule's own label) */
+static int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, int nw) {
+  V key[MEMO_KMAX];
+  key[0] = k;
+  for (int q = 0; q < nr; q++) key[1 + q] = s[R_[q]];
+  const V *val = memo_find(key, nr + 1);
+  if (val) MEMO_HIT++;
+  else if (!(val = memo_miss(s, key, nr + 1))) { ovf = 1; return -1; }
+  V n = val[0];
+  const V *p = val + 1;
+  for (V c = 0; c < n; c++, p += 1 + nw) {
+    V t[NS];
+    memcpy(t, s, sizeof t);
+    for (int q = 0; q < nw; q++) t[W_[q]] = p[1 + q];
+    if (EMIT((int)p[0], t)) return -1;
+  }
+  return 0;
+}
 """
 
 
@@ -1171,7 +1459,7 @@ chains:
   if (s[@V_PHASE@] == @DISCRETE@)
     for (Py_ssize_t k = b0; k < BN; k++) {
       BIDX[k] = (int32_t)(k - b0);
-      int i = LABAG[BLAB[k]];
+      int i = LABAG[BLAB[k]];   /* the label's agent (-1: none) */
       if (i >= 0 && chain(s, k, i)) return -1;
     }
 #endif
@@ -1327,8 +1615,19 @@ class NativeModel:
         #: states are this source's vectors, pccl/search/checkpoint.py)
         self.source_hash = hashlib.sha256(src.encode()).hexdigest()[:16]
         xxh = _xxh3_128_address()
-        self.lib.setup(tuple(gen.labels), NativeOverflow, self._violations,
-                       xxh or 0)
+        #: the interned values (positions, lists, obstacle lists, targets,
+        #: t0, env) of this process: id -> value and the value's canonical
+        #: encoding -> id.  Ids follow discovery order, so equal states have
+        #: equal vectors within one process only (no --workers, no --ray)
+        self._vals: list = []
+        self._ids: dict = {}
+        #: id() of a value of the table -> its id (the table keeps them alive)
+        self._byobj: dict = {}
+        self._pending: dict = {}
+        #: whether positions, reach cells and env are in the vector
+        self.moves = gen.moves
+        # the label list grows on memo misses (C reads the same list)
+        self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
         self.successors = self.lib.successors
         #: one C call per chunk of a level: (successor counts, the successors
@@ -1368,32 +1667,59 @@ class NativeModel:
         lay = py.compiled.layout
         self._kinds = ([v.ty.kind for v in lay.shared], [v.ty.kind for v in lay.local],
                        [v.ty.kind for v in lay.allread])
+        from pccl.model.reduce import unreduced
+        self._base = unreduced(py)
 
     # -- encoding ----------------------------------------------------------------
-    @staticmethod
-    def _v(x) -> int:
+    def intern(self, x) -> int:
+        """The id of value ``x`` (interned on first sight).  Two values get
+        one id when their canonical encodings (marshal, as the fingerprints
+        read them) are equal: 1 and 1.0 stay apart, as in the Python engine."""
+        i = self._byobj.get(id(x))
+        if i is not None:       # one of the table's own objects (decode returns them)
+            return i
+        import marshal
+        k = marshal.dumps(x, 2)
+        i = self._ids.get(k)
+        if i is None:
+            i = self._ids[k] = len(self._vals)
+            self._vals.append(x)        # kept alive: its id() names it for good
+            self._byobj[id(x)] = i
+        return i
+
+    def _v(self, x, kind: str = "int") -> int:
         from pccl.lang.values import UNDEF
         if x is UNDEF:
             return -(1 << 63)
+        if kind not in SCALAR:
+            return self.intern(x)
         return int(x)
 
     def encode(self, st) -> bytes:
         g = self.gen
+        sk, lk, rk = self._kinds
         v = [self._v(st[TIME]), st[PHASE]]
         lq = list(st[LQ])
         v += lq + [-1] * (g.N - len(lq))
-        v += [self._v(x) for x in st[SH]]
+        v += [self._v(x, k) for x, k in zip(st[SH], sk)]
+        if g.moves:
+            v.append(self.intern(st[ENV]))
         for a in st[AGS]:
             v += [a[PC], a[CNT], a[LCK], a[STATUS]]
-            v += [self._v(x) for x in a[LOC]]
-            v += [self._v(x) for x in a[AR]]
+            v += [self._v(x, k) for x, k in zip(a[LOC], lk)]
+            v += [self._v(x, k) for x, k in zip(a[AR], rk)]
+            if g.moves:
+                r = a[REACH]
+                v += [self.intern(a[POS]), self.intern(r[TARGET]), self.intern(r[OBSTACLES]),
+                      self.intern(r[T0]), int(r[DONE]), int(r[FAIL])]
         return array("q", v).tobytes()
 
-    @staticmethod
-    def _dec(x: int, kind: str):
+    def _dec(self, x: int, kind: str):
         from pccl.lang.values import UNDEF
         if x == -(1 << 63):
             return UNDEF
+        if kind not in SCALAR:
+            return self._vals[x]
         return bool(x) if kind == "bool" else x
 
     def decode(self, b: bytes) -> tuple:
@@ -1404,13 +1730,56 @@ class NativeModel:
         lq = tuple(x for x in v[2:2 + g.N] if x >= 0)
         sh = tuple(self._dec(x, k) for x, k in zip(v[g.SH0:g.AG0], sk))
         ags = []
+        vals = self._vals
         for i in range(g.N):
             o = g.AG0 + i * g.A
             loc = tuple(self._dec(x, k) for x, k in zip(v[o + 4:o + 4 + g.L], lk))
-            ar = tuple(self._dec(x, k) for x, k in zip(v[o + 4 + g.L:o + g.A], rk))
-            ags.append((v[o], v[o + 1], v[o + 2], v[o + 3], loc, ar, self._pos[i],
-                        self._reach[i]))
-        return (v[0], v[1], lq, sh, tuple(ags), self._env)
+            ar = tuple(self._dec(x, k) for x, k in zip(v[o + 4 + g.L:o + 4 + g.L + g.R], rk))
+            if g.moves:
+                mv = o + g.MV
+                pos = vals[v[mv]]
+                reach = (vals[v[mv + 1]], vals[v[mv + 2]], vals[v[mv + 3]], bool(v[mv + 4]),
+                         bool(v[mv + 5]))
+            else:
+                pos, reach = self._pos[i], self._reach[i]
+            ags.append((v[o], v[o + 1], v[o + 2], v[o + 3], loc, ar, pos, reach))
+        env = vals[v[g.ENVS]] if g.moves else self._env
+        return (v[0], v[1], lq, sh, tuple(ags), env)
+
+    def _miss(self, k: int, b: bytes) -> tuple:
+        """Memo site ``k``'s value in state ``b`` (C calls this on a miss):
+        the successors of the Python rule (a statement of one agent, or
+        DOREACH INVOKE: the blackbox's outcomes) as [n, then per successor
+        its label's id and the values of the site's written slots].  A
+        successor that changes a slot the site does not write stops the
+        native search (the Python engine runs)."""
+        from pccl.semantics import rules as R
+        kind, i, pc, _rs, ws = self.gen.sites[k]
+        st = self.decode(b)
+        m = self._base
+        out: list = []
+        if kind == "env":
+            R.doreach_invoke(m, st, out)
+        else:
+            info = m.ctl.info(pc)
+            m.oracle.agent = i
+            ag = st[AGS][i]
+            for rule in info.rules:
+                rule(m, st, i, ag, info, out)
+        src = array("q")
+        src.frombytes(b)
+        wset = set(ws)
+        val = array("q", [len(out)])
+        for label, st2 in out:
+            t = array("q")
+            t.frombytes(self.encode(st2))
+            bad = [q for q in range(len(t)) if q not in wset and t[q] != src[q]]
+            if bad:
+                raise NativeOverflow(f"a memoised rule ({label[0]}) changed slot {bad[0]}, "
+                                     "which its memo site does not write")
+            val.append(self.gen.lab(label))
+            val.extend(t[q] for q in ws)
+        return (val.tobytes(), None)
 
     # -- the explorer's protocol -------------------------------------------------------
     def init_states(self):
@@ -1443,7 +1812,26 @@ class NativeModel:
         return self._sig
 
     def arrival_pending(self, b) -> int:
-        return 0            # no doReach in the programs served
+        """:func:`pccl.model.search_view.arrival_pending` of the state (0 when
+        the program does not move), memoised per agent's reach ids."""
+        if not self.gen.moves:
+            return 0
+        g = self.gen
+        v = array("q")
+        v.frombytes(b)
+        m = 0
+        cache, vals = self._pending, self._vals
+        for i in range(g.N):
+            o = g.AG0 + i * g.A + g.MV
+            k = (v[o], v[o + 1], v[o + 4], v[o + 5])
+            p = cache.get(k)
+            if p is None:
+                pos, t = vals[k[0]], vals[k[1]]
+                p = cache[k] = (t is not None and not k[2] and not k[3]
+                                and (pos[0] != t[0] or pos[1] != t[1]))
+            if p:
+                m |= 1 << i
+        return m
 
     def deadlock_violation(self, b):
         return self.py.deadlock_violation(self.decode(b))
