@@ -666,7 +666,8 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         # k cells in its own order, which the checkpoint's tables must not meet
         why = "{resume}: the checkpoint was written by the Python engine"
     if why is None:
-        why = NV.unsupported(model, recorder=recorder)
+        why = NV.unsupported(model, recorder=recorder, parallel=not one,
+                             checkpoint=o.checkpoint is not None or o.resume is not None)
     if why is None and o.ray is not None:
         # --workers N (forked processes) runs natively: the workers inherit the
         # module loaded here; an actor would have to generate and build it again

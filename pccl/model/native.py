@@ -158,24 +158,29 @@ def compiler() -> Optional[str]:
 
 
 def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
-                parallel: bool = False) -> Optional[str]:
-    """Why the native engine cannot serve this model and search (None: it can)."""
+                parallel: bool = False, checkpoint: bool = False) -> Optional[str]:
+    """Why the native engine cannot serve this model and search (None: it can).
+    ``parallel``: several processes search (forked workers); ``checkpoint``:
+    the search saves or resumes a checkpoint.  Both decline a program that
+    moves: its interned ids are numbered per process and the id table is not
+    saved."""
     if compiler() is None:
         return "no C compiler (cc) found"
     if sysconfig.get_paths().get("include") is None or not os.path.exists(
             os.path.join(sysconfig.get_paths()["include"], "Python.h")):
         return "Python.h (the Python development headers) not found"
-    if parallel:
-        return "a parallel search (the native engine runs in one process)"
     why = _replaced(model)
     if why is not None:
         return why
     try:
         gen = Generator(model)
         src = gen.source()
-        if parallel and gen.moves:      # (kept should parallel searches run native)
+        if parallel and gen.moves:
             return ("a parallel search of a program that moves (interned ids are "
                     "numbered per process)")
+        if checkpoint and gen.moves:
+            return ("{checkpoint} and {resume} of a program that moves (the table of its "
+                    "interned values is not saved)")
         _LAST[:] = [model, gen, src]
     except Unsupported as e:
         return str(e)
