@@ -274,7 +274,10 @@ class GraphRecorder:
         """The graph in CSR form (no copy when the edges came by source, as
         the breadth-first search records them)."""
         src, dst = self.src.view(), self.dst.view()
-        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
+        last = len(src) - 1
+        if not all(bool((src[a + 1:min(a + _EDGE_CHUNK, last) + 1]
+                         >= src[a:min(a + _EDGE_CHUNK, last)]).all())
+                   for a in range(0, max(0, last), _EDGE_CHUNK)):
             order = np.argsort(src, kind="stable")
             src, dst = src[order], dst[order]
             del order
@@ -302,7 +305,7 @@ class Graph:
         self.bits = bits
         self.pend = pend
         self.terminal = np.ones(n, dtype=bool)
-        self.terminal[esrc] = False
+        _mark(self.terminal, esrc, False)
 
     @property
     def fptr(self) -> np.ndarray:
@@ -366,7 +369,7 @@ class Graph:
                 at += k
             ptr, tgt = _reverse(self.n, lsrc, ldst)
             entry = np.zeros(self.n, dtype=bool)
-            entry[ldst] = True          # settled states with a transition in from the rest
+            _mark(entry, ldst, True)    # settled states with a transition in from the rest
             del lsrc, ldst
             entry &= can
             seeds = _mask_chunks(entry)
@@ -530,12 +533,22 @@ def _ptr_dtype(m: int):
 
 
 def _offsets(n: int, keys: np.ndarray) -> np.ndarray:
-    """CSR offsets (``n + 1``) of the transitions grouped by ``keys``."""
-    counts = np.bincount(keys, minlength=n)
-    np.cumsum(counts, out=counts)
+    """CSR offsets (``n + 1``) of the transitions grouped by ``keys``,
+    counted a chunk at a time (``np.bincount`` would copy all the keys to
+    8 bytes each)."""
     ptr = np.zeros(n + 1, dtype=_ptr_dtype(len(keys)))
-    ptr[1:] = counts
+    for a in range(0, len(keys), _EDGE_CHUNK):
+        u, c = np.unique(keys[a:a + _EDGE_CHUNK], return_counts=True)
+        ptr[1 + u.astype(np.int64)] += c.astype(ptr.dtype)
+    np.cumsum(ptr, out=ptr)
     return ptr
+
+
+def _mark(mask: np.ndarray, idx: np.ndarray, value: bool) -> None:
+    """``mask[idx] = value``, a chunk at a time (an index array of 4-byte
+    state numbers is copied to 8 bytes each by numpy's indexing)."""
+    for a in range(0, len(idx), _EDGE_CHUNK):
+        mask[idx[a:a + _EDGE_CHUNK]] = value
 
 
 def _reverse(n: int, src: np.ndarray, dst: np.ndarray) -> tuple:
