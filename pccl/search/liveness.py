@@ -522,7 +522,7 @@ class Graph:
 #: transitions handled at once by the graph analysis's vectorised steps (the
 #: relaxation rounds, the reversed graph's construction): their temporary
 #: arrays are a few bytes per transition of a chunk, not of the graph
-_EDGE_CHUNK = 1 << 18
+_EDGE_CHUNK = 1 << 16
 #: states whose transitions a breadth-first step gathers at once
 _STATE_CHUNK = 1 << 16
 
