@@ -592,7 +592,6 @@ def test_graph_analysis_arrays_are_compact(small_chunks):
     bits), and the reversed graph keeps 4 bytes per transition: no array
     of 8 bytes per transition, kept or while it is built (the stall check
     used to double a large search's peak memory with them)."""
-    import numpy as np
     n, fan = 20000, 8
     g, src, dst = _ladder(n, fan)
     e = len(src)
