@@ -334,8 +334,9 @@ class Graph:
         chunk while it runs) settle it when every state is close to the
         goal, as within a time step; otherwise the rest is a backward
         search over the reversed graph of the transitions whose source is
-        not settled yet (usually few: the reversed graph of all of them
-        only when they are more than a third)."""
+        not settled yet (usually few, reversed as sorted keys: nothing per
+        state; the reversed graph of all of them only when they are more
+        than a quarter).  The same set either way."""
         can = goal.copy()
         src, dst = self.esrc, self.fdst
         m = len(src)
