@@ -496,6 +496,158 @@ def test_graph_reachability_agrees_with_a_plain_search(seed):
     assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want
 
 
+
+def _plain_can_reach(src, dst, goal) -> set:
+    """The states that can reach ``goal``: a dict-based backward search."""
+    import numpy as np
+    preds: dict = {}
+    for a, b in zip(src.tolist(), dst.tolist()):
+        preds.setdefault(b, []).append(a)
+    want = set(np.flatnonzero(goal).tolist())
+    todo = list(want)
+    while todo:
+        v = todo.pop()
+        for u in preds.get(v, ()):
+            if u not in want:
+                want.add(u)
+                todo.append(u)
+    return want
+
+
+def _ladder(n: int, fan: int):
+    """A graph by source (as the search records it): state i -> i+1 .. i+fan
+    (as far as n), the goal the last state: every state reaches it, but only
+    along the chain, so no few relaxation rounds settle it."""
+    import numpy as np
+    from pccl.search.liveness import Graph
+    src = np.repeat(np.arange(n, dtype=np.uint32), fan)
+    dst = src + np.tile(np.arange(1, fan + 1, dtype=np.uint32), n)
+    keep = dst < n
+    src, dst = src[keep], dst[keep]
+    return Graph(n, None, dst, src, np.zeros(n, bool), None, None), src, dst
+
+
+def _peak(fn):
+    """``fn()`` and the peak of the memory it allocated (numpy arrays
+    included: numpy reports them to tracemalloc) beyond what it started with."""
+    import tracemalloc
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        out = fn()
+        return out, tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.fixture
+def small_chunks(monkeypatch):
+    """The analysis's chunks small, so that a small graph has many of them
+    and a memory bound per transition is not drowned by one chunk."""
+    from pccl.search import liveness
+    monkeypatch.setattr(liveness, "_EDGE_CHUNK", 1 << 12, raising=False)
+    monkeypatch.setattr(liveness, "_STATE_CHUNK", 1 << 10, raising=False)
+    # once untraced, on a small graph: the first calls of some numpy
+    # functions import modules, which tracemalloc would count
+    import numpy as np
+    g, _, _ = _ladder(400, 3)
+    g.fptr, g.rev(), g.reach(np.arange(3), backward=True)
+    goal = np.zeros(400, bool)
+    goal[-1] = True
+    g.can_reach(goal, rounds=1)
+    goal[:-10] = True
+    g.can_reach(goal, rounds=0)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_chunked_reversed_graph_equals_a_stable_argsort(seed, small_chunks):
+    """The reversed CSR arrays built a chunk at a time (a counting sort) are
+    those of a stable argsort of the targets, and the chunked reachability
+    agrees with a plain search, across many chunks."""
+    import numpy as np
+    from pccl.search.liveness import Graph
+    rng = np.random.default_rng(seed)
+    n, e = 3000, 20000
+    src = np.sort(rng.integers(0, n, e)).astype(np.uint32)
+    dst = rng.integers(0, n, e).astype(np.uint32)
+    g = Graph(n, None, dst, src, np.zeros(n, bool), None, None)
+    rptr, rsrc = g.rev()
+    order = np.argsort(dst, kind="stable")
+    want_ptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(dst, minlength=n), out=want_ptr[1:])
+    assert np.array_equal(rptr, want_ptr) and np.array_equal(rsrc, src[order])
+    want_fptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(src, minlength=n), out=want_fptr[1:])
+    assert np.array_equal(g.fptr, want_fptr)
+    goal = rng.random(n) < 0.002
+    want = _plain_can_reach(src, dst, goal)
+    for rounds in (0, 2, 1000):
+        assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
+    assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want
+
+
+def test_graph_analysis_arrays_are_compact(small_chunks):
+    """The CSR offsets are 4 bytes per state (the transitions fit in 32
+    bits), and the reversed graph keeps 4 bytes per transition: no array
+    of 8 bytes per transition, kept or while it is built (the stall check
+    used to double a large search's peak memory with them)."""
+    n, fan = 20000, 8
+    g, src, dst = _ladder(n, fan)
+    e = len(src)
+    assert g.fptr.dtype.itemsize == 4
+    (rptr, rsrc), peak = _peak(g.rev)
+    assert rptr.dtype.itemsize == 4 and rsrc.dtype.itemsize == 4
+    # kept: 4 per transition, 4 per state; while built: counts and a cursor per state
+    assert peak <= 4 * e + 8 * n + 256 * 1024, (peak, e, n)
+
+
+def test_can_reach_memory_is_bounded(small_chunks):
+    """can_reach when relaxation rounds do not settle it (the stall check's
+    second search): every state unsettled (the reversed graph of all the
+    transitions) costs at most about 4 bytes per transition; few unsettled
+    (a long chain into a well-connected goal) costs nothing per transition
+    and a few bytes per state.
+    Both agree with a plain search."""
+    import numpy as np
+    from pccl.search.liveness import Graph
+    n, fan = 20000, 8
+    g, src, dst = _ladder(n, fan)
+    e = len(src)
+    goal = np.zeros(n, bool)
+    goal[-1] = True
+    can, peak = _peak(lambda: g.can_reach(goal))
+    assert can.all()
+    assert peak <= 4 * e + 10 * n + 256 * 1024, (peak, e, n)
+    # every state one step from the goal, but for a chain of 300 at the end
+    rng = np.random.default_rng(0)
+    chain = 300
+    src2 = np.repeat(np.arange(n, dtype=np.uint32), fan)
+    dst2 = rng.integers(0, n, len(src2)).astype(np.uint32)
+    tail = src2 >= n - chain
+    dst2[tail] = np.minimum(src2[tail] + 1, n - 1)
+    goal = np.zeros(n, bool)
+    goal[: n - chain] = rng.random(n - chain) < 0.5
+    g2 = Graph(n, None, dst2, src2, np.zeros(n, bool), None, None)
+    can, peak = _peak(lambda: g2.can_reach(goal, rounds=4))
+    assert set(np.flatnonzero(can).tolist()) == _plain_can_reach(src2, dst2, goal)
+    assert peak <= 4 * n + 128 * 1024, (peak, len(src2), n)
+
+
+def test_backward_reach_from_many_states_is_bounded(small_chunks):
+    """A breadth-first step over a frontier of every state gathers a chunk
+    at a time: no temporary arrays of 8 bytes per transition."""
+    import numpy as np
+    n, fan = 20000, 8
+    g, src, dst = _ladder(n, fan)
+    e = len(src)
+    g.rev()
+    seeds = np.arange(0, n, 2)
+    seen, peak = _peak(lambda: g.reach(seeds, backward=True))
+    assert set(np.flatnonzero(seen).tolist()) == _plain_can_reach(src, dst, np.isin(np.arange(n), seeds))
+    assert peak <= 12 * n + 256 * 1024, (peak, e, n)
+
+
 # ---------------------------------------------------------------------------
 # pccl run: stalled teams
 # ---------------------------------------------------------------------------

@@ -274,7 +274,10 @@ class GraphRecorder:
         """The graph in CSR form (no copy when the edges came by source, as
         the breadth-first search records them)."""
         src, dst = self.src.view(), self.dst.view()
-        if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):
+        last = len(src) - 1
+        if not all(bool((src[a + 1:min(a + _EDGE_CHUNK, last) + 1]
+                         >= src[a:min(a + _EDGE_CHUNK, last)]).all())
+                   for a in range(0, max(0, last), _EDGE_CHUNK)):
             order = np.argsort(src, kind="stable")
             src, dst = src[order], dst[order]
             del order
@@ -302,56 +305,72 @@ class Graph:
         self.bits = bits
         self.pend = pend
         self.terminal = np.ones(n, dtype=bool)
-        self.terminal[esrc] = False
+        _mark(self.terminal, esrc, False)
 
     @property
     def fptr(self) -> np.ndarray:
-        """Forward CSR offsets (8 bytes per state), built on first use: the
-        time-lock check alone does not need them."""
+        """Forward CSR offsets (4 bytes per state while the edges fit in 32
+        bits, else 8), built on first use: the time-lock and stall checks
+        alone do not need them."""
         if self._fptr is None:
-            fptr = np.zeros(self.n + 1, dtype=np.int64)
-            np.cumsum(np.bincount(self.esrc, minlength=self.n), out=fptr[1:])
-            self._fptr = fptr
+            self._fptr = _offsets(self.n, self.esrc)
         return self._fptr
 
     def bit(self, b: int) -> np.ndarray:
         return ((self.bits >> np.uint64(b)) & np.uint64(1)).astype(bool)
 
     def rev(self):
-        """The reversed CSR arrays, built on first use (an argsort: 8 bytes
-        per transition while it runs, 4 kept)."""
+        """The reversed CSR arrays, built on first use (:func:`_reverse`: 4
+        bytes per transition and 4 or 8 per state kept, a bounded chunk
+        while it runs)."""
         if self._rev is None:
-            order = np.argsort(self.fdst, kind="stable")
-            rsrc = self.esrc[order]
-            del order
-            rptr = np.zeros(self.n + 1, dtype=np.int64)
-            np.cumsum(np.bincount(self.fdst, minlength=self.n), out=rptr[1:])
-            self._rev = (rptr, rsrc)
+            self._rev = _reverse(self.n, self.esrc, self.fdst)
         return self._rev
 
     def can_reach(self, goal: np.ndarray, rounds: int = 64) -> np.ndarray:
         """The states from which some state of ``goal`` can be reached.  A few
-        vectorised relaxation rounds over the edge arrays (no reversed graph:
-        about 3 bytes per transition while it runs) settle it when every
-        state is close to the goal, as within a time step; otherwise the
-        rest is a backward search over the reversed graph."""
+        vectorised relaxation rounds over the edge arrays, a chunk of edges
+        at a time (no reversed graph: about 3 bytes per transition of a
+        chunk while it runs) settle it when every state is close to the
+        goal, as within a time step; otherwise the rest is a backward
+        search over the reversed graph of the transitions whose source is
+        not settled yet (usually few, reversed as sorted keys: nothing per
+        state; the reversed graph of all of them only when they are more
+        than a quarter).  The same set either way."""
         can = goal.copy()
         src, dst = self.esrc, self.fdst
+        m = len(src)
         for _ in range(rounds):
-            hit = can[dst]
-            hit &= ~can[src]
-            if not hit.any():
+            moved = False
+            for a in range(0, m, _EDGE_CHUNK):
+                s, d = src[a:a + _EDGE_CHUNK], dst[a:a + _EDGE_CHUNK]
+                hit = can[d]
+                hit &= ~can[s]
+                if hit.any():
+                    can[s[hit]] = True
+                    moved = True
+            if not moved:
                 return can
-            can[src[hit]] = True
-        return self.reach(np.flatnonzero(can), backward=True)
+        # the transitions out of states not settled: only they can add any
+        left = 0
+        for a in range(0, m, _EDGE_CHUNK):
+            left += int(np.count_nonzero(~can[src[a:a + _EDGE_CHUNK]]))
+        if 4 * left > m:
+            ptr, tgt = self.rev()
+            _bfs(lambda f: Graph._gather(ptr, tgt, f)[0], can, _mask_chunks(can), None)
+            return can
+        keys, tgt = _unsettled_reverse(src, dst, can, left)
+        entry = keys[can[keys]]         # settled states with a transition in from the rest
+        _bfs(lambda f: _gather_sorted(keys, tgt, f), can, [np.unique(entry).astype(np.int64)], None)
+        return can
 
     def succ(self, v: int) -> np.ndarray:
         return self.fdst[self.fptr[v]:self.fptr[v + 1]]
 
     @staticmethod
     def _gather(ptr, targets, frontier):
-        starts = ptr[frontier]
-        counts = ptr[frontier + 1] - starts
+        starts = ptr[frontier].astype(np.int64)
+        counts = ptr[frontier + 1].astype(np.int64) - starts
         total = int(counts.sum())
         if not total:
             return np.empty(0, dtype=np.int64), counts
@@ -368,15 +387,7 @@ class Graph:
         if allowed is not None:
             seeds = seeds[allowed[seeds]]
         seen[seeds] = True
-        frontier = np.unique(seeds)
-        while frontier.size:
-            nxt, _ = self._gather(ptr, tgt, frontier)
-            if allowed is not None:
-                nxt = nxt[allowed[nxt]]
-            nxt = nxt[~seen[nxt]]
-            nxt = np.unique(nxt)
-            seen[nxt] = True
-            frontier = nxt
+        _bfs(lambda f: self._gather(ptr, tgt, f)[0], seen, [np.unique(seeds)], allowed)
         return seen
 
     def path(self, start: int, goal: np.ndarray, allowed: np.ndarray) -> list:
@@ -493,6 +504,134 @@ class Graph:
                 best = p
         out.extend(best or [])
         return out
+
+
+#: transitions handled at once by the graph analysis's vectorised steps (the
+#: relaxation rounds, the reversed graph's construction): their temporary
+#: arrays are a few bytes per transition of a chunk, not of the graph
+_EDGE_CHUNK = 1 << 16
+#: states whose transitions a breadth-first step gathers at once
+_STATE_CHUNK = 1 << 16
+
+
+def _ptr_dtype(m: int):
+    """The dtype of CSR offsets up to ``m``."""
+    return np.uint32 if m < (1 << 32) else np.int64
+
+
+def _offsets(n: int, keys: np.ndarray) -> np.ndarray:
+    """CSR offsets (``n + 1``) of the transitions grouped by ``keys``,
+    counted a chunk at a time (``np.bincount`` would copy all the keys to
+    8 bytes each)."""
+    ptr = np.zeros(n + 1, dtype=_ptr_dtype(len(keys)))
+    for a in range(0, len(keys), _EDGE_CHUNK):
+        u, c = np.unique(keys[a:a + _EDGE_CHUNK], return_counts=True)
+        ptr[1 + u.astype(np.int64)] += c.astype(ptr.dtype)
+    np.cumsum(ptr, out=ptr)
+    return ptr
+
+
+def _mark(mask: np.ndarray, idx: np.ndarray, value: bool) -> None:
+    """``mask[idx] = value``, a chunk at a time (an index array of 4-byte
+    state numbers is copied to 8 bytes each by numpy's indexing)."""
+    for a in range(0, len(idx), _EDGE_CHUNK):
+        mask[idx[a:a + _EDGE_CHUNK]] = value
+
+
+def _reverse(n: int, src: np.ndarray, dst: np.ndarray) -> tuple:
+    """The reversed CSR arrays ``(rptr, rsrc)`` of the transitions
+    ``src -> dst``: ``rsrc`` the sources grouped by target, in transition
+    order within a target (as a stable argsort of ``dst`` would give them),
+    placed a chunk at a time (a counting sort), so that nothing of 8 bytes
+    per transition is ever allocated."""
+    rptr = _offsets(n, dst)
+    cursor = rptr[:-1].copy()
+    rsrc = np.empty(len(dst), dtype=src.dtype)
+    for a in range(0, len(dst), _EDGE_CHUNK):
+        d, s = dst[a:a + _EDGE_CHUNK], src[a:a + _EDGE_CHUNK]
+        order = np.argsort(d, kind="stable")
+        d, s = d[order], s[order]
+        del order
+        first = np.ones(len(d), dtype=bool)
+        first[1:] = d[1:] != d[:-1]
+        heads = np.flatnonzero(first)
+        sizes = np.diff(np.append(heads, len(d)))
+        rank = np.arange(len(d)) - np.repeat(heads, sizes)
+        rsrc[cursor[d].astype(np.int64) + rank] = s
+        cursor[d[heads]] += sizes.astype(cursor.dtype)
+    return rptr, rsrc
+
+
+def _mask_chunks(mask: np.ndarray):
+    """The states of ``mask`` as int64 arrays of at most
+    :data:`_STATE_CHUNK` states (lazily: never all of them at once)."""
+    for a in range(0, len(mask), _STATE_CHUNK):
+        ix = np.flatnonzero(mask[a:a + _STATE_CHUNK])
+        if ix.size:
+            yield ix + a
+
+
+def _unsettled_reverse(src: np.ndarray, dst: np.ndarray, can: np.ndarray, left: int) -> tuple:
+    """The ``left`` transitions whose source is not in ``can``, reversed:
+    ``(keys, rsrc)``, their targets sorted and the sources in that order
+    (one 8-byte key per transition sorted in place: 16 bytes per such
+    transition while it is built, 8 kept, nothing per state)."""
+    key = np.empty(left, dtype=np.uint64)
+    at = 0
+    for a in range(0, len(src), _EDGE_CHUNK):
+        s, d = src[a:a + _EDGE_CHUNK], dst[a:a + _EDGE_CHUNK]
+        keep = ~can[s]
+        k = int(np.count_nonzero(keep))
+        part = key[at:at + k]
+        part[:] = d[keep]
+        part <<= np.uint64(32)
+        part |= s[keep]
+        at += k
+    key.sort()
+    keys = np.empty(left, dtype=np.uint32)
+    rsrc = np.empty(left, dtype=np.uint32)
+    for a in range(0, left, _EDGE_CHUNK):
+        part = key[a:a + _EDGE_CHUNK]
+        keys[a:a + _EDGE_CHUNK] = part >> np.uint64(32)
+        rsrc[a:a + _EDGE_CHUNK] = part & np.uint64(0xFFFFFFFF)
+    return keys, rsrc
+
+
+def _gather_sorted(keys: np.ndarray, targets: np.ndarray, frontier: np.ndarray) -> np.ndarray:
+    """The targets of the transitions out of ``frontier``, the transitions
+    given by their sorted sources ``keys`` (no offsets per state)."""
+    f = frontier.astype(keys.dtype)
+    lo = np.searchsorted(keys, f, "left").astype(np.int64)
+    counts = np.searchsorted(keys, f, "right").astype(np.int64) - lo
+    total = int(counts.sum())
+    if not total:
+        return np.empty(0, dtype=np.int64)
+    offs = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(total)
+    return targets[offs].astype(np.int64)
+
+
+def _bfs(gather, seen: np.ndarray, frontier, allowed: Optional[np.ndarray]) -> None:
+    """Breadth-first over the transitions ``gather(states)`` gives (their
+    targets) from ``frontier``
+    (an iterable of state arrays, already in ``seen``) through ``allowed``
+    states only, marking ``seen`` in place.  The frontier is gathered
+    :data:`_STATE_CHUNK` states at a time, so the temporary arrays stay
+    bounded by a chunk's transitions whatever the frontier's size."""
+    while True:
+        nxt_parts = []
+        for part in frontier:
+            for a in range(0, len(part), _STATE_CHUNK):
+                nxt = gather(part[a:a + _STATE_CHUNK])
+                if allowed is not None:
+                    nxt = nxt[allowed[nxt]]
+                nxt = nxt[~seen[nxt]]
+                if nxt.size:
+                    nxt = np.unique(nxt)
+                    seen[nxt] = True
+                    nxt_parts.append(nxt)
+        if not nxt_parts:
+            return
+        frontier = nxt_parts
 
 
 # ---------------------------------------------------------------------------
@@ -713,7 +852,7 @@ class _Analysis:
     def stall(self) -> None:
         """The first stalled state (pccl/model/stall.py's signature)."""
         assert self.rec.chg is not None
-        s = _first_stalled(self.g, self.rec.chg.view()[:self.n].astype(bool))
+        s = _first_stalled(self.g, self.rec.chg.view()[:self.n].view(bool))
         if s is not None:
             self.record(TemporalViolation("stall", "stall", STALL_MESSAGE),
                         _chain_to(self.table, s), None)
