@@ -672,7 +672,7 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
         # --workers N (forked processes) runs natively: the workers inherit the
         # module loaded here; an actor would have to generate and build it again
         why = ("{ray}: the actors run the Python engine (the native module is built where "
-               "pccl runs and does not travel to them; --workers N runs it in forked processes)")
+               "pccl runs and does not travel to them; {workers} runs it in forked processes)")
     if why is None and not one and (o.checkpoint is not None or o.resume is not None):
         why = ("{checkpoint} and {resume} with several workers save the Python engine's "
                "states (one process saves the native engine's)")

@@ -432,7 +432,9 @@ def test_interval_spellings():
 
 def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     d = str(tmp_path / "ck")
-    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--progress",
+    # the Python engine: the native one ends this search before its first
+    # progress line (its checkpoints: the native tests below)
+    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--engine", "python", "--progress",
             "--progress-interval", "0.2", "--format", "json"]
     # signal once the search is under way (a progress line with its frontier)
     rc, out, err = interrupted([*args, "--checkpoint", d], "SIGTERM", cwd=ROOT, ready="frontier")
@@ -441,7 +443,8 @@ def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     assert rc == 143, err
     assert json.loads(out)["status"] == "interrupted"
     assert f"pccl: checkpoint written to {d}; resume with: pccl explore programs/fischer.pccl " \
-           f"--set k=2 --progress --progress-interval 0.2 --format json --resume {d}" in err
+           f"--set k=2 --engine python --progress --progress-interval 0.2 --format json " \
+           f"--resume {d}" in err
     p = _cli(*args, "--resume", d)
     q = _cli(*args)
     a, b = json.loads(p.stdout), json.loads(q.stdout)
@@ -458,8 +461,10 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
     anything) at random times, resumed each time from the last periodic
     checkpoint, ends with the uninterrupted result."""
     d = str(tmp_path / "ck")
+    # the Python engine: the native one ends this search within the first
+    # kill's delay (native kills: test_native_sigkill_three_times_then_resume)
     args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--no-progress",
-            "--format", "json", "--checkpoint-interval", "0.3"]
+            "--format", "json", "--checkpoint-interval", "0.3", "--engine", "python"]
     full = json.loads(_cli(*args).stdout)
     rng = random.Random(7)
     kills = 0

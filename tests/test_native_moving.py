@@ -12,6 +12,7 @@ import pytest
 
 from pccl.api import explore, make_model
 from pccl.model import native as NV
+from pccl.model.layout import AGS, POS
 from pccl.lang.errors import PcclError
 
 from test_native import MISSING, UNREDUCED, both, summary
@@ -89,7 +90,7 @@ def test_race_nonatomic_counterexample_with_positions_equal():
     py, nat = both(P("programs/race_nonatomic.pccl"), **kw_of("programs/race.toml", 2, "nondet", "none"))
     assert py["status"] == "violation" and nat == py
     last = py["traces"][0][1][-1]
-    assert any(a[6] != (0.0, 0.0, 0.0) for a in last[4])     # someone moved
+    assert any(a[POS] != (0.0, 0.0, 0.0) for a in last[AGS])     # someone moved
 
 
 @pytest.mark.parametrize("world, agents", [("programs/race.toml", 3), ("programs/race_obstacles.toml", 3)])
