@@ -985,17 +985,8 @@ def test_fastest_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, n
     api.explore(program, workers=2, progress=counter, progress_interval=1e-9, **opts)
     rng = random.Random("fastest-" + name)
     cuts = sorted(rng.sample(range(1, counter.calls + 1), min(3, counter.calls)))
-    d = str(tmp_path / "ck")
-    resumed = 0
-    for i, k in enumerate([*cuts, None]):
-        kw = dict(opts, checkpoint=d, workers=(2, 3)[i % 2], progress_interval=1e-9)
-        if k is not None:
-            kw["progress"] = _Interrupt(k - (cuts[i - 1] if i else 0))
-        if os.path.exists(os.path.join(d, C.MANIFEST)):
-            kw["resume"] = d
-            resumed += 1
-        r = api.explore(program, **kw)
-        if r.status != "interrupted":
-            break
+    # each run interrupted at its share of the cuts, with 2 and 3 workers in turn
+    steps = [k - (cuts[i - 1] if i else 0) for i, k in enumerate(cuts)]
+    r, resumed = interrupted_run(program, opts, str(tmp_path / "ck"), steps, workers=(2, 3))
     assert par_summary(r) == full
     assert resumed >= 1 and any(n.startswith("resumed from") for n in r.notes)

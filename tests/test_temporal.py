@@ -480,17 +480,7 @@ def test_graph_reachability_agrees_with_a_plain_search(seed):
     np.cumsum(np.bincount(src, minlength=n), out=fptr[1:])
     g = Graph(n, fptr, dst, src, np.zeros(n, bool), None, None)
     goal = rng.random(n) < 0.05
-    preds: dict = {}
-    for a, b in zip(src.tolist(), dst.tolist()):
-        preds.setdefault(b, []).append(a)
-    want = set(np.flatnonzero(goal).tolist())
-    todo = list(want)
-    while todo:
-        v = todo.pop()
-        for u in preds.get(v, ()):
-            if u not in want:
-                want.add(u)
-                todo.append(u)
+    want = _plain_can_reach(src, dst, goal)
     for rounds in (1, 3, 1000):
         assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
     assert set(np.flatnonzero(g.reach(np.flatnonzero(goal), backward=True)).tolist()) == want

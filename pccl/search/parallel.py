@@ -312,25 +312,29 @@ class _Worker:
         self.g_chg_idx.extend(nums)
         self.g_chg.extend(np.logical_or.reduceat(diff, starts).tolist())
 
+    def _cut(self, g: int, s, terminal_state: bool) -> None:
+        """State ``g`` (``s``) is not expanded: without successors (a model
+        bound, or a deadlock's violation, recorded), else at the depth bound."""
+        if terminal_state:
+            bound, v = terminal(self.m, s, self.deadlock)
+            if bound is not None:
+                if self.x_model_min is None or g < self.x_model_min:
+                    self.x_model_min = g
+            elif v is not None:
+                self.x_dead.append((g, [v]))
+        elif self.x_depth_min is None or g < self.x_depth_min:
+            self.x_depth_min = g
+
     def _expand_flat(self, nums: list, states: list, ns: list, flat: list, chg_of) -> None:
         """:meth:`expand_some` of a chunk whose successors came from the batch
         hook (``ns`` per state, ``flat`` all of them), state by state."""
-        cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
-        m, at_bound, a = self.m, self.x_bound, 0
+        cs, par_idx, par_n = self.x_cs, self.x_par_idx, self.x_par_n
+        at_bound, a = self.x_bound, 0
         for g, s, k in zip(nums, states, ns):
             succ_states = flat[a:a + k]
             a += k
-            if not k:
-                bound, v = terminal(m, s, self.deadlock)
-                if bound is not None:
-                    if self.x_model_min is None or g < self.x_model_min:
-                        self.x_model_min = g
-                elif v is not None:
-                    dead.append((g, [v]))
-                continue
-            if at_bound:
-                if self.x_depth_min is None or g < self.x_depth_min:
-                    self.x_depth_min = g
+            if not k or at_bound:
+                self._cut(g, s, not k)
                 continue
             par_idx.append(g)
             par_n.append(k)
@@ -341,7 +345,7 @@ class _Worker:
 
     def _expand_each(self, nums: list, states: list, succ_fn, viol_fn, chg_of) -> None:
         """:meth:`expand_some` of a chunk, state by state (the Python engine)."""
-        m, at_bound = self.m, self.x_bound
+        at_bound = self.x_bound
         second = operator.itemgetter(1)
         cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
         for g, s in zip(nums, states):
@@ -350,17 +354,8 @@ class _Worker:
                 if vs:
                     dead.append((g, vs))
             succ = succ_fn(s)
-            if not succ:
-                bound, v = terminal(m, s, self.deadlock)
-                if bound is not None:
-                    if self.x_model_min is None or g < self.x_model_min:
-                        self.x_model_min = g
-                elif v is not None:
-                    dead.append((g, [v]))
-                continue
-            if at_bound:
-                if self.x_depth_min is None or g < self.x_depth_min:
-                    self.x_depth_min = g
+            if not succ or at_bound:
+                self._cut(g, s, not succ)
                 continue
             par_idx.append(g)
             par_n.append(len(succ))
