@@ -127,6 +127,15 @@ class BadPos(Base):
         return [Outcome(tuple("xy" for m in motions), (True,) * len(motions),
                         (False,) * len(motions), None)]
 
+class BoolPos(Base):
+    # (True, 0) equals (1, 0) and hashes alike: the engine's memo of checked
+    # positions must still reject it
+    def step(self, world, motions, env, time, delta):
+        return [Outcome(tuple((1, 0) for m in motions), (True,) * len(motions),
+                        (False,) * len(motions), None),
+                Outcome(tuple((True, 0) for m in motions), (True,) * len(motions),
+                        (False,) * len(motions), None)]
+
 class Unhashable(Base):
     def step(self, world, motions, env, time, delta):
         return [Outcome(tuple(m.position for m in motions), (True,) * len(motions),
@@ -140,6 +149,7 @@ class BadInit(Base):
 
 EMPTY, NOTHING, RAISES, SHORT = Empty(), Nothing(), Raises(), Short()
 NOT_OUTCOME, BAD_POS, UNHASHABLE, BAD_INIT = NotOutcome(), BadPos(), Unhashable(), BadInit()
+BOOL_POS = BoolPos()
 NOT_A_BLACKBOX = 42
 '''
 
@@ -179,6 +189,7 @@ def test_blackbox_returning_nothing(cmd, user_bb):
     ("SHORT", "'positions' must have one entry per agent (2), got 1 entries"),
     ("NOT_OUTCOME", "outcome 1 is tuple, not an Outcome"),
     ("BAD_POS", "position of agent 0 must be (x, y, z) finite numbers"),
+    ("BOOL_POS", "outcome 2: position of agent 0 must be (x, y, z) finite numbers, got (True, 0)"),
     ("UNHASHABLE", "env holds a list"),
     ("BAD_INIT", "init_env() raised KeyError"),
 ])

@@ -176,6 +176,20 @@ def test_memo_misses_are_few_and_the_python_rule_runs_once_per_key():
     assert misses == entries == len(calls) and hits > 10 * misses
 
 
+def test_encode_memo_keeps_equal_values_of_other_types_apart():
+    """encode's memo of agent and shared cells is keyed by the marshal
+    encoding, as the fingerprints are: 1, 1.0 and True are three cells
+    (a dict keyed by the values would hand the first one's ints to all)."""
+    cache: dict = {}
+    made = []
+    def fn(x):
+        made.append(x)
+        return [len(made)]
+    got = [NV.NativeModel._cached(cache, x, fn) for x in ((1,), (1.0,), (True,), (1,), (1.0,))]
+    assert got == [[1], [2], [3], [1], [2]]
+    assert [type(x[0]) for x in made] == [int, float, bool]
+
+
 def test_parallel_search_of_a_moving_program_runs_in_python():
     m = make_model(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 2, "nondet", "auto"))
     assert NV.unsupported(m, parallel=True) is not None

@@ -11,6 +11,7 @@ holds one of each and hands their methods to the rules.
 from __future__ import annotations
 
 import decimal
+import marshal
 import math
 from typing import Any, NoReturn, Optional
 
@@ -130,6 +131,8 @@ class Environment:
         self.N = n
         self.delta = delta
         self._cache: dict = {}
+        #: a position's marshal encoding -> the position checked and rounded
+        self._rounded: dict = {}
 
     def step(self, st):
         """The blackbox's outcomes for DOREACH INVOKE: [(positions, done, fail, env)]."""
@@ -190,16 +193,30 @@ class Environment:
                 self.error(time, f"outcome {n}: '{what}' must have one entry per agent "
                                  f"({N}), got {got}")
         poss = []
+        cache = self._rounded
         for i, p in enumerate(o.positions):
-            if (not isinstance(p, (tuple, list)) or len(p) not in (2, 3)
-                    or not all(isinstance(c, (int, float)) and not isinstance(c, bool)
-                               and math.isfinite(c) for c in p)):
-                self.error(time, f"outcome {n}: position of agent {i} must be "
-                                 f"(x, y, z) finite numbers, got {p!r:.80}")
-            poss.append(self.round_pos(p))
+            # a blackbox returns the same few positions over and over: each is
+            # checked and rounded once, memoised by its marshal encoding (exact:
+            # True, 1 and 1.0 stay apart)
+            try:
+                k: Optional[bytes] = marshal.dumps(p)
+            except ValueError:
+                k = None
+            r = cache.get(k) if k is not None else None
+            if r is None:
+                if (not isinstance(p, (tuple, list)) or len(p) not in (2, 3)
+                        or not all(isinstance(c, (int, float)) and not isinstance(c, bool)
+                                   and math.isfinite(c) for c in p)):
+                    self.error(time, f"outcome {n}: position of agent {i} must be "
+                                     f"(x, y, z) finite numbers, got {p!r:.80}")
+                r = self.round_pos(p)
+                if k is not None:
+                    if len(cache) >= 1 << 16:
+                        cache.clear()
+                    cache[k] = r
+            poss.append(r)
         self.check_env(o.env, time, n)
-        return (tuple(poss), tuple(bool(x) for x in o.done),
-                tuple(bool(x) for x in o.fail), o.env)
+        return (tuple(poss), tuple(map(bool, o.done)), tuple(map(bool, o.fail)), o.env)
 
     def check_env(self, env, time, n: Optional[int] = None) -> None:
         try:

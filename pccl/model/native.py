@@ -98,6 +98,7 @@ search (:class:`NativeOverflow`); the API then runs the Python engine.
 from __future__ import annotations
 
 import hashlib
+import marshal
 import os
 import shutil
 import subprocess
@@ -1628,6 +1629,11 @@ class NativeModel:
         self._ids: dict = {}
         #: id() of a value of the table -> its id (the table keeps them alive)
         self._byobj: dict = {}
+        #: encode's memos of agent and shared cells (see :meth:`_cached`)
+        self._agenc: dict = {}
+        self._shenc: dict = {}
+        #: per memo site, the slots it does not write (see :meth:`_miss`)
+        self._unwritten: dict = {}
         self._pending: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
@@ -1683,7 +1689,6 @@ class NativeModel:
         i = self._byobj.get(id(x))
         if i is not None:       # one of the table's own objects (decode returns them)
             return i
-        import marshal
         k = marshal.dumps(x, 2)
         i = self._ids.get(k)
         if i is None:
@@ -1702,22 +1707,45 @@ class NativeModel:
 
     def encode(self, st) -> bytes:
         g = self.gen
-        sk, lk, rk = self._kinds
         v = [self._v(st[TIME]), st[PHASE]]
         lq = list(st[LQ])
         v += lq + [-1] * (g.N - len(lq))
-        v += [self._v(x, k) for x, k in zip(st[SH], sk)]
+        v += self._cached(self._shenc, st[SH], self._encode_shared)
         if g.moves:
             v.append(self.intern(st[ENV]))
+        agent = self._encode_agent
+        cache = self._agenc
         for a in st[AGS]:
-            v += [a[PC], a[CNT], a[LCK], a[STATUS]]
-            v += [self._v(x, k) for x, k in zip(a[LOC], lk)]
-            v += [self._v(x, k) for x, k in zip(a[AR], rk)]
-            if g.moves:
-                r = a[REACH]
-                v += [self.intern(a[POS]), self.intern(r[TARGET]), self.intern(r[OBSTACLES]),
-                      self.intern(r[T0]), int(r[DONE]), int(r[FAIL])]
+            v += self._cached(cache, a, agent)
         return array("q", v).tobytes()
+
+    @staticmethod
+    def _cached(cache: dict, x, fn) -> list:
+        """``fn(x)``, memoised in ``cache`` by ``x``'s marshal encoding (exact:
+        1, 1.0 and True stay apart, as in the fingerprints).  A memo miss
+        encodes many successors of one state: their agents and shared
+        cells repeat, so each is encoded once (bounded: cleared when full)."""
+        k = marshal.dumps(x, 2)
+        r = cache.get(k)
+        if r is None:
+            if len(cache) >= 1 << 16:
+                cache.clear()
+            r = cache[k] = fn(x)
+        return r
+
+    def _encode_shared(self, sh) -> list:
+        return [self._v(x, k) for x, k in zip(sh, self._kinds[0])]
+
+    def _encode_agent(self, a) -> list:
+        _sk, lk, rk = self._kinds
+        v = [a[PC], a[CNT], a[LCK], a[STATUS]]
+        v += [self._v(x, k) for x, k in zip(a[LOC], lk)]
+        v += [self._v(x, k) for x, k in zip(a[AR], rk)]
+        if self.gen.moves:
+            r = a[REACH]
+            v += [self.intern(a[POS]), self.intern(r[TARGET]), self.intern(r[OBSTACLES]),
+                  self.intern(r[T0]), int(r[DONE]), int(r[FAIL])]
+        return v
 
     def _dec(self, x: int, kind: str):
         from pccl.lang.values import UNDEF
@@ -1773,12 +1801,15 @@ class NativeModel:
                 rule(m, st, i, ag, info, out)
         src = array("q")
         src.frombytes(b)
-        wset = set(ws)
+        keep = self._unwritten.get(k)
+        if keep is None:        # the slots site k must leave as they are
+            wset = set(ws)
+            keep = self._unwritten[k] = [q for q in range(len(src)) if q not in wset]
         val = array("q", [len(out)])
         for label, st2 in out:
             t = array("q")
             t.frombytes(self.encode(st2))
-            bad = [q for q in range(len(t)) if q not in wset and t[q] != src[q]]
+            bad = [q for q in keep if t[q] != src[q]]
             if bad:
                 raise NativeOverflow(f"a memoised rule ({label[0]}) changed slot {bad[0]}, "
                                      "which its memo site does not write")

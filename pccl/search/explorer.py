@@ -789,7 +789,10 @@ class Explorer:
                     report(len(level) - c0 - len(ns))
                 continue
             if expand is not None:
-                succs = list(map(succ_fn, level[c0:c0 + chunk]))
+                # the batch's successors per state (labels are not read past
+                # here): no second expansion of the chunk
+                it = iter(flat)
+                succs = [[(None, s) for s in itertools.islice(it, n)] for n in ns]
             if self._expand_one(adm, level, level_idx, depth, succs, c0, at_bound, report):
                 return True
         return False
