@@ -367,3 +367,114 @@ def test_ample_states_differ_from_the_old_local_only_rule():
     got = ample_agents(open(PROGRAMS / "fischer.pccl").read(), agents=2,
                        overrides={"k": "1", "d": "1"})
     assert {"LOCK REQUEST", "ATOMIC EXECUTION", "LOCK RELEASE"} & {r for r, _ in got}
+
+
+# ---------------------------------------------------------------------------
+# spent agents: a plain statement of an agent whose counter is spent (it
+# waited for the lock) is ample while TIME ADVANCE is enabled
+# ---------------------------------------------------------------------------
+
+SPENT = src("""
+    Agent::T
+
+    allwrite:
+      int x = 0;
+
+    loc:
+      boolean go = true;
+      ObstacleList obs = getObs();
+
+    Go():
+      pre(go);
+      eff:
+        doReach(ItemPosition(1, 0), obs);
+        atomic:
+          x = x + 1;
+        assert(!doReach_done);
+        go = false;
+""")
+
+
+@pytest.mark.parametrize("engine", ["python", "native"])
+def test_a_spent_agents_read_of_its_flag_keeps_the_violation(engine, tmp_path):
+    # agent 1 waits for the lock (its counter is spent), then runs
+    # assert(!doReach_done): if TIME ADVANCE and an arrival come first, the
+    # assertion fails.  The read of the flag keeps the state fully expanded
+    if engine == "native":
+        from test_native import MISSING
+        if MISSING:
+            pytest.skip(MISSING)
+    p = tmp_path / "spent.pccl"
+    p.write_text(SPENT)
+    base = explore(str(p), reduce="none", engine="python")
+    assert base.status == "violation" and {k for k, _, _ in verdict(base)[1]} == {"assert"}
+    res = explore(str(p), engine=engine)
+    assert res.model.engine_used == engine
+    assert verdict(res) == verdict(base)
+    check_counterexamples(res)
+
+
+def test_spent_agents_reduce_the_race(monkeypatch):
+    kw = dict(world=str(PROGRAMS / "race.toml"), agents=2, blackbox="nondet", engine="python")
+    new = explore(str(PROGRAMS / "race_robust.pccl"), **kw)
+    monkeypatch.setattr(I.Independence, "_spent_local", lambda self, pc: False)
+    old = explore(str(PROGRAMS / "race_robust.pccl"), **kw)
+    assert verdict(new) == verdict(old) == ("exhaustive", set())
+    assert new.stats.states < 0.85 * old.stats.states
+
+
+SPENT_KINDS = src("""
+    Agent::T
+
+    allwrite:
+      int x = 0;
+
+    loc:
+      int y = 0;
+      int seen = 0;
+      ItemPosition p;
+
+    Go():
+      pre(y == 0);
+      eff:
+        y = 1;
+        if (doReach_done):
+          y = 2;
+        p = getPosition();
+        y = x;
+        doReach(ItemPosition(1, 0), getObs());
+        seen = 1;
+
+    Loop():
+      pre(y == 5);
+      eff:
+        while (y < 9):
+          y = y + 1;
+        exit();
+""")
+
+
+def test_which_steps_of_a_spent_agent_are_ample(tmp_path):
+    # Independence.spent_local, statement by statement: only a plain
+    # statement touching nothing but the agent's own variables (not the
+    # doReach flags, its position, shared data, a property's variable)
+    p = tmp_path / "kinds.pccl"
+    p.write_text(SPENT_KINDS)
+    m = make_model(str(p), agents=2, blackbox="nondet", reduce="none",
+                   invariants=["forall i: seen[i] <= 1"]).model
+    m.prepare()                 # every k cell interned
+    ind = I.Independence(m)
+    got = {}
+    for pc in range(len(m.ctl.cells)):
+        info = m.ctl.info(pc)
+        if info.sid is not None and info.sid in m.compiled.stmts:
+            line = m.compiled.stmts[info.sid].span.line
+            got.setdefault(line, set()).add(ind.spent_local(pc))
+    assert got[14] == {True}           # y = 1
+    assert got[15] == {False}          # if (doReach_done)
+    assert got[16] == {True}           # y = 2
+    assert got[17] == {False}          # p = getPosition()
+    assert got[18] == {False}          # y = x (shared)
+    assert got[19] == {False}          # doReach
+    assert got[20] == {False}          # seen = 1 (a property reads it)
+    assert got[25] == {False} and got[26] == {False} and got[27] == {False}  # loop, exit

@@ -191,6 +191,8 @@ class Independence:
         self.doreach_visible = bool(self.visible & {"doReach_done", "doReach_fail"})
         self._rest: dict = {}
         self._step: dict = {}
+        self._spent: dict = {}
+        self.functions = set(comp.functions)
         #: pcs of statements that write a shared or allread variable or a
         #: reach cell (filled by :meth:`step`)
         self.writers: set = set()
@@ -285,6 +287,41 @@ class Independence:
                 w &= ~self.protected
             return (ACCESS, r, w)
         return (NEVER, 0, 0)          # exit, while
+
+    def spent_local(self, pc) -> bool:
+        """Whether the step of a *spent* agent (counter + ρ > n0: TIME
+        ADVANCE may come before it) at ``pc`` is independent of everything
+        that can happen before it: a plain statement (assignment, if,
+        assert, outside every while, not a doReach) that reads and writes
+        no shared or allread variable (lock-protected ones left out inside
+        an atomic body: i holds the lock until its release), no doReach
+        flag, no position, and writes nothing a property reads.  TIME
+        ADVANCE and DOREACH INVOKE read and write none of that (they change
+        time, counters, positions, reach flags and env), and no other
+        agent can touch i's own variables, in this time step or the next
+        (docs/reductions.md, "Spent agents")."""
+        got = self._spent.get(pc)
+        if got is None:
+            got = self._spent[pc] = self._spent_local(pc)
+        return got
+
+    def _spent_local(self, pc) -> bool:
+        info = self.ctl.info(pc)
+        if info.kind not in (K_SIMPLE, K_IF, K_ASSERT):
+            return False
+        cls, r, w = self.step(pc)
+        if cls != ACCESS or r or w:
+            return False
+        for e in _own_exprs(self.stmts[info.sid]):
+            for x in A.walk_expr(e):
+                if isinstance(x, A.Name) and x.name in ("doReach_done", "doReach_fail"):
+                    return False
+                if isinstance(x, A.Call) and x.name not in PURE_CALLS and \
+                        not (x.name in self.functions and not x.args):
+                    return False
+                if isinstance(x, A.Quant):
+                    return False
+        return True
 
     def footprint(self, ag, rho: int, n0: int) -> tuple:
         """(reads, writes) of everything a running agent with cell ``ag``

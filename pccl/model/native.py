@@ -731,6 +731,7 @@ class Generator:
         return {"cls": [x[0] for x in steps], "sr": [x[1] for x in steps], "sw": [x[2] for x in steps],
                 "rr": [x[0] for x in rests], "rw": [x[1] for x in rests], "ends": [x[2] for x in rests],
                 "writer": [pc in ind.writers for pc in range(npc)],
+                "spent": [ind.spent_local(pc) for pc in range(npc)],
                 "empty": [self.m.ctl.info(pc).kind == K_EMPTY for pc in range(npc)],
                 "evr": [x[0] for x in ind.event_fps], "evw": [x[1] for x in ind.event_fps],
                 "er": ind.events[0], "ew": ind.events[1], "gr": ind.guard_reads,
@@ -753,6 +754,7 @@ class Generator:
                self.c_array("PENDS", "unsigned char", por["ends"]),
                self.c_array("PWRITER", "unsigned char", por["writer"]),
                self.c_array("PEMPTY", "unsigned char", por["empty"]),
+               self.c_array("PSPENT", "unsigned char", por["spent"]),
                f"#define EVR_ALL {por['er']}ULL", f"#define EVW_ALL {por['ew']}ULL",
                f"#define GUARDR {por['gr']}ULL", f"#define GUARDS_LOCAL {int(por['local'])}",
                f"#define TOP_PC {m.ctl.empty_pc}", f"#define LQ_BIT {I.LQ_BIT}ULL",
@@ -826,6 +828,20 @@ class Generator:
                 f"      if (all) goto chains;\n"
                 f"      BN = b0;\n"
                 f"    }}")
+        # no such agent: the first spent agent whose next step is a plain
+        # statement of its own (Independence.spent_local)
+        if por is not None:
+            for i in range(N):
+                a0 = self.AG0 + i * A_
+                ample.append(
+                    f"    if (s[{a0 + 3}] == {RUNNING} && s[{a0 + 1}] > {m.n0 - m.rho[i]} "
+                    f"&& (uint64_t)s[{a0}] < NPC && PSPENT[s[{a0}]]) {{\n"
+                    f"      if (agent{i}(s)) return -1;\n"
+                    f"      int all = BN > b0;\n"
+                    f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
+                    f"      if (all) goto chains;\n"
+                    f"      BN = b0;\n"
+                    f"    }}")
         # the stall signature (pccl/model/stall.py): the lock queue, shared,
         # and per agent its status, allread and the loc: variables a property reads
         from pccl.model.stall import _visible_locals

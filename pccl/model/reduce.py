@@ -758,6 +758,20 @@ class Por:
                     if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
                         return out
                 i += 1
+            # no such agent: the first spent agent whose next step is a
+            # plain statement of its own (Independence.spent_local)
+            spent_local = self.ind.spent_local
+            i = 0
+            for ag in st[AGS]:
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] > n0 and spent_local(ag[PC]):
+                    info = ctl.info(ag[PC])
+                    out = []
+                    m.oracle.agent = i
+                    for rule in info.rules:
+                        rule(m, st, i, ag, info, out)
+                    if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                        return out
+                i += 1
         return self.plain(st)
 
 
