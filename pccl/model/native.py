@@ -742,7 +742,8 @@ class Generator:
         movable; independence.may_wait) over the tables of :meth:`por_tables`."""
         from pccl.model import independence as I
         if por is None:
-            return ["static int eligible(const V *s, int i) { (void)s; (void)i; return 0; }",
+            return ["static const unsigned char PSPENT[] = {0};",
+                    "static int eligible(const V *s, int i) { (void)s; (void)i; return 0; }",
                     "static int movable(const V *s, int i) { (void)s; (void)i; return 0; }"]
         m = self.m
         u64 = "uint64_t"
@@ -1428,10 +1429,12 @@ static int chain(const V *s0, Py_ssize_t k, int i) {
   if (POR && !sigeq(cur, s0)) { memcpy(cut, cur, sizeof cut); ncut = 0; }
   for (;;) {
     V pc = cur[a0];
-    if ((uint64_t)pc >= NPC || cur[a0 + 3] != @RUNNING@
-        || cur[a0 + 1] + RHO[i] > KEEPN0 || n >= MERGE_LIMIT) break;
+    if ((uint64_t)pc >= NPC || cur[a0 + 3] != @RUNNING@ || n >= MERGE_LIMIT) break;
     int mv = 0;
-    if (!MERGEOK[pc]) {
+    if (cur[a0 + 1] + RHO[i] > KEEPN0) {
+      /* spent: only its own plain statements (Independence.spent_local) */
+      if (!(POR && PSPENT[pc])) break;
+    } else if (!MERGEOK[pc]) {
       if (!POR) break;
       mv = movable(cur, i);
       if (!mv) break;

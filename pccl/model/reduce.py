@@ -479,11 +479,15 @@ class Merger:
             i = lab[1]
             if i is not None:
                 ag = s2[AGS][i]
-                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0:
-                    r = ok.get(ag[PC])
-                    if r is None:
-                        r = self.pc_ok(ag[PC])
-                    if r or (self.por is not None and self.por.movable(s2, i, ag)):
+                if ag[STATUS] == RUNNING:
+                    if ag[CNT] + rho[i] <= n0:
+                        r = ok.get(ag[PC])
+                        if r is None:
+                            r = self.pc_ok(ag[PC])
+                        r = r or (self.por is not None and self.por.movable(s2, i, ag))
+                    else:       # spent: its own plain statements (Por, "spent agents")
+                        r = self.por is not None and self.por.ind.spent_local(ag[PC])
+                    if r:
                         self._chain(lab, idx0, s2, i, res, st)
                         continue
             res.append((lab, s2))
@@ -517,10 +521,16 @@ class Merger:
                 if r is None:
                     r = self.pc_ok(pc)
                 n = len(ch)
-                if ag[STATUS] != RUNNING or ag[CNT] + rho > n0 or n >= MERGE_LIMIT:
+                if ag[STATUS] != RUNNING or n >= MERGE_LIMIT:
                     break
                 mv = 0
-                if not r:
+                if ag[CNT] + rho > n0:
+                    # spent (it waited for the lock): only its own plain
+                    # statements, which commute with TIME ADVANCE and
+                    # DOREACH INVOKE too (Independence.spent_local)
+                    if por is None or not por.ind.spent_local(pc):
+                        break
+                elif not r:
                     if por is None:
                         break
                     mv = por.movable(s, i, ag)
