@@ -176,6 +176,21 @@ def test_memo_misses_are_few_and_the_python_rule_runs_once_per_key():
     assert misses == entries == len(calls) and hits > 10 * misses
 
 
+def test_batch_stall_signatures_equal_one_by_one():
+    # the graph recorder's one C call per batch (stall_signatures) against
+    # the per-state signature the parallel search and the tests use
+    m = make_model(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 3, "nondet", "auto"))
+    nm = NV.NativeModel(m)
+    states, frontier = [], list(nm.init_states())
+    while frontier and len(states) < 3_000:
+        states += frontier
+        frontier = [b for s in frontier for _, b in nm.successors(s)][:2_000]
+    one = nm.stall_signature()
+    got = nm.stall_signatures(states)
+    assert got.tolist() == [one(s) for s in states]
+    assert len(set(got.tolist())) > 10       # the states differ in what the check compares
+
+
 def test_encode_memo_keeps_equal_values_of_other_types_apart():
     """encode's memo of agent and shared cells is keyed by the marshal
     encoding, as the fingerprints are: 1, 1.0 and True are three cells

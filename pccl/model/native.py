@@ -1057,10 +1057,8 @@ static PyObject *key(PyObject *self, PyObject *arg) {{
   canon(s, c);
   return PyBytes_FromStringAndSize((const char *)c + KEYSKIP, sizeof(V) * NS - KEYSKIP);
 }}
-/* sig(state): the stall signature's hash (pccl/model/stall.py's fields) */
-static PyObject *sig(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
-  if (!s) return NULL;
+/* the stall signature's hash (pccl/model/stall.py's fields) */
+static int64_t sighash(const V *s) {{
   uint64_t h = 0x9E3779B97F4A7C15ULL;
   for (int q = 0; q < NSIGSLOTS; q++) {{
     uint64_t z = (uint64_t)s[SIGSLOTS[q]] + 0x9E3779B97F4A7C15ULL * (uint64_t)(q + 1);
@@ -1069,7 +1067,27 @@ static PyObject *sig(PyObject *self, PyObject *arg) {{
     h = (h ^ (z ^ (z >> 31))) * 0x100000001B3ULL;
     h ^= h >> 29;
   }}
-  return PyLong_FromLongLong((long long)h);
+  return (int64_t)h;
+}}
+/* sig(state): the stall signature's hash */
+static PyObject *sig(PyObject *self, PyObject *arg) {{
+  const V *s = arg_state(arg);
+  if (!s) return NULL;
+  return PyLong_FromLongLong((long long)sighash(s));
+}}
+/* sigs(states): sig of each state of a list, as int64s in one bytes object */
+static PyObject *sigs(PyObject *self, PyObject *arg) {{
+  if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
+  Py_ssize_t n = PyList_GET_SIZE(arg);
+  PyObject *out = PyBytes_FromStringAndSize(NULL, n * (Py_ssize_t)sizeof(int64_t));
+  if (!out) return NULL;
+  int64_t *o = (int64_t *)PyBytes_AS_STRING(out);
+  for (Py_ssize_t i = 0; i < n; i++) {{
+    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    if (!s) {{ Py_DECREF(out); return NULL; }}
+    o[i] = sighash(s);
+  }}
+  return out;
 }}
 /* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
 static PyObject *phases(PyObject *self, PyObject *arg) {{
@@ -1189,6 +1207,7 @@ static PyMethodDef methods[] = {{
   {{"clock", clock_, METH_O, "the state's time"}},
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
   {{"sig", sig, METH_O, "the stall signature's hash"}},
+  {{"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"}},
   {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
   {{"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"}},
@@ -1860,6 +1879,12 @@ class NativeModel:
     def time_costs(self, states: list) -> bytes:
         """1 into a dynamic state (a TIME ADVANCE), else 0: one C call."""
         return self.lib.phases(states)
+
+    def stall_signatures(self, states: list):
+        """:meth:`stall_signature` of each state of a list, as an int64
+        array (one C call)."""
+        import numpy as np
+        return np.frombuffer(self.lib.sigs(states), dtype=np.int64)
 
     def stall_signature(self) -> Callable:
         """``sig(state) -> int`` with the equalities of

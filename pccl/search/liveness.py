@@ -104,13 +104,22 @@ class StateColumns:
     under way (:meth:`pccl.model.engine.Model.arrival_pending`)."""
 
     def __init__(self, props=(), fairness: bool = False, sig_of=None, *,
-                 time_costs=None, pending=None):
+                 time_costs=None, pending=None, sigs_of=None):
         self.props = list(props)
         self.fairness = fairness
         self.time_costs = time_costs
         self.pending = pending
         #: the stall check's signature hash (pccl/model/stall.py), or None
         self.sig_of = sig_of
+        #: the same for a list of states at once (an int64 array), when the
+        #: model has it (the native engine's one C call)
+        self.sigs_of = sigs_of if sig_of is not None else None
+
+    def signatures(self, states) -> np.ndarray:
+        """:attr:`sig_of` of each of ``states`` (a list), as int64s."""
+        if self.sigs_of is not None and type(states) is list:
+            return self.sigs_of(states)
+        return np.fromiter(map(self.sig_of, states), dtype=np.int64, count=len(states))
 
     def dtypes(self) -> list:
         return [np.uint8] + ([np.uint64] if self.props else []) + \
@@ -138,7 +147,7 @@ class StateColumns:
         if self.fairness:
             cols.append(np.fromiter(map(self.pending, states), dtype=np.uint64, count=n))
         if self.sig_of is not None:
-            cols.append(np.fromiter(map(self.sig_of, states), dtype=np.int64, count=n))
+            cols.append(self.signatures(states))
         return cols
 
 
@@ -157,7 +166,8 @@ class GraphRecorder:
         #: the per-state columns (the parallel search runs it in its workers)
         self.columns = StateColumns(self.props, self.fairness, sig_of,
                                     time_costs=model.time_costs,
-                                    pending=model.arrival_pending if self.fairness else None)
+                                    pending=model.arrival_pending if self.fairness else None,
+                                    sigs_of=getattr(model, "stall_signatures", None))
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -230,7 +240,7 @@ class GraphRecorder:
             sig = self.sig.view()
             if self.wants_candidates:
                 assert cands is not None, "the recorder needs the successor states"
-                to = np.fromiter(map(self.sig_of, cands), dtype=np.int64, count=len(cands))
+                to = self.columns.signatures(cands)
             else:
                 to = sig[dst]
             changed = to != sig[src]
