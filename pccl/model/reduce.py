@@ -508,7 +508,6 @@ class Merger:
         rho, n0 = m.rho[i], m.n0
         ok, steps = self.ok, self.steps
         oracle = m.oracle
-        por = self.por
         s1 = s
         stack: list[tuple[Any, tuple[int, ...], tuple]] = [(s, (), ())]
         seen = None
@@ -517,24 +516,16 @@ class Merger:
             while True:
                 ag = s[AGS][i]
                 pc = ag[PC]
-                r = ok.get(pc)
-                if r is None:
-                    r = self.pc_ok(pc)
                 n = len(ch)
                 if ag[STATUS] != RUNNING or n >= MERGE_LIMIT:
                     break
+                r = ok.get(pc)
+                if r is None:
+                    r = self.pc_ok(pc)
                 mv = 0
-                if ag[CNT] + rho > n0:
-                    # spent (it waited for the lock): only its own plain
-                    # statements, which commute with TIME ADVANCE and
-                    # DOREACH INVOKE too (Independence.spent_local)
-                    if por is None or not por.ind.spent_local(pc):
-                        break
-                elif not r:
-                    if por is None:
-                        break
-                    mv = por.movable(s, i, ag)
-                    if not mv:
+                if ag[CNT] + rho > n0 or not r:
+                    mv = self._movable(s, i, ag, ag[CNT] + rho > n0)
+                    if mv < 0:
                         break
                 if n >= 32:
                     # a long chain may be a local loop: stop where it revisits
@@ -559,6 +550,19 @@ class Merger:
             if marks and st0 is not None:
                 s, ch = self._cut(st0, s1, s, ch, marks)
             res.append(((lab[0], lab[1], lab[2], idx0, ch) if ch else lab, s))
+
+    def _movable(self, s, i, ag, spent: bool) -> int:
+        """For a chain of agent i at a step that is not a plain mergeable
+        one: -1 the chain stops; else :meth:`Por.movable`'s 1 or 2, or 0
+        for a *spent* agent's (it waited for the lock) plain statement of
+        its own, which commutes with TIME ADVANCE and DOREACH INVOKE too
+        (Independence.spent_local)."""
+        por = self.por
+        if por is None:
+            return -1
+        if spent:
+            return 0 if por.ind.spent_local(ag[PC]) else -1
+        return por.movable(s, i, ag) or -1
 
     def _step_of(self, pc) -> tuple:
         """(info, rule) for the step at ``pc`` in a chain: TIME COUNTER
