@@ -1161,7 +1161,7 @@ class _Admission:
             bounds.add(Bound.MAX_STATES)
             halt = True
             stop_at = new[budget]       # the first state that does not fit
-        states = [cs[p] for p in new[:cut]]
+        states = list(map(cs.__getitem__, new[:cut]))     # no bytecode per state
         clock = self.clock
         if clock is not None and cut:
             t = max(map(clock, states[:cut]))
