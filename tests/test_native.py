@@ -211,6 +211,7 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
     nm = NV.NativeModel(make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw}))
     states = reachable(nm)
     assert len(states) > 100
+    dropped = 0
     for lo in range(0, len(states), 5000):
         batch = states[lo:lo + 5000]
         ck, first, occ = nm.fingerprint_batch(batch)
@@ -219,7 +220,8 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
         first_of = dict(zip(reversed(want), range(len(want) - 1, -1, -1)))
         assert first.tolist() == sorted(first_of.values())
         assert occ.tolist() == [first_of[k] for k in want]
-        assert len(first) < len(batch)      # repeats were met and dropped
+        dropped += len(batch) - len(first)
+    assert dropped > 0      # repeats were met and dropped (not in every batch)
 
 
 def assert_batches_are_successors(nm, states) -> None:
