@@ -18,8 +18,9 @@ MUTEX = "count(inCs) <= 1"
 
 
 def signature(r):
+    # max_time: the largest model time (gathered from the workers; it was None)
     return (r.status, r.exit_status, r.stats.states, r.stats.transitions, r.stats.max_depth,
-            r.stats.initial_states, r.bounds,
+            r.stats.initial_states, r.stats.max_time, r.bounds,
             [(v["kind"], v["name"], v["line"], v["depth"]) for v in r.violations],
             [cx.index for cx in r.counterexamples],
             [cx.trace and tuple(cx.trace.labels) for cx in r.counterexamples],

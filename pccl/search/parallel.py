@@ -193,9 +193,18 @@ class _Worker:
         # the team's signature (decided here, on the actual successors)
         self.g_chg_idx: list = []
         self.g_chg: list = []
+        #: the largest model time of the states admitted here (models with
+        #: ``clock``): :meth:`max_time`, the one-process ``stats.max_time``
+        self.clock = getattr(model, "clock", None)
+        self.t_max: Any = None
 
     def _note_states(self, idx, states: list) -> None:
-        """The states admitted to my level (numbers ``idx``): their columns."""
+        """The states admitted to my level (numbers ``idx``): their columns
+        and the largest model time."""
+        if self.clock is not None and states:
+            t = max(map(self.clock, states))
+            if self.t_max is None or t > self.t_max:
+                self.t_max = t
         if self.columns is not None and states:
             self.g_idx.append(np.asarray(idx, dtype=np.int64))
             self.g_cols.append(self.columns(states))
@@ -601,6 +610,11 @@ class _Worker:
         chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
         self.g_chg_idx, self.g_chg = [], []
         return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes(), chg)
+
+    def max_time(self):
+        """The largest model time of the states admitted here (None: no
+        clock, or none admitted)."""
+        return self.t_max
 
     def index_of(self, fp: bytes) -> int:
         local = self.table.index_of(fp)
@@ -1496,6 +1510,7 @@ class ParallelExplorer(Explorer):
                 except Exception:
                     res.found.clear()
         self.table.n = self._total
+        res.stats.max_time = self.max_time_now(interrupted=res.status == "interrupted")
         if self.fastest:
             res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
             res.stats.frontier = sum(self._waiting.values())
@@ -1503,6 +1518,25 @@ class ParallelExplorer(Explorer):
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
         return res
+
+    def max_time_now(self, interrupted: bool = False) -> Any:
+        """The largest model time of the states admitted so far (the
+        one-process ``stats.max_time``): the workers' and a resumed
+        checkpoint's.  After an interrupt a worker that cannot answer
+        leaves the figure as it is."""
+        t = self._res.stats.max_time
+        if getattr(self.model, "clock", None) is None:
+            return t
+        try:
+            times = self.transport.all("max_time", [()] * self.workers)
+        except Exception:
+            if not interrupted:
+                raise
+            return t
+        for x in times:
+            if x is not None and (t is None or x > t):
+                t = x
+        return t
 
     def _put_parents(self, base: int, values: np.ndarray) -> None:
         """The global parent links of the states numbered from ``base``."""
