@@ -330,7 +330,12 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     analyse the traces (:func:`_analyse`) and assemble the result
     (:func:`_assemble`)."""
     plan = _plan_search(_explore_target(model), _explore_options(options, search), spelling)
-    ex, native = _make_searcher(plan)
+    try:
+        ex, native = _make_searcher(plan)
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM while the native module compiles (a cold
+        # cache): the search's report, interrupted with nothing explored
+        return _interrupted_before_search(plan)
     ex, sr = _run_search(plan, ex, native)
     # every reachable state was expanded (before the graph analysis, which
     # may turn an exhaustive search into a violation)
@@ -338,6 +343,20 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
     lv = _analyse(plan, ex, sr)
     return _assemble(plan, ex, sr, lv, complete)
+
+
+def _interrupted_before_search(plan: _SearchPlan) -> ExploreResult:
+    """Step of :func:`explore_model`: the result of a search interrupted
+    before it started (while the native engine's module compiled): status
+    ``interrupted``, no state explored, the engine that would have run,
+    and a note that says so."""
+    from pccl.search.memory import peak_rss_bytes
+    sr = SearchResult("interrupted", stats=Stats(peak_memory=peak_rss_bytes()))
+    plan.rec = None         # no graph to analyse
+    res = _assemble(plan, None, sr, None, False)
+    res.notes.append("interrupted while the native engine's module was compiling: "
+                     "no state was explored")
+    return res
 
 
 def _explore_target(model) -> Reduced:
@@ -686,6 +705,8 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
                                 where="{engine}", template=True)
         model.engine_used, model.engine_reason = "python", spell(why, spelling)
         return None
+    # said before the compile: a search interrupted while it compiles names
+    # the engine that would have run
     model.engine_used, model.engine_reason = "native", None
     return NV.NativeModel(model)
 
