@@ -487,6 +487,20 @@ def fastest_signature(r):
     return (signature(r), r.stats.frontier, [cx.trace and cx.trace.last[TIME] for cx in cxs])
 
 
+@pytest.mark.parametrize("name", ["fischer-exhaustive"])
+def test_fastest_reports_the_largest_time_as_the_breadth_first_search(name):
+    """An exhaustive search visits the same states in either order: the
+    fastest search's largest model time (one process and 2 workers) is the
+    breadth-first search's (it was None)."""
+    program, opts = FASTEST_CASES[name]
+    bfs = explore(program, **opts)
+    assert bfs.status == "exhaustive" and bfs.stats.max_time is not None
+    for w in (1, 2):
+        fast = explore(program, fastest=True, workers=w, **opts)
+        assert (fast.status, fast.stats.states, fast.stats.max_time) == \
+            ("exhaustive", bfs.stats.states, bfs.stats.max_time), f"workers={w}"
+
+
 @pytest.mark.parametrize("name", sorted(FASTEST_CASES))
 def test_fastest_with_workers_gives_the_one_process_results(name):
     """--fastest with 2 and 3 workers: the one-process fastest search's
