@@ -427,12 +427,17 @@ def test_time_lock_with_workers_is_a_violation():
     assert r.counterexamples[0].cycle_start is not None
 
 
-def test_workers_hand_over_the_graph_the_one_process_search_records():
+@pytest.mark.parametrize("chunk", [None, 100])
+def test_workers_hand_over_the_graph_the_one_process_search_records(chunk, monkeypatch):
     """The recorder after a parallel search holds the one-process graph:
     the same edges (as a multiset per source, in successor order) and the
-    same per-state columns."""
+    same per-state columns; also when the workers hand their transitions
+    over in chunks of 100 (levels cut in pieces)."""
     import numpy as np
     from pccl.search import liveness as L
+    from pccl.search import parallel as P
+    if chunk is not None:
+        monkeypatch.setattr(P, "_GRAPH_CHUNK", chunk)
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"},
                    properties=["reachable count(inCs) == 1"])
     graphs = []
@@ -451,6 +456,27 @@ def test_workers_hand_over_the_graph_the_one_process_search_records():
                 [links[i] for i in range(0, sr.stats.states, 97)]
     assert graphs[0][0] > 1000 and np.asarray(graphs[0][3]).any()
     assert graphs[1] == graphs[0] and graphs[2] == graphs[0]
+
+
+def test_graph_edges_come_in_chunks_in_the_order_generated():
+    """A worker hands its transitions over about ``most`` at a time (a long
+    part cut, short ones joined), in the order generated, and keeps none."""
+    import numpy as np
+    from pccl.search import parallel as P
+    w = P._Worker(make_model(FISCHER, overrides={"k": "0"}), 0, 1, True, False)
+    sizes = [3, 1, 12, 0, 2, 5]
+    w.g_src = [np.arange(sum(sizes[:i]), sum(sizes[:i + 1]), dtype=np.uint32)
+               for i in range(len(sizes))]
+    w.g_fps = [np.stack([s.astype(np.uint64), s.astype(np.uint64) * 7], axis=1) for s in w.g_src]
+    got = []
+    while (part := w.graph_edges(4)) is not None:
+        src, fps = part
+        assert 1 <= len(src) <= 4 and len(fps) == len(src)
+        assert (fps[:, 0] == src).all() and (fps[:, 1] == src.astype(np.uint64) * 7).all()
+        got.append(src.tolist())
+    assert sum(got, []) == list(range(sum(sizes)))
+    assert [len(g) for g in got] == [4, 4, 4, 4, 4, 3]
+    assert w.g_src == [] and w.g_fps == []
 
 
 _LINKS: dict = {}
