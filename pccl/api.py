@@ -30,7 +30,7 @@ from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions,
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
-from pccl.search.memory import format_size
+from pccl.search.memory import format_size, parse_size  # noqa: F401  (parse_size: part of the API)
 from pccl.search.spill import SpillError
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
@@ -787,19 +787,6 @@ def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=
     (the API's keyword), ``--depth 10`` (``pccl explore``)."""
     opt = bound_option(bound, model, depth=depth, max_states=max_states, max_memory=max_memory)
     return str(bound) if opt is None else (spelling(*opt) or str(bound))
-
-
-def parse_size(text: str) -> int:
-    """``--max-memory`` values: bytes, or a number with K, M, G, T (powers of
-    1024; an optional trailing ``B``/``iB``)."""
-    import re
-    m = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
-    if not m:
-        raise ValueError(f"expected a size such as 800M or 4G, got {text!r}")
-    v = float(m.group(1)) * 1024 ** " KMGT".index((m.group(2) or " ").upper())
-    if v < 1 or v != v or v > 2**62:
-        raise ValueError(f"size out of range: {text!r}")
-    return int(v)
 
 
 def violation_data(model, found: Counterexample) -> Finding:

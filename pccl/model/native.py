@@ -1602,7 +1602,7 @@ def cache_bound() -> Optional[int]:
         return CACHE_SIZE_DEFAULT
     if text.strip() == "0":
         return None
-    from pccl.api import parse_size
+    from pccl.search.memory import parse_size
     from pccl.lang.errors import PcclError
     try:
         return parse_size(text)
