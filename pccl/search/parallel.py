@@ -601,6 +601,10 @@ class _Worker:
         stall check's flags.  The transitions I generated follow a chunk at
         a time (:meth:`graph_edges`)."""
         t = self.table
+        # not needed once handed over (the coordinator's table numbers the
+        # states from now on): freed as soon as the coordinator drops the
+        # views (worker 0: in its process, before it builds that table)
+        self.table = FingerprintTable()
         idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
         cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
         self.g_idx, self.g_cols = [], []
