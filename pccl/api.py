@@ -30,7 +30,7 @@ from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions,
 from pccl.model.reduce import Reduced
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
-from pccl.search.memory import format_size
+from pccl.search.memory import format_size, parse_size  # noqa: F401  (parse_size: part of the API)
 from pccl.search.spill import SpillError
 
 #: The options of :func:`explore_model`: the fields ExploreOptions adds to the
@@ -330,7 +330,12 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     analyse the traces (:func:`_analyse`) and assemble the result
     (:func:`_assemble`)."""
     plan = _plan_search(_explore_target(model), _explore_options(options, search), spelling)
-    ex, native = _make_searcher(plan)
+    try:
+        ex, native = _make_searcher(plan)
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM while the native module compiles (a cold
+        # cache): the search's report, interrupted with nothing explored
+        return _interrupted_before_search(plan)
     ex, sr = _run_search(plan, ex, native)
     # every reachable state was expanded (before the graph analysis, which
     # may turn an exhaustive search into a violation)
@@ -338,6 +343,20 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
     lv = _analyse(plan, ex, sr)
     return _assemble(plan, ex, sr, lv, complete)
+
+
+def _interrupted_before_search(plan: _SearchPlan) -> ExploreResult:
+    """Step of :func:`explore_model`: the result of a search interrupted
+    before it started (while the native engine's module compiled): status
+    ``interrupted``, no state explored, the engine that would have run,
+    and a note that says so."""
+    from pccl.search.memory import peak_rss_bytes
+    sr = SearchResult("interrupted", stats=Stats(peak_memory=peak_rss_bytes()))
+    plan.rec = None         # no graph to analyse
+    res = _assemble(plan, None, sr, None, False)
+    res.notes.append("interrupted while the native engine's module was compiling: "
+                     "no state was explored")
+    return res
 
 
 def _explore_target(model) -> Reduced:
@@ -686,6 +705,8 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
                                 where="{engine}", template=True)
         model.engine_used, model.engine_reason = "python", spell(why, spelling)
         return None
+    # said before the compile: a search interrupted while it compiles names
+    # the engine that would have run
     model.engine_used, model.engine_reason = "native", None
     return NV.NativeModel(model)
 
@@ -766,19 +787,6 @@ def bound_label(bound: Bound, model, *, depth=None, max_states=None, max_memory=
     (the API's keyword), ``--depth 10`` (``pccl explore``)."""
     opt = bound_option(bound, model, depth=depth, max_states=max_states, max_memory=max_memory)
     return str(bound) if opt is None else (spelling(*opt) or str(bound))
-
-
-def parse_size(text: str) -> int:
-    """``--max-memory`` values: bytes, or a number with K, M, G, T (powers of
-    1024; an optional trailing ``B``/``iB``)."""
-    import re
-    m = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
-    if not m:
-        raise ValueError(f"expected a size such as 800M or 4G, got {text!r}")
-    v = float(m.group(1)) * 1024 ** " KMGT".index((m.group(2) or " ").upper())
-    if v < 1 or v != v or v > 2**62:
-        raise ValueError(f"size out of range: {text!r}")
-    return int(v)
 
 
 def violation_data(model, found: Counterexample) -> Finding:

@@ -249,6 +249,7 @@ def main():
       pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
       pccl fmt PROGRAM...           canonical layout (--check: exit 1 if not)
       pccl lsp                      language server for editors (stdio)
+      pccl cache                    the native engine's module cache (--clear)
 
     A violation is a stuck agent, a failed assertion or invariant, a deadlock,
     a time-lock, a stall, a failed temporal property (--property: eventually P, P ~> Q,
@@ -1599,6 +1600,41 @@ def lsp():
         sys.exit(2)
     from pccl.tools.lsp import serve
     serve()
+
+
+@main.command(name="cache", short_help="The native engine's module cache: size, bound, --clear.")
+@click.option("--clear", is_flag=True, help="remove every compiled module of the cache")
+@click.option("--format", "fmt", type=Choice(["text", "json"]), default="text",
+              show_default=True)
+def cache_cmd(clear, fmt):
+    """Show the native engine's module cache (--engine native compiles one
+    module per program into $PCCL_CACHE or ~/.cache/pccl): its directory,
+    how many modules it holds, their size and the bound ($PCCL_CACHE_SIZE,
+    default 100M; 0: none), beyond which the least recently used modules
+    are removed after a new one is compiled.  --clear removes them all
+    (docs/benchmarks.md#the-module-cache)."""
+    import os
+    from pccl.model import native as NV
+    from pccl.search.memory import format_size
+    try:
+        bound = NV.cache_bound()
+    except PcclError as e:
+        _fail(e)
+    d = NV.cache_dir()
+    removed = NV.clear_cache(d) if clear and os.path.isdir(d) else (0, 0)
+    mods = NV.cache_modules(d)
+    size = sum(m[1] for m in mods)
+    if fmt == "json":
+        click.echo(json.dumps({"directory": d, "modules": len(mods), "bytes": size,
+                               "bound_bytes": bound, "removed": removed[0],
+                               "removed_bytes": removed[1]}, indent=2))
+        return
+    if clear:
+        click.echo(f"removed {removed[0]:,} modules ({format_size(removed[1])})")
+    click.echo(f"directory  {d}")
+    click.echo(f"modules    {len(mods):,} ({format_size(size)})")
+    click.echo(f"bound      {format_size(bound) if bound is not None else 'none'} "
+               f"(${NV.CACHE_SIZE_ENV})")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -18,8 +18,9 @@ MUTEX = "count(inCs) <= 1"
 
 
 def signature(r):
+    # max_time: the largest model time (gathered from the workers; it was None)
     return (r.status, r.exit_status, r.stats.states, r.stats.transitions, r.stats.max_depth,
-            r.stats.initial_states, r.bounds,
+            r.stats.initial_states, r.stats.max_time, r.bounds,
             [(v["kind"], v["name"], v["line"], v["depth"]) for v in r.violations],
             [cx.index for cx in r.counterexamples],
             [cx.trace and tuple(cx.trace.labels) for cx in r.counterexamples],
@@ -426,12 +427,17 @@ def test_time_lock_with_workers_is_a_violation():
     assert r.counterexamples[0].cycle_start is not None
 
 
-def test_workers_hand_over_the_graph_the_one_process_search_records():
+@pytest.mark.parametrize("chunk", [None, 100])
+def test_workers_hand_over_the_graph_the_one_process_search_records(chunk, monkeypatch):
     """The recorder after a parallel search holds the one-process graph:
     the same edges (as a multiset per source, in successor order) and the
-    same per-state columns."""
+    same per-state columns; also when the workers hand their transitions
+    over in chunks of 100 (levels cut in pieces)."""
     import numpy as np
     from pccl.search import liveness as L
+    from pccl.search import parallel as P
+    if chunk is not None:
+        monkeypatch.setattr(P, "_GRAPH_CHUNK", chunk)
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"},
                    properties=["reachable count(inCs) == 1"])
     graphs = []
@@ -450,6 +456,27 @@ def test_workers_hand_over_the_graph_the_one_process_search_records():
                 [links[i] for i in range(0, sr.stats.states, 97)]
     assert graphs[0][0] > 1000 and np.asarray(graphs[0][3]).any()
     assert graphs[1] == graphs[0] and graphs[2] == graphs[0]
+
+
+def test_graph_edges_come_in_chunks_in_the_order_generated():
+    """A worker hands its transitions over about ``most`` at a time (a long
+    part cut, short ones joined), in the order generated, and keeps none."""
+    import numpy as np
+    from pccl.search import parallel as P
+    w = P._Worker(make_model(FISCHER, overrides={"k": "0"}), 0, 1, True, False)
+    sizes = [3, 1, 12, 0, 2, 5]
+    w.g_src = [np.arange(sum(sizes[:i]), sum(sizes[:i + 1]), dtype=np.uint32)
+               for i in range(len(sizes))]
+    w.g_fps = [np.stack([s.astype(np.uint64), s.astype(np.uint64) * 7], axis=1) for s in w.g_src]
+    got = []
+    while (part := w.graph_edges(4)) is not None:
+        src, fps = part
+        assert 1 <= len(src) <= 4 and len(fps) == len(src)
+        assert (fps[:, 0] == src).all() and (fps[:, 1] == src.astype(np.uint64) * 7).all()
+        got.append(src.tolist())
+    assert sum(got, []) == list(range(sum(sizes)))
+    assert [len(g) for g in got] == [4, 4, 4, 4, 4, 3]
+    assert w.g_src == [] and w.g_fps == []
 
 
 _LINKS: dict = {}
@@ -484,6 +511,20 @@ FASTEST_CASES = {
 def fastest_signature(r):
     cxs = r.counterexamples
     return (signature(r), r.stats.frontier, [cx.trace and cx.trace.last[TIME] for cx in cxs])
+
+
+@pytest.mark.parametrize("name", ["fischer-exhaustive"])
+def test_fastest_reports_the_largest_time_as_the_breadth_first_search(name):
+    """An exhaustive search visits the same states in either order: the
+    fastest search's largest model time (one process and 2 workers) is the
+    breadth-first search's (it was None)."""
+    program, opts = FASTEST_CASES[name]
+    bfs = explore(program, **opts)
+    assert bfs.status == "exhaustive" and bfs.stats.max_time is not None
+    for w in (1, 2):
+        fast = explore(program, fastest=True, workers=w, **opts)
+        assert (fast.status, fast.stats.states, fast.stats.max_time) == \
+            ("exhaustive", bfs.stats.states, bfs.stats.max_time), f"workers={w}"
 
 
 @pytest.mark.parametrize("name", sorted(FASTEST_CASES))

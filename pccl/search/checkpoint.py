@@ -775,6 +775,7 @@ def parallel_save(ex) -> None:
              "level_base": total if fastest else mark["level_base"],
              "transitions": stats.transitions, "max_depth": stats.max_depth,
              "initial_states": stats.initial_states, "frontier": stats.frontier,
+             "max_time": ex.max_time_now(),
              "bounds": [b.value for b in ex._bounds],
              "found": [(f.violation, f.index, f.depth) for f in res.found],
              "peak_workers": list(ex.peak_workers),
@@ -854,6 +855,7 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
     res, stats = ex._res, ex._res.stats
     stats.transitions, stats.max_depth = state["transitions"], state["max_depth"]
     stats.initial_states, stats.frontier = state["initial_states"], state["frontier"]
+    stats.max_time = state.get("max_time")      # (None in a checkpoint written before it)
     ex._bounds.update(Bound(b) for b in state["bounds"])
     for v, idx, d in state["found"]:
         res.found.append(Counterexample(v, idx, d))

@@ -91,7 +91,7 @@ class FastestExplorer(Explorer):
                     stop = self._memory_bound(fr.bounds, peak_rss_bytes())
                 progress(lambda secs: {"states": self.table.n, "frontier": fr.waiting(),
                                        "depth": stats.max_depth, "seconds": secs,
-                                       "memory": peak_rss_bytes(), "max_time": None})
+                                       "memory": peak_rss_bytes(), "max_time": stats.max_time})
         except KeyboardInterrupt:
             res.status = "interrupted"
             if ck is not None and ck.dir is not None and self._mark is not None:
@@ -145,6 +145,8 @@ class _Buckets:
         self.ex = ex
         self.m = m = cast(TimedModel, ex.model)
         self.time_costs = m.time_costs       # a step's time cost comes from the model
+        #: the largest model time of an admitted state (``stats.max_time``)
+        self.clock = getattr(m, "clock", None)
         key: Callable[[Any], Any] = m.key    # a key is marshallable (Model.key)
         if ex.exact:
             def key_of(s):
@@ -190,6 +192,10 @@ class _Buckets:
             self.budget -= cnt
             for r, p in enumerate(new[:cnt]):
                 out[p] = base + r
+            if self.clock is not None:
+                t = max(self.clock(states[p]) for p in new[:cnt])
+                if self.stats.max_time is None or t > self.stats.max_time:
+                    self.stats.max_time = t
             if rec is not None:
                 rec.states([states[p] for p in new[:cnt]])
         return out, keys

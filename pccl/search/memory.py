@@ -84,3 +84,16 @@ def format_size(n: int) -> str:
             v = n / size
             return f"{v:.1f}{unit}".replace(".0" + unit, unit)
     return str(n)
+
+
+def parse_size(text: str) -> int:
+    """``--max-memory`` values: bytes, or a number with K, M, G, T (powers of
+    1024; an optional trailing ``B``/``iB``)."""
+    import re
+    m = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?)\s*([KMGT]?)(?:i?B)?\s*", str(text), re.I)
+    if not m:
+        raise ValueError(f"expected a size such as 800M or 4G, got {text!r}")
+    v = float(m.group(1)) * 1024 ** " KMGT".index((m.group(2) or " ").upper())
+    if v < 1 or v != v or v > 2**62:
+        raise ValueError(f"size out of range: {text!r}")
+    return int(v)

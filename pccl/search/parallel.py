@@ -193,9 +193,18 @@ class _Worker:
         # the team's signature (decided here, on the actual successors)
         self.g_chg_idx: list = []
         self.g_chg: list = []
+        #: the largest model time of the states admitted here (models with
+        #: ``clock``): :meth:`max_time`, the one-process ``stats.max_time``
+        self.clock = getattr(model, "clock", None)
+        self.t_max: Any = None
 
     def _note_states(self, idx, states: list) -> None:
-        """The states admitted to my level (numbers ``idx``): their columns."""
+        """The states admitted to my level (numbers ``idx``): their columns
+        and the largest model time."""
+        if self.clock is not None and states:
+            t = max(map(self.clock, states))
+            if self.t_max is None or t > self.t_max:
+                self.t_max = t
         if self.columns is not None and states:
             self.g_idx.append(np.asarray(idx, dtype=np.int64))
             self.g_cols.append(self.columns(states))
@@ -588,19 +597,50 @@ class _Worker:
     def graph(self):
         """What this worker knows of the state graph, handed over once at the
         end of the search: my partition of the visited set (fingerprints and
-        their state numbers), the transitions I generated (source numbers,
-        target fingerprints: the coordinator numbers the targets) and the
-        columns of the states I held."""
+        their state numbers), the columns of the states I held and the
+        stall check's flags.  The transitions I generated follow a chunk at
+        a time (:meth:`graph_edges`)."""
         t = self.table
-        src = np.concatenate(self.g_src) if self.g_src else np.zeros(0, np.uint32)
-        fps = np.concatenate(self.g_fps) if self.g_fps else np.zeros((0, 2), np.uint64)
-        self.g_src, self.g_fps = [], []
+        # not needed once handed over (the coordinator's table numbers the
+        # states from now on): freed as soon as the coordinator drops the
+        # views (worker 0: in its process, before it builds that table)
+        self.table = FingerprintTable()
         idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
         cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
         self.g_idx, self.g_cols = [], []
         chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
         self.g_chg_idx, self.g_chg = [], []
-        return (t.fps[:t.n], t.parents[:t.n], src, fps, idx, cols, peak_rss_bytes(), chg)
+        return (t.fps[:t.n], t.parents[:t.n], idx, cols, peak_rss_bytes(), chg)
+
+    def graph_edges(self, most: int):
+        """The next of the transitions I generated, in the order generated,
+        about ``most`` of them (source numbers, target fingerprints: the
+        coordinator numbers the targets), dropped here as they go; None once
+        all are handed over.  In chunks: whole, they were copied once to be
+        joined and once more to be sent (a peak of three times their size
+        here, twice at the coordinator)."""
+        src: list = []
+        fps: list = []
+        k = 0
+        while self.g_src and k < most:
+            s, f = self.g_src[0], self.g_fps[0]
+            if k + len(s) > most:           # a long part (one level, or a checkpoint's join)
+                cut = max(most - k, 1)
+                s, f, self.g_src[0], self.g_fps[0] = s[:cut], f[:cut], s[cut:], f[cut:]
+            else:
+                del self.g_src[0], self.g_fps[0]
+            src.append(s)
+            fps.append(f)
+            k += len(s)
+        if not src:
+            return None
+        return (np.concatenate(src) if len(src) > 1 else src[0],
+                np.concatenate(fps) if len(fps) > 1 else fps[0])
+
+    def max_time(self):
+        """The largest model time of the states admitted here (None: no
+        clock, or none admitted)."""
+        return self.t_max
 
     def index_of(self, fp: bytes) -> int:
         local = self.table.index_of(fp)
@@ -1377,6 +1417,11 @@ class _RemoteTable:
         return -1 if p == _NONE else p
 
 
+#: transitions per message when a worker hands its part of the state graph
+#: over (:meth:`_Worker.graph_edges`): 20 bytes each, 20 MiB a message
+_GRAPH_CHUNK = 1 << 20
+
+
 class ParallelExplorer(Explorer):
     """:class:`Explorer` over ``workers`` partitions.
 
@@ -1496,6 +1541,7 @@ class ParallelExplorer(Explorer):
                 except Exception:
                     res.found.clear()
         self.table.n = self._total
+        res.stats.max_time = self.max_time_now(interrupted=res.status == "interrupted")
         if self.fastest:
             res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
             res.stats.frontier = sum(self._waiting.values())
@@ -1503,6 +1549,25 @@ class ParallelExplorer(Explorer):
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
         return res
+
+    def max_time_now(self, interrupted: bool = False) -> Any:
+        """The largest model time of the states admitted so far (the
+        one-process ``stats.max_time``): the workers' and a resumed
+        checkpoint's.  After an interrupt a worker that cannot answer
+        leaves the figure as it is."""
+        t = self._res.stats.max_time
+        if getattr(self.model, "clock", None) is None:
+            return t
+        try:
+            times = self.transport.all("max_time", [()] * self.workers)
+        except Exception:
+            if not interrupted:
+                raise
+            return t
+        for x in times:
+            if x is not None and (t is None or x > t):
+                t = x
+        return t
 
     def _put_parents(self, base: int, values: np.ndarray) -> None:
         """The global parent links of the states numbered from ``base``."""
@@ -1827,24 +1892,30 @@ class ParallelExplorer(Explorer):
         one-process search records."""
         rec, n = self.recorder, self.workers
         parts = self.transport.all("graph", [()] * n)
+        self.peak_workers = [max(a, p[4]) for a, p in zip(self.peak_workers, parts)]
+        idx = [p[2] for p in parts if p[3] is not None]
+        cols = [p[3] for p in parts if p[3] is not None]
+        chg = [p[5] for p in parts]
         fps = np.zeros((total, 2), dtype=np.uint64)
-        for p in parts:
+        while parts:            # each partition dropped once in place
+            p = parts.pop(0)
             fps[p[1]] = p[0]
+            del p
         table = FingerprintTable()
         if total:
             table.insert(fps, self.parents[:total])
         del fps
-        self.peak_workers = [max(a, p[6]) for a, p in zip(self.peak_workers, parts)]
-        idx = [p[4] for p in parts if p[5] is not None]
-        cols = [p[5] for p in parts if p[5] is not None]
-        chg = [p[7] for p in parts]
         rec.changes_given = True
         step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
-        while parts:
-            _, _, src, tfps, *_ = parts.pop(0)
-            for a in range(0, len(src), step):
-                rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
-            del src, tfps
+        for w in range(n):      # each worker's transitions, a chunk at a time
+            while True:
+                part = self.transport.call(w, "graph_edges", _GRAPH_CHUNK)
+                if part is None:
+                    break
+                src, tfps = part
+                for a in range(0, len(src), step):
+                    rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
+                del part, src, tfps
         rec.put_states(total, idx, cols)
         rec.put_changes(total, [c[0] for c in chg], [c[1] for c in chg])
         self.table = table
