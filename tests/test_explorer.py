@@ -226,3 +226,40 @@ def test_interrupted_without_violations_exits_130():
     m.successors = successors
     r = explore_model(m)
     assert r.status == "interrupted" and r.exit_status == 130 and not r.violations
+
+
+class _Bad:
+    identity = "bad"
+
+
+class _Clocked:
+    """A toy model: 0 -> 1 (violates), 0 -> 2; the clock of state s is 10 s.
+    The batch {1, 2} is cut after 1, so 2 is never admitted."""
+
+    def init_states(self):
+        return [0]
+
+    def successors(self, s):
+        return [("a", 1), ("b", 2)] if s == 0 else []
+
+    def key(self, s):
+        return s
+
+    def violations(self, s):
+        return [_Bad()] if s == 1 else []
+
+    def terminal_kind(self, s):
+        return "final"
+
+    def deadlock_violation(self, s):
+        return None
+
+    def clock(self, s):
+        return 10 * s
+
+
+def test_max_time_counts_only_admitted_states():
+    from pccl.search.explorer import Explorer
+    r = Explorer(_Clocked()).run()
+    assert r.status == "violation" and r.stats.states == 2
+    assert r.stats.max_time == 10          # state 2 (time 20) was never admitted

@@ -1162,11 +1162,6 @@ class _Admission:
             halt = True
             stop_at = new[budget]       # the first state that does not fit
         states = list(map(cs.__getitem__, new[:cut]))     # no bytecode per state
-        clock = self.clock
-        if clock is not None and cut:
-            t = max(map(clock, states[:cut]))
-            if stats.max_time is None or t > stats.max_time:
-                stats.max_time = t
         viols = list(map(self.ex.model.violations, states))     # no bytecode per state
         for j in itertools.compress(range(cut), viols):
             if self.record(viols[j], base + j, d):
@@ -1174,6 +1169,11 @@ class _Admission:
                 halt = True
                 stop_at = new[j]
                 break
+        clock = self.clock
+        if clock is not None and cut:       # of the states admitted (up to the cut)
+            t = max(map(clock, states[:cut]))
+            if stats.max_time is None or t > stats.max_time:
+                stats.max_time = t
         owners = np.repeat(np.arange(len(par_n)), par_n)
         rec = self.ex.recorder
         if cut:
