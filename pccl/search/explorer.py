@@ -788,6 +788,10 @@ class Explorer:
                         return True
                     report(len(level) - c0 - len(ns))
                 continue
+            if expand is not None and not at_bound:
+                if self._expand_mixed(adm, level, level_idx, depth, ns, flat, c0, report):
+                    return True
+                continue
             if expand is not None:
                 # the batch's successors per state (labels are not read past
                 # here): no second expansion of the chunk
@@ -795,6 +799,37 @@ class Explorer:
                 succs = [[(None, s) for s in itertools.islice(it, n)] for n in ns]
             if self._expand_one(adm, level, level_idx, depth, succs, c0, at_bound, report):
                 return True
+        return False
+
+    def _expand_mixed(self, adm: "_Admission", level: list, level_idx: list, depth: int,
+                      ns: list, flat: list, c0: int, report: Callable[[int], None]) -> bool:
+        """A chunk the batch hook expanded that holds terminal states (no
+        successors): the runs of states between them queued whole, as the
+        fast path queues a chunk, each terminal state by itself, in order
+        (:meth:`_expand_one`'s handling).  True to stop."""
+        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
+        ends = list(itertools.accumulate(ns, initial=0))   # flat offset of each state
+        a = 0
+        for t in [j for j, n in enumerate(ns) if not n] + [len(ns)]:
+            if t > a:
+                par_idx.extend(level_idx[c0 + a:c0 + t])
+                par_n.extend(ns[a:t])
+                cs.extend(flat[ends[a]:ends[t]])
+                if len(cs) >= self.batch:
+                    if adm.flush(depth + 1):
+                        return True
+                    report(len(level) - c0 - t)
+            if t == len(ns):
+                break
+            pos = c0 + t
+            bound, v = terminal(self.model, level[pos], self.deadlock)
+            if bound is not None:
+                flags.setdefault(bound, level_idx[pos])
+            elif v is not None:
+                # the pending successors of earlier states come first
+                if adm.flush(depth + 1) or adm.record([v], level_idx[pos], depth):
+                    return True
+            a = t + 1
         return False
 
     def _expand_one(self, adm: "_Admission", level: list, level_idx: list, depth: int,
