@@ -620,7 +620,8 @@ class _Worker:
         target fingerprints: the coordinator numbers the targets) and the
         columns of the states I held."""
         t = self.table
-        mine = t.entries() if self.spill is not None else (t.fps[:t.n], t.parents[:t.n])
+        mine = self.spill.table.entries() if self.spill is not None else \
+            (t.fps[:t.n], t.parents[:t.n])
         src = np.concatenate(self.g_src) if self.g_src else np.zeros(0, np.uint32)
         fps = np.concatenate(self.g_fps) if self.g_fps else np.zeros((0, 2), np.uint64)
         self.g_src, self.g_fps = [], []
@@ -633,7 +634,7 @@ class _Worker:
 
     def index_of(self, fp: bytes) -> int:
         if self.spill is not None:          # the spilled partition answers global numbers
-            return self.table.number_of(fp)
+            return self.spill.table.number_of(fp)
         local = self.table.index_of(fp)
         return -1 if local < 0 else int(self.table.parents[local])
 
@@ -1510,8 +1511,9 @@ class ParallelExplorer(Explorer):
         (``worker-<i>/``), with ``max_memory`` over the number of workers
         for its process (pccl/search/spill.py).  Returns the directories."""
         from pccl.search.spill import Spiller, worker_dirs
-        n = self.workers
-        dirs = worker_dirs(self.options.spill, n)
+        n, parent = self.workers, self.options.spill
+        assert parent is not None
+        dirs = worker_dirs(parent, n)
         share = None if self.max_memory is None else self.max_memory // n
         self.transport.all("spill_start", [(d, share, Spiller.STATES) for d in dirs])
         return dirs

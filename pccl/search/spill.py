@@ -761,7 +761,11 @@ class WorkerSpiller:
         self.level_writes = 0
         self._rss: Any = None
 
-    rss = Spiller.rss
+    def rss(self) -> int:
+        if self._rss is None:
+            import psutil
+            self._rss = psutil.Process().memory_info
+        return int(self._rss().rss)
 
     def relieve(self, w: Any) -> None:
         """After the worker ``w`` recorded new states (its table) and took
