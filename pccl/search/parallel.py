@@ -1490,7 +1490,9 @@ class ParallelExplorer(Explorer):
                                  fastest=self.fastest)
             self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
             if self.options.spill is not None:
-                spill_dirs = self._spill_start()
+                from pccl.search.spill import worker_dirs
+                spill_dirs = worker_dirs(self.options.spill, self.workers)
+                self._spill_start(spill_dirs)
             return self._run()
         finally:
             try:
@@ -1505,18 +1507,15 @@ class ParallelExplorer(Explorer):
                 if enabled:
                     gc.enable()
 
-    def _spill_start(self) -> list:
+    def _spill_start(self, dirs: list) -> None:
         """``spill``: each worker spills its partition and its share of the
-        levels into a directory of its own under ``spill``
-        (``worker-<i>/``), with ``max_memory`` over the number of workers
-        for its process (pccl/search/spill.py).  Returns the directories."""
-        from pccl.search.spill import Spiller, worker_dirs
-        n, parent = self.workers, self.options.spill
-        assert parent is not None
-        dirs = worker_dirs(parent, n)
+        levels into a directory of its own (``dirs``: ``spill/worker-<i>/``),
+        with ``max_memory`` over the number of workers for its process
+        (pccl/search/spill.py)."""
+        from pccl.search.spill import Spiller
+        n = self.workers
         share = None if self.max_memory is None else self.max_memory // n
         self.transport.all("spill_start", [(d, share, Spiller.STATES) for d in dirs])
-        return dirs
 
     def _run(self) -> SearchResult:
         """The coordinator: the initial states (:meth:`_initial_rounds`),
