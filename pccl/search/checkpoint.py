@@ -541,8 +541,7 @@ def write_appended(tmp: str, prefix: str, gen: str, state, arrays: dict, appende
     checkpoint (``prefix=""``) and for each partition of the parallel
     search's (``prefix="wNNN"``, in the worker's process with
     ``--workers N``)."""
-    whole = {k: v for k, v in arrays.items() if k not in appended}
-    files = write_part(tmp, prefix, state, whole)
+    files: dict = {}
     pre = prefix + "/" if prefix else ""
     after: dict = {}
     for name in appended:
@@ -566,8 +565,9 @@ def write_appended(tmp: str, prefix: str, gen: str, state, arrays: dict, appende
                           "info": info})
         after[name] = {"rows": len(arr), "dtype": arr.dtype.str,
                        "shape": list(arr.shape[1:]), "parts": parts}
-    if prefix:
-        _fsync_dir(os.path.join(tmp, prefix))
+    # the rest last: with a prefix, write_part fsyncs the directory once, after every file
+    files.update(write_part(tmp, prefix, state, {k: v for k, v in arrays.items()
+                                                 if k not in appended}))
     return files, after
 
 
