@@ -37,6 +37,10 @@ without ``--spill``.
 The result is the in-memory search's: the same state numbers in the same
 order, hence the same states, transitions, depth, verdict and
 counterexample (``tests/test_spill.py`` compares them).
+
+With ``--workers N`` each worker spills its partition and its share of the
+levels the same way (:class:`PartitionTable`, :class:`WorkerSpiller`: the
+end of this module).
 """
 
 from __future__ import annotations
