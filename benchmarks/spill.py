@@ -3,6 +3,7 @@
 
     python benchmarks/spill.py [--repeat 2] [--dir /var/tmp/pccl-spill]
         [--set k=2 --set d=2] [--bound 80M] [--bound 70M]
+        [--workers 2 [--workers-bound 130M]]
 
 Each configuration runs ``pccl explore ... --format json`` in a fresh
 process, the configurations alternating (``--repeat`` rounds, the median
@@ -10,6 +11,14 @@ shown); CPU seconds are the child's user + system time (getrusage), wall
 the process's, peak the search's own figure (the process's peak RSS).  The
 spilled searches must give the in-memory figures (states, transitions,
 depth, status): the script says so or exits 1.
+
+``--workers N``: the same with ``--workers N`` too (in memory, stopped by
+the bound, spilling), and the ratios of the spilling workers' CPU time to
+the N workers' in memory and to one process spilling.  The workers' bound
+is ``--workers-bound`` (repeatable; by default each ``--bound`` plus 48 MiB
+per further worker: each forked process needs about that before it holds a
+state, and ``--max-memory`` bounds the processes' peaks together).  CPU
+time counts every process (the workers are the pccl process's children).
 """
 
 from __future__ import annotations
@@ -43,6 +52,13 @@ def run(args: list) -> dict:
             "notes": [n for n in out.get("notes", []) if n.startswith("--spill")]}
 
 
+def _mib(text: str) -> int:
+    """``80M``, ``1G``, ``83886080`` in MiB."""
+    t = text.strip().upper()
+    scale = {"K": 1 / 1024, "M": 1, "G": 1024}.get(t[-1:], None)
+    return int(float(t[:-1]) * scale) if scale else int(t) >> 20
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=2)
@@ -51,6 +67,8 @@ def main() -> None:
     ap.add_argument("--set", dest="sets", action="append", default=None)
     ap.add_argument("--bound", dest="bounds", action="append", default=None)
     ap.add_argument("--extra", default="--reduce none --no-timelock --no-stall")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--workers-bound", dest="wbounds", action="append", default=None)
     a = ap.parse_args()
     sets = a.sets or ["k=2", "d=2"]
     bounds = a.bounds or ["80M", "70M"]
@@ -60,6 +78,18 @@ def main() -> None:
     for b in bounds:
         configs += [(f"--max-memory {b}", ["--max-memory", b]),
                     (f"--max-memory {b} --spill", ["--max-memory", b, "--spill", a.dir])]
+    pairs = []          # (workers spilling, workers in memory, one process spilling)
+    if a.workers > 1:
+        w = ["--workers", str(a.workers)]
+        wmem = f"--workers {a.workers}, in memory"
+        configs.append((wmem, w))
+        wbounds = a.wbounds or [f"{_mib(b) + 48 * (a.workers - 1)}M" for b in bounds]
+        for i, wb in enumerate(wbounds):
+            b = bounds[min(i, len(bounds) - 1)]        # the one-process run it is compared with
+            spill = f"--workers {a.workers} --max-memory {wb} --spill"
+            configs += [(f"--workers {a.workers} --max-memory {wb}", w + ["--max-memory", wb]),
+                        (spill, w + ["--max-memory", wb, "--spill", a.dir])]
+            pairs.append((spill, wmem, f"--max-memory {b} --spill"))
     results: dict = {name: [] for name, _ in configs}
     for _ in range(a.repeat):
         for name, extra in configs:
@@ -85,6 +115,14 @@ def main() -> None:
     for name, _ in configs:
         for n in results[name][0]["notes"]:
             print(f"\n{name}: {n}")
+    if pairs:
+        print("\n| spilling workers | CPU vs the workers in memory | CPU vs one process spilling |")
+        print("|---|---:|---:|")
+
+        def med(name):
+            return statistics.median(r["cpu"] for r in results[name])
+        for spill, wmem, one in pairs:
+            print(f"| {spill} | {med(spill) / med(wmem):.2f}x | {med(spill) / med(one):.2f}x |")
     if not ok:
         sys.exit("a spilled search differs from the in-memory one")
     print("\nevery spilled search gave the in-memory states, transitions, depth and status")

@@ -12,6 +12,7 @@ import errno
 import gc
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -211,7 +212,8 @@ def test_spill_table_agrees_with_a_dict(tmp_path_factory, ops):
 # -- refusals and errors -----------------------------------------------------
 
 @pytest.mark.parametrize("opts, says", [
-    (dict(workers=2), "spill runs in one process for now: use workers=1 without ray"),
+    (dict(workers=2, ray="local"), "spill runs on this machine's processes: use workers=N "
+                                   "without ray"),
     (dict(exact=True), "spill does not run with exact (it stores fingerprints)"),
     (dict(fastest=True), "spill does not run with fastest"),
     (dict(checkpoint="ck"), "spill does not run with checkpoint"),
@@ -226,11 +228,12 @@ def _cli(*args, env=None):
                           capture_output=True, text=True, env=env, timeout=300)
 
 
-def test_cli_refuses_workers_with_spill(tmp_path):
-    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(tmp_path), "--workers", "2")
+def test_cli_refuses_ray_with_spill(tmp_path):
+    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(tmp_path), "--ray", "local")
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [
-        "--spill: error: --spill runs in one process for now: use --workers 1 without --ray"]
+        "--spill: error: --spill runs on this machine's processes: use --workers N without "
+        "--ray (Ray's actors may run on nodes that do not see the directory)"]
 
 
 def test_unwritable_spill_dir_is_one_message(tmp_path):
@@ -276,6 +279,216 @@ def test_cli_spill_keeps_the_search_under_max_memory(tmp_path):
     base = json.loads(_cli(*args, "--max-states", "1").stdout)["statistics"]["peak_memory_bytes"]
     grow = free["statistics"]["peak_memory_bytes"] - base
     bound = base + grow // 2
+    cut = json.loads(_cli(*args, "--max-memory", str(bound)).stdout)
+    assert cut["status"] == "bounded"
+    spilled = json.loads(_cli(*args, "--max-memory", str(bound), "--spill", str(tmp_path)).stdout)
+    assert spilled["status"] == "exhaustive", spilled["status"]
+    for k in ("states", "transitions", "max_depth"):
+        assert spilled["statistics"][k] == free["statistics"][k]
+    assert spilled["statistics"]["peak_memory_bytes"] <= bound
+    assert os.listdir(tmp_path) == []
+
+
+# -- several workers (--spill DIR --workers N) ----------------------------------
+
+def worker_spills(r, workers: int) -> list:
+    """Per worker, from the report's note: (merges, states on disk, level segments)."""
+    (note,) = [n for n in r.notes if n.startswith("spill=")]
+    if f"nothing spilled by the {workers} workers" in note:
+        return [(0, 0, 0)] * workers
+    got = re.findall(r"worker (\d+): ([\d,]+) merge\(s\), ([\d,]+) states on disk, ([\d,]+) "
+                     r"segment", note)
+    assert [int(w) for w, *_ in got] == list(range(workers)), note
+    return [tuple(int(x.replace(",", "")) for x in rest) for _, *rest in got]
+
+
+@pytest.mark.parametrize("engine", ["auto", "python"])
+@pytest.mark.parametrize("workers", [2, 3])
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_spilling_workers_give_the_in_memory_result(name, workers, engine, tmp_path,
+                                                     many_spills):
+    """Each worker spills its partition (and, on wide levels, its share of
+    the level) every 300 states: the result is one process's in memory and
+    one process's spilling (figures, verdict, counterexamples), on the
+    native engine (``auto``: every case but the temporal property, with the
+    time-lock and stall recorder on and off) and on the Python engine."""
+    program, opts = CASES[name]
+    opts = dict(opts, engine=engine)
+    mem = explore(program, **opts)
+    one = explore(program, spill=str(tmp_path / "one"), **opts)
+    disk = explore(program, spill=str(tmp_path / "w"), workers=workers, **opts)
+    assert signature(disk) == signature(mem) == signature(one)
+    # the native engine without a recorder, the Python engine with one
+    # (with workers, a program that moves and a temporal property run on the Python engine)
+    assert disk.model.engine_used == (
+        "python" if engine == "python" or name in ("liveness", "race-nonatomic-stuck")
+        else "native")
+    spills = worker_spills(disk, workers)
+    if mem.stats.states > 600 * workers:
+        assert all(merges >= 1 for merges, _, _ in spills), spills
+    if name in WIDE:
+        assert sum(seg for _, _, seg in spills) >= 2 * workers, spills
+    assert sum(on_disk for _, on_disk, _ in spills) <= disk.stats.states
+    del disk, one
+    gc.collect()
+    assert sorted(os.listdir(tmp_path)) == ["one", "w"]
+    assert os.listdir(tmp_path / "w") == [] and os.listdir(tmp_path / "one") == [], \
+        "the search's files outlived it"
+
+
+@pytest.mark.parametrize("name", ["leader", "fischer-native", "fischer-violation"])
+def test_spilling_workers_hand_work_over_with_the_same_result(name, tmp_path, many_spills,
+                                                               monkeypatch):
+    """Balanced levels (every level, a few states at a time) while a
+    worker's share of the level is read back from disk: what a worker hands
+    over comes from memory or from its file, the result does not change."""
+    from pccl.search import parallel as P
+    monkeypatch.setattr(P, "_CHUNK", 4)
+    monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
+    monkeypatch.setattr(P, "_BALANCE_NATIVE", True)
+    monkeypatch.setattr(P, "_MIN_GIVE", 2)
+    monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
+    program, opts = CASES[name]
+    mem = explore(program, **opts)
+    for workers in (2, 3):
+        disk = explore(program, spill=str(tmp_path), workers=workers, **opts)
+        assert signature(disk) == signature(mem), workers
+        if name in WIDE:
+            assert sum(seg for _, _, seg in worker_spills(disk, workers)) >= 2 * workers
+
+
+def test_spilling_workers_answer_as_the_in_memory_ones(tmp_path, many_spills):
+    """The partitions on disk hold every state under its number: the graph
+    the workers hand over (their partitions read back) equals the in-memory
+    workers', and the replay's lookups find every state."""
+    from pccl.search.parallel import ParallelExplorer
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    a = ParallelExplorer(m, workers=2)
+    b = ParallelExplorer(m, workers=2, spill=str(tmp_path), max_states=5000)
+    ra, rb = a.run(), ParallelExplorer(m, workers=2, max_states=5000).run()
+    assert ra.status == "exhaustive"
+    rs = b.run()
+    assert signature_of(rs) == signature_of(rb)
+    assert sum(f["merges"] for f in b.spiller.per_worker) >= 4
+    assert sum(f["states_on_disk"] for f in b.spiller.per_worker) > 2500
+
+
+def signature_of(sr):
+    return (sr.status, sr.stats.states, sr.stats.transitions, sr.stats.max_depth,
+            sorted(b.value for b in sr.bounds_hit))
+
+
+def test_partition_table_agrees_with_a_fingerprint_table(tmp_path):
+    """A worker's spilled partition against the in-memory table it
+    replaces: global numbers found, absent fingerprints not, every entry
+    read back, across many spills."""
+    rng = np.random.default_rng(7)
+    d = S.SpillDir(str(tmp_path))
+    t = S.PartitionTable(d, FingerprintTable)
+    ref = FingerprintTable()
+    try:
+        for step in range(12):
+            q = rng.integers(0, 2**63, size=(int(rng.integers(1, 400)), 2), dtype=np.uint64)
+            q = q[ref.lookup(q) < 0]
+            q = np.unique(q, axis=0)
+            nums = rng.permutation(len(q)).astype(np.int64) + 10 * ref.n
+            t.insert(q, nums)
+            ref.insert(q, nums)
+            if step % 3 != 2:
+                t.spill()
+            probe = np.concatenate([ref.fps[:ref.n], q ^ np.uint64(1)])
+            want = ref.lookup(probe)
+            want = np.where(want >= 0, ref.parents[np.maximum(want, 0)].astype(np.int64), -1)
+            assert (t.lookup(probe) == want).all()
+        assert t.n == ref.n and t.disk.merges >= 6 and t.buffered
+        fps, nums = t.entries()
+        order = np.lexsort((fps[:, 1], fps[:, 0]))
+        rorder = np.lexsort((ref.fps[:ref.n, 1], ref.fps[:ref.n, 0]))
+        assert (fps[order] == ref.fps[:ref.n][rorder]).all()
+        assert (nums[order] == ref.parents[:ref.n][rorder]).all()
+        k = ref.fps[5].tobytes()
+        assert t.number_of(k) == int(ref.parents[5])
+        assert t.number_of((ref.fps[5] ^ np.uint64(2)).tobytes()) == -1
+    finally:
+        t.close()
+        d.close()
+
+
+def test_cli_workers_spill_says_what_each_worker_spilled(tmp_path):
+    """``--spill DIR --workers 2`` on the command line, with a bound 15 MiB
+    above what the two processes need before the first state (so the
+    coordinator's process, worker 0, is pressed: above three quarters of its
+    half, and writes its share of each level to disk): the figures of the
+    run without it, the note per worker, the files gone."""
+    args = ["explore", FISCHER, "--set", "k=1", "--set", "d=1", "--max-states", "20000",
+            "--no-timelock", "--no-stall", "--format", "json"]
+    free = json.loads(_cli(*args).stdout)
+    base = json.loads(_cli(*args, "--workers", "2", "--max-states", "1").stdout)
+    bound = base["statistics"]["peak_memory_bytes"] + (15 << 20)
+    r = _cli(*args, "--workers", "2", "--spill", str(tmp_path), "--max-memory", str(bound))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    for k in ("states", "transitions", "max_depth"):
+        assert out["statistics"][k] == free["statistics"][k]
+    assert out["status"] == free["status"]
+    (note,) = [n for n in out["notes"] if n.startswith("--spill")]
+    assert note.startswith(f"--spill {tmp_path}: the 2 workers merged their visited states "
+                           f"to disk "), note
+    segments = [int(m) for m in re.findall(r"worker \d: [\d,]+ merge\(s\), [\d,]+ states on "
+                                           r"disk, ([\d,]+) segment", note)]
+    assert len(segments) == 2 and sum(segments) >= 10, note
+    assert os.listdir(tmp_path) == []
+
+
+def test_unwritable_spill_dir_with_workers_is_one_message(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(blocker / "sub"),
+             "--workers", "2")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines() == [
+        f"--spill: error: cannot write the search's files to {blocker / 'sub'}: Not a directory"]
+
+
+@pytest.mark.parametrize("where", ["coordinator", "worker"])
+def test_full_disk_in_a_spilling_worker_is_one_message(where, tmp_path, monkeypatch,
+                                                        many_spills):
+    """ENOSPC in worker 0 (the coordinator's process) or in a forked
+    worker: one message naming the option, exit 2, no files left."""
+    real = np.ndarray.tofile
+    calls = []
+    coordinator = os.getpid()
+
+    def tofile(self, f, *a, **k):
+        if (os.getpid() == coordinator) == (where == "coordinator"):
+            calls.append(1)
+            if len(calls) > 3:
+                raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, f, *a, **k)
+    monkeypatch.setattr(S, "_tofile", tofile)
+    with pytest.raises(PcclError) as e:
+        explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path), workers=2)
+    assert e.value.render() == (f"spill: error: the search could not go on spilling to "
+                                f"{tmp_path}: the disk is full")
+    assert e.value.exit_status == 2
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.slow
+def test_cli_workers_spill_keeps_the_search_under_max_memory(tmp_path):
+    """A real bound with two workers (each process gets half of it):
+    fischer k=2 d=2 unreduced (1,066,248 states) without --spill stops at
+    --max-memory; with it, it completes with the in-memory figures, its
+    processes' peaks together below the bound.  (The bound is two thirds of
+    the way from the processes' start to their free peak: unlike one
+    process, which admits states a batch at a time, a worker holds a whole
+    level's candidates, which cannot be spilled.)"""
+    args = ["explore", FISCHER, "--set", "k=2", "--set", "d=2", "--reduce", "none",
+            "--no-timelock", "--no-stall", "--format", "json", "--workers", "2"]
+    free = json.loads(_cli(*args).stdout)
+    base = json.loads(_cli(*args, "--max-states", "1").stdout)["statistics"]["peak_memory_bytes"]
+    grow = free["statistics"]["peak_memory_bytes"] - base
+    bound = base + grow * 2 // 3
     cut = json.loads(_cli(*args, "--max-memory", str(bound)).stdout)
     assert cut["status"] == "bounded"
     spilled = json.loads(_cli(*args, "--max-memory", str(bound), "--spill", str(tmp_path)).stdout)

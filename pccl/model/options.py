@@ -345,9 +345,10 @@ def spill_conflict(o: "ExploreOptions") -> Optional[Conflict]:
     """Why ``o`` cannot spill to disk (None: it can, or does not ask to)."""
     if o.spill is None:
         return None
-    if o.ray is not None or o.workers != 1:
-        return Conflict("spill", "{spill} runs in one process for now: use {workers=1} "
-                                 "without {ray}")
+    if o.ray is not None:
+        return Conflict("spill", "{spill} runs on this machine's processes: use {workers=N} "
+                                 "without {ray} (Ray's actors may run on nodes that do not "
+                                 "see the directory)")
     for name, why in (("exact", "it stores fingerprints"), ("fastest", "not yet"),
                       ("checkpoint", "not yet"), ("resume", "not yet")):
         v = getattr(o, name)

@@ -244,35 +244,18 @@ class Checkpointer:
         hold the rest (``"segments"``; see "Appended arrays" below)."""
         before = self._segments
         after: dict = {}
-        gen = f"gen-{self.generation + 1:06d}"
+        gen = self.next_generation()
 
         def fill(tmp: str) -> dict:
-            whole = {k: v for k, v in arrays.items() if k not in appended}
-            files = write_part(tmp, "", state, whole)
-            for name in appended:
-                if name not in arrays:
-                    continue
-                arr = arrays[name]
-                prev = before.get(name)
-                if prev is not None and (prev["rows"] > len(arr) or len(prev["parts"]) >= MAX_PARTS
-                                         or prev["dtype"] != arr.dtype.str
-                                         or list(prev["shape"]) != list(arr.shape[1:])):
-                    prev = None             # written whole again (and the chain starts anew)
-                parts = [dict(p) for p in prev["parts"]] if prev is not None else []
-                start = prev["rows"] if prev is not None else 0
-                for p in parts:             # an older generation's file, named from this one's
-                    files[f"../{p['gen']}/{p['file']}"] = p["info"]
-                if start < len(arr) or not parts:
-                    fname = f"{name}.{start}.npy"
-                    info = write_part(tmp, "", None, {fname[:-4]: arr[start:]})[fname]
-                    files[fname] = info
-                    parts.append({"gen": gen, "file": fname, "start": start, "end": len(arr),
-                                  "info": info})
-                after[name] = {"rows": len(arr), "dtype": arr.dtype.str,
-                               "shape": list(arr.shape[1:]), "parts": parts}
+            files, segments = write_appended(tmp, "", gen, state, arrays, appended, before)
+            after.update(segments)
             return files
         self.write_generation(fill, state, {"segments": after})     # filled by fill()
         self._segments = after
+
+    def next_generation(self) -> str:
+        """The name of the generation the next write makes."""
+        return f"gen-{self.generation + 1:06d}"
 
     def write_generation(self, fill, state: dict, extra: Optional[dict] = None) -> None:
         """Write a generation: ``fill(tmp)`` writes its files into the
@@ -312,12 +295,20 @@ class Checkpointer:
             if k.startswith("../"):
                 named.setdefault(k.split("/")[1], set()).add(k.split("/", 2)[2])
         for old, keep_files in named.items():
-            try:
-                for f in os.listdir(os.path.join(d, old)):
-                    if f not in keep_files:
-                        os.unlink(os.path.join(d, old, f))
-            except OSError:
-                pass
+            root = os.path.join(d, old)
+            for where, _, names in os.walk(root, topdown=False):    # partitions: wNNN/
+                for f in names:
+                    path = os.path.join(where, f)
+                    if os.path.relpath(path, root) not in keep_files:
+                        try:
+                            os.unlink(path)
+                        except OSError:
+                            pass
+                if where != root:
+                    try:
+                        os.rmdir(where)         # once empty
+                    except OSError:
+                        pass
         keep = {gen, *named}
         for entry in os.listdir(d):
             if entry not in keep and (entry.startswith("gen-") or entry.startswith("tmp-")):
@@ -369,16 +360,21 @@ class Checkpointer:
             raise self._bad(f"the checkpoint was written by {parts} workers; resume it with "
                             f"{{workers=N}} (N of 2 or more, not necessarily {parts}) or {{ray}}")
         self._check_engine(man["identity"], self.identity)
-        top = {k: v for k, v in files.items() if "/" not in k or k.startswith("../")}
+        top = {k: v for k, v in files.items() if _part_of(k) == ""}
         self.gen_dir = os.path.join(d, gen)
-        self.parts = [{k[len(p) + 1:]: v for k, v in files.items() if k.startswith(p + "/")}
-                      for p in map(part_name, range(parts))]
+        names = [part_name(w) for w in range(parts)]
+        self.parts = [{_within(k, p): v for k, v in files.items() if _part_of(k) == p}
+                      for p in names]
         if any(not p for p in self.parts):
             raise self._bad(f"the checkpoint is corrupt ({MANIFEST} lacks a partition)")
         state, arrays = self._read_generation(self.gen_dir, gen, top)
         segments = man.get("segments") or {}
+        #: per partition, its appended arrays (names without the partition's prefix)
+        self.part_segments = [{k[len(p) + 1:]: v for k, v in segments.items()
+                               if k.startswith(p + "/")} for p in names]
         try:
-            arrays = joined_segments(arrays, segments, gen)
+            arrays = joined_segments(arrays, {k: v for k, v in segments.items() if "/" not in k},
+                                     gen)
         except (ValueError, KeyError, TypeError) as e:
             raise self._bad(f"the checkpoint is corrupt ({e}); write a new one with "
                             "{checkpoint}") from None
@@ -494,18 +490,21 @@ class Checkpointer:
 MAX_PARTS = 64
 
 
-def joined_segments(arrays: dict, segments: dict, gen: str) -> dict:
+def joined_segments(arrays: dict, segments: dict, gen: str, up: str = "../",
+                    prefix: str = "") -> dict:
     """The arrays read from generation ``gen``'s files (``arrays``: file
     names without ``.npy``, as :func:`read_part` returns them; an older
     generation's as ``../gen-NNNNNN/name``) with each appended array of
     ``segments`` joined from its parts; ValueError when the parts do not
-    follow one another."""
+    follow one another.  (A parallel search's partition ``wNNN`` is read
+    from ``gen-NNNNNN/wNNN/``: an older generation's part of it is
+    ``../../gen-MMMMMM/wNNN/name``, ``up="../../"``, ``prefix="wNNN/"``.)"""
     out = {k: v for k, v in arrays.items() if not k.startswith("../") and "." not in k}
     for name, seg in segments.items():
         pieces, at = [], 0
         for p in seg["parts"]:
             fname = p["file"][:-4]
-            a = arrays.get(fname if p["gen"] == gen else f"../{p['gen']}/{fname}")
+            a = arrays.get(fname if p["gen"] == gen else f"{up}{p['gen']}/{prefix}{fname}")
             if a is None or p["start"] != at or p["end"] - p["start"] != len(a):
                 raise ValueError(f"the parts of {name} do not follow one another")
             pieces.append(a)
@@ -515,6 +514,61 @@ def joined_segments(arrays: dict, segments: dict, gen: str) -> dict:
                              f"{seg['rows']:,}")
         out[name] = pieces[0] if len(pieces) == 1 else np.concatenate(pieces)
     return out
+
+
+def _part_of(key: str) -> str:
+    """The partition (``wNNN``) a manifest's file belongs to, ``""`` for
+    the top of the generation: ``w000/fps.npy`` and
+    ``../gen-000004/w000/fps.0.npy`` are partition ``w000``'s."""
+    rest = key.split("/", 2)[2] if key.startswith("../") else key
+    return rest.split("/")[0] if "/" in rest else ""
+
+
+def _within(key: str, part: str) -> str:
+    """A manifest's file of partition ``part``, relative to its directory."""
+    return "../" + key if key.startswith("../") else key[len(part) + 1:]
+
+
+def write_appended(tmp: str, prefix: str, gen: str, state, arrays: dict, appended,
+                   before: dict) -> tuple[dict, dict]:
+    """Write ``state`` and ``arrays`` into ``tmp/prefix`` (:func:`write_part`)
+    for generation ``gen``; of the arrays named in ``appended``, which only
+    grow, only the rows added since ``before`` (their segments in the last
+    checkpoint in this directory, as this function returned them; see
+    "Appended arrays" above).  Returns the manifest's files (an older
+    generation's part as ``../gen-NNNNNN/prefix/name``) and the appended
+    arrays' segments (names without the prefix).  Used for one process's
+    checkpoint (``prefix=""``) and for each partition of the parallel
+    search's (``prefix="wNNN"``, in the worker's process with
+    ``--workers N``)."""
+    files: dict = {}
+    pre = prefix + "/" if prefix else ""
+    after: dict = {}
+    for name in appended:
+        if name not in arrays:
+            continue
+        arr = arrays[name]
+        prev = before.get(name)
+        if prev is not None and (prev["rows"] > len(arr) or len(prev["parts"]) >= MAX_PARTS
+                                 or prev["dtype"] != arr.dtype.str
+                                 or list(prev["shape"]) != list(arr.shape[1:])):
+            prev = None             # written whole again (and the chain starts anew)
+        parts = [dict(p) for p in prev["parts"]] if prev is not None else []
+        start = prev["rows"] if prev is not None else 0
+        for p in parts:             # an older generation's file, named from this one's
+            files[f"../{p['gen']}/{pre}{p['file']}"] = p["info"]
+        if start < len(arr) or not parts:
+            fname = f"{name}.{start}.npy"
+            info = write_part(tmp, prefix, None, {fname[:-4]: arr[start:]})[pre + fname]
+            files[pre + fname] = info
+            parts.append({"gen": gen, "file": fname, "start": start, "end": len(arr),
+                          "info": info})
+        after[name] = {"rows": len(arr), "dtype": arr.dtype.str,
+                       "shape": list(arr.shape[1:]), "parts": parts}
+    # the rest last: with a prefix, write_part fsyncs the directory once, after every file
+    files.update(write_part(tmp, prefix, state, {k: v for k, v in arrays.items()
+                                                 if k not in appended}))
+    return files, after
 
 
 def part_name(w: int) -> str:
@@ -745,17 +799,47 @@ def _restore_buckets(w, pieces: list, same: bool) -> None:
         w.buckets[b] = [[g for g, _ in items], [s for _, s in items]]
 
 
-def worker_save(w, tmp: str, w_out: int, depth: int) -> dict:
-    """A worker writes its partition into ``tmp`` itself (``--workers N``)."""
+def worker_appended(arrays: dict) -> tuple:
+    """The arrays of a partition (:func:`worker_snapshot`) that only grow
+    (written a segment at a time: :func:`write_appended`): the fingerprints
+    and state numbers of the table, and the recorded graph."""
+    return ("fps", "parents", *_ARRAYS, *_SCALARS,
+            *(k for k in arrays if k.startswith("g_col")))
+
+
+def partition_save(tmp: str, w_out: int, gen: str, state, arrays: dict,
+                   before: dict) -> tuple[dict, dict]:
+    """Write partition ``w_out`` (``state``, ``arrays``: :func:`worker_snapshot`)
+    into ``tmp/wNNN/`` for generation ``gen``, appending to ``before`` (its
+    segments in the last checkpoint): the manifest's files and segments
+    (keyed ``wNNN/name``)."""
+    p = part_name(w_out)
+    files, segs = write_appended(tmp, p, gen, state, arrays, worker_appended(arrays), before)
+    return files, {f"{p}/{k}": v for k, v in segs.items()}
+
+
+def worker_save(w, tmp: str, w_out: int, depth: int, gen: str = "",
+                before: Optional[dict] = None) -> tuple[dict, dict]:
+    """A worker writes its partition into ``tmp`` itself (``--workers N``):
+    :func:`partition_save` in its process."""
     state, arrays = worker_snapshot(w, depth)
-    return write_part(tmp, part_name(w_out), state, arrays)
+    return partition_save(tmp, w_out, gen, state, arrays, before or {})
+
+
+def read_partition(gdir: str, name: str, files: dict, segments: dict) -> tuple[Any, dict]:
+    """Partition ``name`` of the generation ``gdir`` (its ``files`` and
+    appended arrays' ``segments``, from :meth:`Checkpointer.load`), each
+    file checked, the appended arrays joined; ValueError saying what is
+    wrong."""
+    gen = os.path.basename(gdir)
+    state, arrays = read_part(os.path.join(gdir, name), files, f"{gen}/{name}")
+    return state, joined_segments(arrays, segments, gen, "../../", name + "/")
 
 
 def worker_load(w, gdir: str, parts: list, same: bool) -> int:
-    """A worker reads the partitions ``parts`` (``[(name, files)]``) from
-    the generation ``gdir`` itself, then :func:`worker_restore`."""
-    pieces = [read_part(os.path.join(gdir, name), files, f"{os.path.basename(gdir)}/{name}")
-              for name, files in parts]
+    """A worker reads the partitions ``parts`` (``[(name, files, segments)]``)
+    from the generation ``gdir`` itself, then :func:`worker_restore`."""
+    pieces = [read_partition(gdir, *part) for part in parts]
     return worker_restore(w, pieces, same)
 
 
@@ -787,19 +871,34 @@ def parallel_save(ex) -> None:
         state["waiting"] = dict(ex._waiting)
         arrays["held"] = ex._held[:total]
 
+    # the arrays that only grow are appended (see "Appended arrays"): the
+    # coordinator's parent links, and of each partition its table and graph
+    gen, before, after = ck.next_generation(), ck._segments, {}
+
+    def mine(w: int) -> dict:
+        p = part_name(w) + "/"
+        return {k[len(p):]: v for k, v in before.items() if k.startswith(p)}
+
     def fill(tmp: str) -> dict:
-        files = write_part(tmp, "", state, arrays)
+        files, segs = write_appended(tmp, "", gen, state, arrays, ("parents",),
+                                     {k: v for k, v in before.items() if "/" not in k})
+        after.update(segs)
         if getattr(T, "shared_files", False):      # the workers write their own
-            for f in T.all("checkpoint", [(worker_save, tmp, w, depth) for w in range(n)]):
+            for f, segs in T.all("checkpoint", [(worker_save, tmp, w, depth, gen, mine(w))
+                                                for w in range(n)]):
                 files.update(f)
+                after.update(segs)
         else:                                       # Ray: sent here, one at a time
             for w in range(n):
                 wstate, warrays = T.call(w, "checkpoint", worker_snapshot, depth)
-                files.update(write_part(tmp, part_name(w), wstate, warrays))
+                f, segs = partition_save(tmp, w, gen, wstate, warrays, mine(w))
+                files.update(f)
+                after.update(segs)
                 del wstate, warrays
         return files
     try:
-        ck.write_generation(fill, state, {"partitions": n})
+        ck.write_generation(fill, state, {"partitions": n, "segments": after})
+        ck._segments = after
     except OSError as e:        # a full disk: the search goes on, the last checkpoint stays
         ck.failed(e)
 
@@ -834,14 +933,12 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
         parents, holder = arrays["parents"], arrays["holder"]
         if len(parents) != total or len(holder) != total - base or not 0 <= base <= total:
             raise ValueError("the coordinator's arrays and figures do not agree")
-        names = [(part_name(w), ck.parts[w]) for w in range(old)]
+        names = [(part_name(w), ck.parts[w], ck.part_segments[w]) for w in range(old)]
         if getattr(T, "shared_files", False):
             counts = T.all("checkpoint", [(worker_load, ck.gen_dir, [names[w]] if same else names, same)
                                     for w in range(n)])
         else:
-            pieces = [read_part(os.path.join(ck.gen_dir, name), files,
-                                f"{os.path.basename(ck.gen_dir)}/{name}")
-                      for name, files in names]
+            pieces = [read_partition(ck.gen_dir, *part) for part in names]
             counts = [T.call(w, "checkpoint", worker_restore, [pieces[w]] if same else pieces, same)
                       for w in range(n)]
             del pieces
@@ -851,6 +948,8 @@ def parallel_restore(ex, state: dict, arrays: dict) -> dict:
     except (ValueError, KeyError, TypeError, IndexError) as e:
         raise ck._bad(f"the checkpoint is corrupt ({e}); write a new one with "
                       "{checkpoint}") from None
+    if not same:        # partitions dealt out again: the next checkpoint writes them whole
+        ck._segments = {k: v for k, v in ck._segments.items() if "/" not in k}
     ex._put_parents(0, np.asarray(parents, dtype=np.uint32))
     res, stats = ex._res, ex._res.stats
     stats.transitions, stats.max_depth = state["transitions"], state["max_depth"]

@@ -197,6 +197,11 @@ class _Worker:
         #: ``clock``): :meth:`max_time`, the one-process ``stats.max_time``
         self.clock = getattr(model, "clock", None)
         self.t_max: Any = None
+        #: with ``--spill``: a :class:`pccl.search.spill.WorkerSpiller`
+        #: (:meth:`spill_start`); the level's part on disk while it is expanded
+        self.spill: Any = None
+        self.x_disk: Any = None
+        self.x_disk_left = 0
 
     def _note_states(self, idx, states: list) -> None:
         """The states admitted to my level (numbers ``idx``): their columns
@@ -244,6 +249,11 @@ class _Worker:
         # from the front, given away (:meth:`give`) from the back
         self.work: list = [[self.level_idx, self.level, 0, False]] if self.level else []
         self.level, self.level_idx = [], []
+        self.x_disk, self.x_disk_left = None, 0
+        if self.spill is not None:          # --spill: the part of my share on disk too
+            disk = self.spill.take_level()
+            if disk is not None:
+                self.x_disk, self.x_disk_left = disk.segments(), disk.count
         self.x_bound = at_bound
         self.x_cs: list = []
         self.x_par_idx: list = []
@@ -258,7 +268,21 @@ class _Worker:
 
     def remaining(self) -> int:
         """States of the level not expanded (nor given away) yet."""
-        return sum(len(b[1]) - b[2] for b in self.work)
+        return sum(len(b[1]) - b[2] for b in self.work) + self.x_disk_left
+
+    def _more(self) -> bool:
+        """``--spill``: the next segment of my share of the level on disk
+        into the work (False: none left)."""
+        if self.x_disk is None:
+            return False
+        seg = next(self.x_disk, None)
+        if seg is None:
+            self.x_disk = None
+            return False
+        states, nums = seg
+        self.x_disk_left -= len(states)
+        self.work.append([list(nums), states, 0, False])
+        return True
 
     def expand_some(self, limit: Optional[int]) -> int:
         """Expand up to ``limit`` (None: all) of the states left; returns how
@@ -271,7 +295,7 @@ class _Worker:
         work = self.work
         viol_fn = m.violations if self.fastest else None
         batch = self.succ_batch
-        while work and (limit is None or limit > 0):
+        while (limit is None or limit > 0) and (work or self._more()):
             blk = work[0]
             nums, states, pos, foreign = blk
             end = len(states) if limit is None else min(len(states), pos + limit)
@@ -545,6 +569,8 @@ class _Worker:
             keep = owner_ranks < cut
             if keep.any():
                 self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
+        if self.spill is not None:
+            self.spill.relieve(self)        # memory pressed: to disk, instead of the bound
         return peak_rss_bytes()
 
     def _file(self, idx: list, states: list, costs: list) -> None:
@@ -593,6 +619,8 @@ class _Worker:
             self.level_idx.extend(idx)
             self.level.extend(states)
         self._note_states(idx, states)
+        if self.spill is not None:
+            self.spill.relieve(self)
 
     def graph(self):
         """What this worker knows of the state graph, handed over once at the
@@ -601,6 +629,9 @@ class _Worker:
         stall check's flags.  The transitions I generated follow a chunk at
         a time (:meth:`graph_edges`)."""
         t = self.table
+        # my partition: from disk when I spilled it (entries() reads it back)
+        mine = self.spill.table.entries() if self.spill is not None else \
+            (t.fps[:t.n], t.parents[:t.n])
         # not needed once handed over (the coordinator's table numbers the
         # states from now on): freed as soon as the coordinator drops the
         # views (worker 0: in its process, before it builds that table)
@@ -610,7 +641,7 @@ class _Worker:
         self.g_idx, self.g_cols = [], []
         chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
         self.g_chg_idx, self.g_chg = [], []
-        return (t.fps[:t.n], t.parents[:t.n], idx, cols, peak_rss_bytes(), chg)
+        return (*mine, idx, cols, peak_rss_bytes(), chg)
 
     def graph_edges(self, most: int):
         """The next of the transitions I generated, in the order generated,
@@ -643,8 +674,27 @@ class _Worker:
         return self.t_max
 
     def index_of(self, fp: bytes) -> int:
+        if self.spill is not None:          # the spilled partition answers global numbers
+            return self.spill.table.number_of(fp)
         local = self.table.index_of(fp)
         return -1 if local < 0 else int(self.table.parents[local])
+
+    def spill_start(self, directory, share: Optional[int], states: Optional[int]) -> None:
+        """``--spill``: spill my partition and my share of the levels into
+        ``directory`` (a :class:`pccl.search.spill.SpillDir`), with ``share``
+        bytes of ``--max-memory`` for this process (before any state)."""
+        from pccl.search.spill import WorkerSpiller
+        assert not self.table.n, "spill_start() before the first state"
+        self.spill = WorkerSpiller(directory, share, states, FingerprintTable)
+        self.table = self.spill.table
+
+    def spill_figures(self) -> Optional[dict]:
+        """What I spilled (:meth:`pccl.search.spill.WorkerSpiller.figures`)."""
+        return self.spill.figures() if self.spill is not None else None
+
+    def spill_close(self) -> None:
+        if self.spill is not None:
+            self.spill.close()
 
     def checkpoint(self, fn, *args):
         """Checkpoints (pccl/search/checkpoint.py): ``fn(self, *args)`` here,
@@ -1445,6 +1495,9 @@ class ParallelExplorer(Explorer):
                  fastest: bool = False, **options):
         if options.get("exact"):
             raise ValueError("exact state storage runs in one process (workers=1)")
+        if options.get("spill") is not None and (ray is not None or fastest
+                                                 or options.get("checkpoint") is not None):
+            raise ValueError("spill runs with forked workers, breadth first, without checkpoints")
         super().__init__(model, **options)
         self.workers: Any = workers    # an int once the transport has started
         self.ray = ray
@@ -1477,18 +1530,38 @@ class ParallelExplorer(Explorer):
         columns = getattr(rec, "columns", None) if rec is not None else None
         # installed before the fork: a worker never runs a handler that raises
         self.signals = _Signals()
+        spill_dirs: list = []
         try:
             self.transport.start(self.model, self.deadlock, self.find_all, columns,
                                  fastest=self.fastest)
             self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
+            if self.options.spill is not None:
+                from pccl.search.spill import worker_dirs
+                spill_dirs = worker_dirs(self.options.spill, self.workers)
+                self._spill_start(spill_dirs)
             return self._run()
         finally:
             try:
+                if spill_dirs:      # worker 0's files are open in this process
+                    self.transport.call(0, "spill_close")
                 self.transport.stop()
             finally:
+                if spill_dirs:
+                    from pccl.search.spill import close_worker_dirs
+                    close_worker_dirs(spill_dirs)
                 self.signals.restore()
                 if enabled:
                     gc.enable()
+
+    def _spill_start(self, dirs: list) -> None:
+        """``spill``: each worker spills its partition and its share of the
+        levels into a directory of its own (``dirs``: ``spill/worker-<i>/``),
+        with ``max_memory`` over the number of workers for its process
+        (pccl/search/spill.py)."""
+        from pccl.search.spill import Spiller
+        n = self.workers
+        share = None if self.max_memory is None else self.max_memory // n
+        self.transport.all("spill_start", [(d, share, Spiller.STATES) for d in dirs])
 
     def _run(self) -> SearchResult:
         """The coordinator: the initial states (:meth:`_initial_rounds`),
@@ -1548,6 +1621,10 @@ class ParallelExplorer(Explorer):
         self._finish(res, self._bounds, t_start, self._memory(self.peak_workers))
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
+        if self.options.spill is not None:      # what each worker spilled, for the notes
+            from pccl.search.spill import WorkerSpills
+            self.spiller = WorkerSpills(self.options.spill,
+                                        self.transport.all("spill_figures", [()] * n))
         return res
 
     def max_time_now(self, interrupted: bool = False) -> Any:

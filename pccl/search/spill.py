@@ -37,6 +37,10 @@ without ``--spill``.
 The result is the in-memory search's: the same state numbers in the same
 order, hence the same states, transitions, depth, verdict and
 counterexample (``tests/test_spill.py`` compares them).
+
+With ``--workers N`` each worker spills its partition and its share of the
+levels the same way (:class:`PartitionTable`, :class:`WorkerSpiller`: the
+end of this module).
 """
 
 from __future__ import annotations
@@ -53,7 +57,8 @@ import numpy as np
 
 from pccl.search.fingerprint import fingerprint
 
-__all__ = ["SpillError", "SpillDir", "DiskSet", "SpillTable", "LevelFile", "Spiller"]
+__all__ = ["SpillError", "SpillDir", "DiskSet", "SpillTable", "LevelFile", "Spiller",
+           "PartitionTable", "WorkerSpiller", "WorkerSpills", "worker_dirs"]
 
 _NO_PARENT = 0xFFFF_FFFF
 #: bytes of memory a buffered state costs (fingerprint, parent link, index)
@@ -483,7 +488,10 @@ class LevelFile:
         self.count = 0
         self.last: Any = None
 
-    def write(self, states: list, first: int) -> None:
+    def write(self, states: list, first) -> None:
+        """Append a segment: ``states`` numbered from ``first`` on (an int),
+        or numbered ``first`` (a list of numbers: a worker's share of a
+        level, :class:`WorkerSpiller`)."""
         try:
             if self.f is None:
                 self.f = open(self.path, "wb")
@@ -509,7 +517,8 @@ class LevelFile:
                         first, states = pickle.load(f)
                     except EOFError:
                         break
-                    yield states, range(first, first + len(states))
+                    yield states, (range(first, first + len(states))
+                                   if isinstance(first, int) else first)
                     del states
         finally:
             self.discard()
@@ -595,3 +604,227 @@ class Spiller:
         return (f"{{spill={self.dir.parent}}}: the visited states merged to disk "
                 f"{f['merges']:,} time(s) ({f['states_on_disk']:,} states on disk at the end), "
                 f"{f['level_segments']:,} segment(s) of levels written")
+
+
+# ---------------------------------------------------------------------------
+# The parallel search (``--spill DIR --workers N``, pccl/search/parallel.py)
+# ---------------------------------------------------------------------------
+#
+# Each worker owns a partition of the visited set and holds its share of the
+# next level; with ``--spill`` each spills both as one process does, into its
+# own directory ``DIR/worker-<i>/pccl-spill-XXXXXXXX/`` (made and removed by
+# the coordinator: :func:`worker_dirs`), by :class:`Spiller`'s rules with its
+# share of ``--max-memory`` (the bound over the number of workers) against
+# its own process's resident memory.  The coordinator still stops the search
+# when the processes' peaks together pass ``--max-memory``.
+
+
+def worker_dirs(parent: str, n: int) -> list:
+    """A fresh :class:`SpillDir` under ``parent/worker-<i>/`` for each of
+    ``n`` workers, made (and probed) by the coordinator: an unwritable
+    ``parent`` is one :class:`SpillError` before any worker spills.  The
+    workers (forked processes) get them as arguments;
+    :func:`close_worker_dirs` removes them."""
+    dirs: list = []
+    try:
+        for w in range(n):
+            d = SpillDir(os.path.join(os.fspath(parent), f"worker-{w}"))
+            d.parent = os.fspath(parent)        # messages name the directory given
+            dirs.append(d)
+    except SpillError:
+        close_worker_dirs(dirs)
+        raise SpillError(f"cannot write the search's files to {parent}: "
+                         f"{_probe_why(parent)}") from None
+    return dirs
+
+
+def _probe_why(parent: str) -> str:
+    try:
+        os.makedirs(parent, exist_ok=True)
+        tempfile.TemporaryFile(dir=parent).close()
+    except OSError as e:
+        return _why(e)
+    return "a worker's directory cannot be written"     # pragma: no cover - a race
+
+
+def close_worker_dirs(dirs: list) -> None:
+    """Remove the workers' directories (and ``worker-<i>/`` once empty)."""
+    for d in dirs:
+        d.close()
+        try:
+            os.rmdir(os.path.dirname(d.path))
+        except OSError:
+            pass
+
+
+class PartitionTable:
+    """A worker's partition of the visited set with ``--spill``: what the
+    parallel search's worker asks of its
+    :class:`~pccl.search.explorer.FingerprintTable` (``n``, ``lookup``,
+    ``insert``), over an in-memory buffer of the fingerprints recorded since
+    the last :meth:`spill` and a :class:`DiskSet` of the others.  A worker's
+    table maps a fingerprint to its *global* state number (the buffer keeps
+    it in its parent slot, the disk set as its value): :meth:`lookup`
+    answers those numbers, -1 where absent.  No parents file: the
+    coordinator holds the parent links."""
+
+    def __init__(self, directory: SpillDir, new_buffer: Callable[[], Any]):
+        self._new_buffer = new_buffer
+        self.dir = directory
+        self.disk = DiskSet(directory)
+        self.mem = new_buffer()
+        self.n = 0
+
+    @property
+    def buffered(self) -> int:
+        return self.mem.n
+
+    def lookup(self, q: np.ndarray) -> np.ndarray:
+        """Global state numbers of the fingerprints ``q`` (shape (k, 2)); -1
+        where absent."""
+        local = self.mem.lookup(q)
+        hit = local >= 0
+        out = np.full(len(q), -1, dtype=np.int64)
+        out[hit] = self.mem.parents[local[hit]]
+        if self.disk.n:
+            miss = np.flatnonzero(~hit)
+            if miss.size:
+                out[miss] = self.disk.lookup(q[miss, 0], q[miss, 1])
+        return out
+
+    def insert(self, q: np.ndarray, numbers: np.ndarray) -> None:
+        """Record fingerprints ``q`` (distinct, absent) as states ``numbers``."""
+        if len(q):
+            self.mem.insert(q, numbers)
+            self.n += len(q)
+
+    def number_of(self, key: bytes) -> int:
+        """The global state number of the fingerprint ``key`` (-1: not mine)."""
+        return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
+
+    def spill(self) -> None:
+        """Merge the buffer into the sorted file (as :meth:`SpillTable.spill`)."""
+        m = self.mem.n
+        if not m:
+            return
+        self.mem.slots = None
+        fps = self.mem.fps[:m]
+        new = self.disk.sort_entries(fps[:, 0], fps[:, 1], self.mem.parents[:m])
+        del fps
+        self.mem = None
+        self.disk.merge_sorted(new)
+        del new
+        self.mem = self._new_buffer()
+
+    def entries(self) -> tuple:
+        """Every fingerprint of the partition and its state number:
+        ``(fps (n, 2) uint64, numbers uint32)`` (the file read back a chunk
+        at a time: the time-lock, stall and temporal checks gather the
+        whole table once the search is over)."""
+        fps = np.empty((self.n, 2), dtype=np.uint64)
+        nums = np.empty(self.n, dtype=np.uint32)
+        disk, at = self.disk, 0
+        chunk = np.empty(DiskSet.CHUNK, dtype=RECORD)
+        try:
+            for s in range(0, disk.n, DiskSet.CHUNK):
+                got = disk._read(s, DiskSet.CHUNK, chunk)
+                fps[at:at + got, 0], fps[at:at + got, 1] = chunk["k0"][:got], chunk["k1"][:got]
+                nums[at:at + got] = chunk["num"][:got]
+                at += got
+        except OSError as e:
+            raise self.dir.fail(e) from None
+        m = self.mem.n
+        fps[at:at + m], nums[at:at + m] = self.mem.fps[:m], self.mem.parents[:m]
+        return fps, nums
+
+    def close(self) -> None:
+        self.disk.close()
+
+
+class WorkerSpiller:
+    """When and what worker ``w`` of a parallel search with ``--spill``
+    moves to disk (:meth:`relieve`, after each commit of the coordinator's
+    decision): its partition of the visited set (:class:`PartitionTable`)
+    and its share of the next level (a :class:`LevelFile`, read back a
+    segment at a time when the level is expanded: :meth:`take_level`), by
+    :class:`Spiller`'s rules, with ``share`` (its share of ``--max-memory``,
+    None: none) against its own process's resident memory.  ``states``:
+    :attr:`Spiller.STATES` as the coordinator has it."""
+
+    def __init__(self, directory: SpillDir, share: Optional[int], states: Optional[int],
+                 new_buffer: Callable[[], Any]):
+        self.dir = directory
+        self.table = PartitionTable(directory, new_buffer)
+        self.threshold = None if share is None else int(share * Spiller.PRESSURE)
+        self.level_limit = states
+        self.table_limit: Optional[int] = states
+        if states is None and share is not None:
+            self.table_limit = max(1 << 14, share // 4 // STATE_BYTES)
+        self.level: Optional[LevelFile] = None
+        self.levels = 0
+        self.level_writes = 0
+        self._rss: Any = None
+
+    def rss(self) -> int:
+        if self._rss is None:
+            import psutil
+            self._rss = psutil.Process().memory_info
+        return int(self._rss().rss)
+
+    def relieve(self, w: Any) -> None:
+        """After the worker ``w`` recorded new states (its table) and took
+        its share of the next level (``w.level``, ``w.level_idx``)."""
+        table = self.table
+        pressed = self.threshold is not None and self.rss() > self.threshold
+        lim = self.table_limit
+        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
+            table.spill()
+        if w.level and (pressed or (self.level_limit is not None
+                                    and len(w.level) >= self.level_limit)):
+            if self.level is None:
+                self.level = LevelFile(self.dir, f"level.{self.levels}")
+                self.levels += 1
+            self.level.write(w.level, list(w.level_idx))
+            self.level_writes += 1
+            w.level, w.level_idx = [], []
+
+    def take_level(self) -> Optional[LevelFile]:
+        """The part of the worker's level written to disk (before what it
+        holds in memory), or None; the next level starts a new file."""
+        level, self.level = self.level, None
+        return level
+
+    def figures(self) -> dict:
+        return {"merges": self.table.disk.merges, "states_on_disk": self.table.disk.n,
+                "level_segments": self.level_writes}
+
+    def close(self) -> None:
+        self.table.close()
+        if self.level is not None:
+            self.level.discard()
+
+
+class WorkerSpills:
+    """What the workers of a parallel search spilled (their
+    :meth:`WorkerSpiller.figures`), for the report's notes."""
+
+    def __init__(self, parent: str, figures: list):
+        self.parent = parent
+        self.per_worker = figures
+
+    def figures(self) -> dict:
+        return {k: sum(f[k] for f in self.per_worker)
+                for k in ("merges", "states_on_disk", "level_segments")}
+
+    def note(self) -> str:
+        f, k = self.figures(), len(self.per_worker)
+        if not f["merges"] and not f["level_segments"]:
+            return (f"{{spill={self.parent}}}: nothing spilled by the {k} workers (each "
+                    f"process's memory stayed below {Spiller.PRESSURE:.0%} of its share, "
+                    f"{{max_memory}} / {k})")
+        each = "; ".join(f"worker {w}: {x['merges']:,} merge(s), {x['states_on_disk']:,} states on "
+                         f"disk, {x['level_segments']:,} segment(s)"
+                         for w, x in enumerate(self.per_worker))
+        return (f"{{spill={self.parent}}}: the {k} workers merged their visited states to disk "
+                f"{f['merges']:,} time(s) ({f['states_on_disk']:,} states on disk at the end), "
+                f"{f['level_segments']:,} segment(s) of levels written ({each})")
