@@ -755,21 +755,12 @@ class Por:
 
     def successors(self, st) -> list:
         if st[PHASE] == DISCRETE:
-            m = self.m
-            rho, n0 = m.rho, m.n0
-            ctl = m.ctl
+            rho, n0 = self.m.rho, self.m.n0
             i = 0
             for ag in st[AGS]:
                 if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0 and self.eligible(st, i, ag):
-                    pc = ag[PC]
-                    info = ctl.infos[pc]
-                    if info is None:
-                        info = ctl.info(pc)
-                    out: list = []
-                    m.oracle.agent = i
-                    for rule in info.rules:
-                        rule(m, st, i, ag, info, out)
-                    if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                    out = self._keeps_running(st, i, ag)
+                    if out:
                         return out
                 i += 1
             # no such agent: the first spent agent whose next step is a
@@ -778,15 +769,29 @@ class Por:
             i = 0
             for ag in st[AGS]:
                 if ag[STATUS] == RUNNING and ag[CNT] + rho[i] > n0 and spent_local(ag[PC]):
-                    info = ctl.info(ag[PC])
-                    out = []
-                    m.oracle.agent = i
-                    for rule in info.rules:
-                        rule(m, st, i, ag, info, out)
-                    if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+                    out = self._keeps_running(st, i, ag)
+                    if out:
                         return out
                 i += 1
         return self.plain(st)
+
+    def _keeps_running(self, st, i, ag) -> Optional[list]:
+        """Agent i's transitions from ``st`` (its candidate ample set), or
+        None when it has none or one of them stops it (a runtime error is
+        visible: the state is then fully expanded)."""
+        m = self.m
+        ctl = m.ctl
+        pc = ag[PC]
+        info = ctl.infos[pc]
+        if info is None:
+            info = ctl.info(pc)
+        out: list = []
+        m.oracle.agent = i
+        for rule in info.rules:
+            rule(m, st, i, ag, info, out)
+        if out and all(s2[AGS][i][STATUS] == RUNNING for _, s2 in out):
+            return out
+        return None
 
 
 # ---------------------------------------------------------------------------
