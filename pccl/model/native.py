@@ -815,34 +815,25 @@ class Generator:
         out += [f"  case {i}: return agent{i}(s);" for i in range(N)]
         out += ["  }", "  return 0;", "}"]
         out += self.por_c(por)
-        # the ample set: the first agent whose next step is independent of
-        # what the others can still do (Por.successors)
-        ample = []
-        for i in range(N):
+        # the ample set (Por.successors): the first agent with an execution
+        # left whose next step is independent of what the others can still
+        # do; else the first spent agent whose next step is a plain statement
+        # of its own (Independence.spent_local)
+        def try_agent(i: int, cond: str) -> str:
             a0 = self.AG0 + i * A_
-            ample.append(
-                f"    if (s[{a0 + 3}] == {RUNNING} && s[{a0 + 1}] <= {m.n0 - m.rho[i]} "
-                f"&& eligible(s, {i})) {{\n"
-                f"      if (agent{i}(s)) return -1;\n"
-                f"      int all = BN > b0;\n"
-                f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
-                f"      if (all) goto chains;\n"
-                f"      BN = b0;\n"
-                f"    }}")
-        # no such agent: the first spent agent whose next step is a plain
-        # statement of its own (Independence.spent_local)
-        if por is not None:
-            for i in range(N):
-                a0 = self.AG0 + i * A_
-                ample.append(
-                    f"    if (s[{a0 + 3}] == {RUNNING} && s[{a0 + 1}] > {m.n0 - m.rho[i]} "
-                    f"&& (uint64_t)s[{a0}] < NPC && PSPENT[s[{a0}]]) {{\n"
+            return (f"    if (s[{a0 + 3}] == {RUNNING} && {cond}) {{\n"
                     f"      if (agent{i}(s)) return -1;\n"
                     f"      int all = BN > b0;\n"
                     f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
                     f"      if (all) goto chains;\n"
                     f"      BN = b0;\n"
                     f"    }}")
+        ample = [try_agent(i, f"s[{self.AG0 + i * A_ + 1}] <= {m.n0 - m.rho[i]} && eligible(s, {i})")
+                 for i in range(N)]
+        if por is not None:
+            ample += [try_agent(i, f"s[{a0 + 1}] > {m.n0 - m.rho[i]} && (uint64_t)s[{a0}] < NPC "
+                                   f"&& PSPENT[s[{a0}]]")
+                      for i in range(N) for a0 in (self.AG0 + i * A_,)]
         # the stall signature (pccl/model/stall.py): the lock queue, shared,
         # and per agent its status, allread and the loc: variables a property reads
         from pccl.model.stall import _visible_locals

@@ -807,7 +807,7 @@ class Explorer:
         successors): the runs of states between them queued whole, as the
         fast path queues a chunk, each terminal state by itself, in order
         (:meth:`_expand_one`'s handling).  True to stop."""
-        cs, par_idx, par_n, flags = adm.cs, adm.par_idx, adm.par_n, adm.flags
+        cs, par_idx, par_n = adm.cs, adm.par_idx, adm.par_n
         ends = list(itertools.accumulate(ns, initial=0))   # flat offset of each state
         a = 0
         for t in [j for j, n in enumerate(ns) if not n] + [len(ns)]:
@@ -821,15 +821,22 @@ class Explorer:
                     report(len(level) - c0 - t)
             if t == len(ns):
                 break
-            pos = c0 + t
-            bound, v = terminal(self.model, level[pos], self.deadlock)
-            if bound is not None:
-                flags.setdefault(bound, level_idx[pos])
-            elif v is not None:
-                # the pending successors of earlier states come first
-                if adm.flush(depth + 1) or adm.record([v], level_idx[pos], depth):
-                    return True
+            if self._terminal(adm, level[c0 + t], level_idx[c0 + t], depth):
+                return True
             a = t + 1
+        return False
+
+    def _terminal(self, adm: "_Admission", state, number: int, depth: int) -> bool:
+        """A state without successors (number ``number``): a bound it met,
+        or its deadlock recorded after the pending successors of earlier
+        states are admitted.  True to stop."""
+        bound, v = terminal(self.model, state, self.deadlock)
+        if bound is not None:
+            adm.flags.setdefault(bound, number)
+        elif v is not None:
+            # the pending successors of earlier states come first
+            if adm.flush(depth + 1) or adm.record([v], number, depth):
+                return True
         return False
 
     def _expand_one(self, adm: "_Admission", level: list, level_idx: list, depth: int,
@@ -842,13 +849,8 @@ class Explorer:
         for j, succ in enumerate(succs):
             pos = c0 + j
             if not succ:
-                bound, v = terminal(self.model, level[pos], self.deadlock)
-                if bound is not None:
-                    flags.setdefault(bound, level_idx[pos])
-                elif v is not None:
-                    # the pending successors of earlier states come first
-                    if adm.flush(depth + 1) or adm.record([v], level_idx[pos], depth):
-                        return True
+                if self._terminal(adm, level[pos], level_idx[pos], depth):
+                    return True
                 continue
             if at_bound:
                 flags.setdefault(Bound.DEPTH, level_idx[pos])
