@@ -21,7 +21,7 @@ def test_reprs_are_one_short_line():
         text = repr(x)
         assert "\n" not in text and len(text) < 300, len(text)   # was 80 KB for r
     assert repr(r).startswith("<ExploreResult violation (exit 1): ")
-    assert "97 states" in repr(r) and "trace of 71 steps" in repr(r)   # (POR beyond local steps)
+    assert "92 states" in repr(r) and "trace of 71 steps" in repr(r)   # (spent agents' steps ample)
     assert repr(s).startswith("<RunResult final (exit 0): 'every agent exited'; t=18")
 
 
