@@ -473,27 +473,3 @@ def test_full_disk_in_a_spilling_worker_is_one_message(where, tmp_path, monkeypa
     assert e.value.exit_status == 2
     assert os.listdir(tmp_path) == []
 
-
-@pytest.mark.slow
-def test_cli_workers_spill_keeps_the_search_under_max_memory(tmp_path):
-    """A real bound with two workers (each process gets half of it):
-    fischer k=2 d=2 unreduced (1,066,248 states) without --spill stops at
-    --max-memory; with it, it completes with the in-memory figures, its
-    processes' peaks together below the bound.  (The bound is two thirds of
-    the way from the processes' start to their free peak: unlike one
-    process, which admits states a batch at a time, a worker holds a whole
-    level's candidates, which cannot be spilled.)"""
-    args = ["explore", FISCHER, "--set", "k=2", "--set", "d=2", "--reduce", "none",
-            "--no-timelock", "--no-stall", "--format", "json", "--workers", "2"]
-    free = json.loads(_cli(*args).stdout)
-    base = json.loads(_cli(*args, "--max-states", "1").stdout)["statistics"]["peak_memory_bytes"]
-    grow = free["statistics"]["peak_memory_bytes"] - base
-    bound = base + grow * 2 // 3
-    cut = json.loads(_cli(*args, "--max-memory", str(bound)).stdout)
-    assert cut["status"] == "bounded"
-    spilled = json.loads(_cli(*args, "--max-memory", str(bound), "--spill", str(tmp_path)).stdout)
-    assert spilled["status"] == "exhaustive", spilled["status"]
-    for k in ("states", "transitions", "max_depth"):
-        assert spilled["statistics"][k] == free["statistics"][k]
-    assert spilled["statistics"]["peak_memory_bytes"] <= bound
-    assert os.listdir(tmp_path) == []
