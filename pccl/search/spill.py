@@ -532,7 +532,48 @@ class LevelFile:
             pass
 
 
-class Spiller:
+class _Policy:
+    """The rules :class:`Spiller` and :class:`WorkerSpiller` share: when
+    the memory is pressed, when the table's buffer and the next level go
+    to disk (the module's docstring)."""
+
+    #: spill everything that can go once the resident memory passes this
+    #: fraction of ``max_memory``
+    PRESSURE = 0.75
+
+    def _limits(self, memory: Optional[int], states: Optional[int]) -> None:
+        """``memory``: the bytes this process may use (None: no bound);
+        ``states``: :attr:`Spiller.STATES`."""
+        self.threshold = None if memory is None else int(memory * self.PRESSURE)
+        self.level_limit: Optional[int] = states
+        self.table_limit: Optional[int] = states
+        if states is None and memory is not None:
+            self.table_limit = max(1 << 14, memory // 4 // STATE_BYTES)
+        self.levels = 0         # level files written
+        self.level_writes = 0   # segments written to them
+        self._rss: Any = None
+
+    def rss(self) -> int:
+        if self._rss is None:
+            import psutil
+            self._rss = psutil.Process().memory_info
+        return int(self._rss().rss)
+
+    def _relieve_table(self, table) -> bool:
+        """Spill the table's buffer when it is full (or an eighth full and
+        the memory pressed); whether the memory is pressed."""
+        pressed = self.threshold is not None and self.rss() > self.threshold
+        lim = self.table_limit
+        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
+            table.spill()
+        return pressed
+
+    def _level_due(self, n: int, pressed: bool) -> bool:
+        """Whether a next level of ``n`` states in memory goes to disk."""
+        return bool(n) and (pressed or (self.level_limit is not None and n >= self.level_limit))
+
+
+class Spiller(_Policy):
     """When and what a search with ``--spill`` moves to disk (see the
     module's docstring): :meth:`relieve` after every admitted batch.
 
@@ -540,9 +581,6 @@ class Spiller:
     spilled unless :attr:`STATES` says so); ``new_buffer``: as
     :class:`SpillTable`'s."""
 
-    #: spill everything that can go once the resident memory passes this
-    #: fraction of ``max_memory``
-    PRESSURE = 0.75
     #: spill whenever the buffer or the next level holds this many states
     #: (tests set it: many spills and merges on a small search)
     STATES: Optional[int] = None
@@ -555,33 +593,13 @@ class Spiller:
         # the files go with the table (a counterexample's replay and the
         # graph analyses read it after the search), at the latest at exit
         weakref.finalize(self.table, self.dir.close)
-        self.threshold = None if max_memory is None else int(max_memory * self.PRESSURE)
-        self.table_limit: Optional[int] = None
-        self.level_limit: Optional[int] = states
-        if states is not None:
-            self.table_limit = states
-        elif max_memory is not None:
-            self.table_limit = max(1 << 14, max_memory // 4 // STATE_BYTES)
-        self.levels = 0         # level files written
-        self.level_writes = 0   # segments written to them
-        self._rss: Any = None
-
-    def rss(self) -> int:
-        if self._rss is None:
-            import psutil
-            self._rss = psutil.Process().memory_info
-        return int(self._rss().rss)
+        self._limits(max_memory, states)
 
     def relieve(self, adm: Any) -> None:
         """After a batch: spill the table's buffer when it is full, or both
         it and the next level's states when the memory is pressed."""
-        table = self.table
-        pressed = self.threshold is not None and self.rss() > self.threshold
-        lim = self.table_limit
-        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
-            table.spill()
-        if adm.nxt and (pressed or (self.level_limit is not None
-                                    and len(adm.nxt) >= self.level_limit)):
+        pressed = self._relieve_table(self.table)
+        if self._level_due(len(adm.nxt), pressed):
             if adm.spilled is None:
                 adm.spilled = LevelFile(self.dir, f"level.{self.levels}")
                 self.levels += 1
@@ -741,7 +759,7 @@ class PartitionTable:
         self.disk.close()
 
 
-class WorkerSpiller:
+class WorkerSpiller(_Policy):
     """When and what worker ``w`` of a parallel search with ``--spill``
     moves to disk (:meth:`relieve`, after each commit of the coordinator's
     decision): its partition of the visited set (:class:`PartitionTable`)
@@ -755,32 +773,14 @@ class WorkerSpiller:
                  new_buffer: Callable[[], Any]):
         self.dir = directory
         self.table = PartitionTable(directory, new_buffer)
-        self.threshold = None if share is None else int(share * Spiller.PRESSURE)
-        self.level_limit = states
-        self.table_limit: Optional[int] = states
-        if states is None and share is not None:
-            self.table_limit = max(1 << 14, share // 4 // STATE_BYTES)
+        self._limits(share, states)
         self.level: Optional[LevelFile] = None
-        self.levels = 0
-        self.level_writes = 0
-        self._rss: Any = None
-
-    def rss(self) -> int:
-        if self._rss is None:
-            import psutil
-            self._rss = psutil.Process().memory_info
-        return int(self._rss().rss)
 
     def relieve(self, w: Any) -> None:
         """After the worker ``w`` recorded new states (its table) and took
         its share of the next level (``w.level``, ``w.level_idx``)."""
-        table = self.table
-        pressed = self.threshold is not None and self.rss() > self.threshold
-        lim = self.table_limit
-        if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
-            table.spill()
-        if w.level and (pressed or (self.level_limit is not None
-                                    and len(w.level) >= self.level_limit)):
+        pressed = self._relieve_table(self.table)
+        if self._level_due(len(w.level), pressed):
             if self.level is None:
                 self.level = LevelFile(self.dir, f"level.{self.levels}")
                 self.levels += 1
