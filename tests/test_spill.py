@@ -245,19 +245,26 @@ def test_unwritable_spill_dir_is_one_message(tmp_path):
         f"--spill: error: cannot write the search's files to {blocker / 'sub'}: Not a directory"]
 
 
-def test_full_disk_while_spilling_is_one_message(tmp_path, monkeypatch, many_spills):
-    """A write that fails with ENOSPC during a merge: the search stops with
-    one message naming the option (``spill`` from the API, ``--spill`` as the
-    CLI renders it), exit 2."""
+def _disk_full_after(monkeypatch, n: int, here=lambda: True) -> None:
+    """The spill files' writes fail with ENOSPC after ``n`` of them (counted
+    in the processes where ``here()`` holds)."""
     real = np.ndarray.tofile
     calls = []
 
     def tofile(self, f, *a, **k):
-        calls.append(1)
-        if len(calls) > 3:
-            raise OSError(errno.ENOSPC, "No space left on device")
+        if here():
+            calls.append(1)
+            if len(calls) > n:
+                raise OSError(errno.ENOSPC, "No space left on device")
         return real(self, f, *a, **k)
     monkeypatch.setattr(S, "_tofile", tofile)
+
+
+def test_full_disk_while_spilling_is_one_message(tmp_path, monkeypatch, many_spills):
+    """A write that fails with ENOSPC during a merge: the search stops with
+    one message naming the option (``spill`` from the API, ``--spill`` as the
+    CLI renders it), exit 2."""
+    _disk_full_after(monkeypatch, 3)
     with pytest.raises(PcclError) as e:
         explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path))
     assert e.value.render() == (f"spill: error: the search could not go on spilling to "
@@ -455,17 +462,9 @@ def test_full_disk_in_a_spilling_worker_is_one_message(where, tmp_path, monkeypa
                                                         many_spills):
     """ENOSPC in worker 0 (the coordinator's process) or in a forked
     worker: one message naming the option, exit 2, no files left."""
-    real = np.ndarray.tofile
-    calls = []
     coordinator = os.getpid()
-
-    def tofile(self, f, *a, **k):
-        if (os.getpid() == coordinator) == (where == "coordinator"):
-            calls.append(1)
-            if len(calls) > 3:
-                raise OSError(errno.ENOSPC, "No space left on device")
-        return real(self, f, *a, **k)
-    monkeypatch.setattr(S, "_tofile", tofile)
+    _disk_full_after(monkeypatch, 3,
+                     here=lambda: (os.getpid() == coordinator) == (where == "coordinator"))
     with pytest.raises(PcclError) as e:
         explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path), workers=2)
     assert e.value.render() == (f"spill: error: the search could not go on spilling to "
