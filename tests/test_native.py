@@ -224,6 +224,37 @@ def test_c_fingerprints_are_pccl_fingerprints(program, kw):
     assert dropped > 0      # repeats were met and dropped (not in every batch)
 
 
+@pytest.mark.parametrize("program, kw, kinds", [
+    (CASES[0][0], CASES[0][1], 1), (CASES[3][0], CASES[3][1], 2),
+    ("programs/race_robust.pccl", dict(world=os.path.join(ROOT, "programs", "race.toml"),
+                                       blackbox="nondet", agents=3, reduce="auto"), 10)])
+def test_fingerprints_with_signatures_are_the_two_calls(program, kw, kinds):
+    """fingerprint_sig_batch (one pass over the states) gives fingerprint_batch's
+    three items and, fourth, stall_signatures' and the per-state signature's
+    values; and equal signatures stay equal, unequal ones apart (the stall
+    check only compares them), against pccl/model/stall.py's fields."""
+    from pccl.model.stall import signature_fn
+    py = make_model(os.path.join(ROOT, program), **{"reduce": "none", **kw})
+    nm = NV.NativeModel(py)
+    states = reachable(nm, 6_000)
+    sig, want_sig = nm.stall_signature(), signature_fn(py)
+    by_native: dict = {}
+    by_python: dict = {}
+    for lo in range(0, len(states), 2000):
+        batch = states[lo:lo + 2000]
+        ck, first, occ, sigs = nm.fingerprint_sig_batch(batch)
+        ck2, first2, occ2 = nm.fingerprint_batch(batch)
+        assert ck == ck2 and first.tolist() == first2.tolist() and occ.tolist() == occ2.tolist()
+        assert sigs.tolist() == nm.stall_signatures(batch).tolist() == [sig(s) for s in batch]
+        for s, h in zip(batch, sigs.tolist()):
+            w = want_sig(nm.decode(s))
+            by_native.setdefault(h, set()).add(w)
+            by_python.setdefault(w, set()).add(h)
+    assert all(len(v) == 1 for v in by_native.values())
+    assert all(len(v) == 1 for v in by_python.values())
+    assert len(by_native) >= kinds      # (Fischer's team looks the same throughout)
+
+
 def assert_batches_are_successors(nm, states) -> None:
     """successor_batch over ``states`` in chunks of 1,000: the counts and
     successors of nm.successors, state by state, and the labels met (a merged

@@ -487,6 +487,52 @@ def test_graph_reachability_agrees_with_a_plain_search(seed):
 
 
 
+@pytest.fixture(scope="module")
+def reach_back():
+    """The native engine's backward reachability (a compiled module's
+    ``reach_back``), or a skip where no compiler is there."""
+    import os
+    from pccl.api import make_model
+    from pccl.model import native as NV
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    py = make_model(os.path.join(root, "programs", "fischer.pccl"), overrides={"k": "1", "d": "1"})
+    why = NV.unsupported(py)
+    if why:
+        pytest.skip(f"no native engine here: {why}")
+    return NV.NativeModel(py).reach_back
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_native_backward_reachability_agrees_with_a_plain_search(seed, reach_back):
+    """Graph.can_reach with the native kernel (sweeps over the transitions,
+    last to first) gives the plain search's set on random graphs (transitions
+    back to earlier states included), on a ladder whose every transition
+    leads forward (one sweep) and on the reversed ladder (each sweep settles
+    one more state: not settled in the rounds given, numpy goes on from the
+    kernel's part)."""
+    import numpy as np
+    from pccl.search.liveness import Graph
+    rng = np.random.default_rng(seed)
+    n, e = 300, 900
+    src = np.sort(rng.integers(0, n, e)).astype(np.uint32)
+    dst = rng.integers(0, n, e).astype(np.uint32)
+    graphs = [(src, dst)]
+    g, lsrc, ldst = _ladder(200, 2)
+    graphs.append((lsrc, ldst))
+    order = np.argsort(ldst, kind="stable")           # i+1.. -> i: backward edges
+    graphs.append((ldst[order], lsrc[order]))
+    for s, d in graphs:
+        m = max(int(s.max()), int(d.max())) + 1
+        for goal in (rng.random(m) < 0.03, np.arange(m) == m - 1, np.arange(m) == 0):
+            want = _plain_can_reach(s, d, goal)
+            for rounds in (1, 3, 1000):
+                g = Graph(m, None, d, s, np.zeros(m, bool), None, None)
+                g.kernel = reach_back
+                assert set(np.flatnonzero(g.can_reach(goal, rounds=rounds)).tolist()) == want
+    with pytest.raises(ValueError):     # a state number past the mask: refused, not written
+        reach_back(np.array([0, 5], np.uint32), np.array([1, 2], np.uint32), np.zeros(3, np.uint8), 4)
+
+
 def _plain_can_reach(src, dst, goal) -> set:
     """The states that can reach ``goal``: a dict-based backward search."""
     import numpy as np

@@ -1048,8 +1048,21 @@ static PyObject *key(PyObject *self, PyObject *arg) {{
   canon(s, c);
   return PyBytes_FromStringAndSize((const char *)c + KEYSKIP, sizeof(V) * NS - KEYSKIP);
 }}
-/* the stall signature's hash (pccl/model/stall.py's fields) */
+/* xxhash's XXH3_128bits (setup() passes its address; NULL when the xxhash
+   module does not export it) */
+typedef struct {{ uint64_t lo, hi; }} H128;
+typedef H128 (*xxh128_fn)(const void *, size_t);
+static xxh128_fn XXH;
+/* the stall signature's hash (pccl/model/stall.py's fields): xxh3 of the
+   signature's slots gathered, else a slot-by-slot mix (equal signatures
+   give equal hashes either way; only equality is read) */
 static int64_t sighash(const V *s) {{
+  if (XXH) {{
+    V g[NSIGSLOTS];
+    for (int q = 0; q < NSIGSLOTS; q++) g[q] = s[SIGSLOTS[q]];
+    H128 x = XXH(g, sizeof g);
+    return (int64_t)(x.lo ^ x.hi);
+  }}
   uint64_t h = 0x9E3779B97F4A7C15ULL;
   for (int q = 0; q < NSIGSLOTS; q++) {{
     uint64_t z = (uint64_t)s[SIGSLOTS[q]] + 0x9E3779B97F4A7C15ULL * (uint64_t)(q + 1);
@@ -1080,6 +1093,41 @@ static PyObject *sigs(PyObject *self, PyObject *arg) {{
   }}
   return out;
 }}
+/* reach_back(src, dst, can, sweeps): marks in can (bytes 0/1, writable) every
+   state with a transition into a marked one, until nothing changes: the
+   transitions src[e] -> dst[e] (uint32s, sorted by source) are swept from the
+   last to the first, so a breadth-first graph (most transitions lead to a
+   later state) settles in a few sweeps.  Returns the sweeps made, or -1 when
+   the last of at most `sweeps` still changed something (not settled: can
+   holds a part of the answer).  The graph analysis' backward reachability
+   (pccl/search/liveness.py Graph.can_reach) */
+static PyObject *reach_back(PyObject *self, PyObject *args) {{
+  Py_buffer bs, bd, bc;
+  int most;
+  if (!PyArg_ParseTuple(args, "y*y*w*i", &bs, &bd, &bc, &most)) return NULL;
+  if (bs.len != bd.len || bs.itemsize != 4 || bd.itemsize != 4) {{
+    PyBuffer_Release(&bs); PyBuffer_Release(&bd); PyBuffer_Release(&bc);
+    PyErr_SetString(PyExc_ValueError, "two uint32 arrays of one length");
+    return NULL;
+  }}
+  const uint32_t *src = (const uint32_t *)bs.buf, *dst = (const uint32_t *)bd.buf;
+  unsigned char *can = (unsigned char *)bc.buf;
+  Py_ssize_t m = bs.len / 4, lim = bc.len;
+  int sweeps = 0, changed = 1, bad = 0;
+  Py_BEGIN_ALLOW_THREADS
+  for (Py_ssize_t e = 0; e < m; e++)
+    if (src[e] >= (uint64_t)lim || dst[e] >= (uint64_t)lim) {{ bad = 1; break; }}
+  while (!bad && changed && sweeps < most) {{
+    changed = 0;
+    sweeps++;
+    for (Py_ssize_t e = m - 1; e >= 0; e--)
+      if (can[dst[e]] && !can[src[e]]) {{ can[src[e]] = 1; changed = 1; }}
+  }}
+  Py_END_ALLOW_THREADS
+  PyBuffer_Release(&bs); PyBuffer_Release(&bd); PyBuffer_Release(&bc);
+  if (bad) {{ PyErr_SetString(PyExc_ValueError, "a state number out of range"); return NULL; }}
+  return PyLong_FromLong(changed ? -1 : sweeps);
+}}
 /* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
 static PyObject *phases(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
@@ -1100,12 +1148,12 @@ static PyObject *phases(PyObject *self, PyObject *arg) {{
    occurrence, as int64s).  A fingerprint is pccl.search.fingerprint's: xxh3_128 of
    marshal version 2 of the key (a bytes object: 's', its length as a
    little-endian int32, its bytes), in xxhash's canonical (big-endian) form */
-typedef struct {{ uint64_t lo, hi; }} H128;
-typedef H128 (*xxh128_fn)(const void *, size_t);
-static xxh128_fn XXH;
-static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
+static PyObject *fingerprints_(PyObject *arg, int want_sigs) {{
   if (!PyList_Check(arg) || !XXH) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg), m = 0;
+  PyObject *sgs = want_sigs ? PyBytes_FromStringAndSize(NULL, 8 * n) : NULL;
+  if (want_sigs && !sgs) return NULL;
+  int64_t *sg = sgs ? (int64_t *)PyBytes_AS_STRING(sgs) : NULL;
   size_t klen = sizeof(V) * NS - KEYSKIP, size = 16;
   while (size < 2 * (size_t)n) size <<= 1;
   uint32_t *tab = calloc(size, sizeof(uint32_t));
@@ -1122,6 +1170,7 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
   for (Py_ssize_t i = 0; i < n; i++) {{
     const V *s = arg_state(PyList_GET_ITEM(arg, i));
     if (!s) goto fail;
+    if (sg) sg[i] = sighash(s);       /* while the state is in the cache */
     V c[NS];
     canon(s, c);
     memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
@@ -1141,12 +1190,21 @@ static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
     }}
   }}
   free(tab);
-  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); Py_DECREF(occ); return NULL; }}
+  if (_PyBytes_Resize(&first, 8 * m)) {{ Py_DECREF(blob); Py_DECREF(occ); Py_XDECREF(sgs); return NULL; }}
+  if (sgs) return Py_BuildValue("(NNNN)", blob, first, occ, sgs);
   return Py_BuildValue("(NNN)", blob, first, occ);
 fail:
   free(tab);
-  Py_XDECREF(blob); Py_XDECREF(first); Py_XDECREF(occ);
+  Py_XDECREF(blob); Py_XDECREF(first); Py_XDECREF(occ); Py_XDECREF(sgs);
   return NULL;
+}}
+static PyObject *fingerprints(PyObject *self, PyObject *arg) {{
+  return fingerprints_(arg, 0);
+}}
+/* fingerprints_sigs(states): fingerprints(states) and a fourth bytes object,
+   sig of each state (int64s), computed in the same pass */
+static PyObject *fingerprints_sigs(PyObject *self, PyObject *arg) {{
+  return fingerprints_(arg, 1);
 }}
 static inline int okstate(const V *s) {{
   ovf = 0;
@@ -1194,6 +1252,8 @@ static PyMethodDef methods[] = {{
   {{"ok", ok, METH_O, "no stuck agent, the lock fine, every invariant holds"}},
   {{"expand", expand, METH_O, "successor counts, flat successors and labels of a list of states"}},
   {{"fingerprints", fingerprints, METH_O, "fingerprints and first occurrences of a list of states"}},
+  {{"fingerprints_sigs", fingerprints_sigs, METH_O, "fingerprints, first occurrences and stall signatures"}},
+  {{"reach_back", reach_back, METH_VARARGS, "backward reachability over a transition list"}},
   {{"violations", violations, METH_O, "[] or the Python model's violations"}},
   {{"clock", clock_, METH_O, "the state's time"}},
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
@@ -1871,6 +1931,11 @@ class NativeModel:
         self.restore_tables = getattr(py, "restore_tables", None)
         #: the explorer's batch hook, None when xxhash's symbol is not there
         self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
+        #: the graph analysis' backward reachability in C (Graph.can_reach)
+        self.reach_back = self.lib.reach_back
+        #: the same with the states' stall signatures (one pass for both)
+        self.fingerprint_sig_batch: Optional[Callable] = \
+            self._fingerprint_sig_batch if xxh is not None else None
         st0 = next(iter(py.init_states()))
         # the constant parts of a configuration: positions, reach cells, env
         self._pos = tuple(a[POS] for a in st0[AGS])
@@ -2034,6 +2099,15 @@ class NativeModel:
         import numpy as np
         blob, first, occ = self.lib.fingerprints(states)
         return [blob], np.frombuffer(first, dtype=np.int64), np.frombuffer(occ, dtype=np.int64)
+
+    def _fingerprint_sig_batch(self, states: list):
+        """:meth:`_fingerprint_batch`, and the stall signature of each state
+        (:meth:`stall_signatures`) as a fourth item, from the same pass over
+        the states (the graph recorder's stall check)."""
+        import numpy as np
+        blob, first, occ, sg = self.lib.fingerprints_sigs(states)
+        return ([blob], np.frombuffer(first, dtype=np.int64), np.frombuffer(occ, dtype=np.int64),
+                np.frombuffer(sg, dtype=np.int64))
 
     def terminal_kind(self, b) -> str:
         return self.py.terminal_kind(self.decode(b))

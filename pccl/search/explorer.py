@@ -1142,6 +1142,12 @@ class _Admission:
         #: --exact)
         self.fp_batch = (getattr(ex.model, "fingerprint_batch", None)
                          if not ex.exact else None)
+        #: the same with each candidate's stall signature, from the same pass,
+        #: when the graph recorder's stall check reads them
+        rec = ex.recorder
+        self.sig_batch = (getattr(ex.model, "fingerprint_sig_batch", None)
+                          if self.fp_batch is not None and rec is not None
+                          and rec.sig is not None and not rec.changes_given else None)
 
     def out_of_memory(self) -> None:
         """A MemoryError stopped the search: free the pending states."""
@@ -1178,7 +1184,11 @@ class _Admission:
             return False
         budget = self.budget
         first_of: Any = None
-        if self.fp_batch is not None:
+        sigs = None         # each candidate's stall signature, when the model gives them
+        if self.sig_batch is not None:
+            ck, first, first_of, sigs = self.sig_batch(cs)
+            n = len(cs)
+        elif self.fp_batch is not None:
             ck, first, first_of = self.fp_batch(cs)
             n = len(cs)
         else:
@@ -1220,9 +1230,9 @@ class _Admission:
             self.nxt.extend(states[:cut] if cut < len(states) else states)
             self.nxt_idx.extend(range(base, base + cut))
             if rec is not None:
-                rec.states(states[:cut])
+                rec.states(states[:cut], None if sigs is None else sigs[kept])
         if rec is not None:
-            self._record_edges(rec, ck, first_of, first, owners, base, cut)
+            self._record_edges(rec, ck, first_of, first, owners, base, cut, sigs)
         self.budget = budget - cut
         if stop_at is not None:
             # the search stops right after expanding the parent of the
@@ -1245,11 +1255,13 @@ class _Admission:
         return halt
 
     def _record_edges(self, rec, ck: list, first_of: Any, first: np.ndarray,
-                      owners: np.ndarray, base: int, cut: int) -> None:
+                      owners: np.ndarray, base: int, cut: int,
+                      sigs: Optional[np.ndarray] = None) -> None:
         """Tell the recorder every transition of the batch (``ck``: the
         candidates' keys; ``first_of``: a dict from key to the position of its
         first occurrence, or that position per candidate as an array) as
-        state numbers."""
+        state numbers (``sigs``: the candidates' stall signatures, when the
+        model computed them with the fingerprints)."""
         # each candidate's state number, from its key's first occurrence
         # (looked up once, in new_positions): no second lookup of the batch
         num = self.table.found
@@ -1259,7 +1271,9 @@ class _Admission:
         dst = num[np.searchsorted(first, occ)]
         src = np.asarray(self.par_idx, dtype=np.int64)[owners]
         keep = src != _NO_PARENT
-        if getattr(rec, "wants_candidates", False):
+        if sigs is not None and getattr(rec, "wants_candidates", False):
+            rec.edges(src[keep], dst[keep], to_sigs=sigs[keep])
+        elif getattr(rec, "wants_candidates", False):
             # the successor states too (before the batch is cleared)
             cs = self.cs
             cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))

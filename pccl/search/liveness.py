@@ -46,7 +46,7 @@ from __future__ import annotations
 import itertools
 import operator
 from dataclasses import dataclass, field
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -132,7 +132,9 @@ class StateColumns:
         here = sig(st)
         return any(sig(t) != here for t in succ_states)
 
-    def __call__(self, states: list) -> list:
+    def __call__(self, states: list, sigs: Optional[np.ndarray] = None) -> list:
+        """The columns of ``states`` (``sigs``: their stall signatures, when
+        already computed)."""
         n = len(states)
         cols: list = [np.fromiter(self.time_costs(states), dtype=np.uint8, count=n)]
         if self.props:
@@ -147,7 +149,7 @@ class StateColumns:
         if self.fairness:
             cols.append(np.fromiter(map(self.pending, states), dtype=np.uint64, count=n))
         if self.sig_of is not None:
-            cols.append(self.signatures(states))
+            cols.append(self.signatures(states) if sigs is None else sigs)
         return cols
 
 
@@ -208,9 +210,10 @@ class GraphRecorder:
         self.chg.extend(full)
 
     # -- called by the explorer -------------------------------------------------
-    def states(self, states: list) -> None:
-        """The states just admitted, in state-number order."""
-        for grow, col in zip(self._grows(), self.columns(states)):
+    def states(self, states: list, sigs: Optional[np.ndarray] = None) -> None:
+        """The states just admitted, in state-number order (``sigs``: their
+        stall signatures, when the model computed them with the fingerprints)."""
+        for grow, col in zip(self._grows(), self.columns(states, sigs)):
             grow.extend(col)
         if self.chg is not None:
             self.chg.extend(np.zeros(len(states), dtype=np.uint8))
@@ -226,19 +229,25 @@ class GraphRecorder:
             grow.release()
             grow.extend(full)
 
-    def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None) -> None:
+    def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None,
+              to_sigs: Optional[np.ndarray] = None) -> None:
         """Transitions by state number (``dst`` -1: a successor not admitted);
-        ``cands``: the successor states, when :attr:`wants_candidates`."""
+        ``cands``: the successor states, when :attr:`wants_candidates`, or
+        ``to_sigs``: their stall signatures."""
         ok = (dst >= 0) & (src >= 0)
         if not ok.all():
             if (dst < 0).any():
                 self.complete = False
             src, dst = src[ok], dst[ok]
+            if to_sigs is not None:
+                to_sigs = to_sigs[ok]
             if cands is not None:
                 cands = list(itertools.compress(cands, ok.tolist()))
         if self.sig is not None and self.chg is not None and len(src) and not self.changes_given:
             sig = self.sig.view()
-            if self.wants_candidates:
+            if self.wants_candidates and to_sigs is not None:
+                to = to_sigs
+            elif self.wants_candidates:
                 assert cands is not None, "the recorder needs the successor states"
                 to = self.columns.signatures(cands)
             else:
@@ -311,6 +320,9 @@ class Graph:
         self._fptr, self.fdst = fptr, fdst
         self.esrc = esrc                  # the source of each edge, aligned with fdst
         self._rev = None
+        #: the model's backward reachability in C (the native engine's
+        #: ``reach_back``), or None: :meth:`can_reach` in numpy alone
+        self.kernel: Optional[Callable] = None
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
@@ -350,6 +362,9 @@ class Graph:
         can = goal.copy()
         src, dst = self.esrc, self.fdst
         m = len(src)
+        if self.kernel is not None and src.dtype == np.uint32 and dst.dtype == np.uint32 \
+                and can.dtype == np.bool_ and self.kernel(src, dst, can.view(np.uint8), rounds) >= 0:
+            return can      # settled in C (else can holds part of it: go on from there)
         for _ in range(rounds):
             moved = False
             for a in range(0, m, _EDGE_CHUNK):
@@ -717,7 +732,7 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
         b in (Bound.MODEL,) for b in sr.bounds_hit)
     depth_only = rec.complete and sr.status == "bounded" and all(
         b in (Bound.MODEL, Bound.DEPTH) for b in sr.bounds_hit)
-    a = _Analysis(model, explorer.table, sr, rec, out, complete, find_all)
+    a = _Analysis(model, explorer, sr, rec, out, complete, find_all)
     a.reachable()
     if a.within() or a.liveness(depth_only):
         return out
@@ -732,12 +747,14 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
 class _Analysis:
     """The steps of :func:`analyse` over one frozen graph."""
 
-    def __init__(self, model, table, sr, rec: GraphRecorder, out: LivenessResult,
+    def __init__(self, model, explorer, sr, rec: GraphRecorder, out: LivenessResult,
                  complete: bool, find_all: bool):
+        table = explorer.table
         self.model, self.table, self.sr, self.rec, self.out = model, table, sr, rec, out
         self.complete, self.find_all = complete, find_all
         self.n = table.n
         self.g = rec.freeze(self.n)
+        self.g.kernel = getattr(getattr(explorer, "model", None), "reach_back", None)
         self.n_init = sr.stats.initial_states
         self.props = rec.props
 
