@@ -85,6 +85,9 @@ REDUCE_FULL = [
     ("fischer k=10 (paper), exhaustive", dict(program="programs/fischer.pccl"), ("none",)),
     ("fischer 3 agents k=2 d=2", dict(program="programs/fischer.pccl", agents=3,
                                       overrides={"k": "2", "d": "2"}), ("auto",)),
+    ("race_robust nondet 4 agents, exhaustive",
+     dict(program="programs/race_robust.pccl", world="programs/race.toml", blackbox="nondet",
+          agents=4), ("auto",)),
 ]
 
 CHILD = r"""

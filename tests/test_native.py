@@ -255,6 +255,40 @@ def test_fingerprints_with_signatures_are_the_two_calls(program, kw, kinds):
     assert len(by_native) >= kinds      # (Fischer's team looks the same throughout)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_table_kernels_are_the_numpy_table(seed):
+    """FingerprintTable with the native engine's probes (table_kernels) and
+    without them, fed the same batches (repeats, fingerprints sharing their
+    index word so that probes run long, index rebuilds as it grows): the same
+    state numbers found and the same arrays; a slot past the index is refused."""
+    import numpy as np
+    from pccl.search.explorer import FingerprintTable
+    nm = NV.NativeModel(make_model(os.path.join(ROOT, "programs", "fischer.pccl"),
+                                   overrides={"k": "1", "d": "1"}))
+    rng = np.random.default_rng(seed)
+    c, py = FingerprintTable(capacity=64), FingerprintTable(capacity=64)
+    c.kernels = nm.table_kernels
+    pool = rng.integers(0, 2**63, size=(30_000, 2), dtype=np.uint64)
+    pool[::3, 1] = pool[::3, 1] & np.uint64(0xFFFF_0000_0000_0000)   # equal low bits: long probes
+    for _ in range(12):
+        keys = pool[rng.integers(0, len(pool), 4000)]
+        blob = [keys.tobytes()]
+        _, first = np.unique(keys, axis=0, return_index=True)
+        first.sort()
+        a, b = c.new_positions(blob, first), py.new_positions(blob, first)
+        assert a.tolist() == b.tolist() and c.found.tolist() == py.found.tolist()
+        par = rng.integers(0, 1000, len(a)).astype(np.uint32)
+        c.add(len(a), par)
+        py.add(len(b), par)
+        assert c.n == py.n
+    assert np.array_equal(c.fps[:c.n], py.fps[:py.n])
+    found = c.lookup(pool)
+    assert np.array_equal(found, py.lookup(pool))
+    assert int((found >= 0).sum()) == c.n > 10_000       # each admitted one found, once
+    with pytest.raises(ValueError):
+        nm.table_kernels[0](c.slots, c.fps, pool[:2], np.zeros(2, np.int64), len(c.slots))
+
+
 def assert_batches_are_successors(nm, states) -> None:
     """successor_batch over ``states`` in chunks of 1,000: the counts and
     successors of nm.successors, state by state, and the labels met (a merged

@@ -1128,6 +1128,61 @@ static PyObject *reach_back(PyObject *self, PyObject *args) {{
   if (bad) {{ PyErr_SetString(PyExc_ValueError, "a state number out of range"); return NULL; }}
   return PyLong_FromLong(changed ? -1 : sweeps);
 }}
+/* The fingerprint table's index (pccl/search/explorer.py FingerprintTable:
+   linear probing of uint32 state numbers, keyed by the fingerprint's second
+   word, 0xFFFFFFFF empty) probed and filled in C, the arrays numpy's.
+   table_lookup(slots, fps, q, out, mask): out[i] = the state number of
+   fingerprint q[i] (two uint64s), or -1.  table_place(slots, fps, idx, mask):
+   index the state numbers idx (uint32s, distinct, absent). */
+#define TEMPTY 0xFFFFFFFFu
+static PyObject *table_lookup(PyObject *self, PyObject *args) {{
+  Py_buffer bs, bf, bq, bo;
+  unsigned long long mask;
+  if (!PyArg_ParseTuple(args, "y*y*y*w*K", &bs, &bf, &bq, &bo, &mask)) return NULL;
+  const uint32_t *slots = (const uint32_t *)bs.buf;
+  const uint64_t *fps = (const uint64_t *)bf.buf, *q = (const uint64_t *)bq.buf;
+  int64_t *out = (int64_t *)bo.buf;
+  Py_ssize_t k = bq.len / 16, nf = bf.len / 16;
+  int bad = (Py_ssize_t)(bo.len / 8) < k || (Py_ssize_t)(bs.len / 4) <= (Py_ssize_t)mask;
+  Py_BEGIN_ALLOW_THREADS
+  for (Py_ssize_t i = 0; i < k && !bad; i++) {{
+    if (i + 8 < k) __builtin_prefetch(&slots[q[2 * (i + 8) + 1] & mask]);
+    uint64_t lo = q[2 * i], hi = q[2 * i + 1];
+    size_t pos = hi & mask;
+    for (;;) {{
+      uint32_t e = slots[pos];
+      if (e == TEMPTY) {{ out[i] = -1; break; }}
+      if ((Py_ssize_t)e >= nf) {{ bad = 1; break; }}
+      if (fps[2 * (size_t)e + 1] == hi && fps[2 * (size_t)e] == lo) {{ out[i] = e; break; }}
+      pos = (pos + 1) & mask;
+    }}
+  }}
+  Py_END_ALLOW_THREADS
+  PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bq); PyBuffer_Release(&bo);
+  if (bad) {{ PyErr_SetString(PyExc_ValueError, "table arrays of the wrong size"); return NULL; }}
+  Py_RETURN_NONE;
+}}
+static PyObject *table_place(PyObject *self, PyObject *args) {{
+  Py_buffer bs, bf, bi;
+  unsigned long long mask;
+  if (!PyArg_ParseTuple(args, "w*y*y*K", &bs, &bf, &bi, &mask)) return NULL;
+  uint32_t *slots = (uint32_t *)bs.buf;
+  const uint64_t *fps = (const uint64_t *)bf.buf;
+  const uint32_t *idx = (const uint32_t *)bi.buf;
+  Py_ssize_t k = bi.len / 4, nf = bf.len / 16;
+  int bad = (Py_ssize_t)(bs.len / 4) <= (Py_ssize_t)mask;
+  Py_BEGIN_ALLOW_THREADS
+  for (Py_ssize_t i = 0; i < k && !bad; i++) {{
+    if ((Py_ssize_t)idx[i] >= nf) {{ bad = 1; break; }}
+    size_t pos = fps[2 * (size_t)idx[i] + 1] & mask;
+    while (slots[pos] != TEMPTY) pos = (pos + 1) & mask;
+    slots[pos] = idx[i];
+  }}
+  Py_END_ALLOW_THREADS
+  PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bi);
+  if (bad) {{ PyErr_SetString(PyExc_ValueError, "table arrays of the wrong size"); return NULL; }}
+  Py_RETURN_NONE;
+}}
 /* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
 static PyObject *phases(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
@@ -1254,6 +1309,8 @@ static PyMethodDef methods[] = {{
   {{"fingerprints", fingerprints, METH_O, "fingerprints and first occurrences of a list of states"}},
   {{"fingerprints_sigs", fingerprints_sigs, METH_O, "fingerprints, first occurrences and stall signatures"}},
   {{"reach_back", reach_back, METH_VARARGS, "backward reachability over a transition list"}},
+  {{"table_lookup", table_lookup, METH_VARARGS, "the fingerprint table's lookups"}},
+  {{"table_place", table_place, METH_VARARGS, "the fingerprint table's index filled"}},
   {{"violations", violations, METH_O, "[] or the Python model's violations"}},
   {{"clock", clock_, METH_O, "the state's time"}},
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
@@ -1931,6 +1988,8 @@ class NativeModel:
         self.restore_tables = getattr(py, "restore_tables", None)
         #: the explorer's batch hook, None when xxhash's symbol is not there
         self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
+        #: the fingerprint table's probes in C (FingerprintTable.kernels)
+        self.table_kernels = (self.lib.table_lookup, self.lib.table_place)
         #: the graph analysis' backward reachability in C (Graph.can_reach)
         self.reach_back = self.lib.reach_back
         #: the same with the states' stall signatures (one pass for both)

@@ -310,6 +310,9 @@ class FingerprintTable:
         self._batch: Any = None         # (fingerprints, positions) of the last batch
         #: state numbers of the last batch's first occurrences (-1: new)
         self.found: Any = None
+        #: (lookup, place) of the native engine (its ``table_kernels``): the
+        #: index probed and filled in C, the same arrays; None: numpy
+        self.kernels: Optional[tuple] = None
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
@@ -320,6 +323,9 @@ class FingerprintTable:
     def _place(self, idx: np.ndarray) -> None:
         """Index state numbers ``idx`` (distinct, absent fingerprints)."""
         slots, mask = self.slots, self.mask
+        if self.kernels is not None:
+            self.kernels[1](slots, self.fps, np.ascontiguousarray(idx, dtype=np.uint32), int(mask))
+            return
         pos = (self.fps[idx, 1] & mask).astype(np.int64)
         m = int(mask)
         while idx.size:
@@ -335,6 +341,9 @@ class FingerprintTable:
         """State numbers of the fingerprints ``q`` (shape (k, 2)); -1 where absent."""
         slots, fps, m = self.slots, self.fps, int(self.mask)
         out = np.full(len(q), -1, dtype=np.int64)
+        if self.kernels is not None:
+            self.kernels[0](slots, fps, np.ascontiguousarray(q, dtype=np.uint64), out, m)
+            return out
         act = np.arange(len(q))
         pos = (q[:, 1] & self.mask).astype(np.int64)
         while act.size:
@@ -649,6 +658,8 @@ class Explorer:
             self.table = self.spiller.table
         else:
             self.table = ExactTable() if self.exact else FingerprintTable()
+            if not self.exact:
+                self.table.kernels = getattr(self.model, "table_kernels", None)
         res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
         adm = _Admission(self, res)
         ck = self.checkpoint

@@ -162,6 +162,7 @@ class _Worker:
         self.x_bucket: Any = None       # the bucket expanded last
         self.cand_cost: Any = None      # time cost of each candidate (fastest)
         self.table = FingerprintTable()
+        self.table.kernels = getattr(model, "table_kernels", None)   # the native engine's probes
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
         self.cand: list = []           # candidate successors of the level
