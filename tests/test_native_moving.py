@@ -176,6 +176,45 @@ def test_memo_misses_are_few_and_the_python_rule_runs_once_per_key():
     assert misses == entries == len(calls) and hits > 10 * misses
 
 
+def test_a_rule_writing_a_slot_its_site_does_not_write_stops_the_native_search():
+    """The check of every memo miss: a site whose rule changes a slot the
+    site does not list as written raises NativeOverflow (the native search
+    stops and Python runs), naming the slot; the same miss with the slot
+    listed passes."""
+    m = make_model(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 2, "nondet", "none"))
+    nm = NV.NativeModel(m)
+    env = [k for k, site in enumerate(nm.gen.sites) if site[0] == "env"]
+    assert env
+    k = env[0]
+    kind, i, pc, rs, ws = nm.gen.sites[k]
+    # a state right after TIME ADVANCE with both robots moving: DOREACH INVOKE
+    # writes their positions
+    frontier, found = list(nm.init_states()), None
+    while frontier and found is None:
+        nxt = []
+        for b in frontier:
+            for lab, b2 in nm.successors(b):
+                if lab[0] == "DOREACH INVOKE" and nm.decode(b2)[AGS][0][POS] != nm.decode(b)[AGS][0][POS]:
+                    found = b
+                nxt.append(b2)
+        frontier = nxt[:2000]
+    assert found is not None
+    assert nm._miss(k, found)[0]                # as generated: passes
+    for q in ws:
+        nm.gen.sites[k] = (kind, i, pc, rs, [w for w in ws if w != q])
+        nm._unwritten.pop(k, None)
+        try:
+            nm._miss(k, found)
+        except NV.NativeOverflow as e:
+            assert f"changed slot {q}," in str(e)
+            break
+        finally:
+            nm.gen.sites[k] = (kind, i, pc, rs, ws)
+            nm._unwritten.pop(k, None)
+    else:
+        raise AssertionError("no written slot of DOREACH INVOKE changed")
+
+
 def test_batch_stall_signatures_equal_one_by_one():
     # the graph recorder's one C call per batch (stall_signatures) against
     # the per-state signature the parallel search and the tests use

@@ -2134,8 +2134,11 @@ class NativeModel:
         for label, st2 in out:
             t = array("q")
             t.frombytes(self.encode(st2))
-            bad = [q for q in keep if t[q] != src[q]]
-            if bad:
+            u = array("q", src)         # the state as the site may leave it: one C compare
+            for q in ws:
+                u[q] = t[q]
+            if u != t:
+                bad = [q for q in keep if t[q] != src[q]]
                 raise NativeOverflow(f"a memoised rule ({label[0]}) changed slot {bad[0]}, "
                                      "which its memo site does not write")
             val.append(self.gen.lab(label))
