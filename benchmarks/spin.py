@@ -103,6 +103,8 @@ def parse_pan(out: str) -> dict:
         return int(float(m.group(1)))
     if "errors: 0" not in out:
         raise RuntimeError(f"pan reported errors:\n{out}")
+    if "max search depth too small" in out:
+        raise RuntimeError(f"pan's -m was too small for this search:\n{out}")
     return {"states": num(r"([\d.e+]+) states, stored"),
             "transitions": num(r"([\d.e+]+) transitions \(= "),
             "depth": num(r"depth reached (\d+)")}
@@ -110,9 +112,14 @@ def parse_pan(out: str) -> dict:
 
 def run_pan(exe: str, *, bfs: bool, n: int = 2) -> tuple[dict, float]:
     """Run a verifier: its statistics and CPU seconds.  The hash table has
-    2^24 slots (2^26 for 3 agents or more: 25 million states)."""
-    cmd = [exe, "-m10000000"] if not bfs else [exe]
-    out, cpu = _cpu_run(cmd + ["-w26" if n >= 3 else "-w24"], cwd=os.path.dirname(exe))
+    2^22 slots for 2 agents (1-1.4 million states), 2^26 for 3 agents or
+    more (25 million); depth-first search keeps a stack of 100,000 steps
+    (these searches go 862-2,191 deep; pan stops and this raises if one
+    needs more).  SPIN's own best settings for these sizes: the reference
+    model's (-w22 -m100000); a stack of 10 million steps, as this script
+    first had, costs pan 0.3 s of allocation, a third of a 2-agent search."""
+    cmd = [exe, "-m100000"] if not bfs else [exe]
+    out, cpu = _cpu_run(cmd + ["-w26" if n >= 3 else "-w22"], cwd=os.path.dirname(exe))
     return parse_pan(out), cpu
 
 
