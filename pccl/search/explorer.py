@@ -1241,7 +1241,10 @@ class _Admission:
             self.nxt.extend(states[:cut] if cut < len(states) else states)
             self.nxt_idx.extend(range(base, base + cut))
             if rec is not None:
-                rec.states(states[:cut], None if sigs is None else sigs[kept])
+                if sigs is None:
+                    rec.states(states[:cut])
+                else:       # (only a GraphRecorder with the stall check asks for them)
+                    rec.states(states[:cut], sigs[kept])
         if rec is not None:
             self._record_edges(rec, ck, first_of, first, owners, base, cut, sigs)
         self.budget = budget - cut
