@@ -1185,6 +1185,24 @@ class _Admission:
         self.nxt, self.nxt_idx = [], []
         return level, idx
 
+    def _keys(self, cs: list) -> tuple:
+        """The batch's keys (fingerprints, or encodings under --exact), the
+        positions of each key's first occurrence (ascending), each
+        candidate's first occurrence (an array, or a dict from key to it),
+        and each candidate's stall signature when the model computes them
+        with the fingerprints (else None)."""
+        if self.sig_batch is not None:
+            return self.sig_batch(cs)
+        if self.fp_batch is not None:
+            return (*self.fp_batch(cs), None)
+        ck = list(self.keys_of(cs))   # one map() chain for the whole batch
+        n = len(ck)
+        # first occurrence of each key, in batch order (C-level dict build)
+        first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
+        first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
+        first.sort()
+        return ck, first, first_of, None
+
     def flush(self, d) -> bool:
         """Admit the pending batch (successors at depth ``d``); True to stop."""
         cs, par_idx, par_n, flags = self.cs, self.par_idx, self.par_n, self.flags
@@ -1194,21 +1212,8 @@ class _Admission:
             flags.clear()
             return False
         budget = self.budget
-        first_of: Any = None
-        sigs = None         # each candidate's stall signature, when the model gives them
-        if self.sig_batch is not None:
-            ck, first, first_of, sigs = self.sig_batch(cs)
-            n = len(cs)
-        elif self.fp_batch is not None:
-            ck, first, first_of = self.fp_batch(cs)
-            n = len(cs)
-        else:
-            ck = list(self.keys_of(cs))   # one map() chain for the whole batch
-            n = len(ck)
-            # first occurrence of each key, in batch order (C-level dict build)
-            first_of = dict(zip(reversed(ck), range(n - 1, -1, -1)))
-            first = np.fromiter(first_of.values(), dtype=np.int64, count=len(first_of))
-            first.sort()
+        ck, first, first_of, sigs = self._keys(cs)
+        n = len(cs)
         new = table.new_positions(ck, first).tolist()
         base = table.n
         cut = len(new)
