@@ -447,7 +447,7 @@ def test_cli_workers_spill_says_what_each_worker_spilled(tmp_path):
                                          r"disk, [\d,]+ segment", note)]
     assert len(merges) == 2 and min(merges) >= 1, note
     mib = re.search(r"the processes started at (\d+) \+ (\d+) = (\d+) MiB and peaked at "
-                    r"(\d+) \+ (\d+) = (\d+) MiB together, --max-memory \S+ allowing (\d+)$",
+                    r"(\d+) \+ (\d+) = (\d+) MiB together \(--max-memory \S+: (\d+) MiB\)$",
                     note)
     assert mib, note
     s0, s1, s, p0, p1, p, b = map(int, mib.groups())
@@ -517,3 +517,49 @@ def test_cli_workers_spill_keeps_the_search_under_max_memory(workers, tmp_path):
     assert spilled["statistics"]["peak_memory_bytes"] <= bound
     assert all(int(m) >= 1 for m in re.findall(r"worker \d: ([\d,]+) merge", note)), note
     assert os.listdir(tmp_path) == []
+
+
+def test_shares_follow_the_peaks():
+    """The shares of a bound add up to it; each is its process's peak plus
+    an even part of what is left (a larger start gets a larger share), and
+    past the bound each is below its peak (so every process is pressed)."""
+    mib = 1 << 20
+    got = S.shares(110 * mib, [48 * mib, 38 * mib])
+    assert got == [60 * mib, 50 * mib] and sum(got) == 110 * mib
+    got = S.shares(150 * mib, [48 * mib, 38 * mib, 40 * mib])
+    assert got == [56 * mib, 46 * mib, 48 * mib]
+    assert all(s < p for s, p in zip(S.shares(80 * mib, [48 * mib, 38 * mib]),
+                                     [48 * mib, 38 * mib]))
+
+
+@pytest.mark.parametrize("first,more", [(40_000, 33_000), (200_000, 50_000), (200_000, 0)])
+def test_partition_spill_cost_covers_a_merge_and_a_lookup(first, more, tmp_path):
+    """What a worker keeps in reserve for a merge of its buffer (or, with
+    nothing buffered, a lookup in its file) is at least what the merge or
+    the lookup allocates (tracemalloc sees numpy's buffers)."""
+    import tracemalloc
+    rng = np.random.default_rng(3)
+    d = S.SpillDir(str(tmp_path))
+    t = S.PartitionTable(d, FingerprintTable)
+    try:
+        t.insert(rng.integers(0, 2**63, size=(first, 2), dtype=np.uint64), np.arange(first))
+        t.spill()
+        q = rng.integers(0, 2**63, size=(more, 2), dtype=np.uint64)
+        t.insert(q, np.arange(more) + first)
+        probe = np.concatenate([t.entries()[0][::7], q[:1000]])     # mostly present: read
+        t.lookup(probe)                         # the largest batch yet
+        cost = t.spill_cost()
+        tracemalloc.start()
+        try:
+            base = tracemalloc.get_traced_memory()[0]
+            if more:
+                t.spill()
+            else:
+                assert (t.lookup(probe) >= 0).all()
+            used = tracemalloc.get_traced_memory()[1] - base
+        finally:
+            tracemalloc.stop()
+        assert 0 < used <= cost, (used, cost)
+    finally:
+        t.close()
+        d.close()

@@ -771,9 +771,9 @@ _BALANCE_LEVEL = 8192
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
 _LITTER: list = []
 #: ... at most this many states: a process that never waits (its message is
-#: there whenever it asks) frees the oldest at once instead (measured: the
-#: coordinator's held up to 58,000 states of fischer k=2 d=2, 37 levels'
-#: candidates, some 10 MiB that no bound accounted for)
+#: there whenever it asks) frees the oldest at once instead (measured before
+#: this cap, fischer k=2 d=2 with 2 workers spilling: the coordinator's held
+#: up to 58,000 states, 37 levels' candidates, and its peak varied with it)
 _LITTER_MOST = 1 << 15
 
 

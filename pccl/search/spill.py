@@ -49,7 +49,6 @@ import errno
 import os
 import pickle
 import shutil
-import sys
 import tempfile
 from collections.abc import Callable, Iterator
 from typing import Any, Optional
@@ -652,36 +651,13 @@ def shares(bound: int, peaks: list) -> list:
     coordinator's: worker 0, the parent links, the interpreter's pages not
     shared) gets it, and as the peaks grow each process's share shrinks
     towards its peak: the one that grew most is pressed first.  (Split
-    evenly, ``bound / N``, the coordinator's process started above three
-    quarters of its half and its peak passed the half while a forked
-    worker never spilled: measured, docs/scale-out.md.)"""
+    evenly, ``bound / N``: fischer k=2 d=2 with 2 workers at 110M, the
+    coordinator's process started at 48 MiB, above three quarters of its
+    55, and peaked at 61 while the forked worker peaked at 50; the search
+    stopped bounded at 307,548 of 1,066,248 states.  docs/scale-out.md.)"""
     slack = bound - sum(peaks)
     n = len(peaks)
     return [int(p) + slack // n for p in peaks]
-
-
-def give_back_freed_memory() -> None:
-    """glibc (Linux): allocations of 128 KiB and more get mappings of their
-    own, given back to the system when freed, from now on in this process.
-    By default glibc raises that threshold (up to 32 MiB) once such a block
-    is freed, after which a merge's temporaries (a few MiB of numpy arrays)
-    come from the heap, whose freed middle stays resident: measured with 2
-    workers on fischer k=2 d=2 at ``--max-memory 110M``, a forked worker's
-    memory after a merge stayed at 47 MiB (its start: 38) instead of 42, and
-    every merge left the floor higher.  A spilling worker under a bound
-    calls this (:meth:`WorkerSpiller.set_share`); elsewhere (no glibc) it
-    does nothing."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-        ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, 128 * 1024)
-    except (OSError, AttributeError):       # pragma: no cover - not glibc
-        pass
-
-
-#: glibc's ``mallopt`` parameter for the mapping threshold
-_M_MMAP_THRESHOLD = -3
 
 
 def worker_dirs(parent: str, n: int) -> list:
@@ -747,6 +723,8 @@ class PartitionTable:
         self.disk.QUERIES = 256
         self.mem = new_buffer()
         self.n = 0
+        #: the largest batch looked up (:meth:`spill_cost`)
+        self.batch = 0
 
     @property
     def buffered(self) -> int:
@@ -755,6 +733,7 @@ class PartitionTable:
     def lookup(self, q: np.ndarray) -> np.ndarray:
         """Global state numbers of the fingerprints ``q`` (shape (k, 2)); -1
         where absent."""
+        self.batch = max(self.batch, len(q))
         local = self.mem.lookup(q)
         hit = local >= 0
         out = np.full(len(q), -1, dtype=np.int64)
@@ -778,17 +757,20 @@ class PartitionTable:
     #: bytes a merge holds for a buffered state beyond the buffer (the
     #: sorted entries, the order, the gathered halves: measured 48-54 with
     #: tracemalloc), and per entry of a chunk (its records, the merged copy,
-    #: the Bloom filter's probes)
+    #: the Bloom filter's probes); bytes a lookup holds per fingerprint
+    #: looked up (the answers, the filter's probes: measured 27)
     MERGE_BYTES = 56
     CHUNK_BYTES = 80
+    LOOKUP_BYTES = 48
 
     def spill_cost(self) -> int:
         """The memory a :meth:`spill` of the buffer now would take beyond
         what the process holds (the Bloom filter, when it grows, is made
-        anew beside the old one), or a lookup in the file (a page per
-        query), whichever is more."""
+        anew beside the old one), or a lookup as large as the largest yet
+        (a page per query in a step), whichever is more."""
         disk, m = self.disk, self.mem.n
-        lookup = disk.QUERIES * (disk.PAGE + 1) * RECORD.itemsize if disk.n else 0
+        lookup = self.batch * self.LOOKUP_BYTES + (
+            disk.QUERIES * (disk.PAGE + 1) * RECORD.itemsize if disk.n else 0)
         if not m:
             return lookup
         grow = disk._bloom_size(disk.n + m)
@@ -852,9 +834,12 @@ class WorkerSpiller(_Policy):
     room between the process's size at its start (:attr:`start`) and its
     share, or twice the most a level has added to it lately
     (:attr:`excursion`: a level's candidates, measured when they are all
-    held), whichever is larger.  What a level adds cannot be spilled
-    before the coordinator has decided it, so the reserve is what keeps the
-    peak, which never comes down, within the share."""
+    held) plus what spilling the buffer would take (:meth:`PartitionTable.spill_cost`),
+    whichever is larger.  What a level adds cannot be spilled before the
+    coordinator has decided it, and a merge needs memory of its own, so the
+    reserve is what keeps the peak, which never comes down, within the
+    share.  (Without it, measured: a merge's temporaries lifted a process's
+    peak 4 MiB above its share in one step.)"""
 
     def __init__(self, directory: SpillDir, share: Optional[int], states: Optional[int],
                  new_buffer: Callable[[], Any]):
@@ -878,10 +863,8 @@ class WorkerSpiller(_Policy):
         36 bytes a state, as one process's; not moved with the search, which
         would merge ever smaller buffers)."""
         self.share = share
-        if first and share is not None:
-            give_back_freed_memory()
-            if self._states is None:
-                self.table_limit = max(1 << 14, (share - self.start) // 4 // STATE_BYTES)
+        if first and share is not None and self._states is None:
+            self.table_limit = max(1 << 14, (share - self.start) // 4 // STATE_BYTES)
 
     def _pressed(self, rss: int) -> bool:
         share = self.share
@@ -957,8 +940,8 @@ class WorkerSpills:
         return (f"; the processes started at {' + '.join(f'{s / mib:.0f}' for s in starts)} "
                 f"= {sum(starts) / mib:.0f} MiB and peaked at "
                 f"{' + '.join(f'{p / mib:.0f}' for p in self.peaks)} = "
-                f"{sum(self.peaks) / mib:.0f} MiB together, "
-                f"{{max_memory={format_size(self.bound)}}} allowing {self.bound / mib:.0f}")
+                f"{sum(self.peaks) / mib:.0f} MiB together "
+                f"({{max_memory={format_size(self.bound)}}}: {self.bound / mib:.0f} MiB)")
 
     def note(self) -> str:
         f, k = self.figures(), len(self.per_worker)
