@@ -218,9 +218,10 @@ class _Worker:
     def _discard(self, states: list) -> None:
         """States no longer needed: freed now, or (``defer_free``, set by
         the pipes transport) while this process waits for its next message
-        (:func:`_recv`), off the critical path."""
-        if self.defer_free and states:
-            _LITTER.append(states)
+        (:func:`_recv`), off the critical path; at once when my spilling
+        process is pressed (:class:`pccl.search.spill.WorkerSpiller`)."""
+        if self.defer_free and states and not (self.spill is not None and self.spill.pressed):
+            _litter(states)
 
     def ready(self) -> int:
         """Called once by :class:`_RayTransport` in the actor's process."""
@@ -490,6 +491,8 @@ class _Worker:
         self.cand, self.cand_keys = cs, keys
         self.par_idx, self.par_n = pi, pn
         dead, self.x_dead = self.x_dead, []
+        if self.spill is not None:          # the level's candidates all held: how much
+            self.spill.observe()
         return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
                 viol, peak_rss_bytes(), moved)
 
@@ -551,7 +554,9 @@ class _Worker:
         admitted states I generated."""
         if decision is None:
             return peak_rss_bytes()
-        base, cut, owner_ranks, won_keys, won_ranks = decision
+        base, cut, owner_ranks, won_keys, won_ranks = decision[:5]
+        if len(decision) > 5 and self.spill is not None:    # --spill: my share, moved
+            self.spill.set_share(decision[5])
         if self.cand_keys is not None:
             pos = np.searchsorted(self.cand_keys, won_keys).tolist()
             cs = self.cand
@@ -572,6 +577,8 @@ class _Worker:
                 self.table.insert(f[keep], (base + owner_ranks[keep]).astype(np.int64))
         if self.spill is not None:
             self.spill.relieve(self)        # memory pressed: to disk, instead of the bound
+            if self.spill.pressed and self.defer_free:
+                _LITTER.clear()             # and the states waiting to be freed: now
         return peak_rss_bytes()
 
     def _file(self, idx: list, states: list, costs: list) -> None:
@@ -680,14 +687,22 @@ class _Worker:
         local = self.table.index_of(fp)
         return -1 if local < 0 else int(self.table.parents[local])
 
-    def spill_start(self, directory, share: Optional[int], states: Optional[int]) -> None:
+    def spill_start(self, directory, share: Optional[int], states: Optional[int]) -> int:
         """``--spill``: spill my partition and my share of the levels into
         ``directory`` (a :class:`pccl.search.spill.SpillDir`), with ``share``
-        bytes of ``--max-memory`` for this process (before any state)."""
+        bytes of ``--max-memory`` for this process (before any state; None:
+        set later, :meth:`spill_share`).  Returns this process's resident
+        memory now (what it needs before its first state)."""
         from pccl.search.spill import WorkerSpiller
         assert not self.table.n, "spill_start() before the first state"
         self.spill = WorkerSpiller(directory, share, states, FingerprintTable)
         self.table = self.spill.table
+        return self.spill.start
+
+    def spill_share(self, share: Optional[int]) -> None:
+        """``--spill``: my first share of ``--max-memory`` (by need: the
+        coordinator's :func:`pccl.search.spill.shares`)."""
+        self.spill.set_share(share, first=True)
 
     def spill_figures(self) -> Optional[dict]:
         """What I spilled (:meth:`pccl.search.spill.WorkerSpiller.figures`)."""
@@ -756,6 +771,20 @@ _BALANCE_LEVEL = 8192
 
 #: Lists of states to free while waiting (:meth:`_Worker._discard`).
 _LITTER: list = []
+#: ... at most this many states: a process that never waits (its message is
+#: there whenever it asks) frees the oldest at once instead (measured before
+#: this cap, fischer k=2 d=2 with 2 workers spilling: the coordinator's held
+#: up to 58,000 states, 37 levels' candidates, and its peak varied with it)
+_LITTER_MOST = 1 << 15
+
+
+def _litter(states: list) -> None:
+    """Free ``states`` while waiting (:func:`_ready`), the oldest of those
+    waiting at once when more than :data:`_LITTER_MOST` would wait."""
+    _LITTER.append(states)
+    held = sum(map(len, _LITTER))
+    while held > _LITTER_MOST and len(_LITTER) > 1:
+        held -= len(_LITTER.pop(0))
 
 
 def _recv(conn):
@@ -1557,12 +1586,27 @@ class ParallelExplorer(Explorer):
     def _spill_start(self, dirs: list) -> None:
         """``spill``: each worker spills its partition and its share of the
         levels into a directory of its own (``dirs``: ``spill/worker-<i>/``),
-        with ``max_memory`` over the number of workers for its process
-        (pccl/search/spill.py)."""
+        with a share of ``max_memory`` for its process by need: the size it
+        starts at plus an even part of the rest (:func:`spill.shares`), moved
+        with the search (:meth:`_spill_shares`)."""
         from pccl.search.spill import Spiller
+        self._spill_starts = self.transport.all(
+            "spill_start", [(d, None, Spiller.STATES) for d in dirs])
+        if self.max_memory is not None:
+            self.transport.all("spill_share", [(s,) for s in self._spill_shares()])
+
+    def _spill_shares(self) -> list:
+        """The processes' shares of ``max_memory`` now (:func:`spill.shares`)
+        from their peaks so far (a forked worker's before it reported one:
+        its start)."""
+        from pccl.search.spill import shares
         n = self.workers
-        share = None if self.max_memory is None else self.max_memory // n
-        self.transport.all("spill_start", [(d, share, Spiller.STATES) for d in dirs])
+        pw = getattr(self, "peak_workers", None) or [0] * n
+        peaks = [max(p, s) for p, s in zip(pw, self._spill_starts)]
+        if self.ray is None:
+            peaks[0] = max(peaks[0], peak_rss_bytes())     # worker 0: this process
+        assert self.max_memory is not None
+        return shares(self.max_memory, peaks)
 
     def _run(self) -> SearchResult:
         """The coordinator: the initial states (:meth:`_initial_rounds`),
@@ -1624,8 +1668,12 @@ class ParallelExplorer(Explorer):
             self._gather_graph(self._total)
         if self.options.spill is not None:      # what each worker spilled, for the notes
             from pccl.search.spill import WorkerSpills
+            peaks = list(self.peak_workers)
+            if self.ray is None:
+                peaks[0] = max(peaks[0], peak_rss_bytes())     # worker 0: this process
             self.spiller = WorkerSpills(self.options.spill,
-                                        self.transport.all("spill_figures", [()] * n))
+                                        self.transport.all("spill_figures", [()] * n),
+                                        peaks, self.max_memory)
         return res
 
     def max_time_now(self, interrupted: bool = False) -> Any:
@@ -1737,6 +1785,10 @@ class ParallelExplorer(Explorer):
                         self._bounds.add(b)
             level_base, holder = self._total, self._decide(
                 sorted_keys, _split_like(ranks, new_keys), cut, holder, level_base)
+            if self.options.spill is not None and self.max_memory is not None:
+                # each process's share, moved by the peaks (sent with the decision)
+                self._decisions = [d + (s,) for d, s in zip(self._decisions,
+                                                             self._spill_shares())]
             level_size = cut
             if cut:
                 depth += 1

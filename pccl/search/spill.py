@@ -559,10 +559,14 @@ class _Policy:
             self._rss = psutil.Process().memory_info
         return int(self._rss().rss)
 
+    def _pressed(self, rss: int) -> bool:
+        """Whether the memory is pressed at ``rss`` bytes resident."""
+        return self.threshold is not None and rss > self.threshold
+
     def _relieve_table(self, table) -> bool:
         """Spill the table's buffer when it is full (or an eighth full and
         the memory pressed); whether the memory is pressed."""
-        pressed = self.threshold is not None and self.rss() > self.threshold
+        pressed = self._pressed(self.rss())
         lim = self.table_limit
         if lim is not None and (table.buffered >= lim or (pressed and table.buffered >= lim // 8)):
             table.spill()
@@ -631,10 +635,29 @@ class Spiller(_Policy):
 # Each worker owns a partition of the visited set and holds its share of the
 # next level; with ``--spill`` each spills both as one process does, into its
 # own directory ``DIR/worker-<i>/pccl-spill-XXXXXXXX/`` (made and removed by
-# the coordinator: :func:`worker_dirs`), by :class:`Spiller`'s rules with its
-# share of ``--max-memory`` (the bound over the number of workers) against
-# its own process's resident memory.  The coordinator still stops the search
+# the coordinator: :func:`worker_dirs`), by :class:`Spiller`'s rules against
+# its own process's resident memory, with a share of ``--max-memory`` that
+# the coordinator sets by need and moves with the search (:func:`shares`,
+# :meth:`WorkerSpiller.relieve`).  The coordinator still stops the search
 # when the processes' peaks together pass ``--max-memory``.
+
+
+def shares(bound: int, peaks: list) -> list:
+    """Each process's share of ``bound`` (``--max-memory``) given the
+    processes' peaks so far (``peaks``: before the first state, the size
+    each process starts at): its own peak plus an even part of what the
+    peaks together leave of the bound.  So the shares add up to the bound,
+    a process that needs more than another from the start (the
+    coordinator's: worker 0, the parent links, the interpreter's pages not
+    shared) gets it, and as the peaks grow each process's share shrinks
+    towards its peak: the one that grew most is pressed first.  (Split
+    evenly, ``bound / N``: fischer k=2 d=2 with 2 workers at 110M, the
+    coordinator's process started at 48 MiB, above three quarters of its
+    55, and peaked at 61 while the forked worker peaked at 50; the search
+    stopped bounded at 307,548 of 1,066,248 states.  docs/scale-out.md.)"""
+    slack = bound - sum(peaks)
+    n = len(peaks)
+    return [int(p) + slack // n for p in peaks]
 
 
 def worker_dirs(parent: str, n: int) -> list:
@@ -690,8 +713,18 @@ class PartitionTable:
         self._new_buffer = new_buffer
         self.dir = directory
         self.disk = DiskSet(directory)
+        # smaller steps than one process's: a merge's and a lookup's
+        # temporaries (a chunk's records, merged copy and Bloom probes; a
+        # page per query) are the part of a worker's memory its share must
+        # leave room for (:meth:`spill_cost`; measured with tracemalloc: a
+        # merge of 33,000 states into 40,000 took 5.7 MB with 65,536-entry
+        # chunks, 2.5 MB with 16,384)
+        self.disk.CHUNK = 1 << 14
+        self.disk.QUERIES = 256
         self.mem = new_buffer()
         self.n = 0
+        #: the largest batch looked up (:meth:`spill_cost`)
+        self.batch = 0
 
     @property
     def buffered(self) -> int:
@@ -700,6 +733,7 @@ class PartitionTable:
     def lookup(self, q: np.ndarray) -> np.ndarray:
         """Global state numbers of the fingerprints ``q`` (shape (k, 2)); -1
         where absent."""
+        self.batch = max(self.batch, len(q))
         local = self.mem.lookup(q)
         hit = local >= 0
         out = np.full(len(q), -1, dtype=np.int64)
@@ -719,6 +753,29 @@ class PartitionTable:
     def number_of(self, key: bytes) -> int:
         """The global state number of the fingerprint ``key`` (-1: not mine)."""
         return int(self.lookup(np.frombuffer(key, dtype=np.uint64).reshape(1, 2))[0])
+
+    #: bytes a merge holds for a buffered state beyond the buffer (the
+    #: sorted entries, the order, the gathered halves: measured 48-54 with
+    #: tracemalloc), and per entry of a chunk (its records, the merged copy,
+    #: the Bloom filter's probes); bytes a lookup holds per fingerprint
+    #: looked up (the answers, the filter's probes: measured 27)
+    MERGE_BYTES = 56
+    CHUNK_BYTES = 80
+    LOOKUP_BYTES = 48
+
+    def spill_cost(self) -> int:
+        """The memory a :meth:`spill` of the buffer now would take beyond
+        what the process holds (the Bloom filter, when it grows, is made
+        anew beside the old one), or a lookup as large as the largest yet
+        (a page per query in a step), whichever is more."""
+        disk, m = self.disk, self.mem.n
+        lookup = self.batch * self.LOOKUP_BYTES + (
+            disk.QUERIES * (disk.PAGE + 1) * RECORD.itemsize if disk.n else 0)
+        if not m:
+            return lookup
+        grow = disk._bloom_size(disk.n + m)
+        return max(lookup, m * self.MERGE_BYTES + disk.CHUNK * self.CHUNK_BYTES
+                   + (grow if grow != len(disk.bloom) else 0))
 
     def spill(self) -> None:
         """Merge the buffer into the sorted file (as :meth:`SpillTable.spill`)."""
@@ -765,21 +822,70 @@ class WorkerSpiller(_Policy):
     decision): its partition of the visited set (:class:`PartitionTable`)
     and its share of the next level (a :class:`LevelFile`, read back a
     segment at a time when the level is expanded: :meth:`take_level`), by
-    :class:`Spiller`'s rules, with ``share`` (its share of ``--max-memory``,
-    None: none) against its own process's resident memory.  ``states``:
-    :attr:`Spiller.STATES` as the coordinator has it."""
+    :class:`Spiller`'s rules, against its own process's resident memory.
+    ``share``: the bytes of ``--max-memory`` this process may peak at (None:
+    no bound; the coordinator sets it, :func:`shares`, and moves it with the
+    search: :attr:`share`); ``states``: :attr:`Spiller.STATES` as the
+    coordinator has it.
+
+    Pressed (everything that can go goes to disk, and the level's
+    candidates are freed at once instead of while the process waits) once
+    the resident memory passes its share less a reserve: a quarter of the
+    room between the process's size at its start (:attr:`start`) and its
+    share, or twice the most a level has added to it lately
+    (:attr:`excursion`: a level's candidates, measured when they are all
+    held) plus what spilling the buffer would take (:meth:`PartitionTable.spill_cost`),
+    whichever is larger.  What a level adds cannot be spilled before the
+    coordinator has decided it, and a merge needs memory of its own, so the
+    reserve is what keeps the peak, which never comes down, within the
+    share.  (Without it, measured: a merge's temporaries lifted a process's
+    peak 4 MiB above its share in one step.)"""
 
     def __init__(self, directory: SpillDir, share: Optional[int], states: Optional[int],
                  new_buffer: Callable[[], Any]):
         self.dir = directory
         self.table = PartitionTable(directory, new_buffer)
         self._limits(share, states)
+        self._states = states
         self.level: Optional[LevelFile] = None
+        #: this process's resident memory before its first state
+        self.start = self.rss()
+        self.share = share
+        #: what a level added lately (bytes, decaying), and the resident
+        #: memory after the last relief
+        self.excursion = 0
+        self._after = self.start
+        self.pressed = False
+
+    def set_share(self, share: Optional[int], first: bool = False) -> None:
+        """The coordinator's share for this process (:func:`shares`); the
+        ``first`` also sets the size of the buffer (a quarter of the share at
+        36 bytes a state, as one process's; not moved with the search, which
+        would merge ever smaller buffers)."""
+        self.share = share
+        if first and share is not None and self._states is None:
+            self.table_limit = max(1 << 14, (share - self.start) // 4 // STATE_BYTES)
+
+    def _pressed(self, rss: int) -> bool:
+        share = self.share
+        if share is None:
+            return False
+        room = max(share - self.start, 0)
+        reserve = max(int(room * (1 - self.PRESSURE)),
+                      2 * self.excursion + self.table.spill_cost())
+        return rss > share - reserve
+
+    def observe(self) -> None:
+        """A level's candidates are all held (the worker's ``finish``): what
+        the level added to the resident memory since the last relief."""
+        if self.share is not None:
+            grew = self.rss() - self._after
+            self.excursion = max(grew, self.excursion * 15 // 16)
 
     def relieve(self, w: Any) -> None:
         """After the worker ``w`` recorded new states (its table) and took
         its share of the next level (``w.level``, ``w.level_idx``)."""
-        pressed = self._relieve_table(self.table)
+        self.pressed = pressed = self._relieve_table(self.table)
         if self._level_due(len(w.level), pressed):
             if self.level is None:
                 self.level = LevelFile(self.dir, f"level.{self.levels}")
@@ -787,6 +893,8 @@ class WorkerSpiller(_Policy):
             self.level.write(w.level, list(w.level_idx))
             self.level_writes += 1
             w.level, w.level_idx = [], []
+        if self.share is not None:
+            self._after = self.rss()
 
     def take_level(self) -> Optional[LevelFile]:
         """The part of the worker's level written to disk (before what it
@@ -796,7 +904,7 @@ class WorkerSpiller(_Policy):
 
     def figures(self) -> dict:
         return {"merges": self.table.disk.merges, "states_on_disk": self.table.disk.n,
-                "level_segments": self.level_writes}
+                "level_segments": self.level_writes, "start": self.start}
 
     def close(self) -> None:
         self.table.close()
@@ -806,25 +914,44 @@ class WorkerSpiller(_Policy):
 
 class WorkerSpills:
     """What the workers of a parallel search spilled (their
-    :meth:`WorkerSpiller.figures`), for the report's notes."""
+    :meth:`WorkerSpiller.figures`), for the report's notes; ``peaks``: each
+    process's peak resident memory (worker 0's: the coordinator's process),
+    said with the size each started at when ``max_memory`` bounds them."""
 
-    def __init__(self, parent: str, figures: list):
+    def __init__(self, parent: str, figures: list, peaks: Optional[list] = None,
+                 bound: Optional[int] = None):
         self.parent = parent
         self.per_worker = figures
+        self.peaks = peaks
+        self.bound = bound
 
     def figures(self) -> dict:
         return {k: sum(f[k] for f in self.per_worker)
                 for k in ("merges", "states_on_disk", "level_segments")}
 
+    def memory(self) -> str:
+        """The processes' sizes at their start and their peaks, against
+        ``--max-memory`` (what a bound must leave room for)."""
+        if self.bound is None or not self.peaks:
+            return ""
+        from pccl.search.memory import format_size
+        mib = 1 << 20
+        starts = [f.get("start", 0) for f in self.per_worker]
+        return (f"; the processes started at {' + '.join(f'{s / mib:.0f}' for s in starts)} "
+                f"= {sum(starts) / mib:.0f} MiB and peaked at "
+                f"{' + '.join(f'{p / mib:.0f}' for p in self.peaks)} = "
+                f"{sum(self.peaks) / mib:.0f} MiB together "
+                f"({{max_memory={format_size(self.bound)}}}: {self.bound / mib:.0f} MiB)")
+
     def note(self) -> str:
         f, k = self.figures(), len(self.per_worker)
         if not f["merges"] and not f["level_segments"]:
             return (f"{{spill={self.parent}}}: nothing spilled by the {k} workers (each "
-                    f"process's memory stayed below {Spiller.PRESSURE:.0%} of its share, "
-                    f"{{max_memory}} / {k})")
+                    f"process's memory stayed below its share of {{max_memory}})"
+                    + self.memory())
         each = "; ".join(f"worker {w}: {x['merges']:,} merge(s), {x['states_on_disk']:,} states on "
                          f"disk, {x['level_segments']:,} segment(s)"
                          for w, x in enumerate(self.per_worker))
         return (f"{{spill={self.parent}}}: the {k} workers merged their visited states to disk "
                 f"{f['merges']:,} time(s) ({f['states_on_disk']:,} states on disk at the end), "
-                f"{f['level_segments']:,} segment(s) of levels written ({each})")
+                f"{f['level_segments']:,} segment(s) of levels written ({each})" + self.memory())
