@@ -323,6 +323,11 @@ def test_c_violations_are_the_python_models(program, kw):
         assert got == [v.identity for v in py.violations(nm.decode(s))]
         bad += bool(got)
     assert bad > 0
+    # the batch check (one C call): every state with violations among the suspects
+    suspects = nm.suspects(states)
+    assert suspects == sorted(suspects)
+    assert {j for j, s in enumerate(states) if nm.violations(s)} <= set(suspects)
+    assert all(not nm.violations(s) for j, s in enumerate(states) if j not in set(suspects))
 
 
 @pytest.mark.slow

@@ -1280,6 +1280,25 @@ static PyObject *violations(PyObject *self, PyObject *arg) {{
   if (okstate(s)) return PyList_New(0);
   return PyObject_CallOneArg(SLOWVIOL, arg);
 }}
+/* suspects(states): the positions, ascending, of the states of a list that
+   okstate does not pass (violations(state) may be non-empty only there):
+   one call for a batch instead of one per state */
+static PyObject *suspects(PyObject *self, PyObject *arg) {{
+  if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
+  Py_ssize_t n = PyList_GET_SIZE(arg);
+  PyObject *out = PyList_New(0);
+  if (!out) return NULL;
+  for (Py_ssize_t i = 0; i < n; i++) {{
+    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    if (!s) {{ Py_DECREF(out); return NULL; }}
+    if (!okstate(s)) {{
+      PyObject *j = PyLong_FromSsize_t(i);
+      if (!j || PyList_Append(out, j)) {{ Py_XDECREF(j); Py_DECREF(out); return NULL; }}
+      Py_DECREF(j);
+    }}
+  }}
+  return out;
+}}
 static PyObject *memo_stats(PyObject *self, PyObject *unused) {{
   return Py_BuildValue("(nnn)", (Py_ssize_t)MEMO_N, (Py_ssize_t)MEMO_MISS, (Py_ssize_t)MEMO_HIT);
 }}
@@ -1312,6 +1331,7 @@ static PyMethodDef methods[] = {{
   {{"table_lookup", table_lookup, METH_VARARGS, "the fingerprint table's lookups"}},
   {{"table_place", table_place, METH_VARARGS, "the fingerprint table's index filled"}},
   {{"violations", violations, METH_O, "[] or the Python model's violations"}},
+  {{"suspects", suspects, METH_O, "the positions of the states okstate does not pass"}},
   {{"clock", clock_, METH_O, "the state's time"}},
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
   {{"sig", sig, METH_O, "the stall signature's hash"}},
@@ -1966,6 +1986,9 @@ class NativeModel:
         self._ok = self.lib.ok
         #: [] or the Python model's violations of the decoded state: one C call
         self.violations = self.lib.violations
+        #: the positions of a list's states whose violations may be non-empty
+        #: (one C call for a batch; the explorer asks violations() only there)
+        self.suspects = self.lib.suspects
         self.key = (lambda b: b[8:]) if py.abstract_time else (lambda b: b)
         if py.abstract_time:
             import operator

@@ -1203,6 +1203,17 @@ class _Admission:
         first.sort()
         return ck, first, first_of, None
 
+    def _violations(self, states: list):
+        """(position, violations) of the states of ``states`` that have any,
+        in order: the model's ``suspects`` (one call for the batch: the
+        native engine's check in C) narrow down where to ask."""
+        model = self.ex.model
+        suspects = getattr(model, "suspects", None)
+        if suspects is None:
+            viols = list(map(model.violations, states))     # no bytecode per state
+            return ((j, viols[j]) for j in itertools.compress(range(len(states)), viols))
+        return ((j, v) for j in suspects(states) for v in (model.violations(states[j]),) if v)
+
     def flush(self, d) -> bool:
         """Admit the pending batch (successors at depth ``d``); True to stop."""
         cs, par_idx, par_n, flags = self.cs, self.par_idx, self.par_n, self.flags
@@ -1225,9 +1236,8 @@ class _Admission:
             halt = True
             stop_at = new[budget]       # the first state that does not fit
         states = list(map(cs.__getitem__, new[:cut]))     # no bytecode per state
-        viols = list(map(self.ex.model.violations, states))     # no bytecode per state
-        for j in itertools.compress(range(cut), viols):
-            if self.record(viols[j], base + j, d):
+        for j, v in self._violations(states):
+            if self.record(v, base + j, d):
                 cut = j + 1
                 halt = True
                 stop_at = new[j]
