@@ -356,7 +356,7 @@ PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  fronti
 def test_explore_progress_not_a_terminal_plain_timestamped_lines():
     """stderr is not a terminal (CliRunner, like CI or nohup): timestamped
     lines, the header first, no carriage return and no escape code."""
-    res = cli("explore", FISCHER, "--max-states", "60000", "--progress-interval", "0.05")
+    res = cli("explore", FISCHER, "--max-states", "600000", "--progress-interval", "0.05")
     err = res.stderr
     assert "\r" not in err and "\x1b" not in err
     lines = err.splitlines()

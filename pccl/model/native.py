@@ -1978,17 +1978,7 @@ class NativeModel:
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
-        self.successors = self.lib.successors
-        #: one C call per chunk of a level: (successor counts, the successors
-        #: flat, the labels met) -- the explorer's batch hook
-        self.successor_batch = self.lib.expand
-        self.clock = self.lib.clock
-        self._ok = self.lib.ok
-        #: [] or the Python model's violations of the decoded state: one C call
-        self.violations = self.lib.violations
-        #: the positions of a list's states whose violations may be non-empty
-        #: (one C call for a batch; the explorer asks violations() only there)
-        self.suspects = self.lib.suspects
+        self._hooks(xxh)
         self.key = (lambda b: b[8:]) if py.abstract_time else (lambda b: b)
         if py.abstract_time:
             import operator
@@ -2009,15 +1999,6 @@ class NativeModel:
         #: violations and traces are decoded through it)
         self.checkpoint_tables = getattr(py, "checkpoint_tables", None)
         self.restore_tables = getattr(py, "restore_tables", None)
-        #: the explorer's batch hook, None when xxhash's symbol is not there
-        self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
-        #: the fingerprint table's probes in C (FingerprintTable.kernels)
-        self.table_kernels = (self.lib.table_lookup, self.lib.table_place)
-        #: the graph analysis' backward reachability in C (Graph.can_reach)
-        self.reach_back = self.lib.reach_back
-        #: the same with the states' stall signatures (one pass for both)
-        self.fingerprint_sig_batch: Optional[Callable] = \
-            self._fingerprint_sig_batch if xxh is not None else None
         st0 = next(iter(py.init_states()))
         # the constant parts of a configuration: positions, reach cells, env
         self._pos = tuple(a[POS] for a in st0[AGS])
@@ -2028,6 +2009,30 @@ class NativeModel:
                        [v.ty.kind for v in lay.allread])
         from pccl.model.reduce import unreduced
         self._base = unreduced(py)
+
+    def _hooks(self, xxh) -> None:
+        """The module's C calls the explorer, the recorder and the table use
+        (``xxh``: the address of xxhash's XXH3_128bits, or None)."""
+        self.successors = self.lib.successors
+        #: one C call per chunk of a level: (successor counts, the successors
+        #: flat, the labels met) -- the explorer's batch hook
+        self.successor_batch = self.lib.expand
+        self.clock = self.lib.clock
+        self._ok = self.lib.ok
+        #: [] or the Python model's violations of the decoded state: one C call
+        self.violations = self.lib.violations
+        #: the positions of a list's states whose violations may be non-empty
+        #: (one C call for a batch; the explorer asks violations() only there)
+        self.suspects = self.lib.suspects
+        #: the explorer's batch hook, None when xxhash's symbol is not there
+        self.fingerprint_batch: Optional[Callable] = self._fingerprint_batch if xxh is not None else None
+        #: the fingerprint table's probes in C (FingerprintTable.kernels)
+        self.table_kernels = (self.lib.table_lookup, self.lib.table_place)
+        #: the graph analysis' backward reachability in C (Graph.can_reach)
+        self.reach_back = self.lib.reach_back
+        #: the batch hook with the states' stall signatures (one pass for both)
+        self.fingerprint_sig_batch: Optional[Callable] = \
+            self._fingerprint_sig_batch if xxh is not None else None
 
     # -- encoding ----------------------------------------------------------------
     def intern(self, x) -> int:
