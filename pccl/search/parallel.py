@@ -338,9 +338,9 @@ class _Worker:
         of states, none terminal, whose successors are ``flat`` (``ns`` per
         state): whether some successor's signature differs from its
         source's, for all at once."""
-        sig = self.columns.sig_of
-        here = np.fromiter(map(sig, states), dtype=np.int64, count=len(states))
-        there = np.fromiter(map(sig, flat), dtype=np.int64, count=len(flat))
+        sigs = self.columns.signatures      # one C call per list on the native engine
+        here = sigs(states if type(states) is list else list(states))
+        there = sigs(flat if type(flat) is list else list(flat))
         counts = np.asarray(ns, dtype=np.int64)
         diff = there != np.repeat(here, counts)
         starts = np.cumsum(counts) - counts
@@ -2032,6 +2032,7 @@ class ParallelExplorer(Explorer):
             fps[p[1]] = p[0]
             del p
         table = FingerprintTable()
+        table.kernels = getattr(self.model, "table_kernels", None)    # the native engine's probes
         if total:
             table.insert(fps, self.parents[:total])
         del fps
