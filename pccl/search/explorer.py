@@ -278,6 +278,17 @@ def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
     return np.frombuffer(buf, dtype=dtype).reshape(shape)
 
 
+def violations_of(model, states: list) -> list:
+    """(position, violations) of the states of ``states`` that have any, in
+    order: the model's ``suspects`` (one call for the list: the native
+    engine's check in C) narrow down where to ask ``violations``."""
+    suspects = getattr(model, "suspects", None)
+    if suspects is None:
+        vs = list(map(model.violations, states))     # no bytecode per state
+        return [(j, vs[j]) for j in itertools.compress(range(len(vs)), vs)]
+    return [(j, v) for j in suspects(states) for v in (model.violations(states[j]),) if v]
+
+
 class FingerprintTable:
     """The visited set as arrays: 128-bit fingerprints and parent links by
     state number, plus an open-addressing index (linear probing, load at
@@ -1203,17 +1214,6 @@ class _Admission:
         first.sort()
         return ck, first, first_of, None
 
-    def _violations(self, states: list):
-        """(position, violations) of the states of ``states`` that have any,
-        in order: the model's ``suspects`` (one call for the batch: the
-        native engine's check in C) narrow down where to ask."""
-        model = self.ex.model
-        suspects = getattr(model, "suspects", None)
-        if suspects is None:
-            viols = list(map(model.violations, states))     # no bytecode per state
-            return ((j, viols[j]) for j in itertools.compress(range(len(states)), viols))
-        return ((j, v) for j in suspects(states) for v in (model.violations(states[j]),) if v)
-
     def flush(self, d) -> bool:
         """Admit the pending batch (successors at depth ``d``); True to stop."""
         cs, par_idx, par_n, flags = self.cs, self.par_idx, self.par_n, self.flags
@@ -1236,7 +1236,7 @@ class _Admission:
             halt = True
             stop_at = new[budget]       # the first state that does not fit
         states = list(map(cs.__getitem__, new[:cut]))     # no bytecode per state
-        for j, v in self._violations(states):
+        for j, v in violations_of(self.ex.model, states):
             if self.record(v, base + j, d):
                 cut = j + 1
                 halt = True

@@ -95,7 +95,8 @@ import numpy as np
 import xxhash
 
 from pccl.search.explorer import (Bound, Explorer, FingerprintTable, Progress, SearchResult,
-                       Stats, _MAX_STATES, _reserve, fingerprint, peak_rss_bytes, terminal)
+                                  Stats, _MAX_STATES, _reserve, fingerprint, peak_rss_bytes, terminal,
+                                  violations_of)
 
 __all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "RayWorkerLost",
            "import_ray"]
@@ -481,10 +482,10 @@ class _Worker:
                 timed = costs != 0
                 viol = [(k[timed], costs[timed])]
             else:
-                vs = list(map(self.m.violations, map(cs.__getitem__, first.tolist())))
-                if any(vs):
+                found = violations_of(self.m, list(map(cs.__getitem__, first.tolist())))
+                if found:
                     kl = k.tolist()
-                    viol = [(kl[j], vs[j]) for j in itertools.compress(range(len(vs)), vs)]
+                    viol = [(kl[j], v) for j, v in found]
         else:
             keys = np.zeros(0, np.uint64)
             f, k = np.zeros((0, 2), np.uint64), keys
