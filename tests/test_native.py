@@ -266,8 +266,7 @@ def test_table_kernels_are_the_numpy_table(seed):
     nm = NV.NativeModel(make_model(os.path.join(ROOT, "programs", "fischer.pccl"),
                                    overrides={"k": "1", "d": "1"}))
     rng = np.random.default_rng(seed)
-    c, py = FingerprintTable(capacity=64), FingerprintTable(capacity=64)
-    c.kernels = nm.table_kernels
+    c, py = FingerprintTable(capacity=64, kernels=nm.table_kernels), FingerprintTable(capacity=64)
     pool = rng.integers(0, 2**63, size=(30_000, 2), dtype=np.uint64)
     pool[::3, 1] = pool[::3, 1] & np.uint64(0xFFFF_0000_0000_0000)   # equal low bits: long probes
     for _ in range(12):

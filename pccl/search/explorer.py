@@ -305,7 +305,7 @@ class FingerprintTable:
 
     key_of = staticmethod(fingerprint)
 
-    def __init__(self, capacity: Optional[int] = None):
+    def __init__(self, capacity: Optional[int] = None, kernels: Optional[tuple] = None):
         self.n = 0
         if capacity is None:
             capacity = min(_MAX_STATES, physical_memory() // 20)
@@ -323,7 +323,7 @@ class FingerprintTable:
         self.found: Any = None
         #: (lookup, place) of the native engine (its ``table_kernels``): the
         #: index probed and filled in C, the same arrays; None: numpy
-        self.kernels: Optional[tuple] = None
+        self.kernels = kernels
 
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
@@ -668,9 +668,8 @@ class Explorer:
             self.spiller = Spiller(self.options.spill, self.max_memory, FingerprintTable)
             self.table = self.spiller.table
         else:
-            self.table = ExactTable() if self.exact else FingerprintTable()
-            if not self.exact:
-                self.table.kernels = getattr(self.model, "table_kernels", None)
+            self.table = ExactTable() if self.exact else \
+                FingerprintTable(kernels=getattr(self.model, "table_kernels", None))
         res = SearchResult("exhaustive", stats=Stats(), exact=self.exact)
         adm = _Admission(self, res)
         ck = self.checkpoint

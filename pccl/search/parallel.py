@@ -162,8 +162,7 @@ class _Worker:
         self.buckets: dict = {}         # (ticks, depth) -> [numbers, states]
         self.x_bucket: Any = None       # the bucket expanded last
         self.cand_cost: Any = None      # time cost of each candidate (fastest)
-        self.table = FingerprintTable()
-        self.table.kernels = getattr(model, "table_kernels", None)   # the native engine's probes
+        self.table = FingerprintTable(kernels=getattr(model, "table_kernels", None))
         self.level: list = []          # states of the current level I hold
         self.level_idx: list = []      # ... their global numbers, ascending
         self.cand: list = []           # candidate successors of the level
@@ -1601,13 +1600,18 @@ class ParallelExplorer(Explorer):
         from their peaks so far (a forked worker's before it reported one:
         its start)."""
         from pccl.search.spill import shares
-        n = self.workers
-        pw = getattr(self, "peak_workers", None) or [0] * n
-        peaks = [max(p, s) for p, s in zip(pw, self._spill_starts)]
-        if self.ray is None:
-            peaks[0] = max(peaks[0], peak_rss_bytes())     # worker 0: this process
+        pw = getattr(self, "peak_workers", None) or [0] * self.workers
+        peaks = [max(p, s) for p, s in zip(self._process_peaks(pw), self._spill_starts)]
         assert self.max_memory is not None
         return shares(self.max_memory, peaks)
+
+    def _process_peaks(self, peaks: list) -> list:
+        """The workers' peaks (``peaks``, as they reported them), worker 0's
+        being this process's own when the workers are forked (not Ray)."""
+        peaks = list(peaks)
+        if self.ray is None:
+            peaks[0] = max(peaks[0], peak_rss_bytes())     # worker 0: this process
+        return peaks
 
     def _run(self) -> SearchResult:
         """The coordinator: the initial states (:meth:`_initial_rounds`),
@@ -1669,12 +1673,9 @@ class ParallelExplorer(Explorer):
             self._gather_graph(self._total)
         if self.options.spill is not None:      # what each worker spilled, for the notes
             from pccl.search.spill import WorkerSpills
-            peaks = list(self.peak_workers)
-            if self.ray is None:
-                peaks[0] = max(peaks[0], peak_rss_bytes())     # worker 0: this process
             self.spiller = WorkerSpills(self.options.spill,
                                         self.transport.all("spill_figures", [()] * n),
-                                        peaks, self.max_memory)
+                                        self._process_peaks(self.peak_workers), self.max_memory)
         return res
 
     def max_time_now(self, interrupted: bool = False) -> Any:
@@ -2032,8 +2033,7 @@ class ParallelExplorer(Explorer):
             p = parts.pop(0)
             fps[p[1]] = p[0]
             del p
-        table = FingerprintTable()
-        table.kernels = getattr(self.model, "table_kernels", None)    # the native engine's probes
+        table = FingerprintTable(kernels=getattr(self.model, "table_kernels", None))
         if total:
             table.insert(fps, self.parents[:total])
         del fps
