@@ -525,8 +525,7 @@ def test_canonical_keys_identify_the_same_states(text, kw):
     bid, shid = g.reductions()[2]
     moved = 0
     for s in states[::37]:
-        v = array("q")
-        v.frombytes(s)
+        v = nm.unpack(s)
         for perm in itertools.permutations(range(g.N)):
             r = [0] * g.N
             for new, old in enumerate(perm):
@@ -540,7 +539,7 @@ def test_canonical_keys_identify_the_same_states(text, kw):
                 w[g.AG0 + new * g.A:g.AG0 + (new + 1) * g.A] = blk
             for q in list(shid) + list(range(g.LQ0, g.LQ0 + g.N)):
                 w[q] = ren[v[q]] if 0 <= v[q] < g.N else v[q]
-            t = w.tobytes()
+            t = nm.pack(w)
             moved += t != s
             assert nm.key(t) == nm.key(s)
             assert py.key(nm.decode(t)) == py.key(nm.decode(s))
@@ -840,3 +839,79 @@ def test_native_workers_stall_changes_in_a_batch_equal_state_by_state():
     want = [cols.changed(s, [t for _, t in nm.successors(s)]) for s in states]
     assert w.g_chg == want and w.g_chg_idx == list(range(len(states)))
     assert any(want) and not all(want)
+
+
+# -- packed states: int32 slots where they fit --------------------------------------
+
+#: a shared int that passes 2**31 - 1 half-way, and a local left undefined
+#: (INT64_MIN) until the first event: states of both forms in one search
+BIG = """Agent::Big
+
+allwrite:
+  int big = 2147483000;
+
+loc:
+  int x;
+  int steps = 0;
+
+Init:
+
+Grow():
+  pre(steps < 12);
+  eff:
+    atomic:
+      big = big + 97;
+    steps = steps + 1;
+    x = big - 2147483000;
+"""
+
+
+def test_pack_and_unpack_keep_every_value(monkeypatch):
+    """pack's two forms: int32 where every slot fits (undefined, INT64_MIN,
+    as INT32_MIN), else int64 (INT32_MIN itself, 2**31 and beyond); unpack
+    gives the vector back, and the C calls read both forms as one state."""
+    from array import array
+    monkeypatch.setattr(NV, "_SMALL_OBJECT", 0)         # pack every model's states
+    nm = NV.NativeModel(make_model(BIG, source=True, agents=2, reduce="none"))
+    assert nm.gen.packs
+    s0 = next(iter(nm.init_states()))
+    v = nm.unpack(s0)
+    assert len(s0) == 4 * len(v) and -(1 << 63) in v       # undefined x, packed
+    for edge, size in ((-(1 << 63), 4), ((1 << 31) - 1, 4), (-(1 << 31) + 1, 4),
+                       (-(1 << 31), 8), (1 << 31, 8), (-(1 << 40), 8)):
+        w = array("q", v)
+        w[len(w) - 1] = edge
+        b = nm.pack(w)
+        assert len(b) == size * len(w) and nm.unpack(b) == w, edge
+        assert nm.key(b) == nm.key(w.tobytes())             # C: either form, one state
+    # below the small-object limit nothing is packed
+    monkeypatch.undo()
+    plain = NV.NativeModel(make_model(BIG, source=True, agents=2, reduce="none"))
+    assert not plain.gen.packs and len(next(iter(plain.init_states()))) == 8 * plain.gen.NS
+
+
+@pytest.mark.parametrize("program, kw", [
+    (BIG, dict(source=True, agents=2, **UNREDUCED)),
+    (BIG, dict(source=True, agents=2, invariants=("big <= 2147483900",), **UNREDUCED)),
+    (BIG, dict(source=True, agents=2, reduce="auto", timelock=False, stall=False)),
+    (os.path.join(ROOT, "programs/fischer.pccl"), dict(overrides={"k": "1", "d": "1"}, **UNREDUCED)),
+    (os.path.join(ROOT, "programs/fischer.pccl"),
+     dict(overrides={"k": "2", "d": "1"}, invariants=("count(inCs) <= 1",), **UNREDUCED)),
+    (os.path.join(ROOT, "programs/race_robust.pccl"),
+     dict(world=os.path.join(ROOT, "programs/race.toml"), agents=3)),
+    (os.path.join(ROOT, "programs/race_safe.pccl"),
+     dict(world=os.path.join(ROOT, "programs/race.toml"), agents=2, reduce="none")),
+])
+def test_packed_states_give_equal_results(program, kw, monkeypatch):
+    """With every model's states packed (as for teams whose int64 vectors
+    pass the small-object limit): results, verdicts and counterexamples
+    equal the Python engine's and the unpacked native search's; BIG meets
+    both forms."""
+    py, plain = both(program, **kw)
+    monkeypatch.setattr(NV, "_SMALL_OBJECT", 0)
+    packed = summary(explore(program, engine="native", **kw))
+    assert packed == plain == py
+    if program is BIG:
+        nm = NV.NativeModel(make_model(BIG, source=True, agents=2, reduce="none"))
+        sizes = {len(s) for s in reachable(nm, 20_000)}
+        assert sizes == {4 * nm.gen.NS, 8 * nm.gen.NS}

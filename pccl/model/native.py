@@ -4,7 +4,7 @@ a CPython extension module (cached by the hash of its source, as SPIN
 compiles ``pan.c``), for programs whose configuration is a fixed vector of
 integers.
 
-A configuration is then a ``bytes`` object: int64 slots, native byte order::
+A configuration is then a vector of int64 slots, native byte order::
 
     time, phase, lockQueue (N slots, agent ids, -1 unused), shared scalars,
     per agent: pc, counter, lockState, status, locals, allread
@@ -20,7 +20,11 @@ interned in a table :class:`NativeModel` owns (value <-> id, two values
 one id when their marshal encodings, which the fingerprints read, are
 equal); ids follow discovery order, so equal states have equal vectors
 within one process only: a parallel search of such a program runs the
-Python engine.  Undefined is INT64_MIN.
+Python engine.  Undefined is INT64_MIN.  The explorer holds a state as a
+``bytes`` object in one of two forms (:meth:`NativeModel.pack`): int32
+slots when every slot fits (undefined as INT32_MIN), else the int64 slots;
+half the memory, and CPython's small-object allocator instead of malloc
+for the states of a team of four robots (measured: see docs/benchmarks.md).
 
 What C does not compute is memoised in C and computed by Python on a miss,
 so the semantics and the geometry stay in one place (semantics/rules.py,
@@ -129,6 +133,12 @@ UNDEF_C = "INT64_MIN"
 MOVE_SLOTS = 6
 
 MAX_AGENTS = 16
+#: the packed form of a state's bytes (NativeModel.pack): int32 slots
+_I32 = next(c for c in "ihl" if array(c).itemsize == 4)
+_MIN64, _MIN32, _MAX32 = -(1 << 63), -(1 << 31), (1 << 31) - 1
+#: CPython's small-object allocator serves at most this many bytes; a bytes
+#: object takes its length plus this header
+_SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
 #: the kinds of control cell whose rule a memo site may run (one statement
 #: of one agent, no lock, no counter)
 MEMO_KINDS = (K_SIMPLE, K_IF, K_WHILE, K_ASSERT, K_DOREACH)
@@ -288,6 +298,15 @@ class Generator:
     @property
     def NS(self) -> int:
         return self.AG0 + self.N * self.A
+
+    @property
+    def packs(self) -> bool:
+        """Whether states are held packed where they fit (:meth:`NativeModel.pack`):
+        when their int64 bytes pass CPython's small-object limit, so that
+        the int32 form moves them from malloc to its faster allocator.
+        Below it packing costs more than it saves (measured on Fischer, 53
+        slots: 8-14 % more CPU); docs/benchmarks.md."""
+        return 8 * self.NS + _BYTES_HEADER > _SMALL_OBJECT
 
     def ag(self, j, field: int) -> str:
         return f"s[{self.AG0 + j * self.A + field}]"
@@ -944,15 +963,38 @@ static inline int EMIT(int lab, const V *t) {{
   BN++;
   return 0;
 }}
+/* A state as Python holds it (NativeModel.pack's form): int32 slots when
+   every slot fits (undefined, INT64_MIN, as INT32_MIN), else int64.  Half
+   the bytes, and a 64-slot state then fits CPython's small-object
+   allocator instead of malloc.  The slots' values, not the bytes, are the
+   state: fingerprints, keys and memo keys read the int64 vector. */
+#define PACK {1 if self.packs else 0}
+static PyObject *state_bytes(const V *t) {{
+  int fit = PACK;
+  for (int q = 0; q < NS; q++) fit &= (t[q] == INT64_MIN) | ((t[q] > INT32_MIN) & (t[q] <= INT32_MAX));
+  if (!fit) return PyBytes_FromStringAndSize((const char *)t, sizeof(V) * NS);
+  PyObject *b = PyBytes_FromStringAndSize(NULL, sizeof(int32_t) * NS);
+  if (!b) return NULL;
+  int32_t *p = (int32_t *)PyBytes_AS_STRING(b);
+  for (int q = 0; q < NS; q++) p[q] = t[q] == INT64_MIN ? INT32_MIN : (int32_t)t[q];
+  return b;
+}}
+/* the int64 vector of state arg: in place, or unpacked into buf */
+static const V *arg_state(PyObject *arg, V *buf) {{
+  if (PyBytes_Check(arg)) {{
+    Py_ssize_t n = PyBytes_GET_SIZE(arg);
+    if (PACK && n == (Py_ssize_t)(sizeof(int32_t) * NS)) {{
+      const int32_t *p = (const int32_t *)PyBytes_AS_STRING(arg);
+      for (int q = 0; q < NS; q++) buf[q] = p[q] == INT32_MIN ? INT64_MIN : (V)p[q];
+      return buf;
+    }}
+    if (n == (Py_ssize_t)(sizeof(V) * NS)) return (const V *)PyBytes_AS_STRING(arg);
+  }}
+  PyErr_SetString(PyExc_TypeError, "not a native state of this model");
+  return NULL;
+}}
 {_MEMO_C}
 {chr(10).join(agents)}
-static const V *arg_state(PyObject *arg) {{
-  if (!PyBytes_Check(arg) || PyBytes_GET_SIZE(arg) != (Py_ssize_t)(sizeof(V) * NS)) {{
-    PyErr_SetString(PyExc_TypeError, "not a native state of this model");
-    return NULL;
-  }}
-  return (const V *)PyBytes_AS_STRING(arg);
-}}
 /* the successors of s, emitted into OUT; -1 on an error (ovf or Python's) */
 static int step(const V *s) {{
   if (s[{V_PHASE}] == {DISCRETE}) {{
@@ -984,14 +1026,14 @@ static PyObject *label_of(Py_ssize_t k) {{
                        PyTuple_GET_ITEM(l, 2), (int)BIDX[k], ch);
 }}
 static PyObject *successors(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   BN = 0; ovf = 0;
   if (rstep(s)) {{ overflowed(); return NULL; }}
   PyObject *out = PyList_New(BN);
   if (!out) return NULL;
   for (Py_ssize_t k = 0; k < BN; k++) {{
-    PyObject *b = PyBytes_FromStringAndSize((const char *)(BUF + NS * k), sizeof(V) * NS);
+    PyObject *b = state_bytes(BUF + NS * k);
     PyObject *l = label_of(k);
     if (!b || !l) {{ Py_XDECREF(b); Py_XDECREF(l); Py_DECREF(out); return NULL; }}
     PyList_SET_ITEM(out, k, Py_BuildValue("(NN)", l, b));
@@ -1008,12 +1050,12 @@ static PyObject *expand(PyObject *self, PyObject *arg) {{
   memset(LABSEEN, 0, NLABELS);
   ovf = 0;
   for (Py_ssize_t i = 0; i < n; i++) {{
-    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) goto fail;
     BN = 0;
     if (rstep(s)) goto fail;
     for (Py_ssize_t k = 0; k < BN; k++) {{
-      PyObject *b = PyBytes_FromStringAndSize((const char *)(BUF + NS * k), sizeof(V) * NS);
+      PyObject *b = state_bytes(BUF + NS * k);
       if (!b) goto fail;
       int r = PyList_Append(flat, b);
       Py_DECREF(b);
@@ -1042,7 +1084,7 @@ fail:
 /* key(state): the state's identity: the canonical vector (symmetry), without
    the clock under time abstraction */
 static PyObject *key(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   V c[NS];
   canon(s, c);
@@ -1075,7 +1117,7 @@ static int64_t sighash(const V *s) {{
 }}
 /* sig(state): the stall signature's hash */
 static PyObject *sig(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyLong_FromLongLong((long long)sighash(s));
 }}
@@ -1087,7 +1129,7 @@ static PyObject *sigs(PyObject *self, PyObject *arg) {{
   if (!out) return NULL;
   int64_t *o = (int64_t *)PyBytes_AS_STRING(out);
   for (Py_ssize_t i = 0; i < n; i++) {{
-    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) {{ Py_DECREF(out); return NULL; }}
     o[i] = sighash(s);
   }}
@@ -1191,7 +1233,7 @@ static PyObject *phases(PyObject *self, PyObject *arg) {{
   if (!out) return NULL;
   char *o = PyBytes_AS_STRING(out);
   for (Py_ssize_t i = 0; i < n; i++) {{
-    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) {{ Py_DECREF(out); return NULL; }}
     o[i] = s[{V_PHASE}] != {DISCRETE};
   }}
@@ -1223,7 +1265,7 @@ static PyObject *fingerprints_(PyObject *arg, int want_sigs) {{
   int64_t *fo = (int64_t *)PyBytes_AS_STRING(first);
   int64_t *oc = (int64_t *)PyBytes_AS_STRING(occ);
   for (Py_ssize_t i = 0; i < n; i++) {{
-    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) goto fail;
     if (sg) sg[i] = sighash(s);       /* while the state is in the cache */
     V c[NS];
@@ -1267,7 +1309,7 @@ static inline int okstate(const V *s) {{
   return ovf ? 0 : r;
 }}
 static PyObject *ok(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyBool_FromLong(okstate(s));
 }}
@@ -1275,7 +1317,7 @@ static PyObject *ok(PyObject *self, PyObject *arg) {{
    model's own violations of the decoded configuration) */
 static PyObject *SLOWVIOL;
 static PyObject *violations(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   if (okstate(s)) return PyList_New(0);
   return PyObject_CallOneArg(SLOWVIOL, arg);
@@ -1289,7 +1331,7 @@ static PyObject *suspects(PyObject *self, PyObject *arg) {{
   PyObject *out = PyList_New(0);
   if (!out) return NULL;
   for (Py_ssize_t i = 0; i < n; i++) {{
-    const V *s = arg_state(PyList_GET_ITEM(arg, i));
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) {{ Py_DECREF(out); return NULL; }}
     if (!okstate(s)) {{
       PyObject *j = PyLong_FromSsize_t(i);
@@ -1303,7 +1345,7 @@ static PyObject *memo_stats(PyObject *self, PyObject *unused) {{
   return Py_BuildValue("(nnn)", (Py_ssize_t)MEMO_N, (Py_ssize_t)MEMO_MISS, (Py_ssize_t)MEMO_HIT);
 }}
 static PyObject *clock_(PyObject *self, PyObject *arg) {{
-  const V *s = arg_state(arg);
+  V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyLong_FromLongLong(s[{V_TIME}]);
 }}
@@ -1434,7 +1476,7 @@ static const V *memo_put(const V *key, int kl, const V *val, Py_ssize_t vl) {
 /* a miss: MISS(site, state) -> (value as int64 bytes, the label list grew) */
 static const V *memo_miss(const V *s, const V *key, int kl) {
   MEMO_MISS++;
-  PyObject *st = PyBytes_FromStringAndSize((const char *)s, sizeof(V) * NS);
+  PyObject *st = state_bytes(s);
   if (!st) return NULL;
   PyObject *r = PyObject_CallFunction(MISS, "nN", (Py_ssize_t)key[0], st);
   if (!r) return NULL;
@@ -1978,17 +2020,14 @@ class NativeModel:
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
+        self._packed_size = 4 * gen.NS if gen.packs else 0
         self._hooks(xxh)
-        self.key = (lambda b: b[8:]) if py.abstract_time else (lambda b: b)
-        if py.abstract_time:
-            import operator
-            self.key = operator.itemgetter(slice(8, None))
+        #: the int64 vector, canonical under symmetry, without the clock under
+        #: time abstraction (one C call): the state's identity whichever
+        #: form (:meth:`pack`) its bytes take
+        self.key = self.lib.key
         #: the reductions of the model it serves (pccl/model/reduce.py's plan)
         self.reduction = getattr(py, "reduction", None)
-        on = getattr(self.reduction, "on", ())
-        if "symmetry" in on:
-            #: the canonical vector (one C call), the identity of the state's orbit
-            self.key = self.lib.key
         #: what the graph recorder reads (pccl/search/liveness.py): no
         #: temporal property is served
         self.N = py.N
@@ -2070,7 +2109,30 @@ class NativeModel:
         cache = self._agenc
         for a in st[AGS]:
             v += self._cached(cache, a, agent)
-        return array("q", v).tobytes()
+        return self.pack(array("q", v))
+
+    def pack(self, v: array) -> bytes:
+        """The bytes of the int64 vector ``v`` as the explorer holds them
+        (and the generated C's ``state_bytes`` makes them): int32 slots when
+        every slot fits, undefined (INT64_MIN) as INT32_MIN; else the int64
+        slots themselves.  Each vector has one form, so equal states have
+        equal bytes; the C calls take either."""
+        lo, hi = min(v), max(v)
+        if self._packed_size and hi <= _MAX32 and (lo > _MIN32 or all(x > _MIN32 or x == _MIN64 for x in v)):
+            return array(_I32, [_MIN32 if x == _MIN64 else x for x in v] if lo <= _MIN32 else v).tobytes()
+        return v.tobytes()
+
+    def unpack(self, b: bytes) -> array:
+        """The int64 vector of a state's bytes (either form of :meth:`pack`)."""
+        if len(b) == self._packed_size:
+            w = array(_I32)
+            w.frombytes(b)
+            if _MIN32 in w:
+                return array("q", [_MIN64 if x == _MIN32 else x for x in w])
+            return array("q", w)
+        v = array("q")
+        v.frombytes(b)
+        return v
 
     @staticmethod
     def _cached(cache: dict, x, fn) -> list:
@@ -2110,8 +2172,7 @@ class NativeModel:
 
     def decode(self, b: bytes) -> tuple:
         g = self.gen
-        v = array("q")
-        v.frombytes(b)
+        v = self.unpack(b)
         sk, lk, rk = self._kinds
         lq = tuple(x for x in v[2:2 + g.N] if x >= 0)
         sh = tuple(self._dec(x, k) for x, k in zip(v[g.SH0:g.AG0], sk))
@@ -2152,16 +2213,14 @@ class NativeModel:
             ag = st[AGS][i]
             for rule in info.rules:
                 rule(m, st, i, ag, info, out)
-        src = array("q")
-        src.frombytes(b)
+        src = self.unpack(b)
         keep = self._unwritten.get(k)
         if keep is None:        # the slots site k must leave as they are
             wset = set(ws)
             keep = self._unwritten[k] = [q for q in range(len(src)) if q not in wset]
         val = array("q", [len(out)])
         for label, st2 in out:
-            t = array("q")
-            t.frombytes(self.encode(st2))
+            t = self.unpack(self.encode(st2))
             u = array("q", src)         # the state as the site may leave it: one C compare
             for q in ws:
                 u[q] = t[q]
@@ -2224,8 +2283,7 @@ class NativeModel:
         if not self.gen.moves:
             return 0
         g = self.gen
-        v = array("q")
-        v.frombytes(b)
+        v = self.unpack(b)
         m = 0
         cache, vals = self._pending, self._vals
         for i in range(g.N):
