@@ -8,6 +8,7 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --static             # also new code with PCCL_BALANCE=0
     python benchmarks/workers.py --block              # also new code with PCCL_SPIN=0
     python benchmarks/workers.py --balance            # also new code with PCCL_BALANCE=1
+    python benchmarks/workers.py --unpinned           # also new code with PCCL_PIN=0
     python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
     python benchmarks/workers.py --native --no-baseline   # the native engine, large levels:
                                                       # fischer 3 agents k=2 d=2, reduced
@@ -76,6 +77,8 @@ def main() -> None:
                     help="also the new code with PCCL_BALANCE=1 (native levels balanced too)")
     ap.add_argument("--block", action="store_true",
                     help="also the new code with PCCL_SPIN=0 (a waiting process blocks at once)")
+    ap.add_argument("--unpinned", action="store_true",
+                    help="also the new code with PCCL_PIN=0 (workers not pinned to cores)")
     ap.add_argument("--native", action="store_true",
                     help="the native engine's case: fischer with 3 agents (--agents), d=2, the "
                          "default reductions (merge+symmetry+por), no time-lock or stall check "
@@ -106,6 +109,8 @@ def main() -> None:
             configs.append(("2 workers, PCCL_BALANCE=1", 2, new, {"PCCL_BALANCE": "1"}))
         if args.block:
             configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
+        if args.unpinned:
+            configs.append(("2 workers, PCCL_PIN=0", 2, new, {"PCCL_PIN": "0"}))
         if old is not None:
             configs.append((f"2 workers, old {args.baseline}", 2, old, None))
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}

@@ -179,18 +179,69 @@ def test_small_levels_are_not_balanced():
     assert e.moved == 0 and P._BALANCE_LEVEL > 1000
 
 
-def test_waiting_blocks_on_an_overloaded_machine(monkeypatch):
-    """A waiting process polls only while the load average is at most four times
-    the cores it may use (read at most once a second)."""
+def test_waiting_blocks_when_the_cores_are_taken(monkeypatch):
+    """A waiting process polls only while no more processes are runnable
+    than it has cores (the kernel's count, read each time); without that
+    count, while the load average is at most four times the cores (read at
+    most once a second)."""
     import os
     from pccl.search import parallel as P
     cores = P.available_workers()
+    assert P._runnable() is None or P._runnable() >= 1      # this process runs
+    for now, want in ((cores + 1, True), (cores, False), (1, False)):
+        monkeypatch.setattr(P, "_runnable", lambda now=now: now)
+        assert P._overloaded() is want
+    monkeypatch.setattr(P, "_runnable", lambda: None)
     for load, want in ((4 * cores + 0.5, True), (4 * cores - 0.5, False)):
         monkeypatch.setattr(os, "getloadavg", lambda load=load: (load, load, load))
         monkeypatch.setattr(P, "_LOAD", [0.0, not want])
         assert P._overloaded() is want
         monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
         assert P._overloaded() is want          # cached within the second
+
+
+PIN = r"""
+import os, sys
+from pccl.search import parallel as P
+cpus = sorted(os.sched_getaffinity(0))
+n = len(cpus)
+print(P._pin(n - 1, n + 1), sorted(os.sched_getaffinity(0)) == cpus)   # more workers than cores
+had = P._pin(n - 1, n)
+print(had == set(cpus) if n > 1 else had is None, sorted(os.sched_getaffinity(0)))
+P._PIN = False
+os.sched_setaffinity(0, cpus)
+print(P._pin(0, n))
+"""
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_workers_are_pinned_only_when_as_many_as_the_cores():
+    """_pin: a worker gets one core of its own when the workers are exactly
+    as many as the cores this process may use, and says which cores it had
+    (to restore); not with more workers than cores, nor with PCCL_PIN=0."""
+    import os
+    cpus = sorted(os.sched_getaffinity(0))
+    r = subprocess.run([sys.executable, "-c", PIN], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0] == "None True"
+    assert lines[1] == (f"True [{cpus[-1]}]" if len(cpus) > 1 else f"True {cpus}")
+    assert lines[2] == "None"
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_a_pinned_search_gives_its_cores_back():
+    """With as many workers as cores (pinned), the coordinator's process has
+    all its cores again after the search, and the results are the one
+    process's."""
+    import os
+    cpus = os.sched_getaffinity(0)
+    kw = dict(overrides={"k": "1", "d": "1"}, reduce="none", timelock=False, stall=False)
+    one = explore("programs/fischer.pccl", **kw)
+    many = explore("programs/fischer.pccl", workers=max(2, len(cpus)), **kw)
+    assert os.sched_getaffinity(0) == cpus
+    assert (many.stats.states, many.stats.transitions, many.stats.max_depth) == \
+        (one.stats.states, one.stats.transitions, one.stats.max_depth)
 
 
 LARGE_LEVEL = r"""

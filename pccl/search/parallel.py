@@ -738,23 +738,66 @@ _SPIN_AUTO = "PCCL_SPIN" not in os.environ
 _LOAD = [0.0, False]         # when last read, and whether overloaded then
 
 
+def _runnable() -> Optional[int]:
+    """The processes running or waiting for a core right now (the kernel's
+    count in ``/proc/loadavg``, this one included), or None where there is
+    no such file."""
+    try:
+        with open("/proc/loadavg", "rb") as f:
+            return int(f.read().split()[3].split(b"/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def _overloaded() -> bool:
-    """Whether the 1-minute load average exceeds four times the cores this
-    process may use (read at most once a second).  Then a waiting process
-    blocks at once instead of polling: measured on the shared machine at
-    load 11, fischer k=2 with 2 workers took 107.4 s polling and 53.5 s
-    blocking (1 worker: 85.6 s); at load 3.8, 15.0 s polling (the old code)
-    and 30.7 s blocking (1 worker: 22.2 s).  A process that wakes from a block is scheduled
-    ahead of the runnable ones; one that polls waits its turn among them,
-    which costs little while they are few."""
-    now = _time.monotonic()
-    if now - _LOAD[0] > 1.0:
-        _LOAD[0] = now
+    """Whether a waiting process should block at once instead of polling:
+    when more processes are runnable right now than this process has cores
+    (a poller would then take a core from its partner or from another job;
+    5 us to read).  Beside one busy loop on 2 cores, fischer 3 agents k=2
+    with 2 native workers: 0.82x one worker polling, 0.84x blocking;
+    pinned (:func:`_pin`) 0.89x polling, 0.96x blocking; idle the same
+    either way (docs/scale-out.md).  Without the kernel's count: the
+    1-minute load average against four times the cores (read at most once
+    a second; measured on a shared machine at load 11, blocking won 2x; at
+    load 3.8 polling did)."""
+    cores = available_workers()
+    now = _runnable()
+    if now is not None:
+        return now > cores
+    t = _time.monotonic()
+    if t - _LOAD[0] > 1.0:
+        _LOAD[0] = t
         try:
-            _LOAD[1] = os.getloadavg()[0] > 4 * available_workers()
+            _LOAD[1] = os.getloadavg()[0] > 4 * cores
         except (OSError, AttributeError):      # pragma: no cover - no load average
             _LOAD[1] = False
     return bool(_LOAD[1])
+
+
+#: ``PCCL_PIN=0`` in the environment: never pin a worker to a core
+_PIN = os.environ.get("PCCL_PIN", "1") != "0"
+
+
+def _pin(wid: int, n: int) -> Optional[set]:
+    """Pin worker ``wid`` of ``n`` to one core of its own when the workers
+    are exactly as many as the cores this process may use (so no core is
+    left out, and two such searches on one machine still share every core);
+    returns the cores it had, to restore, or None when not pinned.  Beside a
+    competing job the scheduler then moves only that job between the cores,
+    instead of moving the workers away from their caches: fischer 3 agents
+    k=2 with 2 native workers beside one busy loop 0.84x one worker
+    unpinned, 0.96x pinned (both blocking while they wait); idle 1.71x and
+    1.72x (docs/scale-out.md).  ``PCCL_PIN=0`` turns it off."""
+    if not _PIN:
+        return None
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+        if len(cpus) != n or n < 2:
+            return None
+        os.sched_setaffinity(0, {cpus[wid]})
+    except (AttributeError, OSError):       # pragma: no cover - non-Linux
+        return None
+    return set(cpus)
 #: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
 _BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
 #: ... with the native engine only when asked for (``PCCL_BALANCE=1``): measured
@@ -918,6 +961,7 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
     if parent is not None:
         _die_with_parent(parent)
     gc.disable()
+    _pin(wid, n)
     w = _Worker(model, wid, n, deadlock, find_all, columns, fastest)
     w.defer_free = True
     while True:
@@ -966,6 +1010,8 @@ class _Pipes:
         self.procs: list = []
         self.outstanding = [0] * n
         self.local: Optional[_Worker] = None
+        #: the cores this process had before worker 0 was pinned to one (:func:`_pin`)
+        self.unpinned: Optional[set] = None
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None,
               fastest: bool = False) -> None:
@@ -982,6 +1028,7 @@ class _Pipes:
             self.procs.append(p)
         self.local = _Worker(model, 0, self.n, deadlock, find_all, columns, fastest)
         self.local.defer_free = self.n > 1     # freed while waiting for the others
+        self.unpinned = _pin(0, self.n)        # (after the fork: the workers pin themselves)
 
     def stop(self) -> None:
         for c in self.conns:
@@ -997,6 +1044,9 @@ class _Pipes:
                 p.join()
         self.conns, self.procs, self.local = [], [], None
         _LITTER.clear()
+        if self.unpinned is not None:
+            os.sched_setaffinity(0, self.unpinned)
+            self.unpinned = None
 
     def _result(self, w):
         status, value = _recv(self.conns[w - 1])
