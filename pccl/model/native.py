@@ -2098,6 +2098,11 @@ class NativeModel:
         return int(x)
 
     def encode(self, st) -> bytes:
+        """The state's bytes as the explorer holds them (:meth:`pack`)."""
+        return self.pack(self.vector(st))
+
+    def vector(self, st) -> array:
+        """The int64 vector of configuration ``st``."""
         g = self.gen
         v = [self._v(st[TIME]), st[PHASE]]
         lq = list(st[LQ])
@@ -2109,7 +2114,7 @@ class NativeModel:
         cache = self._agenc
         for a in st[AGS]:
             v += self._cached(cache, a, agent)
-        return self.pack(array("q", v))
+        return array("q", v)
 
     def pack(self, v: array) -> bytes:
         """The bytes of the int64 vector ``v`` as the explorer holds them
@@ -2220,7 +2225,7 @@ class NativeModel:
             keep = self._unwritten[k] = [q for q in range(len(src)) if q not in wset]
         val = array("q", [len(out)])
         for label, st2 in out:
-            t = self.unpack(self.encode(st2))
+            t = self.vector(st2)
             u = array("q", src)         # the state as the site may leave it: one C compare
             for q in ws:
                 u[q] = t[q]
