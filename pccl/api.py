@@ -609,7 +609,7 @@ def _witnesses(model, lv) -> list:
 
 def _search_notes(ex: Any) -> list:
     """Step of :func:`explore_model`: the searcher's notes (checkpoints
-    written or resumed; with Ray, each actor's node; workers pinned to cores)."""
+    written or resumed; with Ray, each actor's node)."""
     notes: list = []
     ck = getattr(ex, "checkpoint", None)
     if ck is not None:
@@ -619,9 +619,6 @@ def _search_notes(ex: Any) -> list:
     transport: Any = getattr(ex, "transport", None)
     if transport is not None and getattr(transport, "placement", None):   # --ray: each actor's node
         notes.append(transport.placement_note())
-    pinned = getattr(transport, "pinned_note", None)
-    if pinned is not None and pinned() is not None:     # --workers N on N cores
-        notes.append(pinned())
     return notes
 
 

@@ -741,24 +741,3 @@ def test_workers_die_with_a_killed_coordinator(pdeathsig):
             except (ProcessLookupError, PermissionError):
                 pass
         p.communicate()
-
-
-@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
-def test_pinned_workers_are_named_in_the_notes(monkeypatch):
-    """A search whose workers were pinned says so, with the cores; one whose
-    workers were left to the scheduler (PCCL_PIN=0, or more workers than
-    cores) says nothing of it."""
-    import os
-    from pccl.search import parallel as P
-    cpus = sorted(os.sched_getaffinity(0))
-    kw = dict(overrides={"k": "1", "d": "1"}, reduce="none", timelock=False, stall=False)
-    pinned = [n for n in explore("programs/fischer.pccl", workers=max(2, len(cpus)), **kw).notes
-              if "pinned" in n]
-    if len(cpus) > 1:
-        assert pinned == [f"workers pinned to cores {', '.join(map(str, cpus))}, one each (as many "
-                          "workers as cores; PCCL_PIN=0 in the environment leaves them to the "
-                          "scheduler)"]
-    more = explore("programs/fischer.pccl", workers=len(cpus) + 1, **kw).notes
-    monkeypatch.setattr(P, "_PIN", False)
-    off = explore("programs/fischer.pccl", workers=max(2, len(cpus)), **kw).notes
-    assert not [n for n in more + off if "pinned" in n]

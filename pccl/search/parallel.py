@@ -1012,16 +1012,6 @@ class _Pipes:
         self.local: Optional[_Worker] = None
         #: the cores this process had before worker 0 was pinned to one (:func:`_pin`)
         self.unpinned: Optional[set] = None
-        #: worker w's core, cores[w], when pinned (kept for the search's notes)
-        self.pinned: Optional[list] = None
-
-    def pinned_note(self) -> Optional[str]:
-        """The note of a search whose workers were pinned, else None."""
-        if not self.pinned:
-            return None
-        cores = ", ".join(map(str, self.pinned))
-        return (f"workers pinned to cores {cores}, one each (as many workers as cores; "
-                "PCCL_PIN=0 in the environment leaves them to the scheduler)")
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None,
               fastest: bool = False) -> None:
@@ -1039,7 +1029,6 @@ class _Pipes:
         self.local = _Worker(model, 0, self.n, deadlock, find_all, columns, fastest)
         self.local.defer_free = self.n > 1     # freed while waiting for the others
         self.unpinned = _pin(0, self.n)        # (after the fork: the workers pin themselves)
-        self.pinned = sorted(self.unpinned) if self.unpinned is not None else None
 
     def stop(self) -> None:
         for c in self.conns:
