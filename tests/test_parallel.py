@@ -181,12 +181,14 @@ def test_small_levels_are_not_balanced():
 
 def test_waiting_blocks_when_the_cores_are_taken(monkeypatch):
     """A waiting process polls only while no more processes are runnable
-    than it has cores (the kernel's count, read each time); without that
-    count, while the load average is at most four times the cores (read at
-    most once a second)."""
+    than the machine has cores (the kernel's count, read each time: a
+    pinned worker's own single core does not count); without that count,
+    while the load average is at most four times the cores (read at most
+    once a second)."""
     import os
     from pccl.search import parallel as P
-    cores = P.available_workers()
+    cores = os.cpu_count()
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})    # as if pinned
     assert P._runnable() is None or P._runnable() >= 1      # this process runs
     for now, want in ((cores + 1, True), (cores, False), (1, False)):
         monkeypatch.setattr(P, "_runnable", lambda now=now: now)

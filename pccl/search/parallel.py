@@ -751,16 +751,17 @@ def _runnable() -> Optional[int]:
 
 def _overloaded() -> bool:
     """Whether a waiting process should block at once instead of polling:
-    when more processes are runnable right now than this process has cores
+    when more processes are runnable right now than the machine has cores
     (a poller would then take a core from its partner or from another job;
-    5 us to read).  Beside one busy loop on 2 cores, fischer 3 agents k=2
+    5 us to read; the machine's cores, not this process's: a pinned worker
+    may use one).  Beside one busy loop on 2 cores, fischer 3 agents k=2
     with 2 native workers: 0.82x one worker polling, 0.84x blocking;
     pinned (:func:`_pin`) 0.89x polling, 0.96x blocking; idle the same
     either way (docs/scale-out.md).  Without the kernel's count: the
     1-minute load average against four times the cores (read at most once
     a second; measured on a shared machine at load 11, blocking won 2x; at
     load 3.8 polling did)."""
-    cores = available_workers()
+    cores = os.cpu_count() or 1     # the kernel's counts are the machine's, not this process's
     now = _runnable()
     if now is not None:
         return now > cores
@@ -785,9 +786,9 @@ def _pin(wid: int, n: int) -> Optional[set]:
     returns the cores it had, to restore, or None when not pinned.  Beside a
     competing job the scheduler then moves only that job between the cores,
     instead of moving the workers away from their caches: fischer 3 agents
-    k=2 with 2 native workers beside one busy loop 0.84x one worker
-    unpinned, 0.96x pinned (both blocking while they wait); idle 1.71x and
-    1.72x (docs/scale-out.md).  ``PCCL_PIN=0`` turns it off."""
+    k=2 with 2 native workers beside one busy loop 0.86x one worker
+    unpinned, 0.95x pinned; idle 1.72x and 1.71x (docs/scale-out.md).
+    ``PCCL_PIN=0`` turns it off."""
     if not _PIN:
         return None
     try:
@@ -798,6 +799,8 @@ def _pin(wid: int, n: int) -> Optional[set]:
     except (AttributeError, OSError):       # pragma: no cover - non-Linux
         return None
     return set(cpus)
+
+
 #: balanced levels (see :meth:`_Pipes.level`); ``PCCL_BALANCE=0``: off
 _BALANCE = os.environ.get("PCCL_BALANCE", "1") != "0"
 #: ... with the native engine only when asked for (``PCCL_BALANCE=1``): measured
