@@ -915,3 +915,17 @@ def test_packed_states_give_equal_results(program, kw, monkeypatch):
         nm = NV.NativeModel(make_model(BIG, source=True, agents=2, reduce="none"))
         sizes = {len(s) for s in reachable(nm, 20_000)}
         assert sizes == {4 * nm.gen.NS, 8 * nm.gen.NS}
+
+
+def test_workers_over_packed_states_give_the_one_process_results():
+    """Fischer with 5 agents has 85 slots, so its states are packed: two
+    native workers (states pickled between processes in either form) give
+    one process's figures."""
+    kw = dict(agents=5, overrides={"k": "0", "d": "1"}, max_states=30_000,
+              invariants=("count(inCs) <= 1",), engine="native")
+    one = explore(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
+    two = explore(os.path.join(ROOT, "programs/fischer.pccl"), workers=2, **kw)
+    m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), agents=5, overrides={"k": "0", "d": "1"})
+    assert NV.NativeModel(m).gen.packs
+    assert two.model.engine_used == "native"
+    assert summary(two) == summary(one)

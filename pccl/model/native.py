@@ -135,7 +135,7 @@ MOVE_SLOTS = 6
 MAX_AGENTS = 16
 #: the packed form of a state's bytes (NativeModel.pack): int32 slots
 _I32 = next(c for c in "ihl" if array(c).itemsize == 4)
-_MIN64, _MIN32, _MAX32 = -(1 << 63), -(1 << 31), (1 << 31) - 1
+_MIN64, _MIN32 = -(1 << 63), -(1 << 31)
 #: CPython's small-object allocator serves at most this many bytes; a bytes
 #: object takes its length plus this header
 _SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
@@ -1115,6 +1115,11 @@ static int64_t sighash(const V *s) {{
   }}
   return (int64_t)h;
 }}
+/* packed(state): the state's bytes in the form the explorer holds (state_bytes) */
+static PyObject *packed(PyObject *self, PyObject *arg) {{
+  V sb[NS]; const V *s = arg_state(arg, sb);
+  return s ? state_bytes(s) : NULL;
+}}
 /* sig(state): the stall signature's hash */
 static PyObject *sig(PyObject *self, PyObject *arg) {{
   V sb[NS]; const V *s = arg_state(arg, sb);
@@ -1378,6 +1383,7 @@ static PyMethodDef methods[] = {{
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
   {{"sig", sig, METH_O, "the stall signature's hash"}},
   {{"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"}},
+  {{"packed", packed, METH_O, "a state's bytes in the form the explorer holds"}},
   {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
   {{"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"}},
@@ -2118,14 +2124,12 @@ class NativeModel:
 
     def pack(self, v: array) -> bytes:
         """The bytes of the int64 vector ``v`` as the explorer holds them
-        (and the generated C's ``state_bytes`` makes them): int32 slots when
+        (the generated C's ``state_bytes``, one C call): int32 slots when
         every slot fits, undefined (INT64_MIN) as INT32_MIN; else the int64
         slots themselves.  Each vector has one form, so equal states have
         equal bytes; the C calls take either."""
-        lo, hi = min(v), max(v)
-        if self._packed_size and hi <= _MAX32 and (lo > _MIN32 or all(x > _MIN32 or x == _MIN64 for x in v)):
-            return array(_I32, [_MIN32 if x == _MIN64 else x for x in v] if lo <= _MIN32 else v).tobytes()
-        return v.tobytes()
+        b = v.tobytes()
+        return self.lib.packed(b) if self._packed_size else b
 
     def unpack(self, b: bytes) -> array:
         """The int64 vector of a state's bytes (either form of :meth:`pack`)."""
