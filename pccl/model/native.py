@@ -133,9 +133,6 @@ UNDEF_C = "INT64_MIN"
 MOVE_SLOTS = 6
 
 MAX_AGENTS = 16
-#: the packed form of a state's bytes (NativeModel.pack): int32 slots
-_I32 = next(c for c in "ihl" if array(c).itemsize == 4)
-_MIN64, _MIN32 = -(1 << 63), -(1 << 31)
 #: CPython's small-object allocator serves at most this many bytes; a bytes
 #: object takes its length plus this header
 _SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
@@ -1120,6 +1117,11 @@ static PyObject *packed(PyObject *self, PyObject *arg) {{
   V sb[NS]; const V *s = arg_state(arg, sb);
   return s ? state_bytes(s) : NULL;
 }}
+/* unpacked(state): the state's int64 vector, as bytes (arg_state) */
+static PyObject *unpacked(PyObject *self, PyObject *arg) {{
+  V sb[NS]; const V *s = arg_state(arg, sb);
+  return s ? PyBytes_FromStringAndSize((const char *)s, sizeof(V) * NS) : NULL;
+}}
 /* sig(state): the stall signature's hash */
 static PyObject *sig(PyObject *self, PyObject *arg) {{
   V sb[NS]; const V *s = arg_state(arg, sb);
@@ -1384,6 +1386,7 @@ static PyMethodDef methods[] = {{
   {{"sig", sig, METH_O, "the stall signature's hash"}},
   {{"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"}},
   {{"packed", packed, METH_O, "a state's bytes in the form the explorer holds"}},
+  {{"unpacked", unpacked, METH_O, "a state's int64 vector, as bytes"}},
   {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
   {{"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"}},
@@ -2026,7 +2029,6 @@ class NativeModel:
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
-        self._packed_size = 4 * gen.NS if gen.packs else 0
         self._hooks(xxh)
         #: the int64 vector, canonical under symmetry, without the clock under
         #: time abstraction (one C call): the state's identity whichever
@@ -2124,23 +2126,18 @@ class NativeModel:
 
     def pack(self, v: array) -> bytes:
         """The bytes of the int64 vector ``v`` as the explorer holds them
-        (the generated C's ``state_bytes``, one C call): int32 slots when
-        every slot fits, undefined (INT64_MIN) as INT32_MIN; else the int64
-        slots themselves.  Each vector has one form, so equal states have
-        equal bytes; the C calls take either."""
-        b = v.tobytes()
-        return self.lib.packed(b) if self._packed_size else b
+        (the generated C's ``state_bytes``, one C call): where the model
+        packs (:attr:`Generator.packs`), int32 slots when every slot fits,
+        undefined (INT64_MIN) as INT32_MIN; else the int64 slots themselves.
+        Each vector has one form, so equal states have equal bytes; the C
+        calls take either."""
+        return self.lib.packed(v.tobytes())
 
     def unpack(self, b: bytes) -> array:
-        """The int64 vector of a state's bytes (either form of :meth:`pack`)."""
-        if len(b) == self._packed_size:
-            w = array(_I32)
-            w.frombytes(b)
-            if _MIN32 in w:
-                return array("q", [_MIN64 if x == _MIN32 else x for x in w])
-            return array("q", w)
+        """The int64 vector of a state's bytes (either form of :meth:`pack`;
+        the generated C's ``arg_state``, one C call)."""
         v = array("q")
-        v.frombytes(b)
+        v.frombytes(self.lib.unpacked(b))
         return v
 
     @staticmethod
