@@ -506,11 +506,11 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
     except SpillError as e:        # the spill directory: unwritable, the disk full
         raise PcclError(str(e), filename=e.option, template=True) from None
     except RuntimeError as e:
-        from pccl.model.native import NativeOverflow
+        from pccl.model.native import _ID_CLASH as NV_CLASH, NativeOverflow
         if isinstance(e, NativeOverflow):
             # a value the vectors cannot hold: the Python engine, from the start
-            model.engine_used, model.engine_reason = (
-                "python", "the native search met an int beyond 64 bits, a division by zero or "
+            model.engine_used, model.engine_reason = ("python", str(e) if str(e) == NV_CLASH else
+                "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             from pccl.search import liveness as L
             plan.labels, plan.native = (set() if plan.one else None), None
@@ -708,7 +708,8 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
     # said before the compile: a search interrupted while it compiles names
     # the engine that would have run
     model.engine_used, model.engine_reason = "native", None
-    return NV.NativeModel(model)
+    # forked workers: ids that every process gives a value alike
+    return NV.NativeModel(model, stable_ids=not one)
 
 
 def _resumed_engine(o: ExploreOptions) -> Optional[str]:

@@ -929,3 +929,81 @@ def test_workers_over_packed_states_give_the_one_process_results():
     assert NV.NativeModel(m).gen.packs
     assert two.model.engine_used == "native"
     assert summary(two) == summary(one)
+
+
+# -- --workers N of a program that moves: stable interned ids ---------------------
+
+RACE = os.path.join(ROOT, "programs/race.toml")
+MOVING_WORKER_CASES = {
+    # a robot stuck on remove(): a stall, with its counterexample
+    "race-nonatomic-stuck": (os.path.join(ROOT, "programs/race_nonatomic.pccl"),
+                             dict(world=RACE, agents=3)),
+    # exhaustive, three robots (symmetry over positions), no recorder
+    "race-robust": (os.path.join(ROOT, "programs/race_robust.pccl"),
+                    dict(world=RACE, agents=3, timelock=False, stall=False)),
+    # an invariant that fails once a robot has found no destination left
+    "race-robust-violation": (os.path.join(ROOT, "programs/race_robust.pccl"),
+                              dict(world=RACE, agents=3, invariants=("count(finished) == 0",))),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MOVING_WORKER_CASES))
+def test_native_workers_of_a_program_that_moves(name):
+    """A program that moves runs native with ``--workers`` (it ran the
+    Python engine: its interned ids were numbered per process): ids are a
+    hash of the value's encoding there, the same in every process, and the
+    figures, verdict, violations and counterexamples equal one native
+    process's (small ids) and the Python engine's."""
+    program, kw = MOVING_WORKER_CASES[name]
+    py = explore(program, engine="python", **kw)
+    one = explore(program, engine="auto", **kw)
+    assert one.model.engine_used == "native", one.model.engine_reason
+    assert summary(one) == summary(py)
+    for w in (2, 3):
+        many = explore(program, engine="auto", workers=w, **kw)
+        assert many.model.engine_used == "native", (w, many.model.engine_reason)
+        assert summary(many) == summary(one), f"workers={w}"
+
+
+def test_stable_ids_are_a_hash_and_travel_between_processes():
+    """Stable ids name a value alike in two models built apart (as in two
+    processes): a state made in one reads back in the other once it has
+    learnt the first's ids; small ids follow discovery order instead.
+    (One model at a time searches: the models of one program share its C
+    module, whose callbacks are the last model's.)"""
+    m = make_model(os.path.join(ROOT, "programs/race_robust.pccl"), world=RACE, agents=2)
+    a = NV.NativeModel(m, stable_ids=True)
+    far = next(iter(a.init_states()))
+    for _ in range(8):          # a few steps in: targets, lists, positions interned by a
+        nxt = [s for _, s in a.successors(far)]
+        far = nxt[-1] if nxt else far
+    table = a.id_table()
+    assert len(table) >= 3 and all(0 <= i < 1 << 62 for i in table)
+    c = NV.NativeModel(m, stable_ids=True)
+    with pytest.raises(KeyError):           # ids it has not seen
+        c.decode(far)
+    c.learn_ids(table)
+    assert c.decode(far) == a.decode(far) and c.key(far) == a.key(far)
+    for x in table.values():                # the same id for the same value, anywhere
+        assert c.intern(x) == a.intern(x)
+    small = NV.NativeModel(m)
+    assert small.id_table() is None
+    assert [small.intern(x) for x in table.values()] == list(range(len(table)))
+
+
+def test_stable_ids_that_clash_fall_back_to_the_python_workers(monkeypatch):
+    """Stable ids are 31 bits of a hash: an id that names two values (in one
+    process, or in two, found by the coordinator's check of what each step
+    interned) stops the native search, and the workers run the Python
+    engine, saying so; with two bits of hash every search clashes."""
+    program, kw = MOVING_WORKER_CASES["race-robust"]
+    py = explore(program, engine="python", **kw)
+    monkeypatch.setattr(NV, "_STABLE_MASK", 3)
+    r = explore(program, engine="auto", workers=2, **kw)
+    assert r.model.engine_used == "python" and "31-bit id" in r.model.engine_reason
+    assert summary(r) == summary(py)
+    reg: dict = {}
+    NV.check_ids(reg, [(5, b"a" * 16), (6, b"b" * 16)])
+    NV.check_ids(reg, [(5, b"a" * 16)])         # the same value again: fine
+    with pytest.raises(NV.NativeOverflow, match="31-bit id"):
+        NV.check_ids(reg, [(6, b"c" * 16)])

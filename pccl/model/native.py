@@ -18,9 +18,14 @@ doReach_done, doReach_fail.  Values that are not int, bool or enum scalars
 (positions, lists, obstacle lists, floats, arrays, None) are small ints
 interned in a table :class:`NativeModel` owns (value <-> id, two values
 one id when their marshal encodings, which the fingerprints read, are
-equal); ids follow discovery order, so equal states have equal vectors
-within one process only: a parallel search of such a program runs the
-Python engine.  Undefined is INT64_MIN.  The explorer holds a state as a
+equal).  In one process ids follow discovery order (small ints: the
+state fits int32 slots); for forked workers (``--workers N``) an id is 62
+bits of the xxh3 hash of that encoding (:attr:`NativeModel.stable_ids`),
+so that every process gives a value the same id, equal states have equal
+vectors and fingerprints everywhere, and a worker learns the coordinator's
+ids before it takes the initial states (:meth:`NativeModel.learn_ids`); two
+values whose hashes meet stop the native search (the Python engine runs).
+Undefined is INT64_MIN.  The explorer holds a state as a
 ``bytes`` object in one of two forms (:meth:`NativeModel.pack`): int32
 slots when every slot fits (undefined as INT32_MIN), else the int64 slots;
 half the memory, and CPython's small-object allocator instead of malloc
@@ -114,6 +119,8 @@ from array import array
 from typing import Any, NamedTuple, Optional
 from collections.abc import Callable
 
+import xxhash
+
 from pccl.lang import ast as A
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ,
                                OBSTACLES, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, T0, TARGET,
@@ -140,6 +147,11 @@ _SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
 #: of one agent, no lock, no counter)
 MEMO_KINDS = (K_SIMPLE, K_IF, K_WHILE, K_ASSERT, K_DOREACH)
 SCALAR = ("int", "bool", "enum")
+#: stable interned ids (:attr:`NativeModel.stable_ids`): 31 bits of a hash, never
+#: negative, never INT32_MAX (a state of such ids still fits int32 slots:
+#: :meth:`NativeModel.pack`); two values of one id anywhere stop the search
+#: (:meth:`NativeModel.take_new_ids`, the coordinator's check)
+_STABLE_MASK = (1 << 31) - 1
 #: kinds of values held as interned ids (value <-> small int, NativeModel's
 #: table); C compares them only for equality, Python computes on them
 INTERNED = ("pos", "list", "obstacles", "float", "array")
@@ -168,10 +180,10 @@ def compiler() -> Optional[str]:
 def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
                 parallel: bool = False, checkpoint: bool = False) -> Optional[str]:
     """Why the native engine cannot serve this model and search (None: it can).
-    ``parallel``: several processes search (forked workers); ``checkpoint``:
-    the search saves or resumes a checkpoint.  Both decline a program that
-    moves: its interned ids are numbered per process and the id table is not
-    saved."""
+    ``parallel``: several processes search (forked workers: the model then
+    takes stable ids); ``checkpoint``: the search saves or resumes a
+    checkpoint, which declines a program that moves (the table of its
+    interned values is not saved)."""
     if compiler() is None:
         return "no C compiler (cc) found"
     if sysconfig.get_paths().get("include") is None or not os.path.exists(
@@ -183,9 +195,6 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     try:
         gen = Generator(model)
         src = gen.source()
-        if parallel and gen.moves:
-            return ("a parallel search of a program that moves (interned ids are "
-                    "numbered per process)")
         if checkpoint and gen.moves:
             return ("{checkpoint} and {resume} of a program that moves (the table of its "
                     "interned values is not saved)")
@@ -195,6 +204,20 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     except RecursionError:      # a 3,000-deep chain: the generator recurses on expressions
         return "an expression nested too deeply for the C generator"
     return None
+
+
+#: the error when two values hash to one stable id (the API runs the Python engine)
+_ID_CLASH = "two interned values of the workers share a 31-bit id"
+
+
+def check_ids(registry: dict, new: list) -> None:
+    """Add stable ids ``new`` (:meth:`NativeModel.take_new_ids` of some
+    process) to ``registry`` (id -> the value's 128-bit hash); raises
+    :class:`NativeOverflow` when an id already names another value."""
+    get = registry.setdefault
+    for i, h in new:
+        if get(i, h) != h:
+            raise NativeOverflow(_ID_CLASH)
 
 
 def _replaced(model) -> Optional[str]:
@@ -1997,7 +2020,7 @@ class NativeModel:
     #: numpy table's calls cost per batch; measured 15% less CPU on Fischer)
     BATCH = 16384
 
-    def __init__(self, py):
+    def __init__(self, py, stable_ids: bool = False):
         self.py = py
         if _LAST[0] is py:
             gen, src = _LAST[1], _LAST[2]
@@ -2014,8 +2037,14 @@ class NativeModel:
         #: t0, env) of this process: id -> value and the value's canonical
         #: encoding -> id.  Ids follow discovery order, so equal states have
         #: equal vectors within one process only (no --workers, no --ray)
-        self._vals: list = []
+        self._vals: dict = {}
         self._ids: dict = {}
+        #: ids that name a value the same way in every process: a 62-bit hash
+        #: of its canonical encoding (for forked workers, whose states and
+        #: fingerprints must agree), else small ids in discovery order (which
+        #: keep a vector's slots within int32: :meth:`pack`)
+        self.stable_ids = stable_ids
+        self._new_ids: list = []
         #: id() of a value of the table -> its id (the table keeps them alive)
         self._byobj: dict = {}
         #: encode's memos of agent and shared cells (see :meth:`_cached`)
@@ -2092,10 +2121,43 @@ class NativeModel:
         k = marshal.dumps(x, 2)
         i = self._ids.get(k)
         if i is None:
-            i = self._ids[k] = len(self._vals)
-            self._vals.append(x)        # kept alive: its id() names it for good
+            if self.stable_ids:
+                i = xxhash.xxh3_64_intdigest(k) & _STABLE_MASK
+                if i == _STABLE_MASK:
+                    i = 0
+                if i in self._vals:
+                    raise NativeOverflow(_ID_CLASH)
+                self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
+            else:
+                i = len(self._vals)
+            self._ids[k] = i
+            self._vals[i] = x           # kept alive: its id() names it for good
             self._byobj[id(x)] = i
         return i
+
+    def take_new_ids(self) -> list:
+        """Stable ids: ``(id, 128-bit hash of the value's encoding)`` of the
+        values interned here since the last call (the coordinator checks
+        that no id names two values in two processes)."""
+        out, self._new_ids = self._new_ids, []
+        return out
+
+    def id_table(self) -> Optional[dict]:
+        """Stable ids (:attr:`stable_ids`): the interned values by id, for
+        another process to learn (:meth:`learn_ids`) before it reads states
+        made here; None otherwise."""
+        return dict(self._vals) if self.stable_ids else None
+
+    def learn_ids(self, table: dict) -> None:
+        """The interned values of another process (:meth:`id_table`)."""
+        for i, x in table.items():
+            if i in self._vals:
+                if marshal.dumps(x, 2) != marshal.dumps(self._vals[i], 2):
+                    raise NativeOverflow(_ID_CLASH)
+            else:
+                self._ids[marshal.dumps(x, 2)] = i
+                self._vals[i] = x
+                self._byobj[id(x)] = i
 
     def _v(self, x, kind: str = "int") -> int:
         from pccl.lang.values import UNDEF

@@ -10,7 +10,8 @@ The design (TLC's and PReach's, adapted to CPython processes):
 * **States stay where they were generated.**  Each worker expands its share
   of the current level and keeps the new states it generated; only
   fingerprints and 8-byte ordering keys travel, never states (except the
-  initial states, handed out once).
+  initial states, handed out once, and the states the coordinator moves
+  when the shares of a level are uneven: :func:`_rebalance`, the pipes).
 * **Level-synchronous, with the serial order.**  A candidate successor's key
   is ``(parent number << 24) | position among the parent's successors``:
   the order in which the one-process search meets it.  An owner keeps, of
@@ -203,6 +204,8 @@ class _Worker:
         self.spill: Any = None
         self.x_disk: Any = None
         self.x_disk_left = 0
+        #: the fingerprints of the level's candidates met so far (:meth:`_fp_more`)
+        self.x_seen: Any = None
 
     def _note_states(self, idx, states: list) -> None:
         """The states admitted to my level (numbers ``idx``): their columns
@@ -265,8 +268,24 @@ class _Worker:
         self.x_model_min: Optional[int] = None
         self.x_moved: list = []
         # the candidates' fingerprints (bytes), or None: computed by the
-        # model's batch hook once the level is expanded (:meth:`finish`)
+        # model's batch hook (:meth:`_fp_more`)
         self.x_ck: Optional[list] = [] if self.fp_batch is None else None
+        # the native engine: the candidates fingerprinted a chunk at a time,
+        # while they are in the cache (:meth:`_fp_more`): their fingerprints,
+        # the first occurrences, how many are done; off once a block of
+        # another worker's states is taken (keys no longer ascend: then
+        # :meth:`finish` fingerprints the whole level in key order)
+        self.x_fps: list = []
+        self.x_first: list = []
+        self.x_fp_done = 0
+        self.x_inc = self.fp_batch is not None
+        if self.x_inc:
+            if self.x_seen is None:
+                self.x_seen = FingerprintTable(capacity=1 << 16,
+                                               kernels=getattr(self.m, "table_kernels", None))
+            else:
+                self.x_seen.n = 0
+                self.x_seen._new_index(1 << 13)
 
     def remaining(self) -> int:
         """States of the level not expanded (nor given away) yet."""
@@ -302,6 +321,9 @@ class _Worker:
             nums, states, pos, foreign = blk
             end = len(states) if limit is None else min(len(states), pos + limit)
             if batch is not None:
+                end = min(end, pos + _FP_CHUNK)
+                if foreign:
+                    self.x_inc = False
                 # the native engine: the chunk's successors in one C call; a
                 # chunk without terminal states, off the depth bound and
                 # without the stall check's per-state look needs no bytecode
@@ -318,6 +340,8 @@ class _Worker:
                 del flat
                 if ck is not None:
                     ck.extend(keys_of(cs[len(ck):]))
+                elif self.x_inc:
+                    self._fp_more()
             else:
                 self._expand_each(nums[pos:end], states[pos:end], succ_fn, viol_fn, chg_of)
                 assert ck is not None       # the Python engine has no fingerprint hook
@@ -332,6 +356,30 @@ class _Worker:
                 work.pop(0)
                 self._discard(states)
         return self.remaining()
+
+    def _fp_more(self) -> None:
+        """Fingerprint the candidates made since the last call (one C call,
+        while they are in the cache; the whole level at once at the end ran
+        about three times slower per candidate on wide levels), and keep the
+        first occurrence of each: the first in this chunk (the C call) and
+        not met in an earlier one (:attr:`x_seen`)."""
+        cs, a = self.x_cs, self.x_fp_done
+        if len(cs) == a:
+            return
+        assert self.fp_batch is not None
+        blobs, first, _ = self.fp_batch(cs[a:])
+        fps = np.frombuffer(blobs[0] if len(blobs) == 1 else b"".join(blobs),
+                            dtype=np.uint64).reshape(-1, 2)
+        uf = fps[first]
+        seen = self.x_seen
+        if seen.n:
+            new = seen.lookup(uf) < 0
+            first, uf = first[new], uf[new]
+        first = first + a
+        seen.insert(uf, first.astype(np.uint32))
+        self.x_fps.append(fps)
+        self.x_first.append(first)
+        self.x_fp_done = len(cs)
 
     def _changes(self, nums: list, states: list, ns: list, flat: list) -> None:
         """The stall check (:meth:`liveness.StateColumns.changed`) of a chunk
@@ -431,6 +479,9 @@ class _Worker:
         self.x_cs, self.x_par_idx, self.x_par_n = [], [], []
         self.x_ck = [] if self.fp_batch is None else None
         total = len(cs)
+        inc = self.x_inc and self.x_fp_done == total
+        x_fps, x_first = self.x_fps, self.x_first
+        self.x_fps, self.x_first, self.x_fp_done = [], [], 0
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
         moved = np.asarray(self.x_moved, dtype=np.int64)
@@ -442,6 +493,7 @@ class _Worker:
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
             if len(pi) > 1 and not bool((pi[1:] > pi[:-1]).all()):
                 # parents handed over by others (:meth:`take`): back in key order
+                inc = False
                 order = np.argsort(keys, kind="stable")
                 keys = keys[order]
                 ol = order.tolist()
@@ -449,7 +501,11 @@ class _Worker:
                 if ck is not None:
                     ck = [ck[p] for p in ol]
                 del order, ol
-            if ck is None:
+            if ck is None and inc:
+                # fingerprinted a chunk at a time (:meth:`_fp_more`)
+                fps = np.concatenate(x_fps) if len(x_fps) > 1 else x_fps[0]
+                first = np.concatenate(x_first) if len(x_first) > 1 else x_first[0]
+            elif ck is None:
                 # the model's batch hook (native): the fingerprints and the
                 # first occurrence of each (ascending) in one C call
                 assert self.fp_batch is not None
@@ -493,8 +549,10 @@ class _Worker:
         dead, self.x_dead = self.x_dead, []
         if self.spill is not None:          # the level's candidates all held: how much
             self.spill.observe()
+        take = getattr(self.m, "take_new_ids", None)      # stable ids: for the check
         return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
-                viol, peak_rss_bytes(), moved)
+                viol, peak_rss_bytes(), moved,
+                take() if take is not None and self.m.stable_ids else ())
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -617,6 +675,33 @@ class _Worker:
         parts = list(r[0])
         self.own, parts[self.wid] = parts[self.wid], None     # mine stay here
         return (*parts, r[1:])
+
+    def handoff(self, k: int) -> tuple:
+        """The last ``k`` states of my level (committed, not begun), handed
+        to another worker that holds too few (:func:`_rebalance`):
+        ``(numbers, states, the model's interned values or None)``."""
+        nums, states = self.level_idx[-k:], self.level[-k:]
+        del self.level_idx[-k:], self.level[-k:]
+        table = self.m.id_table() if getattr(self.m, "stable_ids", False) else None
+        return nums, states, table
+
+    def receive(self, loot: tuple) -> None:
+        """States of another worker's level (:meth:`handoff`), into mine in
+        number order (so the candidates' keys still ascend)."""
+        nums, states, table = loot
+        if table is not None:
+            self.m.learn_ids(table)
+        allnums = self.level_idx + list(nums)
+        allstates = self.level + list(states)
+        order = np.argsort(np.asarray(allnums, dtype=np.int64), kind="stable").tolist()
+        self.level_idx = [allnums[i] for i in order]
+        self.level = [allstates[i] for i in order]
+
+    def learn_ids(self, table: dict) -> None:
+        """The coordinator's interned values (a native model with stable
+        ids, :meth:`pccl.model.native.NativeModel.learn_ids`), before it
+        hands me states that name them."""
+        self.m.learn_ids(table)
 
     def adopt(self, idx, states):
         if self.fastest:        # initial states: bucket (0, 0)
@@ -872,6 +957,9 @@ def _ready(conns: list):
     return c
 
 
+#: Native states a worker expands per C call, their successors then
+#: fingerprinted at once (:meth:`_Worker._fp_more`)
+_FP_CHUNK = 4096
 #: States a worker expands between two looks for another worker's request
 #: (:func:`_balanced_step`, :meth:`_Pipes._balance`): ~0.2-0.5 ms of work.
 _CHUNK = 64
@@ -929,6 +1017,44 @@ def _balanced_step(w: "_Worker", conn, *args) -> None:
         return
 
 
+#: Levels of at least this many states are rebalanced (:func:`_rebalance`)
+_REBALANCE_LEVEL = 1024
+#: ... when a worker holds more than this much above an even share
+_REBALANCE_SLACK = 0.1
+
+
+def _rebalance(holder: np.ndarray, n: int) -> list:
+    """Moves ``[(giver, receiver, count)]`` that even out the workers'
+    shares of a level (``holder``: who holds each state), or [] when no
+    worker holds more than :data:`_REBALANCE_SLACK` above an even share.
+    States stay with the worker that generated them, so without this a
+    search from one initial state is expanded by one worker alone (race
+    with 4 robots, 2 native workers: worker 1 expanded none of 16.5 M
+    states); a move costs a pickle of the state, and the states it moves
+    are the givers' last (their successors stay with the receiver)."""
+    counts = np.bincount(holder, minlength=n)
+    even = len(holder) / n
+    if counts.max() <= even * (1 + _REBALANCE_SLACK):
+        return []
+    target = np.full(n, len(holder) // n)
+    target[:len(holder) % n] += 1
+    surplus = counts - target
+    givers = [[int(w), int(x)] for w, x in enumerate(surplus) if x > 0]
+    takers = [[int(w), int(-x)] for w, x in enumerate(surplus) if x < 0]
+    plan = []
+    while givers and takers:
+        g, r = givers[0], takers[0]
+        k = min(g[1], r[1])
+        plan.append((g[0], r[0], k))
+        g[1] -= k
+        r[1] -= k
+        if not g[1]:
+            givers.pop(0)
+        if not r[1]:
+            takers.pop(0)
+    return plan
+
+
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
 _PR_SET_PDEATHSIG = 1
 
@@ -977,6 +1103,18 @@ def _serve(conn, model, wid, n, deadlock, find_all, columns=None, parent=None,
         try:
             if cmd == "lstep":
                 _balanced_step(w, conn, *args)
+                reply = ("ok", w.finish_step())
+            elif cmd == "pstep":      # a step that moves states first (_rebalance)
+                (decision, at_bound), gives, expect = args
+                w.commit(decision)
+                for k in gives:           # one hand-over per receiver, in the plan's order
+                    conn.send(("loot", w.handoff(k)))
+                for _ in range(expect):
+                    kind, loot = _recv(conn)
+                    assert kind == "work", kind
+                    w.receive(loot)
+                w.begin(at_bound)
+                w.expand_some(None)
                 reply = ("ok", w.finish_step())
             else:
                 reply = ("ok", getattr(w, cmd)(*args))
@@ -1065,7 +1203,10 @@ class _Pipes:
         mine = getattr(self.local, cmd)(*per_worker[0])
         return [mine] + [self._result(w) for w in range(1, self.n)]
 
-    def level(self, per_worker: list, size: int = 0):
+    #: the pipes can move a level's states between workers (:func:`_rebalance`)
+    moves_states = True
+
+    def level(self, per_worker: list, size: int = 0, plan=None):
         """One level: the *step* round, then the *decide* round, pipelined:
         an owner's *decide* is sent as soon as the coordinator holds the
         candidates of every other generator for it (``--workers 2``: with
@@ -1091,8 +1232,11 @@ class _Pipes:
         assert local is not None, "start() first"
         parts: list = [None] * n            # parts[g]: generator g's candidates by owner
         sent = [False] * n
-        if n > 1 and _BALANCE and size >= _BALANCE_LEVEL and (
-                local.succ_batch is None or _BALANCE_NATIVE):
+        if plan:
+            self._moved_step(per_worker, plan)
+            parts[0] = local.finish_step()
+        elif n > 1 and _BALANCE and size >= _BALANCE_LEVEL and (
+                local.succ_batch is None or (_BALANCE_NATIVE and not getattr(local.m, "stable_ids", False))):
             for w in range(1, n):
                 self.conns[w - 1].send(("lstep", per_worker[w]))
                 self.outstanding[w] += 1
@@ -1128,6 +1272,45 @@ class _Pipes:
             send_ready()
         mine = local.decide(*(parts[g][0] for g in range(n)))
         return [p[n] for p in parts], [mine] + [self._result(o) for o in range(1, n)]
+
+    def _moved_step(self, per_worker: list, plan: list) -> None:
+        """A step that first moves states ``plan`` (``[(giver, receiver,
+        count)]``, :func:`_rebalance`): each giver hands the last ``count``
+        states of its level over (through this process when neither is
+        worker 0), then every worker expands its share as in a static step;
+        worker 0's is expanded here, the forked workers' replies follow."""
+        local = self.local
+        assert local is not None
+        gives: list = [[] for _ in range(self.n)]
+        expects = [0] * self.n
+        for g, r, k in plan:
+            gives[g].append(k)
+            expects[r] += 1
+        for w in range(1, self.n):
+            if gives[w] or expects[w]:
+                assert not (gives[w] and expects[w]), plan
+                msg = ("pstep", (per_worker[w], gives[w], expects[w]))
+            else:
+                msg = ("step", per_worker[w])
+            self.conns[w - 1].send(msg)
+            self.outstanding[w] += 1
+        decision, at_bound = per_worker[0]
+        local.commit(decision)
+        for g, r, k in plan:
+            if g == 0:
+                loot = local.handoff(k)
+            else:
+                kind, loot = _recv(self.conns[g - 1])
+                if kind == "error":
+                    self.outstanding[g] -= 1
+                    raise loot
+                assert kind == "loot", kind
+            if r == 0:
+                local.receive(loot)
+            else:
+                self.conns[r - 1].send(("work", loot))
+        local.begin(at_bound)
+        local.expand_some(None)
 
     def _balance(self) -> None:
         """Worker 0's side of a balanced step, in this process
@@ -1686,6 +1869,8 @@ class ParallelExplorer(Explorer):
         self._waiting: dict = {}       # the fastest search: states waiting per bucket
         #: states expanded by another worker than the one that generated them
         self.moved = 0
+        #: stable interned ids (a native model with workers): id -> value's hash
+        self._ids: Optional[dict] = {} if getattr(self.model, "stable_ids", False) else None
         self.peak_workers = [0] * n
         #: per worker: the decision on the last level, sent with the next step
         self._decisions: Any = None
@@ -1722,6 +1907,9 @@ class ParallelExplorer(Explorer):
             res.fastest = True          # type: ignore[attr-defined]  # read by the CLI
             res.stats.frontier = sum(self._waiting.values())
         self._finish(res, self._bounds, t_start, self._memory(self.peak_workers))
+        if self._ids is not None:       # and what the counterexamples' replay interned
+            native: Any = self.model
+            self._check_ids([native.take_new_ids()])
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
             self._gather_graph(self._total)
         if self.options.spill is not None:      # what each worker spilled, for the notes
@@ -1768,7 +1956,8 @@ class ParallelExplorer(Explorer):
     def _initial_rounds(self) -> bool:
         """The initial states, numbered here in chunks and handed out
         round-robin; True to stop."""
-        m, T, n = self.model, self.transport, self.workers
+        m: Any = self.model
+        T, n = self.transport, self.workers
         key, budget = m.key, self._budget_all
         empty_u64, empty_i64 = np.zeros(0, np.uint64), np.zeros(0, np.int64)
         for chunk in self._initial_chunks(lambda: budget - self._total):
@@ -1793,8 +1982,11 @@ class ParallelExplorer(Explorer):
                 else empty_i64
             self._note_peaks(T.all("commit", [((base, cut, orr, empty_u64, empty_i64),)
                                               for orr in _split_like(ranks, new_keys)]))
+            table = m.id_table() if getattr(m, "stable_ids", False) else None
             for w in range(n):
                 idx = [g for g in range(base, base + cut) if g % n == w]
+                if table is not None and w:     # the values of the states' ids first
+                    T.call(w, "learn_ids", table)
                 T.call(w, "adopt", idx, [chunk[int(order[g - base])] for g in idx])
             self._put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
             if stop:
@@ -1820,8 +2012,17 @@ class ParallelExplorer(Explorer):
             at_bound = self._at_depth_bound(depth)
             decisions, self._decisions = self._decisions, None
             self._ck_mark = None        # mid-level: no checkpoint until the next boundary
-            replies, new_keys = T.level([(decisions[w] if decisions else None, at_bound)
-                                         for w in range(n)], level_size)
+            plan = None
+            if getattr(T, "moves_states", False) and n > 1 and level_size >= _REBALANCE_LEVEL \
+                    and self.options.spill is None:
+                plan = _rebalance(holder, n)
+                for g, r, k in plan:    # the giver's last k states: now the receiver's
+                    held = np.flatnonzero(holder == g)
+                    holder[held[len(held) - k:]] = r
+                    self.moved += k
+            per_worker = [(decisions[w] if decisions else None, at_bound) for w in range(n)]
+            replies, new_keys = T.level(per_worker, level_size, plan) if plan else \
+                T.level(per_worker, level_size)
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
             # peak memory, the parents it expanded for other workers)
@@ -1864,6 +2065,7 @@ class ParallelExplorer(Explorer):
         from ``base``), and the candidates' keys sorted: ``(sorted_keys,
         ranks)``, ``ranks`` each candidate's place in the sorted order."""
         self._note_peaks([r[5] for r in replies])
+        self._check_ids(r[7] for r in replies)
         for w, r in enumerate(replies):     # moved: their successors are w's
             if len(r[6]):
                 holder[r[6] - base] = w
@@ -1873,6 +2075,19 @@ class ParallelExplorer(Explorer):
         ranks = np.empty(len(allk), dtype=np.int64)
         ranks[order] = np.arange(len(allk))
         return allk[order], ranks
+
+    def _check_ids(self, news) -> None:
+        """A native model with stable ids (forked workers): no id may name
+        two values in two processes (:func:`pccl.model.native.check_ids`;
+        the API then runs the Python engine).  Every value of a state the
+        search meets is interned by the worker that makes the state, and
+        reported with its step, so the check sees them all."""
+        if self._ids is None:
+            return
+        from pccl.model.native import check_ids
+        for new in news:
+            if new:
+                check_ids(self._ids, new)
 
     def _ck_level(self, depth: int, level_base: int, holder: np.ndarray) -> None:
         """Checkpoints: at a level boundary (the mark an interrupt saves),
