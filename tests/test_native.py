@@ -1007,3 +1007,43 @@ def test_stable_ids_that_clash_fall_back_to_the_python_workers(monkeypatch):
     NV.check_ids(reg, [(5, b"a" * 16)])         # the same value again: fine
     with pytest.raises(NV.NativeOverflow, match="31-bit id"):
         NV.check_ids(reg, [(6, b"c" * 16)])
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_native_workers_rebalance_and_fingerprint_in_chunks(workers, monkeypatch):
+    """A search from one initial state: the levels are rebalanced (states
+    move from the worker that holds them all), and every level is
+    fingerprinted a chunk at a time (thresholds lowered; the forked workers
+    inherit them), with terminal states, the depth bound and an invariant
+    met on the way: the figures and the counterexample stay one native
+    process's.  Without rebalancing nothing moves."""
+    from pccl.search import parallel as P
+    from pccl.search.explorer import Explorer
+    monkeypatch.setattr(P, "_FP_LEVEL_BYTES", 0)
+    monkeypatch.setattr(P, "_FP_CHUNK", 7)
+    monkeypatch.setattr(P, "_REBALANCE_LEVEL", 16)
+    calls = []
+    real = P._Worker._fp_more
+
+    def counted(self):
+        calls.append(1)
+        return real(self)
+    monkeypatch.setattr(P._Worker, "_fp_more", counted)
+    program = os.path.join(ROOT, "programs/race_robust.pccl")
+    for kw, bound in ((dict(invariants=("count(finished) == 0",)), {}),
+                      (dict(), dict(max_depth=30)), (dict(), {})):
+        m = make_model(program, world=RACE, agents=3, **kw)
+        m.lock_deadlocks = True
+        one = Explorer(NV.NativeModel(m), **bound).run()
+        e = P.ParallelExplorer(NV.NativeModel(m, stable_ids=True), workers=workers, **bound)
+        many = e.run()
+        assert e.moved > 0, e.moved
+        sig = [(r.status, r.stats.states, r.stats.transitions, r.stats.max_depth,
+                sorted(b.value for b in r.bounds_hit),
+                [(f.violation.kind, f.index, f.depth, f.trace and tuple(f.trace.labels))
+                 for f in r.found]) for r in (one, many)]
+        assert sig[0] == sig[1]
+    assert calls            # worker 0's chunks, in this process
+    monkeypatch.setattr(P, "_REBALANCE_LEVEL", 1 << 60)
+    e = P.ParallelExplorer(NV.NativeModel(m, stable_ids=True), workers=workers)
+    assert e.run().stats.states == one.stats.states and e.moved == 0
