@@ -869,7 +869,7 @@ def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
 #: the cases of CASES the native engine serves (violations, bounds, the graph)
 NATIVE_CASES = [c for c in CASES if c[0] in ("fischer-k1", "fischer-k2-depth",
                                              "fischer-none-depth", "fischer-max-states",
-                                             "tl-spin")]
+                                             "tl-spin", "race-nondet", "race-nondet-all")]
 
 
 @pytest.mark.parametrize("name,program,opts", NATIVE_CASES, ids=[c[0] for c in NATIVE_CASES])
@@ -966,24 +966,30 @@ def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_p
 #: table's probes moved to C: a resumed run ended before its first progress
 #: line; three agents take 2.5-5 s.)
 _NATIVE_KILLED = [
-    ("violation", ["--agents", "3", "--set", "k=1", "--set", "d=2",
-                   "--invariant", "count(inCs)<=1", "--all"]),
-    ("exhaustive", ["--agents", "3", "--set", "k=1", "--set", "d=2"]),
+    ("violation", "violation", ["programs/fischer.pccl", "--agents", "3", "--set", "k=1",
+                                "--set", "d=2", "--invariant", "count(inCs)<=1", "--all"]),
+    ("exhaustive", "exhaustive", ["programs/fischer.pccl", "--agents", "3", "--set", "k=1",
+                                  "--set", "d=2"]),
+    # a program that moves: the checkpoint keeps its interned values (positions,
+    # lists), which the resumed process's states name by id
+    ("robots", "bounded", ["programs/race_robust.pccl", "--world", "programs/race.toml",
+                           "--agents", "4", "--max-states", "1500000", "--no-timelock",
+                           "--no-stall"]),
 ]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name,extra", _NATIVE_KILLED, ids=[c[0] for c in _NATIVE_KILLED])
-def test_native_sigkill_at_random_points_then_resume(tmp_path, name, extra):
+@pytest.mark.parametrize("name,status,extra", _NATIVE_KILLED, ids=[c[0] for c in _NATIVE_KILLED])
+def test_native_sigkill_at_random_points_then_resume(tmp_path, name, status, extra):
     """The issue's test on the native engine: killed with SIGKILL three times
     at random points of the search (once it is under way), each time resumed
     from the last periodic checkpoint: the uninterrupted result."""
     d = str(tmp_path / "ck")
-    base = ["explore", "programs/fischer.pccl", *extra, "--format", "json"]
+    base = ["explore", *extra, "--format", "json"]
     args = [*base, "--progress", "--progress-interval", "0.1", "--checkpoint-interval", "0.2"]
     q = _cli(*base, "--no-progress")
     full = json.loads(q.stdout)
-    assert full["status"] == name, q.stderr
+    assert full["status"] == status, q.stderr
     rng = random.Random(name)
     kills, seconds = 0, full["statistics"]["seconds"]
     for _ in range(8):

@@ -244,10 +244,10 @@ def test_encode_memo_keeps_equal_values_of_other_types_apart():
     assert [type(x[0]) for x in made] == [int, float, bool]
 
 
-def test_parallel_search_of_a_moving_program_runs_in_python():
+def test_parallel_search_and_checkpoint_of_a_moving_program_run_native():
     m = make_model(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 2, "nondet", "auto"))
-    assert NV.unsupported(m, parallel=True) is not None
-    assert NV.unsupported(m, checkpoint=True) is not None
+    assert NV.unsupported(m, parallel=True) is None
+    assert NV.unsupported(m, checkpoint=True) is None
     assert NV.unsupported(m) is None
 
 
@@ -256,22 +256,21 @@ def _figures(r) -> tuple:
     return (r.status, s.states, s.transitions, s.max_depth)
 
 
-def test_workers_and_checkpoints_of_a_moving_program_run_python_and_agree(tmp_path):
-    """Forked workers would intern values each in its own order, and a
-    checkpoint does not save the id table: both run the Python engine, say
-    why, and find what the one-process native search finds."""
+def test_workers_and_checkpoints_of_a_moving_program_run_native_and_agree(tmp_path):
+    """Forked workers intern values by a hash of the value (stable ids), and
+    a checkpoint saves the id table: both run the native engine and find
+    what the one-process native search and the Python engine find."""
     kw = dict(world=P("programs/race.toml"), agents=2, blackbox="nondet")
     one = explore(P("programs/race_robust.pccl"), **kw)
     assert one.model.engine_used == "native"
     two = explore(P("programs/race_robust.pccl"), workers=2, **kw)
-    assert two.model.engine_used == "python"
-    assert "moves" in two.model.engine_reason
+    assert two.model.engine_used == "native", two.model.engine_reason
     ck = explore(P("programs/race_robust.pccl"), checkpoint=str(tmp_path / "ck"), **kw)
-    assert ck.model.engine_used == "python"
-    assert "checkpoint" in ck.model.engine_reason and "moves" in ck.model.engine_reason
-    assert _figures(one) == _figures(two) == _figures(ck)
-    with pytest.raises(PcclError, match="moves"):
-        explore(P("programs/race_robust.pccl"), workers=2, engine="native", **kw)
+    assert ck.model.engine_used == "native", ck.model.engine_reason
+    py = explore(P("programs/race_robust.pccl"), engine="python", **kw)
+    assert _figures(one) == _figures(two) == _figures(ck) == _figures(py)
+    two = explore(P("programs/race_robust.pccl"), workers=2, engine="native", **kw)
+    assert _figures(two) == _figures(one)
 
 
 @pytest.mark.slow

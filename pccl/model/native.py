@@ -182,8 +182,8 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     """Why the native engine cannot serve this model and search (None: it can).
     ``parallel``: several processes search (forked workers: the model then
     takes stable ids); ``checkpoint``: the search saves or resumes a
-    checkpoint, which declines a program that moves (the table of its
-    interned values is not saved)."""
+    checkpoint (which keeps a moving program's interned values:
+    :meth:`NativeModel.checkpoint_tables`)."""
     if compiler() is None:
         return "no C compiler (cc) found"
     if sysconfig.get_paths().get("include") is None or not os.path.exists(
@@ -195,9 +195,6 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     try:
         gen = Generator(model)
         src = gen.source()
-        if checkpoint and gen.moves:
-            return ("{checkpoint} and {resume} of a program that moves (the table of its "
-                    "interned values is not saved)")
         _LAST[:] = [model, gen, src]
     except Unsupported as e:
         return str(e)
@@ -2072,9 +2069,10 @@ class NativeModel:
         self.blackbox = py.blackbox
         self._sig = self.lib.sig
         #: a checkpoint keeps the Python model's lazily interned tables (the
-        #: violations and traces are decoded through it)
-        self.checkpoint_tables = getattr(py, "checkpoint_tables", None)
-        self.restore_tables = getattr(py, "restore_tables", None)
+        #: violations and traces are decoded through it) and, for a program
+        #: that moves, the interned values (:meth:`checkpoint_tables`)
+        self._py_tables = getattr(py, "checkpoint_tables", None)
+        self._py_restore = getattr(py, "restore_tables", None)
         st0 = next(iter(py.init_states()))
         # the constant parts of a configuration: positions, reach cells, env
         self._pos = tuple(a[POS] for a in st0[AGS])
@@ -2134,6 +2132,32 @@ class NativeModel:
             self._vals[i] = x           # kept alive: its id() names it for good
             self._byobj[id(x)] = i
         return i
+
+    def checkpoint_tables(self) -> dict:
+        """What a checkpoint keeps besides the states: the Python model's
+        lazily interned tables and, for a program that moves, the interned
+        values by id (the states name them by id)."""
+        out = dict(self._py_tables()) if self._py_tables is not None else {}
+        if self.gen.moves:
+            out["native_ids"] = sorted(self._vals.items())
+        return out
+
+    def restore_tables(self, data: dict) -> None:
+        """Before a resumed search: the tables :meth:`checkpoint_tables`
+        saved; a value this process already gave another id is a
+        ValueError (the checkpoint is not this search's)."""
+        if self._py_restore is not None:
+            self._py_restore(data)
+        for i, x in data.get("native_ids", ()):
+            k = marshal.dumps(x, 2)
+            if self._ids.get(k, i) != i or (i in self._vals and self._ids.get(k) != i):
+                raise ValueError("the checkpoint's interned values are not this search's")
+            self._ids[k] = i
+            self._vals[i] = x
+            self._byobj[id(x)] = i
+
+    #: the coordinator's check of the ids each worker interned (:func:`check_ids`)
+    check_ids = staticmethod(check_ids)
 
     def take_new_ids(self) -> list:
         """Stable ids: ``(id, 128-bit hash of the value's encoding)`` of the

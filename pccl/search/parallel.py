@@ -503,22 +503,7 @@ class _Worker:
                 if ck is not None:
                     ck = [ck[p] for p in ol]
                 del order, ol
-            if ck is None and inc:
-                # fingerprinted a chunk at a time (:meth:`_fp_more`)
-                fps = np.concatenate(x_fps) if len(x_fps) > 1 else x_fps[0]
-                first = np.concatenate(x_first) if len(x_first) > 1 else x_first[0]
-            elif ck is None:
-                # the model's batch hook (native): the fingerprints and the
-                # first occurrence of each (ascending) in one C call
-                assert self.fp_batch is not None
-                blobs, first, _ = self.fp_batch(cs)
-                fps = np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2)
-            else:
-                fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
-                # first occurrence of each fingerprint (the smallest key: keys ascend)
-                first = np.fromiter(dict(zip(reversed(ck), range(total - 1, -1, -1))).values(),
-                                    dtype=np.int64, count=-1)
-                first.sort()
+            fps, first = self._level_fps(cs, ck, (x_fps, x_first) if inc else None)
             if self.columns is not None:
                 self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
                 self.g_fps.append(fps)
@@ -555,6 +540,27 @@ class _Worker:
         return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
                 viol, peak_rss_bytes(), moved,
                 take() if take is not None and self.m.stable_ids else ())
+
+    def _level_fps(self, cs: list, ck: Optional[list], chunks: Optional[tuple]) -> tuple:
+        """The fingerprints of the level's candidates ``cs`` (in key order)
+        and the positions of each one's first occurrence, ascending: from
+        the ``chunks`` fingerprinted as they were made (:meth:`_fp_more`),
+        else from the model's batch hook in one C call (native), else from
+        ``ck``, the candidates' fingerprints as bytes (the Python engine)."""
+        if chunks is not None:
+            x_fps, x_first = chunks
+            return (np.concatenate(x_fps) if len(x_fps) > 1 else x_fps[0],
+                    np.concatenate(x_first) if len(x_first) > 1 else x_first[0])
+        if ck is None:
+            assert self.fp_batch is not None
+            blobs, first, _ = self.fp_batch(cs)
+            return np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2), first
+        fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
+        # first occurrence of each fingerprint (the smallest key: keys ascend)
+        first = np.fromiter(dict(zip(reversed(ck), range(len(ck) - 1, -1, -1))).values(),
+                            dtype=np.int64, count=-1)
+        first.sort()
+        return fps, first
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -2100,16 +2106,16 @@ class ParallelExplorer(Explorer):
 
     def _check_ids(self, news) -> None:
         """A native model with stable ids (forked workers): no id may name
-        two values in two processes (:func:`pccl.model.native.check_ids`;
+        two values in two processes (the model's ``check_ids``;
         the API then runs the Python engine).  Every value of a state the
         search meets is interned by the worker that makes the state, and
         reported with its step, so the check sees them all."""
         if self._ids is None:
             return
-        from pccl.model.native import check_ids
+        model: Any = self.model
         for new in news:
             if new:
-                check_ids(self._ids, new)
+                model.check_ids(self._ids, new)
 
     def _ck_level(self, depth: int, level_base: int, holder: np.ndarray) -> None:
         """Checkpoints: at a level boundary (the mark an interrupt saves),
