@@ -1376,6 +1376,19 @@ static PyObject *clock_(PyObject *self, PyObject *arg) {{
   if (!s) return NULL;
   return PyLong_FromLongLong(s[{V_TIME}]);
 }}
+/* max_clock(states): the largest time of a list of states (None: empty) */
+static PyObject *max_clock(PyObject *self, PyObject *arg) {{
+  if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
+  Py_ssize_t n = PyList_GET_SIZE(arg);
+  if (!n) Py_RETURN_NONE;
+  long long m = 0;
+  for (Py_ssize_t i = 0; i < n; i++) {{
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
+    if (!s) return NULL;
+    if (!i || s[{V_TIME}] > m) m = s[{V_TIME}];
+  }}
+  return PyLong_FromLongLong(m);
+}}
 static PyObject *setup(PyObject *self, PyObject *args) {{
   PyObject *labels, *exc, *slow, *miss;
   unsigned long long xxh;
@@ -1402,6 +1415,7 @@ static PyMethodDef methods[] = {{
   {{"violations", violations, METH_O, "[] or the Python model's violations"}},
   {{"suspects", suspects, METH_O, "the positions of the states okstate does not pass"}},
   {{"clock", clock_, METH_O, "the state's time"}},
+  {{"max_clock", max_clock, METH_O, "the largest time of a list of states"}},
   {{"key", key, METH_O, "the state's identity (canonical under symmetry)"}},
   {{"sig", sig, METH_O, "the stall signature's hash"}},
   {{"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"}},
@@ -2092,6 +2106,8 @@ class NativeModel:
         #: flat, the labels met) -- the explorer's batch hook
         self.successor_batch = self.lib.expand
         self.clock = self.lib.clock
+        #: the largest ``clock`` of a list of states, in one C call
+        self.max_clock = self.lib.max_clock
         self._ok = self.lib.ok
         #: [] or the Python model's violations of the decoded state: one C call
         self.violations = self.lib.violations

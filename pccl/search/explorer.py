@@ -1148,6 +1148,8 @@ class _Admission:
         self.reported: set = set()
         self.record = ex._recorder(res.found, self.reported)
         self.clock = getattr(ex.model, "clock", None)
+        #: ... over a list in one call (the native engine), else None
+        self.max_clock = getattr(ex.model, "max_clock", None)
         key: Callable[[Any], Any] = ex.model.key      # a key is marshallable (Model.key)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         twos = itertools.repeat(2)
@@ -1243,7 +1245,8 @@ class _Admission:
                 break
         clock = self.clock
         if clock is not None and cut:       # of the states admitted (up to the cut)
-            t = max(map(clock, states[:cut]))
+            t = self.max_clock(states[:cut]) if self.max_clock is not None else \
+                max(map(clock, states[:cut]))
             if stats.max_time is None or t > stats.max_time:
                 stats.max_time = t
         owners = np.repeat(np.arange(len(par_n)), par_n)

@@ -198,6 +198,7 @@ class _Worker:
         #: the largest model time of the states admitted here (models with
         #: ``clock``): :meth:`max_time`, the one-process ``stats.max_time``
         self.clock = getattr(model, "clock", None)
+        self.max_clock = getattr(model, "max_clock", None)    # one C call a list (native)
         self.t_max: Any = None
         #: with ``--spill``: a :class:`pccl.search.spill.WorkerSpiller`
         #: (:meth:`spill_start`); the level's part on disk while it is expanded
@@ -211,7 +212,8 @@ class _Worker:
         """The states admitted to my level (numbers ``idx``): their columns
         and the largest model time."""
         if self.clock is not None and states:
-            t = max(map(self.clock, states))
+            t = self.max_clock(states if type(states) is list else list(states)) \
+                if self.max_clock is not None else max(map(self.clock, states))
             if self.t_max is None or t > self.t_max:
                 self.t_max = t
         if self.columns is not None and states:
