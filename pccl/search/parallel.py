@@ -703,8 +703,9 @@ class _Worker:
         """The last ``k`` states of my level (committed, not begun), handed
         to another worker that holds too few (:func:`_rebalance`):
         ``(numbers, states, the model's interned values or None)``."""
-        nums, states = self.level_idx[-k:], self.level[-k:]
-        del self.level_idx[-k:], self.level[-k:]
+        k = min(k, len(self.level))     # (--spill: only what is in memory)
+        nums, states = self.level_idx[len(self.level_idx) - k:], self.level[len(self.level) - k:]
+        del self.level_idx[len(self.level_idx) - k:], self.level[len(self.level) - k:]
         table = self.m.id_table() if getattr(self.m, "stable_ids", False) else None
         return nums, states, table
 
@@ -1183,6 +1184,8 @@ class _Pipes:
         self.local: Optional[_Worker] = None
         #: the cores this process had before worker 0 was pinned to one (:func:`_pin`)
         self.unpinned: Optional[set] = None
+        #: the last rebalanced step's moves: (receiver, the states' numbers)
+        self.handed: list = []
 
     def start(self, model, deadlock: bool, find_all: bool, columns=None,
               fastest: bool = False) -> None:
@@ -1326,6 +1329,7 @@ class _Pipes:
             self.outstanding[w] += 1
         decision, at_bound = per_worker[0]
         local.commit(decision)
+        self.handed = []                # (receiver, numbers) of the states moved
         for g, r, k in plan:
             if g == 0:
                 loot = local.handoff(k)
@@ -1335,6 +1339,7 @@ class _Pipes:
                     self.outstanding[g] -= 1
                     raise loot
                 assert kind == "loot", kind
+            self.handed.append((r, loot[0]))
             if r == 0:
                 local.receive(loot)
             else:
@@ -2043,16 +2048,15 @@ class ParallelExplorer(Explorer):
             decisions, self._decisions = self._decisions, None
             self._ck_mark = None        # mid-level: no checkpoint until the next boundary
             plan = None
-            if getattr(T, "moves_states", False) and n > 1 and level_size >= _REBALANCE_LEVEL \
-                    and self.options.spill is None:
+            if getattr(T, "moves_states", False) and n > 1 and level_size >= _REBALANCE_LEVEL:
                 plan = _rebalance(holder, n)
-                for g, r, k in plan:    # the giver's last k states: now the receiver's
-                    held = np.flatnonzero(holder == g)
-                    holder[held[len(held) - k:]] = r
-                    self.moved += k
             per_worker = [(decisions[w] if decisions else None, at_bound) for w in range(n)]
             replies, new_keys = T.level(per_worker, level_size, plan) if plan else \
                 T.level(per_worker, level_size)
+            if plan:
+                for r, nums in T.handed:    # the states moved: now the receiver's
+                    holder[np.asarray(nums, dtype=np.int64) - level_base] = r
+                    self.moved += len(nums)
             # replies[w]: (successors generated, deadlocks, first number at
             # the depth bound, ... at the model bound, violating candidates,
             # peak memory, the parents it expanded for other workers)
