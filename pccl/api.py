@@ -506,10 +506,10 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
     except SpillError as e:        # the spill directory: unwritable, the disk full
         raise PcclError(str(e), filename=e.option, template=True) from None
     except RuntimeError as e:
-        from pccl.model.native import _ID_CLASH as NV_CLASH, NativeOverflow
+        from pccl.model.native import ID_CLASH, NativeOverflow
         if isinstance(e, NativeOverflow):
             # a value the vectors cannot hold: the Python engine, from the start
-            model.engine_used, model.engine_reason = ("python", str(e) if str(e) == NV_CLASH else
+            model.engine_used, model.engine_reason = ("python", str(e) if str(e) == ID_CLASH else
                 "the native search met an int beyond 64 bits, a division by zero or "
                 "an undefined value")
             from pccl.search import liveness as L

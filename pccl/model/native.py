@@ -204,7 +204,7 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
 
 
 #: the error when two values hash to one stable id (the API runs the Python engine)
-_ID_CLASH = "two interned values of the workers share a 31-bit id"
+ID_CLASH = "two interned values of the workers share a 31-bit id"
 
 
 def check_ids(registry: dict, new: list) -> None:
@@ -214,7 +214,7 @@ def check_ids(registry: dict, new: list) -> None:
     get = registry.setdefault
     for i, h in new:
         if get(i, h) != h:
-            raise NativeOverflow(_ID_CLASH)
+            raise NativeOverflow(ID_CLASH)
 
 
 def _replaced(model) -> Optional[str]:
@@ -2140,7 +2140,7 @@ class NativeModel:
                 if i == _STABLE_MASK:
                     i = 0
                 if i in self._vals:
-                    raise NativeOverflow(_ID_CLASH)
+                    raise NativeOverflow(ID_CLASH)
                 self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
             else:
                 i = len(self._vals)
@@ -2193,7 +2193,7 @@ class NativeModel:
         for i, x in table.items():
             if i in self._vals:
                 if marshal.dumps(x, 2) != marshal.dumps(self._vals[i], 2):
-                    raise NativeOverflow(_ID_CLASH)
+                    raise NativeOverflow(ID_CLASH)
             else:
                 self._ids[marshal.dumps(x, 2)] = i
                 self._vals[i] = x
