@@ -19,12 +19,12 @@ doReach_done, doReach_fail.  Values that are not int, bool or enum scalars
 interned in a table :class:`NativeModel` owns (value <-> id, two values
 one id when their marshal encodings, which the fingerprints read, are
 equal).  In one process ids follow discovery order (small ints: the
-state fits int32 slots); for forked workers (``--workers N``) an id is 62
+state fits int32 slots); for forked workers (``--workers N``) an id is 31
 bits of the xxh3 hash of that encoding (:attr:`NativeModel.stable_ids`),
 so that every process gives a value the same id, equal states have equal
 vectors and fingerprints everywhere, and a worker learns the coordinator's
 ids before it takes the initial states (:meth:`NativeModel.learn_ids`); two
-values whose hashes meet stop the native search (the Python engine runs).
+values of one id stop the native search (the Python engine runs).
 Undefined is INT64_MIN.  The explorer holds a state as a
 ``bytes`` object in one of two forms (:meth:`NativeModel.pack`): int32
 slots when every slot fits (undefined as INT32_MIN), else the int64 slots;
@@ -2046,14 +2046,12 @@ class NativeModel:
         xxh = _xxh3_128_address()
         #: the interned values (positions, lists, obstacle lists, targets,
         #: t0, env) of this process: id -> value and the value's canonical
-        #: encoding -> id.  Ids follow discovery order, so equal states have
-        #: equal vectors within one process only (no --workers, no --ray)
+        #: encoding -> id (:meth:`_put`)
         self._vals: dict = {}
         self._ids: dict = {}
-        #: ids that name a value the same way in every process: a 62-bit hash
-        #: of its canonical encoding (for forked workers, whose states and
-        #: fingerprints must agree), else small ids in discovery order (which
-        #: keep a vector's slots within int32: :meth:`pack`)
+        #: ids that name a value the same way in every process: 31 bits of a
+        #: hash of its canonical encoding (for forked workers, whose states and
+        #: fingerprints must agree), else small ids in discovery order
         self.stable_ids = stable_ids
         self._new_ids: list = []
         #: id() of a value of the table -> its id (the table keeps them alive)
@@ -2139,15 +2137,26 @@ class NativeModel:
                 i = xxhash.xxh3_64_intdigest(k) & _STABLE_MASK
                 if i == _STABLE_MASK:
                     i = 0
-                if i in self._vals:
+                if not self._put(i, k, x):
                     raise NativeOverflow(ID_CLASH)
                 self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
             else:
                 i = len(self._vals)
-            self._ids[k] = i
-            self._vals[i] = x           # kept alive: its id() names it for good
-            self._byobj[id(x)] = i
+                self._put(i, k, x)
         return i
+
+    def _put(self, i: int, k: bytes, x) -> bool:
+        """Value ``x`` (canonical encoding ``k``) as id ``i`` in the table;
+        False, and nothing changed, when ``x`` has another id or ``i``
+        names another value."""
+        if k in self._ids:
+            return self._ids[k] == i
+        if i in self._vals:
+            return False
+        self._ids[k] = i
+        self._vals[i] = x           # kept alive: its id() names it for good
+        self._byobj[id(x)] = i
+        return True
 
     def checkpoint_tables(self) -> dict:
         """What a checkpoint keeps besides the states: the Python model's
@@ -2165,12 +2174,8 @@ class NativeModel:
         if self._py_restore is not None:
             self._py_restore(data)
         for i, x in data.get("native_ids", ()):
-            k = marshal.dumps(x, 2)
-            if self._ids.get(k, i) != i or (i in self._vals and self._ids.get(k) != i):
+            if not self._put(i, marshal.dumps(x, 2), x):
                 raise ValueError("the checkpoint's interned values are not this search's")
-            self._ids[k] = i
-            self._vals[i] = x
-            self._byobj[id(x)] = i
 
     #: the coordinator's check of the ids each worker interned (:func:`check_ids`)
     check_ids = staticmethod(check_ids)
@@ -2191,13 +2196,8 @@ class NativeModel:
     def learn_ids(self, table: dict) -> None:
         """The interned values of another process (:meth:`id_table`)."""
         for i, x in table.items():
-            if i in self._vals:
-                if marshal.dumps(x, 2) != marshal.dumps(self._vals[i], 2):
-                    raise NativeOverflow(ID_CLASH)
-            else:
-                self._ids[marshal.dumps(x, 2)] = i
-                self._vals[i] = x
-                self._byobj[id(x)] = i
+            if not self._put(i, marshal.dumps(x, 2), x):
+                raise NativeOverflow(ID_CLASH)
 
     def _v(self, x, kind: str = "int") -> int:
         from pccl.lang.values import UNDEF

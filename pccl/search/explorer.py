@@ -325,6 +325,12 @@ class FingerprintTable:
         #: index probed and filled in C, the same arrays; None: numpy
         self.kernels = kernels
 
+    def clear(self) -> None:
+        """Empty the table (its arrays kept, to fill again)."""
+        self.n = 0
+        self._batch = None
+        self._new_index(1 << 13)
+
     # -- index --------------------------------------------------------------
     def _new_index(self, size: int) -> None:
         self.slots: Any = None
@@ -434,6 +440,16 @@ class FingerprintTable:
     def parent(self, idx: int) -> int:
         p = int(self.parents[idx])
         return -1 if p == 0xFFFF_FFFF else p
+
+
+def max_time(model, states: list) -> Any:
+    """The largest model time (``model.clock``) of ``states``: one C call
+    where the model has ``max_clock`` (the native engine), else a call a
+    state."""
+    many = getattr(model, "max_clock", None)
+    if many is not None:
+        return many(states if type(states) is list else list(states))
+    return max(map(model.clock, states))
 
 
 class ExactTable:
@@ -1148,8 +1164,6 @@ class _Admission:
         self.reported: set = set()
         self.record = ex._recorder(res.found, self.reported)
         self.clock = getattr(ex.model, "clock", None)
-        #: ... over a list in one call (the native engine), else None
-        self.max_clock = getattr(ex.model, "max_clock", None)
         key: Callable[[Any], Any] = ex.model.key      # a key is marshallable (Model.key)
         dumps, xxh = marshal.dumps, xxhash.xxh3_128_digest
         twos = itertools.repeat(2)
@@ -1243,10 +1257,8 @@ class _Admission:
                 halt = True
                 stop_at = new[j]
                 break
-        clock = self.clock
-        if clock is not None and cut:       # of the states admitted (up to the cut)
-            t = self.max_clock(states[:cut]) if self.max_clock is not None else \
-                max(map(clock, states[:cut]))
+        if self.clock is not None and cut:      # of the states admitted (up to the cut)
+            t = max_time(self.ex.model, states[:cut])
             if stats.max_time is None or t > stats.max_time:
                 stats.max_time = t
         owners = np.repeat(np.arange(len(par_n)), par_n)

@@ -96,8 +96,8 @@ import numpy as np
 import xxhash
 
 from pccl.search.explorer import (Bound, Explorer, FingerprintTable, Progress, SearchResult,
-                                  Stats, _MAX_STATES, _reserve, fingerprint, peak_rss_bytes, terminal,
-                                  violations_of)
+                                  Stats, _MAX_STATES, _reserve, fingerprint, max_time,
+                                  peak_rss_bytes, terminal, violations_of)
 
 __all__ = ["ParallelExplorer", "available_workers", "RAY_MISSING", "RayUnavailable", "RayWorkerLost",
            "import_ray"]
@@ -198,7 +198,6 @@ class _Worker:
         #: the largest model time of the states admitted here (models with
         #: ``clock``): :meth:`max_time`, the one-process ``stats.max_time``
         self.clock = getattr(model, "clock", None)
-        self.max_clock = getattr(model, "max_clock", None)    # one C call a list (native)
         self.t_max: Any = None
         #: with ``--spill``: a :class:`pccl.search.spill.WorkerSpiller`
         #: (:meth:`spill_start`); the level's part on disk while it is expanded
@@ -212,8 +211,7 @@ class _Worker:
         """The states admitted to my level (numbers ``idx``): their columns
         and the largest model time."""
         if self.clock is not None and states:
-            t = self.max_clock(states if type(states) is list else list(states)) \
-                if self.max_clock is not None else max(map(self.clock, states))
+            t = max_time(self.m, states)
             if self.t_max is None or t > self.t_max:
                 self.t_max = t
         if self.columns is not None and states:
@@ -288,8 +286,7 @@ class _Worker:
                 self.x_seen = FingerprintTable(capacity=1 << 16,
                                                kernels=getattr(self.m, "table_kernels", None))
             else:
-                self.x_seen.n = 0
-                self.x_seen._new_index(1 << 13)
+                self.x_seen.clear()
 
     def remaining(self) -> int:
         """States of the level not expanded (nor given away) yet."""
@@ -540,8 +537,7 @@ class _Worker:
             self.spill.observe()
         take = getattr(self.m, "take_new_ids", None)      # stable ids: for the check
         return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
-                viol, peak_rss_bytes(), moved,
-                take() if take is not None and self.m.stable_ids else ())
+                viol, peak_rss_bytes(), moved, take() if take is not None else ())
 
     def _level_fps(self, cs: list, ck: Optional[list], chunks: Optional[tuple]) -> tuple:
         """The fingerprints of the level's candidates ``cs`` (in key order)
