@@ -337,12 +337,30 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         # cache): the search's report, interrupted with nothing explored
         return _interrupted_before_search(plan)
     ex, sr = _run_search(plan, ex, native)
-    # every reachable state was expanded (before the graph analysis, which
-    # may turn an exhaustive search into a violation)
-    complete = sr.status == "exhaustive" or (
-        plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
-    lv = _analyse(plan, ex, sr)
-    return _assemble(plan, ex, sr, lv, complete)
+    try:
+        # every reachable state was expanded (before the graph analysis, which
+        # may turn an exhaustive search into a violation)
+        complete = sr.status == "exhaustive" or (
+            plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
+        lv = _analyse(plan, ex, sr)
+        return _assemble(plan, ex, sr, lv, complete)
+    finally:
+        _close(ex)
+
+
+def _kept(ex: Any) -> Any:
+    """``ex``, told to keep its workers after the search (a
+    :class:`~pccl.search.parallel.ParallelExplorer`: the analysis replays
+    its counterexamples through their tables; :func:`_close` stops them)."""
+    if hasattr(ex, "keep_workers"):
+        ex.keep_workers = True
+    return ex
+
+
+def _close(ex: Any) -> None:
+    close = getattr(ex, "close", None)
+    if close is not None:
+        close()
 
 
 def _interrupted_before_search(plan: _SearchPlan) -> ExploreResult:
@@ -498,11 +516,15 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
     model = plan.model
     saved, model.lock_deadlocks = model.lock_deadlocks, plan.o.deadlock
     try:
-        sr = ex.run()
+        sr = _kept(ex).run()
         if native is not None:
-            for f in sr.found:
-                if f.trace is not None:
-                    f.trace = native.decode_trace(f.trace)
+            try:
+                for f in sr.found:
+                    if f.trace is not None:
+                        f.trace = native.decode_trace(f.trace)
+            except BaseException:
+                _close(ex)
+                raise
     except SpillError as e:        # the spill directory: unwritable, the disk full
         raise PcclError(str(e), filename=e.option, template=True) from None
     except RuntimeError as e:
@@ -524,7 +546,7 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
                                   checkpoint=plan.o.checkpoint or plan.o.resume, resume=None)))
             else:       # --workers N: the Python engine's workers
                 ex = _parallel_searcher(plan, model)
-            sr = ex.run()
+            sr = _kept(ex).run()
         else:
             from pccl.search.parallel import RayUnavailable
             if isinstance(e, RayUnavailable):       # Ray could not be started or reached

@@ -511,6 +511,41 @@ def test_workers_hand_over_the_graph_the_one_process_search_records(chunk, monke
     assert graphs[1] == graphs[0] and graphs[2] == graphs[0]
 
 
+@pytest.mark.parametrize("workers", [2, 3])
+def test_kept_workers_number_states_for_the_replay_until_closed(workers):
+    """With ``keep_workers`` the workers outlive the search, and the
+    counterexamples of the graph analysis replay through their tables (the
+    coordinator builds no table of every state); :meth:`close` stops them.
+    Without it the coordinator's table answers the same numbers."""
+    import multiprocessing
+    import numpy as np
+    from pccl.search import liveness as L
+    from pccl.search.explorer import FingerprintTable
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    one = Explorer(m, recorder=L.make_recorder(m, True))
+    one.run()
+    kept = ParallelExplorer(m, workers=workers, recorder=L.make_recorder(m, True))
+    kept.keep_workers = True
+    plain = ParallelExplorer(m, workers=workers, recorder=L.make_recorder(m, True))
+    try:
+        sr = kept.run()
+        assert len(multiprocessing.active_children()) == workers - 1
+        assert not isinstance(kept.table, FingerprintTable)
+        plain.run()
+        assert isinstance(plain.table, FingerprintTable)
+        n = sr.stats.states
+        fps = one.table.fps[:n]
+        for i in list(range(0, n, max(1, n // 40))) + [n - 1]:
+            fp = fps[i].tobytes()
+            assert kept.table.index_of(fp) == plain.table.index_of(fp) == i
+        assert kept.table.index_of(np.zeros(2, np.uint64).tobytes()) == -1
+        assert kept.replay(n - 1).states == one.replay(n - 1).states
+    finally:
+        kept.close()
+    assert not multiprocessing.active_children()
+    kept.close()        # twice: nothing more to stop
+
+
 def test_graph_edges_come_in_chunks_in_the_order_generated():
     """A worker hands its transitions over about ``most`` at a time (a long
     part cut, short ones joined), in the order generated, and keeps none."""

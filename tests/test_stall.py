@@ -160,6 +160,9 @@ def test_workers_find_the_same_stalls(case, workers):
         [(v.kind, v.message) for v in one.violations]
     assert [s.rule for s in many.trace] == [s.rule for s in one.trace]
     assert many.stall and not any("stall check not run" in n for n in many.notes)
+    # the workers, kept for the analysis' replay, are gone once the result is made
+    import multiprocessing
+    assert not multiprocessing.active_children()
 
 
 # ---------------------------------------------------------------------------

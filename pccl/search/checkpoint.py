@@ -680,10 +680,9 @@ def _fsync_dir(path: str) -> None:
 # states of the level numbered ``w`` modulo M.  (With M = N each reads its
 # own partition only, and the level stays where it was.)
 
-#: The arrays of a worker's recorded graph (see ``_Worker.graph``): lists of
-#: arrays, and lists of numbers.
-_ARRAYS = ("g_src", "g_fps", "g_idx")
-_SCALARS = ("g_chg_idx", "g_chg")
+#: The arrays of a worker's recorded graph (see ``_Worker.graph_head``):
+#: lists of arrays.
+_ARRAYS = ("g_src", "g_fps", "g_idx", "g_chg_idx", "g_chg")
 _GRAPH_TYPES = {"g_src": (np.uint32, (0,)), "g_fps": (np.uint64, (0, 2)),
                 "g_idx": (np.int64, (0,)), "g_chg_idx": (np.int64, (0,)),
                 "g_chg": (np.uint8, (0,))}
@@ -715,9 +714,6 @@ def worker_snapshot(w, depth: int) -> tuple[dict, dict]:
             joined = _joined(getattr(w, name), name)
             setattr(w, name, [joined] if len(joined) else [])
             arrays[name] = joined
-        for name in _SCALARS:        # per expanded state, kept as lists of numbers
-            dtype, _ = _GRAPH_TYPES[name]
-            arrays[name] = np.asarray(getattr(w, name), dtype=dtype)
         cols = [np.concatenate(c) for c in zip(*w.g_cols)] if w.g_cols else []
         w.g_cols = [tuple(cols)] if cols else []
         state["ncols"] = len(cols)
@@ -763,8 +759,6 @@ def worker_restore(w, pieces: list, same: bool) -> int:
                 a = np.array(arrays[name])
                 if len(a):
                     getattr(w, name).append(a)
-            for name in _SCALARS:
-                getattr(w, name).extend(np.asarray(arrays[name]).tolist())
             cols = tuple(np.array(arrays[f"g_col{i}"]) for i in range(state["ncols"]))
             if cols and len(cols[0]):
                 w.g_cols.append(cols)
@@ -803,7 +797,7 @@ def worker_appended(arrays: dict) -> tuple:
     """The arrays of a partition (:func:`worker_snapshot`) that only grow
     (written a segment at a time: :func:`write_appended`): the fingerprints
     and state numbers of the table, and the recorded graph."""
-    return ("fps", "parents", *_ARRAYS, *_SCALARS,
+    return ("fps", "parents", *_ARRAYS,
             *(k for k in arrays if k.startswith("g_col")))
 
 

@@ -90,6 +90,7 @@ import operator
 import os
 import signal
 import time as _time
+from collections.abc import Callable
 from typing import Any, Optional
 
 import numpy as np
@@ -393,8 +394,8 @@ class _Worker:
         counts = np.asarray(ns, dtype=np.int64)
         diff = there != np.repeat(here, counts)
         starts = np.cumsum(counts) - counts
-        self.g_chg_idx.extend(nums)
-        self.g_chg.extend(np.logical_or.reduceat(diff, starts).tolist())
+        self.g_chg_idx.append(np.asarray(nums, dtype=np.int64))
+        self.g_chg.append(np.logical_or.reduceat(diff, starts).astype(np.uint8))
 
     def _cut(self, g: int, s, terminal_state: bool) -> None:
         """State ``g`` (``s``) is not expanded: without successors (a model
@@ -414,6 +415,8 @@ class _Worker:
         hook (``ns`` per state, ``flat`` all of them), state by state."""
         cs, par_idx, par_n = self.x_cs, self.x_par_idx, self.x_par_n
         at_bound, a = self.x_bound, 0
+        ci: list = []
+        cv: list = []
         for g, s, k in zip(nums, states, ns):
             succ_states = flat[a:a + k]
             a += k
@@ -424,14 +427,24 @@ class _Worker:
             par_n.append(k)
             cs.extend(succ_states)
             if chg_of is not None:
-                self.g_chg_idx.append(g)
-                self.g_chg.append(chg_of(s, succ_states))
+                ci.append(g)
+                cv.append(chg_of(s, succ_states))
+        self._note_changes(ci, cv)
+
+    def _note_changes(self, nums: list, changed: list) -> None:
+        """The stall check's flags of states ``nums``: whether a successor's
+        signature differs from theirs (kept as arrays, a chunk at a time)."""
+        if nums:
+            self.g_chg_idx.append(np.asarray(nums, dtype=np.int64))
+            self.g_chg.append(np.asarray(changed, dtype=np.uint8))
 
     def _expand_each(self, nums: list, states: list, succ_fn, viol_fn, chg_of) -> None:
         """:meth:`expand_some` of a chunk, state by state (the Python engine)."""
         at_bound = self.x_bound
         second = operator.itemgetter(1)
         cs, par_idx, par_n, dead = self.x_cs, self.x_par_idx, self.x_par_n, self.x_dead
+        ci: list = []
+        cv: list = []
         for g, s in zip(nums, states):
             if viol_fn is not None:     # the fastest search: checked when expanded
                 vs = viol_fn(s)
@@ -445,8 +458,9 @@ class _Worker:
             par_n.append(len(succ))
             cs.extend(map(second, succ))
             if chg_of is not None:
-                self.g_chg_idx.append(g)
-                self.g_chg.append(chg_of(s, list(map(second, succ))))
+                ci.append(g)
+                cv.append(chg_of(s, list(map(second, succ))))
+        self._note_changes(ci, cv)
 
     def give(self, most: int):
         """Hand over up to ``most`` of the states left, from the back (for
@@ -735,26 +749,65 @@ class _Worker:
         if self.spill is not None:
             self.spill.relieve(self)
 
-    def graph(self):
-        """What this worker knows of the state graph, handed over once at the
-        end of the search: my partition of the visited set (fingerprints and
-        their state numbers), the columns of the states I held and the
-        stall check's flags.  The transitions I generated follow a chunk at
-        a time (:meth:`graph_edges`)."""
-        t = self.table
-        # my partition: from disk when I spilled it (entries() reads it back)
-        mine = self.spill.table.entries() if self.spill is not None else \
-            (t.fps[:t.n], t.parents[:t.n])
-        # not needed once handed over (the coordinator's table numbers the
-        # states from now on): freed as soon as the coordinator drops the
-        # views (worker 0: in its process, before it builds that table)
-        self.table = FingerprintTable()
+    def graph_head(self):
+        """What this worker knows of the state graph besides the visited set
+        and the transitions, handed over once at the end of the search: the
+        columns of the states I held, the stall check's flags and my peak
+        memory.  The transitions follow a chunk at a time, their targets
+        numbered by their owners (:meth:`resolve_edges`, :meth:`numbers_of`)."""
         idx = np.concatenate(self.g_idx) if self.g_idx else np.zeros(0, np.int64)
         cols = [np.concatenate(c) for c in zip(*self.g_cols)] if self.g_cols else None
         self.g_idx, self.g_cols = [], []
-        chg = (np.asarray(self.g_chg_idx, dtype=np.int64), np.asarray(self.g_chg, dtype=np.uint8))
+        chg = (np.concatenate(self.g_chg_idx) if self.g_chg_idx else np.zeros(0, np.int64),
+               np.concatenate(self.g_chg) if self.g_chg else np.zeros(0, np.uint8))
         self.g_chg_idx, self.g_chg = [], []
-        return (*mine, idx, cols, peak_rss_bytes(), chg)
+        return idx, cols, peak_rss_bytes(), chg
+
+    def graph_part(self):
+        """My partition of the visited set (fingerprints and their state
+        numbers), handed over when the coordinator must replay
+        counterexamples after the workers are gone; the table is dropped
+        here (the coordinator's numbers the states from then on)."""
+        t = self.table
+        # from disk when I spilled it (entries() reads it back)
+        mine = self.spill.table.entries() if self.spill is not None else \
+            (t.fps[:t.n], t.parents[:t.n])
+        self.table = FingerprintTable()
+        return mine
+
+    def numbers_of(self, q: np.ndarray) -> np.ndarray:
+        """The state numbers of fingerprints ``q`` (shape (k, 2)) of my
+        partition; -1 where absent (a successor not admitted)."""
+        if self.spill is not None:          # the spilled partition answers global numbers
+            return self.spill.table.lookup(q)
+        t = self.table
+        local = t.lookup(q)
+        hit = local >= 0
+        out = np.full(len(q), -1, dtype=np.int64)
+        out[hit] = t.parents[local[hit]]
+        return out
+
+    def resolve_edges(self, most: int):
+        """The next of the transitions I generated (:meth:`graph_edges`):
+        their sources, their targets' numbers where I own the target (-1
+        elsewhere), each target's owner, and per owner the fingerprints it
+        must number (None for me); None once all are handed over."""
+        part = self.graph_edges(most)
+        if part is None:
+            return None
+        src, fps = part
+        n = self.n
+        if n == 1:
+            return src, self.numbers_of(fps), None, [None]
+        owner = (fps[:, 1] % np.uint64(n)).astype(np.uint16)
+        dst = np.full(len(src), -1, dtype=np.int64)
+        mine = owner == self.wid
+        dst[mine] = self.numbers_of(fps[mine])
+        asks = [None if o == self.wid else fps[owner == o] for o in range(n)]
+        return src, dst, owner, asks
+
+    def index_of(self, fp: bytes) -> int:
+        return int(self.numbers_of(np.frombuffer(fp, dtype=np.uint64).reshape(1, 2))[0])
 
     def graph_edges(self, most: int):
         """The next of the transitions I generated, in the order generated,
@@ -785,12 +838,6 @@ class _Worker:
         """The largest model time of the states admitted here (None: no
         clock, or none admitted)."""
         return self.t_max
-
-    def index_of(self, fp: bytes) -> int:
-        if self.spill is not None:          # the spilled partition answers global numbers
-            return self.spill.table.number_of(fp)
-        local = self.table.index_of(fp)
-        return -1 if local < 0 else int(self.table.parents[local])
 
     def spill_start(self, directory, share: Optional[int], states: Optional[int]) -> int:
         """``--spill``: spill my partition and my share of the levels into
@@ -1787,6 +1834,14 @@ class ParallelExplorer(Explorer):
     #: workers start, and the level boundary a checkpoint is taken at
     _resume: Optional[tuple] = None
     _ck_mark: Optional[dict] = None
+    #: keep the workers after a search whose graph the recorder analyses,
+    #: to replay the analysis' counterexamples through their tables, until
+    #: :meth:`close` (``pccl explore`` does); else the coordinator builds a
+    #: table of every state for them (about a quarter of the gathering's time)
+    keep_workers = False
+    #: the workers were kept (:meth:`close` stops them)
+    _open = False
+    _shutdown: Optional[Callable[[], None]] = None
 
     def __init__(self, model, *, workers: Optional[int] = 2, ray: Optional[str] = None,
                  fastest: bool = False, **options):
@@ -1828,16 +1883,7 @@ class ParallelExplorer(Explorer):
         # installed before the fork: a worker never runs a handler that raises
         self.signals = _Signals()
         spill_dirs: list = []
-        try:
-            self.transport.start(self.model, self.deadlock, self.find_all, columns,
-                                 fastest=self.fastest)
-            self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
-            if self.options.spill is not None:
-                from pccl.search.spill import worker_dirs
-                spill_dirs = worker_dirs(self.options.spill, self.workers)
-                self._spill_start(spill_dirs)
-            return self._run()
-        finally:
+        def shutdown() -> None:
             try:
                 if spill_dirs:      # worker 0's files are open in this process
                     self.transport.call(0, "spill_close")
@@ -1846,9 +1892,37 @@ class ParallelExplorer(Explorer):
                 if spill_dirs:
                     from pccl.search.spill import close_worker_dirs
                     close_worker_dirs(spill_dirs)
+
+        done = False
+        try:
+            self.transport.start(self.model, self.deadlock, self.find_all, columns,
+                                 fastest=self.fastest)
+            self.workers = self.transport.n         # Ray with workers=None: the cluster's CPUs
+            if self.options.spill is not None:
+                from pccl.search.spill import worker_dirs
+                spill_dirs = worker_dirs(self.options.spill, self.workers)
+                self._spill_start(spill_dirs)
+            res = self._run()
+            done = True
+            return res
+        finally:
+            try:
+                if done and self._open:
+                    self._shutdown = shutdown       # at close()
+                else:
+                    self._open = False
+                    shutdown()
+            finally:
                 self.signals.restore()
                 if enabled:
                     gc.enable()
+
+    def close(self) -> None:
+        """Stop the workers kept after the search (:attr:`keep_workers`);
+        the coordinator's table answers no more lookups then."""
+        stop, self._shutdown, self._open = self._shutdown, None, False
+        if stop is not None:
+            stop()
 
     def _spill_start(self, dirs: list) -> None:
         """``spill``: each worker spills its partition and its share of the
@@ -2312,20 +2386,30 @@ class ParallelExplorer(Explorer):
 
     def _gather_graph(self, total: int) -> None:
         """Hand the state graph to the recorder, as the one-process search
-        records it: every worker sends its partition of the visited set and
-        the transitions it generated; here the partitions become one
-        :class:`FingerprintTable` numbered as the search numbered the states
-        (which then also replays counterexamples, after the workers are
-        gone), the transitions' targets get their numbers from it, and the
-        states' columns are put in number order.  The recorder's analysis
-        (:func:`pccl.search.liveness.analyse`) then runs on exactly the graph the
-        one-process search records."""
+        records it: every worker sends the columns of its states and the
+        transitions it generated, whose targets the targets' owners number
+        (all workers at once, a chunk at a time: :meth:`_owners_number`);
+        the states' columns are put in number order.  The recorder's
+        analysis (:func:`pccl.search.liveness.analyse`) then runs on
+        exactly the graph the one-process search records.  Counterexamples
+        found there are replayed through the workers' tables when they are
+        kept (:attr:`keep_workers`: until :meth:`close`), else through one
+        :class:`FingerprintTable` of every partition built here."""
         rec, n = self.recorder, self.workers
-        parts = self.transport.all("graph", [()] * n)
-        self.peak_workers = [max(a, p[4]) for a, p in zip(self.peak_workers, parts)]
-        idx = [p[2] for p in parts if p[3] is not None]
-        cols = [p[3] for p in parts if p[3] is not None]
-        chg = [p[5] for p in parts]
+        heads = self.transport.all("graph_head", [()] * n)
+        self.peak_workers = [max(a, h[2]) for a, h in zip(self.peak_workers, heads)]
+        idx = [h[0] for h in heads if h[1] is not None]
+        cols = [h[1] for h in heads if h[1] is not None]
+        chg = [h[3] for h in heads]
+        del heads
+        rec.changes_given = True
+        self._owners_number(rec)
+        rec.put_states(total, idx, cols)
+        rec.put_changes(total, [c[0] for c in chg], [c[1] for c in chg])
+        if self.keep_workers:
+            self._open = True
+            return
+        parts = self.transport.all("graph_part", [()] * n)
         fps = np.zeros((total, 2), dtype=np.uint64)
         while parts:            # each partition dropped once in place
             p = parts.pop(0)
@@ -2334,21 +2418,41 @@ class ParallelExplorer(Explorer):
         table = FingerprintTable(kernels=getattr(self.model, "table_kernels", None))
         if total:
             table.insert(fps, self.parents[:total])
-        del fps
-        rec.changes_given = True
-        step = 1 << 16          # bounded temporaries: a lookup costs ~50 B per fingerprint
-        for w in range(n):      # each worker's transitions, a chunk at a time
-            while True:
-                part = self.transport.call(w, "graph_edges", _GRAPH_CHUNK)
-                if part is None:
-                    break
-                src, tfps = part
-                for a in range(0, len(src), step):
-                    rec.edges(src[a:a + step].astype(np.int64), table.lookup(tfps[a:a + step]))
-                del part, src, tfps
-        rec.put_states(total, idx, cols)
-        rec.put_changes(total, [c[0] for c in chg], [c[1] for c in chg])
         self.table = table
+
+    def _owners_number(self, rec) -> None:
+        """Every worker's transitions to the recorder, a chunk of each at a
+        time (about :data:`_GRAPH_CHUNK`): each worker numbers the targets
+        it owns, then every owner the targets the others sent it."""
+        n = self.workers
+        empty = np.zeros((0, 2), dtype=np.uint64)
+        while True:
+            got = self.transport.all("resolve_edges", [(_GRAPH_CHUNK,)] * n)
+            if all(g is None for g in got):
+                return
+            asks: list = [[] for _ in range(n)]
+            for g in got:
+                if g is not None:
+                    for o, q in enumerate(g[3]):
+                        if q is not None and len(q):
+                            asks[o].append(q)
+            answers = self.transport.all(
+                "numbers_of", [(np.concatenate(a) if len(a) > 1 else a[0] if a else empty,)
+                               for a in asks])
+            del asks
+            at = [0] * n
+            for g in got:
+                if g is None:
+                    continue
+                src, dst, owner, qs = g
+                if not dst.flags.writeable:         # Ray's, from its object store
+                    dst = dst.copy()
+                for o, q in enumerate(qs):
+                    if q is not None and len(q):
+                        dst[owner == o] = answers[o][at[o]:at[o] + len(q)]
+                        at[o] += len(q)
+                rec.edges(src.astype(np.int64), dst)
+            del got, answers
 
     def peak_memory(self) -> int:
         """Peak memory of the search so far, summed over its processes."""
