@@ -843,6 +843,41 @@ def test_native_workers_stall_changes_in_a_batch_equal_state_by_state():
     assert any(want) and not all(want)
 
 
+@pytest.mark.parametrize("chunked", [False, True])
+@pytest.mark.parametrize("handed", [False, True])
+def test_native_workers_stall_changes_from_the_fingerprints_pass(monkeypatch, chunked, handed):
+    """With the stall check a native worker hashes each candidate's
+    signature in the fingerprints' pass (:attr:`_Worker.sig_batch`) and
+    decides its parents' changes from them when the level is finished: the
+    same changes as asking each state, with the level fingerprinted whole or
+    a chunk at a time, and with parents handed over by another worker (the
+    candidates then put back in key order); the admitted states' signature
+    column is their own signature."""
+    from pccl.search import liveness as L
+    from pccl.search import parallel as P
+    if chunked:
+        monkeypatch.setattr(P, "_FP_LEVEL_BYTES", 0)
+        monkeypatch.setattr(P, "_FP_CHUNK", 64)
+    m = make_model(os.path.join(ROOT, "tests/programs/token_keep.pccl"))
+    nm = NV.NativeModel(m)
+    cols = L.make_recorder(nm, True, True).columns
+    states = [s for s in reachable(nm, 3000) if nm.successors(s)]
+    want = [cols.changed(s, [t for _, t in nm.successors(s)]) for s in states]
+    w = P._Worker(nm, 0, 1, True, False, cols)
+    assert w.sig_batch is not None
+    half = len(states) // 2 if handed else 0
+    w.level, w.level_idx = states[half:], list(range(half, len(states)))
+    w.begin(False)
+    if handed:          # expanded after my own: out of key order
+        w.take(list(range(half)), states[:half])
+    w.expand_some(None)
+    w.finish()
+    got = dict(zip(np.concatenate(w.g_chg_idx).tolist(), np.concatenate(w.g_chg).tolist()))
+    assert got == dict(enumerate(want))
+    assert any(want) and not all(want)
+    assert w.cand_sigs.tolist() == cols.signatures(w.cand).tolist()
+
+
 # -- packed states: int32 slots where they fit --------------------------------------
 
 #: a shared int that passes 2**31 - 1 half-way, and a local left undefined

@@ -187,6 +187,14 @@ class _Worker:
         # for the candidates' fingerprints and first occurrences
         self.succ_batch = getattr(model, "successor_batch", None) if not fastest else None
         self.fp_batch = getattr(model, "fingerprint_batch", None) if not fastest else None
+        # ... the same with each candidate's stall signature from the same pass,
+        # when the stall check rides along: a state's signature is then hashed
+        # once as a candidate (for its parent's change and for its own
+        # column), where it was hashed three times
+        self.sig_batch = getattr(model, "fingerprint_sig_batch", None) \
+            if self.fp_batch is not None and columns is not None \
+            and columns.sig_of is not None else None
+        self.cand_sigs: Any = None     # the candidates' signatures (with sig_batch)
         # The state graph, when a recorder rides along (time-lock check,
         # temporal properties): per expanded level the sources' numbers and
         # the targets' fingerprints of every transition, and per admitted
@@ -212,16 +220,17 @@ class _Worker:
         #: the fingerprints of the level's candidates met so far (:meth:`_fp_more`)
         self.x_seen: Any = None
 
-    def _note_states(self, idx, states: list) -> None:
-        """The states admitted to my level (numbers ``idx``): their columns
-        and the largest model time."""
+    def _note_states(self, idx, states: list, sigs: Optional[np.ndarray] = None) -> None:
+        """The states admitted to my level (numbers ``idx``; ``sigs``: their
+        stall signatures, when known): their columns and the largest model
+        time."""
         if self.clock is not None and states:
             t = max_time(self.m, states)
             if self.t_max is None or t > self.t_max:
                 self.t_max = t
         if self.columns is not None and states:
             self.g_idx.append(np.asarray(idx, dtype=np.int64))
-            self.g_cols.append(self.columns(states))
+            self.g_cols.append(self.columns(states, sigs))
 
     def _discard(self, states: list) -> None:
         """States no longer needed: freed now, or (``defer_free``, set by
@@ -283,6 +292,11 @@ class _Worker:
         self.x_fps: list = []
         self.x_first: list = []
         self.x_fp_done = 0
+        # with sig_batch: the candidates' signatures a chunk at a time
+        # (:meth:`_fp_more`), and the chunks of parents whose change waits
+        # for them: (first in par_n, how many, their numbers, their signatures)
+        self.x_sigs: list = []
+        self.x_defer: list = []
         lv = self.work[0][1] if self.work else ()
         self.x_inc = self.fp_batch is not None and len(lv) * len(lv[0]) > _FP_LEVEL_BYTES \
             if lv else False
@@ -339,7 +353,13 @@ class _Worker:
                     par_idx.extend(nums[pos:end])
                     par_n.extend(ns)
                     cs.extend(flat)
-                    if chg_of is not None:
+                    if chg_of is not None and self.sig_batch is not None:
+                        # decided in finish(), on the signatures of the fingerprints' pass
+                        chunk = states[pos:end]
+                        self.x_defer.append((len(par_n) - len(ns), len(ns), nums[pos:end],
+                                             self.columns.signatures(chunk if type(chunk) is list
+                                                                     else list(chunk))))
+                    elif chg_of is not None:
                         self._changes(nums[pos:end], states[pos:end], ns, flat)
                 else:
                     self._expand_flat(nums[pos:end], states[pos:end], ns, flat, chg_of)
@@ -373,7 +393,11 @@ class _Worker:
         if len(cs) == a:
             return
         assert self.fp_batch is not None
-        blobs, first, _ = self.fp_batch(cs[a:])
+        if self.sig_batch is not None:
+            blobs, first, _, sg = self.sig_batch(cs[a:])
+            self.x_sigs.append(sg)
+        else:
+            blobs, first, _ = self.fp_batch(cs[a:])
         fps = np.frombuffer(blobs[0] if len(blobs) == 1 else b"".join(blobs),
                             dtype=np.uint64).reshape(-1, 2)
         uf = fps[first]
@@ -435,10 +459,10 @@ class _Worker:
                 cv.append(chg_of(s, succ_states))
         self._note_changes(ci, cv)
 
-    def _note_changes(self, nums: list, changed: list) -> None:
+    def _note_changes(self, nums, changed) -> None:
         """The stall check's flags of states ``nums``: whether a successor's
         signature differs from theirs (kept as arrays, a chunk at a time)."""
-        if nums:
+        if len(nums):
             self.g_chg_idx.append(np.asarray(nums, dtype=np.int64))
             self.g_chg.append(np.asarray(changed, dtype=np.uint8))
 
@@ -499,8 +523,8 @@ class _Worker:
         self.x_ck = [] if self.fp_batch is None else None
         total = len(cs)
         inc = self.x_inc and self.x_fp_done == total
-        x_fps, x_first = self.x_fps, self.x_first
-        self.x_fps, self.x_first, self.x_fp_done = [], [], 0
+        x_fps, x_first, x_sigs = self.x_fps, self.x_first, self.x_sigs
+        self.x_fps, self.x_first, self.x_fp_done, self.x_sigs = [], [], 0, []
         pi = np.asarray(par_idx, dtype=np.uint64)
         pn = np.asarray(par_n, dtype=np.int64)
         moved = np.asarray(self.x_moved, dtype=np.int64)
@@ -510,6 +534,7 @@ class _Worker:
             starts = np.repeat(np.cumsum(pn) - pn, pn)
             keys = (np.repeat(pi << np.uint64(_SHIFT), pn)
                     + (np.arange(total, dtype=np.int64) - starts).astype(np.uint64))
+            order = None
             if len(pi) > 1 and not bool((pi[1:] > pi[:-1]).all()):
                 # parents handed over by others (:meth:`take`): back in key order
                 inc = False
@@ -519,8 +544,12 @@ class _Worker:
                 cs = [cs[p] for p in ol]
                 if ck is not None:
                     ck = [ck[p] for p in ol]
-                del order, ol
-            fps, first = self._level_fps(cs, ck, (x_fps, x_first) if inc else None)
+                del ol
+            fps, first, self.cand_sigs = self._level_fps(
+                cs, ck, (x_fps, x_first, x_sigs) if inc else None)
+            if self.x_defer:
+                self._deferred_changes(pn, self.cand_sigs, order)
+            del order
             if self.columns is not None:
                 self.g_src.append((keys >> np.uint64(_SHIFT)).astype(np.uint32))
                 self.g_fps.append(fps)
@@ -548,6 +577,7 @@ class _Worker:
         else:
             keys = np.zeros(0, np.uint64)
             f, k = np.zeros((0, 2), np.uint64), keys
+            self.cand_sigs = None
         self.cand, self.cand_keys = cs, keys
         self.par_idx, self.par_n = pi, pn
         dead, self.x_dead = self.x_dead, []
@@ -558,25 +588,51 @@ class _Worker:
                 viol, peak_rss_bytes(), moved, take() if take is not None else ())
 
     def _level_fps(self, cs: list, ck: Optional[list], chunks: Optional[tuple]) -> tuple:
-        """The fingerprints of the level's candidates ``cs`` (in key order)
-        and the positions of each one's first occurrence, ascending: from
-        the ``chunks`` fingerprinted as they were made (:meth:`_fp_more`),
-        else from the model's batch hook in one C call (native), else from
+        """The fingerprints of the level's candidates ``cs`` (in key order),
+        the positions of each one's first occurrence, ascending, and (with
+        :attr:`sig_batch`, else None) their stall signatures: from the
+        ``chunks`` fingerprinted as they were made (:meth:`_fp_more`), else
+        from the model's batch hook in one C call (native), else from
         ``ck``, the candidates' fingerprints as bytes (the Python engine)."""
         if chunks is not None:
-            x_fps, x_first = chunks
+            x_fps, x_first, x_sigs = chunks
             return (np.concatenate(x_fps) if len(x_fps) > 1 else x_fps[0],
-                    np.concatenate(x_first) if len(x_first) > 1 else x_first[0])
+                    np.concatenate(x_first) if len(x_first) > 1 else x_first[0],
+                    (np.concatenate(x_sigs) if len(x_sigs) > 1 else x_sigs[0]) if x_sigs
+                    else None)
         if ck is None:
-            assert self.fp_batch is not None
-            blobs, first, _ = self.fp_batch(cs)
-            return np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2), first
+            sigs = None
+            if self.sig_batch is not None:
+                blobs, first, _, sigs = self.sig_batch(cs)
+            else:
+                assert self.fp_batch is not None
+                blobs, first, _ = self.fp_batch(cs)
+            return np.frombuffer(b"".join(blobs), dtype=np.uint64).reshape(-1, 2), first, sigs
         fps = np.frombuffer(b"".join(ck), dtype=np.uint64).reshape(-1, 2)
         # first occurrence of each fingerprint (the smallest key: keys ascend)
         first = np.fromiter(dict(zip(reversed(ck), range(len(ck) - 1, -1, -1))).values(),
                             dtype=np.int64, count=-1)
         first.sort()
-        return fps, first
+        return fps, first, None
+
+    def _deferred_changes(self, pn: np.ndarray, sigs: np.ndarray,
+                          order: Optional[np.ndarray]) -> None:
+        """The stall check's changes of the parents whose chunks waited for
+        their candidates' signatures (``sigs``, in key order; ``order``: the
+        positions the candidates were generated at, when parents handed
+        over by others put them out of key order; ``pn``: each parent's
+        successor count, in the order generated)."""
+        defer, self.x_defer = self.x_defer, []
+        if order is not None:
+            made = np.empty_like(sigs)
+            made[order] = sigs
+            sigs = made
+        ends = np.cumsum(pn)
+        for start, cnt, nums, here in defer:
+            counts = pn[start:start + cnt]
+            a, b = int(ends[start] - counts[0]), int(ends[start + cnt - 1])
+            diff = sigs[a:b] != np.repeat(here, counts)
+            self._note_changes(nums, np.logical_or.reduceat(diff, np.cumsum(counts) - counts))
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -657,13 +713,14 @@ class _Worker:
             cs = self.cand
             self.level = [cs[p] for p in pos]
             self.level_idx = (won_ranks + base).tolist()
-            self._note_states(self.level_idx, self.level)
+            self._note_states(self.level_idx, self.level,
+                              None if self.cand_sigs is None else self.cand_sigs[pos])
             if self.fastest:
                 self._file(self.level_idx, self.level, self.cand_cost[pos].tolist())
                 self.level, self.level_idx, self.cand_cost = [], [], None
             self._discard(cs)
             del cs
-            self.cand, self.cand_keys = [], None
+            self.cand, self.cand_keys, self.cand_sigs = [], None, None
         if self.pending is not None:
             f, _ = self.pending
             self.pending = None
