@@ -65,11 +65,12 @@ if code:   # import that tree, not the (editable) install
 from pccl.api import make_model, explore_model
 spec = json.loads(sys.argv[1])
 workers, ray = spec.pop("workers"), spec.pop("ray", None)
-extra = {k: spec.pop(k) for k in ("engine", "stall") if k in spec}
+extra = {k: spec.pop(k) for k in ("engine", "stall", "timelock") if k in spec}
+extra.setdefault("timelock", False)
 m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None),
                reduce=spec.pop("reduce", "none"),
                **({"agents": spec.pop("agents")} if spec.get("agents") else {}))
-r = explore_model(m, workers=workers, max_memory=None, timelock=False,
+r = explore_model(m, workers=workers, max_memory=None,
                   **({"ray": ray} if ray else {}), **extra)
 s = r.stats
 me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)

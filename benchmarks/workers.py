@@ -13,6 +13,8 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --native --no-baseline   # the native engine, large levels:
                                                       # fischer 3 agents k=2 d=2, reduced
     python benchmarks/workers.py --native --k 1 --no-baseline   # ... k=1 (3.0 M states)
+    python benchmarks/workers.py --native --checks --baseline REV   # ... with pccl explore's
+                                                      # default checks (time-lock, stall)
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).  Every
@@ -21,7 +23,7 @@ configuration twice: first with nothing of ours beside it ("idle"), then
 beside a busy loop (``python -c 'while True: pass'``) that this script
 starts before and kills after the "busy" half of the round.  The speedup is
 computed within each half-round (1-worker seconds / 2-worker seconds, the
-search's own time) and shown as median (range).  The machine may be
+search's own time; with ``--checks`` the processes' wall times) and shown as median (range).  The machine may be
 shared: the load average is printed before each half-round, so "idle" means
 "nothing of this benchmark's but the search"; other users' jobs count too.
 
@@ -29,7 +31,11 @@ With a busy loop on a 2-core machine that is otherwise idle, one worker
 gets a core to itself and two workers share the two cores with the loop:
 4/3 of a core in all, so 1.33x is the ideal (less the protocol's own cost).
 CPU is the user + system time of the search's process and its forked
-workers, polling included.
+workers, polling included; "process s" is the child process's wall time
+(start-up, compiling or loading the native module and, with ``--checks``,
+the graph analysis included; with workers, code before 2026-12-03 left the
+gathering of the recorded graph out of its search seconds, so compare
+old code by this column).
 """
 
 from __future__ import annotations
@@ -84,15 +90,20 @@ def main() -> None:
                          "default reductions (merge+symmetry+por), no time-lock or stall check "
                          "(`pccl explore programs/fischer.pccl --agents 3 --set k=K --set d=2 "
                          "--no-timelock --no-stall --workers N`), --k 2 unless given")
+    ap.add_argument("--checks", action="store_true",
+                    help="with --native: pccl explore's default checks, the time-lock and the "
+                         "stall check (the recorded graph gathered after the search)")
     ap.add_argument("--agents", type=int, default=None,
                     help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
     if args.native:
         k = args.k if "--k" in sys.argv else "2"
         agents = args.agents or 3
+        checks = dict(timelock=True, stall=True) if args.checks else dict(stall=False)
         spec = dict(program="programs/fischer.pccl", overrides={"k": k, "d": "2"},
-                    reduce="auto", agents=agents, engine="native", stall=False)
-        what = f"fischer {agents} agents k={k} d=2, reduced (merge+symmetry+por), native engine"
+                    reduce="auto", agents=agents, engine="native", **checks)
+        what = (f"fischer {agents} agents k={k} d=2, reduced (merge+symmetry+por), native engine"
+                + (", time-lock and stall checks" if args.checks else ""))
     else:
         spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
                     reduce="none", **({"agents": args.agents} if args.agents else {}))
@@ -124,8 +135,8 @@ def main() -> None:
                     for label, w, code, env in configs:
                         r = run_one(dict(spec), w, code, None, env)
                         runs[mode, label].append(r)
-                        done.append(f"{label} {r['seconds']:.2f} s ({r['cpu']:.1f} CPU, "
-                                    f"engine {r.get('engine', '?')})")
+                        done.append(f"{label} {r['seconds']:.2f} s ({r['process']:.2f} s the "
+                                    f"process, {r['cpu']:.1f} CPU, engine {r.get('engine', '?')})")
                 finally:
                     if loop is not None:
                         loop.kill()
@@ -136,16 +147,19 @@ def main() -> None:
            for rs in runs.values() for r in rs}
     engines = {r.get("engine") for rs in runs.values() for r in rs}
     assert len(sig) == 1, f"results differ between configurations: {sig}"
-    hdr = (f"{'':<5} {'configuration':<28} {'search s':>20} {'CPU s':>20} "
+    hdr = (f"{'':<5} {'configuration':<28} {'search s':>20} {'process s':>20} {'CPU s':>20} "
            f"{'speedup vs 1 worker':>20}")
     print(hdr)
     print("-" * len(hdr))
+    # with --checks by the process's wall time (old code's seconds leave the gathering out)
+    by = "process" if args.native and args.checks else "seconds"
     for mode in ("idle", "busy"):
         ref = runs[mode, "1 worker"]
         for label, *_ in configs:
             rs = runs[mode, label]
-            speed = [a["seconds"] / b["seconds"] for a, b in zip(ref, rs)]
+            speed = [a[by] / b[by] for a, b in zip(ref, rs)]
             print(f"{mode:<5} {label:<28} {fmt([r['seconds'] for r in rs]):>20} "
+                  f"{fmt([r['process'] for r in rs]):>20} "
                   f"{fmt([r['cpu'] for r in rs]):>20} {fmt(speed):>20}")
         print(f"{'':<5} (load average before each round: {'; '.join(loads[mode])})")
     status, states, transitions, depth = sig.pop()

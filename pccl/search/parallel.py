@@ -2132,7 +2132,11 @@ class ParallelExplorer(Explorer):
             native: Any = self.model
             self._check_ids([native.take_new_ids()])
         if self.recorder is not None and res.status in ("exhaustive", "bounded"):
+            t = _time.perf_counter()
             self._gather_graph(self._total)
+            # part of the search's time (one process records the graph as it
+            # goes; before 2026-12-03 the seconds left it out)
+            res.stats.seconds += _time.perf_counter() - t
         if self.options.spill is not None:      # what each worker spilled, for the notes
             from pccl.search.spill import WorkerSpills
             self.spiller = WorkerSpills(self.options.spill,
