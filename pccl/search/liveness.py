@@ -90,6 +90,11 @@ class _Grow:
         self.a = np.empty(0, dtype=self.a.dtype)
         self.n = 0
 
+    def adopt(self, x: np.ndarray) -> None:
+        """Hold ``x`` (of my dtype) as my whole content, without a copy."""
+        assert x.dtype == self.a.dtype and x.ndim == 1
+        self.a, self.n = x, len(x)
+
 
 class StateColumns:
     """The per-state part of the graph, as a pure function of the states:
@@ -207,8 +212,7 @@ class GraphRecorder:
         full = np.zeros(n, dtype=np.uint8)
         for ix, fl in zip(idx, flags):
             full[ix] = fl
-        self.chg.release()
-        self.chg.extend(full)
+        self.chg.adopt(full)
 
     # -- called by the explorer -------------------------------------------------
     def states(self, states: list, sigs: Optional[np.ndarray] = None) -> None:
@@ -227,8 +231,7 @@ class GraphRecorder:
             full = np.zeros(n, dtype=dtype)
             for ix, cs in zip(idx, cols):
                 full[ix] = cs[c]
-            grow.release()
-            grow.extend(full)
+            grow.adopt(full)        # (extend() copied it once more)
 
     def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None,
               to_sigs: Optional[np.ndarray] = None) -> None:
