@@ -86,10 +86,6 @@ class _Grow:
     def view(self) -> np.ndarray:
         return self.a[:self.n]
 
-    def release(self) -> None:
-        self.a = np.empty(0, dtype=self.a.dtype)
-        self.n = 0
-
     def adopt(self, x: np.ndarray) -> None:
         """Hold ``x`` (of my dtype) as my whole content, without a copy."""
         assert x.dtype == self.a.dtype and x.ndim == 1

@@ -133,6 +133,14 @@ def available_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _changed(here: np.ndarray, there: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Per parent, whether one of its successors' stall signatures
+    (``there``, ``counts[i]`` of them for parent ``i``, none zero) differs
+    from its own (``here``)."""
+    diff = there != np.repeat(here, counts)
+    return np.logical_or.reduceat(diff, np.cumsum(counts) - counts)
+
+
 def _split_like(arr: np.ndarray, parts: list) -> list:
     """``arr`` cut into consecutive pieces as long as the ``parts``."""
     out, a = [], 0
@@ -419,11 +427,7 @@ class _Worker:
         sigs = self.columns.signatures      # one C call per list on the native engine
         here = sigs(states if type(states) is list else list(states))
         there = sigs(flat if type(flat) is list else list(flat))
-        counts = np.asarray(ns, dtype=np.int64)
-        diff = there != np.repeat(here, counts)
-        starts = np.cumsum(counts) - counts
-        self.g_chg_idx.append(np.asarray(nums, dtype=np.int64))
-        self.g_chg.append(np.logical_or.reduceat(diff, starts).astype(np.uint8))
+        self._note_changes(nums, _changed(here, there, np.asarray(ns, dtype=np.int64)))
 
     def _cut(self, g: int, s, terminal_state: bool) -> None:
         """State ``g`` (``s``) is not expanded: without successors (a model
@@ -631,8 +635,7 @@ class _Worker:
         for start, cnt, nums, here in defer:
             counts = pn[start:start + cnt]
             a, b = int(ends[start] - counts[0]), int(ends[start + cnt - 1])
-            diff = sigs[a:b] != np.repeat(here, counts)
-            self._note_changes(nums, np.logical_or.reduceat(diff, np.cumsum(counts) - counts))
+            self._note_changes(nums, _changed(here, sigs[a:b], counts))
 
     def transitions_upto(self, parent: int) -> int:
         """Of the level I expanded last, the successors of the parents
@@ -828,7 +831,7 @@ class _Worker:
         """My partition of the visited set (fingerprints and their state
         numbers), handed over when the coordinator must replay
         counterexamples after the workers are gone; the table is dropped
-        here (the coordinator's numbers the states from then on)."""
+        here (the coordinator's table numbers the states from then on)."""
         t = self.table
         # from disk when I spilled it (entries() reads it back)
         mine = self.spill.table.entries() if self.spill is not None else \
@@ -1953,7 +1956,9 @@ class ParallelExplorer(Explorer):
     #: keep the workers after a search whose graph the recorder analyses,
     #: to replay the analysis' counterexamples through their tables, until
     #: :meth:`close` (``pccl explore`` does); else the coordinator builds a
-    #: table of every state for them (about a quarter of the gathering's time)
+    #: table of every state for them (the partitions sent and put in number
+    #: order, the table filled: about 0.9 s of Fischer 3 agents k=2's 2.9 s
+    #: gathering before the owners numbered the targets)
     keep_workers = False
     #: the workers were kept (:meth:`close` stops them)
     _open = False
