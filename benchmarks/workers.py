@@ -10,6 +10,7 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --balance            # also new code with PCCL_BALANCE=1
     python benchmarks/workers.py --unpinned           # also new code with PCCL_PIN=0
     python benchmarks/workers.py --new HEAD           # the new code as committed (else the working tree)
+    python benchmarks/workers.py --processes          # also new code with PCCL_THREADS=0
     python benchmarks/workers.py --native --no-baseline   # the native engine, large levels:
                                                       # fischer 3 agents k=2 d=2, reduced
     python benchmarks/workers.py --native --k 1 --no-baseline   # ... k=1 (3.0 M states)
@@ -93,6 +94,9 @@ def main() -> None:
     ap.add_argument("--checks", action="store_true",
                     help="with --native: pccl explore's default checks, the time-lock and the "
                          "stall check (the recorded graph gathered after the search)")
+    ap.add_argument("--processes", action="store_true",
+                    help="also the new code with PCCL_THREADS=0 (2 worker processes where "
+                         "the search would run on 2 threads)")
     ap.add_argument("--agents", type=int, default=None,
                     help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
@@ -122,6 +126,8 @@ def main() -> None:
             configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
         if args.unpinned:
             configs.append(("2 workers, PCCL_PIN=0", 2, new, {"PCCL_PIN": "0"}))
+        if args.processes:
+            configs.append(("2 workers, PCCL_THREADS=0", 2, new, {"PCCL_THREADS": "0"}))
         if old is not None:
             configs.append((f"2 workers, old {args.baseline}", 2, old, None))
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}

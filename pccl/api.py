@@ -17,6 +17,7 @@ import dataclasses
 import json
 import os
 import random
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Optional, Union
 
@@ -424,6 +425,15 @@ class _SearchPlan:
     runaways: list = field(default_factory=list)
     #: the native model searched (None: the Python engine)
     native: Any = None
+    #: --workers N as N threads of one process (the native level kernel),
+    #: when the search allows it (:func:`_threads_allowed`)
+    threads: bool = False
+
+    def on_runaway_native(self, native) -> Callable[[dict], None]:
+        """:meth:`on_runaway` for a search of ``native``'s states."""
+        def on_runaway(info: dict) -> None:
+            self.on_runaway({**info, "state": native.decode(info["state"])})
+        return on_runaway
 
     def on_runaway(self, info: dict) -> None:
         from pccl.model.stall import runaway_note
@@ -459,20 +469,46 @@ def _plan_search(model: Reduced, o: ExploreOptions, spelling: Spelling) -> _Sear
     # the workers record the state graph too (pccl/search/parallel.py): the same
     # time-lock and temporal analysis runs on the same graph, whatever the backend
     rec = L.make_recorder(model, o.timelock, o.stall)
+    threads = _threads_allowed(o, nworkers, rec)
     # the distinct labels of the transitions taken: the events that fired
-    labels: Optional[set] = set() if one else None
+    labels: Optional[set] = set() if one or threads else None
     return _SearchPlan(model, o, cov, max_memory, nworkers, one, o.search_options(max_memory),
-                       rec, labels, spelling)
+                       rec, labels, spelling, threads=threads)
+
+
+def _threads_allowed(o: ExploreOptions, nworkers: Optional[int], rec: Any) -> bool:
+    """Whether ``--workers N`` may run as N threads of this process (the
+    native engine's level kernel, which admits exactly what one process
+    admits) instead of N processes: a native search of this machine that
+    records no graph (no time-lock, stall or temporal check), with no
+    ``--fastest``, ``--coverage``, checkpoint or spill.  The native model
+    decides the rest (a program whose statements call Python: processes)."""
+    return (o.ray is None and nworkers is not None and nworkers > 1 and rec is None
+            and o.engine != "python" and not o.fastest and not o.coverage
+            and o.checkpoint is None and o.resume is None and o.spill is None
+            and os.environ.get("PCCL_THREADS", "1") != "0")
 
 
 def _make_searcher(plan: _SearchPlan) -> tuple:
     """Step of :func:`explore_model`: the searcher (plain, native, fastest,
     parallel processes or Ray actors) and the native model (or None)."""
     model, o, sopts = plan.model, plan.o, plan.sopts
-    native = _choose_engine(model, o, plan.rec is not None, plan.one, plan.spelling)
+    native = _choose_engine(model, o, plan.rec is not None, plan.one or plan.threads,
+                            plan.spelling)
+    if native is not None and plan.threads and native.explore_level is not None:
+        # --workers N as threads of this process
+        model.engine_threads = plan.nworkers
+        return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH,
+                                                     threads=plan.nworkers),
+                         on_runaway=plan.on_runaway_native(native), labels=plan.labels), native)
+    if plan.threads:
+        # processes after all (the Python engine, or statements that call
+        # Python); a native model for them names values alike in each
+        plan.threads, plan.labels = False, None
+        if native is not None:
+            native = _choose_engine(model, o, False, False, plan.spelling)
     if native is not None:
-        def on_runaway_native(info: dict) -> None:
-            plan.on_runaway({**info, "state": native.decode(info["state"])})
+        on_runaway_native = plan.on_runaway_native(native)
         if plan.rec is not None:        # the graph of the native states
             from pccl.search import liveness as L
             plan.rec = L.make_recorder(native, o.timelock, o.stall)
@@ -536,6 +572,7 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
                 "an undefined value")
             from pccl.search import liveness as L
             plan.labels, plan.native = (set() if plan.one else None), None
+            model.engine_threads = 1
             plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
             if plan.one:
                 # a checkpoint of the native search cannot be continued here: the
@@ -696,6 +733,7 @@ def _choose_engine(model: Reduced, o: ExploreOptions, recorder: bool, one: bool,
     Python engine; sets ``model.engine_used`` and ``model.engine_reason``
     (why not native, the options it names spelt by ``spelling``) for the header."""
     model.engine_asked = o.engine != "auto"
+    model.engine_threads = 1
     if o.engine == "python":
         model.engine_used, model.engine_reason = "python", None
         return None

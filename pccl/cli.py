@@ -590,9 +590,10 @@ def _plot_run(m, res, path, *, quiet=False):
               help="stop after this many distinct states")
 @click.option("--workers", metavar="N|auto", default=None,
               callback=lambda c, p, v: _workers(v),
-              help="search with N processes (auto: one per usable core); results are "
-                   "identical for every N [default: 1; with --ray: auto, one actor per "
-                   "CPU of the Ray cluster]")
+              help="search with N processes (auto: one per usable core), or N threads "
+                   "of one process for a native search without time-lock, stall or "
+                   "temporal checks; results are identical for every N [default: 1; with "
+                   "--ray: auto, one actor per CPU of the Ray cluster]")
 @click.option("--ray", "ray", metavar="ADDRESS|local", default=None,
               help="run the workers as Ray actors: on the cluster at ADDRESS (HOST:PORT, "
                    "auto), or on a Ray instance started on this machine (local); needs "
@@ -1432,7 +1433,9 @@ def _engine_text(m) -> str:
     if used is None or (used == "python" and why is None
                         and not getattr(m, "engine_asked", False)):
         return ""
-    return f", engine {used}" + (f" ({why})" if why else "")
+    threads = getattr(m, "engine_threads", 1)
+    return (f", engine {used}" + (f" on {threads} threads" if threads > 1 else "")
+            + (f" ({why})" if why else ""))
 
 
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):

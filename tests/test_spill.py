@@ -223,6 +223,11 @@ def test_spill_refuses_what_it_does_not_support(opts, says, tmp_path):
         explore(FISCHER, overrides={"k": "0"}, spill=str(tmp_path), **opts)
 
 
+#: the environment of a search that runs --workers N as processes (see
+#: docs/scale-out.md: without a state graph it would run on threads)
+PROCESSES = dict(os.environ, PCCL_THREADS="0")
+
+
 def _cli(*args, env=None):
     return subprocess.run([sys.executable, "-c", "from pccl.cli import main; main()", *args],
                           capture_output=True, text=True, env=env, timeout=300)
@@ -435,7 +440,8 @@ def test_cli_workers_spill_says_what_each_worker_spilled(tmp_path):
     args = ["explore", FISCHER, "--set", "k=2", "--set", "d=2", "--reduce", "none",
             "--max-states", "200000", "--no-timelock", "--no-stall", "--format", "json"]
     free = json.loads(_cli(*args).stdout)
-    base = json.loads(_cli(*args, "--workers", "2", "--max-states", "1").stdout)
+    # worker processes (a search without --spill would run on threads)
+    base = json.loads(_cli(*args, "--workers", "2", "--max-states", "1", env=PROCESSES).stdout)
     bound = base["statistics"]["peak_memory_bytes"] + (15 << 20)
     r = _cli(*args, "--workers", "2", "--spill", str(tmp_path), "--max-memory", str(bound))
     assert r.returncode == 0, r.stderr
@@ -503,11 +509,13 @@ def test_cli_workers_spill_keeps_the_search_under_max_memory(workers, tmp_path):
            "--no-timelock", "--no-stall", "--format", "json"]
     args = [*one, "--workers", str(workers)]
     single = json.loads(_cli(*one).stdout)
-    free = json.loads(_cli(*args).stdout)
-    base = json.loads(_cli(*args, "--max-states", "1").stdout)["statistics"]["peak_memory_bytes"]
+    # worker processes (a search without --spill would run on threads)
+    free = json.loads(_cli(*args, env=PROCESSES).stdout)
+    base = json.loads(_cli(*args, "--max-states", "1", env=PROCESSES).stdout)[
+        "statistics"]["peak_memory_bytes"]
     grow = free["statistics"]["peak_memory_bytes"] - base
     bound = base + grow * 2 // 5
-    cut = json.loads(_cli(*args, "--max-memory", str(bound)).stdout)
+    cut = json.loads(_cli(*args, "--max-memory", str(bound), env=PROCESSES).stdout)
     assert cut["status"] == "bounded", (bound, cut["statistics"])
     r = _cli(*args, "--max-memory", str(bound), "--spill", str(tmp_path))
     assert r.returncode == 0, r.stderr

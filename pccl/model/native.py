@@ -559,7 +559,7 @@ class Generator:
                 body = self.case_memo(i, pc, h, "    ")
             out += body
             out.append("    break; }")
-        out.append("  default: PyErr_SetString(PyExc_ValueError, \"unknown pc\"); return -1;")
+        out.append("  default: if (!KT) PyErr_SetString(PyExc_ValueError, \"unknown pc\"); return -1;")
         out.append("  }")
         out.append("  return 0;")
         out.append("}")
@@ -937,7 +937,11 @@ typedef int64_t V;
 /* the key: the vector without the clock under time abstraction (a constant
    of the source: one module per key) */
 #define KEYSKIP {8 if m.abstract_time else 0}
-static int ovf;
+/* per thread: the level kernel (explore_level) runs the successor code on
+   several threads at once, each with its own overflow flag and buffer; KT
+   is set while a thread runs it without the GIL (no Python call then) */
+static __thread int ovf;
+static __thread int KT;
 static PyObject *OverflowExc;
 static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
 static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
@@ -955,18 +959,18 @@ static void lq_remove(V *t, V i) {{
 }}
 /* the successor buffer: step() and rstep() append each successor's vector,
    its label, its place in the unmerged relation and its merged chain length */
-static V *BUF;
-static int32_t *BLAB, *BIDX, *BCH;
-static Py_ssize_t BN, BCAP;
+static __thread V *BUF;
+static __thread int32_t *BLAB, *BIDX, *BCH;
+static __thread Py_ssize_t BN, BCAP;
 static int grow(void) {{
   Py_ssize_t cap = BCAP ? 2 * BCAP : 1024;
   V *b = realloc(BUF, sizeof(V) * NS * cap);
-  if (!b) {{ PyErr_NoMemory(); return -1; }}
+  if (!b) {{ if (!KT) PyErr_NoMemory(); return -1; }}
   BUF = b;
   int32_t *x[3] = {{BLAB, BIDX, BCH}};
   for (int q = 0; q < 3; q++) {{
     int32_t *y = realloc(x[q], sizeof(int32_t) * cap);
-    if (!y) {{ PyErr_NoMemory(); return -1; }}
+    if (!y) {{ if (!KT) PyErr_NoMemory(); return -1; }}
     x[q] = y;
   }}
   BLAB = x[0]; BIDX = x[1]; BCH = x[2];
@@ -1403,6 +1407,7 @@ static PyObject *setup(PyObject *self, PyObject *args) {{
   XXH = (xxh128_fn)(uintptr_t)xxh;
   Py_RETURN_NONE;
 }}
+{_KERNEL_C}
 static PyMethodDef methods[] = {{
   {{"successors", successors, METH_O, "labelled successors of a state"}},
   {{"ok", ok, METH_O, "no stuck agent, the lock fine, every invariant holds"}},
@@ -1424,10 +1429,349 @@ static PyMethodDef methods[] = {{
   {{"phases", phases, METH_O, "1 per dynamic state"}},
   {{"setup", setup, METH_VARARGS, "labels and the overflow exception"}},
   {{"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"}},
+  {{"explore_level", explore_level, METH_VARARGS, "a level's states expanded and admitted, on threads"}},
   {{NULL, NULL, 0, NULL}}
 }};
 static struct PyModuleDef mod = {{PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods}};
 PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
+"""
+
+
+#: C of the level kernel (explore_level), after the successor code
+_KERNEL_C = r"""
+/* ---- the level kernel ---------------------------------------------------
+   explore_level(level, first, out, start, end, threads, slots, fps,
+   parents, n, mask, limit): the states level[start:end] (level[i] is state
+   number first + i) expanded, fingerprinted and admitted in C as the
+   explorer's batches would admit them: a chunk of KCH states at a time,
+   chunks in order, each new successor (its fingerprint not in the table)
+   numbered n, n + 1, ... (fps[n] its fingerprint, parents[n] its parent's
+   number, indexed in slots) and its state appended to the list out.  With threads > 1
+   that many threads, this one among them, each make chunks (expand,
+   fingerprint, check: no Python, no GIL) at most KWIN ahead of the
+   admission, and whichever finds the next chunk made admits it (holding
+   the GIL, one at a time): a slow or descheduled thread holds no one up
+   but for the chunk in its hands, and the result does not depend on the
+   threads.  It stops before admitting a chunk that holds a state without
+   successors (1), an error (2), more successors than room under `limit`
+   (3: the table is to grow, or the state budget is met) or a successor
+   that fails okstate and is not in the table (4): the explorer's own path
+   takes that chunk.  Returns (position stopped at, why (0: done), the
+   states admitted, the transitions admitted, the largest time of a new
+   state or None, the labels met, the end of the chunk stopped at). */
+#include <pthread.h>
+#define KCH 128
+#define KWIN 512
+typedef struct {
+  V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
+  Py_ssize_t nc, cap;
+  int flag;
+} KChunk;
+typedef struct {
+  PyObject *level, *out;
+  Py_ssize_t first, start, end, nch;
+  /* chunk c's buffer (once made) in slot c % KWIN; the buffers (KRING, kept
+     between calls) not in use on a stack, the last freed on top: a buffer
+     taken is most likely still in the cache */
+  KChunk **slot;
+  KChunk *free_[KWIN];
+  int nfree;
+  int next, done, stop, sleepers, admitting;
+  /* the admission's (the thread admitting holds them) */
+  uint32_t *slots, *parents;
+  uint64_t *fps, mask;
+  Py_ssize_t n, n0, limit, trans;
+  long long tmax;
+  unsigned char *seen;
+  int why;
+  pthread_mutex_t mu;
+  pthread_cond_t cv;
+} KJob;
+static KChunk KRING[KWIN];
+static KChunk *KSLOT[KWIN];
+
+static int KBUSY;
+static void kfree_tls(void) {
+  free(BUF); free(BLAB); free(BIDX); free(BCH);
+  BUF = NULL; BLAB = BIDX = BCH = NULL; BN = BCAP = 0;
+#ifdef IDW
+  free(SEEN); free(SLOT); SEEN = NULL; SLOT = NULL;
+#endif
+}
+/* the 16 bytes fingerprints() gives the state t, as the table's two words */
+static void kfp(const V *t, uint64_t *out) {
+  size_t klen = sizeof(V) * NS - KEYSKIP;
+  unsigned char buf[5 + sizeof(V) * NS];
+  buf[0] = 's';
+  buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
+  V c[NS];
+  canon(t, c);
+  memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
+  H128 h = XXH(buf, 5 + klen);
+#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+  out[0] = h.hi; out[1] = h.lo;
+#else
+  out[0] = __builtin_bswap64(h.hi); out[1] = __builtin_bswap64(h.lo);
+#endif
+}
+/* the int64 vector of a state the explorer holds (no Python error: NULL) */
+static const V *kstate(PyObject *arg, V *buf) {
+  if (!PyBytes_Check(arg)) return NULL;
+  Py_ssize_t n = PyBytes_GET_SIZE(arg);
+  if (PACK && n == (Py_ssize_t)(sizeof(int32_t) * NS)) {
+    const int32_t *p = (const int32_t *)PyBytes_AS_STRING(arg);
+    for (int q = 0; q < NS; q++) buf[q] = p[q] == INT32_MIN ? INT64_MIN : (V)p[q];
+    return buf;
+  }
+  return n == (Py_ssize_t)(sizeof(V) * NS) ? (const V *)PyBytes_AS_STRING(arg) : NULL;
+}
+static int kroom(KChunk *k, Py_ssize_t need) {
+  if (need <= k->cap) return 0;
+  Py_ssize_t cap = k->cap ? 2 * k->cap : 512;
+  while (cap < need) cap *= 2;
+  V *v = realloc(k->vec, sizeof(V) * NS * cap);
+  if (v) k->vec = v;
+  uint64_t *f = realloc(k->fp, 16 * cap);
+  if (f) k->fp = f;
+  unsigned char *s = realloc(k->sus, cap);
+  if (s) k->sus = s;
+  if (!v || !f || !s) return -1;
+  k->cap = cap;
+  return 0;
+}
+/* a chunk made or admitted, the admission free, the end: the waiting
+   threads look again (under the lock: a thread checks what it waits for
+   under it, so no wake-up is lost) */
+static void kwake(KJob *j) {
+  pthread_mutex_lock(&j->mu);
+  if (j->sleepers) pthread_cond_broadcast(&j->cv);
+  pthread_mutex_unlock(&j->mu);
+}
+/* make chunk c: its states' successors, their fingerprints and checks */
+static void kmake(KJob *j, Py_ssize_t c) {
+  pthread_mutex_lock(&j->mu);
+  KChunk *k = j->free_[--j->nfree];
+  pthread_mutex_unlock(&j->mu);
+  Py_ssize_t a = j->start + c * KCH, b = a + KCH < j->end ? a + KCH : j->end;
+  k->nc = 0;
+  k->flag = 0;
+  memset(k->labs, 0, NLABELS);
+  for (Py_ssize_t i = a; i < b && !k->flag; i++) {
+    V sb[NS];
+    const V *s = kstate(PyList_GET_ITEM(j->level, i), sb);
+    BN = 0; ovf = 0;
+    if (!s || rstep(s)) { k->flag = 2; break; }
+    k->ns[i - a] = (int32_t)BN;
+    if (!BN) { k->flag = 1; break; }
+    if (kroom(k, k->nc + BN)) { k->flag = 2; break; }
+    for (Py_ssize_t q = 0; q < BN; q++) {
+      const V *t = BUF + NS * q;
+      Py_ssize_t w = k->nc++;
+      memcpy(k->vec + NS * w, t, sizeof(V) * NS);
+      k->labs[BLAB[q]] = 1;
+      kfp(t, k->fp + 2 * w);
+      k->sus[w] = !okstate(t);
+    }
+  }
+  __atomic_store_n(&j->slot[c % KWIN], k, __ATOMIC_RELEASE);
+  kwake(j);
+}
+static inline int64_t klookup(const uint32_t *slots, const uint64_t *fps, uint64_t mask, const uint64_t *q) {
+  size_t pos = q[1] & mask;
+  for (;;) {
+    uint32_t e = slots[pos];
+    if (e == TEMPTY) return -1;
+    if (fps[2 * (size_t)e + 1] == q[1] && fps[2 * (size_t)e] == q[0]) return e;
+    pos = (pos + 1) & mask;
+  }
+}
+/* admit chunk k (the next in order; the GIL held): 0, else why not */
+static int kadmit1(KJob *j, KChunk *k, Py_ssize_t c) {
+  uint32_t *slots = j->slots, *parents = j->parents;
+  uint64_t *fps = j->fps, mask = j->mask;
+  if (k->flag) return k->flag;
+  if (j->n + k->nc > j->limit) return 3;
+  for (Py_ssize_t q = 0; q < k->nc; q++)
+    if (k->sus[q] && klookup(slots, fps, mask, k->fp + 2 * q) < 0) return 4;
+  Py_ssize_t a = j->start + c * KCH, b = a + KCH < j->end ? a + KCH : j->end, w = 0, n = j->n;
+  /* the table's lines fetched ahead: its slot 16 candidates on, the
+     fingerprints of the slots a probe will pass 8 on (the table is far
+     larger than the cache) */
+  for (Py_ssize_t q = 0; q < 16 && q < k->nc; q++) __builtin_prefetch(slots + (k->fp[2 * q + 1] & mask));
+  for (Py_ssize_t i = a; i < b; i++) {
+    Py_ssize_t par = j->first + i;
+    for (int32_t r = 0; r < k->ns[i - a]; r++, w++) {
+      const uint64_t *f = k->fp + 2 * w;
+      if (w + 16 < k->nc) __builtin_prefetch(slots + (k->fp[2 * (w + 16) + 1] & mask));
+      if (w + 8 < k->nc)
+        for (size_t p8 = k->fp[2 * (w + 8) + 1] & mask, r8 = 0; r8 < 4; r8++, p8 = (p8 + 1) & mask) {
+          uint32_t e8 = slots[p8];
+          if (e8 == TEMPTY) break;
+          __builtin_prefetch(fps + 2 * (size_t)e8);
+        }
+      if (klookup(slots, fps, mask, f) >= 0) continue;
+      const V *t = k->vec + NS * w;
+      PyObject *st = state_bytes(t);
+      if (!st || PyList_Append(j->out, st)) { Py_XDECREF(st); j->n = n; return -1; }
+      Py_DECREF(st);
+      fps[2 * n] = f[0]; fps[2 * n + 1] = f[1];
+      parents[n] = (uint32_t)par;
+      size_t pos = f[1] & mask;
+      while (slots[pos] != TEMPTY) pos = (pos + 1) & mask;
+      slots[pos] = (uint32_t)n;
+      if (n == j->n0 || t[0] > j->tmax) j->tmax = t[0];
+      n++;
+    }
+  }
+  j->n = n;
+  for (Py_ssize_t q = 0; q < NLABELS; q++) j->seen[q] |= k->labs[q];
+  j->trans += k->nc;
+  return 0;
+}
+/* admit the chunks made, in order, while this thread is the one admitting */
+static void kadmit(KJob *j, PyThreadState **ts) {
+  int held = 0;
+  for (;;) {
+    int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
+    if (c >= j->nch || j->why) break;
+    KChunk *k = __atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE);
+    if (!k) break;
+    if (!held) { PyEval_RestoreThread(*ts); held = 1; }
+    int why = kadmit1(j, k, c);
+    if (why) { j->why = why; break; }
+    __atomic_store_n(&j->slot[c % KWIN], NULL, __ATOMIC_RELEASE);
+    pthread_mutex_lock(&j->mu);
+    j->free_[j->nfree++] = k;
+    pthread_mutex_unlock(&j->mu);
+    __atomic_store_n(&j->done, c + 1, __ATOMIC_RELEASE);
+    kwake(j);
+  }
+  if (held) *ts = PyEval_SaveThread();
+}
+/* a thread's part: admit when the next chunk is made and no one admits,
+   else make the next chunk within the window, else wait */
+static void kwork(KJob *j, PyThreadState **ts) {
+  for (;;) {
+    int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
+    if (c >= j->nch || __atomic_load_n(&j->stop, __ATOMIC_ACQUIRE)) break;
+    if (__atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE)) {
+      int z = 0;
+      if (__atomic_compare_exchange_n(&j->admitting, &z, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
+        kadmit(j, ts);
+        if (j->why) __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
+        __atomic_store_n(&j->admitting, 0, __ATOMIC_RELEASE);
+        kwake(j);
+        continue;
+      }
+    }
+    int d = __atomic_load_n(&j->next, __ATOMIC_ACQUIRE);
+    if (d < j->nch && d < c + KWIN) {
+      if (__atomic_compare_exchange_n(&j->next, &d, d + 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE))
+        kmake(j, d);
+      continue;
+    }
+    /* nothing to make: wait for the next chunk, the window or the end */
+    pthread_mutex_lock(&j->mu);
+    j->sleepers++;
+    c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
+    if (c < j->nch && !__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE)
+        && (!__atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE)
+            || __atomic_load_n(&j->admitting, __ATOMIC_ACQUIRE))
+        && __atomic_load_n(&j->next, __ATOMIC_ACQUIRE) >= (c + KWIN < j->nch ? c + KWIN : j->nch))
+      pthread_cond_wait(&j->cv, &j->mu);
+    j->sleepers--;
+    pthread_mutex_unlock(&j->mu);
+  }
+  __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
+  kwake(j);
+}
+
+static void *kthread(void *arg) {
+  KJob *j = arg;
+  PyGILState_STATE g = PyGILState_Ensure();
+  PyThreadState *ts = PyEval_SaveThread();
+  KT = 1;
+  kwork(j, &ts);
+  kfree_tls();
+  KT = 0;
+  PyEval_RestoreThread(ts);
+  PyGILState_Release(g);
+  return NULL;
+}
+static PyObject *explore_level(PyObject *self, PyObject *args) {
+  PyObject *level, *out;
+  Py_ssize_t first, start, end, n, limit;
+  int threads;
+  Py_buffer bs, bf, bp;
+  unsigned long long mask;
+  if (!PyArg_ParseTuple(args, "O!nO!nniw*w*w*nKn", &PyList_Type, &level, &first, &PyList_Type,
+                        &out, &start, &end, &threads, &bs, &bf, &bp, &n, &mask, &limit))
+    return NULL;
+  PyObject *labs = NULL, *res = NULL;
+  KJob j;
+  memset(&j, 0, sizeof j);
+  unsigned char *seen = calloc(NLABELS + 1, 1);
+  int nth = 0, mine = 0;
+  pthread_t th[64];
+  if (end > PyList_GET_SIZE(level)) end = PyList_GET_SIZE(level);
+  if (start > end) start = end;
+  if (out == level || first < 0 || (Py_ssize_t)(bs.len / 4) <= (Py_ssize_t)mask
+      || (Py_ssize_t)(bf.len / 16) < limit || (Py_ssize_t)(bp.len / 4) < limit || !XXH) {
+    PyErr_SetString(PyExc_ValueError, "explore_level: arrays of the wrong size");
+    goto done;
+  }
+  if (!seen) { PyErr_NoMemory(); goto done; }
+  if (KBUSY) { PyErr_SetString(PyExc_RuntimeError, "explore_level is running"); goto done; }
+  for (Py_ssize_t q = 0; q < KWIN; q++) KSLOT[q] = NULL;
+  for (Py_ssize_t q = 0; q < KWIN; q++) {
+    KChunk *k = KRING + q;
+    j.free_[KWIN - 1 - q] = k;
+    if (!k->labs) k->labs = malloc(NLABELS + 1);
+    if (!k->ns) k->ns = malloc(sizeof(int32_t) * KCH);
+    if (!k->labs || !k->ns) { PyErr_NoMemory(); goto done; }
+  }
+  KBUSY = mine = 1;
+  j.level = level; j.first = first; j.out = out; j.slot = KSLOT; j.nfree = KWIN;
+  j.start = start; j.end = end; j.nch = (end - start + KCH - 1) / KCH;
+  j.slots = bs.buf; j.fps = bf.buf; j.parents = bp.buf; j.mask = mask;
+  j.n = j.n0 = n; j.limit = limit; j.seen = seen;
+  pthread_mutex_init(&j.mu, NULL);
+  pthread_cond_init(&j.cv, NULL);
+  if (threads > 64) threads = 64;
+  PyThreadState *ts = PyEval_SaveThread();
+  for (; nth < threads - 1 && nth < j.nch - 1; nth++)
+    if (pthread_create(&th[nth], NULL, kthread, &j)) break;
+  KT = 1;
+  kwork(&j, &ts);
+  KT = 0;
+  for (int q = 0; q < nth; q++) pthread_join(th[q], NULL);
+  PyEval_RestoreThread(ts);
+  pthread_mutex_destroy(&j.mu);
+  pthread_cond_destroy(&j.cv);
+  if (j.why < 0) goto done;
+  Py_ssize_t nl = 0;
+  for (Py_ssize_t q = 0; q < NLABELS; q++) nl += seen[q];
+  labs = PyTuple_New(nl);
+  if (!labs) goto done;
+  for (Py_ssize_t q = 0, w = 0; q < NLABELS; q++)
+    if (seen[q]) {
+      PyObject *l = PyList_GET_ITEM(LABELS, q);
+      Py_INCREF(l);
+      PyTuple_SET_ITEM(labs, w++, l);
+    }
+  {
+    PyObject *tm = j.n > j.n0 ? PyLong_FromLongLong(j.tmax) : (Py_INCREF(Py_None), Py_None);
+    Py_ssize_t at = start + (Py_ssize_t)j.done * KCH < end ? start + (Py_ssize_t)j.done * KCH : end;
+    res = Py_BuildValue("(ninnNOn)", at, j.why, j.n - j.n0, j.trans, tm, labs,
+                        at + KCH < end ? at + KCH : end);
+  }
+done:
+  if (mine) KBUSY = 0;
+  free(seen);
+  Py_XDECREF(labs);
+  PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
+  return res;
+}
 """
 
 
@@ -1639,8 +1983,8 @@ _REDUCED_C = r"""
    identities kept in SEEN, found through the open-addressing table SLOT) */
 #define IDW (2 + NLOC)
 #define NSLOT 4096
-static V SEEN[(MERGE_LIMIT + 1) * IDW];
-static int16_t SLOT[NSLOT];
+static __thread V *SEEN;           /* per thread, on the heap (kfree_tls) */
+static __thread int16_t *SLOT;
 static uint64_t idhash(const V *id) {
   uint64_t h = 0x9E3779B97F4A7C15ULL;
   for (int q = 0; q < IDW; q++) { h ^= (uint64_t)id[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
@@ -1672,10 +2016,15 @@ static int chain(const V *s0, Py_ssize_t k, int i) {
       if (!mv) break;
     }
     if (n >= 32) {
+      if (!SEEN) {
+        SEEN = malloc(sizeof(V) * (MERGE_LIMIT + 1) * IDW);
+        SLOT = malloc(sizeof(int16_t) * NSLOT);
+        if (!SEEN || !SLOT) { free(SEEN); free(SLOT); SEEN = NULL; SLOT = NULL; ovf = 1; return -1; }
+      }
       V *id = SEEN + IDW * nseen;
       id[0] = pc; id[1] = cur[a0 + 1];
       memcpy(id + 2, cur + a0 + 4, sizeof(V) * NLOC);
-      if (!nseen) memset(SLOT, -1, sizeof SLOT);
+      if (!nseen) memset(SLOT, -1, sizeof(int16_t) * NSLOT);
       size_t sl = idhash(id) & (NSLOT - 1);
       int hit = 0;
       while (SLOT[sl] >= 0) {
@@ -1979,7 +2328,7 @@ def _compile(d: str, name: str, src: str, path: str) -> None:
             f.write(full)
         out = os.path.join(tmp, name + _module_ext())
         inc = sysconfig.get_paths()["include"]
-        p = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-w", f"-I{inc}", "-o", out,
+        p = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-pthread", "-w", f"-I{inc}", "-o", out,
                             c_path], capture_output=True, text=True)
         if p.returncode != 0:
             raise RuntimeError(f"the C compiler failed on the native module:\n{p.stderr[-2000:]}")
@@ -2068,6 +2417,11 @@ class NativeModel:
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
         self._hooks(xxh)
+        #: the level kernel (explore_level: a level expanded and admitted in
+        #: C, on threads), for a program without memo sites (they call
+        #: Python) when xxhash's symbol is there; else None
+        self.explore_level: Optional[Callable] = (
+            self.lib.explore_level if xxh is not None and not gen.sites else None)
         #: the int64 vector, canonical under symmetry, without the clock under
         #: time abstraction (one C call): the state's identity whichever
         #: form (:meth:`pack`) its bytes take

@@ -278,6 +278,13 @@ def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
     return np.frombuffer(buf, dtype=dtype).reshape(shape)
 
 
+#: States of a level the level kernel takes per call (progress and the
+#: memory bound are looked at between two calls)
+_KERNEL_SEGMENT = 1 << 16
+#: The level kernel stopped for room: the table's, or the state budget's
+_K_ROOM = 3
+
+
 def violations_of(model, states: list) -> list:
     """(position, violations) of the states of ``states`` that have any, in
     order: the model's ``suspects`` (one call for the list: the native
@@ -410,6 +417,35 @@ class FingerprintTable:
                 self._place(np.arange(a, min(self.n, a + step), dtype=np.uint32))
         else:
             self._place(np.arange(n, n + k, dtype=np.uint32))
+
+    def admitted(self, k: int) -> int:
+        """``k`` states admitted by the level kernel, which wrote their
+        fingerprints, parents and index slots (within the room
+        :meth:`make_room` keeps); the first one's number."""
+        base = self.n
+        self.n = base + k
+        return base
+
+    def make_room(self, k: int) -> None:
+        """Room for ``k`` more states without growing: the per-state arrays
+        and the index (at most half full), as :meth:`add` grows them."""
+        n = self.n + k
+        if n > _MAX_STATES:
+            raise MemoryError("more than 2**32 - 2 states")
+        if n > len(self.parents):
+            if self.fps.base is not None:
+                raise MemoryError(f"more states than the reserved {len(self.parents):,}")
+            cap = max(n, len(self.parents) * 2)
+            self.fps.resize((cap, 2), refcheck=False)
+            self.parents.resize(cap, refcheck=False)
+        if 2 * n > len(self.slots):
+            size = len(self.slots)
+            while 2 * n > size:
+                size *= 2
+            self._new_index(size)
+            step = 1 << 18          # re-index in slices: bounded temporaries
+            for a in range(0, self.n, step):
+                self._place(np.arange(a, min(self.n, a + step), dtype=np.uint32))
 
     def dump(self, n: int) -> dict:
         """The first ``n`` states' arrays (a checkpoint)."""
@@ -595,6 +631,8 @@ class SearchOptions:
     #: a directory: move the visited set and the frontier to files there
     #: instead of passing ``max_memory`` (pccl/search/spill.py)
     spill: Optional[str] = None
+    #: threads of the level kernel (the native engine's ``explore_level``)
+    threads: int = 1
 
 
 class Explorer:
@@ -658,6 +696,7 @@ class Explorer:
         self.progress = o.progress
         self.progress_interval = o.progress_interval
         self.batch = o.batch
+        self.threads = max(1, o.threads)
         self.table: Any = None
         #: with ``spill``: the :class:`pccl.search.spill.Spiller` of the last run
         self.spiller: Any = None
@@ -782,8 +821,71 @@ class Explorer:
                 return True
         return False
 
+    def _kernel(self, adm: "_Admission", depth: int) -> Optional[Callable]:
+        """The model's level kernel (the native engine's ``explore_level``)
+        when this level can use it: fingerprints in the table's arrays, no
+        graph recorded, nothing spilled, below the depth bound; else None."""
+        kern = getattr(self.model, "explore_level", None)
+        if kern is None or adm.fp_batch is None or self.recorder is not None \
+                or self.spiller is not None or self._at_depth_bound(depth) \
+                or getattr(self.table, "kernels", None) is None:
+            return None
+        return kern
+
     def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
                       report: Callable[[int], None]) -> bool:
+        """Expand one level (with the level kernel where it serves,
+        :meth:`_kernel_level`); True to stop."""
+        kern = self._kernel(adm, depth)
+        if kern is not None:
+            return self._kernel_level(adm, kern, level, level_idx, depth, report)
+        return self._expand_batches(adm, level, level_idx, depth, report)
+
+    def _kernel_level(self, adm: "_Admission", kern: Callable, level: list, level_idx: list,
+                      depth: int, report: Callable[[int], None]) -> bool:
+        """Expand one level with the level kernel, a segment at a time
+        (progress, the memory bound between two): the kernel admits what
+        :meth:`_expand_batches` would, in the same order, and stops before a
+        chunk that needs this path (a state without successors, a suspected
+        violation, an error, the state budget) or more room in the table,
+        which then grows.  True to stop."""
+        table, stats, labels = self.table, adm.stats, self.labels
+        if type(level) is not list:
+            level = list(level)
+        pos, end = 0, len(level)
+        first = level_idx[0] if end else 0
+        assert not end or level_idx[-1] - first == end - 1      # numbered in a row
+        while pos < end:
+            budget_end = table.n + adm.budget
+            limit = min(len(table.slots) // 2, len(table.parents), budget_end)
+            pos, why, k, trans, tmax, labs, cend = kern(
+                level, first, adm.nxt, pos, min(end, pos + _KERNEL_SEGMENT), self.threads,
+                table.slots, table.fps, table.parents, table.n, int(table.mask), limit)
+            if k:
+                base = table.admitted(k)
+                adm.nxt_idx.extend(range(base, table.n))
+                adm.budget -= k
+                if adm.clock is not None and (stats.max_time is None or tmax > stats.max_time):
+                    stats.max_time = tmax
+            stats.transitions += trans
+            if labels is not None:
+                labels.update(labs)
+            if why == _K_ROOM and limit < budget_end:
+                table.make_room(max(table.n, 1 << 16))
+            elif why == _K_ROOM:            # the budget: the batches' path cuts it
+                return self._expand_batches(adm, level[pos:], level_idx[pos:], depth, report)
+            elif why:                       # this chunk by the batches' path
+                if self._expand_batches(adm, level[pos:cend], level_idx[pos:cend], depth,
+                                        report) or adm.flush(depth + 1):
+                    return True
+                pos = cend
+            report(end - pos)
+            if self._memory_bound(adm.bounds, peak_rss_bytes()):
+                return True
+        return False
+
+    def _expand_batches(self, adm: "_Admission", level: list, level_idx: list, depth: int,
+                        report: Callable[[int], None]) -> bool:
         """Expand one level, queueing its successors for admission a batch
         at a time: the hot path (its locals are hoisted once per level).
         True to stop."""

@@ -1,0 +1,221 @@
+"""The native engine's level kernel (``explore_level``, pccl/model/native.py):
+a level expanded, fingerprinted and admitted in C, on one thread or several.
+
+The reference is the explorer's own batches (the same native model with the
+kernel hidden): the kernel must admit the same states under the same
+numbers with the same parents, whatever the threads, and stop where the
+batches stop (violations, state budgets, depth bounds, states without
+successors).  ``--workers N`` runs as N threads where the search records
+no graph; the results are those of one worker."""
+
+import os
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as hs
+
+from pccl.api import explore, make_model
+from pccl.model import native as NV
+from pccl.search.explorer import Explorer
+
+from test_fingerprints import programs
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+FISCHER = os.path.join(ROOT, "programs/fischer.pccl")
+_probe = make_model(FISCHER, reduce="none")
+MISSING = NV.unsupported(_probe)
+pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"native engine unavailable: {MISSING}")
+
+NOGRAPH = dict(timelock=False, stall=False)
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
+
+
+class Batches:
+    """A native model with its level kernel hidden: the explorer's batches."""
+
+    def __init__(self, nm):
+        self.nm = nm
+
+    def __getattr__(self, name):
+        if name == "explore_level":
+            return None
+        return getattr(self.nm, name)
+
+
+class Counted:
+    """A native model whose kernel counts the states it admits and why it
+    stopped (to show the kernel ran, not only the batches)."""
+
+    def __init__(self, nm):
+        self.nm, self.admitted, self.stops = nm, 0, set()
+
+    def explore_level(self, *a):
+        r = self.nm.explore_level(*a)
+        self.admitted += r[2]
+        self.stops.add(r[1])
+        return r
+
+    def __getattr__(self, name):
+        return getattr(self.nm, name)
+
+
+def search(model, threads=1, **kw) -> tuple:
+    """Everything a search says, and its table's arrays (numbers, parents)."""
+    labels: set = set()
+    ex = Explorer(model, batch=NV.NativeModel.BATCH, labels=labels, threads=threads, **kw)
+    r = ex.run()
+    s = r.stats
+    n = ex.table.n
+    return ((r.status, s.initial_states, s.states, s.transitions, s.max_depth, s.max_time,
+             sorted(b.name for b in r.bounds_hit), sorted(map(repr, labels)),
+             [(f.violation.identity, f.violation.message, f.trace.labels, f.trace.states)
+              for f in r.found]),
+            ex.table.fps[:n].copy(), ex.table.parents[:n].copy())
+
+
+def assert_same(got, want) -> None:
+    assert got[0] == want[0]
+    assert np.array_equal(got[1], want[1])          # each state under the same number
+    assert np.array_equal(got[2], want[2])          # ... with the same parent
+
+
+def native(path, **kw):
+    return NV.NativeModel(make_model(path, **kw))
+
+
+CASES = [
+    ("fischer 3 agents, reduced", FISCHER,
+     dict(agents=3, overrides={"k": "0", "d": "1"})),
+    ("fischer unreduced, violated", FISCHER,
+     dict(reduce="none", overrides={"k": "1", "d": "1"}, invariants=("count(inCs) <= 1",))),
+    ("leader", os.path.join(ROOT, "programs/leader.pccl"), dict(agents=3)),
+    ("token ring", os.path.join(ROOT, "tests/programs/token_ring.pccl"), dict(agents=3)),
+    ("exits", os.path.join(ROOT, "tests/programs/eng_flags.pccl"), dict(agents=3)),
+    ("mutex violated", os.path.join(ROOT, "tests/programs/ref_mutex_bad.pccl"), dict(agents=3)),
+    ("assertions", os.path.join(ROOT, "tests/programs/eng_assert.pccl"), dict(agents=2)),
+]
+
+
+@pytest.mark.parametrize("name, path, kw", CASES, ids=[c[0].replace(" ", "-").replace(",", "") for c in CASES])
+@pytest.mark.parametrize("find_all", [False, True])
+def test_kernel_admits_what_the_batches_admit(name, path, kw, find_all):
+    nm = native(path, **kw)
+    assert nm.explore_level is not None
+    want = search(Batches(nm), find_all=find_all)
+    assert want[0][2] > 50 or want[0][0] == "violation"
+    for threads in (1, 2, 3):
+        c = Counted(nm)
+        assert_same(search(c, threads, find_all=find_all), want)
+        assert c.admitted > 0 or want[0][2] - want[0][1] < 200
+
+
+@pytest.mark.parametrize("bound", [dict(max_states=1), dict(max_states=5_000),
+                                   dict(max_states=33_333), dict(max_depth=1),
+                                   dict(max_depth=40)])
+def test_kernel_stops_where_the_batches_stop(bound):
+    """A state budget met mid-level, mid-chunk; a depth bound."""
+    nm = native(FISCHER, reduce="none", overrides={"k": "1", "d": "1"})
+    want = search(Batches(nm), **bound)
+    assert want[0][0] == "bounded"
+    for threads in (1, 2):
+        c = Counted(nm)
+        assert_same(search(c, threads, **bound), want)
+        if "max_states" in bound and bound["max_states"] > 1:
+            assert 3 in c.stops             # stopped for the budget: the batches cut it
+
+
+def test_kernel_grows_the_table_as_it_admits():
+    """A search of 100,000s of states: the index is rebuilt several times
+    between the kernel's calls (it stops for room and is called again)."""
+    nm = native(FISCHER, agents=3, overrides={"k": "1", "d": "1"})
+    want = search(Batches(nm))
+    assert want[0][2] > 200_000
+    c = Counted(nm)
+    assert_same(search(c, 2), want)
+    assert 3 in c.stops and c.admitted == want[0][2] - want[0][1]
+
+
+@settings(max_examples=25, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                                 HealthCheck.filter_too_much])
+@given(prog=programs(), agents=hs.integers(1, 3), blackbox=hs.sampled_from(["instant", "straight"]),
+       threads=hs.integers(1, 4))
+def test_kernel_equal_on_generated_programs(prog, agents, blackbox, threads):
+    text, invariants = prog
+    kw = dict(source=True, agents=agents, blackbox=blackbox, invariants=invariants)
+    m = make_model(text, **kw)
+    assume(NV.unsupported(m) is None)
+    nm = NV.NativeModel(m)
+    assume(nm.explore_level is not None)
+    try:
+        want = search(Batches(nm), find_all=True, max_states=3_000)
+    except NV.NativeOverflow:
+        with pytest.raises(NV.NativeOverflow):
+            search(nm, threads, find_all=True, max_states=3_000)
+        return
+    assert_same(search(nm, threads, find_all=True, max_states=3_000), want)
+
+
+def summary(r) -> dict:
+    s = r.stats
+    return {"status": r.status, "states": s.states, "transitions": s.transitions,
+            "depth": s.max_depth, "max_time": s.max_time, "verdict": r.verdict,
+            "traces": [(cx.trace.labels, cx.trace.states) for cx in r.counterexamples]}
+
+
+def test_workers_run_as_threads_without_a_graph():
+    """``--workers 2`` with nothing recorded: one process, two threads of
+    the kernel, one worker's results (and the events it saw: the threads
+    see every transition)."""
+    kw = dict(agents=3, overrides={"k": "0", "d": "1"}, **NOGRAPH)
+    one = explore(FISCHER, workers=1, **kw)
+    two = explore(FISCHER, workers=2, **kw)
+    assert two.model.engine_used == "native" and two.model.engine_threads == 2
+    assert one.model.engine_threads == 1
+    assert summary(two) == summary(one)
+    assert two.checked.never_fired == one.checked.never_fired == ()
+
+
+def test_workers_with_a_graph_stay_processes(monkeypatch):
+    """The time-lock and stall checks record the state graph (the threads do
+    not): processes, as ``PCCL_THREADS=0`` asks for anyway."""
+    kw = dict(agents=2, overrides={"k": "0", "d": "1"})
+    r = explore(FISCHER, workers=2, **kw)
+    assert r.model.engine_threads == 1
+    monkeypatch.setenv("PCCL_THREADS", "0")
+    r2 = explore(FISCHER, workers=2, **NOGRAPH, **kw)
+    assert r2.model.engine_threads == 1
+    assert summary(r2) == summary(explore(FISCHER, workers=2, **NOGRAPH, **kw))
+
+
+def test_statements_that_call_python_stay_processes():
+    """A program whose statements the generator leaves to Python (memo
+    sites: a doReach under nondet) has no kernel: processes."""
+    path = os.path.join(ROOT, "programs/race_robust.pccl")
+    kw = dict(agents=2, world=os.path.join(ROOT, "programs/race.toml"), **NOGRAPH)
+    r = explore(path, workers=2, **kw)
+    assert r.model.engine_used == "native" and r.model.engine_threads == 1
+    assert summary(r) == summary(explore(path, workers=1, **kw))
+
+
+def test_threads_fall_back_to_python_on_overflow():
+    text = ("Agent::Grow\n\nallwrite:\n  int x = 1;\n\nallread:\n\nloc:\n\nInit:\n\n"
+            "Double():\n  pre(x > 0);\n  eff:\n    x = x * 1000000;\n")
+    r = explore(text, source=True, workers=2, max_states=200, reduce="none", **NOGRAPH)
+    py = explore(text, source=True, engine="python", max_states=200, reduce="none", **NOGRAPH)
+    assert r.model.engine_used == "python" and r.model.engine_threads == 1
+    assert summary(r) == summary(py)
+
+
+def test_header_names_the_threads(tmp_path):
+    from click.testing import CliRunner
+    from pccl.cli import main
+    res = CliRunner().invoke(main, ["explore", FISCHER, "--set", "k=0", "--set", "d=1",
+                                    "--no-timelock", "--no-stall", "--workers", "2"])
+    assert res.exit_code == 0, res.output
+    assert res.output.splitlines()[0].endswith("engine native on 2 threads")
