@@ -495,7 +495,7 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
     model, o, sopts = plan.model, plan.o, plan.sopts
     native = _choose_engine(model, o, plan.rec is not None, plan.one or plan.threads,
                             plan.spelling)
-    if native is not None and plan.threads and native.explore_level is not None:
+    if native is not None and plan.threads and native.explore_levels is not None:
         # --workers N as threads of this process
         model.engine_threads = plan.nworkers
         return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH,

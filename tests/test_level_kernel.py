@@ -1,5 +1,5 @@
-"""The native engine's level kernel (``explore_level``, pccl/model/native.py):
-a level expanded, fingerprinted and admitted in C, on one thread or several.
+"""The native engine's level kernel (``explore_levels``, pccl/model/native.py):
+levels expanded, fingerprinted and admitted in C, on one thread or several.
 
 The reference is the explorer's own batches (the same native model with the
 kernel hidden): the kernel must admit the same states under the same
@@ -42,22 +42,24 @@ class Batches:
         self.nm = nm
 
     def __getattr__(self, name):
-        if name == "explore_level":
+        if name == "explore_levels":
             return None
         return getattr(self.nm, name)
 
 
 class Counted:
-    """A native model whose kernel counts the states it admits and why it
-    stopped (to show the kernel ran, not only the batches)."""
+    """A native model whose kernel counts the states it admits, why it
+    stopped and the levels it went on into (to show the kernel ran, not
+    only the batches)."""
 
     def __init__(self, nm):
-        self.nm, self.admitted, self.stops = nm, 0, set()
+        self.nm, self.admitted, self.stops, self.crossed = nm, 0, set(), 0
 
-    def explore_level(self, *a):
-        r = self.nm.explore_level(*a)
-        self.admitted += r[2]
-        self.stops.add(r[1])
+    def explore_levels(self, *a):
+        r = self.nm.explore_levels(*a)
+        self.admitted += r[10]
+        self.stops.add(r[2])
+        self.crossed += r[0]
         return r
 
     def __getattr__(self, name):
@@ -105,7 +107,7 @@ CASES = [
 @pytest.mark.parametrize("find_all", [False, True])
 def test_kernel_admits_what_the_batches_admit(name, path, kw, find_all):
     nm = native(path, **kw)
-    assert nm.explore_level is not None
+    assert nm.explore_levels is not None
     want = search(Batches(nm), find_all=find_all)
     assert want[0][2] > 50 or want[0][0] == "violation"
     for threads in (1, 2, 3):
@@ -138,6 +140,7 @@ def test_kernel_grows_the_table_as_it_admits():
     c = Counted(nm)
     assert_same(search(c, 2), want)
     assert 3 in c.stops and c.admitted == want[0][2] - want[0][1]
+    assert c.crossed > 10               # it went on from level to level
 
 
 @settings(max_examples=25, deadline=None, derandomize=True,
@@ -151,7 +154,7 @@ def test_kernel_equal_on_generated_programs(prog, agents, blackbox, threads):
     m = make_model(text, **kw)
     assume(NV.unsupported(m) is None)
     nm = NV.NativeModel(m)
-    assume(nm.explore_level is not None)
+    assume(nm.explore_levels is not None)
     try:
         want = search(Batches(nm), find_all=True, max_states=3_000)
     except NV.NativeOverflow:

@@ -278,11 +278,11 @@ def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
     return np.frombuffer(buf, dtype=dtype).reshape(shape)
 
 
-#: States of a level the level kernel takes per call (progress and the
-#: memory bound are looked at between two calls)
-_KERNEL_SEGMENT = 1 << 16
 #: The level kernel stopped for room: the table's, or the state budget's
 _K_ROOM = 3
+#: Levels the kernel may go on into after the one it is given
+_NO_CROSSING = 0
+_ANY_CROSSING = 1 << 30
 
 
 def violations_of(model, states: list) -> list:
@@ -631,7 +631,7 @@ class SearchOptions:
     #: a directory: move the visited set and the frontier to files there
     #: instead of passing ``max_memory`` (pccl/search/spill.py)
     spill: Optional[str] = None
-    #: threads of the level kernel (the native engine's ``explore_level``)
+    #: threads of the level kernel (the native engine's ``explore_levels``)
     threads: int = 1
 
 
@@ -792,6 +792,16 @@ class Explorer:
                                    "memory": peak_rss_bytes(), "max_time": stats.max_time})
 
         runaway = _Runaway(self, stats.max_time, start)
+
+        def advance(last: Any) -> None:
+            """A level the kernel finished: the next (``last`` its last state)
+            is the frontier."""
+            nonlocal depth
+            report(0)
+            depth += 1
+            stats.max_depth = depth
+            runaway.level(depth, stats.max_time, last)
+
         while front.count and not stop:
             if ck is not None:
                 # what a checkpoint of this level's start holds (a level
@@ -801,7 +811,15 @@ class Explorer:
                                               runaway.state())
                 if ck.due() and ck.last_saved != (depth, table.n):
                     self._save(adm, adm.res)
-            stop = self._expand_frontier(adm, front, depth, report) or adm.flush(depth + 1)
+            kern = self._kernel(adm, depth) if front.disk is None else None
+            if kern is not None:
+                # the kernel may finish this level and go on into the next
+                # ones (advance() moves depth on): it returns at the end of
+                # the level it was in, its next level pending
+                stop = self._kernel_frontier(adm, kern, front, depth, report, advance)
+            else:
+                stop = self._expand_frontier(adm, front, depth, report)
+            stop = stop or adm.flush(depth + 1)
             report(0)
             front.discard()
             front = adm.take_frontier()
@@ -822,10 +840,10 @@ class Explorer:
         return False
 
     def _kernel(self, adm: "_Admission", depth: int) -> Optional[Callable]:
-        """The model's level kernel (the native engine's ``explore_level``)
+        """The model's level kernel (the native engine's ``explore_levels``)
         when this level can use it: fingerprints in the table's arrays, no
         graph recorded, nothing spilled, below the depth bound; else None."""
-        kern = getattr(self.model, "explore_level", None)
+        kern = getattr(self.model, "explore_levels", None)
         if kern is None or adm.fp_batch is None or self.recorder is not None \
                 or self.spiller is not None or self._at_depth_bound(depth) \
                 or getattr(self.table, "kernels", None) is None:
@@ -834,55 +852,74 @@ class Explorer:
 
     def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
                       report: Callable[[int], None]) -> bool:
-        """Expand one level (with the level kernel where it serves,
-        :meth:`_kernel_level`); True to stop."""
-        kern = self._kernel(adm, depth)
-        if kern is not None:
-            return self._kernel_level(adm, kern, level, level_idx, depth, report)
+        """Expand one level (a segment of it); True to stop."""
         return self._expand_batches(adm, level, level_idx, depth, report)
 
-    def _kernel_level(self, adm: "_Admission", kern: Callable, level: list, level_idx: list,
-                      depth: int, report: Callable[[int], None]) -> bool:
-        """Expand one level with the level kernel, a segment at a time
-        (progress, the memory bound between two): the kernel admits what
-        :meth:`_expand_batches` would, in the same order, and stops before a
-        chunk that needs this path (a state without successors, a suspected
-        violation, an error, the state budget) or more room in the table,
-        which then grows.  True to stop."""
-        table, stats, labels = self.table, adm.stats, self.labels
-        if type(level) is not list:
-            level = list(level)
-        pos, end = 0, len(level)
-        first = level_idx[0] if end else 0
-        assert not end or level_idx[-1] - first == end - 1      # numbered in a row
-        while pos < end:
+    def _kernel_frontier(self, adm: "_Admission", kern: Callable, front: "_Frontier",
+                         depth: int, report: Callable[[int], None],
+                         advance: Callable[[Any], None]) -> bool:
+        """Expand ``front`` (at ``depth``) with the level kernel, and the
+        levels after it as far as the depth bound lets (one level with a
+        checkpoint: its marks are at level starts), calling ``advance`` as
+        each next level becomes the frontier.  The kernel admits what
+        :meth:`_expand_batches` would, in the same order; it stops before a
+        chunk that needs the batches (a state without successors, a
+        suspected violation, an error, the state budget: they take it), for
+        room in the table (which grows) and every ``progress_interval``
+        (progress, the memory bound).  Returns with the level it is in
+        expanded, its next level pending in ``adm``; True to stop."""
+        table, labels = self.table, self.labels
+        level = front.states if type(front.states) is list else list(front.states)
+        first = front.idx[0]
+        assert front.idx[-1] - first == len(level) - 1      # numbered in a row
+        cross = _NO_CROSSING if self.checkpoint is not None else (
+            self.max_depth - depth - 1 if self.max_depth is not None else _ANY_CROSSING)
+        pos, seconds = 0, max(0.05, self.progress_interval)
+        while True:
             budget_end = table.n + adm.budget
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
-            pos, why, k, trans, tmax, labs, cend = kern(
-                level, first, adm.nxt, pos, min(end, pos + _KERNEL_SEGMENT), self.threads,
-                table.slots, table.fps, table.parents, table.n, int(table.mask), limit)
-            if k:
-                base = table.admitted(k)
-                adm.nxt_idx.extend(range(base, table.n))
-                adm.budget -= k
-                if adm.clock is not None and (stats.max_time is None or tmax > stats.max_time):
-                    stats.max_time = tmax
-            stats.transitions += trans
+            nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
+            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin = kern(
+                level, first, adm.nxt, pos, self.threads, table.slots, table.fps,
+                table.parents, table.n, int(table.mask), limit, cross, seconds)
+            table.admitted(k)
+            adm.budget -= k
+            adm.stats.transitions += trans
             if labels is not None:
                 labels.update(labs)
+            for i in range(e + 1):
+                self._note_time(adm, tmaxes[i])
+                if i < e:           # a level expanded: the next is the frontier
+                    count, last = crossed[i]
+                    first, nfirst = nfirst, nfirst + count
+                    cross -= 1
+                    depth += 1
+                    advance(last)
+            adm.nxt_idx = list(range(nfirst, nfirst + len(adm.nxt)))
+            if fin:
+                return False
+            if e:
+                level = cur
             if why == _K_ROOM and limit < budget_end:
                 table.make_room(max(table.n, 1 << 16))
-            elif why == _K_ROOM:            # the budget: the batches' path cuts it
-                return self._expand_batches(adm, level[pos:], level_idx[pos:], depth, report)
-            elif why:                       # this chunk by the batches' path
-                if self._expand_batches(adm, level[pos:cend], level_idx[pos:cend], depth,
-                                        report) or adm.flush(depth + 1):
+            elif why == _K_ROOM:        # the budget: the batches cut the level where it ends
+                return self._expand_batches(adm, level[pos:], list(range(first + pos, first + len(level))),
+                                            depth, report)
+            elif why:                   # the batches take this chunk
+                if self._expand_batches(adm, level[pos:cend], list(range(first + pos, first + cend)),
+                                        depth, report) or adm.flush(depth + 1):
                     return True
                 pos = cend
-            report(end - pos)
+            report(len(level) - pos)
             if self._memory_bound(adm.bounds, peak_rss_bytes()):
                 return True
-        return False
+
+    @staticmethod
+    def _note_time(adm: "_Admission", t: Any) -> None:
+        """The largest time of the states the kernel admitted (None: none)."""
+        if t is not None and adm.clock is not None \
+                and (adm.stats.max_time is None or t > adm.stats.max_time):
+            adm.stats.max_time = t
 
     def _expand_batches(self, adm: "_Admission", level: list, level_idx: list, depth: int,
                         report: Callable[[int], None]) -> bool:
