@@ -396,27 +396,11 @@ class FingerprintTable:
         q = self._batch[0][:count]
         self._batch = None
         n, k = self.n, len(q)
-        if n + k > _MAX_STATES:
-            raise MemoryError("more than 2**32 - 2 states")
-        if n + k > len(self.parents):
-            cap = max(n + k, len(self.parents) * 2)
-            if self.fps.base is not None:
-                raise MemoryError(f"more states than the reserved {len(self.parents):,}")
-            self.fps.resize((cap, 2), refcheck=False)
-            self.parents.resize(cap, refcheck=False)
+        self.make_room(k)
         self.fps[n:n + k] = q
         self.parents[n:n + k] = parents
         self.n = n + k
-        if 2 * self.n > len(self.slots):
-            size = len(self.slots)
-            while 2 * self.n > size:
-                size *= 2
-            self._new_index(size)
-            step = 1 << 18          # re-index in slices: bounded temporaries
-            for a in range(0, self.n, step):
-                self._place(np.arange(a, min(self.n, a + step), dtype=np.uint32))
-        else:
-            self._place(np.arange(n, n + k, dtype=np.uint32))
+        self._place(np.arange(n, n + k, dtype=np.uint32))
 
     def admitted(self, k: int) -> int:
         """``k`` states admitted by the level kernel, which wrote their
@@ -773,7 +757,8 @@ class Explorer:
     def _levels(self, adm: "_Admission", t_start: float, stop: bool,
                 start: Optional[dict] = None) -> None:
         """The breadth-first level loop: expand each level
-        (:meth:`_expand_level`), admit what is pending, move to the next
+        (:meth:`_kernel_frontier` or :meth:`_expand_level`), admit what is
+        pending, move to the next
         level.  (``stop``: the initial states already stopped the search;
         ``start``: the level, depth and runaway detector of a checkpoint
         resumed.)"""
@@ -850,11 +835,6 @@ class Explorer:
             return None
         return kern
 
-    def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
-                      report: Callable[[int], None]) -> bool:
-        """Expand one level (a segment of it); True to stop."""
-        return self._expand_batches(adm, level, level_idx, depth, report)
-
     def _kernel_frontier(self, adm: "_Admission", kern: Callable, front: "_Frontier",
                          depth: int, report: Callable[[int], None],
                          advance: Callable[[Any], None]) -> bool:
@@ -862,7 +842,7 @@ class Explorer:
         levels after it as far as the depth bound lets (one level with a
         checkpoint: its marks are at level starts), calling ``advance`` as
         each next level becomes the frontier.  The kernel admits what
-        :meth:`_expand_batches` would, in the same order; it stops before a
+        :meth:`_expand_level` would, in the same order; it stops before a
         chunk that needs the batches (a state without successors, a
         suspected violation, an error, the state budget: they take it), for
         room in the table (which grows) and every ``progress_interval``
@@ -903,10 +883,10 @@ class Explorer:
             if why == _K_ROOM and limit < budget_end:
                 table.make_room(max(table.n, 1 << 16))
             elif why == _K_ROOM:        # the budget: the batches cut the level where it ends
-                return self._expand_batches(adm, level[pos:], list(range(first + pos, first + len(level))),
+                return self._expand_level(adm, level[pos:], list(range(first + pos, first + len(level))),
                                             depth, report)
             elif why:                   # the batches take this chunk
-                if self._expand_batches(adm, level[pos:cend], list(range(first + pos, first + cend)),
+                if self._expand_level(adm, level[pos:cend], list(range(first + pos, first + cend)),
                                         depth, report) or adm.flush(depth + 1):
                     return True
                 pos = cend
@@ -921,7 +901,7 @@ class Explorer:
                 and (adm.stats.max_time is None or t > adm.stats.max_time):
             adm.stats.max_time = t
 
-    def _expand_batches(self, adm: "_Admission", level: list, level_idx: list, depth: int,
+    def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
                         report: Callable[[int], None]) -> bool:
         """Expand one level, queueing its successors for admission a batch
         at a time: the hot path (its locals are hoisted once per level).
