@@ -18,7 +18,12 @@ CPU-bound job, new code against old, in one run.
                                                       # default checks (time-lock, stall)
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
-d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).  Every
+d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).
+With ``--native`` (no time-lock or stall check: no state graph) the
+workers are threads of one process (the native level kernel); without it,
+and with ``--checks``, the stall check records the graph and the workers
+are processes; ``--processes`` adds the threads' case run as processes
+(``PCCL_THREADS=0``).  Every
 run is a fresh process (benchmarks/parallel.py's).  Each round runs every
 configuration twice: first with nothing of ours beside it ("idle"), then
 beside a busy loop (``python -c 'while True: pass'``) that this script
