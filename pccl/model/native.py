@@ -1006,19 +1006,24 @@ static PyObject *state_bytes(const V *t) {{
   for (int q = 0; q < NS; q++) p[q] = t[q] == INT64_MIN ? INT32_MIN : (int32_t)t[q];
   return b;
 }}
-/* the int64 vector of state arg: in place, or unpacked into buf */
-static const V *arg_state(PyObject *arg, V *buf) {{
-  if (PyBytes_Check(arg)) {{
-    Py_ssize_t n = PyBytes_GET_SIZE(arg);
-    if (PACK && n == (Py_ssize_t)(sizeof(int32_t) * NS)) {{
-      const int32_t *p = (const int32_t *)PyBytes_AS_STRING(arg);
-      for (int q = 0; q < NS; q++) buf[q] = p[q] == INT32_MIN ? INT64_MIN : (V)p[q];
-      return buf;
-    }}
-    if (n == (Py_ssize_t)(sizeof(V) * NS)) return (const V *)PyBytes_AS_STRING(arg);
+/* the int64 vector of state arg: in place, or unpacked into buf; NULL
+   when it is not a state of this model, without a Python error (the level
+   kernel's threads call it without the GIL) */
+static const V *raw_state(PyObject *arg, V *buf) {{
+  if (!PyBytes_Check(arg)) return NULL;
+  Py_ssize_t n = PyBytes_GET_SIZE(arg);
+  if (PACK && n == (Py_ssize_t)(sizeof(int32_t) * NS)) {{
+    const int32_t *p = (const int32_t *)PyBytes_AS_STRING(arg);
+    for (int q = 0; q < NS; q++) buf[q] = p[q] == INT32_MIN ? INT64_MIN : (V)p[q];
+    return buf;
   }}
-  PyErr_SetString(PyExc_TypeError, "not a native state of this model");
-  return NULL;
+  return n == (Py_ssize_t)(sizeof(V) * NS) ? (const V *)PyBytes_AS_STRING(arg) : NULL;
+}}
+/* ... with the Python error */
+static const V *arg_state(PyObject *arg, V *buf) {{
+  const V *s = raw_state(arg, buf);
+  if (!s) PyErr_SetString(PyExc_TypeError, "not a native state of this model");
+  return s;
 }}
 {_MEMO_C}
 {chr(10).join(agents)}
@@ -1282,22 +1287,36 @@ static PyObject *phases(PyObject *self, PyObject *arg) {{
    occurrence, as int64s).  A fingerprint is pccl.search.fingerprint's: xxh3_128 of
    marshal version 2 of the key (a bytes object: 's', its length as a
    little-endian int32, its bytes), in xxhash's canonical (big-endian) form */
+/* fingerprint_of(t, out): state t's fingerprint as the table holds it, two
+   words whose bytes are the canonical form */
+static void fingerprint_of(const V *t, uint64_t *out) {{
+  size_t klen = sizeof(V) * NS - KEYSKIP;
+  unsigned char buf[5 + sizeof(V) * NS];
+  buf[0] = 's';
+  buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
+  V c[NS];
+  canon(t, c);
+  memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
+  H128 h = XXH(buf, 5 + klen);
+#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+  out[0] = h.hi; out[1] = h.lo;
+#else
+  out[0] = __builtin_bswap64(h.hi); out[1] = __builtin_bswap64(h.lo);
+#endif
+}}
 static PyObject *fingerprints_(PyObject *arg, int want_sigs) {{
   if (!PyList_Check(arg) || !XXH) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg), m = 0;
   PyObject *sgs = want_sigs ? PyBytes_FromStringAndSize(NULL, 8 * n) : NULL;
   if (want_sigs && !sgs) return NULL;
   int64_t *sg = sgs ? (int64_t *)PyBytes_AS_STRING(sgs) : NULL;
-  size_t klen = sizeof(V) * NS - KEYSKIP, size = 16;
+  size_t size = 16;
   while (size < 2 * (size_t)n) size <<= 1;
   uint32_t *tab = calloc(size, sizeof(uint32_t));
   PyObject *blob = PyBytes_FromStringAndSize(NULL, 16 * n);
   PyObject *first = PyBytes_FromStringAndSize(NULL, 8 * n);
   PyObject *occ = PyBytes_FromStringAndSize(NULL, 8 * n);
   if (!tab || !blob || !first || !occ) goto fail;
-  unsigned char buf[5 + sizeof(V) * NS];
-  buf[0] = 's';
-  buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
   unsigned char *out = (unsigned char *)PyBytes_AS_STRING(blob);
   int64_t *fo = (int64_t *)PyBytes_AS_STRING(first);
   int64_t *oc = (int64_t *)PyBytes_AS_STRING(occ);
@@ -1305,17 +1324,10 @@ static PyObject *fingerprints_(PyObject *arg, int want_sigs) {{
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) goto fail;
     if (sg) sg[i] = sighash(s);       /* while the state is in the cache */
-    V c[NS];
-    canon(s, c);
-    memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
-    H128 h = XXH(buf, 5 + klen);
-#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
-    uint64_t be[2] = {{ h.hi, h.lo }};
-#else
-    uint64_t be[2] = {{ __builtin_bswap64(h.hi), __builtin_bswap64(h.lo) }};
-#endif
-    memcpy(out + 16 * i, be, 16);
-    size_t slot = (size_t)(h.lo ^ h.hi) & (size - 1);
+    uint64_t f[2];
+    fingerprint_of(s, f);
+    memcpy(out + 16 * i, f, 16);
+    size_t slot = (size_t)(f[0] ^ f[1]) & (size - 1);
     for (;;) {{
       uint32_t e = tab[slot];
       if (!e) {{ tab[slot] = (uint32_t)i + 1; fo[m++] = i; oc[i] = i; break; }}
@@ -1466,11 +1478,13 @@ _KERNEL_C = r"""
    grow, or the state budget is met) or a successor that fails okstate and
    is not in the table (4): the explorer's own path takes that chunk; and
    at a chunk's end once `seconds` have passed (why 0, more to do).
-   Returns (e: the level it stopped in, 0 for `level`, e for the e-th list
-   made; the position in it; why; the next levels' lists (out first); the
-   largest time of each one's new states or None; the transitions
-   admitted; the labels met; the end of the chunk stopped at; the states
-   admitted; 1 when nothing more was allowed (the last level crossed to is
+   Returns (e: the level it stopped in, 0 for `level`, e >= 1 the e-th
+   level after it; the position in it; why; level e's list (None for level
+   0, or once it is expanded); its next level's list (out when e is 0);
+   (length, last state) of each level 1..e; the largest time of the new
+   states of each level 1..e+1, or None; the transitions admitted; the
+   labels met; the end of the chunk stopped at; the states admitted; 1
+   when nothing more was allowed (the last level it may go into is
    expanded, or a level came out empty), else 0). */
 #include <pthread.h>
 #include <time.h>
@@ -1499,12 +1513,12 @@ typedef struct {
   Py_ssize_t endc;
   PyObject *lists[KMAXLV + 1];      /* lists[L]: level L's (L >= 1), until expanded */
   Py_ssize_t llen[KMAXLV + 1];      /* ... then its length and last state */
+  PyObject *llast[KMAXLV + 1];
   /* the last level expanded: its states freed one per state admitted, so
      that a new state takes the place of an old one (a whole level freed at
      once empties the allocator's arenas, which go back to the system and
      must be mapped again: measured 8x the page faults, 10% of the time) */
   PyObject *grave;
-  PyObject *llast[KMAXLV + 1];
   long long tmax[KMAXLV + 1];
   Py_ssize_t tn[KMAXLV + 1];        /* new states admitted into lists[L] in this call */
   /* chunk c's buffer (once made) in slot c % KWIN; the buffers (KRING, kept
@@ -1539,33 +1553,6 @@ static void kfree_tls(void) {
 #ifdef IDW
   free(SEEN); free(SLOT); SEEN = NULL; SLOT = NULL;
 #endif
-}
-/* the 16 bytes fingerprints() gives the state t, as the table's two words */
-static void kfp(const V *t, uint64_t *out) {
-  size_t klen = sizeof(V) * NS - KEYSKIP;
-  unsigned char buf[5 + sizeof(V) * NS];
-  buf[0] = 's';
-  buf[1] = klen & 255; buf[2] = (klen >> 8) & 255; buf[3] = (klen >> 16) & 255; buf[4] = (klen >> 24) & 255;
-  V c[NS];
-  canon(t, c);
-  memcpy(buf + 5, (const char *)c + KEYSKIP, klen);
-  H128 h = XXH(buf, 5 + klen);
-#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
-  out[0] = h.hi; out[1] = h.lo;
-#else
-  out[0] = __builtin_bswap64(h.hi); out[1] = __builtin_bswap64(h.lo);
-#endif
-}
-/* the int64 vector of a state the explorer holds (no Python error: NULL) */
-static const V *kstate(PyObject *arg, V *buf) {
-  if (!PyBytes_Check(arg)) return NULL;
-  Py_ssize_t n = PyBytes_GET_SIZE(arg);
-  if (PACK && n == (Py_ssize_t)(sizeof(int32_t) * NS)) {
-    const int32_t *p = (const int32_t *)PyBytes_AS_STRING(arg);
-    for (int q = 0; q < NS; q++) buf[q] = p[q] == INT32_MIN ? INT64_MIN : (V)p[q];
-    return buf;
-  }
-  return n == (Py_ssize_t)(sizeof(V) * NS) ? (const V *)PyBytes_AS_STRING(arg) : NULL;
 }
 static int kroom(KChunk *k, Py_ssize_t need) {
   if (need <= k->cap) return 0;
@@ -1628,7 +1615,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b) {
   memset(k->labs, 0, NLABELS);
   for (Py_ssize_t i = a; i < b && !k->flag; i++) {
     V sb[NS];
-    const V *s = kstate(L ? kptr(j, i) : PyList_GET_ITEM(j->level, i), sb);
+    const V *s = raw_state(L ? kptr(j, i) : PyList_GET_ITEM(j->level, i), sb);
     BN = 0; ovf = 0;
     if (!s || rstep(s)) { k->flag = 2; break; }
     k->ns[i - a] = (int32_t)BN;
@@ -1639,7 +1626,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b) {
       Py_ssize_t w = k->nc++;
       memcpy(k->vec + NS * w, t, sizeof(V) * NS);
       k->labs[BLAB[q]] = 1;
-      kfp(t, k->fp + 2 * w);
+      fingerprint_of(t, k->fp + 2 * w);
       k->sus[w] = !okstate(t);
     }
   }

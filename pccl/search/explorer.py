@@ -796,7 +796,7 @@ class Explorer:
                                               runaway.state())
                 if ck.due() and ck.last_saved != (depth, table.n):
                     self._save(adm, adm.res)
-            kern = self._kernel(adm, depth) if front.disk is None else None
+            kern = self._kernel(adm, depth)
             if kern is not None:
                 # the kernel may finish this level and go on into the next
                 # ones (advance() moves depth on): it returns at the end of
@@ -883,11 +883,12 @@ class Explorer:
             if why == _K_ROOM and limit < budget_end:
                 table.make_room(max(table.n, 1 << 16))
             elif why == _K_ROOM:        # the budget: the batches cut the level where it ends
-                return self._expand_level(adm, level[pos:], list(range(first + pos, first + len(level))),
-                                            depth, report)
+                return self._expand_level(adm, level[pos:],
+                                          list(range(first + pos, first + len(level))),
+                                          depth, report)
             elif why:                   # the batches take this chunk
                 if self._expand_level(adm, level[pos:cend], list(range(first + pos, first + cend)),
-                                        depth, report) or adm.flush(depth + 1):
+                                      depth, report) or adm.flush(depth + 1):
                     return True
                 pos = cend
             report(len(level) - pos)
@@ -902,7 +903,7 @@ class Explorer:
             adm.stats.max_time = t
 
     def _expand_level(self, adm: "_Admission", level: list, level_idx: list, depth: int,
-                        report: Callable[[int], None]) -> bool:
+                      report: Callable[[int], None]) -> bool:
         """Expand one level, queueing its successors for admission a batch
         at a time: the hot path (its locals are hoisted once per level).
         True to stop."""
