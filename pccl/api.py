@@ -480,10 +480,12 @@ def _threads_allowed(o: ExploreOptions, nworkers: Optional[int], rec: Any) -> bo
     """Whether ``--workers N`` may run as N threads of this process (the
     native engine's level kernel, which admits exactly what one process
     admits) instead of N processes: a native search of this machine that
-    records no graph (no time-lock, stall or temporal check), with no
-    ``--fastest``, ``--coverage``, checkpoint or spill.  The native model
-    decides the rest (a program whose statements call Python: processes)."""
-    return (o.ray is None and nworkers is not None and nworkers > 1 and rec is None
+    records no graph or one the kernel records (the time-lock and stall
+    checks'; not a temporal property's), with no ``--fastest``,
+    ``--coverage``, checkpoint or spill.  The native model decides the
+    rest (a program whose statements call Python: processes)."""
+    return (o.ray is None and nworkers is not None and nworkers > 1
+            and (rec is None or rec.kernel_ready)
             and o.engine != "python" and not o.fastest and not o.coverage
             and o.checkpoint is None and o.resume is None and o.spill is None
             and os.environ.get("PCCL_THREADS", "1") != "0")
@@ -498,9 +500,14 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
     if native is not None and plan.threads and native.explore_levels is not None:
         # --workers N as threads of this process
         model.engine_threads = plan.nworkers
+        plan.native = native
+        if plan.rec is not None:        # the graph of the native states
+            from pccl.search import liveness as L
+            plan.rec = L.make_recorder(native, o.timelock, o.stall)
         return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH,
                                                      threads=plan.nworkers),
-                         on_runaway=plan.on_runaway_native(native), labels=plan.labels), native)
+                         recorder=plan.rec, on_runaway=plan.on_runaway_native(native),
+                         labels=plan.labels), native)
     if plan.threads:
         # processes after all (the Python engine, or statements that call
         # Python); a native model for them names values alike in each

@@ -520,10 +520,14 @@ def par_summary(r) -> dict:
 
 
 @pytest.mark.parametrize("name,program,opts", PAR_CASES, ids=[c[0] for c in PAR_CASES])
-def test_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, name, program, opts):
+def test_workers_interrupted_and_resumed_equal_uninterrupted(tmp_path, monkeypatch, name, program,
+                                                            opts):
     """Interrupted at random level ends three times, resumed with 2, 3 and
     2 workers (a checkpoint of N workers resumes with M): the uninterrupted
-    result of 2 workers; its figures and verdict are one process's."""
+    result of 2 workers; its figures and verdict are one process's.  (Worker
+    processes throughout: a search with a checkpoint runs them, and two
+    threads without one would compute the events never fired.)"""
+    monkeypatch.setenv("PCCL_THREADS", "0")
     full = par_summary(api.explore(program, workers=2, **opts))
     one = summary(api.explore(program, **opts))
     for k in ("status", "verdict", "exit", "bounds", "violations", "witnesses", "holds",

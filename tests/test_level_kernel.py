@@ -17,6 +17,7 @@ from hypothesis import strategies as hs
 
 from pccl.api import explore, make_model
 from pccl.model import native as NV
+from pccl.search import liveness as L
 from pccl.search.explorer import Explorer
 
 from test_fingerprints import programs
@@ -116,6 +117,54 @@ def test_kernel_admits_what_the_batches_admit(name, path, kw, find_all):
         assert c.admitted > 0 or want[0][2] - want[0][1] < 200
 
 
+def record(model, threads=1, stall=True, **kw) -> tuple:
+    """A search with the graph recorder of the time-lock (and stall) checks:
+    its figures and every array of the graph."""
+    rec = L.make_recorder(model.nm, True, stall)
+    ex = Explorer(model, batch=NV.NativeModel.BATCH, recorder=rec, threads=threads, **kw)
+    r = ex.run()
+    return ((r.status, r.stats.states, r.stats.transitions, rec.complete),
+            {"src": rec.src.view().copy(), "dst": rec.dst.view().copy(),
+             **{k: g.view().copy() for k, g in rec._columns().items()}})
+
+
+@pytest.mark.parametrize("name, path, kw", CASES, ids=[c[0].replace(" ", "-").replace(",", "") for c in CASES])
+@pytest.mark.parametrize("stall", [True, False])
+def test_kernel_records_what_the_batches_record(name, path, kw, stall):
+    """The graph the kernel records (each transition's source and target,
+    each state's time cost, stall signature and change flag) is the
+    batches' graph, array for array, for 1, 2 and 3 threads; under
+    symmetry (fischer, leader) a change is decided on the successor as
+    made, without it on the state its number stands for."""
+    nm = native(path, **kw)
+    want = record(Batches(nm), stall=stall)
+    assert set(want[1]) == ({"src", "dst", "dyn", "sig", "chg"} if stall else {"src", "dst", "dyn"})
+    assert len(want[1]["src"]) == want[0][2] or want[0][0] == "violation"
+    for threads in (1, 2, 3):
+        c = Counted(nm)
+        got = record(c, threads, stall=stall)
+        assert got[0] == want[0]
+        for k, a in want[1].items():
+            assert np.array_equal(got[1][k], a), k
+        assert c.admitted > 0 or want[0][1] < 200
+
+
+def test_kernel_records_across_a_grown_edge_array(monkeypatch):
+    """Where the recorder's arrays cannot be reserved they grow by doubling:
+    the kernel stops when the transitions fill them (why 5), they grow, it
+    goes on, and the graph is the batches'."""
+    from pccl.search import explorer
+    monkeypatch.setattr(explorer, "_reserve", lambda shape, dtype: None)
+    nm = native(FISCHER, agents=3, overrides={"k": "0", "d": "1"})
+    want = record(Batches(nm))
+    c = Counted(nm)
+    got = record(c, 2)
+    assert 5 in c.stops
+    assert got[0] == want[0]
+    for k, a in want[1].items():
+        assert np.array_equal(got[1][k], a), k
+
+
 @pytest.mark.parametrize("bound", [dict(max_states=1), dict(max_states=5_000),
                                    dict(max_states=33_333), dict(max_depth=1),
                                    dict(max_depth=40)])
@@ -184,16 +233,30 @@ def test_workers_run_as_threads_without_a_graph():
     assert two.checked.never_fired == one.checked.never_fired == ()
 
 
-def test_workers_with_a_graph_stay_processes(monkeypatch):
-    """The time-lock and stall checks record the state graph (the threads do
-    not): processes, as ``PCCL_THREADS=0`` asks for anyway."""
-    kw = dict(agents=2, overrides={"k": "0", "d": "1"})
-    r = explore(FISCHER, workers=2, **kw)
-    assert r.model.engine_threads == 1
+def test_workers_with_the_default_checks_run_as_threads(monkeypatch):
+    """The time-lock and stall checks' graph is recorded by the kernel: with
+    them ``--workers 2`` is two threads too, and finds what one worker finds
+    (a time-lock, a stall, nothing); ``PCCL_THREADS=0`` asks for processes."""
+    for path, kw in ((FISCHER, dict(agents=2, overrides={"k": "0", "d": "1"})),
+                     (os.path.join(ROOT, "tests/programs/tl_spin.pccl"), {}),
+                     (os.path.join(ROOT, "tests/programs/token_keep.pccl"), {})):
+        one = explore(path, workers=1, **kw)
+        two = explore(path, workers=2, **kw)
+        assert two.model.engine_used == "native" and two.model.engine_threads == 2
+        assert summary(two) == summary(one)
+        assert [(cx.violation.kind, cx.cycle_start) for cx in two.counterexamples] == \
+            [(cx.violation.kind, cx.cycle_start) for cx in one.counterexamples]
+    assert {cx.violation.kind for cx in one.counterexamples} == {"stall"}
     monkeypatch.setenv("PCCL_THREADS", "0")
-    r2 = explore(FISCHER, workers=2, **NOGRAPH, **kw)
-    assert r2.model.engine_threads == 1
-    assert summary(r2) == summary(explore(FISCHER, workers=2, **NOGRAPH, **kw))
+    r = explore(FISCHER, workers=2, agents=2, overrides={"k": "0", "d": "1"})
+    assert r.model.engine_threads == 1
+
+
+def test_workers_with_a_temporal_property_stay_processes():
+    """A temporal property's columns are not the kernel's to record: processes."""
+    r = explore(FISCHER, workers=2, overrides={"k": "0", "d": "1"},
+                properties=("forall i: wait[i] ~> inCs[i]",))
+    assert r.model.engine_threads == 1
 
 
 def test_statements_that_call_python_stay_processes():

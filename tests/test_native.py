@@ -802,10 +802,11 @@ def test_header_names_the_native_engine_with_workers():
     from pccl.cli import main
     args = ["explore", FISCHER, "--set", "k=0", "--set", "d=0", "--no-progress", "--workers"]
     out = CliRunner().invoke(main, args + ["2"]).output
-    assert head(out).endswith("reductions merge+symmetry+por, engine native"), out
+    assert head(out).endswith("reductions merge+symmetry+por, engine native on 2 threads"), out
     assert "states" in out and "Traceback" not in out
-    out = CliRunner().invoke(main, args + ["2", "--engine", "native"]).output
-    assert head(out).endswith("engine native"), out
+    out = CliRunner().invoke(main, args + ["2", "--engine", "native"],
+                             env={"PCCL_THREADS": "0"}).output     # worker processes
+    assert head(out).endswith("reductions merge+symmetry+por, engine native"), out
 
 
 def test_ray_declines_the_native_engine_with_the_reason():

@@ -697,8 +697,10 @@ LONG_SEARCH = ["explore", FISCHER, "--workers", "2", "--progress", "--progress-i
 def _start_long_search(env=None):
     """``pccl explore`` on fischer (k=10: minutes) with two workers, in a
     session of its own (its own process group, as a terminal's job), once
-    its first progress line is out: the search is under way."""
-    return started(LONG_SEARCH, "states ", env=env, new_session=True)
+    its first progress line is out: the search is under way.  Worker
+    processes (``PCCL_THREADS=0``): two threads would be one process."""
+    return started(LONG_SEARCH, "states ", env={"PCCL_THREADS": "0", **(env or {})},
+                   new_session=True)
 
 
 def _gone(pids, timeout):

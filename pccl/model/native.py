@@ -1268,6 +1268,10 @@ static PyObject *table_place(PyObject *self, PyObject *args) {{
   Py_RETURN_NONE;
 }}
 /* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
+/* 1 into a dynamic state (a TIME ADVANCE), else 0: the graph's time cost */
+static inline unsigned char phase_cost(const V *s) {{
+  return s[{V_PHASE}] != {DISCRETE};
+}}
 static PyObject *phases(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg);
@@ -1277,7 +1281,7 @@ static PyObject *phases(PyObject *self, PyObject *arg) {{
   for (Py_ssize_t i = 0; i < n; i++) {{
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) {{ Py_DECREF(out); return NULL; }}
-    o[i] = s[{V_PHASE}] != {DISCRETE};
+    o[i] = phase_cost(s);
   }}
   return out;
 }}
@@ -1494,6 +1498,7 @@ _KERNEL_C = r"""
 #define KBLK 65536
 typedef struct {
   V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
+  int64_t *sg;                      /* the candidates' stall signatures (recording them) */
   Py_ssize_t nc, cap;
   int flag;
 } KChunk;
@@ -1536,6 +1541,18 @@ typedef struct {
   int why, lv;                      /* lv: the level of the last chunk admitted, */
   Py_ssize_t pend;                  /* ... and its end */
   double deadline;
+  /* the graph recorder's arrays (rec: recording), written by the admission:
+     per transition its source and target numbers (ne so far, room for
+     ecap), per new state its time cost (dyn) and, with the stall check
+     (sig not NULL), its signature and a change flag set on a source when
+     a transition out of it changes the signature: of the successor as made
+     (bycand: under symmetry a number stands for a renamed state) or of the
+     state its number stands for */
+  int rec, bycand;
+  uint32_t *esrc, *edst;
+  Py_ssize_t ne, ecap;
+  unsigned char *dyn, *chg;
+  int64_t *sig;
   pthread_mutex_t mu;
   pthread_cond_t cv;
 } KJob;
@@ -1564,7 +1581,9 @@ static int kroom(KChunk *k, Py_ssize_t need) {
   if (f) k->fp = f;
   unsigned char *s = realloc(k->sus, cap);
   if (s) k->sus = s;
-  if (!v || !f || !s) return -1;
+  int64_t *g = realloc(k->sg, sizeof(int64_t) * cap);
+  if (g) k->sg = g;
+  if (!v || !f || !s || !g) return -1;
   k->cap = cap;
   return 0;
 }
@@ -1627,6 +1646,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b) {
       memcpy(k->vec + NS * w, t, sizeof(V) * NS);
       k->labs[BLAB[q]] = 1;
       fingerprint_of(t, k->fp + 2 * w);
+      if (j->sig) k->sg[w] = sighash(t);
       k->sus[w] = !okstate(t);
     }
   }
@@ -1642,6 +1662,12 @@ static inline int64_t klookup(const uint32_t *slots, const uint64_t *fps, uint64
     pos = (pos + 1) & mask;
   }
 }
+/* the recorder's transition par -> dst (candidate w of chunk k) */
+static inline void krecord(KJob *j, KChunk *k, Py_ssize_t w, Py_ssize_t par, int64_t dst) {
+  j->esrc[j->ne] = (uint32_t)par;
+  j->edst[j->ne++] = (uint32_t)dst;
+  if (j->sig && (j->bycand ? k->sg[w] : j->sig[dst]) != j->sig[par]) j->chg[par] = 1;
+}
 /* admit chunk k, the next in order, of level L, positions [a, b) (the GIL
    held): 0, else why not */
 static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
@@ -1649,6 +1675,7 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
   uint64_t *fps = j->fps, mask = j->mask;
   if (k->flag) return k->flag;
   if (j->n + k->nc > j->limit) return 3;
+  if (j->rec && j->ne + k->nc > j->ecap) return 5;
   for (Py_ssize_t q = 0; q < k->nc; q++)
     if (k->sus[q] && klookup(slots, fps, mask, k->fp + 2 * q) < 0) return 4;
   if (!j->lists[L + 1]) {
@@ -1672,7 +1699,11 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
           if (e8 == TEMPTY) break;
           __builtin_prefetch(fps + 2 * (size_t)e8);
         }
-      if (klookup(slots, fps, mask, f) >= 0) continue;
+      int64_t hit = klookup(slots, fps, mask, f);
+      if (hit >= 0) {
+        if (j->rec) krecord(j, k, w, par, hit);
+        continue;
+      }
       const V *t = k->vec + NS * w;
       Py_ssize_t q = j->nptr;
       if (q / KBLK >= j->nblk) { j->n = n; return 3; }
@@ -1698,6 +1729,11 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
       while (slots[pos] != TEMPTY) pos = (pos + 1) & mask;
       slots[pos] = (uint32_t)n;
       if (!j->tn[L + 1]++ || t[0] > j->tmax[L + 1]) j->tmax[L + 1] = t[0];
+      if (j->rec) {
+        j->dyn[n] = phase_cost(t);
+        if (j->sig) { j->sig[n] = k->sg[w]; j->chg[n] = 0; }
+        krecord(j, k, w, par, n);
+      }
       n++;
     }
   }
@@ -1817,12 +1853,20 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   Py_ssize_t first, start, n, limit, cross;
   int threads;
   double seconds;
-  Py_buffer bs, bf, bp;
+  Py_buffer bs, bf, bp, rb[5] = {0};
   unsigned long long mask;
-  if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd", &PyList_Type, &level, &first, &PyList_Type,
+  PyObject *rec = Py_None;
+  if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|O", &PyList_Type, &level, &first, &PyList_Type,
                         &out, &start, &threads, &bs, &bf, &bp, &n, &mask, &limit, &cross,
-                        &seconds))
+                        &seconds, &rec))
     return NULL;
+  Py_ssize_t ne = 0;
+  int bycand = 0;
+  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", rb, rb + 1, &ne, rb + 2, rb + 3,
+                                          rb + 4, &bycand)) {
+    PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
+    return NULL;
+  }
   PyObject *res = NULL, *labs = NULL, *lists = NULL, *tms = NULL;
   KJob *j = calloc(1, sizeof(KJob));
   unsigned char *seen = calloc(NLABELS + 1, 1);
@@ -1832,7 +1876,11 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   if (start > end0) start = end0;
   if (!j || !seen) { PyErr_NoMemory(); goto done; }
   if (out == level || first < 0 || n < nout || cross < 0 || (Py_ssize_t)(bs.len / 4) <= (Py_ssize_t)mask
-      || (Py_ssize_t)(bf.len / 16) < limit || (Py_ssize_t)(bp.len / 4) < limit || limit < n || !XXH) {
+      || (Py_ssize_t)(bf.len / 16) < limit || (Py_ssize_t)(bp.len / 4) < limit || limit < n || !XXH
+      || (rec != Py_None && (rb[0].len != rb[1].len || rb[0].itemsize != 4 || rb[1].itemsize != 4
+                             || ne < 0 || ne > rb[0].len / 4 || rb[2].len < limit
+                             || (rb[3].buf && (rb[3].itemsize != 8 || rb[3].len / 8 < limit
+                                               || !rb[4].buf || rb[4].len < limit))))) {
     PyErr_SetString(PyExc_ValueError, "explore_levels: arguments out of range");
     goto done;
   }
@@ -1864,6 +1912,12 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   j->n = j->n0 = n; j->limit = limit; j->seen = seen;
   j->lv = 0; j->pend = end0;
   j->deadline = know() + seconds;
+  if (rec != Py_None) {
+    j->rec = 1; j->bycand = bycand;
+    j->esrc = rb[0].buf; j->edst = rb[1].buf; j->ne = ne; j->ecap = rb[0].len / 4;
+    j->dyn = rb[2].buf;
+    j->sig = rb[3].buf; j->chg = rb[4].buf;
+  }
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
   pthread_cond_init(&j->cv, NULL);
@@ -1915,8 +1969,8 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   }
   if (!j->lists[e + 1] && !(j->lists[e + 1] = PyList_New(0))) goto done;
   /* (level e's list: None when it is level 0 or expanded, at the end) */
-  res = Py_BuildValue("(iniOOOOnOnni)", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
-                      j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin);
+  res = Py_BuildValue("(iniOOOOnOnnin)", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
+                      j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin, j->ne);
 done:
   if (mine) KBUSY = 0;
   if (j) {
@@ -1929,6 +1983,7 @@ done:
   free(j); free(seen);
   Py_XDECREF(labs); Py_XDECREF(lists); Py_XDECREF(tms);
   PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
+  for (int q = 0; q < 5; q++) if (rb[q].obj) PyBuffer_Release(rb + q);
   return res;
 }
 """

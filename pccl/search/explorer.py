@@ -280,6 +280,8 @@ def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
 
 #: The level kernel stopped for room: the table's, or the state budget's
 _K_ROOM = 3
+#: ... the graph recorder's transition arrays are full
+_K_EDGES = 5
 #: Levels the kernel may go on into after the one it is given
 _NO_CROSSING = 0
 _ANY_CROSSING = 1 << 30
@@ -827,9 +829,11 @@ class Explorer:
     def _kernel(self, adm: "_Admission", depth: int) -> Optional[Callable]:
         """The model's level kernel (the native engine's ``explore_levels``)
         when this level can use it: fingerprints in the table's arrays, no
-        graph recorded, nothing spilled, below the depth bound; else None."""
+        graph recorded or one it can record (the time-lock and stall
+        checks'), nothing spilled, below the depth bound; else None."""
         kern = getattr(self.model, "explore_levels", None)
-        if kern is None or adm.fp_batch is None or self.recorder is not None \
+        rec = self.recorder
+        if kern is None or adm.fp_batch is None or (rec is not None and not rec.kernel_ready) \
                 or self.spiller is not None or self._at_depth_bound(depth) \
                 or getattr(self.table, "kernels", None) is None:
             return None
@@ -855,14 +859,18 @@ class Explorer:
         cross = _NO_CROSSING if self.checkpoint is not None else (
             self.max_depth - depth - 1 if self.max_depth is not None else _ANY_CROSSING)
         pos, seconds = 0, max(0.05, self.progress_interval)
+        rec, why = self.recorder, 0
         while True:
             budget_end = table.n + adm.budget
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
-            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin = kern(
+            graph = None if rec is None else rec.kernel_arrays(limit, why == _K_EDGES)
+            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne = kern(
                 level, first, adm.nxt, pos, self.threads, table.slots, table.fps,
-                table.parents, table.n, int(table.mask), limit, cross, seconds)
+                table.parents, table.n, int(table.mask), limit, cross, seconds, graph)
             table.admitted(k)
+            if rec is not None:
+                rec.kernel_admitted(k, ne)
             adm.budget -= k
             adm.stats.transitions += trans
             if labels is not None:
@@ -886,6 +894,8 @@ class Explorer:
                 return self._expand_level(adm, level[pos:],
                                           list(range(first + pos, first + len(level))),
                                           depth, report)
+            elif why == _K_EDGES:       # the recorder's transitions: room made above
+                pass
             elif why:                   # the batches take this chunk
                 if self._expand_level(adm, level[pos:cend], list(range(first + pos, first + cend)),
                                       depth, report) or adm.flush(depth + 1):

@@ -86,6 +86,13 @@ class _Grow:
     def view(self) -> np.ndarray:
         return self.a[:self.n]
 
+    def reserve(self, cap: int) -> None:
+        """Room for ``cap`` items in :attr:`a` (by doubling)."""
+        if cap > len(self.a):
+            b = np.empty(max(cap, 2 * len(self.a)), dtype=self.a.dtype)
+            b[:self.n] = self.a[:self.n]
+            self.a = b
+
     def adopt(self, x: np.ndarray) -> None:
         """Hold ``x`` (of my dtype) as my whole content, without a copy."""
         assert x.dtype == self.a.dtype and x.ndim == 1
@@ -257,6 +264,44 @@ class GraphRecorder:
                 self.chg.view()[src[changed]] = 1
         self.src.extend(src.astype(np.uint32))
         self.dst.extend(dst.astype(np.uint32))
+
+    # -- the native level kernel (pccl/model/native.py explore_levels) -------------------
+    @property
+    def kernel_ready(self) -> bool:
+        """Whether the level kernel can record this graph: the time-lock and
+        stall checks' columns, no temporal properties, no fair arrival, the
+        changes computed here."""
+        return not self.props and self.pend is None and not self.changes_given
+
+    def kernel_arrays(self, limit: int, edges_room: bool = False) -> tuple:
+        """The arrays the kernel writes the graph into (its ``rec``
+        argument): the transitions' sources and targets with the count so
+        far, the time costs and, with the stall check, the signatures, the
+        change flags and whether changes are decided on the successors as
+        made.  The state columns have room for states numbered below
+        ``limit``; ``edges_room``: the kernel asked for more room for
+        transitions."""
+        if edges_room:
+            self.src.reserve(2 * len(self.src.a))
+            self.dst.reserve(2 * len(self.dst.a))
+        for g in self._grows():
+            g.reserve(limit)
+        if self.chg is not None:
+            self.chg.reserve(limit)
+        cap = min(len(self.src.a), len(self.dst.a))
+        out: tuple = (self.src.a[:cap], self.dst.a[:cap], self.src.n, self.dyn.a)
+        if self.sig is not None and self.chg is not None:
+            out += (self.sig.a, self.chg.a, int(self.wants_candidates))
+        return out
+
+    def kernel_admitted(self, states: int, edges: int) -> None:
+        """The kernel wrote ``states`` more states' columns and the
+        transitions up to ``edges``."""
+        self.src.n = self.dst.n = edges
+        for g in self._grows():
+            g.n += states
+        if self.chg is not None:
+            self.chg.n += states
 
     # -- checkpoints (pccl/search/checkpoint.py) -------------------------------------------
     def _columns(self) -> dict:
