@@ -591,8 +591,8 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--workers", metavar="N|auto", default=None,
               callback=lambda c, p, v: _workers(v),
               help="search with N processes (auto: one per usable core), or N threads "
-                   "of one process for a native search without time-lock, stall or "
-                   "temporal checks; results are identical for every N [default: 1; with "
+                   "of one process for a native search without temporal properties, "
+                   "--fastest, --coverage, checkpoints or --spill; results are identical for every N [default: 1; with "
                    "--ray: auto, one actor per CPU of the Ray cluster]")
 @click.option("--ray", "ray", metavar="ADDRESS|local", default=None,
               help="run the workers as Ray actors: on the cluster at ADDRESS (HOST:PORT, "

@@ -1462,7 +1462,7 @@ PyMODINIT_FUNC INITFN(void) {{ return PyModule_Create(&mod); }}
 _KERNEL_C = r"""
 /* ---- the level kernel ---------------------------------------------------
    explore_levels(level, first, out, start, threads, slots, fps, parents,
-   n, mask, limit, cross, seconds): breadth-first search in C from
+   n, mask, limit, cross, seconds[, rec]): breadth-first search in C from
    level[start:] (level[i] is state number first + i), admitting as the
    explorer's batches would admit: a chunk of KCH states at a time, chunks
    in order, each new successor (its fingerprint not in the table) numbered
@@ -1482,6 +1482,12 @@ _KERNEL_C = r"""
    grow, or the state budget is met) or a successor that fails okstate and
    is not in the table (4): the explorer's own path takes that chunk; and
    at a chunk's end once `seconds` have passed (why 0, more to do).
+   With `rec` (the graph recorder's arrays, GraphRecorder.kernel_arrays:
+   transitions' sources and targets as uint32 with the count so far, time
+   costs, and with the stall check signatures, change flags and whether a
+   change is decided on the successor as made) the admission records every
+   transition and new state there (krecord), and stops before a chunk whose
+   transitions do not fit (why 5: the arrays grow).
    Returns (e: the level it stopped in, 0 for `level`, e >= 1 the e-th
    level after it; the position in it; why; level e's list (None for level
    0, or once it is expanded); its next level's list (out when e is 0);
@@ -1489,7 +1495,8 @@ _KERNEL_C = r"""
    states of each level 1..e+1, or None; the transitions admitted; the
    labels met; the end of the chunk stopped at; the states admitted; 1
    when nothing more was allowed (the last level it may go into is
-   expanded, or a level came out empty), else 0). */
+   expanded, or a level came out empty), else 0; the transitions recorded
+   in all, 0 without `rec`). */
 #include <pthread.h>
 #include <time.h>
 #define KCH 128
