@@ -483,7 +483,7 @@ def _threads_allowed(o: ExploreOptions, nworkers: Optional[int], rec: Any) -> bo
     records no graph or one the kernel records (the time-lock and stall
     checks'; not a temporal property's), with no ``--fastest``,
     ``--coverage``, checkpoint or spill.  The native model decides the
-    rest (a program whose statements call Python: processes)."""
+    rest (no level kernel: processes)."""
     return (o.ray is None and nworkers is not None and nworkers > 1
             and (rec is None or rec.kernel_ready)
             and o.engine != "python" and not o.fastest and not o.coverage

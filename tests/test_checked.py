@@ -149,9 +149,15 @@ def test_never_fired_with_fastest(never):
     assert r.checked.never_fired == (("Reset", RESET_LINE),)
 
 
-def test_never_fired_not_computed_with_workers(never):
+def test_never_fired_not_computed_with_worker_processes(never, monkeypatch):
+    """Two threads of one process see every transition (the events are
+    known); worker processes each see their part only (not computed)."""
     r = explore(never, workers=2)
-    assert r.status == "exhaustive"
+    assert r.status == "exhaustive" and r.model.engine_threads == 2
+    assert r.checked.never_fired == (("Reset", RESET_LINE),)
+    monkeypatch.setenv("PCCL_THREADS", "0")
+    r = explore(never, workers=2)
+    assert r.status == "exhaustive" and r.model.engine_threads == 1
     assert r.checked.never_fired is None
     assert "workers=1" in r.checked.events_reason
 

@@ -599,12 +599,13 @@ def test_workers_checkpoints_append_the_rows_added_since_the_last(tmp_path):
     assert par_summary(api.explore(program, resume=snap, workers=2, **opts)) == full
 
 
-def test_workers_every_level_checkpoint_resumes_with_any_number_of_workers(tmp_path):
+def test_workers_every_level_checkpoint_resumes_with_any_number_of_workers(tmp_path, monkeypatch):
     """--checkpoint-interval 0 with 2 workers: the checkpoint of every level
     (a crash leaves any of them) resumes, with 2 or 3 workers, to the same
     result."""
     program, opts = f"{TPROG}/rdv_meet.pccl", dict(world=f"{TPROG}/rdv_wall.toml",
                                                     blackbox="straight", reduce="none")
+    monkeypatch.setenv("PCCL_THREADS", "0")      # worker processes, as the checkpointed runs
     full = par_summary(api.explore(program, workers=2, **opts))
     d = str(tmp_path / "every")
     saved = []
@@ -793,6 +794,7 @@ def test_ray_interrupted_and_resumed_equals_uninterrupted(tmp_path, monkeypatch,
     program, opts = f"{PROG}/race_nonatomic.pccl", dict(world=f"{PROG}/race.toml",
                                                          blackbox="nondet", find_all=True,
                                                          fastest=fastest)
+    monkeypatch.setenv("PCCL_THREADS", "0")      # worker processes, as the checkpointed runs
     full = par_summary(api.explore(program, workers=2, **opts))
     d = str(tmp_path / "ck")
     for k, resume in ((7, False), (20, True)):

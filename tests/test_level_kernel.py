@@ -149,6 +149,54 @@ def test_kernel_records_what_the_batches_record(name, path, kw, stall):
         assert c.admitted > 0 or want[0][1] < 200
 
 
+RACE = os.path.join(ROOT, "programs/race.toml")
+MOVING = [("race_robust 3 robots", "programs/race_robust.pccl", 3),
+          ("race_safe 3 robots", "programs/race_safe.pccl", 3),
+          ("race violated", "programs/race.pccl", 2)]
+
+
+@pytest.mark.parametrize("name, path, agents", MOVING, ids=[c[0].replace(" ", "-") for c in MOVING])
+@pytest.mark.parametrize("graph", [False, True])
+def test_kernel_on_programs_that_move(name, path, agents, graph):
+    """Memo sites (DOREACH INVOKE's outcomes under nondet) call Python on a
+    miss: in the kernel the thread takes the GIL for it, the memo's lock
+    held alone, while the other threads read the memo shared.  Each search
+    starts from an empty memo (a fresh model), so the misses happen in the
+    kernel's threads; the result is the batches': figures, labels, every
+    state's parent, the violations with their traces (decoded: the values
+    interned in the order the misses came), the recorded graph."""
+    def fresh():
+        return native(os.path.join(ROOT, path), agents=agents, world=RACE, blackbox="nondet")
+
+    def run(model, nm, threads=1):
+        rec = L.make_recorder(nm, True, True) if graph else None
+        labels: set = set()
+        ex = Explorer(model, batch=NV.NativeModel.BATCH, recorder=rec, labels=labels,
+                      threads=threads)
+        r = ex.run()
+        s = r.stats
+        arrays = {"parents": ex.table.parents[:ex.table.n].copy()}
+        if rec is not None:
+            arrays.update(src=rec.src.view().copy(), dst=rec.dst.view().copy(),
+                          **{k: g.view().copy() for k, g in rec._columns().items() if k != "sig"})
+        return ((r.status, s.initial_states, s.states, s.transitions, s.max_depth, s.max_time,
+                 sorted(map(repr, labels)),
+                 [(f.violation.message, f.trace.labels, nm.decode_trace(f.trace).states)
+                  for f in r.found]), arrays)
+    nm = fresh()
+    want = run(Batches(nm), nm)
+    assert nm.lib.memo_stats()[1] > 0          # (misses: the memo filled as it went)
+    for threads in (1, 2, 3):
+        nm = fresh()
+        c = Counted(nm)
+        got = run(c, nm, threads)
+        assert got[0] == want[0]
+        for k, a in want[1].items():
+            assert np.array_equal(got[1][k], a), k
+        assert c.admitted > want[0][2] // 2
+        assert nm.lib.memo_stats()[1] > 0
+
+
 def test_kernel_records_across_a_grown_edge_array(monkeypatch):
     """Where the recorder's arrays cannot be reserved they grow by doubling:
     the kernel stops when the transitions fill them (why 5), they grow, it
@@ -259,14 +307,16 @@ def test_workers_with_a_temporal_property_stay_processes():
     assert r.model.engine_threads == 1
 
 
-def test_statements_that_call_python_stay_processes():
+def test_programs_that_move_run_as_threads():
     """A program whose statements the generator leaves to Python (memo
-    sites: a doReach under nondet) has no kernel: processes."""
+    sites: a doReach under nondet, the environment's outcomes) runs the
+    kernel too, its misses taking the GIL: threads, one worker's results."""
     path = os.path.join(ROOT, "programs/race_robust.pccl")
-    kw = dict(agents=2, world=os.path.join(ROOT, "programs/race.toml"), **NOGRAPH)
-    r = explore(path, workers=2, **kw)
-    assert r.model.engine_used == "native" and r.model.engine_threads == 1
-    assert summary(r) == summary(explore(path, workers=1, **kw))
+    kw = dict(agents=2, world=os.path.join(ROOT, "programs/race.toml"))
+    for k in (NOGRAPH, {}):
+        r = explore(path, workers=2, **kw, **k)
+        assert r.model.engine_used == "native" and r.model.engine_threads == 2
+        assert summary(r) == summary(explore(path, workers=1, **kw, **k))
 
 
 def test_threads_fall_back_to_python_on_overflow():

@@ -955,18 +955,21 @@ def test_packed_states_give_equal_results(program, kw, monkeypatch):
         assert sizes == {4 * nm.gen.NS, 8 * nm.gen.NS}
 
 
-def test_workers_over_packed_states_give_the_one_process_results():
+def test_workers_over_packed_states_give_the_one_process_results(monkeypatch):
     """Fischer with 5 agents has 85 slots, so its states are packed: two
     native workers (states pickled between processes in either form) give
-    one process's figures."""
+    one process's figures; two threads too."""
     kw = dict(agents=5, overrides={"k": "0", "d": "1"}, max_states=30_000,
               invariants=("count(inCs) <= 1",), engine="native")
     one = explore(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
+    threads = explore(os.path.join(ROOT, "programs/fischer.pccl"), workers=2, **kw)
+    monkeypatch.setenv("PCCL_THREADS", "0")
     two = explore(os.path.join(ROOT, "programs/fischer.pccl"), workers=2, **kw)
     m = make_model(os.path.join(ROOT, "programs/fischer.pccl"), agents=5, overrides={"k": "0", "d": "1"})
     assert NV.NativeModel(m).gen.packs
-    assert two.model.engine_used == "native"
-    assert summary(two) == summary(one)
+    assert two.model.engine_used == "native" and two.model.engine_threads == 1
+    assert threads.model.engine_threads == 2
+    assert summary(two) == summary(one) == summary(threads)
 
 
 # -- --workers N of a program that moves: stable interned ids ---------------------
@@ -986,12 +989,15 @@ MOVING_WORKER_CASES = {
 
 
 @pytest.mark.parametrize("name", sorted(MOVING_WORKER_CASES))
-def test_native_workers_of_a_program_that_moves(name):
+def test_native_workers_of_a_program_that_moves(name, monkeypatch):
     """A program that moves runs native with ``--workers`` (it ran the
     Python engine: its interned ids were numbered per process): ids are a
     hash of the value's encoding there, the same in every process, and the
     figures, verdict, violations and counterexamples equal one native
-    process's (small ids) and the Python engine's."""
+    process's (small ids) and the Python engine's.  (Worker processes,
+    ``PCCL_THREADS=0``: threads share one process's ids,
+    tests/test_level_kernel.py.)"""
+    monkeypatch.setenv("PCCL_THREADS", "0")
     program, kw = MOVING_WORKER_CASES[name]
     py = explore(program, engine="python", **kw)
     one = explore(program, engine="auto", **kw)
@@ -1036,6 +1042,7 @@ def test_stable_ids_that_clash_fall_back_to_the_python_workers(monkeypatch):
     engine, saying so; with two bits of hash every search clashes."""
     program, kw = MOVING_WORKER_CASES["race-robust"]
     py = explore(program, engine="python", **kw)
+    monkeypatch.setenv("PCCL_THREADS", "0")        # worker processes (threads: no stable ids)
     monkeypatch.setattr(NV, "_STABLE_MASK", 3)
     r = explore(program, engine="auto", workers=2, **kw)
     assert r.model.engine_used == "python" and "31-bit id" in r.model.engine_reason

@@ -256,13 +256,17 @@ def _figures(r) -> tuple:
     return (r.status, s.states, s.transitions, s.max_depth)
 
 
-def test_workers_and_checkpoints_of_a_moving_program_run_native_and_agree(tmp_path):
+def test_workers_and_checkpoints_of_a_moving_program_run_native_and_agree(tmp_path, monkeypatch):
     """Forked workers intern values by a hash of the value (stable ids), and
     a checkpoint saves the id table: both run the native engine and find
-    what the one-process native search and the Python engine find."""
+    what the one-process native search and the Python engine find; two
+    threads of one process too."""
     kw = dict(world=P("programs/race.toml"), agents=2, blackbox="nondet")
     one = explore(P("programs/race_robust.pccl"), **kw)
     assert one.model.engine_used == "native"
+    threads = explore(P("programs/race_robust.pccl"), workers=2, **kw)
+    assert threads.model.engine_threads == 2 and _figures(threads) == _figures(one)
+    monkeypatch.setenv("PCCL_THREADS", "0")
     two = explore(P("programs/race_robust.pccl"), workers=2, **kw)
     assert two.model.engine_used == "native", two.model.engine_reason
     ck = explore(P("programs/race_robust.pccl"), checkpoint=str(tmp_path / "ck"), **kw)
