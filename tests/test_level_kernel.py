@@ -197,6 +197,31 @@ def test_kernel_on_programs_that_move(name, path, agents, graph):
         assert nm.lib.memo_stats()[1] > 0
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_interrupt_in_a_memo_miss_stops_the_kernel(threads):
+    """Ctrl-C (or SIGTERM, which pccl turns into the same KeyboardInterrupt)
+    may be raised inside a memo miss's Python code, which the kernel calls:
+    it stops the kernel, whose figures are taken, and is raised then; the
+    search reports itself interrupted with consistent figures (it was
+    swallowed, and the search ran on to the end)."""
+    class Interrupted(NV.NativeModel):
+        calls = 0
+
+        def _miss(self, k, b):
+            Interrupted.calls += 1
+            if Interrupted.calls == 400:
+                raise KeyboardInterrupt
+            return super()._miss(k, b)
+    nm = Interrupted(make_model(os.path.join(ROOT, "programs/race_robust.pccl"), agents=3,
+                                world=RACE, blackbox="nondet"))
+    c = Counted(nm)
+    ex = Explorer(c, batch=NV.NativeModel.BATCH, threads=threads)
+    r = ex.run()
+    assert Interrupted.calls >= 400 and c.admitted > 0
+    assert r.status == "interrupted"
+    assert r.stats.states == ex.table.n < 226_455
+
+
 def test_kernel_records_across_a_grown_edge_array(monkeypatch):
     """Where the recorder's arrays cannot be reserved they grow by doubling:
     the kernel stops when the transitions fill them (why 5), they grow, it

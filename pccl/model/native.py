@@ -1495,7 +1495,9 @@ _KERNEL_C = r"""
    labels met; the end of the chunk stopped at; the states admitted; 1
    when nothing more was allowed (the last level it may go into is
    expanded, or a level came out empty), else 0; the transitions recorded
-   in all, 0 without `rec`). */
+   in all, 0 without `rec`; an interruption raised in a memo miss's Python
+   code, which stopped the kernel, or None: the caller raises it once it has
+   taken the figures). */
 #include <pthread.h>
 #include <time.h>
 #define KCH 128
@@ -1798,7 +1800,8 @@ static void kadmit(KJob *j, PyThreadState **ts) {
   int held = 0;
   for (;;) {
     int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
-    if (j->why || __atomic_load_n(&j->stop, __ATOMIC_ACQUIRE)) break;
+    if (j->why || __atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE))
+      break;
     KChunk *k = __atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE);
     if (!k) break;
     int L;
@@ -1826,7 +1829,7 @@ static void kwork(KJob *j, PyThreadState **ts) {
   for (;;) {
     int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE), L;
     Py_ssize_t a, b;
-    if (__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE)) break;
+    if (__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE)) break;
     if (__atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE)) {
       int z = 0;
       if (__atomic_compare_exchange_n(&j->admitting, &z, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
@@ -1997,9 +2000,12 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   }
   if (!j->lists[e + 1] && !(j->lists[e + 1] = PyList_New(0))) goto done;
   /* (level e's list: None when it is level 0 or expanded, at the end) */
-  res = Py_BuildValue("(iniOOOOnOnnin)", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
-                      j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin, j->ne);
+  res = Py_BuildValue("(iniOOOOnOnninO)", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
+                      j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin, j->ne,
+                      KEXC ? KEXC : Py_None);
 done:
+  Py_CLEAR(KEXC);
+  KINTR = 0;
   if (mine) KBUSY = 0;
   if (j) {
     for (Py_ssize_t q = 2; q <= KMAXLV; q++) Py_XDECREF(j->lists[q]);
@@ -2146,6 +2152,11 @@ static int EMIT(int lab, const V *t);
 static pthread_rwlock_t MLOCK;
 static pthread_mutex_t MMISS = PTHREAD_MUTEX_INITIALIZER;
 static int MLOCK_READY;
+/* an interruption (KeyboardInterrupt: Ctrl-C, SIGTERM) raised in a miss's
+   Python code: kept for explore_levels to hand back with its figures, and
+   KINTR stops the kernel's threads */
+static PyObject *KEXC;
+static int KINTR;
 static void memo_lock_init(void) {       /* (before the kernel's threads start) */
   if (MLOCK_READY) return;
   pthread_rwlockattr_t at;
@@ -2180,6 +2191,16 @@ static const V *memo_miss_kernel(const V *s, const V *key, int kl) {
     pthread_rwlock_unlock(&MLOCK);
   }
   Py_XDECREF(r);
+  if (!ok && !KEXC && PyErr_ExceptionMatches(PyExc_BaseException)
+      && !PyErr_ExceptionMatches(PyExc_Exception)) {
+    PyObject *et, *ev, *tb;
+    PyErr_Fetch(&et, &ev, &tb);
+    PyErr_NormalizeException(&et, &ev, &tb);
+    if (tb && ev) PyException_SetTraceback(ev, tb);
+    Py_XDECREF(et); Py_XDECREF(tb);
+    KEXC = ev;
+    __atomic_store_n(&KINTR, 1, __ATOMIC_RELEASE);
+  }
   if (!ok) PyErr_Clear();
   KT = 1;
   PyGILState_Release(g);

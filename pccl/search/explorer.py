@@ -865,7 +865,7 @@ class Explorer:
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
             graph = None if rec is None else rec.kernel_arrays(limit, why == _K_EDGES)
-            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne = kern(
+            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr = kern(
                 level, first, adm.nxt, pos, self.threads, table.slots, table.fps,
                 table.parents, table.n, int(table.mask), limit, cross, seconds, graph)
             table.admitted(k)
@@ -884,6 +884,8 @@ class Explorer:
                     depth += 1
                     advance(last)
             adm.nxt_idx = list(range(nfirst, nfirst + len(adm.nxt)))
+            if intr is not None:        # Ctrl-C in a memo miss (Python code) stopped the kernel
+                raise intr
             if fin:
                 return False
             if e:
