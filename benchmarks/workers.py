@@ -19,10 +19,10 @@ CPU-bound job, new code against old, in one run.
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).
-With ``--native`` (no time-lock or stall check: no state graph) the
-workers are threads of one process (the native level kernel); without it,
-and with ``--checks``, the stall check records the graph and the workers
-are processes; ``--processes`` adds the threads' case run as processes
+On the native engine the workers are threads of one process (the native
+level kernel), with or without the graph of the stall and time-lock checks
+(since 2026-12-03; before, a search recording the graph ran processes);
+``--processes`` adds the threads' case run as processes
 (``PCCL_THREADS=0``).  Every
 run is a fresh process (benchmarks/parallel.py's).  Each round runs every
 configuration twice: first with nothing of ours beside it ("idle"), then
