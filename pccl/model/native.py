@@ -1883,7 +1883,7 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   Py_ssize_t first, start, n, limit, cross;
   int threads;
   double seconds;
-  Py_buffer bs, bf, bp, rb[5] = {0};
+  Py_buffer bs, bf, bp, bes = {0}, bed = {0}, bdy = {0}, bsg = {0}, bch = {0};
   unsigned long long mask;
   PyObject *rec = Py_None;
   if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|O", &PyList_Type, &level, &first, &PyList_Type,
@@ -1892,8 +1892,8 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
     return NULL;
   Py_ssize_t ne = 0;
   int bycand = 0;
-  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", rb, rb + 1, &ne, rb + 2, rb + 3,
-                                          rb + 4, &bycand)) {
+  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", &bes, &bed, &ne, &bdy, &bsg,
+                                          &bch, &bycand)) {
     PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
     return NULL;
   }
@@ -1907,10 +1907,10 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   if (!j || !seen) { PyErr_NoMemory(); goto done; }
   if (out == level || first < 0 || n < nout || cross < 0 || (Py_ssize_t)(bs.len / 4) <= (Py_ssize_t)mask
       || (Py_ssize_t)(bf.len / 16) < limit || (Py_ssize_t)(bp.len / 4) < limit || limit < n || !XXH
-      || (rec != Py_None && (rb[0].len != rb[1].len || rb[0].itemsize != 4 || rb[1].itemsize != 4
-                             || ne < 0 || ne > rb[0].len / 4 || rb[2].len < limit
-                             || (rb[3].buf && (rb[3].itemsize != 8 || rb[3].len / 8 < limit
-                                               || !rb[4].buf || rb[4].len < limit))))) {
+      || (rec != Py_None && (bes.len != bed.len || bes.itemsize != 4 || bed.itemsize != 4
+                             || ne < 0 || ne > bes.len / 4 || bdy.len < limit
+                             || (bsg.buf && (bsg.itemsize != 8 || bsg.len / 8 < limit
+                                               || !bch.buf || bch.len < limit))))) {
     PyErr_SetString(PyExc_ValueError, "explore_levels: arguments out of range");
     goto done;
   }
@@ -1944,9 +1944,9 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   j->deadline = know() + seconds;
   if (rec != Py_None) {
     j->rec = 1; j->bycand = bycand;
-    j->esrc = rb[0].buf; j->edst = rb[1].buf; j->ne = ne; j->ecap = rb[0].len / 4;
-    j->dyn = rb[2].buf;
-    j->sig = rb[3].buf; j->chg = rb[4].buf;
+    j->esrc = bes.buf; j->edst = bed.buf; j->ne = ne; j->ecap = bes.len / 4;
+    j->dyn = bdy.buf;
+    j->sig = bsg.buf; j->chg = bch.buf;
   }
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
@@ -2018,7 +2018,8 @@ done:
   free(j); free(seen);
   Py_XDECREF(labs); Py_XDECREF(lists); Py_XDECREF(tms);
   PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
-  for (int q = 0; q < 5; q++) if (rb[q].obj) PyBuffer_Release(rb + q);
+  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch};
+  for (int q = 0; q < 5; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
   return res;
 }
 """
