@@ -2004,9 +2004,11 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
                       j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin, j->ne,
                       KEXC ? KEXC : Py_None);
 done:
-  Py_CLEAR(KEXC);
-  KINTR = 0;
-  if (mine) KBUSY = 0;
+  if (mine) {                       /* (the interruption handed back, or dropped on an error) */
+    Py_CLEAR(KEXC);
+    KINTR = 0;
+    KBUSY = 0;
+  }
   if (j) {
     for (Py_ssize_t q = 2; q <= KMAXLV; q++) Py_XDECREF(j->lists[q]);
     for (Py_ssize_t q = 1; q <= KMAXLV; q++) Py_XDECREF(j->llast[q]);

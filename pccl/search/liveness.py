@@ -75,11 +75,7 @@ class _Grow:
 
     def extend(self, x: np.ndarray) -> None:
         k = len(x)
-        if self.n + k > len(self.a):
-            cap = max(self.n + k, 2 * len(self.a))
-            b = np.empty(cap, dtype=self.a.dtype)
-            b[:self.n] = self.a[:self.n]
-            self.a = b
+        self.reserve(self.n + k)
         self.a[self.n:self.n + k] = x
         self.n += k
 
