@@ -343,7 +343,13 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
         # may turn an exhaustive search into a violation)
         complete = sr.status == "exhaustive" or (
             plan.o.find_all and sr.status == "violation" and not sr.bounds_hit)
-        lv = _analyse(plan, ex, sr)
+        try:
+            lv = _analyse(plan, ex, sr)
+        except KeyboardInterrupt:
+            # Ctrl-C or SIGTERM during the graph analysis (time-locks, stalls,
+            # temporal properties): the search's report, interrupted, since
+            # not every check ran
+            sr.status, lv, complete = "interrupted", None, False
         return _assemble(plan, ex, sr, lv, complete)
     finally:
         _close(ex)

@@ -416,8 +416,8 @@ def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers
     # Progress lines on stderr are the ready signal: the first one with
     # figures means the search loop (and its SIGINT handler) is running.
     proc = subprocess.Popen(
-        [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER),
-         "--set", "k=6", "--progress", "--progress-interval", "0.2", "--workers", workers],
+        [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER), "--agents", "3",
+         "--set", "k=2", "--progress", "--progress-interval", "0.2", "--workers", workers],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = []
     deadline = time.monotonic() + 120
@@ -434,6 +434,21 @@ def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers
     assert "interrupted" in out and "not exhaustive" in out
     assert "states/second" in out
     assert "Traceback" not in err
+
+
+def test_ctrl_c_during_the_graph_analysis_reports_the_search(monkeypatch):
+    """An interruption during the time-lock and stall analysis (after the
+    search) still gives the search's report, interrupted (not every check
+    ran), instead of no report at all."""
+    from pccl import api
+    from pccl.search import liveness
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(liveness, "analyse", interrupted)
+    r = api.explore(str(FISCHER), overrides={"k": "1"})
+    assert r.status == "interrupted" and r.stats.states > 1000
+    assert "interrupted" in r.verdict
 
 
 # ---------------------------------------------------------------------------
