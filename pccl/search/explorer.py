@@ -859,12 +859,12 @@ class Explorer:
         cross = _NO_CROSSING if self.checkpoint is not None else (
             self.max_depth - depth - 1 if self.max_depth is not None else _ANY_CROSSING)
         pos, seconds = 0, max(0.05, self.progress_interval)
-        rec, why = self.recorder, 0
+        rec = self.recorder
         while True:
             budget_end = table.n + adm.budget
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
-            graph = None if rec is None else rec.kernel_arrays(limit, why == _K_EDGES)
+            graph = None if rec is None else rec.kernel_arrays(limit)
             e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr = kern(
                 level, first, adm.nxt, pos, self.threads, table.slots, table.fps,
                 table.parents, table.n, int(table.mask), limit, cross, seconds, graph)
@@ -896,8 +896,8 @@ class Explorer:
                 return self._expand_level(adm, level[pos:],
                                           list(range(first + pos, first + len(level))),
                                           depth, report)
-            elif why == _K_EDGES:       # the recorder's transitions: room made above
-                pass
+            elif why == _K_EDGES:       # the recorder's transitions
+                rec.kernel_edges_full()
             elif why:                   # the batches take this chunk
                 if self._expand_level(adm, level[pos:cend], list(range(first + pos, first + cend)),
                                       depth, report) or adm.flush(depth + 1):

@@ -269,21 +269,15 @@ class GraphRecorder:
         changes computed here."""
         return not self.props and self.pend is None and not self.changes_given
 
-    def kernel_arrays(self, limit: int, edges_room: bool = False) -> tuple:
+    def kernel_arrays(self, limit: int) -> tuple:
         """The arrays the kernel writes the graph into (its ``rec``
         argument): the transitions' sources and targets with the count so
         far, the time costs and, with the stall check, the signatures, the
         change flags and whether changes are decided on the successors as
         made.  The state columns have room for states numbered below
-        ``limit``; ``edges_room``: the kernel asked for more room for
-        transitions."""
-        if edges_room:
-            self.src.reserve(2 * len(self.src.a))
-            self.dst.reserve(2 * len(self.dst.a))
-        for g in self._grows():
+        ``limit``."""
+        for g in self._columns().values():
             g.reserve(limit)
-        if self.chg is not None:
-            self.chg.reserve(limit)
         cap = min(len(self.src.a), len(self.dst.a))
         out: tuple = (self.src.a[:cap], self.dst.a[:cap], self.src.n, self.dyn.a)
         if self.sig is not None and self.chg is not None:
@@ -294,10 +288,14 @@ class GraphRecorder:
         """The kernel wrote ``states`` more states' columns and the
         transitions up to ``edges``."""
         self.src.n = self.dst.n = edges
-        for g in self._grows():
+        for g in self._columns().values():
             g.n += states
-        if self.chg is not None:
-            self.chg.n += states
+
+    def kernel_edges_full(self) -> None:
+        """The kernel filled the transition arrays (it stopped, why 5):
+        twice the room."""
+        self.src.reserve(2 * len(self.src.a))
+        self.dst.reserve(2 * len(self.dst.a))
 
     # -- checkpoints (pccl/search/checkpoint.py) -------------------------------------------
     def _columns(self) -> dict:
