@@ -1261,11 +1261,11 @@ static PyObject *table_place(PyObject *self, PyObject *args) {{
   if (bad) {{ PyErr_SetString(PyExc_ValueError, "table arrays of the wrong size"); return NULL; }}
   Py_RETURN_NONE;
 }}
-/* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
 /* 1 into a dynamic state (a TIME ADVANCE), else 0: the graph's time cost */
 static inline unsigned char phase_cost(const V *s) {{
   return s[{V_PHASE}] != {DISCRETE};
 }}
+/* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
 static PyObject *phases(PyObject *self, PyObject *arg) {{
   if (!PyList_Check(arg)) {{ PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }}
   Py_ssize_t n = PyList_GET_SIZE(arg);
