@@ -621,7 +621,7 @@ def _plot_run(m, res, path, *, quiet=False):
                    "global time (ties: fewest transitions) instead of the shortest")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
-                   "comma-separated list of merge, symmetry, por")
+                   "comma-separated list of merge, symmetry, por, dead")
 @click.option("--engine", type=Choice(["auto", "native", "python"]), default="auto",
               show_default=True,
               help="successors in generated C (native, compiled with the system cc) or in "

@@ -96,7 +96,7 @@ def test_never_fired_under_every_reduction(never, reduce):
     if reduce not in ("none", "auto"):
         assert r.model.reduction.on == (reduce,)
     else:
-        assert r.model.reduction.on == (() if reduce == "none" else ("merge", "symmetry", "por"))
+        assert r.model.reduction.on == (() if reduce == "none" else ("merge", "symmetry", "por", "dead"))
     assert r.checked.never_fired == (("Reset", RESET_LINE),)
     # Late is fired only by the agent that lost the race for the token: the
     # symmetric representative must still count it
@@ -282,7 +282,7 @@ def test_blackbox_and_reductions(chdir_root):
     assert r.checked.reductions_on == ()
     r = explore("programs/fischer.pccl", overrides={"k": "0"})
     assert "does not call doReach" in r.checked.covers
-    assert r.checked.reductions_on == ("merge", "symmetry", "por")
+    assert r.checked.reductions_on == ("merge", "symmetry", "por", "dead")
 
 
 # ---------------------------------------------------------------------------

@@ -446,7 +446,7 @@ def test_ctrl_c_during_the_graph_analysis_reports_the_search(monkeypatch):
     def interrupted(*a, **k):
         raise KeyboardInterrupt
     monkeypatch.setattr(liveness, "analyse", interrupted)
-    r = api.explore(str(FISCHER), overrides={"k": "1"})
+    r = api.explore(str(FISCHER), overrides={"k": "1"}, reduce="merge,symmetry,por")
     assert r.status == "interrupted" and r.stats.states > 1000
     assert "interrupted" in r.verdict
 

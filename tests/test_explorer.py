@@ -214,7 +214,7 @@ def test_interrupted_after_violations_reports_them_and_exits_1():
 
 
 def test_interrupted_without_violations_exits_130():
-    m = make_model("programs/fischer.pccl", overrides={"k": "2"})
+    m = make_model("programs/fischer.pccl", overrides={"k": "2"}, reduce="merge,symmetry,por")
     real, calls = m.successors, [0]
 
     def successors(s):

@@ -4,6 +4,7 @@ hardening issue not covered by test_hardening.py)."""
 
 from __future__ import annotations
 
+import re
 import json
 
 import pytest
@@ -79,9 +80,17 @@ def test_initial_states_are_generated_lazily():
 
 
 def test_max_states_bounds_a_huge_rand_declaration(tmp_path):
-    res = cli("explore", write(tmp_path, HUGE_RAND), "--max-states", "10")
+    # (without dead: x is never read, so under auto its values are one state, below)
+    res = cli("explore", write(tmp_path, HUGE_RAND), "--max-states", "10", "--reduce", "merge,por")
     assert res.exit_code == 0, res.output
     assert "stopped by --max-states 10" in res.stdout
+
+
+def test_a_huge_rand_nobody_reads_is_one_initial_state(tmp_path):
+    res = cli("explore", write(tmp_path, HUGE_RAND), "--max-states", "10")
+    assert res.exit_code == 0, res.output
+    assert "no violation — exhaustive" in res.stdout and "reductions merge+symmetry+por+dead" in res.stdout
+    assert re.search(r"initial states +1 ", res.stdout), res.stdout
 
 
 def test_fischer_with_50_agents_is_bounded_by_max_states():
@@ -334,7 +343,8 @@ def test_signals_stop_run_with_the_run_so_far(sig, code, tmp_path):
 
 
 def test_signal_during_initial_states(tmp_path):
-    rc, out, err = _signalled(["explore", write(tmp_path, HUGE_RAND), "--no-progress"], "SIGTERM")
+    rc, out, err = _signalled(["explore", write(tmp_path, HUGE_RAND), "--no-progress",
+                               "--reduce", "merge,por"], "SIGTERM")
     assert rc == 143, (out, err)
     assert "interrupted" in out and "statistics:" in out
 

@@ -163,7 +163,7 @@ def test_header_names_the_engine(tmp_path):
     out = CliRunner().invoke(main, args[:-2]).output     # auto, time-lock check on
     assert head(out).endswith("reductions none, engine native")
     out = CliRunner().invoke(main, args[:7]).output     # the defaults
-    assert head(out).endswith("reductions merge+symmetry+por, engine native")
+    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native")
     # auto where the native engine cannot: the header says why
     out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/formation.pccl"),
                                     "--world", os.path.join(ROOT, "programs/formation.toml"),
@@ -173,7 +173,7 @@ def test_header_names_the_engine(tmp_path):
     # a program that moves runs native
     out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/race.pccl"),
                                     "--no-progress", "--max-states", "50"]).output
-    assert head(out).endswith("reductions merge+symmetry+por, engine native")
+    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native")
 
 
 # -- the batch hooks: one C call per chunk of a level, fingerprints in C -------
@@ -440,7 +440,7 @@ Give():
 def test_the_default_search_runs_native():
     r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1"})
     assert r.model.engine_used == "native" and r.model.engine_reason is None
-    assert set(r.model.reduction.on) == {"merge", "symmetry", "por"} and r.timelock and r.stall
+    assert set(r.model.reduction.on) == {"merge", "symmetry", "por", "dead"} and r.timelock and r.stall
 
 
 @pytest.mark.parametrize("program", PROGRAMS)
@@ -802,11 +802,11 @@ def test_header_names_the_native_engine_with_workers():
     from pccl.cli import main
     args = ["explore", FISCHER, "--set", "k=0", "--set", "d=0", "--no-progress", "--workers"]
     out = CliRunner().invoke(main, args + ["2"]).output
-    assert head(out).endswith("reductions merge+symmetry+por, engine native on 2 threads"), out
+    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native on 2 threads"), out
     assert "states" in out and "Traceback" not in out
     out = CliRunner().invoke(main, args + ["2", "--engine", "native"],
                              env={"PCCL_THREADS": "0"}).output     # worker processes
-    assert head(out).endswith("reductions merge+symmetry+por, engine native"), out
+    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native"), out
 
 
 def test_ray_declines_the_native_engine_with_the_reason():

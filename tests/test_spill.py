@@ -271,7 +271,8 @@ def test_full_disk_while_spilling_is_one_message(tmp_path, monkeypatch, many_spi
     CLI renders it), exit 2."""
     _disk_full_after(monkeypatch, 3)
     with pytest.raises(PcclError) as e:
-        explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path))
+        explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path),
+                reduce="merge,symmetry,por")      # enough states for three writes
     assert e.value.render() == (f"spill: error: the search could not go on spilling to "
                                 f"{tmp_path}: the disk is full")          # the API's spelling
     assert e.value.exit_status == 2
@@ -484,7 +485,8 @@ def test_full_disk_in_a_spilling_worker_is_one_message(where, tmp_path, monkeypa
     _disk_full_after(monkeypatch, 3,
                      here=lambda: (os.getpid() == coordinator) == (where == "coordinator"))
     with pytest.raises(PcclError) as e:
-        explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path), workers=2)
+        explore(FISCHER, overrides={"k": "0", "d": "1"}, spill=str(tmp_path), workers=2,
+                reduce="merge,symmetry,por")
     assert e.value.render() == (f"spill: error: the search could not go on spilling to "
                                 f"{tmp_path}: the disk is full")
     assert e.value.exit_status == 2

@@ -756,7 +756,7 @@ def test_liveness_turns_symmetry_off_and_says_why():
     # every run of tl_spin stays in time 0: no run counts, so it holds (vacuously);
     # the time-lock check is what reports such a program
     assert res.exit_code == 0
-    assert "symmetry off: liveness property `eventually !b` needs real cycles" in res.output
+    assert "symmetry, dead off: liveness property `eventually !b` needs real cycles" in res.output
     assert "  property 'eventually !b': held" in res.output
 
 

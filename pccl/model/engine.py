@@ -242,11 +242,13 @@ class Model(metaclass=ABCMeta):
         self.compiled.stuck_reasons.update(data["stuck"])
 
     # -- the transition system -----------------------------------------------------------
-    def init_states(self):
+    def init_states(self, first_only=frozenset()):
         """The initial configurations (:class:`~pccl.model.initstates.InitSearch`);
-        a world function's value that does not fit is reported at the world file."""
+        a world function's value that does not fit is reported at the world file.
+        ``first_only``: ``loc:`` variables whose ``rand`` initialiser takes only
+        its first outcome (values nothing reads: the dead-variable reduction's)."""
         from pccl.model.compile import FunctionValueError
-        search = InitSearch(self)
+        search = InitSearch(self, first_only)
         search.INIT_DEDUP, search.INIT_LIMIT = self.INIT_DEDUP, self.INIT_LIMIT
         try:
             yield from search.states()

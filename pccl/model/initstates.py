@@ -10,6 +10,7 @@ is this search.
 
 from __future__ import annotations
 
+import itertools
 from typing import Optional
 
 from pccl.model.compile import has_rand
@@ -31,8 +32,10 @@ class InitSearch:
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
 
-    def __init__(self, m):
+    def __init__(self, m, first_only=frozenset()):
         self.m = m
+        #: ``loc:`` variables whose ``rand`` initialiser takes its first outcome only
+        self.first_only = first_only
 
     def states(self):
         """The initial configurations, one per combination of ``rand``
@@ -172,6 +175,8 @@ class InitSearch:
             finally:
                 oracle.agent = None
         results = (oracle.iter_outcomes(guarded) if has_rand(vs.decl.init) else (guarded(),))
+        if vs.section == "loc" and vs.name in self.first_only:
+            results = itertools.islice(results, 1)
         try:
             for res in results:
                 if isinstance(res, R.Err):

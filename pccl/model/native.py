@@ -99,7 +99,8 @@ served); invariants: the same over shared variables, ``count(v)``
 of a per-agent bool, ``forall``/``exists`` with ``v[q]`` indexed by the
 quantified agent, ``N``; no ``rand`` outside declarations; the built-in
 blackboxes (nondet, nondet-fail, instant, straight); every reduction
-(merge, symmetry, por: at most 63 shared and allread variables under por); the time-lock and stall checks; no temporal
+(merge, symmetry, por, dead: at most 63 shared and allread variables under
+por, 63 loc: variables under dead); the time-lock and stall checks; no temporal
 property; int δ.  An int that leaves 64 bits at run time stops the native
 search (:class:`NativeOverflow`); the API then runs the Python engine.
 """
@@ -228,7 +229,7 @@ def _replaced(model) -> Optional[str]:
     want = (model.merger.successors if model.merger is not None
             else model.por.successors if model.por is not None else base.plain_successors)
     for name, fn in (("successors", want), ("violations", base.fast_violations),
-                     ("key", None if "symmetry" in model.reduction.on else base.plain_key)):
+                     ("key", None if {"symmetry", "dead"} & set(model.reduction.on) else base.plain_key)):
         if fn is not None and d.get(name) != fn:
             return f"the model's {name} function was replaced (the Python engine runs it)"
     return None
@@ -820,6 +821,62 @@ class Generator:
         out.append(_POR_C)
         return out
 
+    def dead_c(self) -> list:
+        """C of ``dead_mask(s)`` (:class:`pccl.model.dead.DeadVars`: every
+        agent's dead values in the vector set to DEADV, before the key),
+        over the analysis' tables, every row of them, and the guards."""
+        m = self.m
+        if "dead" not in getattr(getattr(m, "reduction", None), "on", ()):
+            return ["#define DEAD 0", "static void dead_mask(V *s) { (void)s; }"]
+        from pccl.model.dead import DeadVars
+        from pccl.model.reduce import unreduced
+        d = DeadVars(unreduced(m))
+        if d.nloc > 63:
+            raise Unsupported("the dead-variable reduction over more than 63 loc: variables")
+        rows = 1 << len(d.cond)
+        npc = len(m.ctl.cells)
+        u64 = "uint64_t"
+
+        def arr(name: str, vals: list) -> str:
+            return self.c_array(name, u64, vals).replace(",", "ULL,").replace("}", "ULL}")
+        out = ["#define DEAD 1", "#define DEADV (INT64_MIN + 3)", f"#define DROWS {rows}",
+               arr("LIVEPC", [d.live_pc(pc, r) for pc in range(npc) for r in range(rows)]),
+               arr("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)]),
+               f"#define DKEEP {d.keep}ULL", f"#define DALL {d.all}ULL", f"#define DGR {d.guard_reads}ULL",
+               f"#define DTOP {d.top}ULL"]
+        out.append("static void dead_mask(V *s) {")
+        out.append("  uint64_t live, dead; int row; V *b;")
+        for j in range(self.N):
+            a0 = self.AG0 + j * self.A
+            row = " | ".join(f"((s[{a0 + 4 + q}] == 1) << {k})" for k, q in enumerate(d.cond_slots)) or "0"
+            out.append(f"  b = s + {a0}; row = {row};")
+            out.append(f"  if (b[3] == {EXITED}) live = 0;")
+            out.append(f"  else if (b[3] != {RUNNING}) live = DALL;")
+            out.append(f"  else if (b[0] == {m.ctl.empty_pc}) {{")
+            if d.local_guards:
+                out.append("    int o = ovf; uint64_t ev = 0;")
+                for e, ev in enumerate(m.program.events):
+                    hit = f" goto top{j};" if m.first_only else ""
+                    out.append(f"    if ({self.expr(ev.guard, j)}) {{ ev |= 1ULL << {e};{hit} }}")
+                if m.first_only:
+                    out.append(f"  top{j}:")
+                out.append(f"    if (ovf && !o) {{ ovf = 0; ev = {(1 << len(d.events)) - 1}ULL; }}")
+                out.append("    live = DGR;")
+                out.append(f"    for (int e = 0; e < {len(d.events)}; e++) "
+                           "if (ev >> e & 1) live |= LIVEEV[e * DROWS + row];")
+            else:
+                out.append("    live = DTOP;")
+            out.append("  } else live = (uint64_t)b[0] < NPC ? LIVEPC[b[0] * DROWS + row] : DALL;")
+            out.append("  dead = DALL & ~(live | DKEEP);")
+            out.append("  for (int q = 0; q < NLOC; q++) if (dead >> q & 1) b[4 + q] = DEADV;")
+            if self.moves:
+                mv = self.MV
+                out.append(f"  if ((dead >> NLOC & 1) && (b[{mv + 4}] || b[{mv + 5}])) {{ "
+                           f"b[{mv + 1}] = DEADV; b[{mv + 3}] = DEADV; b[{mv + 4}] = DEADV; "
+                           f"b[{mv + 5}] = DEADV; }}")
+        out.append("}")
+        return out
+
     @staticmethod
     def c_array(name: str, ctype: str, vals: list) -> str:
         """A C constant array (one dummy element when ``vals`` is empty)."""
@@ -851,6 +908,7 @@ class Generator:
         out += [f"  case {i}: return agent{i}(s);" for i in range(N)]
         out += ["  }", "  return 0;", "}"]
         out += self.por_c(por)
+        out += self.dead_c()
         # the ample set (Por.successors): the first agent with an execution
         # left whose next step is independent of what the others can still
         # do; else the first spent agent whose next step is a plain statement
@@ -2453,7 +2511,15 @@ static int next_perm(int *a, int n) {
   for (int l = i + 1, h = n - 1; l < h; l++, h--) { t = a[l]; a[l] = a[h]; a[h] = t; }
   return 1;
 }
-static void canon(const V *s, V *out) {
+static void canon(const V *s0, V *out) {
+#if DEAD
+  V dm[NS];
+  memcpy(dm, s0, sizeof dm);
+  dead_mask(dm);
+  const V *s = dm;
+#else
+  const V *s = s0;
+#endif
 #if SYM
   V g[NAG][SIGW];
   int order[NAG], other = 0;

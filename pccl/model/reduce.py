@@ -23,6 +23,7 @@ others are off.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import marshal
 from dataclasses import dataclass, field
@@ -40,7 +41,7 @@ from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, PURE_CALLS, 
                                       Independence, may_wait, property_names)
 
 #: The reductions, in the order they are reported.
-ALL = ("merge", "symmetry", "por")
+ALL = ("merge", "symmetry", "por", "dead")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
@@ -267,6 +268,25 @@ def _plan_por(m, want, p: "Plan", on: list) -> None:
         raise _needs_two("por")
 
 
+def _plan_dead(m, want, p: "Plan", on: list) -> None:
+    """Step of :func:`plan`: turn the dead-variable reduction on unless a
+    liveness property needs real cycles (as under symmetry: a cycle of the
+    quotient returns to its entry only up to the dead values; asking for it
+    then is an error); under ``auto`` only where something can be dead
+    (elsewhere it is not "off" for a reason: there is nothing for it to do)."""
+    from pccl.model.dead import dead_problem
+    live = [t.text for t in getattr(m, "temporal", ()) if t.liveness]
+    if live:
+        why = f"liveness property `{live[0]}` needs real cycles for its lassos"
+        if want is not None:
+            raise PcclError(f"dead reduction is unsound here: {why}; drop it from {{reduce}}",
+                            filename="{reduce}", template=True)
+        p.off["dead"] = why
+        return
+    if want is not None or dead_problem(m) is None:
+        on.append("dead")
+
+
 def plan(m, reduce, uses=()) -> tuple:
     """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
     sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
@@ -291,6 +311,8 @@ def plan(m, reduce, uses=()) -> tuple:
         slots = _plan_symmetry(m, want, p, on)
     if "por" not in limits and (want is None or "por" in want):
         _plan_por(m, want, p, on)
+    if "dead" not in limits and (want is None or "dead" in want):
+        _plan_dead(m, want, p, on)
     p.on = tuple(on)
     return p, slots
 
@@ -301,7 +323,7 @@ def plan(m, reduce, uses=()) -> tuple:
 
 #: What a :class:`Reduced` holds itself; every other attribute is the model's.
 _OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
-                  "merger", "por"})
+                  "merger", "por", "init_states"})
 
 
 class Reduced:
@@ -339,6 +361,14 @@ class Reduced:
             d["successors"] = self.merger.successors
         if "symmetry" in p.on:
             d["key"] = make_symmetric_key(model, slots)
+        if "dead" in p.on:
+            from pccl.model.dead import DeadVars
+            dv = DeadVars(model)
+            d["key"] = dv.key_of(d["key"])
+            unread = dv.never_read()
+            if unread:
+                # every initial value of these is masked: one stands for all
+                d["init_states"] = functools.partial(model.init_states, first_only=unread)
 
     def expand_trace(self, trace):
         """The trace with every merged transition replaced by its steps (for
