@@ -350,7 +350,7 @@ def test_resume_with_other_options_or_program_exits_2(tmp_path):
     assert p.returncode == 2 and "the checkpoint was written for a different program" in p.stderr
     p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--reduce", "none",
              "--resume", d)
-    assert p.returncode == 2 and "reductions merge+symmetry+por, this run has " \
+    assert p.returncode == 2 and "reductions merge+symmetry+por+dead, this run has " \
                                  "reductions none" in p.stderr
 
 
@@ -434,7 +434,8 @@ def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     d = str(tmp_path / "ck")
     # the Python engine: the native one ends this search before its first
     # progress line (its checkpoints: the native tests below)
-    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--engine", "python", "--progress",
+    args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--engine", "python",
+            "--reduce", "merge,symmetry,por", "--progress",
             "--progress-interval", "0.2", "--format", "json"]
     # signal once the search is under way (a progress line with its frontier)
     rc, out, err = interrupted([*args, "--checkpoint", d], "SIGTERM", cwd=ROOT, ready="frontier")
@@ -443,7 +444,8 @@ def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
     assert rc == 143, err
     assert json.loads(out)["status"] == "interrupted"
     assert f"pccl: checkpoint written to {d}; resume with: pccl explore programs/fischer.pccl " \
-           f"--set k=2 --engine python --progress --progress-interval 0.2 --format json " \
+           f"--set k=2 --engine python --reduce merge,symmetry,por --progress --progress-interval 0.2 " \
+           f"--format json " \
            f"--resume {d}" in err
     p = _cli(*args, "--resume", d)
     q = _cli(*args)
@@ -557,7 +559,8 @@ def test_workers_checkpoints_append_the_rows_added_since_the_last(tmp_path):
     only); the generations named keep only the parts named; resumed with 2
     or 3 workers, the uninterrupted result; resumed with 3, the partitions
     (dealt out again) are written whole at first."""
-    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, max_states=20_000)
+    program, opts = f"{PROG}/fischer.pccl", dict(overrides={"k": "1"}, max_states=20_000,
+                                                 reduce="merge,symmetry,por")
     full = par_summary(api.explore(program, workers=2, **opts))
     d = str(tmp_path / "ck")
     r = api.explore(program, checkpoint=d, checkpoint_interval=0, progress=_Interrupt(40),
@@ -973,9 +976,10 @@ def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_p
 #: line; three agents take 2.5-5 s.)
 _NATIVE_KILLED = [
     ("violation", "violation", ["programs/fischer.pccl", "--agents", "3", "--set", "k=1",
-                                "--set", "d=2", "--invariant", "count(inCs)<=1", "--all"]),
+                                "--set", "d=2", "--invariant", "count(inCs)<=1", "--all",
+                                "--reduce", "merge,symmetry,por"]),
     ("exhaustive", "exhaustive", ["programs/fischer.pccl", "--agents", "3", "--set", "k=1",
-                                  "--set", "d=2"]),
+                                  "--set", "d=2", "--reduce", "merge,symmetry,por"]),
     # a program that moves: the checkpoint keeps its interned values (positions,
     # lists), which the resumed process's states name by id
     ("robots", "bounded", ["programs/race_robust.pccl", "--world", "programs/race.toml",

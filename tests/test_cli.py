@@ -356,7 +356,8 @@ PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  fronti
 def test_explore_progress_not_a_terminal_plain_timestamped_lines():
     """stderr is not a terminal (CliRunner, like CI or nohup): timestamped
     lines, the header first, no carriage return and no escape code."""
-    res = cli("explore", FISCHER, "--max-states", "600000", "--progress-interval", "0.05")
+    res = cli("explore", FISCHER, "--max-states", "600000", "--progress-interval", "0.05",
+              "--reduce", "merge,symmetry,por")
     err = res.stderr
     assert "\r" not in err and "\x1b" not in err
     lines = err.splitlines()
@@ -417,7 +418,8 @@ def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers
     # figures means the search loop (and its SIGINT handler) is running.
     proc = subprocess.Popen(
         [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER), "--agents", "3",
-         "--set", "k=2", "--progress", "--progress-interval", "0.2", "--workers", workers],
+         "--set", "k=2", "--reduce", "merge,symmetry,por", "--progress", "--progress-interval", "0.2",
+         "--workers", workers],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     seen = []
     deadline = time.monotonic() + 120

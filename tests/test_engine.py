@@ -308,10 +308,13 @@ def test_run_summary_one_entry_per_time_step():
 # ---------------------------------------------------------------------------
 
 def test_init_states_deterministic_and_distinct():
-    m = make_model(FISCHER, overrides={"k": "2"})
+    m = make_model(FISCHER, overrides={"k": "2"}, reduce="none")
     a, b = list(m.init_states()), list(m.init_states())
     assert a == b
     assert len(a) == len(set(a)) == 3 * 3 * 6 * 6
+    # under dead, the cstime nobody reads takes one value: 3 * 3 waitTimes
+    m = make_model(FISCHER, overrides={"k": "2"})
+    assert "dead" in m.reduction.on and len(set(m.init_states())) == 3 * 3
 
 
 def test_key_hashable_and_stable_and_abstracts_time():

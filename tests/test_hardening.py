@@ -445,7 +445,8 @@ def test_ctrl_c_during_run_exits_130(monkeypatch):
 @pytest.mark.parametrize("sig, code", [("SIGTERM", 143), ("SIGINT", 130)])
 def test_signals_stop_explore_with_their_status(sig, code):
     # the Python engine: the native one may end the search before the signal
-    rc, out, err = interrupted(["explore", FISCHER, "--no-progress", "--engine", "python"], sig)
+    rc, out, err = interrupted(["explore", FISCHER, "--no-progress", "--engine", "python",
+                                "--reduce", "merge,symmetry,por"], sig)
     assert rc == code, (out, err)
     assert "interrupted" in out and "statistics:" in out
     assert "Traceback" not in out + err
@@ -456,6 +457,7 @@ def test_signals_stop_a_native_search_with_their_status(sig, code):
     """A signal in the middle of the native engine's search (a progress
     line seen) prints the header, the statistics and the interrupted verdict."""
     rc, out, err = interrupted(["explore", FISCHER, "--agents", "3", "--set", "k=2", "--set", "d=2",
+                                "--reduce", "merge,symmetry,por",
                                 "--progress", "--progress-interval", "0.2"], sig,
                                ready="frontier", after=0.5)
     assert rc == code, (out, err)

@@ -228,7 +228,7 @@ def test_kernel_records_across_a_grown_edge_array(monkeypatch):
     goes on, and the graph is the batches'."""
     from pccl.search import explorer
     monkeypatch.setattr(explorer, "_reserve", lambda shape, dtype: None)
-    nm = native(FISCHER, agents=3, overrides={"k": "0", "d": "1"})
+    nm = native(FISCHER, agents=3, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     want = record(Batches(nm))
     c = Counted(nm)
     got = record(c, 2)
@@ -256,7 +256,7 @@ def test_kernel_stops_where_the_batches_stop(bound):
 def test_kernel_grows_the_table_as_it_admits():
     """A search of 100,000s of states: the index is rebuilt several times
     between the kernel's calls (it stops for room and is called again)."""
-    nm = native(FISCHER, agents=3, overrides={"k": "1", "d": "1"})
+    nm = native(FISCHER, agents=3, overrides={"k": "1", "d": "1"}, reduce="merge,symmetry,por")
     want = search(Batches(nm))
     assert want[0][2] > 200_000
     c = Counted(nm)

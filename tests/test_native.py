@@ -463,7 +463,7 @@ def test_fischer_default_equal(k, d, inv, n):
         kw["invariants"] = (inv,)
     py, nat = both(os.path.join(ROOT, "programs/fischer.pccl"), **kw)
     assert nat == py
-    assert py["states"] > 2_000
+    assert py["states"] > 150          # (dead: Fischer's unread cstime leaves the key)
     if inv == "count(inCs) <= 1":
         assert py["status"] == "violation"
 
@@ -767,7 +767,8 @@ def test_native_workers_balance_large_levels(workers, monkeypatch):
     monkeypatch.setattr(P, "_BALANCE_NATIVE", True)       # PCCL_BALANCE=1
     monkeypatch.setattr(P, "_MIN_GIVE", 2)
     monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
-    m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,))     # reduced: symmetry
+    m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,),     # reduced: symmetry
+                   reduce="merge,symmetry,por")       # (dead leaves too few states to move)
     m.lock_deadlocks = True
     nm = NV.NativeModel(m)
     one = Explorer(nm, max_states=20_000).run()

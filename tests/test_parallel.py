@@ -111,7 +111,7 @@ def test_owner_keeps_the_smallest_key_of_equal_fingerprints():
 def test_discarded_states_are_freed():
     """States the pipes transport frees while waiting do not outlive the search."""
     from pccl.search import parallel as P
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     r = ParallelExplorer(m, workers=2).run()
     assert r.stats.states > 1000 and P._LITTER == []
 
@@ -153,7 +153,8 @@ def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fa
     monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
     for opts in (dict(overrides={"k": "0", "d": "1"}, max_states=3000),
                  dict(overrides={"k": "1"}, invariants=[MUTEX], find_all=True, max_states=4000)):
-        m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()))
+        m = make_model(FISCHER, overrides=opts["overrides"], invariants=opts.get("invariants", ()),
+                       reduce="merge,symmetry,por")
         run = {k: v for k, v in opts.items() if k in ("max_states", "find_all")}
         if fastest:
             from pccl.search.fastest import FastestExplorer
@@ -173,7 +174,7 @@ def test_small_levels_are_not_balanced():
     for work costs a wait for the other worker): nothing moves, even with
     one worker slowed down."""
     from pccl.search import parallel as P
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     e = ParallelExplorer(_SlowIn(m, False, 0.0002), workers=2, max_states=2000)
     assert e.run().stats.states == 2000
     assert e.moved == 0 and P._BALANCE_LEVEL > 1000
@@ -491,7 +492,7 @@ def test_workers_hand_over_the_graph_the_one_process_search_records(chunk, monke
     from pccl.search import parallel as P
     if chunk is not None:
         monkeypatch.setattr(P, "_GRAPH_CHUNK", chunk)
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"},
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry",
                    properties=["reachable count(inCs) == 1"])
     graphs = []
     for w in (1, 2, 3):
@@ -521,7 +522,7 @@ def test_kept_workers_number_states_for_the_replay_until_closed(workers):
     import numpy as np
     from pccl.search import liveness as L
     from pccl.search.explorer import FingerprintTable
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     one = Explorer(m, recorder=L.make_recorder(m, True))
     one.run()
     kept = ParallelExplorer(m, workers=workers, recorder=L.make_recorder(m, True))

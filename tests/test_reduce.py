@@ -268,7 +268,7 @@ def test_fischer_figures():
     merge = explore(str(PROGRAMS / "fischer.pccl"), reduce="merge", **kw)
     auto = explore(str(PROGRAMS / "fischer.pccl"), reduce="auto", **kw)
     por = explore(str(PROGRAMS / "fischer.pccl"), reduce="por", **kw)
-    assert auto.model.reduction.on == ("merge", "symmetry", "por")
+    assert auto.model.reduction.on == ("merge", "symmetry", "por", "dead")
     assert none.status == merge.status == auto.status == por.status == "exhaustive"
     assert none.stats.states > 2 * por.stats.states
     assert none.stats.states > 3 * merge.stats.states
@@ -431,7 +431,7 @@ def test_symmetric_properties_and_sentinels_keep_symmetry():
         """)
     props = ["forall i: forall j: (mine[i] && mine[j]) -> i == j", "count(mine) <= 1"]
     plan = reasons(text, invariants=tuple(props), blackbox="instant", agents=3)
-    assert plan.on == ("merge", "symmetry", "por")
+    assert plan.on == ("merge", "symmetry", "por", "dead")
     base = explore(text, source=True, blackbox="instant", agents=3, invariants=props,
                    reduce="none", find_all=True)
     res = explore(text, source=True, blackbox="instant", agents=3, invariants=props,
@@ -514,7 +514,7 @@ def test_cli_header_and_json_name_the_reductions():
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--invariant", "!inCs[0]",
              "--format", "json", "--reduce", "auto")
     data = json.loads(r.stdout)
-    assert data["reductions"]["on"] == ["merge", "por"]
+    assert data["reductions"]["on"] == ["merge", "por", "dead"]
     assert "inCs[0] names agent 0" in data["reductions"]["off"]["symmetry"]
     r = pccl("explore", "programs/fischer.pccl", "--reduce", "symmetry", "--invariant", "!inCs[0]")
     assert r.returncode == 2 and "symmetry reduction is unsound" in r.stderr
@@ -523,7 +523,7 @@ def test_cli_header_and_json_name_the_reductions():
 def test_coverage_turns_the_reductions_off_with_a_reason():
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--coverage")
     head = r.stdout.splitlines()[0]
-    assert "reductions none; merge, symmetry, por off: --coverage counts the unreduced" in head
+    assert "reductions none; merge, symmetry, por, dead off: --coverage counts the unreduced" in head
     none = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--coverage",
                 "--reduce", "none")
 
@@ -540,7 +540,7 @@ def test_coverage_turns_the_reductions_off_with_a_reason():
 
 def test_reduced_counts_say_so():
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0")
-    assert "states" in r.stdout and "(reduced: merge+symmetry+por)" in r.stdout
+    assert "states" in r.stdout and "(reduced: merge+symmetry+por+dead)" in r.stdout
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--format", "json")
     assert json.loads(r.stdout)["statistics"]["reduced"] is True
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--reduce", "none")

@@ -46,7 +46,7 @@ def test_a_property_option_violation_is_recorded_and_reproduced(tmp_path):
     doc = json.loads(t.read_text())
     assert doc["config"]["property_options"] == ["count(inCs) <= 1"]
     assert doc["config"]["invariants"] == []
-    assert doc["config"]["reductions"] == ["merge", "symmetry", "por"]
+    assert doc["config"]["reductions"] == ["merge", "symmetry", "por", "dead"]
     n = len(doc["steps"])
     res = cli("replay", t)
     assert res.exit_code == 1, res.output

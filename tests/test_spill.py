@@ -104,7 +104,7 @@ def test_spilled_search_gives_the_in_memory_result(name, tmp_path, many_spills):
 
 
 def test_spill_files_are_removed_with_the_search(tmp_path, many_spills):
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     ex = Explorer(m, spill=str(tmp_path))
     r = ex.run()
     assert r.status == "exhaustive" and ex.spiller.table.disk.merges >= 2
@@ -123,7 +123,7 @@ def test_spill_files_are_removed_with_the_search(tmp_path, many_spills):
 
 def test_spilled_table_answers_as_the_in_memory_one(tmp_path, many_spills):
     """Every state's parent and fingerprint lookup, disk against memory."""
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     a, b = Explorer(m), Explorer(m, spill=str(tmp_path))
     a.run(), b.run()
     n = a.table.n
@@ -379,7 +379,7 @@ def test_spilling_workers_answer_as_the_in_memory_ones(tmp_path, many_spills):
     the workers hand over (their partitions read back) equals the in-memory
     workers', and the replay's lookups find every state."""
     from pccl.search.parallel import ParallelExplorer
-    m = make_model(FISCHER, overrides={"k": "0", "d": "1"})
+    m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     a = ParallelExplorer(m, workers=2)
     b = ParallelExplorer(m, workers=2, spill=str(tmp_path), max_states=5000)
     ra, rb = a.run(), ParallelExplorer(m, workers=2, max_states=5000).run()
