@@ -306,7 +306,8 @@ class DeadVars:
             live = 0
         elif status != RUNNING:
             return 0
-        elif ag[PC] == self.ctl.empty_pc:
+        elif ag[PC] == self.ctl.empty_pc or ag[PC] == self.ctl.idle_pc:
+            # (at endEventBlock the locals are the ones the top will see)
             if self.local_guards:
                 k = (i, ag[LOC])
                 got = self._top.get(k)

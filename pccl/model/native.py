@@ -852,7 +852,7 @@ class Generator:
             out.append(f"  b = s + {a0}; row = {row};")
             out.append(f"  if (b[3] == {EXITED}) live = 0;")
             out.append(f"  else if (b[3] != {RUNNING}) live = DALL;")
-            out.append(f"  else if (b[0] == {m.ctl.empty_pc}) {{")
+            out.append(f"  else if (b[0] == {m.ctl.empty_pc} || b[0] == {m.ctl.idle_pc}) {{")
             if d.local_guards:
                 out.append("    int o = ovf; uint64_t ev = 0;")
                 for e, ev in enumerate(m.program.events):
