@@ -55,8 +55,9 @@ DEAD = ("<dead>",)
 
 _FLAGS = ("doReach_done", "doReach_fail")
 
-#: At most this many values index the liveness tables (2 ** MAX_COND rows).
-MAX_COND = 6
+#: At most this many values index the liveness tables (2 ** MAX_COND rows per pc
+#: and per event, in the generated C too).
+MAX_COND = 4
 
 #: Operators deep the walk evaluates a condition before it calls it unknown.
 EVAL_DEPTH = 64

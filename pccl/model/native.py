@@ -822,12 +822,13 @@ class Generator:
         return out
 
     def dead_c(self) -> list:
-        """C of ``dead_mask(s)`` (:class:`pccl.model.dead.DeadVars`: every
-        agent's dead values in the vector set to DEADV, before the key),
-        over the analysis' tables, every row of them, and the guards."""
+        """C of ``dead_bits(s, d)`` and ``dead_apply(s, d)`` (:class:`pccl.model.dead.DeadVars`:
+        every agent's dead values in the vector set to DEADV, before the
+        key; no copy of a state where nothing is dead), over the analysis'
+        tables, every row of them, and the guards."""
         m = self.m
         if "dead" not in getattr(getattr(m, "reduction", None), "on", ()):
-            return ["#define DEAD 0", "static void dead_mask(V *s) { (void)s; }"]
+            return ["#define DEAD 0"]
         from pccl.model.dead import DeadVars
         from pccl.model.reduce import unreduced
         d = DeadVars(unreduced(m))
@@ -840,21 +841,22 @@ class Generator:
         def arr(name: str, vals: list) -> str:
             return self.c_array(name, u64, vals).replace(",", "ULL,").replace("}", "ULL}")
         out = ["#define DEAD 1", "#define DEADV (INT64_MIN + 3)", f"#define DROWS {rows}",
-               arr("LIVEPC", [d.live_pc(pc, r) for pc in range(npc) for r in range(rows)]),
                arr("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)]),
                f"#define DKEEP {d.keep}ULL", f"#define DALL {d.all}ULL", f"#define DGR {d.guard_reads}ULL",
                f"#define DTOP {d.top}ULL"]
-        out.append("static void dead_mask(V *s) {")
-        out.append("  uint64_t live, dead; int row; V *b;")
+        # dead_bits: per agent the mask of its dead values (nonzero: some)
+        out.append(arr("DEADPC", [d.all & ~(d.live_pc(pc, r) | d.keep)
+                                  for pc in range(npc) for r in range(rows)]))
+        out.append("static int dead_bits(const V *s, uint64_t *d) {")
+        out.append("  uint64_t live; int row; uint64_t any = 0; const V *b;")
         for j in range(self.N):
             a0 = self.AG0 + j * self.A
             row = " | ".join(f"((s[{a0 + 4 + q}] == 1) << {k})" for k, q in enumerate(d.cond_slots)) or "0"
-            out.append(f"  b = s + {a0}; row = {row};")
-            out.append(f"  if (b[3] == {EXITED}) live = 0;")
-            out.append(f"  else if (b[3] != {RUNNING}) live = DALL;")
+            out.append(f"  b = s + {a0};")
+            out.append(f"  if (b[3] != {RUNNING}) d[{j}] = b[3] == {EXITED} ? DALL & ~DKEEP : 0;")
             out.append(f"  else if (b[0] == {m.ctl.empty_pc} || b[0] == {m.ctl.idle_pc}) {{")
             if d.local_guards:
-                out.append("    int o = ovf; uint64_t ev = 0;")
+                out.append(f"    int o = ovf; uint64_t ev = 0; row = {row};")
                 for e, ev in enumerate(m.program.events):
                     hit = f" goto top{j};" if m.first_only else ""
                     out.append(f"    if ({self.expr(ev.guard, j)}) {{ ev |= 1ULL << {e};{hit} }}")
@@ -864,17 +866,30 @@ class Generator:
                 out.append("    live = DGR;")
                 out.append(f"    for (int e = 0; e < {len(d.events)}; e++) "
                            "if (ev >> e & 1) live |= LIVEEV[e * DROWS + row];")
+                out.append(f"    d[{j}] = DALL & ~(live | DKEEP);")
             else:
-                out.append("    live = DTOP;")
-            out.append("  } else live = (uint64_t)b[0] < NPC ? LIVEPC[b[0] * DROWS + row] : DALL;")
-            out.append("  dead = DALL & ~(live | DKEEP);")
-            out.append("  for (int q = 0; q < NLOC; q++) if (dead >> q & 1) b[4 + q] = DEADV;")
-            if self.moves:
-                mv = self.MV
-                out.append(f"  if ((dead >> NLOC & 1) && (b[{mv + 4}] || b[{mv + 5}])) {{ "
-                           f"b[{mv + 1}] = DEADV; b[{mv + 3}] = DEADV; b[{mv + 4}] = DEADV; "
-                           f"b[{mv + 5}] = DEADV; }}")
+                out.append(f"    d[{j}] = DALL & ~(DTOP | DKEEP);")
+            out.append(f"  }} else {{ row = {row}; "
+                       f"d[{j}] = (uint64_t)b[0] < NPC ? DEADPC[b[0] * DROWS + row] : 0; }}")
+            if self.moves:      # a reach is masked only where the robot has arrived or failed
+                out.append(f"  if (!(b[{self.MV + 4}] || b[{self.MV + 5}])) d[{j}] &= ~(1ULL << NLOC);")
+            out.append(f"  any |= d[{j}];")
+        out.append("  return any != 0;")
         out.append("}")
+        # dead_apply: those values set to DEADV (the reach: target, t0, flags)
+        mv = self.MV
+        reach = (f"b[{mv + 1}] = DEADV; b[{mv + 3}] = DEADV; b[{mv + 4}] = DEADV; b[{mv + 5}] = DEADV;"
+                 if self.moves else "")
+        out += ["static void dead_apply(V *s, const uint64_t *d) {",
+                "  for (int j = 0; j < NAG; j++) {",
+                "    uint64_t x = d[j];",
+                "    if (!x) continue;",
+                "    V *b = s + AG0 + AW * j;",
+                f"    if (x >> NLOC & 1) {{ {reach} }}",
+                "    x &= ~(1ULL << NLOC);",
+                "    while (x) { b[4 + __builtin_ctzll(x)] = DEADV; x &= x - 1; }",
+                "  }",
+                "}"]
         return out
 
     @staticmethod
@@ -2513,10 +2528,10 @@ static int next_perm(int *a, int n) {
 }
 static void canon(const V *s0, V *out) {
 #if DEAD
+  uint64_t dd[NAG];
   V dm[NS];
-  memcpy(dm, s0, sizeof dm);
-  dead_mask(dm);
-  const V *s = dm;
+  const V *s = s0;
+  if (dead_bits(s0, dd)) { memcpy(dm, s0, sizeof dm); dead_apply(dm, dd); s = dm; }
 #else
   const V *s = s0;
 #endif

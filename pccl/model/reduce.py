@@ -323,7 +323,7 @@ def plan(m, reduce, uses=()) -> tuple:
 
 #: What a :class:`Reduced` holds itself; every other attribute is the model's.
 _OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
-                  "merger", "por", "init_states"})
+                  "merger", "por", "init_states", "dead_reach"})
 
 
 class Reduced:
@@ -365,6 +365,8 @@ class Reduced:
             from pccl.model.dead import DeadVars
             dv = DeadVars(model)
             d["key"] = dv.key_of(d["key"])
+            #: a robot's reach (in the stall signature) can be masked
+            d["dead_reach"] = bool(dv.all & ~dv.keep & dv.reach_bit)
             unread = dv.never_read()
             if unread:
                 # every initial value of these is masked: one stands for all

@@ -187,9 +187,10 @@ class GraphRecorder:
         self.sig: Optional[_Grow] = None
         self.chg: Optional[_Grow] = None
         #: edges() wants the successor states themselves: under symmetry a
-        #: state number stands for a renamed state (under dead, one whose
-        #: dead values differ), so a transition's change is decided on the
-        #: actual successor
+        #: state number stands for a renamed state (under dead, where a
+        #: robot's reach can be masked, one whose target and flags, which
+        #: the signature holds, may differ), so a transition's change is
+        #: decided on the actual successor
         self.wants_candidates = False
         #: the parallel search computes the changes in its workers
         #: (:meth:`put_changes`), not from the edges
@@ -199,7 +200,8 @@ class GraphRecorder:
             self.sig = _Grow(np.int64)
             self.chg = _Grow(np.uint8)
             red = getattr(model, "reduction", None)
-            self.wants_candidates = bool({"symmetry", "dead"} & set(getattr(red, "on", ())))
+            self.wants_candidates = ("symmetry" in getattr(red, "on", ())
+                                     or bool(getattr(model, "dead_reach", False)))
 
     def _grows(self) -> list:
         return [g for g in (self.dyn, self.bits, self.pend, self.sig) if g is not None]
