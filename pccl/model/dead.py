@@ -397,11 +397,8 @@ class DeadVars:
         return dead_key
 
 
-def dead_problem(m) -> Optional[str]:
-    """Why no variable can ever be dead in ``m`` (the reduction has nothing
-    to do), or None."""
+def can_be_dead(m) -> bool:
+    """Whether some value of ``m`` can ever be masked (a ``loc:`` variable no
+    property reads, or a robot's reach): else the reduction has nothing to do."""
     d = DeadVars(m)
-    if d.all & ~d.keep:
-        return None
-    return ("no loc: variable, or every one is read by a property" if d.nloc
-            else "no loc: variable")
+    return bool(d.all & ~d.keep)

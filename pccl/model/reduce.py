@@ -257,11 +257,8 @@ def _plan_por(m, want, p: "Plan", on: list) -> None:
     if temporal:
         # the ample-set conditions here are proven for state properties
         # only (docs/reductions.md); paths need a stronger cycle proviso
-        why = f"temporal property `{temporal[0]}` (por is proven for invariants only)"
-        if want is not None:
-            raise PcclError(f"por reduction is unsound here: {why}; drop it from {{reduce}}",
-                            filename="{reduce}", template=True)
-        p.off["por"] = why
+        _unsound("por", f"temporal property `{temporal[0]}` (por is proven for invariants only)",
+                 want, p)
     elif m.N >= 2:
         on.append("por")
     elif want is not None:
@@ -274,17 +271,21 @@ def _plan_dead(m, want, p: "Plan", on: list) -> None:
     quotient returns to its entry only up to the dead values; asking for it
     then is an error); under ``auto`` only where something can be dead
     (elsewhere it is not "off" for a reason: there is nothing for it to do)."""
-    from pccl.model.dead import dead_problem
+    from pccl.model.dead import can_be_dead
     live = [t.text for t in getattr(m, "temporal", ()) if t.liveness]
     if live:
-        why = f"liveness property `{live[0]}` needs real cycles for its lassos"
-        if want is not None:
-            raise PcclError(f"dead reduction is unsound here: {why}; drop it from {{reduce}}",
-                            filename="{reduce}", template=True)
-        p.off["dead"] = why
-        return
-    if want is not None or dead_problem(m) is None:
+        _unsound("dead", f"liveness property `{live[0]}` needs real cycles for its lassos", want, p)
+    elif want is not None or can_be_dead(m):
         on.append("dead")
+
+
+def _unsound(name: str, why: str, want, p: "Plan") -> None:
+    """Reduction ``name`` is unsound here (``why``): an error when it was
+    asked for by name, else off with the reason."""
+    if want is not None:
+        raise PcclError(f"{name} reduction is unsound here: {why}; drop it from {{reduce}}",
+                        filename="{reduce}", template=True)
+    p.off[name] = why
 
 
 def plan(m, reduce, uses=()) -> tuple:
