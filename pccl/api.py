@@ -29,6 +29,7 @@ from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, sp
 from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
                                 api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
+from pccl.model.compile import program_moves  # noqa: F401  (part of the API)
 from pccl.output.results import Finding, StateView, StepView
 from pccl.tools.runner import RunResult, run as _run
 from pccl.search.memory import format_size, parse_size  # noqa: F401  (parse_size: part of the API)
@@ -134,14 +135,6 @@ EXPLORE_MOVING_DEFAULT = "nondet"
 MOVING_DEFAULT_REASON = "default for programs that move"
 #: Shipped blackboxes with exactly one outcome per step (fixed travel times).
 DETERMINISTIC_BLACKBOXES = frozenset({"instant", "straight", "pymunk"})
-
-
-def program_moves(prog: A.Program) -> bool:
-    """Whether ``prog`` calls doReach anywhere (Init or an event)."""
-    stmts = list(A.walk_stmts(prog.init))
-    for ev in prog.events:
-        stmts.extend(A.walk_stmts(ev.body))
-    return any(isinstance(s, A.CallStmt) and s.name == "doReach" for s in stmts)
 
 
 def explore_blackbox(prog: A.Program, blackbox=None):

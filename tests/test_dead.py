@@ -17,7 +17,7 @@ from pccl.api import explore, make_model
 from pccl.model.dead import DEAD, DeadVars
 from pccl.model.layout import AGS, DONE, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, STATUS
 
-from conftest import ROOT
+from conftest import ROOT, reachable
 from test_fingerprints import programs
 
 RACE = os.path.join(ROOT, "programs/race_robust.pccl")
@@ -65,18 +65,8 @@ def dead_names(m, st, i=0) -> set:
 
 
 def states(m, limit=500) -> list:
-    seen, level, out = set(), list(m.init_states()), []
-    while level and len(out) < limit:
-        nxt = []
-        for st in level:
-            k = m.model.plain_key(st)
-            if k in seen:
-                continue
-            seen.add(k)
-            out.append(st)
-            nxt += [s for _, s in m.model.plain_successors(st)]
-        level = nxt
-    return out
+    """Reachable states of the unreduced model behind ``m`` (its rules' identity)."""
+    return reachable(m.model, limit)
 
 
 def test_dead_values_at_the_top_depend_on_the_next_events():

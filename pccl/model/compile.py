@@ -283,6 +283,14 @@ class Oracle:
 _STATUS_TEST = {"running": "== 0", "exited": "== 1", "stuck": ">= 2"}
 
 
+def program_moves(prog: A.Program) -> bool:
+    """Whether ``prog`` calls doReach anywhere (Init or an event)."""
+    stmts = list(A.walk_stmts(prog.init))
+    for ev in prog.events:
+        stmts.extend(A.walk_stmts(ev.body))
+    return any(isinstance(s, A.CallStmt) and s.name == "doReach" for s in stmts)
+
+
 def has_rand(node) -> bool:
     """Does evaluating ``node`` draw a ``rand()``?  ``node`` is an expression,
     a statement (its own expressions: an if's conditions, not its branches),

@@ -40,6 +40,7 @@ from __future__ import annotations
 from typing import Any, Optional
 
 from pccl.lang import ast as A
+from pccl.model.compile import has_rand, program_moves
 from pccl.model.independence import local_guards, property_names
 from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, STATUS,
                                acquire_sid, is_acquire)
@@ -85,9 +86,7 @@ class DeadVars:
         for name in visible:
             keep |= self.bit.get(name, 0)
         bb = getattr(getattr(m, "blackbox", None), "name", None)
-        moves = any(isinstance(s, A.CallStmt) and s.name == "doReach"
-                    for s in comp.stmts.values())
-        if not moves or bb not in REACH_BLACKBOXES or visible & set(_FLAGS):
+        if not program_moves(m.program) or bb not in REACH_BLACKBOXES or visible & set(_FLAGS):
             keep |= self.reach_bit
         #: never masked: read by a property, or (the reach) where a blackbox may tell
         self.keep = keep
@@ -108,13 +107,17 @@ class DeadVars:
                 break
             top = new
         self.top = top
-        #: per event: live at the entry of its body (then the top)
         #: the values the tables are indexed by (:meth:`_cond_vars`)
         self.cond = self._cond_vars(m)
         self.cond_slots = [lay.vars[name].slot for name in self.cond]
         self._pc: dict = {}
         self._ev: dict = {}
         self._top: dict = {}      # (agent, locals) -> live at the top
+
+    @property
+    def reach_masked(self) -> bool:
+        """Whether a robot's reach (in the stall signature) can be masked."""
+        return bool(self.all & ~self.keep & self.reach_bit)
 
     # -- reads and the backwards pass ------------------------------------------------
     def _reads(self, e) -> int:
@@ -289,10 +292,8 @@ class DeadVars:
         return got
 
     def live_top(self, enabled, idx: int) -> int:
-        """Live at the top of the block when ``enabled`` (event indexes, or
-        None: any) are the events the agent can select next."""
-        if enabled is None or not self.local_guards:
-            return self.top
+        """Live at the top of the block when ``enabled`` (event indexes) are
+        the events the agent can select next (local guards: else :attr:`top`)."""
         live = self.guard_reads
         for e in enabled:
             live |= self.entry(e, idx)
@@ -345,7 +346,6 @@ class DeadVars:
         takes one outcome of their ``rand`` (a ``rand(100000000)`` nobody
         reads would otherwise be a hundred million initial states that are
         one)."""
-        from pccl.model.compile import has_rand
         prog = self.m.program
         read: set = set()
         exprs = [d.init for d in prog.decls if isinstance(d, A.VarDecl) and d.init is not None]

@@ -831,7 +831,7 @@ class Generator:
             return ["#define DEAD 0"]
         from pccl.model.dead import DeadVars
         from pccl.model.reduce import unreduced
-        d = DeadVars(unreduced(m))
+        d = getattr(m, "dead_vars", None) or DeadVars(unreduced(m))   # the Reduced's own tables
         if d.nloc > 63:
             raise Unsupported("the dead-variable reduction over more than 63 loc: variables")
         rows = 1 << len(d.cond)

@@ -324,7 +324,7 @@ def plan(m, reduce, uses=()) -> tuple:
 
 #: What a :class:`Reduced` holds itself; every other attribute is the model's.
 _OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
-                  "merger", "por", "init_states", "dead_reach"})
+                  "merger", "por", "init_states", "dead_vars"})
 
 
 class Reduced:
@@ -364,10 +364,8 @@ class Reduced:
             d["key"] = make_symmetric_key(model, slots)
         if "dead" in p.on:
             from pccl.model.dead import DeadVars
-            dv = DeadVars(model)
+            d["dead_vars"] = dv = DeadVars(model)
             d["key"] = dv.key_of(d["key"])
-            #: a robot's reach (in the stall signature) can be masked
-            d["dead_reach"] = bool(dv.all & ~dv.keep & dv.reach_bit)
             unread = dv.never_read()
             if unread:
                 # every initial value of these is masked: one stands for all

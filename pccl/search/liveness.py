@@ -201,7 +201,7 @@ class GraphRecorder:
             self.chg = _Grow(np.uint8)
             red = getattr(model, "reduction", None)
             self.wants_candidates = ("symmetry" in getattr(red, "on", ())
-                                     or bool(getattr(model, "dead_reach", False)))
+                                     or getattr(getattr(model, "dead_vars", None), "reach_masked", False))
 
     def _grows(self) -> list:
         return [g for g in (self.dyn, self.bits, self.pend, self.sig) if g is not None]
