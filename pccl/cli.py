@@ -1293,7 +1293,9 @@ def _progress_printer(header: str, progress, interval: float, *, stream=None, tt
 
 def _progress_figures(p, rate) -> str:
     t = p.get("max_time")
-    return (f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
+    init = p.get("initial_candidates")
+    return ((f"initial configurations generated {init:,}  " if init is not None else "")
+            + f"states {p['states']:,}  frontier {p['frontier']:,}  depth {p['depth']}  "
             + (f"t {D.fmt_time(t)}  " if t is not None else "")
             + f"{rate:,.0f} states/s  mem {p['memory'] / 2**20:,.0f} MiB")
 

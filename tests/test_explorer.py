@@ -263,3 +263,45 @@ def test_max_time_counts_only_admitted_states():
     r = Explorer(_Clocked()).run()
     assert r.status == "violation" and r.stats.states == 2
     assert r.stats.max_time == 10          # state 2 (time 20) was never admitted
+
+
+class ManyStarts(Grid):
+    """Initial configurations without end that are all one state (as 50
+    symmetric agents' ``rand`` initialisers are under symmetry): only a bound
+    on the initial phase itself can stop the search."""
+
+    def init_states(self):
+        while True:
+            yield (0, 0)
+
+
+def test_max_states_bounds_the_initial_configurations_generated():
+    seen: list = []
+    ex = Explorer(ManyStarts(), max_states=500, batch=64, progress=seen.append,
+                  progress_interval=1e-9)
+    r = ex.run()
+    assert r.status == "bounded" and r.bounds_hit == [Bound.MAX_STATES]
+    assert r.stats.initial_states == 1 and ex.initial_candidates == 500
+    # progress lines during the initial phase, with the candidates generated
+    assert seen and seen[-1]["initial_candidates"] == 500 and seen[-1]["states"] == 1
+
+
+def test_max_memory_bounds_the_initial_configurations():
+    r = Explorer(ManyStarts(), max_memory=1, batch=64).run()
+    assert r.status == "bounded" and r.bounds_hit == [Bound.MAX_MEMORY]
+
+
+def test_the_initial_phase_bound_is_not_reported_when_nothing_was_left():
+    # exactly two candidates (one state, no successors): none left out
+    r = Explorer(Grid(w=1, h=1), max_states=2).run()
+    assert r.status == "exhaustive" and r.stats.initial_states == 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", [{}, {"workers": 2}, {"fastest": True}])
+def test_a_big_team_with_a_state_budget_ends_in_its_initial_phase(how):
+    # Fischer with 30 agents: 10^30 initial candidates (waitTime = rand(10) each)
+    # that symmetry folds into few states; the budget stops the enumeration
+    r = explore("programs/fischer.pccl", agents=30, max_states=3000, **how)
+    assert r.status == "bounded" and r.search.bounds_hit == [Bound.MAX_STATES]
+    assert 0 < r.stats.initial_states <= 3000

@@ -76,9 +76,13 @@ class FastestExplorer(Explorer):
             if ck is not None and ck.resume_dir is not None:
                 t_start -= self._resume(fr, res)
             else:
-                for chunk in self._initial_chunks(lambda: fr.budget):
+                table = self.table
+                for chunk in self._initial_chunks(lambda: fr.budget, fr.bounds, lambda: table.n,
+                                                  t_start):
                     fr.push_new(chunk, 0, 0, _NO_PARENT, [0] * len(chunk))
                 stats.initial_states = self.table.n
+                if fr.bounds:       # a bound stopped the initial states
+                    fr.heap.clear()
             progress = Progress(self.progress, self.progress_interval, t_start)
             stop = False
             while fr.heap and not stop:

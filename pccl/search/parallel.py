@@ -2190,7 +2190,8 @@ class ParallelExplorer(Explorer):
         T, n = self.transport, self.workers
         key, budget = m.key, self._budget_all
         empty_u64, empty_i64 = np.zeros(0, np.uint64), np.zeros(0, np.int64)
-        for chunk in self._initial_chunks(lambda: budget - self._total):
+        for chunk in self._initial_chunks(lambda: budget - self._total, self._bounds,
+                                          lambda: self._total, self._t_start):
             self.signals.check()
             fps = np.frombuffer(b"".join(fingerprint(key(s)) for s in chunk),
                                 dtype=np.uint64).reshape(-1, 2)
@@ -2221,7 +2222,7 @@ class ParallelExplorer(Explorer):
             self._put_parents(base, np.full(cut, _NONE, dtype=np.uint32))
             if stop:
                 return True
-        return False
+        return bool(self._bounds)       # a bound stopped the initial states
 
     def _level_rounds(self, t_start: float, stop: bool, start: Optional[dict] = None) -> None:
         """Level by level: every worker expands its share (and commits the
