@@ -244,9 +244,15 @@ class ExploreResult:
     #: that never fired, notes); ``.to_json()`` is ``"checked"`` of the JSON
     checked: Any = None
 
+    #: every reachable state was expanded: a clean exhaustive verdict, or
+    #: violations found by a search that went on to the end (``find_all``, or
+    #: the graph analysis after an exhaustive search)
+    complete: bool = False
+
     @property
     def exhaustive(self) -> bool:
-        return self.status == "exhaustive"
+        """Every reachable state was explored (whatever was found)."""
+        return self.complete
 
     def __repr__(self) -> str:
         """One line: the status, the verdict, the counts (the fields hold
@@ -628,15 +634,20 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
 
 
 def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int],
-             spelling: Spelling) -> tuple:
+             spelling: Spelling, find_all: bool = False, complete: bool = False) -> tuple:
     """Step of :func:`explore_model`: the one-line verdict (without the
     blackbox) and the exit status; ``bound_names`` are spelt already, the
-    other options it names by ``spelling``."""
+    other options it names by ``spelling``.  With ``find_all`` a violation's
+    verdict says whether the search went on to the end (``complete``)."""
     n = len(sr.found)
     if sr.status == "violation":
         verdict = f"violation: {sr.found[0].violation.message}"
         if n > 1:
             verdict += f" (and {n - 1} more distinct violation(s))"
+        if find_all:
+            verdict += (" — search complete: every reachable state explored" if complete else
+                        " — not exhaustive: stopped by " + ", ".join(bound_names) if bound_names
+                        else " — not exhaustive")
         return verdict, 1
     if sr.status == "exhaustive":
         return "no violation — exhaustive", 0
@@ -695,7 +706,7 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
     bound_names = [bound_label(b, model, depth=o.depth, max_states=o.max_states,
                                max_memory=max_memory, spelling=spelling) for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]
-    verdict, code = _verdict(sr, bound_names, max_memory, spelling)
+    verdict, code = _verdict(sr, bound_names, max_memory, spelling, o.find_all, complete)
     verdict += f" [blackbox {bb}]"
     note = fixed_timing_note(model, spelling) if not violations else None
     if note:
@@ -709,7 +720,7 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                         _witnesses(model, lv), list(lv.holds) if lv else [],
                         [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)]
                         + plan.runaways, o.timelock, o.stall, bound_names,
-                        not_covered_note(model, spelling))
+                        not_covered_note(model, spelling), complete=complete)
     from pccl.output.checked import for_explore
     hit = {BOUND_OPTIONS.get(b) for b in sr.bounds_hit}
     configured = [(spelling(name, value), name in hit) for name, value in _bounds_in_force(plan)]

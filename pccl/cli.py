@@ -1521,7 +1521,8 @@ def _explore_json(program, res) -> dict:
     m = res.model
     return output(
         "explore", status=res.status, message=res.verdict, exit_status=res.exit_status,
-        **{"program": program, "blackbox": res.blackbox, "agents": m.N,
+        **{"exhaustive": res.exhaustive,
+           "program": program, "blackbox": res.blackbox, "agents": m.N,
             "delta": m.delta, "n0": m.n0, "rates": list(m.rho),
             "bounds": res.bound_labels, "time_abstraction": m.abstract_time,
             "reductions": m.reduction.as_dict(cli_spelling),

@@ -105,3 +105,21 @@ def test_replay_json_of_a_divergence_and_of_an_old_file(tmp_path):
     old = run_json("replay", ROOT / "tests" / "fixtures" / "traces_v1" / "race_run_clean.json")
     assert old["recorded_version"] == 1 and old["trace"]["version"] == 2
     assert old["status"] == "clean" and old["steps_replayed"] == old["steps_total"] == 108
+
+
+@pytest.mark.parametrize("extra, complete", [((), True), (("--max-states", "100"), False)])
+def test_all_says_whether_the_search_explored_everything(extra, complete):
+    # --all: violations found, and the verdict (text and JSON) says whether the
+    # search went on to the end or a bound stopped it
+    args = ("explore", PROGRAMS / "fischer.pccl", "--set", "k=1", "--invariant",
+            "count(inCs) <= 1", "--all", *extra)
+    data = run_json(*args)
+    assert data["status"] in ("violation", "bounded")
+    assert data["exhaustive"] is complete
+    text = cli(*args, "--no-progress").stdout.splitlines()[1]
+    if complete:
+        assert data["status"] == "violation"
+        assert "search complete: every reachable state explored" in text
+    else:
+        assert "not exhaustive" in text or "stopped by --max-states 100" in text
+        assert "search complete" not in text
