@@ -711,6 +711,11 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
     note = fixed_timing_note(model, spelling) if not violations else None
     if note:
         verdict += f" ({note})"
+    if sr.status in ("exhaustive", "bounded") and not violations:
+        from pccl.model.timing import lockstep_note
+        rounds = lockstep_note(model)
+        if rounds:
+            verdict += f" ({spell(rounds, spelling)})"
     first = violations[0] if violations else None
     res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),

@@ -84,6 +84,8 @@ class Checked:
     events_reason: Optional[str]
     events: int
     notes: tuple
+    #: the timing explored (:func:`pccl.model.timing.timing_text`; explore only)
+    timing: Optional[str] = None
 
     def __getitem__(self, key: str):
         return self.to_json()[key]
@@ -93,6 +95,7 @@ class Checked:
             "properties": [p.to_json() for p in self.properties],
             "builtin": [{"check": c, "on": on, "detail": d} for c, on, d in self.builtin],
             "blackbox": {"name": self.blackbox, "covers": self.covers},
+            "timing": self.timing,
             "bounds": [{"bound": b, "stopped": s} for b, s in self.bounds],
             "reductions": {"on": list(self.reductions_on), "off": dict(self.reductions_off)},
             "events": {"total": self.events,
@@ -110,6 +113,8 @@ class Checked:
         out.append("  built-in: " + ", ".join(f"{c} {'+' if on else '-'}"
                                             for c, on, _ in self.builtin))
         out.append(f"  blackbox: {self.blackbox} ({self.covers})")
+        if self.timing:
+            out.append(f"  timing: {self.timing}")
         if self.bounds:
             parts = [f"{b} ({'stopped the search' if s else 'not reached'})"
                      for b, s in self.bounds]
@@ -256,10 +261,14 @@ def build(model, *, command: str, properties: list, builtin: list, bounds: list,
     w = world_note(model, run_result=run_result)
     if w:
         notes.append(spell(w, spelling))
+    timing = None
+    if command == "explore":
+        from pccl.model.timing import timing_text
+        timing = timing_text(model)
     return Checked(command, tuple(properties), tuple(builtin), model.blackbox.name,
                    blackbox_covers(model), tuple(bounds), on, off,
                    None if never_fired is None else tuple(never_fired), events_reason,
-                   len(model.program.events), tuple(notes))
+                   len(model.program.events), tuple(notes), timing)
 
 
 def _source(p) -> str:
