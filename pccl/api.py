@@ -723,7 +723,8 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                         sr.collision_probability, model, sr, list(sr.found),
                         plan.cov.report() if plan.cov is not None else None,
                         _witnesses(model, lv), list(lv.holds) if lv else [],
-                        [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)]
+                        [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)
+                         + ([STALL_HINT] if any(v.kind == "stall" for v in violations) else [])]
                         + plan.runaways, o.timelock, o.stall, bound_names,
                         not_covered_note(model, spelling), complete=complete)
     from pccl.output.checked import for_explore
@@ -736,6 +737,12 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
         spell(f"the transitions are taken in {where}; use {{workers=1}}", spelling),
         spelling=spelling)
     return res
+
+
+#: The note beside a stall: a team whose agents have simply finished their
+#: work (no ``exit()``) stalls too.
+STALL_HINT = ("a stall is also how a team ends whose agents are simply done: end each "
+              "finished agent with `exit()`, or turn the check off with {stall=False}")
 
 
 def _bounds_in_force(plan: _SearchPlan) -> list:

@@ -189,9 +189,9 @@ class CompiledProgram:
             return "at the top of the event block"
         h = cell[0]
         if h == END:
-            return "at endEventBlock"
+            return "finishing its event block"      # endEventBlock: COUNTER ADVANCE next
         if h == AEND:
-            return "at atomicEnd"
+            return "releasing the lock"             # atomicEnd: LOCK RELEASE next
         if is_acquire(h):
             s = self.stmts[acquire_sid(h)]
             return f"waiting for the lock at line {s.span.line}"

@@ -414,7 +414,8 @@ class Generator:
 
     def read(self, ref: str, vs) -> str:
         if vs.ty.kind not in SCALAR:
-            raise Unsupported(f"the {vs.ty} variable '{vs.name}' in C (interned: Python computes)")
+            raise Unsupported(f"the {vs.ty} variable '{vs.name}': its values live in Python's "
+                              f"table of positions and lists, which the C engine does not read")
         if vs.may_undef:
             return f"U({ref})"
         return ref

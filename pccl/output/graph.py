@@ -107,7 +107,7 @@ def _node_text(model, n, st, g) -> str:
     where = []
     for i, ag in enumerate(st[AGS]):
         desc = model.compiled.describe_k(ag[PC]).replace("at the top of the event block", "top") \
-            .replace("at endEventBlock", "end").replace("at line ", "L")
+            .replace("finishing its event block", "end").replace("at line ", "L")
         st_txt = D.status_text(model, ag[STATUS])
         where.append(f"a{i}:{desc}" + ("" if st_txt == "running" else f" {st_txt.split('(')[0]}"))
     parts.append(" ".join(where))
