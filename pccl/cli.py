@@ -246,7 +246,7 @@ def main():
       pccl view FILE -o F.html      a self-contained HTML viewer of a trace file
       pccl serve PROGRAM            interactive explorer in the browser (127.0.0.1)
       pccl graph PROGRAM -o F.dot   the reachable state graph (DOT or JSON)
-      pccl simulate PROGRAM -n N    many seeded runs: outcomes and their seeds
+      pccl simulate PROGRAM --runs N  many seeded runs: outcomes and their seeds
       pccl fmt PROGRAM...           canonical layout (--check: exit 1 if not)
       pccl lsp                      language server for editors (stdio)
       pccl cache                    the native engine's module cache (--clear)

@@ -6,9 +6,11 @@ const { LanguageClient } = require("vscode-languageclient/node");
 let client;
 
 function activate(context) {
-  const [command, ...args] = vscode.workspace
-    .getConfiguration("pccl")
-    .get("server.command", ["pccl", "lsp"]);
+  const config = vscode.workspace.getConfiguration("pccl");
+  const [command, ...args] = config.get("server.command", ["pccl", "lsp"]);
+  // world files are claimed only by the patterns the user opts into (not
+  // every *.toml: pyproject.toml is not a world)
+  const worlds = config.get("worldFiles", ["**/*.world.toml"]);
   client = new LanguageClient(
     "pccl",
     "PCCL language server",
@@ -16,7 +18,7 @@ function activate(context) {
     {
       documentSelector: [
         { scheme: "file", language: "pccl" },
-        { scheme: "file", pattern: "**/*.toml" },
+        ...worlds.map((pattern) => ({ scheme: "file", pattern })),
       ],
     }
   );
