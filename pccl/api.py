@@ -23,7 +23,7 @@ from typing import Any, Optional, Union
 
 from pccl.lang import ast as A
 from pccl.model.engine import Model
-from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, SearchResult, Stats, Trace
+from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, ReplayError, SearchResult, Stats, Trace
 from pccl.model import validate as V
 from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, spell
 from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
@@ -727,6 +727,9 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                          + ([STALL_HINT] if any(v.kind == "stall" for v in violations) else [])]
                         + plan.runaways, o.timelock, o.stall, bound_names,
                         not_covered_note(model, spelling), complete=complete)
+    growth = _growth_note(plan, ex, sr)
+    if growth:
+        res.notes.append(growth)
     from pccl.output.checked import for_explore
     hit = {BOUND_OPTIONS.get(b) for b in sr.bounds_hit}
     configured = [(spelling(name, value), name in hit) for name, value in _bounds_in_force(plan)]
@@ -737,6 +740,29 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
         spell(f"the transitions are taken in {where}; use {{workers=1}}", spelling),
         spelling=spelling)
     return res
+
+
+def _growth_note(plan: _SearchPlan, ex: Any, sr: SearchResult) -> Optional[str]:
+    """Step of :func:`_assemble`: for a search a bound stopped (states,
+    memory, depth), the variable that keeps growing along
+    the path to the deepest state admitted (:mod:`pccl.output.growth`), or None."""
+    if sr.status != "bounded" or not (
+            set(sr.bounds_hit) & {Bound.MAX_STATES, Bound.MAX_MEMORY, Bound.DEPTH}):
+        return None
+    table = getattr(ex, "table", None)
+    if table is None or not getattr(table, "n", 0) or not hasattr(table, "parent"):
+        return None             # (workers keep their parents elsewhere: no hint)
+    from pccl.output.growth import growth_note
+    try:
+        chain, idx = [], table.n - 1
+        while idx != -1:
+            chain.append(idx)
+            idx = table.parent(idx)
+        chain.reverse()
+        tr = (ex if plan.native is None else plan.native.decoding(ex)).replay_chain(chain)
+        return growth_note(plan.model, tr.states, len(chain) - 1)
+    except (ReplayError, AttributeError, IndexError, KeyError, TypeError, ValueError):
+        return None
 
 
 #: The note beside a stall: a team whose agents have simply finished their

@@ -49,3 +49,32 @@ def test_a_stall_says_how_a_finished_team_ends():
     assert res.exit_code == 1 and "violation: stall" in res.output
     assert ("note: a stall is also how a team ends whose agents are simply done: end each "
             "finished agent with `exit()`, or turn the check off with --no-stall") in res.output
+
+
+COUNTER = """allwrite:
+  int ticks = 0;
+loc:
+  int n = 0;
+Tick():
+  pre(true);
+  eff:
+    n = n + 1;
+    if (n % 3 == 0):
+      ticks = ticks + 1;
+"""
+
+
+def test_a_search_that_grows_without_bound_names_the_variable():
+    for engine in ("native", "python"):
+        r = explore(COUNTER, source=True, max_states=2000, engine=engine)
+        assert r.status == "bounded"
+        assert any(n.startswith("the search grows without bound: `n` of agent 0 went from 0 to ")
+                   for n in r.notes), (engine, r.notes)
+    r = explore(COUNTER, source=True, depth=30)
+    assert any("`n` of agent 0" in n for n in r.notes)
+
+
+def test_a_counter_bounded_by_the_program_gets_no_hint():
+    # Fischer's counters stay within k (the program names its bound)
+    r = explore(str(PROGRAMS / "fischer.pccl"), max_states=2000)
+    assert r.status == "bounded" and not any("grows without bound" in n for n in r.notes)
