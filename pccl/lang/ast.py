@@ -391,3 +391,13 @@ def index_chain(e):
 def walk_expr(e):
     """Yield ``e`` and every sub-expression, in pre-order."""
     return walk(e)
+
+
+def source_line(program: "Program", span) -> str:
+    """The stripped text of the line ``span`` starts on ("" if none)."""
+    if span is None or span.line <= 0:
+        return ""
+    lines = program.source.splitlines()
+    if span.line <= len(lines):
+        return lines[span.line - 1].strip()
+    return ""

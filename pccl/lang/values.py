@@ -193,6 +193,11 @@ def _int_text(v: int) -> str:
         return f"{'-' if v < 0 else ''}<integer of about {digits:,} digits>"
 
 
+def format_time(t) -> str:
+    """A model time as the traces print it (a float without float noise)."""
+    return format_number(t) if isinstance(t, float) else str(t)
+
+
 def format_value(v, ty=None) -> str:
     """Human-readable value; ``ty`` is a TypeRef-like object (optional),
     used for enum member names (``ty.members``)."""

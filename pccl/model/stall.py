@@ -148,8 +148,8 @@ def _why(model, i, ag, sh, e) -> str:
 
 
 def _pos(p) -> str:
-    from pccl.output.display import fmt_pos
-    return fmt_pos(p) if p is not None else "?"
+    from pccl.lang.values import format_value
+    return format_value(p) if p is not None else "?"
 
 
 def waiting(model, st) -> list:
@@ -237,14 +237,14 @@ def runaway_note(model, info: dict) -> str:
     deepest states, and its line, as ``pccl run``'s --max-steps message names
     them."""
     from collections import Counter
-    from pccl.output.display import fmt_time, source_line
+    from pccl.lang.values import format_time as fmt_time
     st = info["state"]
     i = looping_agent(model, st, Counter())
     pc = st[AGS][i][PC]
     where = model.compiled.describe_k(pc)
     cell = model.ctl.cells[pc]
     if cell and isinstance(cell[0], int) and cell[0] in model.compiled.stmts:
-        text = source_line(model, model.compiled.stmts[cell[0]].span)
+        text = A.source_line(model.program, model.compiled.stmts[cell[0]].span)
         if text:
             where += f": {text}"
     return (f"zero-time runaway: {info['levels']} levels of the search (to depth "

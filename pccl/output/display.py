@@ -12,13 +12,14 @@ from typing import Optional
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK,
                                LQ, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, TARGET,
                                TIME, acquire_sid, is_acquire)
-from pccl.lang.values import UNDEF, format_number, format_value
+from pccl.lang import ast as A
+from pccl.lang.values import UNDEF, format_time, format_value
 
 LOCK_NAMES = {IDLE: "idle", REQUEST: "request", LOCK: "lock"}
 
 
 def fmt_time(t) -> str:
-    return format_number(t) if isinstance(t, float) else str(t)
+    return format_time(t)
 
 
 def fmt_pos(p) -> str:
@@ -52,12 +53,7 @@ def shared_vars(model, st) -> list:
 
 
 def source_line(model, span) -> str:
-    if span is None or span.line <= 0:
-        return ""
-    lines = model.program.source.splitlines()
-    if span.line <= len(lines):
-        return lines[span.line - 1].strip()
-    return ""
+    return A.source_line(model.program, span)
 
 
 # ---------------------------------------------------------------------------

@@ -205,7 +205,7 @@ def model_from_config(cfg: dict, trace_path, warnings: list, blackbox=None, prog
     """The model a (checked) trace configuration describes; ``blackbox``:
     the object :func:`resolve_blackbox` chose (default: the file's name,
     which must then be a shipped blackbox)."""
-    from pccl.api import build_model
+    from pccl.model.build import build_model
     name = os.fspath(trace_path)
     if blackbox is None:
         blackbox = resolve_blackbox(cfg["blackbox"], None, name)
