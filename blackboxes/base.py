@@ -11,7 +11,12 @@ The engine calls a blackbox once per DOREACH INVOKE, for all agents at once
   e.g. a tuple of velocities; ``None`` when it keeps none);
 * ``step(world, motions, env, time, delta)``: a non-empty list of
   :class:`Outcome`.  One outcome is a deterministic controller; several model
-  uncertainty and ``explore`` follows them all.
+  uncertainty and ``explore`` follows them all;
+* optionally ``capabilities``, a class attribute: a :class:`Capabilities`
+  that promises what ``explore``'s reductions may rely on.  It counts only
+  when the object's own class declares it (:func:`declared_capabilities`):
+  a subclass, which may change the behaviour, promises nothing until it
+  declares it again.
 
 Positions are ``(x, y, z)`` float tuples.  The engine rounds returned
 positions to ``world.resolution``.  Obstacles are tuples of polygons, each a
@@ -84,6 +89,54 @@ def settled(m: Motion):
     if m.target is not None and not (m.fail or m.done):
         return None
     return (m.target is not None and m.done and not m.fail, m.target is not None and m.fail)
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a blackbox promises about every call of its ``step`` (for every
+    world, motions, env, time and δ), which ``explore``'s reductions rely
+    on (docs/blackboxes.md, "Writing your own").  Every field defaults to
+    False: no promise, the reduction that needs it stays off (for that
+    part).  A wrong promise makes verdicts wrong.
+
+    ``robots_alike``: robots are interchangeable: for every permutation π
+    of the robots, the outcomes for the motions permuted by π are the
+    outcomes permuted by π (nothing depends on a robot's number).  The
+    ``symmetry`` reduction needs it (and, where the program moves, an env
+    of ``None``).
+
+    ``settled_robots_hold_still``: a *settled* robot (``settled(m)`` is
+    not None: no target yet, or its doReach done or failed) ends every
+    outcome at its position with the flags ``settled(m)`` gives, and no
+    robot's outcome depends on a settled robot's ``target``, ``t0``,
+    ``done`` or ``fail`` (only on its position and its ``obstacles``).  The
+    ``dead`` reduction needs it to leave a settled robot's target and
+    flags out of state identity (pccl.model.dead.blackbox_settled_hold_still);
+    ``symmetry`` needs it with ``robots_alike``
+    (pccl.model.reduce.blackbox_treats_robots_alike)."""
+    robots_alike: bool = False
+    settled_robots_hold_still: bool = False
+
+
+#: No promise: what a blackbox that declares nothing (or inherits its
+#: declaration) gets.
+NO_CAPABILITIES = Capabilities()
+
+
+def declared_capabilities(bb) -> Capabilities:
+    """The :class:`Capabilities` blackbox ``bb`` promises: its class's own
+    ``capabilities`` (``vars(type(bb))``, not one inherited from a base
+    class: a subclass may override ``step`` or what it calls, so it
+    promises only what it declares itself), and none when the object
+    itself holds a method or a ``capabilities`` of its own (instance
+    attributes that replace the class's behaviour or claims)."""
+    caps = vars(type(bb)).get("capabilities")
+    if not isinstance(caps, Capabilities):
+        return NO_CAPABILITIES
+    own = getattr(bb, "__dict__", None) or {}
+    if "capabilities" in own or any(callable(v) for v in own.values()):
+        return NO_CAPABILITIES
+    return caps
 
 
 class Blackbox(Protocol):

@@ -16,12 +16,15 @@ Exactly one outcome; no env state.
 from __future__ import annotations
 
 from ._geometry import obstacles_of
-from .base import Outcome, settled
+from .base import Capabilities, Outcome, settled
 
 
 class Instant:
     name = "instant"
     uses_time = False
+    #: robots are treated alike (no rule reads a robot's number) and a settled
+    #: robot stays put, seen by the others as its position (docs/blackboxes.md)
+    capabilities = Capabilities(robots_alike=True, settled_robots_hold_still=True)
 
     def init_env(self, world, n_agents):
         return None

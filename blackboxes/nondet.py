@@ -52,7 +52,7 @@ from __future__ import annotations
 import itertools
 
 from ._geometry import obstacles_of, segment_distance
-from .base import Outcome, settled
+from .base import Capabilities, Outcome, settled
 
 #: ``speed * δ`` below this many resolutions: pymunk's stall detector may
 #: fail any moving robot.
@@ -62,6 +62,9 @@ SLOW_STEPS = 10.0
 class Nondet:
     name = "nondet"
     uses_time = False
+    #: robots are treated alike (no rule reads a robot's number) and a settled
+    #: robot stays put, seen by the others as its position (docs/blackboxes.md)
+    capabilities = Capabilities(robots_alike=True, settled_robots_hold_still=True)
     #: nondet-fail: every moving agent may fail at every step.
     always_fail = False
 

@@ -67,7 +67,7 @@ from enum import IntEnum
 from pccl.lang.errors import PcclError, install_hint
 
 from ._geometry import EMPTY, obstacles_of
-from .base import Outcome
+from .base import Capabilities, Outcome
 
 #: What ``--blackbox pymunk`` says when pymunk is not installed (an extra).
 MISSING = "the pymunk blackbox needs pymunk: " + install_hint("physics")
@@ -121,6 +121,9 @@ class _Plans:
 class PymunkBlackbox:
     name = "pymunk"
     uses_time = False
+    #: no promise: the discs push settled robots and the planner may number
+    #: robots (docs/blackboxes.md, "Writing your own")
+    capabilities = Capabilities()
 
     def init_env(self, world, n_agents):
         require()

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 
 from ._geometry import EMPTY, obstacles_of
-from .base import Outcome, settled
+from .base import Capabilities, Outcome, settled
 
 EPS = 1e-9
 
@@ -33,6 +33,9 @@ EPS = 1e-9
 class Straight:
     name = "straight"
     uses_time = False
+    #: robots are treated alike (no rule reads a robot's number) and a settled
+    #: robot stays put, seen by the others as its position (docs/blackboxes.md)
+    capabilities = Capabilities(robots_alike=True, settled_robots_hold_still=True)
 
     def init_env(self, world, n_agents):
         return None

@@ -246,3 +246,228 @@ def test_equal_masked_keys_have_equal_futures_on_generated_programs(prog, agents
     m = make_model(text, source=True, agents=agents, blackbox=blackbox,
                    invariants=tuple(invariants), reduce="dead")
     masked_bisimulation(m, 1000)
+
+
+# ---------------------------------------------------------------------------
+# issue 41: the soundness conditions as predicates, and the holes they close
+# ---------------------------------------------------------------------------
+
+def truth_and(text, reduce_engine, workers=1, **kw):
+    """(verdict of the truth configuration, verdict of each (reduce, engine)
+    in ``reduce_engine`` with ``workers``): the status, the exit status, the
+    first violation's kind and message; the truth is ``reduce="none"``,
+    exact, the Python engine, one worker."""
+    def verdict(r):
+        v = r.violation
+        return (r.status, r.exit_status, v and v.kind, v and v.message)
+    truth = verdict(explore(text, source=True, reduce="none", exact=True, engine="python", **kw))
+    return truth, [verdict(explore(text, source=True, reduce=r, engine=e, workers=workers, **kw))
+                   for r, e in reduce_engine]
+
+
+# hole 1: x is never read, so the initial-state search merged its outcomes,
+# also the one for which the initialiser itself fails
+FAILING_INITIALISERS = {
+    "division": "int x = 10 / (rand(2) - 2);",
+    "index": "List<int> xs = [7, 8];\n  int x = xs[rand(2)];",
+    "modulo": "int x = 7 % (rand(3) - 1);",
+    "short-circuit": "bool b = rand(1) == 0 || 1 / 0 == 1;",
+    "array": "int a[2] = 10 / (1 - rand(1));",
+    "rand-bound": "int x = rand(0 - rand(1));",
+}
+
+
+@pytest.mark.parametrize("name", sorted(FAILING_INITIALISERS))
+def test_an_unread_initialiser_keeps_its_failing_outcomes(name):
+    text = src("""
+        loc:
+          %s
+
+        Done():
+          pre(true);
+          eff:
+            exit();
+        """) % FAILING_INITIALISERS[name]
+    truth, got = truth_and(text, [("auto", "native"), ("auto", "python"), ("dead", "native"),
+                                  ("dead", "python")], agents=2)
+    assert truth[0] == "violation" and truth[2] == "stuck", truth
+    assert got == [truth] * 4
+
+
+def test_the_reproducers_of_hole_1_on_both_engines_with_workers():
+    for init in (FAILING_INITIALISERS["division"], FAILING_INITIALISERS["index"]):
+        text = src("""
+            loc:
+              %s
+
+            Done():
+              pre(true);
+              eff:
+                exit();
+            """) % init
+        truth, got = truth_and(text, [("auto", "native"), ("auto", "python")], workers=2)
+        assert truth[:3] == ("violation", 1, "stuck")
+        assert got == [truth, truth]
+
+
+def test_which_initialisers_take_one_outcome():
+    """:func:`rand_outcomes_fail_alike` through :func:`can_collapse_initial_rand`:
+    one outcome only where none can fail unlike another; the others are
+    unread too (:func:`initial_rand_unread`) and take every failing outcome."""
+    from pccl.model.dead import can_collapse_initial_rand, initial_rand_unread
+    decls = {
+        "big": ("int big = rand(100000000);", True),
+        "shifted": ("int shifted = 3 - rand(5) + 1;", True),
+        "neg": ("int neg = -rand(5);", True),
+        "cmp": ("bool cmp = rand(5) < n;", True),
+        "notb": ("bool notb = !(rand(1) == 0);", True),
+        "bound_fails": ("int bound_fails = rand(n / 0);", True),      # fails alike: before any outcome
+        "elems": ("int elems[3] = rand(4);", True),
+        "div": ("int div = 10 / (rand(2) - 2);", False),
+        "idx": ("int idx = xs[rand(1)];", False),
+        "prod": ("int prod = rand(3) * 2;", False),                   # an int slot checks a product
+        "sum2": ("int sum2 = rand(3) + rand(2);", False),
+        "nested": ("int nested = rand(rand(1));", False),
+        "flt": ("float flt = rand(3);", False),                      # a float conversion may overflow
+        "orr": ("bool orr = rand(1) == 0 || n > 0;", False),          # short-circuits on an outcome
+    }
+    body = "\n".join("  " + d for d, _ in decls.values())
+    text = f"loc:\n  int n = 3;\n  List<int> xs = [1, 2];\n{body}\n\nDone():\n  pre(true);\n  eff:\n    exit();\n"
+    m = make_model(text, source=True, agents=1)
+    for name, (_, one) in decls.items():
+        assert initial_rand_unread(m, name), name
+        assert can_collapse_initial_rand(m, name) == one, name
+    assert not initial_rand_unread(m, "n") and not can_collapse_initial_rand(m, "n")
+    # the big range stays one initial state
+    assert len(list(m.init_states())) == 1
+
+
+def test_a_read_rand_initialiser_is_not_collapsed():
+    from pccl.model.dead import can_collapse_initial_rand, initial_rand_unread
+    text = src("""
+        loc:
+          int x = rand(3);
+
+        Done():
+          pre(x >= 0);
+          eff:
+            exit();
+        """)
+    m = make_model(text, source=True, agents=1)
+    assert not initial_rand_unread(m, "x") and not can_collapse_initial_rand(m, "x")
+    assert len(list(m.init_states())) == 4
+
+
+# hole 2: a user blackbox that subclasses a shipped one inherits its name,
+# not its capabilities
+REACH_PROGRAM = src("""
+    loc:
+      int st = 0;
+
+    Go():
+      pre(st == 0);
+      eff:
+        doReach(ItemPosition(rand(1) * 10.0, 0.0), []);
+        st = 1;
+
+    Tick():
+      pre(st >= 1 && st < 4);
+      eff:
+        st = st + 1;
+
+    Done():
+      pre(st == 4);
+      eff:
+        exit();
+    """)
+REACH_WORLD = 'agents = 1\nstart = [[0, 0]]\n\n[[obstacles]]\npolygon = [[4, -1], [6, -1], [6, 1], [4, 1]]\n'
+
+
+def test_a_subclassed_blackbox_does_not_inherit_the_reach_masking(tmp_path):
+    from dead_retry_bb import Retry
+    world = tmp_path / "w.toml"
+    world.write_text(REACH_WORLD)
+    kw = dict(world=str(world), blackbox=Retry(), invariants=("forall i: pos[i].x < 5",))
+    truth, got = truth_and(REACH_PROGRAM, [("auto", "auto"), ("auto", "python"), ("dead", "python")], **kw)
+    assert truth[:3] == ("violation", 1, "invariant")
+    assert got == [truth] * 3
+    m = make_model(REACH_PROGRAM, source=True, **kw)
+    assert "dead" in m.reduction.on and not m.dead_vars.reach_masked
+    # the shipped straight, the same program: the reach is masked, the verdict the truth's
+    kw["blackbox"] = "straight"
+    m = make_model(REACH_PROGRAM, source=True, **kw)
+    assert m.dead_vars.reach_masked
+    truth, got = truth_and(REACH_PROGRAM, [("auto", "auto"), ("auto", "python")], **kw)
+    assert truth[0] == "exhaustive" and got == [truth, truth]
+
+
+def test_capabilities_count_only_where_the_class_declares_them():
+    from dead_retry_bb import Retry
+    from pccl.blackboxes import BLACKBOXES, Nondet, Straight
+    from pccl.blackboxes.base import NO_CAPABILITIES, Capabilities, declared_capabilities
+    from pccl.model.dead import blackbox_settled_hold_still
+    from pccl.model.reduce import blackbox_treats_robots_alike
+    for name in ("instant", "straight", "nondet", "nondet-fail"):
+        bb = BLACKBOXES[name]
+        assert blackbox_settled_hold_still(bb) and blackbox_treats_robots_alike(bb), name
+    assert declared_capabilities(BLACKBOXES["pymunk"]) == NO_CAPABILITIES
+    assert not blackbox_settled_hold_still(Retry()) and not blackbox_treats_robots_alike(Retry())
+
+    class Declared(Straight):           # a subclass that declares what it promises
+        capabilities = Capabilities(settled_robots_hold_still=True)
+    assert blackbox_settled_hold_still(Declared()) and not blackbox_treats_robots_alike(Declared())
+    # a fresh instance of a shipped class is the shipped class's behaviour
+    assert blackbox_settled_hold_still(Nondet("mine")) and blackbox_treats_robots_alike(Straight())
+    patched = Straight()
+    patched.step = Retry().step         # an instance whose step is replaced promises nothing
+    assert declared_capabilities(patched) == NO_CAPABILITIES
+    claims = Straight()
+    claims.capabilities = Capabilities(True, True)   # nor one that claims on its own
+    assert declared_capabilities(claims) == NO_CAPABILITIES
+    assert not blackbox_settled_hold_still(None)
+
+    class Named:                        # a shipped name, no declaration
+        name = "nondet"
+        uses_time = False
+
+        def init_env(self, world, n_agents):
+            return None
+
+        def step(self, world, motions, env, time, delta):
+            return BLACKBOXES["nondet"].step(world, motions, env, time, delta)
+    assert declared_capabilities(Named()) == NO_CAPABILITIES
+
+
+def test_symmetry_reads_the_same_capability():
+    from dead_retry_bb import Retry
+    from pccl.blackboxes import Straight
+    text = src("""
+        loc:
+          int st = 0;
+
+        Go():
+          pre(st == 0);
+          eff:
+            doReach(ItemPosition(1.0, 0.0), []);
+            st = 1;
+        """)
+    m = make_model(text, source=True, agents=2, blackbox=Retry())
+    assert "symmetry" not in m.reduction.on
+    assert "blackbox straight may treat agents differently" in m.reduction.off["symmetry"]
+    assert "symmetry" in make_model(text, source=True, agents=2, blackbox=Straight()).reduction.on
+
+
+@pytest.mark.slow
+def test_the_collapse_keeps_the_documented_counts():
+    """Programs whose unread initialisers cannot fail keep the figures of
+    docs/reductions.md ("Dead variables"): Fischer's ``cstime = rand(5)``
+    is one outcome, race_robust is unchanged."""
+    from pccl.model.dead import can_collapse_initial_rand
+    path = os.path.join(ROOT, "programs/fischer.pccl")
+    kw = dict(overrides={"k": "2", "d": "2"})
+    assert can_collapse_initial_rand(make_model(path, **kw), "cstime")
+    for engine in ("python", "native"):
+        r = explore(path, engine=engine, **kw)
+        assert (r.status, r.stats.initial_states, r.stats.states) == ("exhaustive", 6, 1834), engine
+    r = explore(RACE, world=WORLD, agents=3, engine="native")
+    assert (r.status, r.stats.states, r.stats.transitions) == ("exhaustive", 88168, 138720)

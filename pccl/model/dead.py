@@ -21,12 +21,26 @@ it is dead depends only on the agent's own k cell (docs/reductions.md,
 
 The doReach flags and the target (the *reach* of an agent) are one more
 variable: read by ``doReach_done``/``doReach_fail``, written by a doReach
-call.  They are dead only while the agent does not move (no target, or
-arrived or failed), where every shipped blackbox keeps the agent where it
-is whatever the flags say (:data:`REACH_BLACKBOXES`); its position and its
-doReach obstacles stay in the key (other robots' outcomes read them).
-Variables a property or invariant reads are never dead, nor is anything of
-a stuck agent.
+call.  They are dead only while the agent has arrived or failed, and only
+under a blackbox that declares it keeps such an agent where it is whatever
+its reach says (:func:`blackbox_settled_hold_still`, the capability
+``settled_robots_hold_still`` of :class:`pccl.blackboxes.base.Capabilities`;
+:func:`reach_can_be_masked`); its position and its doReach obstacles stay
+in the key (other robots' outcomes read them).  Variables a property or
+invariant reads are never dead, nor is anything of a stuck agent.
+
+The initial-state search takes fewer outcomes of a ``rand`` initialiser
+whose value nobody reads (:func:`initial_rand_unread`): one outcome when
+no outcome can make the initialiser fail other than every outcome does
+(:func:`rand_outcomes_fail_alike`, :func:`can_collapse_initial_rand`),
+else every outcome is evaluated and the first one with a value stands for
+all those with a value, every failing one is kept.
+
+The soundness conditions are the module-level predicates
+(:func:`blackbox_settled_hold_still`, :func:`reach_can_be_masked`,
+:func:`initial_rand_unread`, :func:`rand_outcomes_fail_alike`,
+:func:`can_collapse_initial_rand`): the reduction calls them,
+docs/reductions.md quotes them, a test may call them.
 
 The reduction is a different ``key``: :meth:`DeadVars.key_of` masks dead
 values before the key (the symmetric one under ``symmetry``), so states are
@@ -39,16 +53,13 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
+from pccl.blackboxes.base import declared_capabilities
 from pccl.lang import ast as A
-from pccl.model.compile import has_rand, program_moves
+from pccl.lang.types import Ty
+from pccl.model.compile import _may_grow, has_rand, program_moves
 from pccl.model.independence import local_guards, property_names
 from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, STATUS,
                                acquire_sid, is_acquire)
-
-#: Blackboxes under which an agent that has arrived or failed, and one that
-#: never called doReach, stay where they are and look the same to the
-#: other agents' outcomes (blackboxes/nondet.py, straight.py, instant.py).
-REACH_BLACKBOXES = frozenset({"nondet", "nondet-fail", "straight", "instant"})
 
 #: The value a dead variable has in a key (the Python engine's; the native
 #: engine's keys use their own, DEADV): not a PCCL value.
@@ -85,8 +96,7 @@ class DeadVars:
         keep = 0
         for name in visible:
             keep |= self.bit.get(name, 0)
-        bb = getattr(getattr(m, "blackbox", None), "name", None)
-        if not program_moves(m.program) or bb not in REACH_BLACKBOXES or visible & set(_FLAGS):
+        if not reach_can_be_masked(m):
             keep |= self.reach_bit
         #: never masked: read by a property, or (the reach) where a blackbox may tell
         self.keep = keep
@@ -113,6 +123,7 @@ class DeadVars:
         self._pc: dict = {}
         self._ev: dict = {}
         self._top: dict = {}      # (agent, locals) -> live at the top
+        self._unread_set: Optional[set] = None   # names the initialisers and Init read
 
     @property
     def reach_masked(self) -> bool:
@@ -339,26 +350,38 @@ class DeadVars:
 
     def never_read(self) -> frozenset:
         """The ``loc:`` variables with a ``rand`` initialiser whose initial
-        value nothing reads: no initialiser, no statement of Init, no path
-        from the top of the block (:attr:`top`) and no property.  Every
-        initial state has them masked (after Init an agent is at the top,
-        exited, or stuck before reading them), so the initial-state search
-        takes one outcome of their ``rand`` (a ``rand(100000000)`` nobody
-        reads would otherwise be a hundred million initial states that are
-        one)."""
-        prog = self.m.program
-        read: set = set()
-        exprs = [d.init for d in prog.decls if isinstance(d, A.VarDecl) and d.init is not None]
-        exprs += [e for s in A.walk_stmts(list(prog.init)) for e in A.own_exprs(s)]
-        for e in exprs:
-            read |= {x.name for x in A.walk_expr(e) if isinstance(x, A.Name)}
-        out = set()
+        value nothing reads (:func:`initial_rand_unread`)."""
+        return frozenset(vs.name for vs in self.m.compiled.layout.local if self._unread(vs))
+
+    def _unread(self, vs) -> bool:
+        got = self._unread_set
+        if got is None:
+            prog = self.m.program
+            got = set()
+            exprs = [d.init for d in prog.decls if isinstance(d, A.VarDecl) and d.init is not None]
+            exprs += [e for s in A.walk_stmts(list(prog.init)) for e in A.own_exprs(s)]
+            for e in exprs:
+                got |= {x.name for x in A.walk_expr(e) if isinstance(x, A.Name)}
+            self._unread_set = got
+        return (vs.section == "loc" and vs.decl.init is not None and has_rand(vs.decl.init)
+                and vs.name not in got and not (self.top | self.keep) & (1 << vs.slot))
+
+    def initial_collapse(self) -> tuple:
+        """``(one, values)``: the ``loc:`` variables whose ``rand``
+        initialiser the initial-state search takes one outcome of
+        (:func:`can_collapse_initial_rand`), and those of which it merges
+        the outcomes that have a value into the first, keeping every
+        outcome that fails (unread, but some outcome may fail where
+        another does not)."""
+        one, values = set(), set()
         for vs in self.m.compiled.layout.local:
-            b = 1 << vs.slot
-            if (vs.decl.init is not None and has_rand(vs.decl.init) and vs.name not in read
-                    and not (self.top | self.keep) & b):
-                out.add(vs.name)
-        return frozenset(out)
+            if not initial_rand_unread(self.m, vs.name, self):
+                continue
+            if rand_outcomes_fail_alike(vs.decl.init, _want(vs)):
+                one.add(vs.name)
+            else:
+                values.add(vs.name)
+        return frozenset(one), frozenset(values)
 
     def enabled(self, st, i: int) -> list:
         ags = st[AGS]
@@ -395,6 +418,118 @@ class DeadVars:
         def dead_key(st):
             return key(mask(st))
         return dead_key
+
+
+# -- the soundness conditions, as predicates (docs/reductions.md quotes them) -------------
+
+def blackbox_settled_hold_still(bb) -> bool:
+    """Whether blackbox ``bb`` declares (as its own class's capability,
+    :func:`pccl.blackboxes.base.declared_capabilities`) that a robot whose
+    doReach is done or failed stays where it is with its flags, and that
+    no robot's outcome depends on such a robot's target, ``t0`` or flags
+    (only on its position and doReach obstacles).  False for no blackbox,
+    one that declares nothing, a subclass that does not declare it again."""
+    if bb is None:
+        return False
+    return declared_capabilities(bb).settled_robots_hold_still
+
+
+def reach_can_be_masked(m) -> bool:
+    """Whether a settled robot's reach (target, ``t0``, flags) may leave the
+    key in model ``m``: the program calls doReach, the blackbox holds
+    settled robots still (:func:`blackbox_settled_hold_still`) and no
+    property reads ``doReach_done``/``doReach_fail``."""
+    return (program_moves(m.program) and blackbox_settled_hold_still(getattr(m, "blackbox", None))
+            and not property_names(m) & set(_FLAGS))
+
+
+def initial_rand_unread(m, name: str, dv: Optional[DeadVars] = None) -> bool:
+    """Whether ``loc:`` variable ``name`` of model ``m`` has a ``rand``
+    initialiser whose value nothing reads: no initialiser, no statement of
+    Init, no path from the top of the block and no property.  Every
+    initial state then has it masked (after Init an agent is at the top,
+    exited, or stuck before reading it), so the initial states that differ
+    only in the *values* its outcomes give are one; an outcome that fails
+    is a different state (a stuck agent) and is kept.  ``dv``: ``m``'s
+    :class:`DeadVars` if already built."""
+    dv = dv if dv is not None else _dead_vars(m)
+    vs = dv.m.compiled.layout.vars.get(name)
+    return vs is not None and dv._unread(vs)
+
+
+#: Operators on ``rand`` values that no operand value can make fail
+#: (comparisons: ints, floats, bools and enums compare totally).
+_TOTAL_COMPARE = frozenset({"==", "!=", "<", "<=", ">", ">="})
+
+
+def rand_outcomes_fail_alike(expr, want: Ty) -> bool:
+    """Whether no ``rand`` outcome can make ``expr``, stored as a ``want``
+    value, fail where another outcome does not (statically: every outcome
+    then fails the same way, or none does, and only the value differs).
+
+    Every sub-expression holding a ``rand`` is ``rand(a)`` with ``a``
+    free of ``rand`` (its bound and its error do not depend on an
+    outcome), ``-x``, ``!x``, ``x + c``/``c + x``/``x - c``/``c - x`` with
+    ``c`` an int literal, or a comparison; nothing short-circuits on an
+    outcome (``&&``, ``||``, ``->``), indexes, divides, calls another
+    function or builds a value with one.  The stored value is an int or a
+    bool and needs no check (an int slot's overflow check applies to a
+    product or a sum of two non-literals: excluded; a float conversion
+    of a huge int may fail: excluded).  Sound, not complete: what it
+    rejects is evaluated outcome by outcome."""
+    if want.kind not in ("int", "bool"):
+        return False
+    if want.kind == "int" and _may_grow(expr):
+        return False
+    nodes = list(A.walk(expr))
+    tainted: set = set()
+    for x in reversed(nodes):           # children before parents
+        if (isinstance(x, A.Call) and x.name == "rand") or any(id(c) in tainted for c in A.children(x)):
+            tainted.add(id(x))
+    for x in nodes:
+        if id(x) not in tainted:
+            continue
+        if isinstance(x, A.Call):
+            if x.name != "rand" or any(id(a) in tainted for a in x.args):
+                return False
+        elif isinstance(x, A.Unary):
+            if x.op not in ("-", "!"):
+                return False
+        elif isinstance(x, A.Binary):
+            if x.op in _TOTAL_COMPARE:
+                continue
+            if x.op not in ("+", "-"):
+                return False
+            if not (isinstance(x.left, A.IntLit) or isinstance(x.right, A.IntLit)):
+                return False
+        else:
+            return False
+    return True
+
+
+def can_collapse_initial_rand(m, name: str, dv: Optional[DeadVars] = None) -> bool:
+    """Whether the initial-state search may take one outcome of ``loc:``
+    variable ``name``'s ``rand`` initialiser without evaluating the others:
+    its value is never read (:func:`initial_rand_unread`) and no outcome
+    fails unlike another (:func:`rand_outcomes_fail_alike`)."""
+    dv = dv if dv is not None else _dead_vars(m)
+    vs = dv.m.compiled.layout.vars.get(name)
+    return (vs is not None and initial_rand_unread(m, name, dv)
+            and rand_outcomes_fail_alike(vs.decl.init, _want(vs)))
+
+
+def _want(vs) -> Ty:
+    """The type of the value a declaration's initialiser is stored as (an
+    array's: one element's)."""
+    return vs.ty.elem if vs.ty.kind == "array" and vs.ty.elem is not None else vs.ty
+
+
+def _dead_vars(m) -> DeadVars:
+    got = getattr(m, "dead_vars", None)
+    if isinstance(got, DeadVars):
+        return got
+    from pccl.model.reduce import unreduced
+    return DeadVars(unreduced(m))
 
 
 def can_be_dead(m) -> bool:

@@ -242,13 +242,15 @@ class Model(metaclass=ABCMeta):
         self.compiled.stuck_reasons.update(data["stuck"])
 
     # -- the transition system -----------------------------------------------------------
-    def init_states(self, first_only=frozenset()):
+    def init_states(self, first_only=frozenset(), first_value=frozenset()):
         """The initial configurations (:class:`~pccl.model.initstates.InitSearch`);
         a world function's value that does not fit is reported at the world file.
         ``first_only``: ``loc:`` variables whose ``rand`` initialiser takes only
-        its first outcome (values nothing reads: the dead-variable reduction's)."""
+        its first outcome; ``first_value``: those whose initialiser takes its
+        first outcome with a value and every outcome that fails (values
+        nothing reads: the dead-variable reduction's, pccl/model/dead.py)."""
         from pccl.model.compile import FunctionValueError
-        search = InitSearch(self, first_only)
+        search = InitSearch(self, first_only, first_value)
         search.INIT_DEDUP, search.INIT_LIMIT = self.INIT_DEDUP, self.INIT_LIMIT
         try:
             yield from search.states()

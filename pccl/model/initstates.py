@@ -32,10 +32,15 @@ class InitSearch:
     #: Most steps of one path through an agent's Init block.
     INIT_LIMIT = 100_000
 
-    def __init__(self, m, first_only=frozenset()):
+    def __init__(self, m, first_only=frozenset(), first_value=frozenset()):
         self.m = m
         #: ``loc:`` variables whose ``rand`` initialiser takes its first outcome only
+        #: (pccl.model.dead.can_collapse_initial_rand)
         self.first_only = first_only
+        #: ``loc:`` variables whose ``rand`` initialiser takes the first outcome
+        #: that has a value and every outcome that fails, each reason once
+        #: (pccl.model.dead.initial_rand_unread, when some outcome may fail)
+        self.first_value = first_value
 
     def states(self):
         """The initial configurations, one per combination of ``rand``
@@ -175,8 +180,11 @@ class InitSearch:
             finally:
                 oracle.agent = None
         results = (oracle.iter_outcomes(guarded) if has_rand(vs.decl.init) else (guarded(),))
-        if vs.section == "loc" and vs.name in self.first_only:
-            results = itertools.islice(results, 1)
+        if vs.section == "loc":
+            if vs.name in self.first_only:
+                results = itertools.islice(results, 1)
+            elif vs.name in self.first_value:
+                results = _first_value(results)
         try:
             for res in results:
                 if isinstance(res, R.Err):
@@ -265,6 +273,25 @@ class InitSearch:
             oracle.agent = None
         return list(done)
 
+
+
+def _first_value(results):
+    """``results`` (values and :class:`~semantics.rules.Err`) with every
+    value after the first left out, and every failure reason once: the
+    outcomes of an initialiser whose value nobody reads that are different
+    states (the values are one under the masking)."""
+    have_value = False
+    reasons: set = set()
+    for res in results:
+        if isinstance(res, R.Err):
+            if res.reason in reasons:
+                continue
+            reasons.add(res.reason)
+        elif have_value:
+            continue
+        else:
+            have_value = True
+        yield res
 
 
 class _InitPath:

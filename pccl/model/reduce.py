@@ -46,9 +46,20 @@ ALL = ("merge", "symmetry", "por", "dead")
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
 
-#: Blackboxes known to treat agents alike and to keep an agent without a
-#: target where it is.
-SYMMETRIC_BLACKBOXES = frozenset({"instant", "straight", "nondet", "nondet-fail"})
+
+
+def blackbox_treats_robots_alike(bb) -> bool:
+    """Symmetry's condition on the blackbox: ``bb`` declares (as its own
+    class's capability, :func:`pccl.blackboxes.base.declared_capabilities`)
+    that robots are interchangeable and that a robot without a target (or
+    done, or failed) stays where it is (``robots_alike`` and
+    ``settled_robots_hold_still`` of :class:`pccl.blackboxes.base.Capabilities`);
+    its name plays no part."""
+    from pccl.blackboxes.base import declared_capabilities
+    if bb is None:
+        return False
+    caps = declared_capabilities(bb)
+    return caps.robots_alike and caps.settled_robots_hold_still
 
 
 @dataclass
@@ -175,12 +186,7 @@ def symmetry_problem(m) -> tuple:
     if len(set(m.rho)) > 1:
         return "agents have different rates", None
     bb = getattr(m.blackbox, "name", None)
-    from pccl.blackboxes import load_blackbox
-    try:
-        builtin = bb in SYMMETRIC_BLACKBOXES and load_blackbox(bb) is m.blackbox
-    except PcclError:
-        builtin = False
-    if not builtin:
+    if not blackbox_treats_robots_alike(m.blackbox):
         return f"blackbox {bb} may treat agents differently", None
     # positions, targets and reach flags move with their agent under the
     # permutation (issue 23): the built-in blackboxes treat robots alike and
@@ -366,10 +372,12 @@ class Reduced:
             from pccl.model.dead import DeadVars
             d["dead_vars"] = dv = DeadVars(model)
             d["key"] = dv.key_of(d["key"])
-            unread = dv.never_read()
-            if unread:
+            one, values = dv.initial_collapse()
+            if one or values:
                 # every initial value of these is masked: one stands for all
-                d["init_states"] = functools.partial(model.init_states, first_only=unread)
+                # the outcomes that have a value (every failing one is kept)
+                d["init_states"] = functools.partial(model.init_states, first_only=one,
+                                                     first_value=values)
 
     def expand_trace(self, trace):
         """The trace with every merged transition replaced by its steps (for
