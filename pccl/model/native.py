@@ -1033,7 +1033,10 @@ static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r 
 static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r < VMIN) ovf = 1; return r; }}
 static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r < VMIN) ovf = 1; return r; }}
 static inline V NEG(V a) {{ if (a < -INT64_MAX || -a < VMIN) {{ ovf = 1; return 0; }} return -a; }}
-static inline V DIV(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} V r = a / b; if (r < VMIN) ovf = 1; return r; }}
+static inline V DIV(V a, V b) {{
+  if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }}
+  V r = a / b; if (r < VMIN) ovf = 1; return r;
+}}
 static inline V MOD(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a % b; }}
 static inline V AIX(V j) {{ if (j < 0 || j >= NAG) {{ ovf = 1; return 0; }} return j; }}
 static inline V U(V a) {{ if (a == INT64_MIN) ovf = 1; return a; }}
