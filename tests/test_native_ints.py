@@ -97,9 +97,11 @@ def cli(path, *args) -> tuple:
 @pytest.mark.parametrize("text, want_exit, want", [
     (INT64MIN_CLEAN, 0, "no violation — exhaustive"),
     (INT64MIN_STORED, 1, "violation: invariant 'forall i: b[i] > -5' violated"),
-    (BEYOND_64_BITS, 1, "violation: agent 0: assertion failed")])
+    (BEYOND_64_BITS, 1, "violation: agent 0: assertion failed")],
+    ids=["int64min-clean", "int64min-stored", "beyond-64-bits"])
 @pytest.mark.parametrize("args", [(), ("--engine", "native"), ("--reduce", "none"),
-                                  ("--reduce", "merge"), ("--workers", "2")])
+                                  ("--reduce", "merge"), ("--workers", "2")],
+                         ids=["default", "native", "none", "merge", "workers2"])
 def test_reproducers_native_verdict_is_python_verdict(tmp_path, text, want_exit, want, args):
     path = tmp_path / "p.pccl"
     path.write_text(text)
@@ -125,16 +127,16 @@ def test_an_int_beside_the_reserved_codes_stays_native():
         assert summary(nat) == summary(py) and py.status == "exhaustive"
 
 
-@pytest.mark.parametrize("value", [-(1 << 63), -(1 << 63) + 1, -(1 << 63) + 2, -(1 << 63) + 3,
-                                   1 << 63, -(1 << 63) - 1, 1 << 64, -(1 << 70)])
-def test_the_vector_encoder_refuses_what_a_slot_cannot_hold(value):
+def test_the_vector_encoder_refuses_what_a_slot_cannot_hold():
     """Every Python int -> C path goes through NativeModel._v: an int a
     slot cannot hold is NativeOverflow (the Python engine runs), never an
     OverflowError or a reserved code."""
     nm = NV.NativeModel(make_model(INT64MIN_CLEAN.replace("-9223372036854775807 - 1", "0"),
                                    source=True, reduce="none"))
-    with pytest.raises(NV.NativeOverflow):
-        nm._v(value)
+    for value in (-(1 << 63), -(1 << 63) + 1, -(1 << 63) + 2, -(1 << 63) + 3, 1 << 63,
+                  -(1 << 63) - 1, 1 << 64, -(1 << 70)):
+        with pytest.raises(NV.NativeOverflow):
+            nm._v(value)
     for ok in (-(1 << 63) + 4, (1 << 63) - 1, 0, -1):
         assert nm._v(ok) == ok
 

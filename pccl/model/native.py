@@ -25,7 +25,10 @@ so that every process gives a value the same id, equal states have equal
 vectors and fingerprints everywhere, and a worker learns the coordinator's
 ids before it takes the initial states (:meth:`NativeModel.learn_ids`); two
 values of one id stop the native search (the Python engine runs).
-Undefined is INT64_MIN.  The explorer holds a state as a
+Undefined is INT64_MIN; an int slot holds INT64_MIN + 4 .. INT64_MAX
+(:data:`V_MIN`: the values below are reserved codes), any other int met
+when a state is encoded or made by C's arithmetic stops the native
+search (:class:`NativeOverflow`).  The explorer holds a state as a
 ``bytes`` object in one of two forms (:meth:`NativeModel.pack`): int32
 slots when every slot fits (undefined as INT32_MIN), else the int64 slots;
 half the memory, and CPython's small-object allocator instead of malloc
