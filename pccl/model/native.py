@@ -25,7 +25,10 @@ so that every process gives a value the same id, equal states have equal
 vectors and fingerprints everywhere, and a worker learns the coordinator's
 ids before it takes the initial states (:meth:`NativeModel.learn_ids`); two
 values of one id stop the native search (the Python engine runs).
-Undefined is INT64_MIN.  The explorer holds a state as a
+Undefined is INT64_MIN; an int slot holds INT64_MIN + 4 .. INT64_MAX
+(:data:`V_MIN`: the values below are reserved codes), any other int met
+when a state is encoded or made by C's arithmetic stops the native
+search (:class:`NativeOverflow`).  The explorer holds a state as a
 ``bytes`` object in one of two forms (:meth:`NativeModel.pack`): int32
 slots when every slot fits (undefined as INT32_MIN), else the int64 slots;
 half the memory, and CPython's small-object allocator instead of malloc
@@ -136,6 +139,15 @@ from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
 V_TIME, V_PHASE = 0, 1
 
 UNDEF_C = "INT64_MIN"
+#: the ints a native slot holds (the generated C's VMIN..INT64_MAX): below
+#: V_MIN the reserved codes (INT64_MIN undefined; INT64_MIN + 1, + 2 the
+#: symmetry signature's own and other agent ids; INT64_MIN + 3 a dead
+#: value).  Any other int (a PCCL int is unbounded) met when a state is
+#: encoded (an initial state, a memo miss's successors) or made by C's
+#: arithmetic stops the native search (:class:`NativeOverflow`): the Python
+#: engine runs from the start, so its verdict is the native one
+V_MIN, V_MAX = -(1 << 63) + 4, (1 << 63) - 1
+OUT_OF_RANGE = "an int beyond the native range (INT64_MIN + 4 .. INT64_MAX)"
 #: the slots of a moving agent's block after its variables: position,
 #: target, obstacles, t0 (interned ids), doReach_done, doReach_fail
 MOVE_SLOTS = 6
@@ -1017,11 +1029,18 @@ typedef int64_t V;
 static __thread int ovf;
 static __thread int KT;
 static PyObject *OverflowExc;
-static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
-static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
-static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r == INT64_MIN) ovf = 1; return r; }}
-static inline V NEG(V a) {{ if (a == INT64_MIN) ovf = 1; return -a; }}
-static inline V DIV(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a / b; }}
+/* ints: VMIN..INT64_MAX; below VMIN the reserved codes (undefined, the
+   symmetry signature's MSELF and MOTHER, dead's DEADV): a result out of
+   range is an overflow (the Python engine runs) */
+#define VMIN (INT64_MIN + 4)
+static inline V ADD(V a, V b) {{ V r; if (__builtin_add_overflow(a, b, &r) || r < VMIN) ovf = 1; return r; }}
+static inline V SUB(V a, V b) {{ V r; if (__builtin_sub_overflow(a, b, &r) || r < VMIN) ovf = 1; return r; }}
+static inline V MUL(V a, V b) {{ V r; if (__builtin_mul_overflow(a, b, &r) || r < VMIN) ovf = 1; return r; }}
+static inline V NEG(V a) {{ if (a < -INT64_MAX || -a < VMIN) {{ ovf = 1; return 0; }} return -a; }}
+static inline V DIV(V a, V b) {{
+  if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }}
+  V r = a / b; if (r < VMIN) ovf = 1; return r;
+}}
 static inline V MOD(V a, V b) {{ if (b == 0 || (a == INT64_MIN && b == -1)) {{ ovf = 1; return 0; }} return a % b; }}
 static inline V AIX(V j) {{ if (j < 0 || j >= NAG) {{ ovf = 1; return 0; }} return j; }}
 static inline V U(V a) {{ if (a == INT64_MIN) ovf = 1; return a; }}
@@ -2979,7 +2998,11 @@ class NativeModel:
             return -(1 << 63)
         if kind not in SCALAR:
             return self.intern(x)
-        return int(x)
+        x = int(x)
+        if not V_MIN <= x <= V_MAX:
+            # undefined and the reserved codes below V_MIN, or beyond 64 bits
+            raise NativeOverflow(OUT_OF_RANGE)
+        return x
 
     def encode(self, st) -> bytes:
         """The state's bytes as the explorer holds them (:meth:`pack`)."""

@@ -20,7 +20,10 @@ reduction, whose hidden steps change only such variables (docs/reductions.md).
 
 from __future__ import annotations
 
+import marshal
 from collections.abc import Callable
+
+import xxhash
 
 from pccl.lang import ast as A
 from pccl.model.layout import AGS, AR, DONE, END, FAIL, LOC, LQ, PC, POS, REACH, RUNNING, SH, STATUS, TARGET
@@ -38,15 +41,24 @@ def _visible_locals(model) -> list:
 def signature_fn(model) -> Callable:
     """``sig(state) -> int``: a 64-bit hash of the state's signature (the
     clock, the phase, pcs, counters, private locals and the blackbox's own
-    state left out).  Generated per model: one tuple and one hash per call."""
+    state left out), as a signed int64 (the graph recorder's column).
+    Generated per model: one tuple, one encoding and one hash per call
+    (the agents' part a list: cheaper to make than a tuple).  The hash is
+    xxh3-64 of the signature's marshal encoding (the values the native
+    engine's signature tells apart, as its interned ids do), not Python's
+    ``hash()``: that one is equal for -1 and -2 and for ints 2**61 - 1
+    apart, so a transition from ``s = -1`` to ``s = -2`` read as no change
+    (a merged chain cut where it did not end where it began; the stall
+    check blind to that change)."""
     slots = _visible_locals(model)
     loc = "(" + "".join(f"ag[{LOC}][{s}], " for s in slots) + ")" if slots else "()"
     src = (f"def _sig(st):\n"
-           f"    return hash((st[{LQ}], st[{SH}], tuple((ag[{STATUS}], ag[{AR}], ag[{POS}], "
+           f"    return _h(_dumps((st[{LQ}], st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
            f"ag[{REACH}][{TARGET}], ag[{REACH}][{DONE}], ag[{REACH}][{FAIL}], {loc}) "
-           f"for ag in st[{AGS}])))\n")
+           f"for ag in st[{AGS}]]), 2)) - 0x8000000000000000\n")
     ns: dict = {}
-    exec(compile(src, "<pccl stall signature>", "exec"), {}, ns)
+    exec(compile(src, "<pccl stall signature>", "exec"),
+         {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
     return ns["_sig"]
 
 
