@@ -139,6 +139,7 @@ def test_pages_hold_no_absolute_path_unless_asked(fischer_trace, tmp_path):
 MARKER_PROGRAM = ROOT / "tests" / "programs" / "viewer_marker.pccl"
 
 
+@pytest.mark.slow
 def test_a_program_holding_the_markers_round_trips_through_its_page(tmp_path):
     out = tmp_path / "m.html"
     r = cli("explore", str(MARKER_PROGRAM), "--html", str(out))
