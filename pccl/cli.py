@@ -950,35 +950,43 @@ def view(trace_file, output, blackbox, embed_paths):
               help="an invariant to check in every state shown (repeatable)")
 @click.option("--abstract-time/--no-abstract-time", default=None,
               help="as explore: time abstraction (default: on when the program never reads time)")
-@click.option("--port", type=click.IntRange(min=0, max=65535), default=8024, show_default=True,
-              help="the port on 127.0.0.1 (0: any free port)")
+@click.option("--port", type=click.IntRange(min=0, max=65535), default=0,
+              help="the port on 127.0.0.1 [default: a free one]")
+@click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
+              help="stop a search from the page (as a bound) when the process's memory passes "
+                   "SIZE, e.g. 800M [default: 80% of physical memory, as explore]")
+@click.option("--search-seconds", type=FiniteFloat(min=0), default=60.0, show_default=True,
+              help="stop a search from the page after this many seconds")
 def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
-          max_time, invariants, abstract_time, port):
+          max_time, invariants, abstract_time, port, max_memory, search_seconds):
     """Explore PROGRAM interactively in a browser: start from an initial state,
     see every enabled transition with its rule and source line, take one, go
     back, jump to a visited state, load a trace file, run a bounded search from
     the current state.  The model is explore's (same options), unreduced.  The
-    server listens on 127.0.0.1 only; stop it with Ctrl-C."""
-    from pccl.api import build_model
+    server listens on 127.0.0.1 only and answers only the URL it prints (with
+    its per-run token); stop it with Ctrl-C."""
+    from pccl.api import build_model, default_max_memory
     from pccl.tools import serve as S
     from pccl.output import traces as T
     _check_repeats(rates, overrides)
-    opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
+    params = dict(click.get_current_context().params)
+    params.pop("max_memory", None)
+    params.pop("search_seconds", None)
+    opts = ExploreOptions.from_cli(params).replace(reduce="none")
     try:
         model = build_model(program, opts, explore=True)
         cfg = T.config("explore", model, program=program)
-        session = S.Session(model, cfg)
+        session = S.Session(model, cfg,
+                            max_memory=default_max_memory() if max_memory is None else max_memory,
+                            search_seconds=search_seconds or None)
     except PcclError as e:
         _fail(e)
     try:
         srv = S.make_server(session, port)
     except OSError as e:
         _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
-    host, real_port = srv.server_address[:2]
-    if isinstance(host, bytes):         # typeshed: an AF_UNIX address; never for this server
-        host = host.decode()
     click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
-               f"open http://{host}:{real_port}/ (Ctrl-C stops)")
+               f"open {S.url(srv)} (Ctrl-C stops)")
     try:
         srv.serve_forever()
     except KeyboardInterrupt:

@@ -244,17 +244,18 @@ def test_http_api_bad_requests_never_stop_the_server():
     th = threading.Thread(target=srv.serve_forever, daemon=True)
     th.start()
     base = f"http://127.0.0.1:{srv.server_address[1]}"
+    tok = {"X-PCCL-Token": srv.token}
 
     def post(path, body: bytes):
         req = urllib.request.Request(base + path, data=body, method="POST",
-                                     headers={"Content-Type": "application/json"})
+                                     headers={"Content-Type": "application/json", **tok})
         try:
             with urllib.request.urlopen(req, timeout=30) as r:
                 return r.status, json.load(r)
         except urllib.error.HTTPError as e:
             return e.code, json.load(e)
     try:
-        with urllib.request.urlopen(base + "/", timeout=30) as r:
+        with urllib.request.urlopen(S.url(srv), timeout=30) as r:
             page = r.read().decode()
         assert '"mode":"serve"' in page
         assert post("/api/step", b"not json") == (400, {"error": post("/api/step", b"not json")[1]["error"]})
@@ -267,7 +268,8 @@ def test_http_api_bad_requests_never_stop_the_server():
         assert post("/api/search", b'{"depth": -1}')[0] == 400
         code, body = post("/api/step", b'{"index": 0}')
         assert code == 200 and body["explorer"]["depth"] == 1
-        with urllib.request.urlopen(base + "/api/successors", timeout=30) as r:
+        with urllib.request.urlopen(urllib.request.Request(base + "/api/successors", headers=tok),
+                                    timeout=30) as r:
             assert len(json.load(r)["successors"]) >= 1
     finally:
         srv.shutdown()

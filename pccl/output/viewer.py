@@ -166,16 +166,19 @@ def _template_parts() -> list:
     return parts
 
 
-def page(data_obj: Optional[dict], *, mode: str = "static", title: str = "pccl") -> str:
+def page(data_obj: Optional[dict], *, mode: str = "static", title: str = "pccl",
+         boot: Optional[dict] = None) -> str:
     """The HTML page: ``mode`` ``static`` (a trace, data inline) or ``serve``
     (the interactive explorer of :mod:`pccl.tools.serve`, data from its API).
     The template is cut at its markers first and the pieces joined with what
     fills them, so nothing filled in (a program's text holding a marker, in
     the data) is ever read as template; the data is JSON escaped for a
-    ``<script>`` element (:func:`_script_json`)."""
+    ``<script>`` element (:func:`_script_json`).  ``boot``: more of
+    ``window.PCCL_BOOT`` (serve's token)."""
     parts = _template_parts()
     fills = [html.escape(title), _asset("viewer.css"),
-             "window.PCCL_BOOT = " + _script_json({"mode": mode, "data": data_obj}) + ";",
+             "window.PCCL_BOOT = " + _script_json({"mode": mode, "data": data_obj, **(boot or {})})
+             + ";",
              _asset("viewer.js")]
     out = [parts[0]]
     for fill, part in zip(fills, parts[1:]):
