@@ -840,21 +840,33 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
         except PcclError as e:
             click.echo(_render(e), err=True)
     if html and res.doc.get("initial") is not None:
-        _write_html(html, res.doc, model=m, states=res.states,
-                    notes=[res.message] if res.status == "diverged" else [])
+        notes = [res.message] if res.status == "diverged" else []
+        page_model, page_states = m, list(res.states)
+        if program_file is None:
+            # a page is shared: it shows a program the trace merely names only
+            # when its bytes are the recorded ones (--program: the user's choice)
+            from pccl.tools.replay import recorded_file
+            found, why = recorded_file(cfg.get("program"), trace_file)
+            if found is None:
+                page_model, page_states = None, []
+                notes.append(f"source not shown: {why}")
+                click.echo(f"pccl replay: the viewer shows no source: {why}", err=True)
+        _write_html(html, res.doc, model=page_model, states=page_states, notes=notes)
     elif html:
         click.echo(f"pccl: nothing to replay, so no viewer written to {html}", err=True)
     sys.exit(res.exit_status)
 
 
-def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False):
+def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False,
+                source_file=None, embed_paths=False):
     """Write the HTML viewer of ``doc``; the states' pending computations
     are kept only when they are the document's whole path."""
     from pccl.output import viewer
     if states is not None and len(states) != len(doc["steps"]) + 1:
         states = None
     try:
-        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes))
+        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes),
+                     source_file=source_file, embed_paths=embed_paths)
     except PcclError as e:      # the verdict stands: report, keep its exit status
         click.echo(_render(e), err=True)
         return
@@ -878,31 +890,54 @@ def _explore_states(res):
               help="the HTML file to write")
 @click.option("--blackbox", "-b", default=None, metavar="MODULE:ATTR",
               help="the user blackbox the trace was recorded with, to replay it (as for replay)")
-def view(trace_file, output, blackbox):
+@click.option("--embed-paths", is_flag=True,
+              help="keep the absolute paths of the program and world in the page (left out "
+                   "by default: a page is made to be shared)")
+def view(trace_file, output, blackbox, embed_paths):
     """Write a self-contained HTML viewer of the trace file TRACE (written by
     --trace-out): the arena or timeline, swimlane, state inspector and source,
-    animated step by step.  The trace is replayed when its program can be
-    found (to show every agent's pending computation exactly); a trace that
-    cannot be replayed is shown as recorded, with a note saying why."""
+    animated step by step.  The program (and world) are used only when a file
+    with the recorded sha256 is found (as replay finds it: the recorded path,
+    the path relative to TRACE, the absolute path); then the trace is replayed
+    (to show every agent's pending computation exactly) and its source shown.
+    Otherwise the trace is shown as recorded, without source, with a note
+    saying why (also on stderr): a trace from elsewhere may name any file."""
     from pccl.output import tracecheck as TC
-    from pccl.tools.replay import replay as do_replay
+    from pccl.tools.replay import recorded_file, replay as do_replay
     _check_output(output, "--output")
     try:
         doc = TC.load(trace_file)
     except PcclError as e:
         _fail(e)
-    notes, model, states, world = [], None, None, None
-    try:
-        res = do_replay(trace_file, blackbox=blackbox, spelling=cli_spelling)
-        model, states = res.model, res.states
-        if res.status == "diverged":
-            notes.append(f"the trace does not replay: {res.message}")
-    except PcclError as e:
-        notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
-        world = _world_of(doc)
+    notes: list = []
+    model, states, world, source = None, None, None, None
+    cfg = doc.get("config") or {}
+    prog, why = recorded_file(cfg.get("program"), trace_file)
+    wfile, wwhy = (recorded_file(cfg["world"], trace_file) if cfg.get("world")
+                   else (None, ""))
+    if wfile is not None:
+        world = _world_of(wfile)
+    if prog is None:
+        notes.append(f"source not shown and the trace not replayed: {why}")
+    elif cfg.get("world") and wfile is None:
+        source = prog
+        notes.append(f"not replayed (the world: {wwhy}): shown as recorded")
+    else:
+        source = prog
+        try:
+            res = do_replay(trace_file, blackbox=blackbox, program=prog, world=wfile,
+                            spelling=cli_spelling)
+            model, states = res.model, res.states
+            if res.status == "diverged":
+                notes.append(f"the trace does not replay: {res.message}")
+        except PcclError as e:
+            notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
+    for note in notes:
+        click.echo(f"pccl view: {note}", err=True)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
-    _write_html(output, doc, model=model, states=states, world=world, notes=notes)
+    _write_html(output, doc, model=model, states=states, world=world, notes=notes,
+                source_file=source, embed_paths=embed_paths)
 
 
 @main.command(short_help="Interactive explorer in the browser (127.0.0.1).",
@@ -915,35 +950,43 @@ def view(trace_file, output, blackbox):
               help="an invariant to check in every state shown (repeatable)")
 @click.option("--abstract-time/--no-abstract-time", default=None,
               help="as explore: time abstraction (default: on when the program never reads time)")
-@click.option("--port", type=click.IntRange(min=0, max=65535), default=8024, show_default=True,
-              help="the port on 127.0.0.1 (0: any free port)")
+@click.option("--port", type=click.IntRange(min=0, max=65535), default=0,
+              help="the port on 127.0.0.1 [default: a free one]")
+@click.option("--max-memory", "max_memory", metavar="SIZE", default=None, callback=lambda c, p, v: _size(v),
+              help="stop a search from the page (as a bound) when the process's memory passes "
+                   "SIZE, e.g. 800M [default: 80% of physical memory, as explore]")
+@click.option("--search-seconds", type=FiniteFloat(min=0), default=60.0, show_default=True,
+              help="stop a search from the page after this many seconds")
 def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
-          max_time, invariants, abstract_time, port):
+          max_time, invariants, abstract_time, port, max_memory, search_seconds):
     """Explore PROGRAM interactively in a browser: start from an initial state,
     see every enabled transition with its rule and source line, take one, go
     back, jump to a visited state, load a trace file, run a bounded search from
     the current state.  The model is explore's (same options), unreduced.  The
-    server listens on 127.0.0.1 only; stop it with Ctrl-C."""
-    from pccl.api import build_model
+    server listens on 127.0.0.1 only and answers only the URL it prints (with
+    its per-run token); stop it with Ctrl-C."""
+    from pccl.api import build_model, default_max_memory
     from pccl.tools import serve as S
     from pccl.output import traces as T
     _check_repeats(rates, overrides)
-    opts = ExploreOptions.from_cli(click.get_current_context().params).replace(reduce="none")
+    params = dict(click.get_current_context().params)
+    params.pop("max_memory", None)
+    params.pop("search_seconds", None)
+    opts = ExploreOptions.from_cli(params).replace(reduce="none")
     try:
         model = build_model(program, opts, explore=True)
         cfg = T.config("explore", model, program=program)
-        session = S.Session(model, cfg)
+        session = S.Session(model, cfg,
+                            max_memory=default_max_memory() if max_memory is None else max_memory,
+                            search_seconds=search_seconds or None)
     except PcclError as e:
         _fail(e)
     try:
         srv = S.make_server(session, port)
     except OSError as e:
         _fail(PcclError(f"cannot listen on 127.0.0.1:{port}: {e.strerror or e}", filename="--port"))
-    host, real_port = srv.server_address[:2]
-    if isinstance(host, bytes):         # typeshed: an AF_UNIX address; never for this server
-        host = host.decode()
     click.echo(f"pccl serve {program}: {model.N} agents, blackbox {model.blackbox.name}; "
-               f"open http://{host}:{real_port}/ (Ctrl-C stops)")
+               f"open {S.url(srv)} (Ctrl-C stops)")
     try:
         srv.serve_forever()
     except KeyboardInterrupt:
@@ -953,14 +996,12 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     sys.exit(0)
 
 
-def _world_of(doc):
-    """The world a trace names, when its file can still be read (else None)."""
+def _world_of(path):
+    """The world file ``path`` (one with a trace's recorded sha256), when it
+    can be read (else None)."""
     from pccl.lang.world import load_world
-    rec = (doc.get("config") or {}).get("world")
-    if not rec:
-        return None
     try:
-        return load_world(rec["path"])
+        return load_world(path)
     except (PcclError, OSError):
         return None
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import random
 import shutil
 import signal
@@ -18,6 +17,7 @@ import pytest
 
 from pccl import api
 from pccl.search import checkpoint as C
+from pccl.search import safedata
 from pccl.search.fingerprint import fingerprint
 from conftest import TEST_PROGRAMS, interrupted
 
@@ -191,14 +191,15 @@ def test_checkpoint_every_level_then_resume_from_each(tmp_path):
 
 
 def test_states_round_trip_through_a_checkpoint():
-    """UNDEF (Ellipsis), floats, None, named tuples: the frontier pickled and
-    read back is the same states, with the same fingerprints."""
+    """UNDEF (Ellipsis), floats, None: the frontier written as data
+    (:mod:`pccl.search.safedata`, MessagePack for a list of states) and read
+    back is the same states, with the same fingerprints."""
     m = api.make_model(f"{PROG}/race_nonatomic.pccl", world=f"{PROG}/race.toml",
                        blackbox="nondet")
     states = list(m.init_states())
     for _ in range(6):
         states += [s for st in states[-5:] for _, s in m.successors(st)]
-    back = pickle.loads(pickle.dumps(states, protocol=5))
+    back = safedata.loads(safedata.dumps(safedata.States(states)))
     assert back == states
     assert [fingerprint(m.key(s)) for s in back] == [fingerprint(m.key(s)) for s in states]
 
@@ -238,7 +239,7 @@ def test_crash_while_writing_leaves_the_previous_checkpoint_usable(tmp_path, mon
     # a truncated file of a generation no manifest names is ignored too
     half = os.path.join(d, "gen-999999")
     os.makedirs(half)
-    open(os.path.join(half, "state.pkl"), "wb").write(b"\x80\x05junk")
+    open(os.path.join(half, "state.json"), "wb").write(b"\x80\x05junk")
     assert summary(api.explore(program, resume=d, **opts)) == full
 
 
@@ -363,7 +364,7 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
     if damage == "manifest":
         open(os.path.join(d, C.MANIFEST), "w").write("{not json")
     elif damage == "truncate":
-        p = os.path.join(gen, "state.pkl")
+        p = os.path.join(gen, "state.json")
         data = open(p, "rb").read()
         open(p, "wb").write(data[:len(data) // 2])
     elif damage == "flip":

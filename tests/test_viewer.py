@@ -16,6 +16,11 @@ import pytest
 from conftest import FISCHER, RACE_NONATOMIC, RACE_WORLD, cli
 
 
+def _without_paths(doc: dict) -> dict:
+    from pccl.output.viewer import _without_paths as strip
+    return strip(doc)
+
+
 def boot(path) -> dict:
     """The data object a viewer file embeds."""
     text = open(path, encoding="utf-8").read()
@@ -40,7 +45,8 @@ def test_page_embeds_the_trace_document_itself(fischer_files):
     b = boot(html)
     assert b["mode"] == "static"
     d = b["data"]
-    assert d["trace"] == json.loads(trace.read_text())      # one encoder: the trace file's
+    # one encoder: the trace file's (without the absolute paths: viewer._without_paths)
+    assert d["trace"] == _without_paths(json.loads(trace.read_text()))
     assert d["motion"] is False                              # Fischer draws a timeline
     assert d["source"]["text"] == open(FISCHER).read()
     # the pending computations: one per agent per state, the ends as the document says
@@ -105,7 +111,7 @@ def test_run_and_replay_write_viewers(tmp_path):
     r = cli("run", RACE_NONATOMIC, "--world", RACE_WORLD, "--html", str(html), "--trace-out", str(trace))
     assert r.exit_code == 0, r.output
     d = boot(html)["data"]
-    assert d["trace"] == json.loads(trace.read_text())
+    assert d["trace"] == _without_paths(json.loads(trace.read_text()))
     assert d["trace"]["config"]["command"] == "run" and d["motion"] is True
     r = cli("replay", str(trace), "--html", str(html2))
     assert r.exit_code == 0, r.output
@@ -136,7 +142,8 @@ def test_view_a_trace_whose_program_is_gone(fischer_files, tmp_path):
     d = boot(out)["data"]
     assert d["at"] is None and d["source"] is None
     assert any("not replayed" in n for n in d["notes"])
-    assert d["trace"] == doc
+    assert d["trace"] == _without_paths(doc)
+    assert d["trace"]["config"]["program"]["path"] == "gone.pccl"
 
 
 def test_view_bad_input(tmp_path):
@@ -237,17 +244,18 @@ def test_http_api_bad_requests_never_stop_the_server():
     th = threading.Thread(target=srv.serve_forever, daemon=True)
     th.start()
     base = f"http://127.0.0.1:{srv.server_address[1]}"
+    tok = {"X-PCCL-Token": srv.token}
 
     def post(path, body: bytes):
         req = urllib.request.Request(base + path, data=body, method="POST",
-                                     headers={"Content-Type": "application/json"})
+                                     headers={"Content-Type": "application/json", **tok})
         try:
             with urllib.request.urlopen(req, timeout=30) as r:
                 return r.status, json.load(r)
         except urllib.error.HTTPError as e:
             return e.code, json.load(e)
     try:
-        with urllib.request.urlopen(base + "/", timeout=30) as r:
+        with urllib.request.urlopen(S.url(srv), timeout=30) as r:
             page = r.read().decode()
         assert '"mode":"serve"' in page
         assert post("/api/step", b"not json") == (400, {"error": post("/api/step", b"not json")[1]["error"]})
@@ -260,7 +268,8 @@ def test_http_api_bad_requests_never_stop_the_server():
         assert post("/api/search", b'{"depth": -1}')[0] == 400
         code, body = post("/api/step", b'{"index": 0}')
         assert code == 200 and body["explorer"]["depth"] == 1
-        with urllib.request.urlopen(base + "/api/successors", timeout=30) as r:
+        with urllib.request.urlopen(urllib.request.Request(base + "/api/successors", headers=tok),
+                                    timeout=30) as r:
             assert len(json.load(r)["successors"]) >= 1
     finally:
         srv.shutdown()

@@ -250,7 +250,7 @@ def test_serve_reaches_two_agents_in_cs_by_clicking(browser, fischer_server):
         picks.append([lab2 for lab2, _ in m.successors(a)].index(lab))
     b = browser
     url = f"http://127.0.0.1:{srv.server_address[1]}/"
-    b.open(url)
+    b.open(S.url(srv))
     b.wait("document.body.dataset.depth === '0'")
     assert b.eval("document.querySelector('#checks li').dataset.holds") == "true"
     for d, i in enumerate(picks):
@@ -283,7 +283,8 @@ def test_serve_page_loads_a_trace_file(browser, fischer_server, tmp_path):
     assert r.exit_code == 1
     n = len(json.loads(trace.read_text())["steps"])
     b = browser
-    b.open(f"http://127.0.0.1:{srv.server_address[1]}/")
+    from pccl.tools import serve as S
+    b.open(S.url(srv))
     b.wait("document.body.dataset.depth === '0'")
     node = b.send("DOM.querySelector", nodeId=b.send("DOM.getDocument")["root"]["nodeId"], selector="#load-file")
     b.send("DOM.setFileInputFiles", nodeId=node["nodeId"], files=[os.fspath(trace)])

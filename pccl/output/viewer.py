@@ -53,18 +53,50 @@ def _read_source(path) -> Optional[str]:
         return None
 
 
-def source_data(model=None, doc: Optional[dict] = None) -> Optional[dict]:
+def source_data(model=None, source_file: Optional[str] = None) -> Optional[dict]:
     """The program's text: the model's (it was parsed from it), else the file
-    the trace names."""
+    ``source_file`` (a file the caller checked: for a trace, the one with
+    the recorded sha256, :func:`pccl.tools.replay.recorded_file`).  Never a
+    file a trace merely names."""
     prog = getattr(model, "program", None)
     if prog is not None and prog.source:
         return {"path": prog.filename, "text": prog.source}
-    rec = ((doc or {}).get("config") or {}).get("program")
-    if rec and rec.get("path"):
-        text = _read_source(rec["path"])
+    if source_file is not None:
+        text = _read_source(source_file)
         if text is not None:
-            return {"path": rec["path"], "text": text}
+            return {"path": source_file, "text": text}
     return None
+
+
+def _shown_path(path, embed_paths: bool):
+    """A path as a page shows it: an absolute one, or one that climbs out
+    (``../``), as its file name only (a page is shared: the author's
+    directories stay theirs), unless ``embed_paths``."""
+    if embed_paths or not isinstance(path, str):
+        return path
+    if os.path.isabs(path) or ".." in path.replace("\\", "/").split("/"):
+        return os.path.basename(path)
+    return path
+
+
+def _without_paths(doc: dict) -> dict:
+    """The trace document with its files' absolute paths left out
+    (``config.program``/``config.world``: ``absolute`` dropped, an absolute
+    ``path`` or ``relative`` path, or one that climbs out, cut to its file
+    name)."""
+    cfg = doc.get("config")
+    if not isinstance(cfg, dict):
+        return doc
+    cfg = dict(cfg)
+    for key in ("program", "world"):
+        rec = cfg.get(key)
+        if isinstance(rec, dict):
+            rec = {k: v for k, v in rec.items() if k != "absolute"}
+            for k in ("path", "relative"):
+                if k in rec:
+                    rec[k] = _shown_path(rec[k], False)
+            cfg[key] = rec
+    return {**doc, "config": cfg}
 
 
 def motion_of(model=None, doc: Optional[dict] = None) -> bool:
@@ -83,15 +115,22 @@ def motion_of(model=None, doc: Optional[dict] = None) -> bool:
 
 
 def data(doc: dict, *, model=None, states=None, world=None, title: Optional[str] = None,
-         notes: Optional[list] = None) -> dict:
-    """The object the page reads (``window.PCCL_DATA``)."""
+         notes: Optional[list] = None, source_file: Optional[str] = None,
+         embed_paths: bool = False) -> dict:
+    """The object the page reads (``window.PCCL_DATA``).  The source shown is
+    the model's or ``source_file``'s (:func:`source_data`); absolute paths
+    are left out unless ``embed_paths``."""
     if world is None and model is not None:
         world = model.world
     from pccl.model.layout import AGS, PC
     at = None
     if model is not None and states:
         at = [[model.compiled.describe_k(ag[PC]) for ag in st[AGS]] for st in states]
-    src = source_data(model, doc)
+    src = source_data(model, source_file)
+    if src is not None:
+        src = {**src, "path": _shown_path(src["path"], embed_paths)}
+    if not embed_paths:
+        doc = _without_paths(doc)
     return {"trace": doc, "source": src, "world": world_data(world), "motion": motion_of(model, doc),
             "at": at, "title": title or _title(doc, src), "notes": list(notes or [])}
 
@@ -109,15 +148,42 @@ def _script_json(obj: Any) -> str:
         .replace("\u2028", "\\u2028").replace("\u2029", "\\u2029")
 
 
-def page(data_obj: Optional[dict], *, mode: str = "static", title: str = "pccl") -> str:
-    """The HTML page: ``mode`` ``static`` (a trace, data inline) or ``serve``
-    (the interactive explorer of :mod:`pccl.tools.serve`, data from its API)."""
+#: the template's markers, in the order they appear in viewer.html
+_MARKERS = ("{{TITLE}}", "/*{{CSS}}*/", "/*{{BOOT}}*/", "/*{{JS}}*/")
+
+
+def _template_parts() -> list:
+    """viewer.html cut once at its markers: the text between them, one more
+    piece than there are markers (each marker once, in order)."""
     tpl = _asset("viewer.html")
-    boot = {"mode": mode, "data": data_obj}
-    return (tpl.replace("{{TITLE}}", html.escape(title))
-            .replace("/*{{CSS}}*/", _asset("viewer.css"))
-            .replace("/*{{BOOT}}*/", "window.PCCL_BOOT = " + _script_json(boot) + ";")
-            .replace("/*{{JS}}*/", _asset("viewer.js")))
+    parts, rest = [], tpl
+    for marker in _MARKERS:
+        before, sep, rest = rest.partition(marker)
+        if not sep or marker in before or marker in rest:
+            raise AssertionError(f"viewer.html: the marker {marker} is not there once")
+        parts.append(before)
+    parts.append(rest)
+    return parts
+
+
+def page(data_obj: Optional[dict], *, mode: str = "static", title: str = "pccl",
+         boot: Optional[dict] = None) -> str:
+    """The HTML page: ``mode`` ``static`` (a trace, data inline) or ``serve``
+    (the interactive explorer of :mod:`pccl.tools.serve`, data from its API).
+    The template is cut at its markers first and the pieces joined with what
+    fills them, so nothing filled in (a program's text holding a marker, in
+    the data) is ever read as template; the data is JSON escaped for a
+    ``<script>`` element (:func:`_script_json`).  ``boot``: more of
+    ``window.PCCL_BOOT`` (serve's token)."""
+    parts = _template_parts()
+    fills = [html.escape(title), _asset("viewer.css"),
+             "window.PCCL_BOOT = " + _script_json({"mode": mode, "data": data_obj, **(boot or {})})
+             + ";",
+             _asset("viewer.js")]
+    out = [parts[0]]
+    for fill, part in zip(fills, parts[1:]):
+        out += [fill, part]
+    return "".join(out)
 
 
 def html_of(doc: dict, **kw) -> str:

@@ -3,8 +3,10 @@ DIR``): one process (breadth first or ``--fastest``), ``--workers N`` and ``--ra
 
 A checkpoint is taken at a breadth-first level boundary: the visited table
 (fingerprints and parent links, numpy ``.npy`` files), the graph the
-time-lock, stall and temporal checks record (numpy arrays), and a pickle of
-the rest: the level about to be expanded (its states), the statistics, the
+time-lock, stall and temporal checks record (numpy arrays), and the rest as
+data (``state.json``: JSON of a closed set of types, :mod:`pccl.search.safedata`,
+each field checked on reading: :func:`check_state`; no pickle, so a checkpoint
+from elsewhere runs no code): the level about to be expanded (its states), the statistics, the
 violations found so far, the bounds met, the labels of the transitions taken
 (the never-fired events), the runaway detector and the model's lazily
 interned tables (so that a resumed search numbers k cells, hence
@@ -38,7 +40,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import pickle
 import re
 import shutil
 import tempfile
@@ -49,12 +50,16 @@ import numpy as np
 import xxhash
 
 from pccl.lang.errors import PcclError
+from pccl.search import safedata
 
 __all__ = ["FORMAT", "MANIFEST", "Checkpointer", "parse_interval", "search_identity",
            "DEFAULT_INTERVAL"]
 
 #: The version of the checkpoint layout; a checkpoint of another format is refused.
-FORMAT = 1
+#: (Format 1 held a pickle, ``state.pkl``: never read, since reading one runs code.)
+FORMAT = 2
+#: the file of a generation (or partition) holding the state besides the arrays
+STATE = "state.json"
 MANIFEST = "checkpoint.json"
 #: Seconds between checkpoints by default (TLC's 30 minutes).
 DEFAULT_INTERVAL = 1800.0
@@ -236,7 +241,7 @@ class Checkpointer:
 
     def write(self, state: dict, arrays: dict, appended=()) -> None:
         """Write a generation: ``arrays`` (name -> numpy array) and ``state``
-        (pickled), then the manifest naming them.  The arrays named in
+        (as data: ``state.json``), then the manifest naming them.  The arrays named in
         ``appended`` only grow (rows written before never change: the
         fingerprints, the parent links, the recorded edges): of those only
         the rows added since the last checkpoint in this directory are
@@ -408,6 +413,11 @@ class Checkpointer:
                 raise ValueError("not an object")
         except (OSError, ValueError) as e:
             raise self._bad(f"the checkpoint is corrupt ({MANIFEST}: {e})") from None
+        if man.get("format") == 1 or (isinstance(man.get("files"), dict)
+                                      and "state.pkl" in man["files"]):
+            raise self._bad("the checkpoint was written by an older pccl (its state is a "
+                            "pickle, which this pccl does not read: reading one can run "
+                            "code); start the search again")
         if man.get("format") != FORMAT:
             raise self._bad(f"the checkpoint has format {man.get('format')!r}; this pccl "
                             f"reads format {FORMAT}")
@@ -417,7 +427,7 @@ class Checkpointer:
                             f"{_pccl_version()}; resume with that version")
         gen, files = man.get("generation"), man.get("files")
         if not isinstance(gen, str) or not re.fullmatch(r"gen-\d+", gen) \
-                or not isinstance(files, dict) or "state.pkl" not in files:
+                or not isinstance(files, dict) or STATE not in files:
             raise self._bad(f"the checkpoint is corrupt ({MANIFEST} names no generation)")
         return man
 
@@ -579,7 +589,7 @@ def part_name(w: int) -> str:
 
 def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
     """Write ``arrays`` (name -> numpy array, as ``.npy``) and ``state``
-    (``state.pkl``) into ``tmp/prefix``, each file fsynced; their
+    (``state.json``, :mod:`pccl.search.safedata`) into ``tmp/prefix``, each file fsynced; their
     ``{"prefix/name": {"bytes", "xxh3"}}`` for the manifest.  (Called in a
     worker's process too: it writes its own partition.)"""
     where = os.path.join(tmp, prefix) if prefix else tmp
@@ -597,15 +607,29 @@ def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
         files[pre + fname] = {"bytes": size, "xxh3": _array_digest(arr)}
     if state is None:           # arrays only (an appended array's new rows)
         return files
-    blob = pickle.dumps(state, protocol=5)
-    with open(os.path.join(where, "state.pkl"), "wb") as f:
+    blob = safedata.dumps(_marked_states(state))
+    with open(os.path.join(where, STATE), "wb") as f:
         f.write(blob)
         f.flush()
         os.fsync(f.fileno())
-    files[pre + "state.pkl"] = {"bytes": len(blob), "xxh3": _digest(blob)}
+    files[pre + STATE] = {"bytes": len(blob), "xxh3": _digest(blob)}
     if prefix:
         _fsync_dir(where)
     return files
+
+
+def _marked_states(state: dict) -> dict:
+    """``state`` with its lists of states marked (:class:`safedata.States`:
+    written as MessagePack, fast): a level, the fastest search's buckets."""
+    out = dict(state)
+    if isinstance(out.get("level"), list):
+        out["level"] = safedata.States(out["level"])
+    b = out.get("buckets")
+    if isinstance(b, list):         # one process: [(key, [(state, number)])]
+        out["buckets"] = [(k, safedata.States(entries)) for k, entries in b]
+    elif isinstance(b, dict):       # a worker's: {key: ([numbers], [states])}
+        out["buckets"] = {k: (ix, safedata.States(sts)) for k, (ix, sts) in b.items()}
+    return out
 
 
 def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
@@ -622,13 +646,18 @@ def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
             if size != info["bytes"]:
                 raise ValueError(f"{label}{fname} has {size:,} bytes, the manifest "
                                  f"says {info['bytes']:,}")
-            if fname == "state.pkl":
+            if fname == STATE:
                 with open(p, "rb") as f:
                     data = f.read()
                 if _digest(data) != info["xxh3"]:
                     raise ValueError(f"{label}{fname} does not match its digest")
-                state = pickle.loads(data)
+                state = safedata.loads(data)        # data only: no code runs
                 del data
+                check_state(state, f"{label}{fname}")
+            elif not fname.endswith(".npy") or "\\" in fname or fname.startswith("/") \
+                    or any(part not in ("..",) and not re.fullmatch(r"[\w.-]+", part)
+                           for part in fname.split("/")):
+                raise ValueError(f"{label}{fname}: not a checkpoint's file")
             else:
                 # mapped, not read: the table is copied once, into the search's
                 arr = np.load(p, mmap_mode="r", allow_pickle=False)
@@ -636,12 +665,139 @@ def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
                     raise ValueError(f"{label}{fname} does not match its digest")
                 arrays[fname[:-4]] = arr
         if not isinstance(state, dict) or "depth" not in state:
-            raise ValueError(f"{label}state.pkl holds no search state")
+            raise ValueError(f"{label}{STATE} holds no search state")
     except ValueError:
         raise
     except Exception as e:
         raise ValueError(f"{label}: {type(e).__name__}: {e}") from None
     return state, arrays
+
+
+# What a checkpoint's state.json may hold
+# -----------------------------------------
+#
+# :func:`safedata.loads` builds only plain data; here each field of the state
+# is checked against what a search writes (types, ranges, how the fields
+# agree), so that a checkpoint from elsewhere is refused with one message
+# (exit 2) instead of failing somewhere in the search.  Its states cannot be
+# checked against the program here: a forged but well-typed state is resumed
+# like any other, and what the search reports of it (a counterexample) is
+# replayed and checked against the program before it is shown.
+
+def _nat(x) -> bool:
+    return type(x) is int and x >= 0
+
+
+def _num(x) -> bool:
+    return type(x) in (int, float)
+
+
+def _opt(pred):
+    return lambda x: x is None or pred(x)
+
+
+def _list_of(pred):
+    return lambda x: type(x) is list and all(pred(y) for y in x)
+
+
+def _is_state(x) -> bool:
+    """A state of either engine: a tuple (Python) or bytes (native)."""
+    return type(x) is tuple or type(x) is bytes
+
+
+def _found(x) -> bool:
+    from pccl.model.properties import Violation
+    return type(x) is tuple and len(x) == 3 and type(x[0]) is Violation \
+        and _nat(x[1]) and _nat(x[2])
+
+
+def _str_dict(x) -> bool:
+    return type(x) is dict and all(type(k) is str for k in x)
+
+
+def _runaway(x) -> bool:
+    return x is None or (type(x) is tuple and all(y is None or type(y) in (int, float, bool)
+                                                 for y in x))
+
+
+def _buckets_list(x) -> bool:       # the fastest search: [(key, [(state, number)])]
+    return type(x) is list and all(
+        type(kb) is tuple and len(kb) == 2 and type(kb[0]) is tuple and type(kb[1]) is list
+        and all(type(e) is tuple and len(e) == 2 and _is_state(e[0]) and _nat(e[1])
+                for e in kb[1]) for kb in x)
+
+
+def _buckets_dict(x) -> bool:       # a worker's: {key: ([numbers], [states])}
+    return type(x) is dict and all(
+        type(k) is tuple and type(v) is tuple and len(v) == 2 and _list_of(_nat)(v[0])
+        and _list_of(_is_state)(v[1]) and len(v[0]) == len(v[1]) for k, v in x.items())
+
+
+def _exact(x) -> bool:
+    return type(x) is dict and set(x) == {"keys", "parents"} \
+        and _list_of(lambda k: type(k) is bytes)(x["keys"]) \
+        and (_list_of(lambda p: type(p) is int)(x["parents"])
+             or isinstance(x["parents"], np.ndarray) and x["parents"].dtype.kind in "iu"
+             and x["parents"].ndim == 1) and len(x["parents"]) == len(x["keys"])
+
+
+_COMMON = {"depth": _nat, "transitions": _nat, "max_depth": _nat, "initial_states": _nat,
+           "max_time": _opt(_num), "bounds": _list_of(lambda b: type(b) is str),
+           "found": _list_of(_found), "seconds": _num, "tables": _opt(_str_dict)}
+#: field -> (required?, check) per kind of state
+_SCHEMAS = {
+    "search": {**_COMMON, "n": _nat, "budget": lambda x: type(x) is int,
+               "labels": _opt(lambda x: type(x) is set and all(type(y) is tuple for y in x)),
+               "runaway": _runaway, "runaway_info": _opt(_str_dict),
+               "edges": _opt(_nat), "rec_complete": _opt(lambda x: type(x) is bool),
+               "peak_memory": _nat, "level": _list_of(_is_state), "first": _nat,
+               "exact": _exact, "kind": lambda x: x == "fastest",
+               "buckets": _opt(_buckets_list)},
+    "parallel": {**_COMMON, "kind": lambda x: x == "parallel", "workers": _nat, "n": _nat,
+                 "level_base": _nat, "frontier": _nat, "peak_workers": _list_of(_nat),
+                 "waiting": lambda x: type(x) is dict and all(_nat(v) for v in x.values())},
+    "partition": {"depth": _nat, "wid": _nat, "workers": _nat, "level_idx": _list_of(_nat),
+                  "level": _list_of(_is_state), "columns": lambda x: type(x) is bool,
+                  "ncols": _nat, "buckets": _buckets_dict, "tables": _opt(_str_dict)},
+}
+#: the fields a state of each kind may lack
+_OPTIONAL = {"search": {"exact", "kind", "buckets", "level", "first", "max_time"},
+             "parallel": {"waiting", "max_time"},
+             "partition": {"buckets"}}
+
+
+def check_state(state, what: str) -> None:
+    """ValueError unless ``state`` (read by :func:`safedata.loads`) is a
+    search state a checkpoint holds: every field of the right type and
+    range, none unknown, the figures agreeing with one another."""
+    if type(state) is not dict or not all(type(k) is str for k in state):
+        raise ValueError(f"{what} holds no search state")
+    kind = "partition" if "wid" in state else \
+        "parallel" if state.get("kind") == "parallel" else "search"
+    schema = _SCHEMAS[kind]
+    for k, v in state.items():
+        check = schema.get(k)
+        if check is None:
+            raise ValueError(f"{what}: unknown field {k!r}")
+        if not check(v):
+            raise ValueError(f"{what}: field {k!r} has the wrong type or value")
+    missing = [k for k in schema if k not in state and k not in _OPTIONAL[kind]]
+    if missing:
+        raise ValueError(f"{what}: no field {missing[0]!r}")
+    n = state.get("n")
+    for _, idx, _d in state.get("found", ()):
+        if n is not None and idx >= max(n, 1):
+            raise ValueError(f"{what}: a violation names state {idx:,} of {n:,}")
+    if kind == "search" and state.get("kind") != "fastest":
+        if "level" not in state or "first" not in state:
+            raise ValueError(f"{what}: no level")
+        if not state["first"] <= state["n"] or len(state["level"]) != state["n"] - state["first"]:
+            raise ValueError(f"{what}: the level and the table's size do not agree")
+    if kind == "parallel" and not (1 <= state["workers"] and state["level_base"] <= state["n"]):
+        raise ValueError(f"{what}: the figures do not agree")
+    if kind == "partition":
+        if not state["wid"] < state["workers"] or len(state["level_idx"]) != len(state["level"]):
+            raise ValueError(f"{what}: the partition's figures do not agree")
 
 
 def _fsync_dir(path: str) -> None:

@@ -21,8 +21,11 @@ goes on, the way TLC's disk-based fingerprint set and disk queue do:
 * **Parent links** of spilled states go to an append-only file (4 bytes a
   state), read back only to rebuild a counterexample.
 * **The next BFS level** (:class:`LevelFile`): admitted states are written,
-  in admission order, to the level's file (``pickle``) and read back a
-  segment at a time when the level is expanded.
+  in admission order, to the level's file and read back a segment at a
+  time when the level is expanded.  A segment is data, not a pickle (the
+  spill directory is a path anyone with access to it could write to):
+  its length (8 bytes) and :func:`pccl.search.safedata.dumps` of its first
+  state number (or numbers) and its states, checked when read back.
 
 When to spill (:class:`Spiller`): after every admitted batch, when the
 buffer holds :attr:`Spiller.table_limit` states (a quarter of
@@ -47,7 +50,6 @@ from __future__ import annotations
 
 import errno
 import os
-import pickle
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator
@@ -55,6 +57,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from pccl.search import safedata
 from pccl.search.fingerprint import fingerprint
 
 __all__ = ["SpillError", "SpillDir", "DiskSet", "SpillTable", "LevelFile", "Spiller",
@@ -476,6 +479,30 @@ class SpillTable:
         self._parents.close()
 
 
+def _segment(head: bytes, f, path: str) -> tuple:
+    """A level file's segment (after its 8-byte length ``head``), checked:
+    ``(first number or numbers, states)``; a SpillError when it is not one."""
+    try:
+        size = int.from_bytes(head, "little")
+        blob = f.read(size) if len(head) == 8 else b""
+        if len(blob) != size or not blob:
+            raise safedata.DataError("truncated")
+        seg = safedata.loads(blob)
+        if type(seg) is not tuple or len(seg) != 2 or type(seg[1]) is not list:
+            raise safedata.DataError("not a segment")
+        first, states = seg
+        if type(first) is list:
+            if len(first) != len(states) or not all(type(i) is int and i >= 0 for i in first):
+                raise safedata.DataError("its state numbers do not fit")
+        elif type(first) is not int or first < 0:
+            raise safedata.DataError("not a state number")
+        if not all(type(st) is tuple or type(st) is bytes for st in states):
+            raise safedata.DataError("not states")
+    except safedata.DataError as e:
+        raise SpillError(f"{path}: not a level file this search wrote ({e})") from None
+    return first, states
+
+
 class LevelFile:
     """One BFS level's states on disk, in admission order: segments of
     ``(first state number, states)`` written by :meth:`write` and read
@@ -495,7 +522,10 @@ class LevelFile:
         try:
             if self.f is None:
                 self.f = open(self.path, "wb")
-            pickle.dump((first, states), self.f, protocol=pickle.HIGHEST_PROTOCOL)
+            blob = safedata.dumps((first if isinstance(first, int) else list(first),
+                                   safedata.States(states)))
+            self.f.write(len(blob).to_bytes(8, "little"))
+            self.f.write(blob)
         except OSError as e:
             raise self.dir.fail(e) from None
         self.count += len(states)
@@ -513,10 +543,10 @@ class LevelFile:
         try:
             with f:
                 while True:
-                    try:
-                        first, states = pickle.load(f)
-                    except EOFError:
+                    head = f.read(8)
+                    if not head:
                         break
+                    first, states = _segment(head, f, self.path)
                     yield states, (range(first, first + len(states))
                                    if isinstance(first, int) else first)
                     del states

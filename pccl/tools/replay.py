@@ -79,6 +79,46 @@ def load(path) -> dict:
     return TC.load(path)
 
 
+def _candidates(rec: dict, trace_path) -> tuple[list, list]:
+    """Where a trace's ``config.program``/``config.world`` record may be:
+    the recorded path (from the working directory), the path relative to
+    the trace file, the absolute path, the path from the trace's directory;
+    ``(every place looked at, [(file that exists, its sha256)])``."""
+    here = os.path.dirname(os.path.abspath(os.fspath(trace_path)))
+    cands = [rec["path"]]
+    if rec.get("relative"):
+        cands.append(os.path.join(here, rec["relative"]))
+    if rec.get("absolute"):
+        cands.append(rec["absolute"])
+    cands.append(os.path.join(here, rec["path"]))    # older files: next to the trace
+    seen, found = [], []
+    for c in cands:
+        if c in seen:
+            continue
+        seen.append(c)
+        if os.path.isfile(c):
+            found.append((c, T.sha256_of(c)))
+    return seen, found
+
+
+def recorded_file(rec: Optional[dict], trace_path) -> tuple[Optional[str], str]:
+    """The file a trace's record names *with the recorded SHA-256* (found as
+    :func:`_resolve` finds it), else None; and, when None, why (for a
+    viewer page, which embeds only such a file: a trace from elsewhere may
+    name any file of the reader's)."""
+    if rec is None:
+        return None, "the trace names no file"
+    want = rec.get("sha256")
+    if not want:
+        return None, "the trace records no sha256 of it"
+    seen, found = _candidates(rec, trace_path)
+    for c, sha in found:
+        if sha == want:
+            return c, ""
+    return None, (f"no file with the recorded sha256 {want[:12]}… (looked for "
+                  f"{', '.join(os.path.basename(c) or c for c in seen)})")
+
+
 def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> Optional[str]:
     """The file a trace's ``config.program``/``config.world`` names.
     ``override`` (``--program``/``--world``) wins; otherwise the first of the
@@ -100,20 +140,7 @@ def _resolve(rec: Optional[dict], trace_path, what, warnings, override=None) -> 
         return p
     if rec is None:
         return None
-    here = os.path.dirname(os.path.abspath(os.fspath(trace_path)))
-    cands = [rec["path"]]
-    if rec.get("relative"):
-        cands.append(os.path.join(here, rec["relative"]))
-    if rec.get("absolute"):
-        cands.append(rec["absolute"])
-    cands.append(os.path.join(here, rec["path"]))    # older files: next to the trace
-    seen, found = [], []
-    for c in cands:
-        if c in seen:
-            continue
-        seen.append(c)
-        if os.path.isfile(c):
-            found.append((c, T.sha256_of(c)))
+    seen, found = _candidates(rec, trace_path)
     if not found:
         raise PcclError(f"config.{what}.path: the {what} {rec['path']} recorded in the trace "
                         f"does not exist (looked for {', '.join(seen)}); give it with "

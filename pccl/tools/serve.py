@@ -19,6 +19,7 @@ library's ``ThreadingHTTPServer``) with the viewer page of
 ``POST /api/visit`` ``{"id": i}``: jump to visited state ``i``
 ``POST /api/load``  ``{"text": trace file text}``: follow a trace in this model
 ``POST /api/search``  ``{"depth", "max_states"}``: bounded search from here
+``POST /api/search/stop``  stop the search under way
 ``POST /api/follow``  take the path the last search found
 ==================  ======================================================
 
@@ -26,15 +27,29 @@ The model is the one ``explore`` would build from the same options, without
 reductions (every transition is a real step).  A bad request is answered
 with status 400 and ``{"error": message}``; nothing a client sends stops the
 server.
+
+Only the user's own browser tab drives it (a local developer server, as
+Jupyter's and Vite's): every request must carry the per-run token printed
+in the URL (``?token=`` on the page's address, then the ``X-PCCL-Token``
+header the page sends; 403 without it), name the server in ``Host``
+(``127.0.0.1:PORT`` or ``localhost:PORT``: a DNS-rebinding page's host is
+refused, 403), come from no other ``Origin`` (403), and a ``POST`` must be
+``Content-Type: application/json`` (415: a form or ``text/plain`` request,
+which a page may send anywhere without asking, is refused).  A search runs
+under ``--max-memory`` and ``--search-seconds``, can be stopped, and does
+not hold the session's lock: the state endpoints answer while it runs.
 """
 
 from __future__ import annotations
 
+import hmac
 import json
+import secrets
 import threading
+import time as _time
 from collections import deque
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any, Optional
+from typing import Any, Optional, cast
 
 from pccl.output import codec as C
 from pccl.output import display as D
@@ -52,10 +67,24 @@ class BadRequest(Exception):
 
 
 class Session:
-    def __init__(self, model, cfg: dict):
+    """The explorer's path and its searches.  ``max_memory`` (bytes, None: no
+    bound) and ``search_seconds`` (None: no bound) bound every search."""
+
+    def __init__(self, model, cfg: dict, *, max_memory: Optional[int] = None,
+                 search_seconds: Optional[float] = 60.0):
         self.model = model
         self.cfg = cfg
         self.lock = threading.RLock()
+        self.max_memory = max_memory
+        self.search_seconds = search_seconds
+        #: held by the one search under way (not :attr:`lock`: the path stays readable)
+        self.search_lock = threading.Lock()
+        self.cancel = threading.Event()
+        # every lazily interned table built now: a search (in its own thread)
+        # and the page's requests then only read them
+        prepare = getattr(model, "prepare", None)
+        if prepare is not None:
+            prepare()
         self.initials: list = []
         for s in model.init_states():
             self.initials.append(s)
@@ -184,23 +213,86 @@ class Session:
         return out
 
     def search(self, depth, max_states) -> dict:
+        """A bounded breadth-first search from the current state, run without
+        :attr:`lock` (the page's other requests are answered meanwhile), one
+        at a time, stopped by :meth:`stop`, ``--search-seconds`` or
+        ``--max-memory``."""
         for name, v, lo in (("depth", depth, 0), ("max_states", max_states, 1)):
             if not isinstance(v, int) or isinstance(v, bool) or v < lo:
                 raise BadRequest(f"{name}: expected an integer >= {lo}, got {v!r}")
+        if not self.search_lock.acquire(blocking=False):
+            raise BadRequest("a search is under way: stop it first (POST /api/search/stop)")
+        try:
+            self.cancel.clear()
+            with self.lock:
+                states, labels = list(self.states), list(self.labels)
+            found, seen, why = self._bfs(states[-1], depth, max_states)
+            with self.lock:
+                if found is None:
+                    self.found = None
+                else:
+                    self.found = self._path(states, labels, found[0], found[3])
+        finally:
+            self.search_lock.release()
         m = self.model
-        root = self.states[-1]
+        if found is None:
+            if why == "exhaustive":
+                text = "exhaustive"
+            elif why == "bounded":
+                text = "bounded: not every state within the bounds was explored"
+            else:
+                text = f"{why}: not every state within the bounds was explored"
+            return {"status": why if why in ("exhaustive", "bounded") else "stopped",
+                    "stopped_by": None if why in ("exhaustive", "bounded") else why,
+                    "states": seen, "path_length": 0,
+                    "text": f"no violation within depth {depth} of the current state "
+                            f"({seen:,} states, {text})"}
+        st, v, d, _ = found
+        return {"status": "violation", "states": seen, "path_length": d,
+                "violation": T.violation_record(m, v),
+                "text": f"violation {d} steps from the current state: {v.message} ({seen:,} states searched)"}
+
+    def stop(self) -> bool:
+        """Stop the search under way (True if one was)."""
+        running = self.search_lock.locked()
+        self.cancel.set()
+        return running
+
+    def _limit(self, t0: float) -> Optional[str]:
+        """Why the search must stop now (None: it goes on)."""
+        if self.cancel.is_set():
+            return "stopped"
+        if self.search_seconds is not None and _time.monotonic() - t0 > self.search_seconds:
+            return f"time limit ({self.search_seconds:g} s, --search-seconds)"
+        if self.max_memory is not None:
+            from pccl.search.memory import format_size, rss_bytes
+            if rss_bytes() > self.max_memory:
+                return f"memory limit ({format_size(self.max_memory)}, --max-memory)"
+        return None
+
+    def _bfs(self, root, depth: int, max_states: int) -> tuple:
+        """``(found, states seen, why it ended)``: ``found`` is ``(state,
+        violation, depth, parents)`` or None; why: exhaustive, bounded or
+        a limit."""
+        m = self.model
         parent: dict = {m.key(root): None}
         queue = deque([(root, 0)])
-        seen, found, bounded = 1, None, False
+        seen, bounded = 1, False
+        t0 = _time.monotonic()
+        tick = 0
         while queue:
+            tick += 1
+            if tick % 64 == 0:
+                why = self._limit(t0)
+                if why is not None:
+                    return None, seen, why
             st, d = queue.popleft()
             vs = list(m.violations(st))
             succ = m.successors(st)
             if not vs and not succ and m.terminal_kind(st) == "deadlock":
                 vs = [m.deadlock_violation(st)]
             if vs:
-                found = (st, vs[0], d)
-                break
+                return (st, vs[0], d, parent), seen, "violation"
             if d >= depth:
                 bounded = bounded or bool(succ)
                 continue
@@ -214,13 +306,11 @@ class Session:
                 parent[k] = (st, lab)
                 seen += 1
                 queue.append((nxt, d + 1))
-        if found is None:
-            self.found = None
-            how = "bounded: not every state within the bounds was explored" if bounded else "exhaustive"
-            return {"status": "bounded" if bounded else "exhaustive", "states": seen, "path_length": 0,
-                    "text": f"no violation within depth {depth} of the current state "
-                            f"({seen:,} states, {how})"}
-        st, v, d = found
+        return None, seen, "bounded" if bounded else "exhaustive"
+
+    def _path(self, states: list, labels: list, st, parent: dict) -> tuple:
+        """The path from the initial state to ``st`` through the search's tree."""
+        m = self.model
         path_states, path_labels = [st], []
         while parent[m.key(path_states[-1])] is not None:
             prev, lab = parent[m.key(path_states[-1])]
@@ -228,10 +318,7 @@ class Session:
             path_labels.append(lab)
         path_states.reverse()
         path_labels.reverse()
-        self.found = (self.states[:-1] + path_states, self.labels + path_labels)
-        return {"status": "violation", "states": seen, "path_length": d,
-                "violation": T.violation_record(m, v),
-                "text": f"violation {d} steps from the current state: {v.message} ({seen:,} states searched)"}
+        return (states[:-1] + path_states, labels + path_labels)
 
     def follow(self) -> None:
         if self.found is None:
@@ -298,13 +385,43 @@ def _int_field(body: dict, name: str) -> Any:
     return body[name]
 
 
+class Refused(Exception):
+    """A request not from the user's page: ``(status, message)``."""
+
+
 class Handler(BaseHTTPRequestHandler):
     server_version = "pccl-serve"
     session: Session
     page: bytes
+    token: str
 
     def log_message(self, format, *args):       # quiet: the terminal shows the URL only
         pass
+
+    def _origins(self) -> tuple:
+        port = cast(tuple, self.server.server_address)[1]
+        return (f"127.0.0.1:{port}", f"localhost:{port}")
+
+    def _check(self, post: bool) -> None:
+        """Refused unless the request is the page's: the token, the Host,
+        no foreign Origin, a JSON body for a POST."""
+        hosts = self._origins()
+        host = (self.headers.get("Host") or "").strip().lower()
+        if host not in hosts:
+            raise Refused(403, f"Host {host or '(none)'!r} refused: this server answers "
+                               f"{' or '.join(hosts)} only")
+        origin = self.headers.get("Origin")
+        if origin is not None and origin.strip().lower() not in {f"http://{h}" for h in hosts}:
+            raise Refused(403, f"Origin {origin!r} refused")
+        given = self.headers.get("X-PCCL-Token") or _query(self.path).get("token") or ""
+        if not hmac.compare_digest(given.encode(), self.token.encode()):
+            raise Refused(403, "missing or wrong token: open the URL pccl serve printed "
+                               "(it ends with ?token=...)")
+        if post:
+            ctype = (self.headers.get("Content-Type") or "").split(";")[0].strip().lower()
+            if ctype != "application/json":
+                raise Refused(415, f"Content-Type {ctype or '(none)'!r} refused: "
+                                   f"a request's body is application/json")
 
     def _send(self, code: int, body: bytes, ctype: str) -> None:
         self.send_response(code)
@@ -320,6 +437,11 @@ class Handler(BaseHTTPRequestHandler):
     def do_GET(self):
         path = self.path.split("?", 1)[0]
         try:
+            self._check(post=False)
+        except Refused as e:
+            self._json(e.args[0], {"error": e.args[1]})
+            return
+        try:
             if path in ("/", "/index.html"):
                 self._send(200, self.page, "text/html; charset=utf-8")
             elif path == "/api/state":
@@ -333,20 +455,37 @@ class Handler(BaseHTTPRequestHandler):
         except Exception as e:                  # never stop the server
             self._json(500, {"error": f"internal error: {type(e).__name__}: {e}"})
 
+    def _body(self) -> dict:
+        """The request's JSON object (BadRequest otherwise)."""
+        n = int(self.headers.get("Content-Length") or 0)
+        if n < 0 or n > MAX_BODY:
+            raise BadRequest(f"the request body must be at most {MAX_BODY} bytes")
+        raw = self.rfile.read(n) if n else b"{}"
+        try:
+            body = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as e:
+            raise BadRequest(f"the request body is not JSON: {e}") from None
+        if not isinstance(body, dict):
+            raise BadRequest("the request body must be a JSON object")
+        return body
+
     def do_POST(self):
         path = self.path.split("?", 1)[0]
         try:
-            n = int(self.headers.get("Content-Length") or 0)
-            if n < 0 or n > MAX_BODY:
-                raise BadRequest(f"the request body must be at most {MAX_BODY} bytes")
-            raw = self.rfile.read(n) if n else b"{}"
-            try:
-                body = json.loads(raw.decode("utf-8"))
-            except (UnicodeDecodeError, ValueError) as e:
-                raise BadRequest(f"the request body is not JSON: {e}") from None
-            if not isinstance(body, dict):
-                raise BadRequest("the request body must be a JSON object")
+            self._check(post=True)
+        except Refused as e:
+            self._json(e.args[0], {"error": e.args[1]})
+            self.close_connection = True
+            return
+        try:
+            body = self._body()
             s = self.session
+            if path == "/api/search":        # not under the lock: the page stays answered
+                self._json(200, s.search(body.get("depth", 20), body.get("max_states", 100_000)))
+                return
+            if path == "/api/search/stop":
+                self._json(200, {"stopped": s.stop()})
+                return
             with s.lock:
                 if path == "/api/step":
                     s.step(_int_field(body, "index"))
@@ -360,9 +499,6 @@ class Handler(BaseHTTPRequestHandler):
                     s.visit(_int_field(body, "id"))
                 elif path == "/api/load":
                     s.load(body.get("text"))
-                elif path == "/api/search":
-                    self._json(200, s.search(body.get("depth", 20), body.get("max_states", 100_000)))
-                    return
                 elif path == "/api/follow":
                     s.follow()
                 else:
@@ -377,12 +513,34 @@ class Handler(BaseHTTPRequestHandler):
             self._json(500, {"error": f"internal error: {type(e).__name__}: {e}"})
 
 
-def make_server(session: Session, port: int = 0, host: str = "127.0.0.1") -> ThreadingHTTPServer:
-    """The server (not started: call ``serve_forever``); ``port`` 0 picks a free one."""
+def _query(path: str) -> dict:
+    from urllib.parse import parse_qs
+    q = parse_qs(path.partition("?")[2])
+    return {k: v[0] for k, v in q.items() if v}
+
+
+def make_server(session: Session, port: int = 0, host: str = "127.0.0.1",
+                token: Optional[str] = None) -> ThreadingHTTPServer:
+    """The server (not started: call ``serve_forever``); ``port`` 0 picks a
+    free one; ``token`` (default: a new random one, ``srv.token``) is what
+    every request must carry; :func:`url` is the address to open."""
+    import os
     from pccl.output import viewer
-    title = f"pccl serve {session.cfg['program']['path']}"
+    token = token or secrets.token_urlsafe(24)
+    title = f"pccl serve {os.path.basename(str(session.cfg['program']['path']))}"
     handler = type("BoundHandler", (Handler,), {
-        "session": session, "page": viewer.page(None, mode="serve", title=title).encode("utf-8")})
+        "session": session, "token": token,
+        "page": viewer.page(None, mode="serve", title=title,
+                            boot={"token": token}).encode("utf-8")})
     srv = ThreadingHTTPServer((host, port), handler)
     srv.daemon_threads = True
+    srv.token = token           # type: ignore[attr-defined]
     return srv
+
+
+def url(srv: ThreadingHTTPServer) -> str:
+    """The address to open: the page with the run's token."""
+    host, port = srv.server_address[:2]
+    if isinstance(host, bytes):         # typeshed: an AF_UNIX address; never for this server
+        host = host.decode()
+    return f"http://{host}:{port}/?token={srv.token}"   # type: ignore[attr-defined]

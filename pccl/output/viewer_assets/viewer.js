@@ -738,8 +738,11 @@
   /* ---------------------------------------------------------------- serve mode */
 
   function api(path, body) {
-    var opts = body === undefined ? { method: "GET" } :
-      { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
+    // every request carries the run's token (pccl serve refuses one without it)
+    var token = BOOT.token || "";
+    var opts = body === undefined ? { method: "GET", headers: { "X-PCCL-Token": token } } :
+      { method: "POST", headers: { "Content-Type": "application/json", "X-PCCL-Token": token },
+        body: JSON.stringify(body) };
     return fetch(path, opts).then(function (r) {
       return r.json().then(function (j) {
         if (!r.ok) throw new Error(j.error || ("HTTP " + r.status));
@@ -799,13 +802,19 @@
     $("visit-go").onclick = function () { act("/api/visit", { id: +$("visited").value }); };
     $("search-go").onclick = function () {
       $("search-result").textContent = "searching…";
+      $("search-stop").hidden = false;
       api("/api/search", { depth: +$("search-depth").value, max_states: +$("search-states").value })
         .then(function (j) {
+          $("search-stop").hidden = true;
           $("search-result").textContent = j.text;
           $("search-result").setAttribute("data-status", j.status);
           $("search-follow").hidden = !j.path_length;
-        }).catch(function (e) { $("search-result").textContent = ""; $("error").textContent = e.message; });
+        }).catch(function (e) {
+          $("search-stop").hidden = true;
+          $("search-result").textContent = ""; $("error").textContent = e.message;
+        });
     };
+    $("search-stop").onclick = function () { api("/api/search/stop", {}).catch(function () {}); };
     $("search-follow").onclick = function () { act("/api/follow", {}); };
     $("load-file").onchange = function () {
       var f = this.files[0];
