@@ -50,13 +50,19 @@ first agent the most significant (outcome 0: all stay).  No env state.
 from __future__ import annotations
 
 import itertools
+import math
 
-from ._geometry import obstacles_of, segment_distance
+from ._geometry import convex_hull, hull_diameter, hulls_distance, obstacles_of
 from .base import Outcome, settled
 
 #: ``speed * δ`` below this many resolutions: pymunk's stall detector may
 #: fail any moving robot.
 SLOW_STEPS = 10.0
+
+#: A leg's start when the robot may be anywhere (``Motion.start``): after
+#: ``pymunk`` may have carried it off its segment (a detour round an
+#: obstacle, a push by another robot).
+UNKNOWN_START = ("anywhere",)
 
 
 class Nondet:
@@ -64,6 +70,9 @@ class Nondet:
     uses_time = False
     #: nondet-fail: every moving agent may fail at every step.
     always_fail = False
+    #: the engine keeps each robot's leg start (``Motion.start``) and calls
+    #: :meth:`retarget` at every doReach (blackboxes/base.py)
+    tracks_legs = True
 
     def __init__(self, name: str = "nondet", always_fail: bool = False):
         self.name = name
@@ -75,53 +84,118 @@ class Nondet:
     def init_env(self, world, n_agents):
         return None
 
+    def retarget(self, position, reach) -> tuple:
+        """The new leg's start when the robot at ``position`` with reach cell
+        ``reach`` (target, obstacles, t0, done, fail, start) is given a new
+        doReach: a robot still moving (no flag set) may be anywhere on its
+        swept region, its start's hull with its target; one at rest keeps
+        its start (``()`` after arrival)."""
+        target, done, fail, start = reach[0], reach[3], reach[4], reach[5]
+        if target is None or done or fail or start == UNKNOWN_START:
+            return start
+        return convex_hull((position,) + tuple(start) + (target,))
+
     def step(self, world, motions, env, time, delta):
-        options: list[list[tuple]] = []   # per agent: the (position, done, fail) it may end with
-        moving = []       # agents that move this step
+        # where each robot may be during this step: hull points, or None (anywhere)
+        regions: list = []
+        for m in motions:
+            regions.append(self._region(m))
         wobs = world.obstacles
+        options: list[list[tuple]] = []   # per agent: (position, done, fail, start)
+        movers = []
         for i, m in enumerate(motions):
-            p, t = m.position, m.target
+            p, t, st = m.position, m.target, tuple(m.start)
             held = settled(m)
             if held is not None:
-                options.append([(p, held[0], held[1])])
+                options.append([(p, held[0], held[1], st)])
                 continue
             if obstacles_of(wobs, m.obstacles).contains_point(float(t[0]), float(t[1])):
-                options.append([(p, False, True)])
+                options.append([(p, False, True, st)])
                 continue
-            if p[0] == t[0] and p[1] == t[1]:
-                options.append([(p, True, False)])
+            if p[0] == t[0] and p[1] == t[1] and not st:
+                options.append([(p, True, False, ())])
                 continue
             z = float(p[2]) if len(p) > 2 else 0.0
-            options.append([(p, False, False), ((float(t[0]), float(t[1]), z), True, False)])
-            moving.append(i)
-        for i in moving:
-            if self.may_fail(world, motions, i, delta):
-                options[i].append((motions[i].position, False, True))
+            options.append([(p, False, False, st), ((float(t[0]), float(t[1]), z), True, False, ())])
+            movers.append(i)
+        for i in movers:
+            fails, off = self.hazards(world, motions, regions, i, delta)
+            if off:       # pymunk may carry the robot off its swept region
+                p, st = options[i][0][0], UNKNOWN_START
+                options[i][0] = (p, False, False, st)
+            if fails:
+                r = regions[i]
+                options[i].append((motions[i].position, False, True,
+                                   UNKNOWN_START if off or r is None else r))
+        # robots at rest that a moving one may push (pymunk): anywhere afterwards
+        for j, m in enumerate(motions):
+            if settled(m) is None or regions[j] is None:
+                continue
+            if any(self._bodies_meet(world, regions[i], regions[j]) for i in movers):
+                options[j] = [(q[0], q[1], q[2], UNKNOWN_START) for q in options[j]]
         return [Outcome(tuple(o[0] for o in combo), tuple(o[1] for o in combo),
-                        tuple(o[2] for o in combo), None)
+                        tuple(o[2] for o in combo), None, tuple(o[3] for o in combo))
                 for combo in itertools.product(*options)]
+
+    @staticmethod
+    def _region(m):
+        """Where robot ``m`` may be during the step (the hull points), or
+        None for anywhere: a moving robot's leg start with its target, a
+        robot at rest its start (after a failure part-way: the leg it failed on)."""
+        st = tuple(m.start)
+        if st == UNKNOWN_START:
+            return None
+        pts = (m.position,) + st
+        if settled(m) is None:
+            pts += (m.target,)
+        return convex_hull(pts)
+
+    @staticmethod
+    def drift(world, region, delta) -> float:
+        """How far ``straight``'s positions, rounded to the resolution at
+        every step, may stray from the exact swept ``region`` (docs/blackboxes.md,
+        "Rounding"): each rounding moves a point by at most e = resolution·√2/2,
+        and each step pulls the robot back toward its target by a fraction
+        k >= reach / (diameter + drift) of its distance, so the drift stays
+        below e·(diameter + reach) / (reach − e)."""
+        e = world.resolution * math.sqrt(0.5)
+        reach = world.speed * delta
+        if reach <= e:
+            return math.inf
+        return e * (hull_diameter(region) + reach) / (reach - e) + 1e-9
+
+    def _bodies_meet(self, world, a, b) -> bool:
+        """Whether robots on the regions ``a`` and ``b`` (None: anywhere) may
+        touch under pymunk: closer than two radii (and the arrival tolerance
+        each)."""
+        if a is None or b is None:
+            return True
+        return hulls_distance(a, b) < 2.0 * (world.radius + world.tolerance)
+
+    def hazards(self, world, motions, regions, i: int, delta: float) -> tuple:
+        """(may fail, may leave its swept region) for moving agent ``i``:
+        whether a physical blackbox (``straight``, ``pymunk``) could fail it
+        this step, and whether ``pymunk`` could carry it off the region it
+        sweeps (module docstring)."""
+        r = regions[i]
+        if r is None:
+            return True, True
+        obs = obstacles_of(world.obstacles, *(q.obstacles for q in motions))
+        detour = obs.near_points(r, world.radius + world.tolerance)
+        bodies = any(self._bodies_meet(world, r, regions[j]) for j in range(len(motions)) if j != i)
+        off = detour or bodies
+        if off or self.always_fail:
+            return True, off
+        if world.speed * delta < SLOW_STEPS * world.resolution:
+            return True, False
+        if obs.near_points(r, max(world.resolution, self.drift(world, r, delta))):
+            return True, False
+        return False, False
 
     def may_fail(self, world, motions, i: int, delta: float) -> bool:
         """Whether a physical blackbox (``straight``, ``pymunk``) could fail
         moving agent ``i`` (see the module docstring)."""
-        if self.always_fail:
-            return True
-        if world.speed * delta < SLOW_STEPS * world.resolution:
-            return True
-        m = motions[i]
-        p, t = m.position, m.target
-        obs = obstacles_of(world.obstacles, *(q.obstacles for q in motions))
-        if obs.near_segment(float(p[0]), float(p[1]), float(t[0]), float(t[1]),
-                            max(world.radius, world.resolution)):
-            return True
-        reach = 2.0 * world.radius
-        for j, q in enumerate(motions):
-            if j == i:
-                continue
-            end = q.target if q.target is not None and settled(q) is None else q.position
-            if segment_distance(p, t, q.position, end) < reach:
-                return True
-        return False
+        return self.hazards(world, motions, [self._region(m) for m in motions], i, delta)[0]
 
 
 NONDET = Nondet()

@@ -23,8 +23,10 @@ The doReach flags and the target (the *reach* of an agent) are one more
 variable: read by ``doReach_done``/``doReach_fail``, written by a doReach
 call.  They are dead only while the agent does not move (no target, or
 arrived or failed), where every shipped blackbox keeps the agent where it
-is whatever the flags say (:data:`REACH_BLACKBOXES`); its position and its
-doReach obstacles stay in the key (other robots' outcomes read them).
+is whatever the flags say (:data:`REACH_BLACKBOXES`); its position, its
+doReach obstacles (other robots' outcomes read them) and its leg start (the
+next doReach starts from it: ``nondet``'s ``retarget`` reads only the start
+of a robot at rest) stay in the key.
 Variables a property or invariant reads are never dead, nor is anything of
 a stuck agent.
 
@@ -42,7 +44,7 @@ from typing import Any, Optional
 from pccl.lang import ast as A
 from pccl.model.compile import has_rand, program_moves
 from pccl.model.independence import local_guards, property_names
-from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, STATUS,
+from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, START, STATUS,
                                acquire_sid, is_acquire)
 
 #: Blackboxes under which an agent that has arrived or failed, and one that
@@ -380,7 +382,8 @@ class DeadVars:
             loc = tuple(DEAD if dead >> k & 1 else x for k, x in enumerate(ag[LOC]))
             reach = ag[REACH]
             if dead & self.reach_bit:
-                reach = (DEAD, reach[OBSTACLES], DEAD, DEAD, DEAD)
+                # the leg start stays: the next doReach starts the leg from it
+                reach = (DEAD, reach[OBSTACLES], DEAD, DEAD, DEAD, reach[START])
             if out is None:
                 out = list(ags)
             out[i] = ag[:LOC] + (loc,) + ag[LOC + 1:REACH] + (reach,) + ag[REACH + 1:]
