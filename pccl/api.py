@@ -163,8 +163,9 @@ def fixed_timing_note(model, spelling: Spelling = api_spelling) -> Optional[str]
     return spell(f"travel times fixed by {bb.name}; {{blackbox={EXPLORE_MOVING_DEFAULT}}} explores "
                  "every timing", spelling)
 
-#: Shipped blackboxes that cover straight and pymunk except for positions in
-#: mid-motion (docs/blackboxes.md, "What each blackbox covers").
+#: Shipped blackboxes that cover straight and pymunk, but for positions in
+#: mid-motion (docs/blackboxes.md, "What each blackbox covers"): a program
+#: that reads positions gets "not exhaustive for straight/pymunk".
 COVERING_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
 
 
@@ -190,9 +191,10 @@ def positions_read_in_motion(model) -> Optional[str]:
 def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     """Under a covering blackbox (``nondet``, ``nondet-fail``), what of the
     physical blackboxes' behaviours the search does not cover, for the
-    header of ``pccl explore``: ``positions in mid-motion not covered
-    (getPosition() at line 29)``; None when nothing is left out.  The
-    option it may name (collisions) spelt by ``spelling``."""
+    header of ``pccl explore`` and the verdict: ``not exhaustive for
+    straight/pymunk: positions in mid-motion (getPosition() at line 29)``;
+    None when nothing is left out.  The option it may name (collisions)
+    spelt by ``spelling``."""
     from pccl.blackboxes import BLACKBOXES
     bb = model.blackbox
     name = getattr(bb, "name", None)
@@ -201,7 +203,13 @@ def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     if not program_moves(model.program):
         return None
     why = positions_read_in_motion(model)
-    return f"positions in mid-motion not covered ({spell(why, spelling)})" if why else None
+    return (f"{NOT_EXHAUSTIVE_FOR}: positions in mid-motion ({spell(why, spelling)})"
+            if why else None)
+
+
+#: How a verdict under a covering blackbox starts its reason when the program
+#: observes what the blackbox cannot enumerate (docs/blackboxes.md).
+NOT_EXHAUSTIVE_FOR = "not exhaustive for straight/pymunk"
 
 
 @dataclass(repr=False)
@@ -696,20 +704,25 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                                max_memory=max_memory, spelling=spelling) for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]
     verdict, code = _verdict(sr, bound_names, max_memory, spelling)
+    uncovered = not_covered_note(model, spelling)
+    status = sr.status
+    if uncovered and status == "exhaustive":
+        # exhaustive for nondet, not for the physical blackboxes it stands
+        # for: said, and exiting, as a bounded search
+        verdict, status = f"no violation — {uncovered}", "bounded"
     verdict += f" [blackbox {bb}]"
     note = fixed_timing_note(model, spelling) if not violations else None
     if note:
         verdict += f" ({note})"
     first = violations[0] if violations else None
-    res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
+    res = ExploreResult(status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,
                         sr.collision_probability, model, sr, list(sr.found),
                         plan.cov.report() if plan.cov is not None else None,
                         _witnesses(model, lv), list(lv.holds) if lv else [],
                         [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)]
-                        + plan.runaways, o.timelock, o.stall, bound_names,
-                        not_covered_note(model, spelling))
+                        + plan.runaways, o.timelock, o.stall, bound_names, uncovered)
     from pccl.output.checked import for_explore
     hit = {BOUND_OPTIONS.get(b) for b in sr.bounds_hit}
     configured = [(spelling(name, value), name in hit) for name, value in _bounds_in_force(plan)]
