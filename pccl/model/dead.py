@@ -44,7 +44,8 @@ from typing import Any, Optional
 from pccl.lang import ast as A
 from pccl.model.compile import has_rand, program_moves
 from pccl.model.independence import local_guards, property_names
-from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, START, STATUS,
+from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, START,
+                               STATUS,
                                acquire_sid, is_acquire)
 
 #: Blackboxes under which an agent that has arrived or failed, and one that
