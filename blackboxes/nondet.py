@@ -73,6 +73,8 @@ class Nondet:
     #: the engine keeps each robot's leg start (``Motion.start``) and calls
     #: :meth:`retarget` at every doReach (blackboxes/base.py)
     tracks_legs = True
+    #: whether pymunk's detours and pushes make a robot's start "anywhere"
+    pushes = True
 
     def __init__(self, name: str = "nondet", always_fail: bool = False):
         self.name = name
@@ -90,7 +92,7 @@ class Nondet:
         doReach: a robot still moving (no flag set) may be anywhere on its
         swept region, its start's hull with its target; one at rest keeps
         its start (``()`` after arrival)."""
-        target, done, fail, start = reach[0], reach[3], reach[4], reach[5]
+        target, _obstacles, _t0, done, fail, start = reach
         if target is None or done or fail or start == UNKNOWN_START:
             return start
         return convex_hull((position,) + tuple(start) + (target,))
@@ -120,22 +122,37 @@ class Nondet:
             movers.append(i)
         for i in movers:
             fails, off = self.hazards(world, motions, regions, i, delta)
+            off = off and self.pushes
             if off:       # pymunk may carry the robot off its swept region
                 p, st = options[i][0][0], UNKNOWN_START
                 options[i][0] = (p, False, False, st)
             if fails:
-                r = regions[i]
                 options[i].append((motions[i].position, False, True,
-                                   UNKNOWN_START if off or r is None else r))
+                                   UNKNOWN_START if off else self._fail_start(world, motions[i],
+                                                                              regions[i])))
         # robots at rest that a moving one may push (pymunk): anywhere afterwards
         for j, m in enumerate(motions):
-            if settled(m) is None or regions[j] is None:
+            if not self.pushes or settled(m) is None or regions[j] is None:
                 continue
             if any(self._bodies_meet(world, regions[i], regions[j]) for i in movers):
                 options[j] = [(q[0], q[1], q[2], UNKNOWN_START) for q in options[j]]
         return [Outcome(tuple(o[0] for o in combo), tuple(o[1] for o in combo),
                         tuple(o[2] for o in combo), None, tuple(o[3] for o in combo))
                 for combo in itertools.product(*options)]
+
+    @staticmethod
+    def _fail_start(world, m, region):
+        """Where a robot that fails this step may be: on the leg it fails on
+        (``straight`` fails part-way where a rounded position grazes an
+        obstacle), except for a leg from exactly its position whose exact
+        segment is blocked: ``straight`` fails that one where it stands."""
+        if region is None:
+            return UNKNOWN_START
+        p, t = m.position, m.target
+        if not m.start and obstacles_of(world.obstacles, m.obstacles).blocks_segment(
+                float(p[0]), float(p[1]), float(t[0]), float(t[1])):
+            return ()
+        return region
 
     @staticmethod
     def _region(m):

@@ -18,7 +18,7 @@ from typing import Any, NoReturn, Optional
 from pccl.blackboxes.base import Motion
 from pccl.lang.errors import OptionError, PcclError, keyword_spelling
 from pccl.search.fingerprint import check_canonical
-from pccl.model.layout import AGS, ENV, POS, REACH, RUNNING, STATUS, TIME
+from pccl.model.layout import AGS, ENV, POS, REACH, RUNNING, START, STATUS, TIME
 
 _EXACT = decimal.Context(prec=60)
 
@@ -237,7 +237,7 @@ class Environment:
         self.check_env(o.env, time, n)
         starts = getattr(o, "starts", None) if self.tracks_legs else None
         if starts is None:
-            starts = tuple(ag[REACH][5] for ag in ags)
+            starts = tuple(ag[REACH][START] for ag in ags)
         else:
             if not isinstance(starts, (tuple, list)) or len(starts) != N:
                 self.error(time, f"outcome {n}: 'starts' must have one entry per agent ({N})")

@@ -115,8 +115,8 @@ def _pos(p):
 def _start(s):
     """A leg start (the reach cell's last entry, blackboxes/nondet.py) as JSON:
     a list of [x, y] points, or the string "anywhere"."""
-    if s and isinstance(s[0], str):
-        return s[0]
+    if s == ("anywhere",):
+        return "anywhere"
     return [list(p) for p in s]
 
 
@@ -602,13 +602,15 @@ def _set(tup: tuple, k: int, v) -> tuple:
 
 
 def apply_changes(model, st: tuple, changes: list, path: str = "changes",
-                  version: int = VERSION, lenient: bool = False) -> tuple:
+                  version: int = VERSION, lenient: bool = False,
+                  leg_starts: bool = True) -> tuple:
     """The configuration ``st`` with the recorded changes made: each
     change's ``old`` must be the cell's value in ``st`` (else a
     :class:`DecodeError` naming it) and differ from its ``new``, which it
     becomes.  After a version-1 step the cells that version does not record
-    (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`;
-    ``lenient``: as in :func:`decode_state`."""
+    (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`, and so is
+    every agent's leg start without ``leg_starts`` (a file written before it
+    was recorded); ``lenient``: as in :func:`decode_state`."""
     if not isinstance(changes, list):
         raise _fail(path, "a list", changes)
     st = tuple(st)
@@ -642,6 +644,11 @@ def apply_changes(model, st: tuple, changes: list, path: str = "changes",
         ags = tuple((ANY,) + ag[1:REACH] + ((ag[REACH][TARGET], ANY, ANY) + ag[REACH][DONE:],)
                     for ag in st[AGS])
         st = _set(st, AGS, ags)
+    if not leg_starts:
+        # the leg start (blackboxes that track legs), recorded since
+        # 2026-12-07: a file written before lacks it, so it is not matched
+        st = _set(st, AGS, tuple(ag[:REACH] + (ag[REACH][:START] + (ANY,),) + ag[REACH + 1:]
+                                 for ag in st[AGS]))
     return st
 
 
