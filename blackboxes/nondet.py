@@ -6,8 +6,7 @@ its target, or (where ``straight`` or ``pymunk`` could fail it) fails where
 it is.  Every combination is an outcome, so ``explore`` covers all travel
 times ("never" included: a robot may stay until it fails) and every
 ``doReach_fail`` of the physical blackboxes.  docs/blackboxes.md has the
-"covers" table: what of ``straight`` and ``pymunk`` this includes, and what
-it leaves out (positions in mid-motion).
+"covers" table: what of ``straight`` and ``pymunk`` this includes.
 
 Rules, per agent (planar: the agent's own z is carried through unchanged):
 
@@ -20,23 +19,40 @@ Rules, per agent (planar: the agent's own z is carried through unchanged):
 * otherwise the agent is *moving*: it stays (flags False), or jumps to the
   target (done = True), or, if it *may fail*, stays with fail = True.
 
-A moving agent *may fail* (:meth:`Nondet.may_fail`) when any of these
-holds, from its position ``p`` to its target ``t``:
+**Legs** (``tracks_legs``): each robot's reach cell holds a *leg start*,
+where it may really be when its current leg starts: ``()`` for exactly at
+its position, else the vertices of a convex region.  :meth:`Nondet.retarget`
+sets it at every doReach: a robot still moving (re-targeted in mid-motion)
+may be anywhere between its start and its old target, so the new leg starts
+from the hull of its start, position and old target; a robot at rest keeps
+its start.  A failure that ``straight`` could produce leaves the start the
+leg it failed on (``straight`` fails part-way), but a leg from exactly its
+position whose exact segment is blocked fails where it stands (``straight``
+checks before it moves); an arrival resets it to ``()``.  The *region* of a
+moving robot is the hull of its start, position and target.
 
-* **obstacles**: the segment p–t comes closer than ``max(world.radius,
-  world.resolution)`` to an obstacle: the world's, or one passed to any
-  agent's doReach (pymunk's obstacles are shared).  ``straight`` fails
-  exactly when the segment touches one (distance 0, or a position rounded
-  to the resolution grazes one); ``pymunk`` leaves the line only then
-  (its planner keeps 0.95 radius off obstacles), and a disc that keeps a
-  radius off every obstacle cannot be stopped by one;
-* **bodies**: the segment p–t comes closer than ``2 * world.radius`` to
-  another robot: to the segment from its position to its target if it is
-  moving, else to its position (exited and stuck robots included).
-  ``pymunk``'s discs block one another; ``straight``'s robots never do;
+A moving agent *may fail* (:meth:`Nondet.may_fail`) when any of these
+holds:
+
+* **straight**: its region comes within ``max(resolution, drift)`` of an
+  obstacle (the world's or its own doReach's): ``straight`` re-checks the
+  rest of its path from positions rounded to the resolution, which stray
+  at most :meth:`Nondet.drift` from the exact region;
+* **obstacles** (pymunk): its region comes closer than ``radius +
+  tolerance`` to an obstacle, the world's or one passed to any agent's
+  doReach (pymunk's obstacles are shared; its planner keeps 0.95 radius off
+  obstacles, a robot arrives within ``tolerance``);
+* **bodies** (pymunk): its region comes closer than ``2 × (radius +
+  tolerance)`` to another robot's (a moving one's region, else its position
+  and start; exited and stuck robots included);
 * **slow steps**: ``world.speed * δ < 10 * world.resolution``, where
   ``pymunk``'s stall detector (progress of more than one resolution per
   step) may fail a robot on free ground.
+
+What ``nondet`` does not follow is where ``pymunk`` leaves a robot after a
+detour, a push or a failure: a program that starts a robot's second leg
+gets the verdict "not exhaustive for pymunk" (:func:`pccl.api.not_covered_note`);
+``nondet-fail`` covers those legs (every leg may fail at every step).
 
 ``nondet-fail`` (:data:`NONDET_FAIL`) is the most general variant: every
 moving agent may fail at every step, whatever the geometry (for physics
@@ -59,12 +75,6 @@ from .base import Outcome, settled
 #: fail any moving robot.
 SLOW_STEPS = 10.0
 
-#: A leg's start when the robot may be anywhere (``Motion.start``): after
-#: ``pymunk`` may have carried it off its segment (a detour round an
-#: obstacle, a push by another robot).
-UNKNOWN_START = ("anywhere",)
-
-
 class Nondet:
     name = "nondet"
     uses_time = False
@@ -73,8 +83,6 @@ class Nondet:
     #: the engine keeps each robot's leg start (``Motion.start``) and calls
     #: :meth:`retarget` at every doReach (blackboxes/base.py)
     tracks_legs = True
-    #: whether pymunk's detours and pushes make a robot's start "anywhere"
-    pushes = True
 
     def __init__(self, name: str = "nondet", always_fail: bool = False):
         self.name = name
@@ -93,15 +101,12 @@ class Nondet:
         swept region, its start's hull with its target; one at rest keeps
         its start (``()`` after arrival)."""
         target, _obstacles, _t0, done, fail, start = reach
-        if target is None or done or fail or start == UNKNOWN_START:
+        if target is None or done or fail:
             return start
         return convex_hull((position,) + tuple(start) + (target,))
 
     def step(self, world, motions, env, time, delta):
-        # where each robot may be during this step: hull points, or None (anywhere)
-        regions: list = []
-        for m in motions:
-            regions.append(self._region(m))
+        regions = [self._region(m) for m in motions]
         wobs = world.obstacles
         options: list[list[tuple]] = []   # per agent: (position, done, fail, start)
         movers = []
@@ -118,36 +123,26 @@ class Nondet:
                 options.append([(p, True, False, ())])
                 continue
             z = float(p[2]) if len(p) > 2 else 0.0
-            options.append([(p, False, False, st), ((float(t[0]), float(t[1]), z), True, False, ())])
+            options.append([(p, False, False, st),
+                            ((float(t[0]), float(t[1]), z), True, False, ())])
             movers.append(i)
         for i in movers:
-            fails, off = self.hazards(world, motions, regions, i, delta)
-            off = off and self.pushes
-            if off:       # pymunk may carry the robot off its swept region
-                p, st = options[i][0][0], UNKNOWN_START
-                options[i][0] = (p, False, False, st)
+            fails, straight = self.hazards(world, motions, regions, i, delta)
             if fails:
-                options[i].append((motions[i].position, False, True,
-                                   UNKNOWN_START if off else self._fail_start(world, motions[i],
-                                                                              regions[i])))
-        # robots at rest that a moving one may push (pymunk): anywhere afterwards
-        for j, m in enumerate(motions):
-            if not self.pushes or settled(m) is None or regions[j] is None:
-                continue
-            if any(self._bodies_meet(world, regions[i], regions[j]) for i in movers):
-                options[j] = [(q[0], q[1], q[2], UNKNOWN_START) for q in options[j]]
+                m = motions[i]
+                options[i].append((m.position, False, True,
+                                   self._fail_start(world, m, regions[i]) if straight
+                                   else tuple(m.start)))
         return [Outcome(tuple(o[0] for o in combo), tuple(o[1] for o in combo),
                         tuple(o[2] for o in combo), None, tuple(o[3] for o in combo))
                 for combo in itertools.product(*options)]
 
     @staticmethod
-    def _fail_start(world, m, region):
-        """Where a robot that fails this step may be: on the leg it fails on
-        (``straight`` fails part-way where a rounded position grazes an
-        obstacle), except for a leg from exactly its position whose exact
-        segment is blocked: ``straight`` fails that one where it stands."""
-        if region is None:
-            return UNKNOWN_START
+    def _fail_start(world, m, region) -> tuple:
+        """Where a robot that ``straight`` fails this step may be: on the leg
+        it fails on (``straight`` fails part-way where a rounded position
+        grazes an obstacle), except for a leg from exactly its position whose
+        exact segment is blocked: ``straight`` fails that one where it stands."""
         p, t = m.position, m.target
         if not m.start and obstacles_of(world.obstacles, m.obstacles).blocks_segment(
                 float(p[0]), float(p[1]), float(t[0]), float(t[1])):
@@ -155,14 +150,12 @@ class Nondet:
         return region
 
     @staticmethod
-    def _region(m):
-        """Where robot ``m`` may be during the step (the hull points), or
-        None for anywhere: a moving robot's leg start with its target, a
-        robot at rest its start (after a failure part-way: the leg it failed on)."""
-        st = tuple(m.start)
-        if st == UNKNOWN_START:
-            return None
-        pts = (m.position,) + st
+    def _region(m) -> tuple:
+        """Where robot ``m`` may be during the step (the vertices of a convex
+        region): a moving robot's leg start with its position and target, a
+        robot at rest its position with its start (after a failure part-way:
+        the leg it failed on)."""
+        pts = (m.position,) + tuple(m.start)
         if settled(m) is None:
             pts += (m.target,)
         return convex_hull(pts)
@@ -181,33 +174,23 @@ class Nondet:
             return math.inf
         return e * (hull_diameter(region) + reach) / (reach - e) + 1e-9
 
-    def _bodies_meet(self, world, a, b) -> bool:
-        """Whether robots on the regions ``a`` and ``b`` (None: anywhere) may
-        touch under pymunk: closer than two radii (and the arrival tolerance
-        each)."""
-        if a is None or b is None:
-            return True
-        return hulls_distance(a, b) < 2.0 * (world.radius + world.tolerance)
-
     def hazards(self, world, motions, regions, i: int, delta: float) -> tuple:
-        """(may fail, may leave its swept region) for moving agent ``i``:
-        whether a physical blackbox (``straight``, ``pymunk``) could fail it
-        this step, and whether ``pymunk`` could carry it off the region it
-        sweeps (module docstring)."""
+        """(may fail, ``straight`` may fail) for moving agent ``i``: whether a
+        physical blackbox (``straight``, ``pymunk``) could fail it this step,
+        and whether ``straight`` could (module docstring)."""
         r = regions[i]
-        if r is None:
-            return True, True
         obs = obstacles_of(world.obstacles, *(q.obstacles for q in motions))
-        detour = obs.near_points(r, world.radius + world.tolerance)
-        bodies = any(self._bodies_meet(world, r, regions[j]) for j in range(len(motions)) if j != i)
-        off = detour or bodies
-        if off or self.always_fail:
-            return True, off
+        own = obstacles_of(world.obstacles, motions[i].obstacles)
+        straight = own.near_points(r, max(world.resolution, self.drift(world, r, delta)))
+        if straight or self.always_fail:
+            return True, straight
         if world.speed * delta < SLOW_STEPS * world.resolution:
             return True, False
-        if obs.near_points(r, max(world.resolution, self.drift(world, r, delta))):
+        if obs.near_points(r, world.radius + world.tolerance):
             return True, False
-        return False, False
+        reach = 2.0 * (world.radius + world.tolerance)
+        return any(hulls_distance(r, regions[j]) < reach
+                   for j in range(len(motions)) if j != i), False
 
     def may_fail(self, world, motions, i: int, delta: float) -> bool:
         """Whether a physical blackbox (``straight``, ``pymunk``) could fail

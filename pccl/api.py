@@ -188,13 +188,35 @@ def positions_read_in_motion(model) -> Optional[str]:
     return None
 
 
+def second_leg(prog: A.Program) -> Optional[str]:
+    """Where a robot of ``prog`` may start a second leg (a doReach after an
+    earlier one of the same agent): ``doReach at line N`` for a doReach in
+    an event (events may fire again), in a ``while``, or the second one of
+    ``Init``; None when every robot makes at most one trip (one doReach in
+    Init, outside every loop)."""
+    def is_reach(s) -> bool:
+        return isinstance(s, A.CallStmt) and s.name == "doReach"
+    init = [s for s in A.walk_stmts(prog.init) if is_reach(s)]
+    looped = [s for w in A.walk_stmts(prog.init) if isinstance(w, A.While)
+              for s in A.walk_stmts(w.body) if is_reach(s)]
+    evs = [s for ev in prog.events for s in A.walk_stmts(ev.body) if is_reach(s)]
+    again = looped + init[1:] + evs
+    return f"doReach at line {min(s.span.line for s in again)}" if again else None
+
+
 def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     """Under a covering blackbox (``nondet``, ``nondet-fail``), what of the
     physical blackboxes' behaviours the search does not cover, for the
-    header of ``pccl explore`` and the verdict: ``not exhaustive for
-    straight/pymunk: positions in mid-motion (getPosition() at line 29)``;
-    None when nothing is left out.  The option it may name (collisions)
-    spelt by ``spelling``."""
+    header of ``pccl explore`` and the verdict (docs/blackboxes.md, "What
+    each blackbox covers"); None when nothing is left out:
+
+    * a program that reads positions: ``not exhaustive for straight/pymunk:
+      positions in mid-motion (getPosition() at line 29)``;
+    * under ``nondet``, a program whose robots may start a second leg:
+      ``not exhaustive for pymunk: ...`` (where pymunk's detours, pushes and
+      failures leave a robot is not followed; ``nondet-fail`` covers it).
+
+    The options it names spelt by ``spelling``."""
     from pccl.blackboxes import BLACKBOXES
     bb = model.blackbox
     name = getattr(bb, "name", None)
@@ -203,8 +225,16 @@ def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     if not program_moves(model.program):
         return None
     why = positions_read_in_motion(model)
-    return (f"{NOT_EXHAUSTIVE_FOR}: positions in mid-motion ({spell(why, spelling)})"
-            if why else None)
+    if why:
+        return f"{NOT_EXHAUSTIVE_FOR}: positions in mid-motion ({spell(why, spelling)})"
+    if getattr(bb, "always_fail", False):
+        return None
+    where = second_leg(model.program)
+    if where:
+        return spell(f"not exhaustive for pymunk: a robot may start a leg where pymunk's detours, "
+                     f"pushes or failures left it ({where}; {{blackbox=nondet-fail}} covers it)",
+                     spelling)
+    return None
 
 
 #: How a verdict under a covering blackbox starts its reason when the program
