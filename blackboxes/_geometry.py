@@ -128,6 +128,33 @@ class Obstacles:
             self._near[key] = hit
         return hit
 
+    def near_points(self, points: tuple, clearance: float) -> bool:
+        """True if the convex hull of ``points`` (``(x, y)`` pairs, at least
+        one) comes closer than ``clearance`` to an obstacle (touching it
+        included)."""
+        if self.empty:
+            return False
+        if len(points) <= 2:
+            a, b = points[0], points[-1]
+            return self.near_segment(float(a[0]), float(a[1]), float(b[0]), float(b[1]),
+                                     clearance)
+        b = self.bounds
+        c = clearance
+        xs = [float(q[0]) for q in points]
+        ys = [float(q[1]) for q in points]
+        if (max(xs) < b[0] - c or min(xs) > b[2] + c
+                or max(ys) < b[1] - c or min(ys) > b[3] + c):
+            return False
+        key = (tuple(points), c)
+        hit = self._near.get(key)
+        if hit is None:
+            g = shapely.MultiPoint([(x, y) for x, y in zip(xs, ys)]).convex_hull
+            hit = bool(shapely.distance(self.union, g) < c)
+            if len(self._near) >= _RESULT_CACHE_LIMIT:
+                self._near.clear()
+            self._near[key] = hit
+        return hit
+
     def roadmap(self, radius: float) -> "Roadmap":
         rm = self._roadmaps.get(radius)
         if rm is None:
@@ -215,6 +242,46 @@ def segment_distance(a, b, c, d) -> float:
                _point_segment(bx, by, cx, cy, dx, dy),
                _point_segment(cx, cy, ax, ay, bx, by),
                _point_segment(dx, dy, ax, ay, bx, by))
+
+
+def convex_hull(points) -> tuple:
+    """The vertices of the convex hull of ``points`` (``(x, y, ...)``; only x
+    and y count) as a canonical tuple of ``(x, y)`` float pairs: sorted,
+    collinear points dropped (Andrew's monotone chain).  One point for
+    equal points, two for collinear ones."""
+    pts = sorted({(float(q[0]) + 0.0, float(q[1]) + 0.0) for q in points})
+    if len(pts) <= 2:
+        return tuple(pts)
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    lower: list = []
+    for q in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
+            lower.pop()
+        lower.append(q)
+    upper: list = []
+    for q in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
+            upper.pop()
+        upper.append(q)
+    return tuple(sorted(set(lower[:-1] + upper[:-1])))
+
+
+def hull_diameter(points) -> float:
+    """The largest distance between two of ``points``."""
+    return max((math.hypot(a[0] - b[0], a[1] - b[1]) for a in points for b in points),
+               default=0.0)
+
+
+def hulls_distance(a: tuple, b: tuple) -> float:
+    """The distance between the convex hulls of the point tuples ``a`` and
+    ``b`` (0 when they meet)."""
+    if len(a) <= 2 and len(b) <= 2:
+        return segment_distance(a[0], a[-1], b[0], b[-1])
+    ga = shapely.MultiPoint(list(a)).convex_hull
+    gb = shapely.MultiPoint(list(b)).convex_hull
+    return float(shapely.distance(ga, gb))
 
 
 def _point_segment(px, py, ax, ay, bx, by) -> float:

@@ -70,15 +70,22 @@ class Motion:
     done: bool
     fail: bool
     active: bool = True
+    #: for a blackbox that tracks legs (``tracks_legs = True``): where the
+    #: robot may really be when its current leg starts, as the blackbox
+    #: last set it (``Outcome.starts``, ``retarget``); ``()`` otherwise
+    start: tuple = ()
 
 
 @dataclass(frozen=True)
 class Outcome:
-    """One possible result of a step, for all agents (same order as motions)."""
+    """One possible result of a step, for all agents (same order as motions).
+    ``starts`` (blackboxes that track legs): each agent's new leg start
+    (``Motion.start``); None leaves them as they are."""
     positions: tuple
     done: tuple
     fail: tuple
     env: Hashable = None
+    starts: Optional[tuple] = None
 
 
 def settled(m: Motion):
@@ -137,6 +144,16 @@ def declared_capabilities(bb) -> Capabilities:
     if "capabilities" in own or any(callable(v) for v in own.values()):
         return NO_CAPABILITIES
     return caps
+
+
+def tracks_legs(bb) -> bool:
+    """Whether blackbox ``bb`` declares that it tracks legs: it has
+    ``tracks_legs = True`` and a method ``retarget(position, reach)``.  The
+    engine then keeps a per-robot *leg start* in the state (``Motion.start``,
+    set by the blackbox's ``Outcome.starts`` and, at every doReach, by
+    ``retarget`` from the robot's position and its previous reach cell
+    ``(target, obstacles, t0, done, fail, start)``)."""
+    return getattr(bb, "tracks_legs", False) is True and callable(getattr(bb, "retarget", None))
 
 
 class Blackbox(Protocol):

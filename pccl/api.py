@@ -97,8 +97,9 @@ def fixed_timing_note(model, spelling: Spelling = api_spelling) -> Optional[str]
     return spell(f"travel times fixed by {bb.name}; {{blackbox={EXPLORE_MOVING_DEFAULT}}} explores "
                  "every timing", spelling)
 
-#: Shipped blackboxes that cover straight and pymunk except for positions in
-#: mid-motion (docs/blackboxes.md, "What each blackbox covers").
+#: Shipped blackboxes that cover straight and pymunk, but for positions in
+#: mid-motion (docs/blackboxes.md, "What each blackbox covers"): a program
+#: that reads positions gets "not exhaustive for straight/pymunk".
 COVERING_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
 
 
@@ -121,12 +122,35 @@ def positions_read_in_motion(model) -> Optional[str]:
     return None
 
 
+def second_leg(prog: A.Program) -> Optional[str]:
+    """Where a robot of ``prog`` may start a second leg (a doReach after an
+    earlier one of the same agent): ``doReach at line N`` for a doReach in
+    an event (events may fire again), in a ``while``, or the second one of
+    ``Init``; None when every robot makes at most one trip (one doReach in
+    Init, outside every loop)."""
+    def is_reach(s) -> bool:
+        return isinstance(s, A.CallStmt) and s.name == "doReach"
+    init = [s for s in A.walk_stmts(prog.init) if is_reach(s)]
+    looped = [s for w in A.walk_stmts(prog.init) if isinstance(w, A.While)
+              for s in A.walk_stmts(w.body) if is_reach(s)]
+    evs = [s for ev in prog.events for s in A.walk_stmts(ev.body) if is_reach(s)]
+    again = looped + init[1:] + evs
+    return f"doReach at line {min(s.span.line for s in again)}" if again else None
+
+
 def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     """Under a covering blackbox (``nondet``, ``nondet-fail``), what of the
     physical blackboxes' behaviours the search does not cover, for the
-    header of ``pccl explore``: ``positions in mid-motion not covered
-    (getPosition() at line 29)``; None when nothing is left out.  The
-    option it may name (collisions) spelt by ``spelling``."""
+    header of ``pccl explore`` and the verdict (docs/blackboxes.md, "What
+    each blackbox covers"); None when nothing is left out:
+
+    * a program that reads positions: ``not exhaustive for straight/pymunk:
+      positions in mid-motion (getPosition() at line 29)``;
+    * under ``nondet``, a program whose robots may start a second leg:
+      ``not exhaustive for pymunk: ...`` (where pymunk's detours, pushes and
+      failures leave a robot is not followed; ``nondet-fail`` covers it).
+
+    The options it names spelt by ``spelling``."""
     from pccl.blackboxes import BLACKBOXES
     bb = model.blackbox
     name = getattr(bb, "name", None)
@@ -135,7 +159,21 @@ def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
     if not program_moves(model.program):
         return None
     why = positions_read_in_motion(model)
-    return f"positions in mid-motion not covered ({spell(why, spelling)})" if why else None
+    if why:
+        return f"{NOT_EXHAUSTIVE_FOR}: positions in mid-motion ({spell(why, spelling)})"
+    if getattr(bb, "always_fail", False):
+        return None
+    where = second_leg(model.program)
+    if where:
+        return spell(f"not exhaustive for pymunk: a robot may start a leg where pymunk's detours, "
+                     f"pushes or failures left it ({where}; {{blackbox=nondet-fail}} covers it)",
+                     spelling)
+    return None
+
+
+#: How a verdict under a covering blackbox starts its reason when the program
+#: observes what the blackbox cannot enumerate (docs/blackboxes.md).
+NOT_EXHAUSTIVE_FOR = "not exhaustive for straight/pymunk"
 
 
 @dataclass(repr=False)
@@ -641,6 +679,12 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                                max_memory=max_memory, spelling=spelling) for b in sr.bounds_hit]
     violations = [violation_data(model, f) for f in sr.found]
     verdict, code = _verdict(sr, bound_names, max_memory, spelling, o.find_all, complete)
+    uncovered = not_covered_note(model, spelling)
+    status = sr.status
+    if uncovered and status == "exhaustive":
+        # exhaustive for nondet, not for the physical blackboxes it stands
+        # for: said, and exiting, as a bounded search
+        verdict, status, complete = f"no violation — {uncovered}", "bounded", False
     verdict += f" [blackbox {bb}]"
     note = fixed_timing_note(model, spelling) if not violations else None
     if note:
@@ -651,7 +695,7 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
         if rounds:
             verdict += f" ({spell(rounds, spelling)})"
     first = violations[0] if violations else None
-    res = ExploreResult(sr.status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
+    res = ExploreResult(status, verdict, bb, code, sr.stats, list(sr.bounds_hit), first,
                         violations, first.trace if first else (),
                         first.state if first else None,
                         sr.collision_probability, model, sr, list(sr.found),
@@ -659,8 +703,8 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                         _witnesses(model, lv), list(lv.holds) if lv else [],
                         [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)
                          + ([STALL_HINT] if any(v.kind == "stall" for v in violations) else [])]
-                        + plan.runaways, o.timelock, o.stall, bound_names,
-                        not_covered_note(model, spelling), complete=complete)
+                        + plan.runaways, o.timelock, o.stall, bound_names, uncovered,
+                        complete=complete)
     growth = _growth_note(plan, ex, sr)
     if growth:
         res.notes.append(growth)

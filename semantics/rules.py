@@ -20,7 +20,7 @@ A configuration is meaningful only together with the model that made it:
 
     state = (time 0, phase 1, lockQueue 2, shared 3, agents 4, env 5)
     agent = (pc 0, counter 1, lockState 2, status 3, locals 4, allread 5, position 6, reach 7)
-    reach = (target 0, obstacles 1, t0 2, doReach_done 3, doReach_fail 4)
+    reach = (target 0, obstacles 1, t0 2, doReach_done 3, doReach_fail 4, start 5)
 
 This module is the hot kernel of a search: its bodies index cells by these
 numbers (the layout's constants cost 1.5-3 % here) and rebuild agent cells
@@ -72,6 +72,7 @@ class RuleContext(Protocol):
     def round_pos(self, p: Sequence[float]) -> tuple: ...
     def next_time(self, t: Any) -> Any: ...
     def environment_step(self, st: tuple) -> list: ...
+    def leg_start(self, position: tuple, reach: tuple) -> tuple: ...
 
 
 class KHead:
@@ -412,7 +413,8 @@ def doreach_update(m, st, i, ag, head, out):
 
         ⟨⟨doReach(T,O) ⇒ · ~> resetFlags(i) ~> setTargetObs(T,O,T0,i) ...⟩k ⟨i⟩id ...⟩agent ⟨T0⟩time
 
-    Changes k and reach (target, obstacles, t0, both flags).
+    Changes k and reach (target, obstacles, t0, both flags, and the leg's
+    start for a blackbox that tracks legs: ``m.leg_start``).
     """
     sid = head.sid
     for res in _outcomes(m, head.fn, head.has_rand, i, ag, st[3], st[4]):
@@ -423,7 +425,7 @@ def doreach_update(m, st, i, ag, head, out):
         target = m.round_pos(target)      # positions are compared at the world's resolution
         t0 = st[0] if m.record_t0 else None
         ag2 = (head.next_pc, ag[1], ag[2], ag[3], ag[4], ag[5], ag[6],
-               (target, obstacles, t0, False, False))
+               (target, obstacles, t0, False, False, m.leg_start(ag[6], ag[7])))
         out.append((("DOREACH UPDATE", i, sid), put_agent(st, i, ag2)))
 
 
@@ -598,17 +600,17 @@ def doreach_invoke(m, st, out):
     outcome it returns is one successor: positions, flags and env updated,
     every counter := 0, transitionState := discrete.
 
-    Changes every agent's counter, position and reach flags, env and
-    transitionState.
+    Changes every agent's counter, position and reach flags (and leg start),
+    env and transitionState.
     """
     if st[1] != DYNAMIC:
         return
     ags = st[4]
-    for k, (positions, done, fail, env) in enumerate(m.environment_step(st)):
+    for k, (positions, done, fail, env, starts) in enumerate(m.environment_step(st)):
         new = tuple(
             (ag[0], 0, ag[2], ag[3], ag[4], ag[5], positions[j],
-             ag[7] if (ag[7][3] == done[j] and ag[7][4] == fail[j])
-             else (ag[7][0], ag[7][1], ag[7][2], done[j], fail[j]))
+             ag[7] if (ag[7][3] == done[j] and ag[7][4] == fail[j] and ag[7][5] == starts[j])
+             else (ag[7][0], ag[7][1], ag[7][2], done[j], fail[j], starts[j]))
             for j, ag in enumerate(ags))
         out.append((("DOREACH INVOKE", None, k), (st[0], DISCRETE, st[2], st[3], new, env)))
 

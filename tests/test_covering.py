@@ -21,7 +21,7 @@ import pytest
 from pccl import api
 from pccl.blackboxes import load_blackbox
 from pccl.blackboxes.base import Motion
-from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
+from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, START, STATUS
 from pccl.lang.world import parse_world
 
 from conftest import PROGRAMS, TEST_PROGRAMS
@@ -53,27 +53,56 @@ def _path(name: str) -> str:
 
 
 def observable(st) -> tuple:
-    """What a program can observe of a configuration (time left out)."""
-    return (st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[POS], ag[REACH][DONE], ag[REACH][FAIL])
+    """What a program that reads only the doReach flags can observe of a
+    configuration (time and positions left out: where the robots are is
+    compared by :func:`positions_covered`)."""
+    return (st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[REACH][DONE], ag[REACH][FAIL])
                           for ag in st[AGS]))
 
 
-def explored(program, world, agents, invariants=()) -> set:
+def where(st) -> tuple:
+    """Per robot, where nondet says it may be: (position, leg start)."""
+    return tuple((ag[POS], ag[REACH][START]) for ag in st[AGS])
+
+
+def positions_covered(world, delta, places, positions) -> bool:
+    """Whether each robot's position under straight lies where nondet's
+    state says that robot may be: its position, or within the drift of the
+    hull of its position and leg start (blackboxes/nondet.py)."""
+    from pccl.blackboxes.nondet import NONDET, UNKNOWN_START
+    from pccl.blackboxes._geometry import convex_hull, shapely
+    for (p, start), q in zip(places, positions):
+        if p[:2] == q[:2]:
+            continue
+        if tuple(start) == UNKNOWN_START:
+            continue
+        if not start:
+            return False
+        hull = convex_hull((p,) + tuple(start))
+        g = shapely.MultiPoint(list(hull)).convex_hull
+        if g.distance(shapely.Point(q[0], q[1])) > NONDET.drift(world, hull, delta):
+            return False
+    return True
+
+
+def explored(program, world, agents, invariants=()) -> dict:
     """The observable parts of every state ``explore`` reaches under its
-    default blackbox (no reductions: every state of the rules)."""
+    default blackbox (no reductions: every state of the rules), each with
+    where the robots may be (:func:`where`)."""
     prog = api.load_program(program)
     bb, _ = api.explore_blackbox(prog)
     assert bb == "nondet"                       # the default for programs that move
     m = api.make_model(program, world=world, agents=agents, blackbox=bb, reduce="none",
                        invariants=list(invariants))
-    seen, out, todo = set(), set(), list(m.init_states())
+    seen, todo = set(), list(m.init_states())
+    out: dict = {}
     while todo:
         st = todo.pop()
         k = m.key(st)
         if k in seen:
             continue
         seen.add(k)
-        out.add(observable(st))
+        out.setdefault(observable(st), set()).add(where(st))
         todo.extend(s for _, s in m.successors(st))
     return out
 
@@ -83,12 +112,18 @@ def straight_runs(program, world, agents, invariants=()):
                     max_time=60, invariants=list(invariants)) for s in SEEDS]
 
 
-def check_covered(program, world, agents):
+def check_covered(program, world, agents, seeds=SEEDS):
     reach = explored(program, world, agents)
+    w = api.make_model(program, world=world, agents=agents).world
     for res in straight_runs(program, world, agents):
-        assert observable(res.final) in reach, (
+        places = reach.get(observable(res.final))
+        assert places is not None, (
             f"{program} with {world}: run under straight ends {res.status} "
             f"({res.message}) in a configuration nondet never reaches")
+        pos = tuple(ag[POS] for ag in res.final[AGS])
+        assert any(positions_covered(w, 1, pl, pos) for pl in places), (
+            f"{program} with {world}: run under straight ends with the robots at {pos}, "
+            f"where nondet's matching states cannot have them: {sorted(places)[:3]}")
 
 
 @pytest.mark.parametrize("program,world,agents", WORLD_PROGRAMS,
@@ -312,7 +347,7 @@ def test_nondet_fail_may_fail_anywhere():
 def test_nondet_fail_includes_nondet(tmp_path):
     """Every state nondet reaches, nondet-fail reaches too."""
     prog, world = generated(3, tmp_path)
-    a = explored(prog, world, None)
+    a = set(explored(prog, world, None))
     m = api.make_model(prog, world=world, blackbox="nondet-fail", reduce="none")
     seen, out, todo = set(), set(), list(m.init_states())
     while todo:
@@ -322,7 +357,7 @@ def test_nondet_fail_includes_nondet(tmp_path):
         seen.add(m.key(st))
         out.add(observable(st))
         todo.extend(s for _, s in m.successors(st))
-    assert a <= out and len(out) > len(a)
+    assert a <= out
 
 
 def test_header_says_positions_in_motion_not_covered():
@@ -330,20 +365,191 @@ def test_header_says_positions_in_motion_not_covered():
     r = cli("explore", _path("rendezvous.pccl"), "--world", _path("rendezvous.toml"),
             "--agents", "2", "--no-progress")
     head = r.output.splitlines()[0]
-    assert "blackbox nondet (default for programs that move), positions in mid-motion not " \
-           "covered (getPosition() at line 29)" in head
+    assert "blackbox nondet (default for programs that move), not exhaustive for " \
+           "straight/pymunk: positions in mid-motion (getPosition() at line 29)" in head
+    assert "not exhaustive for straight/pymunk: positions in mid-motion" in r.output.splitlines()[1]
+    assert r.exit_code == 0
     # a program that observes motion only through the flags: nothing to say
     r = cli("explore", _path("rdv_meet.pccl"), "--world", _path("rdv_open.toml"),
             "--no-progress")
-    assert "not covered" not in r.output.splitlines()[0]
+    assert "not exhaustive" not in r.output
     # pos in a property; --collisions
     r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"),
                     invariants=["forall i: pos[i].x <= 3"])
-    assert r.not_covered == "positions in mid-motion not covered (pos in property " \
-                            "`forall i: pos[i].x <= 3`)"
+    assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
+                            "(pos in property `forall i: pos[i].x <= 3`)"
     r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True)
-    assert r.not_covered == "positions in mid-motion not covered (collisions)"     # the keyword
+    assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
+                            "(collisions)"     # the keyword
     # a deterministic blackbox has nothing to say
     r = api.explore(_path("rendezvous.pccl"), world=_path("rendezvous.toml"), agents=2,
                     blackbox="straight")
     assert r.not_covered is None
+
+
+# --------------------------------------------------------------------------
+# issue 41, holes 3 and 4: re-targets in mid-motion, failures part-way
+# --------------------------------------------------------------------------
+
+COVER = "covering/"
+
+
+@pytest.mark.parametrize("name", ["gap_turn", "cover_rounding_flags"])
+def test_straight_violation_is_found_by_the_default(name):
+    """A robot re-targeted in mid-motion (gap_turn: the new leg starts where
+    the robot really is and meets a wall) and a robot straight fails
+    part-way (cover_rounding_flags: rounded positions graze a triangle, the
+    next trip from there crosses a box): run under straight fails an
+    assertion, and so does explore under the default blackbox, on both
+    engines with the same figures."""
+    prog, world = _path(COVER + name + ".pccl"), _path(COVER + name + ".toml")
+    res = api.run(prog, world=world, blackbox="straight", seed=0)
+    assert res.status == "violation" and "assertion failed" in res.message, res.message
+    figures = set()
+    for engine in ("native", "python"):
+        r = api.explore(prog, world=world, engine=engine)
+        assert r.blackbox == "nondet" and r.status == "violation", r.verdict
+        assert r.exit_status == 1 and "assertion failed" in r.verdict
+        figures.add((r.stats.states, r.stats.transitions))
+    assert len(figures) == 1, figures
+
+
+def test_positions_read_after_a_failure_part_way_is_not_exhaustive():
+    """cover_rounding_position reads getPosition() after straight failed the
+    robot part-way: nondet cannot enumerate that position, so the verdict is
+    not "exhaustive" but says why, and exits as a bounded search (0)."""
+    from conftest import cli
+    prog, world = _path(COVER + "cover_rounding_position.pccl"), \
+        _path(COVER + "cover_rounding_position.toml")
+    res = api.run(prog, world=world, blackbox="straight", seed=0)
+    assert res.status == "violation", res.message
+    r = api.explore(prog, world=world)
+    assert r.status == "bounded" and not r.exhaustive and r.exit_status == 0, r.verdict
+    assert r.verdict == ("no violation — not exhaustive for straight/pymunk: positions in "
+                         "mid-motion (getPosition() at line 7) [blackbox nondet]")
+    out = cli("explore", prog, "--world", world, "--no-progress")
+    assert out.exit_code == 0
+    assert "exhaustive [" not in out.output.replace("not exhaustive for", "")
+
+
+def test_retarget_starts_from_the_swept_region():
+    """nondet's retarget: a robot still moving may be anywhere between its
+    start and its target; one at rest keeps its start."""
+    nd = load_blackbox("nondet")
+    moving = ((4.0, 0.0, 0.0), (), None, False, False, ())
+    assert nd.retarget((0.0, 0.0, 0.0), moving) == ((0.0, 0.0), (4.0, 0.0))
+    arrived = ((4.0, 0.0, 0.0), (), None, True, False, ())
+    assert nd.retarget((4.0, 0.0, 0.0), arrived) == ()
+    failed = ((4.0, 0.0, 0.0), (), None, False, True, ((0.0, 0.0), (4.0, 0.0)))
+    assert nd.retarget((0.0, 0.0, 0.0), failed) == ((0.0, 0.0), (4.0, 0.0))
+    # the leg from the swept region meets the wall that the leg from the start misses
+    w = parse_world("resolution = 0.01\nradius = 0.1\n[[obstacles]]\n"
+                    "polygon = [[3.0, 1.0], [3.5, 1.0], [3.5, 1.5], [3.0, 1.5]]\n")
+    m = motion((0.0, 0.0, 0.0), (3.2, 3.0, 0.0))
+    assert [o.fail for o in nd.step(w, [m], None, 0, 1.0)] == [(False,), (False,)]
+    m = motion((0.0, 0.0, 0.0), (3.2, 3.0, 0.0), start=((0.0, 0.0), (4.0, 0.0)))
+    assert (True,) in [o.fail for o in nd.step(w, [m], None, 0, 1.0)]
+
+
+# generated programs: a robot re-targeted after a number of steps, walls near
+# the segments (near-tangent), several resolutions and speeds
+
+RETARGET_PROGRAM = """\
+allwrite:
+  int arrived = 0;
+  int failed = 0;
+loc:
+  int phase = 0;
+  int ticks = 0;
+Go():
+  pre(phase == 0);
+  eff:
+    doReach(ItemPosition({x0}, {y0}), getObs());
+    phase = 1;
+Tick():
+  pre(phase == 1 && ticks < {k});
+  eff:
+    ticks = ticks + 1;
+Turn():
+  pre(phase == 1 && ticks == {k});
+  eff:
+    doReach(ItemPosition({x1}, {y1}), getObs());
+    phase = 2;
+Again():
+  pre(phase == 2 && doReach_fail);
+  eff:
+    phase = 3;
+    doReach(ItemPosition({x2}, {y2}), getObs());
+Failed():
+  pre(phase == 3 && doReach_fail);
+  eff:
+    atomic:
+      failed = failed + 1;
+    exit();
+Arrived():
+  pre(phase >= 2 && doReach_done);
+  eff:
+    atomic:
+      arrived = arrived + 1;
+    exit();
+"""
+
+RETARGET_WORLD = """\
+agents = 1
+resolution = {res}
+radius = {r}
+speed = {speed}
+start = [[0, 0]]
+
+[[obstacles]]
+polygon = [[{wx0}, {wy0}], [{wx1}, {wy0}], [{wx1}, {wy1}], [{wx0}, {wy1}]]
+"""
+
+
+def retarget_generated(seed: int, tmp_path):
+    rnd = random.Random(1000 + seed)
+    res = rnd.choice([0.01, 0.05, 0.1])
+    x0, y0 = round(rnd.uniform(4, 8), 1), round(rnd.uniform(-1, 1), 1)
+    # the wall: a box whose corner grazes the first leg (near-tangent) or sits
+    # off it, so that some re-targeted legs from mid-motion meet it
+    t = rnd.uniform(0.3, 0.8)
+    cx, cy = x0 * t, y0 * t + rnd.choice([0.02, 0.1, 0.3, 0.6])
+    wx0, wy0 = round(cx, 2), round(cy, 2)
+    wx1, wy1 = round(cx + rnd.uniform(0.3, 1.5), 2), round(cy + rnd.uniform(0.3, 1.5), 2)
+    x1, y1 = round(rnd.uniform(cx - 1, cx + 2), 1), round(cy + rnd.uniform(2, 4), 1)
+    x2, y2 = round(rnd.uniform(-2, 2), 1), round(rnd.uniform(2, 5), 1)
+    text = RETARGET_PROGRAM.format(x0=x0, y0=y0, x1=x1, y1=y1, x2=x2, y2=y2,
+                                   k=rnd.randint(1, 5))
+    world = RETARGET_WORLD.format(res=res, r=rnd.choice([0.05, 0.25]),
+                                  speed=rnd.choice([0.7, 1.0, 1.5]),
+                                  wx0=wx0, wy0=wy0, wx1=wx1, wy1=wy1)
+    prog_path = tmp_path / f"rt{seed}.pccl"
+    world_path = tmp_path / f"rt{seed}.toml"
+    prog_path.write_text(text)
+    world_path.write_text(world)
+    return str(prog_path), str(world_path)
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_generated_retargets(seed, tmp_path):
+    """Every end state of seeded straight runs is one explore reaches under
+    the default blackbox; an invariant that holds there holds on the runs."""
+    prog, world = retarget_generated(seed, tmp_path)
+    check_covered(prog, world, None)
+    for prop in ("failed == 0", "arrived == 0"):
+        r = api.explore(prog, world=world, invariants=[prop])
+        if r.status != "exhaustive":
+            continue
+        res = api.run(prog, world=world, blackbox="straight", seed=0, max_time=60,
+                      invariants=[prop])
+        assert res.status != "violation", (prop, res.message)
+
+
+def test_generated_retargets_are_not_vacuous(tmp_path):
+    """Some generated re-targeted legs fail under straight, some arrive."""
+    got = set()
+    for seed in range(16):
+        prog, world = retarget_generated(seed, tmp_path)
+        res = api.run(prog, world=world, blackbox="straight", seed=0, max_time=60)
+        got.add((res.final_state.shared["failed"] > 0, res.final_state.shared["arrived"] > 0))
+    assert (True, False) in got and (False, True) in got

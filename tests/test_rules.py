@@ -94,7 +94,7 @@ def test_initial_configuration(m, st0):
         assert ag[CNT] == 0 and ag[LCK] == IDLE and ag[STATUS] == RUNNING
         assert var(m, st0, i, "x") == 0 and var(m, st0, i, "go") is True
         assert var(m, st0, i, "ys") == ()
-        assert ag[REACH][TARGET] is None and ag[REACH][DONE:] == (False, False)
+        assert ag[REACH][TARGET] is None and ag[REACH][DONE:] == (False, False, ())
     assert var(m, st0, 0, "s") == 0 and var(m, st0, 0, "xs") == (1, 2)
 
 
@@ -340,9 +340,9 @@ def test_doreach_update_resets_flags_sets_target_and_t0():
     mm = model_of(PROG, abstract_time=False)
     (st0,) = mm.init_states()
     d, e = sid(mm, "doReach"), sid(mm, "exit")
-    old = ((9.0, 9.0, 0.0), (), 1, True, True)
+    old = ((9.0, 9.0, 0.0), (), 1, True, True, ())
     st = set_state(mm, at(mm, st0, 0, d, e, END, reach=old), time=3)
-    new = ((1.0, 2.0, 0.0), (), 3, False, False)
+    new = ((1.0, 2.0, 0.0), (), 3, False, False, ())
     assert only(mm, st, "DOREACH UPDATE", 0) == (
         ("DOREACH UPDATE", 0, d), set_state(mm, at(mm, st0, 0, e, END, reach=new), time=3))
 
@@ -352,7 +352,7 @@ def test_doreach_update_under_time_abstraction_keeps_no_t0(m, st0):
     assert m.abstract_time
     st = set_state(m, at(m, st0, 0, d, e, END), time=7)
     _, after = only(m, st, "DOREACH UPDATE", 0)
-    assert after[AGS][0][REACH] == ((1.0, 2.0, 0.0), (), None, False, False)
+    assert after[AGS][0][REACH] == ((1.0, 2.0, 0.0), (), None, False, False, ())
     assert k_of(m, after[AGS][0]) == (e, END)
 
 
@@ -611,11 +611,11 @@ def test_time_advance_ignores_pending_k_of_agent_without_budget(m, st0):
 
 def test_doreach_invoke_instant(m, st0):
     tgt = (1.0, 2.0, 0.0)
-    st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False), counter=1)
+    st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False, ()), counter=1)
     st = set_state(m, set_agent(m, st, 1, counter=1), time=1, phase=DYNAMIC)
     out = m.successors(st)
     assert [l for l, _ in out] == [("DOREACH INVOKE", None, 0)]
-    exp = set_agent(m, st, 0, counter=0, pos=tgt, reach=(tgt, (), None, True, False))
+    exp = set_agent(m, st, 0, counter=0, pos=tgt, reach=(tgt, (), None, True, False, ()))
     exp = set_state(m, set_agent(m, exp, 1, counter=0), phase=DISCRETE)
     assert out[0][1] == exp        # time unchanged, agent 1 (no target) holds still
 
@@ -625,7 +625,7 @@ def test_doreach_invoke_no_target_holds_position_and_flags(m, st0):
     (_, after), = m.successors(st)
     for i in (0, 1):
         assert after[AGS][i][POS] == st0[AGS][i][POS]
-        assert after[AGS][i][REACH][3:] == (False, False)
+        assert after[AGS][i][REACH][3:] == (False, False, ())
         assert after[AGS][i][CNT] == 0
 
 
@@ -633,8 +633,8 @@ def test_doreach_invoke_nondet_one_successor_per_outcome():
     mm = model_of(PROG, blackbox="nondet")
     (st0,) = mm.init_states()
     t0, t1 = (1.0, 2.0, 0.0), (3.0, 3.0, 0.0)
-    st = set_agent(mm, st0, 0, reach=(t0, (), None, False, False), counter=1)
-    st = set_agent(mm, st, 1, reach=(t1, (), None, False, False), counter=1)
+    st = set_agent(mm, st0, 0, reach=(t0, (), None, False, False, ()), counter=1)
+    st = set_agent(mm, st, 1, reach=(t1, (), None, False, False, ()), counter=1)
     st = set_state(mm, st, time=1, phase=DYNAMIC)
     out = mm.successors(st)
     assert [l[0] for l, _ in out] == ["DOREACH INVOKE"] * 4
@@ -654,7 +654,7 @@ def test_doreach_invoke_disabled_in_discrete_phase_and_agents_wait_in_dynamic(m,
 def test_doreach_invoke_moves_exited_agents_too(m, st0):
     # an exited robot's controller still runs toward its last target (docs/blackboxes.md)
     tgt = (1.0, 2.0, 0.0)
-    st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False), status=EXITED)
+    st = set_agent(m, st0, 0, reach=(tgt, (), None, False, False, ()), status=EXITED)
     st = set_state(m, set_agent(m, st, 1, counter=1), time=1, phase=DYNAMIC)
     (_, after), = m.successors(st)
     assert after[AGS][0][POS] == tgt and after[AGS][0][STATUS] == EXITED

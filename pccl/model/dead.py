@@ -41,6 +41,9 @@ The soundness conditions are the module-level predicates
 :func:`initial_rand_unread`, :func:`rand_outcomes_fail_alike`,
 :func:`can_collapse_initial_rand`): the reduction calls them,
 docs/reductions.md quotes them, a test may call them.
+The leg start of a robot that tracks legs (``nondet``: the next doReach
+starts from it; its ``retarget`` reads only the start of a robot at rest)
+stays in the key with its position and doReach obstacles.
 
 The reduction is a different ``key``: :meth:`DeadVars.key_of` masks dead
 values before the key (the symmetric one under ``symmetry``), so states are
@@ -58,7 +61,8 @@ from pccl.lang import ast as A
 from pccl.lang.types import Ty
 from pccl.model.compile import _may_grow, has_rand, program_moves
 from pccl.model.independence import local_guards, property_names
-from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, STATUS,
+from pccl.model.layout import (AEND, AGS, DONE, END, EXITED, FAIL, LOC, OBSTACLES, PC, REACH, RUNNING, SH, START,
+                               STATUS,
                                acquire_sid, is_acquire)
 
 #: The value a dead variable has in a key (the Python engine's; the native
@@ -403,7 +407,8 @@ class DeadVars:
             loc = tuple(DEAD if dead >> k & 1 else x for k, x in enumerate(ag[LOC]))
             reach = ag[REACH]
             if dead & self.reach_bit:
-                reach = (DEAD, reach[OBSTACLES], DEAD, DEAD, DEAD)
+                # the leg start stays: the next doReach starts the leg from it
+                reach = (DEAD, reach[OBSTACLES], DEAD, DEAD, DEAD, reach[START])
             if out is None:
                 out = list(ags)
             out[i] = ag[:LOC] + (loc,) + ag[LOC + 1:REACH] + (reach,) + ag[REACH + 1:]

@@ -19,7 +19,7 @@ Configurations are nested tuples (compact, immutable, hashable)::
 
     state = (time, phase, lockQueue, shared, agents, env)
     agent = (pc, counter, lockState, status, locals, allread, position, reach)
-    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+    reach = (target, obstacles, t0, doReach_done, doReach_fail, leg start)
 
 ``pc`` interns the agent's pending computation ``k`` (a tuple of statement
 occurrence ids and markers, docs/language.md §11) as a small integer; the
@@ -175,6 +175,7 @@ class Model(metaclass=ABCMeta):
         self.env = Environment(self.world, self.blackbox, self.N, delta)
         self.environment_step = self.env.step
         self.round_pos = self.env.round_pos
+        self.leg_start = self.env.leg_start
 
     def _functions(self, functions: Optional[Mapping[str, Any]]) -> dict:
         """The uninterpreted functions' values: the world's (``getObs`` is

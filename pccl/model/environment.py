@@ -18,7 +18,7 @@ from typing import Any, NoReturn, Optional
 from pccl.blackboxes.base import Motion
 from pccl.lang.errors import OptionError, PcclError, keyword_spelling
 from pccl.search.fingerprint import check_canonical
-from pccl.model.layout import AGS, ENV, POS, REACH, RUNNING, STATUS, TIME
+from pccl.model.layout import AGS, ENV, POS, REACH, RUNNING, START, STATUS, TIME
 
 _EXACT = decimal.Context(prec=60)
 
@@ -131,11 +131,15 @@ class Environment:
         self.N = n
         self.delta = delta
         self._cache: dict = {}
+        from pccl.blackboxes.base import tracks_legs
+        #: whether the blackbox keeps each robot's leg start (Motion.start)
+        self.tracks_legs = tracks_legs(blackbox)
         #: a position's marshal encoding -> the position checked and rounded
         self._rounded: dict = {}
 
     def step(self, st):
-        """The blackbox's outcomes for DOREACH INVOKE: [(positions, done, fail, env)]."""
+        """The blackbox's outcomes for DOREACH INVOKE: [(positions, done, fail, env,
+        starts)]."""
         ags = st[AGS]
         bb = self.blackbox
         ckey = (tuple((ag[POS], ag[REACH], ag[STATUS] == RUNNING) for ag in ags), st[ENV],
@@ -144,7 +148,7 @@ class Environment:
         if hit is not None:
             return hit
         # Motion's fields: the position, the reach cells in order, active
-        motions = tuple(Motion(ag[POS], r[0], r[1], r[2], r[3], r[4], ag[STATUS] == RUNNING)
+        motions = tuple(Motion(ag[POS], r[0], r[1], r[2], r[3], r[4], ag[STATUS] == RUNNING, r[5])
                         for ag in ags for r in (ag[REACH],))
         outcomes = self.call(st[TIME], "step", self.world, motions, st[ENV], st[TIME],
                              self.delta)
@@ -157,7 +161,7 @@ class Environment:
         res = []
         seen = set()
         for n, o in enumerate(outcomes):
-            r = self._check_outcome(st[TIME], n + 1, o)
+            r = self._check_outcome(st[TIME], n + 1, o, ags)
             if r not in seen:
                 seen.add(r)
                 res.append(r)
@@ -179,7 +183,22 @@ class Environment:
         except Exception as e:
             self.error(time, f"{method}() raised {type(e).__name__}: {e}")
 
-    def _check_outcome(self, time, n, o):
+    def leg_start(self, position, reach) -> tuple:
+        """The leg start a doReach gives a robot at ``position`` whose reach
+        cell was ``reach``: the blackbox's ``retarget`` when it tracks legs
+        (checked like an outcome's), else ()."""
+        if not self.tracks_legs:
+            return ()
+        st = self.call(None, "retarget", position, reach)
+        return self._check_start(st, None, "retarget()")
+
+    def _check_start(self, st, time, where) -> tuple:
+        if not isinstance(st, tuple):
+            self.error(time, f"{where}: a leg start must be a tuple, got {_type_of(st)}")
+        self.check_env(st, time, where=where)
+        return st
+
+    def _check_outcome(self, time, n, o, ags):
         """One outcome as the engine's tuple, or a PcclError saying what is wrong."""
         N = self.N
         missing = [a for a in ("positions", "done", "fail", "env") if not hasattr(o, a)]
@@ -216,13 +235,21 @@ class Environment:
                     cache[k] = r
             poss.append(r)
         self.check_env(o.env, time, n)
-        return (tuple(poss), tuple(map(bool, o.done)), tuple(map(bool, o.fail)), o.env)
+        starts = getattr(o, "starts", None) if self.tracks_legs else None
+        if starts is None:
+            starts = tuple(ag[REACH][START] for ag in ags)
+        else:
+            if not isinstance(starts, (tuple, list)) or len(starts) != N:
+                self.error(time, f"outcome {n}: 'starts' must have one entry per agent ({N})")
+            starts = tuple(self._check_start(x, time, f"outcome {n}") for x in starts)
+        return (tuple(poss), tuple(map(bool, o.done)), tuple(map(bool, o.fail)), o.env, starts)
 
-    def check_env(self, env, time, n: Optional[int] = None) -> None:
+    def check_env(self, env, time, n: Optional[int] = None, where: Optional[str] = None) -> None:
         try:
             check_canonical(env, "env")
         except TypeError as exc:
-            where = "init_env() returned" if n is None else f"outcome {n}:"
+            if where is None:
+                where = "init_env() returned" if n is None else f"outcome {n}:"
             self.error(time, f"{where} {exc} (the env is part of the state, which "
                              f"must have one canonical encoding: use tuples, not lists, "
                              f"sets or dicts)")

@@ -5,7 +5,7 @@ configuration") is a nested tuple — compact, immutable, hashable::
 
     state = (time, phase, lockQueue, shared, agents, env)
     agent = (pc, counter, lockState, status, locals, allread, position, reach)
-    reach = (target, obstacles, t0, doReach_done, doReach_fail)
+    reach = (target, obstacles, t0, doReach_done, doReach_fail, leg start)
 
 Every other module reads and rebuilds configurations through this module:
 
@@ -38,8 +38,8 @@ TIME, PHASE, LQ, SH, AGS, ENV = range(6)
 # agent cells
 PC, CNT, LCK, STATUS, LOC, AR, POS, REACH = range(8)
 # reach cells (the doReach bookkeeping of one agent)
-TARGET, OBSTACLES, T0, DONE, FAIL = range(5)
-N_STATE_CELLS, N_AGENT_CELLS, N_REACH_CELLS = 6, 8, 5
+TARGET, OBSTACLES, T0, DONE, FAIL, START = range(6)
+N_STATE_CELLS, N_AGENT_CELLS, N_REACH_CELLS = 6, 8, 6
 
 # -- cell values -------------------------------------------------------------------
 # phase (the paper's transitionState)
@@ -70,7 +70,7 @@ def acquire_sid(item: int) -> int:
 
 
 #: The reach cell of an agent that has not called doReach.
-BLANK_REACH = (None, (), None, False, False)
+BLANK_REACH = (None, (), None, False, False, ())
 
 
 # -- construction and let-style updates (plain tuples) -------------------------------
@@ -160,6 +160,11 @@ class Reach(NamedTuple):
     t0: Any              # the time of the doReach (None unless recorded)
     done: bool           # doReach_done
     fail: bool           # doReach_fail
+    #: where the robot may really be when its current leg starts, for a
+    #: blackbox that tracks legs (``tracks_legs``, blackboxes/nondet.py): ()
+    #: for "exactly at its position", else the points whose convex hull
+    #: holds it (or ``UNKNOWN_START``: anywhere); always () otherwise
+    start: Any = ()
 
 
 class Agent(NamedTuple):
@@ -199,7 +204,7 @@ def _check_layout() -> None:
         == tuple(range(N_STATE_CELLS))
     assert (PC, CNT, LCK, STATUS, LOC, AR, POS, REACH) == tuple(range(len(Agent._fields))) \
         == tuple(range(N_AGENT_CELLS))
-    assert (TARGET, OBSTACLES, T0, DONE, FAIL) == tuple(range(len(Reach._fields))) \
+    assert (TARGET, OBSTACLES, T0, DONE, FAIL, START) == tuple(range(len(Reach._fields))) \
         == tuple(range(N_REACH_CELLS))
 
 

@@ -127,7 +127,7 @@ import xxhash
 
 from pccl.lang import ast as A
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, IDLE, LCK, LOC, LOCK, LQ,
-                               OBSTACLES, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, T0, TARGET,
+                               OBSTACLES, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, STUCK, START, T0, TARGET,
                                TIME)
 from pccl.semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END, K_EXIT, K_IF,
                                   K_SIMPLE, K_WHILE)
@@ -150,7 +150,7 @@ V_MIN, V_MAX = -(1 << 63) + 4, (1 << 63) - 1
 OUT_OF_RANGE = "an int beyond the native range (INT64_MIN + 4 .. INT64_MAX)"
 #: the slots of a moving agent's block after its variables: position,
 #: target, obstacles, t0 (interned ids), doReach_done, doReach_fail
-MOVE_SLOTS = 6
+MOVE_SLOTS = 7
 
 MAX_AGENTS = 16
 #: CPython's small-object allocator serves at most this many bytes; a bytes
@@ -305,7 +305,7 @@ class Generator:
     @property
     def MV(self) -> int:
         """The offset in an agent's block of its position id (then target,
-        obstacles, t0, done, fail): only when the program moves."""
+        obstacles, t0, done, fail, leg start): only when the program moves."""
         return 4 + self.L + self.R
 
     @property
@@ -401,7 +401,8 @@ class Generator:
             s2 = st[:AGS] + (ags,) + st[AGS + 1:]
             outs = m.environment_step(s2)
             want = (tuple(a[POS] for a in ags), tuple(a[REACH][DONE] for a in ags),
-                    tuple(a[REACH][FAIL] for a in ags), s2[ENV])
+                    tuple(a[REACH][FAIL] for a in ags), s2[ENV],
+                    tuple(a[REACH][START] for a in ags))
             if len(outs) != 1 or tuple(outs[0]) != want:
                 self.moves = True
                 return
@@ -640,7 +641,7 @@ class Generator:
         for j in range(self.N):
             a0 = self.AG0 + j * self.A
             rs += [a0 + 3] + [a0 + self.MV + q for q in range(MOVE_SLOTS)]
-            ws += [a0 + 1, a0 + self.MV, a0 + self.MV + 4, a0 + self.MV + 5]
+            ws += [a0 + 1, a0 + self.MV, a0 + self.MV + 4, a0 + self.MV + 5, a0 + self.MV + 6]
         return self.site_call("env", None, None, rs, ws)
 
     # the cases of agent_code, one per kind of control cell: each appends to
@@ -3064,7 +3065,7 @@ class NativeModel:
         if self.gen.moves:
             r = a[REACH]
             v += [self.intern(a[POS]), self.intern(r[TARGET]), self.intern(r[OBSTACLES]),
-                  self.intern(r[T0]), int(r[DONE]), int(r[FAIL])]
+                  self.intern(r[T0]), int(r[DONE]), int(r[FAIL]), self.intern(r[START])]
         return v
 
     def _dec(self, x: int, kind: str):
@@ -3091,7 +3092,7 @@ class NativeModel:
                 mv = o + g.MV
                 pos = vals[v[mv]]
                 reach = (vals[v[mv + 1]], vals[v[mv + 2]], vals[v[mv + 3]], bool(v[mv + 4]),
-                         bool(v[mv + 5]))
+                         bool(v[mv + 5]), vals[v[mv + 6]])
             else:
                 pos, reach = self._pos[i], self._reach[i]
             ags.append((v[o], v[o + 1], v[o + 2], v[o + 3], loc, ar, pos, reach))

@@ -36,7 +36,7 @@ from pccl.lang.errors import PcclError
 from pccl.semantics.rules import K_IF, K_WHILE
 from pccl.model.layout import (AEND, AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, END, ENV, EXITED, FAIL,
                                IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
-                               RUNNING, SH, STATUS, T0, TARGET, TIME, acq, acquire_sid)
+                               RUNNING, SH, START, STATUS, T0, TARGET, TIME, acq, acquire_sid)
 from pccl.lang.values import UNDEF, to_json
 
 #: The trace format: its name and the version this module writes.
@@ -112,6 +112,28 @@ def _pos(p):
     return None if p is None else list(p)
 
 
+def _start(s):
+    """A leg start (the reach cell's last entry, blackboxes/nondet.py) as JSON:
+    a list of [x, y] points, or the string "anywhere"."""
+    if s == ("anywhere",):
+        return "anywhere"
+    return [list(p) for p in s]
+
+
+def _decode_start(x, path):
+    if x == "anywhere":
+        return ("anywhere",)
+    if not isinstance(x, list):
+        raise _fail(path, 'a list of [x, y] points or "anywhere"', x)
+    out = []
+    for k, p in enumerate(x):
+        if (not isinstance(p, list) or len(p) != 2
+                or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)):
+            raise _fail(f"{path}[{k}]", "an [x, y] point", p)
+        out.append((float(p[0]), float(p[1])))
+    return tuple(out)
+
+
 def encode_agent(model, st, i) -> dict:
     ag = st[AGS][i]
     r = ag[REACH]
@@ -120,7 +142,7 @@ def encode_agent(model, st, i) -> dict:
             "counter": ag[CNT], "lockState": D.LOCK_NAMES[ag[LCK]],
             "position": list(ag[POS]), "target": _pos(r[TARGET]), "t0": r[T0],
             "obstacles": to_json(r[OBSTACLES]),
-            "doReach_done": r[DONE], "doReach_fail": r[FAIL],
+            "doReach_done": r[DONE], "doReach_fail": r[FAIL], "legStart": _start(r[START]),
             "variables": {n: to_json(v, t) for n, t, v in D.agent_vars(model, st, i)}}
 
 
@@ -174,7 +196,8 @@ def _agent_changes(model, a, b, i, add) -> None:
              ("t0", ra[T0], rb[T0], None),
              ("obstacles", ra[OBSTACLES], rb[OBSTACLES], to_json),
              ("doReach_done", ra[DONE], rb[DONE], None),
-             ("doReach_fail", ra[FAIL], rb[FAIL], None))
+             ("doReach_fail", ra[FAIL], rb[FAIL], None),
+             ("legStart", ra[START], rb[START], _start))
     for name, x, y, enc in cells:
         if x != y or type(x) is not type(y):
             add({"agent": i, "cell": name}, x if enc is None else enc(x),
@@ -184,7 +207,7 @@ def _agent_changes(model, a, b, i, add) -> None:
 #: Agent cells of a change that the text views and the HTML viewer do not
 #: print (the pending computation shows as the next step's line; t0 and the
 #: obstacles as the doReach call that set them).
-INTERNAL_CELLS = frozenset({"k", "t0", "obstacles"})
+INTERNAL_CELLS = frozenset({"k", "t0", "obstacles", "legStart"})
 
 
 def cell_name(cell: dict) -> str:
@@ -492,7 +515,8 @@ def decode_agent(model, j, path: str, lenient: bool = False) -> tuple:
              decode_data(j["obstacles"], f"{path}.obstacles") if "obstacles" in j else ANY,
              t0 if t0 is None or t0 is ANY else _number(t0, f"{path}.t0"),
              _bool(_get(j, "doReach_done", path), f"{path}.doReach_done"),
-             _bool(_get(j, "doReach_fail", path), f"{path}.doReach_fail"))
+             _bool(_get(j, "doReach_fail", path), f"{path}.doReach_fail"),
+             _decode_start(j["legStart"], f"{path}.legStart") if "legStart" in j else ANY)
     pc = decode_k(model, j["k"], f"{path}.k", lenient) if "k" in j else ANY
     return (pc, _int(_get(j, "counter", path), f"{path}.counter"), _LOCK_CODES[lock],
             decode_status(model, _get(j, "status", path), f"{path}.status"), loc, ar,
@@ -547,7 +571,8 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
         reach = {"target": (TARGET, lambda x, p: None if x is None else decode_position(x, p)),
                  "t0": (T0, lambda x, p: None if x is None else _number(x, p)),
                  "obstacles": (OBSTACLES, decode_data),
-                 "doReach_done": (DONE, _bool), "doReach_fail": (FAIL, _bool)}
+                 "doReach_done": (DONE, _bool), "doReach_fail": (FAIL, _bool),
+                 "legStart": (START, _decode_start)}
         if c in reach:
             idx, fn = reach[c]
             return ("reach", i, idx), fn(value, path)
@@ -577,13 +602,15 @@ def _set(tup: tuple, k: int, v) -> tuple:
 
 
 def apply_changes(model, st: tuple, changes: list, path: str = "changes",
-                  version: int = VERSION, lenient: bool = False) -> tuple:
+                  version: int = VERSION, lenient: bool = False,
+                  leg_starts: bool = True) -> tuple:
     """The configuration ``st`` with the recorded changes made: each
     change's ``old`` must be the cell's value in ``st`` (else a
     :class:`DecodeError` naming it) and differ from its ``new``, which it
     becomes.  After a version-1 step the cells that version does not record
-    (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`;
-    ``lenient``: as in :func:`decode_state`."""
+    (every agent's ``k``, ``t0`` and obstacles) are :data:`ANY`, and so is
+    every agent's leg start without ``leg_starts`` (a file written before it
+    was recorded); ``lenient``: as in :func:`decode_state`."""
     if not isinstance(changes, list):
         raise _fail(path, "a list", changes)
     st = tuple(st)
@@ -617,6 +644,11 @@ def apply_changes(model, st: tuple, changes: list, path: str = "changes",
         ags = tuple((ANY,) + ag[1:REACH] + ((ag[REACH][TARGET], ANY, ANY) + ag[REACH][DONE:],)
                     for ag in st[AGS])
         st = _set(st, AGS, ags)
+    if not leg_starts:
+        # the leg start (blackboxes that track legs), recorded since
+        # 2026-12-07: a file written before lacks it, so it is not matched
+        st = _set(st, AGS, tuple(ag[:REACH] + (ag[REACH][:START] + (ANY,),) + ag[REACH + 1:]
+                                 for ag in st[AGS]))
     return st
 
 

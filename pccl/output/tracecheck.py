@@ -46,7 +46,7 @@ STATE_CELLS = ("time", "phase", "lockQueue", "env")
 AGENT_CELLS = ("counter", "position", "lockState", "status", "target", "doReach_done",
                "doReach_fail",
                # version 2 (pccl/output/codec.py): the pending computation, doReach's t0 and obstacles
-               "k", "t0", "obstacles")
+               "k", "t0", "obstacles", "legStart")
 
 
 class _Bad(Exception):

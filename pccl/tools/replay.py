@@ -381,11 +381,13 @@ def replay(path, *, blackbox=None, program=None, world=None,
     if state is None:
         return diverge(0, why)
     res.states = [state]
+    # files written before the leg start was recorded do not match it
+    legs = all("legStart" in a for a in (doc.get("initial") or {}).get("agents", ()))
     picks: list = []            # per step: (index among the successors, how many)
     for k, rec in enumerate(steps):
         succ = m.successors(state)
         found = _recorded_step(m, state, succ, rec, f"steps[{k}].changes", doc["version"],
-                               lenient)
+                               lenient, legs)
         if isinstance(found, str):
             return diverge(rec["index"], f"diverged at step {rec['index']} of {len(steps)} "
                                          f"({describe(rec)}): {found}")
@@ -430,7 +432,8 @@ def _initial_state(m, doc: dict, lenient: bool):
                   f"{closest})")
 
 
-def _recorded_step(m, state, succ: list, rec: dict, path: str, version: int, lenient: bool):
+def _recorded_step(m, state, succ: list, rec: dict, path: str, version: int, lenient: bool,
+                   legs: bool = True):
     """The successor ``(index, label, state)`` among ``succ`` that the step
     ``rec`` records: same rule, agent, event, statement and outcome, its
     decoded changes made to ``state``, same time and branch.  Else why
@@ -438,7 +441,8 @@ def _recorded_step(m, state, succ: list, rec: dict, path: str, version: int, len
     n = rec["index"]
     ident = _identity(rec)
     try:
-        want = C.apply_changes(m, state, rec["changes"], path, version, lenient)
+        want = C.apply_changes(m, state, rec["changes"], path, version, lenient,
+                               leg_starts=legs)
         undecodable = None
     except C.DecodeError as e:
         want, undecodable = None, e.message
