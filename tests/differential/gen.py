@@ -80,7 +80,7 @@ ID_ASYM = ["me == 0", "me[0] == 0", "arr[me] == 1", "me < 1", "(me + 1) % 2 == 0
            "flag[me]", "owner == 1", "getAgentIndex() + x == 1"]
 
 
-def _int(rng, depth=1, err=0.1, edge=0.08) -> str:
+def _int(rng, depth=1, err=0.05, edge=0.06) -> str:
     r = rng.random()
     if r < err:
         return rng.choice(ERR_INT)
@@ -95,7 +95,7 @@ def _int(rng, depth=1, err=0.1, edge=0.08) -> str:
     return f"({a} {op} {b})"
 
 
-def _bool(rng, asym=0.1, err=0.08) -> str:
+def _bool(rng, asym=0.1, err=0.05) -> str:
     r = rng.random()
     if r < err:
         return rng.choice(["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
@@ -179,7 +179,7 @@ PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[
 
 
 def core(seed: int, rng: random.Random) -> Case:
-    bound = rng.choice([1, 2, 2, 3])
+    bound = rng.choice([1, 2, 2])
     world = None
     shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
               f"  List<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])};",
@@ -212,7 +212,7 @@ def core(seed: int, rng: random.Random) -> Case:
                                           for k in range(rng.randint(1, 2)))
     invariants = [rng.choice(INVARIANTS) for _ in range(rng.choice([0, 0, 1, 2]))]
     properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 else []
-    return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 3]), world=world,
+    return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 2, 3]), world=world,
                 invariants=invariants, properties=properties)
 
 

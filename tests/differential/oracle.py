@@ -253,7 +253,7 @@ def explore_mode(case: Case, mode: Mode, prog, files: Files) -> Outcome:
     except KeyboardInterrupt:
         raise
     except BaseException:
-        return Outcome("crash", detail=traceback.format_exc(limit=6))
+        return Outcome("crash", detail=traceback.format_exc()[-2500:])
 
 
 # ---------------------------------------------------------------------------
