@@ -70,7 +70,11 @@ class Case:
 # core
 # ---------------------------------------------------------------------------
 
-INT_ATOMS = ["0", "1", "2", "s", "x", "y", "c", "size(q)", "me", "arr[0]", "arr[1]"]
+INT_ATOMS = ["0", "1", "2", "s", "x", "y", "c", "size(q)", "arr[0]", "arr[1]"]
+#: asymmetric int expressions (ids in arithmetic, own-element indexing)
+ID_ARITH = ["me", "me + 1", "getAgentIndex()", "arr[me]", "arr[getAgentIndex()]", "me[0]", "x * me"]
+#: the probability of an asymmetric use, per program (0: a symmetric family)
+_P = {"asym": 0.1}
 ERR_INT = [  # an int expression that fails for some reachable values
     "10 / (x - 1)", "s % (y - 1)", "q[x]", "arr[y]", "head(l)", "rand(x - 1)", "arr[s]",
     "q[size(q) - x]", "u", "me[x]",
@@ -83,9 +87,13 @@ ID_ASYM = ["me == 0", "me[0] == 0", "arr[me] == 1", "me < 1", "(me + 1) % 2 == 0
 def _int(rng, depth=1, err=0.05, edge=0.06) -> str:
     r = rng.random()
     if r < err:
-        return rng.choice(ERR_INT)
+        return rng.choice(ERR_INT if _P["asym"] else ERR_INT[:-1])
     if r < err + edge:
         return rng.choice(EDGE_INTS)
+    if r < err + edge + _P["asym"] / 2:
+        return rng.choice(ID_ARITH)
+    if r < err + edge + _P["asym"] / 2 + 0.04:
+        return rng.choice(["me[me]", "me[getAgentIndex()]", "arr[me]", "arr[getAgentIndex()]"])  # subtle
     if depth <= 0 or r < 0.55:
         return rng.choice(INT_ATOMS)
     op = rng.choice(["+", "-", "*", "/", "%"])
@@ -95,7 +103,8 @@ def _int(rng, depth=1, err=0.05, edge=0.06) -> str:
     return f"({a} {op} {b})"
 
 
-def _bool(rng, asym=0.1, err=0.05) -> str:
+def _bool(rng, asym=None, err=0.05) -> str:
+    asym = _P["asym"] if asym is None else asym
     r = rng.random()
     if r < err:
         return rng.choice(["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
@@ -126,18 +135,19 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
     if k == "shared":
         return f"{pad}s = {_int(rng, 2)};\n"
     if k == "owner":
-        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < 0.2 else []))};\n"
+        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < _P['asym'] else []))};\n"
     if k == "assert":
         return f"{pad}assert({_bool(rng)});\n"
     if k == "list":
         return rng.choice([f"{pad}if (size(q) < 3):\n{pad}  add(q, {_int(rng, 0, 0.0)});\n",
                            f"{pad}remove(q, {rng.choice(['1', 'x', 's'])});\n",
-                           f"{pad}add(l, {rng.choice(['1', 'x', 'me'])});\n",
+                           f"{pad}add(l, {rng.choice(['1', 'x', 'me' if rng.random() < _P['asym'] else '2'])});\n",
                            f"{pad}if (!isEmpty(q)):\n{pad}  y = head(q);\n{pad}  remove(q, y);\n"])
     if k == "flag":
         return f"{pad}flag = {_bool(rng)};\n"
     if k == "arr":
-        return f"{pad}arr[{rng.choice(['0', '1', 'x', 'me', 'getAgentIndex()'])}] = {_int(rng, 1)};\n"
+        idx = ['0', '1', 'x'] + (['me', 'getAgentIndex()'] if rng.random() < _P["asym"] * 3 else [])
+        return f"{pad}arr[{rng.choice(idx)}] = {_int(rng, 1)};\n"
     if k == "float":
         return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h * 1e308', 'h / 3.0', 'h - x', '1.5', 'p.y'])};\n"
     if k == "pos":
@@ -163,9 +173,9 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
 
 
 SHARED_INITS = ["0", "1", "2", "rand(1)", MAX, MIN, "-1", "rand(2) - 1", f"{MAX} - rand(1)"]
-LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "getAgentIndex()", "10 / (rand(2) - 2)",
+LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "10 / (rand(2) - 2)",
              "[7, 8][rand(2)]", "q0[rand(2)]", "rand(1) * " + MAX, MIN, "w0()",
-             "head(getInput())", "me + 1", "getNumAgents() - 1", "s + 1"]
+             "head(getInput())", "getNumAgents() - 1", "s + 1"]
 INVARIANTS = ["s < 3", "s != 2", "forall i: c[i] <= 3", "count(flag) <= 1", "exists i: x[i] == 0",
               "forall i: x[i] < 2 || y[i] > 0", "size(q) < 3", "!contains(q, 2)",
               "forall i: forall j: (flag[i] && flag[j]) -> i == j", "owner != 1",
@@ -179,6 +189,7 @@ PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[
 
 
 def core(seed: int, rng: random.Random) -> Case:
+    _P["asym"] = rng.choice([0.0, 0.0, 0.0, 0.03, 0.15])
     bound = rng.choice([1, 2, 2])
     world = None
     shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
@@ -186,7 +197,7 @@ def core(seed: int, rng: random.Random) -> Case:
               "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
     allread = ["  int me = getAgentIndex();", "  bool flag = false;",
                f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};"]
-    loc_init = rng.choice(LOC_INITS)
+    loc_init = rng.choice(LOC_INITS + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
     if "w0()" in loc_init or "getInput" in loc_init:
         world = (f"[functions]\nw0 = {rng.choice(['0', '1', '3', MAX])}\n"
                  f"getInput = {rng.choice(['[1]', '[1.5]', '[[1, 2]]', '[true]', '[]'])}\n")
