@@ -22,21 +22,21 @@ import re
 from differential import gen, oracle, run, shrink
 
 #: the CI budget: programs from SEED on, truth + default + SAMPLE drawn modes each
-SEED, N, SAMPLE, BUDGET = 41_000, 60, 4, 100.0
+SEED, N, SAMPLE, BUDGET = 41_000, 60, 3, 75.0
 
 
 def test_fixed_budget_has_no_unknown_disagreement():
     modes = [m.name for m in oracle.MODES if m.name != "ray-local"]
     s = run(N, SEED, BUDGET, modes, SAMPLE)
     print(s.text())
-    assert s.programs >= 25, s.text()
+    assert s.programs >= 15, s.text()
     assert [d for d in s.unknown()] == [], s.text()
     # what the budget reached (not vacuous)
-    assert {"core", "moving", "sym", "por"} <= set(s.families), s.families
+    assert {"core", "moving", "userbb"} <= set(s.families), s.families
     assert s.truth["violation"] and s.truth["exhaustive"], s.truth
     assert s.agreements >= 3 * s.programs, s.text()
     ran = set(s.modes)
-    assert len(ran) >= 15, ran
+    assert len(ran) >= 12, ran
     assert s.inconclusive <= s.programs // 3, s.text()
 
 
@@ -46,12 +46,13 @@ def test_the_generator_reaches_every_construct():
     for construct in ("allwrite:", "allread:", "loc:", "Init:", "atomic:", "while (", "assert(",
                       "add(", "remove(", "exit();", "doReach(", "doReach_fail", "doReach_done",
                       "invariant:", "rand(", "ItemPosition(", "List<int>", "float ", "head(",
-                      "w0()", "getInput()", "[[", gen.MAX, gen.P64, "me[me]", "arr[me]",
+                      "w0()", "getInput()", gen.MAX, gen.P64, "me[me]", "arr[me]",
                       "getAgentIndex()", "10 / (", "% (", "h * 1e308"):
         assert construct in body, construct
     assert any(c.properties for c in texts) and any(c.invariants for c in texts)
     assert any(c.blackbox and "class" in c.blackbox for c in texts)
-    assert any(c.world and "obstacles" in c.world and "resolution" in c.world for c in texts)
+    assert any(c.world and "[[obstacles]]" in c.world and "resolution" in c.world for c in texts)
+    assert any(c.world and "[functions]" in c.world for c in texts)
     # temporal forms of docs/temporal.md
     props = {p for c in texts for p in c.properties}
     assert any("~>" in p for p in props) and any(p.startswith("reachable") for p in props)
@@ -93,7 +94,7 @@ def test_runtime_errors_of_every_kind_are_reached():
 def test_a_disagreement_shrinks_to_a_small_program_with_its_commands(tmp_path, monkeypatch):
     from pccl.model import reduce as RD
     monkeypatch.setattr(RD.Por, "footprint", lambda self, st, j, b: (0, 0))
-    for k in range(60):
+    for k in range(200):
         c = gen.case(k, ["por", "core"])
         rep = oracle.compare(c, oracle.choose_modes(["truth", "por-python"], k))
         if rep.disagreements:

@@ -74,7 +74,7 @@ INT_ATOMS = ["0", "1", "2", "s", "x", "y", "c", "size(q)", "arr[0]", "arr[1]"]
 #: asymmetric int expressions (ids in arithmetic, own-element indexing)
 ID_ARITH = ["me", "me + 1", "getAgentIndex()", "arr[me]", "arr[getAgentIndex()]", "me[0]", "x * me"]
 #: the probability of an asymmetric use, per program (0: a symmetric family)
-_P = {"asym": 0.1}
+_P = {"asym": 0.1, "err": 0.05}
 ERR_INT = [  # an int expression that fails for some reachable values
     "10 / (x - 1)", "s % (y - 1)", "q[x]", "arr[y]", "head(l)", "rand(x - 1)", "arr[s]",
     "q[size(q) - x]", "u", "me[x]",
@@ -84,7 +84,8 @@ ID_ASYM = ["me == 0", "me[0] == 0", "arr[me] == 1", "me < 1", "(me + 1) % 2 == 0
            "flag[me]", "owner == 1", "getAgentIndex() + x == 1"]
 
 
-def _int(rng, depth=1, err=0.05, edge=0.06) -> str:
+def _int(rng, depth=1, err=None, edge=0.06) -> str:
+    err = _P["err"] if err is None else err
     r = rng.random()
     if r < err:
         return rng.choice(ERR_INT if _P["asym"] else ERR_INT[:-1])
@@ -103,8 +104,9 @@ def _int(rng, depth=1, err=0.05, edge=0.06) -> str:
     return f"({a} {op} {b})"
 
 
-def _bool(rng, asym=None, err=0.05) -> str:
+def _bool(rng, asym=None, err=None) -> str:
     asym = _P["asym"] if asym is None else asym
+    err = _P["err"] if err is None else err
     r = rng.random()
     if r < err:
         return rng.choice(["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
@@ -137,10 +139,13 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
     if k == "owner":
         return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < _P['asym'] else []))};\n"
     if k == "assert":
+        if not _P["err"]:           # an assertion that holds, mostly
+            return f"{pad}assert(c <= 3 || {_bool(rng)});\n"
         return f"{pad}assert({_bool(rng)});\n"
     if k == "list":
         return rng.choice([f"{pad}if (size(q) < 3):\n{pad}  add(q, {_int(rng, 0, 0.0)});\n",
-                           f"{pad}remove(q, {rng.choice(['1', 'x', 's'])});\n",
+                           (f"{pad}remove(q, {rng.choice(['1', 'x', 's'])});\n" if _P["err"] else
+                            f"{pad}if (contains(q, x)):\n{pad}  remove(q, x);\n"),
                            f"{pad}add(l, {rng.choice(['1', 'x', 'me' if rng.random() < _P['asym'] else '2'])});\n",
                            f"{pad}if (!isEmpty(q)):\n{pad}  y = head(q);\n{pad}  remove(q, y);\n"])
     if k == "flag":
@@ -149,7 +154,7 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
         idx = ['0', '1', 'x'] + (['me', 'getAgentIndex()'] if rng.random() < _P["asym"] * 3 else [])
         return f"{pad}arr[{rng.choice(idx)}] = {_int(rng, 1)};\n"
     if k == "float":
-        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h * 1e308', 'h / 3.0', 'h - x', '1.5', 'p.y'])};\n"
+        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + (['h * 1e308'] if _P['err'] else []))};\n"
     if k == "pos":
         return f"{pad}p = ItemPosition({rng.choice(['x', '1.5', 'h'])}, {rng.choice(['0', 'y', '2.5'])});\n"
     if k == "exit":
@@ -176,6 +181,8 @@ SHARED_INITS = ["0", "1", "2", "rand(1)", MAX, MIN, "-1", "rand(2) - 1", f"{MAX}
 LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "10 / (rand(2) - 2)",
              "[7, 8][rand(2)]", "q0[rand(2)]", "rand(1) * " + MAX, MIN, "w0()",
              "head(getInput())", "getNumAgents() - 1", "s + 1"]
+SAFE_LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "q0[rand(1)]", "w0()", "getNumAgents() - 1",
+                  "s + 1", MIN, "rand(1) * " + MAX]
 INVARIANTS = ["s < 3", "s != 2", "forall i: c[i] <= 3", "count(flag) <= 1", "exists i: x[i] == 0",
               "forall i: x[i] < 2 || y[i] > 0", "size(q) < 3", "!contains(q, 2)",
               "forall i: forall j: (flag[i] && flag[j]) -> i == j", "owner != 1",
@@ -183,6 +190,10 @@ INVARIANTS = ["s < 3", "s != 2", "forall i: c[i] <= 3", "count(flag) <= 1", "exi
               "forall i: 10 / (x[i] - 1) > -100", "q[0] >= 0 || isEmpty(q)", "forall i: p[i].x < 3.0",
               "forall i: arr[i][i] == 0", "!g || s > 0", f"s < {MAX}", "forall i: exited[i] -> c[i] > 0",
               "forall i: running[i] || exited[i]"]
+#: invariants that often hold
+LIKELY = ["forall i: c[i] <= 3", "size(q) < 4", "forall i: running[i] || exited[i]",
+          "forall i: exited[i] -> c[i] > 0", "forall i: h[i] < 1e307 || h[i] > 1e299",
+          "forall i: me[i] == i", "count(flag) <= N", "s != 12345"]
 PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[i] ~> c[i] >= 2",
               "reachable s == 2", "reachable count(flag) == 2", "s == 1 ~> s != 1 within 2",
               "eventually s > 0", "forall i: x[i] == 0 ~> exited[i]"]
@@ -190,6 +201,9 @@ PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[
 
 def core(seed: int, rng: random.Random) -> Case:
     _P["asym"] = rng.choice([0.0, 0.0, 0.0, 0.03, 0.15])
+    # about half the programs inject no runtime error: their verdicts are
+    # mostly clean, where a false "exhaustive" would hide
+    _P["err"] = rng.choice([0.0, 0.0, 0.03, 0.08])
     bound = rng.choice([1, 2, 2])
     world = None
     shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
@@ -197,7 +211,8 @@ def core(seed: int, rng: random.Random) -> Case:
               "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
     allread = ["  int me = getAgentIndex();", "  bool flag = false;",
                f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};"]
-    loc_init = rng.choice(LOC_INITS + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
+    loc_init = rng.choice((LOC_INITS if _P["err"] else SAFE_LOC_INITS)
+                          + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
     if "w0()" in loc_init or "getInput" in loc_init:
         world = (f"[functions]\nw0 = {rng.choice(['0', '1', '3', MAX])}\n"
                  f"getInput = {rng.choice(['[1]', '[1.5]', '[[1, 2]]', '[true]', '[]'])}\n")
@@ -216,12 +231,13 @@ def core(seed: int, rng: random.Random) -> Case:
             guard += f" && {_bool(rng)}"
         body = "".join(_stmt(rng, 2, 2, {}) for _ in range(rng.randint(1, 3)))
         text += f"\nE{e}():\n  pre({guard});\n  eff:\n    c = c + 1;\n{body}"
-    if rng.random() < 0.8:
+    if rng.random() < (0.8 if _P["err"] else 0.95):
         text += f"\nDone():\n  pre(c >= {bound});\n  eff:\n    exit();\n"
     if rng.random() < 0.4:
         text += "\ninvariant:\n" + "".join(f"  inv{k}: {rng.choice(INVARIANTS)};\n"
                                           for k in range(rng.randint(1, 2)))
-    invariants = [rng.choice(INVARIANTS) for _ in range(rng.choice([0, 0, 1, 2]))]
+    invariants = [rng.choice(INVARIANTS if _P["err"] else LIKELY)
+                  for _ in range(rng.choice([0, 0, 1, 2]))]
     properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 else []
     return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 2, 3]), world=world,
                 invariants=invariants, properties=properties)

@@ -473,13 +473,15 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
     fix is merged: the CI test then fails on it)."""
     mode = d.mode
     m = BY_NAME.get(mode)
+    if d.check == "crash" and "KeyError" in d.detail and "parallel.py" in d.detail:
+        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
     native = (m is not None and m.kind in ("explore", "ckpt") and m.options.get("engine") != "python")
     text = case.text
     if d.check == "covering":
         return "hole 3/4 (covering of straight by nondet)"
     # found by this oracle on main at a12e3d9 (not in the issue yet)
-    if d.check == "crash" and mode.startswith("workers") and case.properties and "KeyError" in d.detail:
-        return "new W1: --workers 2 --all with a liveness property: KeyError in the parallel search"
+    if d.check == "crash" and mode.startswith("workers") and "KeyError" in d.detail:
+        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
     if d.check == "crash" and mode == "checkpoint-native" and "KeyError" in d.detail:
         return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
     if "dead" in mode or mode in ("default", "all-python", "all-native", "all-exact", "auto-python") \
