@@ -1,0 +1,389 @@
+"""The oracle's program generator (issue 41, "The oracle").
+
+``case(seed)`` is a :class:`Case`: a well-formed PCCL program, and what it
+is explored with (agents, world file, ``--invariant``/``--property`` forms,
+a user blackbox module).  Families, chosen by the seed:
+
+* ``core``: shared (allwrite), allread and ``loc:`` declarations of every
+  type (int, float, bool, ``List<int>``, ``ItemPosition``, arrays), their
+  initialisers (``rand``, world functions, ids), guards, statements,
+  ``if``/``else``, ``while``, ``atomic``, ``assert``, ``add``/``remove``,
+  ``exit``; every runtime error kind (division and modulo by zero, index
+  out of range, head of an empty list, ``remove`` of an absent element,
+  negative ``rand`` bound, float overflow, undefined reads, a world value
+  that does not fit, failed assertions) in initialisers, guards,
+  statements, ``atomic`` blocks, ``while`` tests and properties; ints at
+  and past the 64-bit edges (±(2^63−1), −2^63, 2^64); symmetric uses of
+  agent ids and subtle symmetry breakers (``me[i]``-style reads, an
+  allread array indexed by the agent's own id, ids compared or used in
+  arithmetic); the program's ``invariant:`` section, ``--invariant`` and
+  ``--property`` forms (``eventually``, ``~>``, ``~> within``,
+  ``reachable``; docs/temporal.md).
+* ``moving``: robots with a world (start positions, obstacles,
+  ``resolution``, ``radius``, ``speed``), ``doReach`` to targets behind,
+  beside and near-tangent to obstacles, re-targets in mid-motion,
+  ``doReach_fail`` handled (an assertion, a counter) and not.
+* ``userbb``: a moving program under a user blackbox that subclasses a
+  shipped one (``straight``, ``instant``, ``nondet``) and overrides its
+  ``step`` (written to a temporary module, ``--blackbox FILE:BLACKBOX``).
+* ``sym``, ``por``: the attack generators of ``tests/symattack.py`` and
+  ``tests/porattack.py`` (issues 20 and 23), as cases of this module.
+
+Every program keeps its state space small (a per-agent step counter bounds
+every event), so that the unreduced search is exhaustive within the
+oracle's ``max_states`` and verdicts can be compared exactly.
+"""
+
+from __future__ import annotations
+
+import random
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Optional
+
+MAX = "9223372036854775807"                 # 2^63 - 1
+MIN = "(-9223372036854775807 - 1)"          # -2^63
+P64 = "18446744073709551616"                # 2^64
+EDGE_INTS = [MAX, MIN, P64, f"-{MAX}", f"({MAX} + 1)", f"({MIN} - 1)"]
+
+
+@dataclass
+class Case:
+    """One generated program and how it is explored."""
+    seed: int
+    family: str
+    text: str
+    agents: Optional[int] = 2               # None: the world's count
+    world: Optional[str] = None             # the world file's text
+    invariants: list = field(default_factory=list)
+    properties: list = field(default_factory=list)
+    blackbox: Optional[str] = None          # a user blackbox module's text (attribute BLACKBOX)
+    moves: bool = False
+    options: dict = field(default_factory=dict)   # more explore options (blackbox, n0, events, ...)
+
+    def with_text(self, text: str) -> "Case":
+        return replace(self, text=text)
+
+
+# ---------------------------------------------------------------------------
+# core
+# ---------------------------------------------------------------------------
+
+INT_ATOMS = ["0", "1", "2", "s", "x", "y", "c", "size(q)", "arr[0]", "arr[1]"]
+#: asymmetric int expressions (ids in arithmetic, own-element indexing)
+ID_ARITH = ["me", "me + 1", "getAgentIndex()", "arr[me]", "arr[getAgentIndex()]", "me[0]", "x * me"]
+#: the probability of an asymmetric use, per program (0: a symmetric family)
+_P = {"asym": 0.1, "err": 0.05}
+ERR_INT = [  # an int expression that fails for some reachable values
+    "10 / (x - 1)", "s % (y - 1)", "q[x]", "arr[y]", "head(l)", "rand(x - 1)", "arr[s]",
+    "q[size(q) - x]", "u", "me[x]",
+]
+ID_SYM = ["me[me] == me", "owner == me", "owner != -1", "flag[owner]", "me == me"]
+ID_ASYM = ["me == 0", "me[0] == 0", "arr[me] == 1", "me < 1", "(me + 1) % 2 == 0",
+           "flag[me]", "owner == 1", "getAgentIndex() + x == 1"]
+
+
+def _int(rng, depth=1, err=None, edge=0.06) -> str:
+    err = _P["err"] if err is None else err
+    r = rng.random()
+    if r < err:
+        return rng.choice(ERR_INT if _P["asym"] else ERR_INT[:-1])
+    if r < err + edge:
+        return rng.choice(EDGE_INTS)
+    if r < err + edge + _P["asym"] / 2:
+        return rng.choice(ID_ARITH)
+    if r < err + edge + _P["asym"] / 2 + 0.04:
+        return rng.choice(["me[me]", "me[getAgentIndex()]", "arr[me]", "arr[getAgentIndex()]"])  # subtle
+    if depth <= 0 or r < 0.55:
+        return rng.choice(INT_ATOMS)
+    op = rng.choice(["+", "-", "*", "/", "%"])
+    a, b = _int(rng, depth - 1, err / 2, edge), _int(rng, depth - 1, err / 2, edge)
+    if op in "/%" and rng.random() < 0.8:
+        b = rng.choice(["2", "3", "(1 + c)"])
+    return f"({a} {op} {b})"
+
+
+def _bool(rng, asym=None, err=None) -> str:
+    asym = _P["asym"] if asym is None else asym
+    err = _P["err"] if err is None else err
+    r = rng.random()
+    if r < err:
+        return rng.choice(["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
+                           "h * 1e308 * 10.0 > 1.0", "arr[y] == 0"])
+    if r < err + asym:
+        return rng.choice(ID_ASYM)
+    if r < err + asym + 0.08:
+        return rng.choice(ID_SYM)
+    k = rng.random()
+    if k < 0.25:
+        return rng.choice(["g", "!g", "flag", "!flag", "isEmpty(q)", "contains(q, x)",
+                           "isEmpty(l)", "p.x > 0.5", "h < 2.0", "dist(p, ItemPosition(0, 0)) < 3.0"])
+    cmp = rng.choice(["==", "!=", "<", "<=", ">", ">="])
+    return f"{_int(rng, 1, 0.0)} {cmp} {_int(rng, 0, 0.0)}"
+
+
+def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
+    pad = "  " * ind
+    kinds = ["assign", "assign", "shared", "shared", "assert", "list", "flag", "arr", "float",
+             "pos", "skip", "owner"]
+    if depth > 0:
+        kinds += ["if", "atomic", "while"]
+    if not ctx.get("in_atomic"):
+        kinds += ["exit"] if rng.random() < 0.15 else []
+    k = rng.choice(kinds)
+    if k == "assign":
+        return f"{pad}{rng.choice(['x', 'y'])} = {_int(rng, 2)};\n"
+    if k == "shared":
+        return f"{pad}s = {_int(rng, 2)};\n"
+    if k == "owner":
+        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < _P['asym'] else []))};\n"
+    if k == "assert":
+        if not _P["err"]:           # an assertion that holds, mostly
+            return f"{pad}assert(c <= 3 || {_bool(rng)});\n"
+        return f"{pad}assert({_bool(rng)});\n"
+    if k == "list":
+        return rng.choice([f"{pad}if (size(q) < 3):\n{pad}  add(q, {_int(rng, 0, 0.0)});\n",
+                           (f"{pad}remove(q, {rng.choice(['1', 'x', 's'])});\n" if _P["err"] else
+                            f"{pad}if (contains(q, x)):\n{pad}  remove(q, x);\n"),
+                           f"{pad}add(l, {rng.choice(['1', 'x', 'me' if rng.random() < _P['asym'] else '2'])});\n",
+                           f"{pad}if (!isEmpty(q)):\n{pad}  y = head(q);\n{pad}  remove(q, y);\n"])
+    if k == "flag":
+        return f"{pad}flag = {_bool(rng)};\n"
+    if k == "arr":
+        idx = ['0', '1', 'x'] + (['me', 'getAgentIndex()'] if rng.random() < _P["asym"] * 3 else [])
+        return f"{pad}arr[{rng.choice(idx)}] = {_int(rng, 1)};\n"
+    if k == "float":
+        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + (['h * 1e308'] if _P['err'] else []))};\n"
+    if k == "pos":
+        return f"{pad}p = ItemPosition({rng.choice(['x', '1.5', 'h'])}, {rng.choice(['0', 'y', '2.5'])});\n"
+    if k == "exit":
+        return f"{pad}exit();\n"
+    if k == "skip":
+        return f"{pad}skip;\n"
+    if k == "if":
+        body = "".join(_stmt(rng, ind + 1, depth - 1, ctx) for _ in range(rng.randint(1, 2)))
+        out = f"{pad}if ({_bool(rng)}):\n{body}"
+        if rng.random() < 0.4:
+            out += f"{pad}else:\n" + _stmt(rng, ind + 1, depth - 1, ctx)
+        return out
+    if k == "atomic":
+        sub = dict(ctx, in_atomic=True)
+        body = "".join(_stmt(rng, ind + 1, depth - 1, sub) for _ in range(rng.randint(1, 2)))
+        return f"{pad}atomic:\n{body}"
+    # while: bounded by w, reset first
+    cond = "w < 2" if rng.random() < 0.7 else f"w < 2 && {_bool(rng)}"
+    body = "".join(_stmt(rng, ind + 1, 0, ctx) for _ in range(rng.randint(0, 1)))
+    return f"{pad}w = 0;\n{pad}while ({cond}):\n{pad}  w = w + 1;\n{body}"
+
+
+SHARED_INITS = ["0", "1", "2", "rand(1)", MAX, MIN, "-1", "rand(2) - 1", f"{MAX} - rand(1)"]
+LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "10 / (rand(2) - 2)",
+             "[7, 8][rand(2)]", "q0[rand(2)]", "rand(1) * " + MAX, MIN, "w0()",
+             "head(getInput())", "getNumAgents() - 1", "s + 1"]
+SAFE_LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "q0[rand(1)]", "w0()", "getNumAgents() - 1",
+                  "s + 1", MIN, "rand(1) * " + MAX]
+INVARIANTS = ["s < 3", "s != 2", "forall i: c[i] <= 3", "count(flag) <= 1", "exists i: x[i] == 0",
+              "forall i: x[i] < 2 || y[i] > 0", "size(q) < 3", "!contains(q, 2)",
+              "forall i: forall j: (flag[i] && flag[j]) -> i == j", "owner != 1",
+              "forall i: me[i] == i", "forall i: arr[i][0] < 2", "forall i: h[i] < 100.0",
+              "forall i: 10 / (x[i] - 1) > -100", "q[0] >= 0 || isEmpty(q)", "forall i: p[i].x < 3.0",
+              "forall i: arr[i][i] == 0", "!g || s > 0", f"s < {MAX}", "forall i: exited[i] -> c[i] > 0",
+              "forall i: running[i] || exited[i]"]
+#: invariants that often hold
+LIKELY = ["forall i: c[i] <= 3", "size(q) < 4", "forall i: running[i] || exited[i]",
+          "forall i: exited[i] -> c[i] > 0", "forall i: h[i] < 1e307 || h[i] > 1e299",
+          "forall i: me[i] == i", "count(flag) <= N", "s != 12345"]
+PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[i] ~> c[i] >= 2",
+              "reachable s == 2", "reachable count(flag) == 2", "s == 1 ~> s != 1 within 2",
+              "eventually s > 0", "forall i: x[i] == 0 ~> exited[i]"]
+
+
+def core(seed: int, rng: random.Random) -> Case:
+    _P["asym"] = rng.choice([0.0, 0.0, 0.0, 0.03, 0.15])
+    # about half the programs inject no runtime error: their verdicts are
+    # mostly clean, where a false "exhaustive" would hide
+    _P["err"] = rng.choice([0.0, 0.0, 0.03, 0.08])
+    bound = rng.choice([1, 2, 2])
+    world = None
+    shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
+              f"  List<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])};",
+              "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
+    allread = ["  int me = getAgentIndex();", "  bool flag = false;",
+               f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};"]
+    loc_init = rng.choice((LOC_INITS if _P["err"] else SAFE_LOC_INITS)
+                          + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
+    if "w0()" in loc_init or "getInput" in loc_init:
+        world = (f"[functions]\nw0 = {rng.choice(['0', '1', '3', MAX])}\n"
+                 f"getInput = {rng.choice(['[1]', '[1.5]', '[[1, 2]]', '[true]', '[]'])}\n")
+    loc = ["  int c = 0;", f"  int x = {loc_init};", f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])};",
+           "  int w = 0;", f"  float h = {rng.choice(['1.5', '0.5', '1e300', '-0.0'])};",
+           "  ItemPosition p = ItemPosition(1, 2);", "  List<int> l = [];"]
+    loc.append("  int u;")                    # undefined: a read gets the agent stuck
+    text = "Agent::Gen\n\nallwrite:\n" + "\n".join(shared) + "\n\nallread:\n" + "\n".join(allread)
+    text += "\n\nloc:\n" + "\n".join(loc) + "\n"
+    if rng.random() < 0.4:
+        text += "\nInit:\n" + "".join(_stmt(rng, 1, 1, {"in_atomic": True})
+                                      for _ in range(rng.randint(1, 2)))
+    for e in range(rng.randint(1, 3)):
+        guard = f"c < {bound}"
+        if rng.random() < 0.6:
+            guard += f" && {_bool(rng)}"
+        body = "".join(_stmt(rng, 2, 2, {}) for _ in range(rng.randint(1, 3)))
+        text += f"\nE{e}():\n  pre({guard});\n  eff:\n    c = c + 1;\n{body}"
+    if rng.random() < (0.8 if _P["err"] else 0.95):
+        text += f"\nDone():\n  pre(c >= {bound});\n  eff:\n    exit();\n"
+    if rng.random() < 0.4:
+        text += "\ninvariant:\n" + "".join(f"  inv{k}: {rng.choice(INVARIANTS)};\n"
+                                          for k in range(rng.randint(1, 2)))
+    invariants = [rng.choice(INVARIANTS if _P["err"] else LIKELY)
+                  for _ in range(rng.choice([0, 0, 1, 2]))]
+    properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 else []
+    return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 2, 3]), world=world,
+                invariants=invariants, properties=properties)
+
+
+# ---------------------------------------------------------------------------
+# moving robots
+# ---------------------------------------------------------------------------
+
+def _box(x0, y0, x1, y1) -> str:
+    return f"[[obstacles]]\npolygon = [[{x0}, {y0}], [{x1}, {y0}], [{x1}, {y1}], [{x0}, {y1}]]\n"
+
+
+def moving(seed: int, rng: random.Random, family="moving") -> Case:
+    agents = rng.choice([1, 1, 2])
+    radius = rng.choice([0.1, 0.25])
+    res = rng.choice([0.01, 0.05, 0.25, 0.5])
+    speed = rng.choice([0.7, 1.0, 1.5])
+    starts = [[0, 0], [0, 3]][:agents]
+    wall_y = rng.choice([-1, -0.5, 0.5])
+    # near-tangent: the wall's edge at the robot's path +- a radius, give or take an epsilon
+    gap = rng.choice([0.0, radius, radius - 1e-9, radius + 1e-9, 0.3, 1.0])
+    obstacles = _box(3, wall_y if wall_y < 0 else gap, 4, (wall_y if wall_y > 0 else 0) + 1)
+    if rng.random() < 0.5:
+        obstacles += "[[obstacles]]\npolygon = [[4.5, 4], [5.5, 4], [5, 6]]\n"   # a triangle
+    world = (f"agents = {agents}\nresolution = {res}\nradius = {radius}\nspeed = {speed}\n"
+             f"start = {starts}\n\n" + obstacles)
+    targets = ["ItemPosition(6.0, 0.0)", "ItemPosition(2.0, 0.0)", "ItemPosition(5.0, 10.0)",
+               "ItemPosition(3.5, 0.5)", "ItemPosition(0.95, 2.0)", "ItemPosition(6.0, 3.0)",
+               f"ItemPosition({rng.choice(['1.0', '2.5', '3.0'])}, {gap + radius})",
+               "ItemPosition(rand(1) * 10.0, 0.0)", "ItemPosition(x, y)"]
+    handled = rng.random() < 0.6
+    retarget = rng.random() < 0.6
+    ticks = rng.choice([1, 2, 3])
+    text = ("Agent::Mover\n\nallwrite:\n  int failed = 0;\n  int arrived = 0;\n\n"
+            "loc:\n  int st = 0;\n  int t = 0;\n"
+            f"  int x = {rng.choice(['0', '1', 'rand(1)'])};\n  int y = 0;\n\n")
+    text += (f"Go():\n  pre(st == 0);\n  eff:\n    doReach({rng.choice(targets)}, "
+             f"{rng.choice(['getObs()', '[]'])});\n    st = 1;\n\n")
+    text += f"Tick():\n  pre(st == 1 && t < {ticks});\n  eff:\n    t = t + 1;\n\n"
+    if retarget:
+        cond = rng.choice([f"t == {ticks}", f"t == {ticks} && !doReach_done", "doReach_done"])
+        text += (f"Turn():\n  pre(st == 1 && {cond});\n  eff:\n    doReach({rng.choice(targets)}, "
+                 f"{rng.choice(['getObs()', '[]'])});\n    st = 2;\n\n")
+        last = 2
+    else:
+        last = 1
+    text += f"Arrived():\n  pre(st == {last} && doReach_done);\n  eff:\n"
+    text += rng.choice(["    atomic:\n      arrived = arrived + 1;\n", "    arrived = arrived + 1;\n"])
+    text += "    exit();\n\n"
+    if handled:
+        text += (f"Failed():\n  pre(st >= 1 && doReach_fail);\n  eff:\n"
+                 + rng.choice(["    assert(false);\n", "    failed = failed + 1;\n    exit();\n"]) + "\n")
+    invariants = rng.sample(["failed == 0", "arrived <= 1", "failed <= 1",
+                             "forall i: doReach_fail[i] -> st[i] >= 1", "arrived + failed <= 2"],
+                            rng.choice([0, 1, 1, 2]))
+    return Case(seed, family, text, agents=None, world=world, invariants=invariants, moves=True)
+
+
+USER_BB = {
+    "straight": '''from pccl.blackboxes.base import Outcome
+from pccl.blackboxes.straight import Straight
+
+
+class Retry(Straight):          # keeps the name "straight"
+    def step(self, world, motions, env, time, delta):
+        out = super().step(world, motions, env, time, delta)[0]
+        pos = list(out.positions)
+        for i, m in enumerate(motions):
+            if m.fail and m.target is not None:
+                z = m.position[2] if len(m.position) > 2 else 0.0
+                pos[i] = (float(m.target[0]), float(m.target[1]), float(z))
+        return [Outcome(tuple(pos), out.done, out.fail, None)]
+
+
+BLACKBOX = Retry()
+''',
+    "instant": '''from pccl.blackboxes.base import Outcome
+from pccl.blackboxes.instant import Instant
+
+
+class Slow(Instant):            # keeps the name "instant"; a settled robot drifts
+    def step(self, world, motions, env, time, delta):
+        out = super().step(world, motions, env, time, delta)[0]
+        pos = tuple((p[0], p[1] + (0.5 if m.done else 0.0), p[2] if len(p) > 2 else 0.0)
+                    for p, m in zip(out.positions, motions))
+        return [Outcome(pos, out.done, out.fail, None)]
+
+
+BLACKBOX = Slow()
+''',
+    "nondet": '''from pccl.blackboxes.base import Outcome
+from pccl.blackboxes.nondet import Nondet
+
+
+class Sticky(Nondet):           # keeps the name "nondet"; a failed robot recovers
+    def step(self, world, motions, env, time, delta):
+        outs = super().step(world, motions, env, time, delta)
+        res = []
+        for o in outs:
+            fail = tuple(f and not m.fail for f, m in zip(o.fail, motions))
+            res.append(Outcome(o.positions, o.done, fail, None))
+        return res
+
+
+BLACKBOX = Sticky()
+''',
+}
+
+
+def userbb(seed: int, rng: random.Random) -> Case:
+    c = moving(seed, rng, "userbb")
+    base = rng.choice(sorted(USER_BB))
+    extra = ["forall i: pos[i].x < 5", "forall i: pos[i].y < 1"]
+    return replace(c, blackbox=USER_BB[base], invariants=c.invariants + [rng.choice(extra)])
+
+
+# ---------------------------------------------------------------------------
+# the attack generators of issues 20 and 23
+# ---------------------------------------------------------------------------
+
+def _attack_module(name):
+    here = str(Path(__file__).resolve().parent.parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return __import__(name)
+
+
+def sym(seed: int, rng: random.Random) -> Case:
+    text, invariants, agents = _attack_module("symattack").program(seed)
+    return Case(seed, "sym", text, agents=agents, invariants=invariants,
+                options={"blackbox": "instant"})
+
+
+def por(seed: int, rng: random.Random) -> Case:
+    text, invariants, agents, options = _attack_module("porattack").program(seed)
+    return Case(seed, "por", text, agents=agents, invariants=invariants, options=options)
+
+
+FAMILIES = {"core": (core, 10), "moving": (moving, 3), "userbb": (userbb, 1), "sym": (sym, 2),
+            "por": (por, 2)}
+
+
+def case(seed: int, families=None) -> Case:
+    """The program of ``seed`` (deterministic)."""
+    rng = random.Random(seed * 7919 + 41)
+    names = [n for n in FAMILIES if families is None or n in families]
+    fam = rng.choices(names, weights=[FAMILIES[n][1] for n in names])[0]
+    return FAMILIES[fam][0](seed, rng)

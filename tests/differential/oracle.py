@@ -1,0 +1,495 @@
+"""The oracle's comparisons (issue 41, "The oracle").
+
+A *mode* is one configuration of ``pccl explore`` (or of ``pccl run``
+against ``explore``: ``covering``).  Every mode of a program is compared
+with the truth, ``--reduce none --exact --engine python`` with one worker:
+
+* **verdicts**, always: the status (``violation``/``exhaustive``/an error
+  at load time) and the set of distinct violations, each as (kind,
+  property name, line), found with ``--all``.  A reduction may show
+  another counterexample, never another set (docs/reductions.md,
+  "Evidence"); an error is compared by its message.
+* **figures** (initial states, states, transitions, depth) where the docs
+  promise equality: within a *figure group*, the modes that search the
+  same graph: the same reductions on either engine (docs/reductions.md:
+  the native engine's "states, transitions, depth, verdicts and
+  counterexamples equal this module's"), one worker or several, threads
+  or processes, Ray (docs/scale-out.md: "identical to one process"), a
+  search interrupted, checkpointed and resumed (docs/scale-out.md: "the
+  same states, transitions, depth, ... verdict"), fingerprints or
+  ``--exact`` (equal unless two states collide: probability below 1e-30
+  at these sizes).
+* **covering** (docs/blackboxes.md, "What each blackbox covers"): every
+  configuration of a seeded ``pccl run`` under ``straight`` (and
+  ``pymunk`` where installed) is reachable under the default exploring
+  blackbox, as far as the program observes it (statuses, variables,
+  doReach flags; positions when the program or a property reads them), and
+  a run's violation is found by ``explore``.
+
+Bounded searches: every search runs with the same ``max_states``.  A
+verdict is compared exactly only when the truth is exhaustive (complete);
+when the truth is bounded, only what it found must be found by a complete
+mode (a real violation cannot be missed), and the program is counted
+*inconclusive*.  Figures are compared only between complete searches.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import traceback
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Optional
+
+from pccl import api
+from pccl.lang.errors import PcclError
+from pccl.lang.parser import parse_program
+
+from .gen import Case
+
+MAX_STATES = 5_000
+REDUCTIONS = ("merge", "symmetry", "por", "dead")
+
+
+@dataclass(frozen=True)
+class Mode:
+    name: str
+    kw: tuple = ()              # explore keywords (sorted items)
+    env: tuple = ()             # environment variables set during the search
+    group: str = ""             # figure group: modes that search the same graph
+    kind: str = "explore"       # explore | ckpt | covering
+    cost: int = 1               # rough relative cost (native compiles, processes)
+
+    @property
+    def options(self) -> dict:
+        return dict(self.kw)
+
+    def cli(self) -> str:
+        """The ``pccl explore`` flags of this mode."""
+        out = []
+        for k, v in self.kw:
+            if v is True:
+                out.append(f"--{k.replace('_', '-')}")
+            elif k == "ray":
+                out.append("--ray local")
+            else:
+                out.append(f"--{k.replace('_', '-')} {v}")
+        if self.kind == "ckpt":
+            out.append("--checkpoint ck/  (interrupt it, then: --resume ck/)")
+        return " ".join(out)
+
+    def env_prefix(self) -> str:
+        return "".join(f"{k}={v} " for k, v in self.env)
+
+
+def _m(name, group, kind="explore", env=(), cost=1, **kw) -> Mode:
+    return Mode(name, tuple(sorted(kw.items())), tuple(env), group, kind, cost)
+
+
+TRUTH = _m("truth", "none", reduce="none", exact=True, engine="python")
+MODES = [
+    TRUTH,
+    _m("default", "auto", cost=3),
+    _m("auto-python", "auto", engine="python"),
+    _m("none-fingerprints", "none", reduce="none", engine="python"),
+    _m("none-native", "none", reduce="none", cost=3),
+    *[_m(f"{r}-python", r, reduce=r, engine="python") for r in REDUCTIONS],
+    *[_m(f"{r}-native", r, reduce=r, cost=3) for r in REDUCTIONS],
+    _m("merge+por-python", "merge,por", reduce="merge,por", engine="python"),
+    _m("merge+por-native", "merge,por", reduce="merge,por", cost=3),
+    _m("all-python", "all", reduce="merge,symmetry,por,dead", engine="python"),
+    _m("all-native", "all", reduce="merge,symmetry,por,dead", cost=3),
+    _m("all-exact", "all", reduce="merge,symmetry,por,dead", engine="python", exact=True),
+    _m("workers2-threads", "auto", workers=2, cost=3),
+    _m("workers2-processes", "auto", env=(("PCCL_THREADS", "0"),), workers=2, cost=6),
+    _m("workers2-python", "auto", engine="python", workers=2, cost=6),
+    _m("ray-local", "auto", ray="local", workers=2, cost=20),
+    _m("checkpoint-native", "auto", kind="ckpt", cost=4),
+    _m("checkpoint-python", "auto", kind="ckpt", engine="python", cost=2),
+    _m("covering", "", kind="covering", cost=2),
+    _m("symmetry-orbits", "", kind="orbits", cost=1),
+]
+BY_NAME = {m.name: m for m in MODES}
+
+
+@dataclass
+class Outcome:
+    """What a mode says about a program."""
+    status: str                          # violation | exhaustive | bounded | error | crash | n/a
+    violations: frozenset = frozenset()  # {(kind, name, line)}
+    figures: Optional[tuple] = None      # (initial, states, transitions, depth) of a complete search
+    complete: bool = False               # no bound cut the search
+    detail: str = ""                     # an error's message, a crash's traceback, why n/a
+    engine: str = ""
+
+
+@dataclass
+class Disagreement:
+    seed: int
+    family: str
+    check: str                           # verdict | figures | covering | crash
+    mode: str
+    against: str
+    detail: str
+    known: Optional[str] = None          # a known open hole it matches (KNOWN)
+
+    def signature(self) -> tuple:
+        return (self.check, self.mode, self.against)
+
+
+@dataclass
+class Report:
+    seed: int
+    family: str
+    outcomes: dict = field(default_factory=dict)
+    disagreements: list = field(default_factory=list)
+    inconclusive: bool = False
+    agreements: int = 0
+
+
+class Files:
+    """The case's world and blackbox written to a temporary directory."""
+
+    def __init__(self, case: Case):
+        self.dir = tempfile.mkdtemp(prefix="pccl-oracle-")
+        self.world = self.bb = None
+        if case.world:
+            self.world = os.path.join(self.dir, "world.toml")
+            with open(self.world, "w") as f:
+                f.write(case.world)
+        if case.blackbox:
+            self.bb = os.path.join(self.dir, f"userbb_{abs(hash(case.blackbox)) % 10**8}.py")
+            with open(self.bb, "w") as f:
+                f.write(case.blackbox)
+
+    def close(self):
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+def base_kw(case: Case, files: Files) -> dict:
+    kw = dict(source=True, find_all=True, max_states=MAX_STATES,
+              invariants=list(case.invariants), properties=list(case.properties), **case.options)
+    if case.agents is not None:
+        kw["agents"] = case.agents
+    if files.world:
+        kw["world"] = files.world
+    if files.bb:
+        kw["blackbox"] = f"{files.bb}:BLACKBOX"
+    return kw
+
+
+@contextmanager
+def _env(pairs):
+    old = {k: os.environ.get(k) for k, _ in pairs}
+    os.environ.update(dict(pairs))
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _outcome(r) -> Outcome:
+    complete = not r.bounds and r.status in ("violation", "exhaustive")
+    s = r.stats
+    figs = (s.initial_states, s.states, s.transitions, s.max_depth) if complete else None
+    viol = frozenset((v.kind, v.name, v.line) for v in r.violations)
+    return Outcome(r.status, viol, figs, complete, r.verdict,
+                   getattr(r.model, "engine_used", "") or "")
+
+
+class _Interrupt:
+    """A progress callback that interrupts the search at its ``k``-th call."""
+
+    def __init__(self, k: int):
+        self.k, self.calls = k, 0
+
+    def __call__(self, p) -> None:
+        self.calls += 1
+        if self.calls == self.k:
+            raise KeyboardInterrupt
+
+
+def _checkpointed(prog, kw: dict, files: Files) -> Outcome:
+    """Interrupted at its second progress call, checkpointed, resumed (as
+    often as it takes) until it ends."""
+    d = os.path.join(files.dir, "ck")
+    shutil.rmtree(d, ignore_errors=True)
+    resumed = 0
+    for _ in range(20):
+        extra = dict(checkpoint=d, progress_interval=1e-9, progress=_Interrupt(2))
+        if os.path.exists(d) and os.listdir(d):
+            extra["resume"] = d
+            resumed += 1
+        r = api.explore(prog, **kw, **extra)
+        if r.status != "interrupted":
+            out = _outcome(r)
+            out.detail += f" (resumed {resumed} times)"
+            return out
+    return Outcome("n/a", detail="never finished")
+
+
+def explore_mode(case: Case, mode: Mode, prog, files: Files) -> Outcome:
+    kw = base_kw(case, files)
+    kw.update(mode.options)
+    if "ray" in kw:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            return Outcome("n/a", detail="ray is not installed")
+    try:
+        with _env(mode.env):
+            if mode.kind == "ckpt":
+                return _checkpointed(prog, kw, files)
+            return _outcome(api.explore(prog, **kw))
+    except PcclError as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        if "unsound here" in msg or "needs two or more agents" in msg or "cannot be used here" in msg \
+                or "engine" in msg and "native" in msg:
+            return Outcome("n/a", detail=msg)
+        return Outcome("error", detail=msg)
+    except KeyboardInterrupt:
+        raise
+    except BaseException:
+        return Outcome("crash", detail=traceback.format_exc()[-2500:])
+
+
+# ---------------------------------------------------------------------------
+# covering: run under straight/pymunk against explore under the default
+# ---------------------------------------------------------------------------
+
+RUN_SEEDS = (0, 1, 2)
+
+
+def _observer(model, with_pos: bool):
+    from pccl.model.layout import AGS, AR, DONE, FAIL, LOC, POS, REACH, SH, STATUS
+
+    def obs(st):
+        return (st[SH], tuple((ag[STATUS], ag[LOC], ag[AR], ag[REACH][DONE], ag[REACH][FAIL],
+                               ag[POS] if with_pos else None) for ag in st[AGS]))
+    return obs
+
+
+def _reads_positions(case: Case) -> bool:
+    texts = [case.text] + list(case.invariants) + list(case.properties)
+    return any("getPosition" in t or "pos[" in t for t in texts)
+
+
+def covering(case: Case, prog, files: Files) -> tuple:
+    """(Outcome, [problems]): runs under ``straight`` (and ``pymunk``)
+    against every state ``explore`` reaches under the default blackbox."""
+    kw = base_kw(case, files)
+    for k in ("find_all", "max_states", "properties", "blackbox"):
+        kw.pop(k, None)
+    bb, _ = api.explore_blackbox(api.load_program(prog, source=True))
+    try:
+        m = api.make_model(prog, blackbox=bb, reduce="none", **kw)
+    except PcclError as e:
+        return Outcome("error", detail=str(e).splitlines()[0]), []
+    obs = _observer(m, _reads_positions(case))
+    seen, reach, todo = set(), set(), list(m.init_states())
+    while todo:
+        if len(seen) > MAX_STATES * 4:
+            return Outcome("bounded", detail="explore too large for covering"), []
+        st = todo.pop()
+        k = m.key(st)
+        if k in seen:
+            continue
+        seen.add(k)
+        reach.add(obs(st))
+        todo.extend(s for _, s in m.successors(st))
+    runners = ["straight"]
+    try:
+        import pymunk  # noqa: F401
+        runners.append("pymunk")
+    except ImportError:
+        pass
+    problems = []
+    for runner in runners:
+        for seed in RUN_SEEDS:
+            try:
+                res = api.run(prog, blackbox=runner, seed=seed, max_time=30, record_trace=True,
+                              **kw)
+            except PcclError as e:
+                problems.append(f"run -b {runner} --seed {seed}: error {str(e).splitlines()[0]}")
+                continue
+            states = res.trace.states if res.trace is not None else (res.final,)
+            for n, st in enumerate(states):
+                if obs(st) not in reach:
+                    problems.append(
+                        f"pccl run -b {runner} --seed {seed} ({res.status}: {res.message}) passes "
+                        f"through a configuration (step {n}) that explore under {bb} never reaches")
+                    break
+    return Outcome("exhaustive", detail=f"{len(reach)} observable configurations under {bb}"), problems
+
+
+# ---------------------------------------------------------------------------
+# symmetry, state by state (tests/symattack.py's orbits_agree)
+# ---------------------------------------------------------------------------
+
+def orbits(case: Case, prog, files: Files) -> tuple:
+    """Where ``auto`` keeps symmetry on: over the unreduced reachable states,
+    states with one canonical key have the same successor keys and the same
+    violations (the soundness argument itself, finer than a verdict)."""
+    kw = base_kw(case, files)
+    for k in ("find_all", "max_states", "source", "invariants", "agents"):
+        kw.pop(k, None)
+    if not kw.get("properties"):
+        kw.pop("properties", None)
+    kw.setdefault("blackbox", api.explore_blackbox(api.load_program(prog, source=True))[0])
+    try:
+        plan = api.make_model(prog, source=True, agents=case.agents, reduce="auto",
+                              invariants=list(case.invariants), **kw).reduction
+    except PcclError as e:
+        return Outcome("n/a", detail=str(e).splitlines()[0]), None
+    if "symmetry" not in plan.on:
+        return Outcome("n/a", detail="symmetry off"), None
+    from .gen import _attack_module
+    ok = _attack_module("symattack").orbits_agree(prog, case.agents, list(case.invariants),
+                                                  limit=MAX_STATES, **kw)
+    if ok:
+        return Outcome("exhaustive", detail="orbits agree"), None
+    return (Outcome("violation", detail="orbits differ"),
+            "two states with one symmetry key have different successor keys or violations")
+
+
+# ---------------------------------------------------------------------------
+# one program
+# ---------------------------------------------------------------------------
+
+def choose_modes(names, seed: int, sample: int = 0) -> list:
+    """The modes to run for program ``seed``: ``names`` ("all" or a list),
+    or with ``sample`` > 0 the truth, the default and ``sample`` others
+    drawn by the seed (a fixed budget sees every mode over many programs)."""
+    import random
+    pool = [m for m in MODES if names == "all" or m.name in names]
+    if sample <= 0:
+        return pool
+    rng = random.Random(seed)
+    rest = [m for m in pool if m.name not in ("truth", "default")]
+    picked = rng.sample(rest, min(sample, len(rest)))
+    return [m for m in pool if m.name in ("truth", "default") or m in picked]
+
+
+def compare(case: Case, modes: list) -> Report:
+    rep = Report(case.seed, case.family)
+    files = Files(case)
+    try:
+        try:
+            prog = parse_program(case.text, "<input>")
+        except PcclError as e:
+            rep.outcomes["truth"] = Outcome("invalid", detail=str(e))
+            return rep
+        truth = explore_mode(case, TRUTH, prog, files)
+        rep.outcomes["truth"] = truth
+        if truth.status == "crash":
+            rep.disagreements.append(Disagreement(case.seed, case.family, "crash", "truth", "",
+                                                  truth.detail))
+        if truth.status in ("crash", "n/a"):
+            return rep
+        rep.inconclusive = not truth.complete and truth.status != "error"
+        first_in_group: dict = {"none": "truth"}
+        for mode in modes:
+            if mode.name == "truth":
+                continue
+            if mode.kind == "covering":
+                if not case.moves or case.blackbox or truth.status == "error":
+                    continue
+                out, problems = covering(case, prog, files)
+                rep.outcomes[mode.name] = out
+                for p in problems:
+                    rep.disagreements.append(Disagreement(case.seed, case.family, "covering",
+                                                          "covering", "truth", p))
+                if out.status == "exhaustive" and not problems:
+                    rep.agreements += 1
+                continue
+            if mode.kind == "orbits":
+                out, problem = orbits(case, prog, files)
+                rep.outcomes[mode.name] = out
+                if problem:
+                    rep.disagreements.append(Disagreement(case.seed, case.family, "orbits",
+                                                          mode.name, "", problem))
+                elif out.status == "exhaustive":
+                    rep.agreements += 1
+                continue
+            out = explore_mode(case, mode, prog, files)
+            rep.outcomes[mode.name] = out
+            if out.status == "n/a":
+                continue
+            d = verdict_difference(truth, out)
+            if d:
+                rep.disagreements.append(Disagreement(case.seed, case.family,
+                                                      "crash" if out.status == "crash" else "verdict",
+                                                      mode.name, "truth", d))
+                continue
+            ok = True
+            ref_name = first_in_group.setdefault(mode.group, mode.name)
+            ref = rep.outcomes.get(ref_name)
+            if ref_name != mode.name and ref is not None and ref.figures and out.figures \
+                    and ref.figures != out.figures:
+                ok = False
+                rep.disagreements.append(Disagreement(
+                    case.seed, case.family, "figures", mode.name, ref_name,
+                    f"(initial, states, transitions, depth) {out.figures} [{out.engine}] "
+                    f"vs {ref.figures} [{ref.engine}]"))
+            rep.agreements += ok
+    finally:
+        files.close()
+    for d in rep.disagreements:
+        d.known = known_hole(case, d)
+    return rep
+
+
+def verdict_difference(truth: Outcome, out: Outcome) -> Optional[str]:
+    if out.status == "crash":
+        return out.detail
+    if truth.status == "error" or out.status == "error":
+        if truth.status == out.status and truth.detail == out.detail:
+            return None
+        return f"{out.status}: {out.detail} vs truth {truth.status}: {truth.detail}"
+    if truth.complete and out.complete:
+        if truth.status != out.status or truth.violations != out.violations:
+            return (f"{out.status} {sorted(out.violations, key=str)} vs truth {truth.status} "
+                    f"{sorted(truth.violations, key=str)}")
+        return None
+    if out.complete and not truth.violations <= out.violations:
+        # the truth's violations are real; a complete search must find them
+        return (f"complete search misses {sorted(truth.violations - out.violations, key=str)} "
+                f"found by the (bounded) truth")
+    return None
+
+
+# ---------------------------------------------------------------------------
+# known open holes (issue 41): reported, not failed, until the fixes land
+# ---------------------------------------------------------------------------
+
+def known_hole(case: Case, d: Disagreement) -> Optional[str]:
+    """The hole of issue 41 that ``d`` matches, if any (an entry goes when its
+    fix is merged: the CI test then fails on it)."""
+    mode = d.mode
+    m = BY_NAME.get(mode)
+    if d.check == "crash" and "KeyError" in d.detail and "parallel.py" in d.detail:
+        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
+    native = (m is not None and m.kind in ("explore", "ckpt") and m.options.get("engine") != "python")
+    text = case.text
+    if d.check == "covering":
+        return "hole 3/4 (covering of straight by nondet)"
+    # found by this oracle on main at a12e3d9 (not in the issue yet)
+    if d.check == "crash" and mode.startswith("workers") and "KeyError" in d.detail:
+        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
+    if d.check == "crash" and mode == "checkpoint-native" and "KeyError" in d.detail:
+        return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
+    if "dead" in mode or mode in ("default", "all-python", "all-native", "all-exact", "auto-python") \
+            or mode.startswith(("workers", "checkpoint", "ray")):
+        if d.check == "verdict" and ("rand(" in text or case.blackbox):
+            return "hole 1/2 (dead: failing rand initialisers, a blackbox's name)"
+    if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
+        return "hole 5 (native engine ints at the 64-bit edges)"
+    if native and d.check == "figures":
+        return "hole 6 (native reduced counts)"
+    return None
