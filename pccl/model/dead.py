@@ -127,7 +127,7 @@ class DeadVars:
         self._pc: dict = {}
         self._ev: dict = {}
         self._top: dict = {}      # (agent, locals) -> live at the top
-        self._unread_set: Optional[set] = None   # names the initialisers and Init read
+        self._init_reads: Optional[set] = None   # the names initialisers and Init read
 
     @property
     def reach_masked(self) -> bool:
@@ -352,13 +352,9 @@ class DeadVars:
                 idx |= 1 << k
         return idx
 
-    def never_read(self) -> frozenset:
-        """The ``loc:`` variables with a ``rand`` initialiser whose initial
-        value nothing reads (:func:`initial_rand_unread`)."""
-        return frozenset(vs.name for vs in self.m.compiled.layout.local if self._unread(vs))
-
     def _unread(self, vs) -> bool:
-        got = self._unread_set
+        """:func:`initial_rand_unread` of the variable ``vs``."""
+        got = self._init_reads
         if got is None:
             prog = self.m.program
             got = set()
@@ -366,7 +362,7 @@ class DeadVars:
             exprs += [e for s in A.walk_stmts(list(prog.init)) for e in A.own_exprs(s)]
             for e in exprs:
                 got |= {x.name for x in A.walk_expr(e) if isinstance(x, A.Name)}
-            self._unread_set = got
+            self._init_reads = got
         return (vs.section == "loc" and vs.decl.init is not None and has_rand(vs.decl.init)
                 and vs.name not in got and not (self.top | self.keep) & (1 << vs.slot))
 
@@ -377,14 +373,11 @@ class DeadVars:
         the outcomes that have a value into the first, keeping every
         outcome that fails (unread, but some outcome may fail where
         another does not)."""
-        one, values = set(), set()
+        one: set = set()
+        values: set = set()
         for vs in self.m.compiled.layout.local:
-            if not initial_rand_unread(self.m, vs.name, self):
-                continue
-            if rand_outcomes_fail_alike(vs.decl.init, _want(vs)):
-                one.add(vs.name)
-            else:
-                values.add(vs.name)
+            if initial_rand_unread(self.m, vs.name, self):
+                (one if can_collapse_initial_rand(self.m, vs.name, self) else values).add(vs.name)
         return frozenset(one), frozenset(values)
 
     def enabled(self, st, i: int) -> list:
