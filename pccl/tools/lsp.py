@@ -126,7 +126,16 @@ def analyse(source: str, path: str, *, world_source: Optional[str] = None,
             previous: Optional[Analysis] = None) -> Analysis:
     """Parse and check ``source`` (the text of ``path``); load the world file
     beside it (``world_source``: its editor text, if open).  A program that
-    does not parse keeps ``previous``'s symbols."""
+    does not parse keeps ``previous``'s symbols.  Runs with the garbage
+    collector paused (:func:`pccl.lang.parser.without_gc`: its full
+    collections walked every analysis the server holds)."""
+    from pccl.lang.parser import without_gc
+    with without_gc():
+        return _analyse(source, path, world_source=world_source, previous=previous)
+
+
+def _analyse(source: str, path: str, *, world_source: Optional[str] = None,
+             previous: Optional[Analysis] = None) -> Analysis:
     from pccl.lang.parser import parse_program
     from pccl.lang.world import load_world, parse_world
     an = Analysis(path, source)
@@ -416,6 +425,74 @@ def _guarded(default: Any = None):
     return wrap
 
 
+#: a document of more lines than this is checked in the background thread
+#: only (a request meanwhile answers from its last analysis)
+SYNC_LINES = 2000
+#: seconds a change waits for the next before its check starts (typing)
+DEBOUNCE = 0.15
+
+
+class _Checker:
+    """The background checks (issue 42): a change to a document queues its
+    check in one thread; a newer change of the same document cancels the
+    check under way (:func:`pccl.lang.parser.cancellable`) and replaces the
+    queued one, so the server keeps answering while a long document is
+    checked and never spends time on a text that is gone.  The diagnostics
+    are published from the server's event loop."""
+
+    def __init__(self, session: "_Session") -> None:
+        import threading
+        self.session = session
+        self.cv = threading.Condition()
+        self.queued: dict[str, float] = {}      # uri -> when it was asked for
+        self.running: Optional[tuple] = None    # (uri, its cancel event)
+        self.loop: Any = None
+        self.thread = threading.Thread(target=self._run, name="pccl-check", daemon=True)
+        self.thread.start()
+
+    def request(self, uri: str) -> None:
+        import asyncio
+        import time
+        try:
+            self.loop = asyncio.get_running_loop()
+        except RuntimeError:
+            pass
+        with self.cv:
+            self.queued[uri] = time.monotonic()
+            if self.running is not None and self.running[0] == uri:
+                self.running[1].set()           # superseded: give up the check under way
+            self.cv.notify()
+
+    def _run(self) -> None:
+        import threading
+        import time
+        while True:
+            with self.cv:
+                while not self.queued:
+                    self.cv.wait()
+                uri, at = min(self.queued.items(), key=lambda kv: kv[1])
+                wait = at + DEBOUNCE - time.monotonic()
+                if wait > 0:
+                    self.cv.wait(wait)
+                    continue
+                del self.queued[uri]
+                cancel = threading.Event()
+                self.running = (uri, cancel)
+            try:
+                self.session.check(uri, cancel, publish=self._publish)
+            except Exception:       # noqa: BLE001 - the thread must go on
+                log.exception("background check")
+            finally:
+                with self.cv:
+                    self.running = None
+
+    def _publish(self, fn) -> None:
+        if self.loop is not None:
+            self.loop.call_soon_threadsafe(fn)
+        else:                       # no event loop (tests of the session): at once
+            fn()
+
+
 class _Session:
     """What the handlers share: the pygls server (its workspace holds the
     open documents) and the last analysis of each program."""
@@ -423,6 +500,7 @@ class _Session:
     def __init__(self, server) -> None:
         self.server = server
         self.analyses: dict[str, Analysis] = {}
+        self.checker = _Checker(self)
 
     def doc_text(self, uri: str) -> Optional[str]:
         try:
@@ -446,12 +524,45 @@ class _Session:
             T.PublishDiagnosticsParams(uri=uri, diagnostics=diagnostics, version=version))
 
     def refresh(self, uri: str) -> None:
-        """Analyse a program and publish its diagnostics (and its world file's)."""
+        """Analyse a program and publish its diagnostics (and its world
+        file's): at once for a short document, in the background thread for
+        a long one (:class:`_Checker`)."""
         path = uri_to_path(uri)
         if path.endswith(".toml"):
             self.refresh_world(uri, path)
+            return
+        source = self.doc_text(uri)
+        if source is not None and source.count("\n") > SYNC_LINES:
+            self.checker.request(uri)
         else:
             self.refresh_program(uri, path)
+
+    def check(self, uri: str, cancel, publish) -> None:
+        """The background thread's check of ``uri`` (given up when
+        ``cancel`` is set); ``publish(fn)`` runs ``fn`` on the event loop."""
+        from pccl.lang.parser import ParseCancelled, cancellable
+        path = uri_to_path(uri)
+        source = self.doc_text(uri)
+        if source is None:
+            return
+        version = self.server.workspace.get_text_document(uri).version
+        try:
+            with cancellable(cancel):
+                an = analyse(source, path, world_source=self.open_world_text(path),
+                             previous=self.analyses.get(uri))
+        except ParseCancelled:
+            return                  # a newer text is queued
+        except Exception as e:          # noqa: BLE001 - the server must survive any text
+            log.exception("analyse")
+            an = Analysis(path, source, [Diag(path, Range(0, 0, 0, 1), f"pccl: internal error: {e}")])
+        if cancel.is_set():
+            return
+
+        def done() -> None:
+            if self.doc_text(uri) == source:        # still the document's text
+                self.analyses[uri] = an
+                self._publish_analysis(uri, path, an, version)
+        publish(done)
 
     def refresh_world(self, uri: str, path: str) -> None:
         """A world file changed: its program's diagnostics cover it; alone,
@@ -479,8 +590,6 @@ class _Session:
         self.publish(uri, diags)
 
     def refresh_program(self, uri: str, path: str) -> None:
-        from lsprotocol import types as T
-        from pygls.uris import from_fs_path
         source = self.doc_text(uri)
         if source is None:
             return
@@ -492,6 +601,11 @@ class _Session:
             log.exception("analyse")
             an = Analysis(path, source, [Diag(path, Range(0, 0, 0, 1), f"pccl: internal error: {e}")])
         self.analyses[uri] = an
+        self._publish_analysis(uri, path, an, version)
+
+    def _publish_analysis(self, uri: str, path: str, an: Analysis, version) -> None:
+        from lsprotocol import types as T
+        from pygls.uris import from_fs_path
         by_file: dict[str, list] = {path: []}
         if an.world_path:
             by_file.setdefault(an.world_path, [])
@@ -507,6 +621,9 @@ class _Session:
                          version if p == path else None)
 
     def current(self, uri: str) -> Optional[Analysis]:
+        """The analysis of the document's text; for a long document being
+        checked in the background, its last one (names are global: hover
+        and definitions stay right away from the edit)."""
         an = self.analyses.get(uri)
         if an is None or an.source != self.doc_text(uri):
             self.refresh(uri)
@@ -674,10 +791,91 @@ def _quick_fix(uri: str, d: Any) -> Any:
                         diagnostics=[d], edit=edit, is_preferred=True)
 
 
+_CONTENT_LENGTH = re.compile(rb"Content-Length:[ \t]*([^\r\n]*)", re.I)
+
+
+async def read_frames(stop_event, reader, protocol, error) -> None:
+    """pygls's stdio loop (``pygls.io_.run_async``), resynchronising after a
+    malformed frame (issue 42): a ``Content-Length`` that is not a number is
+    answered with a JSON-RPC parse error (``id`` null) and its body skipped
+    up to the next header, which is found even when the skipped body ran
+    into it without a newline (pygls lost every later frame: it only
+    accepts a header line that is exactly ``Content-Length: N``); a body
+    that is not JSON, or not a message, is answered likewise.  ``error(text)``
+    writes such an answer."""
+    import json
+    length: Optional[int] = None
+    bad = False
+    while not stop_event.is_set():
+        line = await reader.readline()
+        if not line:
+            break
+        m = _CONTENT_LENGTH.search(line)
+        if m:
+            value = m.group(1).strip()
+            if value.isdigit() and len(value) < 12:
+                length, bad = int(value), False
+            else:
+                length, bad = None, True
+                error(f"Content-Length: expected a number of bytes, got "
+                      f"{value.decode('latin-1')[:40]!r}; frame skipped")
+            continue
+        if line.strip():
+            continue                # another header (Content-Type), or a skipped body's line
+        if length is None:
+            if bad:
+                bad = False         # the bad frame's body follows: skipped line by line
+            continue
+        body = await reader.readexactly(length) if length else b""
+        length = None
+        try:
+            message = json.loads(body, object_hook=protocol.structure_message)
+        except Exception as e:      # noqa: BLE001 - not JSON: answered, and the next frame read
+            error(f"the frame's body is not a JSON-RPC message ({type(e).__name__})")
+            continue
+        try:
+            protocol.handle_message(message)
+        except Exception:           # noqa: BLE001
+            log.exception("message")
+
+
+def _error_writer(protocol):
+    """``error(text)``: a JSON-RPC parse error (-32700, ``id`` null) on the
+    protocol's writer."""
+    import json
+
+    def error(text: str) -> None:
+        body = json.dumps({"jsonrpc": "2.0", "id": None,
+                           "error": {"code": -32700, "message": f"pccl lsp: {text}"}}).encode()
+        try:
+            protocol.writer.write(b"Content-Length: %d\r\n\r\n" % len(body) + body)
+        except Exception:           # noqa: BLE001 - a closed pipe: the loop ends on its own
+            log.exception("write")
+    return error
+
+
 def serve() -> None:
-    """Run the server on stdin/stdout until the client exits."""
-    make_server().start_io()
+    """Run the server on stdin/stdout until the client exits (pygls's
+    ``start_io``, with :func:`read_frames` as the reading loop)."""
+    import asyncio
+    import sys
+    import threading
+    from pygls.io_ import StdinAsyncReader, StdoutWriter
+    server = make_server()
+    server._stop_event = threading.Event()
+    reader = StdinAsyncReader(sys.stdin.buffer, server.thread_pool)
+    server.protocol.set_writer(StdoutWriter(sys.stdout.buffer))
+    try:
+        asyncio.run(read_frames(server._stop_event, reader, server.protocol,
+                                _error_writer(server.protocol)))
+    except BrokenPipeError:
+        log.error("the connection to the client is lost")
+    except (KeyboardInterrupt, SystemExit):
+        pass
+    finally:
+        server.shutdown()
 
 
 __all__ = ["analyse", "Analysis", "Diag", "Range", "hover_text", "definition", "references",
-           "outline", "completions", "format_text", "word_at", "make_server", "serve"]
+           "outline", "completions", "format_text", "word_at", "make_server", "serve",
+           "read_frames"]
