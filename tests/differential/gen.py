@@ -158,7 +158,8 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
     if k == "shared":
         return f"{pad}s = {_int(rng, 2)};\n"
     if k == "owner":
-        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < _P['asym'] else []))};\n"
+        odd = ['x', 'me + 1'] if rng.random() < _P['asym'] else []
+        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + odd)};\n"
     if k == "assert":
         if not _P["err"]:           # an assertion that holds, mostly
             return f"{pad}assert(c <= 3 || {_bool(rng)});\n"
@@ -175,7 +176,8 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
         idx = ['0', '1', 'x'] + (['me', 'getAgentIndex()'] if rng.random() < _P["asym"] * 3 else [])
         return f"{pad}arr[{rng.choice(idx)}] = {_int(rng, 1)};\n"
     if k == "float":
-        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + (['h * 1e308'] if _P['err'] else []))};\n"
+        big = ['h * 1e308'] if _P['err'] else []
+        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + big)};\n"
     if k == "pos":
         return f"{pad}p = ItemPosition({rng.choice(['x', '1.5', 'h'])}, {rng.choice(['0', 'y', '2.5'])});\n"
     if k == "exit":
@@ -338,7 +340,7 @@ def moving(seed: int, rng: random.Random, family="moving") -> Case:
     text += rng.choice(["    atomic:\n      arrived = arrived + 1;\n", "    arrived = arrived + 1;\n"])
     text += "    exit();\n\n"
     if handled:
-        text += (f"Failed():\n  pre(st >= 1 && doReach_fail);\n  eff:\n"
+        text += ("Failed():\n  pre(st >= 1 && doReach_fail);\n  eff:\n"
                  + rng.choice(["    assert(false);\n", "    failed = failed + 1;\n    exit();\n"]) + "\n")
     invariants = rng.sample(["failed == 0", "arrived <= 1", "failed <= 1",
                              "forall i: doReach_fail[i] -> st[i] >= 1", "arrived + failed <= 2"],
