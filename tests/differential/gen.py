@@ -317,11 +317,18 @@ def moving(seed: int, rng: random.Random, family="moving") -> Case:
     # nothing reads the doReach flags: the program ends by its ticks
     blind = rng.random() < (0.6 if family == "userbb" else 0.3)
     retarget = rng.random() < 0.6
-    ticks = rng.choice([1, 2, 3])
+    ticks = rng.choice([1, 2, 3, 5])
+    turn_wall = rng.random() < 0.3
+    if turn_wall:
+        # a re-target in mid-motion across a wall that the leg from the last
+        # rest position misses (issue 41 hole 3's shape)
+        world += _box(4.5, 4, 5.5, 6)
     text = ("Agent::Mover\n\nallwrite:\n  int failed = 0;\n  int arrived = 0;\n\n"
             "loc:\n  int st = 0;\n  int t = 0;\n"
             f"  int x = {rng.choice(['0', '1', 'rand(1)'])};\n  int y = 0;\n\n")
     first = targets[-2] if family == "userbb" and rng.random() < 0.5 else rng.choice(targets)
+    if turn_wall and rng.random() < 0.7:
+        first = "ItemPosition(10.0, 0.0)"
     text += (f"Go():\n  pre(st == 0);\n  eff:\n    doReach({first}, "
              f"{rng.choice(['getObs()', '[]'])});\n    st = 1;\n\n")
     text += f"Tick():\n  pre(st == 1 && t < {ticks});\n  eff:\n    t = t + 1;\n\n"
@@ -331,7 +338,8 @@ def moving(seed: int, rng: random.Random, family="moving") -> Case:
         return Case(seed, family, text, agents=None, world=world, invariants=invariants, moves=True)
     if retarget:
         cond = rng.choice([f"t == {ticks}", f"t == {ticks} && !doReach_done", "doReach_done"])
-        text += (f"Turn():\n  pre(st == 1 && {cond});\n  eff:\n    doReach({rng.choice(targets)}, "
+        second = "ItemPosition(5.0, 10.0)" if turn_wall else rng.choice(targets)
+        text += (f"Turn():\n  pre(st == 1 && {cond});\n  eff:\n    doReach({second}, "
                  f"{rng.choice(['getObs()', '[]'])});\n    st = 2;\n\n")
         last = 2
     else:
