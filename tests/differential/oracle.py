@@ -490,6 +490,6 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
             return "hole 1/2 (dead: failing rand initialisers, a blackbox's name)"
     if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
         return "hole 5 (native engine ints at the 64-bit edges)"
-    if native and d.check == "figures":
+    if d.check == "figures" and "[native]" in d.detail and "[python]" in d.detail:
         return "hole 6 (native reduced counts)"
     return None
