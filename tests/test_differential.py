@@ -109,4 +109,5 @@ def test_a_disagreement_shrinks_to_a_small_program_with_its_commands(tmp_path, m
     readme = open(os.path.join(out, "README.md")).read()
     assert "--reduce por" in readme and "--reduce none --exact" in readme or "--exact" in readme
     assert os.path.exists(os.path.join(out, "program.pccl"))
+    assert os.path.exists(os.path.join(out, "reproduce.py")) and os.path.exists(os.path.join(out, "case.json"))
     assert re.search(r"pccl explore program\.pccl .*--reduce por", readme)

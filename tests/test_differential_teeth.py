@@ -57,10 +57,11 @@ def _weak_arrays(self, e, prop, bound):
     return ORIG_AGENT_INDEX(self, e, prop, bound)
 
 
-@pytest.mark.parametrize("attr,weak", [("typeof", _weak_reads), ("agent_index", _weak_arrays)])
-def test_a_symmetry_through_agent_indexes(monkeypatch, attr, weak):
+@pytest.mark.parametrize("attr,weak,families", [("typeof", _weak_reads, ["core", "sym"]),
+                                                ("agent_index", _weak_arrays, ["sym"])])
+def test_a_symmetry_through_agent_indexes(monkeypatch, attr, weak, families):
     monkeypatch.setattr(SS.IdTypes, attr, weak)
-    ds = caught(["core", "sym"], ["symmetry-python", "symmetry-orbits"], 120)
+    ds = caught(families, ["symmetry-python", "symmetry-orbits"], 120)
     assert ds, f"the oracle missed the weakened symmetry analysis ({attr})"
 
 
@@ -75,15 +76,14 @@ def test_b_colliding_fingerprints(monkeypatch):
     assert ds, "the oracle missed fingerprints that collide"
 
 
-#: moving programs whose covering check is clean on main (checked below)
-COVER_SEEDS = [1, 9, 11, 20]
-
-
 def test_c_nondet_without_a_fail(monkeypatch):
+    """On moving programs whose covering check is clean as shipped, a nondet
+    that never offers a fail is caught."""
     from pccl.blackboxes.nondet import Nondet
-    assert caught(["moving"], ["covering"], 4, seeds=COVER_SEEDS) == []
+    clean = [k for k in range(24) if not caught(["moving"], ["covering"], 1, seeds=[k])]
+    assert len(clean) >= 12, clean
     monkeypatch.setattr(Nondet, "may_fail", lambda *a, **k: False)
-    ds = caught(["moving"], ["covering"], 4, check="covering", seeds=COVER_SEEDS)
+    ds = caught(["moving"], ["covering"], len(clean), check="covering", seeds=clean)
     assert ds, "the oracle missed a nondet that never fails a robot"
 
 
@@ -115,5 +115,45 @@ def test_e_por_with_an_ample_set_too_small(monkeypatch):
 @pytest.mark.xfail(strict=False, reason="needs fix of hole 5: then re-open it by monkeypatching "
                    "the native engine's int-range predicate")
 def test_f_native_int_edges():
-    ds = caught(["core"], ["none-native", "default"], 40)
+    ds = caught(["core"], ["none-native"], 120)
     assert any(d.known and "hole 5" in d.known for d in ds), "hole 5 is fixed: re-open it here"
+
+
+#: issue 41 hole 6's programs (tests must not read ../shared: copied here)
+MERGE_POR = """allwrite:
+  int s1 = -1;
+Init:
+  s1 = 3;
+E1():
+  pre(true);
+  eff:
+    atomic:
+      if (s1 > -2):
+        s1 = s1 - 1;
+"""
+DEFAULT_COUNTS = """allwrite:
+  int s0 = 3;
+loc:
+  int v0 = -3;
+E0():
+  pre(true);
+  eff:
+    v0 = -v0;
+E1():
+  pre(true);
+  eff:
+    s0 = (s0 - v0 - s0) % 2;
+    s0 = -2;
+"""
+
+
+@pytest.mark.xfail(strict=False, reason="needs fix of hole 6: then re-open it by monkeypatching the "
+                   "C generator's merge or ample-set condition")
+@pytest.mark.parametrize("text,agents,modes", [
+    (MERGE_POR, 2, ["merge+por-python", "merge+por-native"]),
+    (DEFAULT_COUNTS, 3, ["default", "auto-python"])])
+def test_g_native_reduced_counts(text, agents, modes):
+    """Figures the docs promise equal (native and Python, same reductions)."""
+    rep = oracle.compare(gen.Case(0, "hand", text, agents=agents), oracle.choose_modes(["truth"] + modes, 0))
+    assert [d.check for d in rep.disagreements] == ["figures"], rep.disagreements
+    assert "hole 6" in rep.disagreements[0].known

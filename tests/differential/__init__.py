@@ -77,7 +77,8 @@ def run(n: int, seed: int = 0, budget: Optional[float] = None, modes="all", samp
         s.disagreements += rep.disagreements
         if findings:
             for d in rep.disagreements:
-                sig = (d.check, d.mode, d.known)
+                # a known hole is shrunk once, a new disagreement once per check and mode
+                sig = (d.check, d.known) if d.known else (d.check, d.mode)
                 if sig in seen:
                     continue
                 seen.add(sig)

@@ -74,7 +74,19 @@ INT_ATOMS = ["0", "1", "2", "s", "x", "y", "c", "size(q)", "arr[0]", "arr[1]"]
 #: asymmetric int expressions (ids in arithmetic, own-element indexing)
 ID_ARITH = ["me", "me + 1", "getAgentIndex()", "arr[me]", "arr[getAgentIndex()]", "me[0]", "x * me"]
 #: the probability of an asymmetric use, per program (0: a symmetric family)
-_P = {"asym": 0.1, "err": 0.05}
+_P = {"asym": 0.1, "err": 0.05, "subtle": 0.0, "plain": False}
+#: what keeps a program off the native engine (its engine_reason): floats,
+#: positions, indexed assignments, temporal properties; a *plain* program
+#: has none of them, so that the native modes really run native code
+NOT_NATIVE = ("h ", "h)", "h[", "p.", "(p,", "p[", "h *", "1e308", "arr[", "q", "(l", "head", "size", "isEmpty",
+              "contains", P64, "rand(", "0.5", "1.5")
+
+
+def _pick(rng, pool):
+    """rng.choice(pool), but from what the native engine serves in a plain program."""
+    if _P["plain"]:
+        pool = [e for e in pool if not any(t in e for t in NOT_NATIVE)] or ["0"]
+    return rng.choice(pool)
 ERR_INT = [  # an int expression that fails for some reachable values
     "10 / (x - 1)", "s % (y - 1)", "q[x]", "arr[y]", "head(l)", "rand(x - 1)", "arr[s]",
     "q[size(q) - x]", "u", "me[x]",
@@ -88,15 +100,15 @@ def _int(rng, depth=1, err=None, edge=0.06) -> str:
     err = _P["err"] if err is None else err
     r = rng.random()
     if r < err:
-        return rng.choice(ERR_INT if _P["asym"] else ERR_INT[:-1])
+        return _pick(rng, ERR_INT if _P["asym"] else ERR_INT[:-1])
     if r < err + edge:
-        return rng.choice(EDGE_INTS)
+        return _pick(rng, EDGE_INTS)
     if r < err + edge + _P["asym"] / 2:
-        return rng.choice(ID_ARITH)
+        return _pick(rng, ID_ARITH)
     if r < err + edge + _P["asym"] / 2 + 0.04:
-        return rng.choice(["me[me]", "me[getAgentIndex()]", "arr[me]", "arr[getAgentIndex()]"])  # subtle
+        return _pick(rng, ["me[me]", "me[getAgentIndex()]", "arr[me]", "arr[getAgentIndex()]"])  # subtle
     if depth <= 0 or r < 0.55:
-        return rng.choice(INT_ATOMS)
+        return _pick(rng, INT_ATOMS)
     op = rng.choice(["+", "-", "*", "/", "%"])
     a, b = _int(rng, depth - 1, err / 2, edge), _int(rng, depth - 1, err / 2, edge)
     if op in "/%" and rng.random() < 0.8:
@@ -109,16 +121,18 @@ def _bool(rng, asym=None, err=None) -> str:
     err = _P["err"] if err is None else err
     r = rng.random()
     if r < err:
-        return rng.choice(["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
+        return _pick(rng, ["10 / (x - 1) > 0", "q[x] == 1", "head(l) > 0", "u == 0",
                            "h * 1e308 * 10.0 > 1.0", "arr[y] == 0"])
     if r < err + asym:
-        return rng.choice(ID_ASYM)
+        return _pick(rng, ID_ASYM)
     if r < err + asym + 0.08:
-        return rng.choice(ID_SYM)
+        return _pick(rng, ID_SYM)
     k = rng.random()
     if k < 0.25:
-        return rng.choice(["g", "!g", "flag", "!flag", "isEmpty(q)", "contains(q, x)",
-                           "isEmpty(l)", "p.x > 0.5", "h < 2.0", "dist(p, ItemPosition(0, 0)) < 3.0"])
+        return _pick(rng, ["g", "!g", "flag", "!flag", "isEmpty(q)", "contains(q, x)", "x < 0.5",
+                           "y > 1.5", "x <= s", "isEmpty(l)"]
+                          + ([] if _P["plain"] else ["p.x > 0.5", "h < 2.0",
+                                                     "dist(p, ItemPosition(0, 0)) < 3.0"]))
     cmp = rng.choice(["==", "!=", "<", "<=", ">", ">="])
     return f"{_int(rng, 1, 0.0)} {cmp} {_int(rng, 0, 0.0)}"
 
@@ -127,6 +141,13 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
     pad = "  " * ind
     kinds = ["assign", "assign", "shared", "shared", "assert", "list", "flag", "arr", "float",
              "pos", "skip", "owner"]
+    if _P["plain"]:
+        kinds = [k for k in kinds if k not in ("float", "pos", "arr", "list")]
+    if rng.random() < _P["subtle"]:
+        # a subtle symmetry breaker: the allread array's own element picked by the id
+        return _pick(rng, [f"{pad}arr[me] = arr[me] + 1;\n", f"{pad}arr[getAgentIndex()] = 1;\n",
+                           f"{pad}y = arr[me];\n", f"{pad}flag = arr[getAgentIndex()] == 1;\n",
+                           f"{pad}y = me[me] + 1;\n", f"{pad}x = me[getAgentIndex()];\n"])
     if depth > 0:
         kinds += ["if", "atomic", "while"]
     if not ctx.get("in_atomic"):
@@ -137,7 +158,8 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
     if k == "shared":
         return f"{pad}s = {_int(rng, 2)};\n"
     if k == "owner":
-        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + (['x', 'me + 1'] if rng.random() < _P['asym'] else []))};\n"
+        odd = ['x', 'me + 1'] if rng.random() < _P['asym'] else []
+        return f"{pad}owner = {rng.choice(['me', '-1', 'getAgentIndex()', 'me[owner]'] + odd)};\n"
     if k == "assert":
         if not _P["err"]:           # an assertion that holds, mostly
             return f"{pad}assert(c <= 3 || {_bool(rng)});\n"
@@ -154,7 +176,8 @@ def _stmt(rng, ind: int, depth: int, ctx: dict) -> str:
         idx = ['0', '1', 'x'] + (['me', 'getAgentIndex()'] if rng.random() < _P["asym"] * 3 else [])
         return f"{pad}arr[{rng.choice(idx)}] = {_int(rng, 1)};\n"
     if k == "float":
-        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + (['h * 1e308'] if _P['err'] else []))};\n"
+        big = ['h * 1e308'] if _P['err'] else []
+        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + big)};\n"
     if k == "pos":
         return f"{pad}p = ItemPosition({rng.choice(['x', '1.5', 'h'])}, {rng.choice(['0', 'y', '2.5'])});\n"
     if k == "exit":
@@ -204,21 +227,28 @@ def core(seed: int, rng: random.Random) -> Case:
     # about half the programs inject no runtime error: their verdicts are
     # mostly clean, where a false "exhaustive" would hide
     _P["err"] = rng.choice([0.0, 0.0, 0.03, 0.08])
+    _P["subtle"] = rng.choice([0.0, 0.0, 0.0, 0.15]) if not _P["asym"] else 0.0
+    _P["plain"] = rng.random() < 0.4
     bound = rng.choice([1, 2, 2])
     world = None
     shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
               f"  List<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])};",
               "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
-    allread = ["  int me = getAgentIndex();", "  bool flag = false;",
-               f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};"]
-    loc_init = rng.choice((LOC_INITS if _P["err"] else SAFE_LOC_INITS)
+    allread = ["  int me = getAgentIndex();", "  bool flag = false;"]
+    if not _P["plain"]:
+        allread.append(f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};")
+    else:
+        shared = [d for d in shared if "List" not in d]
+    loc_init = _pick(rng, (LOC_INITS if _P["err"] else SAFE_LOC_INITS)
                           + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
     if "w0()" in loc_init or "getInput" in loc_init:
         world = (f"[functions]\nw0 = {rng.choice(['0', '1', '3', MAX])}\n"
                  f"getInput = {rng.choice(['[1]', '[1.5]', '[[1, 2]]', '[true]', '[]'])}\n")
     loc = ["  int c = 0;", f"  int x = {loc_init};", f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])};",
-           "  int w = 0;", f"  float h = {rng.choice(['1.5', '0.5', '1e300', '-0.0'])};",
-           "  ItemPosition p = ItemPosition(1, 2);", "  List<int> l = [];"]
+           "  int w = 0;"] + ([] if _P["plain"] else ["  List<int> l = [];"])
+    if not _P["plain"]:
+        loc += [f"  float h = {rng.choice(['1.5', '0.5', '1e300', '-0.0'])};",
+                "  ItemPosition p = ItemPosition(1, 2);"]
     loc.append("  int u;")                    # undefined: a read gets the agent stuck
     text = "Agent::Gen\n\nallwrite:\n" + "\n".join(shared) + "\n\nallread:\n" + "\n".join(allread)
     text += "\n\nloc:\n" + "\n".join(loc) + "\n"
@@ -231,6 +261,13 @@ def core(seed: int, rng: random.Random) -> Case:
             guard += f" && {_bool(rng)}"
         body = "".join(_stmt(rng, 2, 2, {}) for _ in range(rng.randint(1, 3)))
         text += f"\nE{e}():\n  pre({guard});\n  eff:\n    c = c + 1;\n{body}"
+    if rng.random() < 0.2:
+        # an int at a 64-bit edge held in the state, compared with a float,
+        # and grown past 64 bits
+        text = text.replace("  int u;\n", f"  int u;\n  int e = {rng.choice([MIN, MAX, MIN + ' + rand(1)'])};\n")
+        text += (f"\nEdge():\n  pre(c < {bound} && e {rng.choice(['<', '>', '!='])} 0.5);\n  eff:\n"
+                 f"    c = c + 1;\n    y = {rng.choice(['(e + ' + MAX + ') - 1', 'e * 2', 'e - 1', 'e / 3', '-e'])};\n"
+                 f"    x = {rng.choice(['y % 7', 'y / ' + MAX, '0'])};\n")
     if rng.random() < (0.8 if _P["err"] else 0.95):
         text += f"\nDone():\n  pre(c >= {bound});\n  eff:\n    exit();\n"
     if rng.random() < 0.4:
@@ -238,7 +275,14 @@ def core(seed: int, rng: random.Random) -> Case:
                                           for k in range(rng.randint(1, 2)))
     invariants = [rng.choice(INVARIANTS if _P["err"] else LIKELY)
                   for _ in range(rng.choice([0, 0, 1, 2]))]
-    properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 else []
+    properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 and not _P["plain"] else []
+    if _P["plain"]:
+        # no float, position or allread array element in the program's properties either
+        keep = [ln for ln in text.split("\n") if not (ln.startswith("  inv") and any(t in ln for t in NOT_NATIVE))]
+        text = "\n".join(keep)
+        if text.rstrip().endswith("invariant:"):
+            text = text.rstrip()[:-len("invariant:")]
+        invariants = [i for i in invariants if not any(t in i for t in NOT_NATIVE)]
     return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 2, 3]), world=world,
                 invariants=invariants, properties=properties)
 
@@ -270,17 +314,32 @@ def moving(seed: int, rng: random.Random, family="moving") -> Case:
                f"ItemPosition({rng.choice(['1.0', '2.5', '3.0'])}, {gap + radius})",
                "ItemPosition(rand(1) * 10.0, 0.0)", "ItemPosition(x, y)"]
     handled = rng.random() < 0.6
+    # nothing reads the doReach flags: the program ends by its ticks
+    blind = rng.random() < (0.6 if family == "userbb" else 0.3)
     retarget = rng.random() < 0.6
-    ticks = rng.choice([1, 2, 3])
+    ticks = rng.choice([1, 2, 3, 5])
+    turn_wall = rng.random() < 0.3
+    if turn_wall:
+        # a re-target in mid-motion across a wall that the leg from the last
+        # rest position misses (issue 41 hole 3's shape)
+        world += _box(4.5, 4, 5.5, 6)
     text = ("Agent::Mover\n\nallwrite:\n  int failed = 0;\n  int arrived = 0;\n\n"
             "loc:\n  int st = 0;\n  int t = 0;\n"
             f"  int x = {rng.choice(['0', '1', 'rand(1)'])};\n  int y = 0;\n\n")
-    text += (f"Go():\n  pre(st == 0);\n  eff:\n    doReach({rng.choice(targets)}, "
+    first = targets[-2] if family == "userbb" and rng.random() < 0.5 else rng.choice(targets)
+    if turn_wall and rng.random() < 0.7:
+        first = "ItemPosition(10.0, 0.0)"
+    text += (f"Go():\n  pre(st == 0);\n  eff:\n    doReach({first}, "
              f"{rng.choice(['getObs()', '[]'])});\n    st = 1;\n\n")
     text += f"Tick():\n  pre(st == 1 && t < {ticks});\n  eff:\n    t = t + 1;\n\n"
+    if blind:
+        text += (f"Done():\n  pre(st == 1 && t >= {ticks});\n  eff:\n    exit();\n")
+        invariants = rng.sample(["failed == 0", "arrived <= 1"], rng.choice([0, 1]))
+        return Case(seed, family, text, agents=None, world=world, invariants=invariants, moves=True)
     if retarget:
         cond = rng.choice([f"t == {ticks}", f"t == {ticks} && !doReach_done", "doReach_done"])
-        text += (f"Turn():\n  pre(st == 1 && {cond});\n  eff:\n    doReach({rng.choice(targets)}, "
+        second = "ItemPosition(5.0, 10.0)" if turn_wall else rng.choice(targets)
+        text += (f"Turn():\n  pre(st == 1 && {cond});\n  eff:\n    doReach({second}, "
                  f"{rng.choice(['getObs()', '[]'])});\n    st = 2;\n\n")
         last = 2
     else:
@@ -289,7 +348,7 @@ def moving(seed: int, rng: random.Random, family="moving") -> Case:
     text += rng.choice(["    atomic:\n      arrived = arrived + 1;\n", "    arrived = arrived + 1;\n"])
     text += "    exit();\n\n"
     if handled:
-        text += (f"Failed():\n  pre(st >= 1 && doReach_fail);\n  eff:\n"
+        text += ("Failed():\n  pre(st >= 1 && doReach_fail);\n  eff:\n"
                  + rng.choice(["    assert(false);\n", "    failed = failed + 1;\n    exit();\n"]) + "\n")
     invariants = rng.sample(["failed == 0", "arrived <= 1", "failed <= 1",
                              "forall i: doReach_fail[i] -> st[i] >= 1", "arrived + failed <= 2"],

@@ -482,6 +482,8 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
     # found by this oracle on main at a12e3d9 (not in the issue yet)
     if d.check == "crash" and mode.startswith("workers") and "KeyError" in d.detail:
         return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
+    if mode == "ray-local" and case.blackbox and "could not be co" in d.detail:
+        return "new R1: --ray with a user blackbox from a file: the actors cannot load it (worker lost)"
     if d.check == "crash" and mode == "checkpoint-native" and "KeyError" in d.detail:
         return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
     if "dead" in mode or mode in ("default", "all-python", "all-native", "all-exact", "auto-python") \
@@ -490,6 +492,6 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
             return "hole 1/2 (dead: failing rand initialisers, a blackbox's name)"
     if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
         return "hole 5 (native engine ints at the 64-bit edges)"
-    if native and d.check == "figures":
+    if d.check == "figures" and "[native]" in d.detail and "[python]" in d.detail:
         return "hole 6 (native reduced counts)"
     return None
