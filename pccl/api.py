@@ -268,9 +268,8 @@ def not_covered_note(model, spelling: Spelling = api_spelling) -> Optional[str]:
         return None
     where = second_leg(model.program)
     if where:
-        return spell(f"not exhaustive for pymunk: a robot may start a leg where pymunk's detours, "
-                     f"pushes or failures left it ({where}; {{blackbox=nondet-fail}} covers it)",
-                     spelling)
+        return spell(f"not exhaustive for pymunk: a second leg starts where pymunk left the robot "
+                     f"({where}; {{blackbox=nondet-fail}} covers it)", spelling)
     return None
 
 
