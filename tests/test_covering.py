@@ -578,3 +578,18 @@ def test_second_legs_under_pymunk_are_not_exhaustive():
     r = api.explore(one, source=True, world=race[1], agents=2)
     assert r.blackbox == "nondet" and r.status == "exhaustive", r.verdict
     assert api.second_leg(api.load_program(race[0])) == "doReach at line 36"
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_generated_retargets_native_equals_python(seed, tmp_path):
+    """The leg start is a slot of the native engine's vector: both engines
+    give the same verdict and figures, unreduced and with the default
+    reductions."""
+    prog, world = retarget_generated(seed, tmp_path)
+    for reduce in ("none", "auto"):
+        got = set()
+        for engine in ("native", "python"):
+            r = api.explore(prog, world=world, engine=engine, reduce=reduce,
+                            invariants=["failed == 0"])
+            got.add((r.verdict, r.stats.states, r.stats.transitions))
+        assert len(got) == 1, (reduce, got)
