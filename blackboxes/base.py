@@ -46,7 +46,7 @@ Writing your own::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional, Protocol
 from collections.abc import Hashable, Sequence
 
@@ -85,7 +85,7 @@ class Outcome:
     done: tuple
     fail: tuple
     env: Hashable = None
-    starts: Optional[tuple] = None
+    starts: Optional[tuple] = field(default=None, repr=False)
 
 
 def settled(m: Motion):

@@ -150,7 +150,9 @@ def test_formation_explores_clean(blackbox, agents):
     res = api.explore(FORMATION, world=FORMATION_WORLD, blackbox=blackbox, agents=agents,
                       collisions=True,
                       invariants=["count(leaving) == 0 || count(arrived) == N"])
-    assert res.status == "exhaustive", res.verdict
+    # under nondet positions (--collisions) are not enumerated in mid-motion:
+    # the search is complete for nondet, not exhaustive for straight/pymunk
+    assert res.status == ("bounded" if blackbox == "nondet" else "exhaustive"), res.verdict
     assert res.exit_status == 0
     assert res.violations == []
 
@@ -236,7 +238,9 @@ def test_rendezvous_explores_clean(blackbox, agents, overrides):
     res = api.explore(RENDEZVOUS, world=RENDEZVOUS_WORLD, blackbox=blackbox, agents=agents,
                       overrides=overrides, collisions=(agents == 2),
                       invariants=["forall i: stage[i] == THERE -> leader[i] >= 0"])
-    assert res.status == "exhaustive", res.verdict
+    # under nondet getPosition() is not enumerated in mid-motion: the search is
+    # complete for nondet, not exhaustive for straight/pymunk
+    assert res.status == ("bounded" if blackbox == "nondet" else "exhaustive"), res.verdict
     assert res.exit_status == 0
     assert res.violations == []
 

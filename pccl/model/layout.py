@@ -163,7 +163,7 @@ class Reach(NamedTuple):
     #: where the robot may really be when its current leg starts, for a
     #: blackbox that tracks legs (``tracks_legs``, blackboxes/nondet.py): ()
     #: for "exactly at its position", else the points whose convex hull
-    #: holds it (or ``UNKNOWN_START``: anywhere); always () otherwise
+    #: holds it; always () otherwise
     start: Any = ()
 
 

@@ -114,17 +114,13 @@ def _pos(p):
 
 def _start(s):
     """A leg start (the reach cell's last entry, blackboxes/nondet.py) as JSON:
-    a list of [x, y] points, or the string "anywhere"."""
-    if s == ("anywhere",):
-        return "anywhere"
+    a list of [x, y] points."""
     return [list(p) for p in s]
 
 
 def _decode_start(x, path):
-    if x == "anywhere":
-        return ("anywhere",)
     if not isinstance(x, list):
-        raise _fail(path, 'a list of [x, y] points or "anywhere"', x)
+        raise _fail(path, "a list of [x, y] points", x)
     out = []
     for k, p in enumerate(x):
         if (not isinstance(p, list) or len(p) != 2
