@@ -12,7 +12,8 @@ ARGS` (what the `pccl` console script does) with the code of the revision on
 `sys.path` and nothing else of the checkout (the working tree's `pccl/`,
 `semantics/` and `blackboxes/` are copied to a temporary directory, as
 `git archive REV` is for the baseline).  Old and new alternate, after one
-warm-up run each; the table gives the best and the median wall time.
+warm-up run each; the table gives the best and the median wall time and the
+median CPU time (user + system: on a busy machine, the figure to compare).
 
 By default the copies keep their compiled bytecode (`__pycache__`, written
 by the warm-up), as an installed wheel does; `--no-bytecode` measures with
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -67,14 +69,17 @@ def tree_of_revision(rev: str, into: str) -> str:
     return into
 
 
-def once(tree: str, args: list[str], env: dict, cwd: str) -> float:
+def once(tree: str, args: list[str], env: dict, cwd: str) -> tuple[float, float]:
+    """One run: (wall s, the child's user + system CPU s)."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", CHILD, tree, *args], env=env, cwd=cwd,
                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     elapsed = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode not in (0, 1):
         raise SystemExit(f"{args}: exit {p.returncode}\n{p.stderr[-2000:]}")
-    return elapsed
+    return elapsed, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
 def main() -> int:
@@ -97,22 +102,24 @@ def main() -> int:
             versions.insert(0, (f"old {args.baseline}"[:12], tree_of_revision(args.baseline, old)))
         print(f"python {sys.version.split()[0]}, load average {os.getloadavg()[0]:.2f}, "
               f"{'no bytecode' if args.no_bytecode else 'bytecode cached'}, {args.repeat} runs each")
-        print(f"{'command':<28} {'version':<12} {'best s':>8} {'median s':>9}  goal")
+        print(f"{'command':<28} {'version':<12} {'best s':>8} {'median s':>9} {'CPU s':>7}  goal (wall median)")
         missed = 0
         for label, cargs, goal in COMMANDS:
-            times: dict[str, list[float]] = {name: [] for name, _ in versions}
+            times: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in versions}
             for _, tree in versions:
                 once(tree, cargs, env, tmp)                 # warm-up: bytecode, the parser's cache
             for _ in range(args.repeat):
                 for name, tree in versions:                 # alternating
                     times[name].append(once(tree, cargs, env, tmp))
             for name, _ in versions:
-                best, med = min(times[name]), statistics.median(times[name])
+                walls = [w for w, _ in times[name]]
+                best, med = min(walls), statistics.median(walls)
+                cpu = statistics.median(c for _, c in times[name])
                 verdict = ""
                 if goal is not None and name == "new":
-                    verdict = f"< {goal} s: {'met' if med < goal else 'NOT met'} (median)"
+                    verdict = f"< {goal} s: {'met' if med < goal else 'NOT met'}"
                     missed += med >= goal
-                print(f"{label:<28} {name:<12} {best:>8.3f} {med:>9.3f}  {verdict}")
+                print(f"{label:<28} {name:<12} {best:>8.3f} {med:>9.3f} {cpu:>7.3f}  {verdict}")
         return 1 if missed else 0
 
 
