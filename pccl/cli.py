@@ -2,17 +2,11 @@
 
 from __future__ import annotations
 
-import json
-import random
 import sys
 
 import click
 
-from pccl.output import display as D
-from pccl.output.checked import NO_PROPERTY_NOTE
 from pccl.lang.errors import PcclError
-from pccl.model.layout import AGS, POS, STATUS, TIME
-from pccl.model.options import OPTION_NAMES, ExploreOptions, ModelOptions, RunOptions, conflict
 
 #: Options whose flag is not ``--`` + the name with ``-`` for ``_``.  The flags
 #: are spelt here only: the engine, the API and the outputs name options by
@@ -36,6 +30,7 @@ def cli_spelling(name: str, value) -> "str | None":
     """An option as the command line spells it: ``--fastest``, ``--workers 1``,
     ``--no-timelock`` for ``timelock=False``, ``--rate 1=2`` (for
     :func:`pccl.lang.errors.spell`); None for a name that is no option."""
+    from pccl.model.options import OPTION_NAMES
     if name not in OPTION_NAMES:
         return None
     if value is not None and name in SHORT_FLAGS:
@@ -202,6 +197,16 @@ def _exit_status(code: int, kinds, mode: str) -> int:
     return status(_interrupted_status(code), kinds, mode)
 
 
+def _print_version(ctx, value) -> None:
+    """``--version``: what a bug report needs to say what ran
+    (:mod:`pccl.tools.about`; imports no engine module)."""
+    if not value or ctx.resilient_parsing:
+        return
+    from pccl.tools.about import version_lines
+    click.echo("\n".join(version_lines()))
+    ctx.exit()
+
+
 class _Main(click.Group):
     """Ctrl-C and SIGTERM outside a search exit 130 and 143, not click's
     "Aborted!" with status 1 (which means a violation)."""
@@ -233,7 +238,10 @@ class _Main(click.Group):
 
 @click.group(cls=_Main, epilog=EXIT_STATUS_HELP,
              context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(package_name="pccl")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True,
+              callback=lambda ctx, param, value: _print_version(ctx, value),
+              help="Show the version, the native engine's availability, the extras installed, "
+                   "Python and the platform, and exit.")
 def main():
     """pccl: run and model-check PCCL programs for teams of robots.
 
@@ -272,11 +280,13 @@ _EXIT_CODES = click.option(
               help="world file whose uninterpreted functions the program may use")
 def check(program, world):
     """Parse and statically check PROGRAM; print nothing else on success."""
-    from pccl.api import load_program, load_world_arg
+    # the front end only (not pccl.api, which imports the engines: start-up)
     from pccl.lang.checker import check_program
+    from pccl.lang.parser import parse_file
+    from pccl.lang.world import load_world
     try:
-        prog = load_program(program)
-        w = load_world_arg(world)
+        prog = parse_file(program)
+        w = load_world(world) if world is not None else None
         names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
         check_program(prog, functions=names)
         if w is not None:
@@ -325,6 +335,8 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
         exit_codes, plot, html, trace_out, view, full):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
+    from pccl.model.options import RunOptions
+    import random
     from pccl.api import build_model, memory_bound
     from pccl.tools.runner import run as run_model
     from pccl.output import traces as T
@@ -369,6 +381,8 @@ def _check_outputs(plot, trace_out, html) -> None:
 
 def _print_run_json(program, seed, res, checked, doc, exit_codes) -> None:
     """Step of run: the result as JSON (--format json)."""
+    from pccl.model.layout import AGS, POS
+    import json
     m = res.model
     from pccl.output.codec import encode_state, output
     out = output(
@@ -389,6 +403,9 @@ def _print_run_json(program, seed, res, checked, doc, exit_codes) -> None:
 
 def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None:
     """Step of run: the result as text."""
+    from pccl.model.layout import TIME
+    from pccl.output import display as D
+    from pccl.output.checked import NO_PROPERTY_NOTE
     m = res.model
     click.echo(f"pccl run {program}: {m.N} agents, blackbox {m.blackbox.name}, "
                f"δ={D.fmt_time(m.delta)}, n0={m.n0}{_rates_text(m)}, seed {seed}")
@@ -444,6 +461,7 @@ def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
 def _collapsed_summary(m, summary) -> list:
     """The per-time-step lines of a run; consecutive identical ones (nothing
     moved or changed) are one line ``t=A–B: … (N identical time steps)``."""
+    from pccl.output import display as D
     out: list = []
     prev = None
     group: list = []            # [(time, text)] with the same text
@@ -518,6 +536,8 @@ def _rates_text(m) -> str:
 
 
 def _step_summary(m, prev, s) -> str:
+    from pccl.model.layout import AGS, POS, STATUS
+    from pccl.output import display as D
     parts = []
     for i, ag in enumerate(s[AGS]):
         st = D.status_text(m, ag[STATUS])
@@ -672,6 +692,8 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             checkpoint, checkpoint_interval, resume, spill):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
+    from pccl.model.options import ExploreOptions, conflict
+    import json
     from pccl.api import build_model, explore_model
     from pccl.output import traces as T
     from pccl.search.spill import SpillError
@@ -799,6 +821,8 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
     and world are found by the recorded path, the path relative to FILE or the
     absolute path (the one with the recorded hash); --program/--world override.
     On a terminal the steps are shown (--view steps) unless --view says otherwise."""
+    from pccl.output import display as D
+    import json
     from pccl.tools.replay import replay as do_replay
     if plot:
         _check_plot_output(plot)
@@ -965,6 +989,7 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions
     the current state.  The model is explore's (same options), unreduced.  The
     server listens on 127.0.0.1 only and answers only the URL it prints (with
     its per-run token); stop it with Ctrl-C."""
+    from pccl.model.options import ExploreOptions
     from pccl.api import build_model, default_max_memory
     from pccl.tools import serve as S
     from pccl.output import traces as T
@@ -1023,6 +1048,7 @@ def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions
     """Write the reachable state graph of PROGRAM, breadth-first up to --max-states
     states: states as nodes (violating ones in red), transitions as edges labelled
     with agent, rule, line and changes, one colour per agent."""
+    from pccl.model.options import ModelOptions
     import os
     from pccl.api import build_model
     from pccl.output import graph as G
@@ -1100,6 +1126,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     the outcomes: final, bounded, deadlock, stalled, max-steps and each violation, with
     their frequencies (95% confidence intervals), the times, the first violating run's
     trace, and the pccl run command that reproduces each outcome."""
+    from pccl.model.options import RunOptions
     import random
     from pccl.tools import simulate as S
     from pccl.output import traces as T
@@ -1180,6 +1207,7 @@ def _first_bad_seed(outcomes) -> int:
 def _print_simulate_json(program, model, outcomes, first_bad, seed, code, doc, command,
                          invariants, properties) -> None:
     """Step of simulate: the outcomes as JSON (--format json)."""
+    import json
     from pccl.tools import simulate as S
     from pccl.output.codec import output
     done_runs = sum(len(o.seeds) for o in outcomes.values())
@@ -1215,6 +1243,7 @@ def _print_simulate_json(program, model, outcomes, first_bad, seed, code, doc, c
 
 def _print_simulate_text(program, model, outcomes, first_bad, seed, command, trace) -> None:
     """Step of simulate: the outcomes as text."""
+    from pccl.output import display as D
     from pccl.tools import simulate as S
     done_runs = sum(len(o.seeds) for o in outcomes.values())
     bad_times = [t for o in outcomes.values() if S.is_bad(o) for t in o.times]
@@ -1251,6 +1280,7 @@ def _print_simulate_text(program, model, outcomes, first_bad, seed, command, tra
 def _print_first_bad(model, outcomes, first_bad, trace) -> None:
     """Step of simulate: the first violating run and the tail of its trace
     (all of it with --trace)."""
+    from pccl.output import display as D
     s0 = _first_bad_seed(outcomes)
     click.echo(f"first violating run (seed {s0}): {first_bad.status} — {first_bad.message}")
     path = _run_path(first_bad)
@@ -1333,6 +1363,7 @@ def _progress_printer(header: str, progress, interval: float, *, stream=None, tt
 
 
 def _progress_figures(p, rate) -> str:
+    from pccl.output import display as D
     t = p.get("max_time")
     init = p.get("initial_candidates")
     return ((f"initial configurations generated {init:,}  " if init is not None else "")
@@ -1431,6 +1462,7 @@ def _hms(seconds: float) -> str:
 
 
 def _stats_lines(res) -> list:
+    from pccl.output import display as D
     s = res.stats
     on = res.model.reduction.on if res.model is not None else ()
     # counts of the reduced graph are not those of the rules (section 5)
@@ -1455,6 +1487,7 @@ def _stats_lines(res) -> list:
 def _explore_header(program, m) -> str:
     """The first line of ``pccl explore``: program, agents, blackbox (and why
     it was chosen, when by default), options."""
+    from pccl.output import display as D
     reason = getattr(m, "blackbox_reason", None)
     why = f" ({reason})" if reason else ""
     from pccl.api import not_covered_note
@@ -1490,6 +1523,7 @@ PYTHON_COST = "about 50x slower than the native engine, because "
 
 
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
+    from pccl.output import display as D
     m = res.model
     click.echo(_explore_header(program, m))
     click.echo(res.verdict)
@@ -1520,6 +1554,8 @@ def _print_explore_text(program, res, *, k_style=False, view=None, full=False):
 def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -> None:
     """Step of :func:`_print_explore_text`: violation ``v`` and its
     counterexample ``cx``."""
+    from pccl.model.layout import TIME
+    from pccl.output import display as D
     m = res.model
     click.echo("")
     click.echo(v.message)
@@ -1670,6 +1706,7 @@ def cache_cmd(clear, fmt):
     default 100M; 0: none), beyond which the least recently used modules
     are removed after a new one is compiled.  --clear removes them all
     (docs/benchmarks.md#the-module-cache)."""
+    import json
     import os
     from pccl.model import native as NV
     from pccl.search.memory import format_size

@@ -7,7 +7,6 @@ linearly (pccl/tools/lsp.py, pccl/lang/parser.py)."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import threading

@@ -272,3 +272,21 @@ def test_an_interrupt_while_compiling_through_the_api(cache, monkeypatch):
         ("interrupted", 130, 0, 0)
     assert r.model.engine_used == "native"
     assert any("module was compiling" in n for n in r.notes)
+
+
+def test_native_modules_of_a_shared_cache_directory_stay_private(tmp_path, monkeypatch):
+    """The native engine loads shared objects: with a cache directory others
+    can write, it compiles into a directory of the process's own."""
+    import os
+    import stat
+    from pccl.model import native
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    monkeypatch.setenv("PCCL_CACHE", str(shared))
+    monkeypatch.setattr(native, "_PROCESS_DIR", [])
+    d = native.module_dir()
+    assert d != str(shared) and stat.S_IMODE(os.stat(d).st_mode) == 0o700
+    assert native.module_dir() == d
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path / "mine"))
+    assert native.module_dir() == str(tmp_path / "mine")

@@ -1047,3 +1047,53 @@ def test_a_cache_directory_that_cannot_be_made_or_written_is_no_error(fresh_gram
     assert builds == [1, 1]                             # built each time, never failing
     assert list((tmp_path / "ro").iterdir()) == []
     assert isinstance(stmt("skip;"), ast.Skip)
+
+
+@pytest.mark.slow          # builds the tables three times
+def test_the_cache_directory_is_private(fresh_grammar, tmp_path, monkeypatch):
+    """lark's cache is a pickle (unpickling runs code): pccl makes its cache
+    directory 0700 and reads nothing from one that others can write
+    (pccl/lang/cachedir.py; docs/decisions.md, "The caches are private")."""
+    import stat
+    parser, builds, again = fresh_grammar
+    parse_program(FISCHER_TEXT, "f.pccl")
+    cache = tmp_path / "cache"
+    assert stat.S_IMODE(cache.stat().st_mode) == 0o700
+    [table] = cache.glob("lark-*.cache")
+    assert not table.stat().st_mode & 0o022
+    # a directory others can write: not used at all (built at every start, nothing written)
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    monkeypatch.setenv("PCCL_CACHE", str(shared))
+    builds.clear()
+    again()
+    again()
+    assert builds == [1, 1] and list(shared.iterdir()) == []
+    assert parser._lark_cache("x") is None
+
+
+@pytest.mark.slow          # builds the tables twice
+def test_a_cache_file_others_could_write_is_never_read(fresh_grammar, tmp_path, monkeypatch):
+    """A table file writable by group or others (a umask of 002, or someone
+    else's doing) is removed unread and written anew, private."""
+    import lark.lark
+    parser, builds, again = fresh_grammar
+    again()
+    [table] = (tmp_path / "cache").glob("lark-*.cache")
+    table.chmod(0o666)
+    loads = []
+    real_load = lark.lark.pickle.load
+
+    def counted(*a, **kw):
+        loads.append(1)
+        return real_load(*a, **kw)
+    monkeypatch.setattr(lark.lark.pickle, "load", counted)
+    builds.clear()
+    again()
+    assert builds == [1] and loads == []                # built; the file never unpickled
+    assert not table.stat().st_mode & 0o022              # written anew, private
+    again()
+    assert builds == [1] and loads                      # and read from then on
+    assert isinstance(stmt("skip;"), ast.Skip)
+

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
-from pccl.lang.ast import Span
+if TYPE_CHECKING:      # a name for annotations only: pccl.lang.ast costs ~15 ms to import,
+    from pccl.lang.ast import Span      # and the CLI's start-up imports this module
 
 
 class PcclError(Exception):
@@ -192,12 +193,24 @@ class PcclRuntimeError(Exception):
 
 
 def install_hint(extra: str) -> str:
-    """How to install an optional extra of pccl: pccl is installed from its
-    checkout (it is not on the package index), so the command names the
-    checkout when there is one: ``pip install -e '/path/to/pccl[physics]'``."""
+    """How to install an optional extra of pccl.  Run from a checkout (the
+    README's editable install), the command names the checkout: ``pip install
+    -e '/path/to/pccl[physics]'``; installed from a wheel, the packages the
+    extra adds, read from pccl's installed metadata: ``pip install
+    'pymunk>=6.6'`` (pccl is not on the package index, so ``pccl[physics]``
+    would not resolve)."""
     from pathlib import Path
     root = Path(__file__).resolve().parent.parent.parent
     if (root / "pyproject.toml").is_file():
         return f"pip install -e '{root}[{extra}]'"
+    import importlib.metadata
+    try:
+        reqs = importlib.metadata.requires("pccl") or []
+    except importlib.metadata.PackageNotFoundError:
+        reqs = []
+    marker = f'extra == "{extra}"'
+    wanted = [r.split(";", 1)[0].strip() for r in reqs if marker in r.replace("'", '"')]
+    if wanted:
+        return "pip install " + " ".join(f"'{r}'" for r in wanted)
     return f"pip install -e '.[{extra}]' in the pccl checkout"
 

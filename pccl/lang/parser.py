@@ -134,6 +134,8 @@ def _get_lark() -> Lark:
         path = _lark_cache(grammar)
         _LARK = Lark(grammar, cache=path if path is not None else False, **kw)
         _skip_inlined_positions(_LARK)
+        if path is not None:
+            _keep_private(path)
     return _LARK
 
 
@@ -179,22 +181,40 @@ def _skip_inlined_positions(lark: Lark) -> None:
             callbacks[rule] = _InlinedChild(cb)
 
 
+def _keep_private(path: str) -> None:
+    """The cache file lark wrote (with the umask's mode: 0664 under a umask
+    of 002) made writable by this user only, so that the next start reads it
+    (:func:`pccl.lang.cachedir.private_file`).  No one else could have
+    written it: the directory is private."""
+    try:
+        if os.stat(path).st_mode & 0o022:
+            os.chmod(path, 0o644)
+    except OSError:             # not written (a read-only disk): nothing to keep
+        pass
+
+
 def _lark_cache(grammar: str) -> Optional[str]:
     """Where the LALR tables of the grammar are cached (lark's own cache, 10x
     faster than building them at every start): pccl's cache directory
     (``$PCCL_CACHE`` or ``~/.cache/pccl``), the file named by the grammar,
-    lark's version and Python's; None where the directory is not writable."""
+    lark's version and Python's; None where the directory is not writable
+    or could be written by another user (lark's cache is a pickle:
+    :mod:`pccl.lang.cachedir`).  A file there that another user could have
+    written is removed unread, and written anew."""
     import hashlib
     import lark
-    d = os.environ.get("PCCL_CACHE") or os.path.join(os.path.expanduser("~"), ".cache", "pccl")
-    try:
-        os.makedirs(d, exist_ok=True)
-    except OSError:
-        return None
-    if not os.access(d, os.W_OK):
+    from pccl.lang.cachedir import private_cache_dir, private_file
+    d = private_cache_dir()
+    if d is None:
         return None
     tag = f"{grammar}\0{lark.__version__}\0{sys.version_info[:2]}"
-    return os.path.join(d, f"lark-{hashlib.sha256(tag.encode()).hexdigest()[:20]}.cache")
+    path = os.path.join(d, f"lark-{hashlib.sha256(tag.encode()).hexdigest()[:20]}.cache")
+    if not private_file(path):
+        try:                    # never read: written anew (the directory is this user's)
+            os.unlink(path)
+        except OSError:
+            return None
+    return path
 
 
 # --------------------------------------------------------------------------

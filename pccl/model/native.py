@@ -133,6 +133,8 @@ from pccl.semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, 
                                   K_SIMPLE, K_WHILE)
 from pccl.lang.types import indexes_agent
 from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
+from pccl.model.toolchain import compiler, native_unavailable
+from pccl.lang.cachedir import cache_dir, private_cache_dir, private_file
 
 #: The native state vector's own layout (not a configuration): the clock and
 #: the phase first, then the lock queue, shared, and the agents (see encode).
@@ -181,15 +183,6 @@ class Unsupported(Exception):
     pass
 
 
-def cache_dir() -> str:
-    return os.environ.get("PCCL_CACHE") or os.path.join(
-        os.path.expanduser("~"), ".cache", "pccl")
-
-
-def compiler() -> Optional[str]:
-    return shutil.which(os.environ.get("CC", "cc")) or shutil.which("gcc")
-
-
 def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
                 parallel: bool = False, checkpoint: bool = False) -> Optional[str]:
     """Why the native engine cannot serve this model and search (None: it can).
@@ -197,11 +190,9 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     takes stable ids); ``checkpoint``: the search saves or resumes a
     checkpoint (which keeps a moving program's interned values:
     :meth:`NativeModel.checkpoint_tables`)."""
-    if compiler() is None:
-        return "no C compiler (cc) found"
-    if sysconfig.get_paths().get("include") is None or not os.path.exists(
-            os.path.join(sysconfig.get_paths()["include"], "Python.h")):
-        return "Python.h (the Python development headers) not found"
+    why = native_unavailable()
+    if why is not None:
+        return why
     why = _replaced(model)
     if why is not None:
         return why
@@ -2773,7 +2764,28 @@ def _compile(d: str, name: str, src: str, path: str) -> None:
                             c_path], capture_output=True, text=True)
         if p.returncode != 0:
             raise RuntimeError(f"the C compiler failed on the native module:\n{p.stderr[-2000:]}")
+        os.chmod(out, 0o755)        # whatever the umask: no one else may write it
         os.replace(out, path)
+
+
+#: the directory of this process's modules when the cache directory is not
+#: private (:func:`module_dir`)
+_PROCESS_DIR: list = []
+
+
+def module_dir() -> str:
+    """Where native modules are compiled to and loaded from: the cache
+    directory when it is private to this user (a shared object runs when
+    it is loaded: :mod:`pccl.lang.cachedir`), else a directory of this
+    process's own (mode 0700, removed at exit): nothing is reused then."""
+    d = private_cache_dir()
+    if d is not None:
+        return d
+    if not _PROCESS_DIR:
+        import atexit
+        _PROCESS_DIR.append(tempfile.mkdtemp(prefix="pccl-native-"))
+        atexit.register(shutil.rmtree, _PROCESS_DIR[0], True)
+    return _PROCESS_DIR[0]
 
 
 def build(src: str):
@@ -2784,13 +2796,12 @@ def build(src: str):
     tag = sysconfig.get_config_var("SOABI") or sys.implementation.cache_tag
     digest = hashlib.sha256((src + tag).encode()).hexdigest()[:20]
     name = f"{_PREFIX}{digest}"
-    d = cache_dir()
-    os.makedirs(d, exist_ok=True)
+    d = module_dir()
     path = os.path.join(d, name + _module_ext())
     built = False
     mod = None
     for _ in range(3):      # a module pruned by another process between the two looks
-        if not os.path.exists(path):
+        if not os.path.exists(path) or not private_file(path):
             _compile(d, name, src, path)
             built = True
         with _Lock(d, exclusive=False):

@@ -112,13 +112,21 @@ _NONE = 0xFFFF_FFFF
 
 #: The message when ``--ray`` is asked for without Ray installed.
 def _ray_hint() -> str:
-    """pccl.lang.errors.install_hint("ray"), spelt here: this module imports only
+    """pccl.lang.errors.install_hint("ray"), spelt here (the same two cases): this module imports only
     generic modules (tests/test_architecture.py).  realpath: from the editable install's
     link tree (build/__editable__.pccl-*/), this file is a link to the checkout's."""
     import os
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))
     if os.path.isfile(os.path.join(root, "pyproject.toml")):
         return f"pip install -e '{root}[ray]'"
+    import importlib.metadata       # installed from a wheel: the extra's packages
+    try:
+        reqs = importlib.metadata.requires("pccl") or []
+    except importlib.metadata.PackageNotFoundError:
+        reqs = []
+    wanted = [r.split(";", 1)[0].strip() for r in reqs if 'extra == "ray"' in r.replace("'", '"')]
+    if wanted:
+        return "pip install " + " ".join(f"'{r}'" for r in wanted)
     return "pip install -e '.[ray]' in the pccl checkout"
 
 

@@ -1,0 +1,127 @@
+"""Start-up: how long the quick commands take, whole process (issue 43, item
+4: `pccl --version` under 0.08 s and `pccl check programs/race.pccl` under
+0.2 s on this machine, idle).
+
+    python benchmarks/startup.py                      # this checkout only
+    python benchmarks/startup.py --baseline REV       # old (a git revision) against new
+    python benchmarks/startup.py --repeat 21 --no-bytecode
+
+Each command runs as a process of its own, the way a shell, an editor or a
+pre-commit hook runs `pccl`: `python -c "from pccl.cli import main; main()"
+ARGS` (what the `pccl` console script does) with the code of the revision on
+`sys.path` and nothing else of the checkout (the working tree's `pccl/`,
+`semantics/` and `blackboxes/` are copied to a temporary directory, as
+`git archive REV` is for the baseline).  Old and new alternate, after one
+warm-up run each; the table gives the best and the median wall time and the
+median CPU time (user + system: on a busy machine, the figure to compare).
+
+By default the copies keep their compiled bytecode (`__pycache__`, written
+by the warm-up), as an installed wheel does; `--no-bytecode` measures with
+`PYTHONDONTWRITEBYTECODE=1` and no bytecode, where every import compiles its
+module (how a checkout runs when that variable is set, as on this project's
+machines).  The parser's table cache ($PCCL_CACHE) is the user's, warm after
+the warm-up, for both.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RACE = str(ROOT / "programs" / "race.pccl")
+FISCHER = str(ROOT / "programs" / "fischer.pccl")
+#: (label, arguments, goal in seconds or None)
+COMMANDS = [
+    ("pccl --version", ["--version"], 0.08),
+    ("pccl check race.pccl", ["check", RACE], 0.2),
+    ("pccl explore fischer k=1", ["explore", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1"], None),
+]
+CHILD = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'pccl'; "
+         "from pccl.cli import main; main()")
+
+
+def tree_of_worktree(into: str) -> str:
+    """This working tree's package, importable from ``into``."""
+    ignore = shutil.ignore_patterns("__pycache__")
+    shutil.copytree(ROOT / "pccl", os.path.join(into, "pccl"), ignore=ignore)
+    for sub in ("semantics", "blackboxes"):
+        shutil.copytree(ROOT / sub, os.path.join(into, "pccl", sub), ignore=ignore)
+    return into
+
+
+def tree_of_revision(rev: str, into: str) -> str:
+    """The package of git revision ``rev``, importable from ``into``."""
+    archive = subprocess.run(["git", "archive", rev, "pccl", "semantics", "blackboxes"], cwd=ROOT,
+                             capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
+    for sub in ("semantics", "blackboxes"):
+        link = os.path.join(into, "pccl", sub)
+        if not os.path.exists(link):
+            os.symlink(os.path.join(into, sub), link)
+    return into
+
+
+def once(tree: str, args: list[str], env: dict, cwd: str) -> tuple[float, float]:
+    """One run: (wall s, the child's user + system CPU s)."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", CHILD, tree, *args], env=env, cwd=cwd,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    elapsed = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode not in (0, 1):
+        raise SystemExit(f"{args}: exit {p.returncode}\n{p.stderr[-2000:]}")
+    return elapsed, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--baseline", metavar="REV", help="compare against this git revision")
+    ap.add_argument("--repeat", type=int, default=11, help="runs per command and version [11]")
+    ap.add_argument("--no-bytecode", action="store_true",
+                    help="PYTHONDONTWRITEBYTECODE=1 and no __pycache__: every import compiles")
+    args = ap.parse_args()
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    if args.no_bytecode:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
+    else:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+    with tempfile.TemporaryDirectory(prefix="pccl-startup-") as tmp:
+        versions = [("new", tree_of_worktree(os.path.join(tmp, "new")))]
+        if args.baseline:
+            old = os.path.join(tmp, "old")
+            os.mkdir(old)
+            versions.insert(0, (f"old {args.baseline}"[:12], tree_of_revision(args.baseline, old)))
+        print(f"python {sys.version.split()[0]}, load average {os.getloadavg()[0]:.2f}, "
+              f"{'no bytecode' if args.no_bytecode else 'bytecode cached'}, {args.repeat} runs each")
+        print(f"{'command':<28} {'version':<12} {'best s':>8} {'median s':>9} {'CPU s':>7}  goal (wall median)")
+        missed = 0
+        for label, cargs, goal in COMMANDS:
+            times: dict[str, list[tuple[float, float]]] = {name: [] for name, _ in versions}
+            for _, tree in versions:
+                once(tree, cargs, env, tmp)                 # warm-up: bytecode, the parser's cache
+            for _ in range(args.repeat):
+                for name, tree in versions:                 # alternating
+                    times[name].append(once(tree, cargs, env, tmp))
+            for name, _ in versions:
+                walls = [w for w, _ in times[name]]
+                best, med = min(walls), statistics.median(walls)
+                cpu = statistics.median(c for _, c in times[name])
+                verdict = ""
+                if goal is not None and name == "new":
+                    verdict = f"< {goal} s: {'met' if med < goal else 'NOT met'}"
+                    missed += med >= goal
+                print(f"{label:<28} {name:<12} {best:>8.3f} {med:>9.3f} {cpu:>7.3f}  {verdict}")
+        return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
