@@ -523,11 +523,12 @@ def _want(vs) -> Ty:
 
 
 def _dead_vars(m) -> DeadVars:
+    """``m``'s own tables when it is reduced with ``dead``, else new ones
+    (a reduced model reads through to its model: the same tables)."""
     got = getattr(m, "dead_vars", None)
     if isinstance(got, DeadVars):
         return got
-    from pccl.model.reduce import unreduced
-    return DeadVars(unreduced(m))
+    return DeadVars(m)
 
 
 def can_be_dead(m) -> bool:
