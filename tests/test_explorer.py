@@ -281,9 +281,10 @@ def test_max_states_bounds_the_initial_configurations_generated():
                   progress_interval=1e-9)
     r = ex.run()
     assert r.status == "bounded" and r.bounds_hit == [Bound.MAX_STATES]
-    assert r.stats.initial_states == 1 and ex.initial_candidates == 500
+    cap = 500 + 64              # explorer.initial_candidate_cap
+    assert r.stats.initial_states == 1 and ex.initial_candidates == cap
     # progress lines during the initial phase, with the candidates generated
-    assert seen and seen[-1]["initial_candidates"] == 500 and seen[-1]["states"] == 1
+    assert seen and seen[-1]["initial_candidates"] == cap and seen[-1]["states"] == 1
 
 
 def test_max_memory_bounds_the_initial_configurations():
@@ -292,8 +293,11 @@ def test_max_memory_bounds_the_initial_configurations():
 
 
 def test_the_initial_phase_bound_is_not_reported_when_nothing_was_left():
-    # exactly two candidates (one state, no successors): none left out
-    r = Explorer(Grid(w=1, h=1), max_states=2).run()
+    # exactly as many candidates as the cap (one state, no successors): none left out
+    class Exactly(Grid):
+        def init_states(self):
+            return [(0, 0)] * (2 + 64)
+    r = Explorer(Exactly(w=1, h=1), max_states=2, batch=64).run()
     assert r.status == "exhaustive" and r.stats.initial_states == 1
 
 

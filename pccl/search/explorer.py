@@ -538,6 +538,12 @@ _NO_PARENT = 0xFFFF_FFFF
 # :meth:`Explorer._budget` and :meth:`Explorer._memory_bound`, report by
 # :class:`Progress` and finish by :meth:`Explorer._finish`.
 
+def initial_candidate_cap(max_states: Optional[int], batch: int) -> Optional[int]:
+    """How many initial configurations a search with the state budget
+    ``max_states`` generates at most (None: no budget, no cap)."""
+    return None if max_states is None else max_states + batch
+
+
 def terminal(model: Model, state, deadlock: bool) -> tuple:
     """What a state without successors means to the search: ``(Bound.MODEL,
     None)`` when the model's own horizon stopped it, ``(None, violation)``
@@ -1053,9 +1059,11 @@ class Explorer:
         ``bounds`` when more remain), the memory bound is checked between
         chunks (:attr:`Bound.MAX_MEMORY`), and progress is reported between
         chunks (``states()``: the states admitted so far) with the number
-        of candidates generated."""
+        of candidates generated.  The candidates' cap is ``max_states +
+        batch`` (:func:`initial_candidate_cap`): a budget of S still admits
+        S distinct initial states when at most ``batch`` candidates repeat."""
         it = iter(self.model.init_states())
-        cap = self.max_states
+        cap = initial_candidate_cap(self.max_states, self.batch)
         made = 0
         progress = Progress(self.progress, self.progress_interval, t_start)
         while True:
