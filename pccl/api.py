@@ -720,7 +720,7 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
     if uncovered and status == "exhaustive":
         # exhaustive for nondet, not for the physical blackboxes it stands
         # for: said, and exiting, as a bounded search
-        verdict, status, complete = f"no violation — {uncovered}", "bounded", False
+        verdict, status = f"no violation — {uncovered}", "bounded"
     verdict += f" [blackbox {bb}]"
     note = fixed_timing_note(model, spelling) if not violations else None
     if note:
@@ -740,7 +740,8 @@ def _assemble(plan: _SearchPlan, ex: Any, sr: SearchResult, lv, complete: bool) 
                         [spell(n, spelling) for n in (list(lv.notes) if lv else []) + _search_notes(ex)
                          + ([STALL_HINT] if any(v.kind == "stall" for v in violations) else [])]
                         + plan.runaways, o.timelock, o.stall, bound_names, uncovered,
-                        complete=complete)
+                        # exhaustive for the model, but not for straight/pymunk: not "exhaustive"
+                        complete=complete and not (uncovered and status == "bounded"))
     growth = _growth_note(plan, ex, sr)
     if growth:
         res.notes.append(growth)
