@@ -120,9 +120,18 @@ class Capabilities:
     ``dead`` reduction needs it to leave a settled robot's target and
     flags out of state identity (pccl.model.dead.blackbox_settled_hold_still);
     ``symmetry`` needs it with ``robots_alike``
-    (pccl.model.reduce.blackbox_treats_robots_alike)."""
+    (pccl.model.reduce.blackbox_treats_robots_alike).
+
+    ``arrival_is_fair``: the blackbox may keep a moving robot under way at
+    any step (it offers "stay" beside "arrive"), and only as a way of
+    exploring every travel time: a run in which a robot whose doReach is
+    under way stays under way for ever is not one of its runs.  Liveness
+    checks then drop such cycles (fair arrival: docs/temporal.md;
+    pccl.search.liveness.blackbox_arrival_is_fair).  A blackbox whose robots
+    may really move for ever must not declare it."""
     robots_alike: bool = False
     settled_robots_hold_still: bool = False
+    arrival_is_fair: bool = False
 
 
 #: No promise: what a blackbox that declares nothing (or inherits its

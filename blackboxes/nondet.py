@@ -80,7 +80,8 @@ class Nondet:
     uses_time = False
     #: robots are treated alike (no rule reads a robot's number) and a settled
     #: robot stays put, seen by the others as its position (docs/blackboxes.md)
-    capabilities = Capabilities(robots_alike=True, settled_robots_hold_still=True)
+    capabilities = Capabilities(robots_alike=True, settled_robots_hold_still=True,
+                                arrival_is_fair=True)
     #: nondet-fail: every moving agent may fail at every step.
     always_fail = False
     #: the engine keeps each robot's leg start (``Motion.start``) and calls

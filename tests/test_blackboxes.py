@@ -497,3 +497,27 @@ def test_pymunk_plans_one_mode_per_agent():
     assert plans.length0[1] > 4.0
     # Mode HOLD is false, as the simulation's "if mode[i]" reads it
     assert not Mode.HOLD and Mode.DRIVE and Mode.DONE
+
+
+def test_fair_arrival_is_a_declared_capability_not_a_name():
+    # liveness assumes a robot under way settles eventually only under a
+    # blackbox that declares arrival_is_fair itself: a subclass of Nondet
+    # that keeps the name "nondet" promises nothing, and its runs in which
+    # robot 0 stays under way for ever are counterexamples
+    from pccl.api import explore
+    from pccl.blackboxes.nondet import Nondet
+    from pccl.search.liveness import blackbox_arrival_is_fair
+
+    class Mine(Nondet):
+        pass
+
+    from conftest import ROOT
+    prog = str(ROOT / "tests" / "programs" / "rdv_meet.pccl")
+    world = str(ROOT / "tests" / "programs" / "rdv_open.toml")
+    prop = "eventually forall i: exited[i]"
+    fair = explore(prog, world=world, blackbox="nondet", properties=[prop])
+    assert fair.status == "exhaustive" and blackbox_arrival_is_fair(fair.model.blackbox)
+    mine = Mine("nondet")
+    assert not blackbox_arrival_is_fair(mine)
+    unfair = explore(prog, world=world, blackbox=mine, properties=[prop])
+    assert unfair.status == "violation" and unfair.violation.kind == "liveness"

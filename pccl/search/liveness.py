@@ -730,9 +730,14 @@ class LivenessResult:
     notes: list = field(default_factory=list)        # what could not be decided, and why
 
 
-#: Blackboxes under which a robot may stay under way at every step; liveness
-#: assumes it settles (arrives or fails) eventually, as physical robots do.
-FAIR_ARRIVAL_BLACKBOXES = frozenset({"nondet", "nondet-fail"})
+def blackbox_arrival_is_fair(bb) -> bool:
+    """Whether liveness may assume that a robot under way settles (arrives
+    or fails) eventually under blackbox ``bb``: the capability
+    ``arrival_is_fair`` it declares itself (``nondet``, ``nondet-fail``;
+    pccl.blackboxes.base.Capabilities), never its name: a user blackbox
+    called ``nondet`` whose robots may move for ever gets no fairness."""
+    from pccl.blackboxes.base import declared_capabilities
+    return declared_capabilities(bb).arrival_is_fair
 
 
 def wants_graph(model, timelock: bool, stall: bool = False) -> bool:
@@ -743,8 +748,7 @@ def make_recorder(model, timelock: bool, stall: bool = False) -> Optional[GraphR
     if not wants_graph(model, timelock, stall):
         return None
     props = list(model.temporal)
-    fair = (getattr(model.blackbox, "name", None) in FAIR_ARRIVAL_BLACKBOXES
-            and any(p.liveness for p in props))
+    fair = blackbox_arrival_is_fair(model.blackbox) and any(p.liveness for p in props)
     return GraphRecorder(model, props, fairness=fair, stall=stall)
 
 

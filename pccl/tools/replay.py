@@ -798,10 +798,11 @@ def _lasso_problem(m, states, labels, cycle_start) -> Optional[str]:
     if not _advances(labels, cycle_start):
         return ("time never advances in the cycle (a zero-time cycle is a "
                 "time-lock, not a liveness counterexample)")
-    if getattr(m.blackbox, "name", None) == "nondet":
+    from pccl.search.liveness import blackbox_arrival_is_fair
+    if blackbox_arrival_is_fair(m.blackbox):
         cyc = states[cycle_start:]
         for a in range(m.N):
             if all(m.arrival_pending(st) >> a & 1 for st in cyc):
                 return (f"the cycle is unfair: agent {a}'s doReach is under "
-                        f"way throughout, and nondet lets it arrive")
+                        f"way throughout, and {m.blackbox.name} lets it arrive")
     return None
