@@ -511,9 +511,6 @@ class _Resolver:
         root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             raise _Syntax("only a variable or an element of one can be assigned", target.span)
-        if any(not isinstance(x, ast.Index) for x in ast.walk(target)
-               if isinstance(x, (ast.Field, ast.Call))) or isinstance(target, ast.Field):
-            raise _Syntax("only a variable or an element of one can be assigned", target.span)
         if root.name in self.allread:
             first = chain[0].index if chain else None
             if not (isinstance(first, ast.Call) and first.name == "getAgentIndex"
