@@ -61,9 +61,9 @@ def is_koord_path(path) -> bool:
 # --------------------------------------------------------------------------
 
 _UNSUPPORTED_TOKENS = {
-    "DEF": "'def' (functions and record types) is not supported yet by pccl's Koord front end "
+    "def": "'def' (functions and record types) is not supported yet by pccl's Koord front end "
            "(docs/koord.md)",
-    "FOR": "'for' loops are not supported yet by pccl's Koord front end: write the loop "
+    "for": "'for' loops are not supported yet by pccl's Koord front end: write the loop "
            "with an index variable and an event (docs/koord.md)",
 }
 
@@ -78,8 +78,8 @@ class _Unsupported(Exception):
 class _KoordIndenter(P._PcclIndenter):
     def _process(self, stream):
         for tok in super()._process(stream):
-            if tok.type in _UNSUPPORTED_TOKENS:
-                raise _Unsupported(_UNSUPPORTED_TOKENS[tok.type], tok)
+            if tok.type == "IDENT" and tok.value in _UNSUPPORTED_TOKENS:
+                raise _Unsupported(_UNSUPPORTED_TOKENS[tok.value], tok)
             yield tok
 
     def process(self, stream):
@@ -644,6 +644,8 @@ def _token_error(exc: UnexpectedToken, text: str, source: str, filename: str) ->
     message = f"{what}: expected {_describe(expected)}"
     if ttype == "EQUAL" and "EQ" in expected:
         message += " (did you mean '=='?)"
+    if ttype in ("FORALL", "EXISTS") and ttype not in expected:
+        message += " (quantifiers are for the invariant: section)"
     if ttype == "LPAR" and expected == {"COLON"}:
         message += " (a Koord event is written 'name:' without '()')"
     if ttype == "PRE" and "EFF" not in expected and "PRE" not in expected:
