@@ -370,6 +370,25 @@ def test_allstop_waits_for_the_flag(tmp_path):
     assert r.status == "violation" and r.violation.name == "stopsOnlyAfterHalt"
 
 
+def test_koord_counterexample_replays_and_views(tmp_path):
+    """Traces of a Koord program name the Koord file: replay re-reads it
+    (through the same dispatch), the viewer shows its lines."""
+    trace, page = tmp_path / "f.json", tmp_path / "f.html"
+    res = CliRunner().invoke(main, ["explore", k("fischer.koord"), "--set", "k=2",
+                                    "--trace-out", str(trace)])
+    assert res.exit_code == 1 and "invariant 'mutex' violated" in res.output
+    rep = CliRunner().invoke(main, ["replay", str(trace)])
+    assert rep.exit_code == 1 and "reproduced: invariant 'mutex' violated" in rep.output
+    view = CliRunner().invoke(main, ["view", str(trace), "-o", str(page)])
+    assert view.exit_code == 0
+    assert "turn = pid" in page.read_text()
+
+
+def test_fmt_refuses_koord_files():
+    res = CliRunner().invoke(main, ["fmt", "--check", k("leader.koord")])
+    assert res.exit_code == 2 and "Koord files (.koord, .krd) are not formatted yet" in res.stderr
+
+
 # --------------------------------------------------------------------------
 # Bad input: one message, file:line:column and a caret, exit 2
 # --------------------------------------------------------------------------
@@ -530,7 +549,7 @@ def test_mutated_koord_program(tmp_path, name, text):
     c = _invoke(["check", p])
     r = _invoke(["run", p, *world, "--max-time", "3", "--max-steps", "2000", "--blackbox",
                  "instant"])
-    e = _invoke(["explore", p, *world, "--depth", "25", "--max-states", "2000"])
+    e = _invoke(["explore", p, *world, "--depth", "25", "--max-states", "1000"])
     if c.exit_code == 2:
         assert r.exit_code == 2 and e.exit_code == 2
         assert r.stderr == c.stderr == e.stderr

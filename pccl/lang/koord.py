@@ -601,8 +601,8 @@ def _describe(expected: set) -> str:
         exp.discard("_NL")
     order = ["_NL", "_DEDENT", "$END"]
     ends = sorted((t for t in exp if t in order), key=order.index)
-    rest = sorted({_NAMES.get(t, t) for t in exp if t not in order})
-    words += rest + [_NAMES[t] for t in ends]
+    named = sorted({_NAMES.get(t, t) for t in exp if t not in order})
+    words += named + [_NAMES[t] for t in ends]
     if not words:
         return "something else"
     return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
