@@ -162,6 +162,66 @@ def test_every_construct_is_the_pccl_ast():
         [s.sid for s in ast.walk_stmts(pp.events[0].body)]
 
 
+FOR_KOORD = """\
+allread:
+  int best[]
+local:
+  int i = 0
+  int m = -1
+init:
+  best[pid] = pid * 3 % 4
+scan:
+  pre: m == -1
+  eff:
+    for i in range(numAgents):
+      if best[i] > m:
+        m = best[i]
+    for i in range(1, 3):
+      skip
+    stop
+invariant:
+  forall j: exited[j] -> m[j] == 3
+"""
+
+FOR_PCCL = """\
+allread:
+  int best;
+loc:
+  int i = 0;
+  int m = -1;
+Init:
+  best = getAgentIndex() * 3 % 4;
+scan():
+  pre(m == -1);
+  eff:
+    i = 0;
+    while i < getNumAgents():
+      if best[i] > m:
+        m = best[i];
+      i = i + 1;
+    i = 1;
+    while i < 3:
+      skip;
+      i = i + 1;
+    exit();
+invariant:
+  forall j: exited[j] -> m[j] == 3;
+"""
+
+
+def test_bounded_for_is_a_while_loop():
+    assert parse_koord(FOR_KOORD) == parse_program(FOR_PCCL)
+
+
+def test_bounded_for_explores_as_its_twin(tmp_path):
+    p = tmp_path / "scan.koord"
+    p.write_text(FOR_KOORD)
+    a = explore(str(p), agents=3)
+    b = explore(FOR_PCCL, source=True, agents=3)
+    assert a.status == b.status == "exhaustive"
+    assert (a.stats.states, a.stats.transitions) == (b.stats.states, b.stats.transitions)
+
+
 def test_allread_arrays_drop_the_robot_dimension():
     p = parse_koord(KOORD_ALL, "all.koord")
     decls = {d.name: d for d in p.decls}
@@ -414,8 +474,12 @@ BAD = [
      "  eff:\n    stop\n", 6, 8, "Motion.target is one of the actuators: it is assigned, not read"),
     ("using Camera:\n  sensors:\n    pos x\n", 1, 7, "unknown module 'Camera'"),
     ("def fun f():\n  x = 1\n", 1, 1, "'def' (functions and record types) is not supported yet"),
-    ("local:\n  int x = 0\nev:\n  pre: true\n  eff:\n    for i = 0, 3:\n      x = x + 1\n",
-     6, 5, "'for' loops are not supported yet"),
+    ("local:\n  int i = 0\nev:\n  pre: true\n  eff:\n    for i = 0, 3:\n      i = i + 1\n",
+     6, 5, "write a bounded loop as 'for i in range(a, b):'"),
+    ("local:\n  int i = 0\nev:\n  pre: true\n  eff:\n    for i in [1, 2]:\n      skip\n",
+     6, 14, "'for' iterates over 'range(b)' or 'range(a, b)' only"),
+    ("local:\n  int x = 0\nev:\n  pre: true\n  eff:\n    for k in range(3):\n      x = k\n",
+     6, 9, "undeclared variable 'k'"),
     ("local:\n  stream s\n", 2, 3, "type 'stream' is not supported yet"),
     ("local:\n  Task t\n", 2, 3, "unknown type 'Task'"),
     ("local:\n  int x = 0\nev:\n  pre: x = 1\n  eff:\n    stop\n", 4, 10, "did you mean '=='?"),
@@ -482,7 +546,7 @@ SEED = 20261207
 JUNK = ["@", "((", ")", ":", ";", "=", "==", "[", "]", '"', "/*", "#", "\t", "atomic:",
         "eff:", "pre:", "pid", "numAgents", "stop", "Motion.", "Motion.target =", "<<", "0",
         "-1", "99999999999999999999", "1.5e308", "true", "pos(", "x[pid] =", "using Motion:",
-        "allread:", "local:", "init:", "def", "for", "and", "not", "é", "\\", "{", "}", "[]"]
+        "allread:", "local:", "init:", "def", "for", "for i in range(2):", "and", "not", "é", "\\", "{", "}", "[]"]
 
 
 def _mutate(text, rng):

@@ -20,7 +20,8 @@ PCCL meaning; in short:
   ``init:`` the Init block; ``atomic:``, ``if``/``elif``/``else`` as in
   PCCL; ``and``/``or``/``not`` spell ``&&``/``||``/``!``.
 
-``def`` (functions and records), ``for`` and ``Motion.path`` are refused
+``for i in range(a, b):`` is ``i = a`` and a ``while`` loop.
+``def`` (functions and records) and ``Motion.path`` are refused
 with a "not supported yet" message at their place.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
@@ -63,8 +64,6 @@ def is_koord_path(path) -> bool:
 _UNSUPPORTED_TOKENS = {
     "def": "'def' (functions and record types) is not supported yet by pccl's Koord front end "
            "(docs/koord.md)",
-    "for": "'for' loops are not supported yet by pccl's Koord front end: write the loop "
-           "with an index variable and an event (docs/koord.md)",
 }
 
 
@@ -254,6 +253,30 @@ class _ToAst(P._ToAst):
                           target.span)
         # A log line changes nothing pccl models: it is a skip (docs/koord.md).
         return ast.Skip(_NO_SID, _mspan(meta))
+
+    def block(self, meta, children):
+        out: list = []
+        for c in children:
+            out.extend(c if isinstance(c, list) else (c,))
+        return tuple(out)
+
+    def for_stmt(self, meta, children):
+        """``for i in range(a, b): body`` is ``i = a`` then ``while i < b:
+        body; i = i + 1`` (``range(b)``: from 0); ``i`` a declared int."""
+        kw, var, span, body = children[0], children[1], _mspan(meta), children[-1]
+        if not (isinstance(children[2], Token) and children[2].type == "IN"):
+            # for i = a, b:  (Koord's form, its bounds' inclusiveness unclear)
+            raise _Syntax("write a bounded loop as 'for i in range(a, b):' (i from a to b - 1)",
+                          span)
+        rng = children[3]
+        if not (isinstance(rng, ast.Call) and rng.name == "range" and 1 <= len(rng.args) <= 2):
+            raise _Syntax("'for' iterates over 'range(b)' or 'range(a, b)' only (lists: "
+                          "an index and 'xs[i]')", rng.span)
+        lo, hi = (ast.IntLit(0, rng.span), rng.args[0]) if len(rng.args) == 1 else rng.args
+        i = ast.Name(str(var), _tspan(var))
+        step = ast.Assign(_NO_SID, i, ast.Binary("+", i, ast.IntLit(1, span), span), span)
+        return [ast.Assign(_NO_SID, i, lo, span),
+                ast.While(_NO_SID, ast.Binary("<", i, hi, span), (*body, step), span)]
 
     def elif_clause(self, meta, children):
         return ("elif", children[-2], children[-1])
@@ -491,6 +514,8 @@ class _Resolver:
                 orelse=self.stmts(s.orelse))
         if isinstance(s, ast.Atomic):
             return dataclasses.replace(s, body=self.stmts(s.body))
+        if isinstance(s, ast.While):
+            return dataclasses.replace(s, cond=self.expr(s.cond), body=self.stmts(s.body))
         if isinstance(s, ast.CallStmt):
             return dataclasses.replace(s, args=tuple(self.expr(a) for a in s.args))
         return s
@@ -561,7 +586,7 @@ _NAMES = {
     "PERCENT": "'%'", "USING": "'using'", "SENSORS": "'sensors'", "ACTUATORS": "'actuators'",
     "ALLWRITE": "'allwrite'", "ALLREAD": "'allread'", "LOCAL": "'local'", "INIT": "'init'",
     "PRE": "'pre'", "EFF": "'eff'", "INVARIANT": "'invariant'", "IF": "'if'",
-    "ELIF": "'elif'", "ELSE": "'else'", "ATOMIC": "'atomic'", "STOP": "'stop'",
+    "ELIF": "'elif'", "ELSE": "'else'", "FOR": "'for'", "IN": "'in'", "ATOMIC": "'atomic'", "STOP": "'stop'",
     "SKIP": "'skip'", "TRUE": "'true'", "FALSE": "'false'", "PID": "'pid'",
     "NUMAGENTS": "'numAgents'", "NUMBOTS": "'numBots'", "FORALL": "'forall'",
     "EXISTS": "'exists'", "IDENT": "a name", "INT": "a number", "FLOAT": "a number",
@@ -574,7 +599,7 @@ _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
 _POSTFIX = {"LSQB", "DOT", "LPAR"}
 _EXPR_START = {"IDENT", "INT", "FLOAT", "TRUE", "FALSE", "LPAR", "LSQB", "MINUS", "NOT",
                "BANG", "PID", "NUMAGENTS", "NUMBOTS", "FORALL", "EXISTS"}
-_STMT_START = {"IF", "ATOMIC", "SKIP", "STOP", "IDENT"}
+_STMT_START = {"IF", "ATOMIC", "SKIP", "STOP", "IDENT", "FOR"}
 _TOP = {"USING", "ALLWRITE", "ALLREAD", "LOCAL", "INIT", "INVARIANT"}
 _SECTION_ORDER = ("sections come in the order: using Module:, allwrite:/allread:/local:, "
                   "init:, the events name:, invariant: (each optional)")
