@@ -635,3 +635,19 @@ def test_fuzz_corpus_is_varied():
         except PcclError:
             pass
     assert 0 < ok < 60
+
+
+def test_a_long_operator_chain_is_read_as_pccl_reads_it():
+    """3,000 operators: PCCL reads them (iteratively); so does the Koord
+    front end (its port rewriting does not recurse where there is no port)."""
+    chain = " + ".join(["1"] * 3000)
+    src = f"local:\n  int x = 0\nev:\n  pre: true\n  eff:\n    x = {chain}\n"
+    p = parse_koord(src)
+    twin = parse_program(f"loc:\n  int x = 0;\nev():\n  pre(true);\n  eff:\n    x = {chain};\n")
+    # (== on 3,000 nested dataclasses would itself recurse too deeply: compare walks)
+    def shape(stmt):
+        return [(type(n).__name__, n.value if isinstance(n, ast.IntLit) else None,
+                 getattr(n, "op", None)) for n in ast.walk(stmt)]
+    nodes = shape(p.events[0].body[0])
+    assert len(nodes) == 2 + 2999 + 3000
+    assert nodes == shape(twin.events[0].body[0])

@@ -470,7 +470,13 @@ class _Resolver:
         return (isinstance(e, ast.Field) and isinstance(e.base, ast.Name)
                 and (e.base.name in _PORTS or e.base.name in self.ports))
 
+    def _mentions_module(self, e) -> bool:
+        return any(self._is_port(n) or (isinstance(n, ast.Name) and n.name in _PORTS)
+                   for n in ast.walk(e))
+
     def expr(self, e):
+        if not self._mentions_module(e):
+            return e   # nothing to rewrite (and no recursion over a long operator chain)
         if self._is_port(e):
             module, port = self._port(e, "read")
             if port in ("position", "psn"):
