@@ -60,7 +60,7 @@ allread:
 
 local:
   boolean done = false; int step = 0
-  pos[] points = [pos(1, 2), (3, 4, 5)]
+  pos[] points = [pos(1, 2), (3, 4, 5), pos3d(0, 0, 1)]
   int grid[4] = 0
 
 init:
@@ -112,7 +112,7 @@ allread:
 
 loc:
   bool done = false; int step = 0;
-  List<ItemPosition> points = [ItemPosition(1, 2), ItemPosition(3, 4, 5)];
+  List<ItemPosition> points = [ItemPosition(1, 2), ItemPosition(3, 4, 5), ItemPosition(0, 0, 1)];
   int grid[4] = 0;
 
 Init:

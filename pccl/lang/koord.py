@@ -216,6 +216,10 @@ class _ToAst(P._ToAst):
             if len(args) not in (2, 3):
                 raise _Syntax(f"pos takes 2 or 3 coordinates, not {len(args)}", span)
             return _pos_call(args, span)
+        if name == "pos3d":
+            if len(args) != 3:
+                raise _Syntax(f"pos3d takes 3 coordinates, not {len(args)}", span)
+            return _pos_call(args, span)
         if name == "midpoint":
             if len(args) != 2:
                 raise _Syntax(f"midpoint takes 2 positions, not {len(args)}", span)
@@ -263,7 +267,7 @@ class _ToAst(P._ToAst):
     def for_stmt(self, meta, children):
         """``for i in range(a, b): body`` is ``i = a`` then ``while i < b:
         body; i = i + 1`` (``range(b)``: from 0); ``i`` a declared int."""
-        kw, var, span, body = children[0], children[1], _mspan(meta), children[-1]
+        var, span, body = children[1], _mspan(meta), children[-1]
         if not (isinstance(children[2], Token) and children[2].type == "IN"):
             # for i = a, b:  (Koord's form, its bounds' inclusiveness unclear)
             raise _Syntax("write a bounded loop as 'for i in range(a, b):' (i from a to b - 1)",
