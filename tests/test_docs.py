@@ -60,7 +60,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DOC_FILES = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
 REGEN = os.environ.get("PCCL_REGEN_DOCS", "") not in ("", "0")
 # lua, elisp: editor set-up in docs/editors.md (illustrative, not run)
-LANGUAGES = {"console", "sh", "pccl", "toml", "python", "text", "json", "lua", "elisp"}
+LANGUAGES = {"console", "sh", "pccl", "toml", "python", "text", "json", "lua", "elisp", "koord"}
 TIMEOUT = 60            # seconds per command (a command should take < ~5 s)
 
 WILDCARD = "..."

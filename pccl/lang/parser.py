@@ -958,6 +958,13 @@ def _parse_program(source: str, filename: str) -> ast.Program:
 
 def parse_file(path) -> ast.Program:
     """Read a UTF-8 file and parse it as a program (the file name is ``str(path)``)."""
+    return read_and_parse(path, parse_program)
+
+
+def read_and_parse(path, parse) -> ast.Program:
+    """Read the UTF-8 file ``path`` and return ``parse(source, filename)``
+    (the file name is ``str(path)``); a file that cannot be read, or is not
+    UTF-8, is a :class:`PcclError`.  The one reader of every front end."""
     filename = os.fspath(path)
     if isinstance(filename, bytes):
         filename = os.fsdecode(filename)
@@ -974,7 +981,7 @@ def parse_file(path) -> ast.Program:
         raise PcclError(f"cannot read '{filename}': not valid UTF-8 "
                         f"(byte 0x{data[e.start]:02x} at offset {e.start})",
                         filename=filename, line=line) from None
-    return parse_program(source, filename)
+    return parse(source, filename)
 
 
 def parse_property(source: str, filename: str = "<property>") -> ast.Expr:

@@ -26,6 +26,10 @@ def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = 
         return program
     if source:
         return parse_program(str(program), "<input>")
+    from pccl.lang.koord import is_koord_path, parse_koord_file
+    if is_koord_path(program):
+        # a Koord program (.koord, .krd): the same AST, docs/koord.md
+        return parse_koord_file(os.fspath(program))
     return parse_file(os.fspath(program))
 
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from pccl.lang.errors import PcclError
+from pccl.lang.koord import is_koord_path
 from pccl.lang.parser import parse_program
 
 __all__ = ["format_source", "FormatterBug", "tokenize", "Tok"]
@@ -159,6 +160,9 @@ def _join(toks: list[Tok], in_decls: bool) -> str:
 def format_source(source: str, filename: str = "<input>") -> str:
     """The canonical layout of ``source`` (a program that parses; a syntax
     error is raised as :class:`pccl.lang.errors.PcclError`)."""
+    if is_koord_path(filename):
+        raise PcclError("pccl fmt formats PCCL programs: Koord files (.koord, .krd) are not "
+                        "formatted yet (docs/koord.md)", filename=filename)
     original = parse_program(source, filename)
     out = _layout(source)
     try:
