@@ -200,17 +200,23 @@ def test_a_forged_spill_level_file_runs_no_code(tmp_path):
     lf = S.LevelFile(d, "level")
     lf.write([(1, ..., 2.5), (2, None, -1.0)], 7)
     lf.write([b"ab", b"cd"], [3, 9])
+    lf.write([(2 ** 70, ...)], 11)          # past 64 bits: the JSON record
+    many = [(i, (i * 0.5, None)) for i in range(2 * S.LevelFile.CHUNK + 5)]
+    lf.write(many, 12)                      # three records
     lf.f.flush()
-    got = [(list(sts), list(nums)) for sts, nums in lf.segments()]
-    assert got == [([(1, ..., 2.5), (2, None, -1.0)], [7, 8]), ([b"ab", b"cd"], [3, 9])]
-    lf = S.LevelFile(d, "level2")
-    lf.write([(1,)], 0)
-    lf.f.close()
-    blob = pickle.dumps((0, [_Plant(str(marker))]))
-    with open(lf.path, "wb") as f:
-        f.write(len(blob).to_bytes(8, "little") + blob)
-    lf.f = open(lf.path, "ab")
-    with pytest.raises(S.SpillError, match="not a level file this search wrote"):
-        list(lf.segments())
+    got = [(st, n) for sts, nums in lf.segments() for st, n in zip(sts, nums)]
+    assert got == [((1, ..., 2.5), 7), ((2, None, -1.0), 8), (b"ab", 3), (b"cd", 9),
+                   ((2 ** 70, ...), 11)] + [(st, 12 + i) for i, st in enumerate(many)]
+    assert got[0][0][1] is Ellipsis
+    for i, kind in enumerate((b"M", b"J", b"")):        # a record of each kind; no kind
+        lf = S.LevelFile(d, f"level{i + 2}")
+        lf.write([(1,)], 0)
+        lf.f.close()
+        blob = pickle.dumps((0, [_Plant(str(marker))]))
+        with open(lf.path, "wb") as f:
+            f.write(kind + len(blob).to_bytes(8, "little") + blob)
+        lf.f = open(lf.path, "ab")
+        with pytest.raises(S.SpillError, match="not a level file this search wrote"):
+            list(lf.segments())
     assert not marker.exists()
     d.close()
