@@ -6,7 +6,8 @@ A checkpoint is taken at a breadth-first level boundary: the visited table
 time-lock, stall and temporal checks record (numpy arrays), and the rest as
 data (``state.json``: JSON of a closed set of types, :mod:`pccl.search.safedata`,
 each field checked on reading: :func:`check_state`; no pickle, so a checkpoint
-from elsewhere runs no code): the level about to be expanded (its states), the statistics, the
+from elsewhere runs no code): the level about to be expanded (its states, in
+``level.msgpack``: :func:`_write_level`), the statistics, the
 violations found so far, the bounds met, the labels of the transitions taken
 (the never-fired events), the runaway detector and the model's lazily
 interned tables (so that a resumed search numbers k cells, hence
