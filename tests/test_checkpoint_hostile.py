@@ -106,6 +106,18 @@ def test_a_pickle_named_state_json_is_refused(tmp_path):
     assert "the checkpoint is corrupt" in p.stderr
 
 
+def _whole_state(d: str, man: dict, gen: str) -> dict:
+    """The generation's state with its level (read from level.msgpack), and
+    the level file dropped: the forged state.json below holds it all (as a
+    checkpoint may: the reader takes a level from either, not both)."""
+    files = {k: v for k, v in man["files"].items() if k in (C.STATE, C.LEVEL)}
+    state, _ = C.read_part(gen, files)
+    if C.LEVEL in man["files"]:
+        os.unlink(os.path.join(gen, C.LEVEL))
+        del man["files"][C.LEVEL]
+    return state
+
+
 def _forged(state: dict, field: str):
     s = dict(state)
     if field == "unknown-field":
@@ -141,7 +153,7 @@ def _forged(state: dict, field: str):
                                    "msgpack-map"])
 def test_a_forged_state_is_refused_with_one_message(tmp_path, field):
     d, man, gen = _checkpoint(tmp_path)
-    state = safedata.loads(open(os.path.join(gen, C.STATE), "rb").read())
+    state = _whole_state(d, man, gen)
     _put(d, man, gen, C.STATE, json.dumps(_forged(state, field)).encode())
     p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d)
     assert p.returncode == 2, p.stderr
@@ -154,13 +166,34 @@ def test_a_well_formed_state_written_back_resumes(tmp_path):
     """The encoding round-trips a real checkpoint: read, written again with
     its digest fixed, it resumes to the uninterrupted result."""
     d, man, gen = _checkpoint(tmp_path)
-    state = safedata.loads(open(os.path.join(gen, C.STATE), "rb").read())
+    state = _whole_state(d, man, gen)
     C.check_state(state, "state")
     _put(d, man, gen, C.STATE, json.dumps(safedata.encode(C._marked_states(state))).encode())
     full = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"})
     r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=d)
     assert (r.status, r.stats.states, r.stats.transitions) == \
         (full.status, full.stats.states, full.stats.transitions)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("damage", ["record-kind", "order", "digest"])
+def test_a_forged_level_file_is_refused(tmp_path, damage):
+    d, man, gen = _checkpoint(tmp_path)
+    p = os.path.join(gen, C.LEVEL)
+    data = bytearray(open(p, "rb").read())
+    if damage == "record-kind":
+        data[0:1] = b"P"
+    elif damage == "order":         # a record claiming to start elsewhere
+        blob = safedata.pack_segment(5, [(1, 2)])
+        data = bytearray(b"M" + len(blob).to_bytes(8, "little") + blob) + data
+    if damage != "digest":
+        _put(d, man, gen, C.LEVEL, bytes(data))
+    else:
+        man["files"][C.LEVEL]["xxh3"] = "0" * 32
+        json.dump(man, open(os.path.join(d, C.MANIFEST), "w"))
+    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d)
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "the checkpoint is corrupt" in p.stderr
 
 
 def test_data_round_trip_of_every_type():
@@ -200,17 +233,23 @@ def test_a_forged_spill_level_file_runs_no_code(tmp_path):
     lf = S.LevelFile(d, "level")
     lf.write([(1, ..., 2.5), (2, None, -1.0)], 7)
     lf.write([b"ab", b"cd"], [3, 9])
+    lf.write([(2 ** 70, ...)], 11)          # past 64 bits: the JSON record
+    many = [(i, (i * 0.5, None)) for i in range(2 * S.LevelFile.CHUNK + 5)]
+    lf.write(many, 12)                      # three records
     lf.f.flush()
-    got = [(list(sts), list(nums)) for sts, nums in lf.segments()]
-    assert got == [([(1, ..., 2.5), (2, None, -1.0)], [7, 8]), ([b"ab", b"cd"], [3, 9])]
-    lf = S.LevelFile(d, "level2")
-    lf.write([(1,)], 0)
-    lf.f.close()
-    blob = pickle.dumps((0, [_Plant(str(marker))]))
-    with open(lf.path, "wb") as f:
-        f.write(len(blob).to_bytes(8, "little") + blob)
-    lf.f = open(lf.path, "ab")
-    with pytest.raises(S.SpillError, match="not a level file this search wrote"):
-        list(lf.segments())
+    got = [(st, n) for sts, nums in lf.segments() for st, n in zip(sts, nums)]
+    assert got == [((1, ..., 2.5), 7), ((2, None, -1.0), 8), (b"ab", 3), (b"cd", 9),
+                   ((2 ** 70, ...), 11)] + [(st, 12 + i) for i, st in enumerate(many)]
+    assert got[0][0][1] is Ellipsis
+    for i, kind in enumerate((b"M", b"J", b"")):        # a record of each kind; no kind
+        lf = S.LevelFile(d, f"level{i + 2}")
+        lf.write([(1,)], 0)
+        lf.f.close()
+        blob = pickle.dumps((0, [_Plant(str(marker))]))
+        with open(lf.path, "wb") as f:
+            f.write(kind + len(blob).to_bytes(8, "little") + blob)
+        lf.f = open(lf.path, "ab")
+        with pytest.raises(S.SpillError, match="not a level file this search wrote"):
+            list(lf.segments())
     assert not marker.exists()
     d.close()

@@ -155,6 +155,11 @@ def test_requests_are_answered_while_a_long_document_is_checked(raw, tmp_path):
         "contentChanges": [{"text": big_text + "    x = nosuch + 1;\n"}]}})
     r = _symbols(raw, 4, small, timeout=30)
     assert r["result"]
+    # a request about the long document itself is answered from what is known
+    # (nothing yet, or the first text's symbols) and does not cancel its check
+    t0 = time.monotonic()
+    r = _symbols(raw, 5, big, timeout=30)
+    assert "result" in r and time.monotonic() - t0 < 5.0
     diag = raw.wait(lambda m: m.get("method") == "textDocument/publishDiagnostics"
                     and m["params"]["uri"] == big, timeout=300)
     assert diag["params"].get("version") == 2

@@ -6,7 +6,8 @@ A checkpoint is taken at a breadth-first level boundary: the visited table
 time-lock, stall and temporal checks record (numpy arrays), and the rest as
 data (``state.json``: JSON of a closed set of types, :mod:`pccl.search.safedata`,
 each field checked on reading: :func:`check_state`; no pickle, so a checkpoint
-from elsewhere runs no code): the level about to be expanded (its states), the statistics, the
+from elsewhere runs no code): the level about to be expanded (its states, in
+``level.msgpack``: :func:`_write_level`), the statistics, the
 violations found so far, the bounds met, the labels of the transitions taken
 (the never-fired events), the runaway detector and the model's lazily
 interned tables (so that a resumed search numbers k cells, hence
@@ -607,6 +608,9 @@ def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
         files[pre + fname] = {"bytes": size, "xxh3": _array_digest(arr)}
     if state is None:           # arrays only (an appended array's new rows)
         return files
+    if isinstance(state.get("level"), list):    # the bulk: its own file, a record at a time
+        files[pre + LEVEL] = _write_level(os.path.join(where, LEVEL), state["level"])
+        state = {k: v for k, v in state.items() if k != "level"}
     blob = safedata.dumps(_marked_states(state))
     with open(os.path.join(where, STATE), "wb") as f:
         f.write(blob)
@@ -616,6 +620,70 @@ def write_part(tmp: str, prefix: str, state, arrays: dict) -> dict:
     if prefix:
         _fsync_dir(where)
     return files
+
+
+#: the file of a generation (or partition) holding the level's states
+LEVEL = "level.msgpack"
+#: states a record of :data:`LEVEL` holds at most
+LEVEL_CHUNK = 4096
+
+
+def _write_level(path: str, level: list) -> dict:
+    """The level's states into ``path`` as records (a kind byte, ``M``
+    MessagePack or ``J`` JSON for an integer past 64 bits, an 8-byte length,
+    :func:`safedata.pack_segment` of ``(first index, states)``), written and
+    digested a record at a time: no copy of the whole level; its
+    ``{"bytes", "xxh3"}``."""
+    h = xxhash.xxh3_128()
+    size = 0
+    with open(path, "wb") as f:
+        for a in range(0, len(level), LEVEL_CHUNK):
+            part = level[a:a + LEVEL_CHUNK]
+            try:
+                kind, blob = b"M", safedata.pack_segment(a, part)
+            except (TypeError, OverflowError, ValueError):
+                kind, blob = b"J", safedata.dumps((a, part))
+            rec = kind + len(blob).to_bytes(8, "little") + blob
+            f.write(rec)
+            h.update(rec)
+            size += len(rec)
+            del blob, rec
+        f.flush()
+        os.fsync(f.fileno())
+    return {"bytes": size, "xxh3": h.hexdigest()}
+
+
+def _read_level(path: str, info: dict, what: str) -> list:
+    """The states :func:`_write_level` wrote, checked against ``info``'s
+    digest; ValueError when they are not."""
+    h = xxhash.xxh3_128()
+    level: list = []
+    with open(path, "rb") as f:
+        while True:
+            head = f.read(9)
+            if not head:
+                break
+            if len(head) != 9 or head[:1] not in (b"M", b"J"):
+                raise ValueError(f"{what}: not a record")
+            blob = f.read(int.from_bytes(head[1:], "little"))
+            if len(blob) != int.from_bytes(head[1:], "little"):
+                raise ValueError(f"{what}: truncated")
+            h.update(head)
+            h.update(blob)
+            if head[:1] == b"M":
+                first, states = safedata.unpack_segment(blob)
+            else:
+                seg = safedata.loads(blob)
+                if type(seg) is not tuple or len(seg) != 2 or type(seg[1]) is not list:
+                    raise ValueError(f"{what}: not a record")
+                first, states = seg
+            if first != len(level) or not all(type(x) is tuple or type(x) is bytes
+                                               for x in states):
+                raise ValueError(f"{what}: the records do not follow one another")
+            level.extend(states)
+    if h.hexdigest() != info["xxh3"]:
+        raise ValueError(f"{what} does not match its digest")
+    return level
 
 
 def _marked_states(state: dict) -> dict:
@@ -638,6 +706,7 @@ def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
     its size and digest; ValueError saying what is wrong."""
     arrays: dict = {}
     state: Any = None
+    level: Optional[list] = None
     label = f"{gen}/" if gen else ""
     try:
         for fname, info in files.items():
@@ -653,7 +722,8 @@ def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
                     raise ValueError(f"{label}{fname} does not match its digest")
                 state = safedata.loads(data)        # data only: no code runs
                 del data
-                check_state(state, f"{label}{fname}")
+            elif fname == LEVEL:
+                level = _read_level(p, info, f"{label}{fname}")
             elif not fname.endswith(".npy") or "\\" in fname or fname.startswith("/") \
                     or any(part not in ("..",) and not re.fullmatch(r"[\w.-]+", part)
                            for part in fname.split("/")):
@@ -666,6 +736,11 @@ def read_part(gdir: str, files: dict, gen: str = "") -> tuple[Any, dict]:
                 arrays[fname[:-4]] = arr
         if not isinstance(state, dict) or "depth" not in state:
             raise ValueError(f"{label}{STATE} holds no search state")
+        if level is not None:
+            if "level" in state:
+                raise ValueError(f"{label}{STATE} holds a level besides {LEVEL}")
+            state["level"] = level
+        check_state(state, f"{label}{STATE}")
     except ValueError:
         raise
     except Exception as e:

@@ -49,7 +49,7 @@ import msgpack
 import numpy as np
 
 __all__ = ["DataError", "States", "dumps", "loads", "encode", "decode", "pack_states",
-           "unpack_states"]
+           "unpack_states", "pack_segment", "unpack_segment"]
 
 
 class DataError(ValueError):
@@ -89,6 +89,32 @@ def pack_states(states: list) -> bytes:
     """A list of states as MessagePack; TypeError or OverflowError when it
     cannot be (a value of another type, an integer past 64 bits)."""
     return msgpack.packb(states, default=_mp_default, use_bin_type=True)
+
+
+def pack_segment(first, states: list) -> bytes:
+    """``(first number or numbers, states)`` as one MessagePack value (a
+    spilled level's record); TypeError or OverflowError as
+    :func:`pack_states`."""
+    return msgpack.packb((first, states), default=_mp_default, use_bin_type=True)
+
+
+def unpack_segment(data: bytes) -> tuple:
+    """The ``(first, states)`` :func:`pack_segment` wrote (``first`` an int
+    or a list of ints, ``states`` a list of states); DataError for anything
+    else."""
+    try:
+        out = msgpack.unpackb(data, use_list=False, raw=False, ext_hook=_mp_ext,
+                              object_pairs_hook=_mp_map, strict_map_key=True)
+    except DataError:
+        raise
+    except Exception as e:          # noqa: BLE001 - malformed: msgpack's own errors
+        raise DataError(f"a segment: {type(e).__name__}") from None
+    if type(out) is not tuple or len(out) != 2 or type(out[1]) is not tuple:
+        raise DataError("not a segment")
+    first, states = out
+    if type(first) is tuple:
+        first = list(first)
+    return first, list(states)
 
 
 def unpack_states(data: bytes) -> list:

@@ -24,8 +24,10 @@ goes on, the way TLC's disk-based fingerprint set and disk queue do:
   in admission order, to the level's file and read back a segment at a
   time when the level is expanded.  A segment is data, not a pickle (the
   spill directory is a path anyone with access to it could write to):
-  its length (8 bytes) and :func:`pccl.search.safedata.dumps` of its first
-  state number (or numbers) and its states, checked when read back.
+  records of at most 2,048 states, each a kind byte, its length (8 bytes)
+  and MessagePack of its first state number (or numbers) and its states
+  (:func:`pccl.search.safedata.pack_segment`; JSON for an integer past 64
+  bits), checked when read back.
 
 When to spill (:class:`Spiller`): after every admitted batch, when the
 buffer holds :attr:`Spiller.table_limit` states (a quarter of
@@ -480,17 +482,23 @@ class SpillTable:
 
 
 def _segment(head: bytes, f, path: str) -> tuple:
-    """A level file's segment (after its 8-byte length ``head``), checked:
-    ``(first number or numbers, states)``; a SpillError when it is not one."""
+    """A level file's record (after its ``head``: a kind, ``M`` MessagePack
+    or ``J`` JSON, and an 8-byte length), checked: ``(first number or
+    numbers, states)``; a SpillError when it is not one."""
     try:
-        size = int.from_bytes(head, "little")
-        blob = f.read(size) if len(head) == 8 else b""
+        if len(head) != 9 or head[:1] not in (b"M", b"J"):
+            raise safedata.DataError("not a record")
+        size = int.from_bytes(head[1:], "little")
+        blob = f.read(size)
         if len(blob) != size or not blob:
             raise safedata.DataError("truncated")
-        seg = safedata.loads(blob)
-        if type(seg) is not tuple or len(seg) != 2 or type(seg[1]) is not list:
-            raise safedata.DataError("not a segment")
-        first, states = seg
+        if head[:1] == b"M":
+            first, states = safedata.unpack_segment(blob)
+        else:
+            seg = safedata.loads(blob)
+            if type(seg) is not tuple or len(seg) != 2 or type(seg[1]) is not list:
+                raise safedata.DataError("not a segment")
+            first, states = seg
         if type(first) is list:
             if len(first) != len(states) or not all(type(i) is int and i >= 0 for i in first):
                 raise safedata.DataError("its state numbers do not fit")
@@ -506,7 +514,13 @@ def _segment(head: bytes, f, path: str) -> tuple:
 class LevelFile:
     """One BFS level's states on disk, in admission order: segments of
     ``(first state number, states)`` written by :meth:`write` and read
-    back, a segment at a time, by :meth:`segments` (which deletes the file)."""
+    back, a segment at a time, by :meth:`segments` (which deletes the file).
+    On disk a segment is records of at most :attr:`CHUNK` states (a kind
+    byte, an 8-byte length, MessagePack: :func:`safedata.pack_segment`), so
+    neither writing nor reading holds more than a record's bytes at once."""
+
+    #: states a record holds at most
+    CHUNK = 2048
 
     def __init__(self, directory: SpillDir, name: str):
         self.dir = directory
@@ -522,10 +536,17 @@ class LevelFile:
         try:
             if self.f is None:
                 self.f = open(self.path, "wb")
-            blob = safedata.dumps((first if isinstance(first, int) else list(first),
-                                   safedata.States(states)))
-            self.f.write(len(blob).to_bytes(8, "little"))
-            self.f.write(blob)
+            ints = isinstance(first, int)
+            for a in range(0, len(states), self.CHUNK):     # records of CHUNK states
+                part = states[a:a + self.CHUNK]
+                head = first + a if ints else [int(i) for i in first[a:a + self.CHUNK]]
+                try:
+                    kind, blob = b"M", safedata.pack_segment(head, part)
+                except (TypeError, OverflowError, ValueError):      # an int past 64 bits
+                    kind, blob = b"J", safedata.dumps((head, part))
+                self.f.write(kind + len(blob).to_bytes(8, "little"))
+                self.f.write(blob)
+                del blob
         except OSError as e:
             raise self.dir.fail(e) from None
         self.count += len(states)
@@ -543,7 +564,7 @@ class LevelFile:
         try:
             with f:
                 while True:
-                    head = f.read(8)
+                    head = f.read(9)
                     if not head:
                         break
                     first, states = _segment(head, f, self.path)

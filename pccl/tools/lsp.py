@@ -450,7 +450,10 @@ class _Checker:
         self.thread = threading.Thread(target=self._run, name="pccl-check", daemon=True)
         self.thread.start()
 
-    def request(self, uri: str) -> None:
+    def request(self, uri: str, changed: bool = True) -> None:
+        """Queue a check of ``uri``; ``changed``: its text changed (the check
+        under way is superseded), else (a request found its analysis
+        stale) nothing is done when one is queued or under way."""
         import asyncio
         import time
         try:
@@ -458,9 +461,13 @@ class _Checker:
         except RuntimeError:
             pass
         with self.cv:
+            running = self.running
+            busy = running is not None and running[0] == uri
+            if not changed and (busy or uri in self.queued):
+                return
             self.queued[uri] = time.monotonic()
-            if self.running is not None and self.running[0] == uri:
-                self.running[1].set()           # superseded: give up the check under way
+            if running is not None and busy and changed:
+                running[1].set()                # superseded: give up the check under way
             self.cv.notify()
 
     def _run(self) -> None:
@@ -523,17 +530,17 @@ class _Session:
         self.server.text_document_publish_diagnostics(
             T.PublishDiagnosticsParams(uri=uri, diagnostics=diagnostics, version=version))
 
-    def refresh(self, uri: str) -> None:
+    def refresh(self, uri: str, changed: bool = True) -> None:
         """Analyse a program and publish its diagnostics (and its world
         file's): at once for a short document, in the background thread for
-        a long one (:class:`_Checker`)."""
+        a long one (:class:`_Checker`; ``changed``: the text changed)."""
         path = uri_to_path(uri)
         if path.endswith(".toml"):
             self.refresh_world(uri, path)
             return
         source = self.doc_text(uri)
         if source is not None and source.count("\n") > SYNC_LINES:
-            self.checker.request(uri)
+            self.checker.request(uri, changed)
         else:
             self.refresh_program(uri, path)
 
@@ -626,7 +633,7 @@ class _Session:
         and definitions stay right away from the edit)."""
         an = self.analyses.get(uri)
         if an is None or an.source != self.doc_text(uri):
-            self.refresh(uri)
+            self.refresh(uri, changed=False)
             an = self.analyses.get(uri)
         return an
 
