@@ -127,7 +127,7 @@ class Capabilities:
     exploring every travel time: a run in which a robot whose doReach is
     under way stays under way for ever is not one of its runs.  Liveness
     checks then drop such cycles (fair arrival: docs/temporal.md;
-    pccl.search.liveness.blackbox_arrival_is_fair).  A blackbox whose robots
+    pccl.model.engine.blackbox_arrival_is_fair).  A blackbox whose robots
     may really move for ever must not declare it."""
     robots_alike: bool = False
     settled_robots_hold_still: bool = False

@@ -52,7 +52,7 @@ def test_no_import_cycles():
 
 #: modules that know nothing of PCCL: the search and its bookkeeping
 GENERIC = {"pccl.search.explorer", "pccl.search.parallel", "pccl.search.fingerprint", "pccl.search.memory",
-           "pccl.search.spill"}
+           "pccl.search.spill", "pccl.search.safedata"}
 #: the front end: source text to a checked AST
 FRONT = {"pccl.lang.ast", "pccl.lang.parser", "pccl.lang.koord", "pccl.lang.checker", "pccl.lang.types",
          "pccl.lang.errors",

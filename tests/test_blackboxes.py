@@ -506,7 +506,7 @@ def test_fair_arrival_is_a_declared_capability_not_a_name():
     # robot 0 stays under way for ever are counterexamples
     from pccl.api import explore
     from pccl.blackboxes.nondet import Nondet
-    from pccl.search.liveness import blackbox_arrival_is_fair
+    from pccl.model.engine import blackbox_arrival_is_fair
 
     class Mine(Nondet):
         pass

@@ -54,6 +54,16 @@ from pccl.semantics import rules as R
 __all__ = ["Model", "Property", "TemporalProperty", "Violation", "compile_successors"]
 
 
+def blackbox_arrival_is_fair(bb) -> bool:
+    """Whether liveness may assume that a robot under way settles (arrives
+    or fails) eventually under blackbox ``bb``: the capability
+    ``arrival_is_fair`` it declares itself (``nondet``, ``nondet-fail``;
+    pccl.blackboxes.base.Capabilities), never its name: a user blackbox
+    called ``nondet`` whose robots may move for ever gets no fairness."""
+    from pccl.blackboxes.base import declared_capabilities
+    return declared_capabilities(bb).arrival_is_fair
+
+
 class Model(metaclass=ABCMeta):
     """A PCCL program, its world and its blackbox, as a transition system:
     what the explorer sees (:meth:`init_states`, :meth:`successors`,
@@ -154,6 +164,8 @@ class Model(metaclass=ABCMeta):
             world = load_world(str(world))
         self.world = world if world is not None else default_world()
         self.blackbox = load_blackbox_arg(blackbox)
+        #: liveness may assume a robot under way settles eventually (fair arrival)
+        self.arrival_is_fair = blackbox_arrival_is_fair(self.blackbox)
 
     def _set_team(self, n_agents: int, n0: int, rho: list, events: str) -> None:
         """The team: its size, n0, the rate map ρ (one rate per agent) and

@@ -23,6 +23,7 @@ from typing import Any, Optional
 from collections.abc import Callable, Iterable, Iterator
 
 from pccl.lang import ast as A
+from pccl.search import safedata
 from pccl.lang.errors import PcclError
 from pccl.model.layout import AGS, CNT, EXITED, LQ, PC, POS, RUNNING, SH, STATUS, STUCK, acquire_sid, is_acquire
 from pccl.lang.parser import parse_property
@@ -42,6 +43,32 @@ class Violation:
         """Distinct violations for ``--all``: property and source location."""
         loc = (self.span.line, self.span.column) if self.span else None
         return (self.kind, self.name, loc)
+
+
+def _span_of(fields: tuple) -> A.Span:
+    if len(fields) != 4 or any(type(f) is not int for f in fields):
+        raise safedata.DataError("a source span: expected four integers")
+    return A.Span(*fields)
+
+
+def _violation_of(fields: tuple) -> "Violation":
+    if len(fields) != 5:
+        raise safedata.DataError("a violation: expected five fields")
+    kind, name, message, agent, span = fields
+    if not all(type(f) is str for f in (kind, name, message)):
+        raise safedata.DataError("a violation: kind, name and message are strings")
+    if agent is not None and type(agent) is not int:
+        raise safedata.DataError("a violation's agent: expected an integer")
+    if span is not None and type(span) is not A.Span:
+        raise safedata.DataError("a violation's span: expected a source span")
+    return Violation(kind, name, message, agent, span)
+
+
+# checkpoints hold violations found (pccl/search/safedata.py: data, never a pickle)
+safedata.register_record("p", A.Span, lambda s: (s.line, s.column, s.end_line, s.end_column),
+                         _span_of)
+safedata.register_record("v", Violation, lambda v: (v.kind, v.name, v.message, v.agent, v.span),
+                         _violation_of)
 
 
 @dataclass

@@ -781,8 +781,7 @@ def _is_state(x) -> bool:
 
 
 def _found(x) -> bool:
-    from pccl.model.properties import Violation
-    return type(x) is tuple and len(x) == 3 and type(x[0]) is Violation \
+    return type(x) is tuple and len(x) == 3 and type(x[0]) is safedata.record_class("v") \
         and _nat(x[1]) and _nat(x[2])
 
 

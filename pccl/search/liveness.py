@@ -730,16 +730,6 @@ class LivenessResult:
     notes: list = field(default_factory=list)        # what could not be decided, and why
 
 
-def blackbox_arrival_is_fair(bb) -> bool:
-    """Whether liveness may assume that a robot under way settles (arrives
-    or fails) eventually under blackbox ``bb``: the capability
-    ``arrival_is_fair`` it declares itself (``nondet``, ``nondet-fail``;
-    pccl.blackboxes.base.Capabilities), never its name: a user blackbox
-    called ``nondet`` whose robots may move for ever gets no fairness."""
-    from pccl.blackboxes.base import declared_capabilities
-    return declared_capabilities(bb).arrival_is_fair
-
-
 def wants_graph(model, timelock: bool, stall: bool = False) -> bool:
     return timelock or stall or bool(getattr(model, "temporal", ()))
 
@@ -748,7 +738,9 @@ def make_recorder(model, timelock: bool, stall: bool = False) -> Optional[GraphR
     if not wants_graph(model, timelock, stall):
         return None
     props = list(model.temporal)
-    fair = blackbox_arrival_is_fair(model.blackbox) and any(p.liveness for p in props)
+    # fair arrival (a robot under way settles eventually) only where the model
+    # says its blackbox declares it (pccl.model.engine.blackbox_arrival_is_fair)
+    fair = bool(getattr(model, "arrival_is_fair", False)) and any(p.liveness for p in props)
     return GraphRecorder(model, props, fairness=fair, stall=stall)
 
 

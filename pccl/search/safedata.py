@@ -18,8 +18,9 @@ bytes                ``{"b": "<base64>"}``
 Ellipsis (UNDEF)     ``{"e": 0}``
 numpy array          ``{"n": [dtype, shape, "<base64>"]}`` (booleans,
                      integers, floats only)
-Violation, Span      ``{"v": [kind, name, message, agent, span]}``,
-                     ``{"p": [line, column, end_line, end_column]}``
+a record            ``{tag: [fields]}``: a type a higher layer
+                     registers (:func:`register_record`: a violation
+                     ``"v"``, a source span ``"p"``)
 States (a list)      ``{"m": "<base64 of MessagePack>"}`` (below)
 ===================  ===========================================
 
@@ -43,7 +44,8 @@ from __future__ import annotations
 import base64
 import binascii
 import json
-from typing import Any
+from collections.abc import Callable
+from typing import Any, Optional
 
 import msgpack
 import numpy as np
@@ -169,13 +171,41 @@ def _encode_rest(x: Any, t: type) -> Any:
         return {"n": [a.dtype.str, list(a.shape), base64.b64encode(a.tobytes()).decode("ascii")]}
     if isinstance(x, np.generic) and x.dtype.kind in _KINDS:
         return x.item()
-    from pccl.lang.ast import Span
-    from pccl.model.properties import Violation
-    if t is Span:
-        return {"p": [x.line, x.column, x.end_line, x.end_column]}
-    if t is Violation:
-        return {"v": [x.kind, x.name, x.message, x.agent, encode(x.span)]}
+    rec = _RECORD_TAGS.get(t)
+    if rec is not None:
+        tag, to_fields = rec
+        return {tag: [encode(f) for f in to_fields(x)]}
     raise TypeError(f"{t.__name__} is not checkpoint data")
+
+
+#: Records of the model's own types (a violation, a source span): the layer
+#: that owns each registers it (:func:`register_record`, pccl/model/properties.py),
+#: so this module, in the search layer, knows none of them.  tag -> (class,
+#: reader of the decoded fields); class -> (tag, fields of an object).
+_RECORDS: dict = {}
+_RECORD_TAGS: dict = {}
+
+
+def register_record(tag: str, cls: type, to_fields: Callable[[Any], tuple],
+                    from_fields: Callable[[tuple], Any]) -> None:
+    """Let objects of class ``cls`` be data, written as ``{tag: [fields]}``:
+    ``to_fields(x)`` gives the fields (values this module can write, records
+    included), ``from_fields(fields)`` builds the object from the decoded
+    fields, raising :class:`DataError` for anything it does not accept."""
+    if tag in _TAGS and tag not in _RECORDS:
+        raise ValueError(f"tag {tag!r} is taken")
+    _RECORDS[tag] = (cls, from_fields)
+    _RECORD_TAGS[cls] = (tag, to_fields)
+
+    def read(v: Any) -> Any:
+        return from_fields(tuple(decode(y) for y in _items(v)))
+    _TAGS[tag] = read
+
+
+def record_class(tag: str) -> Optional[type]:
+    """The class registered under ``tag`` (None if none is)."""
+    rec = _RECORDS.get(tag)
+    return rec[0] if rec is not None else None
 
 
 def _int(x, what: str) -> int:
@@ -197,16 +227,6 @@ def _b64(x) -> bytes:
         raise DataError("bytes: not base64") from None
 
 
-def _span(x):
-    from pccl.lang.ast import Span
-    if x is None:
-        return None
-    if type(x) is not dict or list(x) != ["p"] or type(x["p"]) is not list or len(x["p"]) != 4:
-        raise DataError("a source span: expected four integers")
-    a, b, c, d = (_int(v, "a source span") for v in x["p"])
-    return Span(a, b, c, d)
-
-
 def _array(v) -> np.ndarray:
     if type(v) is not list or len(v) != 3 or type(v[1]) is not list:
         raise DataError("an array: expected [dtype, shape, data]")
@@ -221,17 +241,6 @@ def _array(v) -> np.ndarray:
     if len(raw) != dt.itemsize * int(np.prod(shape, dtype=np.int64)):
         raise DataError("an array: its data and shape do not agree")
     return np.frombuffer(raw, dtype=dt).reshape(shape).copy()
-
-
-def _violation(v):
-    from pccl.model.properties import Violation
-    if type(v) is not list or len(v) != 5:
-        raise DataError("a violation: expected five fields")
-    kind, name, message, agent, span = v
-    if agent is not None:
-        _int(agent, "a violation's agent")
-    return Violation(_str(kind, "a violation's kind"), _str(name, "a violation's name"),
-                     _str(message, "a violation's message"), agent, _span(span))
 
 
 def _items(v) -> list:
@@ -254,9 +263,7 @@ _TAGS = {
     "b": _b64,
     "e": lambda v: Ellipsis,
     "m": lambda v: unpack_states(_b64(v)),
-    "p": lambda v: _span({"p": v}),
     "n": _array,
-    "v": _violation,
     "l": lambda v: [decode(y) for y in _items(v)],
     "s": lambda v: {decode(y) for y in _items(v)},
     "z": lambda v: frozenset(decode(y) for y in _items(v)),

@@ -798,7 +798,7 @@ def _lasso_problem(m, states, labels, cycle_start) -> Optional[str]:
     if not _advances(labels, cycle_start):
         return ("time never advances in the cycle (a zero-time cycle is a "
                 "time-lock, not a liveness counterexample)")
-    from pccl.search.liveness import blackbox_arrival_is_fair
+    from pccl.model.engine import blackbox_arrival_is_fair
     if blackbox_arrival_is_fair(m.blackbox):
         cyc = states[cycle_start:]
         for a in range(m.N):
