@@ -172,7 +172,8 @@ class Nondet:
         and each step pulls the robot back toward its target by a fraction
         k >= reach / (diameter + drift) of its distance, so the drift stays
         below e·(diameter + reach) / (reach − e)."""
-        e = world.resolution * math.sqrt(0.5)
+        # + 1e-9: the engine also rounds each coordinate to 9 decimals
+        e = world.resolution * math.sqrt(0.5) + 1e-9
         reach = world.speed * delta
         if reach <= e:
             return math.inf

@@ -200,7 +200,13 @@ def test_race_safe_stalls_under_nondet():
 def test_race_robust_no_violation_exhaustive(blackbox, agents):
     res = explore(RACE_ROBUST, world=RACE_WORLD, blackbox=blackbox, agents=agents)
     assert res.violations == [], res.verdict
-    assert res.status == "exhaustive" and res.exit_status == 0
+    if blackbox == "nondet":
+        # complete for nondet; its robots start second legs, which nondet
+        # does not follow under pymunk (docs/blackboxes.md)
+        assert res.status == "bounded" and "not exhaustive for pymunk" in res.verdict
+        assert res.exit_status == 0
+    else:
+        assert res.status == "exhaustive" and res.exit_status == 0
 
 
 @pytest.mark.parametrize("agents", [2, 3])

@@ -596,3 +596,42 @@ def test_generated_retargets_native_equals_python(seed, tmp_path):
                             invariants=["failed == 0"])
             got.add((r.verdict, r.stats.states, r.stats.transitions))
         assert len(got) == 1, (reduce, got)
+
+
+def test_straight_stays_within_the_drift_of_its_region():
+    """Nondet.drift bounds how far straight's rounded positions stray from
+    the exact segment (the bound nondet's fail relies on): random legs,
+    shallow and steep, resolutions 0.01 to 0.2, speeds 0.3 to 2, stepped
+    through the engine's rounding; the largest stray seen is a real fraction
+    of the bound (the bound is not vacuous)."""
+    from pccl.blackboxes._geometry import convex_hull, shapely
+    from pccl.blackboxes.nondet import NONDET
+    from pccl.model.environment import Environment
+    st = load_blackbox("straight")
+    rnd = random.Random(3)
+    worst = 0.0
+    beyond_one_rounding = 0     # strays a single rounding (resolution·√2/2) does not cover
+    for _ in range(300):
+        res = rnd.choice([0.01, 0.05, 0.1, 0.2])
+        w = parse_world(f"resolution = {res}\nspeed = {rnd.choice([0.3, 0.7, 1.0, 2.0])}\n")
+        env = Environment(w, st, 1, 1.0)
+        p = env.round_pos((0.0, 0.0, 0.0))
+        t = env.round_pos((rnd.uniform(-20, 20), rnd.uniform(-3, 3), 0.0))
+        region = convex_hull((p, t))
+        bound = NONDET.drift(w, region, 1.0)
+        seg = shapely.LineString([region[0], region[-1]]) if len(region) > 1 else \
+            shapely.Point(region[0])
+        m = motion(p, t)
+        for _ in range(200):
+            (o,) = st.step(w, [m], None, 0, 1.0)
+            q = env.round_pos(o.positions[0])
+            d = seg.distance(shapely.Point(q[0], q[1]))
+            assert d <= bound, (res, w.speed, p, t, q, d, bound)
+            worst = max(worst, d / bound)
+            beyond_one_rounding += d > res * math.sqrt(0.5) + 1e-9
+            if o.done[0]:
+                break
+            m = motion(q, t)
+    assert worst > 0.05
+    # rounding accumulates: inflating the segment by one rounding is not enough
+    assert beyond_one_rounding > 0

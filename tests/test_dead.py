@@ -141,7 +141,7 @@ def test_engines_agree_under_dead_on_the_race(agents):
     for r in (py, nat):
         assert (r.status, r.stats.states, r.stats.transitions, r.stats.max_depth) == \
             (nat.status, nat.stats.states, nat.stats.transitions, nat.stats.max_depth)
-    assert without.status == nat.status == "exhaustive"
+    assert without.status == nat.status == "bounded"     # not exhaustive for pymunk
     assert nat.stats.states < without.stats.states
 
 

@@ -280,7 +280,8 @@ def test_workers_and_checkpoints_of_a_moving_program_run_native_and_agree(tmp_pa
 @pytest.mark.slow
 def test_race_robust_three_robots_exhaustive_equal():
     py, nat = both(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 3, "nondet", "auto"))
-    assert nat == py and py["status"] == "exhaustive" and py["states"] > 80_000
+    # complete for nondet; robots start second legs, so "not exhaustive for pymunk"
+    assert nat == py and py["status"] == "bounded" and py["states"] > 80_000
 
 
 _ = UNREDUCED

@@ -419,7 +419,7 @@ def test_spent_agents_reduce_the_race(monkeypatch):
     new = explore(str(PROGRAMS / "race_robust.pccl"), **kw)
     monkeypatch.setattr(I.Independence, "_spent_local", lambda self, pc: False)
     old = explore(str(PROGRAMS / "race_robust.pccl"), **kw)
-    assert verdict(new) == verdict(old) == ("exhaustive", set())
+    assert verdict(new) == verdict(old) == ("bounded", set())     # not exhaustive for pymunk
     assert new.stats.states < 0.85 * old.stats.states
 
 
