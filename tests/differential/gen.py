@@ -232,7 +232,9 @@ def core(seed: int, rng: random.Random) -> Case:
     bound = rng.choice([1, 2, 2])
     world = None
     funcs = rng.random() < 0.25          # world functions in the initialisers
-    shared = [f"  int s = {rng.choice(SHARED_INITS + (['w0()'] if funcs else []))};",
+    # a shared initialiser that fails for one rand outcome is an error at load time (exit 2)
+    bad_shared = ["10 / (rand(1) - 1)", "[1, 2][rand(2)]"] if _P["err"] and rng.random() < 0.15 else []
+    shared = [f"  int s = {rng.choice(SHARED_INITS + (['w0()'] if funcs else []) + bad_shared)};",
               "  bool g = false;",
               f"  List<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])};",
               "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
