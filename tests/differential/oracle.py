@@ -488,8 +488,6 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
         return "new R1: --ray with a user blackbox from a file: the actors cannot load it (worker lost)"
     if d.check == "crash" and mode == "checkpoint-native" and "KeyError" in d.detail:
         return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
-    if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
-        return "hole 5 (native engine ints at the 64-bit edges)"
     if "dead" in mode or mode in ("default", "all-python", "all-native", "all-exact", "auto-python") \
             or mode.startswith(("workers", "checkpoint", "ray")):
         kinds = {k for k, _, _ in d.missed}
@@ -497,6 +495,8 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
             return "hole 1 (dead: failing rand initialisers)"
         if d.check == "verdict" and case.blackbox and kinds:
             return "hole 2 (dead: a blackbox's name)"
+    if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
+        return "hole 5 (native engine ints at the 64-bit edges)"
     if d.check == "figures" and "[native]" in d.detail and "[python]" in d.detail:
         return "hole 6 (native reduced counts)"
     return None
