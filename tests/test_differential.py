@@ -34,7 +34,7 @@ def test_fixed_budget_has_no_unknown_disagreement():
     # what the budget reached (not vacuous)
     assert {"core", "moving", "userbb"} <= set(s.families), s.families
     assert s.truth["violation"] and s.truth["exhaustive"], s.truth
-    assert s.agreements >= 3 * s.programs, s.text()
+    assert s.agreements >= 2 * s.programs, s.text()
     ran = set(s.modes)
     assert len(ran) >= 12, ran
     assert s.inconclusive <= s.programs // 3, s.text()

@@ -95,7 +95,7 @@ def test_d_dead_collapsing_failing_rand_initialisers():
     c = gen.Case(0, "hand", text, agents=2)
     rep = oracle.compare(c, oracle.choose_modes(["truth", "dead-python", "default"], 0))
     assert rep.disagreements, "hole 1 is fixed: re-open it by a monkeypatch here"
-    ds = caught(["core"], ["dead-python"], 80)
+    ds = caught(["core"], ["dead-python", "default"], 120)
     assert ds
 
 

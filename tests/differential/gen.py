@@ -231,17 +231,25 @@ def core(seed: int, rng: random.Random) -> Case:
     _P["plain"] = rng.random() < 0.4
     bound = rng.choice([1, 2, 2])
     world = None
-    shared = [f"  int s = {rng.choice(SHARED_INITS)};", "  bool g = false;",
+    funcs = rng.random() < 0.25          # world functions in the initialisers
+    # a shared initialiser that fails for one rand outcome is an error at load time (exit 2)
+    bad_shared = ["10 / (rand(1) - 1)", "[1, 2][rand(2)]"] if _P["err"] and rng.random() < 0.15 else []
+    shared = [f"  int s = {rng.choice(SHARED_INITS + (['w0()'] if funcs else []) + bad_shared)};",
+              "  bool g = false;",
               f"  List<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])};",
               "  List<int> q0 = [7, 8];", f"  int owner = {rng.choice(['-1', '-1', '0'])};"]
     allread = ["  int me = getAgentIndex();", "  bool flag = false;"]
+    if rng.random() < 0.3:
+        # an allread initialiser: rand, a world function, one that may fail
+        ar = ["rand(1)", "s + 1"] + (["w0()"] if funcs else []) + (["10 / (rand(1) - 1)"] if _P["err"] else [])
+        allread.append(f"  int ar = {rng.choice(ar)};")
     if not _P["plain"]:
         allread.append(f"  int arr[2] = {rng.choice(['0', '0', 'rand(1)'])};")
     else:
         shared = [d for d in shared if "List" not in d]
     loc_init = _pick(rng, (LOC_INITS if _P["err"] else SAFE_LOC_INITS)
                           + (["getAgentIndex()", "me + 1"] if _P["asym"] else []))
-    if "w0()" in loc_init or "getInput" in loc_init:
+    if funcs or "w0()" in loc_init or "getInput" in loc_init:
         world = (f"[functions]\nw0 = {rng.choice(['0', '1', '3', MAX])}\n"
                  f"getInput = {rng.choice(['[1]', '[1.5]', '[[1, 2]]', '[true]', '[]'])}\n")
     loc = ["  int c = 0;", f"  int x = {loc_init};", f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])};",

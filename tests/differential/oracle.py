@@ -134,6 +134,7 @@ class Disagreement:
     against: str
     detail: str
     known: Optional[str] = None          # a known open hole it matches (KNOWN)
+    missed: frozenset = frozenset()      # (verdict) violations of the truth this mode misses
 
     def signature(self) -> tuple:
         return (self.check, self.mode, self.against)
@@ -425,7 +426,8 @@ def compare(case: Case, modes: list) -> Report:
             if d:
                 rep.disagreements.append(Disagreement(case.seed, case.family,
                                                       "crash" if out.status == "crash" else "verdict",
-                                                      mode.name, "truth", d))
+                                                      mode.name, "truth", d,
+                                                      missed=truth.violations - out.violations))
                 continue
             ok = True
             ref_name = first_in_group.setdefault(mode.group, mode.name)
@@ -488,8 +490,11 @@ def known_hole(case: Case, d: Disagreement) -> Optional[str]:
         return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
     if "dead" in mode or mode in ("default", "all-python", "all-native", "all-exact", "auto-python") \
             or mode.startswith(("workers", "checkpoint", "ray")):
-        if d.check == "verdict" and ("rand(" in text or case.blackbox):
-            return "hole 1/2 (dead: failing rand initialisers, a blackbox's name)"
+        kinds = {k for k, _, _ in d.missed}
+        if d.check == "verdict" and "rand(" in text and "stuck" in kinds:
+            return "hole 1 (dead: failing rand initialisers)"
+        if d.check == "verdict" and case.blackbox and kinds:
+            return "hole 2 (dead: a blackbox's name)"
     if native and any(e in text for e in ("9223372036854775807", "18446744073709551616")):
         return "hole 5 (native engine ints at the 64-bit edges)"
     if d.check == "figures" and "[native]" in d.detail and "[python]" in d.detail:
