@@ -282,10 +282,10 @@ def check(program, world):
     """Parse and statically check PROGRAM; print nothing else on success."""
     # the front end only (not pccl.api, which imports the engines: start-up)
     from pccl.lang.checker import check_program
-    from pccl.lang.parser import parse_file
+    from pccl.lang.files import parse_program_file
     from pccl.lang.world import load_world
     try:
-        prog = parse_file(program)
+        prog = parse_program_file(program)      # PCCL, or Koord (.koord, .krd)
         w = load_world(world) if world is not None else None
         names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
         check_program(prog, functions=names)

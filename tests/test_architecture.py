@@ -54,7 +54,7 @@ def test_no_import_cycles():
 GENERIC = {"pccl.search.explorer", "pccl.search.parallel", "pccl.search.fingerprint", "pccl.search.memory",
            "pccl.search.spill", "pccl.search.safedata"}
 #: the front end: source text to a checked AST
-FRONT = {"pccl.lang.ast", "pccl.lang.parser", "pccl.lang.koord", "pccl.lang.checker", "pccl.lang.types",
+FRONT = {"pccl.lang.ast", "pccl.lang.parser", "pccl.lang.koord", "pccl.lang.files", "pccl.lang.checker", "pccl.lang.types",
          "pccl.lang.errors",
          "pccl.lang.values", "pccl.lang.builtins"}
 #: what the front end must not know

@@ -675,3 +675,12 @@ def test_the_api_takes_a_parsed_koord_program():
     assert r.status == "exhaustive"
     assert (r.stats.states, r.stats.transitions) == \
         (lambda f: (f.stats.states, f.stats.transitions))(explore(k("leader.koord"), agents=3))
+
+
+def test_pccl_check_reads_koord_files_through_the_one_dispatch():
+    # `pccl check` reads through the front end alone (start-up), by the same
+    # dispatch as the other commands (pccl.lang.files.parse_program_file)
+    from click.testing import CliRunner
+    from pccl.cli import main
+    res = CliRunner().invoke(main, ["check", "programs/koord/leader.koord"])
+    assert res.exit_code == 0 and res.output.startswith("programs/koord/leader.koord: ok ("), res.output

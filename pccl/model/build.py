@@ -21,16 +21,13 @@ from pccl.model.reduce import Reduced
 
 
 def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
-    from pccl.lang.parser import parse_file, parse_program
+    from pccl.lang.parser import parse_program
     if isinstance(program, A.Program):
         return program
     if source:
         return parse_program(str(program), "<input>")
-    from pccl.lang.koord import is_koord_path, parse_koord_file
-    if is_koord_path(program):
-        # a Koord program (.koord, .krd): the same AST, docs/koord.md
-        return parse_koord_file(os.fspath(program))
-    return parse_file(os.fspath(program))
+    from pccl.lang.files import parse_program_file
+    return parse_program_file(program)      # PCCL, or Koord (.koord, .krd: docs/koord.md)
 
 
 def load_world_arg(world):
