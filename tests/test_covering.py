@@ -635,3 +635,21 @@ def test_straight_stays_within_the_drift_of_its_region():
     assert worst > 0.05
     # rounding accumulates: inflating the segment by one rounding is not enough
     assert beyond_one_rounding > 0
+
+
+def test_json_says_what_is_not_exhaustive():
+    """pccl explore --format json: status bounded, exit 0, and what the
+    covering blackbox leaves out in not_exhaustive_for."""
+    import json
+    from conftest import cli
+    r = cli("explore", _path("race_robust.pccl"), "--world", _path("race.toml"),
+            "--format", "json", "--no-progress")
+    d = json.loads(r.output)
+    assert r.exit_code == 0 and d["status"] == "bounded" and d["exit_status"] == 0
+    assert d["not_exhaustive_for"].startswith("pymunk: a second leg starts where pymunk left "
+                                              "the robot (doReach at line 36")
+    r = cli("explore", _path(COVER + "cover_rounding_position.pccl"), "--world",
+            _path(COVER + "cover_rounding_position.toml"), "--format", "json", "--no-progress")
+    d = json.loads(r.output)
+    assert d["not_exhaustive_for"] == ("straight/pymunk: positions in mid-motion "
+                                       "(getPosition() at line 7)")
