@@ -354,7 +354,7 @@ def test_nondet_fail_includes_nondet(tmp_path):
         if m.key(st) in seen:
             continue
         seen.add(m.key(st))
-        out.add(observable(st))
+        out.add((observable(st), tuple(ag[POS] for ag in st[AGS])))
         todo.extend(s for _, s in m.successors(st))
     assert a <= out and len(out) > len(a)
 
