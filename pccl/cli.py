@@ -1620,7 +1620,8 @@ def _explore_json(program, res) -> dict:
                           for w in res.witnesses],
             "holds": res.holds, "notes": res.notes, "timelock_check": res.timelock,
             "not_covered": res.not_covered,
-            "not_exhaustive_for": (res.not_covered.split(": ", 1)[1]
+            # "pymunk: a second leg ...", "straight/pymunk: positions ..."
+            "not_exhaustive_for": (res.not_covered.removeprefix("not exhaustive for ")
                                    if res.not_covered else None),
             "stall_check": res.stall,
             "checked": res.checked.to_json()})

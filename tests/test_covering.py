@@ -345,7 +345,8 @@ def test_nondet_fail_may_fail_anywhere():
 def test_nondet_fail_includes_nondet(tmp_path):
     """Every state nondet reaches, nondet-fail reaches too."""
     prog, world = generated(3, tmp_path)
-    a = set(explored(prog, world, None))
+    a = {(o, tuple(p for p, _ in w)) for o, ws in explored(prog, world, None).items()
+         for w in ws}
     m = api.make_model(prog, world=world, blackbox="nondet-fail", reduce="none")
     seen, out, todo = set(), set(), list(m.init_states())
     while todo:
@@ -353,9 +354,9 @@ def test_nondet_fail_includes_nondet(tmp_path):
         if m.key(st) in seen:
             continue
         seen.add(m.key(st))
-        out.add(observable(st))
+        out.add((observable(st), tuple(ag[POS] for ag in st[AGS])))
         todo.extend(s for _, s in m.successors(st))
-    assert a <= out
+    assert a <= out and len(out) > len(a)
 
 
 def test_header_says_positions_in_motion_not_covered():
@@ -635,3 +636,96 @@ def test_straight_stays_within_the_drift_of_its_region():
     assert worst > 0.05
     # rounding accumulates: inflating the segment by one rounding is not enough
     assert beyond_one_rounding > 0
+
+
+def test_json_says_what_is_not_exhaustive():
+    """pccl explore --format json: status bounded, exit 0, and what the
+    covering blackbox leaves out in not_exhaustive_for."""
+    import json
+    from conftest import cli
+    r = cli("explore", _path("race_robust.pccl"), "--world", _path("race.toml"),
+            "--format", "json", "--no-progress")
+    d = json.loads(r.output)
+    assert r.exit_code == 0 and d["status"] == "bounded" and d["exit_status"] == 0
+    assert d["not_exhaustive_for"].startswith("pymunk: a second leg starts where pymunk left "
+                                              "the robot (doReach at line 36")
+    r = cli("explore", _path(COVER + "cover_rounding_position.pccl"), "--world",
+            _path(COVER + "cover_rounding_position.toml"), "--format", "json", "--no-progress")
+    d = json.loads(r.output)
+    assert d["not_exhaustive_for"] == ("straight/pymunk: positions in mid-motion "
+                                       "(getPosition() at line 7)")
+
+
+# generated failures part-way (hole 4): straight's rounded positions graze a
+# triangle's vertex and fail the robot part-way; a small box stands on the
+# second trip's path from there, away from its path from the start
+
+def partway_generated(seed: int, tmp_path):
+    from pccl.blackboxes._geometry import shapely
+    from pccl.model.environment import Environment
+    rnd = random.Random(5000 + seed)
+    st = load_blackbox("straight")
+    while True:
+        res = rnd.choice([0.01, 0.05, 0.1])
+        speed = rnd.choice([0.7, 1.0, 1.5])
+        L, h = round(rnd.uniform(3, 8), 2), round(rnd.uniform(-2, 2), 2)
+        s = rnd.uniform(0.3, 0.8)
+        n = (-h / math.hypot(L, h), L / math.hypot(L, h))      # unit normal of the leg
+        off = rnd.choice([0.0005, 0.002, 0.005, 0.01])
+        vx, vy = L * s + n[0] * off, h * s + n[1] * off
+        tri = ((round(vx, 4), round(vy, 4)),
+               (round(vx + n[0] * 0.8 + 0.3, 4), round(vy + n[1] * 0.8, 4)),
+               (round(vx + n[0] * 0.8 - 0.3, 4), round(vy + n[1] * 0.8, 4)))
+        w = parse_world(f"resolution = {res}\nspeed = {speed}\nradius = 0.01\n"
+                        f"tolerance = {res}\n[[obstacles]]\npolygon = {[list(p) for p in tri]}\n")
+        env = Environment(w, st, 1, 1.0)
+        q, t = env.round_pos((0.0, 0.0, 0.0)), env.round_pos((L, h, 0.0))
+        if w.obstacles and shapely.Polygon(tri).distance(shapely.LineString([(0, 0), (L, h)])) == 0:
+            continue
+        fail_at = None
+        for _ in range(100):
+            (o,) = st.step(w, [motion(q, t)], None, 0, 1.0)
+            if o.fail[0]:
+                fail_at = q
+                break
+            if o.done[0]:
+                break
+            q = env.round_pos(o.positions[0])
+        if fail_at is None or fail_at[:2] == (0.0, 0.0):
+            continue
+        # the second trip: a box on its path from the failure point, clear of
+        # its path from the start and of the triangle
+        t2 = (round(rnd.uniform(-3, 3), 2), round(rnd.uniform(3, 6), 2))
+        mid = (fail_at[0] + (t2[0] - fail_at[0]) * 0.5, fail_at[1] + (t2[1] - fail_at[1]) * 0.5)
+        box = [[round(mid[0] - 0.05, 3), round(mid[1] - 0.05, 3)],
+               [round(mid[0] + 0.05, 3), round(mid[1] - 0.05, 3)],
+               [round(mid[0] + 0.05, 3), round(mid[1] + 0.05, 3)],
+               [round(mid[0] - 0.05, 3), round(mid[1] + 0.05, 3)]]
+        g = shapely.Polygon(box)
+        if (g.distance(shapely.LineString([(0, 0), t2])) < 0.5
+                or g.distance(shapely.Polygon(tri)) < 0.1):
+            continue
+        break
+    text = (open(_path("covering/cover_rounding_flags.pccl")).read()
+            .replace("ItemPosition(3, 1)", f"ItemPosition({L}, {h})")
+            .replace("ItemPosition(0.95, 2)", f"ItemPosition({t2[0]}, {t2[1]})"))
+    world = (f"agents = 1\nresolution = {res}\nspeed = {speed}\nradius = 0.01\n"
+             f"tolerance = {res}\nstart = [[0, 0]]\n[[obstacles]]\n"
+             f"polygon = {[list(p) for p in tri]}\n[[obstacles]]\npolygon = {box}\n")
+    prog_path, world_path = tmp_path / f"pw{seed}.pccl", tmp_path / f"pw{seed}.toml"
+    prog_path.write_text(text)
+    world_path.write_text(world)
+    return str(prog_path), str(world_path)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_generated_failures_part_way(seed, tmp_path):
+    """straight fails the first trip part-way and the second trip from there
+    on the box: explore under the default blackbox finds the assertion too,
+    and covers every end state of the runs."""
+    prog, world = partway_generated(seed, tmp_path)
+    res = api.run(prog, world=world, blackbox="straight", seed=0)
+    assert res.status == "violation" and "assertion failed" in res.message, res.message
+    r = api.explore(prog, world=world)
+    assert r.status == "violation" and "assertion failed" in r.verdict, r.verdict
+    check_covered(prog, world, None)
