@@ -95,4 +95,4 @@ def summary_json(s: Summary) -> str:
                        "agreements": s.agreements, "modes": s.modes, "families": s.families,
                        "truth": s.truth, "seconds": round(s.seconds, 1),
                        "disagreements": [vars(d) for d in s.disagreements],
-                       "findings": s.findings}, indent=1)
+                       "findings": s.findings}, indent=1, default=lambda o: sorted(o, key=str))
