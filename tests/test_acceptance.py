@@ -135,8 +135,8 @@ def test_race_no_violation_exhaustive_straight(agents):
     res = explore(RACE, world=RACE_WORLD, blackbox="straight", agents=agents)
     assert res.violations == [], res.verdict
     assert res.status == "exhaustive" and res.exit_status == 0
-    assert res.verdict == ("no violation — exhaustive [blackbox straight] (travel times fixed "
-                           "by straight; blackbox=nondet explores every timing)")
+    assert res.verdict.startswith("no violation — exhaustive [blackbox straight] (travel times "
+                                  "fixed by straight; blackbox=nondet explores every timing)")
     assert res.model.N == agents
 
 

@@ -349,8 +349,9 @@ def test_check_names_the_world_for_a_world_function():
     assert "unknown function 'detour'" in res.stderr and "needs --world FILE" in res.stderr
 
 
-PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  states [\d,]+  frontier [\d,]+  "
-                        r"depth \d+  t \d+  [\d,]+ states/s  mem [\d,]+ MiB$")
+PLAIN_LINE = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d  (initial configurations generated [\d,]+  )?"
+                        r"states [\d,]+  frontier [\d,]+  "
+                        r"depth \d+  (t \d+  )?[\d,]+ states/s  mem [\d,]+ MiB$")
 
 
 def test_explore_progress_not_a_terminal_plain_timestamped_lines():

@@ -566,9 +566,9 @@ def test_second_legs_under_pymunk_are_not_exhaustive():
     race = _path("race_robust.pccl"), _path("race.toml")
     r = api.explore(race[0], world=race[1])
     assert r.status == "bounded" and r.exit_status == 0 and not r.violations
-    assert r.verdict == ("no violation — not exhaustive for pymunk: a second leg starts where "
-                         "pymunk left the robot (doReach at line 36; blackbox=nondet-fail covers "
-                         "it) [blackbox nondet]"), r.verdict
+    assert r.verdict.startswith("no violation — not exhaustive for pymunk: a second leg starts "
+                                "where pymunk left the robot (doReach at line 36; "
+                                "blackbox=nondet-fail covers it) [blackbox nondet]"), r.verdict
     r = api.explore(race[0], world=race[1], blackbox="nondet-fail")
     assert r.status == "exhaustive" and r.not_covered is None, r.verdict
     one = textwrap.dedent("""\

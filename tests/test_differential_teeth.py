@@ -82,7 +82,7 @@ def test_c_nondet_without_a_fail(monkeypatch):
     from pccl.blackboxes.nondet import Nondet
     clean = [k for k in range(24) if not caught(["moving"], ["covering"], 1, seeds=[k])]
     assert len(clean) >= 12, clean
-    monkeypatch.setattr(Nondet, "may_fail", lambda *a, **k: False)
+    monkeypatch.setattr(Nondet, "hazards", lambda *a, **k: (False, False))
     ds = caught(["moving"], ["covering"], len(clean), check="covering", seeds=clean)
     assert ds, "the oracle missed a nondet that never fails a robot"
 

@@ -210,6 +210,9 @@ TESTPROGS = [
     ("tl_spin_leave", T("tl_spin_leave.pccl"), dict()),
     ("fast_slow-2", T("fast_slow.pccl"), dict(agents=2)),
     ("runaway-bounded", T("runaway.pccl"), dict(max_states=3000)),
+    ("peterson_swapped-n0-2", T("peterson_swapped.pccl"),
+     dict(invariants=["count(inCs) <= 1"], n0=2)),
+    ("viewer_marker", T("viewer_marker.pccl"), dict()),
 ]
 
 
@@ -237,6 +240,8 @@ def _params(cases):
 # "bounded" under nondet: complete for nondet, not exhaustive for straight/pymunk
 # (positions read) or for pymunk (second legs); counts as before (issue 41)
 PINNED = {
+    "peterson_swapped-n0-2": ("violation", 1152, 2076, 87),
+    "viewer_marker": ("violation", 16, 24, 6),
     "fischer-paper-k10-bounded": ("bounded", 60000, 78578, 4),
     "fischer-k1-cstime0": ("violation", 13696, 23238, 476),
     "fischer-k1-d1": ("violation", 16402, 27870, 556),

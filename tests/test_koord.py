@@ -19,6 +19,7 @@ from pccl.lang.checker import check_program
 from pccl.lang.errors import PcclError
 from pccl.lang.koord import is_koord_path, parse_koord
 from pccl.lang.parser import parse_program
+from pccl.model.layout import AGS, LOC, POS
 
 ROOT = Path(__file__).resolve().parent.parent
 KOORD = ROOT / "programs" / "koord"
@@ -389,7 +390,7 @@ def test_lineform_converges():
     assert late.status == "violation"
     out = run(k("lineform.koord"), world=LINEFORM_WORLD)
     assert out.status == "final"
-    (x1, y1, _z) = out.final[4][1][6]           # agent 1's position
+    (x1, y1, _z) = out.final[AGS][1][POS]       # agent 1's position
     assert abs(x1 - 2.0) < 0.05 and abs(y1) < 0.05
 
 
@@ -414,10 +415,10 @@ def test_follow_points_visits_every_point():
     assert out.status == "final"
     updates = [s for s in out.trace.steps if s.label[0] == "DOREACH UPDATE"]
     assert sorted(s.label[1] for s in updates) == [0, 0, 0, 1, 1, 1]   # 3 points each
-    for i, agent in enumerate(out.final[4]):
-        points, nxt, moving = agent[4]
+    for i, agent in enumerate(out.final[AGS]):
+        points, nxt, moving = agent[LOC]
         assert nxt == 3 and not moving
-        x, y, _z = agent[6]
+        x, y, _z = agent[POS]
         assert abs(x - 3.0) < 0.05 and abs(y - 2.0 * i) < 0.05
 
 

@@ -183,7 +183,7 @@ def test_engine_reason():
     why = r.model.engine_reason
     assert r.model.engine_used == "python" and why == "fastest orders the search in Python"
     out = cli("explore", FISCHER, "--depth", "2", "--fastest")
-    assert out.exit_code == 0 and "(--fastest orders the search in Python)" in out.output, out.output
+    assert out.exit_code == 0 and "because --fastest orders the search in Python)" in out.output, out.output
     with pytest.raises(ArgumentError) as e:
         api.explore(FISCHER, depth=2, engine="native", coverage=True)
     assert e.value.filename == "engine" and "--" not in e.value.message

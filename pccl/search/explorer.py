@@ -1077,12 +1077,13 @@ class Explorer:
             chunk = list(itertools.islice(it, n))
             if not chunk:
                 return
+            if made:        # a second chunk and on: the initial phase is long, say so
+                progress(lambda secs: {"states": states(), "frontier": 0, "depth": 0,
+                                       "seconds": secs, "memory": peak_rss_bytes(),
+                                       "max_time": None, "initial_candidates": self.initial_candidates})
             made += len(chunk)
             self.initial_candidates = made
             yield chunk
-            progress(lambda secs: {"states": states(), "frontier": 0, "depth": 0,
-                                   "seconds": secs, "memory": peak_rss_bytes(),
-                                   "max_time": None, "initial_candidates": self.initial_candidates})
             if self.max_memory is not None and self._memory_bound(bounds, peak_rss_bytes()):
                 return
 
