@@ -309,3 +309,20 @@ def test_a_big_team_with_a_state_budget_ends_in_its_initial_phase(how):
     r = explore("programs/fischer.pccl", agents=30, max_states=3000, **how)
     assert r.status == "bounded" and r.search.bounds_hit == [Bound.MAX_STATES]
     assert 0 < r.stats.initial_states <= 3000
+
+
+INIT_STUCK_IN_ATOMIC = "allwrite:\n  int s = 1;\nInit:\n  atomic:\n    assert(s < 0);\n"
+
+
+@pytest.mark.parametrize("engine", ["python", "native"])
+def test_an_agent_stuck_holding_the_lock_in_init_is_a_violation(engine):
+    # found by the differential oracle (seed 400162): agent 0's Init fails
+    # inside `atomic:` and keeps the lock, so agent 1's Init can never go on;
+    # the initial-state search had no state at all: "no violation — exhaustive"
+    # with 0 states (and StopIteration natively, a traceback in `pccl run`)
+    r = explore(INIT_STUCK_IN_ATOMIC, source=True, engine=engine)
+    assert r.status == "violation" and r.violation.kind == "assert", r.verdict
+    assert r.stats.initial_states >= 1
+    from pccl.api import run
+    out = run(INIT_STUCK_IN_ATOMIC, source=True)
+    assert out.status == "violation"

@@ -256,7 +256,15 @@ class InitSearch:
                 head = m.ctl.info(a[PC])
                 for rule in head.rules:
                     rule(m, s, i, a, head, out)
-                # Init runs untimed: an atomic wait cannot happen (nobody else holds the lock)
+                # Init runs untimed: an atomic wait cannot happen (nobody else holds
+                # the lock), unless an agent got stuck holding it in its own Init:
+                # then this agent's Init can never go on (it was a configuration
+                # with no initial state at all, and a clean verdict)
+                if not out:
+                    done[R.stuck_successor(m, s, i, a, "Init waits for the lock, which an agent "
+                                           "stuck in its atomic block holds", where)] = None
+                    on_path.discard(s)
+                    return
                 stack.append((s, d, iter(out)))
 
         try:
