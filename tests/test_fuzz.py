@@ -36,7 +36,8 @@ def truncations(text, n=14):
     return [(f"trunc{k}", text[:k]) for k in range(step, len(text), step)]
 
 
-def mutate(text, rng):
+def mutate(text, rng, junk=JUNK):
+    """One mutant of ``text``: ``(kind, text)``; ``junk`` the tokens it inserts."""
     lines = text.split("\n")
     kind = rng.choice(["delete", "duplicate", "swap", "token", "chars", "indent"])
     if kind == "delete" and len(lines) > 1:
@@ -50,7 +51,7 @@ def mutate(text, rng):
     elif kind == "token":
         toks = list(re.finditer(r"\w+|[^\w\s]+", text))
         t = rng.choice(toks)
-        return kind, text[:t.start()] + rng.choice(JUNK) + text[t.end():]
+        return kind, text[:t.start()] + rng.choice(junk) + text[t.end():]
     elif kind == "indent":
         k = rng.randrange(len(lines))
         lines[k] = " " * rng.choice([1, 3, 5]) + lines[k]
@@ -58,7 +59,7 @@ def mutate(text, rng):
         s = text
         for _ in range(rng.randint(1, 4)):
             p = rng.randrange(len(s) + 1)
-            s = s[:p] + rng.choice(JUNK + list("(){}[]:;,.=<>!&|+-*/%\n ")) + s[p:]
+            s = s[:p] + rng.choice(junk + list("(){}[]:;,.=<>!&|+-*/%\n ")) + s[p:]
         return "chars", s
     return kind, "\n".join(lines)
 

@@ -6,7 +6,6 @@ carets, and robustness on truncated and mutated Koord files."""
 from __future__ import annotations
 
 import random
-import re
 from pathlib import Path
 
 import pytest
@@ -551,30 +550,8 @@ JUNK = ["@", "((", ")", ":", ";", "=", "==", "[", "]", '"', "/*", "#", "\t", "at
 
 
 def _mutate(text, rng):
-    lines = text.split("\n")
-    kind = rng.choice(["delete", "duplicate", "swap", "token", "chars", "indent"])
-    if kind == "delete" and len(lines) > 1:
-        del lines[rng.randrange(len(lines))]
-    elif kind == "duplicate":
-        i = rng.randrange(len(lines))
-        lines.insert(i, lines[i])
-    elif kind == "swap" and len(lines) > 1:
-        a, b = rng.randrange(len(lines)), rng.randrange(len(lines))
-        lines[a], lines[b] = lines[b], lines[a]
-    elif kind == "token":
-        toks = list(re.finditer(r"\w+|[^\w\s]+", text))
-        t = rng.choice(toks)
-        return kind, text[:t.start()] + rng.choice(JUNK) + text[t.end():]
-    elif kind == "indent":
-        i = rng.randrange(len(lines))
-        lines[i] = " " * rng.choice([1, 3, 5]) + lines[i]
-    else:
-        s = text
-        for _ in range(rng.randint(1, 4)):
-            p = rng.randrange(len(s) + 1)
-            s = s[:p] + rng.choice(JUNK + list("(){}[]:;,.=<>!&|+-*/%\n ")) + s[p:]
-        return "chars", s
-    return kind, "\n".join(lines)
+    from test_fuzz import mutate
+    return mutate(text, rng, JUNK)
 
 
 def _fuzz_cases(n_mut=12):

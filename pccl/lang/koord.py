@@ -713,28 +713,9 @@ def _parse(source: str, filename: str) -> ast.Program:
         raise _token_error(e, text, source, filename) from None
     except UnexpectedCharacters as e:
         raise P._char_error(e, text, source, filename) from None
-    except UnexpectedEOF:  # pragma: no cover - not produced by the LALR parser
-        line, column = P._eof_position(source)
-        raise PcclError("unexpected end of file", filename=filename, source=source,
-                        line=line, column=column) from None
-    except P._IndentError as e:
-        raise PcclError("inconsistent indentation (dedent does not match any outer level)",
-                        filename=filename, source=source, line=e.line, column=e.column) from None
-    except VisitError as e:
-        orig = e.orig_exc
-        if isinstance(orig, _Syntax):
-            raise PcclError(orig.message, filename=filename, source=source,
-                            span=orig.span) from None
-        if isinstance(orig, RecursionError):
-            raise PcclError("program is nested too deeply", filename=filename,
-                            source=source) from None
-        raise orig from None
-    except RecursionError:
-        raise PcclError("program is nested too deeply", filename=filename,
-                        source=source) from None
-    except (DedentError, UnexpectedInput, LarkError) as e:  # pragma: no cover - defensive
-        raise PcclError(f"syntax error: {e}".splitlines()[0], filename=filename,
-                        source=source) from None
+    except (UnexpectedEOF, P._IndentError, VisitError, RecursionError, DedentError,
+            UnexpectedInput, LarkError) as e:
+        raise P.lark_failure(e, source, filename) from None
 
 
 def parse_koord(source: str, filename: str = "<input>") -> ast.Program:

@@ -900,32 +900,41 @@ def _parse(source: str, filename: str, start: str):
         raise _token_error(e, text, source, filename, property_mode) from None
     except UnexpectedCharacters as e:
         raise _char_error(e, text, source, filename) from None
-    except UnexpectedEOF:  # not produced by the LALR parser, but be safe
+    except (UnexpectedEOF, _IndentError, VisitError, RecursionError, DedentError, UnexpectedInput,
+            LarkError) as e:
+        raise lark_failure(e, source, filename) from None
+    return result
+
+
+def lark_failure(e: BaseException, source: str, filename: str) -> BaseException:
+    """The error to raise for a failure of lark or of the AST builder ``e``
+    that is not a token or a character error (those the front end reports
+    itself, with what it expected): an end of file, inconsistent
+    indentation, a builder's syntax error, nesting too deep; an exception of
+    the builder that is none of these is raised as it is.  The PCCL parser
+    and the Koord front end (pccl/lang/koord.py) share it."""
+    if isinstance(e, UnexpectedEOF):  # not produced by the LALR parser, but be safe
         line, column = _eof_position(source)
-        raise PcclError("unexpected end of file", filename=filename, source=source,
-                        line=line, column=column) from None
-    except _IndentError as e:
-        raise PcclError("inconsistent indentation (dedent does not match any outer level)",
-                        filename=filename, source=source, line=e.line, column=e.column) from None
-    except VisitError as e:
+        return PcclError("unexpected end of file", filename=filename, source=source,
+                         line=line, column=column)
+    if isinstance(e, _IndentError):
+        return PcclError("inconsistent indentation (dedent does not match any outer level)",
+                         filename=filename, source=source, line=e.line, column=e.column)
+    if isinstance(e, VisitError):
         orig = e.orig_exc
         if isinstance(orig, _Syntax):
-            raise PcclError(orig.message, filename=filename, source=source,
-                            span=orig.span) from None
+            return PcclError(orig.message, filename=filename, source=source, span=orig.span)
         if isinstance(orig, RecursionError):
-            raise PcclError("program is nested too deeply", filename=filename,
-                            source=source) from None
-        raise orig from None
-    except RecursionError:
-        raise PcclError("program is nested too deeply", filename=filename,
-                        source=source) from None
-    except (DedentError, UnexpectedInput, LarkError) as e:  # pragma: no cover - defensive
-        e_line = getattr(e, "line", None)
-        e_col = getattr(e, "column", None)
-        raise PcclError(f"syntax error: {e}".splitlines()[0], filename=filename,
-                        source=source, line=e_line if isinstance(e_line, int) and e_line > 0 else None,
-                        column=e_col if isinstance(e_col, int) and e_col > 0 else None) from None
-    return result
+            return PcclError("program is nested too deeply", filename=filename, source=source)
+        return orig
+    if isinstance(e, RecursionError):
+        return PcclError("program is nested too deeply", filename=filename, source=source)
+    # defensive: DedentError, another UnexpectedInput or LarkError
+    e_line = getattr(e, "line", None)
+    e_col = getattr(e, "column", None)
+    return PcclError(f"syntax error: {e}".splitlines()[0], filename=filename, source=source,
+                     line=e_line if isinstance(e_line, int) and e_line > 0 else None,
+                     column=e_col if isinstance(e_col, int) and e_col > 0 else None)
 
 
 def parse_program(source: str, filename: str = "<input>") -> ast.Program:
