@@ -43,6 +43,7 @@ CASES = [
      dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight")),
     ("rdv-stall-none", f"{TPROG}/rdv_meet.pccl",
      dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight", reduce="none")),
+    ("list-seen", f"{TPROG}/list_seen.pccl", dict(agents=2)),
     ("fischer-temporal", f"{PROG}/fischer.pccl",
      dict(overrides={"k": "1"}, depth=80, exact=True,
           properties=("reachable count(inCs) == 1",))),
@@ -882,7 +883,8 @@ def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
 #: the cases of CASES the native engine serves (violations, bounds, the graph)
 NATIVE_CASES = [c for c in CASES if c[0] in ("fischer-k1", "fischer-k2-depth",
                                              "fischer-none-depth", "fischer-max-states",
-                                             "tl-spin", "race-nondet", "race-nondet-all")]
+                                             "tl-spin", "race-nondet", "race-nondet-all",
+                                             "list-seen")]
 
 
 @pytest.mark.parametrize("name,program,opts", NATIVE_CASES, ids=[c[0] for c in NATIVE_CASES])
