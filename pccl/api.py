@@ -25,7 +25,7 @@ from pccl.lang import ast as A
 from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, ReplayError, SearchResult, Stats, Trace
 from pccl.model import validate as V
-from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, spell
+from pccl.lang.errors import ArgumentError, CheckpointFileError, OptionError, PcclError, Spelling, spell
 from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
                                 api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
@@ -338,13 +338,17 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     analyse the traces (:func:`_analyse`) and assemble the result
     (:func:`_assemble`)."""
     plan = _plan_search(_explore_target(model), _explore_options(options, search), spelling)
+    from pccl.search.checkpoint import CheckpointError
     try:
-        ex, native = _make_searcher(plan)
-    except KeyboardInterrupt:
-        # Ctrl-C or SIGTERM while the native module compiles (a cold
-        # cache): the search's report, interrupted with nothing explored
-        return _interrupted_before_search(plan)
-    ex, sr = _run_search(plan, ex, native)
+        try:
+            ex, native = _make_searcher(plan)
+        except KeyboardInterrupt:
+            # Ctrl-C or SIGTERM while the native module compiles (a cold
+            # cache): the search's report, interrupted with nothing explored
+            return _interrupted_before_search(plan)
+        ex, sr = _run_search(plan, ex, native)
+    except CheckpointError as e:    # a checkpoint unwritable, absent, corrupt, another search's
+        raise CheckpointFileError(str(e), filename=e.option, template=e.template) from None
     try:
         # every reachable state was expanded (before the graph analysis, which
         # may turn an exhaustive search into a violation)

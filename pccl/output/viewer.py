@@ -103,7 +103,7 @@ def motion_of(model=None, doc: Optional[dict] = None) -> bool:
     """Whether to draw an arena: the program calls doReach (known from the
     model), else the trace moves somebody or sends somebody somewhere."""
     if model is not None:
-        from pccl.api import program_moves
+        from pccl.model.compile import program_moves
         return program_moves(model.program)
     for st in (doc or {}).get("steps") or []:
         if st.get("rule") == "DOREACH INVOKE":
