@@ -416,8 +416,9 @@ def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None
         click.echo("trace:")
         for st in _run_path(res).steps:
             click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+    from pccl.output.views import time_steps
     click.echo("time steps:")
-    for ln in _collapsed_summary(m, res.summary):
+    for _, ln in time_steps(m, res.summary):
         click.echo(ln)
     mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
            if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
@@ -454,36 +455,7 @@ def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
-        _write_html(html, doc, model=m, states=list(_run_path(res).states),
-                    quiet=quiet)
-
-
-def _collapsed_summary(m, summary) -> list:
-    """The per-time-step lines of a run; consecutive identical ones (nothing
-    moved or changed) are one line ``t=A–B: … (N identical time steps)``."""
-    from pccl.output import display as D
-    out: list = []
-    prev = None
-    group: list = []            # [(time, text)] with the same text
-
-    def flush():
-        if not group:
-            return
-        (t0, text), (t1, _) = group[0], group[-1]
-        if len(group) == 1:
-            out.append(f"  t={D.fmt_time(t0)}: {text}")
-        else:
-            out.append(f"  t={D.fmt_time(t0)}–{D.fmt_time(t1)}: {text} "
-                       f"({len(group)} identical time steps)")
-        group.clear()
-    for t, st in summary:
-        text = _step_summary(m, prev, st)
-        if group and text != group[-1][1]:
-            flush()
-        group.append((t, text))
-        prev = st
-    flush()
-    return out
+        _write_html(html, doc, model=m, path=_run_path(res), quiet=quiet)
 
 
 def _run_path(res):
@@ -533,21 +505,6 @@ def _rates_text(m) -> str:
     """The agents whose rate ρ is not 1, for the header line ("" when none)."""
     odd = [f"{i}={r}" for i, r in enumerate(m.rho) if r != 1]
     return f", rates {' '.join(odd)}" if odd else ""
-
-
-def _step_summary(m, prev, s) -> str:
-    from pccl.model.layout import AGS, POS, STATUS
-    from pccl.output import display as D
-    parts = []
-    for i, ag in enumerate(s[AGS]):
-        st = D.status_text(m, ag[STATUS])
-        parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
-    if prev is not None:
-        ch = [c for c in D.diff(m, prev, s, fmt=D.short_value)
-              if not c[0].startswith(("pos[", "time", "transitionState"))]
-        if ch:
-            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
-    return "  ".join(parts)
 
 
 def _plot_module():
@@ -759,7 +716,7 @@ def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     if html and doc["initial"] is not None:
-        _write_html(html, doc, model=model, states=_explore_states(res), quiet=quiet)
+        _write_html(html, doc, model=model, path=_explore_path(res), quiet=quiet)
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
 
@@ -865,45 +822,46 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
             click.echo(_render(e), err=True)
     if html and res.doc.get("initial") is not None:
         notes = [res.message] if res.status == "diverged" else []
-        page_model, page_states = m, list(res.states)
+        page_model, page_path = m, res.trace
         if program_file is None:
             # a page is shared: it shows a program the trace merely names only
             # when its bytes are the recorded ones (--program: the user's choice)
             from pccl.tools.replay import recorded_file
             found, why = recorded_file(cfg.get("program"), trace_file)
             if found is None:
-                page_model, page_states = None, []
+                page_model, page_path = None, None
                 notes.append(f"source not shown: {why}")
                 click.echo(f"pccl replay: the viewer shows no source: {why}", err=True)
-        _write_html(html, res.doc, model=page_model, states=page_states, notes=notes)
+        _write_html(html, res.doc, model=page_model, path=page_path, notes=notes)
     elif html:
         click.echo(f"pccl: nothing to replay, so no viewer written to {html}", err=True)
     sys.exit(res.exit_status)
 
 
-def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False,
+def _write_html(out, doc, *, model=None, path=None, world=None, notes=(), quiet=False,
                 source_file=None, embed_paths=False):
-    """Write the HTML viewer of ``doc``; the states' pending computations
-    are kept only when they are the document's whole path."""
+    """Write the HTML viewer of ``doc`` to ``out``; the path's states
+    (pending computations) and labels (the CLI's text of its steps) are kept
+    only when they are the document's whole path."""
     from pccl.output import viewer
-    if states is not None and len(states) != len(doc["steps"]) + 1:
-        states = None
+    states = labels = None
+    if path is not None and len(path.states) == len(doc["steps"]) + 1:
+        states, labels = list(path.states), list(path.labels)
     try:
-        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes),
-                     source_file=source_file, embed_paths=embed_paths)
+        viewer.write(out, doc, model=model, states=states, labels=labels, world=world,
+                     notes=list(notes), source_file=source_file, embed_paths=embed_paths)
     except PcclError as e:      # the verdict stands: report, keep its exit status
         click.echo(_render(e), err=True)
         return
-    click.echo(f"viewer written to {path}", err=quiet)
+    click.echo(f"viewer written to {out}", err=quiet)
 
 
-def _explore_states(res):
-    """The states of the path explore_document records (None: no path)."""
+def _explore_path(res):
+    """The path explore_document records (None: no path)."""
     if res.counterexamples:
-        tr = res.counterexamples[0].trace
-        return None if tr is None else list(tr.states)
+        return res.counterexamples[0].trace
     if res.witnesses:
-        return list(res.witnesses[0]["_trace"].states)
+        return res.witnesses[0]["_trace"]
     return None
 
 
@@ -934,7 +892,7 @@ def view(trace_file, output, blackbox, embed_paths):
     except PcclError as e:
         _fail(e)
     notes: list = []
-    model, states, world, source = None, None, None, None
+    model, path, world, source = None, None, None, None
     cfg = doc.get("config") or {}
     prog, why = recorded_file(cfg.get("program"), trace_file)
     wfile, wwhy = (recorded_file(cfg["world"], trace_file) if cfg.get("world")
@@ -951,7 +909,7 @@ def view(trace_file, output, blackbox, embed_paths):
         try:
             res = do_replay(trace_file, blackbox=blackbox, program=prog, world=wfile,
                             spelling=cli_spelling)
-            model, states = res.model, res.states
+            model, path = res.model, res.trace
             if res.status == "diverged":
                 notes.append(f"the trace does not replay: {res.message}")
         except PcclError as e:
@@ -960,7 +918,7 @@ def view(trace_file, output, blackbox, embed_paths):
         click.echo(f"pccl view: {note}", err=True)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
-    _write_html(output, doc, model=model, states=states, world=world, notes=notes,
+    _write_html(output, doc, model=model, path=path, world=world, notes=notes,
                 source_file=source, embed_paths=embed_paths)
 
 

@@ -12,10 +12,21 @@ plus what the document does not hold and a picture needs:
   per-agent timeline instead of the arena);
 * ``at``: per state (initial, then after each step), every agent's pending
   computation as ``describe_k`` says it, when the states are known (a
-  ``view`` of a file that cannot be replayed derives it from the next step).
-
-The script rebuilds every state from ``initial`` and the steps' typed
-changes, exactly as a reader of a trace file would.
+  ``view`` of a file that cannot be replayed derives it from the next step);
+* ``text``: when the model and the path are known, the command line's text
+  of the path, made by the functions that print it (one formatter: the page
+  never words a step differently from the CLI): ``steps`` (each step as
+  ``run --trace`` and a counterexample print it, :func:`~pccl.output.display.format_step`)
+  and ``summary`` (``[[k, line]]``: the ``time steps:`` lines of ``pccl run``,
+  each with the step after which its first time step's state holds,
+  :func:`~pccl.output.views.time_steps`); else ``null`` and the page words
+  them itself from the recorded steps;
+* ``types``: the declared type of every shared and agent variable
+  (``{"shared": {name: type}, "agent": {name: type}}``, a type
+  ``{"kind", "elem"}`` as :class:`~pccl.lang.types.Ty`), so that a
+  ``List<int>`` of three elements is shown as a list and an
+  ``ItemPosition`` as a position; ``null`` when the model is not known
+  (then only the position and target cells are shown as positions).
 """
 
 from __future__ import annotations
@@ -114,25 +125,55 @@ def motion_of(model=None, doc: Optional[dict] = None) -> bool:
     return False
 
 
-def data(doc: dict, *, model=None, states=None, world=None, title: Optional[str] = None,
-         notes: Optional[list] = None, source_file: Optional[str] = None,
-         embed_paths: bool = False) -> dict:
+def type_data(ty) -> Optional[dict]:
+    """A declared type as the page reads it: ``{"kind", "elem"}``."""
+    if ty is None:
+        return None
+    return {"kind": ty.kind, "elem": type_data(getattr(ty, "elem", None))}
+
+
+def types_of(model) -> dict:
+    lay = model.compiled.layout
+    return {"shared": {v.name: type_data(v.ty) for v in lay.shared},
+            "agent": {v.name: type_data(v.ty) for v in list(lay.allread) + list(lay.local)}}
+
+
+def text_of(model, states, labels) -> dict:
+    """The command line's text of the path (see the module's ``text``)."""
+    from pccl.output import display as D
+    from pccl.output import views
+    steps = [D.format_step(model, n + 1, lab, states[n], states[n + 1])
+             for n, lab in enumerate(labels)]
+    summary = [[k, line] for k, line in views.time_steps(model, views.summary_of(states, labels))]
+    return {"steps": steps, "summary": summary}
+
+
+def data(doc: dict, *, model=None, states=None, labels=None, world=None,
+         title: Optional[str] = None, notes: Optional[list] = None,
+         source_file: Optional[str] = None, embed_paths: bool = False) -> dict:
     """The object the page reads (``window.PCCL_DATA``).  The source shown is
     the model's or ``source_file``'s (:func:`source_data`); absolute paths
-    are left out unless ``embed_paths``."""
+    are left out unless ``embed_paths``.  ``states`` and ``labels``: the
+    document's path (its states then, with the model, give every agent's
+    pending computation, and with ``labels`` too the CLI's text of it)."""
     if world is None and model is not None:
         world = model.world
     from pccl.model.layout import AGS, PC
-    at = None
+    at = text = types = None
     if model is not None and states:
         at = [[model.compiled.describe_k(ag[PC]) for ag in st[AGS]] for st in states]
+        if labels is not None and len(labels) == len(states) - 1 == len(doc.get("steps") or []):
+            text = text_of(model, states, labels)
+    if model is not None:
+        types = types_of(model)
     src = source_data(model, source_file)
     if src is not None:
         src = {**src, "path": _shown_path(src["path"], embed_paths)}
     if not embed_paths:
         doc = _without_paths(doc)
     return {"trace": doc, "source": src, "world": world_data(world), "motion": motion_of(model, doc),
-            "at": at, "title": title or _title(doc, src), "notes": list(notes or [])}
+            "at": at, "text": text, "types": types,
+            "title": title or _title(doc, src), "notes": list(notes or [])}
 
 
 def _title(doc: dict, src) -> str:

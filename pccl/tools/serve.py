@@ -365,7 +365,7 @@ class Session:
                          status="violation" if vs else "exploring",
                          violation=vs[0] if vs else None,
                          message=vs[0].message if vs else f"exploring: depth {len(self.labels)}")
-        view = viewer.data(doc, model=m, states=self.states)
+        view = viewer.data(doc, model=m, states=self.states, labels=self.labels)
         visited = []
         for vid, (sts, labs) in enumerate(self.visited):
             last = sts[-1]
