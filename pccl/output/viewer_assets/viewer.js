@@ -398,8 +398,9 @@
     var y0 = Math.min.apply(null, ys) - m, y1 = Math.max.apply(null, ys) + m;
     var W = x1 - x0, H = y1 - y0;
     V.unit = Math.max(W, H) / 100;
-    var u = V.unit;
-    var svg = sv("svg", { id: "arena", viewBox: [x0, -y1, W, H].join(" "), "stroke-width": u * 0.3 });
+    var u = V.unit, L = 8 * u, B = 6 * u;      /* room for the axes' labels, left and below */
+    var svg = sv("svg", { id: "arena", viewBox: [x0 - L, -y1, W + L, H + B].join(" "), "stroke-width": u * 0.3 });
+    drawAxes(svg, x0, x1, y0, y1, u);
     if (w.arena) {
       var a = w.arena;
       svg.appendChild(sv("rect", { "class": "arena", x: a[0][0], y: -a[1][1], width: a[1][0] - a[0][0],
@@ -441,8 +442,74 @@
       V.robots.push(V.layer.appendChild(robot));
     }
     V.ringLayer = V.layer.appendChild(sv("g", { id: "rings" }));
+    V.spotLayer = V.layer.insertBefore(sv("g", { id: "spots" }), V.robots[0] || null);
     $("picture").textContent = "";
     $("picture").appendChild(svg);
+    $("picture").appendChild(arenaLegend());
+  }
+  /* axes in the world's units: a light grid, ticks and their values */
+  function tickStep(span) {
+    var raw = span / 6, p = Math.pow(10, Math.floor(Math.log10(raw))), f = raw / p;
+    return p * (f < 1.5 ? 1 : f < 3.5 ? 2 : f < 7.5 ? 5 : 10);
+  }
+  function drawAxes(svg, x0, x1, y0, y1, u) {
+    var g = svg.appendChild(sv("g", { id: "axes", "font-size": u * 2.4, fill: "#666" }));
+    var ax = g.appendChild(sv("g", { id: "axis-x" })), ay = g.appendChild(sv("g", { id: "axis-y" }));
+    ax.appendChild(sv("line", { "class": "axis", x1: x0, x2: x1, y1: -y0, y2: -y0, "stroke-width": u * 0.25 }));
+    ay.appendChild(sv("line", { "class": "axis", x1: x0, x2: x0, y1: -y0, y2: -y1, "stroke-width": u * 0.25 }));
+    var sx = tickStep(x1 - x0), sy = tickStep(y1 - y0);
+    for (var x = Math.ceil(x0 / sx) * sx; x <= x1 + 1e-9; x += sx) {
+      var vx = +x.toPrecision(12);
+      g.insertBefore(sv("line", { "class": "grid", x1: vx, x2: vx, y1: -y0, y2: -y1, "stroke-width": u * 0.12 }), ax);
+      ax.appendChild(sv("line", { "class": "axis", x1: vx, x2: vx, y1: -y0, y2: -y0 + u, "stroke-width": u * 0.25 }));
+      ax.appendChild(sv("text", { "class": "tick", x: vx, y: -y0 + 3.6 * u, "text-anchor": "middle", "data-value": vx }, num(vx)));
+    }
+    for (var y = Math.ceil(y0 / sy) * sy; y <= y1 + 1e-9; y += sy) {
+      var vy = +y.toPrecision(12);
+      g.insertBefore(sv("line", { "class": "grid", x1: x0, x2: x1, y1: -vy, y2: -vy, "stroke-width": u * 0.12 }), ax);
+      ay.appendChild(sv("line", { "class": "axis", x1: x0 - u, x2: x0, y1: -vy, y2: -vy, "stroke-width": u * 0.25 }));
+      ay.appendChild(sv("text", { "class": "tick", x: x0 - 1.6 * u, y: -vy, "text-anchor": "end",
+        "dominant-baseline": "central", "data-value": vy }, num(vy)));
+    }
+    ax.appendChild(sv("text", { x: x1, y: -y0 + 3.6 * u, "text-anchor": "end", "font-style": "italic" }, "x"));
+    ay.appendChild(sv("text", { x: x0 - 1.6 * u, y: -y1 + 1.5 * u, "text-anchor": "end", "font-style": "italic" }, "y"));
+  }
+  /* a legend under the picture: [[swatch element, words]] */
+  function legend(items) {
+    var box = el("div", { id: "legend" });
+    items.forEach(function (it) {
+      var e = box.appendChild(el("span", { "class": "item", "data-legend": it[1] }));
+      e.appendChild(it[0]);
+      e.appendChild(el("span", {}, it[1]));
+    });
+    return box;
+  }
+  function swatch(draw) {                    /* a small SVG of one mark */
+    var s = sv("svg", { width: 22, height: 14, viewBox: "-11 -7 22 14", "class": "swatch" });
+    draw(s);
+    return s;
+  }
+  function arenaLegend() {
+    var items = [];
+    for (var i = 0; i < V.trace.N; i++) (function (i) {
+      items.push([swatch(function (s) { s.appendChild(sv("circle", { r: 6, fill: colour(i), stroke: "#222" })); }), "agent " + i]);
+    })(i);
+    items.push([swatch(function (s) { s.appendChild(sv("circle", { r: 5, fill: "none", stroke: "#555", "stroke-dasharray": "2 2" })); }), "start"]);
+    items.push([swatch(function (s) { s.appendChild(sv("line", { x1: -10, x2: 10, y1: 0, y2: 0, stroke: "#555", "stroke-width": 2 })); }), "path so far"]);
+    items.push([swatch(function (s) { s.appendChild(sv("path", { d: cross(0, 0, 4), stroke: "#555", "stroke-width": 2 })); }), "doReach target"]);
+    if (V.trace.dests.length)
+      items.push([swatch(function (s) { s.appendChild(sv("path", { d: star(0, 0, 6), fill: "#f9a825", stroke: "#8d6e00" })); }), "destination (input)"]);
+    if (V.data.world.obstacles.length)
+      items.push([swatch(function (s) { s.appendChild(sv("rect", { x: -8, y: -5, width: 16, height: 10, fill: "#9e9e9e" })); }), "obstacle"]);
+    if (V.trace.fails.length)
+      items.push([swatch(function (s) { s.appendChild(sv("path", { d: cross(0, 0, 5), stroke: "#c62828", "stroke-width": 2 })); }), "doReach failed"]);
+    if (V.trace.violation)
+      items.push([swatch(function (s) { s.appendChild(sv("circle", { r: 6, fill: "none", stroke: "#c62828", "stroke-width": 2 })); }), "agent in the violation"]);
+    items.push([swatch(function (s) {
+      s.appendChild(sv("circle", { r: 6, fill: "none", stroke: "#555", "stroke-dasharray": "1 1.5" }));
+      s.appendChild(sv("circle", { cx: -3, r: 3, fill: colour(0) })); s.appendChild(sv("circle", { cx: 3, r: 3, fill: colour(1) }));
+    }), "robots at one spot (drawn apart)"]);
+    return legend(items);
   }
   function star(x, y, s) {
     var pts = [];
@@ -459,14 +526,38 @@
   function drawArena(k, frac) {
     var T = V.trace, st = T.states[k], u = V.unit, r = V.data.world.radius;
     var prev = frac !== undefined && k > 0 ? T.states[k - 1] : null;
-    for (var i = 0; i < T.N; i++) {
-      var ag = st.agents[i], p = ag.position, x = p[0], y = p[1];
+    var at = [];
+    for (var i0 = 0; i0 < T.N; i0++) {
+      var p0 = st.agents[i0].position, xy = [p0[0], p0[1]];
       if (prev) {                          /* interpolate the motion of this step */
-        var q = prev.agents[i].position;
-        x = q[0] + (p[0] - q[0]) * frac; y = q[1] + (p[1] - q[1]) * frac;
+        var q0 = prev.agents[i0].position;
+        xy = [q0[0] + (p0[0] - q0[0]) * frac, q0[1] + (p0[1] - q0[1]) * frac];
       }
+      at.push(xy);
+    }
+    /* robots at one spot (closer than half a radius) are drawn apart, around
+     * it, with a dotted ring marking the spot: none hides another */
+    var drawn = at.map(function (xy) { return xy.slice(); }), spot = [];
+    V.spotLayer.textContent = "";
+    for (var a = 0; a < T.N; a++) {
+      if (spot[a] !== undefined) continue;
+      var grp = [a];
+      for (var b = a + 1; b < T.N; b++)
+        if (spot[b] === undefined && Math.hypot(at[a][0] - at[b][0], at[a][1] - at[b][1]) < r * 0.5) grp.push(b);
+      grp.forEach(function (m) { spot[m] = grp.length; });
+      if (grp.length < 2) continue;
+      grp.forEach(function (m, j) {
+        var ang = Math.PI / 2 + 2 * Math.PI * j / grp.length;
+        drawn[m] = [at[a][0] + r * Math.cos(ang), at[a][1] + r * Math.sin(ang)];
+      });
+      V.spotLayer.appendChild(sv("circle", { "class": "spot", cx: at[a][0], cy: -at[a][1], r: r * 2.1,
+        "stroke-width": u * 0.3, "data-agents": grp.join(",") }));
+    }
+    for (var i = 0; i < T.N; i++) {
+      var ag = st.agents[i], p = ag.position, x = at[i][0], y = at[i][1];
       var robot = V.robots[i];
-      robot.setAttribute("transform", "translate(" + x + "," + (-y) + ")");
+      robot.setAttribute("transform", "translate(" + drawn[i][0] + "," + (-drawn[i][1]) + ")");
+      robot.setAttribute("data-stacked", String(spot[i]));
       robot.setAttribute("data-x", String(p[0]));
       robot.setAttribute("data-y", String(p[1]));
       robot.setAttribute("data-status", ag.status.status);
@@ -578,6 +669,21 @@
     });
     $("picture").textContent = "";
     $("picture").appendChild(svg);
+    /* the legend: each event's colour, idle, the cursor, the violation's mark */
+    var items = Object.keys(events).sort(function (x, y) { return events[x] - events[y]; }).map(function (name) {
+      return [swatch(function (s) { s.appendChild(sv("rect", { x: -9, y: -5, width: 18, height: 10, fill: evColour(name) })); }),
+        "event " + name];
+    });
+    items.push([swatch(function (s) { s.appendChild(sv("rect", { x: -9, y: -5, width: 18, height: 10, fill: evColour(null) })); }),
+      "idle (no guard holds)"]);
+    items.push([swatch(function (s) { s.appendChild(sv("line", { x1: 0, x2: 0, y1: -7, y2: 7, stroke: "#000", "stroke-width": 2 })); }),
+      "the shown step"]);
+    items.push([swatch(function (s) { s.appendChild(sv("line", { x1: 0, x2: 0, y1: -7, y2: 7, stroke: "#e0e0e0", "stroke-width": 2 })); }),
+      "time advances (t= below)"]);
+    if (T.violation)
+      items.push([swatch(function (s) { s.appendChild(sv("circle", { r: 5, fill: "#c62828" })); }), "agent in the violation"]);
+    $("picture").appendChild(legend(items));
+    $("picture").appendChild(el("div", { "class": "note" }, "x: the trace's steps (one bar: an agent's steps in one event block); one lane per agent"));
   }
   function drawTimeline(k) {
     var T = V.trace, x = V.sx(k);
