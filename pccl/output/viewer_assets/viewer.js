@@ -348,6 +348,7 @@
     if (data.motion) buildArena(); else buildTimeline();
     buildSwimlane();
     buildSummary();
+    buildPlot();
     V.goto(0, true);
   };
 
@@ -476,7 +477,7 @@
   }
   /* a legend under the picture: [[swatch element, words]] */
   function legend(items) {
-    var box = el("div", { id: "legend" });
+    var box = el("div", { id: "legend", "class": "legend" });
     items.forEach(function (it) {
       var e = box.appendChild(el("span", { "class": "item", "data-legend": it[1] }));
       e.appendChild(it[0]);
@@ -792,6 +793,84 @@
     });
   }
 
+  /* plot of chosen variables over the steps ------------------------- */
+  function plotValue(v) { return v === true ? 1 : v === false ? 0 : typeof v === "number" && isFinite(v) ? v : null; }
+  function plotSeries() {                /* [{name, get(state)}]: every number or bool variable */
+    var T = V.trace, out = [{ name: "time", get: function (s) { return s.time; } }], s0 = T.states[0];
+    function plottable(get) { return T.states.some(function (s) { return plotValue(get(s)) !== null; }); }
+    Object.keys(s0.shared).forEach(function (n) {
+      var get = function (s) { return s.shared[n]; };
+      if (plottable(get)) out.push({ name: n, get: get });
+    });
+    for (var i = 0; i < T.N; i++) Object.keys(s0.agents[i].variables).forEach(function (n) {
+      var ii = i, get = function (s) { return s.agents[ii].variables[n]; };
+      if (plottable(get)) out.push({ name: n + "[" + ii + "]", get: get });
+    });
+    return out;
+  }
+  function buildPlot() {
+    var sel = $("plot-vars");
+    V.plotSeries = plotSeries();
+    sel.textContent = "";
+    V.plotSeries.forEach(function (p, j) { sel.appendChild(el("option", { value: String(j) }, p.name)); });
+    sel.onchange = function () { drawPlot(); };
+    drawPlot();
+  }
+  /* draw the chosen series: one polyline each (data-values: the values, step 0..n) */
+  function drawPlot() {
+    var T = V.trace, box = $("plot-area"), chosen = [];
+    [].forEach.call($("plot-vars").selectedOptions, function (o) { chosen.push(V.plotSeries[+o.value]); });
+    box.textContent = "";
+    V.plotCursor = null;
+    if (!chosen.length) { box.appendChild(el("div", { "class": "note" }, "(no variable chosen)")); return; }
+    var W = 600, H = 160, left = 44, bottom = 18, lo = Infinity, hi = -Infinity;
+    var series = chosen.map(function (p) {
+      var ys = T.states.map(function (s) { return plotValue(p.get(s)); });
+      ys.forEach(function (y) { if (y !== null) { lo = Math.min(lo, y); hi = Math.max(hi, y); } });
+      return { name: p.name, ys: ys };
+    });
+    if (!isFinite(lo)) { lo = 0; hi = 1; }
+    if (hi === lo) { hi += 1; lo -= 1; }
+    var sx = function (k) { return left + (T.n ? k * (W - left - 6) / T.n : 0); };
+    var sy = function (y) { return 6 + (hi - y) * (H - bottom - 12) / (hi - lo); };
+    var svg = sv("svg", { id: "plot-svg", viewBox: "0 0 " + W + " " + H });
+    svg.appendChild(sv("line", { x1: left, x2: left, y1: 6, y2: H - bottom, stroke: "#999" }));
+    svg.appendChild(sv("line", { x1: left, x2: W - 6, y1: H - bottom, y2: H - bottom, stroke: "#999" }));
+    [lo, (lo + hi) / 2, hi].forEach(function (y) {
+      svg.appendChild(sv("text", { x: left - 4, y: sy(y), "font-size": 10, "text-anchor": "end", "dominant-baseline": "central", fill: "#666" }, num(y)));
+    });
+    svg.appendChild(sv("text", { x: left, y: H - 4, "font-size": 10, fill: "#666" }, "step 0"));
+    svg.appendChild(sv("text", { x: W - 6, y: H - 4, "font-size": 10, "text-anchor": "end", fill: "#666" }, "step " + T.n));
+    var leg = [];
+    series.forEach(function (p, j) {
+      var pts = [], prev = null;
+      p.ys.forEach(function (y, k) {            /* a step function: the value holds until the next step */
+        if (y === null) return;
+        if (prev !== null) pts.push(sx(k) + "," + sy(prev));
+        pts.push(sx(k) + "," + sy(y)); prev = y;
+      });
+      svg.appendChild(sv("polyline", { "class": "plot-line", fill: "none", stroke: COLOURS[j % COLOURS.length], "stroke-width": 1.5,
+        points: pts.join(" "), "data-name": p.name, "data-values": JSON.stringify(p.ys) }));
+      leg.push([swatch(function (s) { s.appendChild(sv("line", { x1: -10, x2: 10, y1: 0, y2: 0, stroke: COLOURS[j % COLOURS.length], "stroke-width": 2 })); }), p.name]);
+    });
+    V.plotCursor = svg.appendChild(sv("line", { "class": "tl-cursor", y1: 6, y2: H - bottom }));
+    V.plotSx = sx;
+    svg.addEventListener("click", function (e) {
+      var pt = svg.createSVGPoint(); pt.x = e.clientX; pt.y = e.clientY;
+      var q = pt.matrixTransform(svg.getScreenCTM().inverse());
+      V.goto(Math.round((q.x - left) * T.n / (W - left - 6)));
+    });
+    box.appendChild(svg);
+    var lg = legend(leg); lg.id = "plot-legend"; box.appendChild(lg);
+    drawPlotCursor(V.k);
+  }
+  function drawPlotCursor(k) {
+    if (!V.plotCursor) return;
+    var x = V.plotSx(k);
+    V.plotCursor.setAttribute("x1", x); V.plotCursor.setAttribute("x2", x);
+    V.plotCursor.setAttribute("data-step", String(k));
+  }
+
   /* inspector --------------------------------------------------------- */
   function drawInspector(k) {
     var T = V.trace, st = T.states[k], box = $("inspector"), types = V.data.types;
@@ -911,6 +990,7 @@
     if (V.data.motion) drawArena(k); else drawTimeline(k);
     drawInspector(k);
     drawStepInfo(k);
+    drawPlotCursor(k);
     drawSourceLine(k);
     V.swim.select(k);
     if (V.sum) {
