@@ -183,3 +183,133 @@ def test_page_without_the_model_keeps_the_time_steps_in_place(browser, tmp_path)
     doc = json.loads(trace.read_text())
     check_summary(b, lines, doc, exact=False)
     assert b.eval("pcclViewer.data.text === null")      # the page's own wording
+
+
+# ---------------------------------------------------------------------------
+# readable (issue 44.5): each fails on the page before the fix
+# ---------------------------------------------------------------------------
+
+LIST3 = """
+allwrite:
+  List<int> xs = [];
+  int n = 0;
+  ItemPosition p = ItemPosition(1.0, 2.0);
+Step():
+  pre(n < 3);
+  eff:
+    add(xs, n);
+    n = n + 1;
+Done():
+  pre(n >= 3);
+  eff:
+    exit();
+"""
+
+
+def test_a_list_of_three_ints_is_a_list_and_a_position_a_position(browser, tmp_path):
+    prog, html = tmp_path / "l3.pccl", tmp_path / "l3.html"
+    prog.write_text(LIST3)
+    r = cli("run", prog, "--agents", "1", "--html", html)
+    assert r.exit_code == 0, r.output
+    b = browser
+    b.open(file_url(html))
+    b.eval("pcclViewer.goto(+document.body.dataset.steps)")
+    val = b.eval("(() => { const v = c => document.querySelector(`#inspector tr[data-cell=\"${c}\"]`).dataset.value;"
+                 " return [v('xs'), v('p')]; })()")
+    assert val == ["[0, 1, 2]", "(1.0, 2.0, 0.0)"]
+    lanes = b.eval("[...document.querySelectorAll('#swimlane .vrow[data-step]')].map(r => r.textContent).join(' ')")
+    assert "xs=[0, 1, 2]" in lanes and "(0, 1, 2)" not in lanes
+
+
+def test_inspector_keeps_the_pending_computation_apart_from_a_variable_k(browser, tmp_path):
+    """Fischer's shared variable is named k: the agent's pending computation
+    is not a row labelled k beside it."""
+    html = tmp_path / "f.html"
+    cli("explore", P / "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1", "--html", html)
+    b = browser
+    b.open(file_url(html))
+    rows = b.eval("[...document.querySelectorAll('#inspector tr[data-cell]')].map(r => "
+                  "[r.dataset.cell, r.firstChild.textContent, r.classList.contains('builtin')])")
+    labelled_k = [r for r in rows if r[1] == "k"]
+    assert labelled_k == [["k", "k", False]]             # the program's k only
+    pending = [r for r in rows if r[0].startswith("at[")]
+    assert len(pending) == 2 and all(r[2] and " " in r[1] for r in pending)   # words, not a name
+
+
+def test_timeline_and_arena_have_legends_and_axes(browser, tmp_path):
+    html = tmp_path / "f.html"
+    cli("explore", P / "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1", "--html", html)
+    b = browser
+    b.open(file_url(html))
+    events = b.eval("[...new Set([...document.querySelectorAll('.tl-bar')].map(e => e.dataset.event).filter(e => e))]")
+    legend = b.eval("[...document.querySelectorAll('#legend .item')].map(e => e.dataset.legend)")
+    assert events and all(f"event {e}" in legend for e in events)
+    html2 = tmp_path / "r.html"
+    cli("run", P / "race.pccl", "--world", P / "race.toml", "--html", html2)
+    b.open(file_url(html2))
+    ticks = b.eval("['x', 'y'].map(a => [...document.querySelectorAll(`#axis-${a} .tick`)].map(t => +t.dataset.value))")
+    # the race world's arena is [-6, 7] x [-2, 7]: both axes span it
+    assert min(ticks[0]) <= -6 and max(ticks[0]) >= 6 and min(ticks[1]) <= -2 and max(ticks[1]) >= 6
+    assert "agent 0" in b.eval("[...document.querySelectorAll('#legend .item')].map(e => e.dataset.legend)")
+
+
+def test_robots_at_one_spot_are_drawn_apart(browser, tmp_path):
+    html = tmp_path / "r.html"
+    cli("run", P / "race.pccl", "--world", P / "race.toml", "--html", html)
+    b = browser
+    b.open(file_url(html))
+    drawn = b.eval("""(() => { const d = JSON.parse(JSON.stringify(pcclViewer.data));
+      d.trace.initial.agents[1].position = d.trace.initial.agents[0].position.slice();
+      pcclViewer.load(d);
+      return [...document.querySelectorAll('.robot')].map(r => {
+        const m = /translate\\(([^,]+),([^)]+)\\)/.exec(r.getAttribute('transform'));
+        return [+m[1], +m[2], +r.dataset.x, +r.dataset.y]; }); })()""")
+    r = b.eval("pcclViewer.data.world.radius")
+    (x0, y0, px0, py0), (x1, y1, px1, py1) = drawn
+    assert (px0, py0) == (px1, py1)                      # one spot in the state...
+    assert ((x0 - x1) ** 2 + (y0 - y1) ** 2) ** 0.5 >= r  # ...two robots on the page
+
+
+def test_swimlane_cells_are_not_cut_off(browser, tmp_path):
+    html = tmp_path / "r.html"
+    cli("run", P / "race.pccl", "--world", P / "race.toml", "--agents", "3", "--html", html)
+    b = browser
+    b.open(file_url(html))
+    cut = b.eval("""(() => { const out = [];
+      for (const k of [0, 1, 2, 3, 14, 30]) { pcclViewer.goto(k);
+        for (const c of document.querySelectorAll('#swimlane .vrow span, #summary-list .vrow span')) {
+          const row = c.parentElement.getBoundingClientRect(), r = c.getBoundingClientRect();
+          if (c.scrollWidth > c.clientWidth + 1 || c.scrollHeight > c.clientHeight + 1 ||
+              r.bottom > row.bottom + 1) out.push(c.textContent); } }
+      return out; })()""")
+    assert cut == []
+    # and no two rows overlap
+    overlap = b.eval("""(() => { const rs = [...document.querySelectorAll('#swimlane .vrow[data-index]')]
+        .map(r => r.getBoundingClientRect()).sort((a, b) => a.top - b.top);
+      return rs.some((r, i) => i > 0 && r.top < rs[i - 1].bottom - 1); })()""")
+    assert overlap is False
+
+
+def test_plot_of_chosen_variables(browser, tmp_path):
+    html, trace = tmp_path / "f.html", tmp_path / "f.json"
+    cli("explore", P / "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1",
+        "--html", html, "--trace-out", trace)
+    doc = json.loads(trace.read_text())
+    b = browser
+    b.open(file_url(html))
+    got = b.eval("""(() => { const s = document.getElementById('plot-vars');
+      [...s.options].forEach(o => o.selected = ['reqid', 'inCs[1]'].includes(o.textContent)); s.onchange();
+      return [...document.querySelectorAll('#plot-area .plot-line')].map(l => [l.dataset.name, JSON.parse(l.dataset.values)]); })()""")
+    states = [doc["initial"]]
+    import copy
+    for st in doc["steps"]:
+        s = copy.deepcopy(states[-1])
+        for ch in st["changes"]:
+            c = ch["cell"]
+            if "var" in c:
+                (s["agents"][c["agent"]]["variables"] if "agent" in c else s["shared"])[c["var"]] = ch["new"]
+        states.append(s)
+    assert got == [["reqid", [s["shared"]["reqid"] for s in states]],
+                   ["inCs[1]", [int(s["agents"][1]["variables"]["inCs"]) for s in states]]]
+    b.eval("pcclViewer.goto(40)")
+    assert b.eval("document.querySelector('#plot-area .tl-cursor').dataset.step") == "40"
