@@ -299,7 +299,8 @@ def test_plot_of_chosen_variables(browser, tmp_path):
     b.open(file_url(html))
     got = b.eval("""(() => { const s = document.getElementById('plot-vars');
       [...s.options].forEach(o => o.selected = ['reqid', 'inCs[1]'].includes(o.textContent)); s.onchange();
-      return [...document.querySelectorAll('#plot-area .plot-line')].map(l => [l.dataset.name, JSON.parse(l.dataset.values)]); })()""")
+      return [...document.querySelectorAll('#plot-area .plot-line')]
+        .map(l => [l.dataset.name, JSON.parse(l.dataset.values)]); })()""")
     states = [doc["initial"]]
     import copy
     for st in doc["steps"]:

@@ -153,7 +153,7 @@
     for (var name in sh) {
       var v = sh[name];
       var ty = data.types ? data.types.shared[name] : null;
-      var pts = ty ? ty.kind === "list" && ty.elem && ty.elem.kind === "pos" : v.every(isPoint);
+      var pts = ty ? ty.kind === "list" && !!ty.elem && ty.elem.kind === "pos" : Array.isArray(v) && v.every(isPoint);
       if (Array.isArray(v) && v.length && pts) v.forEach(function (pt) { this.dests.push(pt); }, this);
     }
   }
