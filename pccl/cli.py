@@ -147,6 +147,23 @@ def view_options(f):
     return f
 
 
+def watch_option(f):
+    return click.option("--watch", "watch", multiple=True, metavar="EXPR",
+                        help="with --html: an expression (a property expression of any type) "
+                             "to evaluate in every state of the path, shown in the page's "
+                             "expressions panel and plot (repeatable)")(f)
+
+
+def _check_watch(model, watch, html) -> None:
+    """--watch: each expression checks against the program (a PcclError at
+    its caret otherwise), and it needs --html."""
+    if watch and not html:
+        raise PcclError("--watch needs --html (it shows in the page)", filename="--watch")
+    from pccl.output.viewer import watch_function
+    for k, text in enumerate(watch):
+        watch_function(model, text, k)
+
+
 def _delta(d):
     # 2.0 is 2; a huge integral float stays a float (its int would print 300 digits)
     return int(d) if float(d).is_integer() and abs(d) < 2 ** 53 else d
@@ -331,9 +348,10 @@ def check(program, world):
                    "(decided when the run ends for good, else undecided); 'reachable P' "
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
+@watch_option
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
-        exit_codes, plot, html, trace_out, view, full):
+        exit_codes, plot, html, trace_out, view, full, watch):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from pccl.model.options import RunOptions
     import random
@@ -347,6 +365,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     try:
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
+        _check_watch(model, watch, html)
         res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
                         stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory),
                         spelling=cli_spelling)
@@ -364,7 +383,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _print_run_json(program, seed, res, checked, doc, exit_codes)
     else:
         _print_run_text(program, seed, res, checked, fmt, view, full, trace)
-    _write_run_files(res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    _write_run_files(res, doc, trace_out, plot, html, quiet=(fmt == "json"), watch=watch)
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
                           exit_codes))
 
@@ -440,7 +459,7 @@ def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None
     click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
 
 
-def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool, watch=()) -> None:
     """Step of run: the trace file, the plot and the viewer asked for (none
     of a run out of memory, whose trace was dropped)."""
     m = res.model
@@ -455,7 +474,7 @@ def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
-        _write_html(html, doc, model=m, path=_run_path(res), quiet=quiet)
+        _write_html(html, doc, model=m, path=_run_path(res), quiet=quiet, watch=watch)
 
 
 def _run_path(res):
@@ -626,6 +645,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
 @view_options
+@watch_option
 @click.option("--coverage", is_flag=True,
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
@@ -646,7 +666,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
-            checkpoint, checkpoint_interval, resume, spill):
+            checkpoint, checkpoint_interval, resume, spill, watch):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from pccl.model.options import ExploreOptions, conflict
@@ -667,6 +687,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = build_model(program, opts, explore=True)
         if coverage:
             model = model.with_uses(("coverage",))
+        _check_watch(model, watch, html)
         c = conflict(opts)
         if c is not None:
             raise PcclError(c.message(cli_spelling), filename=flag(c.option))
@@ -695,13 +716,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
-    _write_explore_files(model, res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    _write_explore_files(model, res, doc, trace_out, plot, html, quiet=(fmt == "json"), watch=watch)
     if res.status == "interrupted" and (checkpoint or resume):
         _resume_hint(res, checkpoint or resume)
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
 
 
-def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool, watch=()) -> None:
     """Step of explore: the trace file, the plot and the viewer asked for
     (the plot and the viewer only of a counterexample)."""
     if trace_out:
@@ -716,7 +737,7 @@ def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     if html and doc["initial"] is not None:
-        _write_html(html, doc, model=model, path=_explore_path(res), quiet=quiet)
+        _write_html(html, doc, model=model, path=_explore_path(res), quiet=quiet, watch=watch)
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
 
@@ -839,7 +860,7 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
 
 
 def _write_html(out, doc, *, model=None, path=None, world=None, notes=(), quiet=False,
-                source_file=None, embed_paths=False):
+                source_file=None, embed_paths=False, watch=()):
     """Write the HTML viewer of ``doc`` to ``out``; the path's states
     (pending computations) and labels (the CLI's text of its steps) are kept
     only when they are the document's whole path."""
@@ -849,7 +870,8 @@ def _write_html(out, doc, *, model=None, path=None, world=None, notes=(), quiet=
         states, labels = list(path.states), list(path.labels)
     try:
         viewer.write(out, doc, model=model, states=states, labels=labels, world=world,
-                     notes=list(notes), source_file=source_file, embed_paths=embed_paths)
+                     notes=list(notes), source_file=source_file, embed_paths=embed_paths,
+                     watch=watch if states is not None else ())
     except PcclError as e:      # the verdict stands: report, keep its exit status
         click.echo(_render(e), err=True)
         return
@@ -875,7 +897,8 @@ def _explore_path(res):
 @click.option("--embed-paths", is_flag=True,
               help="keep the absolute paths of the program and world in the page (left out "
                    "by default: a page is made to be shared)")
-def view(trace_file, output, blackbox, embed_paths):
+@watch_option
+def view(trace_file, output, blackbox, embed_paths, watch):
     """Write a self-contained HTML viewer of the trace file TRACE (written by
     --trace-out): the arena or timeline, swimlane, state inspector and source,
     animated step by step.  The program (and world) are used only when a file
@@ -914,12 +937,19 @@ def view(trace_file, output, blackbox, embed_paths):
                 notes.append(f"the trace does not replay: {res.message}")
         except PcclError as e:
             notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
+    if model is not None:
+        try:
+            _check_watch(model, watch, output)
+        except PcclError as e:
+            _fail(e)
+    elif watch:
+        notes.append("--watch not evaluated: the trace was not replayed")
     for note in notes:
         click.echo(f"pccl view: {note}", err=True)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
     _write_html(output, doc, model=model, path=path, world=world, notes=notes,
-                source_file=source, embed_paths=embed_paths)
+                source_file=source, embed_paths=embed_paths, watch=watch)
 
 
 @main.command(short_help="Interactive explorer in the browser (127.0.0.1).",

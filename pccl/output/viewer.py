@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import html
 import json
+import math
 import os
 from importlib import resources
 from typing import Any, Optional
@@ -148,14 +149,56 @@ def text_of(model, states, labels) -> dict:
     return {"steps": steps, "summary": summary}
 
 
+def watch_function(model, text: str, k: int = 0) -> tuple:
+    """``(type, fn(st))`` of the watched expression ``text`` (``--watch``,
+    the expression box of ``pccl serve``): parsed and checked as a property
+    expression of the program (any type; names file ``--watch #k+1``, caret
+    and all, when wrong), compiled by the compiler that evaluates
+    invariants: pccl's own semantics."""
+    from pccl.lang.checker import check_watch
+    from pccl.lang.parser import parse_property
+    if not isinstance(text, str) or not text.strip():
+        raise PcclError("an expression to watch must be non-empty text", filename=f"--watch #{k + 1}")
+    fname = f"--watch #{k + 1}"
+    expr = parse_property(text, filename=fname)
+    ty = check_watch(expr, model.compiled.info, filename=fname, source=text)
+    return ty, model.compiled.state_predicate(expr)[1]
+
+
+def watch_values(model, states, texts) -> list:
+    """Each watched expression's value in every state: ``[{"text", "type",
+    "values": [text per state], "numbers": [number or null per state]}]``
+    (a value shown as :func:`~pccl.lang.values.format_value` shows it; a
+    number or bool also as a number, for the plot; a state where it cannot
+    be evaluated: ``could not be evaluated: …`` and null)."""
+    from pccl.lang.values import format_value
+    out = []
+    for k, text in enumerate(texts):
+        ty, fn = watch_function(model, text, k)
+        values, numbers = [], []
+        for st in states:
+            try:
+                v = fn(st)
+            except Exception as e:          # as an invariant: reported, not raised
+                values.append(f"could not be evaluated: {e}")
+                numbers.append(None)
+                continue
+            values.append(format_value(v, ty))
+            numbers.append(float(v) if isinstance(v, (bool, int, float)) and math.isfinite(v) else None)
+        out.append({"text": text.strip(), "type": str(ty), "values": values, "numbers": numbers})
+    return out
+
+
 def data(doc: dict, *, model=None, states=None, labels=None, world=None,
          title: Optional[str] = None, notes: Optional[list] = None,
-         source_file: Optional[str] = None, embed_paths: bool = False) -> dict:
+         source_file: Optional[str] = None, embed_paths: bool = False, watch=()) -> dict:
     """The object the page reads (``window.PCCL_DATA``).  The source shown is
     the model's or ``source_file``'s (:func:`source_data`); absolute paths
     are left out unless ``embed_paths``.  ``states`` and ``labels``: the
     document's path (its states then, with the model, give every agent's
-    pending computation, and with ``labels`` too the CLI's text of it)."""
+    pending computation, and with ``labels`` too the CLI's text of it).
+    ``watch``: expressions to evaluate in every state of the path
+    (:func:`watch_values`; they need the model and the states)."""
     if world is None and model is not None:
         world = model.world
     from pccl.model.layout import AGS, PC
@@ -166,13 +209,14 @@ def data(doc: dict, *, model=None, states=None, labels=None, world=None,
             text = text_of(model, states, labels)
     if model is not None:
         types = types_of(model)
+    watched = watch_values(model, states, watch) if watch and model is not None and states else []
     src = source_data(model, source_file)
     if src is not None:
         src = {**src, "path": _shown_path(src["path"], embed_paths)}
     if not embed_paths:
         doc = _without_paths(doc)
     return {"trace": doc, "source": src, "world": world_data(world), "motion": motion_of(model, doc),
-            "at": at, "text": text, "types": types,
+            "at": at, "text": text, "types": types, "watch": watched,
             "title": title or _title(doc, src), "notes": list(notes or [])}
 
 

@@ -349,6 +349,7 @@
     buildSwimlane();
     buildSummary();
     buildPlot();
+    buildWatch();
     V.goto(0, true);
   };
 
@@ -806,6 +807,10 @@
       var ii = i, get = function (s) { return s.agents[ii].variables[n]; };
       if (plottable(get)) out.push({ name: n + "[" + ii + "]", get: get });
     });
+    (V.data.watch || []).forEach(function (w) {
+      if (w.numbers.some(function (x) { return x !== null; }))
+        out.push({ name: w.text, values: w.numbers });
+    });
     return out;
   }
   function buildPlot() {
@@ -825,7 +830,7 @@
     if (!chosen.length) { box.appendChild(el("div", { "class": "note" }, "(no variable chosen)")); return; }
     var W = 600, H = 160, left = 44, bottom = 18, lo = Infinity, hi = -Infinity;
     var series = chosen.map(function (p) {
-      var ys = T.states.map(function (s) { return plotValue(p.get(s)); });
+      var ys = p.values ? p.values.slice() : T.states.map(function (s) { return plotValue(p.get(s)); });
       ys.forEach(function (y) { if (y !== null) { lo = Math.min(lo, y); hi = Math.max(hi, y); } });
       return { name: p.name, ys: ys };
     });
@@ -869,6 +874,65 @@
     var x = V.plotSx(k);
     V.plotCursor.setAttribute("x1", x); V.plotCursor.setAttribute("x2", x);
     V.plotCursor.setAttribute("data-step", String(k));
+  }
+
+  /* watched expressions ------------------------------------------------
+   * Their values are pccl's: evaluated by pccl (the compiler that evaluates
+   * invariants) in every state of the path, ahead of time (--watch) or by
+   * pccl serve when asked (/api/watch); the page only shows them: it never
+   * evaluates what a user types. */
+  function buildWatch() {
+    var tbl = $("watch-table"), ws = V.data.watch || [];
+    tbl.textContent = "";
+    V.watchCells = [];
+    ws.forEach(function (w, j) {
+      var tr = tbl.appendChild(el("tr", { "data-expr": w.text, "data-index": j }));
+      tr.appendChild(el("td", { "class": "expr", title: "type " + w.type }, w.text));
+      V.watchCells.push(tr.appendChild(el("td", { "class": "val" })));
+      if (BOOT.mode === "serve") {
+        var b = el("button", { "class": "unwatch", title: "stop watching" }, "×");
+        b.onclick = function () { act("/api/unwatch", { index: j }); };
+        tr.appendChild(el("td")).appendChild(b);
+      }
+    });
+    if (!ws.length) tbl.appendChild(el("tr")).appendChild(el("td", { "class": "note" },
+      BOOT.mode === "serve" ? "(none yet: type one above)" : "(none: write the page with --watch EXPR)"));
+  }
+  function drawWatch(k) {
+    (V.data.watch || []).forEach(function (w, j) {
+      var td = V.watchCells[j], v = w.values[k];
+      td.textContent = "";
+      td.parentNode.setAttribute("data-value", v);
+      var ch = k > 0 && w.values[k - 1] !== v;
+      td.parentNode.classList.toggle("changed", ch);
+      if (ch) td.appendChild(el("span", { "class": "old" }, w.values[k - 1]));
+      td.appendChild(document.createTextNode(v));
+    });
+  }
+  function normExpr(t) { return String(t).replace(/\s+/g, " ").trim(); }
+  function wireWatch() {
+    function go() {
+      var text = $("expr-input").value, msg = $("expr-msg");
+      msg.textContent = ""; msg.className = "";
+      if (!normExpr(text)) return;
+      if (BOOT.mode === "serve") {
+        api("/api/watch", { expr: text }).then(function (j) { V.receive(j); $("expr-input").value = ""; })
+          .catch(function (e) { msg.textContent = e.message; msg.className = "bad"; });
+        return;
+      }
+      var ws = V.data.watch || [], found = -1;
+      ws.forEach(function (w, j) { if (normExpr(w.text) === normExpr(text)) found = j; });
+      if (found >= 0) {
+        var tr = $("watch-table").querySelector('tr[data-index="' + found + '"]');
+        tr.classList.add("flash"); setTimeout(function () { tr.classList.remove("flash"); }, 800);
+        return;
+      }
+      msg.textContent = "this page shows the expressions pccl evaluated when it wrote it (it never evaluates " +
+        "text itself): write it again with --watch '" + text + "' (pccl run, explore or view), or use pccl serve, " +
+        "which evaluates any expression you type";
+    }
+    $("expr-go").onclick = go;
+    $("expr-input").onkeydown = function (e) { if (e.key === "Enter") { go(); e.preventDefault(); } };
   }
 
   /* inspector --------------------------------------------------------- */
@@ -991,6 +1055,7 @@
     drawInspector(k);
     drawStepInfo(k);
     drawPlotCursor(k);
+    drawWatch(k);
     drawSourceLine(k);
     V.swim.select(k);
     if (V.sum) {
@@ -1157,6 +1222,7 @@
 
   function boot() {
     wire();
+    wireWatch();
     if (BOOT.mode === "serve") {
       wireExplorer();
       api("/api/state").then(V.receive).catch(function (e) { $("error").textContent = e.message; });
