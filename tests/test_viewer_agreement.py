@@ -314,3 +314,112 @@ def test_plot_of_chosen_variables(browser, tmp_path):
                    ["inCs[1]", [int(s["agents"][1]["variables"]["inCs"]) for s in states]]]
     b.eval("pcclViewer.goto(40)")
     assert b.eval("document.querySelector('#plot-area .tl-cursor').dataset.step") == "40"
+
+
+# ---------------------------------------------------------------------------
+# watched expressions: pccl's values, never the browser's evaluation
+# ---------------------------------------------------------------------------
+
+def doc_states(doc) -> list:
+    import copy
+    out = [doc["initial"]]
+    for st in doc["steps"]:
+        s = copy.deepcopy(out[-1])
+        for ch in st["changes"]:
+            c = ch["cell"]
+            if "var" in c:
+                (s["agents"][c["agent"]]["variables"] if "agent" in c else s["shared"])[c["var"]] = ch["new"]
+        out.append(s)
+    return out
+
+
+def test_watched_expressions_show_pccls_values_at_every_step(browser, tmp_path):
+    html, trace = tmp_path / "f.html", tmp_path / "f.json"
+    r = cli("explore", P / "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1",
+            "--html", html, "--trace-out", trace,
+            "--watch", "count(inCs)", "--watch", "count(inCs) <= 1", "--watch", "reqid + d / 3")
+    assert r.exit_code == 1, r.output
+    doc = json.loads(trace.read_text())
+    b = browser
+    b.open(file_url(html))
+    got = b.eval("""(() => { const out = [], n = +document.body.dataset.steps;
+      for (let k = 0; k <= n; k++) { pcclViewer.goto(k);
+        out.push([...document.querySelectorAll('#watch-table tr[data-expr]')].map(r => r.dataset.value)); }
+      return out; })()""")
+    want = []
+    for s in doc_states(doc):
+        c = sum(1 for ag in s["agents"] if ag["variables"]["inCs"])
+        want.append([str(c), "true" if c <= 1 else "false",
+                     str(s["shared"]["reqid"] + s["shared"]["d"] // 3)])
+    assert got == want
+    # the invariant the search found violated is false exactly at the violating state
+    assert [row[1] for row in got].index("false") == len(got) - 1
+    # a watched number is offered to the plot
+    assert "count(inCs)" in b.eval("[...document.getElementById('plot-vars').options].map(o => o.textContent)")
+
+
+def test_the_static_page_does_not_evaluate_typed_text(browser, tmp_path):
+    html = tmp_path / "f.html"
+    cli("explore", P / "fischer.pccl", "--set", "k=1", "--invariant", "count(inCs) <= 1",
+        "--html", html, "--watch", "reqid")
+    b = browser
+    b.open(file_url(html))
+    b.eval("document.getElementById('expr-input').value = 'alert(1) || reqid'; "
+           "document.getElementById('expr-go').click()")
+    assert b.eval("document.querySelectorAll('#watch-table tr[data-expr]').length") == 1
+    assert "--watch" in b.eval("document.getElementById('expr-msg').textContent")
+    assert b.exceptions() == []
+
+
+def test_serve_expression_box_evaluates_with_pccl(browser, tmp_path):
+    import threading
+    from pccl.api import make_model
+    from pccl.tools import serve as S
+    from pccl.output import traces as T
+    m = make_model(str(P / "fischer.pccl"), overrides={"k": "1"}, reduce="none")
+    session = S.Session(m, T.config("explore", m, program=str(P / "fischer.pccl")))
+    srv = S.make_server(session, 0)
+    th = threading.Thread(target=srv.serve_forever, daemon=True)
+    th.start()
+    try:
+        b = browser
+        b.open(S.url(srv))
+        b.wait("document.body.dataset.depth === '0'")
+        for _ in range(6):
+            n = b.eval("+document.body.dataset.depth")
+            b.eval("document.querySelector('#successors button').click()")
+            b.wait(f"document.body.dataset.depth === '{n + 1}'")
+        b.eval("document.getElementById('expr-input').value = 'count(start) + reqid'; "
+               "document.getElementById('expr-go').click()")
+        b.wait("document.querySelectorAll('#watch-table tr[data-expr]').length === 1")
+        got = b.eval("""(() => { const out = [];
+          for (let k = 0; k <= 6; k++) { pcclViewer.goto(k);
+            out.push(document.querySelector('#watch-table tr[data-expr]').dataset.value); }
+          return out; })()""")
+        from pccl.output import display as D
+
+        def value(st):      # count(start) + reqid, read off the state by name
+            starts = sum(1 for i in range(m.N) if {n: v for n, _, v in D.agent_vars(m, st, i)}["start"])
+            return str(starts + {n: v for n, _, v in D.shared_vars(m, st)}["reqid"])
+        want = [value(st) for st in session.states]
+        assert got == want
+        # a wrong expression: its caret, and nothing watched
+        b.eval("document.getElementById('expr-input').value = 'count(start'; "
+               "document.getElementById('expr-go').click()")
+        b.wait("document.getElementById('expr-msg').textContent.includes('^')")
+        assert b.eval("document.querySelectorAll('#watch-table tr[data-expr]').length") == 1
+        b.eval("document.querySelector('#watch-table .unwatch').click()")
+        b.wait("document.querySelectorAll('#watch-table tr[data-expr]').length === 0")
+    finally:
+        srv.shutdown()
+        srv.server_close()
+
+
+def test_a_bad_watch_is_bad_input(tmp_path):
+    r = cli("explore", P / "fischer.pccl", "--html", tmp_path / "f.html", "--watch", "count(nope)")
+    assert r.exit_code == 2
+    assert "--watch #1:1:7" in r.output and "^" in r.output and "Traceback" not in r.output
+    r = cli("run", P / "fischer.pccl", "--watch", "reqid")
+    assert r.exit_code == 2 and "--watch needs --html" in r.output
+    r = cli("run", P / "fischer.pccl", "--html", tmp_path / "f.html", "--watch", "eventually reqid == 0")
+    assert r.exit_code == 2 and "not a temporal property" in r.output
