@@ -175,7 +175,8 @@ def watch_values(model, states, texts) -> list:
     out = []
     for k, text in enumerate(texts):
         ty, fn = watch_function(model, text, k)
-        values, numbers = [], []
+        values: list = []
+        numbers: list = []
         for st in states:
             try:
                 v = fn(st)

@@ -511,28 +511,12 @@ class Handler(BaseHTTPRequestHandler):
             if path == "/api/search/stop":
                 self._json(200, {"stopped": s.stop()})
                 return
+            action = _ACTIONS.get(path)
+            if action is None:
+                self._json(404, {"error": f"no such action: {path}"})
+                return
             with s.lock:
-                if path == "/api/step":
-                    s.step(_int_field(body, "index"))
-                elif path == "/api/back":
-                    s.back()
-                elif path == "/api/truncate":
-                    s.truncate(_int_field(body, "depth"))
-                elif path == "/api/init":
-                    s.start(_int_field(body, "index"))
-                elif path == "/api/visit":
-                    s.visit(_int_field(body, "id"))
-                elif path == "/api/load":
-                    s.load(body.get("text"))
-                elif path == "/api/follow":
-                    s.follow()
-                elif path == "/api/watch":
-                    s.add_watch(body.get("expr"))
-                elif path == "/api/unwatch":
-                    s.remove_watch(_int_field(body, "index"))
-                else:
-                    self._json(404, {"error": f"no such action: {path}"})
-                    return
+                action(s, body)
                 self._json(200, s.payload())
         except BadRequest as e:
             self._json(400, {"error": str(e)})
@@ -540,6 +524,20 @@ class Handler(BaseHTTPRequestHandler):
             self._json(400, {"error": e.render()})
         except Exception as e:                  # never stop the server
             self._json(500, {"error": f"internal error: {type(e).__name__}: {e}"})
+
+
+#: The actions on the path (POST, under the session's lock): path -> fn(session, body).
+_ACTIONS = {
+    "/api/step": lambda s, b: s.step(_int_field(b, "index")),
+    "/api/back": lambda s, b: s.back(),
+    "/api/truncate": lambda s, b: s.truncate(_int_field(b, "depth")),
+    "/api/init": lambda s, b: s.start(_int_field(b, "index")),
+    "/api/visit": lambda s, b: s.visit(_int_field(b, "id")),
+    "/api/load": lambda s, b: s.load(b.get("text")),
+    "/api/follow": lambda s, b: s.follow(),
+    "/api/watch": lambda s, b: s.add_watch(b.get("expr")),
+    "/api/unwatch": lambda s, b: s.remove_watch(_int_field(b, "index")),
+}
 
 
 def _query(path: str) -> dict:
