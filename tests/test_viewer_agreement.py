@@ -16,6 +16,7 @@ same steps and name the same positions.
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 
@@ -25,8 +26,12 @@ from conftest import PROGRAMS, cli
 
 from browser import Browser, chromium, file_url
 
+#: CI (.ci/run) sets PCCL_REQUIRE_CHROMIUM=1: there these tests must run, and
+#: fail (rather than skip) without Chromium.
+REQUIRED = os.environ.get("PCCL_REQUIRE_CHROMIUM") == "1"
+
 pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif(chromium()[0] is None, reason=chromium()[1])]
+              pytest.mark.skipif(chromium()[0] is None and not REQUIRED, reason=chromium()[1])]
 
 P = PROGRAMS
 RACE_W = ("--world", P / "race.toml")
@@ -60,6 +65,8 @@ STEP = re.compile(r"^\s*\d+\. t=")
 
 @pytest.fixture(scope="module")
 def browser():
+    if chromium()[0] is None:
+        pytest.fail(f"PCCL_REQUIRE_CHROMIUM=1 (CI) but {chromium()[1]}")
     b = Browser()
     yield b
     b.close()
