@@ -204,6 +204,14 @@ def _message(model, never: list, live: list, fired: set) -> str:
     return msg
 
 
+def _expanded(model, trace):
+    """``trace`` with its merged transitions replaced by their steps (the
+    last one whole: its end is the frozen state the graph found)."""
+    if getattr(model, "merger", None) is None:
+        return trace
+    return model.expand_trace(trace)
+
+
 def check(model, limit: int = LIMIT) -> FrozenResult:
     """Is the team of ``model`` (a reduced model, :class:`pccl.model.reduce.Reduced`)
     frozen somewhere?  Explores it again (see the module docstring)."""
@@ -226,8 +234,7 @@ def check(model, limit: int = LIMIT) -> FrozenResult:
             at, lab = gr.parent[at]
             states.append(gr.states[at])
             labels.append(lab)
-        trace = Trace(tuple(reversed(states)), tuple(reversed(labels)))
-        out.trace = model.expand_trace(trace) if hasattr(model, "expand_trace") else trace
+        out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
         out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
     out.seconds = time.perf_counter() - t0
     return out
