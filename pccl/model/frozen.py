@@ -55,8 +55,10 @@ from pccl.model.layout import AGS, AR, LOC, POS, REACH, SH, STATUS, TARGET
 __all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "check", "FROZEN_MESSAGE"]
 
 #: the most states the check explores again (in Python: about 30,000 states per CPU
-#: second and 1.3 KB per state on fischer, measured 2026-12-07)
-LIMIT = 50_000
+#: second and 1.3 KB per state on fischer, measured 2026-12-07: at most about
+#: 0.7 s and 26 MB more than the search; fischer's 46,108 states took 1.9 s, 4 times
+#: its native search, and doubled its peak memory)
+LIMIT = 20_000
 
 #: The start of a frozen team's verdict (the events follow).
 FROZEN_MESSAGE = ("frozen: the team runs for ever, but nothing it does can change a variable, "
