@@ -642,7 +642,33 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     if lv.found and sr.status != "interrupted":
         sr.found.extend(lv.found)
         sr.status = "violation"
+    _frozen_check(plan, sr, lv)
     return lv
+
+
+def _frozen_check(plan: _SearchPlan, sr: SearchResult, lv) -> None:
+    """Step of :func:`_analyse`: on a clean exhaustive search with the
+    stall check on, is the team frozen somewhere (:mod:`pccl.model.frozen`)?
+    A frozen team joins the violations; a check that cannot run says why
+    in a note."""
+    if not plan.o.stall or sr.status != "exhaustive" or sr.found:
+        return
+    import time as _time
+    from pccl.model import frozen as F
+    if sr.stats.states > F.LIMIT:
+        lv.notes.append(f"frozen teams not checked: {sr.stats.states:,} states, more than the "
+                        f"{F.LIMIT:,} the check explores again (in Python)")
+        return
+    t0 = _time.perf_counter()
+    fr = F.check(plan.model, F.LIMIT)
+    sr.stats.seconds += _time.perf_counter() - t0
+    if not fr.ran:
+        lv.notes.append(f"frozen teams not checked: {fr.reason}")
+    elif fr.violation is not None:
+        cx = Counterexample(fr.violation, -1, len(fr.trace))
+        cx.trace = fr.trace
+        sr.found.append(cx)
+        sr.status = "violation"
 
 
 def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int],
