@@ -35,6 +35,7 @@ from lark.indenter import DedentError, Indenter
 
 from pccl.lang import ast
 from pccl.lang.errors import PcclError
+from pccl.lang.lalrfast import Fallback, FastLALR, LexTuple
 
 __all__ = ["parse_program", "parse_file", "parse_property"]
 
@@ -111,15 +112,58 @@ class _PcclIndenter(Indenter):
         return _PcclIndenter()._process(stream)
 
 
+def _indent_tuples(stream: Iterator[LexTuple]) -> Iterator[LexTuple]:
+    """:meth:`_PcclIndenter._process` over the fast path's token tuples
+    (pccl.lang.lalrfast): the same tokens, positions and cancellation; an
+    inconsistent dedent is left to the ordinary path to report."""
+    ind = _PcclIndenter
+    nl, opens, closes = ind.NL_type, ind.OPEN_PAREN_types, ind.CLOSE_PAREN_types
+    indent_t, dedent_t, tab_len = ind.INDENT_type, ind.DEDENT_type, ind.tab_len
+    cancel = _CANCEL.get()
+    levels = [0]
+    paren_level = 0
+    count = 0
+    for token in stream:
+        count += 1
+        if cancel is not None and not count & 4095 and cancel.is_set():
+            raise ParseCancelled()
+        typ = token[0]
+        if typ == nl:
+            if paren_level <= 0:
+                yield token
+                indent_str = token[1].rsplit("\n", 1)[1]
+                indent = indent_str.count(" ") + indent_str.count("\t") * tab_len
+                if indent > levels[-1]:
+                    levels.append(indent)
+                    yield (indent_t, indent_str) + token[2:]
+                else:
+                    while indent < levels[-1]:
+                        levels.pop()
+                        yield (dedent_t, indent_str) + token[2:]
+                    if indent != levels[-1]:
+                        raise Fallback()
+            continue
+        yield token
+        if typ in opens:
+            paren_level += 1
+        elif typ in closes:
+            paren_level = max(0, paren_level - 1)
+    while len(levels) > 1:
+        levels.pop()
+        yield (dedent_t, "", None, None, None, None, None, None)     # end of file
+
+
 # --------------------------------------------------------------------------
 # Grammar (built once)
 # --------------------------------------------------------------------------
 
 _LARK: Optional[Lark] = None
+#: the fast path over _LARK's tables (pccl.lang.lalrfast), made with it
+_FAST: Optional[FastLALR] = None
 
 
 def _get_lark() -> Lark:
-    global _LARK
+    global _LARK, _FAST
     if _LARK is None:
         with open(_GRAMMAR_PATH, encoding="utf-8") as f:
             grammar = f.read()
@@ -136,6 +180,7 @@ def _get_lark() -> Lark:
         _skip_inlined_positions(_LARK)
         if path is not None:
             _keep_private(path)
+        _FAST = FastLALR(_LARK, _TRANSFORMER, _LARK.parser.parser.parser.callbacks)
     return _LARK
 
 
@@ -566,6 +611,11 @@ class _Numberer:
         return dataclasses.replace(s, sid=sid)
 
 
+#: a program none of whose text is one of these has no property syntax (the
+#: tokens of quantifiers, '->' and the temporal forms): no walk needed
+_PROPERTY_WORDS = ("forall", "exists", "->", "~>", "eventually", "reachable")
+
+
 def _check_no_property_syntax(prog: ast.Program) -> None:
     """Quantifiers and ``->`` belong to properties and invariants only."""
     for node in (*prog.decls, *prog.init, *prog.events):
@@ -871,12 +921,12 @@ def _normalise(source: str) -> str:
     return text
 
 
-def _parse(source: str, filename: str, start: str):
+def _checked_text(source: str, filename: str, property_mode: bool) -> str:
+    """``source`` normalised, after the checks made before lark sees it."""
     if not isinstance(source, str):
         raise PcclError(f"source must be text, not {type(source).__name__}", filename=filename)
     text = _normalise(source)
     _check_comments(text, source, filename)
-    property_mode = start == "property"
     if not property_mode:
         # Lark sees no newline before the first line, so its indentation
         # would go unnoticed: reject it here as the Indenter would.
@@ -884,7 +934,37 @@ def _parse(source: str, filename: str, start: str):
         if m:
             raise PcclError("unexpected indentation", filename=filename, source=source,
                             line=1, column=m.end() + 1)
+    return text
+
+
+def _fast_program(text: str) -> ast.Program:
+    """The program ``text`` (normalised) parsed by the fast path
+    (:mod:`pccl.lang.lalrfast`: lark's tables, no parse tree); raises
+    :class:`Fallback` for a text it leaves to the ordinary path (every text
+    with an error, so that the ordinary path reports it as it always has)."""
+    _get_lark()
+    if _FAST is None or not _FAST.usable:
+        raise Fallback()
+    try:
+        return _FAST.parse(_indent_tuples(_FAST.lex(text)), "program")
+    except (_Syntax, RecursionError):
+        raise Fallback() from None
+
+
+def _parse(source: str, filename: str, start: str, fast: bool = True):
+    """``source`` parsed from ``start`` and built (a program without its
+    statement numbers); ``fast`` false: never by the fast path (the tests
+    compare the two)."""
+    property_mode = start == "property"
+    text = _checked_text(source, filename, property_mode)
     lark = _get_lark()
+    if not property_mode and fast:
+        try:
+            return _fast_program(text)
+        except ParseCancelled:
+            raise
+        except Exception:   # noqa: BLE001 - Fallback, or a surprise: the ordinary path decides
+            pass
     reset = _PROPERTY_MODE.set(property_mode)
     try:
         try:
@@ -956,7 +1036,8 @@ def _parse_program(source: str, filename: str) -> ast.Program:
                        for ev in prog.events)
         prog = dataclasses.replace(prog, init=init, events=events, filename=filename,
                                    source=source, n_statements=numberer.next)
-        _check_no_property_syntax(prog)
+        if any(word in source for word in _PROPERTY_WORDS):
+            _check_no_property_syntax(prog)
     except _Syntax as e:
         raise PcclError(e.message, filename=filename, source=source, span=e.span) from None
     except RecursionError:
