@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import functools
 from typing import Any, Optional
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from lark import Lark, Token, Tree
 
@@ -159,47 +159,84 @@ class FastLALR:
                     raise Fallback()
             states[state] = row
         self.states = states
+        self.passes: dict = {}      # (below, top, lookahead) -> top: _pass_run's
         self.start_states = dict(table.start_states)
         self.end_states = dict(table.end_states)
 
     # ---- the lexer -----------------------------------------------------------
 
-    def lex(self, text: str) -> Iterator[LexTuple]:
-        """lark's basic lexer, as tuples (:data:`LexTuple`)."""
-        newline_types = self.newline_types
-        ignore_types = self.ignore_types
+    def lex(self, text: str, hooks: Optional[dict] = None,
+            every: Optional[Callable[[], None]] = None) -> Iterator[LexTuple]:
+        """lark's basic lexer, as tuples (:data:`LexTuple`).  ``hooks``:
+        token type -> a function of the token that returns the tokens to
+        give instead (a post-lexer such as an indenter, without a generator
+        around the lexer's); ``every``: called every 4,096 tokens."""
         keyword_tests = self.keyword_tests
+        hooks = hooks or {}
+        # what a token type needs besides a tuple: 1 newlines counted, 2
+        # ignored, 4 a keyword test, 8 a hook (plain types: none of these)
+        special: dict[str, int] = {}
+        for flag, types in ((1, self.newline_types), (2, self.ignore_types),
+                            (4, keyword_tests), (8, hooks)):
+            for typ in types:
+                special[typ] = special.get(typ, 0) | flag
         keywords: dict = {}
-        pos, line, line_start = 0, 1, 0
+        pos, line, line_start, count = 0, 1, 0, 0
         # finditer skips what no terminal matches: a gap is lark's error
         for m in self.regex.finditer(text):
             start, end = m.span()
             if start != pos or end == pos:
                 raise Fallback()
             typ = m.lastgroup
-            value = m.group(0)
-            column = pos - line_start + 1
-            end_line = line
-            if typ in newline_types:
-                k = value.count("\n")
-                if k:
-                    end_line = line + k
-                    line_start = pos + value.rindex("\n") + 1
-            if typ not in ignore_types:
-                if typ in keyword_tests:
-                    key = (typ, value)
-                    t = keywords.get(key)
-                    if t is None:
-                        tok = keyword_tests[typ](Token(typ, value))
-                        t = keywords[key] = tok.type
-                    typ = t
-                yield (typ, value, line, column, end_line, end - line_start + 1, pos, end)
-            line = end_line
+            sp = special.get(typ)
+            if sp is None:
+                yield (typ, m.group(0), line, pos - line_start + 1, line, end - line_start + 1,
+                       pos, end)
+            else:
+                value = m.group(0)
+                column = pos - line_start + 1
+                end_line = line
+                if sp & 1:
+                    k = value.count("\n")
+                    if k:
+                        end_line = line + k
+                        line_start = pos + value.rindex("\n") + 1
+                if not sp & 2:
+                    if sp & 4:
+                        seen = keywords.get(typ)
+                        if seen is None:
+                            seen = keywords[typ] = {}
+                        t = seen.get(value)
+                        if t is None:
+                            t = seen[value] = keyword_tests[typ](Token(typ, value)).type
+                        typ = t
+                    tok = (typ, value, line, column, end_line, end - line_start + 1, pos, end)
+                    if typ in hooks:
+                        yield from hooks[typ](tok)
+                    else:
+                        yield tok
+                line = end_line
             pos = end
+            count += 1
+            if every is not None and not count & 4095:
+                every()
         if pos != len(text):
             raise Fallback()
 
     # ---- the parser ----------------------------------------------------------
+
+    def _pass_run(self, below: int, top: int, typ: str) -> int:
+        """The top state after the ?rules that inline their only child
+        (:data:`_PASS`) reduced in state ``top`` (``below`` under it) with
+        the lookahead ``typ``, one after the other."""
+        states, plans = self.states, self.plans
+        act = states[top].get(typ)
+        while act is not None and act < 0 and plans[~act].kind == _PASS:
+            top = states[below].get(plans[~act].origin)
+            if top is None or top < 0:
+                raise Fallback()
+            act = states[top].get(typ)
+        return top
 
     def parse(self, tokens: Iterable[LexTuple], start: str) -> Any:
         """The transformer's result for the token tuples ``tokens``; raises
@@ -211,6 +248,7 @@ class FastLALR:
         state_stack: list = [self.start_states[start]]
         values: list = []
         boxes: list = []
+        passes = self.passes
         for tok in tokens:
             typ = tok[0]
             while True:
@@ -227,11 +265,15 @@ class FastLALR:
                     break
                 p = plans[~act]
                 if p.kind == _PASS:
-                    del state_stack[-1]
-                    target = states[state_stack[-1]].get(p.origin)
-                    if target is None or target < 0:
-                        raise Fallback()
-                    state_stack.append(target)
+                    # a run of ?rules inlining their one child (an operand
+                    # going up the precedence levels) changes the top state
+                    # only, as a function of the state below, the top one
+                    # and the lookahead: looked up once
+                    key = (state_stack[-2], state_stack[-1], typ)
+                    top = passes.get(key)
+                    if top is None:
+                        top = passes[key] = self._pass_run(*key)
+                    state_stack[-1] = top
                 else:
                     _reduce(p, values, boxes, state_stack, states)
         # $END (lark's borrows the last token's position: only errors use it)

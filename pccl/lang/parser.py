@@ -21,6 +21,7 @@ import contextvars
 import dataclasses
 import difflib
 import gc
+import itertools
 import math
 import os
 import re
@@ -112,45 +113,68 @@ class _PcclIndenter(Indenter):
         return _PcclIndenter()._process(stream)
 
 
-def _indent_tuples(stream: Iterator[LexTuple]) -> Iterator[LexTuple]:
-    """:meth:`_PcclIndenter._process` over the fast path's token tuples
-    (pccl.lang.lalrfast): the same tokens, positions and cancellation; an
-    inconsistent dedent is left to the ordinary path to report."""
-    ind = _PcclIndenter
-    nl, opens, closes = ind.NL_type, ind.OPEN_PAREN_types, ind.CLOSE_PAREN_types
-    indent_t, dedent_t, tab_len = ind.INDENT_type, ind.DEDENT_type, ind.tab_len
+class _FastIndenter:
+    """:meth:`_PcclIndenter._process` for the fast path's token tuples
+    (pccl.lang.lalrfast), as hooks of its lexer: the same tokens and
+    positions; an inconsistent dedent is left to the ordinary path."""
+
+    def __init__(self):
+        self.levels = [0]
+        self.paren_level = 0
+
+    def hooks(self) -> dict:
+        ind = _PcclIndenter
+        hooks: dict[str, Any] = {ind.NL_type: self.newline}
+        hooks.update((t, self.open) for t in ind.OPEN_PAREN_types)
+        hooks.update((t, self.close) for t in ind.CLOSE_PAREN_types)
+        return hooks
+
+    def newline(self, token: LexTuple) -> list:
+        if self.paren_level > 0:
+            return []
+        out = [token]
+        indent_str = token[1].rsplit("\n", 1)[1]
+        indent = indent_str.count(" ") + indent_str.count("\t") * _PcclIndenter.tab_len
+        levels = self.levels
+        if indent > levels[-1]:
+            levels.append(indent)
+            out.append((_PcclIndenter.INDENT_type, indent_str) + token[2:])
+        else:
+            while indent < levels[-1]:
+                levels.pop()
+                out.append((_PcclIndenter.DEDENT_type, indent_str) + token[2:])
+            if indent != levels[-1]:
+                raise Fallback()
+        return out
+
+    def open(self, token: LexTuple) -> tuple:
+        self.paren_level += 1
+        return (token,)
+
+    def close(self, token: LexTuple) -> tuple:
+        # An unbalanced closer is a syntax error the parser reports.
+        self.paren_level = max(0, self.paren_level - 1)
+        return (token,)
+
+    def end(self) -> Iterator[LexTuple]:
+        """The dedents at the end of the file (no position)."""
+        while len(self.levels) > 1:
+            self.levels.pop()
+            yield (_PcclIndenter.DEDENT_type, "", None, None, None, None, None, None)
+
+
+def _fast_tokens(fast: FastLALR, text: str) -> Iterator[LexTuple]:
+    """The tokens of ``text`` as the parser sees them (after the indenter),
+    for the fast path; cancelled as :func:`cancellable` says."""
     cancel = _CANCEL.get()
-    levels = [0]
-    paren_level = 0
-    count = 0
-    for token in stream:
-        count += 1
-        if cancel is not None and not count & 4095 and cancel.is_set():
+
+    def every() -> None:
+        if cancel is not None and cancel.is_set():
             raise ParseCancelled()
-        typ = token[0]
-        if typ == nl:
-            if paren_level <= 0:
-                yield token
-                indent_str = token[1].rsplit("\n", 1)[1]
-                indent = indent_str.count(" ") + indent_str.count("\t") * tab_len
-                if indent > levels[-1]:
-                    levels.append(indent)
-                    yield (indent_t, indent_str) + token[2:]
-                else:
-                    while indent < levels[-1]:
-                        levels.pop()
-                        yield (dedent_t, indent_str) + token[2:]
-                    if indent != levels[-1]:
-                        raise Fallback()
-            continue
-        yield token
-        if typ in opens:
-            paren_level += 1
-        elif typ in closes:
-            paren_level = max(0, paren_level - 1)
-    while len(levels) > 1:
-        levels.pop()
-        yield (dedent_t, "", None, None, None, None, None, None)     # end of file
+
+    ind = _FastIndenter()
+    return itertools.chain(fast.lex(text, ind.hooks(), every if cancel is not None else None),
+                           ind.end())
 
 
 # --------------------------------------------------------------------------
@@ -946,7 +970,7 @@ def _fast_program(text: str) -> ast.Program:
     if _FAST is None or not _FAST.usable:
         raise Fallback()
     try:
-        return _FAST.parse(_indent_tuples(_FAST.lex(text)), "program")
+        return _FAST.parse(_fast_tokens(_FAST, text), "program")
     except (_Syntax, RecursionError):
         raise Fallback() from None
 
