@@ -36,8 +36,9 @@ from typing import Any, Optional
 from collections.abc import Callable, Iterable, Iterator
 
 from lark import Lark, Token, Tree
+from lark.exceptions import UnexpectedToken
 
-__all__ = ["FastLALR", "Fallback", "LexTuple"]
+__all__ = ["FastLALR", "Fallback", "LexFailure", "LexTuple", "SyntaxFailure"]
 
 #: (type, value, line, column, end_line, end_column, start_pos, end_pos): a
 #: token before any rule keeps it; the box of its position is the tuple itself
@@ -46,6 +47,28 @@ LexTuple = tuple
 
 class Fallback(Exception):
     """Not for the fast path: parse the text the ordinary way."""
+
+
+class LexFailure(Fallback):
+    """No terminal matches at ``pos`` (line ``line``, column ``column``):
+    where lark's lexer raises ``UnexpectedCharacters``."""
+
+    def __init__(self, pos: int, line: int, column: int):
+        super().__init__("unexpected character")
+        self.pos, self.line, self.column = pos, line, column
+
+
+class SyntaxFailure(Fallback):
+    """The table has no action for ``token`` (a :data:`LexTuple`, or None:
+    the end of the input after ``last``): where lark's parser raises
+    ``UnexpectedToken``, with the stacks it would have
+    (:meth:`FastLALR.unexpected_token` makes lark's exception)."""
+
+    def __init__(self, token: Optional[LexTuple], last: Optional[LexTuple], start: str,
+                 state_stack: list, values: list, boxes: list):
+        super().__init__("unexpected token")
+        self.token, self.last, self.start = token, last, start
+        self.state_stack, self.values, self.boxes = state_stack, values, boxes
 
 
 class _Meta:
@@ -165,6 +188,16 @@ class FastLALR:
 
     # ---- the lexer -----------------------------------------------------------
 
+    def _special(self, hooks: dict) -> dict[str, int]:
+        """What a token type needs besides a tuple: 1 newlines counted, 2
+        ignored, 4 a keyword test, 8 a hook (a plain type: none of these)."""
+        special: dict[str, int] = {}
+        for flag, types in ((1, self.newline_types), (2, self.ignore_types),
+                            (4, self.keyword_tests), (8, hooks)):
+            for typ in types:
+                special[typ] = special.get(typ, 0) | flag
+        return special
+
     def lex(self, text: str, hooks: Optional[dict] = None,
             every: Optional[Callable[[], None]] = None) -> Iterator[LexTuple]:
         """lark's basic lexer, as tuples (:data:`LexTuple`).  ``hooks``:
@@ -173,19 +206,15 @@ class FastLALR:
         around the lexer's); ``every``: called every 4,096 tokens."""
         keyword_tests = self.keyword_tests
         hooks = hooks or {}
-        # what a token type needs besides a tuple: 1 newlines counted, 2
-        # ignored, 4 a keyword test, 8 a hook (plain types: none of these)
-        special: dict[str, int] = {}
-        for flag, types in ((1, self.newline_types), (2, self.ignore_types),
-                            (4, keyword_tests), (8, hooks)):
-            for typ in types:
-                special[typ] = special.get(typ, 0) | flag
+        special = self._special(hooks)
         keywords: dict = {}
         pos, line, line_start, count = 0, 1, 0, 0
         # finditer skips what no terminal matches: a gap is lark's error
         for m in self.regex.finditer(text):
             start, end = m.span()
-            if start != pos or end == pos:
+            if start != pos:
+                raise LexFailure(pos, line, pos - line_start + 1)
+            if end == pos:
                 raise Fallback()
             typ = m.lastgroup
             sp = special.get(typ)
@@ -221,7 +250,7 @@ class FastLALR:
             if every is not None and not count & 4095:
                 every()
         if pos != len(text):
-            raise Fallback()
+            raise LexFailure(pos, line, pos - line_start + 1)
 
     # ---- the parser ----------------------------------------------------------
 
@@ -249,12 +278,13 @@ class FastLALR:
         values: list = []
         boxes: list = []
         passes = self.passes
+        tok = None
         for tok in tokens:
             typ = tok[0]
             while True:
                 act = states[state_stack[-1]].get(typ)
                 if act is None:
-                    raise Fallback()
+                    raise SyntaxFailure(tok, None, start, state_stack, values, boxes)
                 if act >= 0:
                     state_stack.append(act)
                     if typ in kept:
@@ -279,10 +309,42 @@ class FastLALR:
         # $END (lark's borrows the last token's position: only errors use it)
         while True:
             act = states[state_stack[-1]].get("$END")
-            if act is None or act >= 0:
+            if act is None:
+                raise SyntaxFailure(None, tok, start, state_stack, values, boxes)
+            if act >= 0:
                 raise Fallback()
             if _reduce(plans[~act], values, boxes, state_stack, states) == end_state:
                 return values[-1]
+
+
+    def unexpected_token(self, lark: Lark, failure: SyntaxFailure) -> UnexpectedToken:
+        """lark's ``UnexpectedToken`` for ``failure``, as its LALR parser
+        raises it (the token, the expected terminals, an interactive parser
+        at the point of failure: the same state stack, and a value stack
+        with the same tokens and a tree for each rule's value)."""
+        from lark.lexer import LexerThread
+        from lark.parsers.lalr_interactive_parser import InteractiveParser
+        from lark.parsers.lalr_parser_state import ParseConf, ParserState
+        parser = lark.parser.parser.parser
+        conf = ParseConf(parser.parse_table, parser.callbacks, failure.start)
+        value_stack: list = []
+        for v, box in zip(failure.values, failure.boxes):
+            if box is not None and box[0] is not None:          # a token
+                value_stack.append(v if isinstance(v, Token) else _token_slow(box))
+            else:
+                value_stack.append(v if isinstance(v, Token) else Tree("_fast", []))
+        no_lexer = LexerThread(None, None)  # type: ignore[arg-type]
+        state = ParserState(conf, no_lexer, list(failure.state_stack), value_stack)
+        if failure.token is not None:
+            token = _token_slow(failure.token)
+        elif failure.last is not None:
+            token = Token.new_borrow_pos("$END", "", _token_slow(failure.last))
+        else:
+            token = Token("$END", "", 0, 1, 1)
+        expected = {s for s in conf.states[state.position] if s.isupper()}
+        e = UnexpectedToken(token, expected, state=state, interactive_parser=None)
+        e.interactive_parser = InteractiveParser(parser, state, state.lexer)
+        return e
 
 
 def _plan_of(rule: Any, cb: Any, transformer: Any, nullable: set) -> _Plan:

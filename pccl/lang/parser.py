@@ -36,7 +36,7 @@ from lark.indenter import DedentError, Indenter
 
 from pccl.lang import ast
 from pccl.lang.errors import PcclError
-from pccl.lang.lalrfast import Fallback, FastLALR, LexTuple
+from pccl.lang.lalrfast import Fallback, FastLALR, LexFailure, LexTuple, SyntaxFailure
 
 __all__ = ["parse_program", "parse_file", "parse_property"]
 
@@ -116,7 +116,7 @@ class _PcclIndenter(Indenter):
 class _FastIndenter:
     """:meth:`_PcclIndenter._process` for the fast path's token tuples
     (pccl.lang.lalrfast), as hooks of its lexer: the same tokens and
-    positions; an inconsistent dedent is left to the ordinary path."""
+    positions, the same error at an inconsistent dedent."""
 
     def __init__(self):
         self.levels = [0]
@@ -129,23 +129,22 @@ class _FastIndenter:
         hooks.update((t, self.close) for t in ind.CLOSE_PAREN_types)
         return hooks
 
-    def newline(self, token: LexTuple) -> list:
+    def newline(self, token: LexTuple) -> Iterator[LexTuple]:
         if self.paren_level > 0:
-            return []
-        out = [token]
+            return
+        yield token
         indent_str = token[1].rsplit("\n", 1)[1]
         indent = indent_str.count(" ") + indent_str.count("\t") * _PcclIndenter.tab_len
         levels = self.levels
         if indent > levels[-1]:
             levels.append(indent)
-            out.append((_PcclIndenter.INDENT_type, indent_str) + token[2:])
+            yield (_PcclIndenter.INDENT_type, indent_str) + token[2:]
         else:
             while indent < levels[-1]:
                 levels.pop()
-                out.append((_PcclIndenter.DEDENT_type, indent_str) + token[2:])
+                yield (_PcclIndenter.DEDENT_type, indent_str) + token[2:]
             if indent != levels[-1]:
-                raise Fallback()
-        return out
+                raise _IndentError(token[4] or 0, token[5] or 0)
 
     def open(self, token: LexTuple) -> tuple:
         self.paren_level += 1
@@ -963,9 +962,12 @@ def _checked_text(source: str, filename: str, property_mode: bool) -> str:
 
 def _fast_program(text: str) -> ast.Program:
     """The program ``text`` (normalised) parsed by the fast path
-    (:mod:`pccl.lang.lalrfast`: lark's tables, no parse tree); raises
-    :class:`Fallback` for a text it leaves to the ordinary path (every text
-    with an error, so that the ordinary path reports it as it always has)."""
+    (:mod:`pccl.lang.lalrfast`: lark's tables, no parse tree).  Raises, at
+    a syntax error, what lark's parser would meet there
+    (:class:`SyntaxFailure`, :class:`LexFailure`, :class:`_IndentError`:
+    reported as the ordinary path reports them), or :class:`Fallback` for a
+    text it leaves to the ordinary path (an error of the AST builder: the
+    ordinary path reports a syntax error after it first)."""
     _get_lark()
     if _FAST is None or not _FAST.usable:
         raise Fallback()
@@ -987,6 +989,15 @@ def _parse(source: str, filename: str, start: str, fast: bool = True):
             return _fast_program(text)
         except ParseCancelled:
             raise
+        except SyntaxFailure as f:      # the error lark would raise, reported as always
+            assert _FAST is not None
+            raise _token_error(_FAST.unexpected_token(lark, f), text, source, filename,
+                               False) from None
+        except LexFailure as f:
+            raise _char_error(UnexpectedCharacters(text, f.pos, f.line, f.column), text,
+                              source, filename) from None
+        except _IndentError as e:
+            raise lark_failure(e, source, filename) from None
         except Exception:   # noqa: BLE001 - Fallback, or a surprise: the ordinary path decides
             pass
     reset = _PROPERTY_MODE.set(property_mode)
