@@ -78,6 +78,21 @@ def test_the_fast_path_is_on():
     assert P._FAST is not None and P._FAST.usable
 
 
+@pytest.mark.slow           # builds the tables
+def test_the_fast_path_is_on_with_tables_built_or_loaded_from_the_cache(monkeypatch, tmp_path):
+    """lark's objects differ in how they are made (built, or unpickled from
+    its cache): the fast path reads both."""
+    monkeypatch.setenv("PCCL_CACHE", str(tmp_path / "cache"))
+    text = (PROGRAMS / "fischer.pccl").read_text()
+    for _ in ("built", "loaded"):
+        monkeypatch.setattr(P, "_LARK", None)
+        monkeypatch.setattr(P, "_FAST", None)
+        P._get_lark()
+        assert P._FAST is not None and P._FAST.usable
+        assert fast(text) == parsed(text, False)
+    assert len(list((tmp_path / "cache").glob("lark-*.cache"))) == 1
+
+
 REPO_PROGRAMS = sorted({*PROGRAMS.rglob("*.pccl"), *TEST_PROGRAMS.rglob("*.pccl"),
                         *(ROOT / "docs").rglob("*.pccl")})
 
