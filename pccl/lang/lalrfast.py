@@ -42,6 +42,9 @@ __all__ = ["FastLALR", "Fallback", "LexFailure", "LexTuple", "SyntaxFailure"]
 
 #: (type, value, line, column, end_line, end_column, start_pos, end_pos): a
 #: token before any rule keeps it; the box of its position is the tuple itself
+#: (a box: fields 2-5 the line, column, end line and end column, as lark's
+#: ``PropagatePositions`` takes them from a token or a node's container; a
+#: node's box is ``(None, None, ...)``, or its only child's box)
 LexTuple = tuple
 
 
@@ -236,8 +239,8 @@ class FastLALR:
                         if seen is None:
                             seen = keywords[typ] = {}
                         t = seen.get(value)
-                        if t is None:
-                            t = seen[value] = keyword_tests[typ](Token(typ, value)).type
+                        if t is None:   # UnlessCallback's test, without its token
+                            t = seen[value] = keyword_tests[typ].scanner.fullmatch(value) or typ
                         typ = t
                     tok = (typ, value, line, column, end_line, end - line_start + 1, pos, end)
                     if typ in hooks:
@@ -329,9 +332,9 @@ class FastLALR:
         conf = ParseConf(parser.parse_table, parser.callbacks, failure.start)
         value_stack: list = []
         for v, box in zip(failure.values, failure.boxes):
-            if box is not None and box[0] is not None:          # a token
-                value_stack.append(v if isinstance(v, Token) else _token_slow(box))
-            else:
+            if v is None:                   # a token no rule keeps (its box is its tuple)
+                value_stack.append(_token_slow(box))
+            else:                           # a kept token, or a rule's value (lark's: a tree)
                 value_stack.append(v if isinstance(v, Token) else Tree("_fast", []))
         no_lexer = LexerThread(None, None)  # type: ignore[arg-type]
         state = ParserState(conf, no_lexer, list(failure.state_stack), value_stack)
@@ -389,7 +392,12 @@ def _reduce(p: _Plan, values: list, boxes: list, state_stack: list, states: dict
     """One reduction by ``p`` on the stacks; the state it goes to."""
     size = p.size
     box: Optional[tuple]
-    if size:
+    if size == 1:               # a box's fields 2-5 are its position: one child's is the node's
+        raw = [values.pop()]
+        rboxes = [boxes.pop()]
+        state_stack.pop()
+        box = rboxes[0]
+    elif size:
         raw = values[-size:]
         rboxes = boxes[-size:]
         del values[-size:]
