@@ -104,7 +104,7 @@ def test_every_program_of_the_repository_parses_the_same():
     assert len(valid) > 30
 
 
-@pytest.mark.parametrize("text", [
+WRITTEN = [
     "",
     "// only a comment\n",
     "allwrite:\n  int a = 1;\n",
@@ -119,7 +119,10 @@ def test_every_program_of_the_repository_parses_the_same():
     "  forall i: (i < 0) || c[i] >= 0\n",
     "loc:\r\n  int x = 1\r\nE():\r\n  pre(x.y[1].z == f(1, (2), [3]))\r\n  eff: x = 1\r\n",
     "allwrite:\n  int a = 1\n\n   // indented comment\n\nE():\n  pre(true);\n  eff:\n",
-])
+]
+
+
+@pytest.mark.parametrize("text", WRITTEN, ids=[f"text{i}" for i in range(len(WRITTEN))])
 def test_written_programs_parse_the_same(text):
     assert_agree(text)
 
@@ -145,6 +148,20 @@ def test_mutants_parse_the_same_or_are_left_to_the_ordinary_path():
         else:
             invalid += 1
     assert valid > 100 and invalid > 100, (valid, invalid)
+
+
+def test_a_program_is_parsed_by_the_fast_path(monkeypatch):
+    """parse_program does not call lark's parser for a program the fast
+    path reads (and does for a property)."""
+    lark = P._get_lark()
+
+    def refused(*args, **kwargs):
+        raise AssertionError("lark's parser was called")
+    monkeypatch.setattr(lark, "parse", refused)
+    prog = P.parse_program((PROGRAMS / "fischer.pccl").read_text(), "fischer.pccl")
+    assert prog.n_statements > 20
+    with pytest.raises(AssertionError):
+        P.parse_property("count(inCs) <= 1")
 
 
 def test_spans_of_parentheses_and_inlined_rules():
