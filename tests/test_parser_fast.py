@@ -74,8 +74,7 @@ def assert_agree(src: str) -> bool:
 
 
 def test_the_fast_path_is_on():
-    P._get_lark()
-    assert P._FAST is not None and P._FAST.usable
+    assert P._get_fast().usable and P._get_fast().lark is P._get_lark()
 
 
 @pytest.mark.slow           # builds the tables
@@ -86,11 +85,40 @@ def test_the_fast_path_is_on_with_tables_built_or_loaded_from_the_cache(monkeypa
     text = (PROGRAMS / "fischer.pccl").read_text()
     for _ in ("built", "loaded"):
         monkeypatch.setattr(P, "_LARK", None)
-        monkeypatch.setattr(P, "_FAST", None)
-        P._get_lark()
-        assert P._FAST is not None and P._FAST.usable
+        fast_path = P._get_fast()
+        assert fast_path.usable and fast_path.lark is P._LARK
         assert fast(text) == parsed(text, False)
     assert len(list((tmp_path / "cache").glob("lark-*.cache"))) == 1
+
+
+@pytest.mark.slow           # builds the tables in two processes
+def test_the_fast_path_runs_the_tables_of_the_lark_in_use(monkeypatch, tmp_path):
+    """Tables built under two hash seeds number their states differently
+    (the cache file keeps the numbering of the process that wrote it). The
+    fast path runs the tables of the Lark in use: after the tests of the
+    cache had swapped it, it ran another's, and its errors expected the
+    wrong tokens."""
+    import os
+    import subprocess
+    import sys
+    larks = []
+    for seed in ("1", "2"):
+        cache = tmp_path / f"cache{seed}"
+        subprocess.run([sys.executable, "-c", "from pccl.lang.parser import _get_lark; _get_lark()"],
+                       env={**os.environ, "PCCL_CACHE": str(cache), "PYTHONHASHSEED": seed},
+                       check=True)
+        monkeypatch.setenv("PCCL_CACHE", str(cache))
+        monkeypatch.setattr(P, "_LARK", None)
+        larks.append(P._get_lark())                    # loaded: that process's numbering
+    one, two = (lk.parser.parser.parser.parse_table.states for lk in larks)
+    assert one != two
+    wrong = ["loc:\n  bool b = true;;\n", "E():\n  pre(true)\n  eff: x = (1 +\n",
+             "Agent::A\nloc:\n  int x\nAgent::B\n"]
+    for lk in (larks[0], larks[1], larks[0]):
+        monkeypatch.setattr(P, "_LARK", lk)
+        for text in wrong:
+            assert_agree(text)
+        assert P._get_fast().lark is lk
 
 
 REPO_PROGRAMS = sorted({*PROGRAMS.rglob("*.pccl"), *TEST_PROGRAMS.rglob("*.pccl"),
@@ -177,7 +205,7 @@ def test_spans_of_parentheses_and_inlined_rules():
     assert (init.right.span.column, init.right.span.end_column) == (21, 25)
 
 
-def test_errors_are_those_of_the_ordinary_path():
+def test_errors_are_those_of_the_ordinary_path(monkeypatch):
     """A text with an error gets the same message, position and caret as
     with the fast path off (the tests of test_parser.py check the messages
     themselves): a syntax error is reported from the fast path's stacks as
@@ -188,13 +216,10 @@ def test_errors_are_those_of_the_ordinary_path():
     for text in texts:
         with pytest.raises(PcclError) as on:
             P.parse_program(text, "t.pccl")
-        saved = P._FAST
-        P._FAST = None
-        try:
+        with monkeypatch.context() as m:
+            m.setattr(P._get_fast(), "usable", False)
             with pytest.raises(PcclError) as off:
                 P.parse_program(text, "t.pccl")
-        finally:
-            P._FAST = saved
         assert on.value.render() == off.value.render()
 
 

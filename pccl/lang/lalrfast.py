@@ -71,11 +71,15 @@ class SyntaxFailure(Fallback):
     ``UnexpectedToken``, with the stacks it would have
     (:meth:`FastLALR.unexpected_token` makes lark's exception)."""
 
-    def __init__(self, token: Optional[LexTuple], last: Optional[LexTuple], start: str,
-                 state_stack: list, values: list, boxes: list):
+    def __init__(self, fast: FastLALR, token: Optional[LexTuple], last: Optional[LexTuple],
+                 start: str, state_stack: list, values: list, boxes: list):
         super().__init__("unexpected token")
-        self.token, self.last, self.start = token, last, start
+        self.fast, self.token, self.last, self.start = fast, token, last, start
         self.state_stack, self.values, self.boxes = state_stack, values, boxes
+
+    def unexpected_token(self) -> UnexpectedToken:
+        """lark's exception here (:meth:`FastLALR.unexpected_token`)."""
+        return self.fast.unexpected_token(self)
 
 
 class _Meta:
@@ -130,6 +134,7 @@ class FastLALR:
 
     def __init__(self, lark: Lark, transformer: Any, callbacks: dict):
         self.usable = False
+        self.lark = lark        # whose tables these are (state numbers are its own)
         try:
             if lark.options.parser != "lalr" or lark.options.lexer != "basic":
                 raise Fallback()
@@ -291,7 +296,7 @@ class FastLALR:
             while True:
                 act = states[state_stack[-1]].get(typ)
                 if act is None:
-                    raise SyntaxFailure(tok, None, start, state_stack, values, boxes)
+                    raise SyntaxFailure(self, tok, None, start, state_stack, values, boxes)
                 if act >= 0:
                     state_stack.append(act)
                     if typ in kept:
@@ -317,13 +322,13 @@ class FastLALR:
         while True:
             act = states[state_stack[-1]].get("$END")
             if act is None:
-                raise SyntaxFailure(None, tok, start, state_stack, values, boxes)
+                raise SyntaxFailure(self, None, tok, start, state_stack, values, boxes)
             if act >= 0:
                 raise Fallback()
             if _reduce(plans[~act], values, boxes, state_stack, states) == end_state:
                 return values[-1]
 
-    def unexpected_token(self, lark: Lark, failure: SyntaxFailure) -> UnexpectedToken:
+    def unexpected_token(self, failure: SyntaxFailure) -> UnexpectedToken:
         """lark's ``UnexpectedToken`` for ``failure``, as its LALR parser
         raises it (the token, the expected terminals, an interactive parser
         at the point of failure: the same state stack, and a value stack
@@ -331,7 +336,7 @@ class FastLALR:
         from lark.lexer import LexerThread
         from lark.parsers.lalr_interactive_parser import InteractiveParser
         from lark.parsers.lalr_parser_state import ParseConf, ParserState
-        parser = lark.parser.parser.parser
+        parser = self.lark.parser.parser.parser
         conf = ParseConf(parser.parse_table, parser.callbacks, failure.start)
         value_stack: list = []
         for v, box in zip(failure.values, failure.boxes):

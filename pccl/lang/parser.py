@@ -181,12 +181,25 @@ def _fast_tokens(fast: FastLALR, text: str) -> Iterator[LexTuple]:
 # --------------------------------------------------------------------------
 
 _LARK: Optional[Lark] = None
-#: the fast path over _LARK's tables (pccl.lang.lalrfast), made with it
+#: the fast path over the tables of a Lark (pccl.lang.lalrfast): _LARK's
+#: (:func:`_get_fast` makes it again for another _LARK)
 _FAST: Optional[FastLALR] = None
 
 
+def _get_fast() -> FastLALR:
+    """The fast path over :func:`_get_lark`'s tables (the state numbers of
+    two Lark objects of one grammar may differ: one is never run with the
+    other's tables)."""
+    global _FAST
+    lark = _get_lark()
+    fast = _FAST
+    if fast is None or fast.lark is not lark:
+        fast = _FAST = FastLALR(lark, _TRANSFORMER, lark.parser.parser.parser.callbacks)
+    return fast
+
+
 def _get_lark() -> Lark:
-    global _LARK, _FAST
+    global _LARK
     if _LARK is None:
         with open(_GRAMMAR_PATH, encoding="utf-8") as f:
             grammar = f.read()
@@ -203,7 +216,6 @@ def _get_lark() -> Lark:
         _skip_inlined_positions(_LARK)
         if path is not None:
             _keep_private(path)
-        _FAST = FastLALR(_LARK, _TRANSFORMER, _LARK.parser.parser.parser.callbacks)
     return _LARK
 
 
@@ -968,11 +980,11 @@ def _fast_program(text: str) -> ast.Program:
     reported as the ordinary path reports them), or :class:`Fallback` for a
     text it leaves to the ordinary path (an error of the AST builder: the
     ordinary path reports a syntax error after it first)."""
-    _get_lark()
-    if _FAST is None or not _FAST.usable:
+    fast = _get_fast()
+    if not fast.usable:
         raise Fallback()
     try:
-        return _FAST.parse(_fast_tokens(_FAST, text), "program")
+        return fast.parse(_fast_tokens(fast, text), "program")
     except (_Syntax, RecursionError):
         raise Fallback() from None
 
@@ -990,9 +1002,7 @@ def _parse(source: str, filename: str, start: str, fast: bool = True):
         except ParseCancelled:
             raise
         except SyntaxFailure as f:      # the error lark would raise, reported as always
-            assert _FAST is not None
-            raise _token_error(_FAST.unexpected_token(lark, f), text, source, filename,
-                               False) from None
+            raise _token_error(f.unexpected_token(), text, source, filename, False) from None
         except LexFailure as f:
             raise _char_error(UnexpectedCharacters(text, f.pos, f.line, f.column), text,
                               source, filename) from None
