@@ -223,6 +223,20 @@ def test_errors_are_those_of_the_ordinary_path(monkeypatch):
         assert on.value.render() == off.value.render()
 
 
+def test_a_syntax_error_lark_cannot_be_asked_about_goes_to_the_ordinary_path(monkeypatch):
+    """Where lark's classes cannot be made from the fast path's stacks
+    (another lark), the ordinary path reports the error, never a traceback."""
+    from pccl.lang import lalrfast
+    text = "loc:\n  bool b = true;;\n"
+    want = parsed(text, False)
+
+    def broken(self, failure):
+        raise TypeError("another lark")
+    monkeypatch.setattr(lalrfast.FastLALR, "unexpected_token", broken)
+    got = parsed(text, True)
+    assert isinstance(got, PcclError) and got.render() == want.render()
+
+
 def test_a_cancelled_parse_stops_on_the_fast_path():
     event = threading.Event()
     event.set()

@@ -956,6 +956,15 @@ def _normalise(source: str) -> str:
     return text
 
 
+def _lark_error_of(failure: SyntaxFailure) -> Optional[UnexpectedToken]:
+    """lark's exception for the fast path's syntax error; None where lark's
+    classes cannot be made (another lark: the ordinary path reports it)."""
+    try:
+        return failure.unexpected_token()
+    except Exception:   # noqa: BLE001
+        return None
+
+
 def _checked_text(source: str, filename: str, property_mode: bool) -> str:
     """``source`` normalised, after the checks made before lark sees it."""
     if not isinstance(source, str):
@@ -1002,7 +1011,9 @@ def _parse(source: str, filename: str, start: str, fast: bool = True):
         except ParseCancelled:
             raise
         except SyntaxFailure as f:      # the error lark would raise, reported as always
-            raise _token_error(f.unexpected_token(), text, source, filename, False) from None
+            unexpected = _lark_error_of(f)
+            if unexpected is not None:
+                raise _token_error(unexpected, text, source, filename, False) from None
         except LexFailure as f:
             raise _char_error(UnexpectedCharacters(text, f.pos, f.line, f.column), text,
                               source, filename) from None
