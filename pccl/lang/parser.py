@@ -21,6 +21,7 @@ import contextvars
 import dataclasses
 import difflib
 import gc
+import itertools
 import math
 import os
 import re
@@ -35,6 +36,7 @@ from lark.indenter import DedentError, Indenter
 
 from pccl.lang import ast
 from pccl.lang.errors import PcclError
+from pccl.lang.lalrfast import Fallback, FastLALR, LexFailure, LexTuple, SyntaxFailure
 
 __all__ = ["parse_program", "parse_file", "parse_property"]
 
@@ -111,11 +113,89 @@ class _PcclIndenter(Indenter):
         return _PcclIndenter()._process(stream)
 
 
+class _FastIndenter:
+    """:meth:`_PcclIndenter._process` for the fast path's token tuples
+    (pccl.lang.lalrfast), as hooks of its lexer: the same tokens and
+    positions, the same error at an inconsistent dedent."""
+
+    def __init__(self):
+        self.levels = [0]
+        self.paren_level = 0
+
+    def hooks(self) -> dict:
+        ind = _PcclIndenter
+        hooks: dict[str, Any] = {ind.NL_type: self.newline}
+        hooks.update((t, self.open) for t in ind.OPEN_PAREN_types)
+        hooks.update((t, self.close) for t in ind.CLOSE_PAREN_types)
+        return hooks
+
+    def newline(self, token: LexTuple) -> Iterator[LexTuple]:
+        if self.paren_level > 0:
+            return
+        yield token
+        indent_str = token[1].rsplit("\n", 1)[1]
+        indent = indent_str.count(" ") + indent_str.count("\t") * _PcclIndenter.tab_len
+        levels = self.levels
+        if indent > levels[-1]:
+            levels.append(indent)
+            yield (_PcclIndenter.INDENT_type, indent_str) + token[2:]
+        else:
+            while indent < levels[-1]:
+                levels.pop()
+                yield (_PcclIndenter.DEDENT_type, indent_str) + token[2:]
+            if indent != levels[-1]:
+                raise _IndentError(token[4] or 0, token[5] or 0)
+
+    def open(self, token: LexTuple) -> tuple:
+        self.paren_level += 1
+        return (token,)
+
+    def close(self, token: LexTuple) -> tuple:
+        # An unbalanced closer is a syntax error the parser reports.
+        self.paren_level = max(0, self.paren_level - 1)
+        return (token,)
+
+    def end(self) -> Iterator[LexTuple]:
+        """The dedents at the end of the file (no position)."""
+        while len(self.levels) > 1:
+            self.levels.pop()
+            yield (_PcclIndenter.DEDENT_type, "", None, None, None, None, None, None)
+
+
+def _fast_tokens(fast: FastLALR, text: str) -> Iterator[LexTuple]:
+    """The tokens of ``text`` as the parser sees them (after the indenter),
+    for the fast path; cancelled as :func:`cancellable` says."""
+    cancel = _CANCEL.get()
+
+    def every() -> None:
+        if cancel is not None and cancel.is_set():
+            raise ParseCancelled()
+
+    ind = _FastIndenter()
+    return itertools.chain(fast.lex(text, ind.hooks(), every if cancel is not None else None),
+                           ind.end())
+
+
 # --------------------------------------------------------------------------
 # Grammar (built once)
 # --------------------------------------------------------------------------
 
 _LARK: Optional[Lark] = None
+#: the fast path over the tables of a Lark (pccl.lang.lalrfast): _LARK's
+#: (:func:`_get_fast` makes it again for another _LARK)
+_FAST: Optional[FastLALR] = None
+
+
+def _get_fast() -> FastLALR:
+    """The fast path over :func:`_get_lark`'s tables (the state numbers of
+    two Lark objects of one grammar may differ: one is never run with the
+    other's tables)."""
+    global _FAST
+    lark = _get_lark()
+    fast = _FAST
+    if fast is None or fast.lark is not lark:
+        fast = _FAST = FastLALR(lark, _TRANSFORMER, lark.parser.parser.parser.callbacks)
+    return fast
 
 
 def _get_lark() -> Lark:
@@ -566,6 +646,11 @@ class _Numberer:
         return dataclasses.replace(s, sid=sid)
 
 
+#: a program none of whose text is one of these has no property syntax (the
+#: tokens of quantifiers, '->' and the temporal forms): no walk needed
+_PROPERTY_WORDS = ("forall", "exists", "->", "~>", "eventually", "reachable")
+
+
 def _check_no_property_syntax(prog: ast.Program) -> None:
     """Quantifiers and ``->`` belong to properties and invariants only."""
     for node in (*prog.decls, *prog.init, *prog.events):
@@ -871,12 +956,21 @@ def _normalise(source: str) -> str:
     return text
 
 
-def _parse(source: str, filename: str, start: str):
+def _lark_error_of(failure: SyntaxFailure) -> Optional[UnexpectedToken]:
+    """lark's exception for the fast path's syntax error; None where lark's
+    classes cannot be made (another lark: the ordinary path reports it)."""
+    try:
+        return failure.unexpected_token()
+    except Exception:   # noqa: BLE001
+        return None
+
+
+def _checked_text(source: str, filename: str, property_mode: bool) -> str:
+    """``source`` normalised, after the checks made before lark sees it."""
     if not isinstance(source, str):
         raise PcclError(f"source must be text, not {type(source).__name__}", filename=filename)
     text = _normalise(source)
     _check_comments(text, source, filename)
-    property_mode = start == "property"
     if not property_mode:
         # Lark sees no newline before the first line, so its indentation
         # would go unnoticed: reject it here as the Indenter would.
@@ -884,7 +978,49 @@ def _parse(source: str, filename: str, start: str):
         if m:
             raise PcclError("unexpected indentation", filename=filename, source=source,
                             line=1, column=m.end() + 1)
+    return text
+
+
+def _fast_program(text: str) -> ast.Program:
+    """The program ``text`` (normalised) parsed by the fast path
+    (:mod:`pccl.lang.lalrfast`: lark's tables, no parse tree).  Raises, at
+    a syntax error, what lark's parser would meet there
+    (:class:`SyntaxFailure`, :class:`LexFailure`, :class:`_IndentError`:
+    reported as the ordinary path reports them), or :class:`Fallback` for a
+    text it leaves to the ordinary path (an error of the AST builder: the
+    ordinary path reports a syntax error after it first)."""
+    fast = _get_fast()
+    if not fast.usable:
+        raise Fallback()
+    try:
+        return fast.parse(_fast_tokens(fast, text), "program")
+    except (_Syntax, RecursionError):
+        raise Fallback() from None
+
+
+def _parse(source: str, filename: str, start: str, fast: bool = True):
+    """``source`` parsed from ``start`` and built (a program without its
+    statement numbers); ``fast`` false: never by the fast path (the tests
+    compare the two)."""
+    property_mode = start == "property"
+    text = _checked_text(source, filename, property_mode)
     lark = _get_lark()
+    if not property_mode and fast:
+        try:
+            return _fast_program(text)
+        except ParseCancelled:
+            raise
+        except SyntaxFailure as f:      # the error lark would raise, reported as always
+            unexpected = _lark_error_of(f)
+            if unexpected is not None:
+                raise _token_error(unexpected, text, source, filename, False) from None
+        except LexFailure as f:
+            raise _char_error(UnexpectedCharacters(text, f.pos, f.line, f.column), text,
+                              source, filename) from None
+        except _IndentError as e:
+            raise lark_failure(e, source, filename) from None
+        except Exception:   # noqa: BLE001 - Fallback, or a surprise: the ordinary path decides
+            pass
     reset = _PROPERTY_MODE.set(property_mode)
     try:
         try:
@@ -956,7 +1092,8 @@ def _parse_program(source: str, filename: str) -> ast.Program:
                        for ev in prog.events)
         prog = dataclasses.replace(prog, init=init, events=events, filename=filename,
                                    source=source, n_statements=numberer.next)
-        _check_no_property_syntax(prog)
+        if any(word in source for word in _PROPERTY_WORDS):
+            _check_no_property_syntax(prog)
     except _Syntax as e:
         raise PcclError(e.message, filename=filename, source=source, span=e.span) from None
     except RecursionError:
