@@ -354,9 +354,65 @@ def test_threads_fall_back_to_python_on_overflow():
 
 
 def test_header_names_the_threads(tmp_path):
+    """The header says the threads; where every level was too narrow to
+    share (the default reductions leave Fischer k=0 d=1 levels of at most 9
+    states), that the search ran as one thread, and why."""
     from click.testing import CliRunner
     from pccl.cli import main
-    res = CliRunner().invoke(main, ["explore", FISCHER, "--set", "k=0", "--set", "d=1",
-                                    "--no-timelock", "--no-stall", "--workers", "2"])
+    base = ["explore", FISCHER, "--set", "k=0", "--set", "d=1", "--no-timelock", "--no-stall",
+            "--workers", "2"]
+    res = CliRunner().invoke(main, base + ["--reduce", "none"])     # levels of up to 1,368
     assert res.exit_code == 0, res.output
     assert res.output.splitlines()[0].endswith("engine native on 2 threads")
+    res = CliRunner().invoke(main, base)
+    assert res.exit_code == 0, res.output
+    assert res.output.splitlines()[0].endswith(
+        "engine native on 1 thread of 2 (levels too narrow to share: the widest had 9 states, "
+        "threads share levels of 256 or more)")
+
+
+SLOW_CASES = [CASES[1], ("fischer unreduced", FISCHER,
+                         dict(reduce="none", overrides={"k": "0", "d": "1"}))]
+
+
+@pytest.mark.parametrize("name, path, kw", SLOW_CASES,
+                         ids=[c[0].replace(" ", "-").replace(",", "") for c in SLOW_CASES])
+def test_slow_threads_hold_no_one_up(name, path, kw, monkeypatch):
+    """The search's own thread never waits for another: when the next chunk
+    is in a slow thread's hands (here the others sleep 2 ms a chunk before
+    handing it over, as a thread descheduled beside a busy loop would) it
+    makes that chunk too; the first copy made is admitted, the other
+    dropped (or, late, replaced).  The states, their numbers and parents
+    and the recorded graph are the batches', for 2 and 3 threads."""
+    nm = native(path, **kw)
+    want = search(Batches(nm))
+    want_graph = record(Batches(nm))
+    monkeypatch.setenv("PCCL_KERNEL_SLOW_HELPERS", "2")
+    dups = 0
+    for threads in (2, 3):
+        ex_states = search(Counted(nm), threads)
+        assert_same(ex_states, want)
+        got = record(Counted(nm), threads)
+        assert got[0] == want_graph[0]
+        for k, a in want_graph[1].items():
+            assert np.array_equal(got[1][k], a), k
+        ex = Explorer(nm, batch=NV.NativeModel.BATCH, threads=threads)
+        ex.run()
+        assert ex.kernel_chunks > 100
+        dups += ex.kernel_dups
+    assert dups > 0                 # the calling thread made chunks the others held
+
+
+def test_threads_note():
+    """The header's note on threads: only with more than one thread, once the
+    kernel ran, when its widest level was under SHARED_LEVEL states."""
+    from pccl.search.explorer import SHARED_LEVEL
+    ex = Explorer(native(FISCHER, overrides={"k": "0", "d": "1"}), threads=2)
+    assert ex.threads_note() is None                # nothing ran
+    ex.kernel_chunks, ex.kernel_widest = 10, SHARED_LEVEL - 1
+    assert ex.threads_note() == ("levels too narrow to share: the widest had 255 states, "
+                                 "threads share levels of 256 or more")
+    ex.kernel_widest = SHARED_LEVEL
+    assert ex.threads_note() is None
+    ex.threads, ex.kernel_widest = 1, 3
+    assert ex.threads_note() is None
