@@ -286,6 +286,9 @@ _K_EDGES = 5
 #: (128 states each) are ready to make: a search whose levels are all
 #: narrower than this runs as one thread would (:meth:`Explorer.threads_note`)
 SHARED_LEVEL = 256
+#: ... and a call of the kernel that starts in such a level runs on one
+#: thread, returning after this many seconds at most
+_NARROW_SECONDS = 0.05
 #: Levels the kernel may go on into after the one it is given
 _NO_CROSSING = 0
 _ANY_CROSSING = 1 << 30
@@ -887,10 +890,11 @@ class Explorer:
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
             graph = None if rec is None else rec.kernel_arrays(limit)
+            threads, secs = self._kernel_threads(len(level), seconds)
             (e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr,
-             (chunks, helped, dups)) = kern(level, first, adm.nxt, pos, self.threads, table.slots,
+             (chunks, helped, dups)) = kern(level, first, adm.nxt, pos, threads, table.slots,
                                     table.fps, table.parents, table.n, int(table.mask), limit,
-                                    cross, seconds, graph)
+                                    cross, secs, graph)
             self._note_kernel(len(level), crossed, chunks, helped, dups)
             table.admitted(k)
             if rec is not None:
@@ -930,6 +934,16 @@ class Explorer:
             report(len(level) - pos)
             if self._memory_bound(adm.bounds, peak_rss_bytes()):
                 return True
+
+    def _kernel_threads(self, width: int, seconds: float) -> tuple:
+        """The threads of a call of the level kernel that starts in a level of
+        ``width`` states, and the seconds after which it returns: a level
+        narrower than :data:`SHARED_LEVEL` is this thread's alone (no
+        thread started), for :data:`_NARROW_SECONDS` at most, so that the
+        threads start soon once the levels widen."""
+        if self.threads > 1 and width < SHARED_LEVEL:
+            return 1, min(seconds, _NARROW_SECONDS)
+        return self.threads, seconds
 
     def _note_kernel(self, width: int, crossed: tuple, chunks: int, helped: int,
                      dups: int) -> None:
