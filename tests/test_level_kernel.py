@@ -157,14 +157,16 @@ MOVING = [("race_robust 3 robots", "programs/race_robust.pccl", 3),
 
 @pytest.mark.parametrize("name, path, agents", MOVING, ids=[c[0].replace(" ", "-") for c in MOVING])
 @pytest.mark.parametrize("graph", [False, True])
-def test_kernel_on_programs_that_move(name, path, agents, graph):
+def test_kernel_on_programs_that_move(name, path, agents, graph, monkeypatch):
     """Memo sites (DOREACH INVOKE's outcomes under nondet) call Python on a
     miss: in the kernel the thread takes the GIL for it, the memo's lock
     held alone, while the other threads read the memo shared.  Each search
     starts from an empty memo (a fresh model), so the misses happen in the
     kernel's threads; the result is the batches': figures, labels, every
     state's parent, the violations with their traces (decoded: the values
-    interned in the order the misses came), the recorded graph."""
+    interned in the order the misses came), the recorded graph.  Last, 2
+    threads whose other thread is slow (1 ms a chunk): the calling thread
+    makes the chunks it holds, misses included."""
     def fresh():
         return native(os.path.join(ROOT, path), agents=agents, world=RACE, blackbox="nondet")
 
@@ -186,7 +188,9 @@ def test_kernel_on_programs_that_move(name, path, agents, graph):
     nm = fresh()
     want = run(Batches(nm), nm)
     assert nm.lib.memo_stats()[1] > 0          # (misses: the memo filled as it went)
-    for threads in (1, 2, 3):
+    for threads, slow in ((1, None), (2, None), (3, None), (2, "1")):
+        if slow:
+            monkeypatch.setenv("PCCL_KERNEL_SLOW_HELPERS", slow)
         nm = fresh()
         c = Counted(nm)
         got = run(c, nm, threads)
