@@ -33,7 +33,11 @@ run is a fresh process (benchmarks/parallel.py's).  Each round runs every
 configuration twice: first with nothing of ours beside it ("idle"), then
 beside a busy loop (``python -c 'while True: pass'``, or with ``--busy yes``
 ``yes > /dev/null``) that this script
-starts before and kills after the "busy" half of the round.  The speedup is
+starts before and kills after the "busy" half of the round.  With
+``--autogroup-nice -20`` the benchmark runs in a scheduler group of its own
+weighted far above the other sessions' (Linux autogroups share the CPU
+between sessions, not processes): on a machine that other people's jobs
+keep busy, that comes close to an idle machine for its runs.  The speedup is
 computed within each half-round (1-worker seconds / 2-worker seconds, the
 search's own time; with ``--checks`` the processes' wall times) and shown as median (range).  The machine may be
 shared: the load average is printed before each half-round, so "idle" means
@@ -80,6 +84,19 @@ def busy_loop(kind: str = "python") -> subprocess.Popen:
 
 def fmt(xs, spec=".2f") -> str:
     return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
+
+
+def own_group(nice: int) -> int:
+    """This process in a session (and so a scheduler autogroup) of its own,
+    whose nice is set to ``nice``; the nice the kernel reports."""
+    try:
+        os.setsid()
+    except OSError:                 # already a session leader
+        pass
+    with open("/proc/self/autogroup", "w") as f:
+        f.write(str(nice))
+    with open("/proc/self/autogroup") as f:
+        return int(f.read().split()[-1])
 
 
 def case(args) -> tuple:
@@ -131,6 +148,11 @@ def main() -> None:
                     help="pccl explore's default checks, the time-lock and the stall check (the "
                          "recorded graph analysed after the search); with --native its case, "
                          "else fischer 2 agents unreduced")
+    ap.add_argument("--autogroup-nice", type=int, metavar="N", default=None,
+                    help="run in a session of its own whose scheduler group has nice N (Linux "
+                         "autogroups; negative needs root): on a machine shared by other "
+                         "sessions, -20 gives this benchmark's processes (and its busy loop) "
+                         "most of the cores, close to an idle machine")
     ap.add_argument("--old-one", action="store_true",
                     help="also the old code with one worker")
     ap.add_argument("--all", action="store_true",
@@ -145,6 +167,8 @@ def main() -> None:
                     help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
     spec, what = case(args)
+    if args.autogroup_nice is not None:
+        what += f", autogroup nice {own_group(args.autogroup_nice)}"
     print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; {what}",
           flush=True)
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
