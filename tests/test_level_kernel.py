@@ -18,6 +18,7 @@ from hypothesis import strategies as hs
 from pccl.api import explore, make_model
 from pccl.model import native as NV
 from pccl.search import liveness as L
+from pccl.search import explorer as EX
 from pccl.search.explorer import Explorer
 
 from test_fingerprints import programs
@@ -34,6 +35,15 @@ NOGRAPH = dict(timelock=False, stall=False)
 @pytest.fixture(autouse=True)
 def _cache(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
+
+
+@pytest.fixture(autouse=True)
+def _shared(request, monkeypatch):
+    """Every level shared between the threads (the search runs levels under
+    SHARED_LEVEL states on one thread): the small programs here exercise the
+    threads too.  A test marked ``real_shared_level`` keeps the real bound."""
+    if "real_shared_level" not in request.keywords:
+        monkeypatch.setattr(EX, "SHARED_LEVEL", 1)
 
 
 class Batches:
@@ -357,6 +367,7 @@ def test_threads_fall_back_to_python_on_overflow():
     assert summary(r) == summary(py)
 
 
+@pytest.mark.real_shared_level
 def test_header_names_the_threads(tmp_path):
     """The header says the threads; where every level was too narrow to
     share (the default reductions leave Fischer k=0 d=1 levels of at most 9
@@ -407,10 +418,12 @@ def test_slow_threads_hold_no_one_up(name, path, kw, monkeypatch):
     assert dups > 0                 # the calling thread made chunks the others held
 
 
+@pytest.mark.real_shared_level
 def test_threads_note():
     """The header's note on threads: only with more than one thread, once the
     kernel ran, when its widest level was under SHARED_LEVEL states."""
     from pccl.search.explorer import SHARED_LEVEL
+    assert SHARED_LEVEL == 256
     ex = Explorer(native(FISCHER, overrides={"k": "0", "d": "1"}), threads=2)
     assert ex.threads_note() is None                # nothing ran
     ex.kernel_chunks, ex.kernel_widest = 10, SHARED_LEVEL - 1
