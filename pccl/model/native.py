@@ -1020,6 +1020,11 @@ typedef int64_t V;
    is set while a thread runs it without the GIL (no Python call then) */
 static __thread int ovf;
 static __thread int KT;
+/* the kernel's threads other than the caller's (KHELP) leave a memo miss to
+   the calling thread: they give the chunk up (KDEFER), and the calling
+   thread, which never waits for them, makes it, taking the GIL for the
+   miss itself (no thread then waits for another's Python call) */
+static __thread int KHELP, KDEFER;
 static PyObject *OverflowExc;
 /* ints: VMIN..INT64_MAX; below VMIN the reserved codes (undefined, the
    symmetry signature's MSELF and MOTHER, dead's DEADV): a result out of
@@ -1757,13 +1762,14 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
   pthread_mutex_unlock(&j->mu);
   k->nc = 0;
   k->flag = 0;
+  KDEFER = 0;
   if (klabs(k, __atomic_load_n(&NLABELS, __ATOMIC_ACQUIRE))) k->flag = 2;
   memset(k->labs, 0, k->labcap);
   for (Py_ssize_t i = a; i < b && !k->flag; i++) {
     V sb[NS];
     const V *s = raw_state(L ? kptr(j, i) : PyList_GET_ITEM(j->level, i), sb);
     BN = 0; ovf = 0;
-    if (!s || rstep(s)) { k->flag = 2; break; }
+    if (!s || rstep(s)) { k->flag = KDEFER ? 6 : 2; break; }
     k->ns[i - a] = (int32_t)BN;
     if (!BN) { k->flag = 1; break; }
     if (kroom(k, k->nc + BN)) { k->flag = 2; break; }
@@ -1784,7 +1790,10 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
   }
   pthread_mutex_lock(&j->mu);
   KChunk **at = &j->slot[c % KWIN], *e = *at, *drop = k;
-  if (c >= __atomic_load_n(&j->done, __ATOMIC_ACQUIRE) && (!e || e->id < c)) {
+  /* (a copy given up at a memo miss, flag 6, stands for the chunk until the
+     calling thread's copy replaces it) */
+  if (c >= __atomic_load_n(&j->done, __ATOMIC_ACQUIRE)
+      && (!e || e->id < c || (e->id == c && e->flag == 6 && k->flag != 6))) {
     drop = e;                       /* (a copy of a chunk admitted, or none) */
     k->helper = !mine;
     __atomic_store_n(&k->id, c, __ATOMIC_RELEASE);
@@ -1926,7 +1935,7 @@ static void kadmit(KJob *j, PyThreadState **ts) {
     if (j->why || __atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE))
       break;
     KChunk *k = kready(j, c);
-    if (!k) break;
+    if (!k || k->flag == 6) break;  /* (given up at a memo miss: kwork makes it) */
     int L;
     Py_ssize_t a, b;
     kwhere(j, c, &L, &a, &b);
@@ -1966,7 +1975,14 @@ static void kwork(KJob *j, PyThreadState **ts, int mine) {
     int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE), L;
     Py_ssize_t a, b;
     if (__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE)) break;
-    if (mine && kready(j, c)) {
+    KChunk *k0 = mine ? kready(j, c) : NULL;
+    if (k0 && k0->flag == 6) {      /* another thread gave it up at a memo miss */
+      kwhere(j, c, &L, &a, &b);
+      kmake(j, c, L, a, b, 1);
+      j->dups++;
+      continue;
+    }
+    if (k0) {
       kadmit(j, ts);
       if (j->why) break;
       continue;
@@ -2008,10 +2024,10 @@ static void *kthread(void *arg) {
   KJob *j = arg;
   PyGILState_STATE g = PyGILState_Ensure();
   PyThreadState *ts = PyEval_SaveThread();
-  KT = 1;
+  KT = KHELP = 1;
   kwork(j, &ts, 0);
   kfree_tls();
-  KT = 0;
+  KT = KHELP = 0;
   PyEval_RestoreThread(ts);
   PyGILState_Release(g);
   return NULL;
@@ -2363,6 +2379,7 @@ static int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, in
     if (!(val = memo_miss(s, key, nr + 1, NULL))) { ovf = 1; return -1; }
   } else {
     pthread_rwlock_unlock(&MLOCK);
+    if (KHELP) { KDEFER = 1; return -1; }     /* (the calling thread's to fill) */
     if (!(val = memo_miss_kernel(s, key, nr + 1))) { ovf = 1; return -1; }
   }
   V n = val[0];
