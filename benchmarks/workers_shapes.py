@@ -83,9 +83,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=2, help="rounds [default: 2]")
     ap.add_argument("--only", metavar="TEXT", help="the cases whose name contains TEXT")
+    ap.add_argument("--skip", metavar="TEXT", action="append", default=[],
+                    help="leave out the cases whose name contains TEXT (repeatable)")
     ap.add_argument("--busy", action="store_true", help="also beside a busy loop")
     a = ap.parse_args()
-    cases = [c for c in CASES if a.only is None or a.only in c[0]]
+    cases = [c for c in CASES if (a.only is None or a.only in c[0])
+             and not any(t in c[0] for t in a.skip)]
     print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start", flush=True)
     rows = []
     for name, args in cases:

@@ -174,7 +174,8 @@ def test_kernel_on_programs_that_move(name, path, agents, graph, monkeypatch):
     starts from an empty memo (a fresh model), so the misses happen in the
     kernel's threads; the result is the batches': figures, labels, every
     state's parent, the violations with their traces (decoded: the values
-    interned in the order the misses came), the recorded graph.  Last, 2
+    interned in the order the misses came), the recorded graph.  Only the
+    calling thread fills a miss (the others give their chunk up).  Last, 2
     threads whose other thread is slow (1 ms a chunk): the calling thread
     makes the chunks it holds, misses included."""
     def fresh():
@@ -191,10 +192,12 @@ def test_kernel_on_programs_that_move(name, path, agents, graph, monkeypatch):
         if rec is not None:
             arrays.update(src=rec.src.view().copy(), dst=rec.dst.view().copy(),
                           **{k: g.view().copy() for k, g in rec._columns().items() if k != "sig"})
+        remade.append(ex.kernel_dups)
         return ((r.status, s.initial_states, s.states, s.transitions, s.max_depth, s.max_time,
                  sorted(map(repr, labels)),
                  [(f.violation.message, f.trace.labels, nm.decode_trace(f.trace).states)
                   for f in r.found]), arrays)
+    remade: list = []
     nm = fresh()
     want = run(Batches(nm), nm)
     assert nm.lib.memo_stats()[1] > 0          # (misses: the memo filled as it went)
@@ -209,6 +212,10 @@ def test_kernel_on_programs_that_move(name, path, agents, graph, monkeypatch):
             assert np.array_equal(got[1][k], a), k
         assert c.admitted > want[0][2] // 2
         assert nm.lib.memo_stats()[1] > 0
+        assert 6 not in c.stops         # (a chunk given up at a miss is the kernel's own)
+    # the other threads left their misses to the calling thread, which made
+    # those chunks again (from an empty memo, with 2, 3 and slow threads)
+    assert sum(remade[2:]) > 0
 
 
 @pytest.mark.parametrize("threads", [1, 2])
