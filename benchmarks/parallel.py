@@ -65,7 +65,7 @@ if code:   # import that tree, not the (editable) install
 from pccl.api import make_model, explore_model
 spec = json.loads(sys.argv[1])
 workers, ray = spec.pop("workers"), spec.pop("ray", None)
-extra = {k: spec.pop(k) for k in ("engine", "stall", "timelock") if k in spec}
+extra = {k: spec.pop(k) for k in ("engine", "stall", "timelock", "find_all") if k in spec}
 extra.setdefault("timelock", False)
 m = make_model(spec.pop("program"), overrides=spec.pop("overrides", None),
                reduce=spec.pop("reduce", "none"),

@@ -16,6 +16,11 @@ CPU-bound job, new code against old, in one run.
     python benchmarks/workers.py --native --k 1 --no-baseline   # ... k=1 (3.0 M states)
     python benchmarks/workers.py --native --checks --baseline REV   # ... with pccl explore's
                                                       # default checks (time-lock, stall)
+    python benchmarks/workers.py --checks --k 4 --all --busy yes --new HEAD --baseline REV
+                                                      # issue 43's case: fischer 2 agents k=4
+                                                      # d=2 unreduced, default checks, --all
+                                                      # (levels of ~3,000 states), beside
+                                                      # `yes > /dev/null`
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).
@@ -26,8 +31,13 @@ level kernel), with or without the graph of the stall and time-lock checks
 (``PCCL_THREADS=0``).  Every
 run is a fresh process (benchmarks/parallel.py's).  Each round runs every
 configuration twice: first with nothing of ours beside it ("idle"), then
-beside a busy loop (``python -c 'while True: pass'``) that this script
-starts before and kills after the "busy" half of the round.  The speedup is
+beside a busy loop (``python -c 'while True: pass'``, or with ``--busy yes``
+``yes > /dev/null``) that this script
+starts before and kills after the "busy" half of the round.  With
+``--autogroup-nice -20`` the benchmark runs in a scheduler group of its own
+weighted far above the other sessions' (Linux autogroups share the CPU
+between sessions, not processes): on a machine that other people's jobs
+keep busy, that comes close to an idle machine for its runs.  The speedup is
 computed within each half-round (1-worker seconds / 2-worker seconds, the
 search's own time; with ``--checks`` the processes' wall times) and shown as median (range).  The machine may be
 shared: the load average is printed before each half-round, so "idle" means
@@ -66,12 +76,50 @@ def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def busy_loop() -> subprocess.Popen:
+def busy_loop(kind: str = "python") -> subprocess.Popen:
+    if kind == "yes":
+        return subprocess.Popen(["yes"], stdout=subprocess.DEVNULL)
     return subprocess.Popen([sys.executable, "-c", "while True: pass"])
 
 
 def fmt(xs, spec=".2f") -> str:
     return f"{statistics.median(xs):{spec}} ({min(xs):{spec}}-{max(xs):{spec}})"
+
+
+def own_group(nice: int) -> int:
+    """This process in a session (and so a scheduler autogroup) of its own,
+    whose nice is set to ``nice``; the nice the kernel reports."""
+    try:
+        os.setsid()
+    except OSError:                 # already a session leader
+        pass
+    with open("/proc/self/autogroup", "w") as f:
+        f.write(str(nice))
+    with open("/proc/self/autogroup") as f:
+        return int(f.read().split()[-1])
+
+
+def case(args) -> tuple:
+    """The search of the options given: its spec (benchmarks/parallel.py's)
+    and what the first line says of it."""
+    if args.native:
+        k = args.k if "--k" in sys.argv else "2"
+        agents = args.agents or 3
+        checks = dict(timelock=True, stall=True) if args.checks else dict(stall=False)
+        spec = dict(program="programs/fischer.pccl", overrides={"k": k, "d": "2"},
+                    reduce="auto", agents=agents, engine="native", **checks)
+        what = (f"fischer {agents} agents k={k} d=2, reduced (merge+symmetry+por), native engine"
+                + (", time-lock and stall checks" if args.checks else ""))
+    else:
+        checks = dict(timelock=True, stall=True) if args.checks else {}
+        spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
+                    reduce="none", **({"agents": args.agents} if args.agents else {}), **checks)
+        what = (f"fischer k={args.k} d=2, unreduced"
+                + (", time-lock and stall checks" if args.checks else ""))
+    if args.all:
+        spec["find_all"] = True
+        what += ", --all"
+    return spec, what
 
 
 def main() -> None:
@@ -97,26 +145,30 @@ def main() -> None:
                          "(`pccl explore programs/fischer.pccl --agents 3 --set k=K --set d=2 "
                          "--no-timelock --no-stall --workers N`), --k 2 unless given")
     ap.add_argument("--checks", action="store_true",
-                    help="with --native: pccl explore's default checks, the time-lock and the "
-                         "stall check (the recorded graph gathered after the search)")
+                    help="pccl explore's default checks, the time-lock and the stall check (the "
+                         "recorded graph analysed after the search); with --native its case, "
+                         "else fischer 2 agents unreduced")
+    ap.add_argument("--autogroup-nice", type=int, metavar="N", default=None,
+                    help="run in a session of its own whose scheduler group has nice N (Linux "
+                         "autogroups; negative needs root): on a machine shared by other "
+                         "sessions, -20 gives this benchmark's processes (and its busy loop) "
+                         "most of the cores, close to an idle machine")
+    ap.add_argument("--old-one", action="store_true",
+                    help="also the old code with one worker")
+    ap.add_argument("--all", action="store_true",
+                    help="the search goes on past violations (pccl explore --all)")
+    ap.add_argument("--busy", choices=("python", "yes"), default="python",
+                    help="the busy loop: python -c 'while True: pass' [default], or "
+                         "yes > /dev/null")
     ap.add_argument("--processes", action="store_true",
                     help="also the new code with PCCL_THREADS=0 (2 worker processes where "
                          "the search would run on 2 threads)")
     ap.add_argument("--agents", type=int, default=None,
                     help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
-    if args.native:
-        k = args.k if "--k" in sys.argv else "2"
-        agents = args.agents or 3
-        checks = dict(timelock=True, stall=True) if args.checks else dict(stall=False)
-        spec = dict(program="programs/fischer.pccl", overrides={"k": k, "d": "2"},
-                    reduce="auto", agents=agents, engine="native", **checks)
-        what = (f"fischer {agents} agents k={k} d=2, reduced (merge+symmetry+por), native engine"
-                + (", time-lock and stall checks" if args.checks else ""))
-    else:
-        spec = dict(program="programs/fischer.pccl", overrides={"k": args.k, "d": "2"},
-                    reduce="none", **({"agents": args.agents} if args.agents else {}))
-        what = f"fischer k={args.k} d=2, unreduced"
+    spec, what = case(args)
+    if args.autogroup_nice is not None:
+        what += f", autogroup nice {own_group(args.autogroup_nice)}"
     print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; {what}",
           flush=True)
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
@@ -133,13 +185,15 @@ def main() -> None:
             configs.append(("2 workers, PCCL_PIN=0", 2, new, {"PCCL_PIN": "0"}))
         if args.processes:
             configs.append(("2 workers, PCCL_THREADS=0", 2, new, {"PCCL_THREADS": "0"}))
+        if old is not None and args.old_one:
+            configs.append((f"1 worker, old {args.baseline}", 1, old, None))
         if old is not None:
             configs.append((f"2 workers, old {args.baseline}", 2, old, None))
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}
         loads: dict = {"idle": [], "busy": []}
         for i in range(args.repeat):
             for mode in ("idle", "busy"):
-                loop = busy_loop() if mode == "busy" else None
+                loop = busy_loop(args.busy) if mode == "busy" else None
                 try:
                     loads[mode].append(load())
                     done = []
@@ -159,7 +213,7 @@ def main() -> None:
     engines = {r.get("engine") for rs in runs.values() for r in rs}
     assert len(sig) == 1, f"results differ between configurations: {sig}"
     hdr = (f"{'':<5} {'configuration':<28} {'search s':>20} {'process s':>20} {'CPU s':>20} "
-           f"{'speedup vs 1 worker':>20}")
+           f"{'speedup vs 1 worker':>20} {'process speedup':>20}")
     print(hdr)
     print("-" * len(hdr))
     # with --checks by the process's wall time (old code's seconds leave the gathering out)
@@ -169,9 +223,10 @@ def main() -> None:
         for label, *_ in configs:
             rs = runs[mode, label]
             speed = [a[by] / b[by] for a, b in zip(ref, rs)]
+            pspeed = [a["process"] / b["process"] for a, b in zip(ref, rs)]
             print(f"{mode:<5} {label:<28} {fmt([r['seconds'] for r in rs]):>20} "
                   f"{fmt([r['process'] for r in rs]):>20} "
-                  f"{fmt([r['cpu'] for r in rs]):>20} {fmt(speed):>20}")
+                  f"{fmt([r['cpu'] for r in rs]):>20} {fmt(speed):>20} {fmt(pspeed):>20}")
         print(f"{'':<5} (load average before each round: {'; '.join(loads[mode])})")
     status, states, transitions, depth = sig.pop()
     print(f"results identical in every run: {status}, {states:,} states, "

@@ -577,6 +577,8 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
     saved, model.lock_deadlocks = model.lock_deadlocks, plan.o.deadlock
     try:
         sr = _kept(ex).run()
+        if plan.threads and isinstance(ex, Explorer):
+            model.engine_threads_note = ex.threads_note()
         if native is not None:
             try:
                 for f in sr.found:

@@ -1500,8 +1500,10 @@ def _engine_text(m) -> str:
     threads = getattr(m, "engine_threads", 1)
     cost = PYTHON_COST if used == "python" and why and not getattr(m, "engine_asked", False) \
         else ""
-    return (f", engine {used}" + (f" on {threads} threads" if threads > 1 else "")
-            + (f" ({cost}{why})" if why else ""))
+    narrow = getattr(m, "engine_threads_note", None) if threads > 1 else None
+    on = f" on 1 thread of {threads} ({narrow})" if narrow else \
+        f" on {threads} threads" if threads > 1 else ""
+    return f", engine {used}{on}" + (f" ({cost}{why})" if why else "")
 
 
 #: What falling back to the Python engine costs, said in the header (the

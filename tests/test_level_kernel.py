@@ -18,6 +18,7 @@ from hypothesis import strategies as hs
 from pccl.api import explore, make_model
 from pccl.model import native as NV
 from pccl.search import liveness as L
+from pccl.search import explorer as EX
 from pccl.search.explorer import Explorer
 
 from test_fingerprints import programs
@@ -34,6 +35,15 @@ NOGRAPH = dict(timelock=False, stall=False)
 @pytest.fixture(autouse=True)
 def _cache(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
+
+
+@pytest.fixture(autouse=True)
+def _shared(request, monkeypatch):
+    """Every level shared between the threads (the search runs levels under
+    SHARED_LEVEL states on one thread): the small programs here exercise the
+    threads too.  A test marked ``real_shared_level`` keeps the real bound."""
+    if "real_shared_level" not in request.keywords:
+        monkeypatch.setattr(EX, "SHARED_LEVEL", 1)
 
 
 class Batches:
@@ -157,14 +167,17 @@ MOVING = [("race_robust 3 robots", "programs/race_robust.pccl", 3),
 
 @pytest.mark.parametrize("name, path, agents", MOVING, ids=[c[0].replace(" ", "-") for c in MOVING])
 @pytest.mark.parametrize("graph", [False, True])
-def test_kernel_on_programs_that_move(name, path, agents, graph):
+def test_kernel_on_programs_that_move(name, path, agents, graph, monkeypatch):
     """Memo sites (DOREACH INVOKE's outcomes under nondet) call Python on a
     miss: in the kernel the thread takes the GIL for it, the memo's lock
     held alone, while the other threads read the memo shared.  Each search
     starts from an empty memo (a fresh model), so the misses happen in the
     kernel's threads; the result is the batches': figures, labels, every
     state's parent, the violations with their traces (decoded: the values
-    interned in the order the misses came), the recorded graph."""
+    interned in the order the misses came), the recorded graph.  Only the
+    calling thread fills a miss (the others give their chunk up).  Last, 2
+    threads whose other thread is slow (1 ms a chunk): the calling thread
+    makes the chunks it holds, misses included."""
     def fresh():
         return native(os.path.join(ROOT, path), agents=agents, world=RACE, blackbox="nondet")
 
@@ -179,14 +192,18 @@ def test_kernel_on_programs_that_move(name, path, agents, graph):
         if rec is not None:
             arrays.update(src=rec.src.view().copy(), dst=rec.dst.view().copy(),
                           **{k: g.view().copy() for k, g in rec._columns().items() if k != "sig"})
+        remade.append(ex.kernel_dups)
         return ((r.status, s.initial_states, s.states, s.transitions, s.max_depth, s.max_time,
                  sorted(map(repr, labels)),
                  [(f.violation.message, f.trace.labels, nm.decode_trace(f.trace).states)
                   for f in r.found]), arrays)
+    remade: list = []
     nm = fresh()
     want = run(Batches(nm), nm)
     assert nm.lib.memo_stats()[1] > 0          # (misses: the memo filled as it went)
-    for threads in (1, 2, 3):
+    for threads, slow in ((1, None), (2, None), (3, None), (2, "1")):
+        if slow:
+            monkeypatch.setenv("PCCL_KERNEL_SLOW_HELPERS", slow)
         nm = fresh()
         c = Counted(nm)
         got = run(c, nm, threads)
@@ -195,6 +212,10 @@ def test_kernel_on_programs_that_move(name, path, agents, graph):
             assert np.array_equal(got[1][k], a), k
         assert c.admitted > want[0][2] // 2
         assert nm.lib.memo_stats()[1] > 0
+        assert 6 not in c.stops         # (a chunk given up at a miss is the kernel's own)
+    # the other threads left their misses to the calling thread, which made
+    # those chunks again (from an empty memo, with 2, 3 and slow threads)
+    assert sum(remade[2:]) > 0
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -353,10 +374,69 @@ def test_threads_fall_back_to_python_on_overflow():
     assert summary(r) == summary(py)
 
 
+@pytest.mark.real_shared_level
 def test_header_names_the_threads(tmp_path):
+    """The header says the threads; where every level was too narrow to
+    share (the default reductions leave Fischer k=0 d=1 levels of at most 9
+    states), that the search ran as one thread, and why."""
     from click.testing import CliRunner
     from pccl.cli import main
-    res = CliRunner().invoke(main, ["explore", FISCHER, "--set", "k=0", "--set", "d=1",
-                                    "--no-timelock", "--no-stall", "--workers", "2"])
+    base = ["explore", FISCHER, "--set", "k=0", "--set", "d=1", "--no-timelock", "--no-stall",
+            "--workers", "2"]
+    res = CliRunner().invoke(main, base + ["--reduce", "none"])     # levels of up to 1,368
     assert res.exit_code == 0, res.output
     assert res.output.splitlines()[0].endswith("engine native on 2 threads")
+    res = CliRunner().invoke(main, base)
+    assert res.exit_code == 0, res.output
+    assert res.output.splitlines()[0].endswith(
+        "engine native on 1 thread of 2 (levels too narrow to share: the widest had 9 states, "
+        "threads share levels of 256 or more)")
+
+
+SLOW_CASES = [CASES[1], ("fischer unreduced", FISCHER,
+                         dict(reduce="none", overrides={"k": "0", "d": "1"}))]
+
+
+@pytest.mark.parametrize("name, path, kw", SLOW_CASES,
+                         ids=[c[0].replace(" ", "-").replace(",", "") for c in SLOW_CASES])
+def test_slow_threads_hold_no_one_up(name, path, kw, monkeypatch):
+    """The search's own thread never waits for another: when the next chunk
+    is in a slow thread's hands (here the others sleep 2 ms a chunk before
+    handing it over, as a thread descheduled beside a busy loop would) it
+    makes that chunk too; the first copy made is admitted, the other
+    dropped (or, late, replaced).  The states, their numbers and parents
+    and the recorded graph are the batches', for 2 and 3 threads."""
+    nm = native(path, **kw)
+    want = search(Batches(nm))
+    want_graph = record(Batches(nm))
+    monkeypatch.setenv("PCCL_KERNEL_SLOW_HELPERS", "2")
+    dups = 0
+    for threads in (2, 3):
+        ex_states = search(Counted(nm), threads)
+        assert_same(ex_states, want)
+        got = record(Counted(nm), threads)
+        assert got[0] == want_graph[0]
+        for k, a in want_graph[1].items():
+            assert np.array_equal(got[1][k], a), k
+        ex = Explorer(nm, batch=NV.NativeModel.BATCH, threads=threads)
+        ex.run()
+        assert ex.kernel_chunks > 100
+        dups += ex.kernel_dups
+    assert dups > 0                 # the calling thread made chunks the others held
+
+
+@pytest.mark.real_shared_level
+def test_threads_note():
+    """The header's note on threads: only with more than one thread, once the
+    kernel ran, when its widest level was under SHARED_LEVEL states."""
+    from pccl.search.explorer import SHARED_LEVEL
+    assert SHARED_LEVEL == 256
+    ex = Explorer(native(FISCHER, overrides={"k": "0", "d": "1"}), threads=2)
+    assert ex.threads_note() is None                # nothing ran
+    ex.kernel_chunks, ex.kernel_widest = 10, SHARED_LEVEL - 1
+    assert ex.threads_note() == ("levels too narrow to share: the widest had 255 states, "
+                                 "threads share levels of 256 or more")
+    ex.kernel_widest = SHARED_LEVEL
+    assert ex.threads_note() is None
+    ex.threads, ex.kernel_widest = 1, 3
+    assert ex.threads_note() is None

@@ -804,7 +804,10 @@ def test_header_names_the_native_engine_with_workers():
     from pccl.cli import main
     args = ["explore", FISCHER, "--set", "k=0", "--set", "d=0", "--no-progress", "--workers"]
     out = CliRunner().invoke(main, args + ["2"]).output
-    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native on 2 threads"), out
+    # (levels of at most 11 states: the threads do not share them, and the header says so)
+    assert head(out).endswith("reductions merge+symmetry+por+dead, engine native on 1 thread of 2 "
+                              "(levels too narrow to share: the widest had 11 states, threads "
+                              "share levels of 256 or more)"), out
     assert "states" in out and "Traceback" not in out
     out = CliRunner().invoke(main, args + ["2", "--engine", "native"],
                              env={"PCCL_THREADS": "0"}).output     # worker processes

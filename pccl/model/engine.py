@@ -124,8 +124,10 @@ class Model(metaclass=ABCMeta):
         self.engine_used: Optional[str] = None
         self.engine_reason: Optional[str] = None
         self.engine_asked = False
-        #: threads of the native level kernel (``--workers N`` run as threads)
+        #: threads of the native level kernel (``--workers N`` run as threads),
+        #: and why they ran as one (the levels too narrow to share), or None
         self.engine_threads = 1
+        self.engine_threads_note: Optional[str] = None
         self._set_world(opts.world, opts.blackbox)
         n_agents = opts.agents if opts.agents is not None else (self.world.n_agents or 2)
         rho = check_model_values(n_agents, delta=opts.delta, max_time=opts.max_time,

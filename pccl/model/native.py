@@ -1020,6 +1020,11 @@ typedef int64_t V;
    is set while a thread runs it without the GIL (no Python call then) */
 static __thread int ovf;
 static __thread int KT;
+/* the kernel's threads other than the caller's (KHELP) leave a memo miss to
+   the calling thread: they give the chunk up (KDEFER), and the calling
+   thread, which never waits for them, makes it, taking the GIL for the
+   miss itself (no thread then waits for another's Python call) */
+static __thread int KHELP, KDEFER;
 static PyObject *OverflowExc;
 /* ints: VMIN..INT64_MAX; below VMIN the reserved codes (undefined, the
    symmetry signature's MSELF and MOTHER, dead's DEADV): a result out of
@@ -1553,10 +1558,14 @@ _KERNEL_C = r"""
    follow, up to `cross` levels after `level`: so that threads never wait
    for a level to end.  With threads > 1 that many threads, this one among
    them, each make chunks (expand, fingerprint, check: no Python, no GIL)
-   at most KWIN ahead of the admission, and whichever finds the next chunk
-   made and no one admitting admits it (holding the GIL, one at a time): a
-   slow or descheduled thread holds no one up but for the chunk in its
-   hands, and the result does not depend on the threads.  It stops before
+   at most KWIN ahead of the admission; this thread alone admits (holding
+   the GIL), and it never waits for the others: when the next chunk is in
+   another thread's hands and there is nothing else to make, it makes that
+   chunk too (the same states, the same buffer's contents; the first made
+   is admitted, the other dropped).  So a slow or descheduled thread holds
+   no one up (beside a busy loop, or on narrow levels where the others have
+   little to make, the search goes at least at one thread's pace), and the
+   result does not depend on the threads.  It stops before
    admitting a chunk that holds a state without successors (why 1), an
    error (2), more successors than room under `limit` (3: the table is to
    grow, or the state budget is met) or a successor that fails okstate and
@@ -1578,7 +1587,8 @@ _KERNEL_C = r"""
    expanded, or a level came out empty), else 0; the transitions recorded
    in all, 0 without `rec`; an interruption raised in a memo miss's Python
    code, which stopped the kernel, or None: the caller raises it once it has
-   taken the figures). */
+   taken the figures; (the chunks admitted, those of them another thread
+   made, the chunks this thread made again because another had them)). */
 #include <pthread.h>
 #include <time.h>
 /* compiled at -O1: 0.1-0.25 s less per module than -O2 and no slower (its
@@ -1592,7 +1602,10 @@ _KERNEL_C = r"""
 #define KWIN 512
 #define KMAXLV 4096
 #define KBLK 65536
+#define KTMAX 64                    /* threads at most */
 typedef struct {
+  Py_ssize_t id;                    /* the chunk it holds, once made (-1: not yet) */
+  int helper;                       /* made by a thread other than the caller's */
   V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
   int64_t *sg;                      /* the candidates' stall signatures (recording them) */
   Py_ssize_t labcap;                /* labs' size (labels grow on memo misses) */
@@ -1624,13 +1637,19 @@ typedef struct {
   long long tmax[KMAXLV + 1];
   Py_ssize_t tn[KMAXLV + 1];        /* new states admitted into lists[L] in this call */
   /* chunk c's buffer (once made) in slot c % KWIN; the buffers (KRING, kept
-     between calls) not in use on a stack, the last freed on top: a buffer
-     taken is most likely still in the cache */
+     between calls: one per slot and one in each thread's hands) not in use
+     on a stack, the last freed on top: a buffer taken is most likely still
+     in the cache.  The slots change and the stack under mu; a buffer's id
+     is set when it is put in its slot, after its contents */
   KChunk **slot;
-  KChunk *free_[KWIN];
+  KChunk *free_[KWIN + KTMAX];
   int nfree;
-  int next, done, stop, sleepers, admitting;
-  /* the admission's (the thread admitting holds them) */
+  int next, done, stop, sleepers;
+  Py_ssize_t helped, dups;          /* chunks admitted that the other threads made; chunks
+                                       this thread made again (another thread had them) */
+  int slow;                         /* tests: the other threads sleep this many ms a chunk
+                                       before putting it in its slot ($PCCL_KERNEL_SLOW_HELPERS) */
+  /* the admission's (the calling thread's) */
   uint32_t *slots, *parents;
   uint64_t *fps, mask;
   Py_ssize_t n, n0, limit, trans;
@@ -1654,7 +1673,7 @@ typedef struct {
   pthread_mutex_t mu;
   pthread_cond_t cv;
 } KJob;
-static KChunk KRING[KWIN];
+static KChunk KRING[KWIN + KTMAX];
 static KChunk *KSLOT[KWIN];
 static int KBUSY;
 static double know(void) {
@@ -1733,20 +1752,24 @@ static int kwhere(KJob *j, Py_ssize_t c, int *lv, Py_ssize_t *a, Py_ssize_t *b) 
 static inline PyObject *kptr(KJob *j, Py_ssize_t q) {
   return j->blk[q / KBLK][q % KBLK];
 }
-/* make chunk c: its states' successors, their fingerprints and checks */
-static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b) {
+/* make chunk c: its states' successors, their fingerprints and checks;
+   then put it in its slot, unless another thread's copy of chunk c is there
+   (or chunk c is admitted: a later chunk's, or a stale copy, is there) */
+static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int mine) {
   pthread_mutex_lock(&j->mu);
   KChunk *k = j->free_[--j->nfree];
+  k->id = -1;
   pthread_mutex_unlock(&j->mu);
   k->nc = 0;
   k->flag = 0;
+  KDEFER = 0;
   if (klabs(k, __atomic_load_n(&NLABELS, __ATOMIC_ACQUIRE))) k->flag = 2;
   memset(k->labs, 0, k->labcap);
   for (Py_ssize_t i = a; i < b && !k->flag; i++) {
     V sb[NS];
     const V *s = raw_state(L ? kptr(j, i) : PyList_GET_ITEM(j->level, i), sb);
     BN = 0; ovf = 0;
-    if (!s || rstep(s)) { k->flag = 2; break; }
+    if (!s || rstep(s)) { k->flag = KDEFER ? 6 : 2; break; }
     k->ns[i - a] = (int32_t)BN;
     if (!BN) { k->flag = 1; break; }
     if (kroom(k, k->nc + BN)) { k->flag = 2; break; }
@@ -1761,8 +1784,23 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b) {
       k->sus[w] = !okstate(t);
     }
   }
-  __atomic_store_n(&j->slot[c % KWIN], k, __ATOMIC_RELEASE);
-  kwake(j);
+  if (!mine && j->slow) {           /* (tests: a slow or descheduled thread) */
+    struct timespec z = {0, 1000000L * j->slow};
+    nanosleep(&z, NULL);
+  }
+  pthread_mutex_lock(&j->mu);
+  KChunk **at = &j->slot[c % KWIN], *e = *at, *drop = k;
+  /* (a copy given up at a memo miss, flag 6, stands for the chunk until the
+     calling thread's copy replaces it) */
+  if (c >= __atomic_load_n(&j->done, __ATOMIC_ACQUIRE)
+      && (!e || e->id < c || (e->id == c && e->flag == 6 && k->flag != 6))) {
+    drop = e;                       /* (a copy of a chunk admitted, or none) */
+    k->helper = !mine;
+    __atomic_store_n(&k->id, c, __ATOMIC_RELEASE);
+    __atomic_store_n(at, k, __ATOMIC_RELEASE);
+  }
+  if (drop) { drop->id = -1; j->free_[j->nfree++] = drop; }
+  pthread_mutex_unlock(&j->mu);
 }
 static inline int64_t klookup(const uint32_t *slots, const uint64_t *fps, uint64_t mask, const uint64_t *q) {
   size_t pos = q[1] & mask;
@@ -1883,85 +1921,113 @@ static void kclose(KJob *j, int L) {
   }
   __atomic_store_n(&j->known, L + 2, __ATOMIC_RELEASE);
 }
-/* admit the chunks made, in order, while this thread is the one admitting */
+/* chunk c's buffer when it is made (the calling thread's: only it admits
+   and empties the slots of chunks not yet admitted) */
+static inline KChunk *kready(KJob *j, int c) {
+  KChunk *k = __atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE);
+  return k && __atomic_load_n(&k->id, __ATOMIC_ACQUIRE) == c ? k : NULL;
+}
+/* admit the chunks made, in order (the calling thread) */
 static void kadmit(KJob *j, PyThreadState **ts) {
   int held = 0;
   for (;;) {
     int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
     if (j->why || __atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE))
       break;
-    KChunk *k = __atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE);
-    if (!k) break;
+    KChunk *k = kready(j, c);
+    if (!k || k->flag == 6) break;  /* (given up at a memo miss: kwork makes it) */
     int L;
     Py_ssize_t a, b;
     kwhere(j, c, &L, &a, &b);
     if (!held) { PyEval_RestoreThread(*ts); held = 1; }
     int why = kadmit1(j, k, L, a, b);
     if (why) { j->why = why; break; }
-    __atomic_store_n(&j->slot[c % KWIN], NULL, __ATOMIC_RELEASE);
-    pthread_mutex_lock(&j->mu);
-    j->free_[j->nfree++] = k;
-    pthread_mutex_unlock(&j->mu);
     if (c + 1 == j->cbase[L + 1]) kclose(j, L);     /* the last chunk of level L */
     j->lv = L;
     j->pend = b;
+    j->helped += k->helper;
+    pthread_mutex_lock(&j->mu);
+    __atomic_store_n(&j->slot[c % KWIN], NULL, __ATOMIC_RELEASE);
+    k->id = -1;
+    j->free_[j->nfree++] = k;
     __atomic_store_n(&j->done, c + 1, __ATOMIC_RELEASE);
+    /* the others woken only when there is work for them beside this
+       thread's: two chunks ready to make (on levels narrower than that
+       they sleep and this thread searches alone, as one thread would) */
+    if (j->sleepers) {
+      int d = __atomic_load_n(&j->next, __ATOMIC_ACQUIRE), L2;
+      Py_ssize_t a2, b2;
+      if (d + 1 < c + 1 + KWIN && kwhere(j, d + 1, &L2, &a2, &b2) == 1)
+        pthread_cond_broadcast(&j->cv);
+    }
+    pthread_mutex_unlock(&j->mu);
     if (know() > j->deadline) __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
-    kwake(j);
   }
   if (held) *ts = PyEval_SaveThread();
 }
-/* a thread's part: admit when the next chunk is made and no one admits,
-   else make the next chunk within the window, else wait */
-static void kwork(KJob *j, PyThreadState **ts) {
+/* a thread's part.  The calling thread (mine): admit the next chunk when it
+   is made; else make the next chunk within the window; else, the next
+   chunk being in another thread's hands, make it too (it never waits for
+   another thread).  The others: make the next chunk within the window,
+   else wait for one (the admission, or the end) */
+static void kwork(KJob *j, PyThreadState **ts, int mine) {
   for (;;) {
     int c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE), L;
     Py_ssize_t a, b;
     if (__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) || __atomic_load_n(&KINTR, __ATOMIC_ACQUIRE)) break;
-    if (__atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE)) {
-      int z = 0;
-      if (__atomic_compare_exchange_n(&j->admitting, &z, 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE)) {
-        kadmit(j, ts);
-        if (j->why) __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
-        __atomic_store_n(&j->admitting, 0, __ATOMIC_RELEASE);
-        kwake(j);
-        continue;
-      }
+    KChunk *k0 = mine ? kready(j, c) : NULL;
+    if (k0 && k0->flag == 6) {      /* another thread gave it up at a memo miss */
+      kwhere(j, c, &L, &a, &b);
+      kmake(j, c, L, a, b, 1);
+      j->dups++;
+      continue;
+    }
+    if (k0) {
+      kadmit(j, ts);
+      if (j->why) break;
+      continue;
     }
     int d = __atomic_load_n(&j->next, __ATOMIC_ACQUIRE);
     int r = d < c + KWIN ? kwhere(j, d, &L, &a, &b) : 0;
     if (r == 1) {
       if (__atomic_compare_exchange_n(&j->next, &d, d + 1, 0, __ATOMIC_ACQ_REL, __ATOMIC_ACQUIRE))
-        kmake(j, d, L, a, b);
+        kmake(j, d, L, a, b, mine);
       continue;
     }
     if (r < 0 && d == c) break;     /* every chunk there will be is admitted */
-    /* nothing to make now: wait for the next chunk, the window, more
-       states of an open level or the end */
+    if (mine && d > c) {            /* chunk c is in another thread's hands */
+      kwhere(j, c, &L, &a, &b);
+      kmake(j, c, L, a, b, 1);
+      j->dups++;
+      continue;
+    }
+    if (!mine && r < 0) return;     /* nothing more to make */
+    /* nothing to make now: wait for the admission, more states of an open
+       level or the end */
     pthread_mutex_lock(&j->mu);
     j->sleepers++;
     c = __atomic_load_n(&j->done, __ATOMIC_ACQUIRE);
     d = __atomic_load_n(&j->next, __ATOMIC_ACQUIRE);
-    if (!__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE)
-        && (!__atomic_load_n(&j->slot[c % KWIN], __ATOMIC_ACQUIRE)
-            || __atomic_load_n(&j->admitting, __ATOMIC_ACQUIRE))
+    if (!__atomic_load_n(&j->stop, __ATOMIC_ACQUIRE) && !(mine && kready(j, c))
         && (d >= c + KWIN || kwhere(j, d, &L, &a, &b) == 0))
       pthread_cond_wait(&j->cv, &j->mu);
     j->sleepers--;
     pthread_mutex_unlock(&j->mu);
   }
-  __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
-  kwake(j);
+  if (mine) {
+    __atomic_store_n(&j->stop, 1, __ATOMIC_RELEASE);
+    kwake(j);
+  }
 }
 
 static void *kthread(void *arg) {
   KJob *j = arg;
   PyGILState_STATE g = PyGILState_Ensure();
   PyThreadState *ts = PyEval_SaveThread();
-  KT = 1;
-  kwork(j, &ts);
+  KT = KHELP = 1;
+  kwork(j, &ts, 0);
   kfree_tls();
-  KT = 0;
+  KT = KHELP = 0;
   PyEval_RestoreThread(ts);
   PyGILState_Release(g);
   return NULL;
@@ -1989,7 +2055,7 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   KJob *j = calloc(1, sizeof(KJob));
   unsigned char *seen = calloc(NLABELS + 1, 1);
   int nth = 0, mine = 0;
-  pthread_t th[64];
+  pthread_t th[KTMAX];
   Py_ssize_t end0 = PyList_GET_SIZE(level), nout = PyList_GET_SIZE(out);
   if (start > end0) start = end0;
   if (!j || !seen) { PyErr_NoMemory(); goto done; }
@@ -2004,10 +2070,11 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   }
   if (KBUSY) { PyErr_SetString(PyExc_RuntimeError, "explore_levels is running"); goto done; }
   memo_lock_init();
-  for (Py_ssize_t q = 0; q < KWIN; q++) {
+  for (Py_ssize_t q = 0; q < KWIN + KTMAX; q++) {
     KChunk *k = KRING + q;
-    KSLOT[q] = NULL;
-    j->free_[KWIN - 1 - q] = k;
+    if (q < KWIN) KSLOT[q] = NULL;
+    k->id = -1;
+    j->free_[KWIN + KTMAX - 1 - q] = k;
     if (!k->ns) k->ns = malloc(sizeof(int32_t) * KCH);
     if (klabs(k, NLABELS) || !k->ns) { PyErr_NoMemory(); goto done; }
   }
@@ -2025,11 +2092,13 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   j->pfirst = n - nout; j->nptr = nout; j->cross = cross < KMAXLV - 2 ? cross : KMAXLV - 2;
   j->lists[1] = out; j->tn[1] = 0;
   j->known = 1; j->cbase[0] = 0; j->cbase[1] = (end0 - start + KCH - 1) / KCH; j->lo[1] = 0;
-  j->slot = KSLOT; j->nfree = KWIN;
+  j->slot = KSLOT; j->nfree = KWIN + KTMAX;
   j->slots = bs.buf; j->fps = bf.buf; j->parents = bp.buf; j->mask = mask;
   j->n = j->n0 = n; j->limit = limit; j->seen = seen; j->nseen = NLABELS + 1;
   j->lv = 0; j->pend = end0;
   j->deadline = know() + seconds;
+  const char *slow = getenv("PCCL_KERNEL_SLOW_HELPERS");
+  j->slow = slow ? atoi(slow) : 0;
   if (rec != Py_None) {
     j->rec = 1; j->bycand = bycand;
     j->esrc = bes.buf; j->edst = bed.buf; j->ne = ne; j->ecap = bes.len / 4;
@@ -2039,12 +2108,12 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
   pthread_cond_init(&j->cv, NULL);
-  if (threads > 64) threads = 64;
+  if (threads > KTMAX) threads = KTMAX;
   PyThreadState *ts = PyEval_SaveThread();
   for (; nth < threads - 1; nth++)
     if (pthread_create(&th[nth], NULL, kthread, j)) break;
   KT = 1;
-  kwork(j, &ts);
+  kwork(j, &ts, 1);
   KT = 0;
   for (int q = 0; q < nth; q++) pthread_join(th[q], NULL);
   PyEval_RestoreThread(ts);
@@ -2088,9 +2157,9 @@ static PyObject *explore_levels(PyObject *self, PyObject *args) {
   }
   if (!j->lists[e + 1] && !(j->lists[e + 1] = PyList_New(0))) goto done;
   /* (level e's list: None when it is level 0 or expanded, at the end) */
-  res = Py_BuildValue("(iniOOOOnOnninO)", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
+  res = Py_BuildValue("(iniOOOOnOnninO(nnn))", e, p, j->why, e > 0 && j->lists[e] ? j->lists[e] : Py_None,
                       j->lists[e + 1], lists, tms, j->trans, labs, cend, j->n - j->n0, fin, j->ne,
-                      KEXC ? KEXC : Py_None);
+                      KEXC ? KEXC : Py_None, (Py_ssize_t)j->done, j->helped, j->dups);
 done:
   if (mine) {                       /* (the interruption handed back, or dropped on an error) */
     Py_CLEAR(KEXC);
@@ -2310,6 +2379,7 @@ static int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, in
     if (!(val = memo_miss(s, key, nr + 1, NULL))) { ovf = 1; return -1; }
   } else {
     pthread_rwlock_unlock(&MLOCK);
+    if (KHELP) { KDEFER = 1; return -1; }     /* (the calling thread's to fill) */
     if (!(val = memo_miss_kernel(s, key, nr + 1))) { ovf = 1; return -1; }
   }
   V n = val[0];

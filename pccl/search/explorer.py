@@ -282,6 +282,13 @@ def _reserve(shape: tuple, dtype) -> Optional[np.ndarray]:
 _K_ROOM = 3
 #: ... the graph recorder's transition arrays are full
 _K_EDGES = 5
+#: The level kernel's other threads are woken only when two of its chunks
+#: (128 states each) are ready to make: a search whose levels are all
+#: narrower than this runs as one thread would (:meth:`Explorer.threads_note`)
+SHARED_LEVEL = 256
+#: ... and a call of the kernel that starts in such a level runs on one
+#: thread, returning after this many seconds at most
+_NARROW_SECONDS = 0.05
 #: Levels the kernel may go on into after the one it is given
 _NO_CROSSING = 0
 _ANY_CROSSING = 1 << 30
@@ -689,6 +696,11 @@ class Explorer:
         self.progress_interval = o.progress_interval
         self.batch = o.batch
         self.threads = max(1, o.threads)
+        #: the level kernel's chunks admitted in the last run, those the
+        #: threads other than the search's own made (``threads`` > 1), those
+        #: the search's thread made again because another had them in hand,
+        #: and the widest level it expanded (:meth:`threads_note`)
+        self.kernel_chunks = self.kernel_helped = self.kernel_dups = self.kernel_widest = 0
         self.table: Any = None
         #: with ``spill``: the :class:`pccl.search.spill.Spiller` of the last run
         self.spiller: Any = None
@@ -712,6 +724,7 @@ class Explorer:
 
     def _run(self) -> SearchResult:
         t_start = self._t_start = _time.perf_counter()
+        self.kernel_chunks = self.kernel_helped = self.kernel_dups = self.kernel_widest = 0
         if self.options.spill is not None:
             if self.exact or self.checkpoint is not None:
                 raise ValueError("spill stores fingerprints (not exact) and takes no checkpoint")
@@ -877,9 +890,12 @@ class Explorer:
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
             graph = None if rec is None else rec.kernel_arrays(limit)
-            e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr = kern(
-                level, first, adm.nxt, pos, self.threads, table.slots, table.fps,
-                table.parents, table.n, int(table.mask), limit, cross, seconds, graph)
+            threads, secs = self._kernel_threads(len(level), seconds)
+            (e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr,
+             (chunks, helped, dups)) = kern(level, first, adm.nxt, pos, threads, table.slots,
+                                    table.fps, table.parents, table.n, int(table.mask), limit,
+                                    cross, secs, graph)
+            self._note_kernel(len(level), crossed, chunks, helped, dups)
             table.admitted(k)
             if rec is not None:
                 rec.kernel_admitted(k, ne)
@@ -918,6 +934,36 @@ class Explorer:
             report(len(level) - pos)
             if self._memory_bound(adm.bounds, peak_rss_bytes()):
                 return True
+
+    def _kernel_threads(self, width: int, seconds: float) -> tuple:
+        """The threads of a call of the level kernel that starts in a level of
+        ``width`` states, and the seconds after which it returns: a level
+        narrower than :data:`SHARED_LEVEL` is this thread's alone (no
+        thread started), for :data:`_NARROW_SECONDS` at most, so that the
+        threads start soon once the levels widen."""
+        if self.threads > 1 and width < SHARED_LEVEL:
+            return 1, min(seconds, _NARROW_SECONDS)
+        return self.threads, seconds
+
+    def _note_kernel(self, width: int, crossed: tuple, chunks: int, helped: int,
+                     dups: int) -> None:
+        """The figures of one call of the level kernel (:meth:`threads_note`):
+        the width of the level it started in and of those it went through,
+        its chunks, those the other threads made, those made twice."""
+        self.kernel_widest = max(self.kernel_widest, width, *(c for c, _ in crossed))
+        self.kernel_chunks += chunks
+        self.kernel_helped += helped
+        self.kernel_dups += dups
+
+    def threads_note(self) -> Optional[str]:
+        """With ``threads`` > 1: what the header says when the level
+        kernel's levels were all narrower than :data:`SHARED_LEVEL` states
+        (too narrow to share: the search ran as one thread would, the
+        others asleep; it never waits for them); else None."""
+        if self.threads <= 1 or not self.kernel_chunks or self.kernel_widest >= SHARED_LEVEL:
+            return None
+        return (f"levels too narrow to share: the widest had {self.kernel_widest:,} states, "
+                f"threads share levels of {SHARED_LEVEL:,} or more")
 
     @staticmethod
     def _note_time(adm: "_Admission", t: Any) -> None:
