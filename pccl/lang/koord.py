@@ -728,7 +728,8 @@ def parse_koord(source: str, filename: str = "<input>") -> ast.Program:
         events = tuple(dataclasses.replace(ev, body=numberer.stmts(ev.body))
                        for ev in prog.events)
         prog = dataclasses.replace(prog, init=init, events=events, filename=filename,
-                                   source=source, n_statements=numberer.next)
+                                   source=source, n_statements=numberer.next,
+                                   language="koord")
         P._check_no_property_syntax(prog)
     except _Syntax as e:
         raise PcclError(e.message, filename=filename, source=source, span=e.span) from None

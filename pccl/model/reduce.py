@@ -294,6 +294,19 @@ def _unsound(name: str, why: str, want, p: "Plan") -> None:
     p.off[name] = why
 
 
+def _plan_off(m, want, p: Plan) -> tuple:
+    """Under Koord's round semantics (pccl/model/koord.py) no reduction is
+    used: their soundness is argued for PCCL's statement-level
+    interleaving.  Asking for one by name is an error."""
+    from pccl.model.koord import NOT_ARGUED
+    if want:
+        raise PcclError(f"{want[0]} reduction cannot be used here: {NOT_ARGUED}; use "
+                        "{reduce=none} or {semantics=pccl}", filename="{reduce}", template=True)
+    if want is None:
+        p.off.update({n: NOT_ARGUED for n in ALL})
+    return p, None
+
+
 def plan(m, reduce, uses=()) -> tuple:
     """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
     sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
@@ -305,6 +318,8 @@ def plan(m, reduce, uses=()) -> tuple:
     slots = None
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
+    if getattr(m, "semantics", "pccl") != "pccl":
+        return _plan_off(m, want, p)
     limits = use_limits(uses)
     for name in (want if want is not None else ()):
         if name in limits:
