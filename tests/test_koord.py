@@ -216,7 +216,7 @@ def test_bounded_for_is_a_while_loop():
 def test_bounded_for_explores_as_its_twin(tmp_path):
     p = tmp_path / "scan.koord"
     p.write_text(FOR_KOORD)
-    a = explore(str(p), agents=3)
+    a = explore(str(p), agents=3, semantics="pccl")
     b = explore(FOR_PCCL, source=True, agents=3)
     assert a.status == b.status == "exhaustive"
     assert (a.stats.states, a.stats.transitions) == (b.stats.states, b.stats.transitions)
@@ -293,7 +293,7 @@ def test_add_numbers_is_its_pccl_twin():
 @pytest.mark.parametrize("agents", [2, 3])
 def test_add_numbers_explores_as_its_pccl_twin(agents):
     """The same search, figure by figure: Koord file and PCCL text."""
-    a = explore(k("add_numbers.koord"), agents=agents)
+    a = explore(k("add_numbers.koord"), agents=agents, semantics="pccl")
     b = explore(ADD_PCCL, source=True, agents=agents)
     assert a.status == b.status == "exhaustive" and a.exit_status == 0
     assert (a.stats.states, a.stats.transitions, a.stats.initial_states, a.stats.max_depth) == \
@@ -326,7 +326,7 @@ def test_add_numbers_sums_agree(agents):
 
 @pytest.mark.parametrize("agents", [2, 3])
 def test_add_numbers_racy_is_caught(agents):
-    r = explore(k("add_numbers_racy.koord"), agents=agents)
+    r = explore(k("add_numbers_racy.koord"), agents=agents, semantics="pccl")
     assert r.status == "violation" and r.exit_status == 1
     assert r.violation.name == "full"
     # the lost update: both robots read the sum before either writes it
@@ -366,9 +366,9 @@ def test_fischer_is_safe_and_fast():
 
 
 def test_fischer_unsafe_counterexample_is_shortest():
-    r = explore(k("fischer.koord"), overrides={"k": "2"})
+    r = explore(k("fischer.koord"), overrides={"k": "2"}, semantics="pccl")
     assert r.status == "violation" and r.violation.name == "mutex"
-    plain = explore(k("fischer.koord"), overrides={"k": "2"}, reduce="none")
+    plain = explore(k("fischer.koord"), overrides={"k": "2"}, reduce="none", semantics="pccl")
     assert plain.status == "violation"
     # the unreduced search is plain BFS: its counterexample is the shortest path
     assert len(plain.trace) <= len(r.trace)
@@ -410,7 +410,8 @@ def test_moving_programs_finish(name):
 
 
 def test_follow_points_visits_every_point():
-    out = run(k("follow_points.koord"), world=LANES, agents=2, record_trace=True)
+    out = run(k("follow_points.koord"), world=LANES, agents=2, record_trace=True,
+              semantics="pccl")
     assert out.status == "final"
     updates = [s for s in out.trace.steps if s.label[0] == "DOREACH UPDATE"]
     assert sorted(s.label[1] for s in updates) == [0, 0, 0, 1, 1, 1]   # 3 points each
@@ -434,7 +435,7 @@ def test_koord_counterexample_replays_and_views(tmp_path):
     """Traces of a Koord program name the Koord file: replay re-reads it
     (through the same dispatch), the viewer shows its lines."""
     trace, page = tmp_path / "f.json", tmp_path / "f.html"
-    res = CliRunner().invoke(main, ["explore", k("fischer.koord"), "--set", "k=2",
+    res = CliRunner().invoke(main, ["explore", k("fischer.koord"), "--set", "k=3",
                                     "--trace-out", str(trace)])
     assert res.exit_code == 1 and "invariant 'mutex' violated" in res.output
     rep = CliRunner().invoke(main, ["replay", str(trace)])
