@@ -60,9 +60,6 @@ __all__ = ["KoordModel", "RND", "model_for", "shared_writes"]
 #: start values ``(shared, allread per robot)``.
 RND = N_STATE_CELLS
 
-#: Why the reductions are off under Koord's semantics (the verdict's header).
-NOT_ARGUED = ("not argued for Koord's round semantics (an event is one transition, "
-              "memory is round-consistent)")
 
 
 def model_for(program: A.Program, opts: CommonOptions) -> Model:

@@ -294,11 +294,15 @@ def _unsound(name: str, why: str, want, p: "Plan") -> None:
     p.off[name] = why
 
 
+#: Why the reductions are off under Koord's round semantics (pccl/model/koord.py).
+NOT_ARGUED = ("not argued for Koord's round semantics (an event is one transition, "
+              "memory is round-consistent)")
+
+
 def _plan_off(m, want, p: Plan) -> tuple:
     """Under Koord's round semantics (pccl/model/koord.py) no reduction is
     used: their soundness is argued for PCCL's statement-level
     interleaving.  Asking for one by name is an error."""
-    from pccl.model.koord import NOT_ARGUED
     if want:
         raise PcclError(f"{want[0]} reduction cannot be used here: {NOT_ARGUED}; use "
                         "{reduce=none} or {semantics=pccl}", filename="{reduce}", template=True)
