@@ -265,3 +265,69 @@ def test_options_that_do_not_fit(args, text):
 def test_coverage_is_refused_under_koord():
     res = CliRunner().invoke(main, ["explore", LOST, "--coverage"])
     assert res.exit_code == 2 and "coverage is not counted under Koord's round" in res.output
+
+
+# --------------------------------------------------------------------------
+# Cross-check with PCCL's semantics at the rounds' boundaries
+# --------------------------------------------------------------------------
+
+def _round_starts(m, cap: int = 200_000) -> set:
+    """Every reachable configuration in which no running agent is inside an
+    event (discrete, every counter 0, every running agent at the top of its
+    event block), without the round cell: a plain search over
+    ``m.successors`` (``m`` unreduced)."""
+    from pccl.model.layout import PC, RUNNING, STATUS
+    empty = m.ctl.empty_pc
+    seen, todo, starts = set(), list(m.init_states()), set()
+    while todo:
+        st = todo.pop()
+        if st in seen:
+            continue
+        seen.add(st)
+        assert len(seen) < cap
+        ags = st[AGS]
+        if st[PHASE] == DISCRETE and all(ag[CNT] == 0 and (ag[STATUS] != RUNNING
+                                                           or ag[PC] == empty) for ag in ags):
+            starts.add(st[:RND])
+        todo.extend(s2 for _, s2 in m.successors(st))
+    return starts
+
+
+def test_own_variables_only_same_rounds_under_both():
+    """A program whose events touch only the robot's own variables (and its
+    motion): PCCL's statements interleave inside a round, but every round
+    ends where Koord's one-transition events end.  The round-start
+    configurations of the two semantics are the same set."""
+    opts = dict(world=str(KOORD / "allstop.toml"), agents=2, blackbox="straight",
+                abstract_time=False, reduce="none")
+    kd = _round_starts(make_model(k("follow.koord"), **opts))
+    pc = _round_starts(make_model(k("follow.koord"), semantics="pccl", **opts))
+    assert len(kd) > 5 and kd == pc
+
+
+def test_reading_others_only_koord_rounds_are_pccl_rounds():
+    """Robots that read the others' allread entries and write only their own
+    (line formation): every round of Koord's semantics (reads of the round's
+    start) is a round of PCCL's (in which every robot may read before any
+    writes); PCCL may have more (a read after another robot's write; not
+    here, where only the middle robot writes)."""
+    opts = dict(world=str(KOORD / "lineform.toml"), blackbox="straight", abstract_time=False,
+                reduce="none")
+    kd = _round_starts(make_model(k("lineform.koord"), **opts))
+    pc = _round_starts(make_model(k("lineform.koord"), semantics="pccl", **opts))
+    assert len(kd) > 3 and kd <= pc
+
+
+def test_writes_merge_per_variable_last_writer_wins():
+    """Robot 0 writes `a`, robot 1 writes `b`, both `c` (different values),
+    in one round: the global store gets both `a` and `b` (a robot's event
+    writes back only what it assigned) and the last writer's `c`."""
+    src = ("allwrite:\n  int a = 0\n  int b = 0\n  int c = 0\n\nlocal:\n  boolean done = false\n\n"
+           "go:\n  pre: not done\n  eff:\n    if pid == 0:\n      a = 1\n    else:\n      b = 1\n"
+           "    c = pid + 5\n    done = true\n")
+    m = make_model(_write(src, "merge.koord"))
+    st0 = next(iter(m.init_states()))
+    first0 = _first(m, _first(m, st0, "EVENT TRANS", 0), "EVENT TRANS", 1)
+    first1 = _first(m, _first(m, st0, "EVENT TRANS", 1), "EVENT TRANS", 0)
+    assert first0[SH] == (1, 1, 6) and first1[SH] == (1, 1, 5)
+    assert first0[RND] == ((0, 0, 0), ((), ()))
