@@ -16,7 +16,7 @@ from pccl.api import explore, make_model, run
 from pccl.cli import main
 from pccl.lang.errors import PcclError
 from pccl.model.koord import RND, KoordModel
-from pccl.model.layout import AGS, CNT, LQ, PHASE, SH, DISCRETE
+from pccl.model.layout import AGS, CNT, LOC, LQ, PHASE, SH, DISCRETE
 
 ROOT = Path(__file__).resolve().parent.parent
 KOORD = ROOT / "programs" / "koord"
@@ -331,3 +331,15 @@ def test_writes_merge_per_variable_last_writer_wins():
     first1 = _first(m, _first(m, st0, "EVENT TRANS", 1), "EVENT TRANS", 0)
     assert first0[SH] == (1, 1, 6) and first1[SH] == (1, 1, 5)
     assert first0[RND] == ((0, 0, 0), ((), ()))
+
+
+def test_runs_draw_rand_afresh_in_every_round():
+    """Under `run` rand is sampled: a robot's turn is not remembered
+    (KoordModel's turn table serves the search only), so from x = 0 a run
+    sees both outcomes of the next draw."""
+    src = "local:\n  int x = 0\n\nflip:\n  pre: true\n  eff:\n    x = rand(1)\n"
+    out = run(_write(src, "flip.koord"), agents=1, seed=3, max_time=60, record_trace=True)
+    draws = [after[AGS][0][LOC][0] for lab, after in zip(out.trace.labels, out.trace.states[1:])
+             if lab[0] == "EVENT TRANS"]
+    assert len(draws) >= 50
+    assert {b for a, b in zip(draws, draws[1:]) if a == 0} == {0, 1}

@@ -109,11 +109,18 @@ class KoordModel(Model):
     #: most rule applications one event may take (a loop in an event must
     #: end: an event is one transition); beyond, the robot is stuck
     EVENT_STEPS = 10_000
+    #: most turns remembered (:meth:`_robot_turn`); the table is emptied when full
+    TURN_CACHE = 100_000
 
     def __init__(self, program: A.Program, options: Optional[CommonOptions] = None):
         super().__init__(program, options)
         self.skip_events = bool(getattr(self.options, "skip_events", False))
         self.writes = shared_writes(self.compiled)
+        #: what a robot's turn reads -> the ways it ends (:meth:`_robot_turn`):
+        #: in a round, every order of the robots runs its event from one view
+        self._turns: dict = {}
+        from pccl.model.compile import program_moves
+        self._turn_reads_clock = self.record_t0 and program_moves(program)
         self.plain_successors = self.successors
 
     # -- the transition system ----------------------------------------------------------
@@ -165,7 +172,22 @@ class KoordModel(Model):
         round's mutex is taken, SkipEvent."""
         seen: set = set()
         enabled = False
-        for first, sids, atom, fin in self._run_turn(self._round_start_view(st, i), i):
+        view = self._round_start_view(st, i)
+        # what the turn can read: its own cell, the shared values and the
+        # allread entries it sees (compiled code reads no other cell of
+        # another robot), and the clock when doReach records it
+        key = (i, ag, view[SH], tuple(a[AR] for a in view[AGS]),
+               view[TIME] if self._turn_reads_clock else None)
+        cache = self._turns
+        turns = cache.get(key)
+        if turns is None:
+            turns = [(first, sids, atom, fin[AGS][i], fin[SH])
+                     for first, sids, atom, fin in self._run_turn(view, i)]
+            if self.oracle.policy is None:      # a run samples rand afresh each time
+                if len(cache) >= self.TURN_CACHE:
+                    cache.clear()
+                cache[key] = turns
+        for first, sids, atom, fag, fsh in turns:
             rule, _, e = first
             if rule == "EVENT SELECT" and e is not None:
                 enabled = True
@@ -174,7 +196,7 @@ class KoordModel(Model):
                 succ = self._spend_turn(st, i, ag)
             else:
                 lab = ("IDLE", i, None) if rule == "IDLE" else ("EVENT TRANS", i, e)
-                succ = self._commit(st, i, sids, atom, fin)
+                succ = self._commit(st, i, sids, atom, fag, fsh)
             if (lab, succ) not in seen:
                 seen.add((lab, succ))
                 out.append((lab, succ))
@@ -226,12 +248,12 @@ class KoordModel(Model):
                 stack.append((st2, f2, s2, a2, n + 1))
         return done
 
-    def _commit(self, st, i, sids, atom, fin) -> tuple:
-        """The configuration after robot ``i``'s event ended in ``fin`` (its
-        round-start view): its own cell from ``fin``; the shared slots its
-        statements wrote from ``fin``, the others from the global store; the
-        round's mutex held if it entered ``atomic:``; the round cell."""
-        ag2 = fin[AGS][i]
+    def _commit(self, st, i, sids, atom, ag2, fsh) -> tuple:
+        """The configuration after robot ``i``'s event ended with its cell
+        ``ag2`` and the shared values ``fsh`` of its round-start view: the
+        shared slots its statements wrote from ``fsh``, the others from the
+        global store; the round's mutex held if it entered ``atomic:``; the
+        round cell."""
         if ag2[LCK] != IDLE:
             ag2 = ag2[:LCK] + (IDLE,) + ag2[LCK + 1:]
         ags = st[AGS]
@@ -239,7 +261,7 @@ class KoordModel(Model):
         sh = st[SH]
         written = {slot for sid in sids for slot in self.writes.get(sid, ())}
         if written:
-            new = fin[SH]
+            new = fsh
             sh2 = tuple(new[k] if k in written else v for k, v in enumerate(sh))
         else:
             sh2 = sh
