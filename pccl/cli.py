@@ -123,6 +123,14 @@ def common_options(f, *, agents_flags=("--agents", "-n")):
         click.option("--events", type=Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
+        click.option("--semantics", type=Choice(["pccl", "koord"]), default=None,
+                     help="the execution model: PCCL's (statements interleave) or Koord's "
+                          "rounds (one event per robot per round as one transition, "
+                          "round-consistent memory; Koord programs only: docs/koord.md) "
+                          "[default: koord for .koord/.krd files, else pccl]"),
+        click.option("--skip-events", is_flag=True,
+                     help="Koord's SkipEvent: a robot may let a round pass although an event "
+                          "is enabled (--semantics koord)"),
         click.option("--collisions", is_flag=True,
                      help="report robots overlapping each other or an obstacle"),
         click.option("--set", "overrides", type=SetType(), multiple=True,
@@ -349,7 +357,8 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 @watch_option
-def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
+def run(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions,
+        overrides, seed,
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
         exit_codes, plot, html, trace_out, view, full, watch):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
@@ -662,7 +671,8 @@ def _plot_run(m, res, path, *, quiet=False):
               help="when the search's memory nears --max-memory, move the visited states "
                    "and the frontier to files under DIR instead of stopping (one process; "
                    "the files are removed at the end)")
-def explore(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, depth,
+def explore(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events,
+            collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
@@ -969,7 +979,7 @@ def view(trace_file, output, blackbox, embed_paths, watch):
                    "SIZE, e.g. 800M [default: 80% of physical memory, as explore]")
 @click.option("--search-seconds", type=FiniteFloat(min=0), default=60.0, show_default=True,
               help="stop a search from the page after this many seconds")
-def serve(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+def serve(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
           max_time, invariants, abstract_time, port, max_memory, search_seconds):
     """Explore PROGRAM interactively in a browser: start from an initial state,
     see every enabled transition with its rule and source line, take one, go
@@ -1031,7 +1041,7 @@ def _world_of(path):
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property; violating states are marked (repeatable)")
 @click.option("--no-deadlock", is_flag=True, help="do not mark deadlocks as violations")
-def graph(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+def graph(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
           output, max_states, max_time, invariants, no_deadlock):
     """Write the reachable state graph of PROGRAM, breadth-first up to --max-states
     states: states as nodes (violating ones in red), transitions as edges labelled
@@ -1106,7 +1116,7 @@ SIM_TAIL = 10
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first violating run as a trace file (for pccl replay)")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
-def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides,
+def simulate(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
              runs, runs_n, seed, max_time, max_steps, stall_steps, invariants, properties,
              trace, trace_out, fmt):
     """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...), checking
@@ -1131,6 +1141,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, collisi
     def command(s):
         return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
                              delta=_delta(delta), n0=n0, rates=rates, events=events,
+                             semantics=semantics, skip_events=skip_events,
                              collisions=collisions, overrides=overrides,
                              max_time=_delta(max_time), max_steps=max_steps,
                              invariants=invariants, properties=properties,

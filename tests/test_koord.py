@@ -216,7 +216,7 @@ def test_bounded_for_is_a_while_loop():
 def test_bounded_for_explores_as_its_twin(tmp_path):
     p = tmp_path / "scan.koord"
     p.write_text(FOR_KOORD)
-    a = explore(str(p), agents=3)
+    a = explore(str(p), agents=3, semantics="pccl")
     b = explore(FOR_PCCL, source=True, agents=3)
     assert a.status == b.status == "exhaustive"
     assert (a.stats.states, a.stats.transitions) == (b.stats.states, b.stats.transitions)
@@ -293,7 +293,7 @@ def test_add_numbers_is_its_pccl_twin():
 @pytest.mark.parametrize("agents", [2, 3])
 def test_add_numbers_explores_as_its_pccl_twin(agents):
     """The same search, figure by figure: Koord file and PCCL text."""
-    a = explore(k("add_numbers.koord"), agents=agents)
+    a = explore(k("add_numbers.koord"), agents=agents, semantics="pccl")
     b = explore(ADD_PCCL, source=True, agents=agents)
     assert a.status == b.status == "exhaustive" and a.exit_status == 0
     assert (a.stats.states, a.stats.transitions, a.stats.initial_states, a.stats.max_depth) == \
@@ -326,7 +326,7 @@ def test_add_numbers_sums_agree(agents):
 
 @pytest.mark.parametrize("agents", [2, 3])
 def test_add_numbers_racy_is_caught(agents):
-    r = explore(k("add_numbers_racy.koord"), agents=agents)
+    r = explore(k("add_numbers_racy.koord"), agents=agents, semantics="pccl")
     assert r.status == "violation" and r.exit_status == 1
     assert r.violation.name == "full"
     # the lost update: both robots read the sum before either writes it
@@ -366,9 +366,9 @@ def test_fischer_is_safe_and_fast():
 
 
 def test_fischer_unsafe_counterexample_is_shortest():
-    r = explore(k("fischer.koord"), overrides={"k": "2"})
+    r = explore(k("fischer.koord"), overrides={"k": "2"}, semantics="pccl")
     assert r.status == "violation" and r.violation.name == "mutex"
-    plain = explore(k("fischer.koord"), overrides={"k": "2"}, reduce="none")
+    plain = explore(k("fischer.koord"), overrides={"k": "2"}, reduce="none", semantics="pccl")
     assert plain.status == "violation"
     # the unreduced search is plain BFS: its counterexample is the shortest path
     assert len(plain.trace) <= len(r.trace)
@@ -410,7 +410,8 @@ def test_moving_programs_finish(name):
 
 
 def test_follow_points_visits_every_point():
-    out = run(k("follow_points.koord"), world=LANES, agents=2, record_trace=True)
+    out = run(k("follow_points.koord"), world=LANES, agents=2, record_trace=True,
+              semantics="pccl")
     assert out.status == "final"
     updates = [s for s in out.trace.steps if s.label[0] == "DOREACH UPDATE"]
     assert sorted(s.label[1] for s in updates) == [0, 0, 0, 1, 1, 1]   # 3 points each
@@ -434,7 +435,7 @@ def test_koord_counterexample_replays_and_views(tmp_path):
     """Traces of a Koord program name the Koord file: replay re-reads it
     (through the same dispatch), the viewer shows its lines."""
     trace, page = tmp_path / "f.json", tmp_path / "f.html"
-    res = CliRunner().invoke(main, ["explore", k("fischer.koord"), "--set", "k=2",
+    res = CliRunner().invoke(main, ["explore", k("fischer.koord"), "--set", "k=3",
                                     "--trace-out", str(trace)])
     assert res.exit_code == 1 and "invariant 'mutex' violated" in res.output
     rep = CliRunner().invoke(main, ["replay", str(trace)])
@@ -473,7 +474,31 @@ BAD = [
     ("using Motion:\n  actuators:\n    pos target\n\nev:\n  pre: Motion.target == pos(1, 1)\n"
      "  eff:\n    stop\n", 6, 8, "Motion.target is one of the actuators: it is assigned, not read"),
     ("using Camera:\n  sensors:\n    pos x\n", 1, 7, "unknown module 'Camera'"),
-    ("def fun f():\n  x = 1\n", 1, 1, "'def' (functions and record types) is not supported yet"),
+    ("def Task:\n  int id\n", 1, 5, "record types ('def Name:') are not supported yet"),
+    ("def fun f(int a):\n  return a\n\ndef fun f(int b):\n  return b\n", 4, 9,
+     "function 'f' is defined twice (first at line 1)"),
+    ("def fun f(int a, int a):\n  return a\n", 1, 22, "parameter 'a' of 'f' is named twice"),
+    ("def fun f(int a):\n  return a\n  x = 1\n", 2, 3,
+     "'return' ends a function: it is its last statement"),
+    ("def fun f(int a):\n  return g(a)\n\ndef fun g(int b):\n  return f(b)\n\n"
+     "local:\n  int x = 0\nev:\n  pre: f(x) > 0\n  eff:\n    stop\n", 5, 10,
+     "function 'f' calls itself (through f -> g -> f)"),
+    ("def fun f(int a):\n  return a\n\nlocal:\n  int x = 0\nev:\n  pre: f(x, 1) > 0\n"
+     "  eff:\n    stop\n", 7, 8, "'f' takes 1 argument, not 2"),
+    ("def fun f(int a):\n  a = 1\n\nlocal:\n  int x = 0\nev:\n  pre: true\n  eff:\n"
+     "    f(x)\n", 1, 15, "'f' assigns its parameter 'a'"),
+    ("def fun f(int a):\n  x = a\n  y = a\n\nlocal:\n  int x = 0\n  int y = 0\nev:\n"
+     "  pre: true\n  eff:\n    f(x + 1)\n", 11, 7, "this argument reads 'x', which 'f' assigns"),
+    ("def fun f(int a):\n  x = a\n\nlocal:\n  int x = 0\nev:\n  pre: true\n  eff:\n"
+     "    f(rand(2))\n", 9, 7, "an argument that calls rand() is not supported"),
+    ("def fun f(int a):\n  x = a\n\nlocal:\n  int x = 0\nev:\n  pre: f(1) > 0\n  eff:\n"
+     "    stop\n", 7, 8, "'f' is used in an expression: its body must be a single 'return e'"),
+    ("local:\n  int x = 0\nev:\n  pre: true\n  eff:\n    return x\n", 6, 5,
+     "'return' outside a function"),
+    ("def fun go(boolean r):\n  Motion.target = pos(1, 1)\n  ok = r\n\nusing Motion:\n"
+     "  actuators:\n    pos target\n  sensors:\n    boolean reached\n\nlocal:\n"
+     "  boolean ok = false\nev:\n  pre: true\n  eff:\n    go(Motion.reached)\n", 16, 8,
+     "this argument reads 'Motion.reached', which 'go' changes (assigning Motion.target"),
     ("local:\n  int i = 0\nev:\n  pre: true\n  eff:\n    for i = 0, 3:\n      i = i + 1\n",
      6, 5, "write a bounded loop as 'for i in range(a, b):'"),
     ("local:\n  int i = 0\nev:\n  pre: true\n  eff:\n    for i in [1, 2]:\n      skip\n",
@@ -662,3 +687,78 @@ def test_pccl_check_reads_koord_files_through_the_one_dispatch():
     from pccl.cli import main
     res = CliRunner().invoke(main, ["check", "programs/koord/leader.koord"])
     assert res.exit_code == 0 and res.output.startswith("programs/koord/leader.koord: ok ("), res.output
+
+
+# --------------------------------------------------------------------------
+# Functions: `def fun`, inlined where called (pccl/lang/koordfun.py)
+# --------------------------------------------------------------------------
+
+FUN_KOORD = """\
+def fun twice(int v):
+  return v * 2
+
+def fun moveBy(pos p, int k):
+  Motion.target = pos(p.x + twice(k), p.y)
+  legs = legs + 1
+  return legs
+
+using Motion:
+  actuators:
+    pos target
+  sensors:
+    pos position
+    boolean reached
+
+local:
+  int legs = 0
+
+go:
+  pre: legs < twice(1) and (legs == 0 or Motion.reached)
+  eff:
+    if pid == 0:
+      moveBy(Motion.position, pid + 1)
+    else:
+      moveBy(pos(1, 2), 3 - pid)
+"""
+
+FUN_INLINED = """\
+using Motion:
+  actuators:
+    pos target
+  sensors:
+    pos position
+    boolean reached
+
+local:
+  int legs = 0
+
+go:
+  pre: legs < 1 * 2 and (legs == 0 or Motion.reached)
+  eff:
+    if pid == 0:
+      Motion.target = pos(Motion.position.x + (pid + 1) * 2, Motion.position.y)
+      legs = legs + 1
+    else:
+      Motion.target = pos(pos(1, 2).x + (3 - pid) * 2, pos(1, 2).y)
+      legs = legs + 1
+"""
+
+
+def test_functions_are_inlined():
+    """Each call is the body with the arguments in place (their trees: `(pid
+    + 1) * 2`), a call in an expression its `return e`, a statement call
+    its statements without the last `return`."""
+    assert parse_koord(FUN_KOORD) == parse_koord(FUN_INLINED)
+    prog = parse_koord(FUN_KOORD, "fun.koord")
+    # the inlined statements keep the function's lines: traces show them
+    assert [s.span.line for s in prog.events[0].body[0].branches[0][1]] == [5, 6]
+
+
+def test_a_function_explores_as_its_inlined_twin(tmp_path):
+    a, b = tmp_path / "fun.koord", tmp_path / "inl.koord"
+    a.write_text(FUN_KOORD)
+    b.write_text(FUN_INLINED)
+    ra = explore(str(a), agents=2, world=LANES)
+    rb = explore(str(b), agents=2, world=LANES)
+    assert (ra.status, ra.stats.states, ra.stats.transitions) == \
+        (rb.status, rb.stats.states, rb.stats.transitions)

@@ -263,6 +263,8 @@ BAD_MODEL_VALUES = {
     "rand_policy": (3, "rand_policy must be callable"),
     "abstract_time": ("on", "abstract_time must be True or False"),
     "reduce": (3, "reduce must be 'auto', 'none' or a list"),
+    "semantics": ("rounds", "semantics must be None, 'pccl' or 'koord'"),
+    "skip_events": ("yes", "skip_events must be True or False"),
 }
 
 
@@ -294,7 +296,8 @@ def test_the_checkpoint_identity_is_every_search_option_but_the_resources():
     # the list this replaced (kept by hand in pccl/search/checkpoint.py): the same options
     assert set(O.IDENTITY_OPTIONS) == {
         "agents", "blackbox", "delta", "n0", "rates", "events", "collisions", "overrides",
-        "invariants", "properties", "max_time", "abstract_time", "reduce", "depth", "max_states",
+        "semantics", "skip_events", "invariants", "properties", "max_time", "abstract_time",
+        "reduce", "depth", "max_states",
         "deadlock", "find_all", "exact", "timelock", "stall", "coverage", "fastest"}
 
 

@@ -290,6 +290,9 @@ class Program:
     filename: str = field(default="<input>", compare=False)
     source: str = field(default="", compare=False, repr=False)
     n_statements: int = field(default=0, compare=False)  # sids are 0..n-1
+    #: the language of the source: "pccl", or "koord" for a Koord file read
+    #: by pccl/lang/koord.py (it decides the default ``semantics``)
+    language: str = field(default="pccl", compare=False)
 
 
 Node = Union[Expr, Stmt, VarDecl, EnumDecl, Event, Invariant, Program]

@@ -21,8 +21,10 @@ PCCL meaning; in short:
   PCCL; ``and``/``or``/``not`` spell ``&&``/``||``/``!``.
 
 ``for i in range(a, b):`` is ``i = a`` and a ``while`` loop.
-``def`` (functions and records) and ``Motion.path`` are refused
-with a "not supported yet" message at their place.  Every problem is a
+Functions ``def fun f(T x, ...):`` are inlined where they are called
+(:mod:`pccl.lang.koordfun`).  Record types (``def Name:``) and
+``Motion.path`` are refused with a "not supported yet" message at their
+place.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
 
@@ -38,6 +40,7 @@ from lark.exceptions import (LarkError, UnexpectedCharacters, UnexpectedEOF,
 from lark.indenter import DedentError
 
 from pccl.lang import ast
+from pccl.lang import koordfun as F
 from pccl.lang import parser as P
 from pccl.lang.errors import PcclError
 
@@ -61,10 +64,9 @@ def is_koord_path(path) -> bool:
 # Lexing: indentation, and the constructs not supported yet
 # --------------------------------------------------------------------------
 
-_UNSUPPORTED_TOKENS = {
-    "def": "'def' (functions and record types) is not supported yet by pccl's Koord front end "
-           "(docs/koord.md)",
-}
+#: Words refused at the lexer with their message (none now: functions are
+#: read, record types refused by the grammar's ``recdef``).
+_UNSUPPORTED_TOKENS: dict = {}
 
 
 class _Unsupported(Exception):
@@ -244,6 +246,22 @@ class _ToAst(P._ToAst):
                           f"{', '.join(sorted(_METHOD_STMTS))})", _tspan(children[1]))
         return ast.CallStmt(_NO_SID, _METHOD_STMTS[name], (base, *args), _mspan(meta))
 
+    def return_stmt(self, meta, children):
+        return F.Return(children[1], _mspan(meta))
+
+    # ---- functions -------------------------------------------------------
+
+    def fundef(self, meta, children):
+        name, params, body = children[2], children[3:-1], children[-1]
+        return F.Function(str(name), _tspan(name), list(params), body, _mspan(meta))
+
+    def recdef(self, meta, children):
+        raise _Syntax("record types ('def Name:') are not supported yet by pccl's Koord front "
+                      "end (docs/koord.md)", _tspan(children[1]))
+
+    def param(self, meta, children):
+        return (str(children[1]), _tspan(children[1]))
+
     def stop_stmt(self, meta, children):
         return ast.CallStmt(_NO_SID, "exit", (), _tspan(children[0]))
 
@@ -340,6 +358,15 @@ class _ToAst(P._ToAst):
                 init = c[1]
             elif isinstance(c, tuple) and c[0] == "invariants":
                 invariants = c[1]
+        try:
+            funs = F.Functions([c for c in children if isinstance(c, F.Function)])
+            init = funs.stmts(init)
+            events = [dataclasses.replace(ev, guard=funs.expr(ev.guard), body=funs.stmts(ev.body))
+                      for ev in events]
+            invariants = tuple(dataclasses.replace(inv, expr=funs.expr(inv.expr))
+                               for inv in invariants)
+        except F.FunctionError as e:
+            raise _Syntax(e.message, e.span) from None
         return _Resolver(modules, sections).program(init, events, invariants)
 
 
@@ -601,7 +628,8 @@ _NAMES = {
     "NUMAGENTS": "'numAgents'", "NUMBOTS": "'numBots'", "FORALL": "'forall'",
     "EXISTS": "'exists'", "IDENT": "a name", "INT": "a number", "FLOAT": "a number",
     "STRING": "a string", "_NL": "end of line", "_INDENT": "an indented block",
-    "_DEDENT": "end of block", "$END": "end of file",
+    "_DEDENT": "end of block", "$END": "end of file", "DEF": "'def'", "FUN": "'fun'",
+    "RETURN": "'return'",
 }
 _BINOPS = {"ARROW", "OR", "OROR", "AND", "ANDAND", "EQ", "NE", "LT", "LE", "GT", "GE",
            "PLUS", "MINUS", "STAR", "SLASH", "PERCENT"}
@@ -609,8 +637,8 @@ _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
 _POSTFIX = {"LSQB", "DOT", "LPAR"}
 _EXPR_START = {"IDENT", "INT", "FLOAT", "TRUE", "FALSE", "LPAR", "LSQB", "MINUS", "NOT",
                "BANG", "PID", "NUMAGENTS", "NUMBOTS", "FORALL", "EXISTS"}
-_STMT_START = {"IF", "ATOMIC", "SKIP", "STOP", "IDENT", "FOR"}
-_TOP = {"USING", "ALLWRITE", "ALLREAD", "LOCAL", "INIT", "INVARIANT"}
+_STMT_START = {"IF", "ATOMIC", "SKIP", "STOP", "IDENT", "FOR", "RETURN"}
+_TOP = {"USING", "ALLWRITE", "ALLREAD", "LOCAL", "INIT", "INVARIANT", "DEF"}
 _SECTION_ORDER = ("sections come in the order: using Module:, allwrite:/allread:/local:, "
                   "init:, the events name:, invariant: (each optional)")
 
@@ -728,7 +756,8 @@ def parse_koord(source: str, filename: str = "<input>") -> ast.Program:
         events = tuple(dataclasses.replace(ev, body=numberer.stmts(ev.body))
                        for ev in prog.events)
         prog = dataclasses.replace(prog, init=init, events=events, filename=filename,
-                                   source=source, n_statements=numberer.next)
+                                   source=source, n_statements=numberer.next,
+                                   language="koord")
         P._check_no_property_syntax(prog)
     except _Syntax as e:
         raise PcclError(e.message, filename=filename, source=source, span=e.span) from None

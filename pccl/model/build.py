@@ -15,7 +15,6 @@ from typing import Optional, Union
 from pccl.lang import ast as A
 from pccl.lang.errors import OptionError
 from pccl.model.compile import program_moves
-from pccl.model.engine import Model
 from pccl.model.options import CommonOptions, model_choices
 from pccl.model.reduce import Reduced
 
@@ -85,7 +84,8 @@ def build_model(program, opts: CommonOptions, *, rng: Optional[random.Random] = 
     opts = opts.replace(blackbox=blackbox)
     if rng is not None and opts.rand_policy is None:
         opts = opts.replace(rand_policy=lambda n, agent, span: rng.randint(0, n))
-    model = Model(prog, opts)
+    from pccl.model.koord import model_for
+    model = model_for(prog, opts)       # PCCL's semantics, or Koord's (pccl/model/koord.py)
     model.blackbox_reason = reason
     model.world_given = opts.world is not None      # read by the checked section's notes
     return Reduced(model, model_choices(opts)[1])

@@ -91,6 +91,8 @@ class Model(metaclass=ABCMeta):
     #: A state's model time: the explorer's ``max time`` (statistics,
     #: progress) and its note on zero-time runaways read it.
     clock = staticmethod(operator.itemgetter(TIME))
+    #: the execution model (pccl/model/koord.py's KoordModel: "koord")
+    semantics = "pccl"
     #: teams up to this size get :meth:`successors` unrolled (generated code)
     UNROLL_AGENTS = 16
     #: Initial states remembered to drop duplicates early, and most steps of

@@ -190,6 +190,9 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     takes stable ids); ``checkpoint``: the search saves or resumes a
     checkpoint (which keeps a moving program's interned values:
     :meth:`NativeModel.checkpoint_tables`)."""
+    if getattr(model, "semantics", "pccl") != "pccl":
+        return ("the C engine implements PCCL's semantics, not Koord's round semantics "
+                "({semantics=koord})")
     why = native_unavailable()
     if why is not None:
         return why

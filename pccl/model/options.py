@@ -58,6 +58,13 @@ class CommonOptions:
     n0: int = 1
     rates: Mapping[int, int] = field(default_factory=dict)
     events: str = "any"
+    #: the execution model: "pccl" (spec section 4), "koord" (Koord's round
+    #: semantics, spec section 14; Koord programs only), None: the program's
+    #: language decides (pccl/model/koord.py)
+    semantics: Optional[str] = None
+    #: Koord's SkipEvent: a robot may skip its round although an event is
+    #: enabled (semantics "koord" only)
+    skip_events: bool = False
     collisions: bool = False
     overrides: Mapping[str, str] = field(default_factory=dict)
     invariants: tuple = ()
@@ -461,6 +468,32 @@ def check_model_values(n_agents: int, *, delta, max_time, n0, rates, events) -> 
     if events not in ("any", "first"):
         raise OptionError("events", f"must be 'any' or 'first', got {events!r}")
     return rho
+
+
+def resolve_semantics(language: str, opts: CommonOptions) -> str:
+    """The execution model of a program in ``language`` ("pccl" or
+    "koord") under ``opts``: ``opts.semantics``, else the language's own
+    (Koord's round semantics for a Koord file).  An
+    :class:`OptionError` when the options do not fit it: Koord's semantics
+    for a PCCL program, ``n0``/``rates`` under it (a robot runs at most one
+    event per round), SkipEvent without it."""
+    sem = opts.semantics or ("koord" if language == "koord" else "pccl")
+    if sem == "koord":
+        if language != "koord":
+            raise OptionError(
+                "semantics", "{semantics=koord} is Koord's execution model (rounds in which "
+                "every robot runs at most one event, as one transition): it applies to Koord "
+                "programs (.koord, .krd) only; a PCCL program runs under PCCL's semantics "
+                "(drop {semantics=koord})")
+        if opts.n0 != 1 or opts.rates:
+            name = "n0" if opts.n0 != 1 else "rates"
+            raise OptionError(
+                name, f"{{{name}}} does not apply under Koord's round semantics, where every "
+                "robot runs at most one event per round: drop it, or use {semantics=pccl}")
+    elif opts.skip_events:
+        raise OptionError("skip_events", "{skip_events} is Koord's SkipEvent rule: it needs "
+                          "{semantics=koord} (a Koord program)")
+    return sem
 
 
 #: Every option's name (:func:`option_names`).

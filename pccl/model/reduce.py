@@ -34,8 +34,8 @@ from pccl.lang import ast as A
 from pccl.lang.errors import PcclError, Spelling, keyword_spelling, spell
 from pccl.semantics import rules as R
 from pccl.lang.scalarset import IdTypes, is_own_id, is_sentinel
-from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LOCK, LQ, PC, PHASE, POS, REACH, RUNNING, SH,
-                               STATUS, TIME)
+from pccl.model.layout import (AGS, AR, CNT, DISCRETE, ENV, LCK, LOC, LOCK, LQ, N_STATE_CELLS, PC, PHASE, POS,
+                               REACH, RUNNING, SH, STATUS, TIME)
 from pccl.semantics.rules import K_EMPTY, K_END, K_IF, K_SIMPLE, K_WHILE
 from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, PURE_CALLS, RELEASE, REQUEST_LOCK,
                                       Independence, may_wait, property_names)
@@ -294,6 +294,52 @@ def _unsound(name: str, why: str, want, p: "Plan") -> None:
     p.off[name] = why
 
 
+#: Why the reductions are off under Koord's round semantics (pccl/model/koord.py).
+NOT_ARGUED = ("not argued for Koord's round semantics (an event is one transition, "
+              "memory is round-consistent)")
+
+
+def _plan_koord(m, want, p: Plan) -> tuple:
+    """Under Koord's round semantics (pccl/model/koord.py) only symmetry is
+    used (:func:`koord_symmetric_key`: the round semantics treats robots
+    alike, so the same conditions make it sound); merging, partial-order
+    reduction and dead variables are argued for PCCL's statement-level
+    interleaving.  Asking for one of those by name is an error."""
+    for name in (want or ()):
+        if name != "symmetry":
+            raise PcclError(f"{name} reduction cannot be used here: {NOT_ARGUED}; use "
+                            "{reduce=none}, {reduce=symmetry} or {semantics=pccl}",
+                            filename="{reduce}", template=True)
+    on: list = []
+    slots = None
+    if want is None or "symmetry" in want:
+        slots = _plan_symmetry(m, want, p, on)
+    if want is None:
+        p.off.update({n: NOT_ARGUED for n in ALL if n != "symmetry"})
+    p.on = tuple(on)
+    return p, slots
+
+
+def koord_symmetric_key(m, slots) -> Callable:
+    """The symmetry key under Koord's round semantics: a state whose round
+    cell is empty (every copy equals the global store) is keyed by its
+    canonical representative (:func:`make_symmetric_key`, which reads the
+    PCCL cells); one in the middle of a round with values of the round's
+    start pending is keyed exactly (not reduced).  Both are sound: a
+    permutation of the robots maps the round semantics' successors of a
+    state to those of the permuted state (robots act in every order, each
+    from its own view), so states identified are bisimilar."""
+    sym = make_symmetric_key(m, slots)
+    exact = m.plain_key
+    rnd = N_STATE_CELLS          # the round cell (pccl.model.koord.RND)
+
+    def key(st):
+        if st[rnd] is None:
+            return sym(st)
+        return (exact(st), None)
+    return key
+
+
 def plan(m, reduce, uses=()) -> tuple:
     """(Plan, symmetry slots): the reductions ``reduce`` asks for that are
     sound for model ``m`` and for ``uses`` (see :data:`USE_LIMITS`), and why
@@ -305,6 +351,8 @@ def plan(m, reduce, uses=()) -> tuple:
     slots = None
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
+    if getattr(m, "semantics", "pccl") != "pccl":
+        return _plan_koord(m, want, p)
     limits = use_limits(uses)
     for name in (want if want is not None else ()):
         if name in limits:
@@ -367,7 +415,8 @@ class Reduced:
             d["merger"] = Merger(model, base, self.por)
             d["successors"] = self.merger.successors
         if "symmetry" in p.on:
-            d["key"] = make_symmetric_key(model, slots)
+            d["key"] = (koord_symmetric_key(model, slots) if model.semantics == "koord"
+                        else make_symmetric_key(model, slots))
         if "dead" in p.on:
             from pccl.model.dead import DeadVars
             d["dead_vars"] = dv = DeadVars(model)

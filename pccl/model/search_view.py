@@ -47,7 +47,7 @@ def label_line(m, label) -> tuple:
     rule, agent, detail = label[:3]
     if detail is None:
         return agent, None
-    if rule == "EVENT SELECT":
+    if rule in ("EVENT SELECT", "EVENT TRANS"):
         return agent, m.program.events[detail].guard.span.line
     if rule in _STATEMENT_RULES:
         span = m.compiled.stmt_span(detail)

@@ -24,6 +24,10 @@ def blocks_per_step(model) -> tuple:
 
 def timing_text(model) -> str:
     """The timing explored, one phrase (the ``timing:`` line of ``checked``)."""
+    if getattr(model, "semantics", "pccl") == "koord":
+        skip = ", or skips it (SkipEvent)" if getattr(model, "skip_events", False) else ""
+        return ("Koord's rounds: every robot runs at most one event per "
+                f"round, as one transition{skip}; reads see the round's start")
     per = blocks_per_step(model)
     if all(b == 1 for b in per):
         return (f"lock-step rounds (n0 = {model.n0}): every agent runs one event block "
@@ -62,6 +66,8 @@ def lockstep_note(model) -> Optional[str]:
     spelt by the caller).  None otherwise."""
     if model.N < 2 or any(b != 1 for b in blocks_per_step(model)):
         return None
+    if getattr(model, "semantics", "pccl") == "koord":
+        return None         # one event per round is the semantics, not a bound
     ev = shared_access_event(model.program)
     if ev is None:
         return None

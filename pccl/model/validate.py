@@ -138,6 +138,11 @@ def reduce_(func, r):
         _fail(func, e.message if hasattr(e, "message") else str(e))
 
 
+#: The execution models (docs/koord.md, "Semantics"): PCCL's (spec section 4)
+#: and Koord's round semantics (spec section 14).
+SEMANTICS = ("pccl", "koord")
+
+
 def model_options(func, options: dict, names: Iterable[str]):
     """Check the model's ``options`` (a dict of some of ``names``: the
     options this check knows, :data:`pccl.model.options.MODEL_OPTIONS`)."""
@@ -153,6 +158,10 @@ def model_options(func, options: dict, names: Iterable[str]):
     rates(func, options.get("rates"))
     if "events" in options and options["events"] not in ("any", "first"):
         _fail(func, f"events must be 'any' or 'first', got {_show(options['events'])}")
+    if "semantics" in options and options["semantics"] not in SEMANTICS:
+        _fail(func, f"semantics must be None, 'pccl' or 'koord', got {_show(options['semantics'])}")
+    if "skip_events" in options:
+        boolean(func, "skip_events", options["skip_events"])
     if "max_time" in options:
         number(func, "max_time", options["max_time"], minimum=0, optional=True)
     if "abstract_time" in options:

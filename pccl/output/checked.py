@@ -326,7 +326,7 @@ def _never_fired(model, labels: Optional[set], complete: bool, status: str,
                  labels_reason: Optional[str]) -> tuple[Optional[list], Optional[str]]:
     """The events no transition fired (None when unknown) and why unknown."""
     if labels is not None and complete:
-        fired = {lab[2] for lab in labels if lab[0] == "EVENT SELECT" and lab[2] is not None}
+        fired = {lab[2] for lab in labels if lab[0] in ("EVENT SELECT", "EVENT TRANS") and lab[2] is not None}
         return [e for k, e in enumerate(event_list(model)) if k not in fired], labels_reason
     if labels is not None:
         return None, ("a bound stopped the search" if status == "bounded" else

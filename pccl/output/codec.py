@@ -35,9 +35,12 @@ from pccl.lang.data import is_integer
 from pccl.lang.errors import PcclError
 from pccl.semantics.rules import K_IF, K_WHILE
 from pccl.model.layout import (AEND, AGS, AR, CNT, DISCRETE, DONE, DYNAMIC, END, ENV, EXITED, FAIL,
-                               IDLE, LCK, LOC, LOCK, LQ, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
+                               IDLE, LCK, LOC, LOCK, LQ, N_STATE_CELLS, OBSTACLES, PC, PHASE, POS, REACH, REQUEST,
                                RUNNING, SH, START, STATUS, T0, TARGET, TIME, acq, acquire_sid)
 from pccl.lang.values import UNDEF, to_json
+
+#: The round cell of Koord's semantics (pccl/model/koord.py's ``RND``)
+RND = N_STATE_CELLS
 
 #: The trace format: its name and the version this module writes.
 FORMAT = "pccl-trace"
@@ -143,11 +146,41 @@ def encode_agent(model, st, i) -> dict:
 
 
 def encode_state(model, st) -> dict:
-    """A configuration as typed JSON data."""
-    return {"time": st[TIME], "phase": _PHASES[st[PHASE]], "lockQueue": list(st[LQ]),
-            "shared": {n: to_json(v, t) for n, t, v in D.shared_vars(model, st)},
-            "agents": [encode_agent(model, st, i) for i in range(len(st[AGS]))],
-            "env": to_json(st[ENV])}
+    """A configuration as typed JSON data (with ``round`` under Koord's
+    semantics: :func:`encode_round`)."""
+    out = {"time": st[TIME], "phase": _PHASES[st[PHASE]], "lockQueue": list(st[LQ]),
+           "shared": {n: to_json(v, t) for n, t, v in D.shared_vars(model, st)},
+           "agents": [encode_agent(model, st, i) for i in range(len(st[AGS]))],
+           "env": to_json(st[ENV])}
+    if len(st) > RND:
+        out["round"] = encode_round(model, st[RND])
+    return out
+
+
+def encode_round(model, rnd) -> Optional[dict]:
+    """The round cell of Koord's semantics (pccl/model/koord.py): null, or
+    the values of the round's start, ``{"shared": {name: value}, "allread":
+    [{name: value} per agent]}``."""
+    if rnd is None:
+        return None
+    lay = model.compiled.layout
+    sh0, ar0 = rnd
+    return {"shared": {v.name: to_json(sh0[v.slot], v.ty) for v in lay.shared},
+            "allread": [{v.name: to_json(ar[v.slot], v.ty) for v in lay.allread} for ar in ar0]}
+
+
+def decode_round(model, j, path: str):
+    """The round cell :func:`encode_round` wrote."""
+    if j is None:
+        return None
+    j = _dict(j, path)
+    lay = model.compiled.layout
+    sh0 = _variables(model, _get(j, "shared", path), f"{path}.shared", lay.shared)
+    ars = _get(j, "allread", path)
+    if not isinstance(ars, list) or len(ars) != model.N:
+        raise _fail(f"{path}.allread", f"a list of {model.N} objects", ars)
+    return (sh0, tuple(_variables(model, a, f"{path}.allread[{n}]", lay.allread)
+                       for n, a in enumerate(ars)))
 
 
 def encode_changes(model, a, b) -> list:
@@ -173,6 +206,8 @@ def encode_changes(model, a, b) -> list:
             _agent_changes(model, a, b, i, add)
     if a[ENV] != b[ENV]:
         add({"cell": "env"}, to_json(a[ENV]), to_json(b[ENV]))
+    if len(a) > RND and a[RND] != b[RND]:
+        add({"cell": "round"}, encode_round(model, a[RND]), encode_round(model, b[RND]))
     return out
 
 
@@ -268,7 +303,7 @@ def encode_step_head(model, n, label, before, after) -> dict:
     info = D.label_info(model, label, before)
     rule, agent, detail = label[:3]
     column = None
-    if rule == "EVENT SELECT" and detail is not None:
+    if rule in ("EVENT SELECT", "EVENT TRANS") and detail is not None:
         column = model.program.events[detail].guard.span.column
     elif info["line"] is not None and isinstance(detail, int) and rule != "DOREACH INVOKE":
         sp = model.compiled.stmt_span(detail)
@@ -536,7 +571,9 @@ def decode_state(model, j, path: str = "state", lenient: bool = False) -> tuple:
             _lock_queue(_get(j, "lockQueue", path), f"{path}.lockQueue", model.N), shared,
             tuple(decode_agent(model, a, f"{path}.agents[{n}]", lenient)
                   for n, a in enumerate(agents)),
-            decode_data(j["env"], f"{path}.env") if "env" in j else ANY)
+            decode_data(j["env"], f"{path}.env") if "env" in j else ANY) + (
+        (decode_round(model, j["round"], f"{path}.round") if "round" in j else ANY,)
+        if getattr(model, "semantics", "pccl") == "koord" else ())
 
 
 def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
@@ -583,10 +620,12 @@ def _decode_cell(model, cell: dict, value, path: str, lenient: bool = False):
                       else _raise(_fail(p, "discrete or dynamic", x))),
             "lockQueue": (LQ, lambda x, p: _lock_queue(x, p, model.N)),
             "env": (ENV, decode_data)}
+    if getattr(model, "semantics", "pccl") == "koord":
+        glob["round"] = (RND, lambda x, p: decode_round(model, x, p))
     if c in glob:
         idx, fn = glob[c]
         return ("state", idx), fn(value, path)
-    raise _fail(f"{path}.cell.cell", "time, phase, lockQueue or env", c)
+    raise _fail(f"{path}.cell.cell", "time, phase, lockQueue, env or round", c)
 
 
 def _raise(e: Exception):

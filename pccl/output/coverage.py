@@ -53,10 +53,10 @@ class CoverageModel:
         selecting = set()
         for (rule, agent, detail), _ in out:
             self.rules[rule] += 1
-            if rule == "EVENT SELECT" and detail is not None:
+            if rule in ("EVENT SELECT", "EVENT TRANS") and detail is not None:
                 self.fired[detail] += 1
                 selecting.add(agent)
-            elif rule == "IDLE":
+            elif rule in ("IDLE", "SKIP EVENT"):
                 selecting.add(agent)
             elif rule in _STMT_RULES and detail is not None:
                 self.executed[detail] += 1

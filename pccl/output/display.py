@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Optional
 
 from pccl.model.layout import (AGS, AR, CNT, DISCRETE, DONE, EXITED, FAIL, IDLE, LCK, LOC, LOCK,
-                               LQ, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS, TARGET,
+                               LQ, N_STATE_CELLS, PC, PHASE, POS, REACH, REQUEST, RUNNING, SH, STATUS,
+                               TARGET,
                                TIME, acquire_sid, is_acquire)
 from pccl.lang import ast as A
 from pccl.lang.values import UNDEF, format_time, format_value
@@ -65,9 +66,8 @@ def label_info(model, label, before=None) -> dict:
     rule, agent, detail = label[:3]
     info = {"rule": rule, "agent": agent, "event": None, "line": None, "source": None}
     sid = None
-    if rule == "EVENT SELECT" and detail is not None:
+    if rule in ("EVENT SELECT", "EVENT TRANS") and detail is not None:
         ev = model.program.events[detail]
-        info["rule"] = "EVENT SELECT"
         info["event"] = ev.name
         info["line"] = ev.guard.span.line
         info["source"] = source_line(model, ev.guard.span)
@@ -82,7 +82,7 @@ def label_info(model, label, before=None) -> dict:
         info["source"] = source_line(model, span)
         e = model.compiled.stmt_event.get(sid)
         info["event"] = model.program.events[e].name if e is not None else "Init"
-    if agent is not None and info["event"] is None and before is not None and rule not in ("IDLE",):
+    if agent is not None and info["event"] is None and before is not None and rule not in ("IDLE", "SKIP EVENT"):
         info["event"] = current_event(model, before[AGS][agent])
     return info
 
@@ -94,7 +94,7 @@ def short_label(model, label, before, system: str = "system") -> str:
     info = label_info(model, label, before)
     who = f"a{info['agent']}" if info["agent"] is not None else system
     s = f"{who} {info['rule']}"
-    if label[0] == "EVENT SELECT" and info["event"]:
+    if label[0] in ("EVENT SELECT", "EVENT TRANS") and info["event"]:
         s += f" {info['event']}"
     elif info["line"]:
         s += f" L{info['line']}"
@@ -213,6 +213,9 @@ def format_state(model, st, *, indent="  ") -> str:
     sv = shared_vars(model, st)
     if sv:
         lines.append(indent + "shared: " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in sv))
+    if len(st) > N_STATE_CELLS and st[N_STATE_CELLS] is not None:
+        lines.append(indent + "round start (what robots still to act in this round read): "
+                     + round_text(model, st))
     for i, ag in enumerate(st[AGS]):
         head = (f"{indent}agent {i}: {status_text(model, ag[STATUS])}, {model.compiled.describe_k(ag[PC])}, "
                 f"counter {ag[CNT]}, lock {LOCK_NAMES[ag[LCK]]}, pos {fmt_pos(ag[POS])}")
@@ -225,6 +228,20 @@ def format_state(model, st, *, indent="  ") -> str:
         if av:
             lines.append(indent + "  " + ", ".join(f"{n} = {format_value(v, t)}" for n, t, v in av))
     return "\n".join(lines)
+
+
+def round_text(model, st) -> str:
+    """The round cell of a configuration under Koord's semantics
+    (pccl/model/koord.py): the values of the round's start that differ from
+    the global store."""
+    sh0, ar0 = st[N_STATE_CELLS]
+    lay = model.compiled.layout
+    parts = [f"{v.name} = {format_value(sh0[v.slot], v.ty)}" for v in lay.shared
+             if sh0[v.slot] != st[SH][v.slot]]
+    for i, ag in enumerate(st[AGS]):
+        parts += [f"{v.name}[{i}] = {format_value(ar0[i][v.slot], v.ty)}" for v in lay.allread
+                  if ar0[i][v.slot] != ag[AR][v.slot]]
+    return ", ".join(parts)
 
 
 def format_state_k(model, st) -> str:

@@ -519,7 +519,7 @@ def _timeline_blocks(trace, events: list) -> dict:
         if label is None:
             continue
         rule, i = label[0], label[1]
-        if rule == "EVENT SELECT" and label[2] is not None:
+        if rule in ("EVENT SELECT", "EVENT TRANS") and label[2] is not None:
             blocks.setdefault((i, float(st[TIME])), []).append(events[label[2]])
         elif rule == "IDLE":
             blocks.setdefault((i, float(st[TIME])), []).append(None)

@@ -32,7 +32,7 @@ MAX_N0 = 1_000_000
 
 RULES = ("EVENT SELECT", "IDLE", "STATEMENT", "EXIT", "DOREACH UPDATE", "COUNTER ADVANCE",
          "LOCK REQUEST", "ATOMIC WAIT", "ATOMIC EXECUTION", "LOCK RELEASE", "TIME ADVANCE",
-         "DOREACH INVOKE")
+         "DOREACH INVOKE", "EVENT TRANS", "SKIP EVENT")
 RUN_STATUSES = ("final", "bounded", "violation", "deadlock", "max-steps", "stalled",
                 "interrupted")
 EXPLORE_STATUSES = ("violation", "exhaustive", "bounded", "interrupted")
@@ -42,7 +42,7 @@ VIOLATION_KINDS = ("invariant", "assert", "stuck", "deadlock", "collision", "liv
                    "eventually", "leadsto", "within", "stall", "frozen")
 #: Kinds whose counterexample may be a lasso (``cycle_start``).
 LASSO_KINDS = ("liveness", "timelock")
-STATE_CELLS = ("time", "phase", "lockQueue", "env")
+STATE_CELLS = ("time", "phase", "lockQueue", "env", "round")
 AGENT_CELLS = ("counter", "position", "lockState", "status", "target", "doReach_done",
                "doReach_fail",
                # version 2 (pccl/output/codec.py): the pending computation, doReach's t0 and obstacles

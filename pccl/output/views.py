@@ -112,7 +112,7 @@ def _step_text(model, lab, a, b, changes: bool, full: bool) -> str | None:
     rule, _, detail = lab
     info = D.label_info(model, lab, a)
     br = T.branch_taken(model, lab, a, b)
-    if rule == "EVENT SELECT" and detail is not None:
+    if rule in ("EVENT SELECT", "EVENT TRANS") and detail is not None:
         return f"{info['event']}()"
     if rule == "STATEMENT" and br:
         src = info["source"] or ""

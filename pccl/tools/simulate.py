@@ -83,7 +83,8 @@ def simulate(model, rng: random.Random, *, runs: int, seed: int = 0, max_steps: 
 
 
 def run_command(program, *, seed, world=None, blackbox="straight", agents=None, delta=1, n0=1,
-                rates=(), events="any", collisions=False, overrides=(), max_time=100,
+                rates=(), events="any", semantics=None, skip_events=False, collisions=False,
+                overrides=(), max_time=100,
                 max_steps=100_000, invariants=(), properties=(), stall_steps=20) -> str:
     """The ``pccl run`` command that repeats run ``seed`` exactly: the same
     options, and the same properties (so that it finds the same violation)."""
@@ -101,10 +102,7 @@ def run_command(program, *, seed, world=None, blackbox="straight", agents=None, 
         parts += ["--n0", str(n0)]
     for a, r in rates:
         parts += ["--rate", f"{a}={r}"]
-    if events != "any":
-        parts += ["--events", events]
-    if collisions:
-        parts += ["--collisions"]
+    parts += _model_flags(events, semantics, skip_events, collisions)
     for name, expr in overrides:
         parts += ["--set", q(f"{name}={expr}")]
     for inv in invariants:
@@ -119,6 +117,21 @@ def run_command(program, *, seed, world=None, blackbox="straight", agents=None, 
         parts += ["--stall-steps", str(stall_steps)]
     parts += ["--seed", str(seed)]
     return " ".join(parts)
+
+
+def _model_flags(events, semantics, skip_events, collisions) -> list:
+    """Step of :func:`run_command`: the flags of the events policy, the
+    semantics and collisions."""
+    parts = []
+    if events != "any":
+        parts += ["--events", events]
+    if semantics is not None:
+        parts += ["--semantics", semantics]
+    if skip_events:
+        parts += ["--skip-events"]
+    if collisions:
+        parts += ["--collisions"]
+    return parts
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple:

@@ -199,7 +199,7 @@
     if (st.rule === "DOREACH INVOKE") return own.length ? "moves: " + own.join(", ") : "";
     if (st.agent !== i) return "";
     var text;
-    if (st.rule === "EVENT SELECT") text = (st.event || "?") + "()";
+    if (st.rule === "EVENT SELECT" || st.rule === "EVENT TRANS") text = (st.event || "?") + "()";
     else if (st.line !== null && st.line !== undefined) text = "L" + st.line + " " + (st.source || "");
     else text = st.rule;
     if (st.branch) text += " → " + st.branch.taken;
@@ -645,8 +645,8 @@
         continue;
       }
       if (ag === null || ag === undefined) continue;
-      var ev = st.rule === "IDLE" ? null : st.event;
-      if (st.rule === "EVENT SELECT" || st.rule === "IDLE" || !open[ag] || open[ag].event !== ev) {
+      var ev = st.rule === "IDLE" || st.rule === "SKIP EVENT" ? null : st.event;
+      if (st.rule === "EVENT SELECT" || st.rule === "EVENT TRANS" || st.rule === "IDLE" || st.rule === "SKIP EVENT" || !open[ag] || open[ag].event !== ev) {
         close(ag, k - 1);
         open[ag] = { from: k, event: ev };
       }
