@@ -357,6 +357,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             # temporal properties): the search's report, interrupted, since
             # not every check ran
             sr.status, lv, complete = "interrupted", None, False
+        _shorten(plan, sr)
         return _assemble(plan, ex, sr, lv, complete)
     finally:
         _close(ex)
@@ -639,6 +640,103 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
         sr.found.extend(lv.found)
         sr.status = "violation"
     return lv
+
+
+def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
+    """Step of :func:`explore_model`: under reductions, each counterexample
+    found is shortened against the unreduced semantics
+    (:mod:`pccl.model.shorten`); the verdict stays, only the path shown may
+    change, and ``cx.shortening`` says what happened.  Not for ``fastest``
+    (its path is the fastest, not the shortest)."""
+    from pccl.model import shorten as S
+    model, o = plan.model, plan.o
+    found = [cx for cx in sr.found if cx.trace is not None and len(cx.trace)]
+    if not found or not model.reduction.on or o.fastest or sr.status == "interrupted":
+        return
+    for cx in found:
+        cx.shortening = S.Shortening("off" if not o.shorten else "not-shown", len(cx.trace),
+                                     None, cx.cycle_start)
+    if not o.shorten:
+        return
+    try:
+        state = [cx for cx in found if cx.violation.kind in S.STATE_KINDS and cx.cycle_start is None]
+        if state:
+            _shorten_states(plan, state)
+        graph = [cx for cx in found if cx not in state]
+        if graph:
+            _shorten_graph(plan, graph)
+    except KeyboardInterrupt:
+        for cx in found:
+            if cx.shortening.status == "not-shown" and cx.shortening.reason is None:
+                cx.shortening = dataclasses.replace(cx.shortening, reason="interrupted")
+
+
+def _shorten_reason(spelling: Spelling) -> str:
+    from pccl.model.shorten import MAX_STATES
+    return (f"the search without the reductions stopped at its budget of {MAX_STATES:,} "
+            f"states ({spell('{reduce=none}', spelling)} searches them all)")
+
+
+def _shorten_states(plan: _SearchPlan, found: list) -> None:
+    """Step of :func:`_shorten`: the violations of one state (invariants,
+    assertions, stuck agents, deadlocks, collisions) by one bounded
+    breadth-first search of the unreduced model."""
+    from pccl.model import shorten as S
+    from pccl.model.reduce import unreduced
+    model, o = plan.model, plan.o
+    inner = unreduced(model)
+    saved, inner.lock_deadlocks = inner.lock_deadlocks, o.deadlock
+    try:
+        paths, complete = S.shortest_paths(inner, [(cx.violation, len(cx.trace)) for cx in found],
+                                           deadlock=o.deadlock, find_all=o.find_all)
+    finally:
+        inner.lock_deadlocks = saved
+    for cx, path in zip(found, paths):
+        was = cx.shortening
+        if path is not None:
+            cx.trace = path
+            cx.shortening = dataclasses.replace(was, status="shortened")
+        elif complete:
+            cx.shortening = dataclasses.replace(was, status="confirmed")
+        else:
+            cx.shortening = dataclasses.replace(was, reason=_shorten_reason(plan.spelling))
+
+
+def _shorten_graph(plan: _SearchPlan, found: list) -> None:
+    """Step of :func:`_shorten`: time-locks, stalls and temporal properties
+    are decided on the whole graph, so their paths are those of a whole
+    search without the reductions (within the same state budget), when it
+    reports the very same violation."""
+    from pccl.model import shorten as S
+    from pccl.model.reduce import unreduced
+    model, o = plan.model, plan.o
+    inner = unreduced(model)
+    keep = {a: getattr(inner, a, None) for a in
+            ("engine_used", "engine_reason", "engine_threads", "engine_asked", "lock_deadlocks")}
+    try:
+        sub = explore_model(Reduced(inner, "none"), options=o.replace(
+            reduce="none", find_all=True, max_states=S.MAX_STATES, depth=None, workers=1, ray=None,
+            coverage=False, progress=None, checkpoint=None, resume=None, spill=None, shorten=False,
+            fastest=False), spelling=plan.spelling)
+    finally:
+        for a, v in keep.items():
+            setattr(inner, a, v)
+    if sub.status not in ("violation", "exhaustive") or set(sub.bounds) - {Bound.MODEL}:
+        for cx in found:
+            cx.shortening = dataclasses.replace(cx.shortening, reason=_shorten_reason(plan.spelling))
+        return
+    for cx in found:
+        other = next((c for c in sub.counterexamples if c.violation == cx.violation
+                      and c.trace is not None), None)
+        if other is None:
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason="without the reductions the search reports this "
+                                      "violation with another message")
+        elif len(other.trace) < len(cx.trace):
+            cx.trace, cx.cycle_start, cx.chain = other.trace, other.cycle_start, None
+            cx.shortening = dataclasses.replace(cx.shortening, status="shortened")
+        else:
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
 
 
 def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int],
@@ -929,15 +1027,18 @@ def violation_data(model, found: Counterexample) -> Finding:
     tr: Optional[Trace] = found.trace
     assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
+    sh = found.shortening
     # merged labels were expanded where the traces were made (explore_model,
     # liveness.attach_traces: reduce.expand_trace), not again here
     steps = () if tr is None else tuple(
         StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
     return Finding(v.kind, v.name, v.message, v.agent,
                    v.span.line if v.span else None, v.span.column if v.span else None,
-                   found.depth, "under the reductions" if reduced else "yes",
+                   found.depth,
+                   "yes" if not reduced or (sh is not None and sh.shortest) else "under the reductions",
                    steps, None if tr is None else StateView.of(model, tr.last),
-                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial))
+                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial),
+                   sh)
 
 
 # ---------------------------------------------------------------------------
