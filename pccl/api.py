@@ -671,70 +671,122 @@ def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
                 cx.shortening = dataclasses.replace(cx.shortening, reason="interrupted")
 
 
-def _shorten_reason(spelling: Spelling) -> str:
-    from pccl.model.shorten import MAX_STATES
-    return (f"the search without the reductions stopped at its budget of {MAX_STATES:,} "
+def _shorten_budget(model) -> int:
+    """The states a search without the reductions may admit to shorten one
+    verdict's counterexamples: more where the native engine ran."""
+    from pccl.model import shorten as S
+    return S.MAX_STATES_NATIVE if getattr(model, "engine_used", None) == "native" else S.MAX_STATES
+
+
+def _shorten_reason(budget: int, spelling: Spelling) -> str:
+    return (f"the search without the reductions stopped at its budget of {budget:,} "
             f"states ({spell('{reduce=none}', spelling)} searches them all)")
+
+
+def _unreduced_search(plan: _SearchPlan, budget: int, **changes) -> ExploreResult:
+    """A search of the same model without the reductions, every violation
+    reported (``find_all``), within ``budget`` states, in this process;
+    ``changes`` to the options.  The model's engine fields are restored."""
+    from pccl.model.reduce import unreduced
+    inner = unreduced(plan.model)
+    keep = {a: getattr(inner, a) for a in
+            ("engine_used", "engine_reason", "engine_threads", "engine_asked", "lock_deadlocks")
+            if hasattr(inner, a)}
+    try:
+        return explore_model(Reduced(inner, "none"), options=plan.o.replace(**{
+            "reduce": "none", "find_all": True, "max_states": budget, "depth": None,
+            "workers": 1, "ray": None, "coverage": False, "progress": None, "checkpoint": None,
+            "resume": None, "spill": None, "shorten": False, "fastest": False, **changes}),
+            spelling=plan.spelling)
+    finally:
+        for a, v in keep.items():
+            setattr(inner, a, v)
+
+
+def _finished(sub: ExploreResult, allowed=(Bound.MODEL,)) -> bool:
+    """Whether the search ``sub`` saw everything it was asked to (bounds
+    but ``allowed`` cut it)."""
+    return (sub.status in ("violation", "exhaustive", "bounded")
+            and not set(sub.bounds) - set(allowed))
 
 
 def _shorten_states(plan: _SearchPlan, found: list) -> None:
     """Step of :func:`_shorten`: the violations of one state (invariants,
-    assertions, stuck agents, deadlocks, collisions) by one bounded
-    breadth-first search of the unreduced model."""
+    assertions, stuck agents, deadlocks, collisions).  A search without the
+    reductions to the depth of the longest path found reports each
+    violation's first instance (breadth-first: a shortest path); a violation
+    whose first instance is another (another agent's) is looked for by
+    :func:`pccl.model.shorten.shortest_paths`."""
     from pccl.model import shorten as S
     from pccl.model.reduce import unreduced
-    model, o = plan.model, plan.o
-    inner = unreduced(model)
+    o, budget = plan.o, _shorten_budget(plan.model)
+    longest = max(len(cx.trace) for cx in found)
+    sub = _unreduced_search(plan, budget, depth=longest - 1, timelock=False, stall=False)
+    finished = _finished(sub, (Bound.MODEL, Bound.DEPTH))
+    seen = {c.violation.identity for c in sub.counterexamples}
+    rest = []
+    for cx in found:
+        other = next((c for c in sub.counterexamples if c.violation == cx.violation
+                      and c.trace is not None), None)
+        if other is not None and len(other.trace) < len(cx.trace):
+            _shortened(cx, other.trace)
+        elif not finished:
+            cx.shortening = dataclasses.replace(cx.shortening,
+                                                reason=_shorten_reason(budget, plan.spelling))
+        elif cx.violation.identity in seen and other is None:
+            rest.append(cx)         # found first for another agent: look for this one
+        else:
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
+    if not rest:
+        return
+    inner = unreduced(plan.model)
     saved, inner.lock_deadlocks = inner.lock_deadlocks, o.deadlock
     try:
-        paths, complete = S.shortest_paths(inner, [(cx.violation, len(cx.trace)) for cx in found],
+        paths, complete = S.shortest_paths(inner, [(cx.violation, len(cx.trace)) for cx in rest],
                                            deadlock=o.deadlock, find_all=o.find_all)
     finally:
         inner.lock_deadlocks = saved
-    for cx, path in zip(found, paths):
-        was = cx.shortening
+    for cx, path in zip(rest, paths):
         if path is not None:
-            cx.trace = path
-            cx.shortening = dataclasses.replace(was, status="shortened")
+            _shortened(cx, path)
         elif complete:
-            cx.shortening = dataclasses.replace(was, status="confirmed")
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
         else:
-            cx.shortening = dataclasses.replace(was, reason=_shorten_reason(plan.spelling))
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(S.MAX_STATES, plan.spelling))
+
+
+def _shortened(cx: Counterexample, trace: Trace, cycle_start: Optional[int] = None,
+               violation: Any = None) -> None:
+    cx.trace, cx.cycle_start, cx.chain = trace, cycle_start, None
+    if violation is not None:
+        cx.violation = violation
+    cx.shortening = dataclasses.replace(cx.shortening, status="shortened")
 
 
 def _shorten_graph(plan: _SearchPlan, found: list) -> None:
     """Step of :func:`_shorten`: time-locks, stalls and temporal properties
     are decided on the whole graph, so their paths are those of a whole
-    search without the reductions (within the same state budget), when it
-    reports the very same violation."""
-    from pccl.model import shorten as S
-    from pccl.model.reduce import unreduced
-    model, o = plan.model, plan.o
-    inner = unreduced(model)
-    keep = {a: getattr(inner, a, None) for a in
-            ("engine_used", "engine_reason", "engine_threads", "engine_asked", "lock_deadlocks")}
-    try:
-        sub = explore_model(Reduced(inner, "none"), options=o.replace(
-            reduce="none", find_all=True, max_states=S.MAX_STATES, depth=None, workers=1, ray=None,
-            coverage=False, progress=None, checkpoint=None, resume=None, spill=None, shorten=False,
-            fastest=False), spelling=plan.spelling)
-    finally:
-        for a, v in keep.items():
-            setattr(inner, a, v)
-    if sub.status not in ("violation", "exhaustive") or set(sub.bounds) - {Bound.MODEL}:
+    search without the reductions (within the budget) that reports the
+    same violation (kind and property: the message of a stall or a
+    time-lock describes the state its path ends in, and is that path's)."""
+    budget = _shorten_budget(plan.model)
+    sub = _unreduced_search(plan, budget)
+    if not _finished(sub):
         for cx in found:
-            cx.shortening = dataclasses.replace(cx.shortening, reason=_shorten_reason(plan.spelling))
+            cx.shortening = dataclasses.replace(cx.shortening,
+                                                reason=_shorten_reason(budget, plan.spelling))
         return
     for cx in found:
-        other = next((c for c in sub.counterexamples if c.violation == cx.violation
-                      and c.trace is not None), None)
+        other = next((c for c in sub.counterexamples if c.trace is not None and (
+            c.violation == cx.violation or (cx.violation.kind in ("stall", "timelock")
+                                            and c.violation.identity == cx.violation.identity))),
+                     None)
         if other is None:
             cx.shortening = dataclasses.replace(
-                cx.shortening, reason="without the reductions the search reports this "
-                                      "violation with another message")
+                cx.shortening, reason="the search without the reductions does not report it")
         elif len(other.trace) < len(cx.trace):
-            cx.trace, cx.cycle_start, cx.chain = other.trace, other.cycle_start, None
-            cx.shortening = dataclasses.replace(cx.shortening, status="shortened")
+            _shortened(cx, other.trace, other.cycle_start, other.violation)
         else:
             cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
 

@@ -1575,7 +1575,7 @@ def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -
         click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
                    f"{_steps(len(tr) - loop)} repeated forever{note}):")
     else:
-        click.echo(f"counterexample ({len(tr)} steps{note}):")
+        click.echo(f"counterexample ({_steps(len(tr))}{note}):")
     if view:
         from pccl.output import views
         click.echo(views.render(view, m, tr, full=full))

@@ -26,11 +26,13 @@ from typing import Any, Optional
 from pccl.search.explorer import Trace, terminal
 from pccl.search.fingerprint import encode, fingerprint
 
-__all__ = ["MAX_STATES", "Shortening", "shortest_paths", "STATE_KINDS"]
+__all__ = ["MAX_STATES", "MAX_STATES_NATIVE", "Shortening", "shortest_paths", "STATE_KINDS"]
 
-#: States the search without the reductions may admit to shorten the
-#: counterexamples of one verdict (docs/reductions.md, "Counterexamples").
+#: States a search without the reductions may admit to shorten the
+#: counterexamples of one verdict (docs/reductions.md, "Counterexamples"):
+#: on the Python engine, and where the native engine ran the search.
 MAX_STATES = 100_000
+MAX_STATES_NATIVE = 1_000_000
 
 #: Violations that are a property of one state (found by the search itself);
 #: the others (timelock, stall, liveness, response) are the graph analysis's.
@@ -74,72 +76,83 @@ def shortest_paths(model, targets: list, *, max_states: int = MAX_STATES,
     stopped the search before every target was decided (then a None means
     "not known").  As the explorer does, a state with a violation is not
     expanded unless ``find_all``; deadlocks count only with ``deadlock``."""
-    want: dict = {}
-    for i, (v, steps) in enumerate(targets):
-        want.setdefault(v, []).append((i, steps))
-    paths: list = [None] * len(targets)
-    horizon = max((steps for _, steps in targets), default=0) - 1
-    if horizon < 0:
-        return paths, True
-    key, succ, viols = model.plain_key, model.plain_successors, model.fast_violations
-    # (parent number, position among the parent's successors) per admitted state
-    parent: list = []
-    seen: set = set()
-    level: list = []
-    for pos, st in enumerate(model.init_states()):
-        fp = fingerprint(encode(key(st)))
-        if fp in seen:
-            continue
-        seen.add(fp)
-        parent.append((-1, pos))
-        level.append((len(parent) - 1, st))
-    open_ = {v: [i for i, _ in ws] for v, ws in want.items()}
+    search = _Search(model, targets, max_states, deadlock, find_all)
+    return search.paths, search.run()
 
-    def hit(number: int, depth: int, found: list) -> None:
+
+class _Search:
+    """The breadth-first search of :func:`shortest_paths`."""
+
+    def __init__(self, model, targets: list, max_states: int, deadlock: bool, find_all: bool):
+        self.model, self.targets, self.max_states = model, targets, max_states
+        self.deadlock, self.find_all = deadlock, find_all
+        self.want: dict = {}
+        for i, (v, steps) in enumerate(targets):
+            self.want.setdefault(v, []).append((i, steps))
+        self.paths: list = [None] * len(targets)
+        #: target numbers not decided yet
+        self.open = set(range(len(targets)))
+        #: (parent number, position among the parent's successors) per state
+        self.parent: list = []
+        self.seen: set = set()
+
+    def admit(self, st, parent: int, pos: int, out: list) -> bool:
+        """Admit ``st`` unless seen; False when the budget is used up."""
+        fp = fingerprint(encode(self.model.plain_key(st)))
+        if fp in self.seen:
+            return True
+        if len(self.seen) >= self.max_states:
+            return False
+        self.seen.add(fp)
+        self.parent.append((parent, pos))
+        out.append((len(self.parent) - 1, st))
+        return True
+
+    def hit(self, number: int, depth: int, found: list) -> None:
         for v in found:
-            for i, steps in want.get(v, ()):
-                if paths[i] is None and depth < steps:
-                    paths[i] = _rebuild(model, parent, number)
-                    open_[v].remove(i)
-            if v in open_ and not open_[v]:
-                del open_[v]
+            for i, steps in self.want.get(v, ()):
+                if i in self.open and depth < steps:
+                    self.paths[i] = _rebuild(self.model, self.parent, number)
+                    self.open.discard(i)
 
-    depth = 0
-    while level and open_:
-        nxt: list = []
-        for number, st in level:
-            found = viols(st)
-            if found:
-                hit(number, depth, found)
-                if not find_all:
-                    continue
-            if not open_:
-                break
-            out = succ(st)
-            if not out:
-                _, v = terminal(model, st, deadlock)
-                if v is not None:
-                    hit(number, depth, [v])
-                continue
-            if depth >= horizon:
-                continue
+    def run(self) -> bool:
+        """Search; True when every target was decided."""
+        horizon = max((steps for _, steps in self.targets), default=0) - 1
+        level: list = []
+        for pos, st in enumerate(self.model.init_states()):
+            if not self.admit(st, -1, pos, level):
+                return False
+        depth = 0
+        while level and self.open and depth <= horizon:
+            nxt: list = []
+            for number, st in level:
+                if not self.expand(number, st, depth, depth < horizon, nxt):
+                    return not self.open
+            level = nxt
+            depth += 1
+            # a target whose path would now be no shorter is decided
+            self.open = {i for i in self.open if self.targets[i][1] > depth}
+        return True
+
+    def expand(self, number: int, st, depth: int, deeper: bool, nxt: list) -> bool:
+        """Check state ``number`` and admit its successors (``deeper``);
+        False when the budget is used up."""
+        m = self.model
+        found = m.fast_violations(st)
+        if found:
+            self.hit(number, depth, found)
+            if not self.find_all:
+                return True
+        out = m.plain_successors(st) if self.open else ()
+        if self.open and not out:
+            _, v = terminal(m, st, self.deadlock)
+            if v is not None:
+                self.hit(number, depth, [v])
+        if deeper:
             for pos, (_, s2) in enumerate(out):
-                fp = fingerprint(encode(key(s2)))
-                if fp in seen:
-                    continue
-                if len(seen) >= max_states:
-                    return paths, not open_
-                seen.add(fp)
-                parent.append((number, pos))
-                nxt.append((len(parent) - 1, s2))
-        level = nxt
-        depth += 1
-        # every target whose path would now be no shorter is decided
-        for v in list(open_):
-            open_[v] = [i for i in open_[v] if targets[i][1] > depth]
-            if not open_[v]:
-                del open_[v]
-    return paths, True
+                if not self.admit(s2, number, pos, nxt):
+                    return False
+        return True
 
 
 def _rebuild(model, parent: list, number: int) -> Trace:
