@@ -787,6 +787,7 @@ def _shorten_graph(plan: _SearchPlan, found: list) -> None:
                 cx.shortening, reason="the search without the reductions does not report it")
         elif len(other.trace) < len(cx.trace):
             _shortened(cx, other.trace, other.cycle_start, other.violation)
+            cx.depth = other.depth          # the graph checks' depth: the path's steps
         else:
             cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
 

@@ -1603,9 +1603,9 @@ def _shortest_note(m, cx, tr) -> str:
     sh = getattr(cx, "shortening", None)
     lasso = cx.cycle_start is not None
     if sh is not None and sh.status == "shortened":
-        return (f", {'as short as without the reductions' if lasso else 'shortest'}: "
+        note = (f", {'as short as without the reductions' if lasso else 'shortest'}: "
                 f"the reduced search's had {_steps(sh.reduced_steps)}")
-    if sh is not None and sh.status == "confirmed":
+    elif sh is not None and sh.status == "confirmed":
         note = ", as short as without the reductions" if lasso else ", shortest"
     else:
         note = ", shortest under the reductions"
@@ -1614,7 +1614,7 @@ def _shortest_note(m, cx, tr) -> str:
         elif sh is not None:
             note += f"; not shown to be shortest: {sh.reason or 'not tried'}"
     depth = getattr(cx, "depth", None)
-    if depth is not None and depth != len(tr):
+    if depth is not None and depth != len(tr) and not lasso:
         # --depth counts transitions of the reduced graph, the steps shown
         # are the rules' (expanded): say both, so --depth can be read here
         note += f"; depth {depth} in the reduced graph, as --depth counts"
