@@ -678,7 +678,9 @@ def _shorten_budget(model) -> int:
     return S.MAX_STATES_NATIVE if getattr(model, "engine_used", None) == "native" else S.MAX_STATES
 
 
-def _shorten_reason(budget: int, spelling: Spelling) -> str:
+def _shorten_reason(budget: int, spelling: Spelling, sub: Optional[ExploreResult] = None) -> str:
+    if sub is not None and sub.status != "bounded" and sub.status not in ("violation", "exhaustive"):
+        return f"the search without the reductions ended {sub.status}"
     return (f"the search without the reductions stopped at its budget of {budget:,} "
             f"states ({spell('{reduce=none}', spelling)} searches them all)")
 
@@ -731,8 +733,8 @@ def _shorten_states(plan: _SearchPlan, found: list) -> None:
         if other is not None and len(other.trace) < len(cx.trace):
             _shortened(cx, other.trace)
         elif not finished:
-            cx.shortening = dataclasses.replace(cx.shortening,
-                                                reason=_shorten_reason(budget, plan.spelling))
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(budget, plan.spelling, sub))
         elif cx.violation.identity in seen and other is None:
             rest.append(cx)         # found first for another agent: look for this one
         else:
@@ -774,8 +776,8 @@ def _shorten_graph(plan: _SearchPlan, found: list) -> None:
     sub = _unreduced_search(plan, budget)
     if not _finished(sub):
         for cx in found:
-            cx.shortening = dataclasses.replace(cx.shortening,
-                                                reason=_shorten_reason(budget, plan.spelling))
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(budget, plan.spelling, sub))
         return
     for cx in found:
         other = next((c for c in sub.counterexamples if c.trace is not None and (
