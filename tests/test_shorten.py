@@ -159,3 +159,15 @@ def test_shortest_paths_agrees_with_the_unreduced_search():
     assert complete and paths == [None]
     paths, complete = S.shortest_paths(m, [(cx.violation, len(cx.trace))], max_states=5)
     assert not complete and paths == [None]
+
+
+def test_every_violation_of_all_is_shortened():
+    lost = str(ROOT / "docs" / "examples" / "lost_update.pccl")
+    res, off, none = both(lost, find_all=True, deadlock=False)
+    assert [c.violation for c in res.counterexamples] == [c.violation for c in off.counterexamples]
+    assert res.verdict == off.verdict and res.exit_status == off.exit_status == 1
+    by = {c.violation.identity: len(c.trace) for c in none.counterexamples}
+    for c, o in zip(res.counterexamples, off.counterexamples):
+        assert len(c.trace) == by[c.violation.identity] <= len(o.trace)
+        assert c.shortening.status in ("shortened", "confirmed")
+    assert any(c.shortening.status == "shortened" for c in res.counterexamples)
