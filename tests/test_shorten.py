@@ -116,7 +116,8 @@ def test_the_budget_keeps_the_reduced_path_and_says_so(monkeypatch):
 def test_cli_text_and_json():
     r = cli("explore", ASSERT)
     assert r.exit_code == 1
-    assert "counterexample (13 steps, shortest: the reduced search's had 17 steps):" in r.output
+    assert ("counterexample (13 steps, shortest: the reduced search's had 17 steps; depth 6 in "
+            "the reduced graph, as --depth counts):") in r.output
     r = cli("explore", ASSERT, "--no-shorten")
     assert r.exit_code == 1
     assert ("counterexample (17 steps, shortest under the reductions; not compared with the "
