@@ -19,6 +19,10 @@ from pccl.tools.replay import replay
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+
+# every test here explores a program two or three times (0.3-2.5 s each,
+# measured with --durations on 2 loaded cores): not in the quick subset
+pytestmark = pytest.mark.slow
 TP = ROOT / "tests" / "programs"
 ASSERT = str(TP / "eng_assert.pccl")        # 17 steps under the reductions, 13 without
 SPIN = str(TP / "tl_spin.pccl")             # a time-lock lasso: 4 steps, 3 without
