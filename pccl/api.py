@@ -673,9 +673,10 @@ def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
 
 def _shorten_budget(model) -> int:
     """The states a search without the reductions may admit to shorten one
-    verdict's counterexamples: more where the native engine ran."""
+    verdict's counterexamples (the same for every engine: the path shown
+    does not depend on it)."""
     from pccl.model import shorten as S
-    return S.MAX_STATES_NATIVE if getattr(model, "engine_used", None) == "native" else S.MAX_STATES
+    return S.MAX_STATES
 
 
 def _shorten_reason(budget: int, spelling: Spelling, sub: Optional[ExploreResult] = None) -> str:
