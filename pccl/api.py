@@ -671,12 +671,19 @@ def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
                 cx.shortening = dataclasses.replace(cx.shortening, reason="interrupted")
 
 
-def _shorten_budget(model) -> int:
-    """The states a search without the reductions may admit to shorten one
-    verdict's counterexamples (the same for every engine: the path shown
-    does not depend on it)."""
+def _shorten_engine(plan: _SearchPlan, recorder: bool) -> tuple:
+    """``(budget, engine)`` of the searches without the reductions that
+    shorten one verdict's counterexamples: native, within
+    :data:`~pccl.model.shorten.MAX_STATES_NATIVE` states, where the native
+    engine can serve the unreduced model (whichever engine ran the reduced
+    search: the path shown does not depend on the engine), else Python
+    within :data:`~pccl.model.shorten.MAX_STATES`."""
+    from pccl.model import native as NV
     from pccl.model import shorten as S
-    return S.MAX_STATES
+    from pccl.model.reduce import unreduced
+    if NV.unsupported(Reduced(unreduced(plan.model), "none"), recorder=recorder) is None:
+        return S.MAX_STATES_NATIVE, "auto"
+    return S.MAX_STATES, "python"
 
 
 def _shorten_reason(budget: int, spelling: Spelling, sub: Optional[ExploreResult] = None) -> str:
@@ -722,9 +729,10 @@ def _shorten_states(plan: _SearchPlan, found: list) -> None:
     :func:`pccl.model.shorten.shortest_paths`."""
     from pccl.model import shorten as S
     from pccl.model.reduce import unreduced
-    o, budget = plan.o, _shorten_budget(plan.model)
+    o, (budget, engine) = plan.o, _shorten_engine(plan, bool(plan.model.temporal))
     longest = max(len(cx.trace) for cx in found)
-    sub = _unreduced_search(plan, budget, depth=longest - 1, timelock=False, stall=False)
+    sub = _unreduced_search(plan, budget, depth=longest - 1, timelock=False, stall=False,
+                            engine=engine)
     finished = _finished(sub, (Bound.MODEL, Bound.DEPTH))
     seen = {c.violation.identity for c in sub.counterexamples}
     rest = []
@@ -773,8 +781,8 @@ def _shorten_graph(plan: _SearchPlan, found: list) -> None:
     search without the reductions (within the budget) that reports the
     same violation (kind and property: the message of a stall or a
     time-lock describes the state its path ends in, and is that path's)."""
-    budget = _shorten_budget(plan.model)
-    sub = _unreduced_search(plan, budget)
+    budget, engine = _shorten_engine(plan, True)
+    sub = _unreduced_search(plan, budget, engine=engine)
     if not _finished(sub):
         for cx in found:
             cx.shortening = dataclasses.replace(

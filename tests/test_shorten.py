@@ -108,6 +108,7 @@ def test_no_shortening_without_reductions_or_when_fastest():
 def test_the_budget_keeps_the_reduced_path_and_says_so(monkeypatch):
     off = api.explore(ASSERT, shorten=False)
     monkeypatch.setattr(S, "MAX_STATES", 5)
+    monkeypatch.setattr(S, "MAX_STATES_NATIVE", 5)
     res = api.explore(ASSERT)
     sh = res.counterexamples[0].shortening
     assert sh.status == "not-shown" and "budget of 5 states" in sh.reason
