@@ -25,7 +25,7 @@ from pccl.lang import ast as A
 from pccl.model.engine import Model
 from pccl.search.explorer import OUT_OF_MEMORY, Bound, Counterexample, Explorer, ReplayError, SearchResult, Stats, Trace
 from pccl.model import validate as V
-from pccl.lang.errors import ArgumentError, OptionError, PcclError, Spelling, spell
+from pccl.lang.errors import ArgumentError, CheckpointFileError, OptionError, PcclError, Spelling, spell
 from pccl.model.options import (IDENTITY_OPTIONS, CommonOptions, ExploreOptions, ModelOptions, RunOptions,
                                 api_spelling, conflict, model_choices)
 from pccl.model.reduce import Reduced
@@ -338,13 +338,17 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
     analyse the traces (:func:`_analyse`) and assemble the result
     (:func:`_assemble`)."""
     plan = _plan_search(_explore_target(model), _explore_options(options, search), spelling)
+    from pccl.search.checkpoint import CheckpointError
     try:
-        ex, native = _make_searcher(plan)
-    except KeyboardInterrupt:
-        # Ctrl-C or SIGTERM while the native module compiles (a cold
-        # cache): the search's report, interrupted with nothing explored
-        return _interrupted_before_search(plan)
-    ex, sr = _run_search(plan, ex, native)
+        try:
+            ex, native = _make_searcher(plan)
+        except KeyboardInterrupt:
+            # Ctrl-C or SIGTERM while the native module compiles (a cold
+            # cache): the search's report, interrupted with nothing explored
+            return _interrupted_before_search(plan)
+        ex, sr = _run_search(plan, ex, native)
+    except CheckpointError as e:    # a checkpoint unwritable, absent, corrupt, another search's
+        raise CheckpointFileError(str(e), filename=e.option, template=e.template) from None
     try:
         # every reachable state was expanded (before the graph analysis, which
         # may turn an exhaustive search into a violation)
@@ -639,7 +643,33 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     if lv.found and sr.status != "interrupted":
         sr.found.extend(lv.found)
         sr.status = "violation"
+    _frozen_check(plan, sr, lv)
     return lv
+
+
+def _frozen_check(plan: _SearchPlan, sr: SearchResult, lv) -> None:
+    """Step of :func:`_analyse`: on a clean exhaustive search with the
+    stall check on, is the team frozen somewhere (:mod:`pccl.model.frozen`)?
+    A frozen team joins the violations; a check that cannot run says why
+    in a note."""
+    if not plan.o.stall or sr.status != "exhaustive" or sr.found:
+        return
+    import time as _time
+    from pccl.model import frozen as F
+    if sr.stats.states > F.LIMIT:
+        lv.notes.append(f"frozen teams not checked: {sr.stats.states:,} states, more than the "
+                        f"{F.LIMIT:,} the check explores again (in Python)")
+        return
+    t0 = _time.perf_counter()
+    fr = F.check(plan.model, F.LIMIT)
+    sr.stats.seconds += _time.perf_counter() - t0
+    if not fr.ran:
+        lv.notes.append(f"frozen teams not checked: {fr.reason}")
+    elif fr.violation is not None:
+        cx = Counterexample(fr.violation, -1, len(fr.trace))
+        cx.trace = fr.trace
+        sr.found.append(cx)
+        sr.status = "violation"
 
 
 def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
@@ -650,7 +680,10 @@ def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
     (its path is the fastest, not the shortest)."""
     from pccl.model import shorten as S
     model, o = plan.model, plan.o
-    found = [cx for cx in sr.found if cx.trace is not None and len(cx.trace)]
+    # (a frozen team's path is the frozen check's own, on the reduced graph:
+    # not shortened yet)
+    found = [cx for cx in sr.found if cx.trace is not None and len(cx.trace)
+             and cx.violation.kind != "frozen"]
     if not found or not model.reduction.on or o.fastest or sr.status == "interrupted":
         return
     for cx in found:

@@ -147,6 +147,23 @@ def view_options(f):
     return f
 
 
+def watch_option(f):
+    return click.option("--watch", "watch", multiple=True, metavar="EXPR",
+                        help="with --html: an expression (a property expression of any type) "
+                             "to evaluate in every state of the path, shown in the page's "
+                             "expressions panel and plot (repeatable)")(f)
+
+
+def _check_watch(model, watch, html) -> None:
+    """--watch: each expression checks against the program (a PcclError at
+    its caret otherwise), and it needs --html."""
+    if watch and not html:
+        raise PcclError("--watch needs --html (it shows in the page)", filename="--watch")
+    from pccl.output.viewer import watch_function
+    for k, text in enumerate(watch):
+        watch_function(model, text, k)
+
+
 def _delta(d):
     # 2.0 is 2; a huge integral float stays a float (its int would print 300 digits)
     return int(d) if float(d).is_integer() and abs(d) < 2 ** 53 else d
@@ -331,9 +348,10 @@ def check(program, world):
                    "(decided when the run ends for good, else undecided); 'reachable P' "
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
+@watch_option
 def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, overrides, seed,
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
-        exit_codes, plot, html, trace_out, view, full):
+        exit_codes, plot, html, trace_out, view, full, watch):
     """Execute PROGRAM once, choosing among enabled transitions with a seeded generator."""
     from pccl.model.options import RunOptions
     import random
@@ -347,6 +365,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
     try:
         rng = random.Random(seed)
         model = build_model(program, opts, rng=rng)
+        _check_watch(model, watch, html)
         res = run_model(model, seed=seed, max_steps=max_steps, record_trace=record, rng=rng,
                         stall_steps=stall_steps, max_memory=memory_bound(opts.max_memory),
                         spelling=cli_spelling)
@@ -364,7 +383,7 @@ def run(program, agents, world, blackbox, delta, n0, rates, events, collisions, 
         _print_run_json(program, seed, res, checked, doc, exit_codes)
     else:
         _print_run_text(program, seed, res, checked, fmt, view, full, trace)
-    _write_run_files(res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    _write_run_files(res, doc, trace_out, plot, html, quiet=(fmt == "json"), watch=watch)
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations] + [res.status],
                           exit_codes))
 
@@ -416,8 +435,9 @@ def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None
         click.echo("trace:")
         for st in _run_path(res).steps:
             click.echo(D.format_step(m, st.number, st.label, st.before, st.after))
+    from pccl.output.views import time_steps
     click.echo("time steps:")
-    for ln in _collapsed_summary(m, res.summary):
+    for _, ln in time_steps(m, res.summary):
         click.echo(ln)
     mem = (f", peak memory {res.peak_memory / 2**20:,.1f} MiB"
            if res.status == "out-of-memory" or res.message.startswith("stopped at --max-memory")
@@ -439,7 +459,7 @@ def _print_run_text(program, seed, res, checked, fmt, view, full, trace) -> None
     click.echo(D.format_state_k(m, res.final) if fmt == "k" else D.format_state(m, res.final))
 
 
-def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool, watch=()) -> None:
     """Step of run: the trace file, the plot and the viewer asked for (none
     of a run out of memory, whose trace was dropped)."""
     m = res.model
@@ -454,36 +474,7 @@ def _write_run_files(res, doc, trace_out, plot, html, *, quiet: bool) -> None:
         click.echo(f"pccl: the run ran out of memory and its trace was dropped: nothing "
                    f"written to {html}", err=True)
     elif html:
-        _write_html(html, doc, model=m, states=list(_run_path(res).states),
-                    quiet=quiet)
-
-
-def _collapsed_summary(m, summary) -> list:
-    """The per-time-step lines of a run; consecutive identical ones (nothing
-    moved or changed) are one line ``t=A–B: … (N identical time steps)``."""
-    from pccl.output import display as D
-    out: list = []
-    prev = None
-    group: list = []            # [(time, text)] with the same text
-
-    def flush():
-        if not group:
-            return
-        (t0, text), (t1, _) = group[0], group[-1]
-        if len(group) == 1:
-            out.append(f"  t={D.fmt_time(t0)}: {text}")
-        else:
-            out.append(f"  t={D.fmt_time(t0)}–{D.fmt_time(t1)}: {text} "
-                       f"({len(group)} identical time steps)")
-        group.clear()
-    for t, st in summary:
-        text = _step_summary(m, prev, st)
-        if group and text != group[-1][1]:
-            flush()
-        group.append((t, text))
-        prev = st
-    flush()
-    return out
+        _write_html(html, doc, model=m, path=_run_path(res), quiet=quiet, watch=watch)
 
 
 def _run_path(res):
@@ -533,21 +524,6 @@ def _rates_text(m) -> str:
     """The agents whose rate ρ is not 1, for the header line ("" when none)."""
     odd = [f"{i}={r}" for i, r in enumerate(m.rho) if r != 1]
     return f", rates {' '.join(odd)}" if odd else ""
-
-
-def _step_summary(m, prev, s) -> str:
-    from pccl.model.layout import AGS, POS, STATUS
-    from pccl.output import display as D
-    parts = []
-    for i, ag in enumerate(s[AGS]):
-        st = D.status_text(m, ag[STATUS])
-        parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
-    if prev is not None:
-        ch = [c for c in D.diff(m, prev, s, fmt=D.short_value)
-              if not c[0].startswith(("pos[", "time", "transitionState"))]
-        if ch:
-            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
-    return "  ".join(parts)
 
 
 def _plot_module():
@@ -672,6 +648,7 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first counterexample as a trace file (JSON, docs/trace-format.md)")
 @view_options
+@watch_option
 @click.option("--coverage", is_flag=True,
               help="report how often each event's guard held and it fired, and statements "
                    "never executed")
@@ -692,7 +669,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, shorten, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
-            checkpoint, checkpoint_interval, resume, spill):
+            checkpoint, checkpoint_interval, resume, spill, watch):
     """Explore every interleaving of PROGRAM breadth-first and report the first
     violation with a shortest counterexample."""
     from pccl.model.options import ExploreOptions, conflict
@@ -713,6 +690,7 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         model = build_model(program, opts, explore=True)
         if coverage:
             model = model.with_uses(("coverage",))
+        _check_watch(model, watch, html)
         c = conflict(opts)
         if c is not None:
             raise PcclError(c.message(cli_spelling), filename=flag(c.option))
@@ -741,13 +719,13 @@ def explore(program, agents, world, blackbox, delta, n0, rates, events, collisio
         click.echo(json.dumps(out, indent=2, default=str))
     else:
         _print_explore_text(program, res, k_style=(fmt == "k"), view=view, full=full)
-    _write_explore_files(model, res, doc, trace_out, plot, html, quiet=(fmt == "json"))
+    _write_explore_files(model, res, doc, trace_out, plot, html, quiet=(fmt == "json"), watch=watch)
     if res.status == "interrupted" and (checkpoint or resume):
         _resume_hint(res, checkpoint or resume)
     sys.exit(_exit_status(res.exit_status, [v.kind for v in res.violations], exit_codes))
 
 
-def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool) -> None:
+def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool, watch=()) -> None:
     """Step of explore: the trace file, the plot and the viewer asked for
     (the plot and the viewer only of a counterexample)."""
     if trace_out:
@@ -762,7 +740,7 @@ def _write_explore_files(model, res, doc, trace_out, plot, html, *, quiet: bool)
     elif plot:
         click.echo(f"pccl: no counterexample, so no plot written to {plot}", err=True)
     if html and doc["initial"] is not None:
-        _write_html(html, doc, model=model, states=_explore_states(res), quiet=quiet)
+        _write_html(html, doc, model=model, path=_explore_path(res), quiet=quiet, watch=watch)
     elif html:
         click.echo(f"pccl: no counterexample, so no viewer written to {html}", err=True)
 
@@ -868,45 +846,47 @@ def replay(trace_file, blackbox, program_file, world_file, view, full, plot, htm
             click.echo(_render(e), err=True)
     if html and res.doc.get("initial") is not None:
         notes = [res.message] if res.status == "diverged" else []
-        page_model, page_states = m, list(res.states)
+        page_model, page_path = m, res.trace
         if program_file is None:
             # a page is shared: it shows a program the trace merely names only
             # when its bytes are the recorded ones (--program: the user's choice)
             from pccl.tools.replay import recorded_file
             found, why = recorded_file(cfg.get("program"), trace_file)
             if found is None:
-                page_model, page_states = None, []
+                page_model, page_path = None, None
                 notes.append(f"source not shown: {why}")
                 click.echo(f"pccl replay: the viewer shows no source: {why}", err=True)
-        _write_html(html, res.doc, model=page_model, states=page_states, notes=notes)
+        _write_html(html, res.doc, model=page_model, path=page_path, notes=notes)
     elif html:
         click.echo(f"pccl: nothing to replay, so no viewer written to {html}", err=True)
     sys.exit(res.exit_status)
 
 
-def _write_html(path, doc, *, model=None, states=None, world=None, notes=(), quiet=False,
-                source_file=None, embed_paths=False):
-    """Write the HTML viewer of ``doc``; the states' pending computations
-    are kept only when they are the document's whole path."""
+def _write_html(out, doc, *, model=None, path=None, world=None, notes=(), quiet=False,
+                source_file=None, embed_paths=False, watch=()):
+    """Write the HTML viewer of ``doc`` to ``out``; the path's states
+    (pending computations) and labels (the CLI's text of its steps) are kept
+    only when they are the document's whole path."""
     from pccl.output import viewer
-    if states is not None and len(states) != len(doc["steps"]) + 1:
-        states = None
+    states = labels = None
+    if path is not None and len(path.states) == len(doc["steps"]) + 1:
+        states, labels = list(path.states), list(path.labels)
     try:
-        viewer.write(path, doc, model=model, states=states, world=world, notes=list(notes),
-                     source_file=source_file, embed_paths=embed_paths)
+        viewer.write(out, doc, model=model, states=states, labels=labels, world=world,
+                     notes=list(notes), source_file=source_file, embed_paths=embed_paths,
+                     watch=watch if states is not None else ())
     except PcclError as e:      # the verdict stands: report, keep its exit status
         click.echo(_render(e), err=True)
         return
-    click.echo(f"viewer written to {path}", err=quiet)
+    click.echo(f"viewer written to {out}", err=quiet)
 
 
-def _explore_states(res):
-    """The states of the path explore_document records (None: no path)."""
+def _explore_path(res):
+    """The path explore_document records (None: no path)."""
     if res.counterexamples:
-        tr = res.counterexamples[0].trace
-        return None if tr is None else list(tr.states)
+        return res.counterexamples[0].trace
     if res.witnesses:
-        return list(res.witnesses[0]["_trace"].states)
+        return res.witnesses[0]["_trace"]
     return None
 
 
@@ -920,7 +900,8 @@ def _explore_states(res):
 @click.option("--embed-paths", is_flag=True,
               help="keep the absolute paths of the program and world in the page (left out "
                    "by default: a page is made to be shared)")
-def view(trace_file, output, blackbox, embed_paths):
+@watch_option
+def view(trace_file, output, blackbox, embed_paths, watch):
     """Write a self-contained HTML viewer of the trace file TRACE (written by
     --trace-out): the arena or timeline, swimlane, state inspector and source,
     animated step by step.  The program (and world) are used only when a file
@@ -937,7 +918,7 @@ def view(trace_file, output, blackbox, embed_paths):
     except PcclError as e:
         _fail(e)
     notes: list = []
-    model, states, world, source = None, None, None, None
+    model, path, world, source = None, None, None, None
     cfg = doc.get("config") or {}
     prog, why = recorded_file(cfg.get("program"), trace_file)
     wfile, wwhy = (recorded_file(cfg["world"], trace_file) if cfg.get("world")
@@ -954,17 +935,24 @@ def view(trace_file, output, blackbox, embed_paths):
         try:
             res = do_replay(trace_file, blackbox=blackbox, program=prog, world=wfile,
                             spelling=cli_spelling)
-            model, states = res.model, res.states
+            model, path = res.model, res.trace
             if res.status == "diverged":
                 notes.append(f"the trace does not replay: {res.message}")
         except PcclError as e:
             notes.append(f"not replayed ({e.respell(cli_spelling).message}): shown as recorded")
+    if model is not None:
+        try:
+            _check_watch(model, watch, output)
+        except PcclError as e:
+            _fail(e)
+    elif watch:
+        notes.append("--watch not evaluated: the trace was not replayed")
     for note in notes:
         click.echo(f"pccl view: {note}", err=True)
     if doc["initial"] is None:
         notes.append("the trace holds no path")
-    _write_html(output, doc, model=model, states=states, world=world, notes=notes,
-                source_file=source, embed_paths=embed_paths)
+    _write_html(output, doc, model=model, path=path, world=world, notes=notes,
+                source_file=source, embed_paths=embed_paths, watch=watch)
 
 
 @main.command(short_help="Interactive explorer in the browser (127.0.0.1).",

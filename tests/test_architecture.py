@@ -158,10 +158,7 @@ MAY_IMPORT = {
 }
 #: imports against the layers that the code still has (issue 22: the helpers who own these
 #: modules are removing them; delete an entry when its import goes, the test then keeps it out).
-KNOWN_EXCEPTIONS = {
-    ("pccl.search.checkpoint", "pccl.lang.errors"),     # PcclError for a bad checkpoint file
-    ("pccl.output.viewer", "pccl.api"),                 # program_moves for the viewer's page
-}
+KNOWN_EXCEPTIONS: set[tuple[str, str]] = set()     # none left (issue 45)
 
 
 def _against_the_layers() -> set[tuple[str, str]]:

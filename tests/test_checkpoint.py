@@ -16,6 +16,7 @@ import time
 import pytest
 
 from pccl import api
+from pccl.lang.errors import CheckpointFileError
 from pccl.search import checkpoint as C
 from pccl.search import safedata
 from pccl.search.fingerprint import fingerprint
@@ -43,6 +44,7 @@ CASES = [
      dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight")),
     ("rdv-stall-none", f"{TPROG}/rdv_meet.pccl",
      dict(world=f"{TPROG}/rdv_wall.toml", blackbox="straight", reduce="none")),
+    ("list-seen", f"{TPROG}/list_seen.pccl", dict(agents=2)),
     ("fischer-temporal", f"{PROG}/fischer.pccl",
      dict(overrides={"k": "1"}, depth=80, exact=True,
           properties=("reachable count(inCs) == 1",))),
@@ -288,7 +290,7 @@ def test_checkpoints_append_the_rows_added_since_the_last(tmp_path):
     data = bytearray(open(old, "rb").read())
     data[-3] ^= 0xFF
     open(old, "wb").write(bytes(data))
-    with pytest.raises(C.CheckpointError, match=f"the checkpoint is corrupt \\(.*../{parts[1]['gen']}/"
+    with pytest.raises(CheckpointFileError, match=f"the checkpoint is corrupt \\(.*../{parts[1]['gen']}/"
                        f"{parts[1]['file']} does not match its digest"):
         api.explore(f"{PROG}/fischer.pccl", resume=snap, **opts)
 
@@ -687,7 +689,7 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     workers with several (or Ray): otherwise exit 2 saying so; a damaged
     partition exits 2 too."""
     d1 = _checkpoint_of(tmp_path)
-    with pytest.raises(C.CheckpointError) as e:
+    with pytest.raises(CheckpointFileError) as e:
         api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, workers=2, resume=d1)
     assert f"{d1}: the checkpoint was written by one process (workers=1); resume it with " \
            f"workers=1 without ray" in str(e.value)                # the API's spelling
@@ -710,7 +712,7 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert p.stderr.startswith(f"--resume: error: {d2}: the checkpoint is corrupt (")
     assert f"w002/{last['file']} does not match its digest" in p.stderr
-    with pytest.raises(C.CheckpointError, match=r"with overrides=\{'k': '1'\}, this run has overrides=\{'k': '2'\}"):
+    with pytest.raises(CheckpointFileError, match=r"with overrides=\{'k': '1'\}, this run has overrides=\{'k': '2'\}"):
         api.explore(f"{PROG}/fischer.pccl", overrides={"k": "2"}, workers=2, resume=d2)
 
 
@@ -882,7 +884,8 @@ def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
 #: the cases of CASES the native engine serves (violations, bounds, the graph)
 NATIVE_CASES = [c for c in CASES if c[0] in ("fischer-k1", "fischer-k2-depth",
                                              "fischer-none-depth", "fischer-max-states",
-                                             "tl-spin", "race-nondet", "race-nondet-all")]
+                                             "tl-spin", "race-nondet", "race-nondet-all",
+                                             "list-seen")]
 
 
 @pytest.mark.parametrize("name,program,opts", NATIVE_CASES, ids=[c[0] for c in NATIVE_CASES])
@@ -959,7 +962,7 @@ def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_p
     man = json.load(open(path))
     man["identity"]["native"] = "0123456789abcdef"
     json.dump(man, open(path, "w"))
-    with pytest.raises(C.CheckpointError, match="written by the native engine from another "
+    with pytest.raises(CheckpointFileError, match="written by the native engine from another "
                        "generated source \\(hash 0123456789abcdef; this run: [0-9a-f]{16}\\)"):
         api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dn)
     dp = _native_checkpoint(tmp_path, "python")
@@ -969,7 +972,7 @@ def test_a_native_checkpoint_of_another_generated_source_or_without_engine(tmp_p
     json.dump(man, open(path, "w"))
     r = api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp)
     assert r.model.engine_used == "python" and r.status == "exhaustive"
-    with pytest.raises(C.CheckpointError, match="written by the Python engine, this run uses "
+    with pytest.raises(CheckpointFileError, match="written by the Python engine, this run uses "
                        "the native engine"):
         api.explore(f"{PROG}/fischer.pccl", overrides={"k": "1"}, resume=dp, engine="native")
 

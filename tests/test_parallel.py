@@ -78,6 +78,36 @@ def test_deadlock_and_stuck_stop_events_in_serial_order():
     assert {f.violation.kind for f in a.found} >= {"stuck", "deadlock"}
 
 
+#: an agent stuck in its initialiser for one ``rand`` outcome (the
+#: coordinator meets that reason while it makes the initial states); with
+#: ``--all`` the search goes on and another worker expands successors that
+#: carry the stuck status (oracle finding W1: ``KeyError`` in the worker)
+STUCK_IN_INIT = """\
+allwrite:
+  int s = rand(2) - 1;
+  List<int> q0 = [7, 8];
+loc:
+  int x = q0[rand(2)];
+"""
+
+
+@pytest.mark.parametrize("engine,fastest", [("python", False), ("python", True),
+                                           ("native", False)])
+def test_a_stuck_reason_met_by_one_process_is_named_by_every_worker(tmp_path, monkeypatch,
+                                                                   engine, fastest):
+    monkeypatch.setenv("PCCL_THREADS", "0")      # the native engine's workers: processes
+    prog = tmp_path / "stuck_in_init.pccl"
+    prog.write_text(STUCK_IN_INIT)
+    opts = dict(agents=2, find_all=True, engine=engine, fastest=fastest)
+    if engine == "python":
+        opts["properties"] = ["eventually s > 0"]
+    serial = explore(str(prog), **opts)
+    assert any("index 2 out of range" in v["message"] for v in serial.violations)
+    one = signature(serial)
+    for w in (2, 3):
+        assert signature(explore(str(prog), workers=w, **opts)) == one, f"workers={w}"
+
+
 def _fps(*pairs):
     import numpy as np
     return np.array(pairs, dtype=np.uint64).reshape(-1, 2)
@@ -361,6 +391,21 @@ def test_ray_actors_give_the_one_process_time_lock_and_temporal_verdicts(local_r
         program, opts = TEMPORAL_CASES[name]
         one = full_signature(explore(program, **opts))
         assert full_signature(explore(program, ray="auto", workers=2, **opts)) == one, name
+
+
+@pytest.mark.slow
+def test_ray_actors_load_a_blackbox_from_a_file(local_ray, tmp_path):
+    """``--blackbox FILE.py:ATTR`` with Ray: the file's module is no module
+    the actors can import, so its classes travel by value (oracle finding
+    R1: every actor died in its creation task, "worker 0 of 2 was lost")."""
+    bb = tmp_path / "ray_user_bb.py"
+    bb.write_text("from pccl.blackboxes.nondet import Nondet\n\n\n"
+                  "class Mine(Nondet):\n    pass\n\n\nBB = Mine\n")
+    opts = dict(world=RACE_WORLD, blackbox=f"{bb}:BB", agents=2, find_all=True)
+    one = signature(explore("programs/race_nonatomic.pccl", **opts))
+    assert one[0] == "violation"
+    assert signature(explore("programs/race_nonatomic.pccl", ray="auto", workers=2,
+                             **opts)) == one
 
 
 @pytest.mark.slow

@@ -179,6 +179,17 @@ def check_property(expr: ast.Expr, info: CheckedProgram, *, filename: str,
     c.property(expr)
 
 
+def check_watch(expr: ast.Expr, info: CheckedProgram, *, filename: str,
+                source: str) -> Ty:
+    """The type of a watched expression (the viewer's ``--watch``): any
+    state expression of a property, of any type; not a temporal form."""
+    c = _Checker(info, "property", filename=filename, source=source)
+    top = _under_quants(expr)
+    if isinstance(top, ast.Temporal):
+        c.fail("a watched expression is a state expression, not a temporal property", top.span)
+    return c.value(expr)
+
+
 # --------------------------------------------------------------------------
 # The checker
 # --------------------------------------------------------------------------

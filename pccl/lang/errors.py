@@ -138,6 +138,12 @@ def location_spelling(spelling: Spelling) -> Spelling:
     return spell_at
 
 
+class CheckpointFileError(PcclError):
+    """A checkpoint that cannot be written or resumed (the search's
+    :class:`pccl.search.checkpoint.CheckpointError`, as the API raises it):
+    one message naming ``--checkpoint`` or ``--resume``, exit 2."""
+
+
 class OptionError(PcclError):
     """A bad value of an option, found where its meaning is known (the model:
     an agent's rate above n0, a δ the clock cannot add).  ``option`` is the

@@ -236,6 +236,13 @@ class Model(metaclass=ABCMeta):
         after this, equal configurations are equal tuples in every process."""
         self.ctl.close()
 
+    def stuck_table(self) -> dict:
+        """The stuck reasons by status (:meth:`pccl.model.compiled.CompiledProgram.stuck_code`):
+        a status is a hash of its reason, the same in every process, but a
+        process knows the reasons it met (a parallel search shares them,
+        :meth:`pccl.search.parallel._Worker.new_stuck`)."""
+        return self.compiled.stuck_reasons
+
     def checkpoint_tables(self) -> dict:
         """The lazily interned tables states refer to (k cells, stuck
         reasons), for a checkpoint (pccl/search/checkpoint.py)."""

@@ -2963,12 +2963,18 @@ class NativeModel:
         self._byobj[id(x)] = i
         return True
 
+    def stuck_table(self) -> dict:
+        """The Python model's stuck reasons (stuck statuses are the same
+        numbers in the vectors)."""
+        return self.py.stuck_table()
+
     def checkpoint_tables(self) -> dict:
         """What a checkpoint keeps besides the states: the Python model's
         lazily interned tables and, for a program that moves, the interned
-        values by id (the states name them by id)."""
+        values by id (the states name them by id: positions, lists, any
+        value the C code holds by id)."""
         out = dict(self._py_tables()) if self._py_tables is not None else {}
-        if self.gen.moves:
+        if self._vals:
             out["native_ids"] = sorted(self._vals.items())
         return out
 

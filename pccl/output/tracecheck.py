@@ -39,7 +39,7 @@ EXPLORE_STATUSES = ("violation", "exhaustive", "bounded", "interrupted")
 VIOLATION_KINDS = ("invariant", "assert", "stuck", "deadlock", "collision", "liveness",
                    "timelock", "response", "unreachable",
                    # a run's --property monitor: the property's own kind
-                   "eventually", "leadsto", "within", "stall")
+                   "eventually", "leadsto", "within", "stall", "frozen")
 #: Kinds whose counterexample may be a lasso (``cycle_start``).
 LASSO_KINDS = ("liveness", "timelock")
 STATE_CELLS = ("time", "phase", "lockQueue", "env")

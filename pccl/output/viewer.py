@@ -12,16 +12,28 @@ plus what the document does not hold and a picture needs:
   per-agent timeline instead of the arena);
 * ``at``: per state (initial, then after each step), every agent's pending
   computation as ``describe_k`` says it, when the states are known (a
-  ``view`` of a file that cannot be replayed derives it from the next step).
-
-The script rebuilds every state from ``initial`` and the steps' typed
-changes, exactly as a reader of a trace file would.
+  ``view`` of a file that cannot be replayed derives it from the next step);
+* ``text``: when the model and the path are known, the command line's text
+  of the path, made by the functions that print it (one formatter: the page
+  never words a step differently from the CLI): ``steps`` (each step as
+  ``run --trace`` and a counterexample print it, :func:`~pccl.output.display.format_step`)
+  and ``summary`` (``[[k, line]]``: the ``time steps:`` lines of ``pccl run``,
+  each with the step after which its first time step's state holds,
+  :func:`~pccl.output.views.time_steps`); else ``null`` and the page words
+  them itself from the recorded steps;
+* ``types``: the declared type of every shared and agent variable
+  (``{"shared": {name: type}, "agent": {name: type}}``, a type
+  ``{"kind", "elem"}`` as :class:`~pccl.lang.types.Ty`), so that a
+  ``List<int>`` of three elements is shown as a list and an
+  ``ItemPosition`` as a position; ``null`` when the model is not known
+  (then only the position and target cells are shown as positions).
 """
 
 from __future__ import annotations
 
 import html
 import json
+import math
 import os
 from importlib import resources
 from typing import Any, Optional
@@ -103,7 +115,7 @@ def motion_of(model=None, doc: Optional[dict] = None) -> bool:
     """Whether to draw an arena: the program calls doReach (known from the
     model), else the trace moves somebody or sends somebody somewhere."""
     if model is not None:
-        from pccl.api import program_moves
+        from pccl.model.compile import program_moves
         return program_moves(model.program)
     for st in (doc or {}).get("steps") or []:
         if st.get("rule") == "DOREACH INVOKE":
@@ -114,25 +126,99 @@ def motion_of(model=None, doc: Optional[dict] = None) -> bool:
     return False
 
 
-def data(doc: dict, *, model=None, states=None, world=None, title: Optional[str] = None,
-         notes: Optional[list] = None, source_file: Optional[str] = None,
-         embed_paths: bool = False) -> dict:
+def type_data(ty) -> Optional[dict]:
+    """A declared type as the page reads it: ``{"kind", "elem"}``."""
+    if ty is None:
+        return None
+    return {"kind": ty.kind, "elem": type_data(getattr(ty, "elem", None))}
+
+
+def types_of(model) -> dict:
+    lay = model.compiled.layout
+    return {"shared": {v.name: type_data(v.ty) for v in lay.shared},
+            "agent": {v.name: type_data(v.ty) for v in list(lay.allread) + list(lay.local)}}
+
+
+def text_of(model, states, labels) -> dict:
+    """The command line's text of the path (see the module's ``text``)."""
+    from pccl.output import display as D
+    from pccl.output import views
+    steps = [D.format_step(model, n + 1, lab, states[n], states[n + 1])
+             for n, lab in enumerate(labels)]
+    summary = [[k, line] for k, line in views.time_steps(model, views.summary_of(states, labels))]
+    return {"steps": steps, "summary": summary}
+
+
+def watch_function(model, text: str, k: int = 0) -> tuple:
+    """``(type, fn(st))`` of the watched expression ``text`` (``--watch``,
+    the expression box of ``pccl serve``): parsed and checked as a property
+    expression of the program (any type; names file ``--watch #k+1``, caret
+    and all, when wrong), compiled by the compiler that evaluates
+    invariants: pccl's own semantics."""
+    from pccl.lang.checker import check_watch
+    from pccl.lang.parser import parse_property
+    if not isinstance(text, str) or not text.strip():
+        raise PcclError("an expression to watch must be non-empty text", filename=f"--watch #{k + 1}")
+    fname = f"--watch #{k + 1}"
+    expr = parse_property(text, filename=fname)
+    ty = check_watch(expr, model.compiled.info, filename=fname, source=text)
+    return ty, model.compiled.state_predicate(expr)[1]
+
+
+def watch_values(model, states, texts) -> list:
+    """Each watched expression's value in every state: ``[{"text", "type",
+    "values": [text per state], "numbers": [number or null per state]}]``
+    (a value shown as :func:`~pccl.lang.values.format_value` shows it; a
+    number or bool also as a number, for the plot; a state where it cannot
+    be evaluated: ``could not be evaluated: …`` and null)."""
+    from pccl.lang.values import format_value
+    out = []
+    for k, text in enumerate(texts):
+        ty, fn = watch_function(model, text, k)
+        values: list = []
+        numbers: list = []
+        for st in states:
+            try:
+                v = fn(st)
+            except Exception as e:          # as an invariant: reported, not raised
+                values.append(f"could not be evaluated: {e}")
+                numbers.append(None)
+                continue
+            values.append(format_value(v, ty))
+            numbers.append(float(v) if isinstance(v, (bool, int, float)) and math.isfinite(v) else None)
+        out.append({"text": text.strip(), "type": str(ty), "values": values, "numbers": numbers})
+    return out
+
+
+def data(doc: dict, *, model=None, states=None, labels=None, world=None,
+         title: Optional[str] = None, notes: Optional[list] = None,
+         source_file: Optional[str] = None, embed_paths: bool = False, watch=()) -> dict:
     """The object the page reads (``window.PCCL_DATA``).  The source shown is
     the model's or ``source_file``'s (:func:`source_data`); absolute paths
-    are left out unless ``embed_paths``."""
+    are left out unless ``embed_paths``.  ``states`` and ``labels``: the
+    document's path (its states then, with the model, give every agent's
+    pending computation, and with ``labels`` too the CLI's text of it).
+    ``watch``: expressions to evaluate in every state of the path
+    (:func:`watch_values`; they need the model and the states)."""
     if world is None and model is not None:
         world = model.world
     from pccl.model.layout import AGS, PC
-    at = None
+    at = text = types = None
     if model is not None and states:
         at = [[model.compiled.describe_k(ag[PC]) for ag in st[AGS]] for st in states]
+        if labels is not None and len(labels) == len(states) - 1 == len(doc.get("steps") or []):
+            text = text_of(model, states, labels)
+    if model is not None:
+        types = types_of(model)
+    watched = watch_values(model, states, watch) if watch and model is not None and states else []
     src = source_data(model, source_file)
     if src is not None:
         src = {**src, "path": _shown_path(src["path"], embed_paths)}
     if not embed_paths:
         doc = _without_paths(doc)
     return {"trace": doc, "source": src, "world": world_data(world), "motion": motion_of(model, doc),
-            "at": at, "title": title or _title(doc, src), "notes": list(notes or [])}
+            "at": at, "text": text, "types": types, "watch": watched,
+            "title": title or _title(doc, src), "notes": list(notes or [])}
 
 
 def _title(doc: dict, src) -> str:

@@ -19,7 +19,7 @@ import textwrap
 
 from pccl.output import display as D
 from pccl.output import traces as T
-from pccl.model.layout import AGS, POS, TIME
+from pccl.model.layout import AGS, POS, STATUS, TIME
 from pccl.lang.values import format_value
 
 
@@ -183,3 +183,65 @@ def swimlane(model, states, labels, *, full=False, width=None) -> str:
         cells[i] = text
         out += row(cells)
     return "\n".join(out)
+
+
+# ---------------------------------------------------------------------------
+# time steps (the summary of ``pccl run``, and the viewer's "time steps" panel)
+# ---------------------------------------------------------------------------
+
+def summary_of(states, labels) -> list:
+    """``[(time, state, k)]``: the states a run's summary keeps, from its
+    whole path: the initial one (``k`` 0) and the one after each DOREACH
+    INVOKE (the environment's step, which ends a time step: ``k`` is the
+    number of that step), as :class:`pccl.tools.runner._TimeSteps` records
+    them before it thins a long run's."""
+    out = [(states[0][TIME], states[0], 0)]
+    for n, lab in enumerate(labels):
+        if lab[0] == "DOREACH INVOKE":
+            out.append((states[n + 1][TIME], states[n + 1], n + 1))
+    return out
+
+
+def time_steps(model, summary) -> list:
+    """The per-time-step lines of a run (``[(k, line)]``, ``k`` the third
+    element of the summary entry the line starts with, else None);
+    consecutive identical ones (nothing moved or changed) are one line
+    ``t=A–B: … (N identical time steps)``."""
+    out: list = []
+    prev = None
+    group: list = []            # [(time, text, k)] with the same text
+
+    def flush():
+        if not group:
+            return
+        (t0, text, k), (t1, _, _) = group[0], group[-1]
+        if len(group) == 1:
+            out.append((k, f"  t={D.fmt_time(t0)}: {text}"))
+        else:
+            out.append((k, f"  t={D.fmt_time(t0)}–{D.fmt_time(t1)}: {text} "
+                           f"({len(group)} identical time steps)"))
+        group.clear()
+    for entry in summary:
+        t, st = entry[0], entry[1]
+        text = step_summary(model, prev, st)
+        if group and text != group[-1][1]:
+            flush()
+        group.append((t, text, entry[2] if len(entry) > 2 else None))
+        prev = st
+    flush()
+    return out
+
+
+def step_summary(model, prev, s) -> str:
+    """One time step of a run: every agent's position (and status when not
+    running), then what changed since ``prev`` (the previous summary state)."""
+    parts = []
+    for i, ag in enumerate(s[AGS]):
+        st = D.status_text(model, ag[STATUS])
+        parts.append(f"a{i} {D.fmt_pos(ag[POS])}" + ("" if st == "running" else f" {st}"))
+    if prev is not None:
+        ch = [c for c in D.diff(model, prev, s, fmt=D.short_value)
+              if not c[0].startswith(("pos[", "time", "transitionState"))]
+        if ch:
+            parts.append("; ".join(f"{c}={nw}" for c, _, nw in ch))
+    return "  ".join(parts)

@@ -50,7 +50,6 @@ from typing import Any, Optional
 import numpy as np
 import xxhash
 
-from pccl.lang.errors import PcclError
 from pccl.search import safedata
 
 __all__ = ["FORMAT", "MANIFEST", "Checkpointer", "parse_interval", "search_identity",
@@ -170,8 +169,19 @@ def describe_option(name: str, value) -> str:
 _ENGINE = {"native": "native", "python": "Python"}
 
 
-class CheckpointError(PcclError):
-    """A checkpoint that cannot be resumed (absent, corrupt, another search)."""
+class CheckpointError(Exception):
+    """A checkpoint that cannot be written or resumed (absent, corrupt,
+    another search's).  The front ends report it as one message naming
+    ``option`` (``pccl.api`` raises it as :class:`pccl.lang.errors.CheckpointFileError`),
+    exit 2; the message may name other options as placeholders (``{workers=1}``)."""
+
+    def __init__(self, message: str, option: str, template: bool = False):
+        super().__init__(message)
+        #: the option a report names (a placeholder: ``--resume`` on the
+        #: command line, ``resume`` in the API)
+        self.option = option
+        #: whether the message names options as placeholders
+        self.template = template
 
 
 class Checkpointer:
@@ -230,7 +240,7 @@ class Checkpointer:
             probe.close()
         except OSError as e:
             raise CheckpointError(f"cannot write checkpoints to {self.dir}: "
-                                  f"{e.strerror or e}", filename="{checkpoint}") from None
+                                  f"{e.strerror or e}", "{checkpoint}") from None
         # a checkpoint already there stays valid until this search's first
         # manifest replaces it: number the generations after it
         try:
@@ -345,7 +355,7 @@ class Checkpointer:
 
     # -- reading ---------------------------------------------------------------
     def _bad(self, why: str) -> CheckpointError:
-        return CheckpointError(f"{self.resume_dir}: {why}", filename="{resume}", template=True)
+        return CheckpointError(f"{self.resume_dir}: {why}", "{resume}", template=True)
 
     def load(self, parallel: bool = False) -> tuple[dict, dict]:
         """The checkpoint in :attr:`resume_dir`: ``(state, arrays)``, after

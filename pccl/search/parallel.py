@@ -181,6 +181,8 @@ class _Worker:
         # the fastest search (pccl/search/fastest.py): the states I hold wait
         # in buckets keyed by (time steps, transitions); a bucket is a level
         self.fastest = fastest
+        table = self._stuck_table()
+        self._stuck_known = len(table) if table is not None else 0   # see new_stuck
         self.buckets: dict = {}         # (ticks, depth) -> [numbers, states]
         self.x_bucket: Any = None       # the bucket expanded last
         self.cand_cost: Any = None      # time cost of each candidate (fastest)
@@ -597,7 +599,8 @@ class _Worker:
             self.spill.observe()
         take = getattr(self.m, "take_new_ids", None)      # stable ids: for the check
         return (_owner_split(f, k, self.n), total, dead, self.x_depth_min, self.x_model_min,
-                viol, peak_rss_bytes(), moved, take() if take is not None else ())
+                viol, peak_rss_bytes(), moved, take() if take is not None else (),
+                self.new_stuck())
 
     def _level_fps(self, cs: list, ck: Optional[list], chunks: Optional[tuple]) -> tuple:
         """The fingerprints of the level's candidates ``cs`` (in key order),
@@ -802,6 +805,33 @@ class _Worker:
         order = np.argsort(np.asarray(allnums, dtype=np.int64), kind="stable").tolist()
         self.level_idx = [allnums[i] for i in order]
         self.level = [allstates[i] for i in order]
+
+    def _stuck_table(self) -> Optional[dict]:
+        table = getattr(self.m, "stuck_table", None)
+        return table() if table is not None else None
+
+    def new_stuck(self) -> dict:
+        """The stuck reasons this process met since it last reported or
+        learned (:meth:`pccl.model.compiled.CompiledProgram.stuck_code`): a
+        stuck status is a hash of its reason, so it means the same in every
+        process, but the reason itself is known only where an agent got
+        stuck.  The coordinator gathers them with each step and hands them
+        to every worker (:meth:`learn_stuck`) before the next level, in
+        which another worker may expand (and check) a successor of that
+        state: the stuck agent's status is carried into it."""
+        table = self._stuck_table()
+        if table is None or len(table) == self._stuck_known:
+            return {}
+        new = dict(itertools.islice(table.items(), self._stuck_known, None))
+        self._stuck_known = len(table)
+        return new
+
+    def learn_stuck(self, reasons: dict) -> None:
+        """Stuck reasons met by other workers (:meth:`new_stuck`)."""
+        table = self._stuck_table()
+        if table is not None:
+            table.update(reasons)
+            self._stuck_known = len(table)
 
     def learn_ids(self, table: dict) -> None:
         """The coordinator's interned values (a native model with stable
@@ -1689,6 +1719,22 @@ def _env_seconds(name: str, default: float) -> float:
     return value
 
 
+#: The prefix of the module names a blackbox loaded from a ``.py`` file gets
+#: (``pccl.blackboxes._import``): no other process can import them by name.
+_FILE_MODULE_PREFIX = "_pccl_user_blackbox_"
+
+
+def _pickle_user_code_by_value(ray) -> None:
+    """A user blackbox loaded from a file (``--blackbox FILE.py:ATTR``)
+    lives in a module the actors cannot import: its classes and functions
+    go to them by value (cloudpickle), not as a reference to that module
+    (oracle finding R1: the actors died, "worker 0 of 2 was lost")."""
+    import sys
+    for name, module in list(sys.modules.items()):
+        if name.startswith(_FILE_MODULE_PREFIX):
+            ray.cloudpickle.register_pickle_by_value(module)
+
+
 class _RayTransport:
     """One Ray actor per partition.  ``address``: ``"local"`` starts a Ray
     instance on this machine (stopped again after the search); anything
@@ -1752,6 +1798,7 @@ class _RayTransport:
             self.n = max(1, int(cpus))
         per = 1 if cpus >= self.n else max(0.01, cpus / self.n)
         actor = ray.remote(num_cpus=per, scheduling_strategy="SPREAD")(_RayWorker)
+        _pickle_user_code_by_value(ray)
         ref = ray.put(model)
         self.actors = [actor.remote(ref, w, self.n, deadlock, find_all, columns, fastest)
                        for w in range(self.n)]
@@ -2103,6 +2150,9 @@ class ParallelExplorer(Explorer):
         self._waiting: dict = {}       # the fastest search: states waiting per bucket
         #: states expanded by another worker than the one that generated them
         self.moved = 0
+        #: stuck reasons met by the workers, not yet shared (_share_stuck)
+        self._stuck_news: dict = {}
+        self._stuck_shared = 0
         #: stable interned ids (a native model with workers): id -> value's hash
         self._ids: Optional[dict] = {} if getattr(self.model, "stable_ids", False) else None
         self.peak_workers = [0] * n
@@ -2254,6 +2304,7 @@ class ParallelExplorer(Explorer):
             plan = None
             if getattr(T, "moves_states", False) and n > 1 and level_size >= _REBALANCE_LEVEL:
                 plan = _rebalance(holder, n)
+            self._share_stuck()
             per_worker = [(decisions[w] if decisions else None, at_bound) for w in range(n)]
             replies, new_keys = T.level(per_worker, level_size, plan) if plan else \
                 T.level(per_worker, level_size)
@@ -2304,6 +2355,7 @@ class ParallelExplorer(Explorer):
         ranks)``, ``ranks`` each candidate's place in the sorted order."""
         self._note_peaks([r[5] for r in replies])
         self._check_ids(r[7] for r in replies)
+        self._gather_stuck(r[8] for r in replies)
         for w, r in enumerate(replies):     # moved: their successors are w's
             if len(r[6]):
                 holder[r[6] - base] = w
@@ -2313,6 +2365,31 @@ class ParallelExplorer(Explorer):
         ranks = np.empty(len(allk), dtype=np.int64)
         ranks[order] = np.arange(len(allk))
         return allk[order], ranks
+
+    def _gather_stuck(self, news) -> None:
+        """The stuck reasons the workers met in a step (:meth:`_Worker.new_stuck`),
+        kept until :meth:`_share_stuck` hands them to every worker."""
+        for new in news:
+            self._stuck_news.update(new)
+
+    def _share_stuck(self) -> None:
+        """Before a level: every worker learns every stuck reason met so
+        far (the initial states' included), so that whoever expands a state
+        with a stuck agent can name its reason.  One round only on a level
+        after new reasons appeared."""
+        m: Any = self.model
+        get = getattr(m, "stuck_table", None)
+        if get is None:
+            return
+        table = get()
+        new = self._stuck_news
+        if len(table) != self._stuck_shared:   # the coordinator's own (initial states)
+            new.update(itertools.islice(table.items(), self._stuck_shared, None))
+        if new:
+            table.update(new)
+            self.transport.all("learn_stuck", [(new,)] * self.workers)
+            self._stuck_news = {}
+        self._stuck_shared = len(table)
 
     def _check_ids(self, news) -> None:
         """A native model with stable ids (forked workers): no id may name
@@ -2377,6 +2454,7 @@ class ParallelExplorer(Explorer):
             size = self._waiting.pop(bucket)
             stats.max_depth = max(stats.max_depth, depth)
             decisions, self._decisions = self._decisions, None
+            self._share_stuck()
             replies, new_keys = T.level([(decisions[w] if decisions else None,
                                           self._at_depth_bound(depth), bucket)
                                          for w in range(n)], size)

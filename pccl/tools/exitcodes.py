@@ -10,6 +10,7 @@ from collections.abc import Iterable
 #: 130 and 143 keep their meaning; 1 stays for a kind not listed here.
 DETAILED = {
     "deadlock": 11, "stall": 11, "stalled": 11,          # the team can never progress
+    "frozen": 11,
     "invariant": 12, "collision": 12,                    # a bad state (safety)
     "liveness": 13, "response": 13, "unreachable": 13,   # temporal properties
     "eventually": 13, "leadsto": 13, "within": 13, "reachable": 13,
@@ -20,7 +21,7 @@ DETAILED = {
 
 #: the rows of the documented table, in order: (status, meaning)
 TABLE = [
-    (11, "deadlock or stall (explore), deadlock or stalled run (run)"),
+    (11, "deadlock, stall or frozen team (explore), deadlock or stalled run (run)"),
     (12, "invariant violated (the program's invariant:, --invariant), or collision"),
     (13, "a temporal property: liveness lasso, bounded response missed, `reachable P` "
          "unreachable, or a run's --property violated"),

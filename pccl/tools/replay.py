@@ -411,6 +411,8 @@ def replay(path, *, blackbox=None, program=None, world=None,
         return _end_of_temporal(m, cfg, recorded, result.get("cycle_start"), res, diverge)
     if recorded["kind"] == "stall":
         return _end_of_stall(m, recorded, result.get("cycle_start"), res, diverge)
+    if recorded["kind"] == "frozen":
+        return _end_of_frozen(m, recorded, result.get("cycle_start"), res, diverge)
     return _end_of_safety(m, cfg, recorded, res, diverge)
 
 
@@ -684,6 +686,51 @@ def _end_of_stall(m, recorded, cycle_start, res, diverge):
         return bad(f"the recorded stall message is not the state's: {message}")
     res.status, res.exit_status = "violation", 1
     res.message = f"reproduced: {message} (after {n} steps)"
+    return res
+
+
+def _end_of_frozen(m, recorded, cycle_start, res, diverge):
+    """The last state is frozen (pccl/model/frozen.py, docs/temporal.md): from
+    it no reachable transition changes the progress signature, no run
+    ends, time advances, the events the message says can never fire again
+    do not fire, and those it says still fire are the ones that do."""
+    from pccl.model.frozen import FROZEN_MESSAGE, progress_signature_fn
+    n = len(res.labels)
+
+    def bad(why: str):
+        return diverge(n, f"diverged at the end: every step reproduced, but {why}")
+
+    if cycle_start is not None:
+        return bad("a frozen-team counterexample is not a lasso")
+    sig = progress_signature_fn(m)
+    last = res.states[-1]
+    want = sig(last)
+    advances, fires = False, set()
+    reach = _BoundedReach(m, last, res, "the frozen team", "it")
+    for _, succ in reach:
+        if not succ:
+            return bad("a run can end from the recorded frozen state")
+        for lab, nxt in succ:
+            advances = advances or lab[0] == "TIME ADVANCE"
+            if lab[0] == "EVENT SELECT" and lab[2] is not None:
+                fires.add(lab[2])
+            if sig(nxt) != want:
+                return bad(f"the team can still make progress from the recorded frozen state "
+                           f"({lab[0]})")
+    if not advances and reach.finished:
+        return bad("time never advances from the recorded frozen state (a time-lock)")
+    msg = recorded["message"]
+    evs = m.program.events
+    live = ", ".join(f"{evs[e].name} (line {evs[e].guard.span.line})" for e in sorted(fires))
+    frozen = [ev for k, ev in enumerate(evs) if k not in fires]
+    if (not msg.startswith(FROZEN_MESSAGE) or not frozen
+            or any(f"{ev.name} (line {ev.guard.span.line}:" not in msg for ev in frozen)
+            or (reach.finished and not msg.endswith(f"; still firing: {live}" if live else ")"))):
+        return bad(f"the recorded message does not name the events that can never fire again "
+                   f"({', '.join(ev.name for ev in frozen) or 'none'}) and those that still "
+                   f"fire ({live or 'none'})")
+    res.status, res.exit_status = "violation", 1
+    res.message = f"reproduced: {msg} (after {n} steps)"
     return res
 
 

@@ -21,6 +21,9 @@ library's ``ThreadingHTTPServer``) with the viewer page of
 ``POST /api/search``  ``{"depth", "max_states"}``: bounded search from here
 ``POST /api/search/stop``  stop the search under way
 ``POST /api/follow``  take the path the last search found
+``POST /api/watch``  ``{"expr": text}``: evaluate this expression in every state
+                    of the path from now on (the page's expression box)
+``POST /api/unwatch``  ``{"index": i}``: stop watching expression ``i``
 ==================  ======================================================
 
 The model is the one ``explore`` would build from the same options, without
@@ -95,6 +98,8 @@ class Session:
         self.visited: list = []          # [(states, labels)]
         self.visit_ids: dict = {}        # model.key(state) -> id
         self.found: Optional[tuple] = None
+        #: the expressions the page watches (viewer.watch_values: pccl's semantics)
+        self.watch: list = []
         self.initial_index = 0
         self.start(0)
 
@@ -320,6 +325,25 @@ class Session:
         path_labels.reverse()
         return (states[:-1] + path_states, labels + path_labels)
 
+    def add_watch(self, text) -> None:
+        """Watch ``text`` (checked first: a bad expression is a BadRequest
+        with its caret)."""
+        if not isinstance(text, str) or len(text) > 2000:
+            raise BadRequest("expr: an expression (text, at most 2,000 characters) expected")
+        if len(self.watch) >= 20:
+            raise BadRequest("at most 20 watched expressions")
+        try:
+            from pccl.output import viewer
+            viewer.watch_function(self.model, text, len(self.watch))
+        except PcclError as e:
+            raise BadRequest(e.render()) from None
+        self.watch.append(text)
+
+    def remove_watch(self, index) -> None:
+        if not 0 <= index < len(self.watch):
+            raise BadRequest(f"index: no watched expression {index}")
+        del self.watch[index]
+
     def follow(self) -> None:
         if self.found is None:
             raise BadRequest("follow: the last search found no violation")
@@ -365,7 +389,8 @@ class Session:
                          status="violation" if vs else "exploring",
                          violation=vs[0] if vs else None,
                          message=vs[0].message if vs else f"exploring: depth {len(self.labels)}")
-        view = viewer.data(doc, model=m, states=self.states)
+        view = viewer.data(doc, model=m, states=self.states, labels=self.labels,
+                           watch=self.watch)
         visited = []
         for vid, (sts, labs) in enumerate(self.visited):
             last = sts[-1]
@@ -486,24 +511,12 @@ class Handler(BaseHTTPRequestHandler):
             if path == "/api/search/stop":
                 self._json(200, {"stopped": s.stop()})
                 return
+            action = _ACTIONS.get(path)
+            if action is None:
+                self._json(404, {"error": f"no such action: {path}"})
+                return
             with s.lock:
-                if path == "/api/step":
-                    s.step(_int_field(body, "index"))
-                elif path == "/api/back":
-                    s.back()
-                elif path == "/api/truncate":
-                    s.truncate(_int_field(body, "depth"))
-                elif path == "/api/init":
-                    s.start(_int_field(body, "index"))
-                elif path == "/api/visit":
-                    s.visit(_int_field(body, "id"))
-                elif path == "/api/load":
-                    s.load(body.get("text"))
-                elif path == "/api/follow":
-                    s.follow()
-                else:
-                    self._json(404, {"error": f"no such action: {path}"})
-                    return
+                action(s, body)
                 self._json(200, s.payload())
         except BadRequest as e:
             self._json(400, {"error": str(e)})
@@ -511,6 +524,20 @@ class Handler(BaseHTTPRequestHandler):
             self._json(400, {"error": e.render()})
         except Exception as e:                  # never stop the server
             self._json(500, {"error": f"internal error: {type(e).__name__}: {e}"})
+
+
+#: The actions on the path (POST, under the session's lock): path -> fn(session, body).
+_ACTIONS = {
+    "/api/step": lambda s, b: s.step(_int_field(b, "index")),
+    "/api/back": lambda s, b: s.back(),
+    "/api/truncate": lambda s, b: s.truncate(_int_field(b, "depth")),
+    "/api/init": lambda s, b: s.start(_int_field(b, "index")),
+    "/api/visit": lambda s, b: s.visit(_int_field(b, "id")),
+    "/api/load": lambda s, b: s.load(b.get("text")),
+    "/api/follow": lambda s, b: s.follow(),
+    "/api/watch": lambda s, b: s.add_watch(b.get("expr")),
+    "/api/unwatch": lambda s, b: s.remove_watch(_int_field(b, "index")),
+}
 
 
 def _query(path: str) -> dict:

@@ -223,7 +223,10 @@ def _checkpointed(prog, kw: dict, files: Files) -> Outcome:
     shutil.rmtree(d, ignore_errors=True)
     resumed = 0
     for _ in range(20):
-        extra = dict(checkpoint=d, progress_interval=1e-9, progress=_Interrupt(2))
+        # interrupted one progress call later at each resume: a level that
+        # reports progress twice (the native kernel's) is resumed from its
+        # start, so a fixed cut could interrupt it there for ever
+        extra = dict(checkpoint=d, progress_interval=1e-9, progress=_Interrupt(2 + resumed))
         if os.path.exists(d) and os.listdir(d):
             extra["resume"] = d
             resumed += 1
@@ -252,6 +255,10 @@ def explore_mode(case: Case, mode: Mode, prog, files: Files) -> Outcome:
         msg = str(e).splitlines()[0] if str(e) else type(e).__name__
         if "unsound here" in msg or "needs two or more agents" in msg or "cannot be used here" in msg \
                 or "engine" in msg and "native" in msg:
+            return Outcome("n/a", detail=msg)
+        if "cannot start or reach Ray" in msg:
+            # the machine, not the checker: Ray's own start-up timed out
+            # (seen at load 14-23 on 2 cores); no verdict to compare
             return Outcome("n/a", detail=msg)
         return Outcome("error", detail=msg)
     except KeyboardInterrupt:
@@ -473,16 +480,8 @@ def verdict_difference(truth: Outcome, out: Outcome) -> Optional[str]:
 def known_hole(case: Case, d: Disagreement) -> Optional[str]:
     """The hole of issue 41 that ``d`` matches, if any (an entry goes when its
     fix is merged: the CI test then fails on it)."""
-    mode = d.mode
-    if d.check == "crash" and "KeyError" in d.detail and "parallel.py" in d.detail:
-        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
     # issue 41's holes 1-6 are fixed: a disagreement of their shape is a
-    # finding again (the teeth re-open each by a monkeypatch)
-    # found by this oracle on main at a12e3d9 (not in the issue yet)
-    if d.check == "crash" and mode.startswith("workers") and "KeyError" in d.detail:
-        return "new W1: --workers 2 --all: KeyError in the parallel search (a stuck agent among the violations)"
-    if mode == "ray-local" and case.blackbox and "could not be co" in d.detail:
-        return "new R1: --ray with a user blackbox from a file: the actors cannot load it (worker lost)"
-    if d.check == "crash" and mode == "checkpoint-native" and "KeyError" in d.detail:
-        return "new C1: native checkpoint + resume: KeyError in NativeModel.decode"
+    # finding again (the teeth re-open each by a monkeypatch); so are the
+    # crashes this oracle found (W1, C1, R1: tests in test_parallel.py and
+    # test_checkpoint.py)
     return None

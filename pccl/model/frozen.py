@@ -1,0 +1,243 @@
+"""Frozen teams: a team that runs for ever, busy, but can never do anything
+useful again (docs/temporal.md#frozen-teams).
+
+The stall check (:mod:`pccl.model.stall`) catches a team that can never
+change again.  A team can also be *frozen* while it keeps changing
+something: a robot whose doReach fails retries it for ever (its
+``doReach_fail`` flag goes false and true again), and the others
+busy-wait on the corner it holds (taking and releasing the lock at every
+step).  A reachable state is **frozen** when
+
+* no run from it ends (no terminal state is reachable) and time advances
+  (a time-locked state is the time-lock check's);
+* no transition reachable from it changes the team's *progress
+  signature*: the stall signature (shared and allread variables, the
+  ``loc:`` variables a property reads, positions, doReach targets,
+  statuses) without the lock queue and the doReach flags, so that taking
+  and releasing the lock and retrying a doReach to the same target do not
+  count as progress;
+* and some event of the program can never fire again from it (for any
+  agent): it fired before, or it never fires at all.
+
+The first frozen state in breadth-first order is reported as a violation
+``frozen``, with the shortest path to it and the events that can never
+fire again (with their guards) and those that still do.
+
+**One-shot events.** An event that fires once and never again (``Start()``
+guarded by ``!started``) is not a frozen team by itself: a team that
+keeps making progress (a variable, a position or a target keeps changing)
+is never reported, whatever events stopped firing.  So only a team that
+keeps running without progress is, and it is named by the events that it
+can no longer fire.
+
+**How it is decided.** On a clean exhaustive verdict (and with the stall
+check on) the reduced model is explored again, in Python, with every
+transition's event label and progress change kept (the search's own
+graph, in C for the native engine, keeps neither), up to :data:`LIMIT`
+states; above that the check does not run and the verdict says so.
+Backward reachability over that graph (:class:`pccl.search.liveness.Graph`)
+then finds the states that can reach a progress change, a terminal state
+or a firing of each event.
+"""
+
+from __future__ import annotations
+
+import marshal
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+import xxhash
+
+from pccl.model.layout import AGS, AR, LOC, POS, REACH, SH, STATUS, TARGET
+
+__all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "check", "FROZEN_MESSAGE"]
+
+#: the most states the check explores again (in Python: about 30,000 states per CPU
+#: second and 1.3 KB per state on fischer, measured 2026-12-07: at most about
+#: 0.7 s and 26 MB more than the search; fischer's 46,108 states took 1.9 s, 4 times
+#: its native search, and doubled its peak memory)
+LIMIT = 20_000
+
+#: The start of a frozen team's verdict (the events follow).
+FROZEN_MESSAGE = ("frozen: the team runs for ever, but nothing it does can change a variable, "
+                  "a position or a doReach target again")
+
+
+@dataclass
+class FrozenResult:
+    """The outcome of :func:`check`: ``ran`` (False: ``reason`` says why
+    not), and for a frozen team the violation and its trace (states and
+    labels of the model, merged transitions expanded)."""
+    ran: bool
+    reason: Optional[str] = None
+    violation: Any = None
+    trace: Any = None
+    states: int = 0
+    seconds: float = 0.0
+
+
+def progress_signature_fn(model) -> Callable:
+    """``sig(state) -> int``: a 64-bit hash of the state's progress
+    signature (the stall signature without the lock queue and the doReach
+    flags: :func:`pccl.model.stall.signature_fn`)."""
+    from pccl.model.stall import _visible_locals
+    slots = _visible_locals(model)
+    loc = "(" + "".join(f"ag[{LOC}][{s}], " for s in slots) + ")" if slots else "()"
+    src = (f"def _sig(st):\n"
+           f"    return _h(_dumps((st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
+           f"ag[{REACH}][{TARGET}], {loc}) for ag in st[{AGS}]]), 2))\n")
+    ns: dict = {}
+    exec(compile(src, "<pccl progress signature>", "exec"),
+         {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
+    return ns["_sig"]
+
+
+@dataclass
+class _Graph:
+    """The labelled graph :func:`_explore` builds."""
+    states: list
+    parent: list           # per state: (parent number, label), or None for an initial state
+    src: np.ndarray
+    dst: np.ndarray
+    event: np.ndarray      # per transition: the event it fires (EVENT SELECT), else -1
+    changes: np.ndarray    # per state: some transition out of it changes the progress signature
+
+
+def _explore(model, limit: int) -> Optional[_Graph]:
+    """Breadth-first over ``model`` (the reduced model of the search), with
+    each transition's event and progress change; None past ``limit``
+    states.  A change is decided on the successor as made, before the
+    symmetry reduction renames it (as the stall check does)."""
+    sig = progress_signature_fn(model)
+    key, succ = model.key, model.successors
+    index: dict = {}
+    states: list = []
+    parent: list = []
+    for s in model.init_states():
+        k = key(s)
+        if k not in index:
+            index[k] = len(states)
+            states.append(s)
+            parent.append(None)
+    src: list = []
+    dst: list = []
+    event: list = []
+    changes = []
+    i = 0
+    while i < len(states):
+        s = states[i]
+        here = sig(s)
+        changed = False
+        for lab, t in succ(s):
+            k = key(t)
+            j = index.get(k)
+            if j is None:
+                if len(states) >= limit:
+                    return None
+                j = index[k] = len(states)
+                states.append(t)
+                parent.append((i, lab))
+            src.append(i)
+            dst.append(j)
+            event.append(lab[2] if lab[0] == "EVENT SELECT" and lab[2] is not None else -1)
+            if not changed and sig(t) != here:
+                changed = True
+        changes.append(changed)
+        i += 1
+    return _Graph(states, parent, np.asarray(src, dtype=np.uint32), np.asarray(dst, dtype=np.uint32),
+                  np.asarray(event, dtype=np.int32), np.asarray(changes, dtype=bool))
+
+
+def _frozen_events(model, gr: _Graph):
+    """The first frozen state (breadth-first), the events that can never
+    fire again from it and those that still fire there, or None."""
+    from pccl.search.liveness import Graph
+    n = len(gr.states)
+    dyn = np.fromiter(model.time_costs(gr.states), dtype=np.uint8, count=n).astype(bool)
+    g = Graph(n, None, gr.dst, gr.src, dyn, None, None)
+    bad = g.terminal | gr.changes
+    bad |= ~g.can_reach(g.dyn)
+    frozen = ~g.can_reach(bad)
+    if not frozen.any():
+        return None
+    first, dead = None, {}
+    for e in range(len(model.program.events)):
+        fires = np.zeros(n, dtype=bool)
+        fires[gr.src[gr.event == e]] = True
+        mask = frozen & ~g.can_reach(fires)
+        hits = np.flatnonzero(mask)
+        if hits.size:
+            dead[e] = mask
+            if first is None or hits[0] < first:
+                first = int(hits[0])
+    if first is None:
+        return None
+    never = [e for e, mask in dead.items() if mask[first]]
+    after = g.reach(np.asarray([first]))
+    live = sorted({int(e) for e in np.unique(gr.event[after[gr.src]]) if e >= 0})
+    fired = {int(e) for e in np.unique(gr.event) if e >= 0}
+    return first, never, live, fired
+
+
+def _guard(model, e: int) -> str:
+    from pccl.model.stall import _src
+    ev = model.program.events[e]
+    return f"{ev.name} (line {ev.guard.span.line}: `{_src(model, ev.guard.span)}`)"
+
+
+def _message(model, never: list, live: list, fired: set) -> str:
+    """The verdict: the events that can never fire again, with their
+    guards (those that fired before first), and those that still fire."""
+    evs = model.program.events
+    parts = []
+    for group, tail in (([e for e in never if e in fired], "can never fire again (fired before)"),
+                        ([e for e in never if e not in fired], "never fire")):
+        if group:
+            names = [_guard(model, e) for e in group]
+            text = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+            parts.append(f"event{'s' if len(group) > 1 else ''} {text} "
+                         + (tail if len(group) > 1 or tail.startswith("can")
+                            else "never fires"))
+    msg = FROZEN_MESSAGE + ": " + "; ".join(parts)
+    if live:
+        msg += "; still firing: " + ", ".join(f"{evs[e].name} (line {evs[e].guard.span.line})"
+                                             for e in live)
+    return msg
+
+
+def _expanded(model, trace):
+    """``trace`` with its merged transitions replaced by their steps (the
+    last one whole: its end is the frozen state the graph found)."""
+    if getattr(model, "merger", None) is None:
+        return trace
+    return model.expand_trace(trace)
+
+
+def check(model, limit: int = LIMIT) -> FrozenResult:
+    """Is the team of ``model`` (a reduced model, :class:`pccl.model.reduce.Reduced`)
+    frozen somewhere?  Explores it again (see the module docstring)."""
+    import time
+    from pccl.search.explorer import Trace
+    from pccl.search.liveness import TemporalViolation
+    t0 = time.perf_counter()
+    gr = _explore(model, limit)
+    if gr is None:
+        return FrozenResult(False, f"more than {limit:,} states: the check explores the "
+                                   f"graph again, in Python, up to {limit:,}",
+                            seconds=time.perf_counter() - t0)
+    out = FrozenResult(True, states=len(gr.states))
+    found = _frozen_events(model, gr)
+    if found is not None:
+        first, never, live, fired = found
+        states, labels = [gr.states[first]], []
+        at = first
+        while gr.parent[at] is not None:
+            at, lab = gr.parent[at]
+            states.append(gr.states[at])
+            labels.append(lab)
+        out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
+        out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
+    out.seconds = time.perf_counter() - t0
+    return out
