@@ -361,6 +361,7 @@ def explore_model(model: Union[Reduced, Model], *, options: Optional[ExploreOpti
             # temporal properties): the search's report, interrupted, since
             # not every check ran
             sr.status, lv, complete = "interrupted", None, False
+        _shorten(plan, sr)
         return _assemble(plan, ex, sr, lv, complete)
     finally:
         _close(ex)
@@ -677,6 +678,170 @@ def _frozen_check(plan: _SearchPlan, sr: SearchResult, lv) -> None:
         sr.status = "violation"
 
 
+def _shorten(plan: _SearchPlan, sr: SearchResult) -> None:
+    """Step of :func:`explore_model`: under reductions, each counterexample
+    found is shortened against the unreduced semantics
+    (:mod:`pccl.model.shorten`); the verdict stays, only the path shown may
+    change, and ``cx.shortening`` says what happened.  Not for ``fastest``
+    (its path is the fastest, not the shortest)."""
+    from pccl.model import shorten as S
+    model, o = plan.model, plan.o
+    # (a frozen team's path is the frozen check's own, on the reduced graph:
+    # not shortened yet)
+    found = [cx for cx in sr.found if cx.trace is not None and len(cx.trace)
+             and cx.violation.kind != "frozen"]
+    if not found or not model.reduction.on or o.fastest or sr.status == "interrupted":
+        return
+    for cx in found:
+        cx.shortening = S.Shortening("off" if not o.shorten else "not-shown", len(cx.trace),
+                                     None, cx.cycle_start)
+    if not o.shorten:
+        return
+    try:
+        state = [cx for cx in found if cx.violation.kind in S.STATE_KINDS and cx.cycle_start is None]
+        if state:
+            _shorten_states(plan, state)
+        graph = [cx for cx in found if cx not in state]
+        if graph:
+            _shorten_graph(plan, graph)
+    except KeyboardInterrupt:
+        for cx in found:
+            if cx.shortening.status == "not-shown" and cx.shortening.reason is None:
+                cx.shortening = dataclasses.replace(cx.shortening, reason="interrupted")
+
+
+def _shorten_engine(plan: _SearchPlan, recorder: bool) -> tuple:
+    """``(budget, engine)`` of the searches without the reductions that
+    shorten one verdict's counterexamples: native, within
+    :data:`~pccl.model.shorten.MAX_STATES_NATIVE` states, where the native
+    engine can serve the unreduced model (whichever engine ran the reduced
+    search: the path shown does not depend on the engine), else Python
+    within :data:`~pccl.model.shorten.MAX_STATES`."""
+    from pccl.model import native as NV
+    from pccl.model import shorten as S
+    from pccl.model.reduce import unreduced
+    if NV.unsupported(Reduced(unreduced(plan.model), "none"), recorder=recorder) is None:
+        return S.MAX_STATES_NATIVE, "auto"
+    return S.MAX_STATES, "python"
+
+
+def _shorten_reason(budget: int, spelling: Spelling, sub: Optional[ExploreResult] = None) -> str:
+    if sub is not None and sub.status != "bounded" and sub.status not in ("violation", "exhaustive"):
+        return f"the search without the reductions ended {sub.status}"
+    return (f"the search without the reductions stopped at its budget of {budget:,} "
+            f"states ({spell('{reduce=none}', spelling)} searches them all)")
+
+
+def _unreduced_search(plan: _SearchPlan, budget: int, **changes) -> ExploreResult:
+    """A search of the same model without the reductions, every violation
+    reported (``find_all``), within ``budget`` states, in this process;
+    ``changes`` to the options.  The model's engine fields are restored."""
+    from pccl.model.reduce import unreduced
+    inner = unreduced(plan.model)
+    keep = {a: getattr(inner, a) for a in
+            ("engine_used", "engine_reason", "engine_threads", "engine_asked", "lock_deadlocks")
+            if hasattr(inner, a)}
+    try:
+        return explore_model(Reduced(inner, "none"), options=plan.o.replace(**{
+            "reduce": "none", "find_all": True, "max_states": budget, "depth": None,
+            "workers": 1, "ray": None, "coverage": False, "progress": None, "checkpoint": None,
+            "resume": None, "spill": None, "shorten": False, "fastest": False, **changes}),
+            spelling=plan.spelling)
+    finally:
+        for a, v in keep.items():
+            setattr(inner, a, v)
+
+
+def _finished(sub: ExploreResult, allowed=(Bound.MODEL,)) -> bool:
+    """Whether the search ``sub`` saw everything it was asked to (bounds
+    but ``allowed`` cut it)."""
+    return (sub.status in ("violation", "exhaustive", "bounded")
+            and not set(sub.bounds) - set(allowed))
+
+
+def _shorten_states(plan: _SearchPlan, found: list) -> None:
+    """Step of :func:`_shorten`: the violations of one state (invariants,
+    assertions, stuck agents, deadlocks, collisions).  A search without the
+    reductions to the depth of the longest path found reports each
+    violation's first instance (breadth-first: a shortest path); a violation
+    whose first instance is another (another agent's) is looked for by
+    :func:`pccl.model.shorten.shortest_paths`."""
+    from pccl.model import shorten as S
+    from pccl.model.reduce import unreduced
+    o, (budget, engine) = plan.o, _shorten_engine(plan, bool(plan.model.temporal))
+    longest = max(len(cx.trace) for cx in found)
+    sub = _unreduced_search(plan, budget, depth=longest - 1, timelock=False, stall=False,
+                            engine=engine)
+    finished = _finished(sub, (Bound.MODEL, Bound.DEPTH))
+    seen = {c.violation.identity for c in sub.counterexamples}
+    rest = []
+    for cx in found:
+        other = next((c for c in sub.counterexamples if c.violation == cx.violation
+                      and c.trace is not None), None)
+        if other is not None and len(other.trace) < len(cx.trace):
+            _shortened(cx, other.trace)
+        elif not finished:
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(budget, plan.spelling, sub))
+        elif cx.violation.identity in seen and other is None:
+            rest.append(cx)         # found first for another agent: look for this one
+        else:
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
+    if not rest:
+        return
+    inner = unreduced(plan.model)
+    saved, inner.lock_deadlocks = inner.lock_deadlocks, o.deadlock
+    try:
+        paths, complete = S.shortest_paths(inner, [(cx.violation, len(cx.trace)) for cx in rest],
+                                           deadlock=o.deadlock, find_all=o.find_all)
+    finally:
+        inner.lock_deadlocks = saved
+    for cx, path in zip(rest, paths):
+        if path is not None:
+            _shortened(cx, path)
+        elif complete:
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
+        else:
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(S.MAX_STATES, plan.spelling))
+
+
+def _shortened(cx: Counterexample, trace: Trace, cycle_start: Optional[int] = None,
+               violation: Any = None) -> None:
+    cx.trace, cx.cycle_start, cx.chain = trace, cycle_start, None
+    if violation is not None:
+        cx.violation = violation
+    cx.shortening = dataclasses.replace(cx.shortening, status="shortened")
+
+
+def _shorten_graph(plan: _SearchPlan, found: list) -> None:
+    """Step of :func:`_shorten`: time-locks, stalls and temporal properties
+    are decided on the whole graph, so their paths are those of a whole
+    search without the reductions (within the budget) that reports the
+    same violation (kind and property: the message of a stall or a
+    time-lock describes the state its path ends in, and is that path's)."""
+    budget, engine = _shorten_engine(plan, True)
+    sub = _unreduced_search(plan, budget, engine=engine)
+    if not _finished(sub):
+        for cx in found:
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason=_shorten_reason(budget, plan.spelling, sub))
+        return
+    for cx in found:
+        other = next((c for c in sub.counterexamples if c.trace is not None and (
+            c.violation == cx.violation or (cx.violation.kind in ("stall", "timelock")
+                                            and c.violation.identity == cx.violation.identity))),
+                     None)
+        if other is None:
+            cx.shortening = dataclasses.replace(
+                cx.shortening, reason="the search without the reductions does not report it")
+        elif len(other.trace) < len(cx.trace):
+            _shortened(cx, other.trace, other.cycle_start, other.violation)
+            cx.depth = other.depth          # the graph checks' depth: the path's steps
+        else:
+            cx.shortening = dataclasses.replace(cx.shortening, status="confirmed")
+
+
 def _verdict(sr: SearchResult, bound_names: list, max_memory: Optional[int],
              spelling: Spelling, find_all: bool = False, complete: bool = False) -> tuple:
     """Step of :func:`explore_model`: the one-line verdict (without the
@@ -965,15 +1130,18 @@ def violation_data(model, found: Counterexample) -> Finding:
     tr: Optional[Trace] = found.trace
     assert tr is not None or v.kind == "unreachable", "a counterexample carries its trace"
     reduced = bool(getattr(getattr(model, "reduction", None), "on", ()))
+    sh = found.shortening
     # merged labels were expanded where the traces were made (explore_model,
     # liveness.attach_traces: reduce.expand_trace), not again here
     steps = () if tr is None else tuple(
         StepView.of(model, st.number, st.label, st.before, st.after) for st in tr.steps)
     return Finding(v.kind, v.name, v.message, v.agent,
                    v.span.line if v.span else None, v.span.column if v.span else None,
-                   found.depth, "under the reductions" if reduced else "yes",
+                   found.depth,
+                   "yes" if not reduced or (sh is not None and sh.shortest) else "under the reductions",
                    steps, None if tr is None else StateView.of(model, tr.last),
-                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial))
+                   found.cycle_start, None if tr is None else StateView.of(model, tr.initial),
+                   sh)
 
 
 # ---------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from pccl.lang.errors import PcclError
 FLAGS = {"agents": "--agents", "rates": "--rate", "overrides": "--set",
          "invariants": "--invariant", "deadlock": "--no-deadlock", "find_all": "--all",
          "properties": "--property", "timelock": "--no-timelock",
-         "stall": "--no-stall"}
+         "stall": "--no-stall", "shorten": "--no-shorten"}
 #: Options written with their short flag when given with a value (as the
 #: verdict's note has always said it: ``-b nondet explores every timing``).
 SHORT_FLAGS = {"blackbox": "-b"}
@@ -624,6 +624,9 @@ def _plot_run(m, res, path, *, quiet=False):
 @click.option("--fastest", is_flag=True,
               help="report the counterexample that reaches its violation at the smallest "
                    "global time (ties: fewest transitions) instead of the shortest")
+@click.option("--no-shorten", "shorten", flag_value=False, default=True,
+              help="show the counterexample the reduced search found, without searching "
+                   "the unreduced semantics for a shorter one (docs/reductions.md)")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
                    "comma-separated list of merge, symmetry, por, dead")
@@ -674,7 +677,7 @@ def _plot_run(m, res, path, *, quiet=False):
 def explore(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events,
             collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
-            stall, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
+            stall, shorten, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,
             progress, progress_interval, html, trace_out, view, full, coverage, workers, ray,
             checkpoint, checkpoint_interval, resume, spill, watch):
     """Explore every interleaving of PROGRAM breadth-first and report the first
@@ -1565,12 +1568,7 @@ def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -
     tr = cx.trace
     if tr is None:          # reachable P: unreachable has no path to show
         return
-    note = ", shortest under the reductions" if m.reduction.on else ""
-    depth = getattr(cx, "depth", None)
-    if m.reduction.on and depth is not None and depth != len(tr):
-        # --depth counts transitions of the reduced graph, the steps shown
-        # are the rules' (expanded): say both, so --depth can be read here
-        note += f"; depth {depth} in the reduced graph, as --depth counts"
+    note = _shortest_note(m, cx, tr)
     if res.search is not None and getattr(res.search, "fastest", False):
         note += f", fastest: violation at t={D.fmt_time(tr.last[TIME])}"
     loop = cx.cycle_start
@@ -1578,7 +1576,7 @@ def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -
         click.echo(f"counterexample (a lasso: {_steps(loop)}, then a cycle of "
                    f"{_steps(len(tr) - loop)} repeated forever{note}):")
     else:
-        click.echo(f"counterexample ({len(tr)} steps{note}):")
+        click.echo(f"counterexample ({_steps(len(tr))}{note}):")
     if view:
         from pccl.output import views
         click.echo(views.render(view, m, tr, full=full))
@@ -1595,6 +1593,33 @@ def _print_counterexample(res, v, cx, *, k_style=False, view=None, full=False) -
         click.echo(D.format_state_k(m, tr.last))
     else:
         click.echo(D.format_state(m, tr.last))
+
+
+def _shortest_note(m, cx, tr) -> str:
+    """What the counterexample's header says of its length: under
+    reductions, whether shortening against the unreduced semantics
+    (pccl/model/shorten.py) showed it shortest, shortened it, or could not."""
+    if not m.reduction.on:
+        return ""
+    sh = getattr(cx, "shortening", None)
+    lasso = cx.cycle_start is not None
+    if sh is not None and sh.status == "shortened":
+        note = (f", {'as short as without the reductions' if lasso else 'shortest'}: "
+                f"the reduced search's had {_steps(sh.reduced_steps)}")
+    elif sh is not None and sh.status == "confirmed":
+        note = ", as short as without the reductions" if lasso else ", shortest"
+    else:
+        note = ", shortest under the reductions"
+        if sh is not None and sh.status == "off":
+            note += f"; not compared with the unreduced graph ({cli_spelling('shorten', 'False')})"
+        elif sh is not None:
+            note += f"; not shown to be shortest: {sh.reason or 'not tried'}"
+    depth = getattr(cx, "depth", None)
+    if depth is not None and depth != len(tr) and not lasso:
+        # --depth counts transitions of the reduced graph, the steps shown
+        # are the rules' (expanded): say both, so --depth can be read here
+        note += f"; depth {depth} in the reduced graph, as --depth counts"
+    return note
 
 
 def _steps(n: int) -> str:

@@ -521,12 +521,18 @@ def test_run_format_k_prints_the_final_configuration_in_k():
 
 def test_depth_is_shown_in_the_counterexample_and_is_what_depth_bounds():
     args = ("explore", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1")
-    out = cli(*args).output
-    m = re.search(r"^counterexample \((\d+) steps, shortest under the reductions; depth (\d+) "
+    out = cli(*args, "--no-shorten").output
+    m = re.search(r"^counterexample \((\d+) steps, shortest under the reductions; not compared "
+                  r"with the unreduced graph \(--no-shorten\); depth (\d+) "
                   r"in the reduced graph, as --depth counts\):$", out, re.M)
     assert m, out
     steps, depth = int(m[1]), int(m[2])
     assert steps > depth                     # the steps are expanded, the depth is not
+    # shortened against the unreduced semantics (issue 44.3), the depth is still said
+    short = cli(*args).output
+    assert re.search(rf"^counterexample \(\d+ steps, shortest: the reduced search's had "
+                     rf"{steps} steps; depth {depth} in the reduced graph, as --depth counts\):$",
+                     short, re.M), short
     # the depth printed is the smallest --depth that finds the violation
     assert cli(*args, "--depth", str(depth)).exit_code == 1
     below = cli(*args, "--depth", str(depth - 1))

@@ -228,6 +228,9 @@ class ExploreOptions(ModelOptions):
     timelock: bool = True                   # report time-locks (docs/temporal.md)
     stall: bool = True                      # report stalls (docs/temporal.md)
     fastest: bool = False                   # order the search on global time
+    #: under reductions, search the unreduced semantics for a shorter path to
+    #: each violation found before showing it (pccl/model/shorten.py)
+    shorten: bool = True
     #: the successor engine: auto (native where it can serve), native, python
     engine: str = "auto"
     #: write checkpoints into this directory (pccl/search/checkpoint.py), every
@@ -261,6 +264,7 @@ class ExploreOptions(ModelOptions):
         V.boolean(func, "timelock", self.timelock)
         V.boolean(func, "stall", self.stall)
         V.boolean(func, "fastest", self.fastest)
+        V.boolean(func, "shorten", self.shorten)
         if self.engine not in ENGINES:
             raise ArgumentError(f"engine must be one of {', '.join(ENGINES)}, got "
                                 f"{self.engine!r}", filename=f"pccl.api.{func}")
@@ -297,7 +301,7 @@ class ExploreOptions(ModelOptions):
 #: resources (memory, workers, Ray), the engine, progress and where the
 #: checkpoints go; the hooks a checkpoint cannot hold (API-only); and the world,
 #: identified by its file's hash instead.
-NOT_IDENTITY = frozenset({"world", "max_memory", "spill", "workers", "ray", "engine", "progress",
+NOT_IDENTITY = frozenset({"world", "max_memory", "spill", "workers", "ray", "engine", "progress", "shorten",
                           "progress_interval", "checkpoint", "checkpoint_interval", "resume"}) | API_ONLY
 #: The options that define a search, in the order a checkpoint's mismatch is
 #: reported: a resumed search must be the same search (derived from

@@ -234,6 +234,11 @@ class Finding(_Keyed):
     cycle_start: Optional[int] = None
     #: the path's initial state (None for "unreachable")
     initial: Optional[StateView] = field(default=None, repr=False)
+    #: under reductions, what shortening against the unreduced semantics
+    #: did (a :class:`pccl.model.shorten.Shortening`: ``status``
+    #: shortened, confirmed, not-shown or off; ``reduced_steps``; ``reason``),
+    #: None without reductions
+    shortening: Any = None
 
     def to_json(self) -> dict:
         """The finding; its path as the trace format writes one
@@ -244,6 +249,8 @@ class Finding(_Keyed):
                "trace": path_json(self.initial, self.trace, self.state)}
         if self.cycle_start is not None:
             out["cycle_start"] = self.cycle_start
+        if self.shortening is not None:
+            out["shortening"] = self.shortening.as_dict()
         return out
 
 

@@ -228,6 +228,9 @@ class Counterexample:
     #: numbers, and the step after which the repeated cycle starts
     chain: Optional[list] = None
     cycle_start: Optional[int] = None
+    #: what shortening against the unreduced semantics did to ``trace``
+    #: (a :class:`pccl.model.shorten.Shortening`; None: not tried)
+    shortening: Any = None
 
 
 @dataclass
