@@ -63,8 +63,9 @@ def check_counterexamples(res):
             succ = Model.successors(m, step.before)
             assert (step.label, step.after) in succ, f"step {step.number} is not a transition"
         last = tr.last
-        if v["kind"] == "stall":
-            # the first state of the stall: running agents, not terminal
+        if v["kind"] in ("stall", "frozen"):
+            # the first state of the stall, or of a frozen team (pccl/model/frozen.py):
+            # running agents, not terminal
             assert Model.successors(m, last)
             continue
         if v["kind"] in ("liveness", "timelock", "response"):
