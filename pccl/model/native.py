@@ -784,9 +784,8 @@ class Generator:
         movable; independence.may_wait) over the tables of :meth:`por_tables`."""
         from pccl.model import independence as I
         if por is None:
-            return ["static const unsigned char PSPENT[] = {0};",
-                    "static int eligible(const V *s, int i) { (void)s; (void)i; return 0; }",
-                    "static int movable(const V *s, int i) { (void)s; (void)i; return 0; }"]
+            return ["static const unsigned char PSPENT[] = {0};",     # what merging reads of por
+                    "static inline int movable(const V *s, int i) { (void)s; (void)i; return 0; }"]
         m = self.m
         u64 = "uint64_t"
         out = [self.c_array("PCLS", "unsigned char", por["cls"]),
@@ -809,7 +808,7 @@ class Generator:
                "#define VA_PC 0", "#define VA_LCK 2"]
         # the events agent j at the top of its block selects next (local guards)
         out.append("static void evfp(int j, const V *s, uint64_t *r, uint64_t *w) {")
-        out.append("  *r = GUARDR; *w = 0;")
+        out.append("  *r = GUARDR; *w = 0; (void)j; (void)s;")
         if por["local"]:
             out.append("  switch (j) {")
             for j in range(self.N):
@@ -820,8 +819,6 @@ class Generator:
                                f"*w |= {por['evw'][e]}ULL;{hit} }}")
                 out.append("    break; }")
             out.append("  }")
-        else:
-            out.append("  (void)j; (void)s;")
         out.append("}")
         out.append('#include "por.c"')
         return out
@@ -846,14 +843,15 @@ class Generator:
         def arr(name: str, vals: list) -> str:
             return self.c_array(name, u64, vals).replace(",", "ULL,").replace("}", "ULL}")
         out = ["#define DEAD 1", "#define DEADV (INT64_MIN + 3)", f"#define DROWS {rows}",
-               arr("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)]),
+               *([arr("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)])]
+                 if d.local_guards else []),
                f"#define DKEEP {d.keep}ULL", f"#define DALL {d.all}ULL", f"#define DGR {d.guard_reads}ULL",
                f"#define DTOP {d.top}ULL"]
         # dead_bits: per agent the mask of its dead values (nonzero: some)
         out.append(arr("DEADPC", [d.all & ~(d.live_pc(pc, r) | d.keep)
                                   for pc in range(npc) for r in range(rows)]))
         out.append("static int dead_bits(const V *s, uint64_t *d) {")
-        out.append("  uint64_t live; int row; uint64_t any = 0; const V *b;")
+        out.append(f"  {'uint64_t live; ' if d.local_guards else ''}int row; uint64_t any = 0; const V *b;")
         for j in range(self.N):
             a0 = self.AG0 + j * self.A
             row = " | ".join(f"((s[{a0 + 4 + q}] == 1) << {k})" for k, q in enumerate(d.cond_slots)) or "0"
@@ -918,16 +916,20 @@ class Generator:
                f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
                f"#define SYM {int(sym is not None)}",
                f"#define MERGE_LIMIT {MERGE_LIMIT}",
-               self.c_array("MERGEOK", "unsigned char", merge or []),
-               self.c_array("RHO", "V", list(m.rho)),
-               self.c_array("BID", "int", sym[0] if sym else []),
-               self.c_array("SHID", "int", sym[1] if sym else []),
                f"#define NBID {len(sym[0]) if sym else 0}",
-               f"#define NSHID {len(sym[1]) if sym else 0}",
-               "static int agent_of(int i, const V *s) {", "  switch (i) {"]
-        out += [f"  case {i}: return agent{i}(s);" for i in range(N)]
-        out += ["  }", "  return 0;", "}"]
-        out += self.por_c(por)
+               f"#define NSHID {len(sym[1]) if sym else 0}"]
+        # the tables and functions of the reductions that are on (no unused one)
+        if por is not None or merge is not None:
+            out.append(self.c_array("RHO", "V", list(m.rho)))
+        if sym is not None:
+            out += [self.c_array("BID", "int", sym[0]), self.c_array("SHID", "int", sym[1])]
+        if merge is not None:
+            out += [self.c_array("MERGEOK", "unsigned char", merge),
+                    "static int agent_of(int i, const V *s) {", "  switch (i) {",
+                    *(f"  case {i}: return agent{i}(s);" for i in range(N)),
+                    "  }", "  return 0;", "}"]
+        if por is not None or merge is not None:
+            out += self.por_c(por)
         out += self.dead_c()
         # the ample set (Por.successors): the first agent with an execution
         # left whose next step is independent of what the others can still

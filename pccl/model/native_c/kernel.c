@@ -426,7 +426,7 @@ static void *kthread(void *arg) {
   PyGILState_Release(g);
   return NULL;
 }
-static PyObject *explore_levels(PyObject *self, PyObject *args) {
+static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
   PyObject *level, *out;
   Py_ssize_t first, start, n, limit, cross;
   int threads;

@@ -177,8 +177,8 @@ static const V *memo_miss_kernel(const V *s, const V *key, int kl) {
   return val;
 }
 /* the successors of site k in state s: each a copy of s with the written
-   slots W_ set (the rule's own label) */
-static int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, int nw) {
+   slots W_ set (the rule's own label); unused in a program without memo sites */
+static MAYBE_UNUSED int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, int nw) {
   V key[MEMO_KMAX];
   key[0] = k;
   for (int q = 0; q < nr; q++) key[1 + q] = s[R_[q]];

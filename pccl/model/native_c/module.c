@@ -13,7 +13,7 @@ static PyObject *label_of(Py_ssize_t k) {
   return Py_BuildValue("(OOOiN)", PyTuple_GET_ITEM(l, 0), PyTuple_GET_ITEM(l, 1),
                        PyTuple_GET_ITEM(l, 2), (int)BIDX[k], ch);
 }
-static PyObject *successors(PyObject *self, PyObject *arg) {
+static PyObject *successors(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   BN = 0; ovf = 0;
@@ -30,7 +30,7 @@ static PyObject *successors(PyObject *self, PyObject *arg) {
 }
 /* expand(states): (successor counts, the successors of all in order, the
    labels met): one call per chunk of a level */
-static PyObject *expand(PyObject *self, PyObject *arg) {
+static PyObject *expand(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg), seen = 0;
   PyObject *ns = PyList_New(n), *flat = PyList_New(0), *labs = NULL;
@@ -71,7 +71,7 @@ fail:
 }
 /* key(state): the state's identity: the canonical vector (symmetry), without
    the clock under time abstraction */
-static PyObject *key(PyObject *self, PyObject *arg) {
+static PyObject *key(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   V c[NS];
@@ -104,23 +104,23 @@ static int64_t sighash(const V *s) {
   return (int64_t)h;
 }
 /* packed(state): the state's bytes in the form the explorer holds (state_bytes) */
-static PyObject *packed(PyObject *self, PyObject *arg) {
+static PyObject *packed(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   return s ? state_bytes(s) : NULL;
 }
 /* unpacked(state): the state's int64 vector, as bytes (arg_state) */
-static PyObject *unpacked(PyObject *self, PyObject *arg) {
+static PyObject *unpacked(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   return s ? PyBytes_FromStringAndSize((const char *)s, sizeof(V) * NS) : NULL;
 }
 /* sig(state): the stall signature's hash */
-static PyObject *sig(PyObject *self, PyObject *arg) {
+static PyObject *sig(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyLong_FromLongLong((long long)sighash(s));
 }
 /* sigs(states): sig of each state of a list, as int64s in one bytes object */
-static PyObject *sigs(PyObject *self, PyObject *arg) {
+static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg);
   PyObject *out = PyBytes_FromStringAndSize(NULL, n * (Py_ssize_t)sizeof(int64_t));
@@ -141,7 +141,7 @@ static PyObject *sigs(PyObject *self, PyObject *arg) {
    the last of at most `sweeps` still changed something (not settled: can
    holds a part of the answer).  The graph analysis' backward reachability
    (pccl/search/liveness.py Graph.can_reach) */
-static PyObject *reach_back(PyObject *self, PyObject *args) {
+static PyObject *reach_back(PyObject *Py_UNUSED(self), PyObject *args) {
   Py_buffer bs, bd, bc;
   int most;
   if (!PyArg_ParseTuple(args, "y*y*w*i", &bs, &bd, &bc, &most)) return NULL;
@@ -175,7 +175,7 @@ static PyObject *reach_back(PyObject *self, PyObject *args) {
    fingerprint q[i] (two uint64s), or -1.  table_place(slots, fps, idx, mask):
    index the state numbers idx (uint32s, distinct, absent). */
 #define TEMPTY 0xFFFFFFFFu
-static PyObject *table_lookup(PyObject *self, PyObject *args) {
+static PyObject *table_lookup(PyObject *Py_UNUSED(self), PyObject *args) {
   Py_buffer bs, bf, bq, bo;
   unsigned long long mask;
   if (!PyArg_ParseTuple(args, "y*y*y*w*K", &bs, &bf, &bq, &bo, &mask)) return NULL;
@@ -202,7 +202,7 @@ static PyObject *table_lookup(PyObject *self, PyObject *args) {
   if (bad) { PyErr_SetString(PyExc_ValueError, "table arrays of the wrong size"); return NULL; }
   Py_RETURN_NONE;
 }
-static PyObject *table_place(PyObject *self, PyObject *args) {
+static PyObject *table_place(PyObject *Py_UNUSED(self), PyObject *args) {
   Py_buffer bs, bf, bi;
   unsigned long long mask;
   if (!PyArg_ParseTuple(args, "w*y*y*K", &bs, &bf, &bi, &mask)) return NULL;
@@ -228,7 +228,7 @@ static inline unsigned char phase_cost(const V *s) {
   return s[V_PHASE] != PH_DISCRETE;
 }
 /* phases(states): per state 1 if it is dynamic (after TIME ADVANCE), as bytes */
-static PyObject *phases(PyObject *self, PyObject *arg) {
+static PyObject *phases(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg);
   PyObject *out = PyBytes_FromStringAndSize(NULL, n);
@@ -304,12 +304,12 @@ fail:
   Py_XDECREF(blob); Py_XDECREF(first); Py_XDECREF(occ); Py_XDECREF(sgs);
   return NULL;
 }
-static PyObject *fingerprints(PyObject *self, PyObject *arg) {
+static PyObject *fingerprints(PyObject *Py_UNUSED(self), PyObject *arg) {
   return fingerprints_(arg, 0);
 }
 /* fingerprints_sigs(states): fingerprints(states) and a fourth bytes object,
    sig of each state (int64s), computed in the same pass */
-static PyObject *fingerprints_sigs(PyObject *self, PyObject *arg) {
+static PyObject *fingerprints_sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   return fingerprints_(arg, 1);
 }
 /* no agent stuck, the lock's holder has not exited, every invariant holds
@@ -319,7 +319,7 @@ static inline int okstate(const V *s) {
   int r = okexpr(s);
   return ovf ? 0 : r;
 }
-static PyObject *ok(PyObject *self, PyObject *arg) {
+static PyObject *ok(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyBool_FromLong(okstate(s));
@@ -327,7 +327,7 @@ static PyObject *ok(PyObject *self, PyObject *arg) {
 /* violations(state): [] when okstate, else SLOWVIOL(state) (the Python
    model's own violations of the decoded configuration) */
 static PyObject *SLOWVIOL;
-static PyObject *violations(PyObject *self, PyObject *arg) {
+static PyObject *violations(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   if (okstate(s)) return PyList_New(0);
@@ -336,7 +336,7 @@ static PyObject *violations(PyObject *self, PyObject *arg) {
 /* suspects(states): the positions, ascending, of the states of a list that
    okstate does not pass (violations(state) may be non-empty only there):
    one call for a batch instead of one per state */
-static PyObject *suspects(PyObject *self, PyObject *arg) {
+static PyObject *suspects(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg);
   PyObject *out = PyList_New(0);
@@ -352,16 +352,16 @@ static PyObject *suspects(PyObject *self, PyObject *arg) {
   }
   return out;
 }
-static PyObject *memo_stats(PyObject *self, PyObject *unused) {
+static PyObject *memo_stats(PyObject *Py_UNUSED(self), PyObject *Py_UNUSED(unused)) {
   return Py_BuildValue("(nnn)", (Py_ssize_t)MEMO_N, (Py_ssize_t)MEMO_MISS, (Py_ssize_t)MEMO_HIT);
 }
-static PyObject *clock_(PyObject *self, PyObject *arg) {
+static PyObject *clock_(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   return PyLong_FromLongLong(s[V_TIME]);
 }
 /* max_clock(states): the largest time of a list of states (None: empty) */
-static PyObject *max_clock(PyObject *self, PyObject *arg) {
+static PyObject *max_clock(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg);
   if (!n) Py_RETURN_NONE;
@@ -373,7 +373,7 @@ static PyObject *max_clock(PyObject *self, PyObject *arg) {
   }
   return PyLong_FromLongLong(m);
 }
-static PyObject *setup(PyObject *self, PyObject *args) {
+static PyObject *setup(PyObject *Py_UNUSED(self), PyObject *args) {
   PyObject *labels, *exc, *slow, *miss;
   unsigned long long xxh;
   if (!PyArg_ParseTuple(args, "O!OOKO", &PyList_Type, &labels, &exc, &slow, &xxh, &miss))
@@ -412,5 +412,5 @@ static PyMethodDef methods[] = {
   {"explore_levels", explore_levels, METH_VARARGS, "levels expanded and admitted, on threads"},
   {NULL, NULL, 0, NULL}
 };
-static struct PyModuleDef mod = {PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods};
+static struct PyModuleDef mod = {PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods, NULL, NULL, NULL, NULL};
 PyMODINIT_FUNC INITFN(void) { return PyModule_Create(&mod); }

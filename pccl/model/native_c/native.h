@@ -36,6 +36,8 @@
 #include <string.h>
 #include <stdlib.h>
 typedef int64_t V;
+/* a helper some programs do not call (no atomic, no memo site, ...) */
+#define MAYBE_UNUSED __attribute__((unused))
 /* per thread: the level kernel (explore_levels) runs the successor code on
    several threads at once, each with its own overflow flag and buffer; KT
    is set while a thread runs it without the GIL (no Python call then) */
@@ -57,8 +59,8 @@ static inline V DIV(V a, V b) {
 static inline V MOD(V a, V b) { if (b == 0 || (a == INT64_MIN && b == -1)) { ovf = 1; return 0; } return a % b; }
 static inline V AIX(V j) { if (j < 0 || j >= NAG) { ovf = 1; return 0; } return j; }
 static inline V U(V a) { if (a == INT64_MIN) ovf = 1; return a; }
-static void lq_append(V *t, V i) { for (int k = 0; k < NAG; k++) if (t[LQ0 + k] < 0) { t[LQ0 + k] = i; return; } }
-static void lq_remove(V *t, V i) {
+static MAYBE_UNUSED void lq_append(V *t, V i) { for (int k = 0; k < NAG; k++) if (t[LQ0 + k] < 0) { t[LQ0 + k] = i; return; } }
+static MAYBE_UNUSED void lq_remove(V *t, V i) {
   int w = 0;
   for (int k = 0; k < NAG; k++) if (t[LQ0 + k] >= 0 && t[LQ0 + k] != i) t[LQ0 + w++] = t[LQ0 + k];
   for (; w < NAG; w++) t[LQ0 + w] = -1;

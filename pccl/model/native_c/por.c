@@ -57,7 +57,7 @@ static int eligible(const V *s, int i) {
 }
 /* whether merging may run agent i's next step (Por.movable): 0 no, 1 a
    step the stall signature does not see, 2 one that writes its data */
-static int movable(const V *s, int i) {
+static MAYBE_UNUSED int movable(const V *s, int i) {   /* merging's */
   const V *ag = s + AG0 + AW * i;
   V pc = ag[VA_PC];
   if ((uint64_t)pc >= NPC) return 0;

@@ -13,6 +13,7 @@
 #define NSLOT 4096
 static __thread V *SEEN;           /* per thread, on the heap (kfree_tls) */
 static __thread int16_t *SLOT;
+#if MERGE
 static uint64_t idhash(const V *id) {
   uint64_t h = 0x9E3779B97F4A7C15ULL;
   for (int q = 0; q < IDW; q++) { h ^= (uint64_t)id[q]; h *= 0xBF58476D1CE4E5B9ULL; h ^= h >> 31; }
@@ -77,10 +78,13 @@ static int chain(const V *s0, Py_ssize_t k, int i) {
   if (n) { memcpy(BUF + NS * k, cur, sizeof cur); BCH[k] = n; }
   return 0;
 }
+#endif
 /* the reduced successors of s appended to the buffer: the ample set of
    partial-order reduction (else every successor), each merged */
 static int rstep(const V *s) {
+#if POR || MERGE
   Py_ssize_t b0 = BN;
+#endif
 #if POR
   if (s[V_PHASE] == PH_DISCRETE) {
     int a = ample(s, b0);     /* generated (Generator.reduced_c) */
@@ -112,6 +116,7 @@ chains:
 #define SIGW (AW + NSHID + 1)
 #define MSELF (INT64_MIN + 1)
 #define MOTHER (INT64_MIN + 2)
+#if SYM
 static int vcmp(const V *a, const V *b, int n) {
   for (int q = 0; q < n; q++) if (a[q] != b[q]) return a[q] < b[q] ? -1 : 1;
   return 0;
@@ -134,6 +139,10 @@ static void build(const V *s, const int *order, V *out) {
     }
   }
 }
+/* canon calls it on a group of order (a = order + start, start + len <= NAG),
+   which gcc's -Warray-bounds, inlining it, cannot tell */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Warray-bounds"
 static int next_perm(int *a, int n) {
   int i = n - 2;
   while (i >= 0 && a[i] >= a[i + 1]) i--;
@@ -144,6 +153,8 @@ static int next_perm(int *a, int n) {
   for (int l = i + 1, h = n - 1; l < h; l++, h--) { t = a[l]; a[l] = a[h]; a[h] = t; }
   return 1;
 }
+#pragma GCC diagnostic pop
+#endif
 static void canon(const V *s0, V *out) {
 #if DEAD
   uint64_t dd[NAG];
