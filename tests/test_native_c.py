@@ -17,6 +17,7 @@ import pytest
 
 from pccl.api import make_model
 from pccl.model import native as NV
+from pccl.model import native_build as NB
 from pccl.model.toolchain import native_unavailable
 
 from conftest import ROOT
@@ -40,7 +41,7 @@ def _source(case: str) -> str:
 
 
 def test_the_generated_source_includes_every_fixed_file_once():
-    fixed = sorted(n for n in os.listdir(NV.C_DIR) if n.endswith((".c", ".h")))
+    fixed = sorted(n for n in os.listdir(NB.C_DIR) if n.endswith((".c", ".h")))
     assert {"native.h", "kernel.c", "module.c"} <= set(fixed)
     for case in ("fischer-reduced", "fischer-unreduced"):
         included = re.findall(r'^#include "([^"]+)"$', _source(case), re.M)
@@ -52,17 +53,17 @@ def test_the_generated_source_includes_every_fixed_file_once():
 
 def test_the_cache_key_and_the_source_hash_read_the_fixed_files(tmp_path, monkeypatch):
     src = _source("fischer-unreduced")
-    before = NV.source_digest(src)
+    before = NB.source_digest(src)
     copy = tmp_path / "native_c"
-    shutil.copytree(NV.C_DIR, copy)
-    monkeypatch.setattr(NV, "C_DIR", str(copy))
-    monkeypatch.setattr(NV, "_FIXED", [])
-    assert NV.source_digest(src) == before          # the same files: the same key
+    shutil.copytree(NB.C_DIR, copy)
+    monkeypatch.setattr(NB, "C_DIR", str(copy))
+    monkeypatch.setattr(NB, "_FIXED", [])
+    assert NB.source_digest(src) == before          # the same files: the same key
     with open(copy / "kernel.c", "a") as f:
         f.write("/* an edit */\n")
-    monkeypatch.setattr(NV, "_FIXED", [])
-    assert NV.source_digest(src) != before
-    assert NV.source_digest(src, "abi") != NV.source_digest(src)
+    monkeypatch.setattr(NB, "_FIXED", [])
+    assert NB.source_digest(src) != before
+    assert NB.source_digest(src, "abi") != NB.source_digest(src)
 
 
 def _gcc() -> str:
@@ -81,6 +82,6 @@ def test_the_module_compiles_without_warnings(case, tmp_path):
     c.write_text('#define MODNAME "m"\n#define INITFN PyInit_m\n' + _source(case))
     inc = sysconfig.get_paths()["include"]
     p = subprocess.run([_gcc(), "-O2", "-fPIC", "-pthread", "-Wall", "-Wextra", "-Werror", f"-I{inc}",
-                        f"-I{NV.C_DIR}", "-c", str(c), "-o", str(tmp_path / "m.o")],
+                        f"-I{NB.C_DIR}", "-c", str(c), "-o", str(tmp_path / "m.o")],
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-4000:]
