@@ -5,9 +5,9 @@ compiles ``pan.c``), for programs whose configuration is a fixed vector of
 integers.
 
 The C that is the same for every program is C source in ``native_c/``
-(package data); :class:`Generator` writes what depends on the program and
-includes those files (``#include``) (docs/architecture.md, "The native engine's C");
-:mod:`pccl.model.native_build` compiles, caches and loads the module.
+(package data): :class:`Generator` writes what depends on the program, a
+module that includes those files (docs/architecture.md, "The native engine's
+C"); :mod:`pccl.model.native_build` compiles, caches and loads it.
 
 A configuration is then a vector of int64 slots, native byte order::
 
