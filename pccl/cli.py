@@ -1735,7 +1735,7 @@ def cache_cmd(clear, fmt):
     (docs/benchmarks.md#the-module-cache)."""
     import json
     import os
-    from pccl.model import native as NV
+    from pccl.model import native_build as NV
     from pccl.search.memory import format_size
     try:
         bound = NV.cache_bound()

@@ -1,4 +1,4 @@
-"""The native engine's module cache (pccl/model/native.py: ``build``,
+"""The native engine's module cache (pccl/model/native_build.py: ``build``,
 ``prune_cache``; ``pccl cache``): the size bound ($PCCL_CACHE_SIZE) is
 held by removing the least recently used modules, never the one just
 built nor one this process loaded, nor while another process loads one;
@@ -17,12 +17,13 @@ import pytest
 from conftest import cli, started
 from pccl.api import make_model
 from pccl.model import native as NV
+from pccl.model import native_build as NB
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FISCHER = os.path.join(ROOT, "programs/fischer.pccl")
 MISSING = NV.unsupported(make_model(FISCHER, reduce="none"))
 needs_cc = pytest.mark.skipif(MISSING is not None, reason=f"native engine unavailable: {MISSING}")
-EXT = NV._module_ext()
+EXT = NB._module_ext()
 
 
 @pytest.fixture
@@ -46,7 +47,7 @@ def fake(d, i: int, size: int, age: float) -> str:
 
 
 def names(d) -> set:
-    return {p for _, _, p in NV.cache_modules(str(d))}
+    return {p for _, _, p in NB.cache_modules(str(d))}
 
 
 # -- the bound ---------------------------------------------------------------------
@@ -55,7 +56,7 @@ def test_prune_removes_the_least_recently_used_until_under_the_bound(cache):
     mods = [fake(cache, i, 1000, age=100 - i) for i in range(10)]     # mods[0] the oldest
     other = cache / "lark-0123.cache"
     other.write_bytes(b"x" * 5000)            # not a module: neither counted nor removed
-    removed = NV.prune_cache(str(cache), 4500)
+    removed = NB.prune_cache(str(cache), 4500)
     assert removed == mods[:6]                # oldest first, until 4 x 1000 <= 4500
     assert names(cache) == set(mods[6:])
     assert other.exists()
@@ -63,14 +64,14 @@ def test_prune_removes_the_least_recently_used_until_under_the_bound(cache):
 
 def test_prune_keeps_the_module_named_even_when_it_is_the_oldest(cache):
     mods = [fake(cache, i, 1000, age=100 - i) for i in range(5)]
-    NV.prune_cache(str(cache), 2500, keep=(mods[0],))
+    NB.prune_cache(str(cache), 2500, keep=(mods[0],))
     assert names(cache) == {mods[0], mods[4]}
 
 
 def test_a_module_loaded_by_this_process_is_never_pruned(cache, monkeypatch):
     mods = [fake(cache, i, 1000, age=100 - i) for i in range(3)]
-    monkeypatch.setattr(NV, "_LOADED", {os.path.abspath(mods[0])})
-    NV.prune_cache(str(cache), 0)
+    monkeypatch.setattr(NB, "_LOADED", {os.path.abspath(mods[0])})
+    NB.prune_cache(str(cache), 0)
     assert names(cache) == {mods[0]}
 
 
@@ -78,13 +79,13 @@ def test_stale_compile_directories_are_removed(cache):
     old, new = cache / "tmpold", cache / "tmpnew"
     old.mkdir()
     new.mkdir()
-    t = time.time() - NV.STALE_TMP - 10
+    t = time.time() - NB.STALE_TMP - 10
     os.utime(old, (t, t))
-    NV.prune_cache(str(cache), None)
+    NB.prune_cache(str(cache), None)
     assert not old.exists() and new.exists()
 
 
-@pytest.mark.parametrize("text, want", [(None, NV.CACHE_SIZE_DEFAULT), ("", NV.CACHE_SIZE_DEFAULT),
+@pytest.mark.parametrize("text, want", [(None, NB.CACHE_SIZE_DEFAULT), ("", NB.CACHE_SIZE_DEFAULT),
                                         ("0", None), ("2048", 2048), ("3K", 3072),
                                         ("1.5M", 3 * 2**19), ("1G", 2**30)])
 def test_the_bound_from_the_environment(monkeypatch, text, want):
@@ -92,7 +93,7 @@ def test_the_bound_from_the_environment(monkeypatch, text, want):
         monkeypatch.delenv("PCCL_CACHE_SIZE", raising=False)
     else:
         monkeypatch.setenv("PCCL_CACHE_SIZE", text)
-    assert NV.cache_bound() == want
+    assert NB.cache_bound() == want
 
 
 @needs_cc
@@ -125,8 +126,8 @@ def test_a_prune_waits_for_a_process_that_is_loading(cache):
     module holds it shared: the prune waits until the load is done."""
     fake(cache, 1, 1000, age=10)
     done = threading.Event()
-    with NV._Lock(str(cache), exclusive=False):         # "another process loading"
-        t = threading.Thread(target=lambda: (NV.prune_cache(str(cache), 0), done.set()))
+    with NB._Lock(str(cache), exclusive=False):         # "another process loading"
+        t = threading.Thread(target=lambda: (NB.prune_cache(str(cache), 0), done.set()))
         t.start()
         assert not done.wait(0.5)       # blocked while the load goes on
         assert len(names(cache)) == 1
@@ -266,7 +267,7 @@ def test_an_interrupt_while_compiling_through_the_api(cache, monkeypatch):
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
-    monkeypatch.setattr(NV, "_compile", interrupted)
+    monkeypatch.setattr(NB, "_compile", interrupted)
     r = explore(FISCHER, engine="native")
     assert (r.status, r.exit_status, r.stats.states, r.stats.transitions) == \
         ("interrupted", 130, 0, 0)
@@ -279,7 +280,7 @@ def test_native_modules_of_a_shared_cache_directory_stay_private(tmp_path, monke
     can write, it compiles into a directory of the process's own."""
     import os
     import stat
-    from pccl.model import native
+    from pccl.model import native_build as native
     shared = tmp_path / "shared"
     shared.mkdir()
     shared.chmod(0o777)

@@ -59,7 +59,9 @@ def _source_modules() -> set[str]:
 
 
 PACKAGE_DATA = {"pccl/py.typed", "pccl/lang/grammar.lark",
-                *("pccl/output/viewer_assets/" + p.name for p in (ROOT / "pccl/output/viewer_assets").iterdir())}
+                *("pccl/output/viewer_assets/" + p.name for p in (ROOT / "pccl/output/viewer_assets").iterdir()),
+                # the native engine's fixed C (docs/architecture.md, "The native engine's C")
+                *("pccl/model/native_c/" + p.name for p in (ROOT / "pccl/model/native_c").iterdir())}
 
 
 @pytest.mark.slow
