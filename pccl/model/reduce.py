@@ -238,12 +238,11 @@ def _needs_two(name: str) -> PcclError:
 def _plan_symmetry(m, want, p: "Plan", on: list):
     """Step of :func:`plan`: turn symmetry on (returning its slots) if it is
     sound, else say why it is off, or raise if it was asked for."""
+    # with a liveness property too (issue 46): the properties are symmetric
+    # (symmetry_problem reads them), a fair accepting component of the
+    # quotient stands for a fair cycle of real states, which the analysis
+    # finds for the lasso (pccl/search/lift.py; docs/reductions.md)
     why, slots = symmetry_problem(m)
-    live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
-    if why is None and live:
-        # a cycle of the quotient is a real run only up to a permutation of
-        # the agents: a lasso would not return to its own entry state
-        why = f"liveness property `{live[0]}` needs real cycles for its lassos"
     if why is None:
         on.append("symmetry")
     elif want is not None and m.N < 2:
@@ -272,16 +271,14 @@ def _plan_por(m, want, p: "Plan", on: list) -> None:
 
 
 def _plan_dead(m, want, p: "Plan", on: list) -> None:
-    """Step of :func:`plan`: turn the dead-variable reduction on unless a
-    liveness property needs real cycles (as under symmetry: a cycle of the
-    quotient returns to its entry only up to the dead values; asking for it
-    then is an error); under ``auto`` only where something can be dead
-    (elsewhere it is not "off" for a reason: there is nothing for it to do)."""
+    """Step of :func:`plan`: turn the dead-variable reduction on, under
+    ``auto`` only where something can be dead (elsewhere it is not "off"
+    for a reason: there is nothing for it to do).  With a liveness property
+    too (issue 46): a cycle of the quotient closes only up to dead values,
+    so the lasso is rebuilt over real states (pccl/search/lift.py;
+    docs/reductions.md)."""
     from pccl.model.dead import can_be_dead
-    live = [t.text for t in getattr(m, "temporal", ()) if t.liveness]
-    if live:
-        _unsound("dead", f"liveness property `{live[0]}` needs real cycles for its lassos", want, p)
-    elif want is not None or can_be_dead(m):
+    if want is not None or can_be_dead(m):
         on.append("dead")
 
 
