@@ -258,13 +258,13 @@ def _plan_symmetry(m, want, p: "Plan", on: list):
 def _plan_por(m, want, p: "Plan", on: list) -> None:
     """Step of :func:`plan`: turn partial-order reduction on if it is sound,
     else say why it is off, or raise if it was asked for."""
-    temporal = [t.text for t in getattr(m, "temporal", ())]
-    if temporal:
-        # the ample-set conditions here are proven for state properties
-        # only (docs/reductions.md); paths need a stronger cycle proviso
-        _unsound("por", f"temporal property `{temporal[0]}` (por is proven for invariants only)",
-                 want, p)
-    elif m.N >= 2:
+    # with temporal properties too (issue 46): every cycle of the reduced
+    # graph passes a fully expanded state (the source of its TIME ADVANCE),
+    # the cycle proviso under which the reduced graph is stuttering
+    # equivalent to the rules' for the properties' variables, the phase and
+    # (under fair arrival, Independence.doreach_visible) the robots under
+    # way (docs/reductions.md)
+    if m.N >= 2:
         on.append("por")
     elif want is not None:
         raise _needs_two("por")
@@ -683,6 +683,40 @@ def expand_trace(m, trace, violation=None):
 # ---------------------------------------------------------------------------
 # partial-order reduction
 # ---------------------------------------------------------------------------
+
+class UnionPor:
+    """The ample sets of :class:`Por` for *every* agent that qualifies, not
+    the first: a state's successors are the union of the ample sets of all
+    its eligible agents (a union of ample sets keeps C0-C3), so the graph is
+    invariant under renaming agents (a renamed state's ample agent is one of
+    them).  The search over real states of a liveness lasso
+    (pccl/search/lift.py) walks it: it contains every transition the
+    reduced graph has from a state of the same orbit, renamed
+    (docs/reductions.md)."""
+
+    def __init__(self, por: "Por"):
+        self.por = por
+        self.plain = por.plain
+
+    def successors(self, st) -> list:
+        por = self.por
+        if st[PHASE] == DISCRETE:
+            m = por.m
+            rho, n0 = m.rho, m.n0
+            out: list = []
+            for i, ag in enumerate(st[AGS]):
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0 and por.eligible(st, i, ag):
+                    out += por._keeps_running(st, i, ag) or []
+            if out:
+                return out
+            spent_local = por.ind.spent_local
+            for i, ag in enumerate(st[AGS]):
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] > n0 and spent_local(ag[PC]):
+                    out += por._keeps_running(st, i, ag) or []
+            if out:
+                return out
+        return self.plain(st)
+
 
 class Por:
     """Partial-order reduction with ample sets (docs/reductions.md).

@@ -47,6 +47,18 @@ class RealCycles:
         table = explorer.table
         key, key_of, index_of = m.key, table.key_of, table.index_of
         self.successors = m.successors
+        #: what expands this search's merged transitions (None: not merged)
+        self.merger = getattr(m, "merger", None)
+        por = getattr(m, "por", None)
+        if por is not None:
+            # the ample sets of every eligible agent: the graph contains the
+            # reduced graph's transitions out of every renaming of a state
+            from pccl.model.reduce import Merger, UnionPor
+            union = UnionPor(por)
+            self.successors = union.successors
+            if self.merger is not None:
+                self.merger = Merger(m.model, union.successors, por)
+                self.successors = self.merger.successors
         self.number = lambda s: index_of(key_of(key(s)))
         inner = getattr(m, "model", m)
         self.ident = inner.plain_key

@@ -782,6 +782,15 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
     return out
 
 
+def quotient_of(model) -> tuple:
+    """(renamed, quotient): whether a state number of ``model``'s graph
+    stands for an orbit under renaming agents (symmetry), and whether it
+    stands for more than one real state at all (symmetry or dead)."""
+    on = getattr(getattr(model, "reduction", None), "on", ())
+    renamed = "symmetry" in on
+    return renamed, renamed or "dead" in on
+
+
 class _Analysis:
     """The steps of :func:`analyse` over one frozen graph."""
 
@@ -796,12 +805,10 @@ class _Analysis:
         self.n_init = sr.stats.initial_states
         self.props = rec.props
         self.explorer = explorer
-        on = getattr(getattr(model, "reduction", None), "on", ())
-        #: a state number stands for an orbit under renaming agents
-        self.renamed = "symmetry" in on
-        #: ... or for states that differ in dead values: a cycle of the
-        #: graph closes only up to them, lassos are rebuilt on real states
-        self.quotient = self.renamed or "dead" in on
+        #: a state number stands for an orbit under renaming agents; or (or
+        #: also) for states that differ in dead values: a cycle of the graph
+        #: closes only up to them, lassos are rebuilt on real states
+        self.renamed, self.quotient = quotient_of(model)
 
     def _exact_fair(self, inside: np.ndarray) -> bool:
         """Under symmetry: whether the component ``inside`` of the quotient
@@ -1165,6 +1172,7 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     accepting cycle of real states inside the component (pccl/search/lift.py),
     which exists there whatever real state the prefix reached
     (docs/reductions.md)."""
+    from pccl.model.reduce import expand_trace
     from pccl.search.explorer import Trace
     from pccl.search.lift import RealCycles
     inside, dyn, n_fair = cx.rebuild
@@ -1175,15 +1183,19 @@ def _rebuild_lasso(model, explorer, cx) -> None:
         raise RuntimeError("internal error: the accepting component of the reduced graph has "
                            "no fair cycle of real states (please report it)")
     steps, k = found
-    path, cycle = steps[:k], steps[k:]
-    head = Trace(pre.states + tuple(s for _, s in path), pre.labels + tuple(lab for lab, _ in path))
-    whole = Trace(head.states + tuple(s for _, s in cycle),
-                  head.labels + tuple(lab for lab, _ in cycle))
-    cx.chain = list(cx.chain[:cx.cycle_start + 1]) + [rc.number(s) for _, s in path + cycle]
-    cx.cycle_start = len(model.expand_trace(head))
-    tr = model.expand_trace(whole)
-    cx.trace = Trace(tr.states, tr.labels)
-    cx.depth = len(tr)
+    pre = model.expand_trace(pre)
+
+    def expanded(part: list):
+        """The steps ``part`` from the prefix's last state, expanded."""
+        tr = Trace((pre.last,) + tuple(s for _, s in part), tuple(lab for lab, _ in part))
+        tr = expand_trace(rc, tr) if rc.merger is not None else tr
+        return tr.states[1:], tr.labels
+    ps, pl = expanded(steps[:k])
+    cs, cl = expanded(steps)
+    cx.chain = list(cx.chain[:cx.cycle_start + 1]) + [rc.number(s) for _, s in steps]
+    cx.cycle_start = len(pre) + len(pl)
+    cx.trace = Trace(pre.states + cs, pre.labels + cl)
+    cx.depth = len(cx.trace)
     cx.rebuild = None
 
 
