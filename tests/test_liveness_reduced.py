@@ -78,7 +78,7 @@ def test_teeth_the_quotient_cycle_replayed_does_not_close(monkeypatch):
 def test_a_property_naming_an_agent_keeps_symmetry_off():
     m = make_model(ALT, properties=["eventually exited[0]"])
     assert "symmetry" not in m.reduction.on
-    assert "names agent 0" in m.reduction.describe()
+    assert "exited[0] names agent 0" in m.reduction.describe()
     # forall i: one instance per agent, each names its agent
     m = make_model(ALT, properties=["forall i: eventually exited[i]"])
     assert "symmetry" not in m.reduction.on
@@ -172,7 +172,7 @@ def proviso_holds(m, limit: int = 20_000) -> bool:
     (SPIN, {}),
     (RACE, dict(world=RACE_WORLD, agents=2, blackbox="nondet")),
     (str(PROGRAMS / "fischer.pccl"), dict(overrides={"k": 1})),
-])
+], ids=["local_loop", "alternate", "tl_spin", "race_robust", "fischer"])
 def test_every_cycle_of_the_reduced_graph_passes_a_fully_expanded_state(prog, kw):
     m = make_model(prog, reduce="por", properties=[ALL_EXIT], **kw)
     assert "por" in m.reduction.on
@@ -220,3 +220,22 @@ def test_verdicts_and_lassos_equal_the_unreduced_search(prog, kw, props):
         assert verdict(r) == verdict(truth), (red, r.verdict, truth.verdict)
         assert real_lasso(r), red
     assert seen
+
+
+def test_generated_programs_with_liveness_properties():
+    """tests/liveattack.py: a fixed budget of generated programs, each with
+    liveness properties, under every reduction combination its analysis
+    allows against --reduce none (python tests/liveattack.py FIRST N runs
+    more)."""
+    import liveattack
+    compared = sym = 0
+    for seed in range(0, 16):
+        r = liveattack.check(seed, real_lasso)
+        if "invalid" in r or "bounded" in r:
+            continue
+        sym += "symmetry" in r["on"]
+        for combo in liveattack.COMBOS:
+            if combo in r:
+                compared += 1
+                assert r[combo] == (True, True), (seed, combo, r)
+    assert compared >= 30 and sym >= 2, (compared, sym)
