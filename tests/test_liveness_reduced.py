@@ -190,7 +190,35 @@ def test_teeth_a_por_without_the_cycle_proviso_is_caught(monkeypatch):
     assert not proviso_holds(m)
 
 
+DRIVE = str(TEST_PROGRAMS / "drive_exit.pccl")
+DRIVE3 = str(TEST_PROGRAMS / "drive3.toml")
+
+
+def test_fair_arrival_under_symmetry_is_decided_over_real_states(monkeypatch):
+    """drive_exit: the property holds only by fair arrival; the components
+    where some robots have exited and the others stay under way for ever
+    are undecided on the representatives (some robot idle, none with every
+    robot idle) and decided unfair by the search over real states."""
+    from pccl.search import lift
+    calls: list = []
+    real = lift.RealCycles.has_fair_cycle
+
+    def counted(self, c, inside):
+        calls.append(real(self, c, inside))
+        return calls[-1]
+    monkeypatch.setattr(lift.RealCycles, "has_fair_cycle", counted)
+    kw = dict(world=DRIVE3, blackbox="nondet", properties=[ALL_EXIT], find_all=True)
+    r = explore(DRIVE, **kw)
+    assert "symmetry" in r.model.reduction.on
+    assert r.holds == [ALL_EXIT] and not r.violations
+    assert calls and not any(calls)
+    assert verdict(r) == verdict(explore(DRIVE, reduce="none", engine="python", **kw))
+
+
 CASES = [
+    (DRIVE, dict(world=RDV_OPEN, blackbox="nondet"), [ALL_EXIT, "eventually count(exited) >= 1"]),
+    (DRIVE, dict(world=DRIVE3, blackbox="nondet"), [ALL_EXIT]),
+    (DRIVE, dict(world=DRIVE3, blackbox="nondet-fail"), [ALL_EXIT]),
     (ALT, dict(agents=2), [ALL_EXIT, "eventually count(exited) == 0"]),
     (ALT, dict(agents=3), [ALL_EXIT]),
     (SPIN, dict(agents=2), ["eventually !b"]),
