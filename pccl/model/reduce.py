@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 import itertools
 import marshal
+import types
 from dataclasses import dataclass, field
 from typing import Any, Optional
 from collections.abc import Callable
@@ -399,6 +400,22 @@ class Reduced:
 
     def __repr__(self) -> str:
         return f"<Reduced {self.reduction.describe()} of {self.model!r}>"
+
+    def lasso_successors(self) -> tuple:
+        """``(successors, expand)`` for a search over real states of a
+        lasso (pccl/search/lift.py): this model's transitions, except that
+        under partial-order reduction the ample sets of *every* eligible
+        agent (:class:`UnionPor`: invariant under renaming agents), merged
+        as this model merges; ``expand(trace)`` expands its merged
+        transitions (docs/reductions.md, "Temporal properties under the
+        reductions")."""
+        if self.por is None:
+            return self.successors, self.expand_trace
+        union = UnionPor(self.por)
+        if self.merger is None:
+            return union.successors, (lambda trace: trace)
+        holder = types.SimpleNamespace(merger=Merger(self.model, union.successors, self.por))
+        return holder.merger.successors, functools.partial(expand_trace, holder)
 
     def with_uses(self, uses) -> "Reduced":
         """The same model, reduced as asked, for these uses of the search."""

@@ -46,19 +46,13 @@ class RealCycles:
         m = explorer.model
         table = explorer.table
         key, key_of, index_of = m.key, table.key_of, table.index_of
-        self.successors = m.successors
-        #: what expands this search's merged transitions (None: not merged)
-        self.merger = getattr(m, "merger", None)
-        por = getattr(m, "por", None)
-        if por is not None:
-            # the ample sets of every eligible agent: the graph contains the
-            # reduced graph's transitions out of every renaming of a state
-            from pccl.model.reduce import Merger, UnionPor
-            union = UnionPor(por)
-            self.successors = union.successors
-            if self.merger is not None:
-                self.merger = Merger(m.model, union.successors, por)
-                self.successors = self.merger.successors
+        #: the transitions searched, and what expands a trace of them
+        #: (under por: the ample sets of every eligible agent, so that the
+        #: graph holds the reduced graph's transitions of every renaming)
+        if hasattr(m, "lasso_successors"):
+            self.successors, self.expand = m.lasso_successors()
+        else:
+            self.successors, self.expand = m.successors, (lambda trace: trace)
         self.number = lambda s: index_of(key_of(key(s)))
         inner = getattr(m, "model", m)
         self.ident = inner.plain_key

@@ -1172,7 +1172,6 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     accepting cycle of real states inside the component (pccl/search/lift.py),
     which exists there whatever real state the prefix reached
     (docs/reductions.md)."""
-    from pccl.model.reduce import expand_trace
     from pccl.search.explorer import Trace
     from pccl.search.lift import RealCycles
     inside, dyn, n_fair = cx.rebuild
@@ -1188,7 +1187,7 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     def expanded(part: list):
         """The steps ``part`` from the prefix's last state, expanded."""
         tr = Trace((pre.last,) + tuple(s for _, s in part), tuple(lab for lab, _ in part))
-        tr = expand_trace(rc, tr) if rc.merger is not None else tr
+        tr = rc.expand(tr)
         return tr.states[1:], tr.labels
     ps, pl = expanded(steps[:k])
     cs, cl = expanded(steps)
