@@ -188,7 +188,12 @@ class Independence:
         #: its block will select next are the ones enabled now (its locals
         #: change only by its own steps)
         self.guards_local = local_guards(m) and not comp.guards_rand
-        self.doreach_visible = bool(self.visible & {"doReach_done", "doReach_fail"})
+        # under fair arrival a liveness property sees whether a robot is
+        # under way (pccl/search/liveness.py's pending bits), which a doReach
+        # changes: then it is visible too (issue 46, docs/reductions.md)
+        fair = bool(getattr(m, "arrival_is_fair", False)) and any(
+            p.liveness for p in getattr(m, "temporal", ()))
+        self.doreach_visible = fair or bool(self.visible & {"doReach_done", "doReach_fail"})
         self._rest: dict = {}
         self._step: dict = {}
         self._spent: dict = {}

@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 import itertools
 import marshal
+import types
 from dataclasses import dataclass, field
 from typing import Any, Optional
 from collections.abc import Callable
@@ -238,12 +239,11 @@ def _needs_two(name: str) -> PcclError:
 def _plan_symmetry(m, want, p: "Plan", on: list):
     """Step of :func:`plan`: turn symmetry on (returning its slots) if it is
     sound, else say why it is off, or raise if it was asked for."""
+    # with a liveness property too (issue 46): the properties are symmetric
+    # (symmetry_problem reads them), a fair accepting component of the
+    # quotient stands for a fair cycle of real states, which the analysis
+    # finds for the lasso (pccl/search/lift.py; docs/reductions.md)
     why, slots = symmetry_problem(m)
-    live = [p.text for p in getattr(m, "temporal", ()) if p.liveness]
-    if why is None and live:
-        # a cycle of the quotient is a real run only up to a permutation of
-        # the agents: a lasso would not return to its own entry state
-        why = f"liveness property `{live[0]}` needs real cycles for its lassos"
     if why is None:
         on.append("symmetry")
     elif want is not None and m.N < 2:
@@ -259,29 +259,27 @@ def _plan_symmetry(m, want, p: "Plan", on: list):
 def _plan_por(m, want, p: "Plan", on: list) -> None:
     """Step of :func:`plan`: turn partial-order reduction on if it is sound,
     else say why it is off, or raise if it was asked for."""
-    temporal = [t.text for t in getattr(m, "temporal", ())]
-    if temporal:
-        # the ample-set conditions here are proven for state properties
-        # only (docs/reductions.md); paths need a stronger cycle proviso
-        _unsound("por", f"temporal property `{temporal[0]}` (por is proven for invariants only)",
-                 want, p)
-    elif m.N >= 2:
+    # with temporal properties too (issue 46): every cycle of the reduced
+    # graph passes a fully expanded state (the source of its TIME ADVANCE),
+    # the cycle proviso under which the reduced graph is stuttering
+    # equivalent to the rules' for the properties' variables, the phase and
+    # (under fair arrival, Independence.doreach_visible) the robots under
+    # way (docs/reductions.md)
+    if m.N >= 2:
         on.append("por")
     elif want is not None:
         raise _needs_two("por")
 
 
 def _plan_dead(m, want, p: "Plan", on: list) -> None:
-    """Step of :func:`plan`: turn the dead-variable reduction on unless a
-    liveness property needs real cycles (as under symmetry: a cycle of the
-    quotient returns to its entry only up to the dead values; asking for it
-    then is an error); under ``auto`` only where something can be dead
-    (elsewhere it is not "off" for a reason: there is nothing for it to do)."""
+    """Step of :func:`plan`: turn the dead-variable reduction on, under
+    ``auto`` only where something can be dead (elsewhere it is not "off"
+    for a reason: there is nothing for it to do).  With a liveness property
+    too (issue 46): a cycle of the quotient closes only up to dead values,
+    so the lasso is rebuilt over real states (pccl/search/lift.py;
+    docs/reductions.md)."""
     from pccl.model.dead import can_be_dead
-    live = [t.text for t in getattr(m, "temporal", ()) if t.liveness]
-    if live:
-        _unsound("dead", f"liveness property `{live[0]}` needs real cycles for its lassos", want, p)
-    elif want is not None or can_be_dead(m):
+    if want is not None or can_be_dead(m):
         on.append("dead")
 
 
@@ -451,6 +449,22 @@ class Reduced:
 
     def __repr__(self) -> str:
         return f"<Reduced {self.reduction.describe()} of {self.model!r}>"
+
+    def lasso_successors(self) -> tuple:
+        """``(successors, expand)`` for a search over real states of a
+        lasso (pccl/search/lift.py): this model's transitions, except that
+        under partial-order reduction the ample sets of *every* eligible
+        agent (:class:`UnionPor`: invariant under renaming agents), merged
+        as this model merges; ``expand(trace)`` expands its merged
+        transitions (docs/reductions.md, "Temporal properties under the
+        reductions")."""
+        if self.por is None:
+            return self.successors, self.expand_trace
+        union = UnionPor(self.por)
+        if self.merger is None:
+            return union.successors, (lambda trace: trace)
+        holder = types.SimpleNamespace(merger=Merger(self.model, union.successors, self.por))
+        return holder.merger.successors, functools.partial(expand_trace, holder)
 
     def with_uses(self, uses) -> "Reduced":
         """The same model, reduced as asked, for these uses of the search."""
@@ -735,6 +749,40 @@ def expand_trace(m, trace, violation=None):
 # ---------------------------------------------------------------------------
 # partial-order reduction
 # ---------------------------------------------------------------------------
+
+class UnionPor:
+    """The ample sets of :class:`Por` for *every* agent that qualifies, not
+    the first: a state's successors are the union of the ample sets of all
+    its eligible agents (a union of ample sets keeps C0-C3), so the graph is
+    invariant under renaming agents (a renamed state's ample agent is one of
+    them).  The search over real states of a liveness lasso
+    (pccl/search/lift.py) walks it: it contains every transition the
+    reduced graph has from a state of the same orbit, renamed
+    (docs/reductions.md)."""
+
+    def __init__(self, por: "Por"):
+        self.por = por
+        self.plain = por.plain
+
+    def successors(self, st) -> list:
+        por = self.por
+        if st[PHASE] == DISCRETE:
+            m = por.m
+            rho, n0 = m.rho, m.n0
+            out: list = []
+            for i, ag in enumerate(st[AGS]):
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] <= n0 and por.eligible(st, i, ag):
+                    out += por._keeps_running(st, i, ag) or []
+            if out:
+                return out
+            spent_local = por.ind.spent_local
+            for i, ag in enumerate(st[AGS]):
+                if ag[STATUS] == RUNNING and ag[CNT] + rho[i] > n0 and spent_local(ag[PC]):
+                    out += por._keeps_running(st, i, ag) or []
+            if out:
+                return out
+        return self.plain(st)
+
 
 class Por:
     """Partial-order reduction with ample sets (docs/reductions.md).

@@ -782,6 +782,15 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
     return out
 
 
+def quotient_of(model) -> tuple:
+    """(renamed, quotient): whether a state number of ``model``'s graph
+    stands for an orbit under renaming agents (symmetry), and whether it
+    stands for more than one real state at all (symmetry or dead)."""
+    on = getattr(getattr(model, "reduction", None), "on", ())
+    renamed = "symmetry" in on
+    return renamed, renamed or "dead" in on
+
+
 class _Analysis:
     """The steps of :func:`analyse` over one frozen graph."""
 
@@ -795,6 +804,21 @@ class _Analysis:
         self.g.kernel = getattr(getattr(explorer, "model", None), "reach_back", None)
         self.n_init = sr.stats.initial_states
         self.props = rec.props
+        self.explorer = explorer
+        #: a state number stands for an orbit under renaming agents; or (or
+        #: also) for states that differ in dead values: a cycle of the graph
+        #: closes only up to them, lassos are rebuilt on real states
+        self.renamed, self.quotient = quotient_of(model)
+
+    def _exact_fair(self, inside: np.ndarray) -> bool:
+        """Under symmetry: whether the component ``inside`` of the quotient
+        stands for a fair cycle of the rules (docs/reductions.md): a search
+        over real states from a real state of it."""
+        from pccl.search.lift import RealCycles
+        v = int(np.flatnonzero(inside)[0])
+        c = self.explorer.replay(v).states[-1]
+        rc = RealCycles(self.explorer, self.g.dyn, self.model.N, self.model.arrival_pending)
+        return rc.has_fair_cycle(c, inside)
 
     @staticmethod
     def lasso(prefix_chain: list, cycle: Optional[list]) -> tuple:
@@ -868,18 +892,24 @@ class _Analysis:
                 starts[:self.n_init] = True
             else:
                 starts = g.bit(2 * k)
-            res = _leadsto(g, starts, qmask, self.model.N if self.rec.fairness else 0)
+            res = _leadsto(g, starts, qmask, self.model.N if self.rec.fairness else 0,
+                           self._exact_fair if self.renamed else None)
             if res is None:
                 out.holds.append(p.name)
                 continue
             self.record(*self._liveness_violation(p, res))
+            if self.quotient and res[2] is not None:
+                # the cycle is rebuilt over real states (pccl/search/lift.py)
+                comp = res[4]
+                self.out.found[-1].rebuild = (comp == comp[res[1][-1]], g.dyn,
+                                              self.model.N if self.rec.fairness else 0)
             if not self.find_all:
                 return True
         return False
 
     def _liveness_violation(self, p, res) -> tuple:
         """The violation of ``p`` and its lasso (chain, cycle start)."""
-        s, path, cycle, terminal = res
+        s, path, cycle, terminal = res[:4]
         to_s = _chain_to(self.table, s)
         chain, cstart = self.lasso(to_s[:-1] + path, cycle)
         if terminal:
@@ -946,10 +976,19 @@ def _fmt(x) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)
 
 
-def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int):
-    """A counterexample to ``starts ~> Q``: ``(s, path, cycle, terminal)``
-    with ``path`` from s through not-Q states to a bad state (a terminal one,
-    or the entry of a fair accepting cycle ``cycle``), or None."""
+def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
+             exact_fair: Optional[Callable] = None):
+    """A counterexample to ``starts ~> Q``: ``(s, path, cycle, terminal,
+    comp)`` with ``path`` from s through not-Q states to a bad state (a
+    terminal one, or the entry of a fair accepting cycle ``cycle``; ``comp``
+    the component id per state), or None.
+
+    ``exact_fair`` (under symmetry): a state number stands for an orbit, and
+    its recorded pending robots are those of one renaming, so fairness is
+    decided per component: fair when some state has no robot under way
+    (every renaming of it too), unfair when every state has every robot
+    under way, and otherwise by ``exact_fair(component mask)``, a search
+    over real states (docs/reductions.md)."""
     allowed = ~qmask
     seeds = np.flatnonzero(starts & allowed)
     if not seeds.size:
@@ -965,12 +1004,25 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int):
         np.logical_or.at(has_dyn, comp[ok], g.dyn[ok])
         accepting &= has_dyn
         fair_masks = []
-        for a in range(n_fair):
-            idle = ((g.pend >> np.uint64(a)) & np.uint64(1)) == 0
-            has_idle = np.zeros(ncomp, dtype=bool)
-            np.logical_or.at(has_idle, comp[ok], idle[ok])
-            accepting &= has_idle
-            fair_masks.append(idle)
+        if n_fair and exact_fair is not None:
+            full = np.uint64((1 << n_fair) - 1)
+            pend = g.pend & full
+            all_idle = np.zeros(ncomp, dtype=bool)
+            np.logical_or.at(all_idle, comp[ok], pend[ok] == 0)
+            some_idle = np.zeros(ncomp, dtype=bool)
+            np.logical_or.at(some_idle, comp[ok], pend[ok] != full)
+            undecided = accepting & ~all_idle & some_idle
+            accepting &= all_idle
+            for cid in np.flatnonzero(undecided).tolist():
+                accepting[cid] = exact_fair(comp == cid)
+            fair_masks.append(pend == 0)
+        else:
+            for a in range(n_fair):
+                idle = ((g.pend >> np.uint64(a)) & np.uint64(1)) == 0
+                has_idle = np.zeros(ncomp, dtype=bool)
+                np.logical_or.at(has_idle, comp[ok], idle[ok])
+                accepting &= has_idle
+                fair_masks.append(idle)
     bad_cycle = np.zeros(g.n, dtype=bool)
     bad_cycle[ok] = accepting[comp[ok]]
     bad = bad_cycle | (region & g.terminal)
@@ -984,10 +1036,12 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int):
     path = g.path(s, bad, region)
     b = path[-1]
     if g.terminal[b] and not bad_cycle[b]:
-        return s, path, None, True
+        return s, path, None, True, comp
     musts = [g.dyn] + [m for m in fair_masks]
+    if exact_fair is not None and n_fair and not (fair_masks[0] & (comp == comp[b])).any():
+        musts = [g.dyn]         # fair only as real states: lift.py's cycle visits the witnesses
     cycle = g.cycle_through(b, comp, musts)
-    return s, path, cycle, False
+    return s, path, cycle, False, comp
 
 
 def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):
@@ -1083,6 +1137,9 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
         if not cx.chain:
             cx.trace = None
             continue
+        if getattr(cx, "rebuild", None) is not None:
+            _rebuild_lasso(model, explorer, cx)
+            continue
         tr = replay(cx.chain)
         if cx.cycle_start is not None:
             pre = replay(cx.chain[:cx.cycle_start + 1])
@@ -1107,6 +1164,38 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
     for _, cx in lv.witnesses:
         cx.trace = replay(cx.chain)
         cx.depth = len(cx.trace)
+
+
+def _rebuild_lasso(model, explorer, cx) -> None:
+    """The lasso of ``cx`` found on a quotient graph (symmetry, dead) as a
+    real run: its prefix replayed to the cycle's entry, then a fair
+    accepting cycle of real states inside the component (pccl/search/lift.py),
+    which exists there whatever real state the prefix reached
+    (docs/reductions.md)."""
+    from pccl.search.explorer import Trace
+    from pccl.search.lift import RealCycles
+    inside, dyn, n_fair = cx.rebuild
+    pre = explorer.replay_chain(cx.chain[:cx.cycle_start + 1])
+    rc = RealCycles(explorer, dyn, n_fair, model.arrival_pending)
+    found = rc.fair_component(pre.states[-1], inside)
+    if found is None:
+        raise RuntimeError("internal error: the accepting component of the reduced graph has "
+                           "no fair cycle of real states (please report it)")
+    steps, k = found
+    pre = model.expand_trace(pre)
+
+    def expanded(part: list):
+        """The steps ``part`` from the prefix's last state, expanded."""
+        tr = Trace((pre.last,) + tuple(s for _, s in part), tuple(lab for lab, _ in part))
+        tr = rc.expand(tr)
+        return tr.states[1:], tr.labels
+    ps, pl = expanded(steps[:k])
+    cs, cl = expanded(steps)
+    cx.chain = list(cx.chain[:cx.cycle_start + 1]) + [rc.number(s) for _, s in steps]
+    cx.cycle_start = len(pre) + len(pl)
+    cx.trace = Trace(pre.states + cs, pre.labels + cl)
+    cx.depth = len(cx.trace)
+    cx.rebuild = None
 
 
 __all__ += ["TemporalViolation", "make_recorder", "wants_graph", "loops_of"]
