@@ -210,6 +210,11 @@ TESTPROGS = [
     ("tl_spin_leave", T("tl_spin_leave.pccl"), dict()),
     ("fast_slow-2", T("fast_slow.pccl"), dict(agents=2)),
     ("runaway-bounded", T("runaway.pccl"), dict(max_states=3000)),
+    ("alternate", T("alternate.pccl"), dict()),
+    ("drive_exit", T("drive_exit.pccl"), dict(world=T("drive3.toml"), blackbox="nondet")),
+    ("list_seen-2", T("list_seen.pccl"), dict(agents=2)),
+    ("patrol-pillar", T("patrol.pccl"), dict(world=T("patrol_pillar.toml"), blackbox="straight",
+                                              max_states=20_000)),
     ("peterson_swapped-n0-2", T("peterson_swapped.pccl"),
      dict(invariants=["count(inCs) <= 1"], n0=2)),
     ("viewer_marker", T("viewer_marker.pccl"), dict()),
@@ -306,6 +311,10 @@ PINNED = {
     "tl_spin_leave": ("exhaustive", 24, 40, 8),
     "fast_slow-2": ("violation", 761, 1414, 44),
     "runaway-bounded": ("bounded", 3000, 5848, 76),
+    "alternate": ("exhaustive", 26, 40, 9),
+    "drive_exit": ("bounded", 340, 753, 21),
+    "list_seen-2": ("exhaustive", 205, 302, 28),
+    "patrol-pillar": ("violation", 10350, 24180, 153),
 }
 
 

@@ -42,8 +42,10 @@ PENDING: dict = {}
 
 #: Other programs' flags that are spelt like one of pccl's: the C compiler's
 #: command line, and the ``ray start`` command a message suggests.
-OTHER_PROGRAMS = {("pccl/model/native.py", "-w"), ("pccl/model/native.py", "-o"),
-                  ("pccl/search/parallel.py", "--port")}
+OTHER_PROGRAMS = {("pccl/model/native_build.py", "-w"), ("pccl/model/native_build.py", "-o"),
+                  ("pccl/search/parallel.py", "--port"),
+                  # --watch is the page's, no option of the API (no placeholder spells it)
+                  ("pccl/output/viewer.py", "--watch")}
 
 
 def _cli_flags() -> set[str]:

@@ -41,9 +41,10 @@ OPTIONS_VERSION = 1
 
 #: Command-line parameters that choose how a result is shown, per command.
 PRESENTATION = {
-    "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full", "exit_codes"}),
+    "run": frozenset({"trace", "fmt", "plot", "html", "trace_out", "view", "full", "exit_codes",
+                      "watch"}),
     "explore": frozenset({"fmt", "plot", "html", "progress", "progress_interval", "trace_out",
-                          "view", "full", "exit_codes"}),
+                          "view", "full", "exit_codes", "watch"}),
 }
 
 
