@@ -516,7 +516,9 @@ def test_cli_workers_spill_keeps_the_search_under_max_memory(workers, tmp_path):
     base = json.loads(_cli(*args, "--max-states", "1", env=PROCESSES).stdout)[
         "statistics"]["peak_memory_bytes"]
     grow = free["statistics"]["peak_memory_bytes"] - base
-    bound = base + grow * 2 // 5
+    # (two fifths left 0.3 % of margin with 3 workers: 152 MiB against a
+    # bound of 151.6M once, 2026-12-07; half keeps the cut without --spill)
+    bound = base + grow // 2
     cut = json.loads(_cli(*args, "--max-memory", str(bound), env=PROCESSES).stdout)
     assert cut["status"] == "bounded", (bound, cut["statistics"])
     r = _cli(*args, "--max-memory", str(bound), "--spill", str(tmp_path))
