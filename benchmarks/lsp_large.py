@@ -6,7 +6,7 @@ document got no answer within 14 s; the goal is well under 5 s).
     python benchmarks/lsp_large.py --repeat 3 60000
 
 For each size (default 10,000, 30,000 and 60,000 lines of the program
-tests/test_lsp_robust.py generates: a quarter shared declarations, the rest
+tests/tools/test_lsp_robust.py generates: a quarter shared declarations, the rest
 events of five lines), prints
 
 * ``analyse``: the wall-clock and CPU seconds of ``pccl.tools.lsp.analyse``

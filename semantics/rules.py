@@ -57,7 +57,7 @@ class KCells(Protocol):
 
 class RuleContext(Protocol):
     """Exactly what a rule may read from the model (:class:`pccl.model.engine.Model`
-    implements it).  tests/test_kernel.py checks that the rules read nothing
+    implements it).  tests/semantics/test_kernel.py checks that the rules read nothing
     else."""
     rho: Sequence[int]         # the rate map ρ: counter increment per agent
     n0: int                    # event-block executions per time step

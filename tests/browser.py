@@ -1,5 +1,5 @@
 """A headless Chromium driven over the Chrome DevTools Protocol, for the
-viewer's tests (tests/test_viewer_browser.py).
+viewer's tests (tests/output/test_viewer_browser.py).
 
 ``Browser()`` starts ``chromium --headless`` with a fresh profile and a
 DevTools port chosen by Chromium, connects to its page over a websocket

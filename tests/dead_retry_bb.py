@@ -1,4 +1,4 @@
-"""A user blackbox for tests/test_dead.py (issue 41, hole 2): it subclasses
+"""A user blackbox for tests/model/test_dead.py (issue 41, hole 2): it subclasses
 the shipped ``straight`` and so keeps its name, "straight", but treats a
 settled robot differently: a robot whose doReach failed is carried to its
 target on the next step (flags left as they are).  It declares no

@@ -11,7 +11,7 @@ reductions its analysis allows (``auto``, ``symmetry``, ``dead``, ``por``,
 ``merge,por``, ``merge,symmetry,por,dead``), and compares the verdict:
 the status, the distinct violations and the properties that hold.  Every
 lasso found under a reduction must be a run of the unreduced rules that
-comes back to its own first state (tests/test_liveness_reduced.py's
+comes back to its own first state (tests/search/test_liveness_reduced.py's
 ``real_lasso``).
 
 ``python tests/liveattack.py FIRST N`` runs seeds FIRST.. and prints the
@@ -101,6 +101,7 @@ def check(seed: int, real_lasso=None) -> dict:
 
 
 def _main(argv) -> None:
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent / "search"))
     from test_liveness_reduced import real_lasso
     first, n = int(argv[0]), int(argv[1])
     import collections

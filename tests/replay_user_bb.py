@@ -1,4 +1,4 @@
-"""A user blackbox for tests/test_replay.py: every moving agent arrives at
+"""A user blackbox for tests/tools/test_replay.py: every moving agent arrives at
 the next step (like ``instant``, without obstacles), under its own name.
 Importing it leaves a marker file next to it, so that a test can tell
 whether ``pccl replay`` imported it."""

@@ -31,7 +31,7 @@ chain, several lexer expressions, a lexer callback that is not a keyword
 test) turns it off (:attr:`FastLALR.usable` false).  The tests compare its
 results, spans and errors included, with the ordinary path's on the
 repository's programs and on 1,200 mutated ones
-(tests/test_parser_fast.py).
+(tests/lang/test_parser_fast.py).
 """
 from __future__ import annotations
 

@@ -353,7 +353,7 @@ def compile_successors(m: "Model") -> Callable[[Any], list]:
     """``plain_successors``: :meth:`Model.successors` generated for the team,
     the loop over agents unrolled and ``counter + ρ(i) ≤ n0`` folded to
     ``counter ≤ n0 - ρ(i)`` (the same transitions in the same order;
-    tests/test_engine_compiled.py compares them).  Larger teams use the
+    tests/model/test_engine_compiled.py compares them).  Larger teams use the
     method itself."""
     if m.N > m.UNROLL_AGENTS:
         return m.successors

@@ -93,7 +93,7 @@ The explorer, its fingerprint table (an injective encoding, so the
 collision bound is the same) and the replay of counterexamples are the
 Python engine's; traces are decoded to configurations afterwards.  So
 states, transitions, depth, verdicts and counterexamples equal the Python
-engine's by construction of the same BFS order (tests/test_native.py checks
+engine's by construction of the same BFS order (tests/model/test_native.py checks
 it).
 
 Served (:func:`unsupported` says why not otherwise): variables of type int,

@@ -1,6 +1,6 @@
 """What the search family (pccl/search/) reads of a PCCL state or label,
 offered as :class:`pccl.model.engine.Model`'s methods: the search knows no
-configuration layout and no display (tests/test_architecture.py)."""
+configuration layout and no display (tests/acceptance/test_architecture.py)."""
 
 from __future__ import annotations
 

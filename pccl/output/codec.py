@@ -20,7 +20,7 @@ Decoding (``decode_*``): typed JSON data back to the configuration, checked
 against the model (an ``int`` variable must hold a JSON integer, an enum one
 of its members, a pending computation ``k`` statements of the program).
 ``decode_state(model, encode_state(model, st)) == st`` for every state
-(tests/test_codec.py).  Version-1 data (pccl before this module) lacks the
+(tests/output/test_codec.py).  Version-1 data (pccl before this module) lacks the
 pending computation ``k``, ``t0``, the obstacles and the stuck codes: those
 cells decode to :data:`ANY`, which :func:`matches` accepts for any value.
 """

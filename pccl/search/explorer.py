@@ -119,7 +119,7 @@ class Model(Protocol):
     #
     # What the rest of the search family reads of a state or a label comes
     # through the model too, never from PCCL's configuration layout or its
-    # display (tests/test_architecture.py): ``time_costs(states)``, the time
+    # display (tests/acceptance/test_architecture.py): ``time_costs(states)``, the time
     # steps a transition into each state costs (pccl/search/fastest.py orders on
     # it; pccl/search/liveness.py's dynamic-state column); and for the graph
     # analyses of pccl/search/liveness.py ``arrival_pending(state)``,

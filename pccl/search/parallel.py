@@ -113,7 +113,7 @@ _NONE = 0xFFFF_FFFF
 #: The message when ``--ray`` is asked for without Ray installed.
 def _ray_hint() -> str:
     """pccl.lang.errors.install_hint("ray"), spelt here (the same two cases): this module imports only
-    generic modules (tests/test_architecture.py).  realpath: from the editable install's
+    generic modules (tests/acceptance/test_architecture.py).  realpath: from the editable install's
     link tree (build/__editable__.pccl-*/), this file is a link to the checkout's."""
     import os
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.realpath(__file__))))

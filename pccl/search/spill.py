@@ -41,7 +41,7 @@ without ``--spill``.
 
 The result is the in-memory search's: the same state numbers in the same
 order, hence the same states, transitions, depth, verdict and
-counterexample (``tests/test_spill.py`` compares them).
+counterexample (``tests/search/test_spill.py`` compares them).
 
 With ``--workers N`` each worker spills its partition and its share of the
 levels the same way (:class:`PartitionTable`, :class:`WorkerSpiller`: the

@@ -5,11 +5,11 @@ of every module, function-local ones included), used twice: this generator
 writes the generated part of docs/architecture.md from it (the layers and
 which imports which, with module counts; each layer's modules with the first
 sentence of their docstrings and what they import from other layers), and
-tests/test_architecture.py checks the import rules on the same graph.
+tests/acceptance/test_architecture.py checks the import rules on the same graph.
 
 The generated part sits between two marker comments; the prose around them
 is written by hand and left alone.  ``--check`` writes nothing and exits 1
-when the doc differs from what the code gives (tests/test_architecture.py
+when the doc differs from what the code gives (tests/acceptance/test_architecture.py
 runs it, so the diagram cannot drift from the imports).
 
 It reads the source tree, not the installed package: the package list and
@@ -151,7 +151,7 @@ def render(root: Path = ROOT) -> str:
                for lay in lays}
     out = [BEGIN, "",
            "Read from every import in the source, imports inside functions included",
-           f"(`{COMMAND}` writes this part; `tests/test_architecture.py` checks it).",
+           f"(`{COMMAND}` writes this part; `tests/acceptance/test_architecture.py` checks it).",
            "A layer is a subpackage (or a top-level module); a count is how many of",
            "the layer's modules import the other layer.", "",
            "| layer | folder | modules | imports (how many of its modules) | imported by |",
