@@ -7,6 +7,7 @@
     python benchmarks/run.py --reduce          # reductions: auto and none side by side
     python benchmarks/run.py --reduce --full   # also the long ones (k=10 none, 3 agents k=2)
     python benchmarks/run.py --no-timelock     # the new code without the time-lock check
+    python benchmarks/run.py --instructions    # instructions executed (valgrind), not seconds
 
 The cases run the unreduced semantics (``reduce="none"``; the default
 ``auto`` is measured by ``--reduce``). Each case prints ``new``, without
@@ -17,6 +18,14 @@ a compared case also prints the baseline's row first.
 The machine may be shared: "seconds" is the search's wall time, "CPU s" the
 process's CPU time during the search (time.process_time), which load on
 other cores does not inflate; medians are taken by CPU time.
+
+``--instructions`` counts the instructions each search executes instead
+(valgrind's callgrind, every thread of the process; the same process with
+``max_states=1`` subtracted, so that start-up and compiling the model are
+not counted): a figure that load on the machine cannot change, for the
+"old against new within 3 %" check when the machine is never idle. It runs
+each version once (the count is deterministic up to the threads'
+interleaving) and about 80 times slower than a timed run.
 
 Each case runs in its own process so that peak memory is the case's own.
 "B/state" is (peak RSS - RSS before the search) / visited states: the whole
@@ -140,15 +149,40 @@ def _has(tree: str, module_file: str) -> bool:
     return bool(glob.glob(os.path.join(tree, "pccl", "**", module_file), recursive=True))
 
 
-def run_case(spec: dict, code_dir: str | None = None) -> dict:
+def run_case(spec: dict, code_dir: str | None = None, instructions: bool = False) -> dict:
     env = dict(os.environ)
     if code_dir is not None:
         env["PCCL_BENCH_CODE"] = code_dir
+    if instructions:
+        # the search alone: the whole process minus the same process
+        # stopped after one state (start-up, parsing, compiling the model)
+        start = {**spec, "explore": {**spec.get("explore", {}), "max_states": 1}}
+        r = _counted(spec, env, code_dir)
+        r["instructions"] -= _counted(start, env, code_dir)["instructions"]
+        return r
     out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec)], cwd=ROOT, env=env,
                          capture_output=True, text=True, check=True)
     r = json.loads(out.stdout.strip().splitlines()[-1])
     want = code_dir or ROOT
     assert os.path.realpath(r["code"]).startswith(os.path.realpath(want)), (r["code"], want)
+    return r
+
+
+def _counted(spec: dict, env: dict, code_dir: str | None) -> dict:
+    """One run of the child under callgrind: its JSON line and ``instructions``,
+    the instructions every thread of the process executed."""
+    import re
+    exe = os.path.realpath(sys.executable)      # valgrind follows no launcher script
+    env = {**env, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    out = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                          exe, "-c", CHILD, json.dumps(spec)], cwd=ROOT, env=env,
+                         capture_output=True, text=True, check=True)
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    want = code_dir or ROOT
+    assert os.path.realpath(r["code"]).startswith(os.path.realpath(want)), (r["code"], want)
+    m = re.search(r"Collected : (\d+)", out.stderr)
+    assert m, out.stderr[-2000:]
+    r["instructions"] = int(m.group(1))
     return r
 
 
@@ -173,6 +207,9 @@ def main() -> None:
     ap.add_argument("--compare-all", action="store_true",
                     help="run every case on the baseline too (with --reduce: each "
                          "reduction's row old against new)")
+    ap.add_argument("--instructions", action="store_true",
+                    help="count the instructions of each search (valgrind's callgrind) "
+                         "instead of timing it; each version runs once")
     ap.add_argument("--no-timelock", action="store_true",
                     help="run this checkout without the time-lock check (timelock=False); "
                          "the baseline runs as it is")
@@ -184,6 +221,9 @@ def main() -> None:
         cases = [c for c in cases if args.only in c[0]]
     hdr = f"{'case':<44} {'code':<8} {'result':<11} {'states':>11} {'transitions':>12} " \
           f"{'seconds':>8} {'CPU s':>7} {'states/s':>9} {'peak MiB':>9} {'B/state':>8}"
+    if args.instructions:
+        hdr = f"{'case':<44} {'code':<8} {'result':<11} {'states':>11} {'transitions':>12} " \
+              f"{'instructions':>18} {'per state':>15}"
     if not args.json:
         print(hdr)
         print("-" * len(hdr))
@@ -210,11 +250,17 @@ def main() -> None:
                 else:
                     versions.insert(0, (old, old_dir, dict(spec)))
             runs: dict = {v: [] for v, _, _ in versions}
-            for _ in range(args.repeat if compare and old_dir is not None else 1):
+            repeat = args.repeat if compare and old_dir is not None and not args.instructions else 1
+            for _ in range(repeat):
                 for v, d, sp in versions:
-                    runs[v].append(run_case(dict(sp), d))
+                    runs[v].append(run_case(dict(sp), d, args.instructions))
             for v, _, _ in versions:
                 r = median_run(runs[v])
+                if args.instructions and not args.json:
+                    print(f"{name:<44} {v:<8} {r['status']:<11} {r['states']:>11,} "
+                          f"{r['transitions']:>12,} {r['instructions'] / 1e9:>10.3f} G instr "
+                          f"{r['instructions'] / max(1, r['states']):>9,.0f} instr", flush=True)
+                    continue
                 if args.json:
                     print(json.dumps({"case": name, "version": v,
                                       "all_seconds": [x["seconds"] for x in runs[v]],
