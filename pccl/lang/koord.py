@@ -22,9 +22,10 @@ PCCL meaning; in short:
 
 ``for i in range(a, b):`` is ``i = a`` and a ``while`` loop.
 Functions ``def fun f(T x, ...):`` are inlined where they are called
-(:mod:`pccl.lang.koordfun`).  Record types (``def Name:``) and
-``Motion.path`` are refused with a "not supported yet" message at their
-place.  Every problem is a
+(:mod:`pccl.lang.koordfun`).  ``Motion.path = ps`` keeps the waypoints in a
+hidden local list that a hidden first event ``Motion_follow`` walks with
+``doReach``.  Record types (``def Name:``) are refused with a "not
+supported yet" message at their place.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
 
@@ -377,6 +378,8 @@ class _ToAst(P._ToAst):
 class _Resolver:
     def __init__(self, modules: list, sections: list):
         self.ports: dict[str, dict[str, str]] = {}      # module -> port -> kind
+        #: where Motion.path (or route) is declared, if it is
+        self.path: Optional[ast.Span] = None
         for m in modules:
             self._module(m)
         self.allread: set[str] = set()
@@ -419,6 +422,8 @@ class _Resolver:
             if d.name in ports:
                 raise _Syntax(f"port {m.name}.{d.name} is declared twice", d.name_span)
             ports[d.name] = kind
+            if m.name == "Motion" and d.name in ("path", "route"):
+                self.path = d.name_span
         self.ports[m.name] = ports
 
     # ---- declarations ------------------------------------------------
@@ -492,9 +497,6 @@ class _Resolver:
             declared = ", ".join(sorted(self.ports[module])) or "none"
             raise _Syntax(f"'{module}.{port}' is not declared in 'using {module}:' "
                           f"(declared: {declared})", e.span)
-        if module == "Motion" and port in ("path", "route"):
-            raise _Syntax(f"'Motion.{port}' (waypoint-following motion) is not supported yet: "
-                          f"assign Motion.target one waypoint at a time (docs/koord.md)", e.span)
         return module, port
 
     def _is_port(self, e) -> bool:
@@ -513,7 +515,12 @@ class _Resolver:
             if port in ("position", "psn"):
                 return ast.Call("getPosition", (), e.span)
             if port in ("reached", "done"):
-                return ast.Name("doReach_done", e.span)
+                done = ast.Name("doReach_done", e.span)
+                if self.path is None:
+                    return done
+                # a path is reached when its last waypoint is
+                rest = ast.Call("isEmpty", (ast.Name(PATH_VAR, e.span),), e.span)
+                return ast.Binary("&&", done, rest, e.span)
             raise _Syntax(f"{module}.{port} is one of the actuators: it is assigned, not read"
                           + (" (read Motion.position)" if port == "target" else ""), e.span)
         if isinstance(e, ast.Name) and e.name in _PORTS:
@@ -540,7 +547,22 @@ class _Resolver:
     # ---- statements --------------------------------------------------
 
     def stmts(self, stmts) -> tuple:
-        return tuple(self.stmt(s) for s in stmts)
+        out: list = []
+        for s in stmts:
+            r = self.stmt(s)
+            out.extend(r if isinstance(r, list) else (r,))
+        return tuple(out)
+
+    def _path(self, s: ast.Assign) -> list:
+        """``Motion.path = ps``: the waypoints are kept in the hidden local
+        list ``Motion_path``; the first one becomes the target at once, and
+        the hidden event ``Motion_follow`` (:meth:`program`) makes the next
+        one the target each time the last one is reached."""
+        sp = s.span
+        var = ast.Name(PATH_VAR, sp)
+        return [ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.target.span), self.expr(s.value), sp),
+                ast.If(_NO_SID, ((ast.Unary("!", ast.Call("isEmpty", (var,), sp), sp),
+                                  _next_leg(sp)),), (), sp)]
 
     def stmt(self, s):
         if isinstance(s, ast.Assign):
@@ -567,9 +589,16 @@ class _Resolver:
                               target.span)
             if module == "Log":
                 raise _Syntax("write a log line with 'Log.stdout << ...'", target.span)
+            if port in ("path", "route"):
+                return self._path(s)
             # Motion.target = p: the controller drives the robot to p
-            return ast.CallStmt(_NO_SID, "doReach", (self.expr(s.value), ast.ListLit((), s.span)),
-                                s.span)
+            reach = ast.CallStmt(_NO_SID, "doReach", (self.expr(s.value), ast.ListLit((), s.span)),
+                                 s.span)
+            if self.path is None:
+                return reach
+            # a new target ends the path being followed
+            clear = ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.span), ast.ListLit((), s.span), s.span)
+            return [clear, reach]
         root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             raise _Syntax("only a variable or an element of one can be assigned", target.span)
@@ -596,7 +625,40 @@ class _Resolver:
                        for ev in events)
         invariants = tuple(dataclasses.replace(inv, expr=self.expr(inv.expr))
                            for inv in invariants)
-        return ast.Program(None, tuple(self.decls), init, events, invariants)
+        decls = tuple(self.decls)
+        if self.path is not None:
+            for d in decls:
+                if d.name == PATH_VAR:
+                    raise _Syntax(f"'{PATH_VAR}' is the name pccl gives Motion.path's waypoints: "
+                                  "choose another name", d.name_span or d.span)
+            for ev in events:
+                if ev.name == FOLLOW_EVENT:
+                    raise _Syntax(f"'{FOLLOW_EVENT}' is the name of pccl's waypoint-following "
+                                  "event: choose another name", ev.name_span or ev.span)
+            sp = self.path
+            var = ast.Name(PATH_VAR, sp)
+            decls += (ast.VarDecl("loc", ast.TypeRef("List", _POS, sp), PATH_VAR, None,
+                                  ast.ListLit((), sp), sp, name_span=sp),)
+            # first in source order, so that --events first follows the path too
+            guard = ast.Binary("&&", ast.Name("doReach_done", sp),
+                               ast.Unary("!", ast.Call("isEmpty", (var,), sp), sp), sp)
+            events = (ast.Event(FOLLOW_EVENT, guard, _next_leg(sp), sp, sp),) + events
+        return ast.Program(None, decls, init, events, invariants)
+
+
+#: Motion.path's hidden local list of the waypoints still to reach, and the
+#: hidden event that starts the next leg (docs/koord.md, "Motion.path").
+PATH_VAR = "Motion_path"
+FOLLOW_EVENT = "Motion_follow"
+
+
+def _next_leg(sp: ast.Span) -> tuple:
+    """``doReach(head(path), []); remove(path, head(path))``: the next
+    waypoint becomes the target and leaves the list."""
+    var = ast.Name(PATH_VAR, sp)
+    first = ast.Call("head", (var,), sp)
+    return (ast.CallStmt(_NO_SID, "doReach", (first, ast.ListLit((), sp)), sp),
+            ast.CallStmt(_NO_SID, "remove", (var, first), sp))
 
 
 def _koord_type(t: ast.TypeRef) -> str:

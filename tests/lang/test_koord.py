@@ -466,9 +466,6 @@ BAD = [
     ("using Motion:\n  actuators:\n    pos target\n\nev:\n  pre: Motion.position == pos(1,2)\n"
      "  eff:\n    stop\n", 6, 8, "'Motion.position' is not declared in 'using Motion:'"),
     ("using Motion:\n  sensors:\n    pos target\n", 3, 9, "Motion.target is one of the actuators"),
-    ("using Motion:\n  actuators:\n    pos[] path\n\nev:\n  pre: true\n  eff:\n"
-     "    Motion.path = [pos(1, 1)]\n", 8, 5, "'Motion.path' (waypoint-following motion) is not "
-     "supported yet"),
     ("using Motion:\n  sensors:\n    pos position\n\nev:\n  pre: true\n  eff:\n"
      "    Motion.position = pos(1, 1)\n", 8, 5, "Motion.position is one of the sensors"),
     ("using Motion:\n  actuators:\n    pos target\n\nev:\n  pre: Motion.target == pos(1, 1)\n"
