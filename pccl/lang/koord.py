@@ -24,8 +24,8 @@ PCCL meaning; in short:
 Functions ``def fun f(T x, ...):`` are inlined where they are called
 (:mod:`pccl.lang.koordfun`).  ``Motion.path = ps`` keeps the waypoints in a
 hidden local list that a hidden first event ``Motion_follow`` walks with
-``doReach``.  Record types (``def Name:``) are refused with a "not
-supported yet" message at their place.  Every problem is a
+``doReach``.  A variable of a record type (``def Name:``) is one variable
+per field, ``v_f``.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
 
@@ -65,8 +65,8 @@ def is_koord_path(path) -> bool:
 # Lexing: indentation, and the constructs not supported yet
 # --------------------------------------------------------------------------
 
-#: Words refused at the lexer with their message (none now: functions are
-#: read, record types refused by the grammar's ``recdef``).
+#: Words refused at the lexer with their message (none now: functions and
+#: record types are read).
 _UNSUPPORTED_TOKENS: dict = {}
 
 
@@ -172,6 +172,14 @@ class _KSection:
 
 
 @dataclasses.dataclass
+class _KRecord:
+    """``def Name:`` with its field declarations (a record type)."""
+    name: str
+    span: ast.Span
+    fields: list           # _KDecl
+
+
+@dataclasses.dataclass
 class _KModule:
     name: str
     span: ast.Span
@@ -257,8 +265,8 @@ class _ToAst(P._ToAst):
         return F.Function(str(name), _tspan(name), list(params), body, _mspan(meta))
 
     def recdef(self, meta, children):
-        raise _Syntax("record types ('def Name:') are not supported yet by pccl's Koord front "
-                      "end (docs/koord.md)", _tspan(children[1]))
+        name = children[1]
+        return _KRecord(str(name), _tspan(name), [c for c in children[2:] if isinstance(c, _KDecl)])
 
     def param(self, meta, children):
         return (str(children[1]), _tspan(children[1]))
@@ -368,7 +376,8 @@ class _ToAst(P._ToAst):
                                for inv in invariants)
         except F.FunctionError as e:
             raise _Syntax(e.message, e.span) from None
-        return _Resolver(modules, sections).program(init, events, invariants)
+        records = [c for c in children if isinstance(c, _KRecord)]
+        return _Resolver(modules, sections, records).program(init, events, invariants)
 
 
 # --------------------------------------------------------------------------
@@ -376,7 +385,13 @@ class _ToAst(P._ToAst):
 # --------------------------------------------------------------------------
 
 class _Resolver:
-    def __init__(self, modules: list, sections: list):
+    def __init__(self, modules: list, sections: list, records: Optional[list] = None):
+        #: record types: name -> _KRecord; record variables: name -> its record
+        self.records: dict[str, _KRecord] = {}
+        self.record_vars: dict[str, _KRecord] = {}
+        self.record_spans: dict[str, ast.Span] = {}
+        for r in records or ():
+            self._record(r)
         self.ports: dict[str, dict[str, str]] = {}      # module -> port -> kind
         #: where Motion.path (or route) is declared, if it is
         self.path: Optional[ast.Span] = None
@@ -391,7 +406,89 @@ class _Resolver:
                               f"first one)", sec.span)
             seen.add(sec.kind)
             for d in sec.decls:
-                self.decls.append(self._decl(sec.kind, d))
+                if d.type.name in self.records:
+                    self.decls.extend(self._record_decls(sec.kind, d))
+                else:
+                    self.decls.append(self._decl(sec.kind, d))
+        self._check_flat_names()
+
+    # ---- records -----------------------------------------------------
+
+    def _record(self, r: _KRecord) -> None:
+        if r.name in self.records:
+            raise _Syntax(f"record type '{r.name}' is defined twice", r.span)
+        if r.name in _BASE_TYPES or r.name in ("list", "List") or r.name in _UNSUPPORTED_TYPES:
+            raise _Syntax(f"'{r.name}' is a type already: choose another name", r.span)
+        seen: set = set()
+        for f in r.fields:
+            if f.name in seen:
+                raise _Syntax(f"field '{f.name}' of '{r.name}' is declared twice", f.name_span)
+            seen.add(f.name)
+            if f.type.name in self.records or f.type.name == r.name:
+                raise _Syntax("a record's field cannot be a record (not supported yet)",
+                              f.type.name_span)
+        if not r.fields:
+            raise _Syntax(f"record type '{r.name}' has no field", r.span)
+        self.records[r.name] = r
+
+    def _record_decls(self, kind: str, d: _KDecl) -> list:
+        """``Name v`` (``Name v[]`` in allread:): one variable ``v_f`` per
+        field ``f``, with the field's type and initialiser."""
+        rec = self.records[d.type.name]
+        dims = d.type.dims + d.dims
+        if kind == "allread":
+            if len(dims) != 1 or dims[0].size is not None:
+                where = dims[0].span if dims else d.name_span
+                raise _Syntax(f"an allread record is an array indexed by robot, written without a "
+                              f"size: '{rec.name} {d.name}[]'", where)
+        elif dims:
+            raise _Syntax("arrays and lists of records are not supported yet: declare one "
+                          "record per variable", dims[0].span)
+        if d.init is not None:
+            raise _Syntax(f"a record variable takes its fields' initial values from 'def "
+                          f"{rec.name}:' (Koord has no record literal)", d.init.span)
+        self.record_vars[d.name] = rec
+        self.record_spans[d.name] = d.name_span
+        out = []
+        for f in rec.fields:
+            name = f"{d.name}_{f.name}"
+            fd = dataclasses.replace(f, name=name, span=d.span, name_span=d.name_span,
+                                     dims=(d.dims[:1] if kind == "allread" else []) + f.dims)
+            if kind == "allread":
+                # the robot dimension first, as `T x[]` reads
+                fd = dataclasses.replace(fd, dims=[d.dims[0] if d.dims else d.type.dims[0]] + f.dims,
+                                         type=dataclasses.replace(f.type))
+            out.append(self._decl(kind, fd))
+        return out
+
+    def _check_flat_names(self) -> None:
+        names = [d.name for d in self.decls]
+        for v, rec in self.record_vars.items():
+            for f in rec.fields:
+                flat = f"{v}_{f.name}"
+                if names.count(flat) > 1:
+                    # the other declaration, not the record variable's field
+                    d = next(d for d in self.decls if d.name == flat and d.name_span.line != -1
+                             and not (d.name_span == self.record_spans.get(v)))
+                    raise _Syntax(f"'{flat}' is the name pccl gives field '{f.name}' of record "
+                                  f"variable '{v}': choose another name", d.name_span or d.span)
+
+    def _record_field(self, e: ast.Field) -> Optional[ast.Expr]:
+        """``v.f`` -> ``v_f``; ``v[j].f`` -> ``v_f[j]`` (v a record variable)."""
+        base = e.base
+        idx = None
+        if isinstance(base, ast.Index) and isinstance(base.base, ast.Name):
+            idx, base = base, base.base
+        if not (isinstance(base, ast.Name) and base.name in self.record_vars):
+            return None
+        rec = self.record_vars[base.name]
+        if e.name not in {f.name for f in rec.fields}:
+            raise _Syntax(f"record '{rec.name}' has no field '{e.name}' (its fields: "
+                          f"{', '.join(f.name for f in rec.fields)})", e.span)
+        flat = ast.Name(f"{base.name}_{e.name}", e.span)
+        if idx is None:
+            return flat
+        return ast.Index(flat, self.expr(idx.index), idx.span)
 
     # ---- modules -----------------------------------------------------
 
@@ -504,8 +601,23 @@ class _Resolver:
                 and (e.base.name in _PORTS or e.base.name in self.ports))
 
     def _mentions_module(self, e) -> bool:
-        return any(self._is_port(n) or (isinstance(n, ast.Name) and n.name in _PORTS)
+        recs = self.record_vars
+        return any(self._is_port(n) or (isinstance(n, ast.Name) and (n.name in _PORTS or n.name in recs))
                    for n in ast.walk(e))
+
+    def _named(self, e) -> Optional[ast.Expr]:
+        """A module's or a record's name, or a record's field: its meaning
+        (or an error); None for anything else."""
+        if isinstance(e, ast.Name) and e.name in _PORTS:
+            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
+                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+        if isinstance(e, ast.Field):
+            return self._record_field(e)
+        if isinstance(e, ast.Name) and e.name in self.record_vars:
+            rec = self.record_vars[e.name]
+            raise _Syntax(f"'{e.name}' is a record ({rec.name}): read one of its fields, e.g. "
+                          f"'{e.name}.{rec.fields[0].name}'", e.span)
+        return None
 
     def expr(self, e):
         if not self._mentions_module(e):
@@ -523,9 +635,9 @@ class _Resolver:
                 return ast.Binary("&&", done, rest, e.span)
             raise _Syntax(f"{module}.{port} is one of the actuators: it is assigned, not read"
                           + (" (read Motion.position)" if port == "target" else ""), e.span)
-        if isinstance(e, ast.Name) and e.name in _PORTS:
-            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
-                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+        special = self._named(e)
+        if special is not None:
+            return special
         if isinstance(e, (ast.IntLit, ast.FloatLit, ast.BoolLit, ast.Name)):
             return e
         if isinstance(e, ast.ListLit):
@@ -599,6 +711,21 @@ class _Resolver:
             # a new target ends the path being followed
             clear = ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.span), ast.ListLit((), s.span), s.span)
             return [clear, reach]
+        if isinstance(target, ast.Name) and target.name in self.record_vars:
+            return self._record_assign(s)
+        if isinstance(target, ast.Field):
+            flat: Optional[ast.Expr] = self._record_field(target)
+            if flat is not None:
+                if isinstance(flat, ast.Index):
+                    # v[j].f = e: an allread record's own entry only
+                    own = flat.index
+                    if not (isinstance(own, ast.Call) and own.name == "getAgentIndex"
+                            and not own.args):
+                        var = _root_name(target)
+                        raise _Syntax(f"'{var}' is allread: a robot writes only its own entry, "
+                                      f"'{var}[pid].{target.name} = ...'", own.span)
+                    flat = flat.base
+                return dataclasses.replace(s, target=flat, value=self.expr(s.value))
         root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             raise _Syntax("only a variable or an element of one can be assigned", target.span)
@@ -616,6 +743,17 @@ class _Resolver:
             target = new
         target = self.expr(target)
         return dataclasses.replace(s, target=target, value=self.expr(s.value))
+
+    def _record_assign(self, s: ast.Assign) -> list:
+        """``v = w`` for two record variables of one type: field by field."""
+        assert isinstance(s.target, ast.Name)
+        v, rec = s.target.name, self.record_vars[s.target.name]
+        w = s.value
+        if not (isinstance(w, ast.Name) and self.record_vars.get(w.name) is rec):
+            raise _Syntax(f"'{v}' is a record ({rec.name}): assign another {rec.name} variable, "
+                          "or its fields one by one", w.span)
+        return [ast.Assign(_NO_SID, ast.Name(f"{v}_{f.name}", s.target.span),
+                           ast.Name(f"{w.name}_{f.name}", w.span), s.span) for f in rec.fields]
 
     # ---- program -----------------------------------------------------
 
@@ -659,6 +797,13 @@ def _next_leg(sp: ast.Span) -> tuple:
     first = ast.Call("head", (var,), sp)
     return (ast.CallStmt(_NO_SID, "doReach", (first, ast.ListLit((), sp)), sp),
             ast.CallStmt(_NO_SID, "remove", (var, first), sp))
+
+
+def _root_name(e) -> str:
+    """The variable an lvalue is part of."""
+    while isinstance(e, (ast.Field, ast.Index)):
+        e = e.base
+    return e.name if isinstance(e, ast.Name) else "?"
 
 
 def _koord_type(t: ast.TypeRef) -> str:

@@ -477,7 +477,7 @@ BAD = [
     ("using Motion:\n  actuators:\n    pos target\n\nev:\n  pre: Motion.target == pos(1, 1)\n"
      "  eff:\n    stop\n", 6, 8, "Motion.target is one of the actuators: it is assigned, not read"),
     ("using Camera:\n  sensors:\n    pos x\n", 1, 7, "unknown module 'Camera'"),
-    ("def Task:\n  int id\n", 1, 5, "record types ('def Name:') are not supported yet"),
+    ("def Task:\n  int id\n\nlocal:\n  Task t = 3\n", 5, 12, "Koord has no record literal"),
     ("def fun f(int a):\n  return a\n\ndef fun f(int b):\n  return b\n", 4, 9,
      "function 'f' is defined twice (first at line 1)"),
     ("def fun f(int a, int a):\n  return a\n", 1, 22, "parameter 'a' of 'f' is named twice"),
