@@ -513,7 +513,7 @@ def _k_int(rng, ks, depth=1, err=None) -> str:
     if r < err + ks["asym"] / 2 + 0.08 and ks["expr_funs"]:
         return rng.choice(ks["expr_funs"])
     if depth <= 0 or r < 0.55:
-        return rng.choice(K_INT)
+        return rng.choice(K_INT + (["rc.n", "rw.n"] if ks.get("rec") else []))
     op = rng.choice(["+", "-", "*", "/", "%"])
     a, b = _k_int(rng, ks, depth - 1, err / 2), _k_int(rng, ks, depth - 1, err / 2)
     if op in "/%" and rng.random() < 0.8:
@@ -529,7 +529,7 @@ def _k_bool(rng, ks, err=None) -> str:
     if r < err + ks["asym"]:
         return rng.choice(K_ASYM_BOOL)
     if r < err + ks["asym"] + 0.3:
-        return rng.choice(K_BOOL)
+        return rng.choice(K_BOOL + (["rc.ok", "rw.ok or rc.n > 0"] if ks.get("rec") else []))
     if r < err + ks["asym"] + 0.4:
         return f"{_k_bool(rng, ks, 0.0)} {rng.choice(['and', 'or', '&&', '||'])} {_k_bool(rng, ks, 0.0)}"
     cmp = rng.choice(["==", "!=", "<", "<=", ">", ">="])
@@ -544,6 +544,8 @@ def _k_stmt(rng, ks, ind: int, depth: int, ctx: dict) -> str:
         kinds += ["call"]
     if ks["ar"]:
         kinds += ["ar"]
+    if ks.get("rec"):
+        kinds += ["rec", "rec"]
     if depth > 0:
         kinds += ["if", "if", "atomic", "for"]
     if not ctx.get("in_atomic") and rng.random() < 0.12:
@@ -557,6 +559,10 @@ def _k_stmt(rng, ks, ind: int, depth: int, ctx: dict) -> str:
         return f"{pad}flag[pid] = {_k_bool(rng, ks)}\n"
     if k == "ar":
         return f"{pad}ar[pid] = {_k_int(rng, ks, 1)}\n"
+    if k == "rec":
+        # a record's fields, a whole-record copy, the shared record
+        return pad + rng.choice([f"rc.n = {_k_int(rng, ks, 1)}", f"rc.ok = {_k_bool(rng, ks)}",
+                                 "rc = rc0", "rw.n = rc.n + 1", "rw.ok = not rw.ok"]) + "\n"
     if k == "owner":
         odd = ["x", "pid + 1"] if rng.random() < ks["asym"] else []
         return f"{pad}owner = {rng.choice(['pid', '-1', 'me[pid]'] + (['me[owner]'] if ks['err'] else []) + odd)}\n"
@@ -648,13 +654,18 @@ def koord(seed: int, rng: random.Random) -> Case:
     ks["stmt_funs"] = [c for f in funs for c in K_FUNS[f][2]]
     bound = rng.choice([1, 2, 2])
     text = "".join(K_FUNS[f][0] + "\n" for f in funs)
+    ks["rec"] = rng.random() < 0.3
+    if ks["rec"]:
+        text += ("def Rec:\n  int n = " + rng.choice(["0", "1", "rand(2)"])
+                 + "\n  boolean ok = false\n\n")
     if rng.random() < 0.15:
         text += "using Log:\n  actuators:\n    stream stdout\n\n"
     shared_init = rng.choice(K_SHARED_INITS
                              + (["10 / (rand(1) - 1)"] if ks["err"] and rng.random() < 0.15 else []))
     text += (f"allwrite:\n  int s = {shared_init}\n  boolean g = false\n"
              f"  list<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])}\n  list<int> q0 = [7, 8]\n"
-             f"  int owner = {rng.choice(['-1', '-1', '0'])}\n\n")
+             f"  int owner = {rng.choice(['-1', '-1', '0'])}\n"
+             + ("  Rec rw\n" if ks["rec"] else "") + "\n")
     text += "allread:\n  int me[] = pid\n  boolean flag[] = false\n"
     if ks["ar"]:
         ar_inits = ["0", "rand(1)", "s + 1"] + (["10 / (rand(1) - 1)"] if ks["err"] else [])
@@ -664,7 +675,7 @@ def koord(seed: int, rng: random.Random) -> Case:
     text += (f"\nlocal:\n  int c = 0\n  int x = {loc_init}\n"
              f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])}; int i = 0\n"
              f"  float h = {rng.choice(['1.5', '0.5', '1e300'])}\n  pos p = pos(1, 2)\n"
-             "  list<int> l = []\n  int u\n")
+             "  list<int> l = []\n  int u\n" + ("  Rec rc\n  Rec rc0\n" if ks["rec"] else ""))
     if rng.random() < 0.4:
         text += "\ninit:\n" + "".join(_k_stmt(rng, ks, 1, 1, {"in_atomic": True})
                                       for _ in range(rng.randint(1, 2)))

@@ -145,7 +145,7 @@ def test_the_koord_generator_reaches_every_construct():
                       "pos3d(", ".add(", ".remove(", ".size()", ".contains(", ".head()", ".isEmpty()",
                       "assert(", "using Motion:", "Motion.target = ", "Motion.reached",
                       "Motion.position", "using Log:", "invariant:", "int u\n", "list<int>",
-                      "float h", "rand("):
+                      "float h", "rand(", "def Rec:", "Rec rc\n", "rc.n = ", "rc = rc0", "rw.ok"):
         assert construct in body, construct
     # every runtime error, in every position it can stand: initialisers of
     # each section, guards, statements, atomic blocks, range bounds,
