@@ -135,3 +135,31 @@ def test_a_function_takes_a_record():
     text = "def fun siteOf(Task t):\n  return t.site\n\n" + RECORDS.replace(
         "  pre: mine.site == -1\n", "  pre: siteOf(mine) == -1\n")
     assert parse_koord(text, "f.koord").events == parse_koord(RECORDS, "rec.koord").events
+
+
+def test_mutated_records_and_paths_never_raise_anything_but_a_message():
+    """Truncations, insertions and deletions of a program with records and
+    one with Motion.path: a PcclError (file:line:column) or a program,
+    never another exception."""
+    import random
+    from pathlib import Path
+
+    from pccl.lang.checker import check_program
+    path = (Path(__file__).resolve().parents[2] / "programs" / "koord" / "follow_path.koord").read_text()
+    rng = random.Random(47)
+    pieces = [" ", "\n", ":", ".", "[", "]", "=", "Task", "def ", "path", "site", "pid", "  ",
+              "Motion.path", "def Task:\n  int a\n", "Task q[]", ".site", "Motion_path"]
+    for _ in range(400):
+        s = rng.choice([RECORDS, path])
+        k = rng.randrange(len(s))
+        r = rng.random()
+        if r < 0.3:
+            s = s[:k]
+        elif r < 0.6:
+            s = s[:k] + rng.choice(pieces) + s[k:]
+        else:
+            s = s[:k] + s[min(len(s), k + rng.randint(1, 8)):]
+        try:
+            check_program(parse_koord(s, "f.koord"))
+        except PcclError as e:
+            assert e.line is None or e.line >= 1
