@@ -145,3 +145,19 @@ def test_a_path_that_is_not_a_list_is_one_message_exit_2(tmp_path):
                                  "List<ItemPosition>"), res.stderr
     assert res.stderr.rstrip("\n").split("\n")[-1].strip().startswith("|")
     assert "Traceback" not in res.output
+
+
+def test_a_path_run_replays(tmp_path):
+    from pathlib import Path
+
+    from click.testing import CliRunner
+    from pccl.cli import main
+    koord = Path(__file__).resolve().parents[2] / "programs" / "koord"
+    trace = tmp_path / "t.json"
+    res = CliRunner().invoke(main, ["run", str(koord / "follow_path.koord"), "--world",
+                                    str(koord / "allstop.toml"), "--agents", "2", "-b", "straight",
+                                    "--trace-out", str(trace)])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(main, ["replay", str(trace)])
+    assert res.exit_code == 0, res.output
+    assert "reproduced: final" in res.output
