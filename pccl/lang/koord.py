@@ -22,9 +22,10 @@ PCCL meaning; in short:
 
 ``for i in range(a, b):`` is ``i = a`` and a ``while`` loop.
 Functions ``def fun f(T x, ...):`` are inlined where they are called
-(:mod:`pccl.lang.koordfun`).  Record types (``def Name:``) and
-``Motion.path`` are refused with a "not supported yet" message at their
-place.  Every problem is a
+(:mod:`pccl.lang.koordfun`).  ``Motion.path = ps`` keeps the waypoints in a
+hidden local list that a hidden first event ``Motion_follow`` walks with
+``doReach``.  A variable of a record type (``def Name:``) is one variable
+per field, ``v_f``.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
 
@@ -64,8 +65,8 @@ def is_koord_path(path) -> bool:
 # Lexing: indentation, and the constructs not supported yet
 # --------------------------------------------------------------------------
 
-#: Words refused at the lexer with their message (none now: functions are
-#: read, record types refused by the grammar's ``recdef``).
+#: Words refused at the lexer with their message (none now: functions and
+#: record types are read).
 _UNSUPPORTED_TOKENS: dict = {}
 
 
@@ -171,6 +172,14 @@ class _KSection:
 
 
 @dataclasses.dataclass
+class _KRecord:
+    """``def Name:`` with its field declarations (a record type)."""
+    name: str
+    span: ast.Span
+    fields: list           # _KDecl
+
+
+@dataclasses.dataclass
 class _KModule:
     name: str
     span: ast.Span
@@ -256,8 +265,8 @@ class _ToAst(P._ToAst):
         return F.Function(str(name), _tspan(name), list(params), body, _mspan(meta))
 
     def recdef(self, meta, children):
-        raise _Syntax("record types ('def Name:') are not supported yet by pccl's Koord front "
-                      "end (docs/koord.md)", _tspan(children[1]))
+        name = children[1]
+        return _KRecord(str(name), _tspan(name), [c for c in children[2:] if isinstance(c, _KDecl)])
 
     def param(self, meta, children):
         return (str(children[1]), _tspan(children[1]))
@@ -367,7 +376,8 @@ class _ToAst(P._ToAst):
                                for inv in invariants)
         except F.FunctionError as e:
             raise _Syntax(e.message, e.span) from None
-        return _Resolver(modules, sections).program(init, events, invariants)
+        records = [c for c in children if isinstance(c, _KRecord)]
+        return _Resolver(modules, sections, records).program(init, events, invariants)
 
 
 # --------------------------------------------------------------------------
@@ -375,8 +385,16 @@ class _ToAst(P._ToAst):
 # --------------------------------------------------------------------------
 
 class _Resolver:
-    def __init__(self, modules: list, sections: list):
+    def __init__(self, modules: list, sections: list, records: Optional[list] = None):
+        #: record types: name -> _KRecord; record variables: name -> its record
+        self.records: dict[str, _KRecord] = {}
+        self.record_vars: dict[str, _KRecord] = {}
+        self.record_spans: dict[str, ast.Span] = {}
+        for r in records or ():
+            self._record(r)
         self.ports: dict[str, dict[str, str]] = {}      # module -> port -> kind
+        #: where Motion.path (or route) is declared, if it is
+        self.path: Optional[ast.Span] = None
         for m in modules:
             self._module(m)
         self.allread: set[str] = set()
@@ -388,7 +406,89 @@ class _Resolver:
                               f"first one)", sec.span)
             seen.add(sec.kind)
             for d in sec.decls:
-                self.decls.append(self._decl(sec.kind, d))
+                if d.type.name in self.records:
+                    self.decls.extend(self._record_decls(sec.kind, d))
+                else:
+                    self.decls.append(self._decl(sec.kind, d))
+        self._check_flat_names()
+
+    # ---- records -----------------------------------------------------
+
+    def _record(self, r: _KRecord) -> None:
+        if r.name in self.records:
+            raise _Syntax(f"record type '{r.name}' is defined twice", r.span)
+        if r.name in _BASE_TYPES or r.name in ("list", "List") or r.name in _UNSUPPORTED_TYPES:
+            raise _Syntax(f"'{r.name}' is a type already: choose another name", r.span)
+        seen: set = set()
+        for f in r.fields:
+            if f.name in seen:
+                raise _Syntax(f"field '{f.name}' of '{r.name}' is declared twice", f.name_span)
+            seen.add(f.name)
+            if f.type.name in self.records or f.type.name == r.name:
+                raise _Syntax("a record's field cannot be a record (not supported yet)",
+                              f.type.name_span)
+        if not r.fields:
+            raise _Syntax(f"record type '{r.name}' has no field", r.span)
+        self.records[r.name] = r
+
+    def _record_decls(self, kind: str, d: _KDecl) -> list:
+        """``Name v`` (``Name v[]`` in allread:): one variable ``v_f`` per
+        field ``f``, with the field's type and initialiser."""
+        rec = self.records[d.type.name]
+        dims = d.type.dims + d.dims
+        if kind == "allread":
+            if len(dims) != 1 or dims[0].size is not None:
+                where = dims[0].span if dims else d.name_span
+                raise _Syntax(f"an allread record is an array indexed by robot, written without a "
+                              f"size: '{rec.name} {d.name}[]'", where)
+        elif dims:
+            raise _Syntax("arrays and lists of records are not supported yet: declare one "
+                          "record per variable", dims[0].span)
+        if d.init is not None:
+            raise _Syntax(f"a record variable takes its fields' initial values from 'def "
+                          f"{rec.name}:' (Koord has no record literal)", d.init.span)
+        self.record_vars[d.name] = rec
+        self.record_spans[d.name] = d.name_span
+        out = []
+        for f in rec.fields:
+            name = f"{d.name}_{f.name}"
+            fd = dataclasses.replace(f, name=name, span=d.span, name_span=d.name_span,
+                                     dims=(d.dims[:1] if kind == "allread" else []) + f.dims)
+            if kind == "allread":
+                # the robot dimension first, as `T x[]` reads
+                fd = dataclasses.replace(fd, dims=[d.dims[0] if d.dims else d.type.dims[0]] + f.dims,
+                                         type=dataclasses.replace(f.type))
+            out.append(self._decl(kind, fd))
+        return out
+
+    def _check_flat_names(self) -> None:
+        names = [d.name for d in self.decls]
+        for v, rec in self.record_vars.items():
+            for f in rec.fields:
+                flat = f"{v}_{f.name}"
+                if names.count(flat) > 1:
+                    # the other declaration, not the record variable's field
+                    d = next(d for d in self.decls if d.name == flat and d.name_span.line != -1
+                             and not (d.name_span == self.record_spans.get(v)))
+                    raise _Syntax(f"'{flat}' is the name pccl gives field '{f.name}' of record "
+                                  f"variable '{v}': choose another name", d.name_span or d.span)
+
+    def _record_field(self, e: ast.Field) -> Optional[ast.Expr]:
+        """``v.f`` -> ``v_f``; ``v[j].f`` -> ``v_f[j]`` (v a record variable)."""
+        base = e.base
+        idx = None
+        if isinstance(base, ast.Index) and isinstance(base.base, ast.Name):
+            idx, base = base, base.base
+        if not (isinstance(base, ast.Name) and base.name in self.record_vars):
+            return None
+        rec = self.record_vars[base.name]
+        if e.name not in {f.name for f in rec.fields}:
+            raise _Syntax(f"record '{rec.name}' has no field '{e.name}' (its fields: "
+                          f"{', '.join(f.name for f in rec.fields)})", e.span)
+        flat = ast.Name(f"{base.name}_{e.name}", e.span)
+        if idx is None:
+            return flat
+        return ast.Index(flat, self.expr(idx.index), idx.span)
 
     # ---- modules -----------------------------------------------------
 
@@ -419,6 +519,8 @@ class _Resolver:
             if d.name in ports:
                 raise _Syntax(f"port {m.name}.{d.name} is declared twice", d.name_span)
             ports[d.name] = kind
+            if m.name == "Motion" and d.name in ("path", "route"):
+                self.path = d.name_span
         self.ports[m.name] = ports
 
     # ---- declarations ------------------------------------------------
@@ -492,9 +594,6 @@ class _Resolver:
             declared = ", ".join(sorted(self.ports[module])) or "none"
             raise _Syntax(f"'{module}.{port}' is not declared in 'using {module}:' "
                           f"(declared: {declared})", e.span)
-        if module == "Motion" and port in ("path", "route"):
-            raise _Syntax(f"'Motion.{port}' (waypoint-following motion) is not supported yet: "
-                          f"assign Motion.target one waypoint at a time (docs/koord.md)", e.span)
         return module, port
 
     def _is_port(self, e) -> bool:
@@ -502,8 +601,23 @@ class _Resolver:
                 and (e.base.name in _PORTS or e.base.name in self.ports))
 
     def _mentions_module(self, e) -> bool:
-        return any(self._is_port(n) or (isinstance(n, ast.Name) and n.name in _PORTS)
+        recs = self.record_vars
+        return any(self._is_port(n) or (isinstance(n, ast.Name) and (n.name in _PORTS or n.name in recs))
                    for n in ast.walk(e))
+
+    def _named(self, e) -> Optional[ast.Expr]:
+        """A module's or a record's name, or a record's field: its meaning
+        (or an error); None for anything else."""
+        if isinstance(e, ast.Name) and e.name in _PORTS:
+            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
+                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+        if isinstance(e, ast.Field):
+            return self._record_field(e)
+        if isinstance(e, ast.Name) and e.name in self.record_vars:
+            rec = self.record_vars[e.name]
+            raise _Syntax(f"'{e.name}' is a record ({rec.name}): read one of its fields, e.g. "
+                          f"'{e.name}.{rec.fields[0].name}'", e.span)
+        return None
 
     def expr(self, e):
         if not self._mentions_module(e):
@@ -513,12 +627,17 @@ class _Resolver:
             if port in ("position", "psn"):
                 return ast.Call("getPosition", (), e.span)
             if port in ("reached", "done"):
-                return ast.Name("doReach_done", e.span)
+                done = ast.Name("doReach_done", e.span)
+                if self.path is None:
+                    return done
+                # a path is reached when its last waypoint is
+                rest = ast.Call("isEmpty", (ast.Name(PATH_VAR, e.span),), e.span)
+                return ast.Binary("&&", done, rest, e.span)
             raise _Syntax(f"{module}.{port} is one of the actuators: it is assigned, not read"
                           + (" (read Motion.position)" if port == "target" else ""), e.span)
-        if isinstance(e, ast.Name) and e.name in _PORTS:
-            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
-                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+        special = self._named(e)
+        if special is not None:
+            return special
         if isinstance(e, (ast.IntLit, ast.FloatLit, ast.BoolLit, ast.Name)):
             return e
         if isinstance(e, ast.ListLit):
@@ -540,7 +659,22 @@ class _Resolver:
     # ---- statements --------------------------------------------------
 
     def stmts(self, stmts) -> tuple:
-        return tuple(self.stmt(s) for s in stmts)
+        out: list = []
+        for s in stmts:
+            r = self.stmt(s)
+            out.extend(r if isinstance(r, list) else (r,))
+        return tuple(out)
+
+    def _path(self, s: ast.Assign) -> list:
+        """``Motion.path = ps``: the waypoints are kept in the hidden local
+        list ``Motion_path``; the first one becomes the target at once, and
+        the hidden event ``Motion_follow`` (:meth:`program`) makes the next
+        one the target each time the last one is reached."""
+        sp = s.span
+        var = ast.Name(PATH_VAR, sp)
+        return [ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.target.span), self.expr(s.value), sp),
+                ast.If(_NO_SID, ((ast.Unary("!", ast.Call("isEmpty", (var,), sp), sp),
+                                  _next_leg(sp)),), (), sp)]
 
     def stmt(self, s):
         if isinstance(s, ast.Assign):
@@ -567,9 +701,31 @@ class _Resolver:
                               target.span)
             if module == "Log":
                 raise _Syntax("write a log line with 'Log.stdout << ...'", target.span)
+            if port in ("path", "route"):
+                return self._path(s)
             # Motion.target = p: the controller drives the robot to p
-            return ast.CallStmt(_NO_SID, "doReach", (self.expr(s.value), ast.ListLit((), s.span)),
-                                s.span)
+            reach = ast.CallStmt(_NO_SID, "doReach", (self.expr(s.value), ast.ListLit((), s.span)),
+                                 s.span)
+            if self.path is None:
+                return reach
+            # a new target ends the path being followed
+            clear = ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.span), ast.ListLit((), s.span), s.span)
+            return [clear, reach]
+        if isinstance(target, ast.Name) and target.name in self.record_vars:
+            return self._record_assign(s)
+        if isinstance(target, ast.Field):
+            flat: Optional[ast.Expr] = self._record_field(target)
+            if flat is not None:
+                if isinstance(flat, ast.Index):
+                    # v[j].f = e: an allread record's own entry only
+                    own = flat.index
+                    if not (isinstance(own, ast.Call) and own.name == "getAgentIndex"
+                            and not own.args):
+                        var = _root_name(target)
+                        raise _Syntax(f"'{var}' is allread: a robot writes only its own entry, "
+                                      f"'{var}[pid].{target.name} = ...'", own.span)
+                    flat = flat.base
+                return dataclasses.replace(s, target=flat, value=self.expr(s.value))
         root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             raise _Syntax("only a variable or an element of one can be assigned", target.span)
@@ -588,6 +744,17 @@ class _Resolver:
         target = self.expr(target)
         return dataclasses.replace(s, target=target, value=self.expr(s.value))
 
+    def _record_assign(self, s: ast.Assign) -> list:
+        """``v = w`` for two record variables of one type: field by field."""
+        assert isinstance(s.target, ast.Name)
+        v, rec = s.target.name, self.record_vars[s.target.name]
+        w = s.value
+        if not (isinstance(w, ast.Name) and self.record_vars.get(w.name) is rec):
+            raise _Syntax(f"'{v}' is a record ({rec.name}): assign another {rec.name} variable, "
+                          "or its fields one by one", w.span)
+        return [ast.Assign(_NO_SID, ast.Name(f"{v}_{f.name}", s.target.span),
+                           ast.Name(f"{w.name}_{f.name}", w.span), s.span) for f in rec.fields]
+
     # ---- program -----------------------------------------------------
 
     def program(self, init, events, invariants) -> ast.Program:
@@ -596,7 +763,47 @@ class _Resolver:
                        for ev in events)
         invariants = tuple(dataclasses.replace(inv, expr=self.expr(inv.expr))
                            for inv in invariants)
-        return ast.Program(None, tuple(self.decls), init, events, invariants)
+        decls = tuple(self.decls)
+        if self.path is not None:
+            for d in decls:
+                if d.name == PATH_VAR:
+                    raise _Syntax(f"'{PATH_VAR}' is the name pccl gives Motion.path's waypoints: "
+                                  "choose another name", d.name_span or d.span)
+            for ev in events:
+                if ev.name == FOLLOW_EVENT:
+                    raise _Syntax(f"'{FOLLOW_EVENT}' is the name of pccl's waypoint-following "
+                                  "event: choose another name", ev.name_span or ev.span)
+            sp = self.path
+            var = ast.Name(PATH_VAR, sp)
+            decls += (ast.VarDecl("loc", ast.TypeRef("List", _POS, sp), PATH_VAR, None,
+                                  ast.ListLit((), sp), sp, name_span=sp),)
+            # first in source order, so that --events first follows the path too
+            guard = ast.Binary("&&", ast.Name("doReach_done", sp),
+                               ast.Unary("!", ast.Call("isEmpty", (var,), sp), sp), sp)
+            events = (ast.Event(FOLLOW_EVENT, guard, _next_leg(sp), sp, sp),) + events
+        return ast.Program(None, decls, init, events, invariants)
+
+
+#: Motion.path's hidden local list of the waypoints still to reach, and the
+#: hidden event that starts the next leg (docs/koord.md, "Motion.path").
+PATH_VAR = "Motion_path"
+FOLLOW_EVENT = "Motion_follow"
+
+
+def _next_leg(sp: ast.Span) -> tuple:
+    """``doReach(head(path), []); remove(path, head(path))``: the next
+    waypoint becomes the target and leaves the list."""
+    var = ast.Name(PATH_VAR, sp)
+    first = ast.Call("head", (var,), sp)
+    return (ast.CallStmt(_NO_SID, "doReach", (first, ast.ListLit((), sp)), sp),
+            ast.CallStmt(_NO_SID, "remove", (var, first), sp))
+
+
+def _root_name(e) -> str:
+    """The variable an lvalue is part of."""
+    while isinstance(e, (ast.Field, ast.Index)):
+        e = e.base
+    return e.name if isinstance(e, ast.Name) else "?"
 
 
 def _koord_type(t: ast.TypeRef) -> str:

@@ -109,7 +109,8 @@ class KoordModel(Model):
     #: most rule applications one event may take (a loop in an event must
     #: end: an event is one transition); beyond, the robot is stuck
     EVENT_STEPS = 10_000
-    #: most turns remembered (:meth:`_robot_turn`); the table is emptied when full
+    #: most turns remembered (:meth:`_robot_turn`); the table is emptied when
+    #: full; 0: no table, every turn computed afresh
     TURN_CACHE = 100_000
 
     def __init__(self, program: A.Program, options: Optional[CommonOptions] = None):
@@ -173,17 +174,15 @@ class KoordModel(Model):
         seen: set = set()
         enabled = False
         view = self._round_start_view(st, i)
-        # what the turn can read: its own cell, the shared values and the
-        # allread entries it sees (compiled code reads no other cell of
-        # another robot), and the clock when doReach records it
-        key = (i, ag, view[SH], tuple(a[AR] for a in view[AGS]),
-               view[TIME] if self._turn_reads_clock else None)
+        key = self._turn_key(i, ag, view)
         cache = self._turns
-        turns = cache.get(key)
+        turns = cache.get(key) if self.TURN_CACHE else None
         if turns is None:
             turns = [(first, sids, atom, fin[AGS][i], fin[SH])
                      for first, sids, atom, fin in self._run_turn(view, i)]
-            if self.oracle.policy is None:      # a run samples rand afresh each time
+            # a run samples rand afresh each time; TURN_CACHE 0: no table
+            # (the differential oracle's truth computes every turn afresh)
+            if self.oracle.policy is None and self.TURN_CACHE:
                 if len(cache) >= self.TURN_CACHE:
                     cache.clear()
                 cache[key] = turns
@@ -202,6 +201,14 @@ class KoordModel(Model):
                 out.append((lab, succ))
         if enabled and self.skip_events:
             out.append((("SKIP EVENT", i, None), self._spend_turn(st, i, ag)))
+
+    def _turn_key(self, i, ag, view) -> tuple:
+        """What robot ``i``'s turn from ``view`` can read, the key of the
+        turn table: its own cell, the shared values and the allread entries
+        it sees (compiled code reads no other cell of another robot), and
+        the clock when doReach records it."""
+        return (i, ag, view[SH], tuple(a[AR] for a in view[AGS]),
+                view[TIME] if self._turn_reads_clock else None)
 
     @staticmethod
     def _spend_turn(st, i, ag) -> tuple:

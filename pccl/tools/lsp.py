@@ -6,7 +6,10 @@ parse or check error the CLI reports, with its exact range and its
 did-you-mean hint; the errors of a world file ``NAME.toml`` beside
 ``NAME.pccl``), hover, go to definition, find references, document
 symbols, completion, formatting (:mod:`pccl.tools.fmt`) and a quick fix for a
-did-you-mean.
+did-you-mean.  Koord files (``.koord``, ``.krd``: docs/koord.md) are read by
+the Koord front end: diagnostics (with a world file beside them), hover on
+their names and on Koord's own words, definitions, references, the outline
+and completion with Koord's words; no formatting (``pccl fmt`` refuses them).
 
 The analysis (:class:`Analysis`, :func:`analyse`) knows nothing of the
 protocol and is tested on its own; the handlers only translate.  The names
@@ -40,6 +43,31 @@ HEADERS = ("allwrite:", "allread:", "loc:", "Init:", "invariant:")
 TYPES = ("int", "bool", "float", "ItemPosition", "ObstacleList", "List")
 _SECTION_WORD = {"allwrite": "shared (allwrite)", "allread": "allread (each agent's own, read by all)",
                  "loc": "local"}
+#: Koord's words (completion, hover: docs/koord.md)
+KOORD_KEYWORDS = ("if", "elif", "else", "atomic", "for", "in", "range", "skip", "stop", "pre",
+                  "eff", "true", "false", "and", "or", "not", "pid", "numAgents", "def", "fun",
+                  "return", "using", "forall", "exists")
+KOORD_HEADERS = ("using Motion:", "sensors:", "actuators:", "allwrite:", "allread:", "local:",
+                 "init:", "invariant:")
+KOORD_TYPES = ("int", "float", "boolean", "pos", "list")
+KOORD_WORDS = {
+    "pid": "`pid`: this robot's id, 0 .. numAgents - 1 (PCCL's `getAgentIndex()`)",
+    "numAgents": "`numAgents`: the number of robots (PCCL's `getNumAgents()`)",
+    "numBots": "`numBots`: the number of robots (PCCL's `getNumAgents()`)",
+    "stop": "`stop`: the robot stops for good (PCCL's `exit()`)",
+    "Motion": ("module `Motion`: sensors `position`/`psn` (pos), `reached`/`done` (boolean); "
+               "actuators `target` (pos: a `doReach`), `path` (pos[]: waypoint-following)"),
+    "position": "`Motion.position`: this robot's position (PCCL's `getPosition()`)",
+    "psn": "`Motion.psn`: this robot's position (PCCL's `getPosition()`)",
+    "reached": "`Motion.reached`: the last target (or a path's last waypoint) is reached",
+    "target": "`Motion.target = p`: start a motion to `p` (PCCL's `doReach(p, [])`)",
+    "path": "`Motion.path = [p1, ..., pk]`: follow the waypoints in order (docs/koord.md)",
+    "stdout": "`stdout << ...`: a log line (changes nothing pccl models)",
+    "midpoint": "`midpoint(p, q)`: the position halfway between `p` and `q`",
+    "atomic": ("`atomic:`: under Koord's round semantics a per-round mutex (one robot per round "
+               "runs an atomic block)"),
+}
+_KOORD_HIDDEN = ("Motion_path", "Motion_follow")
 _DID_YOU_MEAN = re.compile(r"\(did you mean '([A-Za-z_]\w*)'\?\)")
 _WORD = re.compile(r"[A-Za-z_]\w*")
 
@@ -95,7 +123,7 @@ def world_beside(path: str) -> Optional[str]:
     """The world file of a program: ``NAME.toml`` in the program's folder,
     else that of a variant's base name (``race_safe.pccl`` -> ``race.toml``)."""
     stem, ext = os.path.splitext(path)
-    if ext != ".pccl":
+    if ext.lower() not in (".pccl", ".koord", ".krd"):
         return None
     folder, name = os.path.split(stem)
     while name:
@@ -136,9 +164,11 @@ def analyse(source: str, path: str, *, world_source: Optional[str] = None,
 
 def _analyse(source: str, path: str, *, world_source: Optional[str] = None,
              previous: Optional[Analysis] = None) -> Analysis:
+    from pccl.lang.koord import is_koord_path, parse_koord
     from pccl.lang.parser import parse_program
     from pccl.lang.world import load_world, parse_world
     an = Analysis(path, source)
+    parse = parse_koord if is_koord_path(path) else parse_program
     functions: frozenset[str] = frozenset()
     wpath = world_beside(path)
     if wpath is not None or world_source is not None:
@@ -158,7 +188,7 @@ def _analyse(source: str, path: str, *, world_source: Optional[str] = None,
             an.diagnostics.append(Diag(path, Range(0, 0, 0, 0), f"cannot read the world file: {e}",
                                        severity="warning"))
     try:
-        an.program = parse_program(source, path)
+        an.program = parse(source, path)
     except PcclError as e:
         an.diagnostics.append(_error_diag(e, path, source))
     except RecursionError:
@@ -197,8 +227,10 @@ def _index(an: Analysis) -> None:
     sym, occ = an.symbols, an.occurrences
     enums = {d.name for d in prog.decls if isinstance(d, A.EnumDecl)}
 
+    hidden = _KOORD_HIDDEN if prog.language == "koord" else ()
+
     def declare(name: str, kind: str, decl: Any, span: A.Span) -> None:
-        if span.line > 0:
+        if span.line > 0 and name not in hidden:
             r = Range.of(span)
             sym.setdefault(name, Symbol(name, kind, decl, r))
             occ.append((name, r))
@@ -268,6 +300,10 @@ def hover_text(an: Analysis, name: str) -> Optional[str]:
     guard, an enum, a built-in's signature and doc."""
     s = an.symbols.get(name)
     src = an.program.source if an.program is not None else an.source
+    if is_koord(an):
+        text = _koord_hover(an, name, s, src)
+        if text is not None:
+            return text
     if s is not None and s.kind == "variable":
         d: A.VarDecl = s.decl
         ty = str(an.info.variables[name].type) if an.info and name in an.info.variables else str(d.type)
@@ -306,6 +342,33 @@ def hover_text(an: Analysis, name: str) -> Optional[str]:
     return None
 
 
+def is_koord(an: Analysis) -> bool:
+    """Whether the analysis is of a Koord file."""
+    from pccl.lang.koord import is_koord_path
+    return is_koord_path(an.path)
+
+
+def _koord_hover(an: Analysis, name: str, s: Optional[Symbol], src: str) -> Optional[str]:
+    """Hover in a Koord file: a declaration or an event as written in
+    Koord, with its PCCL meaning; Koord's own words."""
+    if s is not None and s.kind == "variable":
+        d: A.VarDecl = s.decl
+        ty = str(an.info.variables[name].type) if an.info and name in an.info.variables else str(d.type)
+        written = _slice(src, d.span) or name
+        section = {"loc": "local"}.get(d.section, d.section)
+        extra = " (an array indexed by robot: `x[pid]` is this robot's entry)" if d.section == "allread" else ""
+        return (f"```koord\n{written}\n```\n{section} variable of type `{ty}`{extra}, declared at "
+                f"line {s.range.line + 1}")
+    if s is not None and s.kind == "event":
+        ev: A.Event = s.decl
+        guard = _slice(src, ev.guard.span) or "…"
+        return (f"```koord\n{ev.name}:\n  pre: {guard}\n```\nevent, {len(ev.body)} "
+                f"statement{'s' if len(ev.body) != 1 else ''} in its effect, line {s.range.line + 1}")
+    if s is None and name in KOORD_WORDS:
+        return KOORD_WORDS[name]
+    return None
+
+
 def definition(an: Analysis, name: str) -> Optional[Range]:
     s = an.symbols.get(name)
     return s.range if s is not None else None
@@ -331,6 +394,8 @@ def outline(an: Analysis) -> list[Outline]:
     """Sections with their declarations, the events, the invariants."""
     if an.program is None:
         return []
+    if is_koord(an):
+        return _koord_outline(an)
     src = an.program.source
     lines = src.split("\n")
     heads = [(t.line - 1, t) for t in tokenize(src) if t.kind == HDR and t.col == 0]
@@ -363,6 +428,19 @@ def outline(an: Analysis) -> list[Outline]:
     return out
 
 
+def _koord_outline(an: Analysis) -> list[Outline]:
+    """A Koord file's outline: its variables, events and named invariants
+    (the symbols), in source order."""
+    out = []
+    for name, sym in an.symbols.items():
+        if sym.kind in ("variable", "event", "invariant"):
+            span = sym.decl.span
+            out.append(Outline(name, sym.kind, Range.of(span) if span.line > 0 else sym.range,
+                               sym.range))
+    out.sort(key=lambda o: (o.range.line, o.range.col))
+    return out
+
+
 def completions(an: Analysis) -> list[tuple[str, str, str]]:
     """(label, kind, detail): the program's names, built-ins, keywords, types."""
     out: list[tuple[str, str, str]] = []
@@ -378,6 +456,12 @@ def completions(an: Analysis) -> list[tuple[str, str, str]]:
         out.append((name, "function", signature(b)))
     for name in (an.info.functions if an.info is not None else ()):
         out.append((name, "function", f"{name}() -> any (world file)"))
+    if is_koord(an):
+        out += [(k, "keyword", "keyword") for k in KOORD_KEYWORDS]
+        out += [(h, "keyword", "section") for h in KOORD_HEADERS]
+        out += [(t, "type", "type") for t in KOORD_TYPES]
+        out += [(f"Motion.{p}", "flag", KOORD_WORDS[p]) for p in ("position", "reached", "target", "path")]
+        return out
     for name, ty in READONLY_FLAGS.items():
         out.append((name, "flag", f"{ty} (read-only)"))
     out += [(k, "keyword", "keyword") for k in KEYWORDS]
@@ -576,12 +660,13 @@ class _Session:
         its own parse error."""
         from lsprotocol import types as T
         from pygls.uris import from_fs_path
-        sibling = os.path.splitext(path)[0] + ".pccl"
-        suri = from_fs_path(sibling) or sibling
         docs = self.server.workspace.text_documents
-        if suri in docs:
-            self.refresh(suri)
-            return
+        for ext in (".pccl", ".koord", ".krd"):
+            sibling = os.path.splitext(path)[0] + ext
+            suri = from_fs_path(sibling) or sibling
+            if suri in docs:
+                self.refresh(suri)
+                return
         if uri not in docs:
             return
         from pccl.lang.world import parse_world

@@ -61,9 +61,25 @@ class Case:
     blackbox: Optional[str] = None          # a user blackbox module's text (attribute BLACKBOX)
     moves: bool = False
     options: dict = field(default_factory=dict)   # more explore options (blackbox, n0, events, ...)
+    lang: str = "pccl"                      # the text's language: pccl | koord (docs/koord.md)
 
     def with_text(self, text: str) -> "Case":
         return replace(self, text=text)
+
+    @property
+    def filename(self) -> str:
+        """The program's file name: its suffix says the language."""
+        return "program.koord" if self.lang == "koord" else "program.pccl"
+
+
+def parse(case: Case):
+    """The case's text parsed by its language's front end (a PcclError when
+    it is malformed)."""
+    if case.lang == "koord":
+        from pccl.lang.koord import parse_koord
+        return parse_koord(case.text, "<input>.koord")
+    from pccl.lang.parser import parse_program
+    return parse_program(case.text, "<input>")
 
 
 # ---------------------------------------------------------------------------
@@ -444,8 +460,250 @@ def por(seed: int, rng: random.Random) -> Case:
     return Case(seed, "por", text, agents=agents, invariants=invariants, options=options)
 
 
+# ---------------------------------------------------------------------------
+# Koord programs (issue 47; docs/koord.md)
+# ---------------------------------------------------------------------------
+
+#: Koord int expressions: variables of every section, list methods, allread
+#: reads (own entry, another robot's), function calls
+K_INT = ["0", "1", "2", "s", "x", "y", "c", "q.size()", "me[pid]", "(numAgents - 1)", "(y % 3)"]
+K_ID = ["pid", "(pid + 1)", "me[0]", "(x * pid)", "(numAgents - pid)"]
+#: Koord int expressions that fail for some reachable values: division and
+#: modulo by zero, a list index, an allread entry of a robot that does not
+#: exist, head of an empty list, a negative rand bound, an undefined read
+K_ERR_INT = ["(10 / (x - 1))", "(s % (y - 1))", "q[x]", "me[x + 1]", "l.head()", "rand(x - 1)", "u",
+             "q[q.size() - x]", "(l.head() + 1)", "rand(y - 1)"]
+K_BOOL = ["g", "not g", "flag[pid]", "not flag[pid]", "q.isEmpty()", "q.contains(x)", "x <= s",
+          "h < 2.0", "p.x > 0.5", "owner == me[pid]", "owner != -1", "l.isEmpty()"]
+K_ASYM_BOOL = ["pid == 0", "me[0] == 0", "pid < 1", "(pid + 1) % 2 == 0", "owner == 1"]
+K_ERR_BOOL = ["10 / (x - 1) > 0", "q[x] == 1", "l.head() > 0", "u == 0", "h * 1e308 * 10.0 > 1.0",
+              "flag[y + 2]", "q.head() == l.head()", "rand(x - 1) == 0"]
+#: the functions a program may define: (definition, expression calls, statement calls)
+K_FUNS = {
+    "half": ("def fun half(int v):\n  return v / 2\n", ["half(x)", "half(y + 1)", "half(c)"], []),
+    "ratio": ("def fun ratio(int v):\n  return 10 / (v - 1)\n", ["ratio(x)", "ratio(c + 1)"], []),
+    "bump": ("def fun bump(int v):\n  s = s + v\n  stdout << \"bump \" << v\n", [],
+             ["bump(x)", "bump(1)", "bump(pid)"]),
+    "mark": ("def fun mark(boolean b):\n  flag[pid] = b\n  if b:\n    owner = pid\n", [],
+             ["mark(true)", "mark(x > 0)", "mark(not g)"]),
+    "push": ("def fun push(int v):\n  atomic:\n    q.add(v)\n    s = s + 1\n", [],
+             ["push(x)", "push(c)"]),
+}
+K_INVARIANTS = ["s < 3", "s != 2", "forall i: c[i] <= 3", "count(flag) <= 1", "exists i: x[i] == 0",
+                "forall i: x[i] < 2 or y[i] > 0", "q.size() < 3", "not q.contains(2)",
+                "forall i: forall j: flag[i] and flag[j] -> i == j", "owner != 1",
+                "forall i: me[i] == i", "forall i: h[i] < 100.0", "forall i: 10 / (x[i] - 1) > -100",
+                "forall i: exited[i] -> c[i] > 0"]
+#: the same, for --invariant (PCCL's property syntax over the program read)
+K_CLI_INVARIANTS = ["s < 3", "forall i: c[i] <= 3", "count(flag) <= 1", "size(q) < 4",
+                    "forall i: running[i] || exited[i]", "forall i: exited[i] -> c[i] > 0",
+                    "forall i: me[i] == i", "!contains(q, 2)", "forall i: 10 / (x[i] - 1) > -100"]
+K_PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "reachable s == 2",
+                "reachable count(flag) == 2", "s == 1 ~> s != 1 within 2",
+                "forall i: flag[i] ~> c[i] >= 2"]
+
+
+def _k_int(rng, ks, depth=1, err=None) -> str:
+    err = ks["err"] if err is None else err
+    r = rng.random()
+    if r < err:
+        return rng.choice(K_ERR_INT)
+    if r < err + ks["asym"] / 2:
+        return rng.choice(K_ID)
+    if r < err + ks["asym"] / 2 + 0.08 and ks["expr_funs"]:
+        return rng.choice(ks["expr_funs"])
+    if depth <= 0 or r < 0.55:
+        return rng.choice(K_INT + (["rc.n", "rw.n"] if ks.get("rec") else []))
+    op = rng.choice(["+", "-", "*", "/", "%"])
+    a, b = _k_int(rng, ks, depth - 1, err / 2), _k_int(rng, ks, depth - 1, err / 2)
+    if op in "/%" and rng.random() < 0.8:
+        b = rng.choice(["2", "3", "(1 + c)"])
+    return f"({a} {op} {b})"
+
+
+def _k_bool(rng, ks, err=None) -> str:
+    err = ks["err"] if err is None else err
+    r = rng.random()
+    if r < err:
+        return rng.choice(K_ERR_BOOL)
+    if r < err + ks["asym"]:
+        return rng.choice(K_ASYM_BOOL)
+    if r < err + ks["asym"] + 0.3:
+        return rng.choice(K_BOOL + (["rc.ok", "rw.ok or rc.n > 0"] if ks.get("rec") else []))
+    if r < err + ks["asym"] + 0.4:
+        return f"{_k_bool(rng, ks, 0.0)} {rng.choice(['and', 'or', '&&', '||'])} {_k_bool(rng, ks, 0.0)}"
+    cmp = rng.choice(["==", "!=", "<", "<=", ">", ">="])
+    return f"{_k_int(rng, ks, 1, 0.0)} {cmp} {_k_int(rng, ks, 0, 0.0)}"
+
+
+def _k_stmt(rng, ks, ind: int, depth: int, ctx: dict) -> str:
+    pad = "  " * ind
+    kinds = ["assign", "assign", "shared", "shared", "flag", "list", "float", "pos", "log", "skip",
+             "owner", "assert"]
+    if ks["stmt_funs"] and not ctx.get("in_for"):
+        kinds += ["call"]
+    if ks["ar"]:
+        kinds += ["ar"]
+    if ks.get("rec"):
+        kinds += ["rec", "rec"]
+    if depth > 0:
+        kinds += ["if", "if", "atomic", "for"]
+    if not ctx.get("in_atomic") and rng.random() < 0.12:
+        kinds += ["stop"]
+    k = rng.choice(kinds)
+    if k == "assign":
+        return f"{pad}{rng.choice(['x', 'y'] if not ctx.get('in_for') else ['y'])} = {_k_int(rng, ks, 2)}\n"
+    if k == "shared":
+        return f"{pad}s = {_k_int(rng, ks, 2)}\n"
+    if k == "flag":
+        return f"{pad}flag[pid] = {_k_bool(rng, ks)}\n"
+    if k == "ar":
+        return f"{pad}ar[pid] = {_k_int(rng, ks, 1)}\n"
+    if k == "rec":
+        # a record's fields, a whole-record copy, the shared record
+        return pad + rng.choice([f"rc.n = {_k_int(rng, ks, 1)}", f"rc.ok = {_k_bool(rng, ks)}",
+                                 "rc = rc0", "rw.n = rc.n + 1", "rw.ok = not rw.ok"]) + "\n"
+    if k == "owner":
+        odd = ["x", "pid + 1"] if rng.random() < ks["asym"] else []
+        return f"{pad}owner = {rng.choice(['pid', '-1', 'me[pid]'] + (['me[owner]'] if ks['err'] else []) + odd)}\n"
+    if k == "list":
+        return pad + rng.choice(["q.add(y)", "q.remove(y)", "l.add(1)", "q.append(c)",
+                                 "l.remove(1)" if ks["err"] else "l.add(2)"]) + "\n"
+    if k == "float":
+        big = ["h * 1e308"] if ks["err"] else []
+        return f"{pad}h = {rng.choice(['h * 2.0', 'h + 0.5', 'h / 3.0', 'h - x', '1.5', 'p.y'] + big)}\n"
+    if k == "pos":
+        return pad + rng.choice(["p = pos(x, 1.5)", "p = (h, 2.5)", "p = midpoint(p, pos(0, 0))",
+                                 "p = pos3d(1, y, 0)"]) + "\n"
+    if k == "log":
+        return f"{pad}stdout << \"s \" << s << {_k_int(rng, ks, 0, 0.0)}\n"
+    if k == "skip":
+        return f"{pad}skip\n"
+    if k == "stop":
+        return f"{pad}stop\n"
+    if k == "assert":
+        return f"{pad}assert({_k_bool(rng, ks) if ks['err'] else rng.choice(['c >= 1', 'c > 0 or x != 0'])})\n"
+    if k == "call":
+        calls = [c for c in ks["stmt_funs"] if not (ctx.get("in_atomic") and c.startswith("push"))]
+        return f"{pad}{rng.choice(calls or ['skip'])}\n"
+    if k == "if":
+        body = "".join(_k_stmt(rng, ks, ind + 1, depth - 1, ctx) for _ in range(rng.randint(1, 2)))
+        out = f"{pad}if {_k_bool(rng, ks)}:\n{body}"
+        if rng.random() < 0.3:
+            out += f"{pad}{rng.choice(['elif', 'else if'])} {_k_bool(rng, ks)}:\n" \
+                   + _k_stmt(rng, ks, ind + 1, depth - 1, ctx)
+        if rng.random() < 0.4:
+            out += f"{pad}else:\n" + _k_stmt(rng, ks, ind + 1, depth - 1, ctx)
+        return out
+    if k == "atomic":
+        sub = dict(ctx, in_atomic=True)
+        body = "".join(_k_stmt(rng, ks, ind + 1, depth - 1, sub) for _ in range(rng.randint(1, 2)))
+        return f"{pad}atomic:\n{body}"
+    # for: over a range whose bounds the block does not change (the block
+    # writes neither i nor x)
+    sub = dict(ctx, in_for=True)
+    bounds = rng.choice(["2", "0, 2", "1, 3", "x % 3", "c"] + (["10 / (x - 1)"] if ks["err"] else []))
+    body = "".join(_k_stmt(rng, ks, ind + 1, 0, sub) for _ in range(rng.randint(1, 2)))
+    return f"{pad}for i in range({bounds}):\n{body}"
+
+
+K_SHARED_INITS = ["0", "1", "2", "rand(1)", "-1", "rand(2) - 1"]
+K_LOC_INITS = ["0", "1", "rand(1)", "rand(2)", "numAgents - 1", "s + 1", "q0[rand(1)]"]
+K_ERR_LOC_INITS = ["10 / (rand(2) - 2)", "[7, 8][rand(2)]", "q0[rand(2)]", "rand(rand(2) - 1)"]
+
+
+def _k_motion(seed: int, rng: random.Random, ks: dict) -> tuple:
+    """A moving Koord program: Motion.target legs, Motion.reached, a world."""
+    base = moving(seed, rng, "moving")
+    targets = ["pos(6.0, 0.0)", "pos(2.0, 0.0)", "(3.5, 0.5)", "pos(0.95, 2.0)", "(x, y)",
+               "midpoint(Motion.position, pos(4.0, 0.0))", "pos(rand(1) * 10.0, 0.0)"]
+    legs = rng.choice([1, 2])
+    text = ("using Motion:\n  sensors:\n    pos position\n    boolean reached\n"
+            "  actuators:\n    pos target\n\n"
+            "allwrite:\n  int arrived = 0\n\nlocal:\n  int st = 0\n  int t = 0\n"
+            f"  int x = {rng.choice(['0', '1', 'rand(1)'])}\n  int y = 0\n  pos at = pos(0, 0)\n\n")
+    text += (f"Go:\n  pre: st < {legs} and (st == 0 or Motion.reached)\n  eff:\n"
+             f"    Motion.target = {rng.choice(targets)}\n    st = st + 1\n\n")
+    text += f"Tick:\n  pre: st >= 1 and t < {rng.choice([1, 2, 3])}\n  eff:\n    t = t + 1\n" \
+            f"    at = Motion.position\n\n"
+    text += (f"Arrive:\n  pre: st == {legs} and Motion.reached\n  eff:\n"
+             + rng.choice(["    atomic:\n      arrived = arrived + 1\n", "    arrived = arrived + 1\n"])
+             + "    stop\n")
+    invariants = rng.sample(["arrived <= 1", "forall i: st[i] <= 2", "arrived <= N"], rng.choice([0, 1]))
+    return text, base.world, invariants
+
+
+def koord(seed: int, rng: random.Random) -> Case:
+    """A Koord program (docs/koord.md's constructs) under Koord's round
+    semantics, with its options drawn: ``--events first`` (the deployed
+    runtime), ``--skip-events`` (SkipEvent), or ``--semantics pccl`` (the
+    program read, under PCCL's rules: then every reduction and the native
+    engine apply)."""
+    options = rng.choice([{}, {}, {}, {"events": "first"}, {"skip_events": True},
+                          {"semantics": "pccl"}])
+    ks = {"err": rng.choice([0.0, 0.0, 0.06, 0.15]), "asym": rng.choice([0.0, 0.0, 0.0, 0.1]),
+          "ar": rng.random() < 0.3}
+    if rng.random() < 0.2:
+        text, world, invariants = _k_motion(seed, rng, ks)
+        return Case(seed, "koord", text, agents=None, world=world, invariants=invariants,
+                    moves=True, options=options, lang="koord")
+    funs = rng.sample(sorted(K_FUNS), rng.choice([0, 0, 1, 2, 3]))
+    if not ks["err"]:
+        funs = [f for f in funs if f != "ratio"]
+    ks["expr_funs"] = [c for f in funs for c in K_FUNS[f][1]]
+    ks["stmt_funs"] = [c for f in funs for c in K_FUNS[f][2]]
+    bound = rng.choice([1, 2, 2])
+    text = "".join(K_FUNS[f][0] + "\n" for f in funs)
+    ks["rec"] = rng.random() < 0.3
+    if ks["rec"]:
+        text += ("def Rec:\n  int n = " + rng.choice(["0", "1", "rand(2)"])
+                 + "\n  boolean ok = false\n\n")
+    if rng.random() < 0.15:
+        text += "using Log:\n  actuators:\n    stream stdout\n\n"
+    shared_init = rng.choice(K_SHARED_INITS
+                             + (["10 / (rand(1) - 1)"] if ks["err"] and rng.random() < 0.15 else []))
+    text += (f"allwrite:\n  int s = {shared_init}\n  boolean g = false\n"
+             f"  list<int> q = {rng.choice(['[]', '[1]', '[1, 2]'])}\n  list<int> q0 = [7, 8]\n"
+             f"  int owner = {rng.choice(['-1', '-1', '0'])}\n"
+             + ("  Rec rw\n" if ks["rec"] else "") + "\n")
+    text += "allread:\n  int me[] = pid\n  boolean flag[] = false\n"
+    if ks["ar"]:
+        ar_inits = ["0", "rand(1)", "s + 1"] + (["10 / (rand(1) - 1)"] if ks["err"] else [])
+        text += f"  int ar[] = {rng.choice(ar_inits)}\n"
+    loc_init = rng.choice(K_LOC_INITS + (K_ERR_LOC_INITS if ks["err"] else [])
+                          + (["pid", "pid + 1"] if ks["asym"] else []))
+    text += (f"\nlocal:\n  int c = 0\n  int x = {loc_init}\n"
+             f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])}; int i = 0\n"
+             f"  float h = {rng.choice(['1.5', '0.5', '1e300'])}\n  pos p = pos(1, 2)\n"
+             "  list<int> l = []\n  int u\n" + ("  Rec rc\n  Rec rc0\n" if ks["rec"] else ""))
+    if rng.random() < 0.4:
+        text += "\ninit:\n" + "".join(_k_stmt(rng, ks, 1, 1, {"in_atomic": True})
+                                      for _ in range(rng.randint(1, 2)))
+    for e in range(rng.randint(1, 3)):
+        guard = f"c < {bound}"
+        if rng.random() < 0.6:
+            guard += f" and {_k_bool(rng, ks)}"
+        body = "".join(_k_stmt(rng, ks, 2, 2, {}) for _ in range(rng.randint(1, 3)))
+        text += f"\nE{e}:\n  pre: {guard}\n  eff:\n    c = c + 1\n{body}"
+    if ks["err"] and rng.random() < 0.5:
+        # one more event with a runtime error behind a condition
+        bad = rng.choice(["y = l.head()", "y = rand(x - 2)", "h = h * 1e308", "q.remove(5)",
+                          "y = q[q.size()]", "atomic:\n        y = 10 / (x - x)"])
+        text += (f"\nRisk:\n  pre: c < {bound}\n  eff:\n    c = c + 1\n"
+                 f"    if {rng.choice(['x >= 0', 'x > 0', 'not g', 'y != 1'])}:\n      {bad}\n")
+    if rng.random() < 0.85:
+        text += f"\nDone:\n  pre: c >= {bound}\n  eff:\n    stop\n"
+    if rng.random() < 0.4:
+        text += "\ninvariant:\n" + "".join(f"  inv{k}: {rng.choice(K_INVARIANTS)}\n"
+                                          for k in range(rng.randint(1, 2)))
+    invariants = [rng.choice(K_CLI_INVARIANTS) for _ in range(rng.choice([0, 0, 1, 2]))]
+    properties = [rng.choice(K_PROPERTIES)] if rng.random() < 0.2 else []
+    return Case(seed, "koord", text, agents=rng.choice([1, 2, 2, 2, 3]), invariants=invariants,
+                properties=properties, options=options, lang="koord")
+
+
 FAMILIES = {"core": (core, 10), "moving": (moving, 3), "userbb": (userbb, 1), "sym": (sym, 2),
-            "por": (por, 2)}
+            "por": (por, 2), "koord": (koord, 4)}
 
 
 def case(seed: int, families=None) -> Case:

@@ -21,7 +21,7 @@ from pccl import api
 from pccl.lang.errors import PcclError
 
 from . import oracle
-from .gen import Case
+from .gen import Case, parse
 
 
 def _units(lines: list) -> list:
@@ -42,7 +42,7 @@ def _units(lines: list) -> list:
 def _well_formed(case: Case) -> bool:
     files = oracle.Files(case)
     try:
-        api.check(case.text, source=True, world=files.world)
+        api.check(parse(case), world=files.world)
         return True
     except PcclError:
         return False
@@ -145,10 +145,11 @@ def read(name):
     return open(p).read() if os.path.exists(p) else None
 
 
-case = gen.Case(spec["seed"], spec["family"], read("program.pccl"), agents=spec["agents"],
-                world=read("world.toml"), invariants=spec["invariants"],
+lang = spec.get("lang", "pccl")
+case = gen.Case(spec["seed"], spec["family"], read("program.koord" if lang == "koord" else "program.pccl"),
+                agents=spec["agents"], world=read("world.toml"), invariants=spec["invariants"],
                 properties=spec["properties"], blackbox=read("userbb.py"), moves=spec["moves"],
-                options=spec["options"])
+                options=spec["options"], lang=lang)
 d = oracle.Disagreement(spec["seed"], spec["family"], spec["check"], spec["mode"], spec["against"], "")
 rep = oracle.compare(case, shrink.modes_for(d))
 for x in rep.disagreements:
@@ -164,9 +165,10 @@ def write_finding(root: str, case: Case, d: oracle.Disagreement, original: Case)
     name = f"seed{case.seed}-{d.check}-{d.mode}".replace(",", "+")
     out = os.path.join(root, name)
     os.makedirs(out, exist_ok=True)
-    with open(os.path.join(out, "program.pccl"), "w") as f:
+    prog = case.filename
+    with open(os.path.join(out, prog), "w") as f:
         f.write(case.text if case.text.endswith("\n") else case.text + "\n")
-    files = ["program.pccl"]
+    files = [prog]
     common = []
     if case.world:
         with open(os.path.join(out, "world.toml"), "w") as f:
@@ -186,20 +188,20 @@ def write_finding(root: str, case: Case, d: oracle.Disagreement, original: Case)
         common.append(f"--property '{p}'")
     common.append(f"--all --max-states {oracle.MAX_STATES}")
     base = " ".join(common)
-    cmds = [f"pccl explore program.pccl {base} {oracle.TRUTH.cli()}"]
+    cmds = [f"pccl explore {prog} {base} {oracle.TRUTH.cli()}"]
     for m in modes_for(d):
         if m.name == "truth":
             continue
         if m.kind == "covering":
-            cmds.append(f"pccl explore program.pccl {base}")
-            cmds += [f"pccl run program.pccl {base.split(' --all')[0].replace(' --invariant', ' --invariant')} "
+            cmds.append(f"pccl explore {prog} {base}")
+            cmds += [f"pccl run {prog} {base.split(' --all')[0].replace(' --invariant', ' --invariant')} "
                      f"--blackbox straight --seed {s} --max-time 30 --trace" for s in oracle.RUN_SEEDS]
         else:
-            cmds.append(f"{m.env_prefix()}pccl explore program.pccl {base} {m.cli()}")
+            cmds.append(f"{m.env_prefix()}pccl explore {prog} {base} {m.cli()}")
     with open(os.path.join(out, "case.json"), "w") as f:
         json.dump({"seed": case.seed, "family": case.family, "agents": case.agents,
                    "invariants": case.invariants, "properties": case.properties,
-                   "options": case.options, "moves": case.moves, "check": d.check, "mode": d.mode,
+                   "options": case.options, "moves": case.moves, "lang": case.lang, "check": d.check, "mode": d.mode,
                    "against": d.against}, f, indent=1)
     with open(os.path.join(out, "reproduce.py"), "w") as f:
         f.write(REPRODUCE)

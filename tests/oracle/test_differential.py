@@ -23,11 +23,13 @@ from differential import gen, oracle, run, shrink
 
 #: the CI budget: programs from SEED on, truth + default + SAMPLE drawn modes each
 SEED, N, SAMPLE, BUDGET = 41_000, 60, 3, 75.0
+#: the PCCL families (the Koord family has its own budget and tests, below)
+PCCL = [f for f in gen.FAMILIES if f != "koord"]
 
 
 def test_fixed_budget_has_no_unknown_disagreement():
     modes = [m.name for m in oracle.MODES if m.name != "ray-local"]
-    s = run(N, SEED, BUDGET, modes, SAMPLE)
+    s = run(N, SEED, BUDGET, modes, SAMPLE, families=PCCL)
     print(s.text())
     assert s.programs >= 15, s.text()
     assert [d for d in s.unknown()] == [], s.text()
@@ -41,7 +43,7 @@ def test_fixed_budget_has_no_unknown_disagreement():
 
 
 def test_the_generator_reaches_every_construct():
-    texts = [gen.case(k) for k in range(300)]
+    texts = [gen.case(k, PCCL) for k in range(300)]
     body = "\n".join(c.text for c in texts)
     for construct in ("allwrite:", "allread:", "loc:", "Init:", "atomic:", "while (", "assert(",
                       "add(", "remove(", "exit();", "doReach(", "doReach_fail", "doReach_done",
@@ -62,7 +64,7 @@ def test_the_generator_reaches_every_construct():
 def test_the_programs_are_well_formed():
     from pccl import api
     for k in range(120):
-        c = gen.case(k)
+        c = gen.case(k, PCCL)
         files = oracle.Files(c)
         try:
             api.check(c.text, source=True, world=files.world)
@@ -111,3 +113,105 @@ def test_a_disagreement_shrinks_to_a_small_program_with_its_commands(tmp_path, m
     assert os.path.exists(os.path.join(out, "program.pccl"))
     assert os.path.exists(os.path.join(out, "reproduce.py")) and os.path.exists(os.path.join(out, "case.json"))
     assert re.search(r"pccl explore program\.pccl .*--reduce por", readme)
+
+
+# ---------------------------------------------------------------------------
+# Koord programs (issue 47; gen.koord, docs/oracle.md)
+# ---------------------------------------------------------------------------
+
+#: the Koord budget: programs from KSEED on, truth + default + the Koord modes + KSAMPLE drawn
+KSEED, KN, KSAMPLE, KBUDGET = 47_000, 16, 2, 60.0
+
+
+def test_koord_fixed_budget_has_no_unknown_disagreement():
+    modes = [m.name for m in oracle.MODES if m.name != "ray-local"]
+    s = run(KN, KSEED, KBUDGET, modes, KSAMPLE, families=["koord"])
+    print(s.text())
+    assert s.programs >= 6, s.text()
+    assert s.unknown() == [], s.text()
+    assert s.truth["violation"] and s.truth["exhaustive"], s.truth
+    assert s.agreements >= 2 * s.programs, s.text()
+    # the Koord modes ran, not only the drawn ones
+    assert s.modes["koord-events-first"] and s.modes["koord-skip-events"], s.modes
+
+
+def test_the_koord_generator_reaches_every_construct():
+    cases = [gen.case(k, ["koord"]) for k in range(150)]
+    assert {c.lang for c in cases} == {"koord"}
+    body = "\n".join(c.text for c in cases)
+    for construct in ("allwrite:", "allread:", "local:", "init:", "pre: ", "eff:", "atomic:",
+                      "if ", "elif ", "else if ", "else:", "for i in range(", "def fun ", "return ",
+                      "stop", "skip", "stdout << ", "pid", "numAgents", "pos(", "midpoint(",
+                      "pos3d(", ".add(", ".remove(", ".size()", ".contains(", ".head()", ".isEmpty()",
+                      "assert(", "using Motion:", "Motion.target = ", "Motion.reached",
+                      "Motion.position", "using Log:", "invariant:", "int u\n", "list<int>",
+                      "float h", "rand(", "def Rec:", "Rec rc\n", "rc.n = ", "rc = rc0", "rw.ok"):
+        assert construct in body, construct
+    # every runtime error, in every position it can stand: initialisers of
+    # each section, guards, statements, atomic blocks, range bounds,
+    # function bodies, the invariant section
+    for err in ("int x = 10 / (rand(2) - 2)", "int s = 10 / (rand(1) - 1)", "int ar[] = 10 / (rand(1) - 1)",
+                "rand(rand(2) - 1)", "return 10 / (v - 1)", "in range(10 / (x - 1))",
+                "10 / (x[i] - 1)"):
+        assert err in body, err
+    assert any("pre: c <" in c.text and any(e in c.text.split("pre: ")[1].split("\n")[0]
+                                            for e in gen.K_ERR_BOOL) for c in cases)
+    options = [tuple(sorted(c.options)) for c in cases]
+    for opt in [("events",), ("skip_events",), ("semantics",), ()]:
+        assert opt in options, opt
+    assert any(c.moves and c.world for c in cases)
+    assert any(c.properties for c in cases) and any(c.invariants for c in cases)
+
+
+def test_the_koord_programs_are_well_formed():
+    from pccl import api
+    for k in range(100):
+        c = gen.case(k, ["koord"])
+        files = oracle.Files(c)
+        try:
+            api.check(gen.parse(c), world=files.world)
+        finally:
+            files.close()
+
+
+def test_koord_runtime_errors_of_every_kind_are_reached():
+    from pccl import api
+    reasons = set()
+    for k in range(60):
+        c = gen.case(k, ["koord"])
+        files = oracle.Files(c)
+        try:
+            r = api.explore(gen.parse(c), **oracle.base_kw(c, files), reduce="none", engine="python")
+            reasons |= {v.message for v in r.violations}
+        except Exception as e:          # a shared initialiser's error is exit 2
+            reasons.add(str(e))
+        finally:
+            files.close()
+    text = "\n".join(reasons)
+    for kind in ("division by zero", "out of range", "assertion failed", "head of an empty list",
+                 "undefined", "could not be evaluated", "not in the list", "bound is negative",
+                 "float overflow"):
+        assert kind in text, (kind, text[:2000])
+
+
+def test_a_koord_disagreement_shrinks_to_a_koord_file(tmp_path, monkeypatch):
+    from pccl.model import koord as K
+    from pccl.model.layout import AGS, AR
+    monkeypatch.setattr(K.KoordModel, "_turn_key",
+                        lambda self, i, ag, view: (i, ag, tuple(a[AR] for a in view[AGS]), None))
+    for k in range(60):
+        c = gen.case(k, ["koord"])
+        rep = oracle.compare(c, oracle.choose_modes(["truth", "none-fingerprints"], k))
+        if rep.disagreements:
+            break
+    else:
+        raise AssertionError("no disagreement to shrink")
+    d = rep.disagreements[0]
+    small = shrink.shrink(c, d, budget=60)
+    assert small.lang == "koord"
+    assert len(small.text.splitlines()) < len(c.text.splitlines())
+    assert shrink.reproduces(small, d)
+    out = shrink.write_finding(str(tmp_path), small, d, c)
+    assert os.path.exists(os.path.join(out, "program.koord"))
+    readme = open(os.path.join(out, "README.md")).read()
+    assert re.search(r"pccl explore program\.koord .*--reduce none", readme)

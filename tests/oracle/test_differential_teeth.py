@@ -186,3 +186,42 @@ def test_g_native_reduced_counts(monkeypatch, text, agents, modes):
         xxh3_64_intdigest=lambda b: hash(_tuples(marshal.loads(b))) % (1 << 64)))
     rep = oracle.compare(c, chosen)
     assert [d.check for d in rep.disagreements] == ["figures"], rep.disagreements
+
+
+# ---------------------------------------------------------------------------
+# Koord programs under Koord's round semantics (issue 47; gen.koord)
+# ---------------------------------------------------------------------------
+
+def test_h_koord_turn_table_keyed_without_the_shared_view(monkeypatch):
+    """The table of robots' turns (pccl.model.koord.KoordModel._turn_key)
+    keyed without the shared values the robot reads: a turn computed from
+    one view is reused for another.  The truth computes every turn afresh
+    (oracle._no_turn_cache), so every other mode disagrees with it."""
+    from pccl.model import koord as K
+    from pccl.model.layout import AGS, AR
+    ds = caught(["koord"], ["none-fingerprints"], 40)
+    assert not ds, ds                                   # as shipped
+    monkeypatch.setattr(K.KoordModel, "_turn_key",
+                        lambda self, i, ag, view: (i, ag, tuple(a[AR] for a in view[AGS]), None))
+    assert caught(["koord"], ["none-fingerprints"], 40), \
+        "the oracle missed a turn table that ignores the shared values"
+
+
+def test_i_koord_skip_event_replacing_the_event(monkeypatch):
+    """SkipEvent (--skip-events) implemented as *instead of* the event rather
+    than beside it: the superset mode koord-skip-events misses a violation
+    the truth (--events any, no skipping) finds."""
+    from pccl.model import koord as K
+    orig = K.KoordModel._robot_turn
+
+    def only_skip(self, st, i, ag, out):
+        tmp: list = []
+        orig(self, st, i, ag, tmp)
+        if self.skip_events and any(lab[0] == "SKIP EVENT" for lab, _ in tmp):
+            tmp = [(lab, s) for lab, s in tmp if lab[0] != "EVENT TRANS"]
+        out.extend(tmp)
+    ds = caught(["koord"], ["koord-skip-events"], 30)
+    assert not ds, ds                                   # as shipped
+    monkeypatch.setattr(K.KoordModel, "_robot_turn", only_skip)
+    ds = caught(["koord"], ["koord-skip-events"], 30)
+    assert ds and ds[0].check == "inclusion", "the oracle missed SkipEvent replacing EventTrans"
