@@ -53,7 +53,7 @@ def test_no_import_cycles():
 #: modules that know nothing of PCCL: the search and its bookkeeping
 GENERIC = {"pccl.search.explorer", "pccl.search.parallel", "pccl.search.parallel_worker",
            "pccl.search.parallel_pipes", "pccl.search.parallel_ray", "pccl.search.fingerprint",
-           "pccl.search.visited", "pccl.search.memory", "pccl.search.spill", "pccl.search.safedata"}
+           "pccl.search.visited", "pccl.search.scc", "pccl.search.memory", "pccl.search.spill", "pccl.search.safedata"}
 #: the front end: source text to a checked AST
 FRONT = {"pccl.lang.ast", "pccl.lang.parser", "pccl.lang.lalrfast", "pccl.lang.koord",
          "pccl.lang.files", "pccl.lang.checker", "pccl.lang.types", "pccl.lang.errors",
