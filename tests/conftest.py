@@ -304,3 +304,27 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if portable_id(item.nodeid) in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+
+
+def closure(m, st, limit: int = 20_000, key=None) -> list:
+    """Brute force over the unreduced rules of model ``m``: ``(label, before,
+    after)`` of every transition reachable from ``st`` (``after`` None: a
+    terminal state), one expansion per key (``key``: ``m.key`` unless given).
+    The stall and frozen-team tests' independent check."""
+    from pccl.model.engine import Model
+    key = key or m.key
+    seen, todo, out = set(), [st], []
+    while todo:
+        s = todo.pop()
+        k = key(s)
+        if k in seen:
+            continue
+        seen.add(k)
+        assert len(seen) < limit, "closure too large for a test"
+        succ = Model.successors(m, s)
+        if not succ:
+            out.append((None, s, None))
+        for lab, s2 in succ:
+            out.append((lab, s, s2))
+            todo.append(s2)
+    return out
