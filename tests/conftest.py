@@ -328,3 +328,13 @@ def closure(m, st, limit: int = 20_000, key=None) -> list:
             out.append((lab, s, s2))
             todo.append(s2)
     return out
+
+
+def verdict(res, *, lines: bool = True, holds: bool = False) -> tuple:
+    """What two ways of computing an ``explore`` result must agree on (reduced
+    and unreduced, native and Python...): the status and the violations as a
+    set of (kind, name, line) (``lines=False``: (kind, name)); with ``holds``,
+    also the set of properties that hold."""
+    found = frozenset((v["kind"], v["name"], v["line"]) if lines else (v["kind"], v["name"])
+                      for v in res.violations)
+    return (res.status, found, frozenset(res.holds)) if holds else (res.status, found)

@@ -23,7 +23,7 @@ from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
 from pccl.lang.parser import parse_program
 
-from conftest import cli
+from conftest import cli, verdict
 
 
 def src(text: str) -> str:
@@ -33,10 +33,6 @@ def src(text: str) -> str:
 def plan(text, agents=2, **kw):
     return make_model(src(text), source=True, agents=agents, blackbox="instant",
                       reduce="auto", **kw).reduction
-
-
-def verdict(res) -> tuple:
-    return res.status, sorted({(v["kind"], v["name"], v["line"]) for v in res.violations})
 
 
 def same_verdict(text, agents=2, **kw):
