@@ -27,9 +27,11 @@ def tree_of_worktree(into: str) -> str:
     return into
 
 
-def tree_of_revision(rev: str, into: str) -> str:
-    """The package of git revision ``rev``, importable from ``into``."""
-    archive = subprocess.run(["git", "archive", rev, "pccl", "semantics", "blackboxes"], cwd=ROOT,
+def tree_of_revision(rev: str, into: str, paths: tuple = ("pccl", "semantics", "blackboxes")) -> str:
+    """The package of git revision ``rev``, importable from ``into``
+    (``paths``: what to extract; empty: the whole revision), with
+    ``pccl.semantics`` and ``pccl.blackboxes`` linked in as the install does."""
+    archive = subprocess.run(["git", "archive", rev, *paths], cwd=ROOT,
                              capture_output=True, check=True)
     subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
     for sub in ("semantics", "blackboxes"):
