@@ -338,3 +338,16 @@ def verdict(res, *, lines: bool = True, holds: bool = False) -> tuple:
     found = frozenset((v["kind"], v["name"], v["line"]) if lines else (v["kind"], v["name"])
                       for v in res.violations)
     return (res.status, found, frozenset(res.holds)) if holds else (res.status, found)
+
+
+def cli_robust(*args):
+    """:func:`cli` for inputs made to break it (mutants, truncations): the
+    command exits 0, 1 or 2, and a 2 is one rendered error (``file:line:col:
+    error:``) on standard error and nothing on standard output."""
+    res = cli(*args)
+    cmd = "pccl " + " ".join(map(str, args))
+    assert res.exit_code in (0, 1, 2), f"{cmd}: exit {res.exit_code}\n{res.output}"
+    if res.exit_code == 2:
+        assert res.stderr.count(": error: ") == 1, f"{cmd}: not one rendered error:\n{res.stderr}"
+        assert res.stdout == ""
+    return res
