@@ -1,6 +1,6 @@
 """Strongly connected components (iterative Tarjan) of a graph given by a
 successor accessor: one function for the graph analyses over the recorded
-CSR arrays (:meth:`pccl.search.liveness.StateGraph.sccs`) and for the exact
+CSR arrays (:meth:`pccl.search.liveness.Graph.sccs`) and for the exact
 fairness search over real states (:mod:`pccl.search.lift`)."""
 
 from __future__ import annotations
