@@ -28,17 +28,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _baseline import run_pccl  # noqa: E402
 
 #: in a child: argv = tree, the kept document, the documents to analyse
 ANALYSE = """
@@ -54,10 +53,6 @@ for path in sys.argv[3:]:
     keep.append(an)
     print(json.dumps([w, c, len(an.diagnostics)]), flush=True)
 """
-CHECK = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'pccl'; "
-         "from pccl.cli import main; main()")
-
-
 def analyse_in(tree: str, keep: str, paths: list[str], env: dict) -> list[list[float]]:
     p = subprocess.run([sys.executable, "-c", ANALYSE, tree, keep, *paths], env=env,
                        capture_output=True, text=True)
@@ -68,20 +63,12 @@ def analyse_in(tree: str, keep: str, paths: list[str], env: dict) -> list[list[f
 
 def check_in(tree: str, path: str, env: dict) -> tuple[float, float]:
     """``pccl check PATH`` with the code of ``tree``: (wall s, CPU s)."""
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", CHECK, tree, "check", path], env=env,
-                       capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if p.returncode != 0:
-        raise SystemExit(f"pccl check in {tree}: exit {p.returncode}\n{p.stderr[-2000:]}")
-    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return run_pccl(tree, ["check", path], env, ok=(0,))
 
 
 def main() -> int:
-    from startup import tree_of_revision, tree_of_worktree
-    from test_lsp_robust import generated
+    from _baseline import versions as baseline_versions
+    from sources import generated
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("lines", nargs="*", type=int, help="sizes [10000 30000 60000]")
     ap.add_argument("--baseline", metavar="REV", help="compare against this git revision")
@@ -90,11 +77,7 @@ def main() -> int:
     sizes = args.lines or [10_000, 30_000, 60_000]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     with tempfile.TemporaryDirectory(prefix="pccl-lsp-large-") as tmp:
-        versions = [("new", tree_of_worktree(os.path.join(tmp, "new")))]
-        if args.baseline:
-            old = os.path.join(tmp, "old")
-            os.mkdir(old)
-            versions.insert(0, (f"old {args.baseline}"[:12], tree_of_revision(args.baseline, old)))
+        versions = baseline_versions(tmp, args.baseline)
         keep = os.path.join(tmp, "keep.pccl")
         Path(keep).write_text(generated(20_000))
         paths = []

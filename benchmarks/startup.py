@@ -26,14 +26,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import resource
-import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from _baseline import run_pccl
+from _baseline import versions as baseline_versions
 
 ROOT = Path(__file__).resolve().parent.parent
 RACE = str(ROOT / "programs" / "race.pccl")
@@ -44,42 +43,11 @@ COMMANDS = [
     ("pccl check race.pccl", ["check", RACE], 0.2),
     ("pccl explore fischer k=1", ["explore", FISCHER, "--set", "k=1", "--invariant", "count(inCs) <= 1"], None),
 ]
-CHILD = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'pccl'; "
-         "from pccl.cli import main; main()")
-
-
-def tree_of_worktree(into: str) -> str:
-    """This working tree's package, importable from ``into``."""
-    ignore = shutil.ignore_patterns("__pycache__")
-    shutil.copytree(ROOT / "pccl", os.path.join(into, "pccl"), ignore=ignore)
-    for sub in ("semantics", "blackboxes"):
-        shutil.copytree(ROOT / sub, os.path.join(into, "pccl", sub), ignore=ignore)
-    return into
-
-
-def tree_of_revision(rev: str, into: str) -> str:
-    """The package of git revision ``rev``, importable from ``into``."""
-    archive = subprocess.run(["git", "archive", rev, "pccl", "semantics", "blackboxes"], cwd=ROOT,
-                             capture_output=True, check=True)
-    subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
-    for sub in ("semantics", "blackboxes"):
-        link = os.path.join(into, "pccl", sub)
-        if not os.path.exists(link):
-            os.symlink(os.path.join(into, sub), link)
-    return into
 
 
 def once(tree: str, args: list[str], env: dict, cwd: str) -> tuple[float, float]:
     """One run: (wall s, the child's user + system CPU s)."""
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", CHILD, tree, *args], env=env, cwd=cwd,
-                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    elapsed = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if p.returncode not in (0, 1):
-        raise SystemExit(f"{args}: exit {p.returncode}\n{p.stderr[-2000:]}")
-    return elapsed, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return run_pccl(tree, args, env, cwd)
 
 
 def main() -> int:
@@ -95,11 +63,7 @@ def main() -> int:
     else:
         env.pop("PYTHONDONTWRITEBYTECODE", None)
     with tempfile.TemporaryDirectory(prefix="pccl-startup-") as tmp:
-        versions = [("new", tree_of_worktree(os.path.join(tmp, "new")))]
-        if args.baseline:
-            old = os.path.join(tmp, "old")
-            os.mkdir(old)
-            versions.insert(0, (f"old {args.baseline}"[:12], tree_of_revision(args.baseline, old)))
+        versions = baseline_versions(tmp, args.baseline)
         print(f"python {sys.version.split()[0]}, load average {os.getloadavg()[0]:.2f}, "
               f"{'no bytecode' if args.no_bytecode else 'bytecode cached'}, {args.repeat} runs each")
         print(f"{'command':<28} {'version':<12} {'best s':>8} {'median s':>9} {'CPU s':>7}  goal (wall median)")

@@ -159,3 +159,28 @@ class Browser:
 
 def file_url(path) -> str:
     return "file://" + os.path.abspath(os.fspath(path))
+
+
+def trace_states(doc: dict) -> list:
+    """Every state of a trace document (``--trace-out``), rebuilt in Python
+    from its initial state and each step's changes: what a page showing the
+    trace must show (tests/output/test_viewer_browser.py,
+    test_viewer_agreement.py)."""
+    import copy
+    out = [doc["initial"]]
+    for rec in doc["steps"]:
+        s = copy.deepcopy(out[-1])
+        for ch in rec["changes"]:
+            c = ch["cell"]
+            if "agent" in c:
+                ag = s["agents"][c["agent"]]
+                if "var" in c:
+                    ag["variables"][c["var"]] = ch["new"]
+                else:
+                    ag[c["cell"]] = ch["new"]
+            elif "var" in c:
+                s["shared"][c["var"]] = ch["new"]
+            else:
+                s[c["cell"]] = ch["new"]
+        out.append(s)
+    return out

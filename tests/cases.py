@@ -19,6 +19,39 @@ M61 = 2**61 - 1                  # hash(M61) == hash(0) == 0
 MUTEX = "count(inCs) <= 1"
 
 
+#: Issue 41 hole 6's reproducers (the native and Python engines' figures
+#: disagreed; tests/model/test_native_ints.py, tests/oracle/test_differential_teeth.py).
+#: Generated (seed 9149), shrunk: merge,por 253/326 native, 254/327 Python then.
+HOLE6_MERGE_POR = """\
+allwrite:
+  int s1 = -1;
+Init:
+  s1 = 3;
+E1():
+  pre(true);
+  eff:
+    atomic:
+      if (s1 > -2):
+        s1 = s1 - 1;
+"""
+#: generated, shrunk: 3 agents, default reductions 133/260/17 native, 130/257/16 Python then
+HOLE6_DEFAULT = """\
+allwrite:
+  int s0 = 3;
+loc:
+  int v0 = -3;
+E0():
+  pre(true);
+  eff:
+    v0 = -v0;
+E1():
+  pre(true);
+  eff:
+    s0 = (s0 - v0 - s0) % 2;
+    s0 = -2;
+"""
+
+
 def src(text: str) -> str:
     return textwrap.dedent(text).lstrip("\n")
 

@@ -304,3 +304,50 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if portable_id(item.nodeid) in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+
+
+def closure(m, st, limit: int = 20_000, key=None) -> list:
+    """Brute force over the unreduced rules of model ``m``: ``(label, before,
+    after)`` of every transition reachable from ``st`` (``after`` None: a
+    terminal state), one expansion per key (``key``: ``m.key`` unless given).
+    The stall and frozen-team tests' independent check."""
+    from pccl.model.engine import Model
+    key = key or m.key
+    seen, todo, out = set(), [st], []
+    while todo:
+        s = todo.pop()
+        k = key(s)
+        if k in seen:
+            continue
+        seen.add(k)
+        assert len(seen) < limit, "closure too large for a test"
+        succ = Model.successors(m, s)
+        if not succ:
+            out.append((None, s, None))
+        for lab, s2 in succ:
+            out.append((lab, s, s2))
+            todo.append(s2)
+    return out
+
+
+def verdict(res, *, lines: bool = True, holds: bool = False) -> tuple:
+    """What two ways of computing an ``explore`` result must agree on (reduced
+    and unreduced, native and Python...): the status and the violations as a
+    set of (kind, name, line) (``lines=False``: (kind, name)); with ``holds``,
+    also the set of properties that hold."""
+    found = frozenset((v["kind"], v["name"], v["line"]) if lines else (v["kind"], v["name"])
+                      for v in res.violations)
+    return (res.status, found, frozenset(res.holds)) if holds else (res.status, found)
+
+
+def cli_robust(*args):
+    """:func:`cli` for inputs made to break it (mutants, truncations): the
+    command exits 0, 1 or 2, and a 2 is one rendered error (``file:line:col:
+    error:``) on standard error and nothing on standard output."""
+    res = cli(*args)
+    cmd = "pccl " + " ".join(map(str, args))
+    assert res.exit_code in (0, 1, 2), f"{cmd}: exit {res.exit_code}\n{res.output}"
+    if res.exit_code == 2:
+        assert res.stderr.count(": error: ") == 1, f"{cmd}: not one rendered error:\n{res.stderr}"
+        assert res.stdout == ""
+    return res

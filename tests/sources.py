@@ -47,6 +47,21 @@ def mutate(text, rng, junk=JUNK):
     return kind, "\n".join(lines)
 
 
+def mutant_cases(sources: dict, n_mut: int, rng, junk=JUNK, n_trunc: int = 14) -> list:
+    """``pytest.param(name, text)`` per truncation (``n_trunc`` of them) and
+    per mutant (``n_mut``, from ``rng``) of each of ``sources`` (name -> text,
+    in the dict's order), with ids naming the mutation."""
+    import pytest
+    out = []
+    for name, text in sources.items():
+        for tag, t in truncations(text, n_trunc):
+            out.append(pytest.param(name, t, id=f"{name}-{tag}"))
+        for k in range(n_mut):
+            kind, t = mutate(text, rng, junk)
+            out.append(pytest.param(name, t, id=f"{name}-{kind}{k}"))
+    return out
+
+
 def generated(lines: int) -> str:
     """A program of about ``lines`` lines: a quarter shared declarations,
     the rest events of five lines (a guard, two assignments)."""

@@ -26,6 +26,33 @@ from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
 from pccl.lang.parser import parse_program
 
+
+from pccl.lang import scalarset as SS
+
+#: The symmetry analysis's own methods, which the old holes below wrap.
+ORIG_TYPEOF = SS.IdTypes.typeof
+ORIG_AGENT_INDEX = SS.IdTypes.agent_index
+
+
+def weak_reads(self, e, prop, bound):
+    """Hole 1 (for teeth: ``monkeypatch.setattr(SS.IdTypes, "typeof",
+    weak_reads)``): an indexed read is never an agent id."""
+    if isinstance(e, SS.A.Index):
+        return False
+    return ORIG_TYPEOF(self, e, prop, bound)
+
+
+def weak_arrays(self, e, prop, bound):
+    """Hole 2 (``"agent_index"``): every first index of an allread variable
+    picks an agent."""
+    root, chain = SS.A.index_chain(e)
+    if isinstance(root, SS.A.Name):
+        vs = self.lay.vars.get(root.name)
+        if vs is not None and vs.section == "allread":
+            return root.name, chain[0].index, chain[1:]
+    return ORIG_AGENT_INDEX(self, e, prop, bound)
+
+
 HEADER = """Agent::Attack
 
 allwrite:

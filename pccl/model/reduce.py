@@ -1,7 +1,7 @@
 """State-space reductions behind the explorer's ``Model`` protocol.
 
-Two reductions, each either a different ``successors`` or a different ``key``
-(docs/reductions.md has the soundness arguments):
+Four reductions (:data:`ALL`), each either a different ``successors`` or a
+different ``key`` (docs/reductions.md has the soundness arguments):
 
 ``merge``
     statement merging (SPIN's statement merging, Lipton reduction): after a
@@ -16,6 +16,14 @@ Two reductions, each either a different ``successors`` or a different ``key``
     canonical representative of a state's orbit under permutations of the
     agent ids (cells sorted, id-valued data renamed).  Successors are still
     computed from the actual state, so replay yields real states.
+
+``por``
+    partial-order reduction with ample sets (:class:`Por`; :class:`UnionPor`
+    with symmetry).
+
+``dead``
+    dead variables: values no future step can read leave the key
+    (:mod:`pccl.model.dead`).
 
 :func:`plan` decides which reductions are sound for a model and why the
 others are off.

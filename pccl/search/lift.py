@@ -24,9 +24,11 @@ component.  It serves two purposes:
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Optional
 
 import numpy as np
+
+from pccl.search.scc import tarjan
 
 __all__ = ["RealCycles"]
 
@@ -212,54 +214,7 @@ def _bfs(adj: list, start: int, goal: set, allowed: set) -> list:
 
 
 def _tarjan(adj: list) -> list:
-    """Component id per state of the graph ``adj`` (iterative Tarjan)."""
-    n = len(adj)
-    index = [-1] * n
-    low = [0] * n
-    onstack = [False] * n
-    comp = [-1] * n
-    stack: list = []
-    counter = 0
-    ncomp = 0
-    for root in range(n):
-        if index[root] >= 0:
-            continue
-        work: list[Any] = [(root, 0)]
-        index[root] = low[root] = counter
-        counter += 1
-        stack.append(root)
-        onstack[root] = True
-        while work:
-            v, e = work[-1]
-            out = adj[v]
-            descended = False
-            while e < len(out):
-                w = out[e][1]
-                e += 1
-                if index[w] < 0:
-                    work[-1] = (v, e)
-                    index[w] = low[w] = counter
-                    counter += 1
-                    stack.append(w)
-                    onstack[w] = True
-                    work.append((w, 0))
-                    descended = True
-                    break
-                if onstack[w] and index[w] < low[v]:
-                    low[v] = index[w]
-            if descended:
-                continue
-            work.pop()
-            if work:
-                u = work[-1][0]
-                if low[v] < low[u]:
-                    low[u] = low[v]
-            if low[v] == index[v]:
-                while True:
-                    w = stack.pop()
-                    onstack[w] = False
-                    comp[w] = ncomp
-                    if w == v:
-                        break
-                ncomp += 1
-    return comp
+    """Component id per state of the graph ``adj`` (lists of ``(label,
+    successor)``; :func:`pccl.search.scc.tarjan`)."""
+    comp, _ = tarjan(len(adj), range(len(adj)), lambda v: [j for _, j in adj[v]])
+    return comp.tolist()

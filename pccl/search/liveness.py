@@ -52,6 +52,7 @@ from collections.abc import Callable
 import numpy as np
 
 from pccl.search.explorer import Counterexample
+from pccl.search.scc import tarjan
 
 __all__ = ["GraphRecorder", "analyse", "LivenessResult"]
 
@@ -482,69 +483,11 @@ class Graph:
 
     def sccs(self, nodes: np.ndarray, allowed: np.ndarray) -> tuple:
         """Strongly connected components of the subgraph induced by
-        ``allowed``, for the states ``nodes`` (iterative Tarjan).  Returns
-        ``(comp, nontrivial)``: the component id per state (-1 outside) and
-        per component whether it has a cycle."""
-        n = self.n
-        index = np.full(n, -1, dtype=np.int64)
-        low = np.zeros(n, dtype=np.int64)
-        comp = np.full(n, -1, dtype=np.int64)
-        onstack = np.zeros(n, dtype=bool)
-        stack: list = []
-        nontrivial: list = []
-        counter = 0
-        fptr, fdst = self.fptr, self.fdst
-        for root in nodes.tolist():
-            if index[root] >= 0:
-                continue
-            work = [(root, int(fptr[root]))]
-            index[root] = low[root] = counter
-            counter += 1
-            stack.append(root)
-            onstack[root] = True
-            while work:
-                v, e = work[-1]
-                end = int(fptr[v + 1])
-                descended = False
-                while e < end:
-                    w = int(fdst[e])
-                    e += 1
-                    if not allowed[w]:
-                        continue
-                    if index[w] < 0:
-                        work[-1] = (v, e)
-                        index[w] = low[w] = counter
-                        counter += 1
-                        stack.append(w)
-                        onstack[w] = True
-                        work.append((w, int(fptr[w])))
-                        descended = True
-                        break
-                    if onstack[w] and index[w] < low[v]:
-                        low[v] = index[w]
-                if descended:
-                    continue
-                work.pop()
-                if work:
-                    u = work[-1][0]
-                    if low[v] < low[u]:
-                        low[u] = low[v]
-                if low[v] == index[v]:
-                    cid = len(nontrivial)
-                    size = 0
-                    while True:
-                        w = stack.pop()
-                        onstack[w] = False
-                        comp[w] = cid
-                        size += 1
-                        if w == v:
-                            break
-                    cyc = size > 1
-                    if not cyc:
-                        s = self.succ(v)
-                        cyc = bool((s == v).any())
-                    nontrivial.append(cyc)
-        return comp, np.asarray(nontrivial, dtype=bool)
+        ``allowed``, for the states ``nodes`` (iterative Tarjan,
+        :func:`pccl.search.scc.tarjan`).  Returns ``(comp, nontrivial)``:
+        the component id per state (-1 outside) and per component whether
+        it has a cycle."""
+        return tarjan(self.n, nodes.tolist(), self.succ, allowed)
 
     def cycle_through(self, c: int, comp: np.ndarray, musts: list) -> list:
         """A cycle ``[c, ..., c]`` inside c's component visiting, in order, a

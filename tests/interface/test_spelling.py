@@ -25,14 +25,15 @@ LOOP = str(TEST_PROGRAMS / "eng_loop.pccl")
 ROOT = Path(__file__).resolve().parents[2]
 
 #: Modules that are command-line front ends: they write the flags of the
-#: command line they serve.  cli.py is ``pccl``; simulate.py prints the
+#: command line they serve.  pccl/cli/ is ``pccl``; simulate.py prints the
 #: ``pccl run ...`` command that reproduces an outcome; exitcodes.py is the
 #: table of ``--exit-codes detailed`` in the CLI's help; archdoc.py has its
 #: own command line (``python -m pccl.tools.archdoc --check``); replay.py is
 #: ``pccl replay`` (its errors name its own --program/--world/--blackbox; the
 #: API offers no replay); serve.py is the viewer's server, answering the page
 #: in the terms of the ``pccl view`` command that started it.
-FRONT_ENDS = {"pccl/cli.py", "pccl/tools/simulate.py", "pccl/tools/exitcodes.py",
+FRONT_ENDS = {*(p.relative_to(ROOT).as_posix() for p in (ROOT / "pccl" / "cli").glob("*.py")),
+              "pccl/tools/simulate.py", "pccl/tools/exitcodes.py",
               "pccl/tools/archdoc.py", "pccl/tools/replay.py", "pccl/tools/serve.py"}
 #: Modules that still write flags, and why (docs/architecture.md, "Flag
 #: spelling").  An entry is deleted when its flags go; the test below then
@@ -43,7 +44,7 @@ PENDING: dict = {}
 #: Other programs' flags that are spelt like one of pccl's: the C compiler's
 #: command line, and the ``ray start`` command a message suggests.
 OTHER_PROGRAMS = {("pccl/model/native_build.py", "-w"), ("pccl/model/native_build.py", "-o"),
-                  ("pccl/search/parallel.py", "--port"),
+                  ("pccl/search/parallel_ray.py", "--port"),
                   # --watch is the page's, no option of the API (no placeholder spells it)
                   ("pccl/output/viewer.py", "--watch")}
 

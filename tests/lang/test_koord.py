@@ -583,30 +583,15 @@ def _mutate(text, rng):
 
 
 def _fuzz_cases(n_mut=12):
-    rng = random.Random(SEED)
-    out = []
-    for name in ("add_numbers.koord", "lineform.koord", "follow_points.koord", "fischer.koord"):
-        text = (KOORD / name).read_text()
-        step = max(1, len(text) // 6)
-        for cut in range(step, len(text), step):
-            out.append(pytest.param(name, text[:cut], id=f"{name}-trunc{cut}"))
-        for i in range(n_mut):
-            kind, t = _mutate(text, rng)
-            out.append(pytest.param(name, t, id=f"{name}-{kind}{i}"))
-    return out
+    from sources import mutant_cases
+    names = ("add_numbers.koord", "lineform.koord", "follow_points.koord", "fischer.koord")
+    return mutant_cases({name: (KOORD / name).read_text() for name in names}, n_mut,
+                        random.Random(SEED), JUNK, n_trunc=6)
 
 
 def _invoke(args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    cmd = "pccl " + " ".join(map(str, args))
-    assert res.exception is None or isinstance(res.exception, SystemExit), \
-        f"{cmd} raised {type(res.exception).__name__}: {res.exception}"
-    assert res.exit_code in (0, 1, 2), f"{cmd}: exit {res.exit_code}\n{res.output}"
-    assert "Traceback" not in res.output
-    if res.exit_code == 2:
-        assert res.stderr.count(": error: ") == 1, f"{cmd}: not one rendered error:\n{res.stderr}"
-        assert res.stdout == ""
-    return res
+    from conftest import cli_robust
+    return cli_robust(*args)
 
 
 @pytest.mark.slow

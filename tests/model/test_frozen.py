@@ -20,7 +20,7 @@ from pccl.api import explore, make_model
 from pccl.model.engine import Model
 from pccl.model.layout import AGS, AR, POS, REACH, SH, STATUS, TARGET
 
-from conftest import ROOT, TEST_PROGRAMS, cli
+from conftest import ROOT, TEST_PROGRAMS, cli, closure
 
 pytestmark = pytest.mark.slow     # every test here explores (0.5-15 s each on a loaded machine)
 
@@ -36,33 +36,13 @@ def progress(st) -> tuple:
     return (st[SH], tuple((ag[STATUS], ag[AR], ag[POS], ag[REACH][TARGET]) for ag in st[AGS]))
 
 
-def closure(m, st, limit=50_000) -> list:
-    """Brute force over the unreduced rules: ``(label, before, after)`` of every
-    transition reachable from ``st`` (``after`` None: a terminal state)."""
-    seen, todo, out = set(), [st], []
-    while todo:
-        s = todo.pop()
-        k = Model.key(m, s)
-        if k in seen:
-            continue
-        seen.add(k)
-        assert len(seen) < limit, "closure too large for a test"
-        succ = Model.successors(m, s)
-        if not succ:
-            out.append((None, s, None))
-        for lab, s2 in succ:
-            out.append((lab, s, s2))
-            todo.append(s2)
-    return out
-
-
 def really_frozen(m, st) -> tuple:
     """Independently, over the unreduced rules of ``m`` (the model of a result,
     whose interned pending code the state's is): ``(frozen, events that
     still fire)`` from ``st``: no
     terminal state reachable, time advances, nothing changes the progress
     tuple, and some event never fires."""
-    steps = closure(m, st)
+    steps = closure(m, st, 50_000, key=lambda s: Model.key(m, s))
     fires = {lab[2] for lab, _, _ in steps if lab is not None and lab[0] == "EVENT SELECT"
              and lab[2] is not None}
     frozen = (not any(lab is None for lab, _, _ in steps)

@@ -18,6 +18,8 @@ from pccl.lang.errors import PcclError
 from pccl.model.koord import RND, KoordModel
 from pccl.model.layout import AGS, CNT, LOC, LQ, PHASE, SH, DISCRETE
 
+from conftest import reachable
+
 ROOT = Path(__file__).resolve().parents[2]
 KOORD = ROOT / "programs" / "koord"
 
@@ -427,37 +429,10 @@ def test_symmetry_covers_every_orbit(name, agents, over):
     why, slots = symmetry_problem(plain.model)
     assert why is None
     canon = _canonical(plain.model, slots)
-    reduced = _keys_reached_states(red)
-    every = _plain_states(plain)
+    reduced = reachable(red, limit=1 << 40)      # one state per key: what each search stores
+    every = reachable(plain, limit=1 << 40)
     assert {canon(st) for st in reduced} == {canon(st) for st in every}
     assert len(reduced) < len(every)
-
-
-def _keys_reached_states(m) -> list:
-    """The states a search stores when it keeps one per ``m.key``."""
-    seen: dict = {}
-    todo = list(m.init_states())
-    while todo:
-        st = todo.pop()
-        key = m.key(st)
-        if key not in seen:
-            seen[key] = st
-            todo.extend(s2 for _, s2 in m.successors(st))
-    return list(seen.values())
-
-
-def _plain_states(m) -> list:
-    """One state per identity (``m.key``: the clock left out under time
-    abstraction) of everything ``m`` reaches."""
-    seen: dict = {}
-    todo = list(m.init_states())
-    while todo:
-        st = todo.pop()
-        k = m.key(st)
-        if k not in seen:
-            seen[k] = st
-            todo.extend(s2 for _, s2 in m.successors(st))
-    return list(seen.values())
 
 
 @pytest.mark.parametrize("name,agents,over", [

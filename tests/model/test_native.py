@@ -762,12 +762,13 @@ def test_native_workers_balance_large_levels(workers, monkeypatch):
     process's (small chunks and threshold: the forked workers inherit
     them); by default the native levels keep the static split."""
     from pccl.search import parallel as P
+    from pccl.search import parallel_pipes as PP
     from pccl.search.explorer import Explorer
-    monkeypatch.setattr(P, "_CHUNK", 4)
-    monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
-    monkeypatch.setattr(P, "_BALANCE_NATIVE", True)       # PCCL_BALANCE=1
-    monkeypatch.setattr(P, "_MIN_GIVE", 2)
-    monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
+    monkeypatch.setattr(PP, "_CHUNK", 4)
+    monkeypatch.setattr(PP, "_NATIVE_CHUNK", 1)
+    monkeypatch.setattr(PP, "_BALANCE_NATIVE", True)       # PCCL_BALANCE=1
+    monkeypatch.setattr(PP, "_MIN_GIVE", 2)
+    monkeypatch.setattr(PP, "_BALANCE_LEVEL", 0)
     m = make_model(FISCHER, overrides={"k": "1"}, invariants=(MUTEX,),     # reduced: symmetry
                    reduce="merge,symmetry,por")       # (dead leaves too few states to move)
     m.lock_deadlocks = True
@@ -778,7 +779,7 @@ def test_native_workers_balance_large_levels(workers, monkeypatch):
     many = e.run()
     assert e.moved > 10, e.moved
     # by default (no PCCL_BALANCE=1) native levels keep the static split
-    monkeypatch.setattr(P, "_BALANCE_NATIVE", False)
+    monkeypatch.setattr(PP, "_BALANCE_NATIVE", False)
     static = P.ParallelExplorer(_SlowBatch(nm, 0.002), workers=workers, max_states=20_000)
     assert static.run().stats.states == many.stats.states and static.moved == 0
     sig = [(r.status, r.stats.states, r.stats.transitions, r.stats.max_depth,
@@ -860,7 +861,7 @@ def test_native_workers_stall_changes_from_the_fingerprints_pass(monkeypatch, ch
     candidates then put back in key order); the admitted states' signature
     column is their own signature."""
     from pccl.search import liveness as L
-    from pccl.search import parallel as P
+    from pccl.search import parallel_worker as P
     if chunked:
         monkeypatch.setattr(P, "_FP_LEVEL_BYTES", 0)
         monkeypatch.setattr(P, "_FP_CHUNK", 64)
@@ -1068,9 +1069,10 @@ def test_native_workers_rebalance_and_fingerprint_in_chunks(workers, monkeypatch
     met on the way: the figures and the counterexample stay one native
     process's.  Without rebalancing nothing moves."""
     from pccl.search import parallel as P
+    from pccl.search import parallel_worker as PW
     from pccl.search.explorer import Explorer
-    monkeypatch.setattr(P, "_FP_LEVEL_BYTES", 0)
-    monkeypatch.setattr(P, "_FP_CHUNK", 7)
+    monkeypatch.setattr(PW, "_FP_LEVEL_BYTES", 0)
+    monkeypatch.setattr(PW, "_FP_CHUNK", 7)
     monkeypatch.setattr(P, "_REBALANCE_LEVEL", 16)
     calls = []
     real = P._Worker._fp_more

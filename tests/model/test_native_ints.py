@@ -22,6 +22,8 @@ from pccl.api import explore, make_model
 from pccl.cli import main
 from pccl.model import native as NV
 
+from cases import HOLE6_DEFAULT, HOLE6_MERGE_POR
+
 _probe = make_model("Agent::A\n\nloc:\n  int x = 0;\n\nE():\n  pre(true);\n  eff:\n    exit();\n",
                     source=True, reduce="none")
 MISSING = NV.unsupported(_probe)
@@ -143,36 +145,7 @@ def test_the_vector_encoder_refuses_what_a_slot_cannot_hold():
 
 # -- hole 6: merge+por and default figures ------------------------------------------
 
-#: generated (seed 9149), shrunk: merge,por 253/326 native, 254/327 Python
-MERGEPOR = """\
-allwrite:
-  int s1 = -1;
-Init:
-  s1 = 3;
-E1():
-  pre(true);
-  eff:
-    atomic:
-      if (s1 > -2):
-        s1 = s1 - 1;
-"""
-
-#: generated, shrunk: 3 agents, default reductions 133/260/17 native, 130/257/16 Python
-DEFAULT = """\
-allwrite:
-  int s0 = 3;
-loc:
-  int v0 = -3;
-E0():
-  pre(true);
-  eff:
-    v0 = -v0;
-E1():
-  pre(true);
-  eff:
-    s0 = (s0 - v0 - s0) % 2;
-    s0 = -2;
-"""
+MERGEPOR, DEFAULT = HOLE6_MERGE_POR, HOLE6_DEFAULT
 
 
 def figures(r) -> tuple:

@@ -26,16 +26,12 @@ from pccl.model import reduce as RD
 from pccl.model.engine import Model
 from pccl.model.layout import DISCRETE, PHASE
 
-from conftest import PROGRAMS
+from conftest import PROGRAMS, verdict
 from test_reduce import check_counterexamples
 
 
 def src(text: str) -> str:
     return textwrap.dedent(text).lstrip("\n")
-
-
-def verdict(res) -> tuple:
-    return res.status, {(v["kind"], v["name"], v["line"]) for v in res.violations}
 
 
 # ---------------------------------------------------------------------------

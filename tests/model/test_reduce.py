@@ -30,7 +30,7 @@ from pccl.api import explore, make_model
 from pccl.model.engine import Model
 from pccl.lang.errors import PcclError
 
-from conftest import PROGRAMS, ROOT
+from conftest import PROGRAMS, ROOT, verdict
 from pccl.model.layout import AGS, AR, CNT, ENV, LCK, LOC, LQ, PC, PHASE, SH, STATUS, TIME
 from cases import PINNED, SHIPPED, SLOW, TESTPROGS, programs
 
@@ -42,10 +42,6 @@ COMBOS = [list(c) for n in range(1, 4) for c in itertools.combinations(RD.ALL[:3
 
 def src(text: str) -> str:
     return textwrap.dedent(text).lstrip("\n")
-
-
-def verdict(res) -> tuple:
-    return res.status, {(v["kind"], v["name"], v["line"]) for v in res.violations}
 
 
 def check_counterexamples(res):

@@ -18,7 +18,7 @@ from pccl.api import explore, make_model
 from pccl.model.engine import Model
 from pccl.tools.runner import _signature
 
-from conftest import TEST_PROGRAMS, cli
+from conftest import TEST_PROGRAMS, cli, closure
 from pccl.model.layout import AGS, REACH, FAIL, RUNNING, STATUS, TIME
 
 RDV = str(TEST_PROGRAMS / "rdv_meet.pccl")
@@ -28,26 +28,6 @@ OPEN = str(TEST_PROGRAMS / "rdv_open.toml")
 
 def src(text: str) -> str:
     return textwrap.dedent(text).lstrip("\n")
-
-
-def closure(m, st, limit=20_000):
-    """Brute force over the unreduced rules: the transitions reachable from
-    ``st`` as ``(label, before, after)``, one expansion per key."""
-    seen, todo, out = set(), [st], []
-    while todo:
-        s = todo.pop()
-        k = m.key(s)
-        if k in seen:
-            continue
-        seen.add(k)
-        assert len(seen) < limit, "closure too large for a test"
-        succ = Model.successors(m, s)
-        if not succ:
-            out.append((None, s, None))
-        for lab, s2 in succ:
-            out.append((lab, s, s2))
-            todo.append(s2)
-    return out
 
 
 def really_stalled(m, st) -> bool:

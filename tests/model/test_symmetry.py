@@ -23,7 +23,7 @@ from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
 from pccl.lang.parser import parse_program
 
-from conftest import cli
+from conftest import cli, verdict
 
 
 def src(text: str) -> str:
@@ -33,10 +33,6 @@ def src(text: str) -> str:
 def plan(text, agents=2, **kw):
     return make_model(src(text), source=True, agents=agents, blackbox="instant",
                       reduce="auto", **kw).reduction
-
-
-def verdict(res) -> tuple:
-    return res.status, sorted({(v["kind"], v["name"], v["line"]) for v in res.violations})
 
 
 def same_verdict(text, agents=2, **kw):
@@ -359,23 +355,6 @@ def test_the_attack_finds_no_disagreement():
     assert counts["on"] > N_ATTACK // 5 and counts["off"] > N_ATTACK // 5, counts
 
 
-def _weak_reads(self, e, prop, bound):
-    """Hole 1: an id read through an agent-indexed variable is not an id."""
-    if isinstance(e, SS.A.Index):
-        return False
-    return ORIG_TYPEOF(self, e, prop, bound)
-
-
-def _weak_arrays(self, e, prop, bound):
-    """Hole 2: every first index of an allread variable picks an agent."""
-    root, chain = SS.A.index_chain(e)
-    if isinstance(root, SS.A.Name):
-        vs = self.lay.vars.get(root.name)
-        if vs is not None and vs.section == "allread":
-            return root.name, chain[0].index, chain[1:]
-    return ORIG_AGENT_INDEX(self, e, prop, bound)
-
-
 # ---------------------------------------------------------------------------
 # 5. robots that move (issue 23): positions and reach cells in the key
 # ---------------------------------------------------------------------------
@@ -438,12 +417,8 @@ def test_pymunk_keeps_symmetry_off_for_movers():
     assert "symmetry" not in p.on and "pymunk may treat agents differently" in p.off["symmetry"]
 
 
-ORIG_TYPEOF = SS.IdTypes.typeof
-ORIG_AGENT_INDEX = SS.IdTypes.agent_index
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("attr,weak", [("typeof", _weak_reads), ("agent_index", _weak_arrays)])
+@pytest.mark.parametrize("attr,weak", [("typeof", symattack.weak_reads), ("agent_index", symattack.weak_arrays)])
 def test_the_attack_catches_the_old_holes(monkeypatch, attr, weak):
     monkeypatch.setattr(SS.IdTypes, attr, weak)
     for seed in range(N_ATTACK):

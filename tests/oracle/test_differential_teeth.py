@@ -22,6 +22,8 @@ import types
 
 import pytest
 
+import symattack
+from cases import HOLE6_DEFAULT, HOLE6_MERGE_POR
 from differential import gen, oracle
 
 from pccl.lang import scalarset as SS
@@ -38,27 +40,8 @@ def caught(families, modes, n, check=None, seeds=range(0, 10_000)) -> list:
     return []
 
 
-ORIG_TYPEOF = SS.IdTypes.typeof
-ORIG_AGENT_INDEX = SS.IdTypes.agent_index
-
-
-def _weak_reads(self, e, prop, bound):
-    if isinstance(e, SS.A.Index):
-        return False
-    return ORIG_TYPEOF(self, e, prop, bound)
-
-
-def _weak_arrays(self, e, prop, bound):
-    root, chain = SS.A.index_chain(e)
-    if isinstance(root, SS.A.Name):
-        vs = self.lay.vars.get(root.name)
-        if vs is not None and vs.section == "allread":
-            return root.name, chain[0].index, chain[1:]
-    return ORIG_AGENT_INDEX(self, e, prop, bound)
-
-
-@pytest.mark.parametrize("attr,weak,families", [("typeof", _weak_reads, ["core", "sym"]),
-                                                ("agent_index", _weak_arrays, ["sym"])])
+@pytest.mark.parametrize("attr,weak,families", [("typeof", symattack.weak_reads, ["core", "sym"]),
+                                                ("agent_index", symattack.weak_arrays, ["sym"])])
 def test_a_symmetry_through_agent_indexes(monkeypatch, attr, weak, families):
     monkeypatch.setattr(SS.IdTypes, attr, weak)
     ds = caught(families, ["symmetry-python", "symmetry-orbits"], 120)
@@ -137,32 +120,7 @@ def test_f_native_int_edges(monkeypatch):
     assert rep.disagreements, "the oracle missed the native int edges"
 
 
-#: issue 41 hole 6's programs (tests must not read ../shared: copied here)
-MERGE_POR = """allwrite:
-  int s1 = -1;
-Init:
-  s1 = 3;
-E1():
-  pre(true);
-  eff:
-    atomic:
-      if (s1 > -2):
-        s1 = s1 - 1;
-"""
-DEFAULT_COUNTS = """allwrite:
-  int s0 = 3;
-loc:
-  int v0 = -3;
-E0():
-  pre(true);
-  eff:
-    v0 = -v0;
-E1():
-  pre(true);
-  eff:
-    s0 = (s0 - v0 - s0) % 2;
-    s0 = -2;
-"""
+MERGE_POR, DEFAULT_COUNTS = HOLE6_MERGE_POR, HOLE6_DEFAULT        # issue 41 hole 6's programs
 
 
 def _tuples(x):

@@ -17,8 +17,8 @@ from click.testing import CliRunner
 
 from pccl.cli import main
 
-from conftest import PROGRAMS, RACE, RACE_WORLD
-from sources import mutate, truncations
+from conftest import PROGRAMS, RACE, RACE_WORLD, cli_robust
+from sources import mutant_cases, mutate
 
 SEED = 20240517
 SOURCES = {name: (PROGRAMS / name).read_text()
@@ -26,29 +26,11 @@ SOURCES = {name: (PROGRAMS / name).read_text()
 WORLDS = {name: (PROGRAMS / name).read_text() for name in ("race.toml", "race_obstacles.toml")}
 
 def cases(sources, n_mut, salt):
-    rng = random.Random(SEED + salt)
-    out = []
-    for name, text in sorted(sources.items()):
-        for tag, t in truncations(text):
-            out.append(pytest.param(name, t, id=f"{name}-{tag}"))
-        for k in range(n_mut):
-            kind, t = mutate(text, rng)
-            out.append(pytest.param(name, t, id=f"{name}-{kind}{k}"))
-    return out
+    return mutant_cases(dict(sorted(sources.items())), n_mut, random.Random(SEED + salt))
 
 
 def invoke(args):
-    res = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=True)
-    cmd = "pccl " + " ".join(map(str, args))
-    assert res.exception is None or isinstance(res.exception, SystemExit), \
-        f"{cmd} raised {type(res.exception).__name__}: {res.exception}"
-    assert res.exit_code in (0, 1, 2), f"{cmd}: exit {res.exit_code}\n{res.output}"
-    assert "Traceback" not in res.output, res.output
-    if res.exit_code == 2:
-        err = res.stderr
-        assert err.count(": error: ") == 1, f"{cmd}: not one rendered error:\n{err}"
-        assert res.stdout == ""
-    return res
+    return cli_robust(*args)
 
 
 @pytest.mark.parametrize("name, text", cases(SOURCES, 45, 0))

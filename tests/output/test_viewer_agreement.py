@@ -24,7 +24,7 @@ import pytest
 
 from conftest import PROGRAMS, cli
 
-from browser import Browser, chromium, file_url
+from browser import Browser, chromium, file_url, trace_states
 
 #: CI (.ci/run) sets PCCL_REQUIRE_CHROMIUM=1: there these tests must run, and
 #: fail (rather than skip) without Chromium.
@@ -308,15 +308,7 @@ def test_plot_of_chosen_variables(browser, tmp_path):
       [...s.options].forEach(o => o.selected = ['reqid', 'inCs[1]'].includes(o.textContent)); s.onchange();
       return [...document.querySelectorAll('#plot-area .plot-line')]
         .map(l => [l.dataset.name, JSON.parse(l.dataset.values)]); })()""")
-    states = [doc["initial"]]
-    import copy
-    for st in doc["steps"]:
-        s = copy.deepcopy(states[-1])
-        for ch in st["changes"]:
-            c = ch["cell"]
-            if "var" in c:
-                (s["agents"][c["agent"]]["variables"] if "agent" in c else s["shared"])[c["var"]] = ch["new"]
-        states.append(s)
+    states = trace_states(doc)
     assert got == [["reqid", [s["shared"]["reqid"] for s in states]],
                    ["inCs[1]", [int(s["agents"][1]["variables"]["inCs"]) for s in states]]]
     b.eval("pcclViewer.goto(40)")
@@ -326,19 +318,6 @@ def test_plot_of_chosen_variables(browser, tmp_path):
 # ---------------------------------------------------------------------------
 # watched expressions: pccl's values, never the browser's evaluation
 # ---------------------------------------------------------------------------
-
-def doc_states(doc) -> list:
-    import copy
-    out = [doc["initial"]]
-    for st in doc["steps"]:
-        s = copy.deepcopy(out[-1])
-        for ch in st["changes"]:
-            c = ch["cell"]
-            if "var" in c:
-                (s["agents"][c["agent"]]["variables"] if "agent" in c else s["shared"])[c["var"]] = ch["new"]
-        out.append(s)
-    return out
-
 
 def test_watched_expressions_show_pccls_values_at_every_step(browser, tmp_path):
     html, trace = tmp_path / "f.html", tmp_path / "f.json"
@@ -354,7 +333,7 @@ def test_watched_expressions_show_pccls_values_at_every_step(browser, tmp_path):
         out.push([...document.querySelectorAll('#watch-table tr[data-expr]')].map(r => r.dataset.value)); }
       return out; })()""")
     want = []
-    for s in doc_states(doc):
+    for s in trace_states(doc):
         c = sum(1 for ag in s["agents"] if ag["variables"]["inCs"])
         want.append([str(c), "true" if c <= 1 else "false",
                      str(s["shared"]["reqid"] + s["shared"]["d"] // 3)])

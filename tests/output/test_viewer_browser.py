@@ -16,7 +16,7 @@ import pytest
 
 from conftest import FISCHER, RACE_NONATOMIC, RACE_WORLD, ROOT, cli
 
-from browser import Browser, chromium, file_url
+from browser import Browser, chromium, file_url, trace_states
 
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(chromium()[0] is None, reason=chromium()[1])]
@@ -76,28 +76,6 @@ def check_step(b, doc, states, k):
     return st
 
 
-def states_of(doc):
-    """Every state of a trace document, rebuilt in Python from the changes."""
-    import copy
-    out = [doc["initial"]]
-    for rec in doc["steps"]:
-        s = copy.deepcopy(out[-1])
-        for ch in rec["changes"]:
-            c = ch["cell"]
-            if "agent" in c:
-                ag = s["agents"][c["agent"]]
-                if "var" in c:
-                    ag["variables"][c["var"]] = ch["new"]
-                else:
-                    ag[c["cell"]] = ch["new"]
-            elif "var" in c:
-                s["shared"][c["var"]] = ch["new"]
-            else:
-                s[c["cell"]] = ch["new"]
-        out.append(s)
-    return out
-
-
 def test_race_counterexample_steps_to_the_violation(browser, tmp_path):
     """The acceptance command: the page animates the stuck robot's race; stepping
     through it shows the robots where the trace has them, the step's source
@@ -107,7 +85,7 @@ def test_race_counterexample_steps_to_the_violation(browser, tmp_path):
             "--html", str(html), "--trace-out", str(trace))
     assert r.exit_code == 1, r.output
     doc = json.loads(trace.read_text())
-    states = states_of(doc)
+    states = trace_states(doc)
     b = browser
     b.open(file_url(html))
     assert b.exceptions() == []
@@ -158,7 +136,7 @@ def test_hash_opens_a_step_and_playback_advances(browser, tmp_path):
     doc = json.loads(trace.read_text())
     b = browser
     b.open(file_url(html) + "#step=7")
-    check_step(b, doc, states_of(doc), 7)
+    check_step(b, doc, trace_states(doc), 7)
     b.eval("document.getElementById('speed').value = '100'; pcclViewer.play()")
     b.wait("+document.body.dataset.step >= 20", timeout=30)
     b.eval("pcclViewer.pause()")
@@ -175,7 +153,7 @@ def test_fischer_timeline(browser, tmp_path):
     assert b.eval("!!document.getElementById('timeline') && !document.getElementById('arena')")
     n = len(doc["steps"])
     b.eval(f"pcclViewer.goto({n})")
-    states = states_of(doc)
+    states = trace_states(doc)
     check_step(b, doc, states, n)
     assert b.eval("document.querySelector('.tl-cursor').dataset.step") == str(n)
     # both agents in the critical section at the violating state, as the inspector says

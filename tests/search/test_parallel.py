@@ -140,7 +140,7 @@ def test_owner_keeps_the_smallest_key_of_equal_fingerprints():
 
 def test_discarded_states_are_freed():
     """States the pipes transport frees while waiting do not outlive the search."""
-    from pccl.search import parallel as P
+    from pccl.search import parallel_worker as P
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     r = ParallelExplorer(m, workers=2).run()
     assert r.stats.states > 1000 and P._LITTER == []
@@ -177,7 +177,7 @@ def test_a_slowed_worker_hands_work_over_with_the_same_results(slow, workers, fa
     (both ways: the coordinator's worker hands work to a hungry forked
     worker, and steals from a slow one).  Small chunks, for these small
     levels (forked workers inherit them)."""
-    from pccl.search import parallel as P
+    from pccl.search import parallel_pipes as P
     monkeypatch.setattr(P, "_CHUNK", 4)
     monkeypatch.setattr(P, "_MIN_GIVE", 2)
     monkeypatch.setattr(P, "_BALANCE_LEVEL", 0)
@@ -203,7 +203,7 @@ def test_small_levels_are_not_balanced():
     """Levels under _BALANCE_LEVEL states keep the static split (a request
     for work costs a wait for the other worker): nothing moves, even with
     one worker slowed down."""
-    from pccl.search import parallel as P
+    from pccl.search import parallel_pipes as P
     m = make_model(FISCHER, overrides={"k": "0", "d": "1"}, reduce="merge,symmetry,por")
     e = ParallelExplorer(_SlowIn(m, False, 0.0002), workers=2, max_states=2000)
     assert e.run().stats.states == 2000
@@ -217,7 +217,7 @@ def test_waiting_blocks_when_the_cores_are_taken(monkeypatch):
     while the load average is at most four times the cores (read at most
     once a second)."""
     import os
-    from pccl.search import parallel as P
+    from pccl.search import parallel_pipes as P
     cores = os.cpu_count()
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})    # as if pinned
     assert P._runnable() is None or P._runnable() >= 1      # this process runs
@@ -235,7 +235,7 @@ def test_waiting_blocks_when_the_cores_are_taken(monkeypatch):
 
 PIN = r"""
 import os, sys
-from pccl.search import parallel as P
+from pccl.search import parallel_pipes as P
 cpus = sorted(os.sched_getaffinity(0))
 n = len(cpus)
 print(P._pin(n - 1, n + 1), sorted(os.sched_getaffinity(0)) == cpus)   # more workers than cores

@@ -276,7 +276,7 @@ def test_actors_that_cannot_be_placed_fail_after_the_start_timeout():
 
 @pytest.mark.parametrize("value", ["abc", "0", "-3", "inf", ""])
 def test_a_bad_start_timeout_is_named(value, monkeypatch):
-    from pccl.search.parallel import RayUnavailable, _env_seconds
+    from pccl.search.parallel_ray import RayUnavailable, _env_seconds
     monkeypatch.setenv("PCCL_RAY_START_TIMEOUT", value)
     with pytest.raises(RayUnavailable, match=f"PCCL_RAY_START_TIMEOUT={value}: expected a number "
                                              f"of seconds above 0"):

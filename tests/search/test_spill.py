@@ -359,7 +359,7 @@ def test_spilling_workers_hand_work_over_with_the_same_result(name, tmp_path, ma
     """Balanced levels (every level, a few states at a time) while a
     worker's share of the level is read back from disk: what a worker hands
     over comes from memory or from its file, the result does not change."""
-    from pccl.search import parallel as P
+    from pccl.search import parallel_pipes as P
     monkeypatch.setattr(P, "_CHUNK", 4)
     monkeypatch.setattr(P, "_NATIVE_CHUNK", 1)
     monkeypatch.setattr(P, "_BALANCE_NATIVE", True)

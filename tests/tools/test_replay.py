@@ -701,7 +701,7 @@ def test_older_trace_files_without_absolute_paths_replay(tmp_path):
 
 
 def test_replay_shows_the_steps_on_a_terminal(tmp_path, monkeypatch):
-    import pccl.cli as C
+    import pccl.cli.cmd_traces as C
     t = record(tmp_path, "run", PROGRAMS / "fischer.pccl", "--set", "k=1",
                "--invariant", "count(inCs) <= 1")
     plain = cli("replay", t)

@@ -1,0 +1,65 @@
+"""Old code against new in one run: the package of this working tree or of a
+git revision, copied into a temporary directory and run from there
+(``benchmarks/startup.py``, ``benchmarks/lsp_large.py``)."""
+
+from __future__ import annotations
+
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+#: ``python -c CHILD TREE ARGS...``: the ``pccl`` command with the package of TREE
+CHILD = ("import sys; sys.path.insert(0, sys.argv.pop(1)); sys.argv[0] = 'pccl'; "
+         "from pccl.cli import main; main()")
+
+
+def tree_of_worktree(into: str) -> str:
+    """This working tree's package, importable from ``into``."""
+    ignore = shutil.ignore_patterns("__pycache__")
+    shutil.copytree(ROOT / "pccl", os.path.join(into, "pccl"), ignore=ignore)
+    for sub in ("semantics", "blackboxes"):
+        shutil.copytree(ROOT / sub, os.path.join(into, "pccl", sub), ignore=ignore)
+    return into
+
+
+def tree_of_revision(rev: str, into: str, paths: tuple = ("pccl", "semantics", "blackboxes")) -> str:
+    """The package of git revision ``rev``, importable from ``into``
+    (``paths``: what to extract; empty: the whole revision), with
+    ``pccl.semantics`` and ``pccl.blackboxes`` linked in as the install does."""
+    archive = subprocess.run(["git", "archive", rev, *paths], cwd=ROOT,
+                             capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", into], input=archive.stdout, check=True)
+    for sub in ("semantics", "blackboxes"):
+        link = os.path.join(into, "pccl", sub)
+        if not os.path.exists(link):
+            os.symlink(os.path.join(into, sub), link)
+    return into
+
+
+def versions(tmp: str, baseline: str | None) -> list[tuple[str, str]]:
+    """``[(name, tree)]``: the baseline's (``old REV``) first when given, then this tree's (``new``)."""
+    out = [("new", tree_of_worktree(os.path.join(tmp, "new")))]
+    if baseline:
+        old = os.path.join(tmp, "old")
+        os.mkdir(old)
+        out.insert(0, (f"old {baseline}"[:12], tree_of_revision(baseline, old)))
+    return out
+
+
+def run_pccl(tree: str, args: list[str], env: dict, cwd: str | None = None,
+             ok: tuple = (0, 1)) -> tuple[float, float]:
+    """``pccl ARGS`` with the package of ``tree``: (wall s, the child's user + system CPU s)."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", CHILD, tree, *args], env=env, cwd=cwd,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if p.returncode not in ok:
+        raise SystemExit(f"pccl {' '.join(args)} in {tree}: exit {p.returncode}\n{p.stderr[-2000:]}")
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)

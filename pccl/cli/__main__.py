@@ -1,0 +1,6 @@
+"""``python -m pccl.cli``: the ``pccl`` command."""
+
+from pccl.cli import main
+
+if __name__ == "__main__":
+    main()
