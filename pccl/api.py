@@ -507,7 +507,7 @@ def _threads_allowed(o: ExploreOptions, nworkers: Optional[int], rec: Any) -> bo
     ``--coverage``, checkpoint or spill.  The native model decides the
     rest (no level kernel: processes)."""
     return (o.ray is None and nworkers is not None and nworkers > 1
-            and (rec is None or rec.kernel_ready)
+            and (rec is None or rec.kernel_ready or bool(rec.props))
             and o.engine != "python" and not o.fastest and not o.coverage
             and o.checkpoint is None and o.resume is None and o.spill is None
             and os.environ.get("PCCL_THREADS", "1") != "0")

@@ -109,8 +109,11 @@ class StateColumns:
     under way (:meth:`pccl.model.engine.Model.arrival_pending`)."""
 
     def __init__(self, props=(), fairness: bool = False, sig_of=None, *,
-                 time_costs=None, pending=None, sigs_of=None):
+                 time_costs=None, pending=None, sigs_of=None, native=None):
         self.props = list(props)
+        #: the native engine's columns of the temporal properties, or None
+        #: (pccl/search/native_liveness.py: one C call per batch)
+        self.native = native if self.props else None
         self.fairness = fairness
         self.time_costs = time_costs
         self.pending = pending
@@ -142,7 +145,12 @@ class StateColumns:
         already computed)."""
         n = len(states)
         cols: list = [np.fromiter(self.time_costs(states), dtype=np.uint8, count=n)]
-        if self.props:
+        if self.native is not None:
+            bits, pend = self.native(states)
+            cols.append(bits)
+            if self.fairness:
+                cols.append(pend)
+        elif self.props:
             vals = np.zeros(n, dtype=np.uint64)
             for k, p in enumerate(self.props):
                 for fn, b in ((p.p, 2 * k), (p.q, 2 * k + 1)):
@@ -151,7 +159,7 @@ class StateColumns:
                     col = np.fromiter((_holds(fn, s) for s in states), dtype=bool, count=n)
                     vals |= col.astype(np.uint64) << np.uint64(b)
             cols.append(vals)
-        if self.fairness:
+        if self.fairness and self.native is None:
             cols.append(np.fromiter(map(self.pending, states), dtype=np.uint64, count=n))
         if self.sig_of is not None:
             cols.append(self.signatures(states) if sigs is None else sigs)
@@ -174,7 +182,8 @@ class GraphRecorder:
         self.columns = StateColumns(self.props, self.fairness, sig_of,
                                     time_costs=model.time_costs,
                                     pending=model.arrival_pending if self.fairness else None,
-                                    sigs_of=getattr(model, "stall_signatures", None))
+                                    sigs_of=getattr(model, "stall_signatures", None),
+                                    native=getattr(model, "temporal_columns", None))
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -270,7 +279,7 @@ class GraphRecorder:
         """Whether the level kernel can record this graph: the time-lock and
         stall checks' columns, no temporal properties, no fair arrival, the
         changes computed here."""
-        return not self.props and self.pend is None and not self.changes_given
+        return (not self.props or self.columns.native is not None) and not self.changes_given
 
     def kernel_arrays(self, limit: int) -> tuple:
         """The arrays the kernel writes the graph into (its ``rec``
@@ -286,6 +295,15 @@ class GraphRecorder:
         if self.sig is not None and self.chg is not None:
             out += (self.sig.a, self.chg.a, int(self.wants_candidates))
         return out
+
+    def kernel_columns(self) -> Optional[tuple]:
+        """The temporal columns' arrays the kernel writes (its ``tcol``
+        argument: the P/Q bits and, under fair arrival, the robots under
+        way), or None without temporal properties; :meth:`kernel_arrays`
+        made their room."""
+        if self.bits is None:
+            return None
+        return (self.bits.a,) + ((self.pend.a,) if self.pend is not None else ())
 
     def kernel_admitted(self, states: int, edges: int) -> None:
         """The kernel wrote ``states`` more states' columns and the
@@ -365,6 +383,8 @@ class Graph:
         #: the model's backward reachability in C (the native engine's
         #: ``reach_back``), or None: :meth:`can_reach` in numpy alone
         self.kernel: Optional[Callable] = None
+        #: the native engine's Tarjan (``scc``), or None: :meth:`sccs` in Python
+        self.scc_kernel: Optional[Callable] = None
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
@@ -485,6 +505,11 @@ class Graph:
         ``allowed``, for the states ``nodes`` (iterative Tarjan).  Returns
         ``(comp, nontrivial)``: the component id per state (-1 outside) and
         per component whether it has a cycle."""
+        if self.scc_kernel is not None:
+            from pccl.search.native_liveness import native_sccs
+            got = native_sccs(self.scc_kernel, self.fptr, self.fdst, nodes, allowed)
+            if got is not None:
+                return got
         n = self.n
         index = np.full(n, -1, dtype=np.int64)
         low = np.zeros(n, dtype=np.int64)
@@ -802,9 +827,12 @@ class _Analysis:
         self.n = table.n
         self.g = rec.freeze(self.n)
         self.g.kernel = getattr(getattr(explorer, "model", None), "reach_back", None)
+        self.g.scc_kernel = getattr(getattr(explorer, "model", None), "temporal_scc", None)
         self.n_init = sr.stats.initial_states
         self.props = rec.props
-        self.explorer = explorer
+        from pccl.search.native_liveness import lasso_view
+        #: the search over configurations (a native one seen through the model)
+        self.explorer = lasso_view(explorer, model)
         #: a state number stands for an orbit under renaming agents; or (or
         #: also) for states that differ in dead values: a cycle of the graph
         #: closes only up to them, lassos are rebuilt on real states
@@ -1174,6 +1202,8 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     (docs/reductions.md)."""
     from pccl.search.explorer import Trace
     from pccl.search.lift import RealCycles
+    from pccl.search.native_liveness import lasso_view
+    explorer = lasso_view(explorer, model)
     inside, dyn, n_fair = cx.rebuild
     pre = explorer.replay_chain(cx.chain[:cx.cycle_start + 1])
     rc = RealCycles(explorer, dyn, n_fair, model.arrival_pending)
