@@ -1027,11 +1027,12 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
     ncomp = len(nontrivial)
     ok = comp >= 0
     accepting = nontrivial.copy()
+    undecided = np.zeros(ncomp, dtype=bool)       # for exact_fair
+    fair_masks: list = []
     if ncomp:
         has_dyn = np.zeros(ncomp, dtype=bool)
         np.logical_or.at(has_dyn, comp[ok], g.dyn[ok])
         accepting &= has_dyn
-        fair_masks = []
         if n_fair and exact_fair is not None:
             full = np.uint64((1 << n_fair) - 1)
             pend = g.pend & full
@@ -1041,8 +1042,6 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
             np.logical_or.at(some_idle, comp[ok], pend[ok] != full)
             undecided = accepting & ~all_idle & some_idle
             accepting &= all_idle
-            for cid in np.flatnonzero(undecided).tolist():
-                accepting[cid] = exact_fair(comp == cid)
             fair_masks.append(pend == 0)
         else:
             for a in range(n_fair):
@@ -1051,18 +1050,34 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
                 np.logical_or.at(has_idle, comp[ok], idle[ok])
                 accepting &= has_idle
                 fair_masks.append(idle)
-    bad_cycle = np.zeros(g.n, dtype=bool)
-    bad_cycle[ok] = accepting[comp[ok]]
-    bad = bad_cycle | (region & g.terminal)
-    if not bad.any():
-        return None
-    coreach = g.reach(np.flatnonzero(bad), region, backward=True)
-    cand = np.flatnonzero(starts & coreach)
-    if not cand.size:
-        return None
-    s = int(cand[0])
-    path = g.path(s, bad, region)
-    b = path[-1]
+    # the components exact_fair must decide are decided lazily: the search
+    # below takes them as accepting, and only the one its path ends in is
+    # decided (an unfair one is dropped and the search runs again).  The
+    # first start that reaches a state of the larger set, and the first such
+    # state its breadth-first path meets, are those of the decided set when
+    # that state is truly bad, so the lasso is the one deciding every
+    # component first would give (docs/reductions.md)
+    while True:
+        bad_cycle = np.zeros(g.n, dtype=bool)
+        bad_cycle[ok] = (accepting | undecided)[comp[ok]]
+        bad = bad_cycle | (region & g.terminal)
+        if not bad.any():
+            return None
+        coreach = g.reach(np.flatnonzero(bad), region, backward=True)
+        cand = np.flatnonzero(starts & coreach)
+        if not cand.size:
+            return None
+        s = int(cand[0])
+        path = g.path(s, bad, region)
+        b = path[-1]
+        cb = int(comp[b])
+        if cb < 0 or not undecided[cb]:
+            break
+        undecided[cb] = False
+        assert exact_fair is not None
+        if exact_fair(comp == cb):
+            accepting[cb] = True
+            break
     if g.terminal[b] and not bad_cycle[b]:
         return s, path, None, True, comp
     musts = [g.dyn] + [m for m in fair_masks]
