@@ -197,7 +197,7 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     why = native_unavailable()
     if why is not None:
         return why
-    if parallel and getattr(model, "temporal", ()):
+    if parallel and bool(getattr(model, "temporal", None)):
         # (one process records the graph: the level kernel's threads, or none)
         return "a temporal property with {workers} processes"
     why = _replaced(model)
@@ -585,6 +585,9 @@ class Generator:
     def pcount(self, arg) -> str:
         """Step of :meth:`pexpr`: C for ``count(arg)`` of a per-agent bool."""
         vs = self.lay.vars.get(arg.name)
+        if vs is None and arg.name in _STATUS_TEST:       # count(exited), ...
+            return "((V)(" + " + ".join(f"({self.ag(j, 3)} {_STATUS_TEST[arg.name]})"
+                                        for j in range(self.N)) + "))"
         if vs is None or vs.section == "allwrite" or vs.ty.kind != "bool":
             raise Unsupported("count() of something other than a per-agent bool")
         # Python counts values that are True: undefined counts as not True

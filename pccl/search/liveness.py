@@ -383,8 +383,6 @@ class Graph:
         #: the model's backward reachability in C (the native engine's
         #: ``reach_back``), or None: :meth:`can_reach` in numpy alone
         self.kernel: Optional[Callable] = None
-        #: the native engine's Tarjan (``scc``), or None: :meth:`sccs` in Python
-        self.scc_kernel: Optional[Callable] = None
         self.dyn = dyn
         self.bits = bits
         self.pend = pend
@@ -505,11 +503,6 @@ class Graph:
         ``allowed``, for the states ``nodes`` (iterative Tarjan).  Returns
         ``(comp, nontrivial)``: the component id per state (-1 outside) and
         per component whether it has a cycle."""
-        if self.scc_kernel is not None:
-            from pccl.search.native_liveness import native_sccs
-            got = native_sccs(self.scc_kernel, self.fptr, self.fdst, nodes, allowed)
-            if got is not None:
-                return got
         n = self.n
         index = np.full(n, -1, dtype=np.int64)
         low = np.zeros(n, dtype=np.int64)
@@ -827,10 +820,11 @@ class _Analysis:
         self.n = table.n
         self.g = rec.freeze(self.n)
         self.g.kernel = getattr(getattr(explorer, "model", None), "reach_back", None)
-        self.g.scc_kernel = getattr(getattr(explorer, "model", None), "temporal_scc", None)
+        from pccl.search.native_liveness import attach_scc, lasso_view
+        # Tarjan in C when the native engine recorded the graph
+        attach_scc(self.g, getattr(getattr(explorer, "model", None), "temporal_scc", None))
         self.n_init = sr.stats.initial_states
         self.props = rec.props
-        from pccl.search.native_liveness import lasso_view
         #: the search over configurations (a native one seen through the model)
         self.explorer = lasso_view(explorer, model)
         #: a state number stands for an orbit under renaming agents; or (or
@@ -1050,13 +1044,37 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
                 np.logical_or.at(has_idle, comp[ok], idle[ok])
                 accepting &= has_idle
                 fair_masks.append(idle)
-    # the components exact_fair must decide are decided lazily: the search
-    # below takes them as accepting, and only the one its path ends in is
-    # decided (an unfair one is dropped and the search runs again).  The
-    # first start that reaches a state of the larger set, and the first such
-    # state its breadth-first path meets, are those of the decided set when
-    # that state is truly bad, so the lasso is the one deciding every
-    # component first would give (docs/reductions.md)
+    found = _first_bad(g, starts, region, comp, accepting, undecided, exact_fair)
+    if found is None:
+        return None
+    s, path, bad_cycle = found
+    b = path[-1]
+    if g.terminal[b] and not bad_cycle[b]:
+        return s, path, None, True, comp
+    musts = [g.dyn] + [m for m in fair_masks]
+    if exact_fair is not None and n_fair and not (fair_masks[0] & (comp == comp[b])).any():
+        musts = [g.dyn]         # fair only as real states: lift.py's cycle visits the witnesses
+    cycle = g.cycle_through(b, comp, musts)
+    return s, path, cycle, False, comp
+
+
+def _first_bad(g: Graph, starts: np.ndarray, region: np.ndarray, comp: np.ndarray,
+               accepting: np.ndarray, undecided: np.ndarray,
+               exact_fair: Optional[Callable]) -> Optional[tuple]:
+    """Step of :func:`_leadsto`: the first start (in search order) from which
+    a bad state (a terminal state or a state of an accepting component of
+    ``region``) can be reached, and a shortest path to one: ``(s, path,
+    bad_cycle)`` (``bad_cycle``: the states of accepting components), or
+    None.
+
+    The components ``undecided`` are decided by ``exact_fair`` lazily: the
+    search takes them as accepting, and only the one its path ends in is
+    decided (an unfair one is dropped and the search runs again).  The first
+    start that reaches a state of the larger set, and the first such state
+    its breadth-first path meets, are those of the decided set when that
+    state is truly bad, so the lasso is the one that deciding every
+    component first would give (docs/reductions.md)."""
+    ok = comp >= 0
     while True:
         bad_cycle = np.zeros(g.n, dtype=bool)
         bad_cycle[ok] = (accepting | undecided)[comp[ok]]
@@ -1069,22 +1087,14 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
             return None
         s = int(cand[0])
         path = g.path(s, bad, region)
-        b = path[-1]
-        cb = int(comp[b])
+        cb = int(comp[path[-1]])
         if cb < 0 or not undecided[cb]:
-            break
+            return s, path, bad_cycle
         undecided[cb] = False
         assert exact_fair is not None
         if exact_fair(comp == cb):
             accepting[cb] = True
-            break
-    if g.terminal[b] and not bad_cycle[b]:
-        return s, path, None, True, comp
-    musts = [g.dyn] + [m for m in fair_masks]
-    if exact_fair is not None and n_fair and not (fair_masks[0] & (comp == comp[b])).any():
-        musts = [g.dyn]         # fair only as real states: lift.py's cycle visits the witnesses
-    cycle = g.cycle_through(b, comp, musts)
-    return s, path, cycle, False, comp
+            return s, path, bad_cycle
 
 
 def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):

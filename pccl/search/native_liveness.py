@@ -19,7 +19,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-__all__ = ["lasso_view", "native_sccs"]
+__all__ = ["attach_scc", "lasso_view", "native_sccs"]
 
 
 class _PythonSide:
@@ -91,3 +91,18 @@ def native_sccs(kernel, fptr: np.ndarray, fdst: np.ndarray, nodes: np.ndarray,
                    np.ascontiguousarray(allowed).view(np.uint8),
                    np.ascontiguousarray(nodes, dtype=np.int64), comp)
     return comp, np.frombuffer(flags, dtype=np.uint8).astype(bool)
+
+
+def attach_scc(graph, kernel) -> None:
+    """Give ``graph`` (a :class:`pccl.search.liveness.Graph`) Tarjan in C:
+    its ``sccs`` computed by ``kernel`` (the native module's ``scc``), the
+    Python reference where the arrays are not of the kinds C takes.  None:
+    nothing changes."""
+    if kernel is None:
+        return
+    python = graph.sccs
+
+    def sccs(nodes: np.ndarray, allowed: np.ndarray) -> tuple:
+        got = native_sccs(kernel, graph.fptr, graph.fdst, nodes, allowed)
+        return got if got is not None else python(nodes, allowed)
+    graph.sccs = sccs
