@@ -113,6 +113,23 @@ def test_native_and_python_temporal_searches_agree(case, reduce):
     assert differences(prog, kw, props, reduce) == []
 
 
+@pytest.mark.slow
+def test_generated_programs_native_against_python():
+    """tests/liveattack.py's generated programs with liveness properties: the
+    native engine, where it serves them, gives the Python engine's verdict,
+    states and transitions, reduced or not (python tests/liveattack.py
+    FIRST N engines runs more)."""
+    import liveattack
+    native = 0
+    for seed in range(0, 16):
+        r = liveattack.check_engines(seed, real_lasso)
+        for red in ("auto", "none"):
+            if red in r:
+                assert r[red][1:] == (True, True), (seed, red, r)
+                native += r[red][0]
+    assert native >= 8, native
+
+
 def columns(monkeypatch, prog, kw, props, engine: str, kernel: bool = True) -> dict:
     """The recorded graph of a search, as the analysis gets it."""
     got: dict = {}
