@@ -246,3 +246,17 @@ def test_teeth_a_wrong_column_is_caught(monkeypatch):
                         lambda self: real(self).replace("b |= 1ULL << 0;", "b |= 0;"))
     got = columns(monkeypatch, prog, kw, props, "native", kernel=False)
     assert not np.array_equal(got["bits"], ref["bits"])
+
+
+@pytest.mark.slow
+def test_workers_as_threads_record_the_same_temporal_graph():
+    """--workers 2 runs a native temporal search as two threads of the level
+    kernel (each making chunks and their columns): the verdict, states and
+    transitions of one."""
+    prog, kw, props = CASES[3]
+    one = explore(prog, properties=props, find_all=True, shorten=False, **kw)
+    two = explore(prog, properties=props, find_all=True, shorten=False, workers=2, **kw)
+    assert two.model.engine_used == "native" and two.model.engine_threads == 2
+    assert verdict(two) == verdict(one)
+    assert (two.stats.states, two.stats.transitions) == (one.stats.states, one.stats.transitions)
+    assert real_lasso(two)
