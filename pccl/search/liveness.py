@@ -277,8 +277,9 @@ class GraphRecorder:
     @property
     def kernel_ready(self) -> bool:
         """Whether the level kernel can record this graph: the time-lock and
-        stall checks' columns, no temporal properties, no fair arrival, the
-        changes computed here."""
+        stall checks' columns, and temporal properties (with fair arrival)
+        only when the model makes their columns in C (the native engine:
+        :meth:`kernel_columns`), the changes computed here."""
         return (not self.props or self.columns.native is not None) and not self.changes_given
 
     def kernel_arrays(self, limit: int) -> tuple:
