@@ -1136,6 +1136,8 @@ class NativeModel:
         self._ids: dict = {}
         #: the point classes of the interned values (:meth:`_point_class`)
         self._classes: dict = {}
+        #: the temporal properties (the graph recorder reads them,
+        #: pccl/search/liveness.py): :meth:`temporal_columns` makes their columns
         self.temporal = tuple(getattr(py, "temporal", ()))
         #: ids that name a value the same way in every process: 31 bits of a
         #: hash of its canonical encoding (for forked workers, whose states and
@@ -1166,10 +1168,8 @@ class NativeModel:
         self.key = self.lib.key
         #: the reductions of the model it serves (pccl/model/reduce.py's plan)
         self.reduction = getattr(py, "reduction", None)
-        #: what the graph recorder reads (pccl/search/liveness.py): the
-        #: temporal properties, whose columns :meth:`temporal_columns` makes
+        #: what the graph recorder reads (pccl/search/liveness.py)
         self.N = py.N
-        self.temporal = tuple(getattr(py, "temporal", ()))
         self.arrival_is_fair = bool(getattr(py, "arrival_is_fair", False))
         self.blackbox = py.blackbox
         self._sig = self.lib.sig
