@@ -4,6 +4,7 @@
     python benchmarks/liveness.py --full       # also race_robust 4 robots (new only)
     python benchmarks/liveness.py --repeat 3   # medians of 3 alternating runs
     python benchmarks/liveness.py --no-old     # without the 2-minute "old" run
+    python benchmarks/liveness.py --only fischer   # the cases whose name says fischer
 
 Per case, the codes that run (each in its own process, so that peak memory
 is the case's own, alternating so that load on a shared machine hits them
@@ -55,9 +56,10 @@ CASES = [
     ("race_robust, nondet, 4 robots", dict(RACE, agents=4), ("new", "new-ns"), True),
     ("fischer k=2 d=2, 3 agents, invariant", FISCHER, ("inv",), False),
     ("fischer, count(wait) >= 1 ~> count(inCs) >= 1",
-     dict(FISCHER, properties=["count(wait) >= 1 ~> count(inCs) >= 1"]), ("python", "new"), False),
+     dict(FISCHER, properties=["count(wait) >= 1 ~> count(inCs) >= 1"]), ("python", "new", "new-ns"),
+     False),
     ("fischer, forall i: wait[i] ~> inCs[i]",
-     dict(FISCHER, properties=["forall i: wait[i] ~> inCs[i]"]), ("python", "new"), False),
+     dict(FISCHER, properties=["forall i: wait[i] ~> inCs[i]"]), ("python", "new", "new-ns"), False),
 ]
 #: the options of each code
 CODES = {"old": dict(reduce="merge", engine="python"), "python": dict(reduce="auto", engine="python"),
@@ -102,6 +104,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also the 4-robot case (new only)")
     ap.add_argument("--no-old", action="store_true", help="leave the old code out (2 minutes)")
+    ap.add_argument("--only", help="the cases whose name contains this text")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per run")
     a = ap.parse_args(argv)
@@ -110,7 +113,7 @@ def main(argv=None) -> int:
           f"{'CPU s':>7} {'wall s':>7} {'MiB':>6}  engine, reductions; verdict")
     inv_cpu = None
     for name, spec, codes, full in CASES:
-        if full and not a.full:
+        if (full and not a.full) or (a.only and a.only not in name and "invariant" not in name):
             continue
         codes = tuple(c for c in codes if not (a.no_old and c == "old"))
         rows: dict = {c: [] for c in codes}
@@ -137,8 +140,9 @@ def main(argv=None) -> int:
                   f"{n['states'] / o['states']:.3f} of the states")
         if "python" in med and "new" in med:
             print(f"{'':46} new/python: {med['new']['cpu'] / med['python']['cpu']:.3f} of the CPU time")
-        if inv_cpu and "new" in med and "properties" in spec and spec.get("program") == FISCHER["program"]:
-            print(f"{'':46} new/invariant search: {med['new']['cpu'] / inv_cpu:.2f}x the CPU time")
+        for code in ("new", "new-ns"):
+            if inv_cpu and code in med and "properties" in spec and spec.get("program") == FISCHER["program"]:
+                print(f"{'':46} {code}/invariant search: {med[code]['cpu'] / inv_cpu:.2f}x the CPU time")
     print("uptime after: ", uptime())
     return 0
 

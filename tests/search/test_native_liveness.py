@@ -260,3 +260,17 @@ def test_workers_as_threads_record_the_same_temporal_graph():
     assert verdict(two) == verdict(one)
     assert (two.stats.states, two.stats.transitions) == (one.stats.states, one.stats.transitions)
     assert real_lasso(two)
+
+
+@pytest.mark.slow
+def test_a_temporal_lasso_is_shortened_within_the_python_engines_budget(monkeypatch):
+    """The search without the reductions that shortens a temporal verdict's
+    lasso keeps the budget it had when temporal properties ran on Python
+    alone (shorten.MAX_STATES), whichever engine runs it."""
+    from pccl.model import shorten as S
+    monkeypatch.setattr(S, "MAX_STATES", 5)
+    prog, kw, props = CASES[3]
+    r = explore(prog, properties=props, **kw)
+    assert r.model.engine_used == "native" and r.exit_status == 1
+    sh = r.counterexamples[0].shortening
+    assert sh.status == "not-shown" and "budget of 5 states" in sh.reason, sh
