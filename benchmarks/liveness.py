@@ -105,6 +105,7 @@ def main(argv=None) -> int:
     ap.add_argument("--full", action="store_true", help="also the 4-robot case (new only)")
     ap.add_argument("--no-old", action="store_true", help="leave the old code out (2 minutes)")
     ap.add_argument("--only", help="the cases whose name contains this text")
+    ap.add_argument("--codes", help="only these codes (comma-separated: old,python,new,new-ns,inv)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per run")
     a = ap.parse_args(argv)
@@ -115,7 +116,10 @@ def main(argv=None) -> int:
     for name, spec, codes, full in CASES:
         if (full and not a.full) or (a.only and a.only not in name and "invariant" not in name):
             continue
-        codes = tuple(c for c in codes if not (a.no_old and c == "old"))
+        codes = tuple(c for c in codes if not (a.no_old and c == "old")
+                      and (not a.codes or c in a.codes.split(",")))
+        if not codes:
+            continue
         rows: dict = {c: [] for c in codes}
         # the native module compiled (and cached) before any run is timed
         run_case(dict(spec, max_states=1), "new", a.timeout)
