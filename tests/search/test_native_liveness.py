@@ -274,3 +274,24 @@ def test_a_temporal_lasso_is_shortened_within_the_python_engines_budget(monkeypa
     assert r.model.engine_used == "native" and r.exit_status == 1
     sh = r.counterexamples[0].shortening
     assert sh.status == "not-shown" and "budget of 5 states" in sh.reason, sh
+
+
+@pytest.mark.slow
+def test_fairness_is_decided_only_where_a_lasso_would_use_it(monkeypatch):
+    """Under symmetry with fair arrival the components the representatives
+    cannot decide are searched over real states only when the lasso would
+    end in one (race_robust, 2 robots: none, where deciding every one first
+    made 14 such searches); the verdict and the lasso stay those of the
+    unreduced search (test_native_and_python_temporal_searches_agree)."""
+    from pccl.search import lift
+    calls: list = []
+    real = lift.RealCycles.has_fair_cycle
+
+    def counted(self, c, inside):
+        calls.append(1)
+        return real(self, c, inside)
+    monkeypatch.setattr(lift.RealCycles, "has_fair_cycle", counted)
+    r = explore(RACE, world=RACE_WORLD, agents=2, blackbox="nondet", properties=[ALL_EXIT],
+                shorten=False)
+    assert "symmetry" in r.model.reduction.on and r.exit_status == 1
+    assert calls == [] and real_lasso(r)
