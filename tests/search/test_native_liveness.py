@@ -295,3 +295,24 @@ def test_fairness_is_decided_only_where_a_lasso_would_use_it(monkeypatch):
                 shorten=False)
     assert "symmetry" in r.model.reduction.on and r.exit_status == 1
     assert calls == [] and real_lasso(r)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("prog, kw, props", [CASES[3], CASES[5]], ids=["race_nondet", "token"])
+def test_native_temporal_search_interrupted_and_resumed(tmp_path, prog, kw, props):
+    """A native temporal search checkpointed at random points and resumed
+    (the recorded columns travel in the checkpoint): the uninterrupted
+    result (tests/search/test_checkpoint.py's harness)."""
+    import random
+    from test_checkpoint import _calls, interrupted_run, summary
+    opts = dict(kw, properties=props, shorten=False)
+    full = explore(prog, engine="native", **opts)
+    assert full.model.engine_used == "native"
+    calls = _calls(prog, opts)
+    rng = random.Random("temporal-" + prog)
+    cuts = sorted(rng.sample(range(1, calls + 1), min(3, calls)))
+    cuts = [c - (cuts[i - 1] if i else 0) for i, c in enumerate(cuts)]
+    r, resumed = interrupted_run(prog, opts, str(tmp_path / "ck"), cuts)
+    assert r.model.engine_used == "native"
+    assert summary(r) == summary(full)
+    assert resumed >= 1
