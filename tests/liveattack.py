@@ -15,7 +15,9 @@ comes back to its own first state (tests/search/test_liveness_reduced.py's
 ``real_lasso``).
 
 ``python tests/liveattack.py FIRST N`` runs seeds FIRST.. and prints the
-figures (docs/reductions.md quotes them).
+figures (docs/reductions.md quotes them); ``python tests/liveattack.py FIRST
+N engines`` compares the native engine with the Python engine instead
+(:func:`check_engines`, issue 46: docs/temporal.md quotes it).
 """
 
 from __future__ import annotations
@@ -100,11 +102,47 @@ def check(seed: int, real_lasso=None) -> dict:
     return out
 
 
+def check_engines(seed: int, real_lasso=None) -> dict:
+    """The native engine against the Python engine on the program of
+    ``seed`` (issue 46): {"invalid"|"bounded": ...}, or per reduction
+    (``auto``, ``none``) ``(native ran?, the same verdict, states and
+    transitions?, the native lassos real?)``."""
+    _fam, text, kw = program(seed)
+    out: dict = {}
+    try:
+        ast = parse_program(text, "<input>")
+        for red in ("auto", "none"):
+            py = explore(ast, reduce=red, engine="python", find_all=True, max_states=LIMIT,
+                         shorten=False, **kw)
+            if py.bounds:
+                return {"bounded": True}
+            nat = explore(ast, reduce=red, find_all=True, max_states=LIMIT, shorten=False, **kw)
+            same = (verdict(nat) == verdict(py) and nat.stats.states == py.stats.states
+                    and nat.stats.transitions == py.stats.transitions)
+            out[red] = (nat.model.engine_used == "native", same,
+                        real_lasso(nat) if real_lasso is not None else None)
+    except PcclError as e:
+        return {"invalid": str(e).splitlines()[0]}
+    return out
+
+
 def _main(argv) -> None:
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent / "search"))
     from test_liveness_reduced import real_lasso
     first, n = int(argv[0]), int(argv[1])
     import collections
+    if len(argv) > 2 and argv[2] == "engines":
+        e: collections.Counter = collections.Counter()
+        for seed in range(first, first + n):
+            r = check_engines(seed, real_lasso)
+            for red, (native, same, real) in ((k, v) for k, v in r.items() if k in ("auto", "none")):
+                e["runs"] += 1
+                e["native"] += native
+                e["agree" if same and real is not False else "DISAGREE"] += 1
+                if not (same and real is not False):
+                    print("disagreement:", seed, red, native, same, real)
+        print(dict(e))
+        return
     c: collections.Counter = collections.Counter()
     bad = []
     for seed in range(first, first + n):

@@ -131,6 +131,7 @@ from pccl.semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, 
                                   K_SIMPLE, K_WHILE)
 from pccl.lang.types import indexes_agent
 from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
+from pccl.model.compile import _STATUS_TEST
 from pccl.model.toolchain import native_unavailable
 from pccl.model.native_build import build, source_digest
 
@@ -153,6 +154,8 @@ OUT_OF_RANGE = "an int beyond the native range (INT64_MIN + 4 .. INT64_MAX)"
 MOVE_SLOTS = 7
 
 MAX_AGENTS = 16
+#: interned ids below this have a point class in C (native_c/temporal.h)
+TPOINT_CAP = 65536
 #: CPython's small-object allocator serves at most this many bytes; a bytes
 #: object takes its length plus this header
 _SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
@@ -194,6 +197,9 @@ def unsupported(model, *, reduce_on: bool = False, recorder: bool = False,
     why = native_unavailable()
     if why is not None:
         return why
+    if parallel and bool(getattr(model, "temporal", None)):
+        # (one process records the graph: the level kernel's threads, or none)
+        return "a temporal property with {workers} processes"
     why = _replaced(model)
     if why is not None:
         return why
@@ -333,6 +339,12 @@ class Generator:
     def ag(self, j, field: int) -> str:
         return f"s[{self.AG0 + j * self.A + field}]"
 
+    def ag_cell(self, j, field: int) -> str:
+        """:meth:`ag` for an agent given as an int or a C expression."""
+        if isinstance(j, int):
+            return self.ag(j, field)
+        return f"s[{self.AG0 + field} + {self.A} * ({j})]"
+
     # -- support -----------------------------------------------------------------
     def check(self) -> None:
         m = self.m
@@ -340,8 +352,11 @@ class Generator:
             raise Unsupported(f"more than {MAX_AGENTS} agents")
         if m.collisions:
             raise Unsupported("collision checking")
-        if m.temporal:
-            raise Unsupported("a temporal property")
+        for tp in m.temporal:
+            try:
+                self.temporal_exprs(tp)
+            except Unsupported as e:
+                raise Unsupported(f"temporal property '{tp.name}': {e}") from None
         if type(m.delta) is not int:
             raise Unsupported("a non-integer δ")
         from pccl.blackboxes import BLACKBOXES
@@ -366,6 +381,44 @@ class Generator:
             except Unsupported as e:
                 raise Unsupported(f"invariant '{p.name}': {e}") from None
         self.env_constant()
+
+    def temporal_exprs(self, tp) -> list:
+        """C of a temporal property's state predicates, P then Q (when it has
+        one): :meth:`pexpr` over the instance's ``Temporal`` node."""
+        t = tp.expr
+        out = [self.pexpr(t.p, {})]
+        if getattr(t, "q", None) is not None:
+            out.append(self.pexpr(t.q, {}))
+        return out
+
+    def temporal_c(self) -> str:
+        """C of ``tcols(s, &bits, &pend)`` (pccl/model/native_c/temporal.c):
+        the graph recorder's per-state columns of the temporal properties, bit
+        2k for property k's P and 2k + 1 for its Q (as
+        :class:`pccl.search.liveness.StateColumns` sets them), and the robots
+        whose doReach is under way (:func:`pccl.model.search_view.arrival_pending`,
+        by the classes of the interned position ids, ``TPOINT``).  Returns 1
+        when Python must decide a column (a predicate met an undefined value,
+        an overflow, a division by zero; a position id without a class)."""
+        m = self.m
+        out = ["static int tcols(const V *s, uint64_t *bits, uint64_t *pend) {",
+               "  int saved = ovf, unsure = 0; uint64_t b = 0, pm = 0; V x;",
+               "  (void)x; (void)s;"]
+        for k, tp in enumerate(m.temporal):
+            t = tp.expr
+            preds = [(t.p, 2 * k)] + ([(t.q, 2 * k + 1)] if getattr(t, "q", None) is not None else [])
+            for e, bit in preds:
+                out.append(f"  ovf = 0; x = {self.pexpr(e, {})}; "
+                           f"if (ovf) unsure = 1; else if (x) b |= 1ULL << {bit};")
+        fair = bool(getattr(m, "arrival_is_fair", False)) and any(p.liveness for p in m.temporal)
+        if self.moves and fair:
+            for i in range(self.N):
+                o = self.AG0 + i * self.A + self.MV
+                out.append(f"  if (!s[{o + 4}] && !s[{o + 5}]) {{ int ct = pcls(s[{o + 1}]); "
+                           f"if (ct != -1) {{ int cp = pcls(s[{o}]); "
+                           f"if (ct < -1 || cp < -1) unsure = 1; else if (ct != cp) pm |= 1ULL << {i}; }} }}")
+        out += ["  ovf = saved;", "  *bits = b; *pend = pm;", "  return unsure;", "}"]
+        return "\n".join(out)
 
     def stmt_ok(self, s) -> None:
         from pccl.model.compile import has_rand
@@ -499,6 +552,12 @@ class Generator:
         if isinstance(e, A.Call) and e.name == "count" and len(e.args) == 1 \
                 and isinstance(e.args[0], A.Name):
             return self.pcount(e.args[0])
+        if isinstance(e, A.Index) and isinstance(e.base, A.Name) and e.base.name in _STATUS_TEST \
+                and e.base.name not in self.lay.vars:
+            # exited[i], stuck[i], running[i]: a test of agent i's status cell
+            j = (bound[e.index.name] if isinstance(e.index, A.Name) and e.index.name in bound
+                 else f"AIX({self.pexpr(e.index, bound)})")
+            return f"((V)({self.ag_cell(j, 3)} {_STATUS_TEST[e.base.name]}))"
         if isinstance(e, A.Index) and isinstance(e.base, A.Name):
             vs = self.lay.vars.get(e.base.name)
             if vs is not None and indexes_agent(vs.section, False, 1, in_property=True):
@@ -526,6 +585,9 @@ class Generator:
     def pcount(self, arg) -> str:
         """Step of :meth:`pexpr`: C for ``count(arg)`` of a per-agent bool."""
         vs = self.lay.vars.get(arg.name)
+        if vs is None and arg.name in _STATUS_TEST:       # count(exited), ...
+            return "((V)(" + " + ".join(f"({self.ag(j, 3)} {_STATUS_TEST[arg.name]})"
+                                        for j in range(self.N)) + "))"
         if vs is None or vs.section == "allwrite" or vs.ty.kind != "bool":
             raise Unsupported("count() of something other than a per-agent bool")
         # Python counts values that are True: undefined counts as not True
@@ -1038,6 +1100,9 @@ class Generator:
             "static inline int okexpr(const V *s) {",
             f"  return {ok};",
             "}",
+            '#include "temporal.h"',
+            self.temporal_c(),
+            '#include "temporal.c"',
             '#include "module.c"',
             '#include "kernel.c"',
             ""])
@@ -1069,6 +1134,11 @@ class NativeModel:
         #: encoding -> id (:meth:`_put`)
         self._vals: dict = {}
         self._ids: dict = {}
+        #: the point classes of the interned values (:meth:`_point_class`)
+        self._classes: dict = {}
+        #: the temporal properties (the graph recorder reads them,
+        #: pccl/search/liveness.py): :meth:`temporal_columns` makes their columns
+        self.temporal = tuple(getattr(py, "temporal", ()))
         #: ids that name a value the same way in every process: 31 bits of a
         #: hash of its canonical encoding (for forked workers, whose states and
         #: fingerprints must agree), else small ids in discovery order
@@ -1098,10 +1168,9 @@ class NativeModel:
         self.key = self.lib.key
         #: the reductions of the model it serves (pccl/model/reduce.py's plan)
         self.reduction = getattr(py, "reduction", None)
-        #: what the graph recorder reads (pccl/search/liveness.py): no
-        #: temporal property is served
+        #: what the graph recorder reads (pccl/search/liveness.py)
         self.N = py.N
-        self.temporal = ()
+        self.arrival_is_fair = bool(getattr(py, "arrival_is_fair", False))
         self.blackbox = py.blackbox
         self._sig = self.lib.sig
         #: a checkpoint keeps the Python model's lazily interned tables (the
@@ -1180,7 +1249,26 @@ class NativeModel:
         self._ids[k] = i
         self._vals[i] = x           # kept alive: its id() names it for good
         self._byobj[id(x)] = i
+        self._point_class(i, x)
         return True
+
+    def _point_class(self, i: int, x) -> None:
+        """Tell C the point class of id ``i`` (value ``x``): -1 for None, else
+        the number of its ``(x[0], x[1])`` among those met (equal as Python
+        compares them), which the robots-under-way column compares
+        (native_c/temporal.h).  A value without two coordinates gets none
+        (C then leaves a column that reads it to Python)."""
+        if not self.temporal or not 0 <= i < TPOINT_CAP:
+            return
+        if x is None:
+            cls = -1
+        else:
+            try:
+                pt = (x[0], x[1])
+                cls = self._classes.setdefault(pt, len(self._classes))
+            except (TypeError, IndexError, KeyError):
+                return
+        self.lib.pcls_set(i, cls)
 
     def stuck_table(self) -> dict:
         """The Python model's stuck reasons (stuck statuses are the same
@@ -1407,6 +1495,35 @@ class NativeModel:
         """1 into a dynamic state (a TIME ADVANCE), else 0: one C call."""
         return self.lib.phases(states)
 
+    def temporal_columns(self, states: list) -> tuple:
+        """The graph recorder's columns of the temporal properties for a list
+        of states (:class:`pccl.search.liveness.StateColumns`): per state the
+        P/Q bits and the robots whose doReach is under way, as uint64
+        arrays; one C call (``tcols``), and the Python model's predicates
+        and :func:`~pccl.model.search_view.arrival_pending` on the decoded
+        configuration where C cannot decide (an undefined value, an
+        overflow, a position without a class)."""
+        import numpy as np
+        from pccl.model.search_view import arrival_pending
+        b, p, u = self.lib.tcolumns(states)
+        bits = np.frombuffer(b, dtype=np.uint64).copy()
+        pend = np.frombuffer(p, dtype=np.uint64).copy()
+        for i in np.frombuffer(u, dtype=np.int64).tolist():
+            st = self.decode(states[i])
+            v = 0
+            for k, tp in enumerate(self.temporal):
+                for fn, bit in ((tp.p, 2 * k), (tp.q, 2 * k + 1)):
+                    if fn is not None and _holds(fn, st):
+                        v |= 1 << bit      # (a runtime error: it does not hold)
+            bits[i] = v
+            pend[i] = arrival_pending(st) if self.gen.moves else 0
+        return bits, pend
+
+    def temporal_scc(self, fptr, fdst, allowed, nodes, comp) -> bytes:
+        """Tarjan's components in C (native_c/temporal.c ``scc``): the
+        numbering of :meth:`pccl.search.liveness.Graph.sccs`."""
+        return self.lib.scc(fptr, fdst, allowed, nodes, comp)
+
     def stall_signatures(self, states: list):
         """:meth:`stall_signature` of each state of a list, as an int64
         array (one C call)."""
@@ -1463,6 +1580,15 @@ class _Decoding:
 
     def __getattr__(self, name):
         return getattr(self.ex, name)
+
+
+def _holds(fn, st) -> bool:
+    """A state predicate's value; a runtime error in it: it does not hold
+    (as the graph recorder's Python columns decide it)."""
+    try:
+        return bool(fn(st))
+    except Exception:
+        return False
 
 
 def _xxh3_128_address() -> Optional[int]:

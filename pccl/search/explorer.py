@@ -651,11 +651,12 @@ class Explorer:
             limit = min(len(table.slots) // 2, len(table.parents), budget_end)
             nfirst = table.n - len(adm.nxt)             # the number of adm.nxt[0]
             graph = None if rec is None else rec.kernel_arrays(limit)
+            tcol = None if rec is None else rec.kernel_columns()
             threads, secs = self._kernel_threads(len(level), seconds)
             (e, pos, why, cur, adm.nxt, crossed, tmaxes, trans, labs, cend, k, fin, ne, intr,
              (chunks, helped, dups)) = kern(level, first, adm.nxt, pos, threads, table.slots,
                                     table.fps, table.parents, table.n, int(table.mask), limit,
-                                    cross, secs, graph)
+                                    cross, secs, graph, tcol)
             self._note_kernel(len(level), crossed, chunks, helped, dups)
             table.admitted(k)
             if rec is not None:

@@ -110,8 +110,11 @@ class StateColumns:
     under way (:meth:`pccl.model.engine.Model.arrival_pending`)."""
 
     def __init__(self, props=(), fairness: bool = False, sig_of=None, *,
-                 time_costs=None, pending=None, sigs_of=None):
+                 time_costs=None, pending=None, sigs_of=None, native=None):
         self.props = list(props)
+        #: the native engine's columns of the temporal properties, or None
+        #: (pccl/search/native_liveness.py: one C call per batch)
+        self.native = native if self.props else None
         self.fairness = fairness
         self.time_costs = time_costs
         self.pending = pending
@@ -143,7 +146,12 @@ class StateColumns:
         already computed)."""
         n = len(states)
         cols: list = [np.fromiter(self.time_costs(states), dtype=np.uint8, count=n)]
-        if self.props:
+        if self.native is not None:
+            bits, pend = self.native(states)
+            cols.append(bits)
+            if self.fairness:
+                cols.append(pend)
+        elif self.props:
             vals = np.zeros(n, dtype=np.uint64)
             for k, p in enumerate(self.props):
                 for fn, b in ((p.p, 2 * k), (p.q, 2 * k + 1)):
@@ -152,7 +160,7 @@ class StateColumns:
                     col = np.fromiter((_holds(fn, s) for s in states), dtype=bool, count=n)
                     vals |= col.astype(np.uint64) << np.uint64(b)
             cols.append(vals)
-        if self.fairness:
+        if self.fairness and self.native is None:
             cols.append(np.fromiter(map(self.pending, states), dtype=np.uint64, count=n))
         if self.sig_of is not None:
             cols.append(self.signatures(states) if sigs is None else sigs)
@@ -175,7 +183,8 @@ class GraphRecorder:
         self.columns = StateColumns(self.props, self.fairness, sig_of,
                                     time_costs=model.time_costs,
                                     pending=model.arrival_pending if self.fairness else None,
-                                    sigs_of=getattr(model, "stall_signatures", None))
+                                    sigs_of=getattr(model, "stall_signatures", None),
+                                    native=getattr(model, "temporal_columns", None))
         self.src = _Grow(np.uint32)
         self.dst = _Grow(np.uint32)
         self.dyn = _Grow(np.uint8)
@@ -269,9 +278,10 @@ class GraphRecorder:
     @property
     def kernel_ready(self) -> bool:
         """Whether the level kernel can record this graph: the time-lock and
-        stall checks' columns, no temporal properties, no fair arrival, the
-        changes computed here."""
-        return not self.props and self.pend is None and not self.changes_given
+        stall checks' columns, and temporal properties (with fair arrival)
+        only when the model makes their columns in C (the native engine:
+        :meth:`kernel_columns`), the changes computed here."""
+        return (not self.props or self.columns.native is not None) and not self.changes_given
 
     def kernel_arrays(self, limit: int) -> tuple:
         """The arrays the kernel writes the graph into (its ``rec``
@@ -287,6 +297,15 @@ class GraphRecorder:
         if self.sig is not None and self.chg is not None:
             out += (self.sig.a, self.chg.a, int(self.wants_candidates))
         return out
+
+    def kernel_columns(self) -> Optional[tuple]:
+        """The temporal columns' arrays the kernel writes (its ``tcol``
+        argument: the P/Q bits and, under fair arrival, the robots under
+        way), or None without temporal properties; :meth:`kernel_arrays`
+        made their room."""
+        if self.bits is None:
+            return None
+        return (self.bits.a,) + ((self.pend.a,) if self.pend is not None else ())
 
     def kernel_admitted(self, states: int, edges: int) -> None:
         """The kernel wrote ``states`` more states' columns and the
@@ -745,9 +764,13 @@ class _Analysis:
         self.n = table.n
         self.g = rec.freeze(self.n)
         self.g.kernel = getattr(getattr(explorer, "model", None), "reach_back", None)
+        from pccl.search.native_liveness import attach_scc, lasso_view
+        # Tarjan in C when the native engine recorded the graph
+        attach_scc(self.g, getattr(getattr(explorer, "model", None), "temporal_scc", None))
         self.n_init = sr.stats.initial_states
         self.props = rec.props
-        self.explorer = explorer
+        #: the search over configurations (a native one seen through the model)
+        self.explorer = lasso_view(explorer, model)
         #: a state number stands for an orbit under renaming agents; or (or
         #: also) for states that differ in dead values: a cycle of the graph
         #: closes only up to them, lassos are rebuilt on real states
@@ -942,11 +965,12 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
     ncomp = len(nontrivial)
     ok = comp >= 0
     accepting = nontrivial.copy()
+    undecided = np.zeros(ncomp, dtype=bool)       # for exact_fair
+    fair_masks: list = []
     if ncomp:
         has_dyn = np.zeros(ncomp, dtype=bool)
         np.logical_or.at(has_dyn, comp[ok], g.dyn[ok])
         accepting &= has_dyn
-        fair_masks = []
         if n_fair and exact_fair is not None:
             full = np.uint64((1 << n_fair) - 1)
             pend = g.pend & full
@@ -956,8 +980,6 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
             np.logical_or.at(some_idle, comp[ok], pend[ok] != full)
             undecided = accepting & ~all_idle & some_idle
             accepting &= all_idle
-            for cid in np.flatnonzero(undecided).tolist():
-                accepting[cid] = exact_fair(comp == cid)
             fair_masks.append(pend == 0)
         else:
             for a in range(n_fair):
@@ -966,17 +988,10 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
                 np.logical_or.at(has_idle, comp[ok], idle[ok])
                 accepting &= has_idle
                 fair_masks.append(idle)
-    bad_cycle = np.zeros(g.n, dtype=bool)
-    bad_cycle[ok] = accepting[comp[ok]]
-    bad = bad_cycle | (region & g.terminal)
-    if not bad.any():
+    found = _first_bad(g, starts, region, comp, accepting, undecided, exact_fair)
+    if found is None:
         return None
-    coreach = g.reach(np.flatnonzero(bad), region, backward=True)
-    cand = np.flatnonzero(starts & coreach)
-    if not cand.size:
-        return None
-    s = int(cand[0])
-    path = g.path(s, bad, region)
+    s, path, bad_cycle = found
     b = path[-1]
     if g.terminal[b] and not bad_cycle[b]:
         return s, path, None, True, comp
@@ -985,6 +1000,45 @@ def _leadsto(g: Graph, starts: np.ndarray, qmask: np.ndarray, n_fair: int,
         musts = [g.dyn]         # fair only as real states: lift.py's cycle visits the witnesses
     cycle = g.cycle_through(b, comp, musts)
     return s, path, cycle, False, comp
+
+
+def _first_bad(g: Graph, starts: np.ndarray, region: np.ndarray, comp: np.ndarray,
+               accepting: np.ndarray, undecided: np.ndarray,
+               exact_fair: Optional[Callable]) -> Optional[tuple]:
+    """Step of :func:`_leadsto`: the first start (in search order) from which
+    a bad state (a terminal state or a state of an accepting component of
+    ``region``) can be reached, and a shortest path to one: ``(s, path,
+    bad_cycle)`` (``bad_cycle``: the states of accepting components), or
+    None.
+
+    The components ``undecided`` are decided by ``exact_fair`` lazily: the
+    search takes them as accepting, and only the one its path ends in is
+    decided (an unfair one is dropped and the search runs again).  The first
+    start that reaches a state of the larger set, and the first such state
+    its breadth-first path meets, are those of the decided set when that
+    state is truly bad, so the lasso is the one that deciding every
+    component first would give (docs/reductions.md)."""
+    ok = comp >= 0
+    while True:
+        bad_cycle = np.zeros(g.n, dtype=bool)
+        bad_cycle[ok] = (accepting | undecided)[comp[ok]]
+        bad = bad_cycle | (region & g.terminal)
+        if not bad.any():
+            return None
+        coreach = g.reach(np.flatnonzero(bad), region, backward=True)
+        cand = np.flatnonzero(starts & coreach)
+        if not cand.size:
+            return None
+        s = int(cand[0])
+        path = g.path(s, bad, region)
+        cb = int(comp[path[-1]])
+        if cb < 0 or not undecided[cb]:
+            return s, path, bad_cycle
+        undecided[cb] = False
+        assert exact_fair is not None
+        if exact_fair(comp == cb):
+            accepting[cb] = True
+            return s, path, bad_cycle
 
 
 def _bounded_response(g: Graph, table, n_init: int, pmask, qmask, ticks: int):
@@ -1117,6 +1171,8 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     (docs/reductions.md)."""
     from pccl.search.explorer import Trace
     from pccl.search.lift import RealCycles
+    from pccl.search.native_liveness import lasso_view
+    explorer = lasso_view(explorer, model)
     inside, dyn, n_fair = cx.rebuild
     pre = explorer.replay_chain(cx.chain[:cx.cycle_start + 1])
     rc = RealCycles(explorer, dyn, n_fair, model.arrival_pending)

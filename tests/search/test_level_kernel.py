@@ -345,11 +345,17 @@ def test_workers_with_the_default_checks_run_as_threads(monkeypatch):
     assert r.model.engine_threads == 1
 
 
-def test_workers_with_a_temporal_property_stay_processes():
-    """A temporal property's columns are not the kernel's to record: processes."""
-    r = explore(FISCHER, workers=2, overrides={"k": "0", "d": "1"},
-                properties=("forall i: wait[i] ~> inCs[i]",))
-    assert r.model.engine_threads == 1
+def test_workers_with_a_temporal_property_run_as_threads(monkeypatch):
+    """A temporal property's columns are made on the kernel's threads (issue
+    46): threads, one worker's results; forked processes (PCCL_THREADS=0)
+    run it on the Python engine."""
+    kw = dict(overrides={"k": "0", "d": "1"}, properties=("forall i: wait[i] ~> inCs[i]",))
+    r = explore(FISCHER, workers=2, **kw)
+    assert r.model.engine_used == "native" and r.model.engine_threads == 2
+    assert summary(r) == summary(explore(FISCHER, workers=1, **kw))
+    monkeypatch.setenv("PCCL_THREADS", "0")
+    r = explore(FISCHER, workers=2, **kw)
+    assert r.model.engine_used == "python" and r.model.engine_threads == 1
 
 
 def test_programs_that_move_run_as_threads():

@@ -2,7 +2,7 @@
    generated module last. */
 /* ---- the level kernel ---------------------------------------------------
    explore_levels(level, first, out, start, threads, slots, fps, parents,
-   n, mask, limit, cross, seconds[, rec]): breadth-first search in C from
+   n, mask, limit, cross, seconds[, rec[, tcol]]): breadth-first search in C from
    level[start:] (level[i] is state number first + i), admitting as the
    explorer's batches would admit: a chunk of KCH states at a time, chunks
    in order, each new successor (its fingerprint not in the table) numbered
@@ -31,7 +31,12 @@
    costs, and with the stall check signatures, change flags and whether a
    change is decided on the successor as made) the admission records every
    transition and new state there (krecord), and stops before a chunk whose
-   transitions do not fit (why 5: the arrays grow).
+   transitions do not fit (why 5: the arrays grow).  With `tcol` too (the
+   temporal properties' columns, GraphRecorder.kernel_columns: uint64 P/Q
+   bits and, under fair arrival, robots under way per state) each candidate's columns are made
+   with it (tcols(), temporal.c, on the threads) and a new state's written;
+   a candidate whose columns Python must compute makes its chunk the
+   batches' (why 2).
    Returns (e: the level it stopped in, 0 for `level`, e >= 1 the e-th
    level after it; the position in it; why; level e's list (None for level
    0, or once it is expanded); its next level's list (out when e is 0);
@@ -63,6 +68,7 @@ typedef struct {
   int helper;                       /* made by a thread other than the caller's */
   V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
   int64_t *sg;                      /* the candidates' stall signatures (recording them) */
+  uint64_t *tb, *pd;                /* their temporal columns (temporal.c: recording them) */
   Py_ssize_t labcap;                /* labs' size (labels grow on memo misses) */
   Py_ssize_t nc, cap;
   int flag;
@@ -125,6 +131,7 @@ typedef struct {
   Py_ssize_t ne, ecap;
   unsigned char *dyn, *chg;
   int64_t *sig;
+  uint64_t *tbits, *tpend;          /* the temporal columns (temporal.c), or NULL */
   pthread_mutex_t mu;
   pthread_cond_t cv;
 } KJob;
@@ -155,7 +162,11 @@ static int kroom(KChunk *k, Py_ssize_t need) {
   if (s) k->sus = s;
   int64_t *g = realloc(k->sg, sizeof(int64_t) * cap);
   if (g) k->sg = g;
-  if (!v || !f || !s || !g) return -1;
+  uint64_t *tb = realloc(k->tb, 8 * cap);
+  if (tb) k->tb = tb;
+  uint64_t *pd = realloc(k->pd, 8 * cap);
+  if (pd) k->pd = pd;
+  if (!v || !f || !s || !g || !tb || !pd) return -1;
   k->cap = cap;
   return 0;
 }
@@ -237,6 +248,8 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
       fingerprint_of(t, k->fp + 2 * w);
       if (j->sig) k->sg[w] = sighash(t);
       k->sus[w] = !okstate(t);
+      /* a column Python must compute: the batches take the chunk */
+      if (j->tbits && tcols(t, k->tb + w, k->pd + w)) { k->flag = 2; break; }
     }
   }
   if (!mine && j->slow) {           /* (tests: a slow or descheduled thread) */
@@ -336,6 +349,7 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
       if (j->rec) {
         j->dyn[n] = phase_cost(t);
         if (j->sig) { j->sig[n] = k->sg[w]; j->chg[n] = 0; }
+        if (j->tbits) { j->tbits[n] = k->tb[w]; if (j->tpend) j->tpend[n] = k->pd[w]; }
         krecord(j, k, w, par, n);
       }
       n++;
@@ -492,18 +506,26 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
   Py_ssize_t first, start, n, limit, cross;
   int threads;
   double seconds;
-  Py_buffer bs, bf, bp, bes = {0}, bed = {0}, bdy = {0}, bsg = {0}, bch = {0};
+  Py_buffer bs, bf, bp, bes = {0}, bed = {0}, bdy = {0}, bsg = {0}, bch = {0}, btb = {0}, btp = {0};
   unsigned long long mask;
-  PyObject *rec = Py_None;
-  if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|O", &PyList_Type, &level, &first, &PyList_Type,
+  PyObject *rec = Py_None, *tcol = Py_None;
+  if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|OO", &PyList_Type, &level, &first, &PyList_Type,
                         &out, &start, &threads, &bs, &bf, &bp, &n, &mask, &limit, &cross,
-                        &seconds, &rec))
+                        &seconds, &rec, &tcol))
     return NULL;
+  /* tcol: the temporal columns' arrays (bits, pend: uint64 per state), recorded with rec */
+  if (tcol != Py_None && (rec == Py_None || !PyArg_ParseTuple(tcol, "w*|w*", &btb, &btp))) {
+    if (!PyErr_Occurred()) PyErr_SetString(PyExc_ValueError, "explore_levels: columns without a graph");
+    PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
+    return NULL;
+  }
   Py_ssize_t ne = 0;
   int bycand = 0;
   if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", &bes, &bed, &ne, &bdy, &bsg,
                                           &bch, &bycand)) {
     PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
+    if (btb.obj) PyBuffer_Release(&btb);
+    if (btp.obj) PyBuffer_Release(&btp);
     return NULL;
   }
   PyObject *res = NULL, *labs = NULL, *lists = NULL, *tms = NULL;
@@ -519,7 +541,8 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
       || (rec != Py_None && (bes.len != bed.len || bes.itemsize != 4 || bed.itemsize != 4
                              || ne < 0 || ne > bes.len / 4 || bdy.len < limit
                              || (bsg.buf && (bsg.itemsize != 8 || bsg.len / 8 < limit
-                                               || !bch.buf || bch.len < limit))))) {
+                                               || !bch.buf || bch.len < limit))
+                             || (btb.buf && (btb.len / 8 < limit || (btp.buf && btp.len / 8 < limit)))))) {
     PyErr_SetString(PyExc_ValueError, "explore_levels: arguments out of range");
     goto done;
   }
@@ -559,6 +582,7 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
     j->esrc = bes.buf; j->edst = bed.buf; j->ne = ne; j->ecap = bes.len / 4;
     j->dyn = bdy.buf;
     j->sig = bsg.buf; j->chg = bch.buf;
+    j->tbits = btb.buf; j->tpend = btp.buf;
   }
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
@@ -632,8 +656,8 @@ done:
   free(j); free(seen);
   Py_XDECREF(labs); Py_XDECREF(lists); Py_XDECREF(tms);
   PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
-  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch};
-  for (int q = 0; q < 5; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
+  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch, &btb, &btp};
+  for (int q = 0; q < 7; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
   return res;
 }
 #pragma GCC pop_options
