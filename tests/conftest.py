@@ -32,6 +32,17 @@ RACE = str(PROGRAMS / "race.pccl")
 RACE_NONATOMIC = str(PROGRAMS / "race_nonatomic.pccl")
 RACE_WORLD = str(PROGRAMS / "race.toml")
 
+# The suite's own cache ($PCCL_CACHE: the native engine's compiled modules and
+# the parser's tables), set here before any test runs so that the xdist
+# workers and every pccl process a test starts share it, and kept between runs
+# (.pytest_cache/ is git-ignored; `pytest --cache-clear` empties it: a cold
+# run).  A module is compiled once per generated source
+# for the whole suite instead of once per worker, per file and per run (about
+# 1.4 CPU-s each).  Its key hashes the source, the fixed C and the Python ABI,
+# so a module of older code is never loaded.  A PCCL_CACHE set by the caller
+# wins; the tests of the cache itself set their own directory.
+os.environ.setdefault("PCCL_CACHE", str(ROOT / ".pytest_cache" / "pccl"))
+
 def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=300):
     """Start ``python -m pccl.cli ARGS`` (standard output and error piped)
     and, with ``ready``, wait until its standard error says that text (a

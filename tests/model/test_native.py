@@ -29,11 +29,6 @@ pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"native engine unav
 UNREDUCED = dict(reduce="none", timelock=False, stall=False)
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
-
-
 def canonical(model, st) -> tuple:
     """A configuration with each pc replaced by its k cell (pcs are interned
     in the order met: the native engine interns them all up front)."""

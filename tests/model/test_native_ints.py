@@ -30,11 +30,6 @@ MISSING = NV.unsupported(_probe)
 pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"native engine unavailable: {MISSING}")
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
-
-
 # -- hole 5: the reproducers -------------------------------------------------------
 
 #: clean; the native engine read -2^63 as undefined ("a value of the wrong type")

@@ -22,12 +22,17 @@ import re
 from differential import gen, oracle, run, shrink
 
 #: the CI budget: programs from SEED on, truth + default + SAMPLE drawn modes each
-SEED, N, SAMPLE, BUDGET = 41_000, 60, 3, 75.0
+SEED, N, SAMPLE, BUDGET = 41_000, 31, 3, 75.0
 #: the PCCL families (the Koord family has its own budget and tests, below)
 PCCL = [f for f in gen.FAMILIES if f != "koord"]
 
 
 def test_fixed_budget_has_no_unknown_disagreement():
+    """The first 31 programs from seed 41000 (the budget stops it earlier on a
+    loaded machine): they hold every family of the generator (18 core, 4 por,
+    3 moving, 4 userbb, 2 sym) and draw every mode but Ray's (the 31st is the
+    first to draw checkpoint-native); the 60 of the earlier budget drew no
+    mode more.  The long runs (docs/oracle.md, "Measured") go wide."""
     modes = [m.name for m in oracle.MODES if m.name != "ray-local"]
     s = run(N, SEED, BUDGET, modes, SAMPLE, families=PCCL)
     print(s.text())

@@ -20,7 +20,7 @@ from pccl.lang.errors import CheckpointFileError
 from pccl.search import checkpoint as C
 from pccl.search import safedata
 from pccl.search.fingerprint import fingerprint
-from conftest import TEST_PROGRAMS, interrupted
+from conftest import TEST_PROGRAMS, cli, interrupted
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 PROG = os.path.join(ROOT, "programs")
@@ -333,6 +333,20 @@ def _cli(*args, timeout=120):
                           text=True, cwd=ROOT, timeout=timeout)
 
 
+class _Ran:
+    """A command's exit status and output, as ``subprocess.run`` gives them."""
+
+    def __init__(self, res):
+        self.returncode, self.stdout, self.stderr = res.exit_code, res.stdout, res.stderr
+
+
+def _cli_here(*args):
+    """``pccl ARGS`` in this process (conftest.cli, from the repository root):
+    for the refusals, which exit 2 before any search, a process of their own
+    (about 0.5 CPU-s to start) would test nothing more."""
+    return _Ran(cli(*args, cwd=ROOT))
+
+
 def _checkpoint_of(tmp_path, *args):
     d = str(tmp_path / "ck")
     r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d, progress=_Interrupt(5),
@@ -343,15 +357,15 @@ def _checkpoint_of(tmp_path, *args):
 
 def test_resume_with_other_options_or_program_exits_2(tmp_path):
     d = _checkpoint_of(tmp_path)
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=2", "--resume", d)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=2", "--resume", d)
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert f"--resume: error: {d}: the checkpoint was written with --set k=1, this run " \
            f"has --set k=2" in p.stderr
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--depth", "9", "--resume", d)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--depth", "9", "--resume", d)
     assert p.returncode == 2 and "with no --depth, this run has --depth 9" in p.stderr
-    p = _cli("explore", "programs/race.pccl", "-w", "programs/race.toml", "--resume", d)
+    p = _cli_here("explore", "programs/race.pccl", "-w", "programs/race.toml", "--resume", d)
     assert p.returncode == 2 and "the checkpoint was written for a different program" in p.stderr
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--reduce", "none",
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--reduce", "none",
              "--resume", d)
     assert p.returncode == 2 and "reductions merge+symmetry+por+dead, this run has " \
                                  "reductions none" in p.stderr
@@ -387,7 +401,7 @@ def test_corrupt_checkpoint_exits_2_with_a_message(tmp_path, damage):
         os.makedirs(d)
     elif damage == "no-dir":
         d = str(tmp_path / "nowhere")
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d)
     assert p.returncode == 2, p.stderr
     assert "Traceback" not in p.stderr and p.stderr.startswith(f"--resume: error: {d}: ")
     want = {"manifest": "corrupt", "truncate": "corrupt", "flip": "does not match its digest",
@@ -418,9 +432,9 @@ def test_coverage_interrupted_and_resumed_counts_as_uninterrupted(tmp_path, fast
 
 
 def test_checkpoint_options_checked():
-    p = _cli("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
+    p = _cli_here("explore", "programs/fischer.pccl", "--checkpoint-interval", "soon")
     assert p.returncode == 2 and "--checkpoint-interval" in p.stderr
-    p = _cli("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
+    p = _cli_here("explore", "programs/fischer.pccl", "--checkpoint", "/dev/null/ck")
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.startswith("--checkpoint: error: cannot write checkpoints to /dev/null/ck")
 

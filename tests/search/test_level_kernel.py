@@ -33,11 +33,6 @@ NOGRAPH = dict(timelock=False, stall=False)
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("PCCL_CACHE", str(tmp_path_factory.getbasetemp() / "native-cache"))
-
-
-@pytest.fixture(autouse=True)
 def _shared(request, monkeypatch):
     """Every level shared between the threads (the search runs levels under
     SHARED_LEVEL states on one thread): the small programs here exercise the
