@@ -29,7 +29,9 @@
    With `rec` (the graph recorder's arrays, GraphRecorder.kernel_arrays:
    transitions' sources and targets as uint32 with the count so far, time
    costs, and with the stall check signatures, change flags and whether a
-   change is decided on the successor as made) the admission records every
+   change is decided on the successor as made, and with the frozen-team
+   check each transition's label number, each state's progress signature
+   and progress change flag) the admission records every
    transition and new state there (krecord), and stops before a chunk whose
    transitions do not fit (why 5: the arrays grow).
    Returns (e: the level it stopped in, 0 for `level`, e >= 1 the e-th
@@ -63,6 +65,8 @@ typedef struct {
   int helper;                       /* made by a thread other than the caller's */
   V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
   int64_t *sg;                      /* the candidates' stall signatures (recording them) */
+  int64_t *psg;                     /* ... and progress signatures (the frozen-team check's) */
+  int32_t *lb;                      /* ... and label numbers (the frozen-team check's) */
   Py_ssize_t labcap;                /* labs' size (labels grow on memo misses) */
   Py_ssize_t nc, cap;
   int flag;
@@ -125,6 +129,12 @@ typedef struct {
   Py_ssize_t ne, ecap;
   unsigned char *dyn, *chg;
   int64_t *sig;
+  /* with the frozen-team check (psig not NULL): per transition its label
+     number (elab), per new state its progress signature and a progress
+     change flag (pchg), set as chg is */
+  int32_t *elab;
+  int64_t *psig;
+  unsigned char *pchg;
   pthread_mutex_t mu;
   pthread_cond_t cv;
 } KJob;
@@ -155,7 +165,11 @@ static int kroom(KChunk *k, Py_ssize_t need) {
   if (s) k->sus = s;
   int64_t *g = realloc(k->sg, sizeof(int64_t) * cap);
   if (g) k->sg = g;
-  if (!v || !f || !s || !g) return -1;
+  int64_t *pg = realloc(k->psg, sizeof(int64_t) * cap);
+  if (pg) k->psg = pg;
+  int32_t *l = realloc(k->lb, sizeof(int32_t) * cap);
+  if (l) k->lb = l;
+  if (!v || !f || !s || !g || !pg || !l) return -1;
   k->cap = cap;
   return 0;
 }
@@ -236,6 +250,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
       k->labs[BLAB[q]] = 1;
       fingerprint_of(t, k->fp + 2 * w);
       if (j->sig) k->sg[w] = sighash(t);
+      if (j->psig) { k->psg[w] = psighash(t); k->lb[w] = BLAB[q]; }
       k->sus[w] = !okstate(t);
     }
   }
@@ -271,6 +286,10 @@ static inline void krecord(KJob *j, KChunk *k, Py_ssize_t w, Py_ssize_t par, int
   j->esrc[j->ne] = (uint32_t)par;
   j->edst[j->ne++] = (uint32_t)dst;
   if (j->sig && (j->bycand ? k->sg[w] : j->sig[dst]) != j->sig[par]) j->chg[par] = 1;
+  if (j->psig) {
+    j->elab[j->ne - 1] = k->lb[w];
+    if ((j->bycand ? k->psg[w] : j->psig[dst]) != j->psig[par]) j->pchg[par] = 1;
+  }
 }
 /* admit chunk k, the next in order, of level L, positions [a, b) (the GIL
    held): 0, else why not */
@@ -336,6 +355,7 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
       if (j->rec) {
         j->dyn[n] = phase_cost(t);
         if (j->sig) { j->sig[n] = k->sg[w]; j->chg[n] = 0; }
+        if (j->psig) { j->psig[n] = k->psg[w]; j->pchg[n] = 0; }
         krecord(j, k, w, par, n);
       }
       n++;
@@ -493,6 +513,7 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
   int threads;
   double seconds;
   Py_buffer bs, bf, bp, bes = {0}, bed = {0}, bdy = {0}, bsg = {0}, bch = {0};
+  Py_buffer bel = {0}, bps = {0}, bpc = {0};
   unsigned long long mask;
   PyObject *rec = Py_None;
   if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|O", &PyList_Type, &level, &first, &PyList_Type,
@@ -501,8 +522,8 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
     return NULL;
   Py_ssize_t ne = 0;
   int bycand = 0;
-  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", &bes, &bed, &ne, &bdy, &bsg,
-                                          &bch, &bycand)) {
+  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*iw*w*w*", &bes, &bed, &ne, &bdy, &bsg,
+                                          &bch, &bycand, &bel, &bps, &bpc)) {
     PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
     return NULL;
   }
@@ -519,7 +540,10 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
       || (rec != Py_None && (bes.len != bed.len || bes.itemsize != 4 || bed.itemsize != 4
                              || ne < 0 || ne > bes.len / 4 || bdy.len < limit
                              || (bsg.buf && (bsg.itemsize != 8 || bsg.len / 8 < limit
-                                               || !bch.buf || bch.len < limit))))) {
+                                               || !bch.buf || bch.len < limit))
+                             || (bel.buf && (!bsg.buf || bel.itemsize != 4 || bel.len != bes.len
+                                             || bps.itemsize != 8 || bps.len / 8 < limit
+                                             || bpc.len < limit))))) {
     PyErr_SetString(PyExc_ValueError, "explore_levels: arguments out of range");
     goto done;
   }
@@ -559,6 +583,7 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
     j->esrc = bes.buf; j->edst = bed.buf; j->ne = ne; j->ecap = bes.len / 4;
     j->dyn = bdy.buf;
     j->sig = bsg.buf; j->chg = bch.buf;
+    if (bel.buf) { j->elab = bel.buf; j->psig = bps.buf; j->pchg = bpc.buf; }
   }
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
@@ -632,8 +657,8 @@ done:
   free(j); free(seen);
   Py_XDECREF(labs); Py_XDECREF(lists); Py_XDECREF(tms);
   PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
-  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch};
-  for (int q = 0; q < 5; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
+  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch, &bel, &bps, &bpc};
+  for (int q = 0; q < 8; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
   return res;
 }
 #pragma GCC pop_options
