@@ -554,6 +554,10 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         plan.threads, plan.labels = False, None
         if native is not None:
             native = _choose_engine(model, o, False, False, plan.spelling)
+        elif plan.rec is not None and plan.rec.frozen is not None:
+            # (the workers record no labels: the frozen-team check explores again)
+            from pccl.search import liveness as L
+            plan.rec = L.make_recorder(model, o.timelock, o.stall)
     if native is not None:
         on_runaway_native = plan.on_runaway_native(native)
         if plan.rec is not None:        # the graph of the native states
