@@ -1006,7 +1006,7 @@ class Explorer:
                     ns, flat, labs = expand(level[c0:c0 + chunk])
                 else:
                     ns, flat, labs, ids = expand(level[c0:c0 + chunk])
-                    ids = np.frombuffer(ids, dtype=np.int32)
+                    ids = np.frombuffer(ids, dtype=np.int32).tolist()
                 if labels is not None:
                     labels.update(labs)
             else:
