@@ -492,10 +492,27 @@ def _plan_search(model: Reduced, o: ExploreOptions, spelling: Spelling) -> _Sear
     # time-lock and temporal analysis runs on the same graph, whatever the backend
     rec = L.make_recorder(model, o.timelock, o.stall)
     threads = _threads_allowed(o, nworkers, rec)
+    if rec is not None and _frozen_recorded(o, one or threads):
+        rec = L.make_recorder(model, o.timelock, o.stall, frozen=_frozen_sigs(model))
     # the distinct labels of the transitions taken: the events that fired
     labels: Optional[set] = set() if one or threads else None
     return _SearchPlan(model, o, cov, max_memory, nworkers, one, o.search_options(max_memory),
                        rec, labels, spelling, threads=threads)
+
+
+def _frozen_recorded(o: ExploreOptions, one_process: bool) -> bool:
+    """Whether the search records what the frozen-team check reads with its
+    graph (:func:`pccl.model.frozen.check_recorded`): with the stall check,
+    in one process (:class:`Explorer`: the Python engine, the native
+    engine's batches and level kernel), without ``--fastest`` or a
+    checkpoint; elsewhere the check explores again (docs/reductions.md)."""
+    return (o.stall and one_process and not o.fastest and o.checkpoint is None
+            and o.resume is None and os.environ.get("PCCL_FROZEN_GRAPH", "1") != "0")
+
+
+def _frozen_sigs(model) -> Callable:
+    from pccl.model.frozen import progress_signatures_fn
+    return progress_signatures_fn(model)
 
 
 def _threads_allowed(o: ExploreOptions, nworkers: Optional[int], rec: Any) -> bool:
@@ -525,7 +542,8 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         plan.native = native
         if plan.rec is not None:        # the graph of the native states
             from pccl.search import liveness as L
-            plan.rec = L.make_recorder(native, o.timelock, o.stall)
+            plan.rec = L.make_recorder(native, o.timelock, o.stall, frozen=(
+                _frozen_sigs(native) if _frozen_recorded(o, True) else None))
         return (Explorer(native, dataclasses.replace(sopts, batch=native.BATCH,
                                                      threads=plan.nworkers),
                          recorder=plan.rec, on_runaway=plan.on_runaway_native(native),
@@ -536,11 +554,16 @@ def _make_searcher(plan: _SearchPlan) -> tuple:
         plan.threads, plan.labels = False, None
         if native is not None:
             native = _choose_engine(model, o, False, False, plan.spelling)
+        elif plan.rec is not None and plan.rec.frozen is not None:
+            # (the workers record no labels: the frozen-team check explores again)
+            from pccl.search import liveness as L
+            plan.rec = L.make_recorder(model, o.timelock, o.stall)
     if native is not None:
         on_runaway_native = plan.on_runaway_native(native)
         if plan.rec is not None:        # the graph of the native states
             from pccl.search import liveness as L
-            plan.rec = L.make_recorder(native, o.timelock, o.stall)
+            plan.rec = L.make_recorder(native, o.timelock, o.stall, frozen=(
+                _frozen_sigs(native) if _frozen_recorded(o, plan.one) else None))
         plan.native = native
         if not plan.one:        # --workers N: forked workers over native vectors
             return _parallel_searcher(plan, native), native
@@ -604,7 +627,8 @@ def _run_search(plan: _SearchPlan, ex: Any, native) -> tuple:
             from pccl.search import liveness as L
             plan.labels, plan.native = (set() if plan.one else None), None
             model.engine_threads = 1
-            plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall)
+            plan.rec = L.make_recorder(model, plan.o.timelock, plan.o.stall, frozen=(
+                _frozen_sigs(model) if _frozen_recorded(plan.o, plan.one) else None))
             if plan.one:
                 # a checkpoint of the native search cannot be continued here: the
                 # Python search writes its own (into the checkpoint directory, if any)
@@ -649,19 +673,28 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     if lv.found and sr.status != "interrupted":
         sr.found.extend(lv.found)
         sr.status = "violation"
-    _frozen_check(plan, sr, lv)
+    _frozen_check(plan, ex, sr, lv)
     return lv
 
 
-def _frozen_check(plan: _SearchPlan, sr: SearchResult, lv) -> None:
+def _frozen_check(plan: _SearchPlan, ex: Any, sr: SearchResult, lv) -> None:
     """Step of :func:`_analyse`: on a clean exhaustive search with the
     stall check on, is the team frozen somewhere (:mod:`pccl.model.frozen`)?
-    A frozen team joins the violations; a check that cannot run says why
-    in a note."""
+    Decided over the search's own graph where it recorded what the check
+    reads, else by exploring again.  A frozen team joins the violations; a
+    check that cannot run says why in a note."""
     if not plan.o.stall or sr.status != "exhaustive" or sr.found:
         return
     import time as _time
     from pccl.model import frozen as F
+    if F.recorded(plan.rec) and isinstance(ex, Explorer) and ex.table.n == sr.stats.states:
+        t0 = _time.perf_counter()
+        dec = ex if plan.native is None else plan.native.decoding(ex)
+        fr = F.check_recorded(plan.model, plan.rec, ex.table.n, dec.replay_chain, ex.table,
+                              getattr(ex.model, "reach_back", None))
+        sr.stats.seconds += _time.perf_counter() - t0
+        _frozen_found(sr, fr)
+        return
     if sr.stats.states > F.LIMIT:
         lv.notes.append(f"frozen teams not checked: {sr.stats.states:,} states, more than the "
                         f"{F.LIMIT:,} the check explores again (in Python)")
@@ -671,7 +704,13 @@ def _frozen_check(plan: _SearchPlan, sr: SearchResult, lv) -> None:
     sr.stats.seconds += _time.perf_counter() - t0
     if not fr.ran:
         lv.notes.append(f"frozen teams not checked: {fr.reason}")
-    elif fr.violation is not None:
+    else:
+        _frozen_found(sr, fr)
+
+
+def _frozen_found(sr: SearchResult, fr) -> None:
+    """A frozen team the check found joins the violations."""
+    if fr.violation is not None:
         cx = Counterexample(fr.violation, -1, len(fr.trace))
         cx.trace = fr.trace
         sr.found.append(cx)

@@ -31,10 +31,21 @@ keeps running without progress is, and it is named by the events that it
 can no longer fire.
 
 **How it is decided.** On a clean exhaustive verdict (and with the stall
-check on) the reduced model is explored again, in Python, with every
-transition's event label and progress change kept (the search's own
-graph, in C for the native engine, keeps neither), up to :data:`LIMIT`
-states; above that the check does not run and the verdict says so.
+check on), over the search's own graph: a search of one process (the
+Python engine, the native engine's batches and its level kernel, on one
+thread or several) records with the graph the time-lock and stall checks
+read each transition's label and each state's progress signature and
+whether some transition out of it changes it
+(:class:`pccl.search.liveness.FrozenColumns`); :func:`check_recorded`
+decides on them, whatever the number of states.  Where the graph came
+without them (``--workers N`` as processes, Ray, ``--fastest``, a
+checkpoint), :func:`check` explores the reduced model again, in Python,
+with every transition's event label and progress change kept, up to
+:data:`LIMIT` states; above that the check does not run and the verdict
+says so.  Both are the same graph (the reduced model of the search,
+breadth-first, in the same order) and the same decision
+(:func:`_decide`); :func:`check` stays as the reference the tests hold
+:func:`check_recorded` to (docs/reductions.md, "Frozen teams").
 Backward reachability over that graph (:class:`pccl.search.liveness.Graph`)
 then finds the states that can reach a progress change, a terminal state
 or a firing of each event.
@@ -52,7 +63,8 @@ import xxhash
 
 from pccl.model.layout import AGS, AR, LOC, POS, REACH, SH, STATUS, TARGET
 
-__all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "check", "FROZEN_MESSAGE"]
+__all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "progress_signatures_fn", "check",
+           "check_recorded", "FROZEN_MESSAGE"]
 
 #: the most states the check explores again (in Python: about 30,000 states per CPU
 #: second and 1.3 KB per state on fischer, measured 2026-12-07: at most about
@@ -92,6 +104,18 @@ def progress_signature_fn(model) -> Callable:
     exec(compile(src, "<pccl progress signature>", "exec"),
          {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
     return ns["_sig"]
+
+
+def progress_signatures_fn(model) -> Callable:
+    """``sigs(states) -> int64 array``: :func:`progress_signature_fn` of a
+    list of states (the native model's own C call where it has one: the
+    same fields), as the graph recorder reads them."""
+    many = getattr(model, "progress_signatures", None)
+    if many is not None:
+        return many
+    one = progress_signature_fn(model)
+    return lambda states: np.fromiter((one(st) - 0x8000000000000000 for st in states),
+                                      dtype=np.int64, count=len(states))
 
 
 @dataclass
@@ -153,11 +177,23 @@ def _explore(model, limit: int) -> Optional[_Graph]:
 def _frozen_events(model, gr: _Graph):
     """The first frozen state (breadth-first), the events that can never
     fire again from it and those that still fire there, or None."""
-    from pccl.search.liveness import Graph
     n = len(gr.states)
     dyn = np.fromiter(model.time_costs(gr.states), dtype=np.uint8, count=n).astype(bool)
-    g = Graph(n, None, gr.dst, gr.src, dyn, None, None)
-    bad = g.terminal | gr.changes
+    return _decide(model, n, gr.src, gr.dst, gr.event, gr.changes, dyn)
+
+
+def _decide(model, n: int, src: np.ndarray, dst: np.ndarray, event: np.ndarray,
+            changes: np.ndarray, dyn: np.ndarray, kernel: Optional[Callable] = None):
+    """The decision of both checks over a graph of ``n`` states (its
+    transitions ``src -> dst`` by source, each one's ``event`` or -1, per
+    state ``changes`` and ``dyn``): the first frozen state, the events that
+    can never fire again from it, those that still fire there and those
+    that fired anywhere; or None.  (``kernel``: the native engine's
+    backward reachability, :attr:`pccl.search.liveness.Graph.kernel`.)"""
+    from pccl.search.liveness import Graph
+    g = Graph(n, None, dst, src, dyn, None, None)
+    g.kernel = kernel
+    bad = g.terminal | changes
     bad |= ~g.can_reach(g.dyn)
     frozen = ~g.can_reach(bad)
     if not frozen.any():
@@ -165,7 +201,7 @@ def _frozen_events(model, gr: _Graph):
     first, dead = None, {}
     for e in range(len(model.program.events)):
         fires = np.zeros(n, dtype=bool)
-        fires[gr.src[gr.event == e]] = True
+        fires[src[event == e]] = True
         mask = frozen & ~g.can_reach(fires)
         hits = np.flatnonzero(mask)
         if hits.size:
@@ -176,8 +212,8 @@ def _frozen_events(model, gr: _Graph):
         return None
     never = [e for e, mask in dead.items() if mask[first]]
     after = g.reach(np.asarray([first]))
-    live = sorted({int(e) for e in np.unique(gr.event[after[gr.src]]) if e >= 0})
-    fired = {int(e) for e in np.unique(gr.event) if e >= 0}
+    live = sorted({int(e) for e in np.unique(event[after[src]]) if e >= 0})
+    fired = {int(e) for e in np.unique(event) if e >= 0}
     return first, never, live, fired
 
 
@@ -238,6 +274,53 @@ def check(model, limit: int = LIMIT) -> FrozenResult:
             states.append(gr.states[at])
             labels.append(lab)
         out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
+        out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
+    out.seconds = time.perf_counter() - t0
+    return out
+
+
+def _event_of(label) -> int:
+    """The event a transition's label fires (EVENT SELECT), else -1."""
+    return (label[2] if isinstance(label, tuple) and len(label) > 2 and label[0] == "EVENT SELECT"
+            and label[2] is not None else -1)
+
+
+def recorded(rec) -> bool:
+    """Whether the graph recorder ``rec`` (:class:`pccl.search.liveness.GraphRecorder`)
+    holds all that :func:`check_recorded` reads: every transition with its
+    label, every state with its progress signature and change flag."""
+    fz = getattr(rec, "frozen", None)
+    return fz is not None and fz.whole and rec.complete
+
+
+def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
+                   kernel: Optional[Callable] = None) -> FrozenResult:
+    """:func:`check` over the graph the search recorded (``rec``, with
+    :func:`recorded`; ``n`` states): no second exploration.  ``replay``
+    turns a chain of state numbers into the trace of the model's states
+    (the explorer's, decoded on the native engine); ``table`` gives the
+    breadth-first parents; ``kernel`` the native engine's backward
+    reachability (or None)."""
+    import time
+    from pccl.search.liveness import TemporalViolation, _chain_to
+    t0 = time.perf_counter()
+    fz = rec.frozen
+    m = rec.src.n
+    src, dst = rec.src.view()[:m], rec.dst.view()[:m]
+    lab = fz.lab.view()[:m]
+    labels = fz.label_list()
+    ev_of = np.asarray([_event_of(x) for x in labels] + [-1], dtype=np.int32)
+    event = ev_of[np.where(lab < 0, len(labels), lab)]
+    if len(src) > 1 and not bool((src[1:] >= src[:-1]).all()):      # by source
+        order = np.argsort(src, kind="stable")
+        src, dst, event = src[order], dst[order], event[order]
+    changes = fz.pchg.view()[:n].astype(bool)
+    dyn = rec.dyn.view()[:n].astype(bool)
+    out = FrozenResult(True, states=n)
+    found = _decide(model, n, src, dst, event, changes, dyn, kernel)
+    if found is not None:
+        first, never, live, fired = found
+        out.trace = _expanded(model, replay(_chain_to(table, first)))
         out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
     out.seconds = time.perf_counter() - t0
     return out

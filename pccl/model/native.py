@@ -1027,6 +1027,17 @@ class Generator:
                 slots += [a0 + self.MV, a0 + self.MV + 1, a0 + self.MV + 4, a0 + self.MV + 5]
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
+        # the frozen-team check's progress signature (pccl/model/frozen.py): the
+        # same without the lock queue, the env and the doReach flags
+        pslots = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
+        for i in range(N):
+            a0 = self.AG0 + i * A_
+            pslots += [a0 + 3] + [a0 + 4 + k for k in vis] + \
+                [a0 + 4 + self.L + k for k in range(self.R)]
+            if self.moves:      # position, target
+                pslots += [a0 + self.MV, a0 + self.MV + 1]
+        out.append(self.c_array("PSIGSLOTS", "int", pslots))
+        out.append(f"#define NPSIGSLOTS {len(pslots)}")
         if por is not None:     # rstep's ample set: 1 found (its successors in the buffer), -1 an error
             out += ["static inline int ample(const V *s, Py_ssize_t b0) {", *ample, "  return 0;", "}"]
         out.append('#include "reduced.c"')
@@ -1157,6 +1168,8 @@ class NativeModel:
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
         self.gen = gen
+        #: the label list the C code numbers labels by (it grows on memo misses)
+        self.label_list = gen.labels
         self._hooks(xxh)
         #: the level kernel (explore_levels: levels expanded and admitted in
         #: C, on threads) when xxhash's symbol is there; else None
@@ -1196,6 +1209,9 @@ class NativeModel:
         #: one C call per chunk of a level: (successor counts, the successors
         #: flat, the labels met) -- the explorer's batch hook
         self.successor_batch = self.lib.expand
+        #: the same with each successor's label number (an int32 bytes object,
+        #: into :attr:`label_list`): the frozen-team check's recorded events
+        self.successor_batch_ids = self.lib.expand_ids
         self.clock = self.lib.clock
         #: the largest ``clock`` of a list of states, in one C call
         self.max_clock = self.lib.max_clock
@@ -1529,6 +1545,13 @@ class NativeModel:
         array (one C call)."""
         import numpy as np
         return np.frombuffer(self.lib.sigs(states), dtype=np.int64)
+
+    def progress_signatures(self, states: list):
+        """The frozen-team check's progress signature
+        (:func:`pccl.model.frozen.progress_signature_fn`'s fields) of each
+        state of a list, as an int64 array (one C call)."""
+        import numpy as np
+        return np.frombuffer(self.lib.psigs(states), dtype=np.int64)
 
     def stall_signature(self) -> Callable:
         """``sig(state) -> int`` with the equalities of

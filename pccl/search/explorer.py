@@ -533,6 +533,8 @@ class Explorer:
         for chunk in self._initial_chunks(lambda: adm.budget, adm.bounds, lambda: table.n,
                                           self._t_start):
             adm.cs.extend(chunk)
+            if adm.cl is not None:
+                adm.cl.extend(itertools.repeat(None, len(chunk)))
             adm.par_idx.append(_NO_PARENT)
             adm.par_n.append(len(chunk))
             stop = adm.flush(0)
@@ -740,7 +742,9 @@ class Explorer:
         at a time: the hot path (its locals are hoisted once per level).
         True to stop."""
         succ_fn = self.model.successors
-        expand = getattr(self.model, "successor_batch", None)
+        cl = adm.cl         # each candidate's label, for the frozen-team check (else None)
+        expand = getattr(self.model, "successor_batch" if cl is None else "successor_batch_ids", None)
+        ids: Any = None
         batch = self.batch
         flush = adm.flush
         cs, par_idx, par_n = adm.cs, adm.par_idx, adm.par_n
@@ -757,7 +761,11 @@ class Explorer:
             if expand is not None:
                 # the model's batch hook (pccl/model/native.py): one call per
                 # chunk, the successors flat, the labels met
-                ns, flat, labs = expand(level[c0:c0 + chunk])
+                if cl is None:
+                    ns, flat, labs = expand(level[c0:c0 + chunk])
+                else:
+                    ns, flat, labs, ids = expand(level[c0:c0 + chunk])
+                    ids = np.frombuffer(ids, dtype=np.int32).tolist()
                 if labels is not None:
                     labels.update(labs)
             else:
@@ -770,6 +778,8 @@ class Explorer:
                 par_idx.extend(level_idx[c0:c0 + chunk])
                 par_n.extend(ns)
                 cs.extend(flat)
+                if cl is not None:
+                    cl.extend(ids if expand is not None else map(first, chain(succs)))
                 del flat
                 succs = []
                 if len(cs) >= batch:
@@ -778,20 +788,22 @@ class Explorer:
                     report(len(level) - c0 - len(ns))
                 continue
             if expand is not None and not at_bound:
-                if self._expand_mixed(adm, level, level_idx, depth, ns, flat, c0, report):
+                if self._expand_mixed(adm, level, level_idx, depth, ns, flat, c0, report, ids):
                     return True
                 continue
             if expand is not None:
                 # the batch's successors per state (labels are not read past
                 # here): no second expansion of the chunk
                 it = iter(flat)
-                succs = [[(None, s) for s in itertools.islice(it, n)] for n in ns]
+                il = iter(ids) if ids is not None else itertools.repeat(None)
+                succs = [list(zip(itertools.islice(il, n), itertools.islice(it, n))) for n in ns]
             if self._expand_one(adm, level, level_idx, depth, succs, c0, at_bound, report):
                 return True
         return False
 
     def _expand_mixed(self, adm: "_Admission", level: list, level_idx: list, depth: int,
-                      ns: list, flat: list, c0: int, report: Callable[[int], None]) -> bool:
+                      ns: list, flat: list, c0: int, report: Callable[[int], None],
+                      ids: Any = None) -> bool:
         """A chunk the batch hook expanded that holds terminal states (no
         successors): the runs of states between them queued whole, as the
         fast path queues a chunk, each terminal state by itself, in order
@@ -804,6 +816,8 @@ class Explorer:
                 par_idx.extend(level_idx[c0 + a:c0 + t])
                 par_n.extend(ns[a:t])
                 cs.extend(flat[ends[a]:ends[t]])
+                if adm.cl is not None:
+                    adm.cl.extend(ids[ends[a]:ends[t]])
                 if len(cs) >= self.batch:
                     if adm.flush(depth + 1):
                         return True
@@ -847,6 +861,8 @@ class Explorer:
             par_idx.append(level_idx[pos])
             par_n.append(len(succ))
             cs.extend(map(second, succ))     # labels are dropped now
+            if adm.cl is not None:
+                adm.cl.extend(map(operator.itemgetter(0), succ))
             if len(cs) >= self.batch:
                 if adm.flush(depth + 1):
                     return True
@@ -1131,6 +1147,9 @@ class _Admission:
         self.table = ex.table
         self.stats = res.stats
         self.cs: list = []
+        #: each candidate's label (the frozen-team check's graph records
+        #: them: pccl/search/liveness.py FrozenColumns), else None
+        self.cl: Optional[list] = [] if getattr(ex.recorder, "frozen", None) is not None else None
         self.par_idx: list = []
         self.par_n: list = []
         self.flags: dict = {}       # Bound -> first state number that met it, since the last flush
@@ -1171,6 +1190,8 @@ class _Admission:
     def out_of_memory(self) -> None:
         """A MemoryError stopped the search: free the pending states."""
         self.cs.clear()
+        if self.cl is not None:
+            self.cl.clear()
         self.nxt, self.nxt_idx = [], []
         if self.spilled is not None:
             self.spilled.discard()
@@ -1275,6 +1296,8 @@ class _Admission:
         if not halt and ex.max_memory is not None and ex._memory_bound(bounds, peak_rss_bytes()):
             halt = True
         cs.clear()
+        if self.cl is not None:
+            self.cl.clear()
         par_idx.clear()
         par_n.clear()
         return halt
@@ -1296,12 +1319,19 @@ class _Admission:
         dst = num[np.searchsorted(first, occ)]
         src = np.asarray(self.par_idx, dtype=np.int64)[owners]
         keep = src != _NO_PARENT
+        cl = self.cl
+        labs = cl if cl is None or keep.all() else list(itertools.compress(cl, keep.tolist()))
         if sigs is not None and getattr(rec, "wants_candidates", False):
-            rec.edges(src[keep], dst[keep], to_sigs=sigs[keep])
+            cands = None
+            if cl is not None:      # the frozen-team check reads the states too
+                cands = self.cs if keep.all() else list(itertools.compress(self.cs, keep.tolist()))
+            rec.edges(src[keep], dst[keep], cands, to_sigs=sigs[keep], labs=labs)
         elif getattr(rec, "wants_candidates", False):
             # the successor states too (before the batch is cleared)
             cs = self.cs
             cands = cs if keep.all() else list(itertools.compress(cs, keep.tolist()))
-            rec.edges(src[keep], dst[keep], cands)
+            rec.edges(src[keep], dst[keep], cands, labs=labs)
+        elif labs is not None:
+            rec.edges(src[keep], dst[keep], labs=labs)
         else:
             rec.edges(src[keep], dst[keep])

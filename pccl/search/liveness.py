@@ -170,7 +170,8 @@ class StateColumns:
 class GraphRecorder:
     """Collects the state graph during a search (see the module docstring)."""
 
-    def __init__(self, model, props=(), fairness: bool = False, stall: bool = False):
+    def __init__(self, model, props=(), fairness: bool = False, stall: bool = False,
+                 frozen: Optional[Callable] = None):
         self.model = model
         self.props = list(props)
         if 2 * len(self.props) > 64:
@@ -212,6 +213,11 @@ class GraphRecorder:
             red = getattr(model, "reduction", None)
             self.wants_candidates = ("symmetry" in getattr(red, "on", ())
                                      or getattr(getattr(model, "dead_vars", None), "reach_masked", False))
+        #: the frozen-team check's part (pccl/model/frozen.py, :class:`FrozenColumns`:
+        #: ``frozen`` computes the progress signatures), with the stall check
+        #: only; None: not recorded
+        self.frozen: Optional[FrozenColumns] = (FrozenColumns(model, frozen)
+                                                if frozen is not None and stall else None)
 
     def _grows(self) -> list:
         return [g for g in (self.dyn, self.bits, self.pend, self.sig) if g is not None]
@@ -219,6 +225,8 @@ class GraphRecorder:
     def put_changes(self, n: int, idx: list, flags: list) -> None:
         """The stall check's per-state "some transition changes the team"
         flags, computed where the states were expanded (the workers)."""
+        if self.frozen is not None:         # (the workers record no events)
+            self.frozen.whole = False
         if self.chg is None:
             return
         full = np.zeros(n, dtype=np.uint8)
@@ -234,11 +242,15 @@ class GraphRecorder:
             grow.extend(col)
         if self.chg is not None:
             self.chg.extend(np.zeros(len(states), dtype=np.uint8))
+        if self.frozen is not None:
+            self.frozen.states(states)
 
     def put_states(self, n: int, idx: list, cols: list) -> None:
         """The columns of all ``n`` states at once, in any order: ``idx[j]``
         the state numbers whose columns are ``cols[j]`` (the parallel search:
         one part per worker).  A state no part names stays 0."""
+        if self.frozen is not None:         # (the workers record no events)
+            self.frozen.whole = False
         for c, (grow, dtype) in enumerate(zip(self._grows(), self.columns.dtypes())):
             full = np.zeros(n, dtype=dtype)
             for ix, cs in zip(idx, cols):
@@ -246,10 +258,11 @@ class GraphRecorder:
             grow.adopt(full)        # (extend() copied it once more)
 
     def edges(self, src: np.ndarray, dst: np.ndarray, cands: Optional[list] = None,
-              to_sigs: Optional[np.ndarray] = None) -> None:
+              to_sigs: Optional[np.ndarray] = None, labs: Optional[list] = None) -> None:
         """Transitions by state number (``dst`` -1: a successor not admitted);
         ``cands``: the successor states, when :attr:`wants_candidates`, or
-        ``to_sigs``: their stall signatures."""
+        ``to_sigs``: their stall signatures; ``labs``: their labels (label
+        numbers on the native engine), for the frozen-team check."""
         ok = (dst >= 0) & (src >= 0)
         if not ok.all():
             if (dst < 0).any():
@@ -259,6 +272,11 @@ class GraphRecorder:
                 to_sigs = to_sigs[ok]
             if cands is not None:
                 cands = list(itertools.compress(cands, ok.tolist()))
+            if labs is not None:
+                labs = list(itertools.compress(labs, ok.tolist()))
+        if self.frozen is not None:
+            self.frozen.edges(src, dst, labs, cands if self.wants_candidates else None,
+                              self.wants_candidates)
         if self.sig is not None and self.chg is not None and len(src) and not self.changes_given:
             sig = self.sig.view()
             if self.wants_candidates and to_sigs is not None:
@@ -293,9 +311,15 @@ class GraphRecorder:
         for g in self._columns().values():
             g.reserve(limit)
         cap = min(len(self.src.a), len(self.dst.a))
+        fz = self.frozen
+        if fz is not None:
+            fz.lab.reserve(len(self.src.a))
+            cap = min(cap, len(fz.lab.a))
         out: tuple = (self.src.a[:cap], self.dst.a[:cap], self.src.n, self.dyn.a)
         if self.sig is not None and self.chg is not None:
             out += (self.sig.a, self.chg.a, int(self.wants_candidates))
+            if fz is not None:
+                out += (fz.lab.a[:cap], fz.psig.a, fz.pchg.a)
         return out
 
     def kernel_columns(self) -> Optional[tuple]:
@@ -311,6 +335,8 @@ class GraphRecorder:
         """The kernel wrote ``states`` more states' columns and the
         transitions up to ``edges``."""
         self.src.n = self.dst.n = edges
+        if self.frozen is not None:
+            self.frozen.lab.n = edges
         for g in self._columns().values():
             g.n += states
 
@@ -319,12 +345,17 @@ class GraphRecorder:
         twice the room."""
         self.src.reserve(2 * len(self.src.a))
         self.dst.reserve(2 * len(self.dst.a))
+        if self.frozen is not None:
+            self.frozen.lab.reserve(2 * len(self.frozen.lab.a))
 
     # -- checkpoints (pccl/search/checkpoint.py) -------------------------------------------
     def _columns(self) -> dict:
+        fz = self.frozen
         return {name: g for name, g in (("dyn", self.dyn), ("bits", self.bits),
                                         ("pend", self.pend), ("sig", self.sig),
-                                        ("chg", self.chg)) if g is not None}
+                                        ("chg", self.chg),
+                                        ("psig", None if fz is None else fz.psig),
+                                        ("pchg", None if fz is None else fz.pchg)) if g is not None}
 
     def dump(self, n: int, edges: int) -> dict:
         """The graph as it stood when a level was about to be expanded: ``n``
@@ -332,18 +363,22 @@ class GraphRecorder:
         partial expansion of that level set are kept: the resumed search
         expands the level again and sets exactly those.)"""
         out = {"src": self.src.view()[:edges], "dst": self.dst.view()[:edges]}
+        if self.frozen is not None:
+            out["lab"] = self.frozen.lab.view()[:edges]
         for name, g in self._columns().items():
             out[name] = g.view()[:n]
         return out
 
     def load(self, arrays: dict, complete: bool) -> None:
         """Fill an empty recorder from :meth:`dump`'s arrays."""
-        want = {"src", "dst", *self._columns()}
+        want = {"src", "dst", *self._columns()} | ({"lab"} if self.frozen is not None else set())
         if set(arrays) != want:
             raise ValueError(f"the recorded graph holds {', '.join(sorted(arrays)) or 'nothing'}, "
                              f"this search records {', '.join(sorted(want))}")
         self.src.extend(arrays["src"])
         self.dst.extend(arrays["dst"])
+        if self.frozen is not None:
+            self.frozen.lab.extend(arrays["lab"])
         for name, g in self._columns().items():
             if arrays[name].dtype != g.a.dtype:
                 raise ValueError(f"the recorded column {name} has the wrong type")
@@ -365,6 +400,69 @@ class GraphRecorder:
         return Graph(n, None, dst, src, self.dyn.view()[:n].astype(bool),
                      None if self.bits is None else self.bits.view()[:n],
                      None if self.pend is None else self.pend.view()[:n])
+
+
+class FrozenColumns:
+    """What the frozen-team check (pccl/model/frozen.py) reads of the
+    search's graph, recorded with it: per transition its label's number
+    (:attr:`lab`, into :meth:`label_list`), per state its progress
+    signature (:attr:`psig`) and whether some transition out of it changes
+    that signature (:attr:`pchg`, decided as the stall check's change
+    flags are: on the successor as made where a state number stands for
+    renamed or masked states).  :attr:`whole` turns False when some part
+    of the graph came without them (the parallel search's workers): the
+    check then explores again."""
+
+    def __init__(self, model, sigs: Callable):
+        self.lab = _Grow(np.int32)
+        self.psig = _Grow(np.int64)
+        self.pchg = _Grow(np.uint8)
+        self.whole = True
+        #: the native engine numbers its labels itself (its label list);
+        #: the Python engine's labels are numbered here
+        self.native = getattr(model, "label_list", None)
+        self._ids: dict = {}
+        self._labels: list = []
+        #: ``sigs(states) -> int64 array``: the progress signatures (the model's)
+        self._sigs = sigs
+
+    def label_list(self) -> list:
+        """The labels, by number."""
+        return list(self.native) if self.native is not None else self._labels
+
+    def _numbers(self, labs: list) -> np.ndarray:
+        if self.native is not None:
+            return np.asarray(labs, dtype=np.int32)
+        ids, out = self._ids, []
+        for lab in labs:
+            k = ids.get(lab)
+            if k is None:
+                k = ids[lab] = len(self._labels)
+                self._labels.append(lab)
+            out.append(k)
+        return np.asarray(out, dtype=np.int32)
+
+    def states(self, states: list) -> None:
+        self.psig.extend(self._sigs(states) if len(states) else np.zeros(0, dtype=np.int64))
+        self.pchg.extend(np.zeros(len(states), dtype=np.uint8))
+
+    def edges(self, src: np.ndarray, dst: np.ndarray, labs: Optional[list],
+              cands: Optional[list], by_candidates: bool) -> None:
+        """Transitions (:meth:`GraphRecorder.edges`'s, admitted ones only),
+        their labels and, where :attr:`GraphRecorder.wants_candidates`
+        (``by_candidates``), the successor states as made."""
+        if not len(src):
+            return
+        if labs is None or len(labs) != len(src) or (by_candidates and cands is None):
+            self.whole = False          # a transition without its label
+            self.lab.extend(np.full(len(src), -1, dtype=np.int32))
+            return
+        self.lab.extend(self._numbers(labs))
+        psig = self.psig.view()
+        to = self._sigs(cands) if cands is not None else psig[dst]
+        changed = to != psig[src]
+        if changed.any():
+            self.pchg.view()[src[changed]] = 1
 
 
 def _holds(fn, st) -> bool:
@@ -696,14 +794,19 @@ def wants_graph(model, timelock: bool, stall: bool = False) -> bool:
     return timelock or stall or bool(getattr(model, "temporal", ()))
 
 
-def make_recorder(model, timelock: bool, stall: bool = False) -> Optional[GraphRecorder]:
+def make_recorder(model, timelock: bool, stall: bool = False,
+                  frozen: Optional[Callable] = None) -> Optional[GraphRecorder]:
+    """The graph recorder of a search of ``model`` (None: no graph check
+    asks for one); ``frozen`` (the states' progress signatures, as
+    :class:`FrozenColumns` reads them): with the stall check, record what
+    the frozen-team check reads too."""
     if not wants_graph(model, timelock, stall):
         return None
     props = list(model.temporal)
     # fair arrival (a robot under way settles eventually) only where the model
     # says its blackbox declares it (pccl.model.engine.blackbox_arrival_is_fair)
     fair = bool(getattr(model, "arrival_is_fair", False)) and any(p.liveness for p in props)
-    return GraphRecorder(model, props, fairness=fair, stall=stall)
+    return GraphRecorder(model, props, fairness=fair, stall=stall, frozen=frozen)
 
 
 def _chain_to(table, idx: int) -> list:
@@ -1197,5 +1300,5 @@ def _rebuild_lasso(model, explorer, cx) -> None:
     cx.rebuild = None
 
 
-__all__ += ["TemporalViolation", "make_recorder", "wants_graph", "loops_of"]
+__all__ += ["TemporalViolation", "make_recorder", "wants_graph", "loops_of", "FrozenColumns"]
 _ = operator

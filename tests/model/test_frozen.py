@@ -215,6 +215,12 @@ def test_no_stall_turns_the_check_off():
 def test_a_search_larger_than_the_limit_says_the_check_did_not_run(monkeypatch):
     from pccl.model import frozen as F
     monkeypatch.setattr(F, "LIMIT", 1000)
+    # over the search's own graph the limit does not apply
+    res = explore(PATROL, world=FOUR, blackbox="straight")
+    assert res.status == "violation" and res.counterexamples[0].violation.kind == "frozen"
+    # where the check explores again (PCCL_FROZEN_GRAPH=0: as for --workers N
+    # processes), it stops at its limit
+    monkeypatch.setenv("PCCL_FROZEN_GRAPH", "0")
     res = explore(PATROL, world=FOUR, blackbox="straight")
     assert res.status == "exhaustive" and res.exit_status == 0
     assert ("frozen teams not checked: 3,160 states, more than the 1,000 the check explores "

@@ -29,7 +29,9 @@
    With `rec` (the graph recorder's arrays, GraphRecorder.kernel_arrays:
    transitions' sources and targets as uint32 with the count so far, time
    costs, and with the stall check signatures, change flags and whether a
-   change is decided on the successor as made) the admission records every
+   change is decided on the successor as made, and with the frozen-team
+   check each transition's label number, each state's progress signature
+   and progress change flag) the admission records every
    transition and new state there (krecord), and stops before a chunk whose
    transitions do not fit (why 5: the arrays grow).  With `tcol` too (the
    temporal properties' columns, GraphRecorder.kernel_columns: uint64 P/Q
@@ -69,6 +71,8 @@ typedef struct {
   V *vec; uint64_t *fp; unsigned char *sus, *labs; int32_t *ns;
   int64_t *sg;                      /* the candidates' stall signatures (recording them) */
   uint64_t *tb, *pd;                /* their temporal columns (temporal.c: recording them) */
+  int64_t *psg;                     /* ... and progress signatures (the frozen-team check's) */
+  int32_t *lb;                      /* ... and label numbers (the frozen-team check's) */
   Py_ssize_t labcap;                /* labs' size (labels grow on memo misses) */
   Py_ssize_t nc, cap;
   int flag;
@@ -132,6 +136,12 @@ typedef struct {
   unsigned char *dyn, *chg;
   int64_t *sig;
   uint64_t *tbits, *tpend;          /* the temporal columns (temporal.c), or NULL */
+  /* with the frozen-team check (psig not NULL): per transition its label
+     number (elab), per new state its progress signature and a progress
+     change flag (pchg), set as chg is */
+  int32_t *elab;
+  int64_t *psig;
+  unsigned char *pchg;
   pthread_mutex_t mu;
   pthread_cond_t cv;
 } KJob;
@@ -166,7 +176,11 @@ static int kroom(KChunk *k, Py_ssize_t need) {
   if (tb) k->tb = tb;
   uint64_t *pd = realloc(k->pd, 8 * cap);
   if (pd) k->pd = pd;
-  if (!v || !f || !s || !g || !tb || !pd) return -1;
+  int64_t *pg = realloc(k->psg, sizeof(int64_t) * cap);
+  if (pg) k->psg = pg;
+  int32_t *l = realloc(k->lb, sizeof(int32_t) * cap);
+  if (l) k->lb = l;
+  if (!v || !f || !s || !g || !tb || !pd || !pg || !l) return -1;
   k->cap = cap;
   return 0;
 }
@@ -247,6 +261,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
       k->labs[BLAB[q]] = 1;
       fingerprint_of(t, k->fp + 2 * w);
       if (j->sig) k->sg[w] = sighash(t);
+      if (j->psig) { k->psg[w] = psighash(t); k->lb[w] = BLAB[q]; }
       k->sus[w] = !okstate(t);
       /* a column Python must compute: the batches take the chunk */
       if (j->tbits && tcols(t, k->tb + w, k->pd + w)) { k->flag = 2; break; }
@@ -284,6 +299,10 @@ static inline void krecord(KJob *j, KChunk *k, Py_ssize_t w, Py_ssize_t par, int
   j->esrc[j->ne] = (uint32_t)par;
   j->edst[j->ne++] = (uint32_t)dst;
   if (j->sig && (j->bycand ? k->sg[w] : j->sig[dst]) != j->sig[par]) j->chg[par] = 1;
+  if (j->psig) {
+    j->elab[j->ne - 1] = k->lb[w];
+    if ((j->bycand ? k->psg[w] : j->psig[dst]) != j->psig[par]) j->pchg[par] = 1;
+  }
 }
 /* admit chunk k, the next in order, of level L, positions [a, b) (the GIL
    held): 0, else why not */
@@ -350,6 +369,7 @@ static int kadmit1(KJob *j, KChunk *k, int L, Py_ssize_t a, Py_ssize_t b) {
         j->dyn[n] = phase_cost(t);
         if (j->sig) { j->sig[n] = k->sg[w]; j->chg[n] = 0; }
         if (j->tbits) { j->tbits[n] = k->tb[w]; if (j->tpend) j->tpend[n] = k->pd[w]; }
+        if (j->psig) { j->psig[n] = k->psg[w]; j->pchg[n] = 0; }
         krecord(j, k, w, par, n);
       }
       n++;
@@ -507,6 +527,7 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
   int threads;
   double seconds;
   Py_buffer bs, bf, bp, bes = {0}, bed = {0}, bdy = {0}, bsg = {0}, bch = {0}, btb = {0}, btp = {0};
+  Py_buffer bel = {0}, bps = {0}, bpc = {0};
   unsigned long long mask;
   PyObject *rec = Py_None, *tcol = Py_None;
   if (!PyArg_ParseTuple(args, "O!nO!niw*w*w*nKnnd|OO", &PyList_Type, &level, &first, &PyList_Type,
@@ -521,8 +542,8 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
   }
   Py_ssize_t ne = 0;
   int bycand = 0;
-  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*i", &bes, &bed, &ne, &bdy, &bsg,
-                                          &bch, &bycand)) {
+  if (rec != Py_None && !PyArg_ParseTuple(rec, "w*w*nw*|w*w*iw*w*w*", &bes, &bed, &ne, &bdy, &bsg,
+                                          &bch, &bycand, &bel, &bps, &bpc)) {
     PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
     if (btb.obj) PyBuffer_Release(&btb);
     if (btp.obj) PyBuffer_Release(&btp);
@@ -542,7 +563,10 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
                              || ne < 0 || ne > bes.len / 4 || bdy.len < limit
                              || (bsg.buf && (bsg.itemsize != 8 || bsg.len / 8 < limit
                                                || !bch.buf || bch.len < limit))
-                             || (btb.buf && (btb.len / 8 < limit || (btp.buf && btp.len / 8 < limit)))))) {
+                             || (btb.buf && (btb.len / 8 < limit || (btp.buf && btp.len / 8 < limit)))
+                             || (bel.buf && (!bsg.buf || bel.itemsize != 4 || bel.len != bes.len
+                                             || bps.itemsize != 8 || bps.len / 8 < limit
+                                             || bpc.len < limit))))) {
     PyErr_SetString(PyExc_ValueError, "explore_levels: arguments out of range");
     goto done;
   }
@@ -583,6 +607,7 @@ static PyObject *explore_levels(PyObject *Py_UNUSED(self), PyObject *args) {
     j->dyn = bdy.buf;
     j->sig = bsg.buf; j->chg = bch.buf;
     j->tbits = btb.buf; j->tpend = btp.buf;
+    if (bel.buf) { j->elab = bel.buf; j->psig = bps.buf; j->pchg = bpc.buf; }
   }
   if (j->cbase[1] == 0) kclose(j, 0);           /* level 0 has nothing left */
   pthread_mutex_init(&j->mu, NULL);
@@ -656,8 +681,8 @@ done:
   free(j); free(seen);
   Py_XDECREF(labs); Py_XDECREF(lists); Py_XDECREF(tms);
   PyBuffer_Release(&bs); PyBuffer_Release(&bf); PyBuffer_Release(&bp);
-  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch, &btb, &btp};
-  for (int q = 0; q < 7; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
+  Py_buffer *rbs[] = {&bes, &bed, &bdy, &bsg, &bch, &btb, &btp, &bel, &bps, &bpc};
+  for (int q = 0; q < 10; q++) if (rbs[q]->obj) PyBuffer_Release(rbs[q]);
   return res;
 }
 #pragma GCC pop_options

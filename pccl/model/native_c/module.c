@@ -29,11 +29,12 @@ static PyObject *successors(PyObject *Py_UNUSED(self), PyObject *arg) {
   return out;
 }
 /* expand(states): (successor counts, the successors of all in order, the
-   labels met): one call per chunk of a level */
-static PyObject *expand(PyObject *Py_UNUSED(self), PyObject *arg) {
+   labels met): one call per chunk of a level (want_ids: expand_ids) */
+static PyObject *expand_(PyObject *arg, int want_ids) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
-  Py_ssize_t n = PyList_GET_SIZE(arg), seen = 0;
+  Py_ssize_t n = PyList_GET_SIZE(arg), seen = 0, nid = 0, idcap = 0;
   PyObject *ns = PyList_New(n), *flat = PyList_New(0), *labs = NULL;
+  int32_t *ids = NULL;
   if (!ns || !flat) goto fail;
   memset(LABSEEN, 0, NLABELS);
   ovf = 0;
@@ -49,6 +50,15 @@ static PyObject *expand(PyObject *Py_UNUSED(self), PyObject *arg) {
       Py_DECREF(b);
       if (r) goto fail;
       LABSEEN[BLAB[k]] = 1;
+      if (want_ids) {
+        if (nid == idcap) {
+          idcap = idcap ? 2 * idcap : 1024;
+          int32_t *x = realloc(ids, sizeof(int32_t) * (size_t)idcap);
+          if (!x) { PyErr_NoMemory(); goto fail; }
+          ids = x;
+        }
+        ids[nid++] = BLAB[k];
+      }
     }
     PyObject *c = PyLong_FromSsize_t(BN);
     if (!c) goto fail;
@@ -63,12 +73,25 @@ static PyObject *expand(PyObject *Py_UNUSED(self), PyObject *arg) {
       Py_INCREF(l);
       PyTuple_SET_ITEM(labs, w++, l);
     }
+  if (want_ids) {
+    PyObject *b = PyBytes_FromStringAndSize((const char *)ids, (Py_ssize_t)sizeof(int32_t) * nid);
+    free(ids);
+    if (!b) { Py_DECREF(ns); Py_DECREF(flat); Py_DECREF(labs); return NULL; }
+    return Py_BuildValue("(NNNN)", ns, flat, labs, b);
+  }
   return Py_BuildValue("(NNN)", ns, flat, labs);
 fail:
+  free(ids);
   Py_XDECREF(ns); Py_XDECREF(flat);
   overflowed();
   return NULL;
 }
+static PyObject *expand(PyObject *Py_UNUSED(self), PyObject *arg) { return expand_(arg, 0); }
+/* expand_ids(states): expand(states) and a fourth bytes object, each
+   successor's label number (int32, into the label list; the frozen-team
+   check's per-transition events) */
+static PyObject *expand_ids(PyObject *Py_UNUSED(self), PyObject *arg) { return expand_(arg, 1); }
+
 /* key(state): the state's identity: the canonical vector (symmetry), without
    the clock under time abstraction */
 static PyObject *key(PyObject *Py_UNUSED(self), PyObject *arg) {
@@ -86,16 +109,16 @@ static xxh128_fn XXH;
 /* the stall signature's hash (pccl/model/stall.py's fields): xxh3 of the
    signature's slots gathered, else a slot-by-slot mix (equal signatures
    give equal hashes either way; only equality is read) */
-static int64_t sighash(const V *s) {
+static int64_t slothash(const V *s, const int *slots, int nslots) {
   if (XXH) {
-    V g[NSIGSLOTS];
-    for (int q = 0; q < NSIGSLOTS; q++) g[q] = s[SIGSLOTS[q]];
-    H128 x = XXH(g, sizeof g);
+    V g[NSIGSLOTS > NPSIGSLOTS ? NSIGSLOTS : NPSIGSLOTS];
+    for (int q = 0; q < nslots; q++) g[q] = s[slots[q]];
+    H128 x = XXH(g, sizeof(V) * (size_t)nslots);
     return (int64_t)(x.lo ^ x.hi);
   }
   uint64_t h = 0x9E3779B97F4A7C15ULL;
-  for (int q = 0; q < NSIGSLOTS; q++) {
-    uint64_t z = (uint64_t)s[SIGSLOTS[q]] + 0x9E3779B97F4A7C15ULL * (uint64_t)(q + 1);
+  for (int q = 0; q < nslots; q++) {
+    uint64_t z = (uint64_t)s[slots[q]] + 0x9E3779B97F4A7C15ULL * (uint64_t)(q + 1);
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
     h = (h ^ (z ^ (z >> 31))) * 0x100000001B3ULL;
@@ -103,6 +126,11 @@ static int64_t sighash(const V *s) {
   }
   return (int64_t)h;
 }
+static int64_t sighash(const V *s) { return slothash(s, SIGSLOTS, NSIGSLOTS); }
+/* the frozen-team check's progress signature (pccl/model/frozen.py): the
+   stall signature's slots without the lock queue, the env and the doReach
+   flags */
+static int64_t psighash(const V *s) { return slothash(s, PSIGSLOTS, NPSIGSLOTS); }
 /* packed(state): the state's bytes in the form the explorer holds (state_bytes) */
 static PyObject *packed(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
@@ -130,6 +158,21 @@ static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) { Py_DECREF(out); return NULL; }
     o[i] = sighash(s);
+  }
+  return out;
+}
+/* psigs(states): the progress signature's hash (psighash) of each state of a
+   list, as int64s in one bytes object */
+static PyObject *psigs(PyObject *Py_UNUSED(self), PyObject *arg) {
+  if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
+  Py_ssize_t n = PyList_GET_SIZE(arg);
+  PyObject *out = PyBytes_FromStringAndSize(NULL, n * (Py_ssize_t)sizeof(int64_t));
+  if (!out) return NULL;
+  int64_t *o = (int64_t *)PyBytes_AS_STRING(out);
+  for (Py_ssize_t i = 0; i < n; i++) {
+    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
+    if (!s) { Py_DECREF(out); return NULL; }
+    o[i] = psighash(s);
   }
   return out;
 }
@@ -404,6 +447,8 @@ static PyMethodDef methods[] = {
   {"key", key, METH_O, "the state's identity (canonical under symmetry)"},
   {"sig", sig, METH_O, "the stall signature's hash"},
   {"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"},
+  {"psigs", psigs, METH_O, "the progress signatures' hashes of a list of states, as int64s"},
+  {"expand_ids", expand_ids, METH_O, "expand, and each successor's label number (int32s)"},
   {"packed", packed, METH_O, "a state's bytes in the form the explorer holds"},
   {"unpacked", unpacked, METH_O, "a state's int64 vector, as bytes"},
   {"phases", phases, METH_O, "1 per dynamic state"},
