@@ -133,6 +133,7 @@ from pccl.lang.types import indexes_agent
 from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
 from pccl.model.toolchain import native_unavailable
 from pccl.model.native_build import build, source_digest
+from pccl.model import native_robots as NR
 
 #: The native state vector's own layout (not a configuration): the clock and
 #: the phase first, then the lock queue, shared, and the agents (see encode).
@@ -1018,6 +1019,7 @@ class Generator:
             f"#define PH_DISCRETE {DISCRETE}", f"#define S_RUNNING {RUNNING}",
             '#include "native.h"',
             '#include "memo.c"',
+            '#include "robots.c"',
             *agents,
             "/* the successors of s, emitted into OUT; -1 on an error (ovf or Python's) */",
             "static int step(const V *s) {",
@@ -1067,7 +1069,7 @@ class NativeModel:
         #: the interned values (positions, lists, obstacle lists, targets,
         #: t0, env) of this process: id -> value and the value's canonical
         #: encoding -> id (:meth:`_put`)
-        self._vals: dict = {}
+        self._vals: dict = NR.Values(self)
         self._ids: dict = {}
         #: ids that name a value the same way in every process: 31 bits of a
         #: hash of its canonical encoding (for forked workers, whose states and
@@ -1084,8 +1086,16 @@ class NativeModel:
         self._pending: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
+        # the shipped blackboxes' outcomes in C (native_robots.py): their
+        # labels are in the list before setup reads it
+        rkind, rsite, rworld = NR.plan(py, gen, stable_ids)
+        rlabels = NR.labels(gen, rkind, py.N)
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
+        self.lib.robots_setup(rkind, rsite, gen.AG0, gen.A, gen.MV, gen.ENVS if gen.moves else 0,
+                              rworld, rlabels)
+        #: whether C computes DOREACH INVOKE's outcomes (robots.c)
+        self.robots_in_c = bool(rkind)
         self.gen = gen
         self._hooks(xxh)
         #: the level kernel (explore_levels: levels expanded and admitted in
@@ -1164,8 +1174,8 @@ class NativeModel:
                 if not self._put(i, k, x):
                     raise NativeOverflow(ID_CLASH)
                 self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
-            else:
-                i = len(self._vals)
+            else:           # numbered by C's table (robots.c), which numbers C's values too
+                i = self.lib.vintern(k)
                 self._put(i, k, x)
         return i
 
@@ -1192,6 +1202,7 @@ class NativeModel:
         lazily interned tables and the interned values by id (the states
         name them by id: positions, lists, any value the C code holds by id)."""
         out = dict(self._py_tables()) if self._py_tables is not None else {}
+        self._vals.complete()       # the values C made (robots.c) too
         if self._vals:
             out["native_ids"] = sorted(self._vals.items())
         return out
@@ -1203,7 +1214,8 @@ class NativeModel:
         if self._py_restore is not None:
             self._py_restore(data)
         for i, x in data.get("native_ids", ()):
-            if not self._put(i, marshal.dumps(x, 2), x):
+            k = marshal.dumps(x, 2)
+            if not self._put(i, k, x) or not (self.stable_ids or self.lib.vset(i, k)):
                 raise ValueError("the checkpoint's interned values are not this search's")
 
     #: the coordinator's check of the ids each worker interned (:func:`check_ids`)

@@ -410,6 +410,7 @@ static PyMethodDef methods[] = {
   {"setup", setup, METH_VARARGS, "labels and the overflow exception"},
   {"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"},
   {"explore_levels", explore_levels, METH_VARARGS, "levels expanded and admitted, on threads"},
+  ROBOTS_METHODS
   {NULL, NULL, 0, NULL}
 };
 static struct PyModuleDef mod = {PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods, NULL, NULL, NULL, NULL};
