@@ -1069,7 +1069,7 @@ class NativeModel:
         #: the interned values (positions, lists, obstacle lists, targets,
         #: t0, env) of this process: id -> value and the value's canonical
         #: encoding -> id (:meth:`_put`)
-        self._vals: dict = NR.Values(self)
+        self._vals: NR.Values = NR.Values(self)
         self._ids: dict = {}
         #: ids that name a value the same way in every process: 31 bits of a
         #: hash of its canonical encoding (for forked workers, whose states and

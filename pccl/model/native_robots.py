@@ -61,7 +61,8 @@ def _shipped_kind(bb) -> int:
         f = getattr(f, "__func__", f)
         if getattr(f, "__module__", None) != mod or getattr(f, "__qualname__", "") != f"{cls.__name__}.{meth}":
             return 0
-    if cls is Nondet and (bb.always_fail is not (name == "nondet-fail") or bb.uses_time):
+    if cls is Nondet and (getattr(bb, "always_fail", None) is not (name == "nondet-fail")
+                          or getattr(bb, "uses_time", True)):
         return 0
     return KINDS[name]
 

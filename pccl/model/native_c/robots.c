@@ -5,7 +5,7 @@
    module after memo.c (whose memo_site calls robots_fill at a miss of the
    env site) and before module.c (whose method table takes ROBOTS_METHODS).
 
-   Python stays the reference (blackboxes/*.py, pccl/model/environment.py):
+   Python stays the reference (the blackboxes' .py files, environment.py):
    each outcome here is the one the Python blackbox gives, the positions
    rounded as Environment.round_pos rounds them, bit for bit.  What cannot
    be reproduced exactly is left to Python: robots_fill returns NULL with
