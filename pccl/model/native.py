@@ -1092,6 +1092,7 @@ class NativeModel:
         rlabels = NR.labels(gen, rkind, py.N)
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
+        NR.take_table(self)         # (another model of this module keeps its values)
         self.lib.robots_setup(rkind, rsite, gen.AG0, gen.A, gen.MV, gen.ENVS if gen.moves else 0,
                               rworld, rlabels)
         #: whether C computes DOREACH INVOKE's outcomes (robots.c)
@@ -1175,7 +1176,7 @@ class NativeModel:
                     raise NativeOverflow(ID_CLASH)
                 self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
             else:           # numbered by C's table (robots.c), which numbers C's values too
-                i = self.lib.vintern(k)
+                i = len(self._vals) if self._vals.detached else self.lib.vintern(k)
                 self._put(i, k, x)
         return i
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import marshal
 import math
 import os
+import weakref
 from typing import Any
 
 #: kinds of ``robots.c`` (``BB_*``): 0 none
@@ -106,6 +107,23 @@ def labels(gen, kind: int, n_agents: int) -> list:
     return [gen.lab(("DOREACH INVOKE", None, k)) for k in range(most)]
 
 
+#: id() of a loaded module -> (a weak reference to) the native model whose
+#: values its C table holds
+_OWNERS: dict = {}
+
+
+def take_table(model) -> None:
+    """Before ``model`` empties its module's C table (``robots_setup``):
+    the model that held it (a search of the same source made earlier in
+    this process, whose traces may still be decoded) reads every value C
+    made for it and numbers its own from then on."""
+    ref = _OWNERS.get(id(model.lib))
+    prev = ref() if ref is not None else None
+    if prev is not None and prev is not model:
+        prev._vals.detach()
+    _OWNERS[id(model.lib)] = weakref.ref(model)
+
+
 class Values(dict):
     """The interned values by id (:attr:`NativeModel._vals`): a value C made
     (``robots.c``) is read from C's table the first time Python needs it."""
@@ -113,10 +131,17 @@ class Values(dict):
     def __init__(self, owner: Any):
         super().__init__()
         self.owner = owner
+        #: C's table is another model's now (:func:`take_table`): every
+        #: value is here, and new ones are numbered here
+        self.detached = False
+
+    def detach(self) -> None:
+        self.complete()
+        self.detached = True
 
     def __missing__(self, i: int):
         o = self.owner
-        k = None if o.stable_ids else o.lib.vvalue(i)
+        k = None if o.stable_ids or self.detached else o.lib.vvalue(i)
         if k is None:
             raise KeyError(i)
         x = marshal.loads(k)
@@ -128,7 +153,7 @@ class Values(dict):
     def complete(self) -> None:
         """Every value C made read (before the table is saved whole)."""
         o = self.owner
-        if o.stable_ids:
+        if o.stable_ids or self.detached:
             return
         for i in range(o.lib.vcount()):
             if i not in self:

@@ -224,3 +224,37 @@ def test_rounding_is_round_pos(natives):
             got = lib.robots_round(c, res)
             assert got is not None and math.copysign(1, got) == math.copysign(1, want) \
                 and got == want, (c, res, got, want)
+
+
+def test_a_second_model_of_the_module_leaves_the_first_its_values():
+    """Two native models of one source share the compiled module and its C
+    table of values: the second's setup empties it, after the first has
+    read the values C made for it (its states still decode to the Python
+    model's configurations, and it numbers new values itself).  Under
+    straight, C makes the positions along the way, which Python has not
+    seen."""
+    from pccl.api import make_model
+    m = make_model(P("programs/race_robust.pccl"), world=P("programs/race.toml"), agents=2,
+                   blackbox="straight", reduce="none")
+    a = NV.NativeModel(m)
+    assert a.robots_in_c
+    level = list(zip(a.init_states(), m.init_states()))
+    seen, pyseen, known = [], [], set()
+    for _ in range(40):             # breadth first, native and Python side by side
+        nxt = []
+        for s, st in level:
+            for (_l, t), (_pl, pt) in zip(a.successors(s), m.successors(st), strict=True):
+                if t not in known:
+                    known.add(t)
+                    nxt.append((t, pt))
+        level = nxt
+        seen += [t for t, _ in level]
+        pyseen += [pt for _, pt in level]
+    assert a.lib.robots_stats()[0] > 0
+    ids = {i for s in seen for i in a.unpack(s)[a.gen.AG0 + a.gen.MV::a.gen.A]}
+    assert any(i not in a._vals for i in ids)          # made in C, not read yet
+    b = NV.NativeModel(m)
+    assert b.lib is a.lib and a.lib.vcount() == 0
+    assert [a.decode(s) for s in seen] == pyseen
+    n = len(a._vals)
+    assert a.intern(("a new value",)) == n and b.intern(("a new value",)) == 0
