@@ -67,7 +67,7 @@ def run(agents: int, workers: int, c_blackbox: bool) -> dict:
     def num(label: str) -> float:
         m = re.search(rf"^\s*{label}\s+([\d,.]+)", out, re.M)
         return float(m.group(1).replace(",", "")) if m else -1.0
-    eng = re.search(r"engine [^,\n]*", out)
+    eng = re.search(r"engine native[^,\n]*(?:\([^)]*\))?|engine python[^,\n]*", out)
     return {"wall": wall, "search": num("seconds"), "states": int(num("states")),
             "transitions": int(num("transitions")),
             "cpu": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
@@ -101,7 +101,7 @@ def main() -> None:
                 counts.add((r["states"], r["transitions"]))
                 print(f"| {rnd + 1} | {name} | {w} | {ld} | {r['states']:,} | {r['transitions']:,} "
                       f"| {r['search']:.2f} | {r['wall']:.2f} | {r['cpu']:.2f} | {r['rss']:,.0f} "
-                      f"| {r['engine']}{'' if r['exit'] == 0 else ' (exit %d)' % r['exit']} |",
+                      f"| {r['engine']}{'' if r['exit'] == 0 else f' (exit {r["exit"]})'} |",
                       flush=True)
     if len(counts) != 1:
         print(f"DIFFERENT COUNTS: {sorted(counts)}")
