@@ -98,6 +98,7 @@ def main() -> None:
             for name, on in sides:
                 ld = load()
                 r = run(a.agents, w, on)
+                ex = "" if r["exit"] == 0 else f" (exit {r['exit']})"
                 counts.add((r["states"], r["transitions"]))
                 print(f"| {rnd + 1} | {name} | {w} | {ld} | {r['states']:,} | {r['transitions']:,} "
                       f"| {r['search']:.2f} | {r['wall']:.2f} | {r['cpu']:.2f} | {r['rss']:,.0f} "
