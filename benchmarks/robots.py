@@ -102,7 +102,7 @@ def main() -> None:
                 counts.add((r["states"], r["transitions"]))
                 print(f"| {rnd + 1} | {name} | {w} | {ld} | {r['states']:,} | {r['transitions']:,} "
                       f"| {r['search']:.2f} | {r['wall']:.2f} | {r['cpu']:.2f} | {r['rss']:,.0f} "
-                      f"| {r['engine']}{'' if r['exit'] == 0 else f' (exit {r["exit"]})'} |",
+                      f"| {r['engine']}{ex} |",
                       flush=True)
     if len(counts) != 1:
         print(f"DIFFERENT COUNTS: {sorted(counts)}")
