@@ -134,6 +134,7 @@ from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
 from pccl.model.compile import _STATUS_TEST
 from pccl.model.toolchain import native_unavailable
 from pccl.model.native_build import build, source_digest
+from pccl.model import native_robots as NR
 
 #: The native state vector's own layout (not a configuration): the clock and
 #: the phase first, then the lock queue, shared, and the agents (see encode).
@@ -1091,6 +1092,7 @@ class Generator:
             f"#define PH_DISCRETE {DISCRETE}", f"#define S_RUNNING {RUNNING}",
             '#include "native.h"',
             '#include "memo.c"',
+            '#include "robots.c"',
             *agents,
             "/* the successors of s, emitted into OUT; -1 on an error (ovf or Python's) */",
             "static int step(const V *s) {",
@@ -1143,7 +1145,7 @@ class NativeModel:
         #: the interned values (positions, lists, obstacle lists, targets,
         #: t0, env) of this process: id -> value and the value's canonical
         #: encoding -> id (:meth:`_put`)
-        self._vals: dict = {}
+        self._vals: NR.Values = NR.Values(self)
         self._ids: dict = {}
         #: the point classes of the interned values (:meth:`_point_class`)
         self._classes: dict = {}
@@ -1165,8 +1167,17 @@ class NativeModel:
         self._pending: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
+        # the shipped blackboxes' outcomes in C (native_robots.py): their
+        # labels are in the list before setup reads it
+        rkind, rsite, rworld = NR.plan(py, gen, stable_ids)
+        rlabels = NR.labels(gen, rkind, py.N)
         # the label list grows on memo misses (C reads the same list)
         self.lib.setup(gen.labels, NativeOverflow, self._violations, xxh or 0, self._miss)
+        NR.take_table(self)         # (another model of this module keeps its values)
+        self.lib.robots_setup(rkind, rsite, gen.AG0, gen.A, gen.MV, gen.ENVS if gen.moves else 0,
+                              rworld, rlabels)
+        #: whether C computes DOREACH INVOKE's outcomes (robots.c)
+        self.robots_in_c = bool(rkind)
         self.gen = gen
         #: the label list the C code numbers labels by (it grows on memo misses)
         self.label_list = gen.labels
@@ -1249,8 +1260,8 @@ class NativeModel:
                 if not self._put(i, k, x):
                     raise NativeOverflow(ID_CLASH)
                 self._new_ids.append((i, xxhash.xxh3_128_digest(k)))
-            else:
-                i = len(self._vals)
+            else:           # numbered by C's table (robots.c), which numbers C's values too
+                i = len(self._vals) if self._vals.detached else self.lib.vintern(k)
                 self._put(i, k, x)
         return i
 
@@ -1296,6 +1307,7 @@ class NativeModel:
         lazily interned tables and the interned values by id (the states
         name them by id: positions, lists, any value the C code holds by id)."""
         out = dict(self._py_tables()) if self._py_tables is not None else {}
+        self._vals.complete()       # the values C made (robots.c) too
         if self._vals:
             out["native_ids"] = sorted(self._vals.items())
         return out
@@ -1307,7 +1319,8 @@ class NativeModel:
         if self._py_restore is not None:
             self._py_restore(data)
         for i, x in data.get("native_ids", ()):
-            if not self._put(i, marshal.dumps(x, 2), x):
+            k = marshal.dumps(x, 2)
+            if not self._put(i, k, x) or not (self.stable_ids or self.lib.vset(i, k)):
                 raise ValueError("the checkpoint's interned values are not this search's")
 
     #: the coordinator's check of the ids each worker interned (:func:`check_ids`)

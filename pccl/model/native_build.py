@@ -204,8 +204,11 @@ def _compile(d: str, name: str, src: str, path: str) -> None:
             f.write(full)
         out = os.path.join(tmp, name + _module_ext())
         inc = sysconfig.get_paths()["include"]
-        p = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-pthread", "-w", f"-I{inc}", f"-I{C_DIR}",
-                            "-o", out, c_path], capture_output=True, text=True)
+        # -ffp-contract=off: no fused multiply-add, so that float arithmetic
+        # (native_c/robots.c) rounds as Python's does
+        p = subprocess.run([cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", "-w",
+                            f"-I{inc}", f"-I{C_DIR}", "-o", out, c_path],
+                           capture_output=True, text=True)
         if p.returncode != 0:
             raise RuntimeError(f"the C compiler failed on the native module:\n{p.stderr[-2000:]}")
         os.chmod(out, 0o755)        # whatever the umask: no one else may write it

@@ -127,7 +127,9 @@ def test_generated_moving_programs_equal(shape, blackbox):
 
 def test_a_dropped_outcome_is_caught(monkeypatch):
     """Teeth: a memo that drops the blackbox's last outcome gives a different
-    search, which the comparison sees."""
+    search, which the comparison sees (the outcomes made by Python: the
+    shipped blackboxes' C, tests/model/test_native_robots.py, off)."""
+    monkeypatch.setenv("PCCL_C_BLACKBOX", "0")
     orig = NV.NativeModel._miss
 
     def wrong(self, k, b):
@@ -148,7 +150,10 @@ def test_a_dropped_outcome_is_caught(monkeypatch):
     assert bad["states"] < good["states"]
 
 
-def test_memo_misses_are_few_and_the_python_rule_runs_once_per_key():
+def test_memo_misses_are_few_and_the_python_rule_runs_once_per_key(monkeypatch):
+    """Every miss asks Python once (the blackbox's C off: with it, C makes
+    DOREACH INVOKE's entries and Python the statements')."""
+    monkeypatch.setenv("PCCL_C_BLACKBOX", "0")
     m = make_model(P("programs/race_robust.pccl"), **kw_of("programs/race.toml", 2, "nondet", "none"))
     nm = NV.NativeModel(m)
     calls = []

@@ -176,6 +176,10 @@ static const V *memo_miss_kernel(const V *s, const V *key, int kl) {
   pthread_mutex_unlock(&MMISS);
   return val;
 }
+/* robots.c: a miss of DOREACH INVOKE's site made in C (NULL with ROBOTS_PY
+   set: Python makes it) */
+static const V *robots_fill(const V *s, int k, const V *key, int kl, int kt);
+static __thread int ROBOTS_PY;
 /* the successors of site k in state s: each a copy of s with the written
    slots W_ set (the rule's own label); unused in a program without memo sites */
 static MAYBE_UNUSED int memo_site(const V *s, int k, const int *R_, int nr, const int *W_, int nw) {
@@ -189,11 +193,17 @@ static MAYBE_UNUSED int memo_site(const V *s, int k, const int *R_, int nr, cons
     if (kt) __atomic_fetch_add(&MEMO_HIT, 1, __ATOMIC_RELAXED);
     else MEMO_HIT++;
   } else if (!kt) {
-    if (!(val = memo_miss(s, key, nr + 1, NULL))) { ovf = 1; return -1; }
+    if (!(val = robots_fill(s, k, key, nr + 1, 0))) {
+      if (!ROBOTS_PY) { PyErr_NoMemory(); ovf = 1; return -1; }
+      if (!(val = memo_miss(s, key, nr + 1, NULL))) { ovf = 1; return -1; }
+    }
   } else {
     pthread_rwlock_unlock(&MLOCK);
-    if (KHELP) { KDEFER = 1; return -1; }     /* (the calling thread's to fill) */
-    if (!(val = memo_miss_kernel(s, key, nr + 1))) { ovf = 1; return -1; }
+    if (!(val = robots_fill(s, k, key, nr + 1, 1))) {  /* (MLOCK held shared when made) */
+      if (!ROBOTS_PY) { ovf = 1; return -1; }   /* (no memory: the batches raise it) */
+      if (KHELP) { KDEFER = 1; return -1; }     /* (the calling thread's to fill) */
+      if (!(val = memo_miss_kernel(s, key, nr + 1))) { ovf = 1; return -1; }
+    }
   }
   V n = val[0];
   const V *p = val + 1;

@@ -456,6 +456,7 @@ static PyMethodDef methods[] = {
   {"memo_stats", memo_stats, METH_NOARGS, "(entries, misses, hits) of the memo"},
   {"explore_levels", explore_levels, METH_VARARGS, "levels expanded and admitted, on threads"},
   TEMPORAL_METHODS                  /* temporal.c */
+  ROBOTS_METHODS
   {NULL, NULL, 0, NULL}
 };
 static struct PyModuleDef mod = {PyModuleDef_HEAD_INIT, MODNAME, NULL, -1, methods, NULL, NULL, NULL, NULL};
