@@ -158,6 +158,38 @@ def _increment(s, name: str) -> bool:
     return n is not None and n >= 0
 
 
+def _reads_problem(m, name: str, bounds: list) -> Optional[str]:
+    """Why some read of ``name`` is not a comparison with a bounded constant
+    or its own increment (None: each is; the constants' maxima appended to
+    ``bounds``)."""
+    prog = m.program
+
+    def bad(node) -> str:
+        return f"{name} is read other than compared with a bounded constant at line {node.span.line}"
+
+    for d in prog.decls:
+        if isinstance(d, A.VarDecl) and d.name != name:
+            for x in (d.init, d.size):
+                node = None if x is None else _uses(m, x, name, bounds)
+                if node is not None:
+                    return bad(node)
+    for ev in prog.events:
+        node = _uses(m, ev.guard, name, bounds)
+        if node is not None:
+            return bad(node)
+    for s in _program_stmts(prog):
+        if isinstance(s, A.Assign) and _is_name(s.target, name):
+            if not _increment(s, name) and _uses(m, s.value, name, bounds) is not None:
+                return (f"{name} is assigned a value that reads it other than as an increment by "
+                        f"a literal >= 0 at line {s.span.line}")
+            continue
+        for x in _stmt_exprs(s):
+            node = _uses(m, x, name, bounds)
+            if node is not None:
+                return bad(node)
+    return None
+
+
 def counter_problem(m, name: str) -> tuple:
     """``(reason, cap)``: why ``loc:`` variable ``name`` of model ``m`` is
     not a saturable counter (reason None: it is, and values ``>= cap`` are
@@ -175,36 +207,12 @@ def counter_problem(m, name: str) -> tuple:
     if name in property_names(m):
         return f"a property reads {name}", None
     bounds: list = []
-    prog = m.program
-
-    def bad(node) -> tuple:
-        return f"{name} is read other than compared with a bounded constant at line {node.span.line}", None
-
-    for d in prog.decls:
-        if isinstance(d, A.VarDecl):
-            for x in (d.init, d.size):
-                if x is not None and d.name != name:
-                    node = _uses(m, x, name, bounds)
-                    if node is not None:
-                        return bad(node)
-    for ev in prog.events:
-        node = _uses(m, ev.guard, name, bounds)
-        if node is not None:
-            return bad(node)
-    for s in _program_stmts(prog):
-        if isinstance(s, A.Assign) and _is_name(s.target, name):
-            if _increment(s, name):
-                continue
-            node = _uses(m, s.value, name, bounds)
-            if node is not None:
-                return (f"{name} is assigned a value that reads it other than as an increment by "
-                        f"a literal >= 0 at line {s.span.line}"), None
-            continue
-        for x in _stmt_exprs(s):
-            node = _uses(m, x, name, bounds)
-            if node is not None:
-                return bad(node)
-    return None, 1 + max(bounds, default=0)
+    why = _reads_problem(m, name, bounds)
+    if why is not None:
+        return why, None
+    if not bounds:
+        return f"nothing compares {name} (a value never read is the dead-variable reduction's)", None
+    return None, 1 + max(bounds)
 
 
 #: Caps beyond this are not used (the native vector's reserved codes sit

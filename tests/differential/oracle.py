@@ -50,7 +50,7 @@ from pccl.lang.parser import parse_program
 from .gen import Case
 
 MAX_STATES = 5_000
-REDUCTIONS = ("merge", "symmetry", "por", "dead")
+REDUCTIONS = ("merge", "symmetry", "por", "dead", "counters")
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,9 @@ it within a small budget of generated programs.
 (e) partial-order reduction with an ample set too small (the others'
     footprints ignored; the cycle proviso is tests/model/test_por.py's hand-made
     program: the generated programs have no zero-time loop that shows it);
-(f) the native engine's ints at the 64-bit edges (issue 41 hole 5).
+(f) the native engine's ints at the 64-bit edges (issue 41 hole 5);
+(h) counter saturation (issue 46) with its cap one too low (a counter
+    compared with ``<= c`` or ``== c`` clamped at ``c``).
 """
 
 from __future__ import annotations
@@ -186,3 +188,20 @@ def test_g_native_reduced_counts(monkeypatch, text, agents, modes):
         xxh3_64_intdigest=lambda b: hash(_tuples(marshal.loads(b))) % (1 << 64)))
     rep = oracle.compare(c, chosen)
     assert [d.check for d in rep.disagreements] == ["figures"], rep.disagreements
+
+
+def test_h_counter_saturation_with_a_cap_too_low(monkeypatch):
+    """Counter saturation clamping at the largest constant instead of one
+    past it (``x == c`` and ``x > c`` then one class) is caught on the
+    generated counter programs; as shipped they agree."""
+    from pccl.model import counters as CT
+    modes = ["counters-python", "auto-python"]
+    seeds = range(0, 40)
+    orig = CT.counter_problem
+
+    def low(m, name):
+        why, cap = orig(m, name)
+        return (why, cap - 1) if why is None else (why, cap)
+    monkeypatch.setattr(CT, "counter_problem", low)
+    ds = caught(["counters"], modes, len(seeds), check="verdict", seeds=seeds)
+    assert ds, "the oracle missed counter saturation with its cap one too low"
