@@ -242,6 +242,7 @@ def _guarded_increment(m, cond, body, name: str, cap: int) -> bool:
     if len(writes) != 1 or not any(s is writes[0] for s in body) or not _increment(writes[0], name):
         return False
     v = writes[0].value
+    assert isinstance(v, A.Binary)          # _increment: name + n or n + name
     n = _int_literal(v.right if _is_name(v.left, name) else v.left) or 0
     if not isinstance(cond, A.Binary):
         return False

@@ -94,7 +94,7 @@ def test_counters_compared_with_bounded_constants_are_saturable():
     m = make_model(BOUNDED, source=True, reduce="none")
     assert C.counter_problem(m, "t") == (None, 5)          # t == 4
     assert C.counter_problem(m, "v") == (None, 3)          # v <= 2
-    assert C.counter_problem(m, "c") == (None, 5)          # c < 4, c >= 4
+    assert C.counter_problem(m, "c") == (None, 4)          # c < 3, c >= 3
     # a constant given by --set moves the cap
     assert problem(TICK, "t", overrides={"K": "9"}) == (None, 10)
 

@@ -190,18 +190,45 @@ def test_g_native_reduced_counts(monkeypatch, text, agents, modes):
     assert [d.check for d in rep.disagreements] == ["figures"], rep.disagreements
 
 
+#: t is compared with 2 only (cap 3): t = 2 and t = 3 at c = 3 are two
+#: states, and only t = 2 fails the assertion; Up and Stay take as many
+#: steps, so the breadth-first search meets t = 3 (Up, Up, Up) first
+CAP = """loc:
+  int c = 0;
+  int t = 0;
+Up():
+  pre(c < 3);
+  eff:
+    c = c + 1;
+    t = t + 1;
+Stay():
+  pre(c < 3);
+  eff:
+    c = c + 1;
+    skip;
+Done():
+  pre(c >= 3);
+  eff:
+    assert(t != 2);
+    exit();
+"""
+
+
 def test_h_counter_saturation_with_a_cap_too_low(monkeypatch):
     """Counter saturation clamping at the largest constant instead of one
-    past it (``x == c`` and ``x > c`` then one class) is caught on the
-    generated counter programs; as shipped they agree."""
+    past it (``x == c`` and ``x > c`` then one class) is caught by the
+    comparison with the truth on its own shape (issue 46); as shipped it
+    agrees."""
     from pccl.model import counters as CT
-    modes = ["counters-python", "auto-python"]
-    seeds = range(0, 40)
+    c = gen.Case(0, "hand", CAP, agents=1)
+    modes = oracle.choose_modes(["truth", "counters-python"], 0)
+    rep = oracle.compare(c, modes)
+    assert not rep.disagreements and rep.outcomes["counters-python"].status == "violation"
     orig = CT.counter_problem
 
     def low(m, name):
         why, cap = orig(m, name)
         return (why, cap - 1) if why is None else (why, cap)
     monkeypatch.setattr(CT, "counter_problem", low)
-    ds = caught(["counters"], modes, len(seeds), check="verdict", seeds=seeds)
-    assert ds, "the oracle missed counter saturation with its cap one too low"
+    rep = oracle.compare(c, modes)
+    assert [d.check for d in rep.disagreements] == ["verdict"], rep.disagreements
