@@ -231,19 +231,17 @@ def saturable_counters(m) -> dict:
     return out
 
 
-def _guarded_increment(m, cond, body, name: str, cap: int) -> bool:
-    """Whether ``body`` (a branch taken when ``cond`` holds) holds exactly
-    one assignment to ``name``, a direct statement ``name = name + n``, and
-    ``cond`` keeps the result at most ``cap``: ``name < c`` (or ``c > name``)
-    with c's maximum + n - 1 <= cap, ``name <= c`` (or ``c >= name``) with
-    c's maximum + n <= cap.  (``name`` is ``loc:``: nothing but this agent's
-    own next step changes it between the test and the increment.)"""
-    writes = [s for s in A.walk_stmts(body) if isinstance(s, A.Assign) and _is_name(s.target, name)]
-    if len(writes) != 1 or not any(s is writes[0] for s in body) or not _increment(writes[0], name):
-        return False
-    v = writes[0].value
-    assert isinstance(v, A.Binary)          # _increment: name + n or n + name
-    n = _int_literal(v.right if _is_name(v.left, name) else v.left) or 0
+def _conjuncts(e) -> list:
+    """The operands of a chain of ``&&`` (``[e]`` for anything else)."""
+    if isinstance(e, A.Binary) and e.op == "&&":
+        return _conjuncts(e.left) + _conjuncts(e.right)
+    return [e]
+
+
+def _bounds_result(m, cond, name: str, n: int, cap: int) -> bool:
+    """Whether comparison ``cond`` holding keeps ``name + n`` at most ``cap``:
+    ``name < c`` (or ``c > name``) with c's maximum + n - 1 <= cap,
+    ``name <= c`` (or ``c >= name``) with c's maximum + n <= cap."""
     if not isinstance(cond, A.Binary):
         return False
     if _is_name(cond.left, name) and cond.op in ("<", "<="):
@@ -258,12 +256,29 @@ def _guarded_increment(m, cond, body, name: str, cap: int) -> bool:
     return mx + n - 1 <= cap if op == "<" else mx + n <= cap
 
 
+def _guarded_increment(m, cond, body, name: str, cap: int) -> bool:
+    """Whether ``body`` (an ``if`` branch taken, or an event's effect run,
+    when ``cond`` holds) holds exactly one assignment to ``name``, a direct
+    statement ``name = name + n``, and a conjunct of ``cond`` keeps the
+    result at most ``cap`` (:func:`_bounds_result`).  ``name`` is ``loc:``
+    and that increment is the body's only write to it: nothing changes it
+    between the test and the increment."""
+    writes = [s for s in A.walk_stmts(body) if isinstance(s, A.Assign) and _is_name(s.target, name)]
+    if len(writes) != 1 or not any(s is writes[0] for s in body) or not _increment(writes[0], name):
+        return False
+    v = writes[0].value
+    assert isinstance(v, A.Binary)          # _increment: name + n or n + name
+    n = _int_literal(v.right if _is_name(v.left, name) else v.left) or 0
+    return any(_bounds_result(m, c, name, n, cap) for c in _conjuncts(cond))
+
+
 def can_exceed(m, name: str, cap: int) -> bool:
     """Whether saturable counter ``name`` may ever hold a value above ``cap``
     (False only when provably not: its initialiser and every assignment that
     is not an increment have a bounded-constant maximum <= cap, and every
     increment sits in an ``if`` branch whose own condition bounds the result
-    by ``cap``, :func:`_guarded_increment`).  Where it cannot, the clamp never
+    by ``cap``, or is a direct statement of an event whose guard does,
+    :func:`_guarded_increment`).  Where it cannot, the clamp never
     changes a key and ``auto`` leaves the reduction out."""
     vs = m.compiled.layout.vars[name]
     init = vs.decl.init
@@ -276,6 +291,9 @@ def can_exceed(m, name: str, cap: int) -> bool:
             return True
     guarded: list = []
     stmts = _program_stmts(m.program)
+    for ev in m.program.events:
+        if _guarded_increment(m, ev.guard, ev.body, name, cap):
+            guarded += ev.body
     for s in stmts:
         if isinstance(s, A.If):
             for cond, body in s.branches:
