@@ -240,7 +240,8 @@ def _replaced(model) -> Optional[str]:
     want = (model.merger.successors if model.merger is not None
             else model.por.successors if model.por is not None else base.plain_successors)
     for name, fn in (("successors", want), ("violations", base.fast_violations),
-                     ("key", None if {"symmetry", "dead"} & set(model.reduction.on) else base.plain_key)):
+                     ("key", None if {"symmetry", "dead", "counters"} & set(model.reduction.on)
+                             else base.plain_key)):
         if fn is not None and d.get(name) != fn:
             return f"the model's {name} function was replaced (the Python engine runs it)"
     return None
@@ -995,6 +996,8 @@ class Generator:
         if por is not None or merge is not None:
             out += self.por_c(por)
         out += self.dead_c()
+        ctr = getattr(m, "counters", None) if "counters" in getattr(getattr(m, "reduction", None), "on", ()) else None
+        out += ctr.c_source(self.AG0, A_, N) if ctr is not None else ["#define CTRS 0"]
         # the ample set (Por.successors): the first agent with an execution
         # left whose next step is independent of what the others can still
         # do; else the first spent agent whose next step is a plain statement

@@ -50,7 +50,7 @@ from pccl.model.independence import (ACCESS, EXECUTE, LOCAL, NEVER, PURE_CALLS, 
                                       Independence, may_wait, property_names)
 
 #: The reductions, in the order they are reported.
-ALL = ("merge", "symmetry", "por", "dead")
+ALL = ("merge", "symmetry", "por", "dead", "counters")
 
 #: At most this many statements run in one merged transition.
 MERGE_LIMIT = 1000
@@ -291,6 +291,22 @@ def _plan_dead(m, want, p: "Plan", on: list) -> None:
         on.append("dead")
 
 
+def _plan_counters(m, want, p: "Plan", on: list) -> None:
+    """Step of :func:`plan`: turn counter saturation on where it is sound
+    (:func:`pccl.model.counters.temporal_problem`; each counter's condition
+    is :func:`pccl.model.counters.counter_problem`), under ``auto`` only
+    where some counter can exceed its cap (elsewhere there is nothing to
+    merge: not "off" for a reason)."""
+    from pccl.model.counters import can_saturate, temporal_problem
+    why = temporal_problem(m)
+    if why is not None:
+        if want is not None or can_saturate(m):
+            _unsound("counters", why, want, p)
+        return
+    if want is not None or can_saturate(m):
+        on.append("counters")
+
+
 def _unsound(name: str, why: str, want, p: "Plan") -> None:
     """Reduction ``name`` is unsound here (``why``): an error when it was
     asked for by name, else off with the reason."""
@@ -374,6 +390,8 @@ def plan(m, reduce, uses=()) -> tuple:
         _plan_por(m, want, p, on)
     if "dead" not in limits and (want is None or "dead" in want):
         _plan_dead(m, want, p, on)
+    if "counters" not in limits and (want is None or "counters" in want):
+        _plan_counters(m, want, p, on)
     p.on = tuple(on)
     return p, slots
 
@@ -384,7 +402,7 @@ def plan(m, reduce, uses=()) -> tuple:
 
 #: What a :class:`Reduced` holds itself; every other attribute is the model's.
 _OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
-                  "merger", "por", "init_states", "dead_vars"})
+                  "merger", "por", "init_states", "dead_vars", "counters"})
 
 
 class Reduced:
@@ -433,6 +451,11 @@ class Reduced:
                 # the outcomes that have a value (every failing one is kept)
                 d["init_states"] = functools.partial(model.init_states, first_only=one,
                                                      first_value=values)
+        d["counters"] = None
+        if "counters" in p.on:
+            from pccl.model.counters import Counters
+            d["counters"] = ctr = Counters.of(model)
+            d["key"] = ctr.key_of(d["key"])
 
     def expand_trace(self, trace):
         """The trace with every merged transition replaced by its steps (for

@@ -246,7 +246,7 @@ def _config(c) -> dict:
                 _string(x, f"{p}.{key}[{n}]")
     if "reductions" in c:
         for n, x in enumerate(_list(c["reductions"], f"{p}.reductions")):
-            _enum(x, f"{p}.reductions[{n}]", ("merge", "symmetry", "por", "dead"))
+            _enum(x, f"{p}.reductions[{n}]", ("merge", "symmetry", "por", "dead", "counters"))
     _number(c["max_time"], f"{p}.max_time", lo=0, null=True)
     _boolean(c["abstract_time"], f"{p}.abstract_time")
     _boolean(c["deadlock"], f"{p}.deadlock")

@@ -454,6 +454,75 @@ def _attack_module(name):
     return __import__(name)
 
 
+# ---------------------------------------------------------------------------
+# counters (issue 46): loc: ints that count and are compared with constants
+# ---------------------------------------------------------------------------
+
+#: what a counter is compared with: literals, a shared constant, a frozen rand
+CTR_BOUNDS = ["0", "1", "2", "3", "K", "lim", "-1"]
+#: statements a counter comparison guards, each with a runtime error for some
+#: reachable values (division by zero, index out of range, a failed
+#: assertion, an undefined read) or none
+CTR_EFFECTS = ["s = (s + 1) % 4;", "s = 10 / (s - 2);", "s = arr[s];", "assert(s < 3);", "s = u;",
+               "flag = !flag;", "g = true;", "s = (s + 3) % 4;"]
+
+
+def _ctr_cmp(rng, name: str) -> str:
+    op = rng.choice(["<", "<=", ">", ">=", "==", "!="])
+    b = rng.choice(CTR_BOUNDS)
+    return f"{name} {op} {b}" if rng.random() < 0.7 else f"{b} {op} {name}"
+
+
+def counters(seed: int, rng: random.Random) -> Case:
+    """Counters that only count towards bounds they are compared with
+    (docs/reductions.md, "Counter saturation"), and counters that break the
+    condition (read in arithmetic, decremented, read by a property), with
+    runtime errors in the statements their comparisons guard.  Most
+    programs bound their events (``c < bound``) so that the unreduced
+    search is exhaustive; some tick for ever (the unreduced search is then
+    bounded: only its violations are compared)."""
+    bound = rng.choice([2, 3, 3])
+    forever = rng.random() < 0.2
+    shared = ["  int s = 0;", "  bool g = false;", f"  int K = {rng.choice(['1', '2'])};",
+              "  int arr[3] = 0;"]
+    loc = ["  int c = 0;", f"  int t = {rng.choice(['0', '0', '1', 'rand(2)'])};",
+           f"  int v = {rng.choice(['0', '2'])};", f"  int lim = rand({rng.choice(['1', 'K'])});",
+           "  int u;", "  bool flag = false;"]
+    text = ("Agent::Counters\n\nallwrite:\n" + "\n".join(shared) + "\n\nallread:\n\nloc:\n"
+            + "\n".join(loc) + "\n")
+    breakers = ["v = v - 1;", "s = t % 2;", "v = t;", "t = t - 1;", "t = t * 2;", "arr[t] = 1;"]
+    for e in range(rng.randint(1, 3)):
+        guard = "true" if forever and e == 0 else f"c < {bound}"
+        if rng.random() < 0.6:
+            guard += f" && {_ctr_cmp(rng, rng.choice(['t', 'v']))}"
+        body = [] if forever and e == 0 else ["c = c + 1;"]
+        body.append(rng.choice(["t = t + 1;", "t = t + 1;", "t = t + 2;", "v = v + 1;",
+                                "t = 0;", "t = lim;"]))
+        for _ in range(rng.randint(1, 2)):
+            r = rng.random()
+            name = rng.choice(["t", "v"])
+            if r < 0.55:
+                eff = rng.choice(CTR_EFFECTS)
+                br = (f"if ({_ctr_cmp(rng, name)}):\n      {eff}" +
+                      (f"\n    else:\n      {rng.choice(CTR_EFFECTS)}" if rng.random() < 0.3 else ""))
+                body.append(br)
+            elif r < 0.7:
+                body.append(f"if ({_ctr_cmp(rng, name)}):\n      atomic:\n        {rng.choice(CTR_EFFECTS)}")
+            elif r < 0.8:
+                body.append(rng.choice(breakers))
+            elif r < 0.9:
+                body.append(f"if ({name} < {rng.choice(['2', 'K'])}):\n      {name} = {name} + 1;")
+            else:
+                body.append(f"assert({_ctr_cmp(rng, name)} || c < {bound});")
+        text += f"\nE{e}():\n  pre({guard});\n  eff:\n" + "".join(f"    {b}\n" for b in body)
+    if rng.random() < 0.85:
+        text += f"\nDone():\n  pre(c >= {bound});\n  eff:\n    exit();\n"
+    invariants = [rng.choice(["s < 3", "count(flag) <= 1", "!g", "s != -2", "forall i: c[i] <= 3",
+                              "forall i: t[i] < 4"])
+                  for _ in range(rng.choice([0, 1, 1, 2]))]
+    return Case(seed, "counters", text, agents=rng.choice([1, 2, 2, 3]), invariants=invariants)
+
+
 def sym(seed: int, rng: random.Random) -> Case:
     text, invariants, agents = _attack_module("symattack").program(seed)
     return Case(seed, "sym", text, agents=agents, invariants=invariants,
@@ -711,9 +780,20 @@ FAMILIES = {"core": (core, 10), "moving": (moving, 3), "userbb": (userbb, 1), "s
             "por": (por, 2), "koord": (koord, 4)}
 
 
+#: ``counters`` is not in the weighted draw: it takes this share of the
+#: ``core`` draws (decided by a generator of its own, so that the other
+#: seeds keep their programs), or every draw when it is the only family asked for
+COUNTERS_SHARE = 0.2
+
+
 def case(seed: int, families=None) -> Case:
     """The program of ``seed`` (deterministic)."""
     rng = random.Random(seed * 7919 + 41)
     names = [n for n in FAMILIES if families is None or n in families]
+    want_ctr = families is None or "counters" in families
+    if not names:
+        return counters(seed, rng)
     fam = rng.choices(names, weights=[FAMILIES[n][1] for n in names])[0]
+    if fam == "core" and want_ctr and random.Random(seed * 104729 + 7).random() < COUNTERS_SHARE:
+        return counters(seed, rng)
     return FAMILIES[fam][0](seed, rng)

@@ -49,7 +49,7 @@ from pccl.lang.errors import PcclError
 from .gen import Case, parse
 
 MAX_STATES = 5_000
-REDUCTIONS = ("merge", "symmetry", "por", "dead")
+REDUCTIONS = ("merge", "symmetry", "por", "dead", "counters")
 
 
 @dataclass(frozen=True)

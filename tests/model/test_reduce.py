@@ -95,9 +95,12 @@ def sound_set(program, **opts) -> tuple:
 def unsound(combo, plan) -> list:
     """The reductions of ``combo`` that asking for is an error: off under
     ``auto`` (merge is always sound; dead only under a liveness property,
-    else it is merely left off under ``auto`` where nothing can be dead)."""
+    else it is merely left off under ``auto`` where nothing can be dead;
+    counters only where off for a reason, else it is left off where no
+    counter can pass its cap)."""
     return [r for r in combo if r not in plan.on and r != "merge"
-            and (r != "dead" or "liveness" in plan.off.get("dead", ""))]
+            and (r != "dead" or "liveness" in plan.off.get("dead", ""))
+            and (r != "counters" or "counters" in plan.off)]
 
 
 def sym_sound(program, **opts) -> bool:

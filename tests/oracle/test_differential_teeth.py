@@ -13,7 +13,9 @@ it within a small budget of generated programs.
 (e) partial-order reduction with an ample set too small (the others'
     footprints ignored; the cycle proviso is tests/model/test_por.py's hand-made
     program: the generated programs have no zero-time loop that shows it);
-(f) the native engine's ints at the 64-bit edges (issue 41 hole 5).
+(f) the native engine's ints at the 64-bit edges (issue 41 hole 5);
+(h) counter saturation (issue 46) with its cap one too low (a counter
+    compared with ``<= c`` or ``== c`` clamped at ``c``).
 """
 
 from __future__ import annotations
@@ -183,3 +185,47 @@ def test_i_koord_skip_event_replacing_the_event(monkeypatch):
     monkeypatch.setattr(K.KoordModel, "_robot_turn", only_skip)
     ds = caught(["koord"], ["koord-skip-events"], 30)
     assert ds and ds[0].check == "inclusion", "the oracle missed SkipEvent replacing EventTrans"
+
+
+#: t is compared with 2 only (cap 3): t = 2 and t = 3 at c = 3 are two
+#: states, and only t = 2 fails the assertion; Up and Stay take as many
+#: steps, so the breadth-first search meets t = 3 (Up, Up, Up) first
+CAP = """loc:
+  int c = 0;
+  int t = 0;
+Up():
+  pre(c < 3);
+  eff:
+    c = c + 1;
+    t = t + 1;
+Stay():
+  pre(c < 3);
+  eff:
+    c = c + 1;
+    skip;
+Done():
+  pre(c >= 3);
+  eff:
+    assert(t != 2);
+    exit();
+"""
+
+
+def test_j_counter_saturation_with_a_cap_too_low(monkeypatch):
+    """Counter saturation clamping at the largest constant instead of one
+    past it (``x == c`` and ``x > c`` then one class) is caught by the
+    comparison with the truth on its own shape (issue 46); as shipped it
+    agrees."""
+    from pccl.model import counters as CT
+    c = gen.Case(0, "hand", CAP, agents=1)
+    modes = oracle.choose_modes(["truth", "counters-python"], 0)
+    rep = oracle.compare(c, modes)
+    assert not rep.disagreements and rep.outcomes["counters-python"].status == "violation"
+    orig = CT.counter_problem
+
+    def low(m, name):
+        why, cap = orig(m, name)
+        return (why, cap - 1) if why is None else (why, cap)
+    monkeypatch.setattr(CT, "counter_problem", low)
+    rep = oracle.compare(c, modes)
+    assert [d.check for d in rep.disagreements] == ["verdict"], rep.disagreements

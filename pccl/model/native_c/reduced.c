@@ -4,7 +4,7 @@
    signature, over the tables the generated module defines before it
    includes this file (Generator.reduced_c: NPC, AG0, AW, NLOC, KEEPN0, POR,
    MERGE, SYM, MERGEOK, RHO, BID, SHID, SIGSLOTS, agent_of(), ample(),
-   dead_bits(), dead_apply()). */
+   dead_bits(), dead_apply(), ctrs_need(), ctrs_apply()). */
 /* statement merging: run agent i's following mergeable steps in the
    successor at BUF[k] (Merger._chain: one successor per step, a chain
    stops where it revisits (pc, counter, locals) after 32 steps: those
@@ -163,6 +163,10 @@ static void canon(const V *s0, V *out) {
   if (dead_bits(s0, dd)) { memcpy(dm, s0, sizeof dm); dead_apply(dm, dd); s = dm; }
 #else
   const V *s = s0;
+#endif
+#if CTRS
+  V cm[NS];            /* counter saturation: counters above their cap clamped (counters.py) */
+  if (ctrs_need(s)) { memcpy(cm, s, sizeof cm); ctrs_apply(cm); s = cm; }
 #endif
 #if SYM
   V g[NAG][SIGW];
