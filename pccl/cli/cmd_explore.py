@@ -60,7 +60,7 @@ from pccl.lang.errors import PcclError
                    "the unreduced semantics for a shorter one (docs/reductions.md)")
 @click.option("--reduce", "reduce", metavar="auto|none|LIST", default="auto", show_default=True,
               help="state-space reductions: auto (every sound one), none, or a "
-                   "comma-separated list of merge, symmetry, por, dead")
+                   "comma-separated list of merge, symmetry, por, dead, counters")
 @click.option("--engine", type=Choice(["auto", "native", "python"]), default="auto",
               show_default=True,
               help="successors in generated C (native, compiled with the system cc) or in "
