@@ -89,7 +89,7 @@ def cache_cmd(clear, fmt):
     how many modules it holds, their size and the bound ($PCCL_CACHE_SIZE,
     default 100M; 0: none), beyond which the least recently used modules
     are removed after a new one is compiled.  --clear removes them all
-    (docs/benchmarks.md#the-module-cache)."""
+    (docs/scale-out.md#the-native-module-cache)."""
     import json
     import os
 
