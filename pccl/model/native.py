@@ -168,6 +168,7 @@ _STABLE_MASK = (1 << 31) - 1
 #: kinds of values held as interned ids (value <-> small int, NativeModel's
 #: table); C compares them only for equality, Python computes on them
 INTERNED = ("pos", "list", "obstacles", "float", "array")
+_CMP = ("<", "<=", ">", ">=", "==", "!=")
 
 
 class NativeOverflow(RuntimeError):
@@ -280,6 +281,8 @@ class Generator:
         #: "stmt" (a statement's rule run by Python on a miss) or "env"
         #: (DOREACH INVOKE, the blackbox's outcomes)
         self.sites: list = []
+        #: the C arrays of the property memo sites' read slots (:meth:`pmemo`)
+        self.pdecls: list = []
 
     # -- layout ------------------------------------------------------------------
     @property
@@ -358,6 +361,7 @@ class Generator:
             self.stmt_ok(s)
         for ev in self.c.program.events:
             self.expr(ev.guard, 0)
+        nsites = len(self.sites)
         for p in m.properties:
             if p.expr is None:
                 raise Unsupported(f"invariant '{p.name}' has no expression")
@@ -365,6 +369,7 @@ class Generator:
                 self.pexpr(p.expr, {})
             except Unsupported as e:
                 raise Unsupported(f"invariant '{p.name}': {e}") from None
+        del self.sites[nsites:], self.pdecls[:]      # (source() makes them again)
         self.env_constant()
 
     def stmt_ok(self, s) -> None:
@@ -481,17 +486,118 @@ class Generator:
         raise Unsupported(f"the expression {what}" + (f" at line {span.line}:{span.column}"
                                                      if span is not None else ""))
 
-    def pexpr(self, e, bound: dict) -> str:
-        """C for a property expression (``bound``: quantified name -> agent)."""
+    def pexpr(self, e, bound: dict, boolean: bool = True) -> str:
+        """C for a property expression (``bound``: quantified name -> agent).
+        ``boolean``: ``e``'s value is a truth value (an operand of ``&& || ->
+        !``, a quantifier's body, the property): where C cannot compute such
+        an expression, or a comparison (over positions, floats, lists,
+        ``dist()``, ...), it is a *property memo site* (:meth:`pmemo`):
+        Python evaluates it once per values of the slots it reads."""
+        try:
+            return self.pexpr_c(e, bound)
+        except Unsupported:
+            if not (boolean or (isinstance(e, A.Binary) and e.op in _CMP)):
+                raise
+            return self.pmemo(e, bound)
+
+    def pmemo(self, e, bound: dict) -> str:
+        """C of property expression ``e`` (bound names substituted by their
+        agents) as a memo site of kind "prop": its value (bool or int) looked
+        up by the values of the slots it reads (:meth:`preads`), computed by
+        the Python model's own predicate on a miss (:meth:`NativeModel._miss`);
+        a value C does not hold (an error, a float) marks the state a suspect
+        (``okstate`` fails: the Python model's violations decide it)."""
+        from pccl.model.properties import subst
+        if any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(e)):
+            raise Unsupported("rand() in a property")
+        t = subst(e, bound) if bound else e
+        try:
+            rs = set()
+            self.preads(t, rs)
+            reads = sorted(rs)
+        except Unsupported:         # what it reads is not known: every slot
+            reads = list(range(self.NS))
+        k = len(self.sites)
+        self.sites.append(("prop", None, t, tuple(reads), ()))
+        self.pdecls.append(f"static const int PR{k}[] = {{{', '.join(map(str, reads)) or '0'}}};")
+        return f"memo_value(s, {k}, PR{k}, {len(reads)})"
+
+    def preads(self, e, out: set) -> None:
+        """The slots property expression ``e`` (bound names substituted)
+        reads, into ``out``; Unsupported when it is not known."""
+        N = self.N
+        if isinstance(e, (A.IntLit, A.FloatLit, A.BoolLit)):
+            return
+        if isinstance(e, A.Name):
+            vs = self.lay.vars.get(e.name)
+            if e.name == "time":
+                out.add(V_TIME)
+            elif vs is not None and vs.section == "allwrite":
+                out.add(self.SH0 + vs.slot)
+            elif vs is not None:
+                raise Unsupported("an unindexed per-agent variable")
+            return              # N, an enum member, a quantified name
+        if isinstance(e, (A.Unary, A.Field)):
+            return self.preads(e.operand if isinstance(e, A.Unary) else e.base, out)
+        if isinstance(e, A.Binary):
+            self.preads(e.left, out)
+            return self.preads(e.right, out)
+        if isinstance(e, A.Quant):
+            return self.preads(e.body, out)
+        if isinstance(e, A.ListLit):
+            for x in e.items:
+                self.preads(x, out)
+            return
+        if isinstance(e, A.Index):
+            root, chain = A.index_chain(e)
+            for ix in chain:
+                self.preads(ix.index, out)
+            i0 = chain[0].index
+            agents = ([i0.value] if isinstance(i0, A.IntLit) and 0 <= i0.value < N
+                      else range(N))
+            if not isinstance(root, A.Name):
+                return self.preads(root, out)
+            n = root.name
+            vs = self.lay.vars.get(n)
+            if vs is not None and vs.section == "allwrite":
+                out.add(self.SH0 + vs.slot)
+                return
+            if vs is not None and indexes_agent(vs.section, vs.ty.kind == "array", len(chain),
+                                                in_property=True):
+                off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
+                out.update(self.AG0 + j * self.A + off for j in agents)
+                return
+            if vs is None and n in ("running", "exited", "stuck"):
+                out.update(self.AG0 + j * self.A + 3 for j in agents)
+                return
+            if vs is None and n in ("pos", "doReach_done", "doReach_fail"):
+                if self.moves:      # (else constant: not in the vector)
+                    q = {"pos": 0, "doReach_done": 4, "doReach_fail": 5}[n]
+                    out.update(self.AG0 + j * self.A + self.MV + q for j in agents)
+                return
+            raise Unsupported(f"an index of '{n}'")
+        if isinstance(e, A.Call):
+            if e.name == "count" and len(e.args) == 1 and isinstance(e.args[0], A.Name):
+                return self.preads(A.Index(e.args[0], A.Name("_any_agent")), out)
+            if e.name in ("getAgentIndex", "getPosition", "getNumAgents", "rand", "count"):
+                raise Unsupported(f"{e.name}() in a property")
+            for x in e.args:        # the built-ins and the world's functions: pure
+                self.preads(x, out)
+            return
+        raise Unsupported(f"a {type(e).__name__} in a property")
+
+    def pexpr_c(self, e, bound: dict) -> str:
+        """Step of :meth:`pexpr`: ``e`` computed in C, or Unsupported."""
         if isinstance(e, (A.BoolLit, A.IntLit)):
             return self.expr(e, 0)
         if isinstance(e, A.Name):
             return self.pname(e, bound)
         if isinstance(e, A.Unary):
-            x = self.pexpr(e.operand, bound)
+            x = self.pexpr(e.operand, bound, e.op == "!")
             return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
         if isinstance(e, A.Binary):
-            return self.binop(e.op, self.pexpr(e.left, bound), self.pexpr(e.right, bound))
+            logic = e.op in ("&&", "||", "->")
+            return self.binop(e.op, self.pexpr(e.left, bound, logic), self.pexpr(e.right, bound, logic))
         if isinstance(e, A.Quant):
             terms = [self.pexpr(e.body, {**bound, e.var: q}) for q in range(self.N)]
             op = " && " if e.kind == "forall" else " || "
@@ -1034,6 +1140,7 @@ class Generator:
             "  return ovf ? -1 : 0;",
             "}",
             reduced,
+            *self.pdecls,
             "/* no agent stuck, the lock's holder not exited, every invariant holds */",
             "static inline int okexpr(const V *s) {",
             f"  return {ok};",
@@ -1082,6 +1189,8 @@ class NativeModel:
         #: per memo site, the slots it does not write (see :meth:`_miss`)
         self._unwritten: dict = {}
         self._pending: dict = {}
+        #: the Python predicates of the property memo sites (:meth:`_pvalue`)
+        self._pfns: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
         # the label list grows on memo misses (C reads the same list)
@@ -1346,6 +1455,8 @@ class NativeModel:
         st = self.decode(b)
         m = self._base
         out: list = []
+        if kind == "prop":
+            return (array("q", [self._pvalue(k, pc, st)]).tobytes(), None)
         if kind == "env":
             R.doreach_invoke(m, st, out)
         else:
@@ -1372,6 +1483,22 @@ class NativeModel:
             val.append(self.gen.lab(label))
             val.extend(t[q] for q in ws)
         return (val.tobytes(), None)
+
+    def _pvalue(self, k: int, e, st) -> int:
+        """Property memo site ``k``'s value in configuration ``st``: the
+        Python model's predicate of expression ``e`` as an int, or undefined
+        (INT64_MIN: C then leaves the state to the Python violations) when
+        it is not a bool or an int of the native range, or raises."""
+        fn = self._pfns.get(k)
+        if fn is None:
+            fn = self._pfns[k] = self.py.compiled.state_predicate(e)[1]
+        try:
+            v = fn(st)
+        except Exception:       # (the Python violations say what it is)
+            return -(1 << 63)
+        if type(v) is bool or (type(v) is int and V_MIN <= v <= V_MAX):
+            return int(v)
+        return -(1 << 63)
 
     # -- the explorer's protocol -------------------------------------------------------
     def init_states(self):

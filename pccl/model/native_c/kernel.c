@@ -237,6 +237,7 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
       fingerprint_of(t, k->fp + 2 * w);
       if (j->sig) k->sg[w] = sighash(t);
       k->sus[w] = !okstate(t);
+      if (KDEFER) { k->flag = 6; break; }  /* (a property memo site's miss: the caller's) */
     }
   }
   if (!mine && j->slow) {           /* (tests: a slow or descheduled thread) */

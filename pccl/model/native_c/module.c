@@ -322,7 +322,9 @@ static inline int okstate(const V *s) {
 static PyObject *ok(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
-  return PyBool_FromLong(okstate(s));
+  int r = okstate(s);
+  if (PyErr_Occurred()) return NULL;
+  return PyBool_FromLong(r);
 }
 /* violations(state): [] when okstate, else SLOWVIOL(state) (the Python
    model's own violations of the decoded configuration) */
@@ -331,6 +333,7 @@ static PyObject *violations(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   if (okstate(s)) return PyList_New(0);
+  if (PyErr_Occurred()) return NULL;        /* (a property memo site's miss raised) */
   return PyObject_CallOneArg(SLOWVIOL, arg);
 }
 /* suspects(states): the positions, ascending, of the states of a list that
@@ -345,6 +348,7 @@ static PyObject *suspects(PyObject *Py_UNUSED(self), PyObject *arg) {
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) { Py_DECREF(out); return NULL; }
     if (!okstate(s)) {
+      if (PyErr_Occurred()) { Py_DECREF(out); return NULL; }
       PyObject *j = PyLong_FromSsize_t(i);
       if (!j || PyList_Append(out, j)) { Py_XDECREF(j); Py_DECREF(out); return NULL; }
       Py_DECREF(j);
