@@ -379,7 +379,7 @@ class Generator:
         if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert") and not (
                 s.name in ("doReach", "add", "remove") and self.memo_reads(s) is not None):
             raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
-        if isinstance(s, A.Assign) and not isinstance(s.target, A.Name):
+        if isinstance(s, A.Assign) and not isinstance(s.target, A.Name) and self.memo_reads(s) is None:
             raise Unsupported(f"an indexed assignment (line {s.span.line})")
 
     def env_constant(self) -> None:
@@ -1071,6 +1071,17 @@ class Generator:
                 slots += [a0 + self.MV, a0 + self.MV + 1, a0 + self.MV + 4, a0 + self.MV + 5]
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
+        # the progress signature (pccl/model/frozen.py): shared, and per agent
+        # its status, allread, the loc: variables a property reads, position
+        # and target (the stall signature without the lock queue and flags)
+        prog = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
+        for i in range(N):
+            a0 = self.AG0 + i * A_
+            prog += [a0 + 3] + [a0 + 4 + k for k in vis] + [a0 + 4 + self.L + k for k in range(self.R)]
+            if self.moves:
+                prog += [a0 + self.MV, a0 + self.MV + 1]
+        out.append(self.c_array("PROGSLOTS", "int", prog))
+        out.append(f"#define NPROGSLOTS {len(prog)}")
         if por is not None:     # rstep's ample set: 1 found (its successors in the buffer), -1 an error
             out += ["static inline int ample(const V *s, Py_ssize_t b0) {", *ample, "  return 0;", "}"]
         out.append('#include "reduced.c"')

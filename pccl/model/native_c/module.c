@@ -119,6 +119,15 @@ static PyObject *sig(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!s) return NULL;
   return PyLong_FromLongLong((long long)sighash(s));
 }
+/* progsig(state): the progress signature's slots (PROGSLOTS, generated:
+   pccl/model/frozen.py's fields) as bytes, compared for equality */
+static PyObject *progsig(PyObject *Py_UNUSED(self), PyObject *arg) {
+  V sb[NS]; const V *s = arg_state(arg, sb);
+  if (!s) return NULL;
+  V g[NPROGSLOTS + 1];
+  for (int q = 0; q < NPROGSLOTS; q++) g[q] = s[PROGSLOTS[q]];
+  return PyBytes_FromStringAndSize((const char *)g, sizeof(V) * NPROGSLOTS);
+}
 /* sigs(states): sig of each state of a list, as int64s in one bytes object */
 static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
@@ -407,6 +416,7 @@ static PyMethodDef methods[] = {
   {"max_clock", max_clock, METH_O, "the largest time of a list of states"},
   {"key", key, METH_O, "the state's identity (canonical under symmetry)"},
   {"sig", sig, METH_O, "the stall signature's hash"},
+  {"progsig", progsig, METH_O, "the progress signature's slots"},
   {"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"},
   {"packed", packed, METH_O, "a state's bytes in the form the explorer holds"},
   {"unpacked", unpacked, METH_O, "a state's int64 vector, as bytes"},
