@@ -373,9 +373,6 @@ class Generator:
         self.env_constant()
 
     def stmt_ok(self, s) -> None:
-        from pccl.model.compile import has_rand
-        if has_rand(s) and not isinstance(s, (A.Atomic,)):
-            raise Unsupported(f"rand() in a statement (line {s.span.line})")
         if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert") and not (
                 s.name in ("doReach", "add", "remove") and self.memo_reads(s) is not None):
             raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
@@ -681,11 +678,9 @@ class Generator:
     # -- memo sites: what C does not compute, Python does once per read values --------
     def memo_reads(self, s) -> Optional[list]:
         """The variables statement ``s``'s rule reads beyond the agent's own
-        block and shared ((name, every agent) for an agent-indexed read), or
-        None when it reads what a memo key cannot hold (rand)."""
-        from pccl.model.compile import has_rand
-        if has_rand(s):
-            return None
+        block and shared ((name, every agent) for an agent-indexed read).  A
+        ``rand(n)`` is no read: the rule's successors are every outcome
+        (explore's enumeration), a function of the values read."""
         out: list = []
         for x in _stmt_exprs(s):
             for e in A.walk_expr(x):
@@ -849,6 +844,7 @@ class Generator:
         if "merge" in on:
             mg = RD.Merger(base)
             merge = [bool(mg.pc_ok(pc)) for pc in range(npc)]
+            self.rand_unchained(merge, por)
         sym = None
         if "symmetry" in on:
             why, slots = RD.symmetry_problem(base)
@@ -860,6 +856,23 @@ class Generator:
             sym = ([4 + k for k in loc_s] + [4 + self.L + k for k in ar_s],
                    [self.SH0 + k for k in sh_s])
         return por, merge, sym
+
+    def rand_unchained(self, merge: list, por: Optional[dict]) -> None:
+        """Unsupported when a merged chain may run a statement that draws
+        ``rand()`` (Merger._chain branches there, one merged transition per
+        outcome; C's chain follows one successor): a step at a pc merging
+        allows, or one partial-order reduction may move (its class)."""
+        from pccl.model.compile import has_rand
+        from pccl.model import independence as I
+        movable = (I.ACCESS, I.REQUEST_LOCK, I.RELEASE, I.EXECUTE)
+        for pc in range(len(merge)):
+            h = self.m.ctl.info(pc)
+            if h.kind not in MEMO_KINDS or h.sid is None or not has_rand(self.c.stmts[h.sid]):
+                continue
+            if merge[pc] or (por is not None and (por["cls"][pc] in movable or por["spent"][pc])):
+                raise Unsupported(f"rand() in a statement that statement merging runs through "
+                                  f"(line {self.c.stmts[h.sid].span.line}: a merged chain "
+                                  "branches at each outcome in the Python engine only)")
 
     def por_tables(self, base, npc: int) -> dict:
         """The tables of :class:`pccl.model.independence.Independence` (the
