@@ -152,7 +152,7 @@ OUT_OF_RANGE = "an int beyond the native range (INT64_MIN + 4 .. INT64_MAX)"
 #: target, obstacles, t0 (interned ids), doReach_done, doReach_fail
 MOVE_SLOTS = 7
 
-MAX_AGENTS = 16
+MAX_AGENTS = 64
 #: CPython's small-object allocator serves at most this many bytes; a bytes
 #: object takes its length plus this header
 _SMALL_OBJECT, _BYTES_HEADER = 512, sys.getsizeof(b"")
@@ -663,6 +663,17 @@ class Generator:
                 if case is None:
                     raise Unsupported("doReach")
                 case(body, i, h, r, "    ")
+                if h.kind in MEMO_KINDS or h.kind == K_EMPTY:
+                    # a runtime error in C (a division by zero, an int beyond
+                    # 64 bits, an undefined value, an agent index out of
+                    # range): the Python rule's successors in this state (an
+                    # agent stuck with its reason), through a memo site
+                    fall = None
+                    for q, line in enumerate(body):
+                        if line.strip() == "if (ovf) return -1;":
+                            if fall is None:
+                                fall = " ".join(x.strip() for x in self.case_memo(i, pc, h, ""))
+                            body[q] = line.replace("return -1;", f"{{ ovf = 0; {fall} break; }}")
             except Unsupported:
                 if h.kind not in MEMO_KINDS:
                     raise
@@ -683,13 +694,20 @@ class Generator:
         (explore's enumeration), a function of the values read."""
         out: list = []
         for x in _stmt_exprs(s):
-            for e in A.walk_expr(x):
-                if isinstance(e, A.Index):
-                    root, _chain = A.index_chain(e)
-                    if isinstance(root, A.Name) and root.name in self.lay.vars:
-                        vs = self.lay.vars[root.name]
-                        if vs.section != "allwrite":
-                            out.append(vs)
+            out += self.expr_reads(x)
+        return out
+
+    def expr_reads(self, x) -> list:
+        """The per-agent variables expression ``x`` indexes (read in every
+        agent's block: :meth:`memo_reads`)."""
+        out = []
+        for e in A.walk_expr(x):
+            if isinstance(e, A.Index):
+                root, _chain = A.index_chain(e)
+                if isinstance(root, A.Name) and root.name in self.lay.vars:
+                    vs = self.lay.vars[root.name]
+                    if vs.section != "allwrite":
+                        out.append(vs)
         return out
 
     def own_slots(self, i: int) -> list:
@@ -703,10 +721,10 @@ class Generator:
         (the agent's block but its counter, shared, the slots of other
         agents it indexes, the clock for a doReach that records t0), run by
         the Python rule on a miss (NativeModel._miss)."""
-        s = self.c.stmts[h.sid]
-        extra = self.memo_reads(s)
-        if extra is None:
-            raise Unsupported(f"rand() in a statement (line {s.span.line})")
+        if h.kind == K_EMPTY:       # the guards (a runtime error in one: the rule's stuck agent)
+            extra = [v for ev in self.c.program.events for v in self.expr_reads(ev.guard)]
+        else:
+            extra = self.memo_reads(self.c.stmts[h.sid])
         shared = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
         rs = self.own_slots(i) + shared
         for vs in extra:
