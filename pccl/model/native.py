@@ -373,11 +373,8 @@ class Generator:
         self.env_constant()
 
     def stmt_ok(self, s) -> None:
-        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert") and not (
-                s.name in ("doReach", "add", "remove") and self.memo_reads(s) is not None):
+        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert", "doReach", "add", "remove"):
             raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
-        if isinstance(s, A.Assign) and not isinstance(s.target, A.Name) and self.memo_reads(s) is None:
-            raise Unsupported(f"an indexed assignment (line {s.span.line})")
 
     def env_constant(self) -> None:
         """A program without doReach whose DOREACH INVOKE leaves positions,
@@ -509,7 +506,7 @@ class Generator:
             raise Unsupported("rand() in a property")
         t = subst(e, bound) if bound else e
         try:
-            rs = set()
+            rs: set = set()
             self.preads(t, rs)
             reads = sorted(rs)
         except Unsupported:         # what it reads is not known: every slot
@@ -522,7 +519,6 @@ class Generator:
     def preads(self, e, out: set) -> None:
         """The slots property expression ``e`` (bound names substituted)
         reads, into ``out``; Unsupported when it is not known."""
-        N = self.N
         if isinstance(e, (A.IntLit, A.FloatLit, A.BoolLit)):
             return
         if isinstance(e, A.Name):
@@ -541,47 +537,50 @@ class Generator:
             return self.preads(e.right, out)
         if isinstance(e, A.Quant):
             return self.preads(e.body, out)
-        if isinstance(e, A.ListLit):
-            for x in e.items:
-                self.preads(x, out)
+        if isinstance(e, (A.ListLit, A.Call)) and not (isinstance(e, A.Call) and e.name == "count"):
+            if isinstance(e, A.Call) and e.name in ("getAgentIndex", "getPosition", "getNumAgents", "rand"):
+                raise Unsupported(f"{e.name}() in a property")
+            for x in (e.items if isinstance(e, A.ListLit) else e.args):
+                self.preads(x, out)     # (the built-ins and the world's functions: pure)
             return
         if isinstance(e, A.Index):
-            root, chain = A.index_chain(e)
-            for ix in chain:
-                self.preads(ix.index, out)
-            i0 = chain[0].index
-            agents = ([i0.value] if isinstance(i0, A.IntLit) and 0 <= i0.value < N
-                      else range(N))
-            if not isinstance(root, A.Name):
-                return self.preads(root, out)
-            n = root.name
-            vs = self.lay.vars.get(n)
-            if vs is not None and vs.section == "allwrite":
-                out.add(self.SH0 + vs.slot)
-                return
-            if vs is not None and indexes_agent(vs.section, vs.ty.kind == "array", len(chain),
-                                                in_property=True):
-                off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
-                out.update(self.AG0 + j * self.A + off for j in agents)
-                return
-            if vs is None and n in ("running", "exited", "stuck"):
-                out.update(self.AG0 + j * self.A + 3 for j in agents)
-                return
-            if vs is None and n in ("pos", "doReach_done", "doReach_fail"):
-                if self.moves:      # (else constant: not in the vector)
-                    q = {"pos": 0, "doReach_done": 4, "doReach_fail": 5}[n]
-                    out.update(self.AG0 + j * self.A + self.MV + q for j in agents)
-                return
-            raise Unsupported(f"an index of '{n}'")
-        if isinstance(e, A.Call):
-            if e.name == "count" and len(e.args) == 1 and isinstance(e.args[0], A.Name):
-                return self.preads(A.Index(e.args[0], A.Name("_any_agent")), out)
-            if e.name in ("getAgentIndex", "getPosition", "getNumAgents", "rand", "count"):
-                raise Unsupported(f"{e.name}() in a property")
-            for x in e.args:        # the built-ins and the world's functions: pure
-                self.preads(x, out)
-            return
+            return self.pindex_reads(e, out)
+        if isinstance(e, A.Call) and len(e.args) == 1 and isinstance(e.args[0], A.Name):   # count(v)
+            return self.preads(A.Index(e.args[0], A.Name("_any_agent")), out)
         raise Unsupported(f"a {type(e).__name__} in a property")
+
+    def pindex_reads(self, e, out: set) -> None:
+        """Step of :meth:`preads`: an index chain ``v[j]...``: agent ``j``'s
+        slot of a per-agent variable (every agent's when ``j`` is not a
+        literal), its status, position or reach flags."""
+        N = self.N
+        root, chain = A.index_chain(e)
+        for ix in chain:
+            self.preads(ix.index, out)
+        i0 = chain[0].index
+        agents = ([i0.value] if isinstance(i0, A.IntLit) and 0 <= i0.value < N
+                  else range(N))
+        if not isinstance(root, A.Name):
+            return self.preads(root, out)
+        n = root.name
+        vs = self.lay.vars.get(n)
+        if vs is not None and vs.section == "allwrite":
+            out.add(self.SH0 + vs.slot)
+            return
+        if vs is not None and indexes_agent(vs.section, vs.ty.kind == "array", len(chain),
+                                            in_property=True):
+            off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
+            out.update(self.AG0 + j * self.A + off for j in agents)
+            return
+        if vs is None and n in ("running", "exited", "stuck"):
+            out.update(self.AG0 + j * self.A + 3 for j in agents)
+            return
+        if vs is None and n in ("pos", "doReach_done", "doReach_fail"):
+            if self.moves:      # (else constant: not in the vector)
+                q = {"pos": 0, "doReach_done": 4, "doReach_fail": 5}[n]
+                out.update(self.AG0 + j * self.A + self.MV + q for j in agents)
+            return
+        raise Unsupported(f"an index of '{n}'")
 
     def pexpr_c(self, e, bound: dict) -> str:
         """Step of :meth:`pexpr`: ``e`` computed in C, or Unsupported."""
@@ -687,7 +686,7 @@ class Generator:
         return out
 
     # -- memo sites: what C does not compute, Python does once per read values --------
-    def memo_reads(self, s) -> Optional[list]:
+    def memo_reads(self, s) -> list:
         """The variables statement ``s``'s rule reads beyond the agent's own
         block and shared ((name, every agent) for an agent-indexed read).  A
         ``rand(n)`` is no read: the rule's successors are every outcome
