@@ -249,6 +249,7 @@ def test_a_search_larger_than_the_limit_says_the_check_did_not_run(monkeypatch):
     assert res.status == "bounded" and not any("frozen" in n for n in res.notes)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("world", [PILLAR, FOUR])
 def test_the_native_and_python_engines_find_the_same_frozen_team(world):
     """The check on the native engine's search explores the native model

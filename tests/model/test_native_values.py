@@ -22,7 +22,9 @@ from cases import src
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 _probe = make_model(os.path.join(ROOT, "programs/fischer.pccl"), reduce="none")
 MISSING = NV.unsupported(_probe)
-pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"native engine unavailable: {MISSING}")
+# (every test compiles native modules and runs both engines: seconds each)
+pytestmark = [pytest.mark.skipif(MISSING is not None, reason=f"native engine unavailable: {MISSING}"),
+              pytest.mark.slow]
 
 UNREDUCED = dict(reduce="none", timelock=False, stall=False)
 
