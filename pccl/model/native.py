@@ -341,8 +341,6 @@ class Generator:
         m = self.m
         if self.N > MAX_AGENTS:
             raise Unsupported(f"more than {MAX_AGENTS} agents")
-        if m.collisions:
-            raise Unsupported("collision checking")
         if m.temporal:
             raise Unsupported("a temporal property")
         if type(m.delta) is not int:
@@ -513,6 +511,18 @@ class Generator:
             reads = list(range(self.NS))
         k = len(self.sites)
         self.sites.append(("prop", None, t, tuple(reads), ()))
+        self.pdecls.append(f"static const int PR{k}[] = {{{', '.join(map(str, reads)) or '0'}}};")
+        return f"memo_value(s, {k}, PR{k}, {len(reads)})"
+
+    def collision_site(self) -> str:
+        """C of the collision check (``--collisions``): a memo site of kind
+        "coll" over every agent's position slot (none when positions are not
+        in the vector: one lookup), 1 when no robots touch each other or an
+        obstacle (the Python model's own check on a miss), else 0: the
+        state is a suspect and the Python model's violations name them."""
+        reads = [self.AG0 + j * self.A + self.MV for j in range(self.N)] if self.moves else []
+        k = len(self.sites)
+        self.sites.append(("coll", None, None, tuple(reads), ()))
         self.pdecls.append(f"static const int PR{k}[] = {{{', '.join(map(str, reads)) or '0'}}};")
         return f"memo_value(s, {k}, PR{k}, {len(reads)})"
 
@@ -1142,6 +1152,8 @@ class Generator:
             f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
             for i in range(N))
         props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
+        if m.collisions:
+            props += f" && {self.collision_site()}"
         reduced = self.reduced_c()
         if self.moves:
             envc = "    " + self.env_site()
@@ -1498,6 +1510,8 @@ class NativeModel:
         out: list = []
         if kind == "prop":
             return (array("q", [self._pvalue(k, pc, st)]).tobytes(), None)
+        if kind == "coll":
+            return (array("q", [0 if m.checks.collision_violations(st) else 1]).tobytes(), None)
         if kind == "env":
             R.doreach_invoke(m, st, out)
         else:

@@ -1,8 +1,8 @@
 """Issue 43.1: the native engine for the programs that fell back to the
 Python engine: invariants over positions, floats and lists (``dist()``,
-``mine[i] != mine[j]``: property memo sites), indexed assignments, rand()
-in statements, more than 16 agents, and the frozen-team check on the
-native model.  Python stays the reference: each construct is checked on
+``mine[i] != mine[j]``: property memo sites), collision checking,
+indexed assignments, rand() in statements, more than 16 agents, and the
+frozen-team check on the native model.  Python stays the reference: each construct is checked on
 programs using it, native against Python (verdict, states, transitions,
 depth, violations with their messages, counterexample labels and
 configurations), including the edge cases of floats and ints (division by
@@ -83,6 +83,13 @@ FALLEN = [
     ("patrol-pillar", P("tests/programs/patrol.pccl"),
      dict(world=P("tests/programs/patrol_pillar.toml"), blackbox="straight", max_states=6000)),
     ("ref_undef", P("tests/programs/ref_undef.pccl"), dict(blackbox="instant")),
+    # --collisions: a memo site over the positions (the Python model's own check on a miss)
+    ("collide-collisions", P("programs/collide.pccl"),
+     dict(world=P("programs/collide.toml"), blackbox="straight", collisions=True)),
+    ("collide_fixed-collisions", P("programs/collide_fixed.pccl"),
+     dict(world=P("programs/collide.toml"), blackbox="straight", collisions=True)),
+    ("dock_retry-collisions", P("docs/examples/dock_retry.pccl"),
+     dict(DOCK, blackbox="straight", collisions=True)),
 ]
 
 
