@@ -657,6 +657,10 @@ class Generator:
         A_ = self.AG0 + i * self.A
         r = _Regs(A_, A_ + 1, A_ + 2, A_ + 3, m.rho[i])
         out = [f"static int agent{i}(const V *s) {{",
+               # (an error met before, in the ample set's footprints: the
+               # search fails, as before; a cell's own error falls back to
+               # its Python rule below)
+               "  if (ovf) return -1;",
                f"  int spent = s[{r.CNT}] + {r.rho} > {m.n0};",
                f"  switch (s[{r.PC}]) {{"]
         cases = {K_EMPTY: self.case_empty, K_END: self.case_end, K_AEND: self.case_aend,
