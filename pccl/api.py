@@ -697,10 +697,11 @@ def _frozen_check(plan: _SearchPlan, ex: Any, sr: SearchResult, lv) -> None:
         return
     if sr.stats.states > F.LIMIT:
         lv.notes.append(f"frozen teams not checked: {sr.stats.states:,} states, more than the "
-                        f"{F.LIMIT:,} the check explores again (in Python)")
+                        f"{F.LIMIT:,} the check explores again"
+                        + (" (in Python)" if plan.native is None else ""))
         return
     t0 = _time.perf_counter()
-    fr = F.check(plan.model, F.LIMIT)
+    fr = F.check(plan.model, F.LIMIT, plan.native)
     sr.stats.seconds += _time.perf_counter() - t0
     if not fr.ran:
         lv.notes.append(f"frozen teams not checked: {fr.reason}")

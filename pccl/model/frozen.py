@@ -129,17 +129,23 @@ class _Graph:
     changes: np.ndarray    # per state: some transition out of it changes the progress signature
 
 
-def _explore(model, limit: int) -> Optional[_Graph]:
+def _explore(model, limit: int, native: Any = None) -> Optional[_Graph]:
     """Breadth-first over ``model`` (the reduced model of the search), with
     each transition's event and progress change; None past ``limit``
     states.  A change is decided on the successor as made, before the
-    symmetry reduction renames it (as the stall check does)."""
-    sig = progress_signature_fn(model)
-    key, succ = model.key, model.successors
+    symmetry reduction renames it (as the stall check does).  With
+    ``native`` (the search's :class:`pccl.model.native.NativeModel` of
+    ``model``) its successors and keys (the same relation, in the same
+    order), the states its vectors, the signature its slots (in C)."""
+    if native is not None:      # (the signature's slots, compared as bytes)
+        sig, key, succ, first = native.lib.progsig, native.key, native.successors, native.init_states()
+    else:
+        sig, key, succ = progress_signature_fn(model), model.key, model.successors
+        first = model.init_states()
     index: dict = {}
     states: list = []
     parent: list = []
-    for s in model.init_states():
+    for s in first:
         k = key(s)
         if k not in index:
             index[k] = len(states)
@@ -174,11 +180,11 @@ def _explore(model, limit: int) -> Optional[_Graph]:
                   np.asarray(event, dtype=np.int32), np.asarray(changes, dtype=bool))
 
 
-def _frozen_events(model, gr: _Graph):
+def _frozen_events(model, gr: _Graph, native: Any = None):
     """The first frozen state (breadth-first), the events that can never
     fire again from it and those that still fire there, or None."""
     n = len(gr.states)
-    dyn = np.fromiter(model.time_costs(gr.states), dtype=np.uint8, count=n).astype(bool)
+    dyn = np.fromiter((native or model).time_costs(gr.states), dtype=np.uint8, count=n).astype(bool)
     return _decide(model, n, gr.src, gr.dst, gr.event, gr.changes, dyn)
 
 
@@ -251,20 +257,22 @@ def _expanded(model, trace):
     return model.expand_trace(trace)
 
 
-def check(model, limit: int = LIMIT) -> FrozenResult:
+def check(model, limit: int = LIMIT, native: Any = None) -> FrozenResult:
     """Is the team of ``model`` (a reduced model, :class:`pccl.model.reduce.Reduced`)
-    frozen somewhere?  Explores it again (see the module docstring)."""
+    frozen somewhere?  Explores it again (see the module docstring); with
+    ``native`` (the search's native model of ``model``) on the native
+    engine, the same graph in the same order."""
     import time
     from pccl.search.explorer import Trace
     from pccl.search.liveness import TemporalViolation
     t0 = time.perf_counter()
-    gr = _explore(model, limit)
+    gr = _explore(model, limit, native)
     if gr is None:
         return FrozenResult(False, f"more than {limit:,} states: the check explores the "
-                                   f"graph again, in Python, up to {limit:,}",
+                                   f"graph again up to {limit:,}",
                             seconds=time.perf_counter() - t0)
     out = FrozenResult(True, states=len(gr.states))
-    found = _frozen_events(model, gr)
+    found = _frozen_events(model, gr, native)
     if found is not None:
         first, never, live, fired = found
         states, labels = [gr.states[first]], []
@@ -273,6 +281,8 @@ def check(model, limit: int = LIMIT) -> FrozenResult:
             at, lab = gr.parent[at]
             states.append(gr.states[at])
             labels.append(lab)
+        if native is not None:      # (the native vectors as configurations)
+            states = [native.decode(b) for b in states]
         out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
         out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
     out.seconds = time.perf_counter() - t0

@@ -154,7 +154,7 @@ OUT_OF_RANGE = "an int beyond the native range (INT64_MIN + 4 .. INT64_MAX)"
 #: target, obstacles, t0 (interned ids), doReach_done, doReach_fail
 MOVE_SLOTS = 7
 
-MAX_AGENTS = 16
+MAX_AGENTS = 64
 #: interned ids below this have a point class in C (native_c/temporal.h)
 TPOINT_CAP = 65536
 #: CPython's small-object allocator serves at most this many bytes; a bytes
@@ -172,6 +172,7 @@ _STABLE_MASK = (1 << 31) - 1
 #: kinds of values held as interned ids (value <-> small int, NativeModel's
 #: table); C compares them only for equality, Python computes on them
 INTERNED = ("pos", "list", "obstacles", "float", "array")
+_CMP = ("<", "<=", ">", ">=", "==", "!=")
 
 
 class NativeOverflow(RuntimeError):
@@ -288,6 +289,8 @@ class Generator:
         #: "stmt" (a statement's rule run by Python on a miss) or "env"
         #: (DOREACH INVOKE, the blackbox's outcomes)
         self.sites: list = []
+        #: the C arrays of the property memo sites' read slots (:meth:`pmemo`)
+        self.pdecls: list = []
 
     # -- layout ------------------------------------------------------------------
     @property
@@ -352,13 +355,6 @@ class Generator:
         m = self.m
         if self.N > MAX_AGENTS:
             raise Unsupported(f"more than {MAX_AGENTS} agents")
-        if m.collisions:
-            raise Unsupported("collision checking")
-        for tp in m.temporal:
-            try:
-                self.temporal_exprs(tp)
-            except Unsupported as e:
-                raise Unsupported(f"temporal property '{tp.name}': {e}") from None
         if type(m.delta) is not int:
             raise Unsupported("a non-integer δ")
         from pccl.blackboxes import BLACKBOXES
@@ -375,6 +371,7 @@ class Generator:
             self.stmt_ok(s)
         for ev in self.c.program.events:
             self.expr(ev.guard, 0)
+        nsites = len(self.sites)
         for p in m.properties:
             if p.expr is None:
                 raise Unsupported(f"invariant '{p.name}' has no expression")
@@ -382,6 +379,12 @@ class Generator:
                 self.pexpr(p.expr, {})
             except Unsupported as e:
                 raise Unsupported(f"invariant '{p.name}': {e}") from None
+        for tp in m.temporal:
+            try:
+                self.temporal_exprs(tp)
+            except Unsupported as e:
+                raise Unsupported(f"temporal property '{tp.name}': {e}") from None
+        del self.sites[nsites:], self.pdecls[:]      # (source() makes them again)
         self.env_constant()
 
     def temporal_exprs(self, tp) -> list:
@@ -423,14 +426,8 @@ class Generator:
         return "\n".join(out)
 
     def stmt_ok(self, s) -> None:
-        from pccl.model.compile import has_rand
-        if has_rand(s) and not isinstance(s, (A.Atomic,)):
-            raise Unsupported(f"rand() in a statement (line {s.span.line})")
-        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert") and not (
-                s.name in ("doReach", "add", "remove") and self.memo_reads(s) is not None):
+        if isinstance(s, A.CallStmt) and s.name not in ("exit", "assert", "doReach", "add", "remove"):
             raise Unsupported(f"the statement {s.name}() (line {s.span.line})")
-        if isinstance(s, A.Assign) and not isinstance(s.target, A.Name):
-            raise Unsupported(f"an indexed assignment (line {s.span.line})")
 
     def env_constant(self) -> None:
         """A program without doReach whose DOREACH INVOKE leaves positions,
@@ -536,17 +533,132 @@ class Generator:
         raise Unsupported(f"the expression {what}" + (f" at line {span.line}:{span.column}"
                                                      if span is not None else ""))
 
-    def pexpr(self, e, bound: dict) -> str:
-        """C for a property expression (``bound``: quantified name -> agent)."""
+    def pexpr(self, e, bound: dict, boolean: bool = True) -> str:
+        """C for a property expression (``bound``: quantified name -> agent).
+        ``boolean``: ``e``'s value is a truth value (an operand of ``&& || ->
+        !``, a quantifier's body, the property): where C cannot compute such
+        an expression, or a comparison (over positions, floats, lists,
+        ``dist()``, ...), it is a *property memo site* (:meth:`pmemo`):
+        Python evaluates it once per values of the slots it reads."""
+        try:
+            return self.pexpr_c(e, bound)
+        except Unsupported:
+            if not (boolean or (isinstance(e, A.Binary) and e.op in _CMP)):
+                raise
+            return self.pmemo(e, bound)
+
+    def pmemo(self, e, bound: dict) -> str:
+        """C of property expression ``e`` (bound names substituted by their
+        agents) as a memo site of kind "prop": its value (bool or int) looked
+        up by the values of the slots it reads (:meth:`preads`), computed by
+        the Python model's own predicate on a miss (:meth:`NativeModel._miss`);
+        a value C does not hold (an error, a float) marks the state a suspect
+        (``okstate`` fails: the Python model's violations decide it)."""
+        from pccl.model.properties import subst
+        if any(isinstance(x, A.Call) and x.name == "rand" for x in A.walk_expr(e)):
+            raise Unsupported("rand() in a property")
+        t = subst(e, bound) if bound else e
+        try:
+            rs: set = set()
+            self.preads(t, rs)
+            reads = sorted(rs)
+        except Unsupported:         # what it reads is not known: every slot
+            reads = list(range(self.NS))
+        k = len(self.sites)
+        self.sites.append(("prop", None, t, tuple(reads), ()))
+        self.pdecls.append(f"static const int PR{k}[] = {{{', '.join(map(str, reads)) or '0'}}};")
+        return f"memo_value(s, {k}, PR{k}, {len(reads)})"
+
+    def collision_site(self) -> str:
+        """C of the collision check (``--collisions``): a memo site of kind
+        "coll" over every agent's position slot (none when positions are not
+        in the vector: one lookup), 1 when no robots touch each other or an
+        obstacle (the Python model's own check on a miss), else 0: the
+        state is a suspect and the Python model's violations name them."""
+        reads = [self.AG0 + j * self.A + self.MV for j in range(self.N)] if self.moves else []
+        k = len(self.sites)
+        self.sites.append(("coll", None, None, tuple(reads), ()))
+        self.pdecls.append(f"static const int PR{k}[] = {{{', '.join(map(str, reads)) or '0'}}};")
+        return f"memo_value(s, {k}, PR{k}, {len(reads)})"
+
+    def preads(self, e, out: set) -> None:
+        """The slots property expression ``e`` (bound names substituted)
+        reads, into ``out``; Unsupported when it is not known."""
+        if isinstance(e, (A.IntLit, A.FloatLit, A.BoolLit)):
+            return
+        if isinstance(e, A.Name):
+            vs = self.lay.vars.get(e.name)
+            if e.name == "time":
+                out.add(V_TIME)
+            elif vs is not None and vs.section == "allwrite":
+                out.add(self.SH0 + vs.slot)
+            elif vs is not None:
+                raise Unsupported("an unindexed per-agent variable")
+            return              # N, an enum member, a quantified name
+        if isinstance(e, (A.Unary, A.Field)):
+            return self.preads(e.operand if isinstance(e, A.Unary) else e.base, out)
+        if isinstance(e, A.Binary):
+            self.preads(e.left, out)
+            return self.preads(e.right, out)
+        if isinstance(e, A.Quant):
+            return self.preads(e.body, out)
+        if isinstance(e, (A.ListLit, A.Call)) and not (isinstance(e, A.Call) and e.name == "count"):
+            if isinstance(e, A.Call) and e.name in ("getAgentIndex", "getPosition", "getNumAgents", "rand"):
+                raise Unsupported(f"{e.name}() in a property")
+            for x in (e.items if isinstance(e, A.ListLit) else e.args):
+                self.preads(x, out)     # (the built-ins and the world's functions: pure)
+            return
+        if isinstance(e, A.Index):
+            return self.pindex_reads(e, out)
+        if isinstance(e, A.Call) and len(e.args) == 1 and isinstance(e.args[0], A.Name):   # count(v)
+            return self.preads(A.Index(e.args[0], A.Name("_any_agent")), out)
+        raise Unsupported(f"a {type(e).__name__} in a property")
+
+    def pindex_reads(self, e, out: set) -> None:
+        """Step of :meth:`preads`: an index chain ``v[j]...``: agent ``j``'s
+        slot of a per-agent variable (every agent's when ``j`` is not a
+        literal), its status, position or reach flags."""
+        N = self.N
+        root, chain = A.index_chain(e)
+        for ix in chain:
+            self.preads(ix.index, out)
+        i0 = chain[0].index
+        agents = ([i0.value] if isinstance(i0, A.IntLit) and 0 <= i0.value < N
+                  else range(N))
+        if not isinstance(root, A.Name):
+            return self.preads(root, out)
+        n = root.name
+        vs = self.lay.vars.get(n)
+        if vs is not None and vs.section == "allwrite":
+            out.add(self.SH0 + vs.slot)
+            return
+        if vs is not None and indexes_agent(vs.section, vs.ty.kind == "array", len(chain),
+                                            in_property=True):
+            off = 4 + vs.slot if vs.section == "loc" else 4 + self.L + vs.slot
+            out.update(self.AG0 + j * self.A + off for j in agents)
+            return
+        if vs is None and n in ("running", "exited", "stuck"):
+            out.update(self.AG0 + j * self.A + 3 for j in agents)
+            return
+        if vs is None and n in ("pos", "doReach_done", "doReach_fail"):
+            if self.moves:      # (else constant: not in the vector)
+                q = {"pos": 0, "doReach_done": 4, "doReach_fail": 5}[n]
+                out.update(self.AG0 + j * self.A + self.MV + q for j in agents)
+            return
+        raise Unsupported(f"an index of '{n}'")
+
+    def pexpr_c(self, e, bound: dict) -> str:
+        """Step of :meth:`pexpr`: ``e`` computed in C, or Unsupported."""
         if isinstance(e, (A.BoolLit, A.IntLit)):
             return self.expr(e, 0)
         if isinstance(e, A.Name):
             return self.pname(e, bound)
         if isinstance(e, A.Unary):
-            x = self.pexpr(e.operand, bound)
+            x = self.pexpr(e.operand, bound, e.op == "!")
             return f"((V)!{x})" if e.op == "!" else f"NEG({x})"
         if isinstance(e, A.Binary):
-            return self.binop(e.op, self.pexpr(e.left, bound), self.pexpr(e.right, bound))
+            logic = e.op in ("&&", "||", "->")
+            return self.binop(e.op, self.pexpr(e.left, bound, logic), self.pexpr(e.right, bound, logic))
         if isinstance(e, A.Quant):
             terms = [self.pexpr(e.body, {**bound, e.var: q}) for q in range(self.N)]
             op = " && " if e.kind == "forall" else " || "
@@ -609,6 +721,10 @@ class Generator:
         A_ = self.AG0 + i * self.A
         r = _Regs(A_, A_ + 1, A_ + 2, A_ + 3, m.rho[i])
         out = [f"static int agent{i}(const V *s) {{",
+               # (an error met before, in the ample set's footprints: the
+               # search fails, as before; a cell's own error falls back to
+               # its Python rule below)
+               "  if (ovf) return -1;",
                f"  int spent = s[{r.CNT}] + {r.rho} > {m.n0};",
                f"  switch (s[{r.PC}]) {{"]
         cases = {K_EMPTY: self.case_empty, K_END: self.case_end, K_AEND: self.case_aend,
@@ -624,6 +740,17 @@ class Generator:
                 if case is None:
                     raise Unsupported("doReach")
                 case(body, i, h, r, "    ")
+                if h.kind in MEMO_KINDS or h.kind == K_EMPTY:
+                    # a runtime error in C (a division by zero, an int beyond
+                    # 64 bits, an undefined value, an agent index out of
+                    # range): the Python rule's successors in this state (an
+                    # agent stuck with its reason), through a memo site
+                    fall = None
+                    for q, line in enumerate(body):
+                        if line.strip() == "if (ovf) return -1;":
+                            if fall is None:
+                                fall = " ".join(x.strip() for x in self.case_memo(i, pc, h, ""))
+                            body[q] = line.replace("return -1;", f"{{ ovf = 0; {fall} break; }}")
             except Unsupported:
                 if h.kind not in MEMO_KINDS:
                     raise
@@ -637,22 +764,27 @@ class Generator:
         return out
 
     # -- memo sites: what C does not compute, Python does once per read values --------
-    def memo_reads(self, s) -> Optional[list]:
+    def memo_reads(self, s) -> list:
         """The variables statement ``s``'s rule reads beyond the agent's own
-        block and shared ((name, every agent) for an agent-indexed read), or
-        None when it reads what a memo key cannot hold (rand)."""
-        from pccl.model.compile import has_rand
-        if has_rand(s):
-            return None
+        block and shared ((name, every agent) for an agent-indexed read).  A
+        ``rand(n)`` is no read: the rule's successors are every outcome
+        (explore's enumeration), a function of the values read."""
         out: list = []
         for x in _stmt_exprs(s):
-            for e in A.walk_expr(x):
-                if isinstance(e, A.Index):
-                    root, _chain = A.index_chain(e)
-                    if isinstance(root, A.Name) and root.name in self.lay.vars:
-                        vs = self.lay.vars[root.name]
-                        if vs.section != "allwrite":
-                            out.append(vs)
+            out += self.expr_reads(x)
+        return out
+
+    def expr_reads(self, x) -> list:
+        """The per-agent variables expression ``x`` indexes (read in every
+        agent's block: :meth:`memo_reads`)."""
+        out = []
+        for e in A.walk_expr(x):
+            if isinstance(e, A.Index):
+                root, _chain = A.index_chain(e)
+                if isinstance(root, A.Name) and root.name in self.lay.vars:
+                    vs = self.lay.vars[root.name]
+                    if vs.section != "allwrite":
+                        out.append(vs)
         return out
 
     def own_slots(self, i: int) -> list:
@@ -666,10 +798,10 @@ class Generator:
         (the agent's block but its counter, shared, the slots of other
         agents it indexes, the clock for a doReach that records t0), run by
         the Python rule on a miss (NativeModel._miss)."""
-        s = self.c.stmts[h.sid]
-        extra = self.memo_reads(s)
-        if extra is None:
-            raise Unsupported(f"rand() in a statement (line {s.span.line})")
+        if h.kind == K_EMPTY:       # the guards (a runtime error in one: the rule's stuck agent)
+            extra = [v for ev in self.c.program.events for v in self.expr_reads(ev.guard)]
+        else:
+            extra = self.memo_reads(self.c.stmts[h.sid])
         shared = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
         rs = self.own_slots(i) + shared
         for vs in extra:
@@ -807,6 +939,7 @@ class Generator:
         if "merge" in on:
             mg = RD.Merger(base)
             merge = [bool(mg.pc_ok(pc)) for pc in range(npc)]
+            self.rand_unchained(merge, por)
         sym = None
         if "symmetry" in on:
             why, slots = RD.symmetry_problem(base)
@@ -818,6 +951,23 @@ class Generator:
             sym = ([4 + k for k in loc_s] + [4 + self.L + k for k in ar_s],
                    [self.SH0 + k for k in sh_s])
         return por, merge, sym
+
+    def rand_unchained(self, merge: list, por: Optional[dict]) -> None:
+        """Unsupported when a merged chain may run a statement that draws
+        ``rand()`` (Merger._chain branches there, one merged transition per
+        outcome; C's chain follows one successor): a step at a pc merging
+        allows, or one partial-order reduction may move (its class)."""
+        from pccl.model.compile import has_rand
+        from pccl.model import independence as I
+        movable = (I.ACCESS, I.REQUEST_LOCK, I.RELEASE, I.EXECUTE)
+        for pc in range(len(merge)):
+            h = self.m.ctl.info(pc)
+            if h.kind not in MEMO_KINDS or h.sid is None or not has_rand(self.c.stmts[h.sid]):
+                continue
+            if merge[pc] or (por is not None and (por["cls"][pc] in movable or por["spent"][pc])):
+                raise Unsupported(f"rand() in a statement that statement merging runs through "
+                                  f"(line {self.c.stmts[h.sid].span.line}: a merged chain "
+                                  "branches at each outcome in the Python engine only)")
 
     def por_tables(self, base, npc: int) -> dict:
         """The tables of :class:`pccl.model.independence.Independence` (the
@@ -1042,6 +1192,10 @@ class Generator:
                 pslots += [a0 + self.MV, a0 + self.MV + 1]
         out.append(self.c_array("PSIGSLOTS", "int", pslots))
         out.append(f"#define NPSIGSLOTS {len(pslots)}")
+        # (the native engine's own re-exploration of the frozen-team check
+        # reads the same slots: native_c/module.c's progsig)
+        out.append("#define PROGSLOTS PSIGSLOTS")
+        out.append("#define NPROGSLOTS NPSIGSLOTS")
         if por is not None:     # rstep's ample set: 1 found (its successors in the buffer), -1 an error
             out += ["static inline int ample(const V *s, Py_ssize_t b0) {", *ample, "  return 0;", "}"]
         out.append('#include "reduced.c"')
@@ -1072,6 +1226,8 @@ class Generator:
             f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
             for i in range(N))
         props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
+        if m.collisions:
+            props += f" && {self.collision_site()}"
         reduced = self.reduced_c()
         if self.moves:
             envc = "    " + self.env_site()
@@ -1112,6 +1268,7 @@ class Generator:
             "  return ovf ? -1 : 0;",
             "}",
             reduced,
+            *self.pdecls,
             "/* no agent stuck, the lock's holder not exited, every invariant holds */",
             "static inline int okexpr(const V *s) {",
             f"  return {ok};",
@@ -1168,6 +1325,8 @@ class NativeModel:
         #: per memo site, the slots it does not write (see :meth:`_miss`)
         self._unwritten: dict = {}
         self._pending: dict = {}
+        #: the Python predicates of the property memo sites (:meth:`_pvalue`)
+        self._pfns: dict = {}
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
         # the shipped blackboxes' outcomes in C (native_robots.py): their
@@ -1466,6 +1625,10 @@ class NativeModel:
         st = self.decode(b)
         m = self._base
         out: list = []
+        if kind == "prop":
+            return (array("q", [self._pvalue(k, pc, st)]).tobytes(), None)
+        if kind == "coll":
+            return (array("q", [0 if m.checks.collision_violations(st) else 1]).tobytes(), None)
         if kind == "env":
             R.doreach_invoke(m, st, out)
         else:
@@ -1492,6 +1655,22 @@ class NativeModel:
             val.append(self.gen.lab(label))
             val.extend(t[q] for q in ws)
         return (val.tobytes(), None)
+
+    def _pvalue(self, k: int, e, st) -> int:
+        """Property memo site ``k``'s value in configuration ``st``: the
+        Python model's predicate of expression ``e`` as an int, or undefined
+        (INT64_MIN: C then leaves the state to the Python violations) when
+        it is not a bool or an int of the native range, or raises."""
+        fn = self._pfns.get(k)
+        if fn is None:
+            fn = self._pfns[k] = self.py.compiled.state_predicate(e)[1]
+        try:
+            v = fn(st)
+        except Exception:       # (the Python violations say what it is)
+            return -(1 << 63)
+        if type(v) is bool or (type(v) is int and V_MIN <= v <= V_MAX):
+            return int(v)
+        return -(1 << 63)
 
     # -- the explorer's protocol -------------------------------------------------------
     def init_states(self):

@@ -223,11 +223,34 @@ def test_a_search_larger_than_the_limit_says_the_check_did_not_run(monkeypatch):
     monkeypatch.setenv("PCCL_FROZEN_GRAPH", "0")
     res = explore(PATROL, world=FOUR, blackbox="straight")
     assert res.status == "exhaustive" and res.exit_status == 0
+    # (the native engine's search: the check explores its native model again)
+    assert res.model.engine_used == "native"
+    assert "frozen teams not checked: 3,160 states, more than the 1,000 the check explores again" \
+        in res.notes
+    res = explore(PATROL, world=FOUR, blackbox="straight", engine="python")
     assert ("frozen teams not checked: 3,160 states, more than the 1,000 the check explores "
             "again (in Python)") in res.notes
     # and a bounded or violating search says nothing of it
     res = explore(PATROL, world=FOUR, blackbox="straight", max_states=100)
     assert res.status == "bounded" and not any("frozen" in n for n in res.notes)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("world", [PILLAR, FOUR])
+def test_the_native_and_python_engines_find_the_same_frozen_team(world):
+    """The check on the native engine's search explores the native model
+    (successors, keys, the progress signature's slots in C): the same
+    verdict, message, counts and path as on the Python engine's."""
+    out = {}
+    for engine in ("python", "native"):
+        r = explore(PATROL, world=world, blackbox="straight", engine=engine, find_all=True)
+        assert r.model.engine_used == engine
+        out[engine] = (r.status, r.stats.states, r.stats.transitions,
+                       [(cx.violation.kind, cx.violation.message, cx.trace.labels,
+                         [tuple(a[1:] for a in st[4]) for st in cx.trace.states])
+                        for cx in r.counterexamples])
+    assert out["native"] == out["python"]
+    assert any(v[0] == "frozen" for v in out["python"][3])
 
 
 def test_check_stops_at_its_limit():

@@ -121,10 +121,11 @@ def test_auto_falls_back_with_the_reason():
     r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1"},
                 properties=("eventually count(doReach_done) == 2",), max_states=100)
     assert r.model.engine_used == "python"
-    assert "temporal property 'eventually count(doReach_done) == 2'" in r.model.engine_reason
-    r = explore(os.path.join(ROOT, "programs/formation.pccl"), reduce="none", timelock=False,
-                world=os.path.join(ROOT, "programs/formation.toml"), stall=False, max_states=100)
-    assert r.model.engine_used == "python" and "invariant" in r.model.engine_reason
+    assert "temporal property" in r.model.engine_reason
+    r = explore(os.path.join(ROOT, "programs/race.pccl"), reduce="none", timelock=False,
+                world=os.path.join(ROOT, "programs/race.toml"), stall=False, max_states=100,
+                delta=0.5, blackbox="straight")
+    assert r.model.engine_used == "python" and r.model.engine_reason == "a non-integer δ"
     r = explore(os.path.join(ROOT, "programs/fischer.pccl"), overrides={"k": "1", "d": "1"},
                 **UNREDUCED)
     assert r.model.engine_used == "native" and r.model.engine_reason is None
@@ -162,12 +163,17 @@ def test_header_names_the_engine(tmp_path):
     out = CliRunner().invoke(main, args[:7]).output     # the defaults
     assert head(out).endswith("reductions merge+symmetry+por+dead, engine native")
     # auto where the native engine cannot: the header says why
+    out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/race.pccl"),
+                                    "--world", os.path.join(ROOT, "programs/race.toml"),
+                                    "--delta", "0.5", "-b", "straight",
+                                    "--no-progress", "--max-states", "50"]).output
+    assert head(out).endswith("engine python (about 50x slower than the native engine, because "
+                              "a non-integer δ)")
+    # formation's invariant over positions (dist()) runs native (issue 43.1)
     out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/formation.pccl"),
                                     "--world", os.path.join(ROOT, "programs/formation.toml"),
                                     "--no-progress", "--max-states", "50"]).output
-    assert head(out).endswith("engine python (about 50x slower than the native engine, because "
-                              "invariant 'flagMeansArrived': the property expression dist() is "
-                              "beyond the native subset)")
+    assert head(out).endswith(", engine native")
     # a program that moves runs native
     out = CliRunner().invoke(main, ["explore", os.path.join(ROOT, "programs/race.pccl"),
                                     "--no-progress", "--max-states", "50"]).output

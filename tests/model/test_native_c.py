@@ -30,6 +30,9 @@ CASES = {
     "fischer-reduced": ("fischer.pccl", {"reduce": "auto"}),
     "fischer-unreduced": ("fischer.pccl", {"reduce": "none", "abstract_time": False}),
     "race_robust-world": ("race_robust.pccl", {"world": os.path.join(PROGRAMS, "race.toml")}),
+    # property memo sites (dist(), positions), collisions, memo fall-backs of C's errors
+    "formation-collisions": ("formation.pccl", {"world": os.path.join(PROGRAMS, "formation.toml"),
+                                                "collisions": True, "blackbox": "straight"}),
 }
 
 

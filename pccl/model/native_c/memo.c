@@ -217,3 +217,30 @@ static MAYBE_UNUSED int memo_site(const V *s, int k, const int *R_, int nr, cons
   if (kt) pthread_rwlock_unlock(&MLOCK);
   return r ? -1 : 0;
 }
+/* the value of property memo site k in state s (Generator.pmemo): an int
+   the site's Python predicate gave for the values of the slots R_ it reads.
+   Undefined (the predicate raised, or gave what a slot does not hold), a
+   miss another thread must fill (KDEFER) or an error set ovf: okstate then
+   fails, and the Python model's violations decide the state */
+static MAYBE_UNUSED V memo_value(const V *s, int k, const int *R_, int nr) {
+  V key[MEMO_KMAX];
+  key[0] = k;
+  for (int q = 0; q < nr; q++) key[1 + q] = s[R_[q]];
+  int kt = KT;
+  if (kt) pthread_rwlock_rdlock(&MLOCK);
+  const V *val = memo_find(key, nr + 1);
+  if (val) {
+    if (kt) __atomic_fetch_add(&MEMO_HIT, 1, __ATOMIC_RELAXED);
+    else MEMO_HIT++;
+  } else if (!kt) {
+    if (!(val = memo_miss(s, key, nr + 1, NULL))) { ovf = 1; return 0; }
+  } else {
+    pthread_rwlock_unlock(&MLOCK);
+    if (KHELP) { KDEFER = 1; ovf = 1; return 0; }     /* (the calling thread's to fill) */
+    if (!(val = memo_miss_kernel(s, key, nr + 1))) { ovf = 1; return 0; }
+  }
+  V v = val[0];
+  if (kt) pthread_rwlock_unlock(&MLOCK);
+  if (v == INT64_MIN) ovf = 1;
+  return v;
+}

@@ -147,6 +147,15 @@ static PyObject *sig(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!s) return NULL;
   return PyLong_FromLongLong((long long)sighash(s));
 }
+/* progsig(state): the progress signature's slots (PROGSLOTS, generated:
+   pccl/model/frozen.py's fields) as bytes, compared for equality */
+static PyObject *progsig(PyObject *Py_UNUSED(self), PyObject *arg) {
+  V sb[NS]; const V *s = arg_state(arg, sb);
+  if (!s) return NULL;
+  V g[NPROGSLOTS + 1];
+  for (int q = 0; q < NPROGSLOTS; q++) g[q] = s[PROGSLOTS[q]];
+  return PyBytes_FromStringAndSize((const char *)g, sizeof(V) * NPROGSLOTS);
+}
 /* sigs(states): sig of each state of a list, as int64s in one bytes object */
 static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
@@ -365,7 +374,9 @@ static inline int okstate(const V *s) {
 static PyObject *ok(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
-  return PyBool_FromLong(okstate(s));
+  int r = okstate(s);
+  if (PyErr_Occurred()) return NULL;
+  return PyBool_FromLong(r);
 }
 /* violations(state): [] when okstate, else SLOWVIOL(state) (the Python
    model's own violations of the decoded configuration) */
@@ -374,6 +385,7 @@ static PyObject *violations(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
   if (okstate(s)) return PyList_New(0);
+  if (PyErr_Occurred()) return NULL;        /* (a property memo site's miss raised) */
   return PyObject_CallOneArg(SLOWVIOL, arg);
 }
 /* suspects(states): the positions, ascending, of the states of a list that
@@ -388,6 +400,7 @@ static PyObject *suspects(PyObject *Py_UNUSED(self), PyObject *arg) {
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) { Py_DECREF(out); return NULL; }
     if (!okstate(s)) {
+      if (PyErr_Occurred()) { Py_DECREF(out); return NULL; }
       PyObject *j = PyLong_FromSsize_t(i);
       if (!j || PyList_Append(out, j)) { Py_XDECREF(j); Py_DECREF(out); return NULL; }
       Py_DECREF(j);
@@ -446,6 +459,7 @@ static PyMethodDef methods[] = {
   {"max_clock", max_clock, METH_O, "the largest time of a list of states"},
   {"key", key, METH_O, "the state's identity (canonical under symmetry)"},
   {"sig", sig, METH_O, "the stall signature's hash"},
+  {"progsig", progsig, METH_O, "the progress signature's slots"},
   {"sigs", sigs, METH_O, "the stall signatures' hashes of a list of states, as int64s"},
   {"psigs", psigs, METH_O, "the progress signatures' hashes of a list of states, as int64s"},
   {"expand_ids", expand_ids, METH_O, "expand, and each successor's label number (int32s)"},
