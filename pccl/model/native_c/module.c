@@ -156,8 +156,8 @@ static PyObject *progsig(PyObject *Py_UNUSED(self), PyObject *arg) {
   for (int q = 0; q < NPROGSLOTS; q++) g[q] = s[PROGSLOTS[q]];
   return PyBytes_FromStringAndSize((const char *)g, sizeof(V) * NPROGSLOTS);
 }
-/* sigs(states): sig of each state of a list, as int64s in one bytes object */
-static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
+/* the hash fn of each state of a list, as int64s in one bytes object */
+static PyObject *hash_each(PyObject *arg, int64_t (*fn)(const V *)) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg);
   PyObject *out = PyBytes_FromStringAndSize(NULL, n * (Py_ssize_t)sizeof(int64_t));
@@ -166,25 +166,14 @@ static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   for (Py_ssize_t i = 0; i < n; i++) {
     V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
     if (!s) { Py_DECREF(out); return NULL; }
-    o[i] = sighash(s);
+    o[i] = fn(s);
   }
   return out;
 }
-/* psigs(states): the progress signature's hash (psighash) of each state of a
-   list, as int64s in one bytes object */
-static PyObject *psigs(PyObject *Py_UNUSED(self), PyObject *arg) {
-  if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
-  Py_ssize_t n = PyList_GET_SIZE(arg);
-  PyObject *out = PyBytes_FromStringAndSize(NULL, n * (Py_ssize_t)sizeof(int64_t));
-  if (!out) return NULL;
-  int64_t *o = (int64_t *)PyBytes_AS_STRING(out);
-  for (Py_ssize_t i = 0; i < n; i++) {
-    V sb[NS]; const V *s = arg_state(PyList_GET_ITEM(arg, i), sb);
-    if (!s) { Py_DECREF(out); return NULL; }
-    o[i] = psighash(s);
-  }
-  return out;
-}
+/* sigs(states): sig of each state of a list */
+static PyObject *sigs(PyObject *Py_UNUSED(self), PyObject *arg) { return hash_each(arg, sighash); }
+/* psigs(states): the progress signature's hash (psighash) of each state of a list */
+static PyObject *psigs(PyObject *Py_UNUSED(self), PyObject *arg) { return hash_each(arg, psighash); }
 /* reach_back(src, dst, can, sweeps): marks in can (bytes 0/1, writable) every
    state with a transition into a marked one, until nothing changes: the
    transitions src[e] -> dst[e] (uint32s, sorted by source) are swept from the
