@@ -940,7 +940,9 @@ class _Resolver:
         (``for_x`` a hidden local list: the loop walks a copy of xs, and ends
         with it empty).  A record ``x`` walks one hidden list per field."""
         x = s.var
-        assert x is not None
+        if not isinstance(x, ast.Name):
+            raise _Syntax("the variable of 'for x in xs:' is a local variable (a function's "
+                          "parameter cannot be it)", s.span)
         ref = self._ref(x)
         if ref is None:
             d = self._decl_of(x.name)

@@ -115,3 +115,18 @@ def test_mutated_list_programs_never_raise_anything_but_a_message():
             check_program(parse_koord(s, "f.koord"))
         except PcclError as e:
             assert e.line is None or e.line >= 1
+
+
+def test_a_function_loop_over_its_parameter_or_an_argument_it_assigns_is_an_error():
+    """The variable of `for x in xs:` counts as assigned by a function
+    (inlining would otherwise put the argument where the variable is)."""
+    text = ("def fun tot(int v):\n  for v in [1, 2]:\n    s = s + v\n\nlocal:\n  int s = 0\n"
+            "  int w = 0\n\nev:\n  pre: s == 0\n  eff:\n    tot(1)\n    stop\n")
+    with pytest.raises(PcclError) as e:
+        parse_koord(text, "f.koord")
+    assert "'tot' assigns its parameter 'v'" in str(e.value) and (e.value.line, e.value.column) == (1, 17)
+    text = text.replace("for v in", "for w in").replace("s + v", "s + w").replace("tot(1)", "tot(w)")
+    with pytest.raises(PcclError) as e:
+        parse_koord(text, "f.koord")
+    assert "this argument reads 'w', which 'tot' assigns" in str(e.value)
+    assert (e.value.line, e.value.column) == (12, 9)
