@@ -467,10 +467,6 @@ def _plan_search(model: Reduced, o: ExploreOptions, spelling: Spelling) -> _Sear
     the workers; check the options as resolved; make the recorder."""
     max_memory = default_max_memory() if o.max_memory == "default" else o.max_memory
     cov = None
-    if o.coverage and getattr(model, "semantics", "pccl") == "koord":
-        raise ArgumentError("coverage is not counted under Koord's round semantics yet (the "
-                            "statements of an event run inside one transition): use "
-                            "{semantics=pccl}", where="{coverage}", template=True)
     if o.coverage:
         if "coverage" not in model.reduce_uses:
             model = model.with_uses(("coverage",))

@@ -20,12 +20,16 @@ PCCL meaning; in short:
   ``init:`` the Init block; ``atomic:``, ``if``/``elif``/``else`` as in
   PCCL; ``and``/``or``/``not`` spell ``&&``/``||``/``!``.
 
-``for i in range(a, b):`` is ``i = a`` and a ``while`` loop.
+``for i in range(a, b):`` is ``i = a`` and a ``while`` loop; ``for x in
+xs:`` walks a hidden copy of the list with ``head``/``remove``; ``any(xs)``
+and ``all(xs)`` are ``contains(xs, true)`` and ``!contains(xs, false)``.
 Functions ``def fun f(T x, ...):`` are inlined where they are called
 (:mod:`pccl.lang.koordfun`).  ``Motion.path = ps`` keeps the waypoints in a
 hidden local list that a hidden first event ``Motion_follow`` walks with
 ``doReach``.  A variable of a record type (``def Name:``) is one variable
-per field, ``v_f``.  Every problem is a
+per leaf field, ``v_f`` (``v_f_g`` inside a nested record), arrays and
+lists of records one array or list per field; ``Name(a, b)`` is a record
+literal.  Every problem is a
 :class:`pccl.lang.errors.PcclError` with file, line, column and caret.
 """
 
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from typing import Optional
 
 from lark import Lark, Token, v_args
@@ -186,6 +191,25 @@ class _KModule:
     ports: list            # (kind, _KDecl)
 
 
+@dataclasses.dataclass
+class _Ref:
+    """A record-valued expression: its record type, and ``leaf(path)`` the
+    expression of the leaf field at ``path`` (a tuple of field names)."""
+    rec: _KRecord
+    leaf: Callable[[tuple], ast.Expr]
+
+
+@dataclasses.dataclass(frozen=True)
+class _ForList(ast.While):
+    """``for x in xs:`` while the program is read: ``cond`` holds xs (so that
+    the function inliner rewrites it) until the resolver lowers the loop."""
+    var: Optional[ast.Name] = None
+
+
+#: any(xs) / all(xs) over a list of booleans
+_ANY_ALL = ("any", "all")
+
+
 def _pos_call(args, span) -> ast.Call:
     return ast.Call("ItemPosition", tuple(args), span)
 
@@ -297,12 +321,15 @@ class _ToAst(P._ToAst):
         var, span, body = children[1], _mspan(meta), children[-1]
         if not (isinstance(children[2], Token) and children[2].type == "IN"):
             # for i = a, b:  (Koord's form, its bounds' inclusiveness unclear)
-            raise _Syntax("write a bounded loop as 'for i in range(a, b):' (i from a to b - 1)",
-                          span)
+            raise _Syntax("Koord's 'for i = a, b:' is not supported: its published grammar "
+                          "and documents do not say whether b is included; write 'for i in "
+                          "range(a, b):' (i from a to b - 1) or 'range(a, b + 1)'", span)
         rng = children[3]
-        if not (isinstance(rng, ast.Call) and rng.name == "range" and 1 <= len(rng.args) <= 2):
-            raise _Syntax("'for' iterates over 'range(b)' or 'range(a, b)' only (lists: "
-                          "an index and 'xs[i]')", rng.span)
+        if not (isinstance(rng, ast.Call) and rng.name == "range"):
+            # for x in xs: over a list, lowered by the resolver (it knows x's type)
+            return [_ForList(_NO_SID, rng, body, span, var=ast.Name(str(var), _tspan(var)))]
+        if not 1 <= len(rng.args) <= 2:
+            raise _Syntax(f"range takes 1 or 2 bounds, not {len(rng.args)}", rng.span)
         lo, hi = (ast.IntLit(0, rng.span), rng.args[0]) if len(rng.args) == 1 else rng.args
         i = ast.Name(str(var), _tspan(var))
         step = ast.Assign(_NO_SID, i, ast.Binary("+", i, ast.IntLit(1, span), span), span)
@@ -390,8 +417,15 @@ class _Resolver:
         self.records: dict[str, _KRecord] = {}
         self.record_vars: dict[str, _KRecord] = {}
         self.record_spans: dict[str, ast.Span] = {}
+        #: a record variable's flat variable -> (the record variable, the field path)
+        self.flat_root: dict[str, tuple] = {}
+        #: the hidden lists of `for x in xs:` loops (name -> VarDecl), and the
+        #: loops being read (to refuse a loop over x inside a loop over x)
+        self.hidden: dict[str, ast.VarDecl] = {}
+        self._loops: list = []
+        names = {r.name for r in records or ()}
         for r in records or ():
-            self._record(r)
+            self._record(r, names)
         self.ports: dict[str, dict[str, str]] = {}      # module -> port -> kind
         #: where Motion.path (or route) is declared, if it is
         self.path: Optional[ast.Span] = None
@@ -414,7 +448,7 @@ class _Resolver:
 
     # ---- records -----------------------------------------------------
 
-    def _record(self, r: _KRecord) -> None:
+    def _record(self, r: _KRecord, names: set) -> None:
         if r.name in self.records:
             raise _Syntax(f"record type '{r.name}' is defined twice", r.span)
         if r.name in _BASE_TYPES or r.name in ("list", "List") or r.name in _UNSUPPORTED_TYPES:
@@ -424,71 +458,179 @@ class _Resolver:
             if f.name in seen:
                 raise _Syntax(f"field '{f.name}' of '{r.name}' is declared twice", f.name_span)
             seen.add(f.name)
-            if f.type.name in self.records or f.type.name == r.name:
-                raise _Syntax("a record's field cannot be a record (not supported yet)",
-                              f.type.name_span)
+            if f.type.name == r.name:
+                raise _Syntax(f"record '{r.name}' cannot contain itself", f.type.name_span)
+            if f.type.name in names and f.type.name not in self.records:
+                raise _Syntax(f"define record type '{f.type.name}' before '{r.name}', which "
+                              "uses it", f.type.name_span)
+            if f.type.name in self.records and f.init is not None:
+                raise _Syntax(f"a record field takes its initial values from 'def "
+                              f"{f.type.name}:'", f.init.span)
         if not r.fields:
             raise _Syntax(f"record type '{r.name}' has no field", r.span)
         self.records[r.name] = r
 
+    def _leaves(self, rec: _KRecord) -> list:
+        """``(path, leaf field, dims)`` of each scalar, list or array field
+        of ``rec``, inside nested records too; ``dims`` are the dimensions
+        of the record fields on the way, then the leaf's own."""
+        out = []
+        for f in rec.fields:
+            fdims = list(f.type.dims) + list(f.dims)
+            sub = self.records.get(f.type.name)
+            if sub is None:
+                out.append(((f.name,), f, fdims))
+            else:
+                out.extend(((f.name,) + p, leaf, fdims + dims) for p, leaf, dims in self._leaves(sub))
+        return out
+
+    def _default(self, rec: _KRecord, path: tuple) -> Optional[ast.Expr]:
+        f = next(f for f in rec.fields if f.name == path[0])
+        sub = self.records.get(f.type.name)
+        return self._default(sub, path[1:]) if sub is not None else f.init
+
     def _record_decls(self, kind: str, d: _KDecl) -> list:
-        """``Name v`` (``Name v[]`` in allread:): one variable ``v_f`` per
-        field ``f``, with the field's type and initialiser."""
+        """``Name v`` (``Name v[]`` in allread:, ``Name v[n]`` an array,
+        ``Name[] v`` a list): one variable ``v_f`` per (nested) field ``f``,
+        with the field's type, the variable's dimensions first."""
         rec = self.records[d.type.name]
-        dims = d.type.dims + d.dims
-        if kind == "allread":
-            if len(dims) != 1 or dims[0].size is not None:
-                where = dims[0].span if dims else d.name_span
-                raise _Syntax(f"an allread record is an array indexed by robot, written without a "
-                              f"size: '{rec.name} {d.name}[]'", where)
-        elif dims:
-            raise _Syntax("arrays and lists of records are not supported yet: declare one "
-                          "record per variable", dims[0].span)
+        dims = list(d.type.dims) + list(d.dims)
+        if kind == "allread" and (not dims or dims[0].size is not None):
+            where = dims[0].span if dims else d.name_span
+            raise _Syntax(f"an allread record is an array indexed by robot, written without a "
+                          f"size: '{rec.name} {d.name}[]'", where)
+        own = dims[1:] if kind == "allread" else dims
+        listy = any(x.size is None for x in own)
+        init: Optional[_Ref] = None
+        items: Optional[list] = None
         if d.init is not None:
-            raise _Syntax(f"a record variable takes its fields' initial values from 'def "
-                          f"{rec.name}:' (Koord has no record literal)", d.init.span)
+            if listy and isinstance(d.init, ast.ListLit):
+                items = [self._record_value(x, rec) for x in d.init.items]
+            elif listy:
+                raise _Syntax(f"a list of {rec.name} records starts as a list of record literals, "
+                              f"'[{rec.name}(...), ...]' (or '[]')", d.init.span)
+            else:
+                init = self._ref(d.init)
+                if init is None or init.rec is not rec or not isinstance(d.init, ast.Call):
+                    raise _Syntax(f"a {rec.name} variable's initial value is a record literal "
+                                  f"'{rec.name}(...)' (or none: the fields' initialisers in "
+                                  f"'def {rec.name}:')", d.init.span)
         self.record_vars[d.name] = rec
         self.record_spans[d.name] = d.name_span
         out = []
-        for f in rec.fields:
-            name = f"{d.name}_{f.name}"
-            fd = dataclasses.replace(f, name=name, span=d.span, name_span=d.name_span,
-                                     dims=(d.dims[:1] if kind == "allread" else []) + f.dims)
-            if kind == "allread":
-                # the robot dimension first, as `T x[]` reads
-                fd = dataclasses.replace(fd, dims=[d.dims[0] if d.dims else d.type.dims[0]] + f.dims,
-                                         type=dataclasses.replace(f.type))
+        for path, leaf, inner in self._leaves(rec):
+            name = f"{d.name}_{'_'.join(path)}"
+            value: Optional[ast.Expr]
+            if items is not None:
+                value = ast.ListLit(tuple(r.leaf(path) for r in items), d.span)
+            elif init is not None:
+                value = init.leaf(path)
+            else:
+                # an array's initialiser is every element's; a list starts undefined
+                value = None if listy else self._default(rec, path)
+            fd = _KDecl(dataclasses.replace(leaf.type, dims=[]), name, dims + inner, value,
+                        d.span, d.name_span)
+            self.flat_root[name] = (d.name, path)
             out.append(self._decl(kind, fd))
         return out
 
     def _check_flat_names(self) -> None:
         names = [d.name for d in self.decls]
-        for v, rec in self.record_vars.items():
-            for f in rec.fields:
-                flat = f"{v}_{f.name}"
-                if names.count(flat) > 1:
-                    # the other declaration, not the record variable's field
-                    d = next(d for d in self.decls if d.name == flat and d.name_span.line != -1
-                             and not (d.name_span == self.record_spans.get(v)))
-                    raise _Syntax(f"'{flat}' is the name pccl gives field '{f.name}' of record "
-                                  f"variable '{v}': choose another name", d.name_span or d.span)
+        for flat, (v, path) in self.flat_root.items():
+            if names.count(flat) > 1:
+                # the other declaration, not the record variable's field
+                d = next(d for d in self.decls if d.name == flat
+                         and not (d.name_span == self.record_spans.get(v)))
+                raise _Syntax(f"'{flat}' is the name pccl gives field '{'.'.join(path)}' of "
+                              f"record variable '{v}': choose another name", d.name_span or d.span)
 
-    def _record_field(self, e: ast.Field) -> Optional[ast.Expr]:
-        """``v.f`` -> ``v_f``; ``v[j].f`` -> ``v_f[j]`` (v a record variable)."""
-        base = e.base
-        idx = None
-        if isinstance(base, ast.Index) and isinstance(base.base, ast.Name):
-            idx, base = base, base.base
-        if not (isinstance(base, ast.Name) and base.name in self.record_vars):
-            return None
-        rec = self.record_vars[base.name]
-        if e.name not in {f.name for f in rec.fields}:
+    def _field(self, rec: _KRecord, e: ast.Field):
+        f = next((f for f in rec.fields if f.name == e.name), None)
+        if f is None:
             raise _Syntax(f"record '{rec.name}' has no field '{e.name}' (its fields: "
                           f"{', '.join(f.name for f in rec.fields)})", e.span)
-        flat = ast.Name(f"{base.name}_{e.name}", e.span)
-        if idx is None:
-            return flat
-        return ast.Index(flat, self.expr(idx.index), idx.span)
+        return f
+
+    def _ref(self, e) -> Optional["_Ref"]:
+        """A record-valued expression (a record variable, an element of an
+        array or list of records, a record field of a record, a record
+        literal, ``head`` of a list of records): its record type and the
+        expression of each leaf field; None for anything else."""
+        if isinstance(e, ast.Name) and e.name in self.record_vars:
+            v = e.name
+            return _Ref(self.record_vars[v], lambda p: ast.Name(f"{v}_{'_'.join(p)}", e.span))
+        if isinstance(e, ast.Index):
+            b = self._ref(e.base)
+            if b is None:
+                return None
+            k, base = self.expr(e.index), b
+
+            def element(p: tuple) -> ast.Expr:
+                return ast.Index(base.leaf(p), k, e.span)
+            return _Ref(b.rec, element)
+        if isinstance(e, ast.Field):
+            b = self._ref(e.base)
+            if b is None:
+                return None
+            sub = self.records.get(self._field(b.rec, e).type.name)
+            if sub is None:
+                return None
+            outer, name = b, e.name
+
+            def inner(p: tuple) -> ast.Expr:
+                return outer.leaf((name,) + p)
+            return _Ref(sub, inner)
+        if isinstance(e, ast.Call):
+            if e.name in self.records:
+                return self._literal(e)
+            if e.name == "head" and len(e.args) == 1:
+                b = self._ref(e.args[0])
+                if b is not None:
+                    return _Ref(b.rec, lambda p: ast.Call("head", (b.leaf(p),), e.span))
+        return None
+
+    def _record_value(self, e, rec: _KRecord) -> "_Ref":
+        r = self._ref(e)
+        if r is None or r.rec is not rec:
+            raise _Syntax(f"a {rec.name} record is expected here (a variable, an element or a "
+                          f"literal {rec.name}(...))", e.span)
+        return r
+
+    def _literal(self, e: ast.Call) -> "_Ref":
+        """``Name(a, b, ...)``: a record literal, its fields in declaration
+        order; a field left out takes its initialiser in ``def Name:``."""
+        rec = self.records[e.name]
+        if len(e.args) > len(rec.fields):
+            raise _Syntax(f"record '{rec.name}' has {len(rec.fields)} field"
+                          f"{'' if len(rec.fields) == 1 else 's'} "
+                          f"({', '.join(f.name for f in rec.fields)})", e.args[len(rec.fields)].span)
+        vals: dict = {}
+        for f, a in zip(rec.fields, e.args):
+            sub = self.records.get(f.type.name)
+            if sub is not None:
+                vals[f.name] = self._record_value(a, sub)
+            elif self._ref(a) is not None:
+                raise _Syntax(f"field '{f.name}' of '{rec.name}' is not a record", a.span)
+            else:
+                vals[f.name] = a
+        for path, _, _ in self._leaves(rec):
+            if path[0] not in vals and self._default(rec, path) is None:
+                raise _Syntax(f"'{rec.name}(...)' gives no value to field '{'.'.join(path)}', "
+                              f"which has no initialiser in 'def {rec.name}:'", e.span)
+
+        def leaf(p):
+            v = vals.get(p[0])
+            if v is None:
+                return self._default(rec, p)
+            return v.leaf(p[1:]) if isinstance(v, _Ref) else v
+        return _Ref(rec, leaf)
+
+    def _whole(self, e, r: "_Ref"):
+        if isinstance(e, ast.Name):
+            return _Syntax(f"'{e.name}' is a record ({r.rec.name}): read one of its fields, e.g. "
+                           f"'{e.name}.{r.rec.fields[0].name}'", e.span)
+        return _Syntax(f"this is a record ({r.rec.name}): read one of its fields "
+                       f"({', '.join(f.name for f in r.rec.fields)})", e.span)
 
     # ---- modules -----------------------------------------------------
 
@@ -602,42 +744,121 @@ class _Resolver:
 
     def _mentions_module(self, e) -> bool:
         recs = self.record_vars
-        return any(self._is_port(n) or (isinstance(n, ast.Name) and (n.name in _PORTS or n.name in recs))
+        return any(self._is_port(n)
+                   or (isinstance(n, ast.Name) and (n.name in _PORTS or n.name in recs))
+                   or (isinstance(n, ast.Call) and (n.name in self.records or n.name in _ANY_ALL))
                    for n in ast.walk(e))
 
-    def _named(self, e) -> Optional[ast.Expr]:
-        """A module's or a record's name, or a record's field: its meaning
-        (or an error); None for anything else."""
-        if isinstance(e, ast.Name) and e.name in _PORTS:
-            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
-                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+    def _decl_of(self, name: str) -> Optional[ast.VarDecl]:
+        return next((d for d in self.decls if d.name == name), None)
+
+    def _any_all(self, e: ast.Call) -> ast.Expr:
+        """``any(xs)`` is ``contains(xs, true)``, ``all(xs)`` is
+        ``!contains(xs, false)``: xs a list of booleans."""
+        if len(e.args) != 1:
+            raise _Syntax(f"{e.name} takes one list of booleans, not {len(e.args)} arguments",
+                          e.span)
+        arg = e.args[0]
+        typ = self._static_type(arg)
+        if typ is not None and not (typ.name == "List" and typ.elem is not None
+                                    and typ.elem.name == "bool"):
+            raise _Syntax(f"{e.name} takes a list of booleans (boolean[]), not "
+                          f"{_koord_type(typ)}", arg.span)
+        xs = self.expr(arg)
+        if e.name == "any":
+            return ast.Call("contains", (xs, ast.BoolLit(True, e.span)), e.span)
+        return ast.Unary("!", ast.Call("contains", (xs, ast.BoolLit(False, e.span)), e.span),
+                         e.span)
+
+    def _static_type(self, e) -> Optional[ast.TypeRef]:
+        """The type of a variable or an element of one, as far as the front
+        end knows it (None: left to the checker)."""
+        if isinstance(e, ast.ListLit):
+            if all(isinstance(x, ast.BoolLit) for x in e.items):
+                return ast.TypeRef("List", _BOOL)
+            return None
+        if self._ref(e) is not None:
+            return ast.TypeRef("record")
         if isinstance(e, ast.Field):
-            return self._record_field(e)
-        if isinstance(e, ast.Name) and e.name in self.record_vars:
-            rec = self.record_vars[e.name]
-            raise _Syntax(f"'{e.name}' is a record ({rec.name}): read one of its fields, e.g. "
-                          f"'{e.name}.{rec.fields[0].name}'", e.span)
+            b = self._ref(e.base)
+            if b is not None:
+                flat = self.expr(e)
+                return self._static_type(flat)
+            return None
+        if isinstance(e, ast.Name):
+            d = self._decl_of(e.name)
+            if d is None:
+                return None
+            return d.type if d.size is None else ast.TypeRef("array")
+        if isinstance(e, ast.Index):
+            if isinstance(e.base, ast.Name):
+                d = self._decl_of(e.base.name)
+                if d is not None and d.section in ("allread", "loc") and d.size is None \
+                        and d.type.name != "List":
+                    return d.type          # robot j's component
+                if d is not None and d.section == "allread":
+                    return None            # robot j's list, or an element of one
+            bt = self._static_type(e.base)
+            if bt is not None and bt.name == "List":
+                return bt.elem
+            return None
+        if isinstance(e, (ast.BoolLit,)):
+            return _BOOL
+        if isinstance(e, (ast.IntLit,)):
+            return ast.TypeRef("int")
         return None
+
+    def _leaf_field(self, e) -> Optional[ast.Expr]:
+        """``r.f`` for a record ``r`` and a field ``f`` that is not a record:
+        its flat variable (with the indexes on the way); else None."""
+        if isinstance(e, ast.Field):
+            b = self._ref(e.base)
+            if b is not None and self._field(b.rec, e).type.name not in self.records:
+                return b.leaf((e.name,))
+        return None
+
+    def _port_read(self, e):
+        module, port = self._port(e, "read")
+        if port in ("position", "psn"):
+            return ast.Call("getPosition", (), e.span)
+        if port in ("reached", "done"):
+            done = ast.Name("doReach_done", e.span)
+            if self.path is None:
+                return done
+            # a path is reached when its last waypoint is
+            rest = ast.Call("isEmpty", (ast.Name(PATH_VAR, e.span),), e.span)
+            return ast.Binary("&&", done, rest, e.span)
+        raise _Syntax(f"{module}.{port} is one of the actuators: it is assigned, not read"
+                      + (" (read Motion.position)" if port == "target" else ""), e.span)
+
+    def _call(self, e: ast.Call):
+        if e.name in _ANY_ALL:
+            return self._any_all(e)
+        if e.name in ("size", "isEmpty", "contains") and e.args:
+            b = self._ref(e.args[0])
+            if b is not None:
+                if e.name == "contains":
+                    raise _Syntax("'contains' on a list of records is not supported (pccl "
+                                  "keeps one list per field): compare a field in a loop",
+                                  e.span)
+                first = self._leaves(b.rec)[0][0]
+                return ast.Call(e.name, (self.expr(b.leaf(first)),), e.span)
+        return dataclasses.replace(e, args=tuple(self.expr(x) for x in e.args))
 
     def expr(self, e):
         if not self._mentions_module(e):
             return e   # nothing to rewrite (and no recursion over a long operator chain)
         if self._is_port(e):
-            module, port = self._port(e, "read")
-            if port in ("position", "psn"):
-                return ast.Call("getPosition", (), e.span)
-            if port in ("reached", "done"):
-                done = ast.Name("doReach_done", e.span)
-                if self.path is None:
-                    return done
-                # a path is reached when its last waypoint is
-                rest = ast.Call("isEmpty", (ast.Name(PATH_VAR, e.span),), e.span)
-                return ast.Binary("&&", done, rest, e.span)
-            raise _Syntax(f"{module}.{port} is one of the actuators: it is assigned, not read"
-                          + (" (read Motion.position)" if port == "target" else ""), e.span)
-        special = self._named(e)
-        if special is not None:
-            return special
+            return self._port_read(e)
+        if isinstance(e, ast.Name) and e.name in _PORTS:
+            raise _Syntax(f"'{e.name}' is a module: use one of its ports, e.g. "
+                          f"'{e.name}.{next(iter(_PORTS[e.name]))}'", e.span)
+        leaf = self._leaf_field(e)
+        if leaf is not None:
+            return self.expr(leaf)
+        r = self._ref(e)
+        if r is not None:
+            raise self._whole(e, r)
         if isinstance(e, (ast.IntLit, ast.FloatLit, ast.BoolLit, ast.Name)):
             return e
         if isinstance(e, ast.ListLit):
@@ -647,7 +868,7 @@ class _Resolver:
         if isinstance(e, ast.Field):
             return dataclasses.replace(e, base=self.expr(e.base))
         if isinstance(e, ast.Call):
-            return dataclasses.replace(e, args=tuple(self.expr(x) for x in e.args))
+            return self._call(e)
         if isinstance(e, ast.Unary):
             return dataclasses.replace(e, operand=self.expr(e.operand))
         if isinstance(e, ast.Binary):
@@ -677,6 +898,8 @@ class _Resolver:
                                   _next_leg(sp)),), (), sp)]
 
     def stmt(self, s):
+        if isinstance(s, _ForList):
+            return self._for_list(s)
         if isinstance(s, ast.Assign):
             return self._assign(s)
         if isinstance(s, ast.If):
@@ -688,8 +911,96 @@ class _Resolver:
         if isinstance(s, ast.While):
             return dataclasses.replace(s, cond=self.expr(s.cond), body=self.stmts(s.body))
         if isinstance(s, ast.CallStmt):
+            if s.name in ("add", "remove") and s.args:
+                b = self._ref(s.args[0])
+                if b is not None:
+                    return self._record_list_stmt(s, b)
             return dataclasses.replace(s, args=tuple(self.expr(a) for a in s.args))
         return s
+
+    def _record_list_stmt(self, s: ast.CallStmt, b: "_Ref") -> list:
+        """``rs.add(r)`` on a list of records: ``add`` on each field's list."""
+        if s.name == "remove":
+            raise _Syntax("'remove' on a list of records is not supported (pccl keeps one list "
+                          "per field, and a field's value may occur in several records)", s.span)
+        if len(s.args) != 2:
+            raise _Syntax(f"'add' takes one {b.rec.name} record", s.span)
+        r = self._record_value(s.args[1], b.rec)
+        return [ast.CallStmt(_NO_SID, "add", (self.expr(b.leaf(p)), self.expr(r.leaf(p))), s.span)
+                for p, _, _ in self._leaves(b.rec)]
+
+    def _hidden_list(self, name: str, typ: ast.TypeRef, span: ast.Span) -> None:
+        if name not in self.hidden:
+            self.hidden[name] = ast.VarDecl("loc", ast.TypeRef("List", typ, span), name, None,
+                                            ast.ListLit((), span), span, name_span=span)
+
+    def _for_list(self, s: "_ForList") -> list:
+        """``for x in xs: body`` is ``for_x = xs`` then ``while
+        !isEmpty(for_x): x = head(for_x); remove(for_x, head(for_x)); body``
+        (``for_x`` a hidden local list: the loop walks a copy of xs, and ends
+        with it empty).  A record ``x`` walks one hidden list per field."""
+        x = s.var
+        if not isinstance(x, ast.Name):
+            raise _Syntax("the variable of 'for x in xs:' is a local variable (a function's "
+                          "parameter cannot be it)", s.span)
+        ref = self._ref(x)
+        if ref is None:
+            d = self._decl_of(x.name)
+            if d is None:
+                raise _Syntax(f"'{x.name}' is not declared: declare the loop variable in "
+                              "'local:'", x.span)
+            if d.section != "loc" or d.size is not None:
+                raise _Syntax("the variable of 'for x in xs:' is a local variable that is not "
+                              "an array (declared in 'local:')", x.span)
+            leaves = [(x.name, d.type, lambda p: s.cond, ())]
+        else:
+            if not isinstance(x, ast.Name):
+                raise _Syntax("the variable of 'for x in xs:' is a variable", x.span)
+            it = self._ref(s.cond)
+            if it is None or it.rec is not ref.rec:
+                raise _Syntax(f"'{x.name}' is a {ref.rec.name} record: it walks a list of "
+                              f"{ref.rec.name} records", s.cond.span)
+            leaves = []
+            for p, _, _ in self._leaves(ref.rec):
+                flat = f"{x.name}_{'_'.join(p)}"
+                d = self._decl_of(flat)
+                if d is None or d.section != "loc" or d.size is not None:
+                    raise _Syntax("the variable of 'for x in xs:' is a local variable that is "
+                                  "not an array (declared in 'local:')", x.span)
+                leaves.append((flat, d.type, it.leaf, p))
+        if x.name in self._loops:
+            raise _Syntax(f"a loop over '{x.name}' inside a loop over '{x.name}'", x.span)
+        sp = s.span
+        out: list = []
+        pre: list = []
+        for flat, typ, value, p in leaves:
+            hidden = f"for_{flat}"
+            self._hidden_list(hidden, typ, sp)
+            h = ast.Name(hidden, sp)
+            out.append(ast.Assign(_NO_SID, h, self.expr(value(p)), sp))
+            first = ast.Call("head", (h,), sp)
+            pre += [ast.Assign(_NO_SID, ast.Name(flat, x.span), first, sp),
+                    ast.CallStmt(_NO_SID, "remove", (h, first), sp)]
+        cond = ast.Unary("!", ast.Call("isEmpty", (ast.Name(f"for_{leaves[0][0]}", sp),), sp), sp)
+        self._loops.append(x.name)
+        try:
+            body = self.stmts(s.body)
+        finally:
+            self._loops.pop()
+        out.append(ast.While(_NO_SID, cond, tuple(pre) + body, sp))
+        return out
+
+    def _lvalue(self, t):
+        """An assignment's target with its record fields read as their flat
+        variables (``rs[i].xs[k]`` -> ``rs_xs[i][k]``)."""
+        if isinstance(t, ast.Index):
+            return dataclasses.replace(t, base=self._lvalue(t.base))
+        if isinstance(t, ast.Field):
+            b = self._ref(t.base)
+            if b is not None:
+                self._field(b.rec, t)
+                return b.leaf((t.name,))
+        return t
 
     def _assign(self, s: ast.Assign):
         target = s.target
@@ -711,21 +1022,10 @@ class _Resolver:
             # a new target ends the path being followed
             clear = ast.Assign(_NO_SID, ast.Name(PATH_VAR, s.span), ast.ListLit((), s.span), s.span)
             return [clear, reach]
-        if isinstance(target, ast.Name) and target.name in self.record_vars:
-            return self._record_assign(s)
-        if isinstance(target, ast.Field):
-            flat: Optional[ast.Expr] = self._record_field(target)
-            if flat is not None:
-                if isinstance(flat, ast.Index):
-                    # v[j].f = e: an allread record's own entry only
-                    own = flat.index
-                    if not (isinstance(own, ast.Call) and own.name == "getAgentIndex"
-                            and not own.args):
-                        var = _root_name(target)
-                        raise _Syntax(f"'{var}' is allread: a robot writes only its own entry, "
-                                      f"'{var}[pid].{target.name} = ...'", own.span)
-                    flat = flat.base
-                return dataclasses.replace(s, target=flat, value=self.expr(s.value))
+        ref = self._ref(target)
+        if ref is not None:
+            return self._record_assign(s, ref)
+        target = self._lvalue(target)
         root, chain = ast.index_chain(target)
         if not isinstance(root, ast.Name):
             raise _Syntax("only a variable or an element of one can be assigned", target.span)
@@ -733,8 +1033,10 @@ class _Resolver:
             first = chain[0].index if chain else None
             if not (isinstance(first, ast.Call) and first.name == "getAgentIndex"
                     and not first.args):
-                raise _Syntax(f"'{root.name}' is allread: a robot writes only its own entry, "
-                              f"'{root.name}[pid] = ...'",
+                var, path = self.flat_root.get(root.name, (root.name, ()))
+                field = "".join(f".{f}" for f in path)
+                raise _Syntax(f"'{var}' is allread: a robot writes only its own entry, "
+                              f"'{var}[pid]{field} = ...'",
                               chain[0].index.span if chain else target.span)
             # x[pid][k] = v  ->  x[k] = v (PCCL: x is the robot's own component)
             new: ast.Expr = root
@@ -744,16 +1046,28 @@ class _Resolver:
         target = self.expr(target)
         return dataclasses.replace(s, target=target, value=self.expr(s.value))
 
-    def _record_assign(self, s: ast.Assign) -> list:
-        """``v = w`` for two record variables of one type: field by field."""
-        assert isinstance(s.target, ast.Name)
-        v, rec = s.target.name, self.record_vars[s.target.name]
-        w = s.value
-        if not (isinstance(w, ast.Name) and self.record_vars.get(w.name) is rec):
-            raise _Syntax(f"'{v}' is a record ({rec.name}): assign another {rec.name} variable, "
-                          "or its fields one by one", w.span)
-        return [ast.Assign(_NO_SID, ast.Name(f"{v}_{f.name}", s.target.span),
-                           ast.Name(f"{w.name}_{f.name}", w.span), s.span) for f in rec.fields]
+    def _record_assign(self, s: ast.Assign, ref: "_Ref") -> list:
+        """``v = w`` for a record (variable, element, field) and a record
+        value of its type (or a list of them and a list literal of records):
+        field by field."""
+        rec, w = ref.rec, s.value
+        if isinstance(w, ast.ListLit):
+            items = [self._record_value(x, rec) for x in w.items]
+
+            def value(p):
+                return ast.ListLit(tuple(r.leaf(p) for r in items), w.span)
+        else:
+            r = self._ref(w)
+            if r is None or r.rec is not rec:
+                raise _Syntax(f"'{_root_name(s.target)}' is a record ({rec.name}): assign another "
+                              f"{rec.name} (a variable, an element or a literal {rec.name}(...)), "
+                              "or its fields one by one", w.span)
+            value = r.leaf
+        out: list = []
+        for p, _, _ in self._leaves(rec):
+            one = self._assign(ast.Assign(_NO_SID, ref.leaf(p), value(p), s.span))
+            out.extend(one if isinstance(one, list) else [one])
+        return out
 
     # ---- program -----------------------------------------------------
 
@@ -763,7 +1077,12 @@ class _Resolver:
                        for ev in events)
         invariants = tuple(dataclasses.replace(inv, expr=self.expr(inv.expr))
                            for inv in invariants)
-        decls = tuple(self.decls)
+        for d in self.decls:
+            if d.name in self.hidden:
+                raise _Syntax(f"'{d.name}' is the name pccl gives the list a 'for "
+                              f"{d.name[4:]} in ...:' loop walks: choose another name",
+                              d.name_span or d.span)
+        decls = tuple(self.decls) + tuple(self.hidden.values())
         if self.path is not None:
             for d in decls:
                 if d.name == PATH_VAR:

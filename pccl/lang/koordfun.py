@@ -78,6 +78,8 @@ def _assigned(stmts) -> set:
     out: set = set()
     for s in ast.walk_stmts(stmts):
         target = None
+        if isinstance(getattr(s, "var", None), ast.Name):
+            out.add(s.var.name)         # the variable of `for x in xs:`
         if isinstance(s, ast.Assign):
             target = s.target
         elif isinstance(s, ast.CallStmt) and s.name in ("add", "remove") and s.args:

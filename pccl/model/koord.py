@@ -62,6 +62,10 @@ RND = N_STATE_CELLS
 
 
 
+#: the rules whose label's detail is the statement they run (coverage)
+_SID_RULES = frozenset({"STATEMENT", "EXIT", "DOREACH UPDATE", "LOCK REQUEST", "ATOMIC EXECUTION"})
+
+
 def model_for(program: A.Program, opts: CommonOptions) -> Model:
     """The model of ``program`` under ``opts``: a :class:`KoordModel` when
     its semantics (:func:`pccl.model.options.resolve_semantics`) is Koord's,
@@ -123,6 +127,16 @@ class KoordModel(Model):
         from pccl.model.compile import program_moves
         self._turn_reads_clock = self.record_t0 and program_moves(program)
         self.plain_successors = self.successors
+        #: with :meth:`record_statements`: per successor of the last call of
+        #: :meth:`successors`, the statement ids its event ran (coverage)
+        self.statements_ran: Optional[list] = None
+
+    def record_statements(self) -> None:
+        """From now on, :meth:`successors` leaves in :attr:`statements_ran`
+        the statements each successor's event ran inside its one transition
+        (``explore --coverage``: pccl/output/coverage.py)."""
+        self.statements_ran = []
+        self._turns.clear()
 
     # -- the transition system ----------------------------------------------------------
     def init_states(self, first_only=frozenset(), first_value=frozenset()):
@@ -133,9 +147,14 @@ class KoordModel(Model):
 
     def successors(self, st) -> list:
         out: list = []
+        ran = self.statements_ran
+        if ran is not None:
+            ran.clear()
         if st[PHASE] != DISCRETE:
             tmp: list = []
             R.doreach_invoke(self, st[:RND], tmp)
+            if ran is not None:
+                ran.extend(() for _ in tmp)
             return [(lab, s2 + (None,)) for lab, s2 in tmp]
         running = blocked = False
         for i, ag in enumerate(st[AGS]):
@@ -152,6 +171,8 @@ class KoordModel(Model):
             # EndProgTrans: the copies are refreshed (round cell None), the mutex freed
             R.time_advance(self, st[:LQ] + ((),) + st[SH:RND], tmp, True)
             out.extend((lab, s2 + (None,)) for lab, s2 in tmp)
+            if ran is not None:
+                ran.extend(() for _ in tmp)
         return out
 
     def _round_start_view(self, st, i) -> tuple:
@@ -171,36 +192,46 @@ class KoordModel(Model):
         """Robot ``i``'s transitions in this round: EventTrans for each way
         an enabled event runs to its end (or IDLE), ATOMIC WAIT when the
         round's mutex is taken, SkipEvent."""
-        seen: set = set()
+        seen: dict = {}
+        ran = self.statements_ran
         enabled = False
         view = self._round_start_view(st, i)
         key = self._turn_key(i, ag, view)
         cache = self._turns
         turns = cache.get(key) if self.TURN_CACHE else None
         if turns is None:
-            turns = [(first, sids, atom, fin[AGS][i], fin[SH])
-                     for first, sids, atom, fin in self._run_turn(view, i)]
+            turns = [(first, sids, atom, fin[AGS][i], fin[SH], stmts)
+                     for first, sids, atom, fin, stmts in self._run_turn(view, i)]
             # a run samples rand afresh each time; TURN_CACHE 0: no table
             # (the differential oracle's truth computes every turn afresh)
             if self.oracle.policy is None and self.TURN_CACHE:
                 if len(cache) >= self.TURN_CACHE:
                     cache.clear()
                 cache[key] = turns
-        for first, sids, atom, fag, fsh in turns:
+        for first, sids, atom, fag, fsh, stmts in turns:
             rule, _, e = first
             if rule == "EVENT SELECT" and e is not None:
                 enabled = True
             if atom is not None and st[LQ] and st[LQ][0] != i:
                 lab = ("ATOMIC WAIT", i, atom)
                 succ = self._spend_turn(st, i, ag)
+                stmts = ()          # nothing of the event happens
             else:
                 lab = ("IDLE", i, None) if rule == "IDLE" else ("EVENT TRANS", i, e)
                 succ = self._commit(st, i, sids, atom, fag, fsh)
-            if (lab, succ) not in seen:
-                seen.add((lab, succ))
+            k = seen.get((lab, succ))
+            if k is None:
+                seen[(lab, succ)] = len(out)
                 out.append((lab, succ))
+                if ran is not None:
+                    ran.append(stmts)
+            elif ran is not None and stmts:
+                # two ways to one successor (rand): the statements of both
+                ran[k] = tuple(dict.fromkeys(ran[k] + stmts))
         if enabled and self.skip_events:
             out.append((("SKIP EVENT", i, None), self._spend_turn(st, i, ag)))
+            if ran is not None:
+                ran.append(())
 
     def _turn_key(self, i, ag, view) -> tuple:
         """What robot ``i``'s turn from ``view`` can read, the key of the
@@ -223,13 +254,14 @@ class KoordModel(Model):
         stuck): ``[(first label, sids run, sid of the first atomic entered
         or None, final configuration)]``."""
         infos, info_of, oracle = self.ctl.infos, self.ctl.info, self.oracle
+        record = self.statements_ran is not None
         done: list = []
-        stack: list = [(view, None, (), None, 0)]
+        stack: list = [(view, None, (), None, 0, ())]
         while stack:
-            st, first, sids, atom, n = stack.pop()
+            st, first, sids, atom, n, stmts = stack.pop()
             ag = st[AGS][i]
             if ag[STATUS] != RUNNING:
-                done.append((first, sids, atom, st))
+                done.append((first, sids, atom, st, stmts))
                 continue
             info = infos[ag[PC]]
             if info is None:
@@ -239,20 +271,23 @@ class KoordModel(Model):
             for rule in (info.rules if ag[CNT] == 0 else info.rules_spent):
                 rule(self, st, i, ag, info, out)
             if not out:
-                done.append((first, sids, atom, st))
+                done.append((first, sids, atom, st, stmts))
                 continue
             if n >= self.EVENT_STEPS:
                 where = info.sid if info.sid is not None else None
                 reason = (f"its event did not end within {self.EVENT_STEPS:,} steps (under "
                           "Koord's semantics an event is one transition: a loop in it must end)")
-                done.append((first, sids, atom, R.stuck_successor(self, st, i, ag, reason, where)))
+                done.append((first, sids, atom, R.stuck_successor(self, st, i, ag, reason, where),
+                             stmts))
                 continue
             for lab, st2 in out:
                 rule, _, detail = lab
                 f2 = first if first is not None else lab
                 a2 = detail if atom is None and rule == "LOCK REQUEST" else atom
                 s2 = sids + (detail,) if rule == "STATEMENT" else sids
-                stack.append((st2, f2, s2, a2, n + 1))
+                r2 = stmts + (detail,) if record and rule in _SID_RULES and detail is not None \
+                    else stmts
+                stack.append((st2, f2, s2, a2, n + 1, r2))
         return done
 
     def _commit(self, st, i, sids, atom, ag2, fsh) -> tuple:

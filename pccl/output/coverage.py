@@ -7,6 +7,12 @@ expands.  Counts are per expanded state: "fired 12" means that 12 expanded
 states had a transition selecting the event (one per ``rand`` outcome).
 The rebuilding of counterexamples after the search is not counted (it starts
 with a second call of ``init_states``).
+
+Under Koord's round semantics (pccl/model/koord.py) an event runs to its end
+inside one transition (EVENT TRANS): the model records which statements
+each successor's event ran, and each counts once per such transition; an
+ATOMIC WAIT runs nothing; a guard is evaluated on the round's start values
+the robot reads.
 """
 
 from __future__ import annotations
@@ -38,6 +44,11 @@ class CoverageModel:
         self.expanded = 0
         self._inits = 0
         self.counting = True
+        #: Koord's round semantics (pccl/model/koord.py): an event's statements
+        #: run inside its one transition; the model tells which
+        self.koord = getattr(model, "semantics", "pccl") == "koord"
+        if self.koord:
+            model.record_statements()
 
     def init_states(self):
         self._inits += 1
@@ -51,6 +62,7 @@ class CoverageModel:
             return out
         self.expanded += 1
         selecting = set()
+        koord = self.koord
         for (rule, agent, detail), _ in out:
             self.rules[rule] += 1
             if rule in ("EVENT SELECT", "EVENT TRANS") and detail is not None:
@@ -58,12 +70,19 @@ class CoverageModel:
                 selecting.add(agent)
             elif rule in ("IDLE", "SKIP EVENT"):
                 selecting.add(agent)
-            elif rule in _STMT_RULES and detail is not None:
+            elif rule in _STMT_RULES and detail is not None and not koord:
                 self.executed[detail] += 1
         m = self.model
+        if koord:
+            # each statement an event ran inside its transition, once per transition
+            for stmts in m.statements_ran:
+                for sid in stmts:
+                    self.executed[sid] += 1
         if selecting and not m.guards_rand:
-            sh, ags = st[SH], st[AGS]
             for i in selecting:
+                # under Koord's semantics a robot reads the round's start
+                view = m._round_start_view(st, i) if koord else st
+                sh, ags = view[SH], view[AGS]
                 ag = ags[i]
                 for e, g in enumerate(m.compiled.guards):
                     try:

@@ -1,4 +1,4 @@
-"""``pccl fmt``: print a PCCL program in one canonical layout.
+"""``pccl fmt``: print a PCCL (or Koord) program in one canonical layout.
 
 The formatter works on tokens and lines, not on the AST, so that it keeps
 every comment and the program's line structure (docs and traces cite line
@@ -23,6 +23,10 @@ numbers).  It changes only white space:
 :func:`format_source` checks its own work: the formatted text must parse to
 the same AST as the original (spans aside) and format to itself; otherwise
 it raises :class:`FormatterBug` instead of returning a changed program.
+
+A Koord file (``.koord``, ``.krd``) gets the same treatment with Koord's
+tokens and words (:func:`_koord_layout`; docs/koord.md, "Formatting"): the
+check reads it through the Koord front end.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from pccl.lang.errors import PcclError
-from pccl.lang.koord import is_koord_path
+from pccl.lang.koord import is_koord_path, parse_koord
 from pccl.lang.parser import parse_program
 
 __all__ = ["format_source", "FormatterBug", "tokenize", "Tok"]
@@ -160,18 +164,18 @@ def _join(toks: list[Tok], in_decls: bool) -> str:
 def format_source(source: str, filename: str = "<input>") -> str:
     """The canonical layout of ``source`` (a program that parses; a syntax
     error is raised as :class:`pccl.lang.errors.PcclError`)."""
+    parse, layout = parse_program, _layout
     if is_koord_path(filename):
-        raise PcclError("pccl fmt formats PCCL programs: Koord files (.koord, .krd) are not "
-                        "formatted yet (docs/koord.md)", filename=filename)
-    original = parse_program(source, filename)
-    out = _layout(source)
+        parse, layout = parse_koord, _koord_layout
+    original = parse(source, filename)
+    out = layout(source)
     try:
-        again = parse_program(out, filename)
+        again = parse(out, filename)
     except PcclError as e:
         raise FormatterBug(f"{filename}: the formatted program does not parse: {e.message}") from None
     if again != original:
         raise FormatterBug(f"{filename}: the formatted program differs from the original")
-    if _layout(out) != out:
+    if layout(out) != out:
         raise FormatterBug(f"{filename}: formatting is not idempotent")
     return out
 
@@ -395,3 +399,169 @@ def _blank_lines(out_lines: list[tuple[int, str]], levels: dict[int, int]) -> st
     while result and result[0] == "":
         result.pop(0)
     return "\n".join(result) + "\n" if result else ""
+
+
+# --------------------------------------------------------------------------
+# Koord files (docs/koord.md, "Formatting")
+# --------------------------------------------------------------------------
+
+# Mirrors the terminals of koord.lark: `#` and `//` line comments, strings
+# (log lines), `<<`.
+_KOORD_TOKEN_RE = re.compile(r"""
+  (?P<nl>\n)
+| (?P<ws>[\t \f\r]+)
+| (?P<comment>(?://|\#)[^\n]*)
+| (?P<bcomment>/\*(?:[^*]|\*(?!/))*\*/)
+| (?P<num>(?:[0-9]+\.[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[0-9]+[eE][+-]?[0-9]+|[0-9]+)
+| (?P<word>[A-Za-z_][A-Za-z0-9_]*)
+| (?P<op>"[^"\n]*"|<<|->|\|\||&&|==|!=|<=|>=|[<>+\-*/%!=()\[\]{},:;.])
+| (?P<bad>.)
+""", re.VERBOSE)
+
+#: Koord's words that are not operands (a ``-`` or ``(`` after them starts
+#: an operand of their own).
+KOORD_KEYWORDS = frozenset({
+    "if", "elif", "else", "for", "in", "and", "or", "not", "return", "pre", "eff", "atomic",
+    "stop", "skip", "forall", "exists", "using", "def", "fun", "sensors", "actuators",
+    "allwrite", "allread", "local", "init", "invariant"})
+_KOORD_BINARY = frozenset({"<<", "->", "||", "&&", "==", "!=", "<=", ">=", "<", ">", "+", "-",
+                           "*", "/", "%", "="})
+
+
+def _koord_tokenize(text: str) -> list[Tok]:
+    out = []
+    line, line_start = 1, 0
+    for m in _KOORD_TOKEN_RE.finditer(text):
+        kind = m.lastgroup or BAD
+        out.append(Tok(kind, m.group(), line, m.start() - line_start))
+        nls = m.group().count("\n")
+        if nls:
+            line += nls
+            line_start = m.start() + m.group().rfind("\n") + 1
+    return out
+
+
+def _koord_operand_end(t: Optional[Tok]) -> bool:
+    if t is None:
+        return False
+    if t.kind == NUM:
+        return True
+    if t.kind == WORD:
+        return t.text not in KOORD_KEYWORDS
+    return t.text in (")", "]") or t.text.startswith('"')
+
+
+def _koord_join(toks: list[Tok]) -> str:
+    """The code tokens of one Koord line, spaced canonically (from the
+    tokens alone, so that formatting is idempotent): one space around binary
+    operators, ``=`` and ``<<``, after ``,`` ``;`` ``:``; none inside ``()``
+    and ``[]``, before ``, ; : ) ] .``, after a unary ``-``/``!``, after
+    ``.``, between a name and its ``(`` or ``[``, in ``list<T>``."""
+    out: list[str] = []
+    prev: Optional[Tok] = None
+    prev_text = ""
+    unary_pending = False
+    generic = 0                 # depth inside ``list<...>``
+    for t in toks:
+        text = t.text
+        generic_open = (text == "<" and prev is not None and prev.kind == WORD
+                        and prev_text in ("list", "List"))
+        generic_close = generic > 0 and text == ">"
+        unary = text == "!" or (text == "-" and not _koord_operand_end(prev))
+        if prev is None:
+            sep = ""
+        elif generic_open or generic_close or (generic > 0 and prev_text == "<"):
+            sep = ""
+        elif unary_pending or prev_text in ("(", "[", ".") or text in _NO_SPACE_BEFORE:
+            sep = ""
+        elif text in ("(", "["):
+            sep = "" if _koord_operand_end(prev) else " "
+        else:
+            sep = " "
+        if sep == "" and prev is not None and (len(_koord_tokenize(prev_text + text)) != 2
+                                               or prev_text == text == "-"):
+            sep = " "
+        out.append(sep)
+        out.append(text)
+        generic += 1 if generic_open else -1 if generic_close else 0
+        unary_pending = unary
+        prev, prev_text = t, text
+    return "".join(out)
+
+
+def _koord_layout(source: str) -> str:
+    """A Koord program laid out: two spaces per block level (the levels
+    Koord's indenter sees), a continuation line (inside brackets) four
+    spaces deeper than its statement, canonical spacing inside each line,
+    comments verbatim (a trailing one two spaces after the code, a
+    comment-only line indented like the next line of code), no trailing
+    white space, at most one blank line in a row, none at the start or the
+    end, one newline at the end."""
+    text = source.replace("\r\n", "\n").replace("\r", "\n")
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    lines: list[list[Tok]] = [[]]
+    for t in _koord_tokenize(text):
+        if t.kind == NL:
+            lines.append([])
+        else:
+            lines[-1].append(t)
+    infos = _line_infos(lines)
+    levels, _ = _block_levels(infos)
+    next_code = _next_code(len(lines), levels)
+    rows: list[str] = []
+    level = 0
+    for k, lt in enumerate(lines):
+        body = lt[1:] if lt and lt[0].kind == WS else lt
+        body = [t for t in body if t.kind != WS or t is not body[-1]]
+        if not body:
+            rows.append("")
+            continue
+        code = [t for t in body if t.kind not in (WS, COMMENT, BCOMMENT)]
+        if k in levels:
+            level = levels[k]
+            pad = INDENT * level
+        elif code:
+            pad = INDENT * level + INDENT * 2        # a continuation line
+        else:
+            nxt = next_code[k]
+            pad = INDENT * (levels[nxt] if nxt >= 0 else 0)
+        if not code:
+            rows.append(pad + " ".join(t.text for t in body if t.kind != WS))
+            continue
+        rows.append(pad + _koord_code_line(body))
+    return _koord_blank_lines(rows)
+
+
+def _koord_code_line(body: list[Tok]) -> str:
+    """A line of code: its tokens joined, a block comment inside it where
+    it is (one space apart), a trailing comment two spaces after it."""
+    trailing = ""
+    if body[-1].kind == COMMENT:
+        trailing = "  " + body[-1].text
+        body = body[:-1]
+    pieces: list[str] = []
+    run: list[Tok] = []
+    for t in body:
+        if t.kind == BCOMMENT:
+            if run:
+                pieces.append(_koord_join(run))
+                run = []
+            pieces.append(t.text)
+        elif t.kind != WS:
+            run.append(t)
+    if run:
+        pieces.append(_koord_join(run))
+    return " ".join(pieces) + trailing
+
+
+def _koord_blank_lines(rows: list[str]) -> str:
+    out: list[str] = []
+    for r in rows:
+        r = r.rstrip()
+        if r == "" and (not out or out[-1] == ""):
+            continue
+        out.append(r)
+    while out and out[-1] == "":
+        out.pop()
+    return "\n".join(out) + "\n" if out else ""

@@ -9,7 +9,7 @@ symbols, completion, formatting (:mod:`pccl.tools.fmt`) and a quick fix for a
 did-you-mean.  Koord files (``.koord``, ``.krd``: docs/koord.md) are read by
 the Koord front end: diagnostics (with a world file beside them), hover on
 their names and on Koord's own words, definitions, references, the outline
-and completion with Koord's words; no formatting (``pccl fmt`` refuses them).
+and completion with Koord's words, and formatting (``pccl fmt``'s Koord layout).
 
 The analysis (:class:`Analysis`, :func:`analyse`) knows nothing of the
 protocol and is tested on its own; the handlers only translate.  The names

@@ -707,6 +707,54 @@ def _k_motion(seed: int, rng: random.Random, ks: dict) -> tuple:
     return text, base.world, invariants
 
 
+#: Koord's lists and records (docs/koord.md, "Records"): nested records, an
+#: array and a list of records, record literals, ``for x in xs:`` over a
+#: list of ints and of records, ``any``/``all``; drawn by a generator of
+#: their own (:func:`_k_lists`), so that the rest of each program is as
+#: before
+K_RECORD_DEFS = "def Pt:\n  int a = 0\n  int b = {b}\n\ndef Box:\n  Pt at\n  boolean on = false\n\n"
+K_LIST_LOCALS = ("  Box[] bl = [Box(Pt(1, 0))]\n  Box bs[2]\n  Box b\n  boolean[] fl = [false]\n"
+                 "  int v = 0\n")
+K_LIST_STMTS = ["for v in q:\n{p}  y = y + v", "for v in q:\n{p}  s = s + v",
+                "for b in bl:\n{p}  y = y + b.at.a\n{p}  b.on = not b.on",
+                "bl.add(Box(Pt(x, c), g))", "bl = [Box(Pt(y, 1)), Box()]", "bs[c % 2] = Box(Pt(y, c))",
+                "bs[0].at.b = bs[1].at.a + 1", "b = bs[1]", "b = bl.head()", "fl.add(x > 0)",
+                "fl = [g, flag[pid]]", "if any(fl):\n{p}  y = y + 1",
+                "if all(fl):\n{p}  s = s + 1\n{p}else:\n{p}  ab[pid].on = true",
+                "ab[pid] = b", "ab[pid].at.a = c", "atomic:\n{p}  for v in q:\n{p}    s = s + v"]
+K_PICK_EVENTS = ("\nPickA:\n  pre: k == 0\n  eff:\n    pk[pid] = true\n    k = 1\n"
+                 "\nPickB:\n  pre: k == 0\n  eff:\n    k = 1\n"
+                 "\nCheck:\n  pre: k == 1\n  eff:\n    k = 2\n    if pid == 0 and numAgents > 1:\n"
+                 "      assert(not (pk[0] and not pk[1]))\n")
+K_LIST_ERR_STMTS = ["y = bs[x].at.a", "b = bl[x + 1]"]
+K_LIST_GUARDS = ["", " and any(fl)", " and not all(fl)", " and bl.size() < 3", " and not bs[0].on"]
+K_LIST_INVARIANTS = ["forall i: bl[i].size() >= 1", "forall i: not bs[i][0].on or bs[i][0].at.b >= 0",
+                     "forall i: ab[i].at.a <= 2", "forall i: y[i] < 6", "forall i: not ab[i].on"]
+
+
+def _k_lists(seed: int, err: float) -> Optional[dict]:
+    """The pieces of a program's lists and records, or None (most programs
+    have none): its own generator, keyed by the seed."""
+    rng = random.Random(seed * 7_919 + 47)
+    if rng.random() >= 0.4:
+        return None
+    stmts = K_LIST_STMTS + (K_LIST_ERR_STMTS if err else [])
+    body = "".join("    " + rng.choice(stmts).format(p="    ") + "\n" for _ in range(rng.randint(1, 3)))
+    out = {"defs": K_RECORD_DEFS.format(b=rng.choice(["0", "rand(1)"])),
+           "allread": "  Box ab[]\n", "local": K_LIST_LOCALS,
+           "guard": rng.choice(K_LIST_GUARDS), "body": body,
+           "invariant": rng.choice(K_LIST_INVARIANTS) if rng.random() < 0.5 else None,
+           "events": ""}
+    if rng.random() < 0.3:
+        # robots pick one of two events; robot 0 then asserts on the pair
+        # of picks, which tells (A, B) from its mirror (B, A): an asymmetric
+        # program that the default must explore as the truth does
+        out["allread"] += "  boolean pk[] = false\n"
+        out["local"] += "  int k = 0\n"
+        out["events"] = K_PICK_EVENTS
+    return out
+
+
 def koord(seed: int, rng: random.Random) -> Case:
     """A Koord program (docs/koord.md's constructs) under Koord's round
     semantics, with its options drawn: ``--events first`` (the deployed
@@ -732,6 +780,9 @@ def koord(seed: int, rng: random.Random) -> Case:
     if ks["rec"]:
         text += ("def Rec:\n  int n = " + rng.choice(["0", "1", "rand(2)"])
                  + "\n  boolean ok = false\n\n")
+    kl = _k_lists(seed, ks["err"])
+    if kl:
+        text += kl["defs"]
     if rng.random() < 0.15:
         text += "using Log:\n  actuators:\n    stream stdout\n\n"
     shared_init = rng.choice(K_SHARED_INITS
@@ -744,12 +795,15 @@ def koord(seed: int, rng: random.Random) -> Case:
     if ks["ar"]:
         ar_inits = ["0", "rand(1)", "s + 1"] + (["10 / (rand(1) - 1)"] if ks["err"] else [])
         text += f"  int ar[] = {rng.choice(ar_inits)}\n"
+    if kl:
+        text += kl["allread"]
     loc_init = rng.choice(K_LOC_INITS + (K_ERR_LOC_INITS if ks["err"] else [])
                           + (["pid", "pid + 1"] if ks["asym"] else []))
     text += (f"\nlocal:\n  int c = 0\n  int x = {loc_init}\n"
              f"  int y = {rng.choice(['0', '1', 'x', 'rand(1)'])}; int i = 0\n"
              f"  float h = {rng.choice(['1.5', '0.5', '1e300'])}\n  pos p = pos(1, 2)\n"
-             "  list<int> l = []\n  int u\n" + ("  Rec rc\n  Rec rc0\n" if ks["rec"] else ""))
+             "  list<int> l = []\n  int u\n" + ("  Rec rc\n  Rec rc0\n" if ks["rec"] else "")
+             + (kl["local"] if kl else ""))
     if rng.random() < 0.4:
         text += "\ninit:\n" + "".join(_k_stmt(rng, ks, 1, 1, {"in_atomic": True})
                                       for _ in range(rng.randint(1, 2)))
@@ -765,11 +819,17 @@ def koord(seed: int, rng: random.Random) -> Case:
                           "y = q[q.size()]", "atomic:\n        y = 10 / (x - x)"])
         text += (f"\nRisk:\n  pre: c < {bound}\n  eff:\n    c = c + 1\n"
                  f"    if {rng.choice(['x >= 0', 'x > 0', 'not g', 'y != 1'])}:\n      {bad}\n")
+    if kl:
+        text += f"\nL0:\n  pre: c < {bound}{kl['guard']}\n  eff:\n    c = c + 1\n{kl['body']}"
+        text += kl["events"]
     if rng.random() < 0.85:
         text += f"\nDone:\n  pre: c >= {bound}\n  eff:\n    stop\n"
-    if rng.random() < 0.4:
+    inv_section = rng.random() < 0.4
+    if inv_section:
         text += "\ninvariant:\n" + "".join(f"  inv{k}: {rng.choice(K_INVARIANTS)}\n"
                                           for k in range(rng.randint(1, 2)))
+    if kl and kl["invariant"]:
+        text += ("" if inv_section else "\ninvariant:\n") + f"  invL: {kl['invariant']}\n"
     invariants = [rng.choice(K_CLI_INVARIANTS) for _ in range(rng.choice([0, 0, 1, 2]))]
     properties = [rng.choice(K_PROPERTIES)] if rng.random() < 0.2 else []
     return Case(seed, "koord", text, agents=rng.choice([1, 2, 2, 2, 3]), invariants=invariants,

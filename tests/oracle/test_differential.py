@@ -150,7 +150,12 @@ def test_the_koord_generator_reaches_every_construct():
                       "pos3d(", ".add(", ".remove(", ".size()", ".contains(", ".head()", ".isEmpty()",
                       "assert(", "using Motion:", "Motion.target = ", "Motion.reached",
                       "Motion.position", "using Log:", "invariant:", "int u\n", "list<int>",
-                      "float h", "rand(", "def Rec:", "Rec rc\n", "rc.n = ", "rc = rc0", "rw.ok"):
+                      "float h", "rand(", "def Rec:", "Rec rc\n", "rc.n = ", "rc = rc0", "rw.ok",
+                      # lists and records (docs/koord.md, "Records")
+                      "def Box:\n  Pt at\n", "Box[] bl = [Box(Pt(1, 0))]", "Box bs[2]", "Box ab[]",
+                      "for v in q:", "for b in bl:", "bl.add(Box(Pt(", "bs[c % 2] = Box(Pt(",
+                      "b.at.a", "ab[pid] = b", "b = bl.head()", "any(fl)", "all(fl)",
+                      "fl = [g, flag[pid]]", "invL: ", "PickA:", "if pid == 0 and numAgents > 1:"):
         assert construct in body, construct
     # every runtime error, in every position it can stand: initialisers of
     # each section, guards, statements, atomic blocks, range bounds,

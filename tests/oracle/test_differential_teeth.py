@@ -15,7 +15,8 @@ it within a small budget of generated programs.
     program: the generated programs have no zero-time loop that shows it);
 (f) the native engine's ints at the 64-bit edges (issue 41 hole 5);
 (h) counter saturation (issue 46) with its cap one too low (a counter
-    compared with ``<= c`` or ``== c`` clamped at ``c``).
+    compared with ``<= c`` or ``== c`` clamped at ``c``);
+(k) Koord's symmetry said of a program whose robots' ids break it.
 """
 
 from __future__ import annotations
@@ -185,6 +186,72 @@ def test_i_koord_skip_event_replacing_the_event(monkeypatch):
     monkeypatch.setattr(K.KoordModel, "_robot_turn", only_skip)
     ds = caught(["koord"], ["koord-skip-events"], 30)
     assert ds and ds[0].check == "inclusion", "the oracle missed SkipEvent replacing EventTrans"
+
+
+#: robots pick A or B in the first round; in the second robot 0 asserts
+#: that it did not pick A while robot 1 picked B: the round-boundary states
+#: (A, B) and (B, A) are mirror images, and only (A, B) fails
+PICKS = """allread:
+  boolean a[] = false
+
+local:
+  int c = 0
+
+pickA:
+  pre: c == 0
+  eff:
+    a[pid] = true
+    c = 1
+
+pickB:
+  pre: c == 0
+  eff:
+    c = 1
+
+check:
+  pre: c == 1
+  eff:
+    c = 2
+    if pid == 0:
+      assert(not (a[0] and not a[1]))
+    stop
+"""
+
+
+def _koord_symmetric_regardless(monkeypatch):
+    """The Koord symmetry predicate (pccl.model.reduce.symmetry_problem on a
+    Koord model) saying "symmetric" where robots' ids break it: the id
+    variables it found are renamed, the rest ignored."""
+    from pccl.model import reduce as RD
+    orig = RD.symmetry_problem
+
+    def said(m):
+        why, slots = orig(m)
+        if why is None or getattr(m, "semantics", "pccl") != "koord" \
+                or not why.startswith("an agent id"):
+            return why, slots
+        lay = m.compiled.layout
+        ids = RD.IdTypes(lay, m.program, m.compiled.stmts.values(),
+                         [(p.expr, p.text) for p in list(m.properties) + list(m.temporal)]).ids
+        return None, ([vs.slot for vs in lay.local if vs.name in ids],
+                      [vs.slot for vs in lay.allread if vs.name in ids],
+                      [vs.slot for vs in lay.shared if vs.name in ids], False,
+                      RD.positions_read(m) is not None)
+    monkeypatch.setattr(RD, "symmetry_problem", said)
+
+
+def test_k_koord_symmetry_said_of_a_symmetry_breaking_program(monkeypatch):
+    """Symmetry under Koord's round semantics turned on for a program whose
+    robots' ids break it (PICKS): the default (symmetry on) folds (A, B)
+    into its mirror and misses the assertion the truth finds.  As shipped
+    the symmetry analysis refuses the program and the two agree."""
+    case = gen.Case(0, "koord", PICKS, agents=2, lang="koord")
+    modes = oracle.choose_modes(["truth", "default", "symmetry-python"], 0)
+    assert oracle.compare(case, modes).disagreements == []          # as shipped
+    _koord_symmetric_regardless(monkeypatch)
+    ds = oracle.compare(case, modes).disagreements
+    assert {d.mode for d in ds} == {"default", "symmetry-python"}, ds
+    assert all(d.check == "verdict" and ("assert", "assertion", 23) in d.missed for d in ds), ds
 
 
 #: t is compared with 2 only (cap 3): t = 2 and t = 3 at c = 3 are two
