@@ -21,6 +21,20 @@ CPU-bound job, new code against old, in one run.
                                                       # d=2 unreduced, default checks, --all
                                                       # (levels of ~3,000 states), beside
                                                       # `yes > /dev/null`
+    python benchmarks/workers.py --phases --checks --k 4 --all --repeat 3
+                                                      # where the time goes: each phase of
+                                                      # the process, 1 worker against 2
+
+With ``--phases`` (this checkout only, no busy loop) each run is a fresh
+process timing the phases of ``pccl explore``'s work one after the other:
+the imports (``pccl.api``: without bytecode, their compiling), building the
+model, making the searcher (the native module compiled or loaded), the
+search (the level kernel's threads), the graph analysis after it (time-lock
+and stall checks), the frozen-team check, the result assembled; each with
+its wall time, the process's CPU (all threads) and the main thread's CPU,
+and the kernel's chunks (those the other thread made, those made twice).
+The phases outside the search run on one thread whatever ``--workers``
+says: they bound the speedup of the whole process (Amdahl).
 
 The search is that of ``pccl explore programs/fischer.pccl --set k=K --set
 d=2 --reduce none --no-timelock --workers N`` (unreduced, exhaustive).
@@ -122,6 +136,111 @@ def case(args) -> tuple:
     return spec, what
 
 
+#: ``--phases``: one search in a fresh process, timed phase by phase
+PHASES_CHILD = r"""
+import json, os, sys, time
+code = os.environ.get("PCCL_BENCH_CODE")
+if code:
+    sys.path.insert(0, code)
+    sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in type(f).__module__]
+def clock():
+    return time.perf_counter(), time.process_time(), time.thread_time()
+phases, kernel = [], {}
+def timed(name, f):
+    def g(*a, **k):
+        t0 = clock()
+        try:
+            return f(*a, **k)
+        finally:
+            phases.append((name, *(b - a for a, b in zip(t0, clock()))))
+    return g
+t0 = clock()
+import pccl.api as api
+phases.append(("imports", *(b - a for a, b in zip(t0, clock()))))
+make_searcher = api._make_searcher
+def searcher(plan):
+    ex, native = make_searcher(plan)
+    kernel["ex"] = ex
+    return ex, native
+for name, attr in (("searcher (native module)", "_make_searcher"), ("search", "_run_search"),
+                   ("frozen-team check", "_frozen_check"), ("assemble", "_assemble")):
+    setattr(api, attr, timed(name, searcher if attr == "_make_searcher" else getattr(api, attr)))
+analyse = api._analyse
+api._analyse = timed("analysis (time-lock, stall; frozen incl.)", analyse)
+spec = json.loads(sys.argv[1])
+workers = spec.pop("workers")
+extra = {k: spec.pop(k) for k in ("engine", "stall", "timelock", "find_all") if k in spec}
+extra.setdefault("timelock", False)
+m = timed("model", api.make_model)(spec.pop("program"), overrides=spec.pop("overrides", None),
+                                   reduce=spec.pop("reduce", "none"),
+                                   **({"agents": spec.pop("agents")} if spec.get("agents") else {}))
+r = api.explore_model(m, workers=workers, max_memory=None, **extra)
+ex = kernel.get("ex")
+print(json.dumps({"status": r.status, "states": r.stats.states, "transitions": r.stats.transitions,
+                  "engine": getattr(m, "engine_used", "python"), "phases": phases,
+                  "chunks": [getattr(ex, a, 0) for a in ("kernel_chunks", "kernel_helped",
+                                                          "kernel_dups")]}))
+"""
+
+
+def phases(spec: dict, repeat: int) -> None:
+    """``--phases``: 1 and 2 workers alternating, ``repeat`` fresh processes
+    each; per phase the median wall, process CPU and main-thread CPU."""
+    import json
+    import time
+    runs: dict = {1: [], 2: []}
+    for _ in range(repeat):
+        for w in (1, 2):
+            t0 = time.perf_counter()
+            out = subprocess.run([sys.executable, "-c", PHASES_CHILD, json.dumps({**spec, "workers": w})],
+                                 cwd=os.path.dirname(HERE), capture_output=True, text=True)
+            if out.returncode != 0:
+                sys.exit(f"benchmark child failed:\n{out.stderr}")
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            r["process"] = time.perf_counter() - t0
+            runs[w].append(r)
+    sig = {(r["status"], r["states"], r["transitions"]) for rs in runs.values() for r in rs}
+    assert len(sig) == 1, f"results differ: {sig}"
+    names = [p[0] for p in runs[1][0]["phases"]]
+    med = statistics.median
+
+    def cell(w: int, name: str) -> str:
+        xs = [next(p for p in r["phases"] if p[0] == name)[1:] for r in runs[w]]
+        return f"{med(x[0] for x in xs):6.2f} {med(x[1] for x in xs):6.2f} {med(x[2] for x in xs):6.2f}"
+    print(f"{'phase (median of ' + str(repeat) + ')':<38} {'1 worker: wall  CPU  main':>22}   "
+          f"{'2 workers: wall  CPU  main':>26}")
+    for name in names:
+        print(f"{name:<38} {cell(1, name):>22}   {cell(2, name):>26}")
+    for w in (1, 2):
+        ch = [r["chunks"] for r in runs[w]]
+        print(f"{w} worker{'s' if w > 1 else ''}: the process {fmt([r['process'] for r in runs[w]])} s "
+              f"wall; kernel chunks {ch[0][0]:,}, made by the other thread "
+              f"{fmt([c[1] for c in ch], ',')}, made twice {fmt([c[2] for c in ch], ',')}")
+    st, states, trans = sig.pop()
+    print(f"results identical in every run: {st}, {states:,} states, {trans:,} transitions; "
+          f"load average at the end: {load()}")
+
+
+def configurations(args, new, old) -> list:
+    """``[(label, workers, code dir, extra env)]``: the runs of each half-round."""
+    configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
+    if args.static:
+        configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
+    if args.balance:
+        configs.append(("2 workers, PCCL_BALANCE=1", 2, new, {"PCCL_BALANCE": "1"}))
+    if args.block:
+        configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
+    if args.unpinned:
+        configs.append(("2 workers, PCCL_PIN=0", 2, new, {"PCCL_PIN": "0"}))
+    if args.processes:
+        configs.append(("2 workers, PCCL_THREADS=0", 2, new, {"PCCL_THREADS": "0"}))
+    if old is not None and args.old_one:
+        configs.append((f"1 worker, old {args.baseline}", 1, old, None))
+    if old is not None:
+        configs.append((f"2 workers, old {args.baseline}", 2, old, None))
+    return configs
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--k", default="2", help="fischer's k [default: 2]")
@@ -163,6 +282,10 @@ def main() -> None:
     ap.add_argument("--processes", action="store_true",
                     help="also the new code with PCCL_THREADS=0 (2 worker processes where "
                          "the search would run on 2 threads)")
+    ap.add_argument("--phases", action="store_true",
+                    help="where the time goes: each phase of the process (imports, model, "
+                         "searcher, search, analysis, frozen-team check, assembly), 1 worker "
+                         "against 2, this checkout only")
     ap.add_argument("--agents", type=int, default=None,
                     help="fischer's agents [default: 2; 3 with --native]")
     args = ap.parse_args()
@@ -171,24 +294,13 @@ def main() -> None:
         what += f", autogroup nice {own_group(args.autogroup_nice)}"
     print(f"machine: {os.cpu_count()} CPUs, load average {load()} at the start; {what}",
           flush=True)
+    if args.phases:
+        phases(spec, args.repeat)
+        return
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as tmp_new:
         old = None if args.no_baseline else checkout(args.baseline, tmp)
         new = None if args.new is None else checkout(args.new, tmp_new)
-        configs = [("1 worker", 1, new, None), ("2 workers", 2, new, None)]
-        if args.static:
-            configs.append(("2 workers, PCCL_BALANCE=0", 2, new, {"PCCL_BALANCE": "0"}))
-        if args.balance:
-            configs.append(("2 workers, PCCL_BALANCE=1", 2, new, {"PCCL_BALANCE": "1"}))
-        if args.block:
-            configs.append(("2 workers, PCCL_SPIN=0", 2, new, {"PCCL_SPIN": "0"}))
-        if args.unpinned:
-            configs.append(("2 workers, PCCL_PIN=0", 2, new, {"PCCL_PIN": "0"}))
-        if args.processes:
-            configs.append(("2 workers, PCCL_THREADS=0", 2, new, {"PCCL_THREADS": "0"}))
-        if old is not None and args.old_one:
-            configs.append((f"1 worker, old {args.baseline}", 1, old, None))
-        if old is not None:
-            configs.append((f"2 workers, old {args.baseline}", 2, old, None))
+        configs = configurations(args, new, old)
         runs: dict = {(mode, c[0]): [] for mode in ("idle", "busy") for c in configs}
         loads: dict = {"idle": [], "busy": []}
         for i in range(args.repeat):

@@ -660,6 +660,7 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     import time as _time
     from pccl.search import liveness as L
     t0 = _time.perf_counter()
+    frozen = _frozen_beside(plan, ex, sr)
     lv = L.analyse(model, ex, sr, plan.rec, timelock=plan.o.timelock,
                    find_all=plan.o.find_all, stall=plan.o.stall)
     L.attach_traces(model, ex if plan.native is None else plan.native.decoding(ex), lv)
@@ -669,11 +670,55 @@ def _analyse(plan: _SearchPlan, ex: Any, sr: SearchResult):
     if lv.found and sr.status != "interrupted":
         sr.found.extend(lv.found)
         sr.status = "violation"
-    _frozen_check(plan, ex, sr, lv)
+    _frozen_check(plan, ex, sr, lv, frozen)
     return lv
 
 
-def _frozen_check(plan: _SearchPlan, ex: Any, sr: SearchResult, lv) -> None:
+def _frozen_over_graph(plan: _SearchPlan, ex: Any, sr: SearchResult) -> bool:
+    """Whether :func:`_frozen_check` decides over the search's own graph
+    (recorded whole, by one explorer, every state in its table)."""
+    from pccl.model import frozen as F
+    return F.recorded(plan.rec) and isinstance(ex, Explorer) and ex.table.n == sr.stats.states
+
+
+def _frozen_beside(plan: _SearchPlan, ex: Any, sr: SearchResult) -> Optional[Callable]:
+    """With more than one thread for the search (``--workers N`` on the
+    level kernel): the frozen-team check's decision started on a thread of
+    its own, beside the time-lock and stall checks (which :func:`_analyse`
+    runs meanwhile on the graph's same arrays, only read by both), so that
+    the analysis after the search is not one thread's alone.  Returns the
+    function that waits for its answer (re-raising its error), or None
+    (one thread, or the check will not decide over the graph).  Started
+    only where the check may run (stall check on, the search exhaustive and
+    clean so far); its answer is dropped when the other checks find a
+    violation (the check then does not run), as one thread would not have
+    made it."""
+    if getattr(ex, "threads", 1) <= 1 or not plan.o.stall or sr.status != "exhaustive" or sr.found \
+            or not _frozen_over_graph(plan, ex, sr):
+        return None
+    import threading
+    from pccl.model import frozen as F
+    out: dict = {}
+    kernel = getattr(ex.model, "reach_back", None)
+
+    def decide() -> None:
+        try:
+            out["found"] = F.decide_recorded(plan.model, plan.rec, ex.table.n, kernel)
+        except BaseException as e:      # handed to the waiting thread
+            out["error"] = e
+    th = threading.Thread(target=decide, name="pccl-frozen-check", daemon=True)
+    th.start()
+
+    def answer():
+        th.join()
+        if "error" in out:
+            raise out["error"]
+        return out["found"]
+    return answer
+
+
+def _frozen_check(plan: _SearchPlan, ex: Any, sr: SearchResult, lv,
+                  decided: Optional[Callable] = None) -> None:
     """Step of :func:`_analyse`: on a clean exhaustive search with the
     stall check on, is the team frozen somewhere (:mod:`pccl.model.frozen`)?
     Decided over the search's own graph where it recorded what the check
@@ -683,11 +728,11 @@ def _frozen_check(plan: _SearchPlan, ex: Any, sr: SearchResult, lv) -> None:
         return
     import time as _time
     from pccl.model import frozen as F
-    if F.recorded(plan.rec) and isinstance(ex, Explorer) and ex.table.n == sr.stats.states:
+    if _frozen_over_graph(plan, ex, sr):
         t0 = _time.perf_counter()
         dec = ex if plan.native is None else plan.native.decoding(ex)
         fr = F.check_recorded(plan.model, plan.rec, ex.table.n, dec.replay_chain, ex.table,
-                              getattr(ex.model, "reach_back", None))
+                              getattr(ex.model, "reach_back", None), decided)
         sr.stats.seconds += _time.perf_counter() - t0
         _frozen_found(sr, fr)
         return

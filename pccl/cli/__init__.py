@@ -8,16 +8,40 @@ output files in :mod:`pccl.cli.files`; this module is the ``pccl`` group
 
 from __future__ import annotations
 
+import importlib
 import sys
+from collections.abc import Iterator, MutableMapping
 
 import click
 
-from pccl.cli.cmd_explore import _progress_printer, explore
-from pccl.cli.cmd_run import check, run
-from pccl.cli.cmd_simulate import simulate
-from pccl.cli.cmd_traces import graph, replay, serve, view
-from pccl.cli.cmd_utility import cache_cmd, fmt_cmd, lsp
-from pccl.cli.options import EXIT_STATUS_HELP, FLAGS, _interrupted_status, _on_sigterm, _signal, cli_spelling, flag
+# The commands' modules are imported when a command is looked up (its name on
+# the command line, or every name for `pccl --help`), not here: `pccl
+# --version` and `pccl check` then load (and, without bytecode, compile) only
+# the modules they run (issue 43, item 4; tests/acceptance/test_version.py).
+#: command name -> (module, attribute)
+COMMANDS = {
+    "check": ("pccl.cli.cmd_run", "check"), "run": ("pccl.cli.cmd_run", "run"),
+    "explore": ("pccl.cli.cmd_explore", "explore"),
+    "replay": ("pccl.cli.cmd_traces", "replay"), "view": ("pccl.cli.cmd_traces", "view"),
+    "serve": ("pccl.cli.cmd_traces", "serve"), "graph": ("pccl.cli.cmd_traces", "graph"),
+    "simulate": ("pccl.cli.cmd_simulate", "simulate"),
+    "fmt": ("pccl.cli.cmd_utility", "fmt_cmd"), "lsp": ("pccl.cli.cmd_utility", "lsp"),
+    "cache": ("pccl.cli.cmd_utility", "cache_cmd"),
+}
+#: names this module gives from the modules it does not import up front
+_ELSEWHERE = {"FLAGS": "pccl.cli.options", "flag": "pccl.cli.options",
+              "cli_spelling": "pccl.cli.options", "_progress_printer": "pccl.cli.cmd_explore"}
+
+#: the exit statuses (the help's epilog of the group and of run, explore, graph)
+EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
+                    "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
+                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a stalled "
+                    "run), 2 bad input (the program, the world, an option) or a limit of the "
+                    "tool (out of memory, rand over 1,000,000 outcomes), "
+                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM). With --exit-codes "
+                    "detailed (run, explore) a violation exits 11 deadlock/stall, 12 "
+                    "invariant/collision, 13 temporal property, 14 assertion/stuck, "
+                    "15 time-lock, 16 --max-steps.")
 
 __all__ = ["main", "FLAGS", "flag", "cli_spelling", "_progress_printer"]
 
@@ -31,13 +55,51 @@ def _print_version(ctx, value) -> None:
     ctx.exit()
 
 
+class _Commands(MutableMapping):
+    """The group's ``commands``: every name known from the start
+    (:data:`COMMANDS`), each command imported when it is first read."""
+
+    def __init__(self, lazy: dict) -> None:
+        self._lazy = dict(lazy)
+        self._loaded: dict = {}
+
+    def __getitem__(self, name: str) -> click.Command:
+        if name not in self._loaded:
+            if name not in self._lazy:
+                raise KeyError(name)
+            module, attr = self._lazy.pop(name)
+            self._loaded[name] = getattr(importlib.import_module(module), attr)
+        return self._loaded[name]
+
+    def __setitem__(self, name: str, command: click.Command) -> None:
+        self._lazy.pop(name, None)
+        self._loaded[name] = command
+
+    def __delitem__(self, name: str) -> None:
+        if self._lazy.pop(name, None) is None:
+            del self._loaded[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([*self._loaded, *self._lazy])
+
+    def __len__(self) -> int:
+        return len(self._loaded) + len(self._lazy)
+
+
 class _Main(click.Group):
-    """Ctrl-C and SIGTERM outside a search exit 130 and 143, not click's
-    "Aborted!" with status 1 (which means a violation)."""
+    """The ``pccl`` group: its commands imported when looked up
+    (:class:`_Commands`).  Ctrl-C and SIGTERM outside a search exit 130 and
+    143, not click's "Aborted!" with status 1 (which means a violation)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.commands = _Commands(COMMANDS)
 
     def invoke(self, ctx):
         import signal
         import threading
+
+        from pccl.cli.options import _interrupted_status, _on_sigterm, _signal
         previous = None
         _signal["term"] = False
         try:
@@ -88,8 +150,13 @@ def main():
     P ~> Q within T, reachable P) or (with --collisions) a collision.
     """
 
-for _command in (check, run, explore, replay, view, serve, graph, simulate, fmt_cmd, lsp, cache_cmd):
-    main.add_command(_command)
+
+def __getattr__(name: str):
+    """``FLAGS``, ``flag``, ``cli_spelling``, ``_progress_printer``: from
+    the module that defines them, imported on first use."""
+    if name in _ELSEWHERE:
+        return getattr(importlib.import_module(_ELSEWHERE[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 if __name__ == "__main__":  # pragma: no cover
     main()

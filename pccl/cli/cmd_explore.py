@@ -6,8 +6,9 @@ import sys
 
 import click
 
+from pccl.cli import EXIT_STATUS_HELP
 from pccl.cli.files import _check_outputs, _explore_path, _plot_module, _rates_text, _write_html, _write_trace
-from pccl.cli.options import (_EXIT_CODES, EXIT_STATUS_HELP, Choice, FiniteFloat, _check_repeats,
+from pccl.cli.options import (_EXIT_CODES, Choice, FiniteFloat, _check_repeats,
                               _check_watch, _exit_status, _fail, _interval, _render, _size,
                               _workers, cli_spelling, common_options, flag, view_options,
                               watch_option)

@@ -6,9 +6,10 @@ import sys
 
 import click
 
+from pccl.cli import EXIT_STATUS_HELP
 from pccl.cli.files import (_check_outputs, _check_with_world, _plot_run, _rates_text, _run_path,
                             _write_html, _write_trace)
-from pccl.cli.options import (_EXIT_CODES, EXIT_STATUS_HELP, Choice, FiniteFloat, _check_repeats,
+from pccl.cli.options import (_EXIT_CODES, Choice, FiniteFloat, _check_repeats,
                               _check_watch, _exit_status, _fail, _size, cli_spelling,
                               common_options, view_options, watch_option)
 from pccl.lang.errors import PcclError
@@ -23,10 +24,12 @@ def check(program, world):
     # the front end only (not pccl.api, which imports the engines: start-up)
     from pccl.lang.checker import check_program
     from pccl.lang.files import parse_program_file
-    from pccl.lang.world import load_world
     try:
         prog = parse_program_file(program)      # PCCL, or Koord (.koord, .krd)
-        w = load_world(world) if world is not None else None
+        w = None
+        if world is not None:
+            from pccl.lang.world import load_world
+            w = load_world(world)
         names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
         check_program(prog, functions=names)
         if w is not None:

@@ -6,9 +6,10 @@ import sys
 
 import click
 
+from pccl.cli import EXIT_STATUS_HELP
 from pccl.cli.files import (_check_output, _check_plot_output, _plot_module, _rates_text,
                             _stdout_is_terminal, _world_of, _write_html)
-from pccl.cli.options import (EXIT_STATUS_HELP, Choice, FiniteFloat, _check_repeats, _check_watch,
+from pccl.cli.options import (Choice, FiniteFloat, _check_repeats, _check_watch,
                               _fail, _render, _size, cli_spelling, common_options, view_options,
                               watch_option)
 from pccl.lang.errors import PcclError

@@ -193,16 +193,6 @@ def _fail(err: PcclError):
     sys.exit(2)
 
 
-EXIT_STATUS_HELP = ("Exit status: 0 the properties hold (exhaustive, or within the bounds "
-                    "named; a 'reachable P' has a witness), 1 a violation (also a liveness "
-                    "counterexample, a time-lock, a stall, an unreachable 'reachable P', a stalled "
-                    "run), 2 bad input (the program, the world, an option) or a limit of the "
-                    "tool (out of memory, rand over 1,000,000 outcomes), "
-                    "130 interrupted (Ctrl-C), 143 terminated (SIGTERM). With --exit-codes "
-                    "detailed (run, explore) a violation exits 11 deadlock/stall, 12 "
-                    "invariant/collision, 13 temporal property, 14 assertion/stuck, "
-                    "15 time-lock, 16 --max-steps.")
-
 _signal = {"term": False}
 
 

@@ -50,20 +50,11 @@ from pccl.lang import koordfun as F
 from pccl.lang import parser as P
 from pccl.lang.errors import PcclError
 
-__all__ = ["parse_koord", "parse_koord_file", "is_koord_path", "KOORD_SUFFIXES"]
-
-#: File name endings read as Koord.
-KOORD_SUFFIXES = (".koord", ".krd")
+#: (which files are Koord, ``is_koord_path``, is pccl.lang.files's: reading a
+#: PCCL file imports no Koord front end)
+__all__ = ["parse_koord", "parse_koord_file"]
 
 _GRAMMAR_PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "koord.lark")
-
-
-def is_koord_path(path) -> bool:
-    """Whether the file ``path`` is a Koord program (by its suffix)."""
-    name = os.fspath(path)
-    if isinstance(name, bytes):
-        name = os.fsdecode(name)
-    return name.lower().endswith(KOORD_SUFFIXES)
 
 
 # --------------------------------------------------------------------------

@@ -303,17 +303,11 @@ def recorded(rec) -> bool:
     return fz is not None and fz.whole and rec.complete
 
 
-def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
-                   kernel: Optional[Callable] = None) -> FrozenResult:
-    """:func:`check` over the graph the search recorded (``rec``, with
-    :func:`recorded`; ``n`` states): no second exploration.  ``replay``
-    turns a chain of state numbers into the trace of the model's states
-    (the explorer's, decoded on the native engine); ``table`` gives the
-    breadth-first parents; ``kernel`` the native engine's backward
-    reachability (or None)."""
-    import time
-    from pccl.search.liveness import TemporalViolation, _chain_to
-    t0 = time.perf_counter()
+def decide_recorded(model, rec, n: int, kernel: Optional[Callable] = None):
+    """The decision of :func:`check_recorded` (:func:`_decide` over the
+    recorded graph), without the trace: arrays in, arrays out, the model
+    only read (its events), so that it can run on a thread of its own
+    beside the search's other graph checks (``--workers N``: :func:`pccl.api._analyse`)."""
     fz = rec.frozen
     m = rec.src.n
     src, dst = rec.src.view()[:m], rec.dst.view()[:m]
@@ -326,8 +320,23 @@ def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
         src, dst, event = src[order], dst[order], event[order]
     changes = fz.pchg.view()[:n].astype(bool)
     dyn = rec.dyn.view()[:n].astype(bool)
+    return _decide(model, n, src, dst, event, changes, dyn, kernel)
+
+
+def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
+                   kernel: Optional[Callable] = None, decided: Optional[Callable] = None) -> FrozenResult:
+    """:func:`check` over the graph the search recorded (``rec``, with
+    :func:`recorded`; ``n`` states): no second exploration.  ``replay``
+    turns a chain of state numbers into the trace of the model's states
+    (the explorer's, decoded on the native engine); ``table`` gives the
+    breadth-first parents; ``kernel`` the native engine's backward
+    reachability (or None); ``decided``: returns :func:`decide_recorded`'s
+    answer, made already (on another thread), instead of deciding here."""
+    import time
+    from pccl.search.liveness import TemporalViolation, _chain_to
+    t0 = time.perf_counter()
     out = FrozenResult(True, states=n)
-    found = _decide(model, n, src, dst, event, changes, dyn, kernel)
+    found = decided() if decided is not None else decide_recorded(model, rec, n, kernel)
     if found is not None:
         first, never, live, fired = found
         out.trace = _expanded(model, replay(_chain_to(table, first)))

@@ -839,10 +839,12 @@ def analyse(model, explorer, sr, rec: GraphRecorder, *, timelock: bool,
     a.reachable()
     if a.within() or a.liveness(depth_only):
         return out
+    do_stall = stall and rec.chg is not None and (complete or depth_only)
     if timelock and (complete or depth_only):
+        if do_stall and getattr(explorer, "threads", 1) > 1:
+            a.decide_beside()
         a.timelock()
-    if stall and rec.chg is not None and (complete or depth_only) \
-            and (find_all or not out.found):
+    if do_stall and (find_all or not out.found):
         a.stall()
     return out
 
@@ -878,6 +880,10 @@ class _Analysis:
         #: also) for states that differ in dead values: a cycle of the graph
         #: closes only up to them, lassos are rebuilt on real states
         self.renamed, self.quotient = quotient_of(model)
+        #: the time-lock and stall checks' decisions when made beside each
+        #: other (:meth:`decide_beside`), else None
+        self._locked_set: Optional[np.ndarray] = None
+        self._stalled_first: Optional[tuple] = None
 
     def _exact_fair(self, inside: np.ndarray) -> bool:
         """Under symmetry: whether the component ``inside`` of the quotient
@@ -992,12 +998,43 @@ class _Analysis:
                    f"then Q never holds ({'the run ends' if terminal else 'the run loops forever'})")
         return TemporalViolation("liveness", p.name, msg, None, p.span), chain, cstart
 
+    def decide_beside(self) -> None:
+        """With more than one thread for the search (``--workers N`` on the
+        level kernel): the time-lock check's decision (:meth:`_locked`) made
+        on a thread of its own while this one makes the stall check's
+        (:func:`_first_stalled`); :meth:`timelock` and :meth:`stall` then
+        take them, in their order, as one thread would have made them
+        (the stall's is dropped where the time-lock ends the analysis).
+        Both only read the graph."""
+        import threading
+        out: dict = {}
+
+        def locked() -> None:
+            try:
+                out["locked"] = self._locked()
+            except BaseException as e:      # handed to the waiting thread
+                out["error"] = e
+        th = threading.Thread(target=locked, name="pccl-timelock-check", daemon=True)
+        th.start()
+        assert self.rec.chg is not None
+        try:
+            self._stalled_first = (_first_stalled(self.g, self.rec.chg.view()[:self.n].view(bool)),)
+        finally:
+            th.join()
+        if "error" in out:
+            raise out["error"]
+        self._locked_set = out["locked"]
+
+    def _locked(self) -> np.ndarray:
+        """The states from which no dynamic or terminal state can be reached."""
+        g = self.g
+        return ~g.can_reach(g.dyn | g.terminal)
+
     def timelock(self) -> None:
         """A reachable state from which no dynamic or terminal state can be
         reached: a zero-time cycle that cannot be left."""
         g = self.g
-        escape = g.dyn | g.terminal
-        locked = ~g.can_reach(escape)
+        locked = self._locked_set if self._locked_set is not None else self._locked()
         if not locked.any():
             return
         s = int(np.flatnonzero(locked)[0])
@@ -1016,7 +1053,8 @@ class _Analysis:
     def stall(self) -> None:
         """The first stalled state (pccl/model/stall.py's signature)."""
         assert self.rec.chg is not None
-        s = _first_stalled(self.g, self.rec.chg.view()[:self.n].view(bool))
+        s = self._stalled_first[0] if self._stalled_first is not None \
+            else _first_stalled(self.g, self.rec.chg.view()[:self.n].view(bool))
         if s is not None:
             self.record(TemporalViolation("stall", "stall", STALL_MESSAGE),
                         _chain_to(self.table, s), None)

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 from typing import Optional
 
 from pccl.lang.errors import PcclError
-from pccl.lang.koord import is_koord_path, parse_koord
+from pccl.lang.files import is_koord_path
+from pccl.lang.koord import parse_koord
 from pccl.lang.parser import parse_program
 
 __all__ = ["format_source", "FormatterBug", "tokenize", "Tok"]

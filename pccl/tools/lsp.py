@@ -164,7 +164,8 @@ def analyse(source: str, path: str, *, world_source: Optional[str] = None,
 
 def _analyse(source: str, path: str, *, world_source: Optional[str] = None,
              previous: Optional[Analysis] = None) -> Analysis:
-    from pccl.lang.koord import is_koord_path, parse_koord
+    from pccl.lang.files import is_koord_path
+    from pccl.lang.koord import parse_koord
     from pccl.lang.parser import parse_program
     from pccl.lang.world import load_world, parse_world
     an = Analysis(path, source)
@@ -344,7 +345,7 @@ def hover_text(an: Analysis, name: str) -> Optional[str]:
 
 def is_koord(an: Analysis) -> bool:
     """Whether the analysis is of a Koord file."""
-    from pccl.lang.koord import is_koord_path
+    from pccl.lang.files import is_koord_path
     return is_koord_path(an.path)
 
 

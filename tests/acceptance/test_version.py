@@ -93,21 +93,63 @@ def _imported(args: list[str]) -> set[str]:
     return set(json.loads(out.stderr.splitlines()[-1]))
 
 
+#: The command modules of pccl/cli/ other than check's (pccl.cli.cmd_run): the
+#: group imports a command's module when the command is looked up.
+OTHER_COMMANDS = ("pccl.cli.cmd_explore", "pccl.cli.cmd_traces", "pccl.cli.cmd_simulate",
+                  "pccl.cli.cmd_utility")
+
+
 @pytest.mark.parametrize("args", [["--version"], ["check", RACE]], ids=["version", "check"])
 def test_quick_commands_import_no_engine(args):
     """The start-up of `pccl --version` and `pccl check` (issue 43, item 4):
-    no numpy, no engine, no extra; --version not even the parser."""
+    no numpy, no engine, no extra, no other command's module; --version not
+    even the parser or a command's module, check of a PCCL file no Koord
+    front end and (without --world) no world reader."""
     mods = _imported(args)
     assert "pccl.cli" in mods
     assert not {m for m in mods if m.split(".")[0] in HEAVY or m in HEAVY}
+    assert not mods & set(OTHER_COMMANDS)
     if args == ["--version"]:
         assert "lark" not in mods and "pccl.lang.ast" not in mods
+        assert not {m for m in mods if m.startswith("pccl.cli.")}
     else:
         assert "lark" in mods and "pccl.lang.checker" in mods
+        assert not mods & {"pccl.lang.koord", "pccl.lang.koordfun", "pccl.lang.world"}
+
+
+def test_check_with_a_world_or_a_koord_file_still_imports_their_readers(tmp_path):
+    """The laziness above does not lose the readers where they are needed."""
+    mods = _imported(["check", RACE, "--world", str(ROOT / "programs" / "race.toml")])
+    assert "pccl.lang.world" in mods and "pccl.lang.koord" not in mods
+    koord = tmp_path / "add.koord"
+    koord.write_text((ROOT / "programs" / "koord" / "add_numbers.koord").read_text())
+    assert "pccl.lang.koord" in _imported(["check", str(koord)])
 
 
 def test_import_of_the_cli_alone_is_light():
+    """`import pccl.cli` (what the console script does first) imports no
+    command's module, no option and not the language's errors."""
     code = "import sys, pccl.cli; print(sorted(m for m in sys.modules if m.startswith('pccl')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
-    assert eval(out.stdout) == ["pccl", "pccl.cli", "pccl.lang", "pccl.lang.errors"]
+    assert eval(out.stdout) == ["pccl", "pccl.cli"]
+
+
+def test_the_lazy_group_knows_every_command():
+    """Every command module's commands are in the group under the names
+    they had when the modules were imported up front (the help lists them
+    all), each looked up as the command object its module defines."""
+    import importlib
+    import click
+    from pccl.cli import COMMANDS
+    defined = {}
+    for module in {m for m, _ in COMMANDS.values()}:
+        for obj in vars(importlib.import_module(module)).values():
+            if isinstance(obj, click.Command) and obj.callback.__module__ == module:
+                defined[obj.name] = obj
+    assert sorted(main.commands) == sorted(defined) == main.list_commands(None)
+    for name, command in defined.items():
+        assert main.commands[name] is command
+    help_text = CliRunner().invoke(main, ["--help"]).output
+    for name, command in defined.items():
+        assert re.search(rf"^  {name} +{re.escape(command.short_help.split()[0])} ", help_text, re.M)

@@ -16,7 +16,8 @@ from pccl.cli import main
 from pccl.lang import ast
 from pccl.lang.checker import check_program
 from pccl.lang.errors import PcclError
-from pccl.lang.koord import is_koord_path, parse_koord
+from pccl.lang.files import is_koord_path
+from pccl.lang.koord import parse_koord
 from pccl.lang.parser import parse_program
 from pccl.model.layout import AGS, LOC, POS
 

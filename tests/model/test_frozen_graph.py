@@ -200,3 +200,50 @@ def test_generated_programs_agree(monkeypatch, seed):
         assert _seen(new) == _seen(old)
     finally:
         files.close()
+
+
+#: a team that stops changing once each agent has started: a stall, which
+#: the stall check reports (the frozen-team check then does not run)
+STALLED = """\
+allwrite:
+  int x = 0;
+loc:
+  bool started = false;
+Start():
+  pre(!started);
+  eff:
+    started = true;
+"""
+
+
+@pytest.mark.parametrize("name,program,kw", [
+    ("busy-wait", BUSY, dict(source=True)),
+    ("one-shot", ONE_SHOT, dict(source=True)),
+    ("fischer-k1", str(PROGRAMS / "fischer.pccl"), dict(overrides={"k": "1", "cstime": "0"})),
+    ("stalled", STALLED, dict(source=True)),
+])
+def test_threads_decide_beside_the_other_checks(monkeypatch, name, program, kw):
+    """With ``--workers 2`` on the level kernel the frozen-team decision runs
+    on a thread of its own beside the time-lock and stall checks
+    (pccl.api._frozen_beside); with one worker on the search's thread.
+    Everything the user sees is one worker's: a frozen team found, a clean
+    search, and a stall found by the other checks (the decision made on
+    the side is dropped, the frozen-team check does not run)."""
+    import threading
+    where: list = []
+    real = F.decide_recorded
+
+    def spy(*a, **k):
+        where.append(threading.current_thread() is threading.main_thread())
+        return real(*a, **k)
+
+    monkeypatch.setattr(F, "decide_recorded", spy)
+    monkeypatch.setattr(F, "check", _boom)
+    one = explore(program, **kw)
+    assert where == ([] if name == "stalled" else [True])
+    where.clear()
+    two = explore(program, workers=2, **kw)
+    assert where == [False]             # started before the other checks, on its thread
+    assert _seen(two) == _seen(one)
+    assert frozen(two) == (name == "busy-wait")
+    assert (name == "stalled") == any(v.kind == "stall" for v in two.violations)

@@ -342,6 +342,40 @@ def test_workers_with_the_default_checks_run_as_threads(monkeypatch):
     assert r.model.engine_threads == 1
 
 
+@pytest.mark.parametrize("name", ["fischer", "tl_spin", "token_keep"])
+def test_threads_decide_the_time_lock_beside_the_stall(name, monkeypatch):
+    """With ``--workers 2`` the time-lock check's decision is made on a thread
+    of its own while the search's thread makes the stall check's
+    (pccl.search.liveness._Analysis.decide_beside); with one worker neither
+    is made beside.  The violations, their order and their lassos are one
+    worker's: nothing (Fischer k=0 d=1 with its invariant off), a
+    time-lock (tl_spin), a stall (token_keep); with and without ``--all``."""
+    import threading
+    path, kw = {"fischer": (FISCHER, dict(agents=2, overrides={"k": "0", "d": "1"})),
+                "tl_spin": (os.path.join(ROOT, "tests/programs/tl_spin.pccl"), {}),
+                "token_keep": (os.path.join(ROOT, "tests/programs/token_keep.pccl"), {})}[name]
+    where: list = []
+    real = L._Analysis._locked
+
+    def spy(self):
+        where.append(threading.current_thread() is threading.main_thread())
+        return real(self)
+
+    monkeypatch.setattr(L._Analysis, "_locked", spy)
+    for find_all in (False, True):
+        one = explore(path, workers=1, find_all=find_all, **kw)
+        assert where and all(where)         # (a counterexample's shortening analyses again)
+        where.clear()
+        two = explore(path, workers=2, find_all=find_all, **kw)
+        assert where and not where[0]
+        where.clear()
+        assert summary(two) == summary(one)
+        assert [(cx.violation.kind, cx.violation.message, cx.cycle_start) for cx in two.counterexamples] == \
+            [(cx.violation.kind, cx.violation.message, cx.cycle_start) for cx in one.counterexamples]
+        kinds = {cx.violation.kind for cx in one.counterexamples}
+        assert kinds == {"fischer": set(), "tl_spin": {"timelock"}, "token_keep": {"stall"}}[name]
+
+
 def test_workers_with_a_temporal_property_run_as_threads(monkeypatch):
     """A temporal property's columns are made on the kernel's threads (issue
     46): threads, one worker's results; forked processes (PCCL_THREADS=0)
