@@ -81,7 +81,7 @@ def plan(py, gen, stable_ids: bool) -> tuple:
     off = (0, -1, (0.0, 0.0, 0.0, 0.0, 0.0))
     if stable_ids or not gen.moves or os.environ.get(ENV_VAR, "1") == "0":
         return off
-    sites = [k for k, s in enumerate(gen.sites) if s[0] == "env"]
+    sites = [k for k, (what, *_) in enumerate(gen.sites) if what == "env"]
     if len(sites) != 1:
         return off
     kind = _shipped_kind(py.blackbox)

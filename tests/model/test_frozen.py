@@ -247,7 +247,7 @@ def test_the_native_and_python_engines_find_the_same_frozen_team(world):
         assert r.model.engine_used == engine
         out[engine] = (r.status, r.stats.states, r.stats.transitions,
                        [(cx.violation.kind, cx.violation.message, cx.trace.labels,
-                         [tuple(a[1:] for a in st[4]) for st in cx.trace.states])
+                         [tuple(a[1:] for a in st[AGS]) for st in cx.trace.states])
                         for cx in r.counterexamples])
     assert out["native"] == out["python"]
     assert any(v[0] == "frozen" for v in out["python"][3])

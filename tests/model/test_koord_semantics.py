@@ -210,7 +210,7 @@ def test_engines_workers_and_reduce_requests_agree(name, agents):
 def test_native_engine_and_reductions_say_why_not():
     res = CliRunner().invoke(main, ["explore", LOST])
     head = res.output.splitlines()[0]
-    assert "merge, por, dead off: not argued for Koord's round" in head
+    assert "merge, por, dead, counters off: not argued for Koord's round" in head
     assert "engine python" in head and "not Koord's round semantics (--semantics koord)" in head
     res = CliRunner().invoke(main, ["explore", LOST, "--engine", "native"])
     assert res.exit_code == 2 and "native engine cannot run this search" in res.output

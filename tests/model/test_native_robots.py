@@ -67,8 +67,8 @@ def three(monkeypatch, natives, program, **kw):
     natives.clear()
     on = summary(explore(program, engine="native", **kw))
     stats = [n.lib.robots_stats() for n in natives]
-    made = sum(s[0] for s in stats)
-    left = sum(s[1] for s in stats)
+    made = sum(m for m, _ in stats)
+    left = sum(n for _, n in stats)
     return py, off, on, made, left
 
 

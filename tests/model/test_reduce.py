@@ -536,7 +536,7 @@ def test_cli_header_and_json_name_the_reductions():
 def test_coverage_turns_the_reductions_off_with_a_reason():
     r = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--coverage")
     head = r.stdout.splitlines()[0]
-    assert "reductions none; merge, symmetry, por, dead off: --coverage counts the unreduced" in head
+    assert "reductions none; merge, symmetry, por, dead, counters off: --coverage counts the unreduced" in head
     none = pccl("explore", "programs/fischer.pccl", "--set", "k=0", "--coverage",
                 "--reduce", "none")
 

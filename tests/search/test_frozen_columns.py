@@ -15,7 +15,7 @@ class _Model:
 
 
 def sigs(states):
-    return np.asarray([s[0] for s in states], dtype=np.int64)
+    return np.asarray([progress for progress, _ in states], dtype=np.int64)
 
 
 def test_labels_are_numbered_and_changes_flagged():
