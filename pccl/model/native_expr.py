@@ -377,30 +377,23 @@ class ExprC:
         return out
 
     def temporal_c(self) -> str:
-        """C of ``tcols(s, &bits, &pend)`` (pccl/model/native_c/temporal.c):
-        the graph recorder's per-state columns of the temporal properties, bit
-        2k for property k's P and 2k + 1 for its Q (as
-        :class:`pccl.search.liveness.StateColumns` sets them), and the robots
-        whose doReach is under way (:func:`pccl.model.search_view.arrival_pending`,
-        by the classes of the interned position ids, ``TPOINT``).  Returns 1
-        when Python must decide a column (a predicate met an undefined value,
-        an overflow, a division by zero; a position id without a class)."""
+        """C of ``tpred(n, s)``, the temporal properties' state predicates
+        in the order of ``TPBIT`` (bit 2k for property k's P and 2k + 1 for
+        its Q, as :class:`pccl.search.liveness.StateColumns` sets them), and
+        the constants ``tcols`` reads (pccl/model/native_c/temporal.c, which
+        also computes the robots whose doReach is under way when the program
+        moves and arrival is fair: ``TPEND``)."""
         m = self.m
-        out = ["static int tcols(const V *s, uint64_t *bits, uint64_t *pend) {",
-               "  int saved = ovf, unsure = 0; uint64_t b = 0, pm = 0; V x;",
-               "  (void)x; (void)s;"]
+        preds = []
         for k, tp in enumerate(m.temporal):
             t = tp.expr
-            preds = [(t.p, 2 * k)] + ([(t.q, 2 * k + 1)] if getattr(t, "q", None) is not None else [])
-            for e, bit in preds:
-                out.append(f"  ovf = 0; x = {self.pexpr(e, {})}; "
-                           f"if (ovf) unsure = 1; else if (x) b |= 1ULL << {bit};")
+            preds += [(t.p, 2 * k)] + ([(t.q, 2 * k + 1)] if getattr(t, "q", None) is not None else [])
         fair = bool(getattr(m, "arrival_is_fair", False)) and any(p.liveness for p in m.temporal)
-        if self.moves and fair:
-            for i in range(self.N):
-                o = self.AG0 + i * self.A + self.MV
-                out.append(f"  if (!s[{o + 4}] && !s[{o + 5}]) {{ int ct = pcls(s[{o + 1}]); "
-                           f"if (ct != -1) {{ int cp = pcls(s[{o}]); "
-                           f"if (ct < -1 || cp < -1) unsure = 1; else if (ct != cp) pm |= 1ULL << {i}; }} }}")
-        out += ["  ovf = saved;", "  *bits = b; *pend = pm;", "  return unsure;", "}"]
+        out = [f"#define NTP {len(preds)}", f"#define TPEND {int(self.moves and fair)}",
+               f"static const int TPBIT[] = {{{', '.join(str(bit) for _, bit in preds) or '0'}}};",
+               "static MAYBE_UNUSED V tpred(int n, const V *s) {",
+               "  (void)s;", "  switch (n) {"]
+        for n, (e, _bit) in enumerate(preds):
+            out.append(f"  case {n}: return {self.pexpr(e, {})};")
+        out += ["  }", "  return 0;", "}"]
         return "\n".join(out)

@@ -14,7 +14,7 @@ from pccl.model.layout import (AGS, DISCRETE, DONE, DYNAMIC, ENV, EXITED, FAIL, 
                                RUNNING, STATUS, STUCK, START)
 from pccl.semantics.rules import (K_AEND, K_ACQ, K_ASSERT, K_ATOMIC, K_DOREACH, K_EMPTY, K_END, K_EXIT, K_IF,
                                   K_SIMPLE, K_WHILE)
-from pccl.model.reduce import MERGE_LIMIT, _stmt_exprs
+from pccl.model.reduce import MERGE_LIMIT
 from pccl.model.native_expr import MOVE_SLOTS, SCALAR, V_PHASE, V_TIME, ExprC, Unsupported
 
 MAX_AGENTS = 64
@@ -174,7 +174,7 @@ class Generator(ExprC):
         ``rand(n)`` is no read: the rule's successors are every outcome
         (explore's enumeration), a function of the values read."""
         out: list = []
-        for x in _stmt_exprs(s):
+        for x in A.own_exprs(s):
             out += self.expr_reads(x)
         return out
 
@@ -224,17 +224,21 @@ class Generator(ExprC):
                 f"static const int W_[] = {{{', '.join(map(str, ws)) or '0'}}}; "
                 f"if (memo_site(s, {k}, R_, {len(rs)}, W_, {len(ws)})) return -1; }}")
 
-    def env_site(self) -> str:
-        """C of DOREACH INVOKE for a program that moves: the blackbox's
-        outcomes memoised by every agent's status, position and reach cells
-        and the env (the clock too if the blackbox reads it)."""
+    def env_site(self) -> list:
+        """The memo site of DOREACH INVOKE for a program that moves
+        (pccl/model/native_c/step.c): the blackbox's outcomes memoised by
+        every agent's status, position and reach cells and the env (the
+        clock too if the blackbox reads it); the slots it reads and writes."""
         rs = [self.ENVS] + ([V_TIME] if getattr(self.m.blackbox, "uses_time", False) else [])
         ws = [V_PHASE, self.ENVS]
         for j in range(self.N):
             a0 = self.AG0 + j * self.A
             rs += [a0 + 3] + [a0 + self.MV + q for q in range(MOVE_SLOTS)]
             ws += [a0 + 1, a0 + self.MV, a0 + self.MV + 4, a0 + self.MV + 5, a0 + self.MV + 6]
-        return self.site_call("env", None, None, rs, ws)
+        k = len(self.sites)
+        self.sites.append(("env", None, None, tuple(rs), tuple(ws)))
+        return [f"#define ENV_SITE {k}", self.c_array("ENVR", "int", rs), self.c_array("ENVW", "int", ws),
+                f"#define NENVR {len(rs)}", f"#define NENVW {len(ws)}"]
 
     # the cases of agent_code, one per kind of control cell: each appends to
     # ``out`` the C of agent ``i`` at cell ``h`` (``r``: its cells in a state)
@@ -398,121 +402,79 @@ class Generator(ExprC):
                 "er": ind.events[0], "ew": ind.events[1], "gr": ind.guard_reads,
                 "local": bool(ind.guards_local)}
 
-    def por_c(self, por: Optional[dict]) -> list:
-        """C of the per-state ample test (reduce.Por.eligible, footprint,
-        movable; independence.may_wait) over the tables of :meth:`por_tables`."""
+    def por_c(self, por: dict) -> list:
+        """The tables of :meth:`por_tables` the per-state ample test reads
+        (pccl/model/native_c/por.c: reduce.Por.eligible, footprint, movable,
+        ample; independence.may_wait)."""
         from pccl.model import independence as I
-        if por is None:
-            return ["static const unsigned char PSPENT[] = {0};",     # what merging reads of por
-                    "static inline int movable(const V *s, int i) { (void)s; (void)i; return 0; }"]
         m = self.m
-        u64 = "uint64_t"
-        out = [self.c_array("PCLS", "unsigned char", por["cls"]),
-               self.c_array("PSR", u64, por["sr"]).replace(",", "ULL,").replace("}", "ULL}"),
-               self.c_array("PSW", u64, por["sw"]).replace(",", "ULL,").replace("}", "ULL}"),
-               self.c_array("PRR", u64, por["rr"]).replace(",", "ULL,").replace("}", "ULL}"),
-               self.c_array("PRW", u64, por["rw"]).replace(",", "ULL,").replace("}", "ULL}"),
-               self.c_array("PENDS", "unsigned char", por["ends"]),
-               self.c_array("PWRITER", "unsigned char", por["writer"]),
-               self.c_array("PEMPTY", "unsigned char", por["empty"]),
-               self.c_array("PSPENT", "unsigned char", por["spent"]),
-               f"#define EVR_ALL {por['er']}ULL", f"#define EVW_ALL {por['ew']}ULL",
-               f"#define GUARDR {por['gr']}ULL", f"#define GUARDS_LOCAL {int(por['local'])}",
-               f"#define TOP_PC {m.ctl.empty_pc}", f"#define LQ_BIT {I.LQ_BIT}ULL",
-               f"#define C_NEVER {I.NEVER}", f"#define C_LOCAL {I.LOCAL}", f"#define C_ACCESS {I.ACCESS}",
-               f"#define C_REQUEST {I.REQUEST_LOCK}", f"#define C_RELEASE {I.RELEASE}",
-               f"#define C_EXECUTE {I.EXECUTE}",
-               f"#define L_LOCK {LOCK}", f"#define L_REQUEST {REQUEST}",
-               # an agent's block of the vector: pc, counter, lock state, status, locals
-               "#define VA_PC 0", "#define VA_LCK 2"]
-        # the events agent j at the top of its block selects next (local guards)
-        out.append("static void evfp(int j, const V *s, uint64_t *r, uint64_t *w) {")
-        out.append("  *r = GUARDR; *w = 0; (void)j; (void)s;")
-        if por["local"]:
-            out.append("  switch (j) {")
-            for j in range(self.N):
-                out.append(f"  case {j}: {{")
-                for e, ev in enumerate(self.c.program.events):
-                    hit = " return;" if m.first_only else ""
-                    out.append(f"    if ({self.expr(ev.guard, j)}) {{ *r |= {por['evr'][e]}ULL; "
-                               f"*w |= {por['evw'][e]}ULL;{hit} }}")
-                out.append("    break; }")
-            out.append("  }")
-        out.append("}")
-        out.append('#include "por.c"')
+        return [self.c_array("PCLS", "unsigned char", por["cls"]),
+                self.u64_array("PSR", por["sr"]), self.u64_array("PSW", por["sw"]),
+                self.u64_array("PRR", por["rr"]), self.u64_array("PRW", por["rw"]),
+                self.c_array("PENDS", "unsigned char", por["ends"]),
+                self.c_array("PWRITER", "unsigned char", por["writer"]),
+                self.c_array("PEMPTY", "unsigned char", por["empty"]),
+                self.c_array("PSPENT", "unsigned char", por["spent"]),
+                # (the events' footprints: read under local guards only)
+                *([self.u64_array("EVR", por["evr"]), self.u64_array("EVW", por["evw"])] if por["local"] else []),
+                f"#define EVR_ALL {por['er']}ULL", f"#define EVW_ALL {por['ew']}ULL",
+                f"#define GUARDR {por['gr']}ULL", f"#define GUARDS_LOCAL {int(por['local'])}",
+                f"#define TOP_PC {m.ctl.empty_pc}", f"#define LQ_BIT {I.LQ_BIT}ULL",
+                f"#define C_NEVER {I.NEVER}", f"#define C_LOCAL {I.LOCAL}", f"#define C_ACCESS {I.ACCESS}",
+                f"#define C_REQUEST {I.REQUEST_LOCK}", f"#define C_RELEASE {I.RELEASE}",
+                f"#define C_EXECUTE {I.EXECUTE}",
+                f"#define L_LOCK {LOCK}", f"#define L_REQUEST {REQUEST}",
+                # an agent's block of the vector: pc, counter, lock state, status, locals
+                "#define VA_PC 0", "#define VA_LCK 2"]
+
+    def guard_c(self) -> list:
+        """C of ``guard(j, e, s)``: event ``e``'s guard for agent ``j`` (the
+        program's guards, per agent: what the partial-order reduction's
+        footprint and the dead-variable reduction's live events read)."""
+        evs = self.c.program.events
+        out = ["static MAYBE_UNUSED V guard(int j, int e, const V *s) {",
+               "  (void)s;", "  switch (j * NEV + e) {"]
+        for j in range(self.N):
+            for e, ev in enumerate(evs):
+                out.append(f"  case {j * len(evs) + e}: return {self.expr(ev.guard, j)};")
+        out += ["  }", "  return 0;", "}"]
         return out
 
-    def dead_c(self) -> list:
-        """C of ``dead_bits(s, d)`` and ``dead_apply(s, d)`` (:class:`pccl.model.dead.DeadVars`:
-        every agent's dead values in the vector set to DEADV, before the
-        key; no copy of a state where nothing is dead), over the analysis'
-        tables, every row of them, and the guards."""
+    def dead_vars(self):
+        """The dead-variable reduction's analysis (:class:`pccl.model.dead.DeadVars`,
+        the Reduced's own tables) when the reduction is on, else None."""
         m = self.m
         if "dead" not in getattr(getattr(m, "reduction", None), "on", ()):
-            return ["#define DEAD 0"]
+            return None
         from pccl.model.dead import DeadVars
         from pccl.model.reduce import unreduced
-        d = getattr(m, "dead_vars", None) or DeadVars(unreduced(m))   # the Reduced's own tables
+        d = getattr(m, "dead_vars", None) or DeadVars(unreduced(m))
         if d.nloc > 63:
             raise Unsupported("the dead-variable reduction over more than 63 loc: variables")
+        return d
+
+    def dead_c(self, d) -> list:
+        """The tables ``dead_bits(s, d)`` and ``dead_apply(s, d)`` read
+        (pccl/model/native_c/dead.c; ``d``: :meth:`dead_vars`, every agent's
+        dead values in the vector set to DEADV, before the key; no copy of a
+        state where nothing is dead): the analysis' tables, every row of them."""
+        m = self.m
+        if d is None:
+            return ["#define DEAD 0"]
         rows = 1 << len(d.cond)
         npc = len(m.ctl.cells)
-        u64 = "uint64_t"
-
-        def arr(name: str, vals: list) -> str:
-            return self.c_array(name, u64, vals).replace(",", "ULL,").replace("}", "ULL}")
-        out = ["#define DEAD 1", "#define DEADV (INT64_MIN + 3)", f"#define DROWS {rows}",
-               *([arr("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)])]
-                 if d.local_guards else []),
-               f"#define DKEEP {d.keep}ULL", f"#define DALL {d.all}ULL", f"#define DGR {d.guard_reads}ULL",
-               f"#define DTOP {d.top}ULL"]
-        # dead_bits: per agent the mask of its dead values (nonzero: some)
-        out.append(arr("DEADPC", [d.all & ~(d.live_pc(pc, r) | d.keep)
-                                  for pc in range(npc) for r in range(rows)]))
-        out.append("static int dead_bits(const V *s, uint64_t *d) {")
-        out.append(f"  {'uint64_t live; ' if d.local_guards else ''}int row; uint64_t any = 0; const V *b;")
-        for j in range(self.N):
-            a0 = self.AG0 + j * self.A
-            row = " | ".join(f"((s[{a0 + 4 + q}] == 1) << {k})" for k, q in enumerate(d.cond_slots)) or "0"
-            out.append(f"  b = s + {a0};")
-            out.append(f"  if (b[3] != {RUNNING}) d[{j}] = b[3] == {EXITED} ? DALL & ~DKEEP : 0;")
-            out.append(f"  else if (b[0] == {m.ctl.empty_pc} || b[0] == {m.ctl.idle_pc}) {{")
-            if d.local_guards:
-                out.append(f"    int o = ovf; uint64_t ev = 0; row = {row};")
-                for e, ev in enumerate(m.program.events):
-                    hit = f" goto top{j};" if m.first_only else ""
-                    out.append(f"    if ({self.expr(ev.guard, j)}) {{ ev |= 1ULL << {e};{hit} }}")
-                if m.first_only:
-                    out.append(f"  top{j}:")
-                out.append(f"    if (ovf && !o) {{ ovf = 0; ev = {(1 << len(d.events)) - 1}ULL; }}")
-                out.append("    live = DGR;")
-                out.append(f"    for (int e = 0; e < {len(d.events)}; e++) "
-                           "if (ev >> e & 1) live |= LIVEEV[e * DROWS + row];")
-                out.append(f"    d[{j}] = DALL & ~(live | DKEEP);")
-            else:
-                out.append(f"    d[{j}] = DALL & ~(DTOP | DKEEP);")
-            out.append(f"  }} else {{ row = {row}; "
-                       f"d[{j}] = (uint64_t)b[0] < NPC ? DEADPC[b[0] * DROWS + row] : 0; }}")
-            if self.moves:      # a reach is masked only where the robot has arrived or failed
-                out.append(f"  if (!(b[{self.MV + 4}] || b[{self.MV + 5}])) d[{j}] &= ~(1ULL << NLOC);")
-            out.append(f"  any |= d[{j}];")
-        out.append("  return any != 0;")
-        out.append("}")
-        # dead_apply: those values set to DEADV (the reach: target, t0, flags)
-        mv = self.MV
-        reach = (f"b[{mv + 1}] = DEADV; b[{mv + 3}] = DEADV; b[{mv + 4}] = DEADV; b[{mv + 5}] = DEADV;"
-                 if self.moves else "")
-        out += ["static void dead_apply(V *s, const uint64_t *d) {",
-                "  for (int j = 0; j < NAG; j++) {",
-                "    uint64_t x = d[j];",
-                "    if (!x) continue;",
-                "    V *b = s + AG0 + AW * j;",
-                f"    if (x >> NLOC & 1) {{ {reach} }}",
-                "    x &= ~(1ULL << NLOC);",
-                "    while (x) { b[4 + __builtin_ctzll(x)] = DEADV; x &= x - 1; }",
-                "  }",
-                "}"]
-        return out
+        return ["#define DEAD 1", "#define DEADV (INT64_MIN + 3)", f"#define DROWS {rows}",
+                f"#define DLOCAL {int(bool(d.local_guards))}",
+                f"#define DEVALL {(1 << len(d.events)) - 1}ULL",
+                *([self.u64_array("LIVEEV", [d.entry(e, r) for e in range(len(d.events)) for r in range(rows)])]
+                  if d.local_guards else []),
+                f"#define DKEEP {d.keep}ULL", f"#define DALL {d.all}ULL", f"#define DGR {d.guard_reads}ULL",
+                f"#define DTOP {d.top}ULL",
+                # the loc: slots (in an agent's block, after its 4 control cells) of the row's conditions
+                f"#define NDCOND {len(d.cond_slots)}", self.c_array("DCOND", "int", list(d.cond_slots)),
+                # per agent the mask of its dead values (nonzero: some)
+                self.u64_array("DEADPC", [d.all & ~(d.live_pc(pc, r) | d.keep)
+                                          for pc in range(npc) for r in range(rows)])]
 
     @staticmethod
     def c_array(name: str, ctype: str, vals: list) -> str:
@@ -520,57 +482,42 @@ class Generator(ExprC):
         body = ", ".join(str(int(v)) for v in vals) or "0"
         return f"static const {ctype} {name}[] = {{{body}}};"
 
+    @classmethod
+    def u64_array(cls, name: str, vals: list) -> str:
+        """:meth:`c_array` of uint64_t constants."""
+        return cls.c_array(name, "uint64_t", vals).replace(",", "ULL,").replace("}", "ULL}")
+
     def reduced_c(self) -> str:
-        """C of the reduced step ``rstep`` (partial-order reduction, then
-        statement merging, as :class:`pccl.model.reduce.Reduced` composes
-        them), the canonical key ``canon`` (symmetry) and the stall
-        signature ``sigstall``."""
+        """The tables of the reductions that are on (:meth:`reductions`) and
+        the stall signature's slots, which the reduced step ``rstep``
+        (partial-order reduction, then statement merging, as
+        :class:`pccl.model.reduce.Reduced` composes them), the canonical key
+        ``canon`` (symmetry) and the stall signature ``sigstall`` read
+        (pccl/model/native_c/reduced.c, por.c, dead.c)."""
         m, N, A_ = self.m, self.N, self.A
         if any(type(x) is not int for x in (*m.rho, m.n0)):
             raise Unsupported("a rate or n0 that is not an integer")
         por, merge, sym = self.reductions()
-        npc = len(m.ctl.cells)
-        out = [f"#define NPC {npc}", f"#define AG0 {self.AG0}", f"#define AW {A_}",
-               f"#define NLOC {self.L}", f"#define KEEPN0 {m.n0}",
-               f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
+        out = [f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
                f"#define SYM {int(sym is not None)}",
                f"#define MERGE_LIMIT {MERGE_LIMIT}",
                f"#define NBID {len(sym[0]) if sym else 0}",
                f"#define NSHID {len(sym[1]) if sym else 0}"]
-        # the tables and functions of the reductions that are on (no unused one)
-        if por is not None or merge is not None:
-            out.append(self.c_array("RHO", "V", list(m.rho)))
+        # the tables of the reductions that are on (no unused one)
         if sym is not None:
             out += [self.c_array("BID", "int", sym[0]), self.c_array("SHID", "int", sym[1])]
         if merge is not None:
-            out += [self.c_array("MERGEOK", "unsigned char", merge),
-                    "static int agent_of(int i, const V *s) {", "  switch (i) {",
-                    *(f"  case {i}: return agent{i}(s);" for i in range(N)),
-                    "  }", "  return 0;", "}"]
-        if por is not None or merge is not None:
-            out += self.por_c(por)
-        out += self.dead_c()
-        ctr = getattr(m, "counters", None) if "counters" in getattr(getattr(m, "reduction", None), "on", ()) else None
-        out += ctr.c_source(self.AG0, A_, N) if ctr is not None else ["#define CTRS 0"]
-        # the ample set (Por.successors): the first agent with an execution
-        # left whose next step is independent of what the others can still
-        # do; else the first spent agent whose next step is a plain statement
-        # of its own (Independence.spent_local)
-        def try_agent(i: int, cond: str) -> str:
-            a0 = self.AG0 + i * A_
-            return (f"    if (s[{a0 + 3}] == {RUNNING} && {cond}) {{\n"
-                    f"      if (agent{i}(s)) return -1;\n"
-                    f"      int all = BN > b0;\n"
-                    f"      for (Py_ssize_t k = b0; k < BN && all; k++) all = BUF[NS * k + {a0 + 3}] == {RUNNING};\n"
-                    f"      if (all) return 1;\n"
-                    f"      BN = b0;\n"
-                    f"    }}")
-        ample = [try_agent(i, f"s[{self.AG0 + i * A_ + 1}] <= {m.n0 - m.rho[i]} && eligible(s, {i})")
-                 for i in range(N)]
+            out.append(self.c_array("MERGEOK", "unsigned char", merge))
+        d = self.dead_vars()
+        if por is not None or (d is not None and d.local_guards):
+            out += self.guard_c()
         if por is not None:
-            ample += [try_agent(i, f"s[{a0 + 1}] > {m.n0 - m.rho[i]} && (uint64_t)s[{a0}] < NPC "
-                                   f"&& PSPENT[s[{a0}]]")
-                      for i in range(N) for a0 in (self.AG0 + i * A_,)]
+            out += self.por_c(por)
+            out.append('#include "por.c"')
+        out += self.dead_c(d)
+        out.append('#include "dead.c"')
+        ctr = getattr(m, "counters", None) if "counters" in getattr(getattr(m, "reduction", None), "on", ()) else None
+        out += ctr.c_tables() if ctr is not None else ["#define CTRS 0"]
         # the stall signature (pccl/model/stall.py): the lock queue, shared,
         # and per agent its status, allread and the loc: variables a property reads
         from pccl.model.stall import _visible_locals
@@ -586,7 +533,8 @@ class Generator(ExprC):
         out.append(self.c_array("SIGSLOTS", "int", slots))
         out.append(f"#define NSIGSLOTS {len(slots)}")
         # the frozen-team check's progress signature (pccl/model/frozen.py): the
-        # same without the lock queue, the env and the doReach flags
+        # same without the lock queue, the env and the doReach flags (hashed:
+        # native_c/module.c's psighash; as they are: its progsig)
         pslots = list(range(self.SH0, self.SH0 + len(self.lay.shared)))
         for i in range(N):
             a0 = self.AG0 + i * A_
@@ -596,12 +544,6 @@ class Generator(ExprC):
                 pslots += [a0 + self.MV, a0 + self.MV + 1]
         out.append(self.c_array("PSIGSLOTS", "int", pslots))
         out.append(f"#define NPSIGSLOTS {len(pslots)}")
-        # (the native engine's own re-exploration of the frozen-team check
-        # reads the same slots: native_c/module.c's progsig)
-        out.append("#define PROGSLOTS PSIGSLOTS")
-        out.append("#define NPROGSLOTS NPSIGSLOTS")
-        if por is not None:     # rstep's ample set: 1 found (its successors in the buffer), -1 an error
-            out += ["static inline int ample(const V *s, Py_ssize_t b0) {", *ample, "  return 0;", "}"]
         out.append('#include "reduced.c"')
         return "\n".join(out)
 
@@ -615,39 +557,16 @@ class Generator(ExprC):
             agents += self.agent_code(i)
         ta = self.lab(("TIME ADVANCE", None, None))
         dr = self.lab(("DOREACH INVOKE", None, 0))
-        blocked = []
-        running = []
-        for i in range(N):
-            A_ = self.AG0 + i * self.A
-            cap = m.n0 - m.rho[i]
-            running.append(f"s[{A_ + 3}] == {RUNNING}")
-            blocked.append(f"(s[{A_ + 3}] != {EXITED} && s[{A_ + 1}] <= {cap})")
-        max_ticks = m.max_ticks
-        tcheck = ("1" if max_ticks is None
-                  else f"(s[{V_TIME}] / {m.delta} + 1 <= {max_ticks}LL)")
-        oks = [f"s[{self.AG0 + i * self.A + 3}] < {STUCK}" for i in range(N)]
-        lq_ok = " && ".join(
-            f"(s[{self.LQ0}] != {i} || s[{self.AG0 + i * self.A + 3}] != {EXITED})"
-            for i in range(N))
         props = " && ".join(f"({self.pexpr(p.expr, {})})" for p in m.properties) or "1"
         if m.collisions:
             props += f" && {self.collision_site()}"
         reduced = self.reduced_c()
-        if self.moves:
-            envc = "    " + self.env_site()
-        else:
-            envc = (f"    V t[NS]; memcpy(t, s, sizeof t);\n    t[1] = {DISCRETE};\n"
-                    f"    for (int j = 0; j < NAG; j++) t[{self.AG0 + 1} + {self.A} * j] = 0;\n"
-                    f"    if (EMIT({dr}, t)) return -1;")
-        agent_calls = "\n".join(
-            f"    if (s[{self.AG0 + i * self.A + 3}] == {RUNNING} && agent{i}(s)) return -1;"
-            for i in range(N))
-        ok = " && ".join(oks) + f" && ({lq_ok}) && ({props})"
+        envc = self.env_site() if self.moves else []
         # (before the property memo sites' declarations are written: the
         # temporal columns' predicates may add sites of their own)
         tcols = self.temporal_c()
         return "\n".join([
-            "/* pccl native engine: the module of one program, generated by pccl/model/native.py;",
+            "/* pccl native engine: the module of one program, generated by pccl/model/native_gen.py;",
             "   the fixed C it includes is pccl/model/native_c/ (native.h says how the two meet) */",
             f"#define NS {NS}", f"#define NAG {N}", f"#define LQ0 {self.LQ0}",
             # the key: the vector without the clock under time abstraction (one module per key)
@@ -655,31 +574,36 @@ class Generator(ExprC):
             f"#define PACK {1 if self.packs else 0}",
             "#define VMIN (INT64_MIN + 4)",         # V_MIN
             f"#define V_TIME {V_TIME}", f"#define V_PHASE {V_PHASE}",
-            f"#define PH_DISCRETE {DISCRETE}", f"#define S_RUNNING {RUNNING}",
+            f"#define PH_DISCRETE {DISCRETE}", f"#define PH_DYNAMIC {DYNAMIC}",
+            f"#define S_RUNNING {RUNNING}", f"#define S_EXITED {EXITED}", f"#define S_STUCK {STUCK}",
+            # an agent's block: AW slots from AG0 + AW * j (pc, counter, lock
+            # state, status, NLOC locals, allread; MV: where a moving robot's start)
+            f"#define AG0 {self.AG0}", f"#define AW {self.A}", f"#define NLOC {self.L}",
+            f"#define MOVES {int(self.moves)}", f"#define MV {self.MV}",
+            f"#define NPC {len(m.ctl.cells)}", f"#define EMPTY_PC {m.ctl.empty_pc}",
+            f"#define IDLE_PC {m.ctl.idle_pc}",
+            # the clock: δ, the bound of ticks (--max-time; 0: none), the labels of its rules
+            f"#define KEEPN0 {m.n0}", f"#define DELTA {m.delta}LL",
+            f"#define MAXTICKS {0 if m.max_ticks is None else m.max_ticks}LL",
+            f"#define HAS_MAXTICKS {int(m.max_ticks is not None)}",
+            f"#define L_TA {ta}", f"#define L_DR {dr}",
+            f"#define FIRST_ONLY {int(bool(m.first_only))}", f"#define NEV {len(self.c.program.events)}",
             '#include "native.h"',
             '#include "memo.c"',
             '#include "robots.c"',
             *agents,
-            "/* the successors of s, emitted into OUT; -1 on an error (ovf or Python's) */",
-            "static int step(const V *s) {",
-            "  if (s[V_PHASE] == PH_DISCRETE) {",
-            agent_calls,
-            f"    if (({' || '.join(running)}) && !({' || '.join(blocked)}) && {tcheck}) {{",
-            "      V t[NS]; memcpy(t, s, sizeof t);",
-            f"      t[V_TIME] = ADD(s[V_TIME], {m.delta}); t[V_PHASE] = {DYNAMIC};",
-            f"      if (EMIT({ta}, t)) return -1;",
-            "    }",
-            "  } else {",
-            envc,
-            "  }",
-            "  return ovf ? -1 : 0;",
-            "}",
-            reduced,
+            self.c_array("RHO", "V", list(m.rho)),
+            "static int (*const AGENT[NAG])(const V *s) = {"
+            + ", ".join(f"agent{i}" for i in range(N)) + "};",
+            *envc,
             *self.pdecls,
-            "/* no agent stuck, the lock's holder not exited, every invariant holds */",
-            "static inline int okexpr(const V *s) {",
-            f"  return {ok};",
+            "/* every invariant holds (okexpr, step.c, checks the rest) */",
+            "static inline int invariants(const V *s) {",
+            "  (void)s;",
+            f"  return {props};",
             "}",
+            '#include "step.c"',
+            reduced,
             '#include "temporal.h"',
             tcols,
             '#include "temporal.c"',
