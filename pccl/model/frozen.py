@@ -171,7 +171,7 @@ def _explore(model, limit: int, native: Any = None) -> Optional[_Graph]:
                 parent.append((i, lab))
             src.append(i)
             dst.append(j)
-            event.append(lab[2] if lab[0] == "EVENT SELECT" and lab[2] is not None else -1)
+            event.append(_event_of(lab))
             if not changed and sig(t) != here:
                 changed = True
         changes.append(changed)
@@ -264,17 +264,14 @@ def check(model, limit: int = LIMIT, native: Any = None) -> FrozenResult:
     engine, the same graph in the same order."""
     import time
     from pccl.search.explorer import Trace
-    from pccl.search.liveness import TemporalViolation
     t0 = time.perf_counter()
     gr = _explore(model, limit, native)
     if gr is None:
         return FrozenResult(False, f"more than {limit:,} states: the check explores the "
                                    f"graph again up to {limit:,}",
                             seconds=time.perf_counter() - t0)
-    out = FrozenResult(True, states=len(gr.states))
-    found = _frozen_events(model, gr, native)
-    if found is not None:
-        first, never, live, fired = found
+
+    def trace_to(first: int):
         states, labels = [gr.states[first]], []
         at = first
         while gr.parent[at] is not None:
@@ -283,7 +280,21 @@ def check(model, limit: int = LIMIT, native: Any = None) -> FrozenResult:
             labels.append(lab)
         if native is not None:      # (the native vectors as configurations)
             states = [native.decode(b) for b in states]
-        out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
+        return Trace(tuple(reversed(states)), tuple(reversed(labels)))
+    return _result(model, len(gr.states), _frozen_events(model, gr, native), trace_to, t0)
+
+
+def _result(model, n: int, found, trace_to: Callable[[int], Any], t0: float) -> FrozenResult:
+    """The outcome of both checks over a graph of ``n`` states: ``found``
+    (:func:`_decide`'s) as a violation ``frozen`` with the path to its
+    first frozen state (``trace_to(first)``: the states and labels of the
+    model), merged transitions expanded."""
+    import time
+    from pccl.search.liveness import TemporalViolation
+    out = FrozenResult(True, states=n)
+    if found is not None:
+        first, never, live, fired = found
+        out.trace = _expanded(model, trace_to(first))
         out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
     out.seconds = time.perf_counter() - t0
     return out
@@ -312,7 +323,7 @@ def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
     breadth-first parents; ``kernel`` the native engine's backward
     reachability (or None)."""
     import time
-    from pccl.search.liveness import TemporalViolation, _chain_to
+    from pccl.search.liveness import _chain_to
     t0 = time.perf_counter()
     fz = rec.frozen
     m = rec.src.n
@@ -326,11 +337,5 @@ def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
         src, dst, event = src[order], dst[order], event[order]
     changes = fz.pchg.view()[:n].astype(bool)
     dyn = rec.dyn.view()[:n].astype(bool)
-    out = FrozenResult(True, states=n)
     found = _decide(model, n, src, dst, event, changes, dyn, kernel)
-    if found is not None:
-        first, never, live, fired = found
-        out.trace = _expanded(model, replay(_chain_to(table, first)))
-        out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
-    out.seconds = time.perf_counter() - t0
-    return out
+    return _result(model, n, found, lambda first: replay(_chain_to(table, first)), t0)

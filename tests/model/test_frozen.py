@@ -137,47 +137,27 @@ def test_a_pillar_that_may_be_passed_is_not_frozen():
 # one-shot events, small programs
 # ---------------------------------------------------------------------------
 
-ONE_SHOT = """\
-allwrite:
-  int tok = 0;
-loc:
-  int id = getAgentIndex();
-  bool started = false;
-Start():
-  pre(!started);
-  eff:
-    started = true;
-Pass():
-  pre(started && tok == id);
-  eff:
-    tok = (tok + 1) % 2;
-"""
+#: the programs (tests/programs/): a one-shot event in a team that makes
+#: progress, and Pass waiting on a token value no agent ever holds while
+#: Poll takes and releases the lock
+ONE_SHOT = str(TEST_PROGRAMS / "frozen_oneshot.pccl")
+BUSY = str(TEST_PROGRAMS / "frozen_busy.pccl")
 
 
-def test_a_one_shot_event_in_a_team_that_makes_progress_is_not_frozen(tmp_path):
-    p = tmp_path / "oneshot.pccl"
-    p.write_text(ONE_SHOT)
-    res = explore(str(p))
+def test_a_one_shot_event_in_a_team_that_makes_progress_is_not_frozen():
+    res = explore(ONE_SHOT)
     assert res.status == "exhaustive" and res.exit_status == 0, res.verdict
 
 
-def test_a_busy_wait_on_a_value_nobody_sets_is_frozen(tmp_path):
+def test_a_busy_wait_on_a_value_nobody_sets_is_frozen():
     """Pass waits on a token value no agent ever holds; Poll takes and releases the lock."""
-    p = tmp_path / "busy.pccl"
-    p.write_text(ONE_SHOT.replace("tok == id", "tok == id + 5") + """\
-Poll():
-  pre(started);
-  eff:
-    atomic:
-      skip;
-""")
-    res = explore(str(p))
+    res = explore(BUSY)
     (v,) = frozen_of(res)
     assert "event Pass (line 11: `started && tok == id + 5`) never fires" in v.message
     # Start (one-shot: private) can still fire in the initial state, frozen already
     assert v.message.endswith("still firing: Start (line 7), Poll (line 15)")
     # the stall check alone saw the lock queue change
-    assert explore(str(p), stall=False).status == "exhaustive"
+    assert explore(BUSY, stall=False).status == "exhaustive"
 
 
 # ---------------------------------------------------------------------------

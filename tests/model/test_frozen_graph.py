@@ -28,28 +28,8 @@ PATROL = str(TEST_PROGRAMS / "patrol.pccl")
 
 #: a one-shot event in a team that makes progress (not frozen), and a busy
 #: wait on a token value nobody holds (frozen): tests/model/test_frozen.py's
-ONE_SHOT = """\
-allwrite:
-  int tok = 0;
-loc:
-  int id = getAgentIndex();
-  bool started = false;
-Start():
-  pre(!started);
-  eff:
-    started = true;
-Pass():
-  pre(started && tok == id);
-  eff:
-    tok = (tok + 1) % 2;
-"""
-BUSY = ONE_SHOT.replace("tok == id", "tok == id + 5") + """\
-Poll():
-  pre(started);
-  eff:
-    atomic:
-      skip;
-"""
+ONE_SHOT = str(TEST_PROGRAMS / "frozen_oneshot.pccl")
+BUSY = str(TEST_PROGRAMS / "frozen_busy.pccl")
 
 
 def _boom(*a, **k):
@@ -94,8 +74,8 @@ CASES = [
                                    blackbox="straight")),
     ("patrol-four", PATROL, dict(world=str(TEST_PROGRAMS / "patrol4.toml"), blackbox="straight")),
     ("patrol-open", PATROL, dict(world=str(TEST_PROGRAMS / "patrol.toml"), blackbox="straight")),
-    ("busy-wait", BUSY, dict(source=True)),
-    ("one-shot", ONE_SHOT, dict(source=True)),
+    ("busy-wait", BUSY, dict()),
+    ("one-shot", ONE_SHOT, dict()),
     ("race-straight", str(PROGRAMS / "race.pccl"),
      dict(world=str(PROGRAMS / "race.toml"), blackbox="straight")),
     ("race_robust-straight", str(PROGRAMS / "race_robust.pccl"),
