@@ -20,6 +20,7 @@ from pccl.api import explore, make_model
 from pccl.model.engine import Model
 from pccl.model.layout import AGS, AR, POS, REACH, SH, STATUS, TARGET
 
+from cases import FROZEN_BUSY, FROZEN_ONE_SHOT
 from conftest import ROOT, TEST_PROGRAMS, cli, closure
 
 pytestmark = pytest.mark.slow     # every test here explores (0.5-15 s each on a loaded machine)
@@ -137,27 +138,25 @@ def test_a_pillar_that_may_be_passed_is_not_frozen():
 # one-shot events, small programs
 # ---------------------------------------------------------------------------
 
-#: the programs (tests/programs/): a one-shot event in a team that makes
-#: progress, and Pass waiting on a token value no agent ever holds while
-#: Poll takes and releases the lock
-ONE_SHOT = str(TEST_PROGRAMS / "frozen_oneshot.pccl")
-BUSY = str(TEST_PROGRAMS / "frozen_busy.pccl")
+#: (the programs: tests/cases.py)
+ONE_SHOT = dict(program=FROZEN_ONE_SHOT, source=True)
+BUSY = dict(program=FROZEN_BUSY, source=True)
 
 
 def test_a_one_shot_event_in_a_team_that_makes_progress_is_not_frozen():
-    res = explore(ONE_SHOT)
+    res = explore(**ONE_SHOT)
     assert res.status == "exhaustive" and res.exit_status == 0, res.verdict
 
 
 def test_a_busy_wait_on_a_value_nobody_sets_is_frozen():
     """Pass waits on a token value no agent ever holds; Poll takes and releases the lock."""
-    res = explore(BUSY)
+    res = explore(**BUSY)
     (v,) = frozen_of(res)
     assert "event Pass (line 11: `started && tok == id + 5`) never fires" in v.message
     # Start (one-shot: private) can still fire in the initial state, frozen already
     assert v.message.endswith("still firing: Start (line 7), Poll (line 15)")
     # the stall check alone saw the lock queue change
-    assert explore(BUSY, stall=False).status == "exhaustive"
+    assert explore(**BUSY, stall=False).status == "exhaustive"
 
 
 # ---------------------------------------------------------------------------

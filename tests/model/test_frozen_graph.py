@@ -20,6 +20,7 @@ import pytest
 from pccl.api import explore
 from pccl.model import frozen as F
 
+from cases import FROZEN_BUSY, FROZEN_ONE_SHOT
 from conftest import PROGRAMS, TEST_PROGRAMS
 
 pytestmark = pytest.mark.slow     # every case explores twice
@@ -27,9 +28,8 @@ pytestmark = pytest.mark.slow     # every case explores twice
 PATROL = str(TEST_PROGRAMS / "patrol.pccl")
 
 #: a one-shot event in a team that makes progress (not frozen), and a busy
-#: wait on a token value nobody holds (frozen): tests/model/test_frozen.py's
-ONE_SHOT = str(TEST_PROGRAMS / "frozen_oneshot.pccl")
-BUSY = str(TEST_PROGRAMS / "frozen_busy.pccl")
+#: wait on a token value nobody holds (frozen): tests/cases.py's
+ONE_SHOT, BUSY = FROZEN_ONE_SHOT, FROZEN_BUSY
 
 
 def _boom(*a, **k):
@@ -74,8 +74,8 @@ CASES = [
                                    blackbox="straight")),
     ("patrol-four", PATROL, dict(world=str(TEST_PROGRAMS / "patrol4.toml"), blackbox="straight")),
     ("patrol-open", PATROL, dict(world=str(TEST_PROGRAMS / "patrol.toml"), blackbox="straight")),
-    ("busy-wait", BUSY, dict()),
-    ("one-shot", ONE_SHOT, dict()),
+    ("busy-wait", BUSY, dict(source=True)),
+    ("one-shot", ONE_SHOT, dict(source=True)),
     ("race-straight", str(PROGRAMS / "race.pccl"),
      dict(world=str(PROGRAMS / "race.toml"), blackbox="straight")),
     ("race_robust-straight", str(PROGRAMS / "race_robust.pccl"),
