@@ -53,15 +53,12 @@ or a firing of each event.
 
 from __future__ import annotations
 
-import marshal
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Optional
 
 import numpy as np
-import xxhash
 
-from pccl.model.layout import AGS, AR, LOC, POS, REACH, SH, STATUS, TARGET
 
 __all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "progress_signatures_fn", "check",
            "check_recorded", "FROZEN_MESSAGE"]
@@ -93,17 +90,10 @@ class FrozenResult:
 def progress_signature_fn(model) -> Callable:
     """``sig(state) -> int``: a 64-bit hash of the state's progress
     signature (the stall signature without the lock queue and the doReach
-    flags: :func:`pccl.model.stall.signature_fn`)."""
-    from pccl.model.stall import _visible_locals
-    slots = _visible_locals(model)
-    loc = "(" + "".join(f"ag[{LOC}][{s}], " for s in slots) + ")" if slots else "()"
-    src = (f"def _sig(st):\n"
-           f"    return _h(_dumps((st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
-           f"ag[{REACH}][{TARGET}], {loc}) for ag in st[{AGS}]]), 2))\n")
-    ns: dict = {}
-    exec(compile(src, "<pccl progress signature>", "exec"),
-         {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
-    return ns["_sig"]
+    flags), as a signed int64: :func:`pccl.model.stall.signature_fn`'s
+    ``progress``."""
+    from pccl.model.stall import signature_fn
+    return signature_fn(model, progress=True)
 
 
 def progress_signatures_fn(model) -> Callable:
@@ -114,8 +104,7 @@ def progress_signatures_fn(model) -> Callable:
     if many is not None:
         return many
     one = progress_signature_fn(model)
-    return lambda states: np.fromiter((one(st) - 0x8000000000000000 for st in states),
-                                      dtype=np.int64, count=len(states))
+    return lambda states: np.fromiter(map(one, states), dtype=np.int64, count=len(states))
 
 
 @dataclass
