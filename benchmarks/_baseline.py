@@ -1,6 +1,8 @@
 """Old code against new in one run: the package of this working tree or of a
 git revision, copied into a temporary directory and run from there
-(``benchmarks/startup.py``, ``benchmarks/lsp_large.py``)."""
+(``benchmarks/startup.py``, ``benchmarks/lsp_large.py``); and one search
+per process, its figures as JSON (:func:`run_explore`:
+``benchmarks/counters.py``, ``benchmarks/liveness.py``)."""
 
 from __future__ import annotations
 
@@ -63,3 +65,43 @@ def run_pccl(tree: str, args: list[str], env: dict, cwd: str | None = None,
     if p.returncode not in ok:
         raise SystemExit(f"pccl {' '.join(args)} in {tree}: exit {p.returncode}\n{p.stderr[-2000:]}")
     return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
+
+#: ``python -c EXPLORE_CHILD SPEC``: one ``api.explore`` of SPEC (JSON: the
+#: program, then explore's options) in a process of its own, so that its
+#: peak memory is its own; prints its figures as one JSON line
+EXPLORE_CHILD = r"""
+import json, resource, sys, time
+from pccl import api
+spec = json.loads(sys.argv[1])
+prog = spec.pop("program")
+t0, c0 = time.perf_counter(), time.process_time()
+r = api.explore(prog, **spec)
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:90],
+                      states=r.stats.states, transitions=r.stats.transitions, wall=wall, cpu=cpu,
+                      engine=r.model.engine_used, reductions="+".join(r.model.reduction.on) or "none",
+                      peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)))
+"""
+
+
+def run_explore(spec: dict, timeout: float) -> dict:
+    """:data:`EXPLORE_CHILD` of ``spec`` from the repository's root: its
+    figures, or ``{"status": why}`` when it timed out or failed."""
+    import json
+    try:
+        p = subprocess.run([sys.executable, "-c", EXPLORE_CHILD, json.dumps(spec)], cwd=ROOT,
+                           capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return dict(status=f"not finished in {timeout:.0f} s")
+    if p.returncode != 0:
+        return dict(status="error: " + p.stderr.strip().splitlines()[-1][:200])
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def uptime() -> str:
+    """``uptime``'s line (the load a measurement ran under)."""
+    try:
+        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return "(uptime not available)"

@@ -23,14 +23,10 @@ past ``T`` (a counter that only grows once the beats stop).
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import statistics
-import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
+from _baseline import run_explore, uptime
 
 WATCHDOG = """Agent::Watchdog
 
@@ -84,20 +80,6 @@ CASES = [
                                      overrides={"k": "100"}), True),
 ]
 
-CHILD = r"""
-import json, resource, sys, time
-from pccl import api
-spec = json.loads(sys.argv[1])
-prog = spec.pop("program")
-t0, c0 = time.perf_counter(), time.process_time()
-r = api.explore(prog, find_all=True, **spec)
-wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:90],
-                      reductions="+".join(r.model.reduction.on),
-                      states=r.stats.states, transitions=r.stats.transitions, wall=wall, cpu=cpu,
-                      peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)))
-"""
-
 OLD, NEW = "merge,symmetry,por,dead", "auto"
 
 
@@ -108,22 +90,7 @@ OLD_NO_SYM = "merge,por,dead"
 def run_case(spec: dict, reduce: str, timeout: float, max_states: int) -> dict:
     if reduce == OLD and spec.get("program") == WATCHDOG:
         reduce = OLD_NO_SYM
-    spec = dict(spec, reduce=reduce, max_states=max_states)
-    try:
-        p = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec)], cwd=ROOT,
-                           capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return dict(status=f"not finished in {timeout:.0f} s")
-    if p.returncode != 0:
-        return dict(status="error: " + p.stderr.strip().splitlines()[-1][:200])
-    return json.loads(p.stdout.strip().splitlines()[-1])
-
-
-def uptime() -> str:
-    try:
-        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    except OSError:
-        return "(uptime not available)"
+    return run_explore(dict(spec, reduce=reduce, max_states=max_states, find_all=True), timeout)
 
 
 def main(argv=None) -> int:

@@ -38,13 +38,9 @@ kernel's threads).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
+from _baseline import run_explore, uptime
 
 PROP = "eventually forall i: exited[i]"
 RACE = dict(program="programs/race_robust.pccl", world="programs/race.toml", blackbox="nondet",
@@ -66,38 +62,10 @@ CODES = {"old": dict(reduce="merge", engine="python"), "python": dict(reduce="au
          "new": dict(reduce="auto"), "new-ns": dict(reduce="auto", shorten=False),
          "inv": dict(reduce="auto")}
 
-CHILD = r"""
-import json, resource, sys, time
-from pccl import api
-spec = json.loads(sys.argv[1])
-prog = spec.pop("program")
-t0, c0 = time.perf_counter(), time.process_time()
-r = api.explore(prog, **spec)
-wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:60],
-                      states=r.stats.states, transitions=r.stats.transitions, wall=wall, cpu=cpu,
-                      engine=r.model.engine_used, reductions="+".join(r.model.reduction.on) or "none",
-                      peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)))
-"""
 
 
 def run_case(spec: dict, code: str, timeout: float) -> dict:
-    spec = dict(spec, **CODES[code])
-    try:
-        p = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec)], cwd=ROOT,
-                           capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return dict(status=f"not finished in {timeout:.0f} s")
-    if p.returncode != 0:
-        return dict(status="error: " + p.stderr.strip().splitlines()[-1][:200])
-    return json.loads(p.stdout.strip().splitlines()[-1])
-
-
-def uptime() -> str:
-    try:
-        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    except OSError:
-        return "(uptime not available)"
+    return run_explore(dict(spec, **CODES[code]), timeout)
 
 
 def main(argv=None) -> int:
@@ -135,7 +103,7 @@ def main(argv=None) -> int:
             r = med[code] = sorted(rs, key=lambda x: x["cpu"])[len(rs) // 2]
             print(f"{name:46} {code:6} {r['states']:>10,} {r['transitions']:>12,} "
                   f"{r['cpu']:>7.2f} {r['wall']:>7.2f} {r['peak_mib']:>6.0f}  "
-                  f"{r['engine']}, {r['reductions']}; {r['verdict']}")
+                  f"{r['engine']}, {r['reductions']}; {r['verdict'][:60]}")
         if "inv" in med:
             inv_cpu = med["inv"]["cpu"]
         if "old" in med and "new" in med:

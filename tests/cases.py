@@ -4,7 +4,7 @@ exact counts pinned for them (``PINNED``), and a hypothesis strategy of small
 random programs (``programs``) over literals that collide under ``hash()``.
 Used by tests/search/test_fingerprints.py (fingerprints against exact keys),
 tests/model/test_reduce.py, test_native.py, test_dead.py,
-tests/search/test_level_kernel.py and tests/tools/test_fmt.py."""
+tests/search/test_level_kernel.py, tests/tools/test_fmt.py and the frozen-team tests."""
 
 from __future__ import annotations
 
@@ -49,6 +49,34 @@ E1():
   eff:
     s0 = (s0 - v0 - s0) % 2;
     s0 = -2;
+"""
+
+
+#: The frozen-team check's small programs (tests/model/test_frozen.py,
+#: test_frozen_graph.py): a one-shot event (Start) in a team that makes
+#: progress (not frozen), and Pass waiting on a token value no agent ever
+#: holds while Poll takes and releases the lock (frozen).
+FROZEN_ONE_SHOT = """\
+allwrite:
+  int tok = 0;
+loc:
+  int id = getAgentIndex();
+  bool started = false;
+Start():
+  pre(!started);
+  eff:
+    started = true;
+Pass():
+  pre(started && tok == id);
+  eff:
+    tok = (tok + 1) % 2;
+"""
+FROZEN_BUSY = FROZEN_ONE_SHOT.replace("tok == id", "tok == id + 5") + """\
+Poll():
+  pre(started);
+  eff:
+    atomic:
+      skip;
 """
 
 

@@ -27,7 +27,7 @@ keeps both ``>= T``, any other assignment gives both the same value.  The
 key (:meth:`Counters.clamp`) stores ``min(x, T)``; the states themselves
 keep their real values, so every trace is a run of the program.  The
 native engine applies the same clamp in ``canon``
-(:meth:`Counters.c_source`).
+(:meth:`Counters.c_tables`).
 """
 
 from __future__ import annotations
@@ -50,19 +50,6 @@ def _program_stmts(program) -> list:
     for ev in program.events:
         out += list(A.walk_stmts(ev.body))
     return out
-
-
-def _stmt_exprs(s) -> list:
-    """The expressions statement ``s`` evaluates (its own, not its blocks')."""
-    if isinstance(s, A.Assign):
-        return [s.target, s.value]
-    if isinstance(s, A.If):
-        return [c for c, _ in s.branches]
-    if isinstance(s, A.While):
-        return [s.cond]
-    if isinstance(s, A.CallStmt):
-        return list(s.args)
-    return []
 
 
 def _assigned(program) -> set:
@@ -183,7 +170,7 @@ def _reads_problem(m, name: str, bounds: list) -> Optional[str]:
                 return (f"{name} is assigned a value that reads it other than as an increment by "
                         f"a literal >= 0 at line {s.span.line}")
             continue
-        for x in _stmt_exprs(s):
+        for x in A.own_exprs(s):
             node = _uses(m, x, name, bounds)
             if node is not None:
                 return bad(node)
@@ -367,23 +354,14 @@ class Counters:
             return key(clamp(st))
         return counters_key
 
-    def c_source(self, ag0: int, aw: int, nag: int) -> list:
-        """C of ``ctrs_need(s)`` and ``ctrs_apply(s)`` over the native
-        vector (agent j's loc slot q at ``ag0 + aw*j + 4 + q``): the same
-        clamp (reserved codes, below 0 of any cap's reach, are never > cap)."""
+    def c_tables(self) -> list:
+        """The C tables of ``ctrs_need(s)`` and ``ctrs_apply(s)`` over the
+        native vector (pccl/model/native_c/reduced.c: every agent's loc:
+        slot ``CTRSLOT[c]`` clamped to ``CTRCAP[c]``, the same clamp:
+        reserved codes, below 0 of any cap's reach, are never > cap)."""
         if not self.caps:
             return ["#define CTRS 0"]
-        conds = []
-        sets = []
-        for j in range(nag):
-            for slot, cap in sorted(self.caps.items()):
-                at = ag0 + aw * j + 4 + slot
-                conds.append(f"s[{at}] > {cap}")
-                sets.append(f"  if (s[{at}] > {cap}) s[{at}] = {cap};")
-        return ["#define CTRS 1",
-                "static int ctrs_need(const V *s) {",
-                f"  return {' || '.join(conds)};",
-                "}",
-                "static void ctrs_apply(V *s) {",
-                *sets,
-                "}"]
+        caps = sorted(self.caps.items())
+        return ["#define CTRS 1", f"#define NCTR {len(caps)}",
+                f"static const int CTRSLOT[] = {{{', '.join(str(q) for q, _ in caps)}}};",
+                f"static const V CTRCAP[] = {{{', '.join(f'{c}LL' for _, c in caps)}}};"]

@@ -53,15 +53,12 @@ or a firing of each event.
 
 from __future__ import annotations
 
-import marshal
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Optional
 
 import numpy as np
-import xxhash
 
-from pccl.model.layout import AGS, AR, LOC, POS, REACH, SH, STATUS, TARGET
 
 __all__ = ["LIMIT", "FrozenResult", "progress_signature_fn", "progress_signatures_fn", "check",
            "check_recorded", "FROZEN_MESSAGE"]
@@ -93,17 +90,10 @@ class FrozenResult:
 def progress_signature_fn(model) -> Callable:
     """``sig(state) -> int``: a 64-bit hash of the state's progress
     signature (the stall signature without the lock queue and the doReach
-    flags: :func:`pccl.model.stall.signature_fn`)."""
-    from pccl.model.stall import _visible_locals
-    slots = _visible_locals(model)
-    loc = "(" + "".join(f"ag[{LOC}][{s}], " for s in slots) + ")" if slots else "()"
-    src = (f"def _sig(st):\n"
-           f"    return _h(_dumps((st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
-           f"ag[{REACH}][{TARGET}], {loc}) for ag in st[{AGS}]]), 2))\n")
-    ns: dict = {}
-    exec(compile(src, "<pccl progress signature>", "exec"),
-         {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
-    return ns["_sig"]
+    flags), as a signed int64: :func:`pccl.model.stall.signature_fn`'s
+    ``progress``."""
+    from pccl.model.stall import signature_fn
+    return signature_fn(model, progress=True)
 
 
 def progress_signatures_fn(model) -> Callable:
@@ -114,8 +104,7 @@ def progress_signatures_fn(model) -> Callable:
     if many is not None:
         return many
     one = progress_signature_fn(model)
-    return lambda states: np.fromiter((one(st) - 0x8000000000000000 for st in states),
-                                      dtype=np.int64, count=len(states))
+    return lambda states: np.fromiter(map(one, states), dtype=np.int64, count=len(states))
 
 
 @dataclass
@@ -171,7 +160,7 @@ def _explore(model, limit: int, native: Any = None) -> Optional[_Graph]:
                 parent.append((i, lab))
             src.append(i)
             dst.append(j)
-            event.append(lab[2] if lab[0] == "EVENT SELECT" and lab[2] is not None else -1)
+            event.append(_event_of(lab))
             if not changed and sig(t) != here:
                 changed = True
         changes.append(changed)
@@ -264,17 +253,14 @@ def check(model, limit: int = LIMIT, native: Any = None) -> FrozenResult:
     engine, the same graph in the same order."""
     import time
     from pccl.search.explorer import Trace
-    from pccl.search.liveness import TemporalViolation
     t0 = time.perf_counter()
     gr = _explore(model, limit, native)
     if gr is None:
         return FrozenResult(False, f"more than {limit:,} states: the check explores the "
                                    f"graph again up to {limit:,}",
                             seconds=time.perf_counter() - t0)
-    out = FrozenResult(True, states=len(gr.states))
-    found = _frozen_events(model, gr, native)
-    if found is not None:
-        first, never, live, fired = found
+
+    def trace_to(first: int):
         states, labels = [gr.states[first]], []
         at = first
         while gr.parent[at] is not None:
@@ -283,7 +269,21 @@ def check(model, limit: int = LIMIT, native: Any = None) -> FrozenResult:
             labels.append(lab)
         if native is not None:      # (the native vectors as configurations)
             states = [native.decode(b) for b in states]
-        out.trace = _expanded(model, Trace(tuple(reversed(states)), tuple(reversed(labels))))
+        return Trace(tuple(reversed(states)), tuple(reversed(labels)))
+    return _result(model, len(gr.states), _frozen_events(model, gr, native), trace_to, t0)
+
+
+def _result(model, n: int, found, trace_to: Callable[[int], Any], t0: float) -> FrozenResult:
+    """The outcome of both checks over a graph of ``n`` states: ``found``
+    (:func:`_decide`'s) as a violation ``frozen`` with the path to its
+    first frozen state (``trace_to(first)``: the states and labels of the
+    model), merged transitions expanded."""
+    import time
+    from pccl.search.liveness import TemporalViolation
+    out = FrozenResult(True, states=n)
+    if found is not None:
+        first, never, live, fired = found
+        out.trace = _expanded(model, trace_to(first))
         out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
     out.seconds = time.perf_counter() - t0
     return out
@@ -333,13 +333,7 @@ def check_recorded(model, rec, n: int, replay: Callable[[list], Any], table,
     reachability (or None); ``decided``: returns :func:`decide_recorded`'s
     answer, made already (on another thread), instead of deciding here."""
     import time
-    from pccl.search.liveness import TemporalViolation, _chain_to
+    from pccl.search.liveness import _chain_to
     t0 = time.perf_counter()
-    out = FrozenResult(True, states=n)
     found = decided() if decided is not None else decide_recorded(model, rec, n, kernel)
-    if found is not None:
-        first, never, live, fired = found
-        out.trace = _expanded(model, replay(_chain_to(table, first)))
-        out.violation = TemporalViolation("frozen", "frozen", _message(model, never, live, fired))
-    out.seconds = time.perf_counter() - t0
-    return out
+    return _result(model, n, found, lambda first: replay(_chain_to(table, first)), t0)

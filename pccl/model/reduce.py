@@ -123,19 +123,6 @@ def parse_request(reduce) -> Optional[tuple]:
 # static information
 # ---------------------------------------------------------------------------
 
-def _stmt_exprs(s) -> list:
-    """The expressions a statement evaluates in its own transition."""
-    if isinstance(s, A.Assign):
-        return [s.target, s.value]
-    if isinstance(s, A.If):
-        return [c for c, _ in s.branches]
-    if isinstance(s, A.While):
-        return [s.cond]
-    if isinstance(s, A.CallStmt):
-        return list(s.args)
-    return []
-
-
 def _expr_is_local(e, lay, visible: set, funcs: set) -> bool:
     """Whether the node ``e`` (of a statement's expression) reads only the
     agent's own invisible ``loc:`` variables, members and pure calls."""
@@ -160,7 +147,7 @@ def mergeable_sids(m) -> set:
             continue
         if isinstance(s, A.CallStmt) and s.name not in ("add", "remove"):
             continue
-        if all(_expr_is_local(e, lay, visible, funcs) for x in _stmt_exprs(s) for e in A.walk_expr(x)):
+        if all(_expr_is_local(e, lay, visible, funcs) for x in A.own_exprs(s) for e in A.walk_expr(x)):
             ok.add(sid)
     return ok
 
@@ -173,7 +160,7 @@ def positions_read(m) -> Optional[str]:
         if isinstance(s, A.CallStmt) and s.name == "doReach":
             return f"doReach at line {s.span.line}"
     exprs = [d.init for d in m.program.decls if isinstance(d, A.VarDecl) and d.init is not None]
-    exprs += [x for s in m.compiled.stmts.values() for x in _stmt_exprs(s)]
+    exprs += [x for s in m.compiled.stmts.values() for x in A.own_exprs(s)]
     exprs += [ev.guard for ev in m.program.events]
     for x in exprs:
         for e in A.walk_expr(x):

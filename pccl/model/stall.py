@@ -38,26 +38,30 @@ def _visible_locals(model) -> list:
     return sorted(vs.slot for vs in model.compiled.layout.local if vs.name in names)
 
 
-def signature_fn(model) -> Callable:
+def signature_fn(model, progress: bool = False) -> Callable:
     """``sig(state) -> int``: a 64-bit hash of the state's signature (the
     clock, the phase, pcs, counters, private locals and the blackbox's own
     state left out), as a signed int64 (the graph recorder's column).
-    Generated per model: one tuple, one encoding and one hash per call
-    (the agents' part a list: cheaper to make than a tuple).  The hash is
-    xxh3-64 of the signature's marshal encoding (the values the native
-    engine's signature tells apart, as its interned ids do), not Python's
-    ``hash()``: that one is equal for -1 and -2 and for ints 2**61 - 1
-    apart, so a transition from ``s = -1`` to ``s = -2`` read as no change
-    (a merged chain cut where it did not end where it began; the stall
-    check blind to that change)."""
+    ``progress``: the frozen-team check's progress signature
+    (:mod:`pccl.model.frozen`), the same without the lock queue and the
+    doReach flags.  Generated per model: one tuple, one encoding and one
+    hash per call (the agents' part a list: cheaper to make than a tuple).
+    The hash is xxh3-64 of the signature's marshal encoding (the values the
+    native engine's signature tells apart, as its interned ids do), not
+    Python's ``hash()``: that one is equal for -1 and -2 and for ints
+    2**61 - 1 apart, so a transition from ``s = -1`` to ``s = -2`` read as
+    no change (a merged chain cut where it did not end where it began; the
+    stall check blind to that change)."""
     slots = _visible_locals(model)
     loc = "(" + "".join(f"ag[{LOC}][{s}], " for s in slots) + ")" if slots else "()"
+    lq = "" if progress else f"st[{LQ}], "
+    flags = "" if progress else f"ag[{REACH}][{DONE}], ag[{REACH}][{FAIL}], "
     src = (f"def _sig(st):\n"
-           f"    return _h(_dumps((st[{LQ}], st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
-           f"ag[{REACH}][{TARGET}], ag[{REACH}][{DONE}], ag[{REACH}][{FAIL}], {loc}) "
+           f"    return _h(_dumps(({lq}st[{SH}], [(ag[{STATUS}], ag[{AR}], ag[{POS}], "
+           f"ag[{REACH}][{TARGET}], {flags}{loc}) "
            f"for ag in st[{AGS}]]), 2)) - 0x8000000000000000\n")
     ns: dict = {}
-    exec(compile(src, "<pccl stall signature>", "exec"),
+    exec(compile(src, "<pccl progress signature>" if progress else "<pccl stall signature>", "exec"),
          {"_h": xxhash.xxh3_64_intdigest, "_dumps": marshal.dumps}, ns)
     return ns["_sig"]
 

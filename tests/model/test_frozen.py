@@ -20,6 +20,7 @@ from pccl.api import explore, make_model
 from pccl.model.engine import Model
 from pccl.model.layout import AGS, AR, POS, REACH, SH, STATUS, TARGET
 
+from cases import FROZEN_BUSY, FROZEN_ONE_SHOT
 from conftest import ROOT, TEST_PROGRAMS, cli, closure
 
 pytestmark = pytest.mark.slow     # every test here explores (0.5-15 s each on a loaded machine)
@@ -137,47 +138,25 @@ def test_a_pillar_that_may_be_passed_is_not_frozen():
 # one-shot events, small programs
 # ---------------------------------------------------------------------------
 
-ONE_SHOT = """\
-allwrite:
-  int tok = 0;
-loc:
-  int id = getAgentIndex();
-  bool started = false;
-Start():
-  pre(!started);
-  eff:
-    started = true;
-Pass():
-  pre(started && tok == id);
-  eff:
-    tok = (tok + 1) % 2;
-"""
+#: (the programs: tests/cases.py)
+ONE_SHOT = dict(program=FROZEN_ONE_SHOT, source=True)
+BUSY = dict(program=FROZEN_BUSY, source=True)
 
 
-def test_a_one_shot_event_in_a_team_that_makes_progress_is_not_frozen(tmp_path):
-    p = tmp_path / "oneshot.pccl"
-    p.write_text(ONE_SHOT)
-    res = explore(str(p))
+def test_a_one_shot_event_in_a_team_that_makes_progress_is_not_frozen():
+    res = explore(**ONE_SHOT)
     assert res.status == "exhaustive" and res.exit_status == 0, res.verdict
 
 
-def test_a_busy_wait_on_a_value_nobody_sets_is_frozen(tmp_path):
+def test_a_busy_wait_on_a_value_nobody_sets_is_frozen():
     """Pass waits on a token value no agent ever holds; Poll takes and releases the lock."""
-    p = tmp_path / "busy.pccl"
-    p.write_text(ONE_SHOT.replace("tok == id", "tok == id + 5") + """\
-Poll():
-  pre(started);
-  eff:
-    atomic:
-      skip;
-""")
-    res = explore(str(p))
+    res = explore(**BUSY)
     (v,) = frozen_of(res)
     assert "event Pass (line 11: `started && tok == id + 5`) never fires" in v.message
     # Start (one-shot: private) can still fire in the initial state, frozen already
     assert v.message.endswith("still firing: Start (line 7), Poll (line 15)")
     # the stall check alone saw the lock queue change
-    assert explore(str(p), stall=False).status == "exhaustive"
+    assert explore(**BUSY, stall=False).status == "exhaustive"
 
 
 # ---------------------------------------------------------------------------

@@ -20,6 +20,7 @@ import pytest
 from pccl.api import explore
 from pccl.model import frozen as F
 
+from cases import FROZEN_BUSY, FROZEN_ONE_SHOT
 from conftest import PROGRAMS, TEST_PROGRAMS
 
 pytestmark = pytest.mark.slow     # every case explores twice
@@ -27,29 +28,8 @@ pytestmark = pytest.mark.slow     # every case explores twice
 PATROL = str(TEST_PROGRAMS / "patrol.pccl")
 
 #: a one-shot event in a team that makes progress (not frozen), and a busy
-#: wait on a token value nobody holds (frozen): tests/model/test_frozen.py's
-ONE_SHOT = """\
-allwrite:
-  int tok = 0;
-loc:
-  int id = getAgentIndex();
-  bool started = false;
-Start():
-  pre(!started);
-  eff:
-    started = true;
-Pass():
-  pre(started && tok == id);
-  eff:
-    tok = (tok + 1) % 2;
-"""
-BUSY = ONE_SHOT.replace("tok == id", "tok == id + 5") + """\
-Poll():
-  pre(started);
-  eff:
-    atomic:
-      skip;
-"""
+#: wait on a token value nobody holds (frozen): tests/cases.py's
+ONE_SHOT, BUSY = FROZEN_ONE_SHOT, FROZEN_BUSY
 
 
 def _boom(*a, **k):

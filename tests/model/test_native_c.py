@@ -20,7 +20,7 @@ from pccl.model import native as NV
 from pccl.model import native_build as NB
 from pccl.model.toolchain import native_unavailable
 
-from conftest import ROOT
+from conftest import ROOT, TEST_PROGRAMS
 
 PROGRAMS = os.path.join(ROOT, "programs")
 
@@ -33,6 +33,13 @@ CASES = {
     # property memo sites (dist(), positions), collisions, memo fall-backs of C's errors
     "formation-collisions": ("formation.pccl", {"world": os.path.join(PROGRAMS, "formation.toml"),
                                                 "collisions": True, "blackbox": "straight"}),
+    # the fixed C's other switches: local guards (guard(), por.c's evfp, dead.c's live events)
+    # under --events first, counter saturation, the bound of ticks
+    "eng_abs_maxtime-first": (str(TEST_PROGRAMS / "eng_abs_maxtime.pccl"),
+                              {"reduce": "auto", "events": "first", "max_time": 6}),
+    # the temporal predicates (tpred) and the robots under way (TPEND: fair arrival)
+    "race-temporal-nondet": ("race.pccl", {"world": os.path.join(PROGRAMS, "race.toml"), "blackbox": "nondet",
+                                           "properties": ["eventually forall i: exited[i]"]}),
 }
 
 

@@ -264,9 +264,10 @@ static void kmake(KJob *j, Py_ssize_t c, int L, Py_ssize_t a, Py_ssize_t b, int 
       if (j->psig) { k->psg[w] = psighash(t); k->lb[w] = BLAB[q]; }
       k->sus[w] = !okstate(t);
       if (KDEFER) { k->flag = 6; break; }  /* (a property memo site's miss: the caller's) */
-      /* a column Python must compute: the batches take the chunk */
+      /* a column Python must compute (a temporal predicate's memo miss
+         deferred here is one: it sets ovf, so tcols says unsure): the
+         batches take the chunk */
       if (j->tbits && tcols(t, k->tb + w, k->pd + w)) { k->flag = 2; break; }
-      if (KDEFER) { k->flag = 6; break; }  /* (a property memo site's miss: the caller's) */
     }
   }
   if (!mine && j->slow) {           /* (tests: a slow or descheduled thread) */

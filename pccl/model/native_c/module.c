@@ -1,7 +1,7 @@
 /* pccl's native engine: the module's functions Python calls (successors,
    expand, key, fingerprints, violations, ...), its method table and init
-   function.  Included by a generated module after reduced.c and the
-   program's okexpr(). */
+   function.  Included by a generated module after reduced.c and
+   temporal.c. */
 /* the label of buffer entry k: the rule's, or (rule, agent, detail, idx0,
    (0,) * chain length) for a merged transition (reduce.Merger's) */
 static PyObject *label_of(Py_ssize_t k) {
@@ -109,10 +109,13 @@ static xxh128_fn XXH;
 /* the stall signature's hash (pccl/model/stall.py's fields): xxh3 of the
    signature's slots gathered, else a slot-by-slot mix (equal signatures
    give equal hashes either way; only equality is read) */
+static inline void gather(const V *s, const int *slots, int nslots, V *g) {
+  for (int q = 0; q < nslots; q++) g[q] = s[slots[q]];
+}
 static int64_t slothash(const V *s, const int *slots, int nslots) {
   if (XXH) {
     V g[NSIGSLOTS > NPSIGSLOTS ? NSIGSLOTS : NPSIGSLOTS];
-    for (int q = 0; q < nslots; q++) g[q] = s[slots[q]];
+    gather(s, slots, nslots, g);
     H128 x = XXH(g, sizeof(V) * (size_t)nslots);
     return (int64_t)(x.lo ^ x.hi);
   }
@@ -147,14 +150,16 @@ static PyObject *sig(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!s) return NULL;
   return PyLong_FromLongLong((long long)sighash(s));
 }
-/* progsig(state): the progress signature's slots (PROGSLOTS, generated:
-   pccl/model/frozen.py's fields) as bytes, compared for equality */
+/* progsig(state): the progress signature itself, what psighash hashes (the
+   slots PSIGSLOTS, generated: pccl/model/frozen.py's fields), as bytes:
+   the frozen-team check's re-exploration compares them for equality, no
+   hash between (frozen.py _explore) */
 static PyObject *progsig(PyObject *Py_UNUSED(self), PyObject *arg) {
   V sb[NS]; const V *s = arg_state(arg, sb);
   if (!s) return NULL;
-  V g[NPROGSLOTS + 1];
-  for (int q = 0; q < NPROGSLOTS; q++) g[q] = s[PROGSLOTS[q]];
-  return PyBytes_FromStringAndSize((const char *)g, sizeof(V) * NPROGSLOTS);
+  V g[NPSIGSLOTS + 1];
+  gather(s, PSIGSLOTS, NPSIGSLOTS, g);
+  return PyBytes_FromStringAndSize((const char *)g, sizeof(V) * NPSIGSLOTS);
 }
 /* the hash fn of each state of a list, as int64s in one bytes object */
 static PyObject *hash_each(PyObject *arg, int64_t (*fn)(const V *)) {
@@ -354,7 +359,7 @@ static PyObject *fingerprints_sigs(PyObject *Py_UNUSED(self), PyObject *arg) {
   return fingerprints_(arg, 1);
 }
 /* no agent stuck, the lock's holder has not exited, every invariant holds
-   (okexpr: generated, Generator.source) */
+   (okexpr: step.c) */
 static inline int okstate(const V *s) {
   ovf = 0;
   int r = okexpr(s);

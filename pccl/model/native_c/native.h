@@ -1,19 +1,27 @@
 /* pccl's native engine: the fixed C every generated module includes first.
 
-   A module is one translation unit, written by pccl/model/native.py
+   A module is one translation unit, written by pccl/model/native_gen.py
    (Generator.source) for one program: its header defines the program's
    constants, then it includes the fixed files of this directory in order,
-   with the program's own code between them:
+   with the program's own code (its statements, guards, expressions and
+   tables; no other function body) between them:
 
      #define NS ... (the header below)   the program's constants
      #include "native.h"                 this file: values, arithmetic, the
                                          successor buffer, states as bytes
      #include "memo.c"                   memo sites (what Python computes)
-     agent0() .. agentN-1(), step()      generated: the rules, per agent
-     tables, agent_of(), ample(), ...    generated: the reductions' tables
+     #include "robots.c"                 the shipped blackboxes' outcomes
+     agent0() .. agentN-1()              generated: the rules, per agent, per pc
+     RHO, AGENT, ENV*, PR*, invariants() generated: rates, the agents' table,
+                                         memo sites' slots, the invariants
+     #include "step.c"                   the successor function, okexpr()
+     the reductions' tables, guard()     generated (native_gen.py reduced_c)
      #include "por.c"                    (under partial-order reduction)
+     #include "dead.c"                   the dead-variable reduction
      #include "reduced.c"                merging, symmetry, the reduced step
-     okexpr()                            generated: the invariants
+     #include "temporal.h"               the point classes of interned ids
+     tpred(), TPBIT                      generated: the temporal predicates
+     #include "temporal.c"               their columns, the graph's SCCs
      #include "module.c"                 the Python-facing functions
      #include "kernel.c"                 the level kernel (explore_levels)
 
@@ -26,10 +34,21 @@
      PACK      1 when states are held as int32 slots where they fit
      VMIN      the least int a slot holds (native.py's V_MIN)
      V_TIME, V_PHASE   the slots of the clock and the phase
-     PH_DISCRETE       the phase's value in a discrete state
-     S_RUNNING         an agent's status while it runs
+     PH_DISCRETE, PH_DYNAMIC   the phase's values
+     S_RUNNING, S_EXITED, S_STUCK   an agent's statuses (STUCK and above:
+               stuck, with its reason)
+     AG0, AW   agent j's block: AW slots from AG0 + AW * j (pc, counter,
+               lock state, status, then NLOC loc: slots and the allread)
+     MOVES, MV whether the program moves; then a robot's position,
+               target, obstacles, t0, done, fail, leg start from MV of its block
+     NPC, EMPTY_PC, IDLE_PC   the control cells: how many, the top of the
+               block and idle
+     KEEPN0, DELTA, MAXTICKS, HAS_MAXTICKS   n0, the clock's step, the
+               bound of ticks (--max-time)
+     L_TA, L_DR   the labels of TIME ADVANCE and DOREACH INVOKE
+     FIRST_ONLY, NEV   --events first; the number of events
    MODNAME and INITFN (the module's name, its init function) are defined
-   on the compiler's command line's first lines (native.py's _compile). */
+   on the compiler's command line's first lines (native_build.py). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <stdint.h>

@@ -2,9 +2,15 @@
    partial-order reduction, then statement merging, as reduce.Reduced
    composes them), the canonical key canon (symmetry) and the stall
    signature, over the tables the generated module defines before it
-   includes this file (Generator.reduced_c: NPC, AG0, AW, NLOC, KEEPN0, POR,
-   MERGE, SYM, MERGEOK, RHO, BID, SHID, SIGSLOTS, agent_of(), ample(),
-   dead_bits(), dead_apply(), ctrs_need(), ctrs_apply()). */
+   includes this file (native_gen.py Generator.reduced_c: POR, MERGE, SYM,
+   MERGEOK, BID, SHID, SIGSLOTS; step.c's step(), the agents' table AGENT
+   and RHO; por.c's ample() and movable() under POR; dead.c's dead_bits()
+   and dead_apply() under DEAD; NCTR, CTRSLOT, CTRCAP under CTRS). */
+#if !POR
+/* what merging reads of partial-order reduction when it is off */
+static MAYBE_UNUSED const unsigned char PSPENT[] = {0};
+static inline int movable(const V *s, int i) { (void)s; (void)i; return 0; }
+#endif
 /* statement merging: run agent i's following mergeable steps in the
    successor at BUF[k] (Merger._chain: one successor per step, a chain
    stops where it revisits (pc, counter, locals) after 32 steps: those
@@ -64,7 +70,7 @@ static int chain(const V *s0, Py_ssize_t k, int i) {
       SLOT[sl] = (int16_t)nseen++;
     }
     Py_ssize_t b = BN;
-    if (agent_of(i, cur)) return -1;
+    if (AGENT[i](cur)) return -1;
     if (BN == b) break;
     memcpy(cur, BUF + NS * b, sizeof cur);
     BN = b;
@@ -87,7 +93,7 @@ static int rstep(const V *s) {
 #endif
 #if POR
   if (s[V_PHASE] == PH_DISCRETE) {
-    int a = ample(s, b0);     /* generated (Generator.reduced_c) */
+    int a = ample(s, b0);     /* por.c */
     if (a < 0) return -1;
     if (a) goto chains;
   }
@@ -105,6 +111,23 @@ chains:
 #endif
   return ovf ? -1 : 0;
 }
+/* counter saturation (counters.py): agent j's loc: slot CTRSLOT[c] above
+   its cap CTRCAP[c] is the cap (the tables: counters.py Counters.c_tables) */
+#if CTRS
+static int ctrs_need(const V *s) {
+  for (int j = 0; j < NAG; j++)
+    for (int c = 0; c < NCTR; c++)
+      if (s[AG0 + AW * j + 4 + CTRSLOT[c]] > CTRCAP[c]) return 1;
+  return 0;
+}
+static void ctrs_apply(V *s) {
+  for (int j = 0; j < NAG; j++)
+    for (int c = 0; c < NCTR; c++) {
+      V *x = s + AG0 + AW * j + 4 + CTRSLOT[c];
+      if (*x > CTRCAP[c]) *x = CTRCAP[c];
+    }
+}
+#endif
 /* symmetry: the canonical representative of s's orbit under permutations
    of the agents (each agent's whole block moves; id-valued slots BID of a
    block and SHID of shared, and the lock queue, renamed).  Agents are

@@ -1,6 +1,15 @@
 /* pccl's native engine: the temporal properties' graph (issue 46), included
-   by a generated module after its tcols() and before module.c, whose
-   method table lists TEMPORAL_METHODS.
+   by a generated module after its tpred() (the properties' state
+   predicates, NTP of them, the n-th setting bit TPBIT[n] of the columns)
+   and TPEND (1: the program moves and a robot under way arrives, fairly),
+   before module.c, whose method table lists TEMPORAL_METHODS.
+
+   tcols(s, &bits, &pend): the graph recorder's per-state columns of the
+   temporal properties (bit 2k for property k's P and 2k + 1 for its Q),
+   and the robots whose doReach is under way (search_view.arrival_pending,
+   by the classes of the interned position ids, TPOINT: temporal.h).
+   Returns 1 when Python must decide a column (a predicate met an undefined
+   value, an overflow, a division by zero; a position id without a class).
 
    tcolumns(states): the graph recorder's columns of a list of states
    (pccl/search/liveness.py StateColumns): (bits, pend, unsure) as bytes,
@@ -16,6 +25,32 @@
    very numbering of liveness.py Graph.sccs (a component's id is the order
    in which it is completed).  Writes comp (int64 per state, -1 outside);
    returns the per-component "has a cycle" flags as bytes. */
+static int tcols(const V *s, uint64_t *bits, uint64_t *pend) {
+  int saved = ovf, unsure = 0;
+  uint64_t b = 0, pm = 0;
+  for (int n = 0; n < NTP; n++) {
+    ovf = 0;
+    V x = tpred(n, s);
+    if (ovf) unsure = 1;
+    else if (x) b |= 1ULL << TPBIT[n];
+  }
+#if TPEND
+  for (int i = 0; i < NAG; i++) {
+    const V *o = s + AG0 + AW * i + MV;
+    if (!o[4] && !o[5]) {
+      int ct = pcls(o[1]);
+      if (ct != -1) {
+        int cp = pcls(o[0]);
+        if (ct < -1 || cp < -1) unsure = 1;
+        else if (ct != cp) pm |= 1ULL << i;
+      }
+    }
+  }
+#endif
+  ovf = saved;
+  *bits = b; *pend = pm;
+  return unsure;
+}
 static PyObject *tcolumns(PyObject *Py_UNUSED(self), PyObject *arg) {
   if (!PyList_Check(arg)) { PyErr_SetString(PyExc_TypeError, "a list of states"); return NULL; }
   Py_ssize_t n = PyList_GET_SIZE(arg), nu = 0;

@@ -1,6 +1,6 @@
-/* pccl's native engine: what the generated tcols() (the temporal
-   properties' per-state columns, native.py Generator.temporal_c) reads,
-   included by a generated module before it.
+/* pccl's native engine: what tcols() (the temporal properties' per-state
+   columns, temporal.c) reads, included by a generated module before the
+   properties' predicates (tpred(), native_expr.py ExprC.temporal_c).
 
    TPOINT: per interned id (positions, targets: NativeModel's table) its
    point class + 2 (0: not known yet, 1: None, k + 2: the k-th distinct
@@ -15,4 +15,3 @@ static inline int pcls(V v) {
   if (v < 0 || v >= TPOINT_CAP) return -2;
   return __atomic_load_n(&TPOINT[v], __ATOMIC_ACQUIRE) - 2;
 }
-static int tcols(const V *s, uint64_t *bits, uint64_t *pend);
