@@ -207,11 +207,33 @@ def counter_problem(m, name: str) -> tuple:
 CAP_LIMIT = 1 << 62
 
 
+def _compared_names(prog) -> set:
+    """The names that stand as an operand of a comparison somewhere in the
+    program: a counter is one of them ("something compares it"), so only
+    they need :func:`counter_problem`'s walk over the whole program (which,
+    for every ``loc:`` variable, made building a model of 2,000
+    declarations quadratic)."""
+    exprs: list = [x for d in prog.decls if isinstance(d, A.VarDecl)
+                   for x in (d.init, d.size) if x is not None]
+    exprs += [ev.guard for ev in prog.events]
+    for s in _program_stmts(prog):
+        exprs += A.own_exprs(s)
+    out: set = set()
+    for e in exprs:
+        for n in A.walk_expr(e):
+            if isinstance(n, A.Binary) and n.op in COMPARISONS:
+                out |= {x.name for x in (n.left, n.right) if isinstance(x, A.Name)}
+    return out
+
+
 def saturable_counters(m) -> dict:
     """``{loc slot: cap}`` of every saturable counter of model ``m``
     (:func:`counter_problem`)."""
     out = {}
+    compared = _compared_names(m.program)
     for vs in m.compiled.layout.local:
+        if vs.name not in compared:      # nothing compares it: not a counter
+            continue
         why, cap = counter_problem(m, vs.name)
         if why is None and -CAP_LIMIT < cap < CAP_LIMIT:
             out[vs.slot] = cap
@@ -301,9 +323,9 @@ def can_exceed(m, name: str, cap: int) -> bool:
 def can_saturate(m) -> bool:
     """Whether some saturable counter of ``m`` may exceed its cap
     (:func:`can_exceed`): then the reduction merges something."""
-    lay = m.compiled.layout
-    return any(can_exceed(m, vs.name, cap) for vs in lay.local
-               for cap in [saturable_counters(m).get(vs.slot)] if cap is not None)
+    caps = saturable_counters(m)
+    return any(can_exceed(m, vs.name, caps[vs.slot]) for vs in m.compiled.layout.local
+               if vs.slot in caps)
 
 
 def temporal_problem(m) -> Optional[str]:
