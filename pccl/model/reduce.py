@@ -301,15 +301,21 @@ def rename_state(st, r: list, slots) -> tuple:
     new id): agent i's whole cell (position and reach included) becomes
     agent r[i]'s, and every id-valued datum (``slots`` of
     :func:`symmetry_problem`: loc:, allread and shared id variables; the
-    lock queue) is renamed.  Under the conditions of symmetry, s -> t is a
-    transition iff rename(s) -> rename(t) is (docs/reductions.md)."""
-    loc_s, ar_s, sh_s = slots[0], slots[1], slots[2]
+    lock queue) is renamed.  Where no position is in the key (nothing moves
+    or reads one) the positions and reach cells stay in place.  Under the
+    conditions of symmetry, s -> t is a transition iff rename(s) ->
+    rename(t) is (docs/reductions.md)."""
+    loc_s, ar_s, sh_s, motion = slots[0], slots[1], slots[2], slots[4]
     ags = st[AGS]
     cells: list = [None] * len(ags)
     for i, a in enumerate(ags):
         if loc_s or ar_s:
             a = (a[:LOC] + (_rename_ids(a[LOC], loc_s, r), _rename_ids(a[AR], ar_s, r))
                  + a[AR + 1:])
+        if not motion:
+            # positions nothing reads, which never change, stay where they
+            # are (the renamed initial state is an initial state)
+            a = a[:POS] + ags[r[i]][POS:]
         cells[r[i]] = a
     sh = _rename_ids(st[SH], sh_s, r) if sh_s else st[SH]
     out = list(st)

@@ -743,7 +743,12 @@ def _bfs(gather, seen: np.ndarray, frontier, allowed: Optional[np.ndarray]) -> N
     (an iterable of state arrays, already in ``seen``) through ``allowed``
     states only, marking ``seen`` in place.  The frontier is gathered
     :data:`_STATE_CHUNK` states at a time, so the temporary arrays stay
-    bounded by a chunk's transitions whatever the frontier's size."""
+    bounded by a chunk's transitions whatever the frontier's size (and one
+    4-byte stamp per state, made on first use: a chunk's new states are
+    made distinct by writing each one's place at its state and keeping the
+    places that stayed, one pass where ``np.unique`` sorted or hashed;
+    issue 46: half of a leads-to analysis's time on Fischer)."""
+    stamp: Optional[np.ndarray] = None
     while True:
         nxt_parts = []
         for part in frontier:
@@ -753,7 +758,12 @@ def _bfs(gather, seen: np.ndarray, frontier, allowed: Optional[np.ndarray]) -> N
                     nxt = nxt[allowed[nxt]]
                 nxt = nxt[~seen[nxt]]
                 if nxt.size:
-                    nxt = np.unique(nxt)
+                    if nxt.size > 1:
+                        if stamp is None:
+                            stamp = np.empty(len(seen), dtype=np.int64 if len(seen) >> 31 else np.int32)
+                        at = np.arange(nxt.size, dtype=stamp.dtype)
+                        stamp[nxt] = at
+                        nxt = nxt[stamp[nxt] == at]
                     seen[nxt] = True
                     nxt_parts.append(nxt)
         if not nxt_parts:
@@ -943,7 +953,7 @@ class _Analysis:
                 out.witnesses.append((p, cx))
                 out.holds.append(p.name)
                 if self.mirrors(p):
-                    setattr(cx, "mirrors", [(q, q.agent) for q in self.mirrors(p)])
+                    cx.mirrors = [(q, q.agent) for q in self.mirrors(p)]
                     out.holds.extend(q.name for q in self.mirrors(p))
             else:
                 where = "" if self.complete else " within the bounds (the search was not exhaustive)"
@@ -1329,12 +1339,12 @@ def _mirror_all(model, lv: LivenessResult) -> None:
     found = []
     for cx in lv.found:
         found.append(cx)
-        found.extend(mirrored(cx, q, j) for q, j in getattr(cx, "mirrors", None) or ())
+        found.extend(mirrored(cx, q, j) for q, j in cx.mirrors or ())
     lv.found = found
     wit = []
     for p, cx in lv.witnesses:
         wit.append((p, cx))
-        wit.extend((q, mirrored(cx, q, j)) for q, j in getattr(cx, "mirrors", None) or ())
+        wit.extend((q, mirrored(cx, q, j)) for q, j in cx.mirrors or ())
     lv.witnesses = wit
 
 
