@@ -27,7 +27,10 @@ alike; the table shows the median by CPU time):
     reductions that tries to shorten a lasso is left out);
 ``inv``
     the case's program searched for its invariants alone (no temporal
-    property): the invariant search the temporal one is compared with.
+    property): the invariant search the temporal one is compared with;
+``base``, ``base-ns``, ``base-inv`` (with ``--baseline REV``)
+    ``new``, ``new-ns`` and ``inv`` run by the package of git revision REV
+    (old code against new in one run, benchmarks/_baseline.py).
 
 Each case's native module is compiled (and cached) by a first short run
 before any run is timed.  It prints ``uptime`` before and after: wall seconds on a loaded machine are
@@ -38,9 +41,13 @@ kernel's threads).
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import subprocess
 import sys
 
-from _baseline import run_explore, uptime
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
 
 PROP = "eventually forall i: exited[i]"
 RACE = dict(program="programs/race_robust.pccl", world="programs/race.toml", blackbox="nondet",
@@ -62,10 +69,62 @@ CODES = {"old": dict(reduce="merge", engine="python"), "python": dict(reduce="au
          "new": dict(reduce="auto"), "new-ns": dict(reduce="auto", shorten=False),
          "inv": dict(reduce="auto")}
 
+CHILD = r"""
+import json, resource, sys, time
+if len(sys.argv) > 2:
+    sys.path.insert(0, sys.argv[2])     # the package of a baseline revision
+from pccl import api
+spec = json.loads(sys.argv[1])
+prog = spec.pop("program")
+t0, c0 = time.perf_counter(), time.process_time()
+r = api.explore(prog, **spec)
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:60],
+                      states=r.stats.states, transitions=r.stats.transitions, wall=wall, cpu=cpu,
+                      engine=r.model.engine_used, reductions="+".join(r.model.reduction.on) or "none",
+                      peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)))
+"""
+
+
+#: the package of ``--baseline REV`` (its codes are ``base*``)
+BASE_TREE: list = []
 
 
 def run_case(spec: dict, code: str, timeout: float) -> dict:
-    return run_explore(dict(spec, **CODES[code]), timeout)
+    tree = []
+    if code.startswith("base"):
+        tree = BASE_TREE
+        code = {"base": "new", "base-ns": "new-ns", "base-inv": "inv"}[code]
+    spec = dict(spec, **CODES[code])
+    try:
+        p = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec), *tree], cwd=ROOT,
+                           capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return dict(status=f"not finished in {timeout:.0f} s")
+    if p.returncode != 0:
+        return dict(status="error: " + p.stderr.strip().splitlines()[-1][:200])
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def uptime() -> str:
+    try:
+        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    except OSError:
+        return "(uptime not available)"
+
+
+def ratios(spec: dict, med: dict, inv_cpu, base_inv_cpu) -> None:
+    """The ratios of a case's medians (``med``: code -> run)."""
+    if "old" in med and "new" in med:
+        o, n = med["old"], med["new"]
+        print(f"{'':46} new/old: {n['cpu'] / o['cpu']:.3f} of the CPU time, "
+              f"{n['states'] / o['states']:.3f} of the states")
+    if "python" in med and "new" in med:
+        print(f"{'':46} new/python: {med['new']['cpu'] / med['python']['cpu']:.3f} of the CPU time")
+    for code in ("new", "new-ns", "base", "base-ns"):
+        inv = base_inv_cpu if code.startswith("base") else inv_cpu
+        if inv and code in med and "properties" in spec and spec.get("program") == FISCHER["program"]:
+            print(f"{'':46} {code}/invariant search: {med[code]['cpu'] / inv:.2f}x the CPU time")
 
 
 def main(argv=None) -> int:
@@ -76,14 +135,25 @@ def main(argv=None) -> int:
     ap.add_argument("--codes", help="only these codes (comma-separated: old,python,new,new-ns,inv)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds per run")
+    ap.add_argument("--baseline", help="also run new, new-ns and inv with the package of this git "
+                    "revision (codes base, base-ns, base-inv)")
     a = ap.parse_args(argv)
+    if a.baseline:
+        import tempfile
+        sys.path.insert(0, HERE)
+        from _baseline import tree_of_revision
+        tmp = tempfile.mkdtemp(prefix="pccl-liveness-base-")
+        BASE_TREE[:] = [tree_of_revision(a.baseline, tmp)]
     print("uptime before:", uptime())
-    print(f"{'case':46} {'code':6} {'states':>10} {'transitions':>12} "
+    print(f"{'case':46} {'code':8} {'states':>10} {'transitions':>12} "
           f"{'CPU s':>7} {'wall s':>7} {'MiB':>6}  engine, reductions; verdict")
-    inv_cpu = None
+    inv_cpu = base_inv_cpu = None
     for name, spec, codes, full in CASES:
         if (full and not a.full) or (a.only and a.only not in name and "invariant" not in name):
             continue
+        if a.baseline:
+            codes = codes + tuple({"new": "base", "new-ns": "base-ns", "inv": "base-inv"}[c]
+                                  for c in codes if c in ("new", "new-ns", "inv"))
         codes = tuple(c for c in codes if not (a.no_old and c == "old")
                       and (not a.codes or c in a.codes.split(",")))
         if not codes:
@@ -98,23 +168,17 @@ def main(argv=None) -> int:
         for code in codes:
             rs = [r for r in rows[code] if "cpu" in r]
             if not rs:
-                print(f"{name:46} {code:6} {rows[code][0]['status']}")
+                print(f"{name:46} {code:8} {rows[code][0]['status']}")
                 continue
             r = med[code] = sorted(rs, key=lambda x: x["cpu"])[len(rs) // 2]
-            print(f"{name:46} {code:6} {r['states']:>10,} {r['transitions']:>12,} "
+            print(f"{name:46} {code:8} {r['states']:>10,} {r['transitions']:>12,} "
                   f"{r['cpu']:>7.2f} {r['wall']:>7.2f} {r['peak_mib']:>6.0f}  "
-                  f"{r['engine']}, {r['reductions']}; {r['verdict'][:60]}")
+                  f"{r['engine']}, {r['reductions']}; {r['verdict']}")
         if "inv" in med:
             inv_cpu = med["inv"]["cpu"]
-        if "old" in med and "new" in med:
-            o, n = med["old"], med["new"]
-            print(f"{'':46} new/old: {n['cpu'] / o['cpu']:.3f} of the CPU time, "
-                  f"{n['states'] / o['states']:.3f} of the states")
-        if "python" in med and "new" in med:
-            print(f"{'':46} new/python: {med['new']['cpu'] / med['python']['cpu']:.3f} of the CPU time")
-        for code in ("new", "new-ns"):
-            if inv_cpu and code in med and "properties" in spec and spec.get("program") == FISCHER["program"]:
-                print(f"{'':46} {code}/invariant search: {med[code]['cpu'] / inv_cpu:.2f}x the CPU time")
+        if "base-inv" in med:
+            base_inv_cpu = med["base-inv"]["cpu"]
+        ratios(spec, med, inv_cpu, base_inv_cpu)
     print("uptime after: ", uptime())
     return 0
 

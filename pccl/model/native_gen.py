@@ -332,6 +332,11 @@ class Generator(ExprC):
                   [f"t[{r.PC}] = {self.m.ctl.empty_pc}", f"t[{r.ST}] = {EXITED}"], ind)
 
     # -- the reductions (docs/reductions.md), natively --------------------------------
+    @property
+    def sym_fixed(self) -> int:
+        """The agents symmetry keeps in place (:attr:`pccl.model.reduce.Plan.fixed`)."""
+        return int(getattr(getattr(self.m, "reduction", None), "fixed", 0))
+
     def reductions(self) -> tuple:
         """(por, merge, symmetry slots or None) of the model's reductions: the
         ample-set and merge tests of :class:`pccl.model.reduce.Por` and
@@ -350,7 +355,7 @@ class Generator(ExprC):
             self.rand_unchained(merge, por)
         sym = None
         if "symmetry" in on:
-            why, slots = RD.symmetry_problem(base)
+            why, slots = RD.symmetry_problem(base, pointed=bool(self.sym_fixed))
             if why is not None or slots is None:
                 raise Unsupported(f"symmetry: {why}")
             loc_s, ar_s, sh_s, _self_only, motion = slots
@@ -500,6 +505,7 @@ class Generator(ExprC):
         por, merge, sym = self.reductions()
         out = [f"#define POR {int(por is not None)}", f"#define MERGE {int(merge is not None)}",
                f"#define SYM {int(sym is not None)}",
+               f"#define SYMFIX {self.sym_fixed if sym is not None else 0}",
                f"#define MERGE_LIMIT {MERGE_LIMIT}",
                f"#define NBID {len(sym[0]) if sym else 0}",
                f"#define NSHID {len(sym[1]) if sym else 0}"]

@@ -99,6 +99,12 @@ class TemporalProperty:
     uses_time: bool = False
     ticks: Optional[int] = None
     bound: Optional[float] = None
+    #: of one instance of ``forall i: F(i)`` (one quantifier): the agent it
+    #: is for, and the quantified expression as written (the symmetry
+    #: analysis reads it with ``i`` bound; the orbit argument checks the
+    #: instance for agent 0 alone, docs/reductions.md); None otherwise
+    agent: Optional[int] = None
+    quantified: Optional[A.Expr] = None
 
     @property
     def liveness(self) -> bool:
@@ -217,7 +223,8 @@ class Checks:
             self.temporal.append(TemporalProperty(
                 kind, s.name + suffix, s.text, self._predicate(t.p),
                 self._predicate(t.q) if t.q is not None else None,
-                s.span, t, _reads_time(t), ticks, bound))
+                s.span, t, _reads_time(t), ticks, bound,
+                combo[0] if len(qvars) == 1 else None, s.expr if len(qvars) == 1 else None))
 
     def _predicate(self, e: A.Expr) -> Callable:
         return self.compiled.state_predicate(e)[1]

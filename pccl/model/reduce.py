@@ -77,12 +77,20 @@ class Plan:
     on: tuple = ()
     off: dict = field(default_factory=dict)      # name -> reason
     requested: str = "auto"
+    #: under symmetry, the agents kept in place (0 or 1): 1 when the
+    #: temporal properties quantified by ``forall i:`` are checked for
+    #: i = 0 alone (:func:`orbit_problem`), on the quotient by the
+    #: renamings that fix agent 0
+    fixed: int = 0
 
     def describe(self, spelling: Optional[Spelling] = None) -> str:
         """``merge+symmetry`` / ``none``, then ``; X off: reason``; the
         options the reasons name spelt by ``spelling`` (the API's keywords
         by default)."""
         text = "+".join(self.on) if self.on else "none"
+        if self.fixed:
+            text += ("; symmetry keeps agent 0 in place: each `forall i:` temporal property "
+                     "is checked for i = 0 (the orbit argument)")
         by_reason: dict = {}
         for name, why in self.off_reasons(spelling).items():
             by_reason.setdefault(why, []).append(name)
@@ -97,7 +105,10 @@ class Plan:
         return {name: spell(why, spelling or keyword_spelling) for name, why in self.off.items()}
 
     def as_dict(self, spelling: Optional[Spelling] = None) -> dict:
-        return {"requested": self.requested, "on": list(self.on), "off": self.off_reasons(spelling)}
+        out = {"requested": self.requested, "on": list(self.on), "off": self.off_reasons(spelling)}
+        if self.fixed:
+            out["fixed_agents"] = list(range(self.fixed))
+        return out
 
 
 def parse_request(reduce) -> Optional[tuple]:
@@ -175,8 +186,12 @@ def positions_read(m) -> Optional[str]:
     return None
 
 
-def symmetry_problem(m) -> tuple:
-    """(reason symmetry is unsound or None, id slots)."""
+def symmetry_problem(m, pointed: bool = False) -> tuple:
+    """(reason symmetry is unsound or None, id slots).  ``pointed``: the
+    temporal properties quantified by one ``forall i:`` are read as written
+    (``i`` an id), not as their instances (``wait[0]`` names agent 0): the
+    condition of the quotient that keeps agent 0 in place
+    (:func:`orbit_problem`)."""
     if m.N < 2:
         return "one agent", None
     if len(set(m.rho)) > 1:
@@ -191,7 +206,7 @@ def symmetry_problem(m) -> tuple:
     if motion and m.blackbox.init_env(m.world, m.N) is not None:
         return f"blackbox {bb} keeps an environment state that is not permuted", None
     info = IdTypes(m.compiled.layout, m.program, m.compiled.stmts.values(),
-                   [(p.expr, p.text) for p in list(m.properties) + list(m.temporal)])
+                   [(p.expr, p.text) for p in m.properties] + _temporal_exprs(m, pointed))
     if info.reason:
         return info.reason, None
     lay = m.compiled.layout
@@ -203,6 +218,98 @@ def symmetry_problem(m) -> tuple:
     self_only = all(all(is_sentinel(e) or is_own_id(e) for e in info.defs.get(vs.name, ()))
                     for vs in lay.local + lay.allread if vs.name in info.ids)
     return None, slots + (self_only, motion)
+
+
+def _temporal_exprs(m, pointed: bool) -> list:
+    """The temporal properties' expressions as the symmetry analysis reads
+    them: each instance's, or (``pointed``) each ``forall i:`` family once,
+    as written."""
+    out: list = []
+    seen: set = set()
+    for p in getattr(m, "temporal", ()):
+        if pointed and p.quantified is not None:
+            if id(p.quantified) not in seen:
+                seen.add(id(p.quantified))
+                out.append((p.quantified, p.text))
+        else:
+            out.append((p.expr, p.text))
+    return out
+
+
+#: Initial states checked one by one for :func:`orbit_problem` (beyond, the
+#: orbit argument is not used: the instances are checked as before).
+ORBIT_INIT_LIMIT = 20_000
+
+
+def orbit_problem(m, slots) -> Optional[str]:
+    """Why the temporal properties quantified by ``forall i:`` cannot be
+    checked for i = 0 alone (the orbit argument, docs/reductions.md
+    "Per-agent temporal properties"), or None.  Called with ``slots`` of
+    :func:`symmetry_problem` ``(m, pointed=True)`` (the transition relation
+    and every property, ``i`` an id, are invariant under renaming agents);
+    what remains is that the set of initial states is closed under renaming
+    agents.  It is when no position is in the key and each agent's id
+    variables hold only its own id or a sentinel (``self_only``): each
+    agent's initial cell is then drawn by the same initialisers, which read
+    only its own id (as an id) and the shared values, so renaming an
+    initial state gives an initial state.  Otherwise (robots that start at
+    given places, ids of other agents) the initial states are renamed by
+    every transposition (0 j), which generate all renamings, and looked up
+    (at most :data:`ORBIT_INIT_LIMIT` of them)."""
+    if getattr(m, "semantics", "pccl") != "pccl":
+        return "the orbit argument is not made for Koord's round semantics"
+    loc_s, ar_s, sh_s, self_only, motion = slots
+    if self_only and not motion:
+        return None
+    inits: set = set()
+    for st in m.init_states():
+        if len(inits) >= ORBIT_INIT_LIMIT:
+            return (f"more than {ORBIT_INIT_LIMIT:,} initial states to check for the orbit "
+                    "argument of `forall i:`")
+        inits.add(m.plain_key(st))
+    for st in m.init_states():
+        for j in range(1, m.N):
+            t = rename_state(st, swap(m.N, 0, j), slots)
+            if m.plain_key(t) not in inits:
+                return (f"the initial states are not symmetric (renaming agents 0 and {j} "
+                        "gives a state that is not initial): `forall i:` is checked per agent")
+    return None
+
+
+def swap(n: int, a: int, b: int) -> list:
+    """The renaming (old id -> new id) that exchanges agents ``a`` and ``b``."""
+    r = list(range(n))
+    r[a], r[b] = b, a
+    return r
+
+
+def rename_state(st, r: list, slots) -> tuple:
+    """The configuration ``st`` with its agents renamed by ``r`` (old id ->
+    new id): agent i's whole cell (position and reach included) becomes
+    agent r[i]'s, and every id-valued datum (``slots`` of
+    :func:`symmetry_problem`: loc:, allread and shared id variables; the
+    lock queue) is renamed.  Where no position is in the key (nothing moves
+    or reads one) the positions and reach cells stay in place.  Under the
+    conditions of symmetry, s -> t is a transition iff rename(s) ->
+    rename(t) is (docs/reductions.md)."""
+    loc_s, ar_s, sh_s, motion = slots[0], slots[1], slots[2], slots[4]
+    ags = st[AGS]
+    cells: list = [None] * len(ags)
+    for i, a in enumerate(ags):
+        if loc_s or ar_s:
+            a = (a[:LOC] + (_rename_ids(a[LOC], loc_s, r), _rename_ids(a[AR], ar_s, r))
+                 + a[AR + 1:])
+        if not motion:
+            # positions nothing reads, which never change, stay where they
+            # are (the renamed initial state is an initial state)
+            a = a[:POS] + ags[r[i]][POS:]
+        cells[r[i]] = a
+    sh = _rename_ids(st[SH], sh_s, r) if sh_s else st[SH]
+    out = list(st)
+    out[LQ] = tuple(r[x] for x in st[LQ])
+    out[SH] = sh
+    out[AGS] = tuple(cells)
+    return tuple(out)
 
 
 #: Uses of a search that some reductions cannot serve: use -> {reduction:
@@ -239,6 +346,18 @@ def _plan_symmetry(m, want, p: "Plan", on: list):
     # quotient stands for a fair cycle of real states, which the analysis
     # finds for the lasso (pccl/search/lift.py; docs/reductions.md)
     why, slots = symmetry_problem(m)
+    if why is not None and m.N >= 2 and getattr(m, "semantics", "pccl") == "pccl" \
+            and any(t.quantified is not None for t in m.temporal):
+        # the instances of `forall i:` name their agents: symmetry keeping
+        # agent 0 in place, instance 0 alone checked (the orbit argument)
+        why2, slots2 = symmetry_problem(m, pointed=True)
+        if why2 is None:
+            why3 = orbit_problem(m, slots2)
+            if why3 is None:
+                on.append("symmetry")
+                p.fixed = 1
+                return slots2
+            why = why3
     if why is None:
         on.append("symmetry")
     elif want is not None and m.N < 2:
@@ -389,7 +508,7 @@ def plan(m, reduce, uses=()) -> tuple:
 
 #: What a :class:`Reduced` holds itself; every other attribute is the model's.
 _OWN = frozenset({"model", "reduction", "reduce_uses", "successors", "key", "violations",
-                  "merger", "por", "init_states", "dead_vars", "counters"})
+                  "merger", "por", "init_states", "dead_vars", "counters", "sym_slots"})
 
 
 class Reduced:
@@ -415,6 +534,7 @@ class Reduced:
         d["reduce_uses"] = tuple(uses)
         p, slots = plan(model, reduce, self.reduce_uses)
         d["reduction"] = p
+        d["sym_slots"] = slots if "symmetry" in p.on else None
         d["successors"], d["key"] = model.plain_successors, model.plain_key
         d["violations"] = model.fast_violations
         d["merger"] = d["por"] = None
@@ -427,7 +547,7 @@ class Reduced:
             d["successors"] = self.merger.successors
         if "symmetry" in p.on:
             d["key"] = (koord_symmetric_key(model, slots) if model.semantics == "koord"
-                        else make_symmetric_key(model, slots))
+                        else make_symmetric_key(model, slots, p.fixed))
         if "dead" in p.on:
             from pccl.model.dead import DeadVars
             d["dead_vars"] = dv = DeadVars(model)
@@ -443,6 +563,25 @@ class Reduced:
             from pccl.model.counters import Counters
             d["counters"] = ctr = Counters.of(model)
             d["key"] = ctr.key_of(d["key"])
+
+    def mirror_trace(self, trace, j: int):
+        """A real run of the rules (``trace``, step by step) with agents 0
+        and ``j`` exchanged: every state renamed (:func:`rename_state`),
+        each step's label the unreduced rule that makes it (the orbit
+        argument's counterexample for the instance of agent ``j``,
+        docs/reductions.md).  Only under symmetry."""
+        from pccl.search.explorer import Trace
+        assert self.sym_slots is not None
+        r = swap(self.model.N, 0, j)
+        states = [rename_state(st, r, self.sym_slots) for st in trace.states]
+        labels = []
+        for a, b in zip(states, states[1:]):
+            lab = next((lab for lab, t in self.model.successors(a) if t == b), None)
+            if lab is None:
+                raise RuntimeError("internal error: a renamed step of a counterexample is not a "
+                                   "step of the rules (please report it)")
+            labels.append(lab)
+        return Trace(tuple(states), tuple(labels))
 
     def expand_trace(self, trace):
         """The trace with every merged transition replaced by its steps (for
@@ -952,13 +1091,14 @@ class Por:
 # symmetry
 # ---------------------------------------------------------------------------
 
-def make_symmetric_key(m, slots):
+def make_symmetric_key(m, slots, fixed: int = 0):
     """A key function returning a canonical representative of the state's
-    orbit under permutations of agent ids."""
+    orbit under permutations of agent ids (``fixed`` 1: the permutations
+    that keep agent 0 in place; its cell stays first)."""
     loc_s, ar_s, sh_s, self_only, motion = slots
     if self_only:
-        return _self_only_key(m, loc_s, ar_s, sh_s, motion)
-    return _permuting_key(m, loc_s, ar_s, sh_s, motion)
+        return _self_only_key(m, loc_s, ar_s, sh_s, motion, fixed)
+    return _permuting_key(m, loc_s, ar_s, sh_s, motion, fixed)
 
 
 def _mask_ids(vals, idx, j):
@@ -1019,7 +1159,7 @@ def _permuting_build(m, loc_s, ar_s, sh_s, motion):
     return build
 
 
-def _permuting_key(m, loc_s, ar_s, sh_s, motion):
+def _permuting_key(m, loc_s, ar_s, sh_s, motion, fixed: int = 0):
     """The canonical key when agents may name other agents: agents are
     sorted by their masked cells, and ties among them are tried in every
     order (the per-state function is one closure; only its construction is
@@ -1029,6 +1169,7 @@ def _permuting_key(m, loc_s, ar_s, sh_s, motion):
     has_ids = bool(loc_s or ar_s or sh_s)
     mask = _mask_ids
     build = _permuting_build(m, loc_s, ar_s, sh_s, motion)
+    head, rest = list(range(fixed)), range(fixed, N)
 
     def key(st):
         ags = st[AGS]
@@ -1047,11 +1188,13 @@ def _permuting_key(m, loc_s, ar_s, sh_s, motion):
             sk.append(dumps(((a[PC], a[CNT], a[LCK], a[STATUS], lv, av)
                              + ((a[POS], a[REACH]) if motion else ()), refs,
                              lq.index(j) if j in lq else -1), 2))
-        order = sorted(range(N), key=sk.__getitem__)
+        order = head + sorted(rest, key=sk.__getitem__)
         if not any_other:
             return build(st, order)
         # agents referring to others: ties must be tried in every order
-        groups = [list(g) for _, g in itertools.groupby(order, key=sk.__getitem__)]
+        # (a fixed agent is a group of its own)
+        groups = [[x] for x in head] + [list(g) for _, g in itertools.groupby(
+            order[fixed:], key=sk.__getitem__)]
         if all(len(g) == 1 for g in groups):
             return build(st, order)
         best = bestb = None
@@ -1070,7 +1213,7 @@ def _permuting_key(m, loc_s, ar_s, sh_s, motion):
 SELF = float("-inf")
 
 
-def _self_only_key(m, loc_s, ar_s, sh_s, motion):  # noqa: C901
+def _self_only_key(m, loc_s, ar_s, sh_s, motion, fixed: int = 0):  # noqa: C901
     """The canonical key when per-agent id variables hold only the agent's
     own id or a sentinel: such a value is replaced by :data:`SELF` (its
     renamed value is the cell's place, so nothing is lost); agents are
@@ -1116,10 +1259,14 @@ def _self_only_key(m, loc_s, ar_s, sh_s, motion):  # noqa: C901
                           tuple([sh[k] == j for k in sh_s]) if sh_s else (),
                           lq.index(j) if j in lq else -1, j))
             j += 1
+        if fixed:                  # agent 0 kept first
+            head, items = items[:fixed], items[fixed:]
         try:
             items.sort()
         except TypeError:          # undefined (Ellipsis) against a number
             items.sort(key=lambda t: dumps(t[:3], 2))
+        if fixed:
+            items = head + items
         if lq or sh_s:
             r = [0] * N
             for new, t in enumerate(items):

@@ -230,6 +230,10 @@ class Counterexample:
     #: what shortening against the unreduced semantics did to ``trace``
     #: (a :class:`pccl.model.shorten.Shortening`; None: not tried)
     shortening: Any = None
+    #: the orbit argument (pccl/search/liveness.py): ``[(property, agent)]``
+    #: of the other instances of a ``forall i:`` property that get this
+    #: counterexample renamed; None: none
+    mirrors: Optional[list] = None
 
 
 @dataclass

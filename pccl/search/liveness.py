@@ -743,7 +743,12 @@ def _bfs(gather, seen: np.ndarray, frontier, allowed: Optional[np.ndarray]) -> N
     (an iterable of state arrays, already in ``seen``) through ``allowed``
     states only, marking ``seen`` in place.  The frontier is gathered
     :data:`_STATE_CHUNK` states at a time, so the temporary arrays stay
-    bounded by a chunk's transitions whatever the frontier's size."""
+    bounded by a chunk's transitions whatever the frontier's size (and one
+    4-byte stamp per state, made on first use: a chunk's new states are
+    made distinct by writing each one's place at its state and keeping the
+    places that stayed, one pass where ``np.unique`` sorted or hashed;
+    issue 46: half of a leads-to analysis's time on Fischer)."""
+    stamp: Optional[np.ndarray] = None
     while True:
         nxt_parts = []
         for part in frontier:
@@ -753,7 +758,12 @@ def _bfs(gather, seen: np.ndarray, frontier, allowed: Optional[np.ndarray]) -> N
                     nxt = nxt[allowed[nxt]]
                 nxt = nxt[~seen[nxt]]
                 if nxt.size:
-                    nxt = np.unique(nxt)
+                    if nxt.size > 1:
+                        if stamp is None:
+                            stamp = np.empty(len(seen), dtype=np.int64 if len(seen) >> 31 else np.int32)
+                        at = np.arange(nxt.size, dtype=stamp.dtype)
+                        stamp[nxt] = at
+                        nxt = nxt[stamp[nxt] == at]
                     seen[nxt] = True
                     nxt_parts.append(nxt)
         if not nxt_parts:
@@ -884,6 +894,33 @@ class _Analysis:
         #: other (:meth:`decide_beside`), else None
         self._locked_set: Optional[np.ndarray] = None
         self._stalled_first: Optional[tuple] = None
+        #: symmetry keeps agent 0 in place: each `forall i:` property is
+        #: decided by its instance for agent 0, the others share its verdict
+        #: (the orbit argument, docs/reductions.md)
+        self.fixed = self.renamed and bool(getattr(getattr(model, "reduction", None), "fixed", 0))
+
+    def skipped(self, p) -> bool:
+        """An instance the orbit argument decides by instance 0's verdict."""
+        return self.fixed and p.agent is not None and p.agent != 0
+
+    def mirrors(self, p) -> list:
+        """The instances of ``p``'s `forall i:` family that share its verdict
+        (none unless :attr:`fixed` and ``p`` is instance 0)."""
+        if not self.fixed or p.agent != 0:
+            return []
+        return [q for q in self.props if q.quantified is p.quantified and q.agent not in (None, 0)]
+
+    def shared(self, p, holds: bool) -> None:
+        """The verdict of ``p`` (instance 0) given to its mirrors: their names
+        hold, or (a violation just recorded) each gets the counterexample
+        renamed, made in :func:`attach_traces`."""
+        ms = self.mirrors(p)
+        if not ms:
+            return
+        if holds:
+            self.out.holds.extend(q.name for q in ms)
+        elif self.find_all:
+            self.out.found[-1].mirrors = [(q, q.agent) for q in ms]
 
     def _exact_fair(self, inside: np.ndarray) -> bool:
         """Under symmetry: whether the component ``inside`` of the quotient
@@ -911,7 +948,7 @@ class _Analysis:
         """reachable P: witnesses from the bits (BFS order: shortest)."""
         out, g = self.out, self.g
         for k, p in enumerate(self.props):
-            if p.kind != "reachable":
+            if p.kind != "reachable" or self.skipped(p):
                 continue
             hits = np.flatnonzero(g.bit(2 * k))
             if hits.size:
@@ -921,23 +958,28 @@ class _Analysis:
                 cx.cycle_start = None
                 out.witnesses.append((p, cx))
                 out.holds.append(p.name)
+                if self.mirrors(p):
+                    cx.mirrors = [(q, q.agent) for q in self.mirrors(p)]
+                    out.holds.extend(q.name for q in self.mirrors(p))
             else:
                 where = "" if self.complete else " within the bounds (the search was not exhaustive)"
-                v = TemporalViolation("unreachable", p.name,
-                                      f"unreachable: no reachable state satisfies `{p.text}`{where}",
-                                      None, p.span)
-                self.record(v, [], None)
+                for q in [p] + self.mirrors(p):
+                    v = TemporalViolation("unreachable", q.name,
+                                          f"unreachable: no reachable state satisfies `{q.text}`{where}",
+                                          None, q.span)
+                    self.record(v, [], None)
 
     def within(self) -> bool:
         """P ~> Q within T: a (state, clock) search.  True to stop."""
         out, g = self.out, self.g
         for k, p in enumerate(self.props):
-            if p.kind != "within":
+            if p.kind != "within" or self.skipped(p):
                 continue
             res = _bounded_response(g, self.table, self.n_init, g.bit(2 * k), g.bit(2 * k + 1),
                                     p.ticks)
             if res is None:
                 out.holds.append(p.name)
+                self.shared(p, True)
                 continue
             v = TemporalViolation("response", p.name,
                                   f"bounded response `{p.name}` violated: more than "
@@ -945,6 +987,7 @@ class _Analysis:
                                   None, p.span)
             self.record(v, res[0], None)
             out.found[-1].p_at = res[1]
+            self.shared(p, False)
             if not self.find_all:
                 return True
         return False
@@ -961,6 +1004,8 @@ class _Analysis:
             out.notes.append("liveness properties not checked: the search was bounded by {depth}")
             return False
         for k, p in live:
+            if self.skipped(p):
+                continue
             qmask = g.bit(2 * k) if p.kind == "eventually" else g.bit(2 * k + 1)
             if p.kind == "eventually":
                 starts = np.zeros(self.n, dtype=bool)
@@ -971,6 +1016,7 @@ class _Analysis:
                            self._exact_fair if self.renamed else None)
             if res is None:
                 out.holds.append(p.name)
+                self.shared(p, True)
                 continue
             self.record(*self._liveness_violation(p, res))
             if self.quotient and res[2] is not None:
@@ -978,6 +1024,7 @@ class _Analysis:
                 comp = res[4]
                 self.out.found[-1].rebuild = (comp == comp[res[1][-1]], g.dyn,
                                               self.model.N if self.rec.fairness else 0)
+            self.shared(p, False)
             if not self.find_all:
                 return True
         return False
@@ -1302,6 +1349,41 @@ def attach_traces(model, explorer, lv: LivenessResult) -> None:
     for _, cx in lv.witnesses:
         cx.trace = replay(cx.chain)
         cx.depth = len(cx.trace)
+    _mirror_all(model, lv)
+
+
+def _mirror_all(model, lv: LivenessResult) -> None:
+    """The orbit argument's verdicts (symmetry keeping agent 0 in place):
+    after each counterexample or witness of a ``forall i:`` property's
+    instance 0 that asks for them (``mirrors``), the same for each other
+    instance j, its trace renamed by exchanging agents 0 and j
+    (``model.mirror_trace``: a real run, each step a rule's)."""
+    import copy
+    import dataclasses
+
+    def mirrored(cx, q, j):
+        out = copy.copy(cx)
+        out.mirrors = None
+        out.chain = None
+        if cx.trace is not None:
+            out.trace = model.mirror_trace(cx.trace, j)
+        v = cx.violation
+        if v is not None:
+            out.violation = dataclasses.replace(
+                v, name=q.name, span=q.span,
+                message=v.message.replace(f"`{v.name}`", f"`{q.name}`", 1))
+        return out
+
+    found = []
+    for cx in lv.found:
+        found.append(cx)
+        found.extend(mirrored(cx, q, j) for q, j in cx.mirrors or ())
+    lv.found = found
+    wit = []
+    for p, cx in lv.witnesses:
+        wit.append((p, cx))
+        wit.extend((q, mirrored(cx, q, j)) for q, j in cx.mirrors or ())
+    lv.witnesses = wit
 
 
 def _rebuild_lasso(model, explorer, cx) -> None:

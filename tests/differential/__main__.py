@@ -25,7 +25,7 @@ def main(argv=None) -> int:
                     help="'all' or a comma-separated list of: " + ", ".join(m.name for m in oracle.MODES))
     ap.add_argument("--sample", type=int, default=0,
                     help="per program the truth, the default and this many modes drawn by the seed")
-    ap.add_argument("--families", default=None, help="core,moving,userbb,sym,por,koord (default: all)")
+    ap.add_argument("--families", default=None, help="core,moving,userbb,sym,por,koord,counters,orbit (default: all)")
     ap.add_argument("--findings", default="oracle-findings", help="directory for shrunk disagreements")
     ap.add_argument("--no-shrink", action="store_true", help="report disagreements without shrinking")
     ap.add_argument("--shrink-budget", type=float, default=60.0, help="seconds per shrink")

@@ -28,6 +28,10 @@ a user blackbox module).  Families, chosen by the seed:
   ``step`` (written to a temporary module, ``--blackbox FILE:BLACKBOX``).
 * ``sym``, ``por``: the attack generators of ``tests/symattack.py`` and
   ``tests/porattack.py`` (issues 20 and 23), as cases of this module.
+* ``orbit`` (a share of the ``core`` draws, as ``counters``): programs with
+  per-agent temporal properties (``forall i: P(i) ~> Q(i)`` and the other
+  forms), checked for i = 0 alone where symmetry keeps agent 0 in place
+  (issue 46, docs/reductions.md "Per-agent temporal properties").
 
 Every program keeps its state space small (a per-agent step counter bounds
 every event), so that the unreduced search is exhaustive within the
@@ -238,8 +242,10 @@ PROPERTIES = ["eventually (forall i: exited[i])", "g ~> s > 0", "forall i: flag[
               "eventually s > 0", "forall i: x[i] == 0 ~> exited[i]"]
 
 
-def core(seed: int, rng: random.Random) -> Case:
-    _P["asym"] = rng.choice([0.0, 0.0, 0.0, 0.03, 0.15])
+def core(seed: int, rng: random.Random, orbit: bool = False) -> Case:
+    """A ``core`` program; ``orbit``: one of the ``orbit`` family (see
+    :func:`orbit`)."""
+    _P["asym"] = rng.choice([0.0, 0.0, 0.0, 0.03, 0.15]) if not orbit else rng.choice([0.0] * 4 + [0.03])
     # about half the programs inject no runtime error: their verdicts are
     # mostly clean, where a false "exhaustive" would hide
     _P["err"] = rng.choice([0.0, 0.0, 0.03, 0.08])
@@ -300,6 +306,8 @@ def core(seed: int, rng: random.Random) -> Case:
     invariants = [rng.choice(INVARIANTS if _P["err"] else LIKELY)
                   for _ in range(rng.choice([0, 0, 1, 2]))]
     properties = [rng.choice(PROPERTIES)] if rng.random() < 0.2 and not _P["plain"] else []
+    if orbit:
+        properties = rng.sample(ORBIT_PROPERTIES, rng.choice([1, 1, 2]))
     if _P["plain"]:
         # no float, position or allread array element in the program's properties either
         keep = [ln for ln in text.split("\n") if not (ln.startswith("  inv") and any(t in ln for t in NOT_NATIVE))]
@@ -307,8 +315,45 @@ def core(seed: int, rng: random.Random) -> Case:
         if text.rstrip().endswith("invariant:"):
             text = text.rstrip()[:-len("invariant:")]
         invariants = [i for i in invariants if not any(t in i for t in NOT_NATIVE)]
-    return Case(seed, "core", text, agents=rng.choice([1, 2, 2, 2, 2, 3]), world=world,
+    return Case(seed, "orbit" if orbit else "core", text,
+                agents=rng.choice([1, 2, 2, 2, 2, 3] if not orbit else [2, 2, 3]), world=world,
                 invariants=invariants, properties=properties)
+
+
+#: per-agent temporal properties (``forall i:``, one instance per agent):
+#: symmetric formulas, decided for i = 0 alone where the program is
+#: symmetric (docs/reductions.md, "Per-agent temporal properties"); the
+#: last ones name agent 0 besides i (symmetry stays off)
+ORBIT_PROPERTIES = ["forall i: eventually exited[i]", "forall i: flag[i] ~> c[i] >= 2",
+                    "forall i: x[i] == 0 ~> exited[i]", "forall i: reachable c[i] == 2",
+                    "forall i: c[i] == 1 ~> c[i] != 1 within 2", "forall i: owner == i ~> owner != i",
+                    "forall i: eventually (exited[i] || owner == i)", "forall i: reachable flag[i] && !g",
+                    "forall i: flag[i] ~> exited[i] || count(flag) == 2",
+                    "forall i: c[i] == 1 ~> c[0] == 1"]
+
+
+#: the same over tests/symattack.py's programs (ids held, compared, queued)
+ORBIT_SYM_PROPERTIES = ["forall i: eventually exited[i]", "forall i: owner == i ~> owner != i",
+                        "forall i: done[i] ~> exited[i]", "forall i: reachable done[i]",
+                        "forall i: !b[i] ~> b[i] within 1", "forall i: peer[i] != -1 ~> done[i]",
+                        "forall i: eventually (done[i] || owner == i)", "forall i: reachable owner == i",
+                        "forall i: eventually me[i] == i && count(done) >= 1",
+                        "forall i: done[i] ~> done[0]"]
+
+
+def orbit(seed: int, rng: random.Random) -> Case:
+    """Programs with one or two per-agent temporal properties, 2 or 3
+    agents: the orbit argument's cases (issue 46).  Half are ``core``
+    programs, symmetric but for a few (asymmetric uses in one in five), with
+    :data:`ORBIT_PROPERTIES`; half the attack programs of
+    tests/symattack.py (symmetric in about two in five: ids stored,
+    compared, named by shared variables) with :data:`ORBIT_SYM_PROPERTIES`."""
+    if rng.random() < 0.5:
+        return core(seed, rng, orbit=True)
+    text, invariants, agents = _attack_module("symattack").program(seed + 500_000)
+    return Case(seed, "orbit", text, agents=rng.choice([2, 2, 3]), invariants=invariants,
+                properties=rng.sample(ORBIT_SYM_PROPERTIES, rng.choice([1, 1, 2])),
+                options={"blackbox": "instant"})
 
 
 # ---------------------------------------------------------------------------
@@ -846,14 +891,21 @@ FAMILIES = {"core": (core, 10), "moving": (moving, 3), "userbb": (userbb, 1), "s
 COUNTERS_SHARE = 0.2
 
 
+#: ``orbit`` likewise: this share of the remaining ``core`` draws
+ORBIT_SHARE = 0.15
+
+
 def case(seed: int, families=None) -> Case:
     """The program of ``seed`` (deterministic)."""
     rng = random.Random(seed * 7919 + 41)
     names = [n for n in FAMILIES if families is None or n in families]
     want_ctr = families is None or "counters" in families
+    want_orbit = families is None or "orbit" in families
     if not names:
-        return counters(seed, rng)
+        return counters(seed, rng) if want_ctr else orbit(seed, rng)
     fam = rng.choices(names, weights=[FAMILIES[n][1] for n in names])[0]
     if fam == "core" and want_ctr and random.Random(seed * 104729 + 7).random() < COUNTERS_SHARE:
         return counters(seed, rng)
+    if fam == "core" and want_orbit and random.Random(seed * 130363 + 11).random() < ORBIT_SHARE:
+        return orbit(seed, rng)
     return FAMILIES[fam][0](seed, rng)

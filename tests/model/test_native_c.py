@@ -29,6 +29,9 @@ PROGRAMS = os.path.join(ROOT, "programs")
 CASES = {
     "fischer-reduced": ("fischer.pccl", {"reduce": "auto"}),
     "fischer-unreduced": ("fischer.pccl", {"reduce": "none", "abstract_time": False}),
+    # symmetry keeping agent 0 in place (SYMFIX 1: the orbit argument, issue 46)
+    "fischer-agent0-fixed": ("fischer.pccl", {"reduce": "auto", "agents": 3,
+                                              "properties": ["forall i: wait[i] ~> inCs[i]"]}),
     "race_robust-world": ("race_robust.pccl", {"world": os.path.join(PROGRAMS, "race.toml")}),
     # property memo sites (dist(), positions), collisions, memo fall-backs of C's errors
     "formation-collisions": ("formation.pccl", {"world": os.path.join(PROGRAMS, "formation.toml"),

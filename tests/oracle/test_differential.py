@@ -47,6 +47,39 @@ def test_fixed_budget_has_no_unknown_disagreement():
     assert s.inconclusive <= s.programs // 3, s.text()
 
 
+#: the orbit family's budget (issue 46: per-agent temporal properties,
+#: checked for i = 0 where symmetry keeps agent 0 in place)
+#: (from seed 46004: 5 of the 8 keep agent 0 in place, the others check
+#: their instances one by one, symmetry off)
+OSEED, ON, OBUDGET = 46_004, 8, 120.0
+ORBIT_MODES = ["truth", "default", "symmetry-python"]
+
+
+def test_orbit_fixed_budget_has_no_unknown_disagreement():
+    """Programs of the ``orbit`` family (one or two ``forall i:`` temporal
+    properties each) in the modes that use the orbit argument, against the
+    truth (``--reduce none --engine python``, every violation)."""
+    s = run(ON, OSEED, OBUDGET, ORBIT_MODES, 0, families=["orbit"])
+    print(s.text())
+    assert s.programs >= 4, s.text()
+    assert [d for d in s.unknown()] == [], s.text()
+    assert set(s.families) == {"orbit"} and s.truth["violation"], s.text()
+    # the symmetry modes ran (they are n/a where symmetry is unsound)
+    assert s.modes["symmetry-python"] >= 1 and s.agreements >= s.programs, s.text()
+
+
+def test_the_orbit_programs_are_well_formed_and_carry_forall_properties():
+    from pccl import api
+    for k in range(40):
+        c = gen.case(k, ["orbit"])
+        assert c.family == "orbit" and c.properties and all(p.startswith("forall i:") for p in c.properties)
+        files = oracle.Files(c)
+        try:
+            api.check(c.text, source=True, world=files.world)
+        finally:
+            files.close()
+
+
 def test_the_generator_reaches_every_construct():
     texts = [gen.case(k, PCCL) for k in range(300)]
     body = "\n".join(c.text for c in texts)

@@ -79,11 +79,15 @@ def test_a_property_naming_an_agent_keeps_symmetry_off():
     m = make_model(ALT, properties=["eventually exited[0]"])
     assert "symmetry" not in m.reduction.on
     assert "exited[0] names agent 0" in m.reduction.describe()
-    # forall i: one instance per agent, each names its agent
+    # forall i: one instance per agent, each names its agent; symmetry keeps
+    # agent 0 in place and instance 0 is checked (the orbit argument,
+    # tests/search/test_liveness_orbit.py)
     m = make_model(ALT, properties=["forall i: eventually exited[i]"])
-    assert "symmetry" not in m.reduction.on
+    assert "symmetry" in m.reduction.on and m.reduction.fixed == 1
+    m = make_model(ALT, properties=["forall i: eventually exited[i] && exited[0]"])
+    assert "symmetry" not in m.reduction.on and m.reduction.fixed == 0
     m = make_model(ALT, properties=["eventually count(exited) == 2"])
-    assert "symmetry" in m.reduction.on
+    assert "symmetry" in m.reduction.on and m.reduction.fixed == 0
 
 
 def test_each_reduction_can_be_asked_for_with_a_liveness_property():

@@ -207,21 +207,24 @@ static void canon(const V *s0, V *out) {
     x[AW + NSHID] = p;
     order[j] = j;
   }
-  for (int a = 1; a < NAG; a++) {          /* stable insertion sort */
+  /* stable insertion sort; the first SYMFIX agents stay in place (the
+     renamings that fix them: reduce.py's Plan.fixed) */
+  for (int a = SYMFIX + 1; a < NAG; a++) {
     int t = order[a], b = a;
-    while (b > 0 && vcmp(g[order[b - 1]], g[t], SIGW) > 0) { order[b] = order[b - 1]; b--; }
+    while (b > SYMFIX && vcmp(g[order[b - 1]], g[t], SIGW) > 0) { order[b] = order[b - 1]; b--; }
     order[b] = t;
   }
   int ties = 0;
   if (other)
-    for (int a = 1; a < NAG; a++) if (!vcmp(g[order[a - 1]], g[order[a]], SIGW)) { ties = 1; break; }
+    for (int a = SYMFIX + 1; a < NAG; a++) if (!vcmp(g[order[a - 1]], g[order[a]], SIGW)) { ties = 1; break; }
   build(s, order, out);
   if (!ties) return;
-  /* the groups of equal agents, each tried in every order */
+  /* the groups of equal agents, each tried in every order (a fixed agent
+     is a group of its own) */
   int start[NAG], len[NAG], ng = 0;
   for (int a = 0; a < NAG; ) {
     int b = a + 1;
-    while (b < NAG && !vcmp(g[order[a]], g[order[b]], SIGW)) b++;
+    while (b < NAG && b > SYMFIX && !vcmp(g[order[a]], g[order[b]], SIGW)) b++;
     start[ng] = a; len[ng] = b - a; ng++;
     a = b;
   }
