@@ -251,31 +251,7 @@ class NativeModel:
         #: identity (its states are this source's vectors, pccl/search/checkpoint.py)
         self.source_hash = source_digest(src)[:16]
         xxh = _xxh3_128_address()
-        #: the interned values (positions, lists, obstacle lists, targets,
-        #: t0, env) of this process: id -> value and the value's canonical
-        #: encoding -> id (:meth:`_put`)
-        self._vals: NR.Values = NR.Values(self)
-        self._ids: dict = {}
-        #: the point classes of the interned values (:meth:`_point_class`)
-        self._classes: dict = {}
-        #: the temporal properties (the graph recorder reads them,
-        #: pccl/search/liveness.py): :meth:`temporal_columns` makes their columns
-        self.temporal = tuple(getattr(py, "temporal", ()))
-        #: ids that name a value the same way in every process: 31 bits of a
-        #: hash of its canonical encoding (for forked workers, whose states and
-        #: fingerprints must agree), else small ids in discovery order
-        self.stable_ids = stable_ids
-        self._new_ids: list = []
-        #: id() of a value of the table -> its id (the table keeps them alive)
-        self._byobj: dict = {}
-        #: encode's memos of agent and shared cells (see :meth:`_cached`)
-        self._agenc: dict = {}
-        self._shenc: dict = {}
-        #: per memo site, the slots it does not write (see :meth:`_miss`)
-        self._unwritten: dict = {}
-        self._pending: dict = {}
-        #: the Python predicates of the property memo sites (:meth:`_pvalue`)
-        self._pfns: dict = {}
+        self._init_tables(py, stable_ids)
         #: whether positions, reach cells and env are in the vector
         self.moves = gen.moves
         # the shipped blackboxes' outcomes in C (native_robots.py): their
@@ -323,6 +299,35 @@ class NativeModel:
                        [v.ty.kind for v in lay.allread])
         from pccl.model.reduce import unreduced
         self._base = unreduced(py)
+
+    def _init_tables(self, py, stable_ids: bool) -> None:
+        """The Python-side tables of a new model (empty): interned values,
+        memos, memo sites' bookkeeping."""
+        #: the interned values (positions, lists, obstacle lists, targets,
+        #: t0, env) of this process: id -> value and the value's canonical
+        #: encoding -> id (:meth:`_put`)
+        self._vals: NR.Values = NR.Values(self)
+        self._ids: dict = {}
+        #: the point classes of the interned values (:meth:`_point_class`)
+        self._classes: dict = {}
+        #: the temporal properties (the graph recorder reads them,
+        #: pccl/search/liveness.py): :meth:`temporal_columns` makes their columns
+        self.temporal = tuple(getattr(py, "temporal", ()))
+        #: ids that name a value the same way in every process: 31 bits of a
+        #: hash of its canonical encoding (for forked workers, whose states and
+        #: fingerprints must agree), else small ids in discovery order
+        self.stable_ids = stable_ids
+        self._new_ids: list = []
+        #: id() of a value of the table -> its id (the table keeps them alive)
+        self._byobj: dict = {}
+        #: encode's memos of agent and shared cells (see :meth:`_cached`)
+        self._agenc: dict = {}
+        self._shenc: dict = {}
+        #: per memo site, the slots it does not write (see :meth:`_miss`)
+        self._unwritten: dict = {}
+        self._pending: dict = {}
+        #: the Python predicates of the property memo sites (:meth:`_pvalue`)
+        self._pfns: dict = {}
 
     def _hooks(self, xxh) -> None:
         """The module's C calls the explorer, the recorder and the table use
