@@ -67,11 +67,13 @@ def run_pccl(tree: str, args: list[str], env: dict, cwd: str | None = None,
     return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
-#: ``python -c EXPLORE_CHILD SPEC``: one ``api.explore`` of SPEC (JSON: the
+#: ``python -c EXPLORE_CHILD SPEC [TREE]``: one ``api.explore`` of SPEC (JSON: the
 #: program, then explore's options) in a process of its own, so that its
 #: peak memory is its own; prints its figures as one JSON line
 EXPLORE_CHILD = r"""
 import json, resource, sys, time
+if len(sys.argv) > 2:
+    sys.path.insert(0, sys.argv[2])     # the package of a baseline revision
 from pccl import api
 spec = json.loads(sys.argv[1])
 prog = spec.pop("program")
@@ -85,12 +87,14 @@ print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:90],
 """
 
 
-def run_explore(spec: dict, timeout: float) -> dict:
-    """:data:`EXPLORE_CHILD` of ``spec`` from the repository's root: its
+def run_explore(spec: dict, timeout: float, tree: str | None = None) -> dict:
+    """:data:`EXPLORE_CHILD` of ``spec`` from the repository's root (with
+    the package of ``tree``, :func:`tree_of_revision`, when given): its
     figures, or ``{"status": why}`` when it timed out or failed."""
     import json
     try:
-        p = subprocess.run([sys.executable, "-c", EXPLORE_CHILD, json.dumps(spec)], cwd=ROOT,
+        p = subprocess.run([sys.executable, "-c", EXPLORE_CHILD, json.dumps(spec),
+                            *([tree] if tree else [])], cwd=ROOT,
                            capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return dict(status=f"not finished in {timeout:.0f} s")

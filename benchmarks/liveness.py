@@ -41,13 +41,9 @@ kernel's threads).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
+from _baseline import run_explore, tree_of_revision, uptime
 
 PROP = "eventually forall i: exited[i]"
 RACE = dict(program="programs/race_robust.pccl", world="programs/race.toml", blackbox="nondet",
@@ -69,48 +65,16 @@ CODES = {"old": dict(reduce="merge", engine="python"), "python": dict(reduce="au
          "new": dict(reduce="auto"), "new-ns": dict(reduce="auto", shorten=False),
          "inv": dict(reduce="auto")}
 
-CHILD = r"""
-import json, resource, sys, time
-if len(sys.argv) > 2:
-    sys.path.insert(0, sys.argv[2])     # the package of a baseline revision
-from pccl import api
-spec = json.loads(sys.argv[1])
-prog = spec.pop("program")
-t0, c0 = time.perf_counter(), time.process_time()
-r = api.explore(prog, **spec)
-wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-print(json.dumps(dict(status=r.status, verdict=r.verdict.splitlines()[0][:60],
-                      states=r.stats.states, transitions=r.stats.transitions, wall=wall, cpu=cpu,
-                      engine=r.model.engine_used, reductions="+".join(r.model.reduction.on) or "none",
-                      peak_mib=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)))
-"""
-
-
 #: the package of ``--baseline REV`` (its codes are ``base*``)
 BASE_TREE: list = []
 
 
 def run_case(spec: dict, code: str, timeout: float) -> dict:
-    tree = []
+    tree = None
     if code.startswith("base"):
-        tree = BASE_TREE
+        tree = BASE_TREE[0]
         code = {"base": "new", "base-ns": "new-ns", "base-inv": "inv"}[code]
-    spec = dict(spec, **CODES[code])
-    try:
-        p = subprocess.run([sys.executable, "-c", CHILD, json.dumps(spec), *tree], cwd=ROOT,
-                           capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return dict(status=f"not finished in {timeout:.0f} s")
-    if p.returncode != 0:
-        return dict(status="error: " + p.stderr.strip().splitlines()[-1][:200])
-    return json.loads(p.stdout.strip().splitlines()[-1])
-
-
-def uptime() -> str:
-    try:
-        return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    except OSError:
-        return "(uptime not available)"
+    return run_explore(dict(spec, **CODES[code]), timeout, tree)
 
 
 def ratios(spec: dict, med: dict, inv_cpu, base_inv_cpu) -> None:
@@ -140,8 +104,6 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.baseline:
         import tempfile
-        sys.path.insert(0, HERE)
-        from _baseline import tree_of_revision
         tmp = tempfile.mkdtemp(prefix="pccl-liveness-base-")
         BASE_TREE[:] = [tree_of_revision(a.baseline, tmp)]
     print("uptime before:", uptime())
@@ -173,7 +135,7 @@ def main(argv=None) -> int:
             r = med[code] = sorted(rs, key=lambda x: x["cpu"])[len(rs) // 2]
             print(f"{name:46} {code:8} {r['states']:>10,} {r['transitions']:>12,} "
                   f"{r['cpu']:>7.2f} {r['wall']:>7.2f} {r['peak_mib']:>6.0f}  "
-                  f"{r['engine']}, {r['reductions']}; {r['verdict']}")
+                  f"{r['engine']}, {r['reductions']}; {r['verdict'][:60]}")
         if "inv" in med:
             inv_cpu = med["inv"]["cpu"]
         if "base-inv" in med:
