@@ -84,12 +84,13 @@ class FormatterBug(Exception):
     user's fault.  The file is left as it is."""
 
 
-def tokenize(text: str) -> list[Tok]:
+def tokenize(text: str, pattern: Optional[re.Pattern] = None) -> list[Tok]:
     """Every token of ``text``, white space and comments included (the
-    concatenation of the texts is ``text``)."""
+    concatenation of the texts is ``text``); ``pattern``: the token regex
+    (PCCL's unless given: Koord's is ``_KOORD_TOKEN_RE``)."""
     out = []
     line, line_start = 1, 0
-    for m in _TOKEN_RE.finditer(text):
+    for m in (pattern or _TOKEN_RE).finditer(text):
         kind = m.lastgroup or BAD
         out.append(Tok(kind, m.group(), line, m.start() - line_start))
         nls = m.group().count("\n")
@@ -430,16 +431,7 @@ _KOORD_BINARY = frozenset({"<<", "->", "||", "&&", "==", "!=", "<=", ">=", "<", 
 
 
 def _koord_tokenize(text: str) -> list[Tok]:
-    out = []
-    line, line_start = 1, 0
-    for m in _KOORD_TOKEN_RE.finditer(text):
-        kind = m.lastgroup or BAD
-        out.append(Tok(kind, m.group(), line, m.start() - line_start))
-        nls = m.group().count("\n")
-        if nls:
-            line += nls
-            line_start = m.start() + m.group().rfind("\n") + 1
-    return out
+    return tokenize(text, _KOORD_TOKEN_RE)
 
 
 def _koord_operand_end(t: Optional[Tok]) -> bool:
