@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from pccl.model import native as NV
+from pccl.model import native_expr as NE
 from pccl.api import explore, make_model
 from pccl.model.layout import AGS, PC
 from pccl.lang.errors import ArgumentError
@@ -926,7 +927,7 @@ def test_pack_and_unpack_keep_every_value(monkeypatch):
     as INT32_MIN), else int64 (INT32_MIN itself, 2**31 and beyond); unpack
     gives the vector back, and the C calls read both forms as one state."""
     from array import array
-    monkeypatch.setattr(NV, "_SMALL_OBJECT", 0)         # pack every model's states
+    monkeypatch.setattr(NE, "_SMALL_OBJECT", 0)         # pack every model's states
     nm = NV.NativeModel(make_model(BIG, source=True, agents=2, reduce="none"))
     assert nm.gen.packs
     s0 = next(iter(nm.init_states()))
@@ -963,7 +964,7 @@ def test_packed_states_give_equal_results(program, kw, monkeypatch):
     equal the Python engine's and the unpacked native search's; BIG meets
     both forms."""
     py, plain = both(program, **kw)
-    monkeypatch.setattr(NV, "_SMALL_OBJECT", 0)
+    monkeypatch.setattr(NE, "_SMALL_OBJECT", 0)
     packed = summary(explore(program, engine="native", **kw))
     assert packed == plain == py
     if program is BIG:
