@@ -42,6 +42,12 @@ RACE_WORLD = str(PROGRAMS / "race.toml")
 # so a module of older code is never loaded.  A PCCL_CACHE set by the caller
 # wins; the tests of the cache itself set their own directory.
 os.environ.setdefault("PCCL_CACHE", str(ROOT / ".pytest_cache" / "pccl"))
+# The suite compiles about a thousand native modules, most for searches of a
+# few hundred states: at -O0 (pccl/model/native_build.py opt_level) each takes
+# a third of -O2's CPU time, which was most of the suite's.  -O2, the default
+# outside the suite, is held equal to it by tests/model/test_native_opt.py and
+# the shipped programs are compiled at both there.
+os.environ.setdefault("PCCL_NATIVE_OPT", "0")
 
 def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=300):
     """Start ``python -m pccl.cli ARGS`` (standard output and error piped)

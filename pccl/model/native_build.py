@@ -192,6 +192,26 @@ def source_digest(src: str, tag: str = "") -> str:
     return hashlib.sha256(src.encode() + fixed_sources() + tag.encode()).hexdigest()
 
 
+#: the C compiler's optimisation levels $PCCL_NATIVE_OPT may choose
+OPT_LEVELS = ("0", "1", "2", "3")
+
+
+def opt_level() -> str:
+    """The optimisation level native modules are compiled at: ``2`` (``-O2``),
+    or ``$PCCL_NATIVE_OPT`` when it is one of :data:`OPT_LEVELS`.  The test
+    suite sets ``0``: it compiles a thousand small modules whose searches
+    are short, and ``-O0`` compiles them about three times faster; the
+    search's results do not depend on it (tests/model/test_native_opt.py
+    holds ``-O0`` and ``-O2`` equal).  Any other value is a
+    :class:`~pccl.lang.errors.PcclError` naming the variable."""
+    v = os.environ.get("PCCL_NATIVE_OPT", "2").strip() or "2"
+    if v not in OPT_LEVELS:
+        from pccl.lang.errors import PcclError
+        raise PcclError(f"expected an optimisation level {', '.join(OPT_LEVELS)} for the native "
+                        f"engine's C compiler, got {v!r}", filename="PCCL_NATIVE_OPT")
+    return v
+
+
 def _compile(d: str, name: str, src: str, path: str) -> None:
     """Compile the module ``name`` of source ``src`` to ``path`` (atomically:
     in a temporary directory of the cache, then renamed)."""
@@ -206,7 +226,7 @@ def _compile(d: str, name: str, src: str, path: str) -> None:
         inc = sysconfig.get_paths()["include"]
         # -ffp-contract=off: no fused multiply-add, so that float arithmetic
         # (native_c/robots.c) rounds as Python's does
-        p = subprocess.run([cc, "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-pthread", "-w",
+        p = subprocess.run([cc, "-O" + opt_level(), "-ffp-contract=off", "-shared", "-fPIC", "-pthread", "-w",
                             f"-I{inc}", f"-I{C_DIR}", "-o", out, c_path],
                            capture_output=True, text=True)
         if p.returncode != 0:
@@ -235,14 +255,20 @@ def module_dir() -> str:
     return _PROCESS_DIR[0]
 
 
+def module_name(src: str) -> str:
+    """The cache's name of the module of ``src``: the hash of the source, the
+    fixed C it includes, the Python ABI and the optimisation level."""
+    tag = (sysconfig.get_config_var("SOABI") or sys.implementation.cache_tag) + "-O" + opt_level()
+    return f"{_PREFIX}{source_digest(src, tag)[:20]}"
+
+
 def build(src: str):
     """Compile ``src`` into an extension module (cached by the hash of the
     source, the fixed C it includes and the Python ABI); the module.  After compiling a new one, the
     cache is pruned to its bound (:func:`prune_cache`)."""
     bound = cache_bound()           # a bad $PCCL_CACHE_SIZE: before any work
-    tag = sysconfig.get_config_var("SOABI") or sys.implementation.cache_tag
-    digest = source_digest(src, tag)[:20]
-    name = f"{_PREFIX}{digest}"
+    opt_level()                     # a bad $PCCL_NATIVE_OPT likewise
+    name = module_name(src)
     d = module_dir()
     path = os.path.join(d, name + _module_ext())
     built = False
