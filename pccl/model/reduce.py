@@ -248,18 +248,19 @@ def orbit_problem(m, slots) -> Optional[str]:
     :func:`symmetry_problem` ``(m, pointed=True)`` (the transition relation
     and every property, ``i`` an id, are invariant under renaming agents);
     what remains is that the set of initial states is closed under renaming
-    agents.  It is when no position is in the key and each agent's id
-    variables hold only its own id or a sentinel (``self_only``): each
-    agent's initial cell is then drawn by the same initialisers, which read
-    only its own id (as an id) and the shared values, so renaming an
-    initial state gives an initial state.  Otherwise (robots that start at
+    agents.  It is when no position is in the key, each agent's id
+    variables hold only its own id or a sentinel (``self_only``) and the
+    Init blocks write only their agent's ``loc:`` variables and take no lock
+    (:func:`init_is_private`): each agent's initial cell is then drawn by
+    the same initialisers, which read only its own id (as an id) and the
+    shared values, so renaming an initial state gives an initial state.  Otherwise (robots that start at
     given places, ids of other agents) the initial states are renamed by
     every transposition (0 j), which generate all renamings, and looked up
     (at most :data:`ORBIT_INIT_LIMIT` of them)."""
     if getattr(m, "semantics", "pccl") != "pccl":
         return "the orbit argument is not made for Koord's round semantics"
     loc_s, ar_s, sh_s, self_only, motion = slots
-    if self_only and not motion:
+    if self_only and not motion and init_is_private(m):
         return None
     inits: set = set()
     for st in m.init_states():
@@ -274,6 +275,30 @@ def orbit_problem(m, slots) -> Optional[str]:
                 return (f"the initial states are not symmetric (renaming agents 0 and {j} "
                         "gives a state that is not initial): `forall i:` is checked per agent")
     return None
+
+
+def init_is_private(m) -> bool:
+    """Whether the agents' ``Init`` blocks, which run one after the other in
+    the order of the agents' ids, can only make initial states that do not
+    depend on that order: they write only the agent's own ``loc:`` variables
+    (no shared or allread variable, which a later agent's Init could read
+    or overwrite: ``Init: owner = getAgentIndex();`` leaves the last id in
+    ``owner``) and take no lock (an agent stuck in its Init holding the lock
+    makes every later agent's Init wait)."""
+    from pccl.lang import ast as A
+    own = {vs.name for vs in m.compiled.layout.local}
+    for st in A.walk_stmts(m.program.init):
+        if isinstance(st, A.Atomic):
+            return False
+        if isinstance(st, A.Assign):
+            root = A.index_chain(st.target)[0]
+            if not (isinstance(root, A.Name) and root.name in own):
+                return False
+        if isinstance(st, A.CallStmt) and st.name in ("add", "remove"):
+            root = A.index_chain(st.args[0])[0] if st.args else None
+            if not (isinstance(root, A.Name) and root.name in own):
+                return False
+    return True
 
 
 def swap(n: int, a: int, b: int) -> list:

@@ -272,3 +272,39 @@ def test_teeth_the_orbit_argument_without_symmetric_initial_states(monkeypatch, 
     r = explore(DRIVE, **kw)
     assert r.model.reduction.fixed == 1
     assert verdict(r) != verdict(truth)
+
+
+# Init blocks run one agent after the other: an Init that writes a shared
+# variable leaves the last agent's value (owner == 2 with 3 agents), so the
+# initial states are not symmetric although every initialiser and statement
+# is (the oracle's finding, seed 1300417, family orbit).
+LAST_INIT = """allwrite:
+  int owner = -1;
+
+loc:
+  int y = 1;
+
+Init:
+  owner = getAgentIndex();
+"""
+
+
+def test_an_init_that_writes_shared_variables_keeps_every_instance():
+    props = ["forall i: owner == i ~> owner != i"]
+    truth, red = both(LAST_INIT, props, source=True, agents=3)
+    assert any("[i=2]" in v.violation.identity[1] for v in truth.counterexamples)
+    for engine, r in red.items():
+        assert r.model.reduction.fixed == 0, (engine, r.model.reduction.describe())
+        assert "the initial states are not symmetric" in r.model.reduction.describe()
+        assert verdict(r) == verdict(truth), engine
+
+
+@pytest.mark.parametrize("init, private", [
+    ("  y = getAgentIndex();\n", True),
+    ("  owner = getAgentIndex();\n", False),
+    ("  if (y == 1):\n    owner = 1;\n", False),
+    ("  atomic:\n    y = 2;\n", False),
+])
+def test_init_is_private(init, private):
+    src = LAST_INIT.replace("  owner = getAgentIndex();\n", init)
+    assert RD.init_is_private(make_model(src, source=True, agents=2)) is private
