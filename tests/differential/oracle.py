@@ -399,8 +399,11 @@ def orbits(case: Case, prog, files: Files) -> tuple:
     if "symmetry" not in plan.on:
         return Outcome("n/a", detail="symmetry off"), None
     from .gen import _attack_module
-    ok = _attack_module("symattack").orbits_agree(prog, case.agents, list(case.invariants),
-                                                  limit=MAX_STATES, **kw)
+    try:
+        ok = _attack_module("symattack").orbits_agree(prog, case.agents, list(case.invariants),
+                                                      limit=MAX_STATES, **kw)
+    except PcclError as e:     # an initialiser's error (every mode reports it): nothing to check
+        return Outcome("n/a", detail=str(e).splitlines()[0]), None
     if ok:
         return Outcome("exhaustive", detail="orbits agree"), None
     return (Outcome("violation", detail="orbits differ"),

@@ -258,3 +258,18 @@ def test_a_koord_disagreement_shrinks_to_a_koord_file(tmp_path, monkeypatch):
     assert os.path.exists(os.path.join(out, "program.koord"))
     readme = open(os.path.join(out, "README.md")).read()
     assert re.search(r"pccl explore program\.koord .*--reduce none", readme)
+
+
+def test_an_initialiser_that_fails_for_one_draw_is_a_result_of_every_mode():
+    """A shared initialiser that divides by zero for one outcome of rand():
+    the orbit check (which enumerates the initial states itself) reports
+    nothing to check instead of crashing the run (seed 1400000's run
+    stopped there, 2026-12-07)."""
+    text = ("allwrite:\n  int s = 10 / (rand(1) - 1);\n\n"
+            "loc:\n  int y = 1;\n\nE():\n  pre(y < 3);\n  eff:\n    y = y + 1;\n")
+    case = gen.Case(seed=0, family="core", text=text, agents=2, invariants=["s < 50"])
+    modes = [m for m in oracle.MODES if m.name in ("truth", "default", "symmetry-orbits")]
+    assert {m.name for m in modes} == {"truth", "default", "symmetry-orbits"}
+    rep = oracle.compare(case, modes)
+    assert rep.disagreements == [], rep.disagreements
+    assert rep.outcomes["truth"].status == "error", rep.outcomes
