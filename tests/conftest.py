@@ -48,6 +48,9 @@ os.environ.setdefault("PCCL_CACHE", str(ROOT / ".pytest_cache" / "pccl"))
 # outside the suite, is held equal to it by tests/model/test_native_opt.py and
 # the shipped programs are compiled at both there.
 os.environ.setdefault("PCCL_NATIVE_OPT", "0")
+# -O0 modules are about twice as large (126 KB for Fischer's): a bound that
+# holds the whole suite's, so that none is pruned and compiled again mid-run
+os.environ.setdefault("PCCL_CACHE_SIZE", "1G")
 
 def started(args, ready=None, *, cwd=None, env=None, new_session=False, timeout=300):
     """Start ``python -m pccl.cli ARGS`` (standard output and error piped)
