@@ -382,16 +382,18 @@ def test_header_says_positions_in_motion_not_covered():
             "--no-progress")
     assert "not exhaustive" not in r.output
     # pos in a property; --collisions
+    # (the note is the model's: PY_SEARCH, no module to compile)
     r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"),
-                    invariants=["forall i: pos[i].x <= 3"])
+                    invariants=["forall i: pos[i].x <= 3"], **PY_SEARCH)
     assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
                             "(pos in property `forall i: pos[i].x <= 3`)"
-    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True)
+    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True,
+                    **PY_SEARCH)
     assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
                             "(collisions)"     # the keyword
     # a deterministic blackbox has nothing to say
     r = api.explore(_path("rendezvous.pccl"), world=_path("rendezvous.toml"), agents=2,
-                    blackbox="straight")
+                    blackbox="straight", **PY_SEARCH)
     assert r.not_covered is None
 
 
