@@ -82,12 +82,13 @@ def test_the_shipped_and_test_programs_served():
 
 
 #: program -> (the unreduced search's state budget, the default search's):
-#: smaller budgets for the programs whose states cost most: eng_loop
-#: spins for ever inside one event (an infinite space, so the search always
-#: stops at its budget), each of its states a chain of up to 1,000 merged
-#: steps under the defaults; its bounded searches still compare the engines
-#: state by state, at a tenth of the cost
-BUDGET = {"tests/programs/eng_loop.pccl": (6_000, 300)}
+#: smaller budgets for the programs whose states cost most: eng_loop and
+#: runaway spin for ever inside one event (an infinite space, so the search
+#: always stops at its budget), each of their states a chain of up to 1,000
+#: merged steps under the defaults; their bounded searches still compare the
+#: engines state by state, at a tenth of the cost
+BUDGET = {"tests/programs/eng_loop.pccl": (6_000, 300),
+          "tests/programs/runaway.pccl": (60_000, 300)}
 
 
 @pytest.mark.parametrize("program", PROGRAMS)
