@@ -28,6 +28,15 @@ from conftest import PROGRAMS, TEST_PROGRAMS
 
 SEEDS = range(4)
 
+#: The searches of the generated programs' properties: what they assert is
+#: the blackbox's covering, not the engine or the counterexample's path, so
+#: the Python engine runs them without shortening (their few hundred states
+#: cost it milliseconds; a native module per program and property, for the
+#: search and for the shortening, cost about a CPU-second each).  The native
+#: engine is held to the Python one on these programs by
+#: test_generated_retargets_native_equals_python.
+PY_SEARCH = dict(engine="python", shorten=False)
+
 #: (program, world, agents or None for the world's): every shipped program
 #: with a world, and the test programs with one.
 WORLD_PROGRAMS = [
@@ -241,7 +250,7 @@ def test_generated_walls(seed, tmp_path):
     prog, world = generated(seed, tmp_path)
     check_covered(prog, world, None)
     for prop in GEN_PROPERTIES:
-        r = api.explore(prog, world=world, invariants=[prop])
+        r = api.explore(prog, world=world, invariants=[prop], **PY_SEARCH)
         if r.violations or r.bounds:    # "not exhaustive for pymunk" still holds for straight
             continue
         for res in straight_runs(prog, world, None, invariants=[prop]):
@@ -373,16 +382,18 @@ def test_header_says_positions_in_motion_not_covered():
             "--no-progress")
     assert "not exhaustive" not in r.output
     # pos in a property; --collisions
+    # (the note is the model's: PY_SEARCH, no module to compile)
     r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"),
-                    invariants=["forall i: pos[i].x <= 3"])
+                    invariants=["forall i: pos[i].x <= 3"], **PY_SEARCH)
     assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
                             "(pos in property `forall i: pos[i].x <= 3`)"
-    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True)
+    r = api.explore(_path("rdv_meet.pccl"), world=_path("rdv_open.toml"), collisions=True,
+                    **PY_SEARCH)
     assert r.not_covered == "not exhaustive for straight/pymunk: positions in mid-motion " \
                             "(collisions)"     # the keyword
     # a deterministic blackbox has nothing to say
     r = api.explore(_path("rendezvous.pccl"), world=_path("rendezvous.toml"), agents=2,
-                    blackbox="straight")
+                    blackbox="straight", **PY_SEARCH)
     assert r.not_covered is None
 
 
@@ -539,7 +550,7 @@ def test_generated_retargets(seed, tmp_path):
     prog, world = retarget_generated(seed, tmp_path)
     check_covered(prog, world, None)
     for prop in ("failed == 0", "arrived == 0"):
-        r = api.explore(prog, world=world, invariants=[prop])
+        r = api.explore(prog, world=world, invariants=[prop], **PY_SEARCH)
         if r.violations or r.bounds:    # "not exhaustive for pymunk" still holds for straight
             continue
         res = api.run(prog, world=world, blackbox="straight", seed=0, max_time=60,
@@ -726,6 +737,6 @@ def test_generated_failures_part_way(seed, tmp_path):
     prog, world = partway_generated(seed, tmp_path)
     res = api.run(prog, world=world, blackbox="straight", seed=0)
     assert res.status == "violation" and "assertion failed" in res.message, res.message
-    r = api.explore(prog, world=world)
+    r = api.explore(prog, world=world, **PY_SEARCH)
     assert r.status == "violation" and "assertion failed" in r.verdict, r.verdict
     check_covered(prog, world, None)

@@ -81,9 +81,20 @@ def test_the_shipped_and_test_programs_served():
             "tests/programs/ref_mutex_bad.pccl", "tests/programs/eng_assert.pccl"} <= set(PROGRAMS)
 
 
+#: program -> (the unreduced search's state budget, the default search's):
+#: smaller budgets for the programs whose states cost most: eng_loop and
+#: runaway spin for ever inside one event (an infinite space, so the search
+#: always stops at its budget), each of their states a chain of up to 1,000
+#: merged steps under the defaults; their bounded searches still compare the
+#: engines state by state, at a tenth of the cost
+BUDGET = {"tests/programs/eng_loop.pccl": (6_000, 300),
+          "tests/programs/runaway.pccl": (60_000, 300)}
+
+
 @pytest.mark.parametrize("program", PROGRAMS)
 def test_equal_results_on_served_programs(program):
-    py, nat = both(os.path.join(ROOT, program), max_states=60_000, find_all=True, **UNREDUCED)
+    budget = BUDGET.get(program, (60_000, None))[0]
+    py, nat = both(os.path.join(ROOT, program), max_states=budget, find_all=True, **UNREDUCED)
     assert nat == py
 
 
@@ -281,10 +292,12 @@ def test_table_kernels_are_the_numpy_table(seed):
                                    overrides={"k": "1", "d": "1"}))
     rng = np.random.default_rng(seed)
     c, py = FingerprintTable(capacity=64, kernels=nm.table_kernels), FingerprintTable(capacity=64)
-    pool = rng.integers(0, 2**63, size=(30_000, 2), dtype=np.uint64)
+    # (12 batches of 1,500 drawn from 10,000: about 8,300 admitted, the
+    # arrays grown from 64 rows, the index of 8,192 slots rebuilt twice)
+    pool = rng.integers(0, 2**63, size=(10_000, 2), dtype=np.uint64)
     pool[::3, 1] = pool[::3, 1] & np.uint64(0xFFFF_0000_0000_0000)   # equal low bits: long probes
     for _ in range(12):
-        keys = pool[rng.integers(0, len(pool), 4000)]
+        keys = pool[rng.integers(0, len(pool), 1500)]
         blob = [keys.tobytes()]
         _, first = np.unique(keys, axis=0, return_index=True)
         first.sort()
@@ -297,7 +310,7 @@ def test_table_kernels_are_the_numpy_table(seed):
     assert np.array_equal(c.fps[:c.n], py.fps[:py.n])
     found = c.lookup(pool)
     assert np.array_equal(found, py.lookup(pool))
-    assert int((found >= 0).sum()) == c.n > 10_000       # each admitted one found, once
+    assert int((found >= 0).sum()) == c.n > 4_000        # each admitted one found, once
     with pytest.raises(ValueError):
         nm.table_kernels[0](c.slots, c.fps, pool[:2], np.zeros(2, np.int64), len(c.slots))
 
@@ -462,7 +475,8 @@ def test_equal_default_results_on_served_programs(program):
     search, verdicts and counterexamples (merged labels included)."""
     # (a merged chain runs up to 1,000 steps: eng_loop's spin costs both
     # engines that much per state)
-    py, nat = both(os.path.join(ROOT, program), max_states=3_000, find_all=True)
+    budget = BUDGET.get(program, (None, 3_000))[1]
+    py, nat = both(os.path.join(ROOT, program), max_states=budget, find_all=True)
     assert nat == py
 
 
