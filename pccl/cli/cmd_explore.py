@@ -389,10 +389,14 @@ def _engine_text(m) -> str:
     return f", engine {used}{on}" + (f" ({cost}{why})" if why else "")
 
 
-#: What falling back to the Python engine costs, said in the header (the
-#: shipped programs: 1,800-3,600 states/s against 130,000-280,000 natively,
-#: measured 2026-12-07 for issue 43).
-PYTHON_COST = "about 50x slower than the native engine, because "
+#: What falling back to the Python engine costs, said in the header: the
+#: range of the ratios measured by ``benchmarks/native_programs.py`` on the
+#: programs that fell back before issue 43, run both ways (docs/benchmarks.md,
+#: "The programs that fell back before issue 43"; a test holds the two equal).
+#: A program that still falls back is not measured natively, so the figure
+#: is the cost where it was measured, not a promise for that program.
+PYTHON_COST = ("11-36x slower than the native engine on the programs measured in docs/benchmarks.md, "
+               "because ")
 
 
 def _print_explore_text(program, res, *, k_style=False, view=None, full=False):

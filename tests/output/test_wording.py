@@ -4,12 +4,14 @@ says how a finished team ends."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from click.testing import CliRunner
 
 from pccl.api import explore
 from pccl.cli import main
+from pccl.cli.cmd_explore import PYTHON_COST
 
 ROOT = Path(__file__).resolve().parents[2]
 PROGRAMS = ROOT / "programs"
@@ -40,8 +42,23 @@ def test_the_python_fallback_says_what_it_costs():
     res = CliRunner().invoke(main, ["explore", str(ROOT / "programs" / "fischer.pccl"), "--set",
                                     "k=0", "--coverage", "--no-progress"])
     header = res.output.splitlines()[0]
-    assert "engine python (about 50x slower than the native engine, because" in header
+    assert f"engine python ({PYTHON_COST}" in header
     assert "interned" not in header
+
+
+def test_the_python_fallbacks_cost_is_the_measured_one():
+    # the header's figure is the range of docs/benchmarks.md's measured ratios
+    # (native against Python on the programs that fell back before issue 43)
+    text = (ROOT / "docs" / "benchmarks.md").read_text()
+    table = text.split("*The programs that fell back before issue 43*", 1)[1].split("\n\n*", 1)[0]
+    rows = [line.split("|") for line in table.splitlines() if line.startswith("| ")]
+    head_row, body = rows[0], rows[1:]
+    col = [c.strip() for c in head_row].index("native / Python")
+    ratios = [float(r[col].strip().rstrip("x")) for r in body]
+    assert len(ratios) >= 4
+    lo, hi = math.floor(min(ratios)), math.ceil(max(ratios))
+    assert PYTHON_COST.startswith(f"{lo}-{hi}x slower than the native engine"), (PYTHON_COST, ratios)
+    assert "docs/benchmarks.md" in PYTHON_COST and "about 50x" not in PYTHON_COST
 
 
 def test_a_stall_says_how_a_finished_team_ends():
