@@ -328,11 +328,6 @@ def test_a_new_search_into_a_checkpoint_directory_keeps_the_old_one_until_replac
         sorted(os.listdir(d)) == sorted([C.MANIFEST, after["generation"]])
 
 
-def _cli(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "pccl.cli", *args], capture_output=True,
-                          text=True, cwd=ROOT, timeout=timeout)
-
-
 class _Ran:
     """A command's exit status and output, as ``subprocess.run`` gives them."""
 
@@ -342,8 +337,10 @@ class _Ran:
 
 def _cli_here(*args):
     """``pccl ARGS`` in this process (conftest.cli, from the repository root):
-    for the refusals, which exit 2 before any search, a process of their own
-    (about 0.5 CPU-s to start) would test nothing more."""
+    for the refusals, which exit 2 before any search, and for the uninterrupted
+    and resumed runs the signalled processes are compared with, a process of
+    their own (about 0.5 CPU-s to start) would test nothing more (the signals
+    go to processes of their own: conftest.interrupted, subprocess.Popen)."""
     return _Ran(cli(*args, cwd=ROOT))
 
 
@@ -366,7 +363,7 @@ def test_resume_with_other_options_or_program_exits_2(tmp_path):
     p = _cli_here("explore", "programs/race.pccl", "-w", "programs/race.toml", "--resume", d)
     assert p.returncode == 2 and "the checkpoint was written for a different program" in p.stderr
     p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--reduce", "none",
-             "--resume", d)
+                  "--resume", d)
     assert p.returncode == 2 and "reductions merge+symmetry+por+dead, this run has " \
                                  "reductions none" in p.stderr
 
@@ -464,8 +461,8 @@ def test_sigterm_writes_a_checkpoint_and_says_how_to_resume(tmp_path):
            f"--set k=2 --engine python --reduce merge,symmetry,por --progress --progress-interval 0.2 " \
            f"--format json " \
            f"--resume {d}" in err
-    p = _cli(*args, "--resume", d)
-    q = _cli(*args)
+    p = _cli_here(*args, "--resume", d)
+    q = _cli_here(*args)
     a, b = json.loads(p.stdout), json.loads(q.stdout)
     for k in ("status", "message", "violations", "bounds", "checked"):
         assert a[k] == b[k]
@@ -486,7 +483,7 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
     args = ["explore", "programs/fischer.pccl", "--set", "k=2", "--no-progress",
             "--format", "json", "--checkpoint-interval", "0.3", "--engine", "python",
             "--reduce", "merge"]
-    full = json.loads(_cli(*args).stdout)
+    full = json.loads(_cli_here(*args).stdout)
     rng = random.Random(7)
     kills = 0
     for _ in range(8):
@@ -502,8 +499,8 @@ def test_sigkill_at_random_times_then_resume(tmp_path):
         kills += 1
         if kills == 3:
             break
-    p = _cli(*args, "--resume", d) if os.path.exists(os.path.join(d, C.MANIFEST)) \
-        else _cli(*args)
+    p = _cli_here(*args, "--resume", d) if os.path.exists(os.path.join(d, C.MANIFEST)) \
+        else _cli_here(*args)
     a = json.loads(p.stdout)
     for k in ("status", "message", "violations", "bounds", "checked"):
         assert a[k] == full[k]
@@ -711,7 +708,7 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     r = api.explore(f"{PROG}/fischer.pccl", checkpoint=d2, progress=_Interrupt(5),
                     progress_interval=1e-9, overrides={"k": "1"}, workers=3)
     assert r.status == "interrupted"
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d2)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--resume", d2)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert f"--resume: error: {d2}: the checkpoint was written by 3 workers; resume it with " \
            f"--workers N (N of 2 or more, not necessarily 3) or --ray" in p.stderr
@@ -721,8 +718,8 @@ def test_one_process_and_workers_checkpoints_do_not_mix(tmp_path):
     data = bytearray(open(part, "rb").read())
     data[-3] ^= 0xFF
     open(part, "wb").write(bytes(data))
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--workers", "2",
-             "--resume", d2)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--workers", "2",
+                  "--resume", d2)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert p.stderr.startswith(f"--resume: error: {d2}: the checkpoint is corrupt (")
     assert f"w002/{last['file']} does not match its digest" in p.stderr
@@ -752,7 +749,7 @@ def test_workers_sigterm_and_sigkill_at_random_points_then_resume(tmp_path):
     d = str(tmp_path / "ck")
     args = [*_FISCHER_K1, "--workers", "2", "--progress", "--progress-interval", "0.1",
             "--checkpoint-interval", "0.2"]
-    full = _json_summary(_cli(*_FISCHER_K1, "--workers", "2", "--no-progress").stdout)
+    full = _json_summary(_cli_here(*_FISCHER_K1, "--workers", "2", "--no-progress").stdout)
     rng = random.Random(25)
     rc, out, err = interrupted([*args, "--checkpoint", d], "SIGTERM", cwd=ROOT,
                                ready="frontier", after=rng.uniform(0, 1))
@@ -769,7 +766,7 @@ def test_workers_sigterm_and_sigkill_at_random_points_then_resume(tmp_path):
             assert rc in (0, -9), err
             if rc == 0:
                 break
-        p = _cli(*args, "--resume", d)
+        p = _cli_here(*args, "--resume", d)
         assert p.returncode == 0, p.stderr
         out = p.stdout
     assert _json_summary(out) == full
@@ -884,7 +881,7 @@ def test_fastest_interrupted_mid_bucket_and_resumed_equals_uninterrupted(tmp_pat
 
 def test_fastest_and_breadth_first_checkpoints_do_not_mix(tmp_path):
     d = _checkpoint_of(tmp_path)
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--fastest", "--resume", d)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert "the checkpoint was written with no --fastest, this run has --fastest" in p.stderr
 
@@ -936,8 +933,8 @@ def test_a_checkpoint_resumes_on_the_engine_that_wrote_it(tmp_path):
     dn = _native_checkpoint(tmp_path)
     man = json.load(open(os.path.join(dn, C.MANIFEST)))
     assert man["identity"]["engine"] == "native" and len(man["identity"]["native"]) == 16
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "python",
-             "--resume", dn)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "python",
+                  "--resume", dn)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert f"--resume: error: {dn}: the checkpoint was written by the native engine, this run " \
            f"uses the Python engine (--engine python); a checkpoint's states and fingerprints " \
@@ -957,8 +954,8 @@ def test_a_checkpoint_resumes_on_the_engine_that_wrote_it(tmp_path):
     assert r.model.engine_used == "python"
     assert r.model.engine_reason == "resume: the checkpoint was written by the Python engine"
     assert summary(r) == full
-    p = _cli("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "native",
-             "--resume", dp)
+    p = _cli_here("explore", "programs/fischer.pccl", "--set", "k=1", "--engine", "native",
+                  "--resume", dp)
     assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
     assert "the checkpoint was written by the Python engine, this run uses the native engine; " \
            "a checkpoint's states and fingerprints are its engine's: resume it with --engine " \
@@ -1018,7 +1015,7 @@ def test_native_sigkill_at_random_points_then_resume(tmp_path, name, status, ext
     d = str(tmp_path / "ck")
     base = ["explore", *extra, "--format", "json"]
     args = [*base, "--progress", "--progress-interval", "0.1", "--checkpoint-interval", "0.2"]
-    q = _cli(*base, "--no-progress")
+    q = _cli_here(*base, "--no-progress")
     full = json.loads(q.stdout)
     assert full["status"] == status, q.stderr
     rng = random.Random(name)
@@ -1035,7 +1032,7 @@ def test_native_sigkill_at_random_points_then_resume(tmp_path, name, status, ext
         if kills == 3:
             break
     assert kills >= 1
-    p = _cli(*args, "--resume", d)
+    p = _cli_here(*args, "--resume", d)
     assert p.returncode in (0, 1) and "Traceback" not in p.stderr, p.stderr
     a = json.loads(p.stdout)
     assert any(n.startswith("resumed from") for n in a["notes"])

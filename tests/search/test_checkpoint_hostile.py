@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -20,6 +18,7 @@ from pccl import api
 from pccl.search import checkpoint as C
 from pccl.search import safedata
 from pccl.search import spill as S
+from conftest import cli
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 PROG = os.path.join(ROOT, "programs")
@@ -36,9 +35,19 @@ class _Plant:
         return (open, (self.path, "w"))
 
 
+class _Ran:
+    """A command's exit status and output, as ``subprocess.run`` gives them."""
+
+    def __init__(self, res):
+        self.returncode, self.stdout, self.stderr = res.exit_code, res.stdout, res.stderr
+
+
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "pccl.cli", *args], capture_output=True,
-                          text=True, cwd=ROOT, timeout=120)
+    """``pccl ARGS`` in this process (conftest.cli, from the repository root):
+    every command here is a refusal that exits 2 before any search, so a
+    process of its own (about 0.5 CPU-s to start) would test nothing more; an
+    unpickled payload would create its marker file here as well."""
+    return _Ran(cli(*args, cwd=ROOT))
 
 
 class _Interrupt:

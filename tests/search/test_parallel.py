@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from conftest import started
+from conftest import cli, started
 from pccl.api import explore, make_model
 from pccl.model.layout import TIME
 from pccl.search.explorer import Explorer
@@ -326,18 +326,19 @@ def test_exact_needs_one_process():
 
 
 def test_cli_workers_option():
-    base = [sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=1",
+    # in this process (conftest.cli): the option is tested, not a process's start
+    base = ["explore", FISCHER, "--set", "k=1",
             "--invariant", MUTEX, "--no-progress", "--format", "json"]
-    one = subprocess.run(base, capture_output=True, text=True)
-    two = subprocess.run(base + ["--workers", "2"], capture_output=True, text=True)
-    assert one.returncode == two.returncode == 1
+    one = cli(*base)
+    two = cli(*base, "--workers", "2")
+    assert one.exit_code == two.exit_code == 1
     import json
     a, b = json.loads(one.stdout), json.loads(two.stdout)
     for k in ("states", "transitions", "max_depth"):
         assert a["statistics"][k] == b["statistics"][k]
     assert a["violations"] == b["violations"]
-    bad = subprocess.run(base + ["--workers", "zero"], capture_output=True, text=True)
-    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    bad = cli(*base, "--workers", "zero")
+    assert bad.exit_code == 2 and "Traceback" not in bad.stderr
     assert available_workers() >= 1
 
 
@@ -726,6 +727,8 @@ def test_ray_address_where_nothing_listens_fails_at_once():
     finally:
         srv.close()
     _ray()
+    # a process of its own: in this one Ray may be up already (a fixture's),
+    # and the search would use it instead of the address given
     r = subprocess.run([sys.executable, "-m", "pccl.cli", "explore", FISCHER, "--set", "k=0",
                         "--ray", f"127.0.0.1:{port}", "--no-progress"],
                        capture_output=True, text=True, timeout=120)

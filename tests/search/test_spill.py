@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import FISCHER, TEST_PROGRAMS
+from conftest import FISCHER, TEST_PROGRAMS, cli
 from pccl.api import explore, make_model
 from pccl.lang.errors import ArgumentError, PcclError
 from pccl.search import spill as S
@@ -233,8 +233,22 @@ def _cli(*args, env=None):
                           capture_output=True, text=True, env=env, timeout=300)
 
 
+class _Ran:
+    """A command's exit status and output, as ``subprocess.run`` gives them."""
+
+    def __init__(self, res):
+        self.returncode, self.stdout, self.stderr = res.exit_code, res.stdout, res.stderr
+
+
+def _cli_here(*args):
+    """``pccl ARGS`` in this process (conftest.cli): for the refusals, which exit
+    2 before any search, a process of its own (about 0.5 CPU-s to start) would
+    test nothing more.  (The memory figures need processes of their own: _cli.)"""
+    return _Ran(cli(*args))
+
+
 def test_cli_refuses_ray_with_spill(tmp_path):
-    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(tmp_path), "--ray", "local")
+    r = _cli_here("explore", FISCHER, "--set", "k=0", "--spill", str(tmp_path), "--ray", "local")
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [
         "--spill: error: --spill runs on this machine's processes: use --workers N without "
@@ -244,7 +258,7 @@ def test_cli_refuses_ray_with_spill(tmp_path):
 def test_unwritable_spill_dir_is_one_message(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(blocker / "sub"))
+    r = _cli_here("explore", FISCHER, "--set", "k=0", "--spill", str(blocker / "sub"))
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines() == [
         f"--spill: error: cannot write the search's files to {blocker / 'sub'}: Not a directory"]
@@ -469,8 +483,8 @@ def test_cli_workers_spill_says_what_each_worker_spilled(tmp_path):
 def test_unwritable_spill_dir_with_workers_is_one_message(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    r = _cli("explore", FISCHER, "--set", "k=0", "--spill", str(blocker / "sub"),
-             "--workers", "2")
+    r = _cli_here("explore", FISCHER, "--set", "k=0", "--spill", str(blocker / "sub"),
+                  "--workers", "2")
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert r.stderr.strip().splitlines() == [
         f"--spill: error: cannot write the search's files to {blocker / 'sub'}: Not a directory"]
