@@ -41,6 +41,16 @@ class InitSearch:
         #: that has a value and every outcome that fails, each reason once
         #: (pccl.model.dead.initial_rand_unread, when some outcome may fail)
         self.first_value = first_value
+        #: per declaration (section, name): does its initialiser draw a ``rand()``?
+        #: (has_rand walks the expression: once per declaration, not once per
+        #: agent and path of the search)
+        self._draws: dict = {}
+
+    def _has_rand(self, vs) -> bool:
+        d = self._draws.get((vs.section, vs.name))
+        if d is None:
+            d = self._draws[(vs.section, vs.name)] = has_rand(vs.decl.init)
+        return d
 
     def states(self):
         """The initial configurations, one per combination of ``rand``
@@ -139,7 +149,7 @@ class InitSearch:
             finally:
                 oracle.agent = None
         results = (oracle.iter_outcomes(guarded, 0, cells[0], shl, cells)
-                   if has_rand(vs.decl.init) else (guarded(0, cells[0], shl, cells),))
+                   if self._has_rand(vs) else (guarded(0, cells[0], shl, cells),))
         try:
             for res in results:
                 if isinstance(res, R.Err):
@@ -179,7 +189,7 @@ class InitSearch:
                 return R.Err.of(exc)
             finally:
                 oracle.agent = None
-        results = (oracle.iter_outcomes(guarded) if has_rand(vs.decl.init) else (guarded(),))
+        results = (oracle.iter_outcomes(guarded) if self._has_rand(vs) else (guarded(),))
         if vs.section == "loc":
             if vs.name in self.first_only:
                 results = itertools.islice(results, 1)
