@@ -1265,13 +1265,16 @@ def run(program, **options) -> RunResult:
 # check
 # ---------------------------------------------------------------------------
 
-def check(program, *, world=None, source: bool = False):
+def check(program, *, world=None, source: bool = False, lang=None):
     """Parse and statically check ``program`` (``pccl check``); the names of
-    ``world``'s functions may be called.  Returns the :class:`~pccl.lang.checker.CheckedProgram`."""
+    ``world``'s functions may be called; ``lang`` (``"pccl"``, ``"koord"``)
+    the language it is read as (None: a file's suffix decides, text is
+    PCCL).  Returns the :class:`~pccl.lang.checker.CheckedProgram`."""
     from pccl.lang.checker import check_program
     V.program("check", program, source)
+    V.lang("check", lang)
     V.world("check", world)
-    prog = load_program(program, source=source)
+    prog = load_program(program, source=source, lang=lang)
     w = load_world_arg(world)
     names = frozenset(dict(w.functions).keys()) if w is not None else frozenset()
     return check_program(prog, functions=names)

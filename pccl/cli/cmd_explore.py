@@ -106,7 +106,7 @@ from pccl.lang.errors import PcclError
               help="when the search's memory nears --max-memory, move the visited states "
                    "and the frontier to files under DIR instead of stopping (one process; "
                    "the files are removed at the end)")
-def explore(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events,
+def explore(program, agents, world, blackbox, delta, n0, rates, events, lang, semantics, skip_events,
             collisions, overrides, depth,
             max_time, max_states, max_memory, abstract_time, invariants, properties, timelock,
             stall, shorten, fastest, reduce, engine, deadlock, find_all, exact, fmt, exit_codes, plot,

@@ -19,13 +19,16 @@ from pccl.lang.errors import PcclError
 @click.argument("program", type=click.Path(dir_okay=False))
 @click.option("--world", "-w", type=click.Path(dir_okay=False), default=None,
               help="world file whose uninterpreted functions the program may use")
-def check(program, world):
+@click.option("--lang", type=Choice(["pccl", "koord"]), default=None,
+              help="read the program as this language [default: koord for .koord/.krd "
+                   "files, else pccl]")
+def check(program, world, lang):
     """Parse and statically check PROGRAM; print nothing else on success."""
     # the front end only (not pccl.api, which imports the engines: start-up)
     from pccl.lang.checker import check_program
     from pccl.lang.files import parse_program_file
     try:
-        prog = parse_program_file(program)      # PCCL, or Koord (.koord, .krd)
+        prog = parse_program_file(program, lang)    # PCCL, or Koord (.koord, .krd, --lang)
         w = None
         if world is not None:
             from pccl.lang.world import load_world
@@ -75,7 +78,7 @@ def check(program, world):
                    "(witnessed or not in this run) (repeatable; docs/temporal.md)")
 @view_options
 @watch_option
-def run(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions,
+def run(program, agents, world, blackbox, delta, n0, rates, events, lang, semantics, skip_events, collisions,
         overrides, seed,
         max_time, max_steps, stall_steps, max_memory, invariants, properties, trace, fmt,
         exit_codes, plot, html, trace_out, view, full, watch):

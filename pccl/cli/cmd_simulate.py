@@ -42,7 +42,8 @@ SIM_TAIL = 10
 @click.option("--trace-out", type=click.Path(dir_okay=False), default=None,
               help="write the first violating run as a trace file (for pccl replay)")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True)
-def simulate(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
+def simulate(program, agents, world, blackbox, delta, n0, rates, events, lang, semantics, skip_events,
+             collisions, overrides,
              runs, runs_n, seed, max_time, max_steps, stall_steps, invariants, properties,
              trace, trace_out, fmt):
     """Run PROGRAM many times (as pccl run, with seeds SEED, SEED+1, ...), checking
@@ -68,7 +69,7 @@ def simulate(program, agents, world, blackbox, delta, n0, rates, events, semanti
     def command(s):
         return S.run_command(program, seed=s, world=world, blackbox=blackbox, agents=agents,
                              delta=_delta(delta), n0=n0, rates=rates, events=events,
-                             semantics=semantics, skip_events=skip_events,
+                             semantics=semantics, skip_events=skip_events, lang=lang,
                              collisions=collisions, overrides=overrides,
                              max_time=_delta(max_time), max_steps=max_steps,
                              invariants=invariants, properties=properties,

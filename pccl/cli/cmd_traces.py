@@ -189,7 +189,8 @@ def view(trace_file, output, blackbox, embed_paths, watch):
                    "SIZE, e.g. 800M [default: 80% of physical memory, as explore]")
 @click.option("--search-seconds", type=FiniteFloat(min=0), default=60.0, show_default=True,
               help="stop a search from the page after this many seconds")
-def serve(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
+def serve(program, agents, world, blackbox, delta, n0, rates, events, lang, semantics, skip_events,
+          collisions, overrides,
           max_time, invariants, abstract_time, port, max_memory, search_seconds):
     """Explore PROGRAM interactively in a browser: start from an initial state,
     see every enabled transition with its rule and source line, take one, go
@@ -240,7 +241,8 @@ def serve(program, agents, world, blackbox, delta, n0, rates, events, semantics,
 @click.option("--invariant", "invariants", multiple=True, metavar="EXPR",
               help="a state property; violating states are marked (repeatable)")
 @click.option("--no-deadlock", is_flag=True, help="do not mark deadlocks as violations")
-def graph(program, agents, world, blackbox, delta, n0, rates, events, semantics, skip_events, collisions, overrides,
+def graph(program, agents, world, blackbox, delta, n0, rates, events, lang, semantics, skip_events,
+          collisions, overrides,
           output, max_states, max_time, invariants, no_deadlock):
     """Write the reachable state graph of PROGRAM, breadth-first up to --max-states
     states: states as nodes (violating ones in red), transitions as edges labelled

@@ -16,11 +16,15 @@ from pccl.lang.errors import PcclError
               help="write nothing; exit 1 if a file would change (for CI)")
 @click.option("--diff", "show_diff", is_flag=True,
               help="write nothing; print the changes as a unified diff, exit 1 if any")
-def fmt_cmd(files, check, show_diff):
+@click.option("--lang", type=Choice(["pccl", "koord"]), default=None,
+              help="read every file as this language [default: koord for .koord/.krd "
+                   "files, else pccl; standard input: pccl]")
+def fmt_cmd(files, check, show_diff, lang):
     """Rewrite each PROGRAM in the canonical layout (docs/editors.md):
     indentation, spacing and blank lines only; comments and line structure
     are kept, and the program's meaning never changes.  `-` reads standard
-    input and writes the result to standard output."""
+    input and writes the result to standard output (`--lang koord` for a
+    Koord program there)."""
     import difflib
 
     from pccl.tools.fmt import FormatterBug, format_source
@@ -36,7 +40,7 @@ def fmt_cmd(files, check, show_diff):
                 except (OSError, UnicodeDecodeError) as e:
                     raise PcclError(f"cannot read '{path}': {getattr(e, 'strerror', None) or e}",
                                     filename=path) from None
-            out = format_source(source, "<stdin>" if path == "-" else path)
+            out = format_source(source, "<stdin>" if path == "-" else path, lang)
         except PcclError as e:
             _fail(e)
         except FormatterBug as e:

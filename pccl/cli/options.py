@@ -124,11 +124,14 @@ def common_options(f, *, agents_flags=("--agents", "-n")):
         click.option("--events", type=Choice(["any", "first"]), default="any",
                      show_default=True,
                      help="any enabled event may run, or only the first in source order"),
+        click.option("--lang", type=Choice(["pccl", "koord"]), default=None,
+                     help="read the program as this language [default: koord for "
+                          ".koord/.krd files, else pccl]"),
         click.option("--semantics", type=Choice(["pccl", "koord"]), default=None,
                      help="the execution model: PCCL's (statements interleave) or Koord's "
                           "rounds (one event per robot per round as one transition, "
                           "round-consistent memory; Koord programs only: docs/koord.md) "
-                          "[default: koord for .koord/.krd files, else pccl]"),
+                          "[default: koord for Koord programs, else pccl]"),
         click.option("--skip-events", is_flag=True,
                      help="Koord's SkipEvent: a robot may let a round pass although an event "
                           "is enabled (--semantics koord)"),

@@ -113,7 +113,11 @@ _OPS = {"and": "&&", "or": "||", "not": "!"}
 #: Koord base types -> PCCL type names.
 _BASE_TYPES = {"int": "int", "float": "float", "double": "float", "bool": "bool",
                "boolean": "bool", "pos": "ItemPosition"}
-_UNSUPPORTED_TYPES = ("stream", "string", "queue", "map", "inputMap")
+_UNSUPPORTED_TYPES = ("stream", "queue", "map", "inputMap")
+#: Koord's ``string``: an enum of this name whose members are the program's
+#: string literals, each written with its quotes (docs/koord.md, "Strings";
+#: :func:`_strings`)
+STRING_TYPE = "string"
 
 #: list methods: ``xs.size()`` is ``size(xs)`` ...
 _METHODS = {"size": "size", "isEmpty": "isEmpty", "contains": "contains", "head": "head",
@@ -226,6 +230,11 @@ class _ToAst(P._ToAst):
     def unop(self, meta, children):
         op, operand = children
         return ast.Unary(_OPS.get(str(op), str(op)), operand, _mspan(meta))
+
+    def string_lit(self, meta, children):
+        """``"text"``: the member ``"text"`` (quotes included) of the enum
+        ``string`` (:func:`_strings`)."""
+        return ast.Name(str(children[0]), _tspan(children[0]))
 
     def pid(self, meta, children):
         return ast.Call("getAgentIndex", (), _tspan(children[0]))
@@ -442,7 +451,8 @@ class _Resolver:
     def _record(self, r: _KRecord, names: set) -> None:
         if r.name in self.records:
             raise _Syntax(f"record type '{r.name}' is defined twice", r.span)
-        if r.name in _BASE_TYPES or r.name in ("list", "List") or r.name in _UNSUPPORTED_TYPES:
+        if (r.name in _BASE_TYPES or r.name in ("list", "List", STRING_TYPE)
+                or r.name in _UNSUPPORTED_TYPES):
             raise _Syntax(f"'{r.name}' is a type already: choose another name", r.span)
         seen: set = set()
         for f in r.fields:
@@ -671,11 +681,13 @@ class _Resolver:
             raise _Syntax(f"only 'list' takes a type argument, not '{t.name}'", t.span)
         if t.name in _BASE_TYPES:
             return ast.TypeRef(_BASE_TYPES[t.name], None, t.name_span)
+        if t.name == STRING_TYPE:
+            return ast.TypeRef(STRING_TYPE, None, t.name_span)
         if t.name in _UNSUPPORTED_TYPES:
             raise _Syntax(f"type '{t.name}' is not supported yet by pccl's Koord front end",
                           t.name_span)
         raise _Syntax(f"unknown type '{t.name}' (Koord types here: int, float, bool/boolean, "
-                      f"pos, T[] and list<T>)", t.name_span)
+                      f"pos, string, T[] and list<T>)", t.name_span)
 
     def _type(self, t: _KType, name_dims: list) -> tuple:
         """(TypeRef, size or None) of ``t`` with the dimensions after the name."""
@@ -1091,7 +1103,94 @@ class _Resolver:
             guard = ast.Binary("&&", ast.Name("doReach_done", sp),
                                ast.Unary("!", ast.Call("isEmpty", (var,), sp), sp), sp)
             events = (ast.Event(FOLLOW_EVENT, guard, _next_leg(sp), sp, sp),) + events
-        return ast.Program(None, decls, init, events, invariants)
+        return _strings(ast.Program(None, decls, init, events, invariants))
+
+
+def _is_literal(e) -> bool:
+    """Whether ``e`` is a string literal (a ``string`` member, quoted)."""
+    return isinstance(e, ast.Name) and e.name.startswith('"')
+
+
+def _fold(node, types: dict):
+    """``node`` with every ``"a" + "b"`` replaced by the literal ``"ab"``
+    (innermost first: ``"a" + "b" + "c"`` is ``"abc"``).  A ``+`` with a
+    string on one side that is not a literal after folding is an error:
+    a string is one of the program's literals (the enum ``string``), so
+    only text known when the program is read can be joined.  ``types``:
+    each declared variable's TypeRef, to recognise a string variable."""
+    if isinstance(node, tuple):
+        new = tuple(_fold(x, types) for x in node)
+        return node if all(a is b for a, b in zip(new, node)) else new
+    if not dataclasses.is_dataclass(node) or isinstance(node, (ast.Span, ast.TypeRef, type)):
+        return node
+    if isinstance(node, ast.Binary) and node.op == "+":
+        # a long chain of '+' without strings is left as it is, without recursion
+        left, right = _fold(node.left, types), _fold(node.right, types)
+        if _is_literal(left) and _is_literal(right):
+            return ast.Name('"' + left.name[1:-1] + right.name[1:-1] + '"', node.span)
+        for side in (left, right):
+            if _is_literal(side) or _string_var(side, types):
+                raise _Syntax("'+' joins strings only when both are known as the program is "
+                              "read (string literals, or '+' of them): pccl's Koord strings "
+                              "are the program's string literals (docs/koord.md, \"Strings\")",
+                              node.span)
+        if left is node.left and right is node.right:
+            return node
+        return dataclasses.replace(node, left=left, right=right)
+    changes = {}
+    for f in dataclasses.fields(node):
+        v = getattr(node, f.name)
+        nv = _fold(v, types)
+        if nv is not v:
+            changes[f.name] = nv
+    return dataclasses.replace(node, **changes) if changes else node
+
+
+def _string_var(e, types: dict) -> bool:
+    """Whether ``e`` reads a ``string`` variable (or an element of a string
+    array or list)."""
+    depth = 0
+    while isinstance(e, ast.Index):
+        e, depth = e.base, depth + 1
+    if not isinstance(e, ast.Name) or e.name not in types:
+        return False
+    t, size, section = types[e.name]
+    depth -= (section == "allread") + (size is not None)
+    while depth > 0 and t is not None and t.name == "List":
+        t, depth = t.elem, depth - 1
+    return depth <= 0 and t is not None and t.name == STRING_TYPE
+
+
+def _strings(prog: ast.Program) -> ast.Program:
+    """Koord's strings as the checked program knows them: the enum
+    ``string`` (declared first) whose members are the program's string
+    literals after folding ``+`` (:func:`_fold`), in the order they are
+    first written (``""`` alone when a string variable is declared but no
+    literal written).  A program without strings is returned as it is."""
+    uses = any(_mentions_string(d.type) for d in prog.decls if isinstance(d, ast.VarDecl))
+    if not uses and not any(_is_literal(n) for n in ast.walk(prog)):
+        return prog     # (ast.walk is iterative: a long operator chain is no recursion)
+    types = {d.name: (d.type, d.size, d.section) for d in prog.decls
+             if isinstance(d, ast.VarDecl)}
+    prog = _fold(prog, types)
+    members: dict = {}
+    for n in ast.walk(prog):
+        if _is_literal(n) and n.name not in members:
+            members[n.name] = n.span
+    if not members:
+        members['""'] = next(d.span for d in prog.decls if isinstance(d, ast.VarDecl))
+    span = next(iter(members.values()))
+    enum = ast.EnumDecl("loc", STRING_TYPE, tuple(members), span, span,
+                        member_spans=tuple(members.values()))
+    return dataclasses.replace(prog, decls=(enum,) + prog.decls)
+
+
+def _mentions_string(t: Optional[ast.TypeRef]) -> bool:
+    while t is not None:
+        if t.name == STRING_TYPE:
+            return True
+        t = t.elem
+    return False
 
 
 #: Motion.path's hidden local list of the waypoints still to reach, and the
@@ -1153,7 +1252,7 @@ _BINOPS = {"ARROW", "OR", "OROR", "AND", "ANDAND", "EQ", "NE", "LT", "LE", "GT",
 _CMP_OPS = {"EQ", "NE", "LT", "LE", "GT", "GE"}
 _POSTFIX = {"LSQB", "DOT", "LPAR"}
 _EXPR_START = {"IDENT", "INT", "FLOAT", "TRUE", "FALSE", "LPAR", "LSQB", "MINUS", "NOT",
-               "BANG", "PID", "NUMAGENTS", "NUMBOTS", "FORALL", "EXISTS"}
+               "BANG", "PID", "NUMAGENTS", "NUMBOTS", "FORALL", "EXISTS", "STRING"}
 _STMT_START = {"IF", "ATOMIC", "SKIP", "STOP", "IDENT", "FOR", "RETURN"}
 _TOP = {"USING", "ALLWRITE", "ALLREAD", "LOCAL", "INIT", "INVARIANT", "DEF"}
 _SECTION_ORDER = ("sections come in the order: using Module:, allwrite:/allread:/local:, "

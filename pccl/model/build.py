@@ -19,14 +19,17 @@ from pccl.model.options import CommonOptions, model_choices
 from pccl.model.reduce import Reduced
 
 
-def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False) -> A.Program:
-    from pccl.lang.parser import parse_program
+def load_program(program: Union[str, os.PathLike, A.Program], *, source: bool = False,
+                 lang: Optional[str] = None) -> A.Program:
+    """``program`` as an AST: a Program as it is; text (``source``) or a
+    file read as ``lang`` (``"pccl"``, ``"koord"``; None: a file's suffix
+    decides, text is PCCL)."""
+    from pccl.lang.files import parse_program_file, parse_program_text
     if isinstance(program, A.Program):
         return program
     if source:
-        return parse_program(str(program), "<input>")
-    from pccl.lang.files import parse_program_file
-    return parse_program_file(program)      # PCCL, or Koord (.koord, .krd: docs/koord.md)
+        return parse_program_text(str(program), "<input>", lang)
+    return parse_program_file(program, lang)    # PCCL, or Koord (.koord, .krd, lang: docs/koord.md)
 
 
 def load_world_arg(world):
@@ -78,7 +81,8 @@ def build_model(program, opts: CommonOptions, *, rng: Optional[random.Random] = 
     """The model ``opts`` describe (already checked), seen through the
     reductions they ask for.  ``explore``: choose the blackbox as ``pccl
     explore`` does when none is given (:func:`explore_blackbox`)."""
-    prog = apply_overrides(load_program(program, source=opts.source), opts.overrides)
+    prog = apply_overrides(load_program(program, source=opts.source, lang=opts.lang),
+                           opts.overrides)
     blackbox, reason = (explore_blackbox(prog, opts.blackbox) if explore
                         else (opts.blackbox, None))
     opts = opts.replace(blackbox=blackbox)

@@ -37,10 +37,12 @@ every copy equals the global store, else ``(shared, allread)``, the values
 of the round's start (the shared slots, and each robot's allread tuple)
 that the robots still to act read.
 
-The reductions (merging, partial-order reduction, symmetry, dead
-variables) are argued for PCCL's statement-level interleaving; none is
-used under this semantics, and the native engine does not run it
-(pccl/model/reduce.py, pccl/model/native.py say so in the header).
+Symmetry and dead variables are argued again for this semantics and used
+(docs/koord.md, "Reductions under the round semantics");
+merging, partial-order reduction and counter saturation are argued for
+PCCL's statement-level interleaving and are not, and the native engine
+does not run it (pccl/model/reduce.py, pccl/model/native.py say so in the
+header).
 """
 
 from __future__ import annotations

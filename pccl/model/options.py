@@ -75,6 +75,9 @@ class CommonOptions:
     functions: Optional[Mapping[str, Any]] = None
     rand_policy: Optional[Callable] = None
     source: bool = False
+    #: the language the program is read as: "pccl", "koord" (docs/koord.md),
+    #: None: a file's suffix decides (``.koord``/``.krd`` Koord), text is PCCL
+    lang: Optional[str] = None
 
     @classmethod
     def from_api(cls, func: str, kwargs: Mapping[str, Any]):
@@ -167,6 +170,7 @@ class CommonOptions:
     def check(self, func: str) -> None:
         """Raise :class:`ArgumentError` naming the first bad option."""
         V.boolean(func, "source", self.source)
+        V.lang(func, self.lang)
         V.world(func, self.world)
         V.blackbox(func, self.blackbox)
         V.integer(func, "agents", self.agents, minimum=1, optional=True)
@@ -198,8 +202,8 @@ class ModelOptions(CommonOptions):
 
 
 #: Model options with checks of their own in :meth:`CommonOptions.check` (the
-#: source flag, the world, the blackbox, the team size, the overrides).
-CHECKED_ALONE = frozenset({"source", "world", "blackbox", "agents", "overrides"})
+#: source flag, the language, the world, the blackbox, the team size, the overrides).
+CHECKED_ALONE = frozenset({"source", "lang", "world", "blackbox", "agents", "overrides"})
 #: The model options :func:`pccl.model.validate.model_options` checks: the
 #: fields of :class:`ModelOptions` but :data:`CHECKED_ALONE` (derived, so a new
 #: model option cannot be missing).
@@ -488,7 +492,7 @@ def resolve_semantics(language: str, opts: CommonOptions) -> str:
             raise OptionError(
                 "semantics", "{semantics=koord} is Koord's execution model (rounds in which "
                 "every robot runs at most one event, as one transition): it applies to Koord "
-                "programs (.koord, .krd) only; a PCCL program runs under PCCL's semantics "
+                "programs (.koord, .krd, or {lang=koord}) only; a PCCL program runs under PCCL's semantics "
                 "(drop {semantics=koord})")
         if opts.n0 != 1 or opts.rates:
             name = "n0" if opts.n0 != 1 else "rates"

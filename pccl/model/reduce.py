@@ -450,25 +450,42 @@ def _unsound(name: str, why: str, want, p: "Plan") -> None:
 #: Why the reductions are off under Koord's round semantics (pccl/model/koord.py).
 NOT_ARGUED = ("not argued for Koord's round semantics (an event is one transition, "
               "memory is round-consistent)")
+#: The reductions argued for Koord's round semantics (docs/koord.md,
+#: "Reductions under the round semantics"): symmetry, and dead variables.
+KOORD_ARGUED = ("symmetry", "dead")
 
 
-def _plan_koord(m, want, p: Plan) -> tuple:
-    """Under Koord's round semantics (pccl/model/koord.py) only symmetry is
-    used (:func:`koord_symmetric_key`: the round semantics treats robots
-    alike, so the same conditions make it sound); merging, partial-order
-    reduction and dead variables are argued for PCCL's statement-level
-    interleaving.  Asking for one of those by name is an error."""
+def _plan_koord(m, want, p: Plan, uses=()) -> tuple:
+    """Under Koord's round semantics (pccl/model/koord.py) symmetry
+    (:func:`koord_symmetric_key`: the round semantics treats robots alike,
+    so the same conditions make it sound) and dead variables are used
+    (docs/koord.md, "Reductions under the round semantics": a robot's
+    ``loc:`` variables are its own, every state between transitions has
+    each running robot at the top of its block, and an event reads its
+    locals in the order of its statements, so the liveness PCCL's dead
+    analysis computes over statements holds of the round semantics' one
+    transition per event); merging and partial-order reduction are argued
+    for PCCL's statement-level interleaving.  Asking for one of those by
+    name is an error."""
     for name in (want or ()):
-        if name != "symmetry":
+        if name not in KOORD_ARGUED:
             raise PcclError(f"{name} reduction cannot be used here: {NOT_ARGUED}; use "
-                            "{reduce=none}, {reduce=symmetry} or {semantics=pccl}",
-                            filename="{reduce}", template=True)
+                            "{reduce=none}, {reduce=symmetry}, {reduce=dead} or "
+                            "{semantics=pccl}", filename="{reduce}", template=True)
+    limits = use_limits(uses)
+    for name in (want or ()):
+        if name in limits:
+            raise PcclError(f"{name} reduction cannot be used here: {limits[name]}; "
+                            "drop it from {reduce}", filename="{reduce}", template=True)
     on: list = []
     slots = None
-    if want is None or "symmetry" in want:
+    if "symmetry" not in limits and (want is None or "symmetry" in want):
         slots = _plan_symmetry(m, want, p, on)
+    if "dead" not in limits and (want is None or "dead" in want):
+        _plan_dead(m, want, p, on)
     if want is None:
-        p.off.update({n: NOT_ARGUED for n in ALL if n != "symmetry"})
+        p.off.update({n: NOT_ARGUED for n in ALL if n not in KOORD_ARGUED})
+        p.off.update({n: why for n, why in limits.items() if n in KOORD_ARGUED})
     p.on = tuple(on)
     return p, slots
 
@@ -505,7 +522,7 @@ def plan(m, reduce, uses=()) -> tuple:
     if m.oracle.policy is not None:          # run mode: no reduction
         return Plan(requested="none"), None
     if getattr(m, "semantics", "pccl") != "pccl":
-        return _plan_koord(m, want, p)
+        return _plan_koord(m, want, p, uses)
     limits = use_limits(uses)
     for name in (want if want is not None else ()):
         if name in limits:

@@ -84,6 +84,15 @@ def program(func, v, source):
                 f"got {_show(v)}")
 
 
+def lang(func, v):
+    """The language a program is read as (``--lang``): None, or one of
+    :data:`pccl.lang.files.LANGUAGES`."""
+    from pccl.lang.files import LANGUAGES
+    if v is None or (isinstance(v, str) and v in LANGUAGES):
+        return
+    _fail(func, f"lang must be None, 'pccl' or 'koord', got {_show(v)}")
+
+
 def world(func, v):
     from pccl.lang.world import World
     if v is None or isinstance(v, (str, os.PathLike, World)):

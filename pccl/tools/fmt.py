@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from pccl.lang.errors import PcclError
-from pccl.lang.files import is_koord_path
+from pccl.lang.files import is_koord
 from pccl.lang.koord import parse_koord
 from pccl.lang.parser import parse_program
 
@@ -163,11 +163,12 @@ def _join(toks: list[Tok], in_decls: bool) -> str:
     return "".join(out)
 
 
-def format_source(source: str, filename: str = "<input>") -> str:
+def format_source(source: str, filename: str = "<input>", lang: Optional[str] = None) -> str:
     """The canonical layout of ``source`` (a program that parses; a syntax
-    error is raised as :class:`pccl.lang.errors.PcclError`)."""
+    error is raised as :class:`pccl.lang.errors.PcclError`), read as
+    ``lang`` (``"pccl"``, ``"koord"``; None: ``filename``'s suffix decides)."""
     parse, layout = parse_program, _layout
-    if is_koord_path(filename):
+    if is_koord(filename, lang):
         parse, layout = parse_koord, _koord_layout
     original = parse(source, filename)
     out = layout(source)

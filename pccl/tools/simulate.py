@@ -84,12 +84,14 @@ def simulate(model, rng: random.Random, *, runs: int, seed: int = 0, max_steps: 
 
 def run_command(program, *, seed, world=None, blackbox="straight", agents=None, delta=1, n0=1,
                 rates=(), events="any", semantics=None, skip_events=False, collisions=False,
-                overrides=(), max_time=100,
+                overrides=(), max_time=100, lang=None,
                 max_steps=100_000, invariants=(), properties=(), stall_steps=20) -> str:
     """The ``pccl run`` command that repeats run ``seed`` exactly: the same
     options, and the same properties (so that it finds the same violation)."""
     q = shlex.quote
     parts = ["pccl", "run", q(str(program))]
+    if lang is not None:
+        parts += ["--lang", lang]
     if world:
         parts += ["--world", q(str(world))]
     if blackbox not in (None, "", "straight"):

@@ -60,6 +60,7 @@ class Mode:
     group: str = ""             # figure group: modes that search the same graph
     kind: str = "explore"       # explore | ckpt | covering
     cost: int = 1               # rough relative cost (native compiles, processes)
+    koord_only: bool = False    # run on Koord programs under Koord's round semantics only
 
     @property
     def options(self) -> dict:
@@ -83,8 +84,8 @@ class Mode:
         return "".join(f"{k}={v} " for k, v in self.env)
 
 
-def _m(name, group, kind="explore", env=(), cost=1, **kw) -> Mode:
-    return Mode(name, tuple(sorted(kw.items())), tuple(env), group, kind, cost)
+def _m(name, group, kind="explore", env=(), cost=1, koord_only=False, **kw) -> Mode:
+    return Mode(name, tuple(sorted(kw.items())), tuple(env), group, kind, cost, koord_only)
 
 
 TRUTH = _m("truth", "none", reduce="none", exact=True, engine="python")
@@ -117,6 +118,12 @@ MODES = [
        events="first"),
     _m("koord-skip-events", "", kind="superset", reduce="none", exact=True, engine="python",
        skip_events=True),
+    # dead variables under Koord's round semantics (docs/koord.md, "Reductions
+    # under the round semantics"), alone (run on every Koord program) and with
+    # symmetry (drawn), against the truth
+    _m("koord-dead", "dead", reduce="dead", engine="python", koord_only=True),
+    _m("koord-dead-symmetry", "symmetry,dead", reduce="symmetry,dead", engine="python",
+       koord_only=True),
 ]
 BY_NAME = {m.name: m for m in MODES}
 #: the violations that are properties of one state (a state reached under
@@ -425,7 +432,10 @@ def choose_modes(names, seed: int, sample: int = 0) -> list:
     rng = random.Random(seed)
     # the Koord modes are always run (only on Koord programs: cheap, and
     # the only check of --events first and SkipEvent)
-    fixed = ("truth", "default") + tuple(m.name for m in MODES if m.kind in ("subset", "superset"))
+    # (and koord-dead: dead variables under the round semantics; the other
+    # Koord-only mode, koord-dead-symmetry, is drawn like the rest)
+    fixed = ("truth", "default", "koord-dead") + tuple(m.name for m in MODES
+                                                       if m.kind in ("subset", "superset"))
     rest = [m for m in pool if m.name not in fixed]
     picked = rng.sample(rest, min(sample, len(rest)))
     return [m for m in pool if m.name in fixed or m in picked]
@@ -450,7 +460,7 @@ def compare(case: Case, modes: list) -> Report:
         rep.inconclusive = not truth.complete and truth.status != "error"
         first_in_group: dict = {"none": "truth"}
         for mode in modes:
-            if mode.name == "truth":
+            if mode.name == "truth" or mode.koord_only and not koord_rounds(case):
                 continue
             if mode.kind == "covering":
                 if not case.moves or case.blackbox or truth.status == "error":

@@ -210,7 +210,7 @@ def test_engines_workers_and_reduce_requests_agree(name, agents):
 def test_native_engine_and_reductions_say_why_not():
     res = CliRunner().invoke(main, ["explore", LOST])
     head = res.output.splitlines()[0]
-    assert "merge, por, dead, counters off: not argued for Koord's round" in head
+    assert "merge, por, counters off: not argued for Koord's round" in head
     assert "engine python" in head and "not Koord's round semantics (--semantics koord)" in head
     res = CliRunner().invoke(main, ["explore", LOST, "--engine", "native"])
     assert res.exit_code == 2 and "native engine cannot run this search" in res.output
@@ -251,7 +251,7 @@ def test_pccl_programs_reject_the_koord_semantics():
                                     "--semantics", "koord"])
     assert res.exit_code == 2
     assert "--semantics koord is Koord's execution model" in res.output
-    assert "applies to Koord programs (.koord, .krd) only" in res.output
+    assert "applies to Koord programs (.koord, .krd, or --lang koord) only" in res.output
     with pytest.raises(PcclError, match="semantics=koord is Koord's execution model"):
         make_model(str(ROOT / "programs" / "fischer.pccl"), semantics="koord")
 

@@ -296,7 +296,7 @@ def test_the_checkpoint_identity_is_every_search_option_but_the_resources():
     # the list this replaced (kept by hand in pccl/search/checkpoint.py): the same options
     assert set(O.IDENTITY_OPTIONS) == {
         "agents", "blackbox", "delta", "n0", "rates", "events", "collisions", "overrides",
-        "semantics", "skip_events", "invariants", "properties", "max_time", "abstract_time",
+        "lang", "semantics", "skip_events", "invariants", "properties", "max_time", "abstract_time",
         "reduce", "depth", "max_states",
         "deadlock", "find_all", "exact", "timelock", "stall", "coverage", "fastest"}
 
