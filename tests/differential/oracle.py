@@ -487,7 +487,7 @@ def compare(case: Case, modes: list) -> Report:
                     continue
                 out = explore_mode(case, mode, prog, files)
                 rep.outcomes[mode.name] = out
-                d = inclusion_difference(truth, out, mode.kind)
+                d = inclusion_difference(truth, out, mode.kind, guard_lines(prog))
                 if d:
                     rep.disagreements.append(Disagreement(
                         case.seed, case.family, "crash" if out.status == "crash" else "inclusion",
@@ -543,10 +543,26 @@ def verdict_difference(truth: Outcome, out: Outcome) -> Optional[str]:
     return None
 
 
-def inclusion_difference(truth: Outcome, out: Outcome, kind: str) -> Optional[str]:
+def guard_lines(prog) -> frozenset:
+    """The lines of the program's event guards."""
+    return frozenset(ev.guard.span.line for ev in prog.events
+                     if getattr(ev.guard, "span", None) is not None)
+
+
+def inclusion_difference(truth: Outcome, out: Outcome, kind: str,
+                         guards: frozenset = frozenset()) -> Optional[str]:
     """A ``subset`` mode (``--events first``) finds no safety violation the
     complete truth misses; a complete ``superset`` mode (SkipEvent) finds
-    every one the truth found.  A load-time error is the same message."""
+    every one the truth found.  A load-time error is the same message.
+
+    The subset claim needs every guard to evaluate: ``--events first``
+    evaluates the guards in source order and stops at the first that holds
+    (the paper's EVENT SELECT: "if C evaluates to false, this block rewrites
+    to Es"), ``--events any`` evaluates them all and an error in any of them
+    gets the agent stuck (docs/language.md §9), so where a later guard fails
+    the first event runs under ``first`` and not under ``any`` (seed 1800212,
+    2026-12-07).  When the truth has an agent stuck at a guard's line
+    (``guards``), the subset claim is not made."""
     if out.status == "crash":
         return out.detail
     if truth.status == "error" or out.status == "error":
@@ -555,7 +571,8 @@ def inclusion_difference(truth: Outcome, out: Outcome, kind: str) -> Optional[st
         return f"{out.status}: {out.detail} vs truth {truth.status}: {truth.detail}"
     mine = {v for v in out.violations if v[0] in SAFETY_KINDS}
     theirs = {v for v in truth.violations if v[0] in SAFETY_KINDS}
-    if kind == "subset" and truth.complete and not mine <= theirs:
+    guard_error = any(v[0] == "stuck" and len(v) > 2 and v[2] in guards for v in truth.violations)
+    if kind == "subset" and truth.complete and not guard_error and not mine <= theirs:
         return (f"finds {sorted(mine - theirs, key=str)}, which the complete truth "
                 f"(a superset of its states) does not")
     if kind == "superset" and out.complete and not theirs <= mine:
