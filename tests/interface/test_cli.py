@@ -421,7 +421,10 @@ def test_ctrl_c_stops_cleanly_with_statistics_and_an_interrupted_verdict(workers
         [sys.executable, "-m", "pccl.cli", "explore", str(FISCHER), "--agents", "3",
          "--set", "k=2", "--reduce", "merge,symmetry,por", "--progress", "--progress-interval", "0.2",
          "--workers", workers],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # a runner that ignores SIGINT (a background job without job control)
+        # passes that on, and Python keeps it ignored: Ctrl-C as a terminal sends it
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     seen = []
     deadline = time.monotonic() + 120
     while not any("frontier" in line for line in seen):
