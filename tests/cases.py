@@ -448,3 +448,37 @@ def programs(draw):
         text += f"\nE{e}():\n  pre({guard});\n  eff:\n" + "".join(body)
     invariants = draw(hs.lists(bool_expr(shared, 1), max_size=2))
     return text, invariants
+
+
+#: a Koord robot's event `use` reads the local `v` that setA or (a round
+#: later, after detour) setB wrote; the guards read `c` alone, so only the
+#: event body keeps `v` alive at the top of the block, and only v = 2 fails
+#: the assertion (tests/model/test_koord_dead.py, the oracle's Koord dead tooth)
+KOORD_LATE_READ = """local:
+  int c = 0
+  int v = 0
+
+setA:
+  pre: c == 0
+  eff:
+    v = 1
+    c = 1
+
+detour:
+  pre: c == 0
+  eff:
+    c = 5
+
+setB:
+  pre: c == 5
+  eff:
+    v = 2
+    c = 1
+
+use:
+  pre: c == 1
+  eff:
+    assert(v != 2)
+    c = 2
+    stop
+"""

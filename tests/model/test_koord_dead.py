@@ -14,40 +14,15 @@ from pccl.api import explore, make_model
 from pccl.lang.errors import PcclError
 from pccl.lang.koord import parse_koord
 
+from cases import KOORD_LATE_READ
+
 ROOT = Path(__file__).resolve().parents[2]
 K = ROOT / "programs" / "koord"
 
 #: a local written by one event and read by the next event one round later:
 #: live at the top of the block only through the event body (the guards
 #: read `c` alone); only v = 2 fails the assertion
-LATE_READ = """local:
-  int c = 0
-  int v = 0
-
-setA:
-  pre: c == 0
-  eff:
-    v = 1
-    c = 1
-
-detour:
-  pre: c == 0
-  eff:
-    c = 5
-
-setB:
-  pre: c == 5
-  eff:
-    v = 2
-    c = 1
-
-use:
-  pre: c == 1
-  eff:
-    assert(v != 2)
-    c = 2
-    stop
-"""
+LATE_READ = KOORD_LATE_READ
 
 
 def _verdict(r):

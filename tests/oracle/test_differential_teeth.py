@@ -26,6 +26,7 @@ import types
 import pytest
 
 import symattack
+from cases import KOORD_LATE_READ
 from cases import HOLE6_DEFAULT, HOLE6_MERGE_POR
 from differential import gen, oracle
 
@@ -303,34 +304,7 @@ def test_j_counter_saturation_with_a_cap_too_low(monkeypatch):
 #: body keeps `v` alive at the top of the block.  Breadth-first, v = 1
 #: (setA) is met before v = 2 (detour, setB): merged, the assertion that
 #: only v = 2 fails is missed
-LATE_READ = """local:
-  int c = 0
-  int v = 0
-
-setA:
-  pre: c == 0
-  eff:
-    v = 1
-    c = 1
-
-detour:
-  pre: c == 0
-  eff:
-    c = 5
-
-setB:
-  pre: c == 5
-  eff:
-    v = 2
-    c = 1
-
-use:
-  pre: c == 1
-  eff:
-    assert(v != 2)
-    c = 2
-    stop
-"""
+LATE_READ = KOORD_LATE_READ
 
 
 def _koord_dead_guards_only(monkeypatch):
