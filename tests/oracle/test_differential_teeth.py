@@ -26,8 +26,7 @@ import types
 import pytest
 
 import symattack
-from cases import KOORD_LATE_READ
-from cases import HOLE6_DEFAULT, HOLE6_MERGE_POR
+from cases import HOLE6_DEFAULT, HOLE6_MERGE_POR, KOORD_LATE_READ
 from differential import gen, oracle
 
 from pccl.lang import scalarset as SS
